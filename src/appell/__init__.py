@@ -1,0 +1,37 @@
+"""appell — reactions and controls of constrained mechanical systems by Do Shan's method.
+
+Pipeline: :class:`System` -> :func:`derive` -> :class:`Derivation` (reduced equations
+(1.4), reaction formulas (1.5), numeric functions) -> :func:`cross_check`.
+"""
+
+from .crosscheck import CrossCheckReport, augmented_solve, cross_check
+from .derive import derive
+from .equations import Derivation, ReactionFormulas, ReducedEquations
+from .errors import AppellError, ComputationError, ModelError
+from .model import (
+    AppliedForce,
+    AppliedTorque,
+    Constraint,
+    Control,
+    FirstIntegral,
+    Parameter,
+    Particle,
+    Program,
+    RigidBody,
+    System,
+    acceleration_constraint,
+    holonomic,
+    nonholonomic,
+)
+from .numeric import NumericModel, StateSolution
+from .symbols import derivative_symbol, t
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "AppellError", "AppliedForce", "AppliedTorque", "ComputationError", "Constraint", "Control",
+    "CrossCheckReport", "Derivation", "FirstIntegral", "ModelError", "NumericModel", "Parameter", "Particle",
+    "Program", "ReactionFormulas", "ReducedEquations", "RigidBody", "StateSolution", "System",
+    "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
+    "nonholonomic", "t",
+]

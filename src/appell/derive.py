@@ -1,0 +1,49 @@
+"""The pipeline, in the order of the method (method.md §1–3).
+
+``derive`` is the table of contents of appell::
+
+    system
+      -> validate                      every symbol declared          (validation)
+      -> kinematics                    d/dt along the motion          (kinematics, §1)
+      -> inertia blocks  M, h, Q       dS/da = M a + h                (energy, §1)
+      -> constraint blocks  J, c       f = J a + c                    (constraints, §2)
+      -> partition  a_nu | a_h         condition (1.2)                (partition, §3)
+      => Derivation  .reduced (1.4)  .reactions (1.5)  .numeric       (equations, numeric)
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import sympy as sp
+
+from .constraints import second_order_blocks
+from .energy import inertia_blocks
+from .equations import Derivation
+from .kinematics import kinematics_of
+from .model import System
+from .partition import choose_partition
+from .validation import validate
+
+
+def derive(system: System, dependent: Sequence | None = None) -> Derivation:
+    """Derive the reduced equations (1.4) and the reaction formulas (1.5) of ``system``.
+
+    Parameters
+    ----------
+    system : the constrained system.
+    dependent : optional choice of dependent accelerations (symbols, names or indices);
+        by default a partition satisfying condition (1.2) is chosen automatically.
+
+    Returns
+    -------
+    Derivation
+        with the blocks ``inertia`` (M, h, Q), ``constraints`` (J, c), the ``partition``
+        and, on access, ``reduced``, ``reactions`` and ``numeric``.
+    """
+    validate(system)
+    kin = kinematics_of(system)
+    inertia = inertia_blocks(system, kin)
+    cons = second_order_blocks(system.constraints, kin)
+    partition = choose_partition(sp.Matrix(cons.jacobian), cons.names, kin.accelerations, dependent)
+    return Derivation(system, kin, inertia, cons, partition)

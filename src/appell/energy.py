@@ -1,0 +1,123 @@
+"""Stage 2 — acceleration energy and generalized forces (method.md §1).
+
+The left-hand side of (1.3) is kept in block form
+
+.. math::  E(t,q,w,a) = \\frac{\\partial S}{\\partial a} - Q = M(t,q)\\,a + h(t,q,w) - Q(t,q,w),
+
+never as one large expression for ``S``. Three sources add up:
+
+* kinetic energy ``T(t,q,\\dot q)``: ``\\partial S/\\partial \\ddot q = d/dt\\,\\partial T/\\partial\\dot q - \\partial T/\\partial q``;
+* the acceleration energy ``S`` itself: ``M = \\partial^2 S/\\partial a^2``, ``h = \\partial S/\\partial a|_{a=0}``;
+* bodies: with ``v = J_v w + ...`` and ``\\omega = J_\\omega w + ...``,
+  ``M = \\sum m J_v^T J_v + J_\\omega^T I J_\\omega`` and
+  ``h = \\sum m J_v^T b_v + J_\\omega^T (I b_\\omega + \\omega \\times I\\omega)`` where
+  ``b`` are the acceleration terms free of ``a``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .errors import ModelError
+from .kinematics import Kinematics
+from .model import AppliedForce, AppliedTorque, RigidBody, System
+
+
+@dataclass(frozen=True)
+class InertiaBlocks:
+    """``dS/da = M a + h`` (method.md §3) and the generalized forces ``Q``."""
+
+    mass_matrix: sp.ImmutableMatrix
+    inertial_forces: sp.ImmutableMatrix  # h(t, q, w)
+    generalized_forces: sp.ImmutableMatrix  # Q(t, q, w)
+
+    def residual(self, a) -> sp.Matrix:
+        """``E = M a + h - Q`` (the left side of 1.3 without multipliers)."""
+        return self.mass_matrix * sp.Matrix(a) + self.inertial_forces - self.generalized_forces
+
+
+def linear_split(vector: sp.Matrix, unknowns) -> tuple[sp.Matrix, sp.Matrix]:
+    """Split ``vector = A x + b`` for ``x = unknowns``; ``A = d vector / d x``, ``b`` at x = 0."""
+    x = sp.Matrix(unknowns)
+    A = vector.jacobian(x) if len(x) else sp.zeros(vector.shape[0], 0)
+    b = vector.subs({s: 0 for s in x}) if len(x) else vector
+    return A, b
+
+
+def _velocity(body_position, body_velocity, kin: Kinematics) -> sp.Matrix:
+    return sp.Matrix(body_velocity) if body_velocity is not None else kin.diff(sp.Matrix(body_position))
+
+
+def _check_quadratic(M: sp.Matrix, a, what: str):
+    if any(e.has(*a) for e in M):
+        raise ModelError(
+            f"the {what} is not quadratic in the accelerations",
+            hint="appell needs S quadratic in the accelerations (any mechanical system is)",
+        )
+
+
+def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
+    """Mass matrix, inertial forces and generalized forces of ``system``."""
+    n = len(kin.speeds)
+    w = sp.Matrix(kin.speeds)
+    a = list(kin.accelerations)
+    M = sp.zeros(n, n)
+    h = sp.zeros(n, 1)
+
+    if system.kinetic_energy is not None:
+        if tuple(kin.coordinate_rates) != tuple(kin.speeds):
+            raise ModelError(
+                "kinetic_energy needs speeds equal to the coordinates' derivatives",
+                hint="with quasi-velocities describe the mechanics by bodies or by acceleration_energy",
+            )
+        T = system.kinetic_energy
+        p = sp.Matrix([T]).jacobian(w).T
+        A, b = linear_split(kin.diff(p), a)
+        M += A
+        h += b - sp.Matrix([T]).jacobian(sp.Matrix(kin.coordinates)).T
+
+    if system.acceleration_energy is not None:
+        dS = sp.Matrix([system.acceleration_energy]).jacobian(sp.Matrix(a)).T
+        A, b = linear_split(dS, a)
+        _check_quadratic(A, a, "acceleration energy S")
+        M += A
+        h += b
+
+    for body in system.bodies:
+        v = _velocity(body.position, body.velocity, kin)
+        Jv, _ = linear_split(v, kin.speeds)
+        _, bv = linear_split(kin.diff(v), a)
+        M += body.mass * Jv.T * Jv
+        h += body.mass * Jv.T * bv
+        if isinstance(body, RigidBody):
+            omega = sp.Matrix(body.angular_velocity)
+            I = sp.Matrix(body.inertia)
+            Jw, _ = linear_split(omega, kin.speeds)
+            _, bw = linear_split(kin.diff(omega), a)
+            M += Jw.T * I * Jw
+            h += Jw.T * (I * bw + omega.cross(I * omega))
+
+    Q = generalized_forces(system, kin)
+    return InertiaBlocks(sp.ImmutableMatrix(M), sp.ImmutableMatrix(h), sp.ImmutableMatrix(Q))
+
+
+def generalized_forces(system: System, kin: Kinematics) -> sp.Matrix:
+    """``Q = Q_given - (dV/dq) K + sum (dv_P/dw)^T F + sum (d omega/dw)^T tau``."""
+    n = len(kin.speeds)
+    Q = sp.Matrix(system.generalized_forces) if system.generalized_forces is not None else sp.zeros(n, 1)
+    V = system.potential_energy
+    if V != 0 and kin.coordinates:
+        Q -= (sp.Matrix([V]).jacobian(sp.Matrix(kin.coordinates)) * kin.K).T
+    for load in system.loads:
+        if isinstance(load, AppliedForce):
+            v = _velocity(load.position, load.velocity, kin)
+            Jv, _ = linear_split(v, kin.speeds)
+            Q += Jv.T * sp.Matrix(load.vector)
+        elif isinstance(load, AppliedTorque):
+            Jw, _ = linear_split(sp.Matrix(load.angular_velocity), kin.speeds)
+            Q += Jw.T * sp.Matrix(load.vector)
+        else:
+            raise ModelError(f"unknown load {load!r}; use AppliedForce or AppliedTorque")
+    return Q

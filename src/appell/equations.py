@@ -1,0 +1,206 @@
+"""Stages 5 and 6 — reduced equations of motion (1.4) and reaction formulas (1.5).
+
+With the partition ``a = (a_nu, a_h)`` and ``X = J_h^{-1} J_nu``, the admissible
+virtual accelerations are spanned by the columns of ``C = [I_p; -X]`` (method.md §3):
+
+.. math::
+    C^T E = 0 \\quad (1.4), \\qquad \\lambda = J_h^{-T} E_h \\quad (1.5),
+    \\qquad R = J^T \\lambda,
+
+with ``E = M a + h - Q``. For constraints linear in ``a`` the dependent accelerations
+are eliminated, ``a = C a_nu + d`` with ``d_h = -J_h^{-1} c``, which gives the reduced
+system ``(C^T M C) a_nu = -C^T (M d + h - Q)``.
+
+The inverse of ``J_h`` is formed symbolically only as ``adj(J_h) / det(J_h)`` of the
+small s x s block; nothing larger is ever inverted, and no blanket ``simplify`` runs on
+large expressions (:func:`tidy` touches small ones only).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import sympy as sp
+
+from .constraints import ConstraintBlocks
+from .energy import InertiaBlocks
+from .partition import Partition
+
+#: expressions with fewer operations than this are simplified for display
+TIDY_OPS = 80
+
+
+def tidy(expr):
+    """Simplify small expressions only; large ones are returned as they are."""
+    if isinstance(expr, sp.MatrixBase):
+        return sp.ImmutableMatrix(expr.shape[0], expr.shape[1], [tidy(e) for e in expr])
+    if sp.count_ops(expr) <= TIDY_OPS:
+        return sp.simplify(expr)
+    return expr
+
+
+def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
+    """``J_h^{-1}`` of the small dependent block, as adjugate over determinant."""
+    if Jh.shape == (1, 1):
+        return sp.Matrix([[1 / Jh[0, 0]]])
+    det = sp.factor_terms(Jh.det(method="berkowitz"))
+    return Jh.adjugate() / det
+
+
+@dataclass(frozen=True)
+class ReducedEquations:
+    """The equations of motion of the reduced system, eq. (1.4), free of multipliers.
+
+    Attributes
+    ----------
+    independent, dependent : acceleration symbols a_nu and a_h.
+    projector : ``C = da/da_nu`` (n x p), columns spanning the admissible accelerations.
+    equations : ``C^T E`` (p expressions in t, q, w, a), each ``= 0`` on the motion.
+    """
+
+    independent: tuple[sp.Symbol, ...]
+    dependent: tuple[sp.Symbol, ...]
+    projector: sp.ImmutableMatrix
+    equations: sp.ImmutableMatrix
+    dependent_solution: sp.ImmutableMatrix | None  # a_h(t,q,w,a_nu) for linear constraints
+    mass_matrix: sp.ImmutableMatrix | None  # C^T M C
+    forcing: sp.ImmutableMatrix | None  # right side: mass_matrix a_nu = forcing
+
+
+@dataclass(frozen=True)
+class ReactionFormulas:
+    """One explicit formula per constraint multiplier, eq. (1.5).
+
+    ``multipliers[alpha] = sum_h E_h (J_h^{-1})_{h alpha}`` depends on (t, q, w, a); along
+    the motion the accelerations are those of (1.4). ``generalized = J^T lambda`` are the
+    generalized reaction forces ``R_i = sum_alpha lambda_alpha df_alpha/da_i``.
+    """
+
+    names: tuple[str, ...]
+    multipliers: sp.ImmutableMatrix
+    generalized: sp.ImmutableMatrix
+
+    def as_dict(self) -> dict[str, sp.Expr]:
+        return dict(zip(self.names, self.multipliers))
+
+
+def admissible_basis(J: sp.Matrix, partition: Partition) -> tuple[sp.Matrix, sp.Matrix]:
+    """``C`` (n x p) and ``J_h^{-1}`` for a partition (symbolic)."""
+    n = J.shape[1]
+    Jh = J[:, list(partition.dependent)]
+    Jnu = J[:, list(partition.independent)]
+    Jh_inv = block_inverse(Jh)
+    X = Jh_inv * Jnu
+    C = sp.zeros(n, len(partition.independent))
+    for col, i in enumerate(partition.independent):
+        C[i, col] = 1
+    for row, h in enumerate(partition.dependent):
+        for col in range(len(partition.independent)):
+            C[h, col] = -X[row, col]
+    return C, Jh_inv
+
+
+def reduced_equations(inertia: InertiaBlocks, cons: ConstraintBlocks, partition: Partition,
+                      accelerations) -> ReducedEquations:
+    """Equations (1.4): ``C^T (M a + h - Q) = 0``; eliminated form for linear constraints."""
+    a = sp.Matrix(accelerations)
+    C, Jh_inv = admissible_basis(sp.Matrix(cons.jacobian), partition)
+    E = inertia.residual(a)
+    eqs = C.T * E
+    dep_sol = mass = forcing = None
+    if cons.linear:
+        n = len(accelerations)
+        d = sp.zeros(n, 1)
+        dh = -Jh_inv * sp.Matrix(cons.bias)
+        for row, h in enumerate(partition.dependent):
+            d[h] = dh[row]
+        a_nu = sp.Matrix([accelerations[i] for i in partition.independent])
+        a_full = C * a_nu + d
+        dep_sol = sp.Matrix([a_full[h] for h in partition.dependent])
+        mass = C.T * sp.Matrix(inertia.mass_matrix) * C
+        forcing = -C.T * (sp.Matrix(inertia.mass_matrix) * d + inertia.inertial_forces - inertia.generalized_forces)
+    return ReducedEquations(
+        independent=tuple(accelerations[i] for i in partition.independent),
+        dependent=tuple(accelerations[i] for i in partition.dependent),
+        projector=sp.ImmutableMatrix(C),
+        equations=sp.ImmutableMatrix(eqs),
+        dependent_solution=None if dep_sol is None else sp.ImmutableMatrix(dep_sol),
+        mass_matrix=None if mass is None else sp.ImmutableMatrix(mass),
+        forcing=None if forcing is None else sp.ImmutableMatrix(forcing),
+    )
+
+
+def reaction_formulas(inertia: InertiaBlocks, cons: ConstraintBlocks, partition: Partition,
+                      accelerations) -> ReactionFormulas:
+    """Equations (1.5): ``lambda = J_h^{-T} E_h`` and ``R = J^T lambda``."""
+    a = sp.Matrix(accelerations)
+    J = sp.Matrix(cons.jacobian)
+    Jh_inv = block_inverse(J[:, list(partition.dependent)])
+    E = inertia.residual(a)
+    Eh = sp.Matrix([E[h] for h in partition.dependent])
+    lam = Jh_inv.T * Eh
+    return ReactionFormulas(cons.names, sp.ImmutableMatrix(lam), sp.ImmutableMatrix(J.T * lam))
+
+
+@dataclass(frozen=True)
+class Derivation:
+    """Everything derived from a :class:`~appell.model.System`, block by block.
+
+    Built by :func:`appell.derive`. The closed-form equations are computed on first
+    access: ``reduced`` (1.4) and ``reactions`` (1.5).
+    """
+
+    system: object
+    kinematics: object
+    inertia: InertiaBlocks
+    constraints: ConstraintBlocks
+    partition: Partition
+
+    @property
+    def accelerations(self) -> tuple[sp.Symbol, ...]:
+        return self.kinematics.accelerations
+
+    @cached_property
+    def reduced(self) -> ReducedEquations:
+        """Reduced equations of motion, eq. (1.4)."""
+        return reduced_equations(self.inertia, self.constraints, self.partition, self.accelerations)
+
+    @cached_property
+    def reactions(self) -> ReactionFormulas:
+        """Multiplier formulas, eq. (1.5)."""
+        return reaction_formulas(self.inertia, self.constraints, self.partition, self.accelerations)
+
+    @cached_property
+    def numeric(self):
+        """Compiled numeric functions (:class:`appell.numeric.NumericModel`)."""
+        from .numeric import compile_model
+
+        return compile_model(self)
+
+    def with_partition(self, dependent) -> "Derivation":
+        """The same derivation with another choice of dependent accelerations (checked)."""
+        from .partition import choose_partition
+
+        p = choose_partition(sp.Matrix(self.constraints.jacobian), self.constraints.names,
+                             self.accelerations, dependent)
+        return Derivation(self.system, self.kinematics, self.inertia, self.constraints, p)
+
+    # display helpers live in appell.printing
+    def to_text(self) -> str:
+        from .printing import derivation_text
+
+        return derivation_text(self)
+
+    def to_latex(self) -> str:
+        from .printing import derivation_latex
+
+        return derivation_latex(self)
+
+    def to_json(self) -> dict:
+        from .printing import derivation_json
+
+        return derivation_json(self)
+
+    def _repr_latex_(self) -> str:
+        return "$\\displaystyle " + self.to_latex().replace("\n", " ") + "$"

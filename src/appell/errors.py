@@ -1,0 +1,44 @@
+"""Errors raised by appell.
+
+Two families, matching the command line's exit codes:
+
+* :class:`ModelError` (exit code 2) — the input is wrong: an undeclared symbol, a
+  constraint without speeds, a singular partition, inconsistent initial values.
+  The message names the culprit and says what to do.
+* :class:`ComputationError` (exit code 1) — the input is acceptable but the computation
+  failed: Newton's method did not converge, the integrator stopped.
+"""
+
+from __future__ import annotations
+
+
+class AppellError(Exception):
+    """Base class of every error appell raises on purpose."""
+
+    exit_code = 1
+
+    def __init__(self, message: str, *, where: str | None = None, hint: str | None = None):
+        self.message = message
+        self.where = where
+        self.hint = hint
+        super().__init__(self.__str__())
+
+    def __str__(self) -> str:
+        text = self.message
+        if self.where:
+            text = f"{self.where}: {text}"
+        if self.hint:
+            text = f"{text}\n  hint: {self.hint}"
+        return text
+
+
+class ModelError(AppellError):
+    """The model (or a value given with it) is invalid; exit code 2."""
+
+    exit_code = 2
+
+
+class ComputationError(AppellError):
+    """A numeric or symbolic computation failed on a valid model; exit code 1."""
+
+    exit_code = 1

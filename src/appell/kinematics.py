@@ -1,0 +1,107 @@
+"""Stage 1 — kinematics: the total time derivative along the motion (method.md §1).
+
+For an expression ``e(t, q, w, a, ...)`` the derivative along the motion is
+
+.. math::
+    \\dot e = \\partial_t e + \\frac{\\partial e}{\\partial q}(K w + k)
+            + \\sum_j \\frac{\\partial e}{\\partial w^{(m)}_j} w^{(m+1)}_j
+            + \\sum_g \\frac{\\partial e}{\\partial g^{(m)}} g^{(m+1)},
+
+where ``g`` runs over programs (given functions of time) and kinematic controls, whose
+derivatives are new symbols ``g_dot, g_ddot, ...``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .errors import ModelError
+from .model import System
+from .symbols import derivative_symbol, split_derivative_name, t
+
+
+@dataclass(frozen=True)
+class Kinematics:
+    """Time derivative operator of a system.
+
+    Attributes
+    ----------
+    coordinates, speeds, accelerations : tuples of symbols q, w, a.
+    coordinate_rates : ``dq/dt`` as expressions in (t, q, w) (the kinematic relations).
+    K, k : the affine split ``dq/dt = K w + k``.
+    chains : base symbols (programs, kinematic controls) whose derivatives are symbols.
+    """
+
+    coordinates: tuple[sp.Symbol, ...]
+    speeds: tuple[sp.Symbol, ...]
+    accelerations: tuple[sp.Symbol, ...]
+    coordinate_rates: sp.ImmutableMatrix
+    K: sp.ImmutableMatrix
+    k: sp.ImmutableMatrix
+    chains: tuple[sp.Symbol, ...]
+
+    def successor(self, symbol: sp.Symbol) -> sp.Symbol | None:
+        """The time derivative of a symbol on a derivative chain (speeds, programs,
+        kinematic controls and their derivatives), or None for anything else."""
+        base, _ = split_derivative_name(symbol.name)
+        for root in self.speeds + self.chains:
+            rbase, rorder = split_derivative_name(root.name)
+            if base == rbase and split_derivative_name(symbol.name)[1] >= rorder:
+                return derivative_symbol(symbol)
+        return None
+
+    def diff(self, expr):
+        """Total time derivative of ``expr`` (scalar or matrix) along the motion."""
+        if isinstance(expr, sp.MatrixBase):
+            return sp.ImmutableMatrix(expr.shape[0], expr.shape[1], [self.diff(e) for e in expr])
+        expr = sp.sympify(expr)
+        free = expr.free_symbols
+        out = sp.diff(expr, t) if t in free else sp.S.Zero
+        for q, rate in zip(self.coordinates, self.coordinate_rates):
+            if q in free:
+                out += sp.diff(expr, q) * rate
+        for s in sorted(free - set(self.coordinates) - {t}, key=str):
+            nxt = self.successor(s)
+            if nxt is not None:
+                out += sp.diff(expr, s) * nxt
+        return out
+
+
+def kinematics_of(system: System) -> Kinematics:
+    """Build the :class:`Kinematics` of a system; checks that ``dq/dt`` is affine in w."""
+    q = system.coordinates
+    w = system.speeds
+    rates = dict(system.kinematics)
+    missing = [c for c in q if c not in rates]
+    if missing:
+        raise ModelError(
+            f"no kinematic relation for coordinate(s) {', '.join(map(str, missing))}",
+            hint="give dq/dt in terms of t, q and the speeds for every coordinate",
+        )
+    extra = [c for c in rates if c not in q]
+    if extra:
+        raise ModelError(f"kinematic relation given for unknown coordinate(s) {', '.join(map(str, extra))}")
+    rate_vec = sp.Matrix([rates[c] for c in q]) if q else sp.zeros(0, 1)
+    wv = sp.Matrix(w)
+    K = rate_vec.jacobian(wv) if q else sp.zeros(0, len(w))
+    if any(e.has(*w) for e in K):
+        bad = [str(c) for c, row in zip(q, K.tolist()) if any(e.has(*w) for e in row)]
+        raise ModelError(
+            f"kinematic relation of {', '.join(bad)} is not affine in the speeds",
+            hint="write dq/dt = K(t,q) w + k(t,q)",
+        )
+    kk = rate_vec.subs({s: 0 for s in w}) if q else sp.zeros(0, 1)
+    chains = tuple(p.symbol for p in system.programs) + tuple(
+        c.symbol for c in system.controls if c.kind == "kinematic"
+    )
+    return Kinematics(
+        coordinates=q,
+        speeds=w,
+        accelerations=system.accelerations,
+        coordinate_rates=sp.ImmutableMatrix(rate_vec),
+        K=sp.ImmutableMatrix(K),
+        k=sp.ImmutableMatrix(kk),
+        chains=chains,
+    )

@@ -1,0 +1,393 @@
+"""The description of a constrained mechanical system (method.md §1, §2, §4, §5).
+
+Everything here is a frozen dataclass holding SymPy expressions. A :class:`System` is
+what a user writes (in Python, or through a model file); the later stages
+(:mod:`appell.kinematics`, :mod:`appell.energy`, :mod:`appell.constraints`, ...) read it
+and never change it.
+
+Notation (method.md §1): coordinates ``q`` (n_q), speeds ``w`` (n), accelerations
+``a = dw/dt`` named ``<speed>_dot``; kinematic relations ``dq/dt = K(t,q) w + k(t,q)``.
+By default the speeds are the coordinates' derivatives ``<q>_dot`` and ``a`` is
+``<q>_ddot``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterable, Mapping
+
+import sympy as sp
+
+from .errors import ModelError
+from .symbols import as_symbols, derivative_symbol
+
+__all__ = [
+    "Parameter",
+    "Program",
+    "Particle",
+    "RigidBody",
+    "AppliedForce",
+    "AppliedTorque",
+    "Constraint",
+    "holonomic",
+    "nonholonomic",
+    "acceleration_constraint",
+    "Control",
+    "FirstIntegral",
+    "System",
+]
+
+
+def _expr(value, what: str) -> sp.Expr:
+    try:
+        return sp.sympify(value, strict=True) if not isinstance(value, sp.Basic) else value
+    except (sp.SympifyError, TypeError) as exc:
+        raise ModelError(f"{what} is not a symbolic expression: {value!r}") from exc
+
+
+def _vector(value, what: str, length: int | None = 3) -> sp.Matrix:
+    m = sp.Matrix(value) if not isinstance(value, sp.MatrixBase) else sp.Matrix(value)
+    if m.shape[1] != 1:
+        m = m.reshape(len(m), 1)
+    if length is not None and m.shape[0] != length:
+        raise ModelError(f"{what} must have {length} components, got {m.shape[0]}")
+    return sp.ImmutableMatrix(m)
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A constant of the model with a default value, e.g. mass ``M = 1200 kg``."""
+
+    symbol: sp.Symbol
+    value: float
+    unit: str | None = None
+    description: str | None = None
+
+
+@dataclass(frozen=True)
+class Program:
+    """A given function of time (a program), e.g. the steering angle ``theta(t)``.
+
+    In formulas it stays the symbol ``theta`` with derivatives ``theta_dot``, ...;
+    numeric code replaces them by ``expr`` and its time derivatives.
+    """
+
+    symbol: sp.Symbol
+    expr: sp.Expr
+
+    def derivative(self, order: int) -> sp.Expr:
+        """``d^order expr / dt^order``."""
+        from .symbols import t
+
+        return sp.diff(self.expr, t, order) if order else self.expr
+
+
+@dataclass(frozen=True)
+class Particle:
+    """A point mass. Give its ``position(t, q)`` or, with quasi-velocities, its
+    ``velocity(t, q, w)`` (3 components in an inertial frame)."""
+
+    name: str
+    mass: sp.Expr
+    position: sp.ImmutableMatrix | None = None
+    velocity: sp.ImmutableMatrix | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "mass", _expr(self.mass, f"mass of {self.name!r}"))
+        if self.position is None and self.velocity is None:
+            raise ModelError(f"body {self.name!r} needs a position or a velocity")
+        if self.position is not None:
+            object.__setattr__(self, "position", _vector(self.position, f"position of {self.name!r}"))
+        if self.velocity is not None:
+            object.__setattr__(self, "velocity", _vector(self.velocity, f"velocity of {self.name!r}"))
+
+
+@dataclass(frozen=True)
+class RigidBody(Particle):
+    """A rigid body: a :class:`Particle` at its mass centre plus rotation.
+
+    ``angular_velocity`` and ``inertia`` (about the mass centre) are components in one
+    body-fixed frame, so that the inertia tensor is constant there. The rotational part of
+    the acceleration energy is ``1/2 w'.I w' + w'.(w x I w)`` (method.md §1).
+    """
+
+    inertia: sp.ImmutableMatrix = field(default_factory=lambda: sp.ImmutableMatrix.zeros(3, 3))
+    angular_velocity: sp.ImmutableMatrix = field(default_factory=lambda: sp.ImmutableMatrix.zeros(3, 1))
+
+    def __post_init__(self):
+        super().__post_init__()
+        inertia = sp.Matrix(self.inertia)
+        if inertia.shape == (3, 1) or inertia.shape == (1, 3):
+            inertia = sp.diag(*inertia)
+        if inertia.shape != (3, 3):
+            raise ModelError(f"inertia of {self.name!r} must be 3x3 or its 3 principal moments")
+        object.__setattr__(self, "inertia", sp.ImmutableMatrix(inertia))
+        object.__setattr__(
+            self, "angular_velocity", _vector(self.angular_velocity, f"angular velocity of {self.name!r}")
+        )
+
+
+@dataclass(frozen=True)
+class AppliedForce:
+    """A force ``vector`` applied at a point given by ``position(t,q)`` or ``velocity(t,q,w)``.
+
+    Its generalized force is ``Q = (dv/dw)^T F``.
+    """
+
+    vector: sp.ImmutableMatrix
+    position: sp.ImmutableMatrix | None = None
+    velocity: sp.ImmutableMatrix | None = None
+    name: str = "force"
+
+    def __post_init__(self):
+        object.__setattr__(self, "vector", _vector(self.vector, f"force {self.name!r}"))
+        if self.position is None and self.velocity is None:
+            raise ModelError(f"force {self.name!r} needs the position or velocity of its point")
+        if self.position is not None:
+            object.__setattr__(self, "position", _vector(self.position, f"point of force {self.name!r}"))
+        if self.velocity is not None:
+            object.__setattr__(self, "velocity", _vector(self.velocity, f"point of force {self.name!r}"))
+
+
+@dataclass(frozen=True)
+class AppliedTorque:
+    """A torque ``vector`` on a body of angular velocity ``angular_velocity`` (same frame).
+
+    Its generalized force is ``Q = (d omega/dw)^T tau``.
+    """
+
+    vector: sp.ImmutableMatrix
+    angular_velocity: sp.ImmutableMatrix
+    name: str = "torque"
+
+    def __post_init__(self):
+        object.__setattr__(self, "vector", _vector(self.vector, f"torque {self.name!r}"))
+        object.__setattr__(
+            self, "angular_velocity", _vector(self.angular_velocity, f"torque {self.name!r}")
+        )
+
+
+#: constraint orders: holonomic F(t,q)=0, first order phi(t,q,w)=0, second order f(t,q,w,a)=0
+ORDERS = {0: "holonomic", 1: "first-order", 2: "second-order"}
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """A named ideal constraint ``expr = 0`` of the given ``order`` (method.md §2).
+
+    ``order`` 0: holonomic ``F(t,q)``; 1: ``phi(t,q,w)`` (linear or not in w);
+    2: ``f(t,q,w,a)`` (linear or not in a). The name labels the multiplier
+    ``lambda_<name>``; its sign follows the way ``expr`` is written (method.md §2).
+    ``where`` optionally records the origin (file and line) for error messages.
+    """
+
+    name: str
+    expr: sp.Expr
+    order: int
+    where: str | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ModelError(f"constraint name {self.name!r} must be an identifier", where=self.where)
+        if self.order not in ORDERS:
+            raise ModelError(f"constraint {self.name!r}: order must be 0, 1 or 2", where=self.where)
+        object.__setattr__(self, "expr", _expr(self.expr, f"constraint {self.name!r}"))
+
+    @property
+    def kind(self) -> str:
+        return ORDERS[self.order]
+
+
+def holonomic(name: str, expr, where: str | None = None) -> Constraint:
+    """Holonomic constraint ``F(t, q) = 0``."""
+    return Constraint(name, expr, 0, where)
+
+
+def nonholonomic(name: str, expr, where: str | None = None) -> Constraint:
+    """First-order constraint ``phi(t, q, w) = 0`` (reaction direction dphi/dw)."""
+    return Constraint(name, expr, 1, where)
+
+
+def acceleration_constraint(name: str, expr, where: str | None = None) -> Constraint:
+    """Second-order constraint ``f(t, q, w, a) = 0`` (reaction direction df/da)."""
+    return Constraint(name, expr, 2, where)
+
+
+@dataclass(frozen=True)
+class Control:
+    """A control parameter (method.md §4).
+
+    ``kind='kinematic'``: ``symbol`` is a driven coordinate (e.g. plate position ``u``);
+    ``u``, ``u_dot`` are part of the state and ``u_ddot`` is the unknown.
+    ``kind='force'``: ``symbol`` is an actuator force/torque entering the generalized forces.
+    """
+
+    symbol: sp.Symbol
+    kind: str = "force"
+
+    def __post_init__(self):
+        if self.kind not in ("kinematic", "force"):
+            raise ModelError(f"control {self.symbol}: kind must be 'kinematic' or 'force'")
+
+    @property
+    def name(self) -> str:
+        return self.symbol.name
+
+    @property
+    def unknown(self) -> sp.Symbol:
+        """The quantity solved for: ``u_ddot`` (kinematic) or the force symbol."""
+        return derivative_symbol(self.symbol, 2) if self.kind == "kinematic" else self.symbol
+
+
+@dataclass(frozen=True)
+class FirstIntegral:
+    """A candidate first integral ``expr(t, q, w) = value`` (method.md §5)."""
+
+    name: str
+    expr: sp.Expr
+    value: float | None = None
+
+
+def _tuple(items, kind) -> tuple:
+    if items is None:
+        return ()
+    if isinstance(items, Mapping):
+        return tuple(kind(k, v) for k, v in items.items())
+    return tuple(items)
+
+
+@dataclass(frozen=True)
+class System:
+    """A constrained mechanical system (the input of :func:`appell.derive`).
+
+    Parameters
+    ----------
+    coordinates : generalized coordinates q (symbols or a space-separated string).
+    speeds : speeds w; default ``<q>_dot`` for each coordinate.
+    kinematics : ``{q_i: dq_i/dt as an expression in t, q, w}``; default ``q_i_dot``.
+        Must be affine in the speeds: ``dq/dt = K(t,q) w + k(t,q)``.
+    parameters : ``{symbol: value}`` or :class:`Parameter` items.
+    programs : ``{symbol: expression in t}`` — given functions of time.
+    kinetic_energy : ``T(t, q, w)`` with ``w = dq/dt`` (true coordinates).
+    acceleration_energy : the Gibbs–Appell function ``S(t, q, w, a)``.
+    bodies : :class:`Particle` and :class:`RigidBody` items.
+    potential_energy : ``V(t, q)``; contributes ``-dV/dq K`` to Q.
+    generalized_forces : ``Q`` conjugate to w (n expressions).
+    loads : :class:`AppliedForce` / :class:`AppliedTorque` items.
+    constraints : :class:`Constraint` items (names must be unique).
+    controls, servo_constraints : method.md §4.
+    first_integrals : method.md §5.
+    initial : initial values ``{name or symbol: value}`` of coordinates and speeds.
+    """
+
+    coordinates: tuple[sp.Symbol, ...]
+    speeds: tuple[sp.Symbol, ...] | None = None
+    kinematics: tuple[tuple[sp.Symbol, sp.Expr], ...] | None = None
+    parameters: tuple[Parameter, ...] = ()
+    programs: tuple[Program, ...] = ()
+    kinetic_energy: sp.Expr | None = None
+    acceleration_energy: sp.Expr | None = None
+    bodies: tuple[Particle, ...] = ()
+    potential_energy: sp.Expr = sp.S.Zero
+    generalized_forces: tuple[sp.Expr, ...] | None = None
+    loads: tuple = ()
+    constraints: tuple[Constraint, ...] = ()
+    controls: tuple[Control, ...] = ()
+    servo_constraints: tuple[Constraint, ...] = ()
+    first_integrals: tuple[FirstIntegral, ...] = ()
+    initial: tuple[tuple[str, float], ...] = ()
+    name: str = "system"
+    description: str = ""
+
+    def __post_init__(self):
+        s = object.__setattr__
+        s(self, "coordinates", as_symbols(self.coordinates))
+        if self.speeds is None:
+            s(self, "speeds", tuple(derivative_symbol(q) for q in self.coordinates))
+        else:
+            s(self, "speeds", as_symbols(self.speeds))
+        if self.kinematics is None:
+            if len(self.speeds) != len(self.coordinates) or any(
+                w != derivative_symbol(q) for q, w in zip(self.coordinates, self.speeds)
+            ):
+                raise ModelError(
+                    "speeds differ from the coordinates' derivatives but no kinematic relations were given",
+                    hint="pass kinematics={q: dq/dt expressed in t, q and the speeds} for every coordinate",
+                )
+            s(self, "kinematics", tuple((q, w) for q, w in zip(self.coordinates, self.speeds)))
+        else:
+            kin = self.kinematics.items() if isinstance(self.kinematics, Mapping) else self.kinematics
+            s(self, "kinematics", tuple((sp.Symbol(str(q)), _expr(e, f"kinematic relation of {q}")) for q, e in kin))
+        s(self, "parameters", _tuple(self.parameters, lambda k, v: Parameter(sp.Symbol(str(k)), float(v))))
+        s(self, "programs", _tuple(self.programs, lambda k, v: Program(sp.Symbol(str(k)), _expr(v, f"program {k}"))))
+        for attr in ("kinetic_energy", "acceleration_energy"):
+            value = getattr(self, attr)
+            if value is not None:
+                s(self, attr, _expr(value, attr.replace("_", " ")))
+        s(self, "potential_energy", _expr(self.potential_energy, "potential energy"))
+        s(self, "bodies", tuple(self.bodies))
+        s(self, "loads", tuple(self.loads))
+        if self.generalized_forces is not None:
+            q = tuple(_expr(e, "generalized force") for e in self.generalized_forces)
+            if len(q) != len(self.speeds):
+                raise ModelError(
+                    f"{len(q)} generalized forces given for {len(self.speeds)} speeds",
+                    hint="give one generalized force per speed, in the order of the speeds",
+                )
+            s(self, "generalized_forces", q)
+        s(self, "constraints", tuple(self.constraints))
+        s(self, "controls", _tuple(self.controls, lambda k, v: Control(sp.Symbol(str(k)), v)))
+        s(self, "servo_constraints", tuple(self.servo_constraints))
+        s(self, "first_integrals", tuple(self.first_integrals))
+        init = self.initial.items() if isinstance(self.initial, Mapping) else self.initial
+        s(self, "initial", tuple((str(k), float(v)) for k, v in init))
+        if self.kinetic_energy is None and self.acceleration_energy is None and not self.bodies:
+            raise ModelError(
+                f"system {self.name!r} has no mechanics",
+                hint="give kinetic_energy, acceleration_energy or bodies",
+            )
+        names = [c.name for c in self.constraints + self.servo_constraints]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ModelError(f"constraint names must be unique; repeated: {', '.join(dup)}")
+
+    # ------------------------------------------------------------------ views
+    @property
+    def accelerations(self) -> tuple[sp.Symbol, ...]:
+        """``a = dw/dt``, named ``<speed>_dot``."""
+        return tuple(derivative_symbol(w) for w in self.speeds)
+
+    @property
+    def parameter_values(self) -> dict[sp.Symbol, float]:
+        return {p.symbol: p.value for p in self.parameters}
+
+    @property
+    def initial_values(self) -> dict[str, float]:
+        return dict(self.initial)
+
+    def replace(self, **changes) -> "System":
+        """A copy with some fields changed (the original is untouched)."""
+        from dataclasses import replace
+
+        return replace(self, **changes)
+
+    def with_parameters(self, values: Mapping) -> "System":
+        """A copy with new default parameter values ``{name: value}``."""
+        values = {str(k): float(v) for k, v in values.items()}
+        unknown = set(values) - {p.symbol.name for p in self.parameters}
+        if unknown:
+            raise ModelError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
+        params = tuple(
+            Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description)
+            for p in self.parameters
+        )
+        return self.replace(parameters=params)
+
+
+def symbols_of(items: Iterable[sp.Basic]) -> set[sp.Symbol]:
+    """Free symbols of several expressions or matrices."""
+    out: set[sp.Symbol] = set()
+    for item in items:
+        if item is not None:
+            out |= item.free_symbols
+    return out

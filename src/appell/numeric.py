@@ -1,0 +1,298 @@
+"""Stage 7 — numeric code and the split solve at a state (method.md §3, matrix form).
+
+The symbolic blocks are compiled once (SymPy ``lambdify`` with common-subexpression
+elimination; programs replaced by their expressions in t). At a state (t, q, w):
+
+1. evaluate ``M``, ``h - Q``, ``J``, ``c``;
+2. with the dependent block ``J_h`` (switched by pivoted QR if it turned singular),
+   ``X = J_h^{-1} J_nu``, ``C = [I; -X]``, ``d_h = -J_h^{-1} c``;
+3. reduced equations (1.4): ``(C^T M C) a_nu = -C^T (M d + h - Q)``, ``a = C a_nu + d``;
+4. reactions (1.5): ``lambda = J_h^{-T} E_h`` with ``E = M a + h - Q``; ``R = J^T lambda``.
+
+Constraints nonlinear in ``a`` are solved by Newton's method on
+``G(a) = [C(a)^T E(a); f(a)] = 0``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+import numpy as np
+import scipy.linalg as sla
+import sympy as sp
+
+from .errors import ComputationError, ModelError
+from .partition import RANK_TOL, pivoted_columns
+from .symbols import derivative_symbol, t
+
+#: condition number of J_h above which the partition is switched
+SWITCH_CONDITION = 1e8
+
+
+def program_substitutions(system, orders: int = 8) -> dict:
+    """``{theta: expr(t), theta_dot: expr'(t), ...}`` for every program."""
+    subs = {}
+    for prog in system.programs:
+        s = prog.symbol
+        for k in range(orders + 1):
+            subs[s] = prog.derivative(k)
+            s = derivative_symbol(s)
+    return subs
+
+
+def lambdify_blocks(args, outputs, subs: Mapping | None = None) -> Callable:
+    """Compile a list of matrices into one NumPy function with shared subexpressions."""
+    mats = []
+    for m in outputs:
+        m = sp.Matrix(m)
+        if subs:
+            m = m.xreplace(subs)
+        mats.append(m)
+    return sp.lambdify(args, mats, modules="numpy", cse=True, docstring_limit=0)
+
+
+@dataclass(frozen=True)
+class StateSolution:
+    """Accelerations and reactions at one state.
+
+    ``accelerations`` a (n), ``multipliers`` lambda (s, one per constraint),
+    ``generalized_reactions`` R = J^T lambda (n), ``dependent`` the indices of the
+    dependent accelerations used, ``switched`` whether they differ from the derivation's.
+    """
+
+    accelerations: np.ndarray
+    multipliers: np.ndarray
+    generalized_reactions: np.ndarray
+    dependent: tuple[int, ...]
+    switched: bool = False
+    newton_iterations: int = 0
+
+
+def newton(fun: Callable, x0: np.ndarray, what: str, tol: float = 1e-12, maxiter: int = 50) -> tuple[np.ndarray, int]:
+    """Newton's method with a finite-difference Jacobian; raises ComputationError."""
+    x = np.array(x0, dtype=float)
+    for it in range(1, maxiter + 1):
+        g = fun(x)
+        if not np.all(np.isfinite(g)):
+            raise ComputationError(f"Newton's method for {what} met a non-finite residual at iteration {it}")
+        J = np.empty((g.size, x.size))
+        for j in range(x.size):
+            step = 1e-7 * max(1.0, abs(x[j]))
+            xp = x.copy()
+            xp[j] += step
+            xm = x.copy()
+            xm[j] -= step
+            J[:, j] = (fun(xp) - fun(xm)) / (2 * step)
+        try:
+            dx = np.linalg.solve(J, -g)
+        except np.linalg.LinAlgError as exc:
+            raise ComputationError(f"Newton's method for {what}: singular Jacobian at iteration {it}") from exc
+        x = x + dx
+        if np.linalg.norm(dx, np.inf) <= tol * max(1.0, np.linalg.norm(x, np.inf)):
+            return x, it
+    raise ComputationError(
+        f"Newton's method for {what} did not converge in {maxiter} iterations "
+        f"(last step {np.linalg.norm(dx, np.inf):.3g})",
+        hint="check that the constraints have a real solution near this state",
+    )
+
+
+def split_basis(J: np.ndarray, dependent) -> tuple[np.ndarray, np.ndarray, list[int], list[int]]:
+    """Numeric ``C = [I; -J_h^{-1} J_nu]`` and an LU factor of ``J_h``."""
+    n = J.shape[1]
+    dep = list(dependent)
+    ind = [i for i in range(n) if i not in dep]
+    lu = sla.lu_factor(J[:, dep])
+    C = np.zeros((n, len(ind)))
+    C[ind, np.arange(len(ind))] = 1.0
+    if dep:
+        C[dep, :] = -sla.lu_solve(lu, J[:, ind])
+    return C, lu, dep, ind
+
+
+def well_conditioned(Jh: np.ndarray) -> bool:
+    if Jh.size == 0:
+        return True
+    return np.linalg.cond(Jh) < SWITCH_CONDITION
+
+
+def choose_dependent(J: np.ndarray, names) -> tuple[int, ...]:
+    piv, rank = pivoted_columns(J)
+    if rank < J.shape[0]:
+        raise ComputationError(
+            "the constraint Jacobian lost rank at this state: no nonsingular partition (1.2) exists here",
+            hint="constraints " + ", ".join(names) + " are dependent at this state (a singular configuration)",
+        )
+    return tuple(sorted(int(i) for i in piv[: J.shape[0]]))
+
+
+@dataclass(frozen=True)
+class NumericModel:
+    """Compiled blocks of a derivation and the numeric split solve.
+
+    Call signatures use ``t`` (float), ``q`` (n_q), ``w`` (n) and an optional parameter
+    vector ``p`` (order of ``system.parameters``; defaults from the model).
+    """
+
+    derivation: object
+    parameters: tuple[sp.Symbol, ...]
+    default_parameters: np.ndarray
+    blocks: Callable  # (t, q, w, p) -> [M, h - Q, J, c]
+    constraint_function: Callable | None  # (t, q, w, a, p) -> [f, J] when nonlinear in a
+    rates: Callable  # (t, q, w, p) -> [dq/dt]
+    residuals: Callable  # (t, q, w, p) -> [position residuals, velocity residuals]
+    has_position: np.ndarray
+    has_velocity: np.ndarray
+    _formula: dict = field(default_factory=dict, repr=False, compare=False)
+
+    # ---------------------------------------------------------------- helpers
+    def params(self, p=None) -> np.ndarray:
+        """Parameter vector from None, an array or a ``{name: value}`` mapping."""
+        if p is None:
+            return self.default_parameters
+        if isinstance(p, Mapping):
+            out = self.default_parameters.copy()
+            names = [s.name for s in self.parameters]
+            for k, v in p.items():
+                key = str(k)
+                if key not in names:
+                    raise ModelError(f"unknown parameter {key!r}", hint="parameters: " + ", ".join(names))
+                out[names.index(key)] = float(v)
+            return out
+        return np.asarray(p, dtype=float)
+
+    def evaluate_blocks(self, t, q, w, p=None):
+        """``M``, ``h - Q``, ``J``, ``c`` at a state."""
+        M, hQ, J, c = self.blocks(float(t), np.asarray(q, float), np.asarray(w, float), self.params(p))
+        n = len(w)
+        return (np.asarray(M, float).reshape(n, n), np.asarray(hQ, float).reshape(n),
+                np.asarray(J, float).reshape(-1, n), np.asarray(c, float).reshape(-1))
+
+    def coordinate_rates(self, t, q, w, p=None) -> np.ndarray:
+        """``dq/dt = K w + k``."""
+        return np.asarray(self.rates(float(t), q, w, self.params(p))[0], float).reshape(-1)
+
+    def constraint_residuals(self, t, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """Position residuals ``F`` (NaN where not holonomic) and velocity residuals ``phi``
+        (NaN for second-order constraints)."""
+        pos, vel = self.residuals(float(t), q, w, self.params(p))
+        pos = np.where(self.has_position, np.asarray(pos, float).reshape(-1), np.nan)
+        vel = np.where(self.has_velocity, np.asarray(vel, float).reshape(-1), np.nan)
+        return pos, vel
+
+    # ------------------------------------------------------------ the method
+    def solve(self, t, q, w, p=None, dependent=None) -> StateSolution:
+        """Accelerations (1.4) and every multiplier (1.5) at the state (t, q, w)."""
+        pv = self.params(p)
+        M, hQ, J, c = self.evaluate_blocks(t, q, w, pv)
+        names = self.derivation.constraints.names
+        dep = tuple(self.derivation.partition.dependent if dependent is None else dependent)
+        if self.constraint_function is None:
+            switched = False
+            if not well_conditioned(J[:, list(dep)]):
+                dep = choose_dependent(J, names)
+                switched = True
+            a, lam = _split_linear(M, hQ, J, c, dep)
+            return StateSolution(a, lam, J.T @ lam, dep, switched)
+        return self._solve_nonlinear(t, q, w, pv, M, hQ, dep)
+
+    def _solve_nonlinear(self, t, q, w, pv, M, hQ, dep) -> StateSolution:
+        names = self.derivation.constraints.names
+        q = np.asarray(q, float)
+        w = np.asarray(w, float)
+
+        def fJ(a):
+            f, J = self.constraint_function(float(t), q, w, a, pv)
+            return np.asarray(f, float).reshape(-1), np.asarray(J, float).reshape(-1, len(w))
+
+        f0, J0 = fJ(np.zeros(len(w)))
+        switched = False
+        if not well_conditioned(J0[:, list(dep)]):
+            dep = choose_dependent(J0, names)
+            switched = True
+        a0, _ = _split_linear(M, hQ, J0, f0, dep)
+
+        def G(a):
+            f, J = fJ(a)
+            C, _, _, _ = split_basis(J, dep)
+            return np.concatenate([C.T @ (M @ a + hQ), f])
+
+        a, its = newton(G, a0, "the constraints nonlinear in the accelerations")
+        f, J = fJ(a)
+        lam = sla.solve(J[:, list(dep)].T, (M @ a + hQ)[list(dep)])
+        return StateSolution(a, lam, J.T @ lam, tuple(dep), switched, its)
+
+    def accelerations(self, t, q, w, p=None) -> np.ndarray:
+        """Accelerations only (for integrators)."""
+        return self.solve(t, q, w, p).accelerations
+
+    def reaction_formulas(self, t, q, w, a, p=None) -> np.ndarray:
+        """Evaluate the closed-form multipliers (1.5) of the derivation at (t, q, w, a)."""
+        fn = self._formula.get("lambda")
+        if fn is None:
+            d = self.derivation
+            fn = lambdify_blocks(_args(d, with_acc=True), [d.reactions.multipliers],
+                                 program_substitutions(d.system))
+            self._formula["lambda"] = fn
+        return np.asarray(fn(float(t), q, w, a, self.params(p))[0], float).reshape(-1)
+
+
+def _split_linear(M, hQ, J, c, dep):
+    """Steps 2–4 of the module docstring for ``J a + c = 0``."""
+    n = M.shape[0]
+    if J.shape[0] == 0:
+        a = np.linalg.solve(M, -hQ)
+        return a, np.zeros(0)
+    C, lu, dep, ind = split_basis(J, dep)
+    d = np.zeros(n)
+    d[dep] = -sla.lu_solve(lu, c)
+    A = C.T @ M @ C
+    b = -C.T @ (M @ d + hQ)
+    a = C @ np.linalg.solve(A, b) + d if ind else d
+    E = M @ a + hQ
+    lam = sla.lu_solve(lu, E[dep], trans=1)
+    return a, lam
+
+
+def _args(derivation, with_acc=False):
+    kin = derivation.kinematics
+    params = [p.symbol for p in derivation.system.parameters]
+    args = [t, list(kin.coordinates), list(kin.speeds)]
+    if with_acc:
+        args.append(list(kin.accelerations))
+    args.append(params)
+    return args
+
+
+def compile_model(derivation) -> NumericModel:
+    """Generate the numeric functions of a derivation (once; CSE shared per function)."""
+    system = derivation.system
+    subs = program_substitutions(system)
+    inertia, cons = derivation.inertia, derivation.constraints
+    n = len(derivation.kinematics.speeds)
+    hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
+    J = sp.Matrix(cons.jacobian) if cons.count else sp.zeros(0, n)
+    c = sp.Matrix(cons.bias) if cons.count else sp.zeros(0, 1)
+    if cons.linear:
+        blocks = lambdify_blocks(_args(derivation), [inertia.mass_matrix, hQ, J, c], subs)
+        cfun = None
+    else:
+        zero_a = {a: 0 for a in derivation.accelerations}
+        blocks = lambdify_blocks(_args(derivation), [inertia.mass_matrix, hQ, J.xreplace(zero_a), c], subs)
+        cfun = lambdify_blocks(_args(derivation, with_acc=True), [cons.second_order, J], subs)
+    rates = lambdify_blocks(_args(derivation), [derivation.kinematics.coordinate_rates], subs)
+    pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual]) if cons.count else sp.zeros(0, 1)
+    vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if cons.count else sp.zeros(0, 1)
+    residuals = lambdify_blocks(_args(derivation), [pos, vel], subs)
+    return NumericModel(
+        derivation=derivation,
+        parameters=tuple(p.symbol for p in system.parameters),
+        default_parameters=np.array([p.value for p in system.parameters], dtype=float),
+        blocks=blocks,
+        constraint_function=cfun,
+        rates=rates,
+        residuals=residuals,
+        has_position=np.array([e is not None for e in cons.position_residual], dtype=bool),
+        has_velocity=np.array([e is not None for e in cons.velocity_residual], dtype=bool),
+    )

@@ -1,0 +1,72 @@
+"""Symbols shared by every stage: time and the chain of time derivatives.
+
+A quantity ``x`` has derivatives named ``x_dot``, ``x_ddot``, ``x_d3``, ``x_d4``, ...
+Names are plain SymPy symbols (no assumptions), so that a model file, the Python API and
+the generated code all meet on the same objects.
+"""
+
+from __future__ import annotations
+
+import re
+
+import sympy as sp
+
+#: The time variable used by every model.
+t = sp.Symbol("t")
+
+_ORDER = re.compile(r"^(?P<base>.+?)(?:_(?P<suffix>dot|ddot|d(?P<k>[0-9]+)))?$")
+
+
+def split_derivative_name(name: str) -> tuple[str, int]:
+    """Return ``(base, order)`` of a derivative name: ``'x_ddot' -> ('x', 2)``."""
+    m = _ORDER.match(name)
+    suffix = m.group("suffix")
+    if suffix is None:
+        return name, 0
+    if suffix == "dot":
+        return m.group("base"), 1
+    if suffix == "ddot":
+        return m.group("base"), 2
+    return m.group("base"), int(m.group("k"))
+
+
+def derivative_name(base: str, order: int) -> str:
+    """Name of the ``order``-th time derivative of ``base`` (0 gives ``base``)."""
+    if order == 0:
+        return base
+    if order == 1:
+        return f"{base}_dot"
+    if order == 2:
+        return f"{base}_ddot"
+    return f"{base}_d{order}"
+
+
+def derivative_symbol(symbol: sp.Symbol, order: int = 1) -> sp.Symbol:
+    """The symbol of ``d^order/dt^order`` of ``symbol``: ``x -> x_dot -> x_ddot -> x_d3``."""
+    base, k = split_derivative_name(symbol.name)
+    return sp.Symbol(derivative_name(base, k + order))
+
+
+def latex_name(name: str) -> str:
+    """LaTeX for a symbol name, with dots for time derivatives: ``phi_dot -> \\dot{\\phi}``."""
+    base, k = split_derivative_name(name)
+    body = sp.latex(sp.Symbol(base))
+    if k == 0:
+        return body
+    if k == 1:
+        return rf"\dot{{{body}}}"
+    if k == 2:
+        return rf"\ddot{{{body}}}"
+    return rf"{body}^{{({k})}}"
+
+
+def as_symbols(items) -> tuple[sp.Symbol, ...]:
+    """Symbols from a space-separated string, a symbol, or an iterable of either."""
+    if isinstance(items, str):
+        return tuple(sp.Symbol(n) for n in items.replace(",", " ").split())
+    if isinstance(items, sp.Symbol):
+        return (items,)
+    out = []
+    for item in items:
+        out.extend(as_symbols(item))
+    return tuple(out)

@@ -1,0 +1,100 @@
+"""Stage 0 — validation: every symbol used must be declared.
+
+Each expression of a :class:`~appell.model.System` is checked against the symbols allowed
+where it stands; an undeclared symbol is reported with the place it occurs and how to
+declare it.
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from .errors import ModelError
+from .model import AppliedForce, AppliedTorque, RigidBody, System
+from .symbols import derivative_symbol, t
+
+
+def _chain(symbol: sp.Symbol, orders: int) -> set[sp.Symbol]:
+    out, s = {symbol}, symbol
+    for _ in range(orders):
+        s = derivative_symbol(s)
+        out.add(s)
+    return out
+
+
+def declared_symbols(system: System) -> dict[str, set[sp.Symbol]]:
+    """Symbols by level: 'state' (t, q, w, parameters, programs), 'acceleration' (+ a)."""
+    base = {t, *system.coordinates, *system.speeds, *(p.symbol for p in system.parameters)}
+    for p in system.programs:
+        base |= _chain(p.symbol, 6)
+    forces = {c.symbol for c in system.controls if c.kind == "force"}
+    kin_controls = set()
+    for c in system.controls:
+        if c.kind == "kinematic":
+            kin_controls |= _chain(c.symbol, 1)
+    acc = set(system.accelerations) | {derivative_symbol(c.symbol, 2) for c in system.controls if c.kind == "kinematic"}
+    return {
+        "time": {t, *(p.symbol for p in system.parameters)},
+        "state": base | kin_controls,
+        "forces": base | kin_controls | forces,
+        "acceleration": base | kin_controls | forces | acc,
+    }
+
+
+def _check(expr, allowed: set, where: str, extra_hint: str = ""):
+    if expr is None:
+        return
+    free = expr.free_symbols if isinstance(expr, sp.Basic) else set()
+    bad = sorted((s for s in free if s not in allowed), key=str)
+    if bad:
+        names = ", ".join(s.name for s in bad)
+        raise ModelError(
+            f"{where} uses undeclared symbol(s) {names}",
+            hint="declare them as parameters (with values), coordinates, speeds or programs"
+            + (f"; {extra_hint}" if extra_hint else ""),
+        )
+
+
+def validate(system: System) -> None:
+    """Raise :class:`ModelError` for the first undeclared symbol found."""
+    lv = declared_symbols(system)
+    for p in system.programs:
+        _check(p.expr, lv["time"], f"program {p.symbol.name}", "a program depends on t and parameters only")
+    for q, e in system.kinematics:
+        _check(e, lv["state"], f"kinematic relation of {q}")
+    _check(system.kinetic_energy, lv["state"], "kinetic energy")
+    _check(system.acceleration_energy, lv["acceleration"], "acceleration energy")
+    _check(system.potential_energy, lv["state"], "potential energy")
+    for i, e in enumerate(system.generalized_forces or ()):
+        _check(e, lv["forces"], f"generalized force {i + 1} (conjugate to {system.speeds[i]})")
+    for b in system.bodies:
+        _check(b.mass, lv["state"], f"mass of body {b.name!r}")
+        for attr in ("position", "velocity"):
+            v = getattr(b, attr)
+            if v is not None:
+                for e in v:
+                    _check(e, lv["state"], f"{attr} of body {b.name!r}")
+        if isinstance(b, RigidBody):
+            for e in list(b.inertia) + list(b.angular_velocity):
+                _check(e, lv["state"], f"inertia or angular velocity of body {b.name!r}")
+    for load in system.loads:
+        items = list(load.vector)
+        if isinstance(load, AppliedForce):
+            items += list(load.position if load.position is not None else load.velocity)
+        elif isinstance(load, AppliedTorque):
+            items += list(load.angular_velocity)
+        for e in items:
+            _check(e, lv["forces"], f"load {load.name!r}")
+    for c in system.constraints + system.servo_constraints:
+        where = f"{c.kind} constraint {c.name!r}"
+        try:
+            _check(c.expr, lv["acceleration"], where)
+        except ModelError as exc:
+            if c.where:
+                exc.where = c.where
+            raise
+    for fi in system.first_integrals:
+        _check(fi.expr, lv["state"], f"first integral {fi.name!r}")
+    missing = {p.symbol for p in system.parameters if p.value is None}
+    if missing:
+        raise ModelError(f"parameter(s) without value: {', '.join(sorted(map(str, missing)))}")
