@@ -22,6 +22,7 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
+from .dynamics import Evaluation
 from .errors import ComputationError, ModelError
 from .partition import RANK_TOL, pivoted_columns
 from .symbols import derivative_symbol, t
@@ -222,6 +223,55 @@ class NumericModel:
         f, J = fJ(a)
         lam = sla.solve(J[:, list(dep)].T, (M @ a + hQ)[list(dep)])
         return StateSolution(a, lam, J.T @ lam, tuple(dep), switched, its)
+
+    # ------------------------------------------------- Dynamics protocol
+    @property
+    def name(self) -> str:
+        return self.derivation.system.name
+
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.derivation.kinematics.coordinates)
+
+    @property
+    def speed_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.derivation.kinematics.speeds)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return self.coordinate_names + self.speed_names
+
+    @property
+    def constraint_names(self) -> tuple[str, ...]:
+        return self.derivation.constraints.names
+
+    @property
+    def control_names(self) -> tuple[str, ...]:
+        return ()
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.parameters)
+
+    def split_state(self, y) -> tuple[np.ndarray, np.ndarray]:
+        """``y = (q, w)``."""
+        nq = len(self.coordinate_names)
+        y = np.asarray(y, float)
+        return y[:nq], y[nq:]
+
+    def evaluate(self, t, y, p=None, dependent=None) -> Evaluation:
+        """``dy/dt = (K w + k, a)`` with the multipliers of (1.5) (:class:`Dynamics`)."""
+        q, w = self.split_state(y)
+        pv = self.params(p)
+        sol = self.solve(t, q, w, pv, dependent)
+        dq = self.coordinate_rates(t, q, w, pv)
+        return Evaluation(np.concatenate([dq, sol.accelerations]), sol.multipliers, np.zeros(0),
+                          sol.dependent, sol.switched)
+
+    def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`constraint_residuals` on the state vector (:class:`Dynamics`)."""
+        q, w = self.split_state(y)
+        return self.constraint_residuals(t, q, w, p)
 
     def accelerations(self, t, q, w, p=None) -> np.ndarray:
         """Accelerations only (for integrators)."""
