@@ -44,7 +44,7 @@ def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
     """``J_h^{-1}`` of the small dependent block, as adjugate over determinant."""
     if Jh.shape == (1, 1):
         return sp.Matrix([[1 / Jh[0, 0]]])
-    det = sp.factor_terms(Jh.det(method="berkowitz"))
+    det = tidy(Jh.det(method="berkowitz"))
     return Jh.adjugate() / det
 
 

@@ -106,9 +106,42 @@ def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence
                 hint="choose instead e.g. " + ", ".join(accelerations[i].name for i in auto.dependent),
             )
         return from_dependent(idx, n)
+    preferred = _simplest_determinant(J, J1, J2, s, n)
+    if preferred is not None:
+        return from_dependent(preferred, n)
     Jn = J1 if r1 >= r2 else J2
     piv, _ = pivoted_columns(Jn)
     return from_dependent(sorted(int(i) for i in piv[:s]), n)
+
+
+#: the symbolic determinant search is used while it stays this small
+MAX_BLOCKS, MAX_BLOCK_SIZE = 64, 3
+
+
+def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, n: int):
+    """Dependent columns whose block determinant depends on the fewest state symbols.
+
+    A determinant free of coordinates and speeds (the car's ``sin(theta)``) cannot vanish
+    along the motion by itself; among equals, fewer operations, then later columns
+    (dependent accelerations last, as in the paper). None when the search is too large.
+    """
+    from itertools import combinations
+    from math import comb
+
+    if s > MAX_BLOCK_SIZE or comb(n, s) > MAX_BLOCKS:
+        return None
+    from .equations import tidy
+
+    best = None
+    for cols in combinations(range(n), s):
+        cols = list(cols)
+        if min(pivoted_columns(J1[:, cols])[1], pivoted_columns(J2[:, cols])[1]) < s:
+            continue
+        det = tidy(J[:, cols].det(method="berkowitz"))
+        score = (len(det.free_symbols), sp.count_ops(det), [-c for c in reversed(cols)])
+        if best is None or score < best[0]:
+            best = (score, cols)
+    return None if best is None else best[1]
 
 
 def _index(item, accelerations) -> int:
