@@ -278,6 +278,8 @@ class System:
     controls, servo_constraints : method.md §4.
     first_integrals : method.md §5.
     initial : initial values ``{name or symbol: value}`` of coordinates and speeds.
+    settings : ``((key, value), ...)`` or a mapping — run settings such as a model file's
+        ``[simulation]`` table (t_end, method, rtol, ...); stored, not interpreted here.
     """
 
     coordinates: tuple[sp.Symbol, ...]
@@ -298,6 +300,7 @@ class System:
     initial: tuple[tuple[str, float], ...] = ()
     name: str = "system"
     description: str = ""
+    settings: tuple[tuple[str, object], ...] = ()
 
     def __post_init__(self):
         s = object.__setattr__
@@ -341,6 +344,8 @@ class System:
         s(self, "first_integrals", tuple(self.first_integrals))
         init = self.initial.items() if isinstance(self.initial, Mapping) else self.initial
         s(self, "initial", tuple((str(k), float(v)) for k, v in init))
+        settings = self.settings.items() if isinstance(self.settings, Mapping) else self.settings
+        s(self, "settings", tuple((str(k), v) for k, v in settings))
         if self.kinetic_energy is None and self.acceleration_energy is None and not self.bodies:
             raise ModelError(
                 f"system {self.name!r} has no mechanics",
