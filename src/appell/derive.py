@@ -45,5 +45,6 @@ def derive(system: System, dependent: Sequence | None = None) -> Derivation:
     kin = kinematics_of(system)
     inertia = inertia_blocks(system, kin)
     cons = second_order_blocks(system.constraints, kin)
-    partition = choose_partition(sp.Matrix(cons.jacobian), cons.names, kin.accelerations, dependent)
+    known = {**system.parameter_values, **{sp.Symbol(k): v for k, v in system.initial}}
+    partition = choose_partition(sp.Matrix(cons.jacobian), cons.names, kin.accelerations, dependent, at=known)
     return Derivation(system, kin, inertia, cons, partition)

@@ -65,10 +65,12 @@ def redundant_rows(Jn: np.ndarray) -> list[int]:
 
 
 def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence[sp.Symbol],
-                     dependent: Sequence | None = None, seed: int = 0) -> Partition:
+                     dependent: Sequence | None = None, seed: int = 0, at: dict | None = None) -> Partition:
     """Choose (or check) the dependent accelerations for constraint Jacobian ``J``.
 
-    ``dependent`` may give the user's choice as acceleration symbols, names or indices.
+    ``dependent`` may give the user's choice as acceleration symbols, names or indices;
+    ``at`` optional known values (initial state, parameters) where the automatic choice
+    should be nonsingular.
     Raises :class:`ModelError` naming redundant constraints or a singular choice.
     """
     s, n = J.shape
@@ -106,7 +108,7 @@ def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence
                 hint="choose instead e.g. " + ", ".join(accelerations[i].name for i in auto.dependent),
             )
         return from_dependent(idx, n)
-    preferred = _simplest_determinant(J, J1, J2, s, n)
+    preferred = _simplest_determinant(J, J1, J2, s, n, at or {})
     if preferred is not None:
         return from_dependent(preferred, n)
     Jn = J1 if r1 >= r2 else J2
@@ -118,8 +120,9 @@ def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence
 MAX_BLOCKS, MAX_BLOCK_SIZE = 64, 3
 
 
-def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, n: int):
-    """Dependent columns whose block determinant depends on the fewest state symbols.
+def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, n: int, at: dict):
+    """Dependent columns whose block determinant is nonzero at the known state ``at`` and
+    depends on the fewest symbols.
 
     A determinant free of coordinates and speeds (the car's ``sin(theta)``) cannot vanish
     along the motion by itself; among equals, fewer operations, then later columns
@@ -138,7 +141,7 @@ def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, 
         if min(pivoted_columns(J1[:, cols])[1], pivoted_columns(J2[:, cols])[1]) < s:
             continue
         det = tidy(J[:, cols].det(method="berkowitz"))
-        score = (len(det.free_symbols), sp.count_ops(det), [-c for c in reversed(cols)])
+        score = (_vanishes_at(det, at), len(det.free_symbols), sp.count_ops(det), [-c for c in reversed(cols)])
         if best is None or score < best[0]:
             best = (score, cols)
     return None if best is None else best[1]
@@ -163,3 +166,15 @@ def _index(item, accelerations) -> int:
         f"{name!r} is not an acceleration of the system",
         hint="choose among " + ", ".join(a.name for a in accelerations),
     )
+
+
+def _vanishes_at(det: sp.Expr, at: dict) -> bool:
+    """Whether ``det`` is (numerically) zero at the known values, others generic."""
+    if not at:
+        return False
+    rest = generic_values(det.free_symbols - set(at), seed=7)
+    try:
+        value = complex(det.xreplace({**rest, **{k: v for k, v in at.items() if k in det.free_symbols}}))
+    except (TypeError, ValueError):
+        return False
+    return not np.isfinite(value) or abs(value) < 1e-9

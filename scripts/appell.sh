@@ -1,0 +1,5 @@
+#!/usr/bin/env bash
+# Run the appell command line in the local environment (created on first use).
+set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/env.sh"
+exec appell "$@"

@@ -1,0 +1,6 @@
+#!/usr/bin/env bash
+# Run the test suite in the local environment (created on first use).
+set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/env.sh"
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+exec python -m pytest "$@"
