@@ -1,0 +1,129 @@
+"""The growing benchmark family: an n-link planar pendulum whose tip is held on a
+vertical line, built three ways (appell, SymPy LagrangesMethod, SymPy KanesMethod).
+
+Links i = 1..n have length l_i and a point mass m_i at their outer end; theta_i is the
+absolute angle of link i from the downward vertical. The loop closure is
+``tip: sum_i l_i sin(theta_i) - d = 0``; its multiplier is the horizontal force that the
+line exerts on the tip (newtons).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy as sp
+
+import appell
+
+
+def nlink_parameters(n: int) -> dict[str, float]:
+    """Parameter values: masses 1 + 0.1 i kg, lengths 1 - 0.02 i m, g, d = 0.3 m."""
+    out = {f"m{i}": 1.0 + 0.1 * i for i in range(1, n + 1)}
+    out.update({f"l{i}": 1.0 - 0.02 * i for i in range(1, n + 1)})
+    out.update({"g": 9.81, "d": 0.3})
+    return out
+
+
+def nlink_state(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """A state (theta, theta_dot) on the constraint: the last angle closes the loop."""
+    rng = np.random.default_rng(seed)
+    p = nlink_parameters(n)
+    lengths = np.array([p[f"l{i}"] for i in range(1, n + 1)])
+    th = rng.uniform(-0.3, 0.3, n)
+    th[-1] = np.arcsin(np.clip((p["d"] - lengths[:-1] @ np.sin(th[:-1])) / lengths[-1], -1, 1))
+    w = rng.uniform(-0.5, 0.5, n)
+    w[-1] = -(lengths[:-1] * np.cos(th[:-1])) @ w[:-1] / (lengths[-1] * np.cos(th[-1]))
+    return th, w
+
+
+def nlink_appell(n: int) -> appell.System:
+    """The family as an :class:`appell.System` (point masses as bodies)."""
+    th = sp.symbols(f"theta1:{n + 1}")
+    m = sp.symbols(f"m1:{n + 1}")
+    l = sp.symbols(f"l1:{n + 1}")
+    g, d = sp.symbols("g d")
+    x = y = sp.S.Zero
+    bodies, V = [], sp.S.Zero
+    for i in range(n):
+        x += l[i] * sp.sin(th[i])
+        y -= l[i] * sp.cos(th[i])
+        bodies.append(appell.Particle(f"bob{i + 1}", m[i], position=(x, y, 0)))
+        V += m[i] * g * y
+    values = nlink_parameters(n)
+    params = [appell.Parameter(s, values[s.name]) for s in (*m, *l, g, d)]
+    return appell.System(
+        name=f"pendulum{n}",
+        description=f"{n}-link pendulum, tip held on the vertical line x = d",
+        coordinates=th,
+        parameters=params,
+        bodies=bodies,
+        potential_energy=V,
+        constraints=(appell.holonomic("tip", x - d),),
+    )
+
+
+def _mechanics(n: int):
+    from sympy.physics.mechanics import Particle, Point, ReferenceFrame, dynamicsymbols
+
+    q = dynamicsymbols(f"theta1:{n + 1}")
+    m = sp.symbols(f"m1:{n + 1}")
+    l = sp.symbols(f"l1:{n + 1}")
+    g, d = sp.symbols("g d")
+    N = ReferenceFrame("N")
+    O = Point("O")
+    O.set_vel(N, 0)
+    P, particles, points = O, [], []
+    for i in range(n):
+        P = P.locatenew(f"P{i + 1}", l[i] * (sp.sin(q[i]) * N.x - sp.cos(q[i]) * N.y))
+        P.set_vel(N, P.pos_from(O).dt(N))
+        pa = Particle(f"bob{i + 1}", P, m[i])
+        pa.potential_energy = m[i] * g * P.pos_from(O).dot(N.y)
+        particles.append(pa)
+        points.append(P)
+    x_tip = points[-1].pos_from(O).dot(N.x)
+    return q, m, l, g, d, N, particles, points, x_tip
+
+
+def nlink_lagrange(n: int):
+    """``LagrangesMethod`` with the loop closure as a holonomic constraint.
+
+    Returns (LM, M, F, params, q, qd): ``M [q''; lambda] = F`` is the dynamic part
+    (rows and columns after the kinematic identity) of ``mass_matrix_full``.
+    """
+    from sympy.physics.mechanics import Lagrangian, LagrangesMethod
+
+    q, m, l, g, d, N, particles, _, x_tip = _mechanics(n)
+    LM = LagrangesMethod(Lagrangian(N, *particles), q, hol_coneqs=[x_tip - d], frame=N)
+    LM.form_lagranges_equations()
+    Mf, Ff = LM.mass_matrix_full, LM.forcing_full
+    qd = [qi.diff(sp.Symbol("t")) for qi in q]
+    return LM, Mf[n:, n:], Ff[n:, :], [*m, *l, g, d], q, qd
+
+
+def nlink_kane(n: int):
+    """``KanesMethod`` with the constraint-force trick: an unknown horizontal force
+    ``lam`` at the tip, and the loop closure differentiated twice appended.
+
+    Returns (KM, A, b, params, q, u) with ``A [u'; lam] = b``.
+    """
+    from sympy.physics.mechanics import KanesMethod, dynamicsymbols
+
+    q, m, l, g, d, N, particles, points, x_tip = _mechanics(n)
+    u = dynamicsymbols(f"u1:{n + 1}")
+    t = dynamicsymbols._t
+    lam = sp.Symbol("lam")
+    kd = [q[i].diff(t) - u[i] for i in range(n)]
+    loads = [(points[i], -m[i] * g * N.y) for i in range(n)] + [(points[-1], lam * N.x)]
+    KM = KanesMethod(N, q_ind=q, u_ind=u, kd_eqs=kd)
+    KM.kanes_equations(particles, loads)
+    M, F = KM.mass_matrix, KM.forcing
+    Fl = F.diff(lam)
+    F0 = F.subs(lam, 0)
+    # loop closure at the acceleration level: J u' + c = 0
+    ud = [ui.diff(t) for ui in u]
+    xdd = x_tip.diff(t, 2).subs({qi.diff(t, 2): udi for qi, udi in zip(q, ud)}).subs(
+        {qi.diff(t): ui for qi, ui in zip(q, u)})
+    J = sp.Matrix([[xdd.diff(udi) for udi in ud]])
+    c = xdd.subs({udi: 0 for udi in ud})
+    A = M.row_join(-Fl).col_join(J.row_join(sp.zeros(1, 1)))
+    b = F0.col_join(sp.Matrix([-c]))
+    return KM, A, b, [*m, *l, g, d], q, u

@@ -1,0 +1,493 @@
+"""Stage 7, compiled — the blocks and the split solve (1.4)/(1.5) as C (method.md §3).
+
+The same symbolic blocks as :mod:`appell.numeric` (``M``, ``h - Q``, ``J``, ``c``, the
+coordinate rates and the constraint residuals, programs replaced by their expressions in
+t) are written as C functions with common subexpressions shared (``sympy.cse``). For
+constraints linear in ``a`` one C call also does the linear algebra of the split route:
+
+1. ``J_h = J[:, dep]`` is LU-factored; if its 1-norm condition number is not below
+   :data:`appell.numeric.SWITCH_CONDITION` the call reports it and Python switches the
+   partition (the NumPy route on the compiled blocks);
+2. ``X = J_h^{-1} J_nu``, ``d_h = -J_h^{-1} c``, ``C = [I; -X]``;
+3. ``(C^T M C) a_nu = -C^T (M d + h - Q)``, ``a = C a_nu + d``          — (1.4);
+4. ``lambda = J_h^{-T} E_h`` with ``E = M a + h - Q``, ``R = J^T lambda`` — (1.5).
+
+The library is compiled once with the system C compiler (``$APPELL_CC``, else ``$CC``,
+else ``cc``; ``-O2 -shared -fPIC``), cached on disk under ``$APPELL_CACHE_DIR`` (default
+``~/.cache/appell``) keyed by the SHA-256 of the generated source and the compile command,
+written atomically (temporary file, then rename), and loaded with :mod:`ctypes`. Without a
+compiler the NumPy functions are used instead, with a warning.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shlex
+import shutil
+import subprocess
+import tempfile
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+from sympy.printing.c import C99CodePrinter
+
+from .dynamics import Evaluation
+from .errors import ComputationError
+from .numeric import SWITCH_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
+from .symbols import t
+
+#: environment variables: cache directory and C compiler
+CACHE_ENV = "APPELL_CACHE_DIR"
+COMPILER_ENV = "APPELL_CC"
+#: flags of the shared library
+CFLAGS = ("-O2", "-shared", "-fPIC")
+BACKENDS = ("numpy", "c", "auto")
+
+
+def cache_dir() -> Path:
+    """``$APPELL_CACHE_DIR`` or ``~/.cache/appell`` (created on demand)."""
+    return Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "appell")
+
+
+def find_compiler() -> list[str] | None:
+    """The C compiler command (``$APPELL_CC``, ``$CC`` or ``cc``), or None if absent."""
+    cmd = shlex.split(os.environ.get(COMPILER_ENV) or os.environ.get("CC") or "cc")
+    if not cmd or shutil.which(cmd[0]) is None:
+        return None
+    return cmd
+
+
+class _Printer(C99CodePrinter):
+    """C99 with small integer powers written as products (``pow`` is slow for them)."""
+
+    def _print_Pow(self, expr):
+        base, exp = expr.as_base_exp()
+        if exp.is_Integer and 2 <= abs(int(exp)) <= 8:
+            prod = "*".join(["(" + self._print(base) + ")"] * abs(int(exp)))
+            return f"({prod})" if exp > 0 else f"(1.0/({prod}))"
+        return super()._print_Pow(expr)
+
+
+_PRINTER = _Printer()
+
+
+def _symbol_map(derivation) -> dict:
+    """Model symbols -> C array entries ``q[i]``, ``w[i]``, ``a[i]``, ``p[i]``."""
+    kin = derivation.kinematics
+    out = {t: sp.Symbol("t")}
+    for arr, syms in (("q", kin.coordinates), ("w", kin.speeds), ("a", kin.accelerations),
+                      ("p", [p.symbol for p in derivation.system.parameters])):
+        for i, s in enumerate(syms):
+            out[s] = sp.Symbol(f"{arr}[{i}]")
+    return out
+
+
+def c_function(name: str, outputs, subs: dict) -> str:
+    """One C function ``void name(t, q, w, a, p, o0, o1, ...)`` filling each output matrix
+    (row-major) from expressions with shared subexpressions."""
+    mats = [sp.Matrix(m).xreplace(subs) for m in outputs]
+    stray = set().union(*(m.free_symbols for m in mats)) - set(subs.values()) if mats else set()
+    if stray:
+        raise ComputationError(
+            f"C code for {name}: undeclared symbols {sorted(map(str, stray))}",
+            hint="declare every symbol as a coordinate, speed, parameter or program",
+        )
+    replacements, reduced = sp.cse(mats, symbols=sp.numbered_symbols("x"))
+    outs = ", ".join(f"double *restrict o{k}" for k in range(len(mats)))
+    lines = [f"void {name}(double t, const double *restrict q, const double *restrict w, "
+             f"const double *restrict a, const double *restrict p{', ' + outs if outs else ''})", "{",
+             "    (void)t; (void)q; (void)w; (void)a; (void)p;"]
+    for sym, expr in replacements:
+        lines.append(f"    const double {sym} = {_PRINTER.doprint(expr)};")
+    for k, m in enumerate(reduced):
+        for i, e in enumerate(m):
+            lines.append(f"    o{k}[{i}] = {_PRINTER.doprint(e)};")
+    lines.append("}")
+    return "\n".join(lines)
+
+
+# The split route for constraints linear in a; N, S, P, NQ are fixed per model.
+_SOLVER = r"""
+#define DIM(k) ((k) > 0 ? (k) : 1)
+
+static int lu_factor(int n, double *A, int *piv)
+{
+    for (int k = 0; k < n; ++k) {
+        int r = k;
+        double big = fabs(A[k * n + k]);
+        for (int i = k + 1; i < n; ++i)
+            if (fabs(A[i * n + k]) > big) { big = fabs(A[i * n + k]); r = i; }
+        piv[k] = r;
+        if (!(big > 0.0)) return 1;
+        if (r != k)
+            for (int j = 0; j < n; ++j) { double x = A[k * n + j]; A[k * n + j] = A[r * n + j]; A[r * n + j] = x; }
+        for (int i = k + 1; i < n; ++i) {
+            double f = A[i * n + k] /= A[k * n + k];
+            for (int j = k + 1; j < n; ++j) A[i * n + j] -= f * A[k * n + j];
+        }
+    }
+    return 0;
+}
+
+/* A x = b with P A = L U */
+static void lu_solve(int n, const double *LU, const int *piv, double *b)
+{
+    for (int k = 0; k < n; ++k) if (piv[k] != k) { double x = b[k]; b[k] = b[piv[k]]; b[piv[k]] = x; }
+    for (int i = 0; i < n; ++i) for (int j = 0; j < i; ++j) b[i] -= LU[i * n + j] * b[j];
+    for (int i = n - 1; i >= 0; --i) {
+        for (int j = i + 1; j < n; ++j) b[i] -= LU[i * n + j] * b[j];
+        b[i] /= LU[i * n + i];
+    }
+}
+
+/* A^T x = b: U^T y = b, L^T z = y, x = P^T z */
+static void lu_solve_t(int n, const double *LU, const int *piv, double *b)
+{
+    for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < i; ++j) b[i] -= LU[j * n + i] * b[j];
+        b[i] /= LU[i * n + i];
+    }
+    for (int i = n - 1; i >= 0; --i) for (int j = i + 1; j < n; ++j) b[i] -= LU[j * n + i] * b[j];
+    for (int k = n - 1; k >= 0; --k) if (piv[k] != k) { double x = b[k]; b[k] = b[piv[k]]; b[piv[k]] = x; }
+}
+
+static double norm1(int n, const double *A)
+{
+    double best = 0.0;
+    for (int j = 0; j < n; ++j) {
+        double s = 0.0;
+        for (int i = 0; i < n; ++i) s += fabs(A[i * n + j]);
+        if (s > best) best = s;
+    }
+    return best;
+}
+
+/* 0: solved; 1: J_h ill-conditioned or singular (switch the partition); 2: not finite */
+int appell_split(const double *M, const double *hQ, const double *J, const double *c, const int *dep,
+                 double cond_max, double *a, double *lam, double *R)
+{
+    int isdep[N] = {0}, ind[DIM(P)], piv[DIM(S)], pivA[DIM(P)];
+    double Jh[DIM(S * S)], inv[DIM(S * S)], X[DIM(S * P)], d[N], A[DIM(P * P)], b[DIM(P)];
+    double MC[DIM(N * P)], Md[N], E[N];
+    for (int k = 0; k < S; ++k) isdep[dep[k]] = 1;
+    for (int i = 0, j = 0; i < N; ++i) if (!isdep[i]) ind[j++] = i;
+    for (int i = 0; i < N; ++i) d[i] = 0.0;
+    if (S > 0) {
+        for (int r = 0; r < S; ++r) for (int k = 0; k < S; ++k) Jh[r * S + k] = J[r * N + dep[k]];
+        double nrm = norm1(S, Jh);
+        if (lu_factor(S, Jh, piv)) return 1;
+        for (int k = 0; k < S; ++k) {          /* columns of J_h^{-1}, for the condition number */
+            double e[DIM(S)];
+            for (int r = 0; r < S; ++r) e[r] = (r == k);
+            lu_solve(S, Jh, piv, e);
+            for (int r = 0; r < S; ++r) inv[r * S + k] = e[r];
+        }
+        if (!(nrm * norm1(S, inv) < cond_max)) return 1;
+        for (int j = 0; j < P; ++j) {           /* X = J_h^{-1} J_nu */
+            double col[DIM(S)];
+            for (int r = 0; r < S; ++r) col[r] = J[r * N + ind[j]];
+            lu_solve(S, Jh, piv, col);
+            for (int r = 0; r < S; ++r) X[r * P + j] = col[r];
+        }
+        double dh[DIM(S)];                      /* d_h = -J_h^{-1} c */
+        for (int r = 0; r < S; ++r) dh[r] = -c[r];
+        lu_solve(S, Jh, piv, dh);
+        for (int r = 0; r < S; ++r) d[dep[r]] = dh[r];
+    }
+    if (P > 0) {
+        /* MC = M C with C = [I; -X] (rows ind: identity, rows dep: -X) */
+        for (int i = 0; i < N; ++i)
+            for (int j = 0; j < P; ++j) {
+                double s = M[i * N + ind[j]];
+                for (int r = 0; r < S; ++r) s -= M[i * N + dep[r]] * X[r * P + j];
+                MC[i * P + j] = s;
+            }
+        for (int i = 0; i < N; ++i) {
+            double s = hQ[i];
+            for (int r = 0; r < S; ++r) s += M[i * N + dep[r]] * d[dep[r]];
+            Md[i] = s;                          /* M d + h - Q */
+        }
+        for (int j = 0; j < P; ++j) {           /* A = C^T M C, b = -C^T (M d + h - Q) */
+            for (int k = 0; k < P; ++k) {
+                double s = MC[ind[j] * P + k];
+                for (int r = 0; r < S; ++r) s -= X[r * P + j] * MC[dep[r] * P + k];
+                A[j * P + k] = s;
+            }
+            double s = Md[ind[j]];
+            for (int r = 0; r < S; ++r) s -= X[r * P + j] * Md[dep[r]];
+            b[j] = -s;
+        }
+        if (lu_factor(P, A, pivA)) return 2;
+        lu_solve(P, A, pivA, b);
+        for (int j = 0; j < P; ++j) a[ind[j]] = b[j];
+        for (int r = 0; r < S; ++r) {
+            double s = d[dep[r]];
+            for (int j = 0; j < P; ++j) s -= X[r * P + j] * b[j];
+            a[dep[r]] = s;
+        }
+    } else {
+        for (int i = 0; i < N; ++i) a[i] = d[i];
+    }
+    for (int i = 0; i < N; ++i) {
+        double s = hQ[i];
+        for (int j = 0; j < N; ++j) s += M[i * N + j] * a[j];
+        E[i] = s;
+    }
+    if (S > 0) {
+        for (int r = 0; r < S; ++r) lam[r] = E[dep[r]];
+        lu_solve_t(S, Jh, piv, lam);
+    }
+    for (int i = 0; i < N; ++i) {
+        double s = 0.0;
+        for (int r = 0; r < S; ++r) s += J[r * N + i] * lam[r];
+        R[i] = s;
+    }
+    for (int i = 0; i < N; ++i) if (!isfinite(a[i])) return 2;
+    for (int r = 0; r < S; ++r) if (!isfinite(lam[r])) return 2;
+    return 0;
+}
+
+/* bias (may be NULL) is added to the constraints: f + bias = 0 */
+int appell_solve(double t, const double *q, const double *w, const double *p, const double *bias,
+                 const int *dep, double cond_max, double *a, double *lam, double *R)
+{
+    double M[N * N], hQ[N], J[DIM(S * N)], c[DIM(S)];
+    appell_blocks(t, q, w, 0, p, M, hQ, J, c);
+    if (bias) for (int r = 0; r < S; ++r) c[r] += bias[r];
+    return appell_split(M, hQ, J, c, dep, cond_max, a, lam, R);
+}
+
+/* dy/dt = (K w + k, a) and the multipliers, in one call */
+int appell_evaluate(double t, const double *y, const double *p, const double *bias, const int *dep,
+                    double cond_max, double *dy, double *lam)
+{
+    double R[N];
+    appell_rates(t, y, y + NQ, 0, p, dy);
+    return appell_solve(t, y, y + NQ, p, bias, dep, cond_max, dy + NQ, lam, R);
+}
+"""
+
+
+def c_source(derivation) -> str:
+    """The complete C source of a derivation's numeric functions (see module docstring)."""
+    subs = dict(program_substitutions(derivation.system))
+    cons, inertia = derivation.constraints, derivation.inertia
+    kin = derivation.kinematics
+    n, s, nq = len(kin.speeds), cons.count, len(kin.coordinates)
+    syms = _symbol_map(derivation)
+
+    def prepared(m):
+        return sp.Matrix(m).xreplace(subs) if subs else sp.Matrix(m)
+
+    hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
+    J = sp.Matrix(cons.jacobian) if s else sp.zeros(0, n)
+    c = sp.Matrix(cons.bias) if s else sp.zeros(0, 1)
+    if not cons.linear:
+        J0 = J.xreplace({a: 0 for a in kin.accelerations})
+    else:
+        J0 = J
+    pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual]) if s else sp.zeros(0, 1)
+    vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if s else sp.zeros(0, 1)
+    parts = [
+        f"/* appell: generated C for system {derivation.system.name!r}; n = {n}, s = {s} */",
+        "#include <math.h>",
+        f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}",
+        c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms),
+        c_function("appell_rates", [prepared(kin.coordinate_rates)], syms),
+        c_function("appell_residuals", [prepared(pos), prepared(vel)], syms),
+    ]
+    if cons.linear:
+        parts.append(_SOLVER)
+    else:
+        parts.append(c_function("appell_constraint", [prepared(cons.second_order), prepared(J)], syms))
+    return "\n\n".join(parts) + "\n"
+
+
+def build_library(source: str, compiler: list[str] | None = None) -> tuple[Path, bool]:
+    """Compile ``source`` to a shared library in the cache unless it is there already.
+
+    Returns the library path and whether it was compiled now. The key is the SHA-256 of the
+    source and the compile command; files are written to a temporary name and renamed, so
+    that concurrent processes never load a half-written library.
+    """
+    compiler = compiler or find_compiler()
+    if compiler is None:
+        raise ComputationError("no C compiler found", hint=f"install cc or set ${COMPILER_ENV}")
+    key = hashlib.sha256((" ".join(compiler + list(CFLAGS)) + "\n" + source).encode()).hexdigest()[:24]
+    root = cache_dir()
+    root.mkdir(parents=True, exist_ok=True)
+    lib = root / f"appell_{key}.so"
+    if lib.exists():
+        return lib, False
+    fd, src_tmp = tempfile.mkstemp(prefix=f"appell_{key}_", suffix=".c", dir=root)
+    with os.fdopen(fd, "w") as fh:
+        fh.write(source)
+    fd, lib_tmp = tempfile.mkstemp(prefix=f"appell_{key}_", suffix=".so.tmp", dir=root)
+    os.close(fd)
+    try:
+        proc = subprocess.run(compiler + list(CFLAGS) + ["-o", lib_tmp, src_tmp, "-lm"],
+                              capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise ComputationError(
+                f"C compilation failed ({' '.join(compiler)}): {proc.stderr.strip()[:2000]}",
+                hint="use backend='numpy', or set $APPELL_CC to a working C compiler",
+            )
+        os.replace(src_tmp, root / f"appell_{key}.c")
+        os.replace(lib_tmp, lib)
+    finally:
+        for tmp in (src_tmp, lib_tmp):
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    return lib, True
+
+
+_D, _P, _I = ctypes.c_double, ctypes.c_void_p, ctypes.c_int
+
+
+def _ptr(x: np.ndarray) -> int:
+    return x.ctypes.data
+
+
+def _vec(x) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=float)
+
+
+@dataclass(frozen=True)
+class CompiledNumericModel(NumericModel):
+    """A :class:`~appell.numeric.NumericModel` whose functions run in compiled C.
+
+    ``blocks``, ``rates``, ``residuals`` and ``constraint_function`` keep the NumPy
+    signatures; :meth:`solve` and :meth:`evaluate` do the split route (1.4)/(1.5) in one C
+    call for constraints linear in ``a`` and fall back to the NumPy route on the compiled
+    blocks when the partition has to switch. ``library_path`` is the cached shared library,
+    ``freshly_compiled`` whether this call compiled it.
+    """
+
+    library_path: Path | None = None
+    freshly_compiled: bool = False
+    backend: str = "c"
+    _lib: object = field(default=None, repr=False, compare=False)
+    _default_dep: np.ndarray = field(default=None, repr=False, compare=False)
+
+    def solve(self, t, q, w, p=None, dependent=None, bias=None) -> StateSolution:
+        """Accelerations (1.4) and every multiplier (1.5) at (t, q, w), in C; ``bias`` is
+        added to the constraints (``f + bias = 0``) as in the NumPy model."""
+        if self.constraint_function is not None:
+            return self._fallback_solve(t, q, w, p, dependent, bias)
+        pv = _vec(self.params(p))
+        bv = None if bias is None else _vec(bias)
+        dep = self._default_dep if dependent is None else np.ascontiguousarray(dependent, dtype=np.intc)
+        q, w = _vec(q), _vec(w)
+        n, s = len(w), len(self._default_dep)
+        a, lam, R = np.empty(n), np.empty(s), np.empty(n)
+        status = self._lib.appell_solve(float(t), _ptr(q), _ptr(w), _ptr(pv), None if bv is None else _ptr(bv),
+                                        _ptr(dep), SWITCH_CONDITION, _ptr(a), _ptr(lam), _ptr(R))
+        if status != 0:
+            return self._fallback_solve(t, q, w, pv, dependent, bias)
+        return StateSolution(a, lam, R, tuple(int(i) for i in dep), False)
+
+    def _fallback_solve(self, t, q, w, p, dependent, bias):
+        # the NumPy route on the compiled blocks: Newton, or a switch of the partition
+        if bias is None:
+            return super().solve(t, q, w, p, dependent)
+        return super().solve(t, q, w, p, dependent, bias)
+
+    def evaluate(self, t, y, p=None, dependent=None, bias=None) -> Evaluation:
+        """``dy/dt = (K w + k, a)`` and the multipliers of (1.5), in one C call."""
+        if self.constraint_function is not None or dependent is not None:
+            q, w = self.split_state(y)
+            pv = self.params(p)
+            sol = self.solve(t, q, w, pv, dependent, bias)
+            return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
+                              sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
+        y = _vec(y)
+        pv = _vec(self.params(p))
+        bv = None if bias is None else _vec(bias)
+        dy, lam = np.empty(len(y)), np.empty(len(self._default_dep))
+        status = self._lib.appell_evaluate(float(t), _ptr(y), _ptr(pv), None if bv is None else _ptr(bv),
+                                           _ptr(self._default_dep), SWITCH_CONDITION, _ptr(dy), _ptr(lam))
+        if status != 0:
+            q, w = self.split_state(y)
+            sol = self._fallback_solve(t, q, w, pv, None, bias)
+            return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
+                              sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
+        return Evaluation(dy, lam, np.zeros(0), tuple(int(i) for i in self._default_dep), False)
+
+
+def _wrap(fn, shapes, with_acc=False):
+    """A Python callable with the signature of the lambdified NumPy function."""
+    def call(t, q, w, *rest):
+        a, p = (rest[0], rest[1]) if with_acc else (None, rest[0])
+        q, w, p = _vec(q), _vec(w), _vec(p)
+        outs = [np.empty(shape) for shape in shapes]
+        aa = _vec(a) if a is not None else None
+        fn(float(t), _ptr(q), _ptr(w), None if aa is None else _ptr(aa), _ptr(p), *[_ptr(o) for o in outs])
+        return outs
+    return call
+
+
+def compile_c(derivation, backend: str = "c") -> NumericModel:
+    """Compiled numeric functions of a derivation (``backend`` 'c' or 'auto').
+
+    Without a C compiler both fall back to :func:`appell.numeric.compile_model` (NumPy)
+    with a :class:`RuntimeWarning`; a failed compilation raises for 'c' and falls back
+    (with a warning) for 'auto'.
+    """
+    if backend not in BACKENDS:
+        raise ComputationError(f"unknown numeric backend {backend!r}", hint="choose one of " + ", ".join(BACKENDS))
+    if backend == "numpy":
+        return compile_model(derivation)
+    compiler = find_compiler()
+    if compiler is None:
+        warnings.warn(f"no C compiler found (set ${COMPILER_ENV} or $CC); using the NumPy backend",
+                      RuntimeWarning, stacklevel=2)
+        return compile_model(derivation)
+    source = c_source(derivation)
+    try:
+        path, fresh = build_library(source, compiler)
+    except ComputationError as exc:
+        if backend == "c":
+            raise
+        warnings.warn(f"{exc}; using the NumPy backend", RuntimeWarning, stacklevel=2)
+        return compile_model(derivation)
+    lib = ctypes.CDLL(str(path))
+    kin, cons = derivation.kinematics, derivation.constraints
+    n, s, nq = len(kin.speeds), cons.count, len(kin.coordinates)
+    expr_args = [_D, _P, _P, _P, _P]
+    lib.appell_blocks.argtypes = expr_args + [_P] * 4
+    lib.appell_blocks.restype = None
+    lib.appell_rates.argtypes = expr_args + [_P]
+    lib.appell_rates.restype = None
+    lib.appell_residuals.argtypes = expr_args + [_P] * 2
+    lib.appell_residuals.restype = None
+    cfun = None
+    if cons.linear:
+        lib.appell_solve.argtypes = [_D, _P, _P, _P, _P, _P, _D, _P, _P, _P]
+        lib.appell_solve.restype = _I
+        lib.appell_evaluate.argtypes = [_D, _P, _P, _P, _P, _D, _P, _P]
+        lib.appell_evaluate.restype = _I
+    else:
+        lib.appell_constraint.argtypes = expr_args + [_P] * 2
+        lib.appell_constraint.restype = None
+        cfun = _wrap(lib.appell_constraint, [(s,), (s, n)], with_acc=True)
+    system = derivation.system
+    return CompiledNumericModel(
+        derivation=derivation,
+        parameters=tuple(p.symbol for p in system.parameters),
+        default_parameters=np.array([p.value for p in system.parameters], dtype=float),
+        blocks=_wrap(lib.appell_blocks, [(n, n), (n,), (s, n), (s,)]),
+        constraint_function=cfun,
+        rates=_wrap(lib.appell_rates, [(nq,)]),
+        residuals=_wrap(lib.appell_residuals, [(s,), (s,)]),
+        has_position=np.array([e is not None for e in cons.position_residual], dtype=bool),
+        has_velocity=np.array([e is not None for e in cons.velocity_residual], dtype=bool),
+        library_path=path,
+        freshly_compiled=fresh,
+        _lib=lib,
+        _default_dep=np.ascontiguousarray(derivation.partition.dependent, dtype=np.intc),
+    )
