@@ -1,0 +1,643 @@
+"""Model files: TOML -> :class:`appell.model.System` (the reference is docs/model-format.md).
+
+The document is read with :mod:`tomllib`; every table is checked against the schema
+below (unknown keys are errors, so typos do not pass silently); every expression goes
+through the safe parser of :mod:`.expressions`. Errors are :class:`ModelError` with
+``where="<file>:<line>"``, the key, the expression with a caret under the offending
+token, and what to do. Undeclared symbols are reported here too, with their line, by the
+same levels :func:`appell.validation.validate` uses.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+import tomllib
+from os import PathLike
+from pathlib import Path
+from typing import Mapping
+
+import sympy as sp
+
+from ..errors import ModelError
+from ..model import (
+    AppliedForce,
+    AppliedTorque,
+    Constraint,
+    Control,
+    FirstIntegral,
+    Parameter,
+    Particle,
+    Program,
+    RigidBody,
+    System,
+)
+from ..symbols import derivative_name, derivative_symbol, split_derivative_name
+from ..validation import declared_symbols, validate
+from .expressions import FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_value, parse_expression
+from .locate import source_map
+
+__all__ = ["load_model", "loads_model", "TABLES", "SIMULATION_KEYS", "CONSTRAINT_KINDS", "MAX_FILE_SIZE"]
+
+#: largest model file accepted, in characters
+MAX_FILE_SIZE = 1_000_000
+
+#: top-level tables and what they hold
+TABLES = {
+    "model": "name, description, coordinates, speeds",
+    "parameters": "NAME = value or {value, unit, description}",
+    "programs": "NAME = expression in t",
+    "kinematics": "COORDINATE = its time derivative in t, q and the speeds",
+    "initial": "NAME = initial value of a coordinate or speed",
+    "mechanics": "kinetic_energy, acceleration_energy, potential_energy, generalized_forces",
+    "bodies": "[[bodies]] particles and rigid bodies",
+    "forces": "[[forces]] applied forces",
+    "torques": "[[torques]] applied torques",
+    "constraints": "[constraints.NAME] kind, expr",
+    "controls": "NAME = 'kinematic' or 'force'",
+    "servo_constraints": "[servo_constraints.NAME] kind, expr",
+    "first_integrals": "[first_integrals.NAME] expr, value",
+    "simulation": "run settings",
+}
+
+MODEL_KEYS = ("name", "description", "coordinates", "speeds")
+PARAMETER_KEYS = ("value", "unit", "description")
+MECHANICS_KEYS = ("kinetic_energy", "acceleration_energy", "potential_energy", "generalized_forces")
+BODY_KEYS = ("name", "mass", "position", "velocity", "inertia", "angular_velocity")
+FORCE_KEYS = ("name", "vector", "position", "velocity")
+TORQUE_KEYS = ("name", "vector", "angular_velocity")
+CONSTRAINT_KEYS = ("kind", "expr")
+FIRST_INTEGRAL_KEYS = ("expr", "value")
+
+#: constraint kinds -> order (method.md §2)
+CONSTRAINT_KINDS = {"holonomic": 0, "first-order": 1, "second-order": 2}
+
+#: [simulation] keys -> (type description, check); the values are stored in System.settings
+SIMULATION_KEYS = {
+    "t_start": "number",
+    "t_end": "number",
+    "method": "string",
+    "rtol": "positive number",
+    "atol": "positive number",
+    "max_step": "positive number",
+    "first_step": "positive number",
+    "output_step": "positive number",
+    "output_times": "array of numbers",
+    "stabilization": "one of 'none', 'baumgarte', 'projection'",
+    "baumgarte_alpha": "non-negative number",
+    "baumgarte_beta": "non-negative number",
+}
+STABILIZATIONS = ("none", "baumgarte", "projection")
+
+_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+_TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
+_EXPRESSION_HINT = ("expressions use numbers, names, x' (derivative), + - * / ^, parentheses and "
+                    f"the functions {', '.join(FUNCTIONS)}; see docs/model-format.md")
+
+
+def _dotted(path: tuple) -> str:
+    out = ""
+    for part in path:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            part = str(part)
+            text = part if re.fullmatch(r"[A-Za-z0-9_-]+", part) else repr(part)
+            out += f".{text}" if out else text
+    return out or "the document"
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+class _Reader:
+    """One model document: its data, the line map and the conversions with located errors."""
+
+    def __init__(self, text: str, source: str):
+        self.text = text
+        self.source = source
+        self.map = source_map(text)
+        self.symbols: dict[tuple, tuple[sp.Expr, str]] = {}  # path -> (expr, level) for the symbol check
+
+    # ------------------------------------------------------------------ errors
+    def where(self, path: tuple = (), line: int | None = None) -> str:
+        line = line if line is not None else self.map.line(path)
+        return f"{self.source}:{line}" if line else self.source
+
+    def error(self, path: tuple, message: str, hint: str | None = None, line: int | None = None) -> ModelError:
+        return ModelError(f"{_dotted(path)}: {message}" if path else message,
+                          where=self.where(path, line), hint=hint)
+
+    # ----------------------------------------------------------------- tables
+    def table(self, path: tuple, value, allowed, required=()) -> dict:
+        if not isinstance(value, dict):
+            raise self.error(path, f"must be a table, got {_kind(value)}",
+                             hint=f"write [{_dotted(path)}] followed by key = value lines")
+        for key in value:
+            if key not in allowed:
+                close = difflib.get_close_matches(key, list(allowed), n=1)
+                guess = f"did you mean {close[0]!r}? " if close else ""
+                raise self.error(path + (key,), f"unknown key {key!r}",
+                                 hint=f"{guess}allowed keys here: {', '.join(allowed)}")
+        for key in required:
+            if key not in value:
+                raise self.error(path, f"missing key {key!r}", hint=f"add {key} = ... to [{_dotted(path)}]")
+        return value
+
+    def string(self, path: tuple, value) -> str:
+        if not isinstance(value, str):
+            raise self.error(path, f"must be a string, got {_kind(value)}")
+        return value
+
+    def name(self, path: tuple, value, what: str) -> str:
+        value = self.string(path, value)
+        if not _NAME.match(value) or "__" in value or len(value) > 64:
+            raise self.error(path, f"{what} name {value!r} is not valid",
+                             hint="names start with an ASCII letter, continue with letters, digits or '_', "
+                                  "contain no '__' and have at most 64 characters")
+        if value in RESERVED_NAMES:
+            raise self.error(path, f"{what} name {value!r} is reserved (a function, a constant or time)",
+                             hint="choose another name")
+        return value
+
+    def names(self, path: tuple, value, what: str) -> list[str]:
+        if not isinstance(value, list):
+            raise self.error(path, f"must be an array of names, got {_kind(value)}",
+                             hint=f'write {path[-1]} = ["x", "y"]')
+        return [self.name(path + (i,), v, what) for i, v in enumerate(value)]
+
+    # ------------------------------------------------------------ expressions
+    def expr(self, path: tuple, value, level: str | None = None, equation: bool = False) -> sp.Expr:
+        """An expression from a string or a number; ``level`` names the declared-symbol set."""
+        if _is_number(value):
+            if isinstance(value, float) and not math.isfinite(value):
+                raise self.error(path, f"{value} is not a finite number")
+            if isinstance(value, int) and abs(value).bit_length() > 3322:
+                raise self.error(path, "the number is too large")
+            result = sp.Integer(value) if isinstance(value, int) else sp.Float(value)
+        elif isinstance(value, str):
+            try:
+                result = parse_expression(value, allow_equation=equation)
+            except ExpressionError as exc:
+                first = self.map.content_line(path)
+                line = first + exc.text.count("\n", 0, max(exc.column - 1, 0)) if first else None
+                message = f"cannot read the expression: {exc.message}"
+                if exc.token:
+                    message += f"; offending token {exc.token!r} at column {exc.column}"
+                raise self.error(path, f"{message}\n{caret_line(exc.text, exc.column)}",
+                                 hint=_EXPRESSION_HINT, line=line) from None
+        else:
+            raise self.error(path, f"must be an expression (a string such as \"m*g*y\") or a number, "
+                                   f"got {_kind(value)}")
+        if level is not None:
+            self.symbols[path] = (result, level)
+        return result
+
+    def vector(self, path: tuple, value, level: str, length: int = 3) -> tuple:
+        if not isinstance(value, list) or len(value) != length:
+            got = f"{len(value)} components" if isinstance(value, list) else _kind(value)
+            raise self.error(path, f"must be an array of {length} expressions, got {got}",
+                             hint='write e.g. ["x", "0", "-L*cos(phi)"]' if length == 3 else None)
+        return tuple(self.expr(path + (i,), v, level) for i, v in enumerate(value))
+
+    def constant(self, path: tuple, value) -> float:
+        """A number, or a string holding a constant expression such as ``"sin(pi/3)"``."""
+        if _is_number(value):
+            if not math.isfinite(float(value)):
+                raise self.error(path, f"{value} is not a finite number")
+            return float(value)
+        if isinstance(value, str):
+            expr = self.expr(path, value)
+            try:
+                return constant_value(expr)
+            except ValueError as exc:
+                raise self.error(path, f"{exc}", hint="give a number or a constant expression such as \"pi/3\"")
+        raise self.error(path, f"must be a number, got {_kind(value)}")
+
+
+def _kind(value) -> str:
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return "an array"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, (int, float)):
+        return "a number"
+    return type(value).__name__
+
+
+# ---------------------------------------------------------------- sections
+def _model(r: _Reader, doc: dict):
+    if "model" not in doc:
+        raise r.error((), "the [model] table is missing",
+                      hint='start the file with [model] and coordinates = ["x", ...]')
+    section = r.table(("model",), doc["model"], MODEL_KEYS, required=("coordinates",))
+    name = r.string(("model", "name"), section.get("name", Path(r.source).stem or "system"))
+    description = r.string(("model", "description"), section.get("description", ""))
+    coordinates = r.names(("model", "coordinates"), section["coordinates"], "coordinate")
+    if not coordinates:
+        raise r.error(("model", "coordinates"), "at least one coordinate is needed")
+    speeds = r.names(("model", "speeds"), section["speeds"], "speed") if "speeds" in section else None
+    return name, description, coordinates, speeds
+
+
+def _parameters(r: _Reader, doc: dict) -> list[Parameter]:
+    out = []
+    for key, value in r.table(("parameters",), doc.get("parameters", {}), _Any()).items():
+        path = ("parameters", key)
+        r.name(path, key, "parameter")
+        if isinstance(value, dict):
+            r.table(path, value, PARAMETER_KEYS, required=("value",))
+            unit = r.string(path + ("unit",), value["unit"]) if "unit" in value else None
+            text = r.string(path + ("description",), value["description"]) if "description" in value else None
+            out.append(Parameter(sp.Symbol(key), r.constant(path + ("value",), value["value"]), unit, text))
+        else:
+            out.append(Parameter(sp.Symbol(key), r.constant(path, value)))
+    return out
+
+
+class _Any:
+    """Allowed keys of a table whose keys are names chosen by the user."""
+
+    def __contains__(self, key) -> bool:
+        return True
+
+
+def _named_expressions(r: _Reader, doc: dict, table: str, level: str, what: str) -> list[tuple[str, sp.Expr]]:
+    out = []
+    for key, value in r.table((table,), doc.get(table, {}), _Any()).items():
+        path = (table, key)
+        r.name(path, key, what)
+        out.append((key, r.expr(path, value, level)))
+    return out
+
+
+def _initial(r: _Reader, doc: dict, allowed: list[str]) -> dict[str, float]:
+    out = {}
+    for key, value in r.table(("initial",), doc.get("initial", {}), _Any()).items():
+        path = ("initial", key)
+        name = _canonical(key)
+        if name not in allowed:
+            raise r.error(path, f"{key!r} is not a coordinate or speed of the model",
+                          hint=f"initial values can be given for: {', '.join(allowed)}")
+        if name in out:
+            raise r.error(path, f"initial value of {name!r} given twice")
+        out[name] = r.constant(path, value)
+    return out
+
+
+def _canonical(name: str) -> str:
+    """``"x'"`` -> ``"x_dot"``, ``"x''"`` -> ``"x_ddot"``; other names unchanged."""
+    stripped = name.rstrip("'")
+    primes = len(name) - len(stripped)
+    if not primes:
+        return name
+    base, order = split_derivative_name(stripped)
+    return derivative_name(base, order + primes)
+
+
+def _mechanics(r: _Reader, doc: dict, n_speeds: int) -> dict:
+    out: dict = {}
+    if "mechanics" not in doc:
+        return out
+    m = r.table(("mechanics",), doc["mechanics"], MECHANICS_KEYS)
+    for key, level in (("kinetic_energy", "state"), ("acceleration_energy", "acceleration"),
+                       ("potential_energy", "state")):
+        if key in m:
+            out[key] = r.expr(("mechanics", key), m[key], level)
+    if "generalized_forces" in m:
+        path = ("mechanics", "generalized_forces")
+        value = m["generalized_forces"]
+        if not isinstance(value, list) or len(value) != n_speeds:
+            got = f"{len(value)} expressions" if isinstance(value, list) else _kind(value)
+            raise r.error(path, f"must be an array of {n_speeds} expressions (one per speed), got {got}",
+                          hint="give one generalized force per speed, in the order of the speeds")
+        out["generalized_forces"] = tuple(r.expr(path + (i,), v, "forces") for i, v in enumerate(value))
+    return out
+
+
+def _array_of_tables(r: _Reader, doc: dict, key: str) -> list:
+    value = doc.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+        raise r.error((key,), f"must be an array of tables, got {_kind(value)}",
+                      hint=f"write each item as [[{key}]] followed by its keys")
+    return value
+
+
+def _bodies(r: _Reader, doc: dict) -> list[Particle]:
+    out = []
+    for i, body in enumerate(_array_of_tables(r, doc, "bodies")):
+        path = ("bodies", i)
+        r.table(path, body, BODY_KEYS, required=("mass",))
+        name = r.string(path + ("name",), body.get("name", f"body{i + 1}"))
+        if "position" not in body and "velocity" not in body:
+            raise r.error(path, f"body {name!r} needs a position or a velocity",
+                          hint="add position = [x, y, z] (in t, q) or velocity = [...] (in t, q, speeds)")
+        kw = {"mass": r.expr(path + ("mass",), body["mass"], "state")}
+        for key in ("position", "velocity", "angular_velocity"):
+            if key in body:
+                kw[key] = r.vector(path + (key,), body[key], "state")
+        if "inertia" in body:
+            kw["inertia"] = _inertia(r, path + ("inertia",), body["inertia"])
+        try:
+            out.append(RigidBody(name, **kw) if "inertia" in body or "angular_velocity" in body
+                       else Particle(name, **kw))
+        except ModelError as exc:
+            raise r.error(path, exc.message, hint=exc.hint) from None
+    return out
+
+
+def _inertia(r: _Reader, path: tuple, value):
+    if isinstance(value, list) and len(value) == 3 and all(isinstance(row, list) for row in value):
+        rows = [r.vector(path + (i,), row, "state") for i, row in enumerate(value)]
+        return sp.Matrix(rows)
+    if isinstance(value, list) and len(value) == 3 and not any(isinstance(v, list) for v in value):
+        return sp.diag(*r.vector(path, value, "state"))
+    raise r.error(path, "must be 3 principal moments [I1, I2, I3] or a 3x3 array [[...], [...], [...]]")
+
+
+def _loads(r: _Reader, doc: dict) -> list:
+    out = []
+    for i, force in enumerate(_array_of_tables(r, doc, "forces")):
+        path = ("forces", i)
+        r.table(path, force, FORCE_KEYS, required=("vector",))
+        name = r.string(path + ("name",), force.get("name", f"force{i + 1}"))
+        if ("position" in force) == ("velocity" in force):
+            raise r.error(path, f"force {name!r} needs exactly one of position and velocity (of its point)")
+        point = "position" if "position" in force else "velocity"
+        out.append(AppliedForce(r.vector(path + ("vector",), force["vector"], "forces"),
+                                name=name, **{point: r.vector(path + (point,), force[point], "forces")}))
+    for i, torque in enumerate(_array_of_tables(r, doc, "torques")):
+        path = ("torques", i)
+        r.table(path, torque, TORQUE_KEYS, required=("vector", "angular_velocity"))
+        name = r.string(path + ("name",), torque.get("name", f"torque{i + 1}"))
+        out.append(AppliedTorque(r.vector(path + ("vector",), torque["vector"], "forces"),
+                                 r.vector(path + ("angular_velocity",), torque["angular_velocity"], "forces"),
+                                 name=name))
+    return out
+
+
+def _constraints(r: _Reader, doc: dict, table: str) -> list[Constraint]:
+    out = []
+    for key, value in r.table((table,), doc.get(table, {}), _Any()).items():
+        path = (table, key)
+        r.name(path, key, "constraint")
+        r.table(path, value, CONSTRAINT_KEYS, required=("kind", "expr"))
+        kind = r.string(path + ("kind",), value["kind"])
+        if kind not in CONSTRAINT_KINDS:
+            raise r.error(path + ("kind",), f"unknown constraint kind {kind!r}",
+                          hint=f"kind is one of {', '.join(map(repr, CONSTRAINT_KINDS))}")
+        expr = r.expr(path + ("expr",), value["expr"], "acceleration", equation=True)
+        out.append(Constraint(key, expr, CONSTRAINT_KINDS[kind], where=r.where(path + ("expr",))))
+    return out
+
+
+def _controls(r: _Reader, doc: dict) -> list[Control]:
+    out = []
+    for key, value in r.table(("controls",), doc.get("controls", {}), _Any()).items():
+        path = ("controls", key)
+        r.name(path, key, "control")
+        if value not in ("kinematic", "force"):
+            raise r.error(path, f"control kind must be 'kinematic' or 'force', got {value!r}",
+                          hint=f'write {key} = "kinematic" (a driven coordinate) or {key} = "force" (an actuator)')
+        out.append(Control(sp.Symbol(key), value))
+    return out
+
+
+def _first_integrals(r: _Reader, doc: dict) -> list[FirstIntegral]:
+    out = []
+    for key, value in r.table(("first_integrals",), doc.get("first_integrals", {}), _Any()).items():
+        path = ("first_integrals", key)
+        r.name(path, key, "first integral")
+        if isinstance(value, dict):
+            r.table(path, value, FIRST_INTEGRAL_KEYS, required=("expr",))
+            expr = r.expr(path + ("expr",), value["expr"], "state")
+            const = r.constant(path + ("value",), value["value"]) if "value" in value else None
+        else:
+            expr, const = r.expr(path, value, "state"), None
+        out.append(FirstIntegral(key, expr, const))
+    return out
+
+
+def _simulation(r: _Reader, doc: dict) -> tuple:
+    if "simulation" not in doc:
+        return ()
+    section = r.table(("simulation",), doc["simulation"], tuple(SIMULATION_KEYS))
+    out = []
+    for key, value in section.items():
+        path = ("simulation", key)
+        kind = SIMULATION_KEYS[key]
+        if kind == "string" or kind.startswith("one of"):
+            value = r.string(path, value)
+            if kind.startswith("one of") and value not in STABILIZATIONS:
+                raise r.error(path, f"{value!r} is not allowed", hint=f"{key} is {kind}")
+        elif kind == "array of numbers":
+            if not isinstance(value, list):
+                raise r.error(path, f"must be an array of numbers, got {_kind(value)}")
+            value = tuple(r.constant(path + (i,), v) for i, v in enumerate(value))
+            if any(b < a for a, b in zip(value, value[1:])):
+                raise r.error(path, "output times must be non-decreasing")
+        else:
+            value = r.constant(path, value)
+            if (kind.startswith("positive") and not value > 0) or (kind.startswith("non-negative") and value < 0):
+                raise r.error(path, f"must be a {kind}, got {value}")
+        out.append((key, value))
+    settings = dict(out)
+    if "t_end" in settings and settings["t_end"] <= settings.get("t_start", 0.0):
+        raise r.error(("simulation", "t_end"), "t_end must be after t_start (default 0)")
+    return tuple(out)
+
+
+# ------------------------------------------------------------------ the load
+def _check_declared(r: _Reader, system: System):
+    """Every symbol of every expression is declared at its level (as in validation.validate)."""
+    levels = declared_symbols(system)
+    for path, (expr, level) in r.symbols.items():
+        bad = sorted((s for s in expr.free_symbols if s not in levels[level]), key=str)
+        if bad:
+            names = ", ".join(s.name for s in bad)
+            hint = "declare them under [parameters] (with values), [model] coordinates or speeds, [programs] or [controls]"
+            if level == "time":
+                hint = "a program depends on t and parameters only"
+            elif level == "state" and any(split_derivative_name(s.name)[1] >= 1 for s in bad):
+                hint += "; accelerations may appear only in the acceleration energy and constraints"
+            raise r.error(path, f"undeclared symbol(s) {names}", hint=hint,
+                          line=r.map.content_line(path))
+
+
+def _build(r: _Reader, doc: dict) -> System:
+    top = r.table((), doc, tuple(TABLES))
+    name, description, coordinates, speeds = _model(r, top)
+    parameters = _parameters(r, top)
+    programs = _named_expressions(r, top, "programs", "time", "program")
+    controls = _controls(r, top)
+
+    declarations = (
+        [(q, "coordinate", ("model", "coordinates", i)) for i, q in enumerate(coordinates)]
+        + [(w, "speed", ("model", "speeds", i)) for i, w in enumerate(speeds or ())]
+        + [(p.symbol.name, "parameter", ("parameters", p.symbol.name)) for p in parameters]
+        + [(k, "program", ("programs", k)) for k, _ in programs]
+        + [(c.name, "control", ("controls", c.name)) for c in controls]
+    )
+    declared: dict[str, str] = {}
+    for key, what, path in declarations:
+        if key in declared:
+            raise r.error(path, f"{key!r} is declared twice (as {declared[key]} and as {what})",
+                          hint="every name must be declared once")
+        declared[key] = what
+
+    default_speeds = [derivative_name(q, 1) for q in coordinates]
+    speed_names = speeds if speeds is not None else default_speeds
+    kinematics = None
+    if "kinematics" in top:
+        pairs = _named_expressions(r, top, "kinematics", "state", "coordinate")
+        for key, _ in pairs:
+            if key not in coordinates:
+                raise r.error(("kinematics", key), f"{key!r} is not a coordinate",
+                              hint=f"coordinates: {', '.join(coordinates)}")
+        missing = [q for q in coordinates if q not in dict(pairs)]
+        if missing:
+            raise r.error(("kinematics",), f"no kinematic relation for {', '.join(missing)}",
+                          hint="give dq/dt for every coordinate, e.g. x = \"vx\"")
+        kinematics = tuple((sp.Symbol(q), dict(pairs)[q]) for q in coordinates)
+    elif speeds is not None and speeds != default_speeds:
+        raise r.error(("model", "speeds"), "speeds differ from the coordinates' derivatives but there is "
+                      "no [kinematics] table", hint="add [kinematics] with dq/dt in terms of the speeds, e.g. x = \"vx\"")
+
+    kinematic_controls = [c.name for c in controls if c.kind == "kinematic"]
+    allowed_initial = list(coordinates) + list(speed_names) + [
+        n for c in kinematic_controls for n in (c, derivative_name(c, 1))]
+    initial = _initial(r, top, allowed_initial)
+    mechanics = _mechanics(r, top, len(speed_names))
+    bodies = _bodies(r, top)
+    loads = _loads(r, top)
+    constraints = _constraints(r, top, "constraints")
+    servo = _constraints(r, top, "servo_constraints")
+    first_integrals = _first_integrals(r, top)
+    settings = _simulation(r, top)
+
+    if not bodies and "kinetic_energy" not in mechanics and "acceleration_energy" not in mechanics:
+        raise r.error(("mechanics",), "the model has no mechanics",
+                      hint="give [mechanics] kinetic_energy or acceleration_energy, or [[bodies]]")
+    names = [c.name for c in constraints + servo]
+    for c in servo:
+        if names.count(c.name) > 1:
+            raise r.error(("servo_constraints", c.name), f"constraint name {c.name!r} is used twice",
+                          hint="constraints and servo constraints share one namespace")
+    try:
+        system = System(
+            coordinates=tuple(sp.Symbol(q) for q in coordinates),
+            speeds=tuple(sp.Symbol(w) for w in speeds) if speeds is not None else None,
+            kinematics=kinematics,
+            parameters=tuple(parameters),
+            programs=tuple(Program(sp.Symbol(k), e) for k, e in programs),
+            kinetic_energy=mechanics.get("kinetic_energy"),
+            acceleration_energy=mechanics.get("acceleration_energy"),
+            bodies=tuple(bodies),
+            potential_energy=mechanics.get("potential_energy", sp.S.Zero),
+            generalized_forces=mechanics.get("generalized_forces"),
+            loads=tuple(loads),
+            constraints=tuple(constraints),
+            controls=tuple(controls),
+            servo_constraints=tuple(servo),
+            first_integrals=tuple(first_integrals),
+            initial=tuple(initial.items()),
+            name=name,
+            description=description,
+            settings=settings,
+        )
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
+    _check_declared(r, system)
+    try:
+        validate(system)
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
+    return system
+
+
+def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
+    if not overrides:
+        return system
+    parameters = {p.symbol.name for p in system.parameters}
+    state = [s.name for s in system.coordinates + system.speeds] + [
+        n for c in system.controls if c.kind == "kinematic" for n in (c.name, derivative_name(c.name, 1))]
+    new_parameters: dict[str, float] = {}
+    initial = dict(system.initial)
+    for key, value in overrides.items():
+        name = _canonical(str(key))
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            raise ModelError(f"override {key}={value!r}: the value is not a number", where=source) from None
+        if not math.isfinite(number):
+            raise ModelError(f"override {key}={value!r}: the value is not finite", where=source)
+        if name in parameters:
+            new_parameters[name] = number
+        elif name in state:
+            initial[name] = number
+        else:
+            raise ModelError(
+                f"override {key!r}: not a parameter, coordinate or speed of {system.name!r}", where=source,
+                hint=f"parameters: {', '.join(sorted(parameters)) or '(none)'}; "
+                     f"initial values: {', '.join(state)}")
+    if new_parameters:
+        system = system.with_parameters(new_parameters)
+    return system.replace(initial=tuple(initial.items()))
+
+
+def loads_model(text: str, source: str = "<string>", overrides: Mapping | None = None) -> System:
+    """Build a :class:`System` from the text of a model file (TOML, docs/model-format.md).
+
+    ``source`` names the text in error messages (``"<source>:<line>"``). ``overrides``
+    ``{name: value}`` replaces parameter values and initial values (``x'`` or ``x_dot``
+    for speeds); an unknown name raises :class:`ModelError`.
+    """
+    if not isinstance(text, str):
+        raise ModelError(f"a model must be text, got {type(text).__name__}", where=source)
+    if len(text) > MAX_FILE_SIZE:
+        raise ModelError(f"the model has {len(text)} characters; at most {MAX_FILE_SIZE} are read", where=source)
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        m = _TOML_POSITION.search(str(exc))
+        where = f"{source}:{m.group(1)}" if m else source
+        message = _TOML_POSITION.sub("", str(exc)).strip()
+        if m:
+            message += f" (column {m.group(2)})"
+        raise ModelError(f"invalid TOML: {message}", where=where,
+                         hint="check quotes, brackets and '=' on this line (https://toml.io)") from None
+    except RecursionError:
+        raise ModelError("invalid TOML: arrays or tables nested too deeply", where=source) from None
+    except ValueError as exc:  # tomllib reports some invalid values (dates) this way
+        raise ModelError(f"invalid TOML: {exc}", where=source) from None
+    system = _build(_Reader(text, source), doc)
+    return _apply_overrides(system, overrides, source)
+
+
+def load_model(path: str | PathLike, overrides: Mapping | None = None) -> System:
+    """Read a model file (TOML, docs/model-format.md) into a :class:`System`.
+
+    ``overrides`` ``{name: value}`` replaces parameter values or initial values (as
+    ``appell simulate --set NAME=VALUE`` does); unknown names raise :class:`ModelError`.
+    Every error is a :class:`ModelError` with ``where="<file>:<line>"``.
+    """
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ModelError(f"cannot read the model file: {exc.strerror or exc}", where=str(path)) from None
+    if len(raw) > 4 * MAX_FILE_SIZE:
+        raise ModelError(f"the model file has {len(raw)} bytes; at most {MAX_FILE_SIZE} characters are read",
+                         where=str(path))
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ModelError(f"the model file is not UTF-8 text ({exc.reason} at byte {exc.start})",
+                         where=str(path)) from None
+    return loads_model(text, source=str(path), overrides=overrides)
