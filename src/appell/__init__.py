@@ -23,6 +23,7 @@ from .model import (
     holonomic,
     nonholonomic,
 )
+from .modelfile import load_model, loads_model
 from .numeric import NumericModel, StateSolution
 from .symbols import derivative_symbol, t
 
@@ -33,5 +34,5 @@ __all__ = [
     "CrossCheckReport", "Derivation", "FirstIntegral", "ModelError", "NumericModel", "Parameter", "Particle",
     "Program", "ReactionFormulas", "ReducedEquations", "RigidBody", "StateSolution", "System",
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
-    "nonholonomic", "t",
+    "load_model", "loads_model", "nonholonomic", "t",
 ]
