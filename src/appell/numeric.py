@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 from typing import Callable, Mapping
 
 import numpy as np
-import scipy.linalg as sla
 import sympy as sp
 
 from .dynamics import Evaluation
@@ -100,16 +99,19 @@ def newton(fun: Callable, x0: np.ndarray, what: str, tol: float = 1e-12, maxiter
 
 
 def split_basis(J: np.ndarray, dependent) -> tuple[np.ndarray, np.ndarray, list[int], list[int]]:
-    """Numeric ``C = [I; -J_h^{-1} J_nu]`` and an LU factor of ``J_h``."""
+    """Numeric ``C = [I; -J_h^{-1} J_nu]`` and the dependent block ``J_h``.
+
+    The blocks are tiny: plain ``numpy.linalg.solve`` beats a factorisation object here.
+    """
     n = J.shape[1]
     dep = list(dependent)
     ind = [i for i in range(n) if i not in dep]
-    lu = sla.lu_factor(J[:, dep])
+    Jh = J[:, dep]
     C = np.zeros((n, len(ind)))
     C[ind, np.arange(len(ind))] = 1.0
-    if dep:
-        C[dep, :] = -sla.lu_solve(lu, J[:, ind])
-    return C, lu, dep, ind
+    if dep and ind:
+        C[dep, :] = -np.linalg.solve(Jh, J[:, ind])
+    return C, Jh, dep, ind
 
 
 def well_conditioned(Jh: np.ndarray) -> bool:
@@ -183,10 +185,16 @@ class NumericModel:
         return pos, vel
 
     # ------------------------------------------------------------ the method
-    def solve(self, t, q, w, p=None, dependent=None) -> StateSolution:
-        """Accelerations (1.4) and every multiplier (1.5) at the state (t, q, w)."""
+    def solve(self, t, q, w, p=None, dependent=None, bias=None) -> StateSolution:
+        """Accelerations (1.4) and every multiplier (1.5) at the state (t, q, w).
+
+        ``bias`` (s-vector, optional) is added to the constraints, which then read
+        ``f + bias = 0`` (Baumgarte stabilization: ``bias = 2 alpha phi + beta^2 F``).
+        """
         pv = self.params(p)
         M, hQ, J, c = self.evaluate_blocks(t, q, w, pv)
+        if bias is not None:
+            c = c + np.asarray(bias, float)
         names = self.derivation.constraints.names
         dep = tuple(self.derivation.partition.dependent if dependent is None else dependent)
         if self.constraint_function is None:
@@ -196,16 +204,17 @@ class NumericModel:
                 switched = True
             a, lam = _split_linear(M, hQ, J, c, dep)
             return StateSolution(a, lam, J.T @ lam, dep, switched)
-        return self._solve_nonlinear(t, q, w, pv, M, hQ, dep)
+        return self._solve_nonlinear(t, q, w, pv, M, hQ, dep, bias)
 
-    def _solve_nonlinear(self, t, q, w, pv, M, hQ, dep) -> StateSolution:
+    def _solve_nonlinear(self, t, q, w, pv, M, hQ, dep, bias=None) -> StateSolution:
         names = self.derivation.constraints.names
         q = np.asarray(q, float)
         w = np.asarray(w, float)
 
         def fJ(a):
             f, J = self.constraint_function(float(t), q, w, a, pv)
-            return np.asarray(f, float).reshape(-1), np.asarray(J, float).reshape(-1, len(w))
+            f = np.asarray(f, float).reshape(-1) + (0.0 if bias is None else np.asarray(bias, float))
+            return f, np.asarray(J, float).reshape(-1, len(w))
 
         f0, J0 = fJ(np.zeros(len(w)))
         switched = False
@@ -221,7 +230,7 @@ class NumericModel:
 
         a, its = newton(G, a0, "the constraints nonlinear in the accelerations")
         f, J = fJ(a)
-        lam = sla.solve(J[:, list(dep)].T, (M @ a + hQ)[list(dep)])
+        lam = np.linalg.solve(J[:, list(dep)].T, (M @ a + hQ)[list(dep)])
         return StateSolution(a, lam, J.T @ lam, tuple(dep), switched, its)
 
     # ------------------------------------------------- Dynamics protocol
@@ -259,11 +268,12 @@ class NumericModel:
         y = np.asarray(y, float)
         return y[:nq], y[nq:]
 
-    def evaluate(self, t, y, p=None, dependent=None) -> Evaluation:
-        """``dy/dt = (K w + k, a)`` with the multipliers of (1.5) (:class:`Dynamics`)."""
+    def evaluate(self, t, y, p=None, dependent=None, bias=None) -> Evaluation:
+        """``dy/dt = (K w + k, a)`` with the multipliers of (1.5) (:class:`Dynamics`);
+        ``bias`` as in :meth:`solve`."""
         q, w = self.split_state(y)
         pv = self.params(p)
-        sol = self.solve(t, q, w, pv, dependent)
+        sol = self.solve(t, q, w, pv, dependent, bias)
         dq = self.coordinate_rates(t, q, w, pv)
         return Evaluation(np.concatenate([dq, sol.accelerations]), sol.multipliers, np.zeros(0),
                           sol.dependent, sol.switched)
@@ -272,6 +282,26 @@ class NumericModel:
         """:meth:`constraint_residuals` on the state vector (:class:`Dynamics`)."""
         q, w = self.split_state(y)
         return self.constraint_residuals(t, q, w, p)
+
+    def residual_jacobians(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """``dF/dq`` (s x n_q) and ``dphi/dw`` (s x n) on the state vector; rows of
+        constraints without that level are zero (used for projection onto the
+        constraint manifold and for completing initial values)."""
+        fn = self._formula.get("residual_jacobians")
+        if fn is None:
+            d = self.derivation
+            cons, kin = d.constraints, d.kinematics
+            nq, n = len(kin.coordinates), len(kin.speeds)
+            pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual]) if cons.count else sp.zeros(0, 1)
+            vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if cons.count else sp.zeros(0, 1)
+            jq = pos.jacobian(sp.Matrix(kin.coordinates)) if cons.count else sp.zeros(0, nq)
+            jw = vel.jacobian(sp.Matrix(kin.speeds)) if cons.count else sp.zeros(0, n)
+            fn = lambdify_blocks(_args(d), [jq, jw], program_substitutions(d.system))
+            self._formula["residual_jacobians"] = fn
+        q, w = self.split_state(y)
+        jq, jw = fn(float(t), q, w, self.params(p))
+        s = len(self.constraint_names)
+        return np.asarray(jq, float).reshape(s, len(q)), np.asarray(jw, float).reshape(s, len(w))
 
     def accelerations(self, t, q, w, p=None) -> np.ndarray:
         """Accelerations only (for integrators)."""
@@ -294,14 +324,14 @@ def _split_linear(M, hQ, J, c, dep):
     if J.shape[0] == 0:
         a = np.linalg.solve(M, -hQ)
         return a, np.zeros(0)
-    C, lu, dep, ind = split_basis(J, dep)
+    C, Jh, dep, ind = split_basis(J, dep)
     d = np.zeros(n)
-    d[dep] = -sla.lu_solve(lu, c)
+    d[dep] = -np.linalg.solve(Jh, c)
     A = C.T @ M @ C
     b = -C.T @ (M @ d + hQ)
     a = C @ np.linalg.solve(A, b) + d if ind else d
     E = M @ a + hQ
-    lam = sla.lu_solve(lu, E[dep], trans=1)
+    lam = np.linalg.solve(Jh.T, E[dep])
     return a, lam
 
 

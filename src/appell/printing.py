@@ -41,7 +41,7 @@ def derivation_text(derivation) -> str:
     kin = derivation.kinematics
     ind, dep = derivation.partition.names(kin.accelerations)
     lines = [
-        f"system {sysm.name}: {sysm.description}".rstrip(": "),
+        f"system {sysm.name}" + (f": {sysm.description}" if sysm.description else ""),
         f"  coordinates  {', '.join(map(str, kin.coordinates))}",
         f"  speeds       {', '.join(map(str, kin.speeds))}",
     ]
