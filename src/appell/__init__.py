@@ -25,6 +25,10 @@ from .model import (
 )
 from .modelfile import load_model, loads_model
 from .numeric import NumericModel, StateSolution
+from .events import Event
+from .initial import InitialState, check_initial, complete_initial
+from .simulate import simulate
+from .solution import Solution
 from .symbols import derivative_symbol, t
 
 __version__ = "0.1.0"
@@ -35,4 +39,5 @@ __all__ = [
     "Program", "ReactionFormulas", "ReducedEquations", "RigidBody", "StateSolution", "System",
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",
+    "Event", "InitialState", "Solution", "check_initial", "complete_initial", "simulate",
 ]

@@ -1,0 +1,143 @@
+"""Events watched during a simulation: zero crossings of scalar functions of the motion.
+
+Each watched quantity is a function ``g(t, y, evaluation)`` whose zero crossing is
+located by Brent's method on the integrator's dense output (to ``1e-13`` in time):
+
+* unilateral constraint ``c`` with sign ``s`` (``unilateral={'c': +1}``):
+  ``g = s lambda_c``; when it falls through zero the constraint is released;
+* friction limit (``friction={'t': ('n', mu)}``): ``g = mu lambda_n - |lambda_t|``; each
+  crossing is recorded ('exceeded' when ``|lambda_t|`` rises above ``mu lambda_n``);
+* user events (:class:`Event`): a callable ``g(t, y, multipliers)`` with
+  ``multipliers`` a ``{constraint name: lambda}`` mapping, or a SymPy expression in
+  ``t``, the state names, the parameter names, ``lambda_<constraint>`` and
+  ``control_<control>``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import sympy as sp
+
+from .errors import ModelError
+
+__all__ = ["Event", "Watch", "watches_for"]
+
+
+@dataclass(frozen=True)
+class Event:
+    """A user event: fires where ``function`` crosses zero.
+
+    ``function`` is a callable ``(t, y, multipliers) -> float`` (``y`` the state vector,
+    ``multipliers`` ``{constraint: lambda}``) or a SymPy expression (see the module
+    docstring). ``terminal`` stops the integration there; ``direction`` +1 fires only
+    on rising, -1 only on falling crossings, 0 on both.
+    """
+
+    name: str
+    function: Callable | sp.Expr
+    terminal: bool = False
+    direction: int = 0
+
+
+@dataclass(frozen=True)
+class Watch:
+    """A compiled watched quantity: ``g(t, y, evaluation, p) -> float``; ``kind`` one of
+    'release', 'friction', 'user'; ``action`` 'record', 'stop' or 'release'."""
+
+    kind: str
+    name: str
+    g: Callable
+    direction: int
+    action: str
+    constraints: tuple[str, ...] = ()
+
+    def crossed(self, g0: float, g1: float) -> bool:
+        """Whether a crossing of the watched direction lies between the values g0, g1."""
+        if not (np.isfinite(g0) and np.isfinite(g1)) or g0 == 0.0:
+            return False
+        rising, falling = g0 < 0.0 <= g1, g0 > 0.0 >= g1
+        return (rising and self.direction >= 0) or (falling and self.direction <= 0)
+
+
+def _multiplier(model, name):
+    i = list(model.constraint_names).index(name)
+    return lambda ev: float(ev.multipliers[i])
+
+
+def _sympy_event(event: Event, model):
+    expr = sp.sympify(event.function)
+    states = list(model.state_names)
+    params = list(model.parameter_names)
+    cons = list(model.constraint_names)
+    ctrls = list(model.control_names)
+    symbols = {"t": sp.Symbol("t")}
+    for n in states + params + [f"lambda_{c}" for c in cons] + [f"control_{c}" for c in ctrls]:
+        symbols[n] = sp.Symbol(n)
+    unknown = sorted(s.name for s in expr.free_symbols if s.name not in symbols)
+    if unknown:
+        raise ModelError(
+            f"event {event.name!r} uses unknown symbol(s) {', '.join(unknown)}",
+            hint="events may use t, the state names, parameters, lambda_<constraint> and control_<control>",
+        )
+    order = list(symbols)
+    fn = sp.lambdify([symbols[n] for n in order], expr, modules="numpy")
+    ns, npar, nc = len(states), len(params), len(cons)
+
+    def g(t, y, ev, p):
+        args = [t, *y[:ns], *p[:npar], *ev.multipliers[:nc], *ev.controls]
+        return float(fn(*args))
+
+    return g, ()
+
+
+def watches_for(model, unilateral=None, on_release="continue", friction=None, events=()) -> list[Watch]:
+    """The :class:`Watch` list for a model; entries naming constraints the model lacks
+    (already released) are left out."""
+    names = set(model.constraint_names)
+    out = []
+    for c, sign in dict(unilateral or {}).items():
+        if c not in names:
+            continue
+        sign = float(np.sign(sign))
+        lam = _multiplier(model, c)
+        out.append(Watch("release", c, lambda t, y, ev, p, lam=lam, s=sign: s * lam(ev), -1,
+                         "stop" if on_release == "stop" else "release", (c,)))
+    for ct, (cn, mu) in dict(friction or {}).items():
+        if ct not in names or cn not in names:
+            continue
+        lt, ln = _multiplier(model, ct), _multiplier(model, cn)
+        out.append(Watch("friction", ct, lambda t, y, ev, p, lt=lt, ln=ln, mu=float(mu): mu * ln(ev) - abs(lt(ev)),
+                         0, "record", (ct, cn)))
+    for e in events:
+        if not isinstance(e, Event):
+            e = Event(getattr(e, "__name__", str(e)), e)
+        if isinstance(e.function, sp.Basic) or isinstance(e.function, str):
+            g, _ = _sympy_event(e, model)
+        else:
+            cons = tuple(model.constraint_names)
+            fn = e.function
+
+            def g(t, y, ev, p, fn=fn, cons=cons):
+                return float(fn(t, y, dict(zip(cons, (float(v) for v in ev.multipliers)))))
+        out.append(Watch("user", e.name, g, int(np.sign(e.direction)), "stop" if e.terminal else "record"))
+    return out
+
+
+def check_event_names(model, unilateral=None, friction=None):
+    """Raise ModelError for unilateral/friction entries naming no constraint of the model."""
+    names = list(model.constraint_names)
+    bad = [c for c in dict(unilateral or {}) if c not in names]
+    for ct, spec in dict(friction or {}).items():
+        try:
+            cn, _ = spec
+        except (TypeError, ValueError) as exc:
+            raise ModelError(f"friction entry for {ct!r} must be (normal constraint, mu)") from exc
+        bad += [c for c in (ct, cn) if c not in names]
+    if bad:
+        raise ModelError(
+            f"unknown constraint(s) {', '.join(sorted(set(bad)))} in unilateral/friction",
+            hint="constraints: " + ", ".join(names),
+        )
