@@ -44,6 +44,8 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_EXPONENT",
     "MAX_NUMBER_BITS",
+    "MAX_ROOT_BITS",
+    "constant_value",
     "parse_expression",
     "caret_line",
 ]
@@ -56,6 +58,8 @@ MAX_DEPTH = 100
 MAX_EXPONENT = 100
 #: largest exact number (integer numerator or denominator), in bits (about 1000 digits)
 MAX_NUMBER_BITS = 3322
+#: largest exact number under a root (SymPy factors radicands), in bits
+MAX_ROOT_BITS = 512
 #: longest numeric literal, in characters
 MAX_LITERAL = 64
 #: longest name, in characters
@@ -303,6 +307,11 @@ def _power(base, exponent, text: str, tok: _Token):
             raise ExpressionError(
                 f"the power gives a number of more than {MAX_NUMBER_BITS} bits (about 1000 digits); "
                 "rescale the model's units", text, tok.column, tok.text)
+        if isinstance(exponent, sp.Rational) and not exponent.is_Integer and isinstance(coeff, sp.Rational) \
+                and _bits(coeff) > MAX_ROOT_BITS:  # SymPy factors the radicand: keep it small
+            raise ExpressionError(
+                f"roots of numbers beyond {MAX_ROOT_BITS} bits (about 150 digits) are not supported; "
+                "rescale the model's units", text, tok.column, tok.text)
         if isinstance(base, sp.Pow) and isinstance(base.exp, sp.Number) \
                 and abs(float(base.exp) * float(exponent)) > MAX_EXPONENT:
             raise ExpressionError(
@@ -489,6 +498,8 @@ class _Parser:
         if not lo <= len(args) <= hi:
             count = f"{lo}" if lo == hi else f"{lo} to {hi}"
             self.error(f"{tok.text}() takes {count} argument(s), got {len(args)}", tok)
+        if fn is sp.sqrt:  # a power: same size checks as '^'
+            return _power(args[0], sp.S.Half, self.text, tok)
         result = fn(*args)
         _check_result(result, self.text, tok)
         return result
