@@ -178,6 +178,13 @@ class Derivation:
 
         return compile_model(self)
 
+    def compiled(self, backend: str = "c"):
+        """Numeric functions from a chosen backend: 'c' (C compiled and cached on disk),
+        'auto' or 'numpy' (:func:`appell.numeric.compile_model`); not cached here."""
+        from .numeric import compile_model
+
+        return compile_model(self, backend)
+
     def with_partition(self, dependent) -> "Derivation":
         """The same derivation with another choice of dependent accelerations (checked)."""
         from .partition import choose_partition

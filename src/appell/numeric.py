@@ -345,8 +345,16 @@ def _args(derivation, with_acc=False):
     return args
 
 
-def compile_model(derivation) -> NumericModel:
-    """Generate the numeric functions of a derivation (once; CSE shared per function)."""
+def compile_model(derivation, backend: str = "numpy") -> NumericModel:
+    """Generate the numeric functions of a derivation (once; CSE shared per function).
+
+    ``backend``: 'numpy' (lambdify, here), 'c' or 'auto' (compiled C with the split solve
+    inside, :func:`appell.codegen_c.compile_c`; NumPy with a warning when no compiler).
+    """
+    if backend != "numpy":
+        from .codegen_c import compile_c
+
+        return compile_c(derivation, backend)
     system = derivation.system
     subs = program_substitutions(system)
     inertia, cons = derivation.inertia, derivation.constraints
