@@ -1,0 +1,387 @@
+"""First integrals as constraints (method.md §5, paper section 3).
+
+A candidate first integral ``g(t, q, w) = C`` of the constrained motion is added to the
+system as one more first-order constraint ``g - C = 0`` (reaction direction
+``dg/dw``, method.md §2). Its multiplier ``mu`` follows from (1.5) of the augmented
+system,
+
+.. math::  \\mu = \\big(J_h^{-T} E_h\\big)_{\\text{last}}, \\qquad E = M a + h - Q,
+
+with the accelerations ``a`` of the augmented motion (1.4). Why this tells integrals apart:
+write ``a*`` for the accelerations of the original system and ``C`` for the basis of its
+admissible accelerations (method.md §3). Subtracting the two sets of equations (1.3) gives
+
+.. math::  \\mu = -\\big(G C (C^T M C)^{-1} C^T G^T\\big)^{-1}\\,\\dot g(a^*),
+           \\qquad G = \\partial g / \\partial w ,
+
+so ``mu`` vanishes exactly where ``dg/dt`` vanishes along the original motion: for a true
+integral the constraint is already satisfied and its reaction is zero, for any other
+candidate ``mu`` is the force needed to enforce it. (Substituting ``a*`` itself into (1.5)
+would be useless: the augmented multipliers are then ``(lambda*, 0)`` for every candidate.)
+
+Partition. A true integral is not implied by the constraints (its row ``G`` is not a
+combination of theirs), so the augmented constraint set is not redundant and condition
+(1.2) can be met: the original dependent accelerations are kept and one more is taken
+among the independent ones, where ``G C`` is largest at a generic state (for the momentum
+``p_phi = m L^2 sin^2(theta) phi_dot`` that is ``phi_ddot``; ``theta_ddot`` would make
+``J_h`` singular). Where ``G C = 0`` (the energy at rest) no partition exists; such states
+are skipped and counted. A candidate whose row *is* a combination of the constraints' rows
+(e.g. the derivative of a holonomic constraint) is redundant: (1.5) does not define its
+multiplier, and it is decided by ``dg/dt`` along the motion instead.
+
+Verdict, per candidate and on its own augmented system:
+
+1. symbolic — ``mu`` with the accelerations of (1.4) substituted, when the expressions
+   are small: probed at random points with 30 digits, then shown to be zero by
+   ``together``/``expand`` (and ``trigsimp`` only on small numerators). A zero proves the
+   integral for every state, also off the constraint manifold.
+2. numeric — otherwise ``mu`` from the compiled split solve at random states (systems
+   without constraints) and at states along a trajectory of the original system from its
+   initial values (``scipy.integrate.solve_ivp``), compared, as the generalized force
+   ``G^T mu``, with the size of ``M a`` and ``h - Q`` there.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+import sympy as sp
+
+from .errors import ComputationError, ModelError
+from .model import Constraint, FirstIntegral, System, holonomic, nonholonomic
+from .partition import generic_values, numeric_jacobian
+from .symbols import t
+
+__all__ = [
+    "FirstIntegralCheck",
+    "FirstIntegralReport",
+    "augmented_system",
+    "check_first_integrals",
+    "integral_constraint",
+]
+
+#: relative size of the integral's generalized reaction under which mu counts as zero
+RELATIVE_TOLERANCE = 1e-8
+#: largest expression (count_ops) on which the symbolic route is attempted
+SYMBOLIC_OPS = 3000
+#: largest numerator (count_ops) on which trigsimp is tried
+TRIGSIMP_OPS = 400
+
+
+@dataclass(frozen=True)
+class FirstIntegralCheck:
+    """The test of one candidate first integral ``g = C`` (method.md §5).
+
+    Attributes
+    ----------
+    name, expression : the candidate ``g(t, q, w)``.
+    constraint : ``g - C = 0`` as it was added to the system.
+    multiplier : ``mu`` by (1.5) of the augmented system, in ``(t, q, w, a)``; None when
+        the candidate is redundant with the constraints.
+    multiplier_on_motion : ``mu`` with the accelerations of (1.4) substituted, in
+        ``(t, q, w)``; None when the expressions were too large for the symbolic route.
+    verdict : ``'integral'`` or ``'not an integral'``.
+    route : ``'symbolic'`` (mu shown to vanish identically) or ``'numeric'``.
+    largest_multiplier : the largest ``|mu|`` found (0.0 after a symbolic proof).
+    largest_relative : ``|G^T mu| / (|M a| + |h - Q|)`` at that state (infinity norms).
+    where : the state ``{name: value}`` of the largest multiplier, None if none sampled.
+    states, skipped : number of states evaluated / skipped (no partition there).
+    drift : ``max |g(t) - g(t_0)|`` along the trajectory, an independent diagnostic.
+    message : one line in words.
+    """
+
+    name: str
+    expression: sp.Expr
+    constraint: Constraint
+    multiplier: sp.Expr | None
+    multiplier_on_motion: sp.Expr | None
+    verdict: str
+    route: str
+    largest_multiplier: float
+    largest_relative: float
+    where: dict | None
+    states: int
+    skipped: int
+    drift: float | None
+    message: str
+
+    @property
+    def is_integral(self) -> bool:
+        return self.verdict == "integral"
+
+
+@dataclass(frozen=True)
+class FirstIntegralReport:
+    """The checks of all candidates of a system; ``reducible`` if every one is an integral."""
+
+    system: System
+    checks: tuple[FirstIntegralCheck, ...]
+
+    @property
+    def reducible(self) -> bool:
+        """True when every candidate is a first integral (all multipliers vanish)."""
+        return all(c.is_integral for c in self.checks)
+
+    def __getitem__(self, name: str) -> FirstIntegralCheck:
+        for c in self.checks:
+            if c.name == name:
+                return c
+        raise KeyError(name)
+
+    def to_text(self) -> str:
+        lines = [f"first integrals of {self.system.name}:"]
+        for c in self.checks:
+            lines.append(f"  {c.name}: {c.verdict} ({c.route}) — {c.message}")
+        lines.append("  reducible: " + ("yes" if self.reducible else "no"))
+        return "\n".join(lines)
+
+
+def integral_constraint(integral: FirstIntegral, taken: Sequence[str] = ()) -> Constraint:
+    """The candidate ``g(t,q,w) = C`` as a constraint ``g - C = 0``.
+
+    First order when ``g`` involves a speed, holonomic otherwise (reaction direction
+    ``dg/dw`` resp. ``dg/dq K``, method.md §2). The constraint is named after the
+    integral (made an identifier and distinct from ``taken``).
+    """
+    name = re.sub(r"\W", "_", integral.name) or "integral"
+    if not name[0].isalpha() and name[0] != "_":
+        name = "I_" + name
+    while name in taken:
+        name += "_integral"
+    expr = sp.sympify(integral.expr) - (integral.value if integral.value is not None else 0)
+    return (nonholonomic if _has_speed(integral.expr) else holonomic)(name, expr, f"first integral {integral.name!r}")
+
+
+def _has_speed(expr) -> bool:
+    from .symbols import split_derivative_name
+
+    return any(split_derivative_name(s.name)[1] >= 1 for s in sp.sympify(expr).free_symbols)
+
+
+def augmented_system(system: System, integral: FirstIntegral) -> System:
+    """``system`` with the candidate added as its last constraint (method.md §5)."""
+    con = integral_constraint(integral, [c.name for c in system.constraints + system.servo_constraints])
+    return system.replace(constraints=system.constraints + (con,), first_integrals=(),
+                          name=f"{system.name}+{con.name}")
+
+
+def _augmented_partition(original, aug_J: sp.Matrix, n: int):
+    """Original dependent accelerations plus the best-conditioned extra one, or None."""
+    dep = list(original.partition.dependent)
+    ind = [i for i in range(n) if i not in dep]
+    if not ind:
+        return None
+    Jn = np.array(numeric_jacobian(aug_J, seed=3), float)
+    best, best_cond = None, np.inf
+    for c in ind:
+        cond = np.linalg.cond(Jn[:, dep + [c]])
+        if cond < best_cond:
+            best, best_cond = c, cond
+    return dep + [best] if best_cond < 1e8 else None
+
+
+def _motion_accelerations(der) -> sp.Matrix | None:
+    """Accelerations of (1.4) as expressions in (t, q, w), for small linear systems only."""
+    red = der.reduced
+    if red.mass_matrix is None or red.mass_matrix.shape[0] > 3:
+        return None
+    if sp.count_ops(red.mass_matrix) + sp.count_ops(red.forcing) > SYMBOLIC_OPS:
+        return None
+    a_nu = sp.Matrix(red.mass_matrix).LUsolve(sp.Matrix(red.forcing))
+    sub = dict(zip(red.independent, a_nu))
+    a = sp.Matrix(der.accelerations)
+    a_dep = sp.Matrix(red.dependent_solution).xreplace(sub) if red.dependent else sp.zeros(0, 1)
+    sub.update(dict(zip(red.dependent, a_dep)))
+    return sp.Matrix([sub[s] for s in a])
+
+
+def _vanishes_identically(expr: sp.Expr) -> bool | None:
+    """True: shown to be zero; False: nonzero at a random point; None: undecided."""
+    import mpmath
+
+    free = sorted(expr.free_symbols, key=str)
+    fn = sp.lambdify(free, expr, modules="mpmath", cse=True)
+    with mpmath.workdps(30):
+        for seed in range(3):
+            vals = generic_values(free, seed=11 + seed)
+            try:
+                v = complex(fn(*(mpmath.mpf(vals[s]) for s in free)))
+            except (TypeError, ValueError, ZeroDivisionError):
+                return None
+            if not np.isfinite(v) or abs(v) > 1e-15:
+                return False
+    if sp.count_ops(expr) > SYMBOLIC_OPS:
+        return None
+    num = sp.expand(sp.numer(sp.together(expr)))
+    if num == 0:
+        return True
+    if sp.count_ops(num) <= TRIGSIMP_OPS and sp.expand(sp.trigsimp(num)) == 0:
+        return True
+    return None
+
+
+def _initial_state(system: System) -> tuple[np.ndarray, np.ndarray]:
+    init = system.initial_values
+    q0 = np.array([init.get(q.name, 0.0) for q in system.coordinates], float)
+    w0 = np.array([init.get(w.name, 0.0) for w in system.speeds], float)
+    return q0, w0
+
+
+def _integrate_motion(numeric, q0, w0, times, t0: float = 0.0, rtol: float = 1e-10, atol: float = 1e-12):
+    """States ``(q, w)`` of the original motion at ``times`` (solve_ivp, DOP853).
+
+    A private stand-in for a simulation module: ``dq/dt = K w + k``, ``dw/dt`` from the
+    split solve (1.4).
+    """
+    from scipy.integrate import solve_ivp
+
+    nq = len(q0)
+
+    def rhs(time, y):
+        q, w = y[:nq], y[nq:]
+        return np.concatenate([numeric.coordinate_rates(time, q, w), numeric.accelerations(time, q, w)])
+
+    sol = solve_ivp(rhs, (t0, float(times[-1])), np.concatenate([q0, w0]), method="DOP853",
+                    t_eval=times, rtol=rtol, atol=atol)
+    if not sol.success:
+        raise ComputationError(f"integration of the motion failed: {sol.message}")
+    return sol.t, sol.y[:nq].T, sol.y[nq:].T
+
+
+def check_first_integrals(system: System, integrals: Sequence[FirstIntegral] | None = None, *,
+                          samples: int = 6, t_final: float = 10.0, trajectory_points: int = 40,
+                          tolerance: float = RELATIVE_TOLERANCE, symbolic: bool = True,
+                          seed: int = 0) -> FirstIntegralReport:
+    """Test candidate first integrals by their multipliers (1.5) (method.md §5).
+
+    Parameters
+    ----------
+    system : the constrained system; its ``initial`` values start the trajectory and must
+        satisfy the constraints.
+    integrals : candidates; default ``system.first_integrals``.
+    samples : random states (only for systems without constraints, whose every state
+        is admissible).
+    t_final, trajectory_points : the trajectory of the original motion that is sampled.
+    tolerance : ``|G^T mu|`` relative to ``|M a| + |h - Q|`` under which mu counts as zero.
+    symbolic : try the symbolic route first.
+
+    Returns
+    -------
+    FirstIntegralReport
+        one :class:`FirstIntegralCheck` per candidate (a non-integral is a verdict, not
+        an error) and ``reducible``.
+    """
+    from .derive import derive
+
+    cands = tuple(system.first_integrals if integrals is None else integrals)
+    if not cands:
+        raise ModelError(f"system {system.name!r} has no candidate first integral",
+                         hint="give first_integrals=(FirstIntegral(name, expr), ...)")
+    base = derive(system.replace(first_integrals=()))
+    num = base.numeric
+    q0, w0 = _initial_state(system)
+    times = np.linspace(0.0, t_final, trajectory_points)
+    _, Qs, Ws = _integrate_motion(num, q0, w0, times)
+    states = [(float(tt), q, w) for tt, q, w in zip(times, Qs, Ws)]
+    if not system.constraints and samples:
+        rng = np.random.default_rng(seed)
+        for _ in range(samples):
+            q = rng.uniform(0.3, 1.3, len(q0))
+            w = rng.uniform(0.3, 1.3, len(w0)) * rng.choice([-1.0, 1.0], len(w0))
+            states.append((float(rng.uniform(0.0, 1.0)), q, w))
+    checks = tuple(_check_one(system, base, fi, states, len(times), tolerance, symbolic) for fi in cands)
+    return FirstIntegralReport(system, checks)
+
+
+def _state_dict(system, tt, q, w) -> dict:
+    d = {"t": tt}
+    d.update({s.name: float(v) for s, v in zip(system.coordinates, q)})
+    d.update({s.name: float(v) for s, v in zip(system.speeds, w)})
+    return d
+
+
+def _check_one(system, base, fi, states, n_traj, tolerance, symbolic) -> FirstIntegralCheck:
+    from .derive import derive
+
+    aug_sys = augmented_system(system, fi)
+    con = aug_sys.constraints[-1]
+    g = sp.sympify(fi.expr)
+    gfun = sp.lambdify([t, list(system.coordinates), list(system.speeds),
+                        [p.symbol for p in system.parameters]], g, modules="numpy")
+    pv = base.numeric.default_parameters
+    gv = np.array([float(gfun(tt, q, w, pv)) for tt, q, w in states[:n_traj]])
+    drift = float(np.max(np.abs(gv - gv[0])))
+    common = dict(name=fi.name, expression=g, constraint=con, drift=drift)
+
+    try:
+        probe = derive(aug_sys)
+        dep = _augmented_partition(base, sp.Matrix(probe.constraints.jacobian), len(system.speeds))
+        aug = probe.with_partition(dep) if dep is not None else probe
+    except ModelError:
+        return _redundant(system, base, fi, con, states, n_traj, tolerance, common)
+
+    mu = aug.reactions.multipliers[-1]
+    mu_motion = None
+    if symbolic and aug.constraints.linear:
+        acc = _motion_accelerations(aug)
+        if acc is not None:
+            mu_motion = mu.xreplace(dict(zip(aug.accelerations, acc)))
+            if _vanishes_identically(mu_motion) is True:
+                return FirstIntegralCheck(
+                    multiplier=mu, multiplier_on_motion=mu_motion, verdict="integral", route="symbolic",
+                    largest_multiplier=0.0, largest_relative=0.0, where=None, states=0, skipped=0,
+                    message="the multiplier (1.5) vanishes identically on the motion", **common)
+
+    numa = aug.numeric
+    worst_rel, worst_abs, where, used, skipped = 0.0, 0.0, None, 0, 0
+    for tt, q, w in states:
+        try:
+            sol = numa.solve(tt, q, w)
+        except (ComputationError, np.linalg.LinAlgError):
+            skipped += 1
+            continue
+        M, hQ, J, _ = numa.evaluate_blocks(tt, q, w)
+        scale = np.max(np.abs(M @ sol.accelerations)) + np.max(np.abs(hQ)) + 1e-300
+        m_ = float(sol.multipliers[-1])
+        rel = float(np.max(np.abs(J[-1] * m_))) / scale
+        used += 1
+        if rel > worst_rel or where is None:
+            worst_rel, worst_abs, where = rel, abs(m_), _state_dict(system, tt, q, w)
+    if used == 0:
+        raise ComputationError(f"first integral {fi.name!r}: no sampled state admits a partition (1.2)",
+                               hint="give initial values where dg/dw is not zero")
+    ok = worst_rel <= tolerance
+    msg = (f"largest |mu| = {worst_abs:.3g} (relative {worst_rel:.2g}) over {used} states"
+           + (f", {skipped} skipped" if skipped else "") + f"; drift of g along the motion {drift:.2g}")
+    return FirstIntegralCheck(
+        multiplier=mu, multiplier_on_motion=mu_motion, verdict="integral" if ok else "not an integral",
+        route="numeric", largest_multiplier=worst_abs, largest_relative=worst_rel, where=where,
+        states=used, skipped=skipped, message=msg, **common)
+
+
+def _redundant(system, base, fi, con, states, n_traj, tolerance, common) -> FirstIntegralCheck:
+    """A candidate implied at the level of accelerations by the constraints: decided by
+    ``dg/dt = G a* + c_g`` along the original motion, relative to ``|G| |a*| + |c_g|``."""
+    from .constraints import second_order_blocks
+
+    blocks = second_order_blocks((con,), base.kinematics)
+    G, c = sp.Matrix(blocks.jacobian), sp.Matrix(blocks.bias)
+    args = [t, list(system.coordinates), list(system.speeds), [p.symbol for p in system.parameters]]
+    fG = sp.lambdify(args, [G, c], modules="numpy")
+    pv = base.numeric.default_parameters
+    worst, where = 0.0, None
+    for tt, q, w in states[:n_traj]:
+        a = base.numeric.accelerations(tt, q, w)
+        Gn, cn = (np.asarray(x, float).reshape(-1) for x in fG(tt, q, w, pv))
+        rel = abs(Gn @ a + cn[0]) / (np.max(np.abs(Gn)) * np.max(np.abs(a)) + abs(cn[0]) + 1e-300)
+        if rel > worst or where is None:
+            worst, where = rel, _state_dict(system, tt, q, w)
+    ok = worst <= tolerance
+    return FirstIntegralCheck(
+        multiplier=None, multiplier_on_motion=None, verdict="integral" if ok else "not an integral",
+        route="numeric", largest_multiplier=float("nan"), largest_relative=worst, where=where,
+        states=n_traj, skipped=0,
+        message=f"redundant with the constraints (no multiplier); largest relative dg/dt {worst:.2g}", **common)
