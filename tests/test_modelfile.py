@@ -15,7 +15,7 @@ import sympy as sp
 import appell
 from appell import ModelError, cross_check, derive, load_model, loads_model
 from appell.examples import CATALOG, example_path, list_examples
-from appell.modelfile import ExpressionError, parse_expression
+from appell.modelfile import ExpressionError, parse_expression, simulation_options
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -64,8 +64,21 @@ def test_model_file_equals_builder(name):
 
 
 def test_car_simulation_settings_are_stored():
-    settings = dict(load_model(example_path("car")).settings)
-    assert settings == {"t_end": 10.0, "method": "Radau", "rtol": 1e-9, "atol": 1e-11, "output_step": 0.05}
+    settings = simulation_options(load_model(example_path("car")))
+    t_eval = settings.pop("t_eval")
+    assert settings == {"t_end": 10.0, "method": "Radau", "rtol": 1e-9, "atol": 1e-11,
+                        "stabilization": "projection", "complete": True}
+    assert len(t_eval) == 201 and t_eval[0] == 0.0 and t_eval[-1] == pytest.approx(10.0)
+    assert np.diff(t_eval) == pytest.approx(np.full(200, 0.05))
+
+
+def test_simulation_settings_run_the_simulator():
+    """The [simulation] keys are simulate()'s keywords: the pendulum file runs as written."""
+    from appell.simulate import simulate
+
+    system = load_model(example_path("pendulum"))
+    solution = simulate(derive(system), **simulation_options(system))
+    assert solution.status == 0, solution.message
 
 
 # ---------------------------------------------------------------- grammar
@@ -364,6 +377,15 @@ def test_simulation_table_is_checked():
     err = _error(BASE + "\n[simulation]\nrtol = -1\n")
     assert err.where == "model.toml:18" and "positive" in str(err)
     err = _error(BASE + '\n[simulation]\nstabilization = "magic"\n')
-    assert "baumgarte" in str(err)
-    s = loads_model(BASE + '\n[simulation]\noutput_times = [0, 0.5, "pi/2"]\nt_end = 2\n')
-    assert dict(s.settings)["output_times"] == (0.0, 0.5, pytest.approx(np.pi / 2))
+    assert "baumgarte" in err.hint
+    err = _error(BASE + "\n[simulation]\nt_end = 1\n[simulation.unilateral]\nrood = 1\n")
+    assert err.where == "model.toml:20" and "'rood' is not a constraint" in str(err)
+    err = _error(BASE + "\n[simulation]\noutput_step = 0.1\n")
+    assert "needs t_end" in str(err)
+    s = loads_model(BASE + '\n[simulation]\nt_eval = [0, 0.5, "pi/2"]\nt_end = 2\nstabilization = "none"\n'
+                    '[simulation.unilateral]\nrod = -1\n[simulation.friction.rod]\nnormal = "rod"\nmu = 0.3\n')
+    options = simulation_options(s)
+    assert options["t_eval"] == (0.0, 0.5, pytest.approx(np.pi / 2))
+    assert options["stabilization"] is None
+    assert options["unilateral"] == {"rod": -1} and options["friction"] == {"rod": ("rod", 0.3)}
+    hash(s)  # settings are stored hashable, so the System stays hashable

@@ -38,7 +38,7 @@ from ..validation import declared_symbols, validate
 from .expressions import FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_value, parse_expression
 from .locate import source_map
 
-__all__ = ["load_model", "loads_model", "TABLES", "SIMULATION_KEYS", "CONSTRAINT_KINDS", "MAX_FILE_SIZE"]
+__all__ = ["load_model", "loads_model", "simulation_options", "TABLES", "SIMULATION_KEYS", "CONSTRAINT_KINDS", "MAX_FILE_SIZE"]
 
 #: largest model file accepted, in characters
 MAX_FILE_SIZE = 1_000_000
@@ -73,22 +73,26 @@ FIRST_INTEGRAL_KEYS = ("expr", "value")
 #: constraint kinds -> order (method.md §2)
 CONSTRAINT_KINDS = {"holonomic": 0, "first-order": 1, "second-order": 2}
 
-#: [simulation] keys -> (type description, check); the values are stored in System.settings
+#: [simulation] keys (the keyword arguments of appell.simulate.simulate) -> what they hold
 SIMULATION_KEYS = {
-    "t_start": "number",
-    "t_end": "number",
-    "method": "string",
+    "t_end": "number, the final time",
+    "t0": "number, the initial time (default 0)",
+    "t_eval": "array of non-decreasing output times",
+    "output_step": "positive number; equally spaced output times from t0 to t_end (stored as t_eval)",
+    "method": "string, the integrator",
     "rtol": "positive number",
     "atol": "positive number",
     "max_step": "positive number",
-    "first_step": "positive number",
-    "output_step": "positive number",
-    "output_times": "array of numbers",
-    "stabilization": "one of 'none', 'baumgarte', 'projection'",
-    "baumgarte_alpha": "non-negative number",
-    "baumgarte_beta": "non-negative number",
+    "stabilization": "'projection', 'baumgarte' or 'none'",
+    "baumgarte": "array [alpha, beta] of non-negative numbers",
+    "projection_tol": "positive number",
+    "unilateral": "table: constraint name = 1 or -1 (the sign its multiplier keeps)",
+    "on_release": "'continue' or 'stop'",
+    "friction": "table: tangential constraint = { normal = constraint name, mu = number }",
+    "complete": "boolean: complete the dependent initial values",
 }
-STABILIZATIONS = ("none", "baumgarte", "projection")
+STABILIZATIONS = ("projection", "baumgarte", "none")
+RELEASES = ("continue", "stop")
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
@@ -424,33 +428,108 @@ def _first_integrals(r: _Reader, doc: dict) -> list[FirstIntegral]:
     return out
 
 
-def _simulation(r: _Reader, doc: dict) -> tuple:
+def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
+    """The [simulation] table as ``((key, value), ...)`` in document order (hashable values)."""
     if "simulation" not in doc:
         return ()
     section = r.table(("simulation",), doc["simulation"], tuple(SIMULATION_KEYS))
-    out = []
-    for key, value in section.items():
+    out: dict = {}
+
+    def positive(key):
+        value = r.constant(("simulation", key), section[key])
+        if not value > 0:
+            raise r.error(("simulation", key), f"must be positive, got {value}")
+        return value
+
+    def choice(key, allowed):
+        value = r.string(("simulation", key), section[key])
+        if value not in allowed:
+            raise r.error(("simulation", key), f"{value!r} is not allowed",
+                          hint=f"{key} is one of {', '.join(map(repr, allowed))}")
+        return value
+
+    def constraint(path, name):
+        if name not in constraint_names:
+            raise r.error(path, f"{name!r} is not a constraint of the model",
+                          hint=f"constraints: {', '.join(constraint_names) or '(none)'}")
+        return name
+
+    for key in section:
         path = ("simulation", key)
-        kind = SIMULATION_KEYS[key]
-        if kind == "string" or kind.startswith("one of"):
-            value = r.string(path, value)
-            if kind.startswith("one of") and value not in STABILIZATIONS:
-                raise r.error(path, f"{value!r} is not allowed", hint=f"{key} is {kind}")
-        elif kind == "array of numbers":
-            if not isinstance(value, list):
-                raise r.error(path, f"must be an array of numbers, got {_kind(value)}")
-            value = tuple(r.constant(path + (i,), v) for i, v in enumerate(value))
-            if any(b < a for a, b in zip(value, value[1:])):
+        value = section[key]
+        if key in ("t_end", "t0"):
+            out[key] = r.constant(path, value)
+        elif key in ("rtol", "atol", "max_step", "projection_tol", "output_step"):
+            out[key] = positive(key)
+        elif key == "method":
+            out[key] = r.string(path, value)
+        elif key == "stabilization":
+            out[key] = None if choice(key, STABILIZATIONS) == "none" else section[key]
+        elif key == "on_release":
+            out[key] = choice(key, RELEASES)
+        elif key == "complete":
+            if not isinstance(value, bool):
+                raise r.error(path, f"must be true or false, got {_kind(value)}")
+            out[key] = value
+        elif key in ("t_eval", "baumgarte"):
+            if not isinstance(value, list) or (key == "baumgarte" and len(value) != 2):
+                raise r.error(path, f"must be {SIMULATION_KEYS[key]}")
+            numbers = tuple(r.constant(path + (i,), v) for i, v in enumerate(value))
+            if key == "t_eval" and any(b < a for a, b in zip(numbers, numbers[1:])):
                 raise r.error(path, "output times must be non-decreasing")
-        else:
-            value = r.constant(path, value)
-            if (kind.startswith("positive") and not value > 0) or (kind.startswith("non-negative") and value < 0):
-                raise r.error(path, f"must be a {kind}, got {value}")
-        out.append((key, value))
-    settings = dict(out)
-    if "t_end" in settings and settings["t_end"] <= settings.get("t_start", 0.0):
-        raise r.error(("simulation", "t_end"), "t_end must be after t_start (default 0)")
-    return tuple(out)
+            if key == "baumgarte" and min(numbers) < 0:
+                raise r.error(path, "alpha and beta must be non-negative")
+            out[key] = numbers
+        elif key == "unilateral":
+            table = r.table(path, value, _Any())
+            pairs = []
+            for name, sign in table.items():
+                constraint(path + (name,), name)
+                if sign not in (1, -1) or isinstance(sign, bool):
+                    raise r.error(path + (name,), f"must be 1 or -1, got {sign!r}")
+                pairs.append((name, int(sign)))
+            out[key] = tuple(pairs)
+        elif key == "friction":
+            table = r.table(path, value, _Any())
+            pairs = []
+            for name, spec in table.items():
+                constraint(path + (name,), name)
+                spec = r.table(path + (name,), spec, ("normal", "mu"), required=("normal", "mu"))
+                normal = constraint(path + (name, "normal"), r.string(path + (name, "normal"), spec["normal"]))
+                mu = r.constant(path + (name, "mu"), spec["mu"])
+                if mu < 0:
+                    raise r.error(path + (name, "mu"), "the friction coefficient must be non-negative")
+                pairs.append((name, (normal, mu)))
+            out[key] = tuple(pairs)
+
+    t0, t_end = out.get("t0", 0.0), out.get("t_end")
+    if t_end is not None and t_end <= t0:
+        raise r.error(("simulation", "t_end"), f"t_end must be after t0 ({t0})")
+    if "output_step" in out:
+        step = out.pop("output_step")
+        if t_end is None or "t_eval" in out:
+            raise r.error(("simulation", "output_step"), "output_step needs t_end and excludes t_eval")
+        count = int(math.floor((t_end - t0) / step + 1e-9)) + 1
+        if count > 10_000_000:
+            raise r.error(("simulation", "output_step"), f"{count} output times are too many")
+        times = [t0 + k * step for k in range(count)]
+        if t_end - times[-1] > 1e-9 * step:
+            times.append(t_end)
+        out["t_eval"] = tuple(times)
+    return tuple(out.items())
+
+
+def simulation_options(system: System) -> dict:
+    """``system.settings`` as keyword arguments of :func:`appell.simulate.simulate`.
+
+    The settings are stored hashable (pairs); ``unilateral`` and ``friction`` become
+    dictionaries again, ``t_eval`` an array-like tuple.
+    """
+    options = dict(system.settings)
+    for key in ("unilateral", "friction"):
+        if key in options:
+            options[key] = dict(options[key])
+    return options
 
 
 # ------------------------------------------------------------------ the load
@@ -519,7 +598,7 @@ def _build(r: _Reader, doc: dict) -> System:
     constraints = _constraints(r, top, "constraints")
     servo = _constraints(r, top, "servo_constraints")
     first_integrals = _first_integrals(r, top)
-    settings = _simulation(r, top)
+    settings = _simulation(r, top, [c.name for c in constraints])
 
     if not bodies and "kinetic_energy" not in mechanics and "acceleration_energy" not in mechanics:
         raise r.error(("mechanics",), "the model has no mechanics",
