@@ -134,3 +134,14 @@ def test_partition_switch_is_logged():
     assert np.allclose(sol.states["phi"], 0.3, atol=1e-12)
     speed = np.hypot(sol.states["x_dot"], sol.states["y_dot"])
     assert np.allclose(speed, 1.0 + 800.0 / 1200.0 * sol.t, rtol=1e-10)
+
+
+def test_unilateral_with_wrong_sign_at_the_start_is_released_at_once():
+    """Below the equator (theta0 = 2 rad from the top) a smooth sphere would have to pull:
+    m g (3 cos theta0 - 2 cos theta0) = m g cos theta0 < 0 at rest, so the particle falls freely."""
+    d = appell.derive(event_examples.particle_on_sphere(2.0))
+    sol = simulate(d, 0.5, unilateral={"surface": +1}, t_eval=[0.0, 0.25, 0.5])
+    assert sol.events[0].kind == "release" and sol.events[0].t == 0.0
+    assert sol.events[0].multipliers["surface"] == pytest.approx(G * math.cos(2.0), rel=1e-12)
+    assert np.allclose(sol.states["y"], R * math.cos(2.0) - G / 2 * sol.t**2, atol=1e-10)
+    assert np.all(sol.multipliers["surface"] == 0.0)

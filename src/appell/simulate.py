@@ -306,14 +306,28 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     ev = run.evaluate(active, t, y)
     watches = watches_for(active, **watch_args)
     g = [w.g(t, y, ev, p) for w in watches]
+    status, message = 0, "reached the final time"
+    for w, gv in zip(watches, g):
+        if w.kind == "friction" and gv < 0:
+            run.event_record(active, w, t, y, ev, "|lambda_t| exceeds mu lambda_n at the start")
+        if w.kind == "release" and gv < 0:
+            run.event_record(active, w, t, y, ev, f"lambda_{w.name} has the wrong sign at the start")
+            if w.action == "stop":
+                run.record(active, t, y, ev)
+                return run.solution(active, 1, f"stopped by event release {w.name} at t = {t:.10g}")
+            run.released.append(w.name)
+    if run.released:
+        active = _without(system, run.released)
+        state["active"] = active
+        run.log.append(f"t = {t:.10g}: continuing without constraint(s) {', '.join(run.released)}")
+        watches = watches_for(active, **watch_args)
+        ev = run.evaluate(active, t, y)
+        run.dependent = tuple(ev.dependent)
+        g = [w.g(t, y, ev, p) for w in watches]
     k = 0
     while k < t_eval.size and t_eval[k] <= t:
         run.record(active, t_eval[k], y, ev)
         k += 1
-    for w, gv in zip(watches, g):
-        if w.kind == "friction" and gv < 0:
-            run.event_record(active, w, t, y, ev, "|lambda_t| exceeds mu lambda_n at the start")
-    status, message = 0, "reached the final time"
     bar = None
     if _show_progress(progress):
         from tqdm import tqdm
