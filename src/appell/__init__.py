@@ -29,6 +29,8 @@ from .events import Event
 from .initial import InitialState, check_initial, complete_initial
 from .simulate import simulate
 from .solution import Solution
+from .cyclic import RouthReduction, cyclic_coordinates, routh_reduction
+from .first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
 from .symbols import derivative_symbol, t
 
 __version__ = "0.1.0"
@@ -40,4 +42,6 @@ __all__ = [
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",
     "Event", "InitialState", "Solution", "check_initial", "complete_initial", "simulate",
+    "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",
+    "routh_reduction",
 ]
