@@ -358,7 +358,10 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
                             ys = dense(s)
                             return w.g(s, ys, run.evaluate(active, s, ys), p)
 
-                        ts = brentq(gi, t, t_new, xtol=1e-13, rtol=4 * np.finfo(float).eps, maxiter=200)
+                        try:
+                            ts = brentq(gi, t, t_new, xtol=1e-13, rtol=4 * np.finfo(float).eps, maxiter=200)
+                        except ValueError:  # the interpolant lost the sign change: take the step's end
+                            ts = t_new
                         hits.append((ts, i, w))
             except AppellError as exc:
                 status, message = -1, f"the model could not be evaluated near t = {t_new:.10g}: {exc}"
