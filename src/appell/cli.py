@@ -1,0 +1,455 @@
+"""The command line ``appell``: a thin layer over the Python API.
+
+=========================  ===========================================================
+``appell derive MODEL``    :func:`appell.derive` (or :func:`appell.servo.derive_controlled`
+                           for a model with servo constraints), printed as text, LaTeX or JSON
+``appell simulate MODEL``  :func:`appell.simulate.simulate`, exported as CSV, HDF5 or netCDF
+``appell check MODEL``     :func:`appell.cross_check` against the augmented multiplier system
+``appell report MODEL``    :func:`appell.report.write_report`: one self-contained HTML page
+``appell examples``        the bundled model files (:mod:`appell.examples`)
+=========================  ===========================================================
+
+``MODEL`` is a model file (docs/model-format.md) or the name of a bundled example.
+
+Exit codes: 0 success; 1 the computation failed (:class:`~appell.errors.ComputationError`,
+a failed cross-check, a failed integration); 2 bad input (:class:`~appell.errors.ModelError`,
+bad options, a missing file). Errors are printed as ``error: <message>`` (and a hint) on
+stderr, never as a traceback, and no output file is left behind.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import click
+
+from .errors import AppellError, ComputationError, ModelError
+
+__all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
+           "run_simulation", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
+
+EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
+
+#: file suffix -> export format of ``appell simulate --out``
+OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"}
+
+#: final time when neither ``--t-end`` nor the model's [simulation] table gives one
+DEFAULT_T_END = 10.0
+
+
+# ---------------------------------------------------------------- the API the commands use
+def resolve_model(model: str) -> Path:
+    """The model file named by ``model``: an existing path, or a bundled example's name."""
+    path = Path(model)
+    if path.is_file():
+        return path
+    from .examples import example_path, list_examples
+
+    if path.suffix == "" and model in list_examples():
+        return example_path(model)
+    if path.exists():
+        raise ModelError(f"{model}: not a file", hint="give the path of a model file (.toml)")
+    raise ModelError(f"{model}: no such model file",
+                     hint="give the path of a model file, or a bundled example: " + ", ".join(list_examples()))
+
+
+def parse_assignments(items) -> dict[str, str]:
+    """``["m=2", "x'=0.1"]`` -> ``{"m": "2", "x'": "0.1"}`` (values checked by the loader)."""
+    out = {}
+    for item in items or ():
+        name, sep, value = item.partition("=")
+        name, value = name.strip(), value.strip()
+        if not sep or not name or not value:
+            raise click.BadParameter(f"{item!r} is not NAME=VALUE", param_hint="'--set'")
+        out[name] = value
+    return out
+
+
+def load_system(model: str, overrides=None):
+    """Load a model file (or bundled example) with parameter / initial-value ``overrides``."""
+    from .modelfile import load_model
+
+    return load_model(resolve_model(model), overrides=overrides or None)
+
+
+def _canonical(name: str) -> str:
+    """``x''`` -> ``x_ddot`` (the model-file prime notation for derivatives)."""
+    from .symbols import derivative_name, split_derivative_name
+
+    stripped = name.rstrip("'")
+    primes = len(name) - len(stripped)
+    if not primes:
+        return name
+    base, order = split_derivative_name(stripped)
+    return derivative_name(base, order + primes)
+
+
+def derive_model(system, dependent=None):
+    """:func:`appell.derive`, or :func:`appell.servo.derive_controlled` when the system has
+    servo constraints (method.md §4)."""
+    dependent = [_canonical(d) for d in dependent] if dependent else None
+    if system.servo_constraints:
+        from .servo import derive_controlled
+
+        return derive_controlled(system, dependent=dependent)
+    from .derive import derive
+
+    return derive(system, dependent=dependent)
+
+
+def is_controlled(derivation) -> bool:
+    """Whether ``derivation`` is a controlled derivation (servo constraints, method.md §4)."""
+    return hasattr(derivation, "control_laws") and hasattr(derivation, "dynamic_conditions")
+
+
+def derivation_json(derivation) -> dict:
+    """The JSON document of ``appell derive --format json``.
+
+    Keys (at least): ``coordinates``, ``speeds``, ``independent``, ``dependent``,
+    ``reduced_equations`` (1.4)/(2.4), ``multipliers`` (constraint name -> formula
+    (1.5)/(2.5)), ``controls`` (control name -> control law from the dynamic conditions
+    (2.3); empty without servo constraints) and ``first_integrals`` (name -> expression);
+    every expression is a string that :func:`sympy.sympify` parses.
+    """
+    system = derivation.system
+    if is_controlled(derivation):
+        from .equations import tidy
+
+        out = dict(derivation.to_json())
+        kin = derivation.kinematics
+        out.setdefault("name", system.name)
+        out["coordinates"] = [s.name for s in kin.coordinates]
+        out["speeds"] = [s.name for s in kin.speeds]
+        out["accelerations"] = [s.name for s in kin.accelerations]
+        out["reduced_equations"] = [str(tidy(e)) for e in derivation.reduced.equations]
+        out["multipliers"] = {n: str(e) for n, e in derivation.reactions.as_dict().items()}
+        out["controls"] = {n: str(e) for n, e in derivation.control_laws.items()}
+        out["dynamic_conditions"] = {n: str(e) for n, e in derivation.dynamic_conditions.items()}
+        out["constraints"] = {c.name: {"kind": c.kind, "expression": str(c.expr)} for c in system.constraints}
+        out["servo_constraints"] = {c.name: {"kind": c.kind, "expression": str(c.expr)}
+                                    for c in system.servo_constraints}
+    else:
+        out = dict(derivation.to_json())
+        out.setdefault("controls", {})
+    if not out.get("first_integrals"):
+        out["first_integrals"] = {f.name: str(f.expr) for f in system.first_integrals}
+    return out
+
+
+def simulation_options(system, t_end: float | None = None) -> dict:
+    """Keyword arguments of :func:`appell.simulate.simulate` from the model's ``[simulation]``
+    table (``System.settings``), with ``t_end`` overriding the table's.
+
+    ``t_start`` -> ``t0``; ``output_step`` / ``output_times`` -> ``t_eval``;
+    ``stabilization = 'none'`` -> None; ``baumgarte_alpha``/``_beta`` -> ``baumgarte``;
+    other keys that :func:`simulate` accepts pass through. ``t_end`` defaults to
+    :data:`DEFAULT_T_END`.
+    """
+    import numpy as np
+
+    from .simulate import simulate
+
+    accepted = set(inspect.signature(simulate).parameters)
+    settings = dict(system.settings)
+    t0 = float(settings.pop("t_start", 0.0))
+    table_t_end = settings.pop("t_end", None)
+    t_end = float(t_end if t_end is not None else table_t_end if table_t_end is not None else DEFAULT_T_END)
+    step = settings.pop("output_step", None)
+    times = settings.pop("output_times", None)
+    alpha, beta = settings.pop("baumgarte_alpha", None), settings.pop("baumgarte_beta", None)
+    opts: dict = {"t0": t0, "t_end": t_end}
+    if times is not None:
+        opts["t_eval"] = np.array([x for x in times if t0 <= x <= t_end], float)
+    elif step is not None and t_end > t0:
+        count = int(np.floor((t_end - t0) / float(step) + 1e-9))
+        grid = t0 + float(step) * np.arange(count + 1)
+        opts["t_eval"] = grid if np.isclose(grid[-1], t_end) else np.append(grid, t_end)
+    if "stabilization" in settings:
+        value = settings.pop("stabilization")
+        opts["stabilization"] = None if value in (None, "none") else value
+    if alpha is not None or beta is not None:
+        opts["baumgarte"] = (float(alpha if alpha is not None else 10.0), float(beta if beta is not None else 10.0))
+    for key, value in settings.items():
+        if key in accepted and key not in opts:
+            opts[key] = value
+    return opts
+
+
+def run_simulation(derivation, t_end: float | None = None, **options):
+    """Simulate ``derivation`` with the model's settings (:func:`simulation_options`).
+
+    ``t_end`` equal to the start time gives the single row at the initial state.
+    Dependent initial values are completed from the given ones (``complete=True``).
+    Raises :class:`ComputationError` when the integration fails (status -1).
+    """
+    from .simulate import simulate
+
+    opts = {**simulation_options(derivation.system, t_end), "complete": True, **options}
+    t0, t_end = opts.pop("t0"), opts.pop("t_end")
+    if t_end == t0:
+        # one output time at the start: the integrator takes one tiny step and records only t0
+        opts["t_eval"] = [t0]
+        solution = simulate(derivation, t0 + 1e-9 * max(1.0, abs(t0)), t0=t0, **opts)
+    else:
+        solution = simulate(derivation, t_end, t0=t0, **opts)
+    if solution.status < 0:
+        raise ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
+                               hint="try another integration method or tighter tolerances "
+                                    "([simulation] method, rtol, atol), or a shorter --t-end")
+    return solution
+
+
+def export_solution(solution, path: Path) -> Path:
+    """Write ``solution`` to ``path`` in the format of its suffix (:data:`OUTPUT_FORMATS`)."""
+    kind = OUTPUT_FORMATS[path.suffix.lower()]
+    if kind == "csv":
+        return solution.to_csv(path)
+    if kind == "hdf5":
+        return solution.to_hdf5(path)
+    writer = getattr(solution, "to_netcdf", None)
+    if writer is None:
+        raise ModelError("this version of appell cannot write netCDF (.nc) files", hint="use .csv or .h5")
+    return writer(path)
+
+
+# ---------------------------------------------------------------- the commands
+class _AppellGroup(click.Group):
+    """Turns every error into ``error: ...`` on stderr and the exit codes of the module."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        try:
+            rv = super().main(args=args, prog_name=prog_name or "appell", complete_var=complete_var,
+                              standalone_mode=False, **extra)
+        except click.exceptions.NoArgsIsHelpError as exc:  # click >= 8.2: bare group -> help
+            click.echo(exc.ctx.get_help())
+            code = EXIT_OK
+        except click.UsageError as exc:
+            hint = f"run '{exc.ctx.command_path} --help'" if exc.ctx is not None else "run 'appell --help'"
+            code = _report_error(exc.format_message(), hint, EXIT_BAD_INPUT)
+        except click.exceptions.Exit as exc:
+            code = exc.exit_code
+        except click.Abort:
+            code = _report_error("aborted", None, EXIT_FAILURE)
+        except click.ClickException as exc:
+            code = _report_error(exc.format_message(), None, EXIT_BAD_INPUT)
+        except ModelError as exc:
+            code = _report_error(str(exc), None, EXIT_BAD_INPUT)
+        except AppellError as exc:
+            code = _report_error(str(exc), None, getattr(exc, "exit_code", EXIT_FAILURE))
+        except (FileNotFoundError, IsADirectoryError, PermissionError, NotADirectoryError) as exc:
+            code = _report_error(f"{exc.strerror or exc}: {exc.filename}" if exc.filename else str(exc), None,
+                                 EXIT_BAD_INPUT)
+        except KeyboardInterrupt:
+            code = _report_error("interrupted", None, 130)
+        else:
+            code = rv if isinstance(rv, int) else EXIT_OK
+        if standalone_mode:
+            sys.exit(code)
+        return code
+
+
+def _report_error(message: str, hint: str | None, code: int) -> int:
+    text = message.strip()
+    click.echo(f"error: {text}", err=True)
+    if hint:
+        click.echo(f"  hint: {hint}", err=True)
+    return code
+
+
+_CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
+_model_argument = click.argument("model", metavar="MODEL")
+_set_option = click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
+                           help="Override a parameter or an initial value (repeatable), e.g. --set M=1500 --set \"phi'=0.2\".")
+
+
+@click.group(cls=_AppellGroup, context_settings=_CONTEXT)
+@click.version_option(package_name="appell", prog_name="appell", message="%(prog)s %(version)s")
+def cli():
+    """Equations of motion and constraint reactions by Do Shan's method.
+
+    MODEL is a model file (TOML, see docs/model-format.md) or the name of a bundled
+    example (see 'appell examples'). Exit codes: 0 success, 1 failed computation or
+    check, 2 bad input.
+    """
+
+
+@cli.command(context_settings=_CONTEXT)
+@_model_argument
+@click.option("--format", "fmt", type=click.Choice(["text", "latex", "json"]), default="text", show_default=True,
+              help="Output format; JSON expressions are SymPy-parsable strings.")
+@click.option("--dependent", multiple=True, metavar="NAME",
+              help="A dependent acceleration of the partition (repeat once per constraint), e.g. x_ddot or x''.")
+@_set_option
+def derive(model, fmt, dependent, assignments):
+    """Print the reduced equations (1.4) and one reaction formula per constraint (1.5).
+
+    For a model with servo constraints: the dynamic conditions (2.3), the reduced
+    equations (2.4), the reactions (2.5) and the control laws.
+    """
+    system = load_system(model, parse_assignments(assignments))
+    derivation = derive_model(system, dependent)
+    if fmt == "json":
+        click.echo(json.dumps(derivation_json(derivation), indent=2))
+    elif fmt == "latex":
+        click.echo(derivation.to_latex())
+    else:
+        click.echo(derivation.to_text())
+
+
+@cli.command(context_settings=_CONTEXT)
+@_model_argument
+@click.option("--t-end", type=float, default=None, metavar="T",
+              help="Final time (default: the model's [simulation] t_end, else 10). "
+                   "Equal to the start time: the single row at the initial state.")
+@click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE",
+              help="Write the motion to FILE.csv, FILE.h5 or FILE.nc (by suffix).")
+@click.option("--plot", "plot", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE",
+              help="Plot coordinates, reactions, controls and residuals to FILE (e.g. .png, .pdf, .svg).")
+@_set_option
+def simulate(model, t_end, out, plot, assignments):
+    """Simulate the motion with its reactions, controls and constraint residuals.
+
+    CSV columns: t, each coordinate, each speed, lambda_<constraint>, control_<control>,
+    residual_<constraint>. Nothing is written when the simulation fails.
+    """
+    out_path = Path(out) if out else None
+    if out_path is not None and out_path.suffix.lower() not in OUTPUT_FORMATS:
+        raise click.BadParameter(f"unknown output format {out_path.suffix or '(no suffix)'!r}; "
+                                 f"use one of {', '.join(OUTPUT_FORMATS)}", param_hint="'--out'")
+    for target in (out_path, Path(plot) if plot else None):
+        if target is not None and not target.parent.is_dir():
+            raise click.BadParameter(f"directory {str(target.parent)!r} does not exist", param_hint="'--out/--plot'")
+    system = load_system(model, parse_assignments(assignments))
+    derivation = derive_model(system)
+    solution = run_simulation(derivation, t_end)
+    if out_path is not None:
+        export_solution(solution, out_path)
+    if plot:
+        solution.plot(plot)
+    click.echo(solution.summary())
+    for path in (out_path, plot):
+        if path:
+            click.echo(f"wrote {path}")
+
+
+def _cross_check(derivation):
+    """The cross-check of a derivation (controlled ones use their own augmented system)."""
+    if is_controlled(derivation):
+        from . import servo_numeric
+
+        checker = getattr(servo_numeric, "cross_check_controlled", None)
+        if checker is None:
+            raise ModelError("the cross-check of a model with servo constraints is not available",
+                             hint="run 'appell check' on the model without [servo_constraints]")
+        return checker(derivation)
+    from .crosscheck import cross_check
+
+    return cross_check(derivation)
+
+
+@cli.command(context_settings=_CONTEXT)
+@_model_argument
+@click.option("--tolerance", type=float, default=1e-9, show_default=True,
+              help="Largest relative difference accepted.")
+@_set_option
+def check(model, tolerance, assignments):
+    """Cross-check the split (1.4)/(1.5) against the augmented multiplier system.
+
+    Prints the largest discrepancies of the accelerations and of each multiplier and the
+    power of the reactions on admissible motions; exits with 1 when one exceeds the
+    tolerance.
+    """
+    system = load_system(model, parse_assignments(assignments))
+    report = _cross_check(derive_model(system))
+    click.echo(str(report))
+    if not report.passed(tolerance):
+        raise ComputationError(f"cross-check failed: a relative difference exceeds {tolerance:g}",
+                               hint="the split route and the augmented system disagree; see the table above")
+    click.echo(f"passed (tolerance {tolerance:g})")
+
+
+@cli.command(context_settings=_CONTEXT)
+@_model_argument
+@click.option("-o", "--output", "output", type=click.Path(dir_okay=False, writable=True), default=None,
+              metavar="FILE.html", help="The page to write (default: <model name>-report.html).")
+@click.option("--t-end", type=float, default=None, metavar="T",
+              help="Final time of the simulation shown (default: the model's [simulation] t_end, else 10).")
+@click.option("--no-simulation", is_flag=True, help="Leave out the simulation and its plots.")
+@_set_option
+def report(model, output, t_end, no_simulation, assignments):
+    """Write one self-contained HTML page: the model, its equations as mathematics,
+    plots of coordinates, reactions and controls, and the cross-check.
+
+    The page needs no network (MathML, embedded PNG images, inline styles).
+    """
+    from .report import write_report
+
+    if output is not None and not Path(output).parent.is_dir():
+        raise click.BadParameter(f"directory {str(Path(output).parent)!r} does not exist", param_hint="'-o'")
+    system = load_system(model, parse_assignments(assignments))
+    derivation = derive_model(system)
+    try:
+        check_report = _cross_check(derivation)
+    except ModelError:
+        check_report = None
+    solution = None if no_simulation else run_simulation(derivation, t_end)
+    path = Path(output) if output else Path(f"{system.name}-report.html")
+    write_report(path, derivation, solution, check_report)
+    click.echo(f"wrote {path}")
+    if check_report is not None and not check_report.passed():
+        raise ComputationError("cross-check failed (see the report)")
+
+
+@cli.command(context_settings=_CONTEXT)
+@click.argument("name", required=False)
+@click.option("--to", "to", type=click.Path(file_okay=False), default=None, metavar="DIR",
+              help="Copy the example's model file into DIR.")
+def examples(name, to):
+    """List the bundled examples, show one model file, or copy it out with --to."""
+    from .examples import example_path, list_examples
+
+    if name is None:
+        if to is not None:
+            raise click.UsageError("--to needs the NAME of an example")
+        for item in list_examples():
+            click.echo(f"{item:<20s} {_first_line(example_path(item))}")
+        return
+    source = example_path(name)
+    if to is None:
+        click.echo(source.read_text(encoding="utf-8"), nl=False)
+        return
+    target_dir = Path(to)
+    target_dir.mkdir(parents=True, exist_ok=True)
+    target = target_dir / source.name
+    shutil.copyfile(source, target)
+    click.echo(f"wrote {target}")
+
+
+def _first_line(path: Path) -> str:
+    """The model's description (``[model] description``), else its first comment line."""
+    import tomllib
+
+    text = path.read_text(encoding="utf-8")
+    try:
+        description = tomllib.loads(text).get("model", {}).get("description")
+    except tomllib.TOMLDecodeError:
+        description = None
+    if description:
+        return str(description)
+    for line in text.splitlines():
+        if line.startswith("#"):
+            return line.lstrip("# ").strip()
+    return ""
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``appell`` command (``argv`` defaults to ``sys.argv[1:]``)."""
+    return cli.main(args=argv, prog_name="appell")
+
+
+if __name__ == "__main__":  # python -m appell.cli
+    main()

@@ -1,0 +1,391 @@
+"""The report: one self-contained HTML page about a model (the last stage of the pipeline).
+
+:func:`render_report` turns a derivation, optionally a simulated :class:`~appell.solution.Solution`
+and a :class:`~appell.crosscheck.CrossCheckReport`, into a page with
+
+* the model: parameters with units, coordinates and speeds, programs, constraints,
+  controls, initial values;
+* the equations as mathematics: the reduced equations of motion (1.4) (or (2.4)), the
+  dependent accelerations from ``f = 0``, one reaction formula per constraint (1.5)
+  (or (2.5)), and for a controlled system the dynamic conditions (2.3) and the control laws;
+* plots of the coordinates, reactions, controls and constraint residuals;
+* the cross-check against the augmented multiplier system.
+
+The page needs no network: formulas are converted from LaTeX to MathML (rendered natively
+by browsers) with the pure-Python ``latex2mathml``; each formula keeps a plain-text form
+(``alttext`` and a collapsed text block) for readers without MathML; plots are PNG images
+embedded as base64 ``data:`` URIs; styles and the one small script are inline. The script
+measures, after the page has loaded, that every ``<math>`` element has a nonzero box and
+every image decoded (``naturalWidth > 0``), and writes the counts into the ``data-math-*``
+and ``data-img-*`` attributes of ``<body>`` (the test suite reads them from headless
+Chromium).
+
+:func:`write_report` writes the page atomically (temporary file, then :func:`os.replace`).
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import datetime as _dt
+import html
+import io
+import os
+import re
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import sympy as sp
+
+from .equations import tidy
+from .printing import latex
+
+__all__ = ["EquationRow", "equation_groups", "mathml", "render_report", "write_report", "solution_figures"]
+
+
+@dataclass(frozen=True)
+class EquationRow:
+    """One displayed equation ``lhs = rhs`` with its equation label, e.g. ``(1.5)``."""
+
+    label: str
+    lhs: sp.Expr
+    rhs: sp.Expr
+
+    @property
+    def text(self) -> str:
+        return f"{self.lhs} = {self.rhs}"
+
+    @property
+    def latex(self) -> str:
+        return f"{latex(self.lhs)} = {latex(self.rhs)}"
+
+
+def _is_controlled(derivation) -> bool:
+    return hasattr(derivation, "control_laws") and hasattr(derivation, "dynamic_conditions")
+
+
+def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
+    """The equations shown in the report, grouped under titles.
+
+    For a :class:`~appell.equations.Derivation`: the reduced equations (1.4)
+    ``C^T (M a + h - Q) = 0``, the dependent accelerations solved from ``f = 0`` (or the
+    constraints themselves when nonlinear in ``a``) and the multipliers (1.5)
+    ``lambda = J_h^{-T} E_h``. For a controlled derivation (:mod:`appell.servo`): the
+    dynamic conditions (2.3), the reduced equations (2.4), the reactions (2.5) and the
+    control laws. Small expressions are simplified for display (:func:`appell.equations.tidy`).
+    """
+    if _is_controlled(derivation):
+        return _controlled_groups(derivation)
+    red = derivation.reduced
+    cons = derivation.constraints
+    motion = [EquationRow("(1.4)", tidy(e), sp.S.Zero) for e in red.equations]
+    if red.dependent_solution is not None:
+        dependent = [EquationRow("f = 0", a_h, tidy(e)) for a_h, e in zip(red.dependent, red.dependent_solution)]
+    else:
+        dependent = [EquationRow(f"f_{name} = 0", tidy(f), sp.S.Zero) for name, f in zip(cons.names, cons.second_order)]
+    reactions = [EquationRow("(1.5)", sp.Symbol(f"lambda_{name}"), tidy(lam))
+                 for name, lam in derivation.reactions.as_dict().items()]
+    groups = [("Reduced equations of motion (1.4) — free of multipliers", motion)]
+    if dependent:
+        groups.append(("Dependent accelerations from the constraints", dependent))
+    if reactions:
+        groups.append(("Reactions (1.5) — one formula per constraint multiplier", reactions))
+    return groups
+
+
+def _controlled_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
+    conditions = [EquationRow(f"(2.3) {name}", sp.sympify(e), sp.S.Zero)
+                  for name, e in derivation.dynamic_conditions.items()]
+    motion = [EquationRow("(2.4)", sp.sympify(e), sp.S.Zero) for e in derivation.reduced.equations]
+    reactions = [EquationRow("(2.5)", sp.Symbol(f"lambda_{name}"), sp.sympify(e))
+                 for name, e in derivation.reactions.as_dict().items()]
+    unknowns = {c.name: c.unknown for c in derivation.system.controls}
+    controls = [EquationRow("control", unknowns.get(name, sp.Symbol(name)), sp.sympify(e))
+                for name, e in derivation.control_laws.items()]
+    internal = [EquationRow("internal", sp.sympify(e), sp.S.Zero)
+                for e in getattr(derivation, "internal_dynamics", {}).values()]
+    groups = [("Dynamic conditions (2.3) — the equations of the controls", conditions),
+              ("Reduced equations of motion (2.4)", motion)]
+    if reactions:
+        groups.append(("Reactions of the real constraints (2.5)", reactions))
+    groups.append(("Control laws", controls))
+    if internal:
+        groups.append(("Internal dynamics left by the servo constraints", internal))
+    return groups
+
+
+# ------------------------------------------------------------------ mathematics
+_XMLNS = re.compile(r'\s+xmlns="[^"]*"')
+
+
+def mathml(latex_source: str, display: bool = True, alttext: str | None = None) -> str | None:
+    """MathML for a LaTeX formula (``latex2mathml``), or None if it cannot be converted.
+
+    The namespace attribute is dropped (HTML5 knows ``<math>``), so the page holds no
+    URL at all; ``alttext`` carries the plain-text form.
+    """
+    try:
+        from latex2mathml.converter import convert
+    except ImportError:  # the plain-text fallback is shown instead
+        return None
+    try:
+        markup = convert(latex_source, display="block" if display else "inline")
+    except Exception:  # latex2mathml raises its own exception types for unsupported input
+        return None
+    markup = _XMLNS.sub("", markup, count=1)
+    if alttext:
+        markup = markup.replace("<math", f'<math alttext="{html.escape(alttext, quote=True)}"', 1)
+    return markup
+
+
+def _formula(latex_source: str, text: str, display: bool = True) -> str:
+    """A formula as MathML with its plain text (or the plain text alone)."""
+    markup = mathml(latex_source, display, alttext=text)
+    plain = html.escape(text)
+    if markup is None:
+        return f'<code class="plain-only">{plain}</code>'
+    if not display:
+        return markup
+    return f'{markup}<details class="plain"><summary>plain text</summary><code>{plain}</code></details>'
+
+
+def _inline(expr) -> str:
+    expr = sp.sympify(expr)
+    return _formula(latex(expr), str(expr), display=False)
+
+
+# ------------------------------------------------------------------ plots
+def _png_data_uri(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=80, metadata={"Software": None})
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def solution_figures(solution) -> list[tuple[str, str]]:
+    """``(caption, data URI)`` of PNG plots of a :class:`~appell.solution.Solution`:
+    coordinates, speeds, reactions (multipliers), controls and constraint residuals
+    (panels with nothing to show are left out)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    t = np.asarray(solution.t, float)
+    residuals = {}
+    for name, values in solution.residuals.items():
+        values = np.abs(np.asarray(values, float))
+        if np.any(np.isfinite(values)):
+            residuals[name] = np.where(values > 0, values, np.nan)
+    panels = [
+        ("coordinates", "coordinates q(t)", {n: solution.states[n] for n in solution.coordinate_names}, False),
+        ("speeds", "speeds w(t)", {n: solution.states[n] for n in solution.speed_names}, False),
+        ("reactions", "reactions: multipliers lambda(t)", {f"lambda_{n}": a for n, a in solution.multipliers.items()},
+         False),
+        ("controls", "controls", {f"control_{n}": a for n, a in solution.controls.items()}, False),
+        ("residuals", "constraint residuals |F|, |phi| (drift)", residuals, True),
+    ]
+    out = []
+    for key, title, series, log in panels:
+        if not series:
+            continue
+        fig = Figure(figsize=(7.5, 3.0), constrained_layout=True)
+        ax = fig.subplots()
+        for name, values in series.items():
+            ax.plot(t, np.asarray(values, float), label=name, marker="o" if t.size == 1 else None)
+        if log and any(np.any(np.isfinite(v)) for v in series.values()):
+            ax.set_yscale("log")
+        ax.set_title(title)
+        ax.set_xlabel("t")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize="small")
+        for e in getattr(solution, "events", ()):
+            ax.axvline(e.t, color="k", lw=0.6, ls=":")
+        out.append((key, _png_data_uri(fig)))
+    return out
+
+
+# ------------------------------------------------------------------ page
+_STYLE = """
+body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 64rem; margin: 2rem auto;
+       padding: 0 1rem; color: #1b1b1b; line-height: 1.45; }
+h1 { font-size: 1.6rem; margin-bottom: .2rem; } h2 { border-bottom: 1px solid #ccc; margin-top: 2rem; }
+h3 { font-size: 1.05rem; margin-top: 1.4rem; }
+table { border-collapse: collapse; margin: .5rem 0; } th, td { border: 1px solid #ddd; padding: .25rem .6rem;
+       text-align: left; vertical-align: top; } th { background: #f4f4f4; }
+.eq { display: flex; align-items: flex-start; gap: 1rem; margin: .5rem 0; }
+.eq .label { min-width: 6rem; color: #555; font-size: .9rem; padding-top: .4rem; }
+.eq .body { overflow-x: auto; flex: 1; }
+math[display="block"] { margin: .2rem 0; }
+details.plain summary { font-size: .75rem; color: #777; cursor: pointer; }
+details.plain code, code.plain-only { font-size: .8rem; white-space: pre-wrap; word-break: break-all; }
+.pass { color: #1a7f37; font-weight: bold; } .fail { color: #c62828; font-weight: bold; }
+figure { margin: 1rem 0; } figure img { max-width: 100%; border: 1px solid #eee; }
+.muted { color: #666; font-size: .9rem; } pre { background: #f7f7f7; padding: .6rem; overflow-x: auto; }
+"""
+
+# Runs after load; no network. Writes what rendered into attributes of <body>.
+_RENDER_CHECK = """
+window.addEventListener("load", function () {
+  var maths = document.querySelectorAll("math"), rendered = 0;
+  for (var i = 0; i < maths.length; i++) {
+    var r = maths[i].getBoundingClientRect();
+    if (r.width > 0 && r.height > 0) rendered++;
+  }
+  var imgs = document.querySelectorAll("img"), loaded = 0;
+  for (var j = 0; j < imgs.length; j++) {
+    if (imgs[j].complete && imgs[j].naturalWidth > 0) loaded++;
+  }
+  var b = document.body;
+  b.setAttribute("data-math-total", maths.length);
+  b.setAttribute("data-math-rendered", rendered);
+  b.setAttribute("data-img-total", imgs.length);
+  b.setAttribute("data-img-loaded", loaded);
+  b.setAttribute("data-render-check", "done");
+});
+"""
+
+
+def _e(value) -> str:
+    return html.escape(str(value))
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    """A table; cells are HTML already."""
+    head = "".join(f"<th>{h}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _model_section(system, kinematics) -> str:
+    parts = ["<h2 id='model'>Model</h2>"]
+    if system.description:
+        parts.append(f"<p>{_e(system.description)}</p>")
+    if system.parameters:
+        rows = [(_inline(p.symbol), _e(f"{p.value:g}"), _e(p.unit or "—"), _e(p.description or ""))
+                for p in system.parameters]
+        parts.append("<h3>Parameters</h3>" + _table(("parameter", "value", "unit", "description"), rows))
+    q = list(kinematics.coordinates)
+    w = list(kinematics.speeds)
+    rows = [("coordinates q", ", ".join(_inline(s) for s in q)), ("speeds w", ", ".join(_inline(s) for s in w))]
+    if tuple(kinematics.coordinate_rates) != tuple(kinematics.speeds):
+        rows.append(("kinematic relations", "<br>".join(
+            _inline(sp.Eq(sp.Symbol(f"{s.name}_dot"), r, evaluate=False)) for s, r in zip(q, kinematics.coordinate_rates))))
+    for prog in system.programs:
+        rows.append((f"program {_e(prog.symbol)}(t)", _inline(sp.Eq(prog.symbol, prog.expr, evaluate=False))))
+    if system.initial:
+        rows.append(("initial values", _e(", ".join(f"{k} = {v:g}" for k, v in system.initial))))
+    parts.append("<h3>Coordinates and speeds</h3>" + _table(("", ""), rows))
+    if system.constraints:
+        rows = [(_e(c.name), _e(c.kind), _inline(sp.Eq(c.expr, 0, evaluate=False)), _inline(sp.Symbol(f"lambda_{c.name}")))
+                for c in system.constraints]
+        parts.append("<h3>Constraints (ideal)</h3>" + _table(("name", "kind", "constraint", "multiplier"), rows))
+    if system.controls:
+        rows = [(_e(c.name), _e(c.kind), _inline(c.unknown)) for c in system.controls]
+        parts.append("<h3>Controls</h3>" + _table(("control", "kind", "unknown"), rows))
+    if system.servo_constraints:
+        rows = [(_e(c.name), _e(c.kind), _inline(sp.Eq(c.expr, 0, evaluate=False))) for c in system.servo_constraints]
+        parts.append("<h3>Servo constraints (realised by the controls)</h3>"
+                     + _table(("name", "kind", "constraint"), rows))
+    if system.first_integrals:
+        rows = [(_e(f.name), _inline(f.expr), _e("—" if f.value is None else f"{f.value:g}"))
+                for f in system.first_integrals]
+        parts.append("<h3>First integrals</h3>" + _table(("name", "expression", "value"), rows))
+    return "\n".join(parts)
+
+
+def _equation_section(derivation) -> str:
+    ind, dep = derivation.partition.names(derivation.accelerations)
+    parts = ["<h2 id='equations'>Equations</h2>",
+             f"<p>Independent accelerations: {', '.join(_inline(sp.Symbol(n)) for n in ind) or '—'}; "
+             f"dependent accelerations: {', '.join(_inline(sp.Symbol(n)) for n in dep) or '—'} "
+             "(condition (1.2): the block of the constraint Jacobian on the dependent accelerations is "
+             "nonsingular).</p>"]
+    for title, rows in equation_groups(derivation):
+        parts.append(f"<h3>{_e(title)}</h3>")
+        if not rows:
+            parts.append("<p class='muted'>none</p>")
+        for row in rows:
+            parts.append(f"<div class='eq'><div class='label'>{_e(row.label)}</div>"
+                         f"<div class='body'>{_formula(row.latex, row.text)}</div></div>")
+    return "\n".join(parts)
+
+
+def _simulation_section(solution) -> str:
+    parts = ["<h2 id='simulation'>Simulation</h2>", f"<pre>{_e(solution.summary())}</pre>"]
+    if solution.log:
+        parts.append("<details><summary>log</summary><pre>" + _e("\n".join(solution.log)) + "</pre></details>")
+    for key, uri in solution_figures(solution):
+        parts.append(f"<figure><img src=\"{uri}\" alt=\"plot of the {_e(key)} over time\">"
+                     f"<figcaption>{_e(key)}</figcaption></figure>")
+    return "\n".join(parts)
+
+
+def _check_section(check, tolerance: float) -> str:
+    ok = check.passed(tolerance)
+    verdict = (f"<span class='pass'>passed</span>" if ok else f"<span class='fail'>failed</span>")
+    rows = [("accelerations", f"{check.accelerations:.3e}"), ("multipliers (all)", f"{check.multipliers:.3e}")]
+    rows += [(_e(f"lambda_{n}"), f"{v:.3e}") for n, v in check.per_multiplier.items()]
+    rows.append(("reaction power on admissible motions |Rᵀ C|", f"{check.reaction_power:.3e}"))
+    return "\n".join([
+        "<h2 id='check'>Cross-check</h2>",
+        f"<p>The split route (1.4)/(1.5) against the independent augmented multiplier system "
+        f"[M −Jᵀ; J 0][a; λ] = [Q − h; −c] at {check.states} states: {verdict} "
+        f"(tolerance {tolerance:g} on the largest relative difference).</p>",
+        _table(("quantity", "largest relative difference"), rows),
+    ])
+
+
+def render_report(derivation, solution=None, check=None, *, title: str | None = None,
+                  tolerance: float = 1e-9) -> str:
+    """The HTML page (a string) for ``derivation`` (a :class:`~appell.equations.Derivation`
+    or a controlled derivation of :mod:`appell.servo`), with the plots of ``solution``
+    (:class:`~appell.solution.Solution`) and the table of ``check``
+    (:class:`~appell.crosscheck.CrossCheckReport`, judged at ``tolerance``) when given."""
+    from . import __version__
+
+    system = derivation.system
+    title = title or f"appell report: {system.name}"
+    sections = [_model_section(system, derivation.kinematics), _equation_section(derivation)]
+    nav = ["<a href='#model'>model</a>", "<a href='#equations'>equations</a>"]
+    if solution is not None:
+        sections.append(_simulation_section(solution))
+        nav.append("<a href='#simulation'>simulation</a>")
+    if check is not None:
+        sections.append(_check_section(check, tolerance))
+        nav.append("<a href='#check'>cross-check</a>")
+    stamp = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
+    return "\n".join([
+        "<!DOCTYPE html>",
+        "<html lang='en'><head><meta charset='utf-8'>",
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+        f"<title>{_e(title)}</title>",
+        f"<style>{_STYLE}</style>",
+        f"<script>{_RENDER_CHECK}</script>",
+        "</head><body>",
+        f"<h1>{_e(title)}</h1>",
+        f"<p class='muted'>Do Shan's method (Gibbs–Appell equations split into motion and reactions). "
+        f"Generated by appell {_e(__version__)} on {_e(stamp)}. " + " · ".join(nav) + "</p>",
+        *sections,
+        "</body></html>",
+    ]) + "\n"
+
+
+def write_report(path, derivation, solution=None, check=None, **options) -> Path:
+    """Render the report (:func:`render_report`) and write it to ``path`` atomically:
+    the page is built first, written to a temporary file beside ``path`` and moved over
+    it, so that a failure leaves no partial file. Returns the path."""
+    page = render_report(derivation, solution, check, **options)
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent if str(path.parent) else ".")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(page)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+    return path
