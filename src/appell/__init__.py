@@ -32,6 +32,8 @@ from .solution import Solution
 from .cyclic import RouthReduction, cyclic_coordinates, routh_reduction
 from .first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
 from .symbols import derivative_symbol, t
+from .codegen_c import compile_c
+from .sweep import SweepResult, parameter_grid, sweep
 
 __version__ = "0.1.0"
 
@@ -44,4 +46,5 @@ __all__ = [
     "Event", "InitialState", "Solution", "check_initial", "complete_initial", "simulate",
     "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",
     "routh_reduction",
+    "SweepResult", "compile_c", "parameter_grid", "sweep",
 ]

@@ -347,6 +347,8 @@ def build_library(source: str, compiler: list[str] | None = None) -> tuple[Path,
 
 
 _D, _P, _I = ctypes.c_double, ctypes.c_void_p, ctypes.c_int
+_EMPTY = np.zeros(0)
+_EMPTY.flags.writeable = False
 
 
 def _ptr(x: np.ndarray) -> int:
@@ -373,6 +375,17 @@ class CompiledNumericModel(NumericModel):
     backend: str = "c"
     _lib: object = field(default=None, repr=False, compare=False)
     _default_dep: np.ndarray = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self):
+        # addresses of the arrays that do not change between calls (ctypes overhead)
+        self._formula["dep"] = tuple(int(i) for i in self._default_dep)
+        self._formula["addr"] = (self.default_parameters.ctypes.data, self._default_dep.ctypes.data)
+
+    def _param_address(self, pv: np.ndarray) -> tuple[np.ndarray, int]:
+        if pv is self.default_parameters:
+            return pv, self._formula["addr"][0]
+        pv = _vec(pv)
+        return pv, _ptr(pv)
 
     def solve(self, t, q, w, p=None, dependent=None, bias=None) -> StateSolution:
         """Accelerations (1.4) and every multiplier (1.5) at (t, q, w), in C; ``bias`` is
@@ -406,17 +419,17 @@ class CompiledNumericModel(NumericModel):
             return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
                               sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
         y = _vec(y)
-        pv = _vec(self.params(p))
+        pv, paddr = self._param_address(self.params(p))
         bv = None if bias is None else _vec(bias)
         dy, lam = np.empty(len(y)), np.empty(len(self._default_dep))
-        status = self._lib.appell_evaluate(float(t), _ptr(y), _ptr(pv), None if bv is None else _ptr(bv),
-                                           _ptr(self._default_dep), SWITCH_CONDITION, _ptr(dy), _ptr(lam))
+        status = self._lib.appell_evaluate(float(t), _ptr(y), paddr, None if bv is None else _ptr(bv),
+                                           self._formula["addr"][1], SWITCH_CONDITION, _ptr(dy), _ptr(lam))
         if status != 0:
             q, w = self.split_state(y)
             sol = self._fallback_solve(t, q, w, pv, None, bias)
             return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
                               sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
-        return Evaluation(dy, lam, np.zeros(0), tuple(int(i) for i in self._default_dep), False)
+        return Evaluation(dy, lam, _EMPTY, self._formula["dep"], False)
 
 
 def _wrap(fn, shapes, with_acc=False):
