@@ -389,3 +389,19 @@ def test_simulation_table_is_checked():
     assert options["stabilization"] is None
     assert options["unilateral"] == {"rod": -1} and options["friction"] == {"rod": ("rod", 0.3)}
     hash(s)  # settings are stored hashable, so the System stays hashable
+
+
+def test_reference_page_examples_load():
+    """Every complete ```toml block of docs/model-format.md loads; the snippets parse as TOML."""
+    import re
+    import tomllib
+
+    blocks = re.findall(r"```toml\n(.*?)```", (REPO / "docs" / "model-format.md").read_text(), re.S)
+    assert len(blocks) >= 5
+    complete = [b for b in blocks if "[model]" in b and "coordinates" in b and "[mechanics]" in b]
+    assert complete
+    for block in blocks:
+        tomllib.loads(block)
+    for block in complete:
+        system = loads_model(block, source="model-format.md")
+        assert cross_check(derive(system)).passed()
