@@ -125,6 +125,21 @@ def test_reduced_system_is_a_regular_system():
     assert der.reduced.equations.shape == (1, 1)
     assert "theta" in der.to_text()
     assert r"\theta" in sp.latex(red.routhian) and r"\theta" in der.to_latex()
+    assert "h_psi = " in red.to_text() and r"\dot{\psi} = " in red.to_latex()
+
+
+def test_symmetric_top_routh_potential_closed_form():
+    """Goldstein, Classical Mechanics, 3rd ed., §5.7: the effective potential of the
+    heavy symmetric top is V' = M g l cos(theta) + (p_phi - p_psi cos(theta))^2 /
+    (2 I1 sin^2 theta) + p_psi^2 / (2 I3) (one positional coordinate: no gyroscopic term),
+    and phi_dot = (p_phi - p_psi cos(theta)) / (I1 sin^2 theta)."""
+    red = routh_reduction(symmetric_top())
+    I1, I3, M, g, l, th = sp.symbols("I1 I3 M g l theta")
+    h_phi, h_psi = red.momenta
+    V = M * g * l * sp.cos(th) + (h_phi - h_psi * sp.cos(th)) ** 2 / (2 * I1 * sp.sin(th) ** 2) + h_psi**2 / (2 * I3)
+    assert sp.simplify(red.routh_potential - V) == 0
+    assert sp.simplify(red.cyclic_velocities[0] - (h_phi - h_psi * sp.cos(th)) / (I1 * sp.sin(th) ** 2)) == 0
+    assert sp.simplify(red.reduced_kinetic_energy - I1 * sp.Symbol("theta_dot") ** 2 / 2) == 0
 
 
 # ------------------------------------------------------------ reduced = full motion

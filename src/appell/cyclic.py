@@ -166,6 +166,26 @@ class RouthReduction:
     cyclic_velocities: sp.ImmutableMatrix
     _rate: Callable = field(repr=False, compare=False, default=None)
 
+    def equations(self) -> list[tuple[str, sp.Expr]]:
+        """The reduction as named formulas: (3.4) for each cyclic velocity, ``T*``, ``V``, ``L*``."""
+        out = [(derivative_symbol(q).name, e) for q, e in zip(self.cyclic, self.cyclic_velocities)]
+        return out + [("T*", self.reduced_kinetic_energy), ("V", self.routh_potential), ("L*", self.routhian)]
+
+    def to_text(self) -> str:
+        """Plain-text summary: momenta and their values, then :meth:`equations`."""
+        lines = [f"Routh reduction of {self.full.name} over {', '.join(q.name for q in self.cyclic)}"]
+        lines += [f"  {h} = {v:.12g}" for h, v in zip(self.momenta, self.momentum_values)]
+        lines += [f"  {name} = {sp.sstr(e)}" for name, e in self.equations()]
+        return "\n".join(lines)
+
+    def to_latex(self) -> str:
+        """LaTeX lines ``lhs = rhs`` of :meth:`equations` (dots for time derivatives)."""
+        from .printing import latex
+        from .symbols import latex_name
+
+        names = {"T*": "T^{*}", "V": "V", "L*": "L^{*}"}
+        return " \\\\\n".join(f"{names.get(n) or latex_name(n)} = {latex(e)}" for n, e in self.equations())
+
     def cyclic_rates(self, positional_states) -> np.ndarray:
         """``q_dot_alpha`` of (3.4) at positional states ``[q_i, q_dot_i]`` (shape (N, 2m) or (2m,))."""
         y = np.atleast_2d(np.asarray(positional_states, float))

@@ -22,7 +22,8 @@ would be useless: the augmented multipliers are then ``(lambda*, 0)`` for every 
 Partition. A true integral is not implied by the constraints (its row ``G`` is not a
 combination of theirs), so the augmented constraint set is not redundant and condition
 (1.2) can be met: the original dependent accelerations are kept and one more is taken
-among the independent ones, where ``G C`` is largest at a generic state (for the momentum
+among the independent ones, the one that makes ``J_h`` best conditioned at a generic
+state, i.e. where ``G C`` is not zero (for the momentum
 ``p_phi = m L^2 sin^2(theta) phi_dot`` that is ``phi_ddot``; ``theta_ddot`` would make
 ``J_h`` singular). Where ``G C = 0`` (the energy at rest) no partition exists; such states
 are skipped and counted. A candidate whose row *is* a combination of the constraints' rows
@@ -54,6 +55,7 @@ from .errors import ComputationError, ModelError
 from .model import Constraint, FirstIntegral, System, holonomic, nonholonomic
 from .partition import generic_values, numeric_jacobian
 from .symbols import t
+from .validation import validate
 
 __all__ = [
     "FirstIntegralCheck",
@@ -280,6 +282,7 @@ def check_first_integrals(system: System, integrals: Sequence[FirstIntegral] | N
     if not cands:
         raise ModelError(f"system {system.name!r} has no candidate first integral",
                          hint="give first_integrals=(FirstIntegral(name, expr), ...)")
+    validate(system.replace(first_integrals=cands))
     base = derive(system.replace(first_integrals=()))
     num = base.numeric
     q0, w0 = _initial_state(system)
@@ -320,7 +323,9 @@ def _check_one(system, base, fi, states, n_traj, tolerance, symbolic) -> FirstIn
         probe = derive(aug_sys)
         dep = _augmented_partition(base, sp.Matrix(probe.constraints.jacobian), len(system.speeds))
         aug = probe.with_partition(dep) if dep is not None else probe
-    except ModelError:
+    except ModelError as exc:
+        if "redundant" not in exc.message:
+            raise
         return _redundant(system, base, fi, con, states, n_traj, tolerance, common)
 
     mu = aug.reactions.multipliers[-1]
