@@ -60,7 +60,7 @@ import sympy as sp
 
 from .energy import generalized_forces
 from .equations import block_inverse, tidy
-from .errors import ModelError
+from .errors import ComputationError, ModelError
 from .kinematics import kinematics_of
 from .model import Parameter, System
 from .symbols import derivative_symbol, t
@@ -246,8 +246,6 @@ class RouthReduction:
 
         sol = solve_ivp(rhs, t_span, np.asarray(y0, float), method=method, t_eval=t_eval, rtol=rtol, atol=atol)
         if not sol.success:
-            from .errors import ComputationError
-
             raise ComputationError(f"integration of the reduced system {self.system.name!r} failed: {sol.message}")
         return sol.t, sol.y[: 2 * m].T, sol.y[2 * m: 2 * m + k].T
 
