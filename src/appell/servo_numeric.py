@@ -1,0 +1,291 @@
+"""Numeric side of controlled systems (method.md §4): the controls at a state and the motion
+they produce; implements :class:`appell.dynamics.Dynamics`.
+
+State ``y = (q, w, u_1, u_1_dot, u_2, u_2_dot, ...)``: coordinates, speeds, then each
+kinematic control's position and rate. At ``(t, y)``:
+
+1. the controls ``xi``
+   * when no dynamic condition needed differentiating: from the blocks, by the joint split
+     ``a = C a_nu + D xi + d``, solving the p + r linear equations
+     ``C^T E = 0`` (2.4) and ``(J_h^{-T} E_h)_servo = 0`` (2.3) for ``(a_nu, xi)``;
+   * otherwise: from the compiled conditions ``A xi + b = 0`` of
+     :mod:`appell.underactuated` (the control law in t, the state and the programs);
+2. the motion of the real system under these controls: the split (1.4)/(1.5) over the real
+   constraints alone, ``E(a, xi) = J_f^T lambda``, ``f(a, xi) = 0``. The servo constraints
+   are not imposed here: they hold because the controls realise them (closing the loop).
+
+The evaluation reports ``dy/dt``, the real multipliers ``lambda`` (2.5) and the controls;
+for a kinematic control the reported control is its acceleration ``u_ddot``.
+
+The independent route :func:`augmented_controlled_solve` solves
+``[M N -J_f^T; J_f K_f 0; J_g K_g 0] [a; xi; lambda] = [-e; -c_f; -c_g]`` at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Mapping
+
+import numpy as np
+import sympy as sp
+
+from .dynamics import Evaluation
+from .errors import ComputationError, ModelError
+from .numeric import choose_dependent, lambdify_blocks, program_substitutions, well_conditioned
+from .symbols import derivative_symbol, t
+
+__all__ = ["ControlledModel", "ControlledSolution", "augmented_controlled_solve", "compile_controlled"]
+
+
+def _basis(J: np.ndarray, dep) -> tuple[np.ndarray, np.ndarray, list[int], list[int]]:
+    """``C = [I; -J_h^{-1} J_nu]`` (n x p) and ``J_h`` for the dependent columns ``dep``."""
+    n = J.shape[1]
+    dep = list(dep)
+    ind = [i for i in range(n) if i not in dep]
+    Jh = J[:, dep]
+    C = np.zeros((n, len(ind)))
+    C[ind, np.arange(len(ind))] = 1.0
+    if dep and ind:
+        C[dep, :] = -np.linalg.solve(Jh, J[:, ind])
+    return C, Jh, dep, ind
+
+
+def real_motion(M, hQ, Jf, cf, dep) -> tuple[np.ndarray, np.ndarray]:
+    """Accelerations and multipliers of ``M a + hQ = J_f^T lambda``, ``J_f a + c_f = 0`` by the
+    split (1.4)/(1.5): ``(C^T M C) a_nu = -C^T (M d + hQ)``, ``lambda = J_h^{-T} E_h``."""
+    n = M.shape[0]
+    if Jf.shape[0] == 0:
+        return np.linalg.solve(M, -hQ), np.zeros(0)
+    C, Jh, dep, ind = _basis(Jf, dep)
+    d = np.zeros(n)
+    d[dep] = -np.linalg.solve(Jh, cf)
+    a = C @ np.linalg.solve(C.T @ M @ C, -C.T @ (M @ d + hQ)) + d if ind else d
+    lam = np.linalg.solve(Jh.T, (M @ a + hQ)[dep])
+    return a, lam
+
+
+@dataclass(frozen=True)
+class ControlledSolution:
+    """Controls, accelerations and real multipliers at one state; ``servo_multipliers`` are
+    the multipliers (2.3) of the servo rows at the solution (zero when realised)."""
+
+    controls: np.ndarray
+    accelerations: np.ndarray
+    multipliers: np.ndarray
+    servo_multipliers: np.ndarray
+    dependent: tuple[int, ...]
+    switched: bool = False
+
+
+@dataclass(frozen=True)
+class ControlledModel:
+    """Compiled controlled system; implements :class:`appell.dynamics.Dynamics`."""
+
+    derivation: object
+    name: str
+    state_names: tuple[str, ...]
+    coordinate_names: tuple[str, ...]
+    speed_names: tuple[str, ...]
+    constraint_names: tuple[str, ...]
+    servo_names: tuple[str, ...]
+    control_names: tuple[str, ...]
+    parameter_names: tuple[str, ...]
+    default_parameters: np.ndarray
+    kinematic_controls: tuple[int, ...]  # indices into the controls
+    blocks: Callable  # -> [M, N, e, J_f, K_f, c_f, J_g, K_g, c_g]
+    conditions: Callable  # -> [A, b] of the final conditions A xi + b = 0
+    rates: Callable  # -> [dq/dt]
+    residuals: Callable  # -> [F real, phi real, F servo, phi servo]
+    has_position: tuple[np.ndarray, np.ndarray]
+    has_velocity: tuple[np.ndarray, np.ndarray]
+    underactuated: bool
+
+    # ---------------------------------------------------------------- helpers
+    def params(self, p=None) -> np.ndarray:
+        """Parameter vector from None (defaults), an array or ``{name: value}``."""
+        if p is None:
+            return self.default_parameters
+        if isinstance(p, Mapping):
+            out = self.default_parameters.copy()
+            for k, v in p.items():
+                if str(k) not in self.parameter_names:
+                    raise ModelError(f"unknown parameter {k!r}", hint="parameters: " + ", ".join(self.parameter_names))
+                out[self.parameter_names.index(str(k))] = float(v)
+            return out
+        return np.asarray(p, dtype=float)
+
+    def split_state(self, y):
+        """``(q, w, uc)`` with ``uc = (u_1, u_1_dot, ...)`` of the kinematic controls."""
+        y = np.asarray(y, float)
+        nq, n = len(self.coordinate_names), len(self.speed_names)
+        return y[:nq], y[nq:nq + n], y[nq + n:]
+
+    def initial_state(self) -> np.ndarray:
+        """The state from ``system.initial`` (missing entries are 0)."""
+        init = self.derivation.system.initial_values
+        return np.array([init.get(nm, 0.0) for nm in self.state_names], dtype=float)
+
+    def _blocks(self, t, y, pv):
+        q, w, uc = self.split_state(y)
+        out = self.blocks(float(t), q, w, uc, pv)
+        n, k = len(w), len(self.control_names)
+        M, N, e, Jf, Kf, cf, Jg, Kg, cg = (np.asarray(x, float) for x in out)
+        return (M.reshape(n, n), N.reshape(n, k), e.reshape(n), Jf.reshape(-1, n), Kf.reshape(-1, k),
+                cf.reshape(-1), Jg.reshape(-1, n), Kg.reshape(-1, k), cg.reshape(-1))
+
+    # ------------------------------------------------------------ the method
+    def controls(self, t, y, p=None) -> np.ndarray:
+        """The controls ``xi`` at ``(t, y)`` (for kinematic controls: ``u_ddot``)."""
+        return self.solve(t, y, p).controls
+
+    def _joint_controls(self, M, N, e, J, K, c, s):
+        """Steps (2.3) + (2.4) of the module docstring, for ``(a_nu, xi)``."""
+        dep = tuple(self.derivation.partition.dependent)
+        if not well_conditioned(J[:, list(dep)]):
+            dep = choose_dependent(J, self.constraint_names + self.servo_names)
+        C, Jh, dep, ind = _basis(J, dep)
+        n, k = M.shape[0], N.shape[1]
+        D = np.zeros((n, k))
+        d = np.zeros(n)
+        D[dep] = -np.linalg.solve(Jh, K)
+        d[dep] = -np.linalg.solve(Jh, c)
+        G = np.hstack([M @ C, M @ D + N])  # E = G z + g0, z = (a_nu, xi)
+        g0 = M @ d + e
+        rows = np.vstack([C.T @ G, np.linalg.solve(Jh.T, G[dep])[s:]])
+        rhs = -np.concatenate([C.T @ g0, np.linalg.solve(Jh.T, g0[dep])[s:]])
+        try:
+            z = np.linalg.solve(rows, rhs)
+        except np.linalg.LinAlgError as exc:
+            raise ComputationError("the dynamic conditions (2.3) are singular in the controls at this state",
+                                   hint="the controls cannot realise the servo constraints here") from exc
+        return z[len(ind):]
+
+    def solve(self, t, y, p=None) -> ControlledSolution:
+        """Controls (2.3), accelerations of the real system under them and reactions (2.5)."""
+        pv = self.params(p)
+        M, N, e, Jf, Kf, cf, Jg, Kg, cg = self._blocks(t, y, pv)
+        s = Jf.shape[0]
+        if self.underactuated:
+            q, w, uc = self.split_state(y)
+            A, b = self.conditions(float(t), q, w, uc, pv)
+            k = len(self.control_names)
+            try:
+                xi = np.linalg.solve(np.asarray(A, float).reshape(k, k), -np.asarray(b, float).reshape(k))
+            except np.linalg.LinAlgError as exc:
+                raise ComputationError("the control law is singular at this state",
+                                       hint="the relative degree is not defined here") from exc
+        else:
+            xi = self._joint_controls(M, N, e, np.vstack([Jf, Jg]), np.vstack([Kf, Kg]),
+                                      np.concatenate([cf, cg]), s)
+        dep = tuple(self.derivation.real_partition.dependent)
+        switched = False
+        if s and not well_conditioned(Jf[:, list(dep)]):
+            dep, switched = choose_dependent(Jf, self.constraint_names), True
+        a, lam = real_motion(M, N @ xi + e, Jf, Kf @ xi + cf, dep)
+        # servo multipliers (2.3) at the solution: least squares of E = J_f^T lam + J_g^T mu
+        J = np.vstack([Jf, Jg])
+        E = M @ a + N @ xi + e
+        mu = np.linalg.lstsq(J.T, E, rcond=None)[0][s:] if J.size else np.zeros(0)
+        return ControlledSolution(xi, a, lam, mu, tuple(dep), switched)
+
+    # ------------------------------------------------- Dynamics protocol
+    def evaluate(self, t, y, p=None) -> Evaluation:
+        """``dy/dt``, the real multipliers (2.5) and the controls (:class:`Dynamics`)."""
+        pv = self.params(p)
+        q, w, uc = self.split_state(y)
+        sol = self.solve(t, y, pv)
+        dq = np.asarray(self.rates(float(t), q, w, uc, pv)[0], float).reshape(-1)
+        duc = np.empty(uc.size)
+        duc[0::2] = uc[1::2]
+        duc[1::2] = sol.controls[list(self.kinematic_controls)]
+        return Evaluation(np.concatenate([dq, sol.accelerations, duc]), sol.multipliers, sol.controls,
+                          sol.dependent, sol.switched)
+
+    def _residuals(self, t, y, p):
+        q, w, uc = self.split_state(y)
+        return [np.asarray(x, float).reshape(-1) for x in self.residuals(float(t), q, w, uc, self.params(p))]
+
+    def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """Position and velocity residuals of the real constraints (NaN where none)."""
+        F, phi, _, _ = self._residuals(t, y, p)
+        return (np.where(self.has_position[0], F, np.nan), np.where(self.has_velocity[0], phi, np.nan))
+
+    def servo_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Position, velocity and acceleration residuals of the servo constraints along the
+        motion under the controls (NaN where a level does not exist)."""
+        pv = self.params(p)
+        _, _, F, phi = self._residuals(t, y, pv)
+        sol = self.solve(t, y, pv)
+        *_, Jg, Kg, cg = self._blocks(t, y, pv)
+        acc = Jg @ sol.accelerations + Kg @ sol.controls + cg
+        return (np.where(self.has_position[1], F, np.nan), np.where(self.has_velocity[1], phi, np.nan), acc)
+
+
+def augmented_controlled_solve(model: ControlledModel, t, y, p=None) -> ControlledSolution:
+    """The independent route: ``[M N -J_f^T; J_f K_f 0; J_g K_g 0] [a; xi; lambda] = [-e; -c_f; -c_g]``.
+
+    Square when k = r; singular for underactuated systems (there the controls do not
+    appear at the acceleration level).
+    """
+    pv = model.params(p)
+    M, N, e, Jf, Kf, cf, Jg, Kg, cg = model._blocks(t, y, pv)
+    n, k, s = M.shape[0], N.shape[1], Jf.shape[0]
+    r = Jg.shape[0]
+    top = np.hstack([M, N, -Jf.T])
+    mid = np.hstack([Jf, Kf, np.zeros((s, s))])
+    bot = np.hstack([Jg, Kg, np.zeros((r, s))])
+    x = np.linalg.solve(np.vstack([top, mid, bot]), -np.concatenate([e, cf, cg]))
+    return ControlledSolution(x[n:n + k], x[:n], x[n + k:], np.zeros(r), ())
+
+
+def compile_controlled(derivation) -> ControlledModel:
+    """Generate the numeric functions of a :class:`~appell.servo.ControlledDerivation`."""
+    system, kin, blk = derivation.system, derivation.kinematics, derivation.blocks
+    max_order = 4 + max((c.differentiations for c in derivation.conditions), default=0)
+    subs = program_substitutions(system, orders=max_order + 2)
+    uc = []
+    for c in system.controls:
+        if c.kind == "kinematic":
+            uc += [c.symbol, derivative_symbol(c.symbol)]
+    params = [p_.symbol for p_ in system.parameters]
+    args = [t, list(kin.coordinates), list(kin.speeds), uc, params]
+    n, k = len(kin.speeds), len(blk.unknowns)
+
+    def mat(m, rows, cols):
+        return sp.Matrix(m) if rows * cols else sp.zeros(rows, cols)
+
+    real, servo = blk.real, blk.servo
+    s, r = real.count, servo.count
+    blocks = lambdify_blocks(args, [
+        blk.inertia.mass_matrix, blk.control_matrix, blk.forcing_bias,
+        mat(real.jacobian, s, n), mat(blk.real_control_jacobian, s, k), mat(real.bias, s, 1),
+        mat(servo.jacobian, r, n), mat(blk.servo_control_jacobian, r, k), mat(servo.bias, r, 1),
+    ], subs)
+    xi = list(blk.unknowns)
+    conds = sp.Matrix([c.expression for c in derivation.conditions])
+    A = conds.jacobian(sp.Matrix(xi))
+    b = conds.xreplace({x: 0 for x in xi})
+    conditions = lambdify_blocks(args, [A, b], subs)
+    rates = lambdify_blocks(args, [kin.coordinate_rates], subs)
+
+    def level(items, count):
+        return sp.Matrix([e if e is not None else 0 for e in items]) if count else sp.zeros(0, 1)
+
+    residuals = lambdify_blocks(args, [level(real.position_residual, s), level(real.velocity_residual, s),
+                                       level(servo.position_residual, r), level(servo.velocity_residual, r)], subs)
+    kin_idx = tuple(i for i, c in enumerate(system.controls) if c.kind == "kinematic")
+    coords = tuple(q.name for q in kin.coordinates)
+    speeds = tuple(w.name for w in kin.speeds)
+    return ControlledModel(
+        derivation=derivation, name=system.name,
+        state_names=coords + speeds + tuple(s_.name for s_ in uc),
+        coordinate_names=coords, speed_names=speeds, constraint_names=real.names, servo_names=servo.names,
+        control_names=tuple(c.name for c in system.controls), parameter_names=tuple(p_.name for p_ in params),
+        default_parameters=np.array([p_.value for p_ in system.parameters], dtype=float),
+        kinematic_controls=kin_idx, blocks=blocks, conditions=conditions, rates=rates, residuals=residuals,
+        has_position=(np.array([e is not None for e in real.position_residual], bool),
+                      np.array([e is not None for e in servo.position_residual], bool)),
+        has_velocity=(np.array([e is not None for e in real.velocity_residual], bool),
+                      np.array([e is not None for e in servo.velocity_residual], bool)),
+        underactuated=derivation.underactuated,
+    )
