@@ -32,6 +32,7 @@ does not appear, :mod:`appell.underactuated` differentiates the conditions along
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Sequence
 
 import json
@@ -265,9 +266,9 @@ class ControlledDerivation:
         """Whether some dynamic condition had to be differentiated."""
         return any(c.differentiations for c in self.conditions)
 
-    @property
+    @cached_property
     def numeric(self):
-        """Compiled :class:`appell.servo_numeric.ControlledModel` (built on each access)."""
+        """Compiled :class:`appell.servo_numeric.ControlledModel` (built on first access)."""
         from .servo_numeric import compile_controlled
 
         return compile_controlled(self)
@@ -319,7 +320,8 @@ class ControlledDerivation:
                     c = next(c for c in self.system.controls if c.name == k)
                     rows.append(rf"{latex_name(c.unknown.name)} &= {tex(v)}")
                 else:
-                    rows.append(rf"{tex(v)} &= 0 \quad \text{{({k})}}")
+                    label = k.replace("_", r"\_")
+                    rows.append(rf"{tex(v)} &= 0 \quad \text{{({label})}}")
         return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"
 
     def to_json(self) -> dict:

@@ -34,7 +34,8 @@ from .errors import ComputationError, ModelError
 from .numeric import choose_dependent, lambdify_blocks, program_substitutions, well_conditioned
 from .symbols import derivative_symbol, t
 
-__all__ = ["ControlledModel", "ControlledSolution", "augmented_controlled_solve", "compile_controlled"]
+__all__ = ["ControlledCrossCheck", "ControlledModel", "ControlledSolution", "augmented_controlled_solve",
+           "compile_controlled", "cross_check_controlled", "real_motion", "sample_controlled_states"]
 
 
 def _basis(J: np.ndarray, dep) -> tuple[np.ndarray, np.ndarray, list[int], list[int]]:
@@ -289,3 +290,79 @@ def compile_controlled(derivation) -> ControlledModel:
                       np.array([e is not None for e in servo.velocity_residual], bool)),
         underactuated=derivation.underactuated,
     )
+
+
+@dataclass(frozen=True)
+class ControlledCrossCheck:
+    """Largest relative differences between the split route (2.3)-(2.5) and an independent one.
+
+    ``route``: 'augmented' — the augmented system with the control unknowns
+    (:func:`augmented_controlled_solve`); 'symbolic' for underactuated systems (the
+    augmented system is singular there) — the closed-form control laws evaluated by SymPy
+    against the compiled conditions. ``servo_multipliers``: largest |(2.3)| at the split
+    solution (zero when the controls realise the servo constraints; regular systems only).
+    """
+
+    route: str
+    controls: float
+    accelerations: float
+    multipliers: float
+    servo_multipliers: float
+    states: int
+
+    def passed(self, tol: float = 1e-9) -> bool:
+        return max(self.controls, self.accelerations, self.multipliers) <= tol
+
+    def __str__(self) -> str:
+        return "\n".join([
+            f"cross-check of the controlled system against the {self.route} route at {self.states} states:",
+            f"  controls       max relative difference {self.controls:.3e}",
+            f"  accelerations  max relative difference {self.accelerations:.3e}",
+            f"  multipliers    max relative difference {self.multipliers:.3e}",
+            f"  servo multipliers (2.3) at the solution  {self.servo_multipliers:.3e}",
+        ])
+
+
+def sample_controlled_states(model: ControlledModel, count: int = 5, seed: int = 1):
+    """``(t, y)`` near the model's initial state (random where it has none)."""
+    rng = np.random.default_rng(seed)
+    init = model.derivation.system.initial_values
+    base = np.array([init.get(n, rng.uniform(0.3, 1.0)) for n in model.state_names])
+    return [(0.0 if k == 0 else float(rng.uniform(0, 2)), base + (0.0 if k == 0 else 0.2) * rng.uniform(-1, 1, base.size))
+            for k in range(count)]
+
+
+def _rel(x, y) -> float:
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if x.size == 0:
+        return 0.0
+    return float(np.max(np.abs(x - y)) / max(np.max(np.abs(x)), np.max(np.abs(y)), 1e-12))
+
+
+def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCheck:
+    """Compare :meth:`ControlledModel.solve` with an independent route (see
+    :class:`ControlledCrossCheck`)."""
+    from .symbols import t as time
+
+    model = derivation.numeric
+    states = states if states is not None else sample_controlled_states(model)
+    pv = model.params(p)
+    dc = da = dl = ds = 0.0
+    if not derivation.underactuated:
+        for tt, y in states:
+            s1 = model.solve(tt, y, pv)
+            s2 = augmented_controlled_solve(model, tt, y, pv)
+            dc, da, dl = max(dc, _rel(s1.controls, s2.controls)), max(da, _rel(s1.accelerations, s2.accelerations)), \
+                max(dl, _rel(s1.multipliers, s2.multipliers))
+            ds = max(ds, float(np.max(np.abs(s1.servo_multipliers), initial=0.0)))
+        return ControlledCrossCheck("augmented", dc, da, dl, ds, len(states))
+    system = derivation.system
+    subs_prog = program_substitutions(system, orders=12)
+    syms = [sp.Symbol(n) for n in model.state_names]
+    laws = [sp.sympify(e).xreplace(subs_prog) for e in derivation.control_laws.values()]
+    prm = {sp.Symbol(n): v for n, v in zip(model.parameter_names, pv)}
+    for tt, y in states:
+        vals = {**prm, **dict(zip(syms, y)), time: tt}
+        ref = [float(e.xreplace(vals).evalf()) for e in laws]
+        dc = max(dc, _rel(model.solve(tt, y, pv).controls, ref))
+    return ControlledCrossCheck("symbolic", dc, 0.0, 0.0, float("nan"), len(states))
