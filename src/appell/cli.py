@@ -19,7 +19,6 @@ stderr, never as a traceback, and no output file is left behind.
 
 from __future__ import annotations
 
-import inspect
 import json
 import shutil
 import sys
@@ -142,40 +141,38 @@ def derivation_json(derivation) -> dict:
 
 def simulation_options(system, t_end: float | None = None) -> dict:
     """Keyword arguments of :func:`appell.simulate.simulate` from the model's ``[simulation]``
-    table (``System.settings``), with ``t_end`` overriding the table's.
+    table (:func:`appell.modelfile.simulation_options`), with ``t_end`` overriding the
+    table's final time (default :data:`DEFAULT_T_END`).
 
-    ``t_start`` -> ``t0``; ``output_step`` / ``output_times`` -> ``t_eval``;
-    ``stabilization = 'none'`` -> None; ``baumgarte_alpha``/``_beta`` -> ``baumgarte``;
-    other keys that :func:`simulate` accepts pass through. ``t_end`` defaults to
-    :data:`DEFAULT_T_END`.
+    When ``t_end`` changes the final time, equally spaced output times are regenerated
+    with their step up to the new final time, and other output times are cut to it.
     """
     import numpy as np
 
-    from .simulate import simulate
+    from .modelfile import simulation_options as table_options
 
-    accepted = set(inspect.signature(simulate).parameters)
-    settings = dict(system.settings)
-    t0 = float(settings.pop("t_start", 0.0))
-    table_t_end = settings.pop("t_end", None)
-    t_end = float(t_end if t_end is not None else table_t_end if table_t_end is not None else DEFAULT_T_END)
-    step = settings.pop("output_step", None)
-    times = settings.pop("output_times", None)
-    alpha, beta = settings.pop("baumgarte_alpha", None), settings.pop("baumgarte_beta", None)
-    opts: dict = {"t0": t0, "t_end": t_end}
-    if times is not None:
-        opts["t_eval"] = np.array([x for x in times if t0 <= x <= t_end], float)
-    elif step is not None and t_end > t0:
-        count = int(np.floor((t_end - t0) / float(step) + 1e-9))
-        grid = t0 + float(step) * np.arange(count + 1)
-        opts["t_eval"] = grid if np.isclose(grid[-1], t_end) else np.append(grid, t_end)
-    if "stabilization" in settings:
-        value = settings.pop("stabilization")
-        opts["stabilization"] = None if value in (None, "none") else value
-    if alpha is not None or beta is not None:
-        opts["baumgarte"] = (float(alpha if alpha is not None else 10.0), float(beta if beta is not None else 10.0))
-    for key, value in settings.items():
-        if key in accepted and key not in opts:
-            opts[key] = value
+    opts = dict(table_options(system))
+    t0 = float(opts.pop("t0", 0.0))
+    table_t_end = opts.pop("t_end", None)
+    final = float(t_end if t_end is not None else table_t_end if table_t_end is not None else DEFAULT_T_END)
+    step = opts.pop("output_step", None)
+    times = opts.pop("t_eval", None)
+    if times is not None and step is None and final != table_t_end:
+        grid = np.asarray(times, float)
+        spacing = np.diff(grid)
+        if grid.size > 2 and grid[0] == t0 and np.allclose(spacing, spacing[0], rtol=1e-9, atol=0.0):
+            step, times = float(spacing[0]), None
+        else:
+            times = grid[(grid >= t0) & (grid <= final)]
+    if step is not None and final > t0:
+        count = int(np.floor((final - t0) / float(step) + 1e-9))
+        grid = np.minimum(t0 + float(step) * np.arange(count + 1), final)
+        if np.isclose(grid[-1], final, rtol=1e-12, atol=1e-12 * float(step)):
+            grid[-1] = final
+        times = grid if grid[-1] == final else np.append(grid, final)
+    if times is not None and len(times):
+        opts["t_eval"] = np.asarray(times, float)
+    opts["t0"], opts["t_end"] = t0, final
     return opts
 
 
@@ -183,12 +180,13 @@ def run_simulation(derivation, t_end: float | None = None, **options):
     """Simulate ``derivation`` with the model's settings (:func:`simulation_options`).
 
     ``t_end`` equal to the start time gives the single row at the initial state.
-    Dependent initial values are completed from the given ones (``complete=True``).
+    Dependent initial values are completed from the given ones (``complete=True``) unless
+    the model's ``[simulation]`` table says otherwise.
     Raises :class:`ComputationError` when the integration fails (status -1).
     """
     from .simulate import simulate
 
-    opts = {**simulation_options(derivation.system, t_end), "complete": True, **options}
+    opts = {"complete": True, **simulation_options(derivation.system, t_end), **options}
     t0, t_end = opts.pop("t0"), opts.pop("t_end")
     if t_end == t0:
         # one output time at the start: the integrator takes one tiny step and records only t0
@@ -217,6 +215,9 @@ def export_solution(solution, path: Path) -> Path:
 
 
 # ---------------------------------------------------------------- the commands
+_NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
+
+
 class _AppellGroup(click.Group):
     """Turns every error into ``error: ...`` on stderr and the exit codes of the module."""
 
@@ -224,9 +225,9 @@ class _AppellGroup(click.Group):
         try:
             rv = super().main(args=args, prog_name=prog_name or "appell", complete_var=complete_var,
                               standalone_mode=False, **extra)
-        except click.exceptions.NoArgsIsHelpError as exc:  # click >= 8.2: bare group -> help
+        except _NO_ARGS_IS_HELP as exc:  # click >= 8.2: a bare 'appell' prints the help
             click.echo(exc.ctx.get_help())
-            code = EXIT_OK
+            code = EXIT_BAD_INPUT
         except click.UsageError as exc:
             hint = f"run '{exc.ctx.command_path} --help'" if exc.ctx is not None else "run 'appell --help'"
             code = _report_error(exc.format_message(), hint, EXIT_BAD_INPUT)
@@ -266,7 +267,7 @@ _set_option = click.option("--set", "assignments", multiple=True, metavar="NAME=
                            help="Override a parameter or an initial value (repeatable), e.g. --set M=1500 --set \"phi'=0.2\".")
 
 
-@click.group(cls=_AppellGroup, context_settings=_CONTEXT)
+@click.group(name="appell", cls=_AppellGroup, context_settings=_CONTEXT)
 @click.version_option(package_name="appell", prog_name="appell", message="%(prog)s %(version)s")
 def cli():
     """Equations of motion and constraint reactions by Do Shan's method.

@@ -1,0 +1,324 @@
+"""The command line on the bundled examples: outputs, options and exit codes.
+
+Closed forms used (sources in src/appell/examples/pendulum.toml and method.md §6):
+the planar pendulum released at rest at theta0 = pi/3 has rod tension
+lambda_rod = m g (3 cos(theta) - 2 cos(theta0)) (energy conservation), with
+cos(theta) = -y / L.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+from click.testing import CliRunner
+
+from appell.cli import cli
+from appell.examples import example_path, list_examples
+
+BAD_TOML = """\
+[model]
+name = "broken"
+coordinates = ["x"]
+
+[mechanics]
+kinetic_energy = "m/2*x'^2 +"
+"""
+
+# x''^2 + (y'' + 1/2)^2 + 3/4 = 0 has no real solution: Newton's method must fail
+NO_SOLUTION = """\
+[model]
+name = "no_solution"
+coordinates = ["x", "y"]
+
+[parameters]
+m = 1.0
+
+[mechanics]
+kinetic_energy = "m/2*(x'^2 + y'^2)"
+
+[constraints.impossible]
+kind = "second-order"
+expr = "x''^2 + y''^2 + y'' + 1"
+
+[initial]
+x = 0.0
+y = 0.0
+"x'" = 0.0
+"y'" = 0.0
+"""
+
+# the force sqrt(0.5 - t) is not real after t = 0.5: the integration stops there
+FAILS_MIDWAY = """\
+[model]
+name = "fails_midway"
+coordinates = ["x", "y"]
+
+[parameters]
+m = 1.0
+
+[mechanics]
+kinetic_energy = "m/2*(x'^2 + y'^2)"
+generalized_forces = ["sqrt(0.5 - t)", 0]
+
+[constraints.rail]
+kind = "holonomic"
+expr = "y - x"
+
+[initial]
+x = 0.0
+y = 0.0
+"x'" = 0.0
+"y'" = 0.0
+"""
+
+
+def run(*args, cwd=None):
+    """Invoke the command line in-process; returns click's Result (exit_code, stdout, stderr)."""
+    return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
+
+
+def read_csv(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    return rows[0], np.array([[float(v) if v else np.nan for v in r] for r in rows[1:]])
+
+
+def pendulum_tension(m, g, y, L=1.0, theta0=math.pi / 3):
+    return m * g * (3 * (-y / L) - 2 * math.cos(theta0))
+
+
+# ------------------------------------------------------------------ help and examples
+@pytest.mark.parametrize("command", [[], ["derive"], ["simulate"], ["check"], ["report"], ["examples"]])
+def test_help_everywhere(command):
+    result = run(*command, "--help")
+    assert result.exit_code == 0, result.output
+    assert "Usage:" in result.output
+
+
+def test_examples_lists_every_bundled_model_with_a_description():
+    result = run("examples")
+    assert result.exit_code == 0
+    lines = result.output.strip().splitlines()
+    assert [line.split()[0] for line in lines] == list_examples()
+    assert all(len(line.split(maxsplit=1)) == 2 for line in lines), "each example has a one-line description"
+
+
+def test_examples_copy_out(tmp_path):
+    result = run("examples", "car", "--to", tmp_path / "models")
+    assert result.exit_code == 0, result.output
+    copied = tmp_path / "models" / "car.toml"
+    assert copied.read_text() == example_path("car").read_text()
+    # the copy is a working model file
+    assert run("check", copied).exit_code == 0
+
+
+def test_examples_unknown_name_is_bad_input():
+    result = run("examples", "no_such_example")
+    assert result.exit_code == 2
+    assert result.stderr.startswith("error: no bundled example")
+
+
+# ------------------------------------------------------------------ derive
+def test_derive_text_and_latex():
+    text = run("derive", "pendulum")
+    assert text.exit_code == 0, text.output
+    assert "lambda_rod" in text.output and "(1.4)" in text.output
+    latex = run("derive", "pendulum", "--format", "latex")
+    assert latex.exit_code == 0
+    assert latex.output.lstrip().startswith("\\begin{aligned}") and "\\lambda_{rod}" in latex.output
+
+
+def test_derive_json_keys_and_parsable_expressions():
+    result = run("derive", example_path("pendulum"), "--format", "json")
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.output)
+    for key in ("coordinates", "speeds", "dependent", "reduced_equations", "multipliers", "controls",
+                "first_integrals"):
+        assert key in doc, key
+    assert doc["coordinates"] == ["x", "y"] and doc["speeds"] == ["x_dot", "y_dot"]
+    assert set(doc["multipliers"]) == {"rod"} and doc["controls"] == {}
+    declared = {"x", "y", "x_dot", "y_dot", "x_ddot", "y_ddot", "m", "L", "g", "t"}
+    for text in doc["reduced_equations"] + list(doc["multipliers"].values()):
+        expr = sp.sympify(text)
+        assert {s.name for s in expr.free_symbols} <= declared
+    # the multiplier formula (1.5) at rest, theta = pi/3, with the accelerations of that
+    # state, gives the tension m g cos(theta)
+    lam = sp.sympify(doc["multipliers"]["rod"])
+    x0, y0 = math.sin(math.pi / 3), -math.cos(math.pi / 3)
+    # at rest the bob accelerates along the tangent with g sin(theta)
+    at = {"x": x0, "y": y0, "x_dot": 0, "y_dot": 0, "m": 1, "L": 1, "g": 9.81,
+          "x_ddot": -9.81 * math.sin(math.pi / 3) * math.cos(math.pi / 3),
+          "y_ddot": -9.81 * math.sin(math.pi / 3) ** 2}
+    value = float(lam.subs({sp.Symbol(k): v for k, v in at.items()}))
+    assert value == pytest.approx(9.81 * math.cos(math.pi / 3), rel=1e-12)
+
+
+def test_derive_dependent_choice():
+    a = json.loads(run("derive", "pendulum", "--format", "json", "--dependent", "x_ddot").output)
+    b = json.loads(run("derive", "pendulum", "--format", "json", "--dependent", "y''").output)
+    assert a["dependent"] == ["x_ddot"] and b["dependent"] == ["y_ddot"]
+    bad = run("derive", "pendulum", "--dependent", "z_ddot")
+    assert bad.exit_code == 2 and "not an acceleration" in bad.stderr
+
+
+# ------------------------------------------------------------------ simulate
+def test_simulate_csv_columns_and_tension(tmp_path):
+    out = tmp_path / "pendulum.csv"
+    result = run("simulate", "pendulum", "--t-end", "1.0", "--out", out)
+    assert result.exit_code == 0, result.output
+    header, data = read_csv(out)
+    assert header == ["t", "x", "y", "x_dot", "y_dot", "lambda_rod", "residual_rod"]
+    assert data.shape[0] > 10 and data[0, 0] == 0.0 and data[-1, 0] == pytest.approx(1.0)
+    col = {name: data[:, i] for i, name in enumerate(header)}
+    expected = pendulum_tension(1.0, 9.81, col["y"])
+    np.testing.assert_allclose(col["lambda_rod"], expected, rtol=1e-6, atol=1e-6)
+
+
+def test_simulate_car_csv_header_order(tmp_path):
+    out = tmp_path / "car.csv"
+    result = run("simulate", "car", "--t-end", "0.5", "--out", out)
+    assert result.exit_code == 0, result.output
+    header, data = read_csv(out)
+    assert header == ["t", "x", "y", "phi", "x_dot", "y_dot", "phi_dot", "lambda_rear", "lambda_front",
+                      "residual_rear", "residual_front"]
+    assert np.all(np.abs(data[:, -2:]) < 1e-8), "the constraints hold along the motion"
+
+
+def test_t_end_zero_gives_the_initial_row(tmp_path):
+    out = tmp_path / "start.csv"
+    result = run("simulate", "pendulum", "--t-end", "0", "--out", out)
+    assert result.exit_code == 0, result.output
+    header, data = read_csv(out)
+    assert data.shape == (1, len(header))
+    row = dict(zip(header, data[0]))
+    assert row["t"] == 0.0
+    assert row["x"] == pytest.approx(math.sin(math.pi / 3)) and row["y"] == pytest.approx(-0.5)
+    assert row["lambda_rod"] == pytest.approx(9.81 * 0.5, rel=1e-9)
+
+
+def test_set_overrides_parameters_and_initial_values(tmp_path):
+    out = tmp_path / "start.csv"
+    theta = 0.4
+    result = run("simulate", "pendulum", "--t-end", "0", "--out", out, "--set", "m=2.5", "--set", "g=3",
+                 "--set", f"x={math.sin(theta)!r}", "--set", f"y={-math.cos(theta)!r}")
+    assert result.exit_code == 0, result.output
+    header, data = read_csv(out)
+    row = dict(zip(header, data[0]))
+    assert row["x"] == pytest.approx(math.sin(theta))
+    # at rest the tension is m g cos(theta)
+    assert row["lambda_rod"] == pytest.approx(2.5 * 3 * math.cos(theta), rel=1e-9)
+
+
+def test_set_rejects_unknown_names_and_bad_syntax():
+    unknown = run("derive", "pendulum", "--set", "mass=3")
+    assert unknown.exit_code == 2 and "mass" in unknown.stderr
+    syntax = run("derive", "pendulum", "--set", "m3")
+    assert syntax.exit_code == 2 and "NAME=VALUE" in syntax.stderr
+
+
+def test_simulate_hdf5_and_plot(tmp_path):
+    h5py = pytest.importorskip("h5py")
+    out, plot = tmp_path / "knife.h5", tmp_path / "knife.png"
+    result = run("simulate", "knife_edge", "--t-end", "1", "--out", out, "--plot", plot)
+    assert result.exit_code == 0, result.output
+    with h5py.File(out) as f:
+        t = f["t"][()]
+        lam = f["multipliers/blade"][()]
+        params = dict(f["parameters"].attrs)
+    # Neimark & Fufaev: lambda_blade = -2 m g sin(alpha) sin(Omega t)
+    expected = -2 * params["m"] * params["g"] * np.sin(params["alpha"]) * np.sin(params["Omega"] * t)
+    np.testing.assert_allclose(lam, expected, atol=1e-6)
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_simulate_unknown_output_format_is_bad_input(tmp_path):
+    result = run("simulate", "pendulum", "--out", tmp_path / "out.xlsx")
+    assert result.exit_code == 2 and "--out" in result.stderr
+    assert not (tmp_path / "out.xlsx").exists()
+
+
+# ------------------------------------------------------------------ check
+@pytest.mark.parametrize("name", list_examples())
+def test_check_every_bundled_example(name):
+    result = run("check", name)
+    assert result.exit_code == 0, result.output + result.stderr
+    assert "multipliers" in result.output and "passed" in result.output
+
+
+# ------------------------------------------------------------------ report
+def test_report_is_written_and_offline(tmp_path):
+    out = tmp_path / "pendulum.html"
+    result = run("report", "pendulum", "-o", out, "--t-end", "1")
+    assert result.exit_code == 0, result.output + result.stderr
+    page = out.read_text()
+    assert page.count("<math") >= 4 and "data:image/png;base64," in page
+    assert "lambda_{rod}" not in page  # rendered as MathML, not left as LaTeX
+    assert "http://" not in page and "https://" not in page
+    assert "cross-check" in page.lower() and "passed" in page
+
+
+# ------------------------------------------------------------------ exit codes
+def test_missing_model_file_is_bad_input(tmp_path):
+    result = run("derive", tmp_path / "nowhere.toml")
+    assert result.exit_code == 2
+    assert result.stderr.startswith("error: ") and "no such model file" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_bad_model_file_is_bad_input_with_file_and_line(tmp_path):
+    model = tmp_path / "broken.toml"
+    model.write_text(BAD_TOML)
+    result = run("simulate", model, "--out", tmp_path / "out.csv")
+    assert result.exit_code == 2
+    assert result.stderr.startswith(f"error: {model}:6")
+    assert not (tmp_path / "out.csv").exists()
+
+
+def test_unknown_option_is_bad_input():
+    result = run("derive", "pendulum", "--no-such-option")
+    assert result.exit_code == 2
+    assert result.stderr.startswith("error: No such option")
+    assert "hint: run 'appell derive --help'" in result.stderr
+
+
+def test_failing_computation_exits_1_without_output(tmp_path):
+    model = tmp_path / "no_solution.toml"
+    model.write_text(NO_SOLUTION)
+    for command in (["check", model], ["simulate", model, "--t-end", "1", "--out", tmp_path / "out.csv"],
+                    ["report", model, "-o", tmp_path / "out.html"]):
+        result = run(*command)
+        assert result.exit_code == 1, (command, result.output, result.stderr)
+        assert result.stderr.startswith("error: Newton's method")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["no_solution.toml"]
+
+
+def test_failed_simulation_leaves_no_partial_file(tmp_path):
+    model = tmp_path / "fails.toml"
+    model.write_text(FAILS_MIDWAY)
+    out, plot, kept = tmp_path / "new.csv", tmp_path / "new.png", tmp_path / "kept.csv"
+    kept.write_text("previous result\n")
+    for target in (out, kept):
+        result = run("simulate", model, "--t-end", "1", "--out", target, "--plot", plot)
+        assert result.exit_code == 1, result.output
+        assert "failed at t = 0.5" in result.stderr
+    assert not out.exists() and not plot.exists()
+    assert kept.read_text() == "previous result\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fails.toml", "kept.csv"]
+
+
+def test_installed_entry_point_exit_codes(tmp_path):
+    """The real process: ``python -m appell.cli`` (what the ``appell`` script runs)."""
+    bad = subprocess.run([sys.executable, "-m", "appell.cli", "check", str(tmp_path / "missing.toml")],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and bad.stderr.startswith("error: ") and "Traceback" not in bad.stderr
+    usage = subprocess.run([sys.executable, "-m", "appell.cli", "frobnicate"], capture_output=True, text=True,
+                           timeout=120)
+    assert usage.returncode == 2 and "No such command" in usage.stderr
