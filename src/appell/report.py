@@ -15,10 +15,11 @@ The page needs no network: formulas are converted from LaTeX to MathML (rendered
 by browsers) with the pure-Python ``latex2mathml``; each formula keeps a plain-text form
 (``alttext`` and a collapsed text block) for readers without MathML; plots are PNG images
 embedded as base64 ``data:`` URIs; styles and the one small script are inline. The script
-measures, after the page has loaded, that every ``<math>`` element has a nonzero box and
-every image decoded (``naturalWidth > 0``), and writes the counts into the ``data-math-*``
-and ``data-img-*`` attributes of ``<body>`` (the test suite reads them from headless
-Chromium).
+measures, after the page has loaded, that every ``<math>`` element has a nonzero box,
+that fractions are laid out as fractions (numerator above denominator, which a browser
+without MathML would not do) and that every image decoded (``naturalWidth > 0``), and
+writes the counts into the ``data-math-*``, ``data-frac-*`` and ``data-img-*`` attributes
+of ``<body>`` (the test suite reads them from headless Chromium).
 
 :func:`write_report` writes the page atomically (temporary file, then :func:`os.replace`).
 """
@@ -238,9 +239,20 @@ window.addEventListener("load", function () {
   for (var j = 0; j < imgs.length; j++) {
     if (imgs[j].complete && imgs[j].naturalWidth > 0) loaded++;
   }
+  // laid out as mathematics, not as inline text: numerators sit above denominators
+  var fracs = document.querySelectorAll("mfrac"), stacked = 0;
+  for (var k = 0; k < fracs.length; k++) {
+    var parts = fracs[k].children;
+    if (parts.length === 2) {
+      var num = parts[0].getBoundingClientRect(), den = parts[1].getBoundingClientRect();
+      if (num.height > 0 && den.height > 0 && num.bottom <= den.top + 1) stacked++;
+    }
+  }
   var b = document.body;
   b.setAttribute("data-math-total", maths.length);
   b.setAttribute("data-math-rendered", rendered);
+  b.setAttribute("data-frac-total", fracs.length);
+  b.setAttribute("data-frac-stacked", stacked);
   b.setAttribute("data-img-total", imgs.length);
   b.setAttribute("data-img-loaded", loaded);
   b.setAttribute("data-render-check", "done");
@@ -252,11 +264,11 @@ def _e(value) -> str:
     return html.escape(str(value))
 
 
-def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    """A table; cells are HTML already."""
-    head = "".join(f"<th>{h}</th>" for h in header)
+def _table(header: Sequence[str] | None, rows: Sequence[Sequence[str]]) -> str:
+    """A table; cells are HTML already; no header row when ``header`` is None."""
+    head = "" if header is None else "<thead><tr>" + "".join(f"<th>{h}</th>" for h in header) + "</tr></thead>"
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in rows)
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+    return f"<table>{head}<tbody>{body}</tbody></table>"
 
 
 def _model_section(system, kinematics) -> str:
@@ -277,7 +289,7 @@ def _model_section(system, kinematics) -> str:
         rows.append((f"program {_e(prog.symbol)}(t)", _inline(sp.Eq(prog.symbol, prog.expr, evaluate=False))))
     if system.initial:
         rows.append(("initial values", _e(", ".join(f"{k} = {v:g}" for k, v in system.initial))))
-    parts.append("<h3>Coordinates and speeds</h3>" + _table(("", ""), rows))
+    parts.append("<h3>Coordinates and speeds</h3>" + _table(None, rows))
     if system.constraints:
         rows = [(_e(c.name), _e(c.kind), _inline(sp.Eq(c.expr, 0, evaluate=False)), _inline(sp.Symbol(f"lambda_{c.name}")))
                 for c in system.constraints]
@@ -383,6 +395,9 @@ def write_report(path, derivation, solution=None, check=None, **options) -> Path
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(page)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates the file private (0600)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
