@@ -1,0 +1,70 @@
+"""Controlled systems that cannot be realised (method.md §4 needs k = r, a full-rank
+stacked Jacobian, and a control that appears within the differentiation bound): each is a
+ModelError that names the constraints and says what to do."""
+
+import pytest
+import sympy as sp
+
+from appell import Control, ModelError, System, acceleration_constraint, holonomic, nonholonomic
+from appell.examples.servo_examples import appell_ball
+from appell.servo import derive_controlled
+
+x, y = sp.symbols("x y")
+xd, yd = sp.symbols("x_dot y_dot")
+F, m = sp.symbols("F m")
+
+
+def particle(**kw):
+    base = dict(coordinates=(x, y), parameters={m: 1.0}, kinetic_energy=m / 2 * (xd**2 + yd**2),
+                generalized_forces=(F, 0), controls=(Control(F, "force"),))
+    base.update(kw)
+    return System(**base)
+
+
+def test_more_servo_constraints_than_controls():
+    sysm = particle(servo_constraints=(nonholonomic("vx", xd - 1), nonholonomic("vy", yd - 2)))
+    with pytest.raises(ModelError, match=r"2 servo constraints \(vx, vy\) but only 1 control") as exc:
+        derive_controlled(sysm)
+    assert "add controls" in str(exc.value)
+
+
+def test_fewer_servo_constraints_than_controls():
+    sysm = appell_ball()
+    sysm = sysm.replace(servo_constraints=sysm.servo_constraints[:1])
+    with pytest.raises(ModelError, match=r"controls \(u, v\) for 1 servo constraint"):
+        derive_controlled(sysm)
+
+
+def test_servo_constraint_contradicting_a_real_one():
+    sysm = particle(constraints=(nonholonomic("guide", xd - 1),), servo_constraints=(nonholonomic("speed", xd - 2),),
+                    generalized_forces=(0, F))
+    with pytest.raises(ModelError, match="contradictory or redundant") as exc:
+        derive_controlled(sysm)
+    assert "guide" in str(exc.value) and "speed" in str(exc.value)
+
+
+def test_controls_that_cannot_realise_the_servo_constraint():
+    """The force acts on x, the servo constraint prescribes the decoupled y: the control
+    never appears, however often (2.3) is differentiated."""
+    yref = sp.Symbol("y_ref")
+    sysm = particle(programs={yref: sp.sin(sp.Symbol("t"))}, servo_constraints=(holonomic("track_y", y - yref),))
+    with pytest.raises(ModelError, match=r"cannot realise servo constraint 'track_y'.*after 6 differentiations"):
+        derive_controlled(sysm)
+    with pytest.raises(ModelError, match="after 2 differentiations"):
+        derive_controlled(sysm, max_differentiations=2)
+
+
+def test_servo_constraint_on_a_control_only():
+    """A servo constraint that fixes a kinematic control directly restricts no acceleration
+    of the system: the joint partition cannot take it; the hint says to use a program."""
+    u = sp.Symbol("u")
+    sysm = particle(controls=(Control(u, "kinematic"),), generalized_forces=(0, 0),
+                    servo_constraints=(acceleration_constraint("plate", sp.Symbol("u_ddot") - 1),))
+    with pytest.raises(ModelError, match="plate") as exc:
+        derive_controlled(sysm)
+    assert "program" in str(exc.value)
+
+
+def test_no_servo_constraints():
+    with pytest.raises(ModelError, match="no servo constraints"):
+        derive_controlled(particle(controls=(), generalized_forces=(0, 0)))
