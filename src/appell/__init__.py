@@ -34,6 +34,8 @@ from .first_integrals import FirstIntegralCheck, FirstIntegralReport, check_firs
 from .symbols import derivative_symbol, t
 from .codegen_c import compile_c
 from .sweep import SweepResult, parameter_grid, sweep
+from .servo import ControlledDerivation, derive_controlled
+from .servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
 
 __version__ = "0.1.0"
 
@@ -47,4 +49,6 @@ __all__ = [
     "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",
     "routh_reduction",
     "SweepResult", "compile_c", "parameter_grid", "sweep",
+    "ControlledDerivation", "ControlledModel", "augmented_controlled_solve", "cross_check_controlled",
+    "derive_controlled",
 ]
