@@ -97,3 +97,14 @@ def test_unknown_parameter_override():
         d.numeric.solve(0.0, [0.5, -0.8], [0.0, 0.0], p={"mass": 2.0})
     sol = d.numeric.solve(0.0, [0.6, -0.8], [0.0, 0.0], p={"m": 2.0})
     assert np.isfinite(sol.multipliers).all()
+
+
+def test_first_order_constraint_on_a_given_rate_only_points_to_programs():
+    """A constraint on a kinematic control's rate alone (u' = 1) does not involve the system."""
+    from appell import Control
+
+    u_dot = sp.Symbol("u_dot")
+    sysm = _particle((nonholonomic("drive", u_dot - 1),), controls=(Control(sp.Symbol("u"), "kinematic"),))
+    with pytest.raises(ModelError, match="involves no speed") as err:
+        derive(sysm)
+    assert "u_dot" in str(err.value) and "program" in str(err.value)

@@ -96,10 +96,13 @@ def second_order_blocks(constraints: tuple[Constraint, ...], kin: Kinematics, ex
                     hint="declare it as a second-order constraint",
                 )
             if not _involves(e, w):
+                given = sorted(s.name for s in e.free_symbols if s not in kin.coordinates and kin.successor(s))
                 raise ModelError(
-                    f"first-order constraint {c.name!r} involves no speed",
+                    f"first-order constraint {c.name!r} involves no speed of the system",
                     where=c.where,
-                    hint="a constraint on coordinates only is holonomic; declare it so",
+                    hint=(f"it only restricts {', '.join(given)}, which the system does not move: "
+                          "a control fixed by itself should be a program" if given
+                          else "a constraint on coordinates only is holonomic; declare it so"),
                 )
             pos.append(None)
             vel.append(e)
