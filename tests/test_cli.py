@@ -80,6 +80,62 @@ y = 0.0
 """
 
 
+# Appell's problem (method.md §6, Example 2): the plate (u, v) is driven so that the
+# ball's centre moves uniformly on a circle
+APPELL_BALL = """\
+[model]
+name = "appell_ball"
+coordinates = ["xi", "eta"]
+speeds = ["xi_dot", "eta_dot", "p", "q", "r"]
+
+[kinematics]
+xi = "xi_dot"
+eta = "eta_dot"
+
+[parameters]
+M = { value = 1.0, unit = "kg" }
+R = { value = 0.1, unit = "m" }
+omega = { value = 2.0, unit = "rad/s" }
+
+[mechanics]
+acceleration_energy = "M/2*(xi_dot'^2 + eta_dot'^2) + M*R^2/5*(p'^2 + q'^2 + r'^2)"
+generalized_forces = [0, 0, 0, 0, 0]
+
+[controls]
+u = "kinematic"
+v = "kinematic"
+
+[constraints.roll_x]
+kind = "first-order"
+expr = "xi_dot - R*q - u'"
+
+[constraints.roll_y]
+kind = "first-order"
+expr = "eta_dot + R*p - v'"
+
+[servo_constraints.circle_x]
+kind = "first-order"
+expr = "xi_dot + omega*eta"
+
+[servo_constraints.circle_y]
+kind = "first-order"
+expr = "eta_dot - omega*xi"
+
+[initial]
+xi = 0.3
+eta = 0.1
+xi_dot = -0.2
+eta_dot = 0.6
+p = 0.0
+q = 0.0
+r = 0.0
+u = 0.0
+v = 0.0
+"u'" = -0.2
+"v'" = 0.6
+"""
+
+
 def run(*args, cwd=None):
     """Invoke the command line in-process; returns click's Result (exit_code, stdout, stderr)."""
     return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
@@ -243,6 +299,36 @@ def test_simulate_unknown_output_format_is_bad_input(tmp_path):
     result = run("simulate", "pendulum", "--out", tmp_path / "out.xlsx")
     assert result.exit_code == 2 and "--out" in result.stderr
     assert not (tmp_path / "out.xlsx").exists()
+
+
+def test_servo_model_derive_json_controls_and_simulate(tmp_path):
+    """Appell's problem: u'' = -(7/2) omega^2 xi and lambda_roll_x = -M omega^2 xi on the
+    servo manifold (method.md §6, Example 2)."""
+    model = tmp_path / "appell_ball.toml"
+    model.write_text(APPELL_BALL)
+    result = run("derive", model, "--format", "json")
+    assert result.exit_code == 0, result.output + result.stderr
+    doc = json.loads(result.output)
+    assert set(doc["controls"]) == {"u", "v"} and set(doc["multipliers"]) == {"roll_x", "roll_y"}
+    M, omega, xi, eta = sp.symbols("M omega xi eta")
+    on_circle = {sp.Symbol("xi_dot"): -omega * eta, sp.Symbol("eta_dot"): omega * xi}
+    u_dd = sp.sympify(doc["controls"]["u"]).subs(on_circle)
+    v_dd = sp.sympify(doc["controls"]["v"]).subs(on_circle)
+    assert sp.simplify(u_dd + sp.Rational(7, 2) * omega**2 * xi) == 0
+    assert sp.simplify(v_dd + sp.Rational(7, 2) * omega**2 * eta) == 0
+    lam = sp.sympify(doc["multipliers"]["roll_x"]).subs({sp.Symbol("u_ddot"): u_dd, **on_circle})
+    assert sp.simplify(lam + M * omega**2 * xi) == 0
+
+    assert run("check", model).exit_code == 0
+    out = tmp_path / "ball.csv"
+    result = run("simulate", model, "--t-end", "0.5", "--out", out)
+    assert result.exit_code == 0, result.output + result.stderr
+    header, data = read_csv(out)
+    assert header[-6:] == ["lambda_roll_x", "lambda_roll_y", "control_u", "control_v",
+                           "residual_roll_x", "residual_roll_y"]
+    col = {name: data[:, i] for i, name in enumerate(header)}
+    np.testing.assert_allclose(col["control_u"], -3.5 * 4.0 * col["xi"], rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(col["lambda_roll_y"], -1.0 * 4.0 * col["eta"], rtol=1e-6, atol=1e-9)
 
 
 # ------------------------------------------------------------------ check

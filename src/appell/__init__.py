@@ -36,6 +36,7 @@ from .codegen_c import compile_c
 from .sweep import SweepResult, parameter_grid, sweep
 from .servo import ControlledDerivation, derive_controlled
 from .servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
+from .report import render_report, write_report
 
 __version__ = "0.1.0"
 
@@ -51,4 +52,5 @@ __all__ = [
     "SweepResult", "compile_c", "parameter_grid", "sweep",
     "ControlledDerivation", "ControlledModel", "augmented_controlled_solve", "cross_check_controlled",
     "derive_controlled",
+    "render_report", "write_report",
 ]

@@ -282,9 +282,10 @@ def _model_section(system, kinematics) -> str:
     q = list(kinematics.coordinates)
     w = list(kinematics.speeds)
     rows = [("coordinates q", ", ".join(_inline(s) for s in q)), ("speeds w", ", ".join(_inline(s) for s in w))]
-    if tuple(kinematics.coordinate_rates) != tuple(kinematics.speeds):
-        rows.append(("kinematic relations", "<br>".join(
-            _inline(sp.Eq(sp.Symbol(f"{s.name}_dot"), r, evaluate=False)) for s, r in zip(q, kinematics.coordinate_rates))))
+    relations = [(sp.Symbol(f"{s.name}_dot"), r) for s, r in zip(q, kinematics.coordinate_rates)
+                 if r != sp.Symbol(f"{s.name}_dot")]
+    if relations:
+        rows.append(("kinematic relations", "<br>".join(_inline(sp.Eq(d, r, evaluate=False)) for d, r in relations)))
     for prog in system.programs:
         rows.append((f"program {_e(prog.symbol)}(t)", _inline(sp.Eq(prog.symbol, prog.expr, evaluate=False))))
     if system.initial:
@@ -336,17 +337,31 @@ def _simulation_section(solution) -> str:
 
 
 def _check_section(check, tolerance: float) -> str:
+    """The cross-check table: a :class:`~appell.crosscheck.CrossCheckReport`, or the
+    controlled systems' check of :mod:`appell.servo_numeric` (controls as well)."""
     ok = check.passed(tolerance)
-    verdict = (f"<span class='pass'>passed</span>" if ok else f"<span class='fail'>failed</span>")
-    rows = [("accelerations", f"{check.accelerations:.3e}"), ("multipliers (all)", f"{check.multipliers:.3e}")]
-    rows += [(_e(f"lambda_{n}"), f"{v:.3e}") for n, v in check.per_multiplier.items()]
-    rows.append(("reaction power on admissible motions |Rᵀ C|", f"{check.reaction_power:.3e}"))
+    verdict = "<span class='pass'>passed</span>" if ok else "<span class='fail'>failed</span>"
+    rows = []
+    if hasattr(check, "controls"):
+        rows.append(("controls", f"{check.controls:.3e}"))
+    rows += [("accelerations", f"{check.accelerations:.3e}"), ("multipliers (all)", f"{check.multipliers:.3e}")]
+    rows += [(_e(f"lambda_{n}"), f"{v:.3e}") for n, v in getattr(check, "per_multiplier", {}).items()]
+    if hasattr(check, "reaction_power"):
+        rows.append(("reaction power on admissible motions |Rᵀ C|", f"{check.reaction_power:.3e}"))
+    if hasattr(check, "servo_multipliers"):
+        rows.append(("servo multipliers (2.3) at the solution (absolute)", f"{check.servo_multipliers:.3e}"))
+    route = getattr(check, "route", "augmented")
+    if route == "augmented":
+        what = ("the independent augmented multiplier system [M −Jᵀ; J 0][a; λ] = [Q − h; −c]"
+                + (" with the controls as unknowns" if hasattr(check, "controls") else ""))
+    else:
+        what = f"the {_e(route)} route"
     return "\n".join([
         "<h2 id='check'>Cross-check</h2>",
-        f"<p>The split route (1.4)/(1.5) against the independent augmented multiplier system "
-        f"[M −Jᵀ; J 0][a; λ] = [Q − h; −c] at {check.states} states: {verdict} "
+        f"<p>The split route against {what} at {check.states} states: {verdict} "
         f"(tolerance {tolerance:g} on the largest relative difference).</p>",
         _table(("quantity", "largest relative difference"), rows),
+        f"<pre class='muted'>{_e(str(check))}</pre>",
     ])
 
 

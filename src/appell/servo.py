@@ -339,6 +339,11 @@ class ControlledDerivation:
         json.dumps(out)
         return out
 
+    def _repr_latex_(self) -> str:
+        """Jupyter display: :meth:`to_latex` as one ``aligned`` block."""
+        body = self.to_latex().replace("{align*}", "{aligned}").replace("\n", " ")
+        return "$\\displaystyle " + body + "$"
+
 
 def _state_dimension(system: System, kin: Kinematics) -> int:
     n_kin = sum(1 for c in system.controls if c.kind == "kinematic")
