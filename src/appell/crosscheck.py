@@ -61,7 +61,7 @@ class CrossCheckReport:
     """Largest relative discrepancies between the split route and the augmented system.
 
     ``accelerations`` and ``multipliers``: max over the states of the relative
-    differences; ``reaction_power``: max |R^T C| / (|R| |C|), the work of the ideal
+    differences; ``reaction_power``: ``max |R^T C| / (|R| |C|)``, the work of the ideal
     reactions on admissible motions (zero in exact arithmetic); ``states`` checked.
     """
 

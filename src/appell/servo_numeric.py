@@ -5,11 +5,13 @@ State ``y = (q, w, u_1, u_1_dot, u_2, u_2_dot, ...)``: coordinates, speeds, then
 kinematic control's position and rate. At ``(t, y)``:
 
 1. the controls ``xi``
+
    * when no dynamic condition needed differentiating: from the blocks, by the joint split
      ``a = C a_nu + D xi + d``, solving the p + r linear equations
      ``C^T E = 0`` (2.4) and ``(J_h^{-T} E_h)_servo = 0`` (2.3) for ``(a_nu, xi)``;
    * otherwise: from the compiled conditions ``A xi + b = 0`` of
      :mod:`appell.underactuated` (the control law in t, the state and the programs);
+
 2. the motion of the real system under these controls: the split (1.4)/(1.5) over the real
    constraints alone, ``E(a, xi) = J_f^T lambda``, ``f(a, xi) = 0``. The servo constraints
    are not imposed here: they hold because the controls realise them (closing the loop).
@@ -299,7 +301,7 @@ class ControlledCrossCheck:
     ``route``: 'augmented' — the augmented system with the control unknowns
     (:func:`augmented_controlled_solve`); 'symbolic' for underactuated systems (the
     augmented system is singular there) — the closed-form control laws evaluated by SymPy
-    against the compiled conditions. ``servo_multipliers``: largest |(2.3)| at the split
+    against the compiled conditions. ``servo_multipliers``: largest ``|(2.3)|`` at the split
     solution (zero when the controls realise the servo constraints; regular systems only).
     """
 
