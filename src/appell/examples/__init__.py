@@ -5,6 +5,22 @@ from .catalog import CATALOG, car, chaplygin_sleigh, cone_particle, cubic_accele
 from pathlib import Path as _Path
 
 
+def _builders() -> dict:
+    """name -> builder (a callable returning the System) for every bundled model file."""
+    from .cyclic_examples import (spherical_pendulum, spherical_pendulum_cartesian, spherical_pendulum_rod,
+                                  symmetric_top, turntable_particle)
+    from .event_examples import EVENT_EXAMPLES
+    from .servo_examples import SERVO_EXAMPLES
+
+    cyclic = (spherical_pendulum, spherical_pendulum_rod, spherical_pendulum_cartesian, symmetric_top,
+              turntable_particle)
+    return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES}
+
+
+#: name of each bundled ``<name>.toml`` -> the Python builder of the same system
+BUILDERS = _builders()
+
+
 def list_examples() -> list[str]:
     """Names of the bundled model files (``<name>.toml`` in this folder), sorted."""
     return sorted(p.stem for p in _Path(__file__).parent.glob("*.toml"))
@@ -20,5 +36,5 @@ def example_path(name: str) -> _Path:
     return path
 
 
-__all__ = ["CATALOG", "car", "chaplygin_sleigh", "cone_particle", "cubic_acceleration", "example_path", "knife_edge",
-           "list_examples", "pendulum", "rolling_ball"]
+__all__ = ["BUILDERS", "CATALOG", "car", "chaplygin_sleigh", "cone_particle", "cubic_acceleration", "example_path",
+           "knife_edge", "list_examples", "pendulum", "rolling_ball"]

@@ -1,0 +1,133 @@
+"""Every bundled example exists as a model file (issue 6): each ``<name>.toml`` in
+``src/appell/examples`` against its Python builder (``appell.examples.BUILDERS``).
+
+Non-servo systems: the same declarations and the same accelerations and multipliers of
+``appell.derive`` at random states; servo systems: the same derivative, multipliers and
+controls of ``appell.derive_controlled`` at random states; first integrals: the same
+names, expressions and values. The [simulation] table of each non-servo file runs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from appell import derive, derive_controlled, load_model
+from appell.examples import BUILDERS, example_path, list_examples
+from appell.examples.catalog import CATALOG
+from appell.examples.servo_examples import SERVO_EXAMPLES
+from appell.modelfile import simulation_options
+from appell.simulate import simulate
+
+#: the files this test module adds beside the catalog's (which tests/test_modelfile.py checks)
+NEW = sorted(set(BUILDERS) - set(CATALOG))
+SERVO = sorted(SERVO_EXAMPLES)
+PLAIN = sorted(set(NEW) - set(SERVO))
+
+
+def test_every_model_file_has_a_builder_and_vice_versa():
+    assert set(list_examples()) == set(BUILDERS)
+    assert set(CATALOG) | set(SERVO_EXAMPLES) <= set(BUILDERS)
+    for name in BUILDERS:
+        assert example_path(name).name == f"{name}.toml"
+
+
+def _same(a, b) -> bool:
+    return sp.simplify(sp.expand(sp.sympify(a) - sp.sympify(b))) == 0
+
+
+def _assert_same_declarations(from_file, built, name):
+    assert from_file.name == built.name == name
+    assert from_file.description == built.description
+    assert from_file.coordinates == built.coordinates
+    assert from_file.speeds == built.speeds
+    assert [(p.symbol, p.value, p.unit, p.description) for p in from_file.parameters] == \
+        [(p.symbol, p.value, p.unit, p.description) for p in built.parameters]
+    assert dict(from_file.initial) == pytest.approx(dict(built.initial), abs=1e-15)
+    assert set(dict(from_file.initial)) == set(dict(built.initial))
+    assert [p.symbol for p in from_file.programs] == [p.symbol for p in built.programs]
+    for a, b in zip(from_file.programs, built.programs):
+        assert _same(a.expr, b.expr), (a, b)
+    assert [(c.symbol, c.kind) for c in from_file.controls] == [(c.symbol, c.kind) for c in built.controls]
+    for mine, theirs in ((from_file.constraints, built.constraints),
+                         (from_file.servo_constraints, built.servo_constraints)):
+        assert [(c.name, c.order) for c in mine] == [(c.name, c.order) for c in theirs]
+        for a, b in zip(mine, theirs):
+            assert _same(a.expr, b.expr), (a.name, a.expr, b.expr)
+            assert a.where.startswith(str(example_path(name)))
+    assert [(f.name, f.value) for f in from_file.first_integrals] == \
+        [(f.name, f.value) for f in built.first_integrals]
+    for a, b in zip(from_file.first_integrals, built.first_integrals):
+        assert _same(a.expr, b.expr), (a.name, a.expr, b.expr)
+
+
+@pytest.mark.parametrize("name", PLAIN)
+def test_model_file_equals_builder(name):
+    from_file = load_model(example_path(name))
+    built = BUILDERS[name]()
+    _assert_same_declarations(from_file, built, name)
+
+    d_file, d_built = derive(from_file), derive(built)
+    init = dict(built.initial)
+    rng = np.random.default_rng(11)
+    for _ in range(4):
+        t = float(rng.uniform(0, 3))
+        q = rng.uniform(-0.5, 0.5, len(built.coordinates)) + [init.get(s.name, 0.0) for s in built.coordinates]
+        w = rng.uniform(-1, 1, len(built.speeds))
+        s1, s2 = d_file.numeric.solve(t, q, w), d_built.numeric.solve(t, q, w)
+        np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(s1.multipliers, s2.multipliers, rtol=1e-10, atol=1e-10)
+
+
+@pytest.mark.parametrize("name", SERVO)
+def test_servo_model_file_equals_builder(name):
+    from_file = load_model(example_path(name))
+    built = BUILDERS[name]()
+    _assert_same_declarations(from_file, built, name)
+
+    m_file, m_built = derive_controlled(from_file).numeric, derive_controlled(built).numeric
+    assert m_file.state_names == m_built.state_names
+    assert m_file.control_names == m_built.control_names
+    init = dict(built.initial)
+    base = np.array([init.get(n, 0.5) for n in m_built.state_names])
+    rng = np.random.default_rng(13)
+    for _ in range(4):
+        t = float(rng.uniform(0, 3))
+        y = base + rng.uniform(-0.2, 0.2, base.size)
+        e1, e2 = m_file.evaluate(t, y), m_built.evaluate(t, y)
+        assert np.all(np.isfinite(e2.derivative))
+        np.testing.assert_allclose(e1.derivative, e2.derivative, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(e1.multipliers, e2.multipliers, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(e1.controls, e2.controls, rtol=1e-10, atol=1e-10)
+
+
+def test_appell_ball_file_is_the_papers_problem():
+    """The required declarations of appell_ball.toml, and the closed forms at the start."""
+    system = load_model(example_path("appell_ball"))
+    assert [p.name for p in system.coordinates] == ["xi", "eta"]
+    assert [w.name for w in system.speeds] == ["xi_dot", "eta_dot", "p", "q", "r"]
+    assert [(c.symbol.name, c.kind) for c in system.controls] == [("u", "kinematic"), ("v", "kinematic")]
+    assert [c.name for c in system.constraints] == ["roll_x", "roll_y"]
+    assert {p.symbol.name: p.value for p in system.parameters} == {"M": 1.0, "R": 0.1, "omega": 2.0}
+    model = derive_controlled(system).numeric
+    ev = model.evaluate(0.0, model.initial_state())
+    xi, eta, w, R = 0.3, 0.1, 2.0, 0.1
+    rates = dict(zip(model.state_names, ev.derivative))
+    assert rates["xi"] == pytest.approx(-w * eta) and rates["eta"] == pytest.approx(w * xi)
+    assert rates["u_dot"] == pytest.approx(-3.5 * w**2 * xi) and rates["v_dot"] == pytest.approx(-3.5 * w**2 * eta)
+    assert rates["q"] == pytest.approx(5 * w**2 * xi / (2 * R)) and rates["p"] == pytest.approx(-5 * w**2 * eta / (2 * R))
+    np.testing.assert_allclose(ev.multipliers, [-w**2 * xi, -w**2 * eta], atol=1e-12)
+
+
+@pytest.mark.parametrize("name", PLAIN)
+def test_simulation_table_runs(name):
+    """Each non-servo file's [simulation] settings run the simulator (cut to a short t_end)."""
+    system = load_model(example_path(name))
+    options = simulation_options(system)
+    assert "t_end" in options
+    t_end = min(options["t_end"], 0.2)
+    options["t_end"] = t_end
+    options["t_eval"] = [t for t in options["t_eval"] if t <= t_end]
+    solution = simulate(derive(system), **options)
+    assert solution.status == 0, solution.message
+    assert solution.t[-1] == pytest.approx(t_end)
