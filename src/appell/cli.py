@@ -382,7 +382,8 @@ def report(model, output, t_end, no_simulation, assignments):
     """Write one self-contained HTML page: the model, its equations as mathematics,
     plots of coordinates, reactions and controls, and the cross-check.
 
-    The page needs no network (MathML, embedded PNG images, inline styles).
+    The page needs no network (MathML, embedded PNG images, inline styles). A model with
+    neither initial values nor a [simulation] table is reported without a simulation.
     """
     from .report import write_report
 
@@ -391,9 +392,15 @@ def report(model, output, t_end, no_simulation, assignments):
     system = load_system(model, parse_assignments(assignments))
     derivation = derive_model(system)
     check_report = _cross_check(derivation)
-    solution = None if no_simulation else run_simulation(derivation, t_end)
+    solution, note = None, None
+    if no_simulation:
+        note = "Left out (--no-simulation)."
+    elif not system.initial and not system.settings:
+        note = "Left out: the model gives neither initial values ([initial]) nor a [simulation] table."
+    else:
+        solution = run_simulation(derivation, t_end)
     path = Path(output) if output else Path(f"{system.name}-report.html")
-    write_report(path, derivation, solution, check_report)
+    write_report(path, derivation, solution, check_report, simulation_note=note)
     click.echo(f"wrote {path}")
     if not check_report.passed():
         raise ComputationError("cross-check failed (see the report)")

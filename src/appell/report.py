@@ -348,7 +348,7 @@ def _check_section(check, tolerance: float) -> str:
     rows += [(_e(f"lambda_{n}"), f"{v:.3e}") for n, v in getattr(check, "per_multiplier", {}).items()]
     if hasattr(check, "reaction_power"):
         rows.append(("reaction power on admissible motions |Rᵀ C|", f"{check.reaction_power:.3e}"))
-    if hasattr(check, "servo_multipliers"):
+    if hasattr(check, "servo_multipliers") and np.isfinite(check.servo_multipliers):
         rows.append(("servo multipliers (2.3) at the solution (absolute)", f"{check.servo_multipliers:.3e}"))
     route = getattr(check, "route", "augmented")
     if route == "augmented":
@@ -366,11 +366,12 @@ def _check_section(check, tolerance: float) -> str:
 
 
 def render_report(derivation, solution=None, check=None, *, title: str | None = None,
-                  tolerance: float = 1e-9) -> str:
+                  tolerance: float = 1e-9, simulation_note: str | None = None) -> str:
     """The HTML page (a string) for ``derivation`` (a :class:`~appell.equations.Derivation`
     or a controlled derivation of :mod:`appell.servo`), with the plots of ``solution``
     (:class:`~appell.solution.Solution`) and the table of ``check``
-    (:class:`~appell.crosscheck.CrossCheckReport`, judged at ``tolerance``) when given."""
+    (:class:`~appell.crosscheck.CrossCheckReport`, judged at ``tolerance``) when given.
+    ``simulation_note`` says why there is no simulation (shown in its place)."""
     from . import __version__
 
     system = derivation.system
@@ -380,6 +381,8 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
     if solution is not None:
         sections.append(_simulation_section(solution))
         nav.append("<a href='#simulation'>simulation</a>")
+    elif simulation_note:
+        sections.append(f"<h2 id='simulation'>Simulation</h2><p class='muted'>{_e(simulation_note)}</p>")
     if check is not None:
         sections.append(_check_section(check, tolerance))
         nav.append("<a href='#check'>cross-check</a>")
