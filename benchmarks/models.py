@@ -35,12 +35,13 @@ def nlink_state(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
     return th, w
 
 
-def nlink_appell(n: int) -> appell.System:
-    """The family as an :class:`appell.System` (point masses as bodies)."""
+def nlink_appell(n: int, s: int = 1) -> appell.System:
+    """The family as an :class:`appell.System` (point masses as bodies); ``s = 2`` also
+    holds the tip at the height ``y = e`` (constraint ``tip_y``)."""
     th = sp.symbols(f"theta1:{n + 1}")
     m = sp.symbols(f"m1:{n + 1}")
     l = sp.symbols(f"l1:{n + 1}")
-    g, d = sp.symbols("g d")
+    g, d, e = sp.symbols("g d e")
     x = y = sp.S.Zero
     bodies, V = [], sp.S.Zero
     for i in range(n):
@@ -48,8 +49,10 @@ def nlink_appell(n: int) -> appell.System:
         y -= l[i] * sp.cos(th[i])
         bodies.append(appell.Particle(f"bob{i + 1}", m[i], position=(x, y, 0)))
         V += m[i] * g * y
-    values = nlink_parameters(n)
-    params = [appell.Parameter(s, values[s.name]) for s in (*m, *l, g, d)]
+    values = nlink_parameters(n) | {"e": -0.5 * n}
+    extra = (e,) if s == 2 else ()
+    params = [appell.Parameter(sym, values[sym.name]) for sym in (*m, *l, g, d, *extra)]
+    cons = (appell.holonomic("tip", x - d),) + ((appell.holonomic("tip_y", y - e),) if s == 2 else ())
     return appell.System(
         name=f"pendulum{n}",
         description=f"{n}-link pendulum, tip held on the vertical line x = d",
@@ -57,7 +60,7 @@ def nlink_appell(n: int) -> appell.System:
         parameters=params,
         bodies=bodies,
         potential_energy=V,
-        constraints=(appell.holonomic("tip", x - d),),
+        constraints=cons,
     )
 
 
