@@ -295,6 +295,20 @@ def test_simulate_hdf5_and_plot(tmp_path):
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_simulate_netcdf_has_the_csv_columns(tmp_path):
+    from scipy.io import netcdf_file
+
+    csv_path, nc_path = tmp_path / "car.csv", tmp_path / "car.nc"
+    for out in (csv_path, nc_path):
+        assert run("simulate", "car", "--t-end", "0.3", "--out", out).exit_code == 0
+    header, data = read_csv(csv_path)
+    with netcdf_file(nc_path, mmap=False) as f:
+        assert list(f.variables) == header and f.dimensions == {"time": data.shape[0]}
+        for i, name in enumerate(header):
+            np.testing.assert_array_equal(f.variables[name][:], data[:, i])
+        assert f.model == b"car" and f.variables["t"].units == b"s"
+
+
 def test_simulate_unknown_output_format_is_bad_input(tmp_path):
     result = run("simulate", "pendulum", "--out", tmp_path / "out.xlsx")
     assert result.exit_code == 2 and "--out" in result.stderr

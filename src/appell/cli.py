@@ -29,7 +29,7 @@ import click
 from .errors import AppellError, ComputationError, ModelError
 
 __all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
-           "run_simulation", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
+           "run_simulation", "export_solution", "write_netcdf", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -209,9 +209,52 @@ def export_solution(solution, path: Path) -> Path:
     if kind == "hdf5":
         return solution.to_hdf5(path)
     writer = getattr(solution, "to_netcdf", None)
-    if writer is None:
-        raise ModelError("this version of appell cannot write netCDF (.nc) files", hint="use .csv or .h5")
-    return writer(path)
+    return writer(path) if writer is not None else write_netcdf(solution, path)
+
+
+def write_netcdf(solution, path: Path) -> Path:
+    """Write the columns of ``solution`` (:meth:`~appell.solution.Solution.columns`, the CSV's
+    columns) as a netCDF (classic format) file along the dimension ``time``, atomically.
+
+    Variables carry ``long_name`` (and ``units = 's'`` for ``t``); global attributes record
+    the model, status, message, constraint names and kinds, and the appell version.
+    """
+    import contextlib
+    import os
+    import tempfile
+
+    import numpy as np
+    from scipy.io import netcdf_file
+
+    path = Path(path)
+    md = solution.metadata
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".nc", dir=path.parent if str(path.parent) else ".")
+    os.close(fd)
+    try:
+        with netcdf_file(tmp, "w", version=2, mmap=False) as f:
+            f.title = f"appell simulation of {md.name}"
+            f.model = md.name
+            f.status = int(solution.status)
+            f.message = solution.message
+            f.appell_version = md.appell_version
+            f.constraint_names = " ".join(md.constraint_names)
+            f.constraint_kinds = " ".join(md.constraint_kinds)
+            f.createDimension("time", solution.t.size)
+            for name, values in solution.columns():
+                var = f.createVariable(name, "d", ("time",))
+                var[:] = np.asarray(values, float)
+                var.long_name = "time" if name == "t" else name
+                if name == "t":
+                    var.units = "s"
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+    return path
 
 
 # ---------------------------------------------------------------- the commands
