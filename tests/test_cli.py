@@ -172,6 +172,7 @@ def test_examples_copy_out(tmp_path):
     assert result.exit_code == 0, result.output
     copied = tmp_path / "models" / "car.toml"
     assert copied.read_text() == example_path("car").read_text()
+    assert run("examples", "car").output == example_path("car").read_text()
     # the copy is a working model file
     assert run("check", copied).exit_code == 0
 
@@ -215,6 +216,13 @@ def test_derive_json_keys_and_parsable_expressions():
           "y_ddot": -9.81 * math.sin(math.pi / 3) ** 2}
     value = float(lam.subs({sp.Symbol(k): v for k, v in at.items()}))
     assert value == pytest.approx(9.81 * math.cos(math.pi / 3), rel=1e-12)
+
+
+def test_derive_json_first_integrals():
+    doc = json.loads(run("derive", "spherical_pendulum_cartesian", "--format", "json").output)
+    m, x, y, xd, yd = sp.symbols("m x y x_dot y_dot")
+    assert sp.simplify(sp.sympify(doc["first_integrals"]["L_z"]) - m * (x * yd - y * xd)) == 0
+    assert "energy" in doc["first_integrals"]
 
 
 def test_derive_dependent_choice():
