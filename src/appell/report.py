@@ -57,10 +57,12 @@ class EquationRow:
 
     @property
     def text(self) -> str:
+        """Plain text, SymPy's ``str`` of both sides."""
         return f"{self.lhs} = {self.rhs}"
 
     @property
     def latex(self) -> str:
+        """LaTeX with dotted time derivatives (:func:`appell.printing.latex`)."""
         return f"{latex(self.lhs)} = {latex(self.rhs)}"
 
 
