@@ -26,7 +26,7 @@ def main():
     ap.add_argument("--rate", type=float, default=1000.0, help="output samples per second")
     ap.add_argument("--json")
     args = ap.parse_args()
-    from appell.simulate import simulate
+    from appell.simulation.simulate import simulate
 
     t0 = time.perf_counter()
     d = appell.derive(car())

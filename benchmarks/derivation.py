@@ -48,7 +48,7 @@ def run_case(method: str, n: int) -> dict:
         if method == "appell":
             d.numeric
         else:
-            from appell.codegen_c import compile_c
+            from appell.numerics.codegen_c import compile_c
 
             compile_c(d, "c")
     elif method.startswith("lagrange"):

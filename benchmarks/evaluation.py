@@ -35,7 +35,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import appell  # noqa: E402
-from appell.codegen_c import compile_c  # noqa: E402
+from appell.numerics.codegen_c import compile_c  # noqa: E402
 from models import nlink_kane, nlink_lagrange, nlink_parameters, nlink_state  # noqa: E402
 
 

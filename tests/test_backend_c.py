@@ -1,4 +1,4 @@
-"""The C backend (appell.codegen_c) against the NumPy functions: identical blocks,
+"""The C backend (appell.numerics.codegen_c) against the NumPy functions: identical blocks,
 accelerations and multipliers on every catalog example and on an n-link pendulum with a
 loop closure; the disk cache; the fallback without a compiler."""
 
@@ -7,9 +7,9 @@ import pytest
 import sympy as sp
 
 import appell
-from appell.codegen_c import CompiledNumericModel, c_source, compile_c
+from appell.numerics.codegen_c import CompiledNumericModel, c_source, compile_c
 from appell.examples.catalog import CATALOG
-from appell.numeric import compile_model
+from appell.numerics.numeric import compile_model
 
 pytestmark = pytest.mark.skipif(__import__("shutil").which("cc") is None, reason="no C compiler")
 
@@ -117,7 +117,7 @@ def test_fallback_without_compiler(monkeypatch):
 
 def test_simulation_with_c_backend():
     """The simulator integrates the compiled model like the NumPy one."""
-    simulate = pytest.importorskip("appell.simulate").simulate
+    simulate = pytest.importorskip("appell.simulation.simulate").simulate
     d = appell.derive(CATALOG["car"]())
     t_eval = np.linspace(0, 2, 21)
     s1 = simulate(d.numeric, 2.0, t_eval=t_eval, progress=False, complete=True)

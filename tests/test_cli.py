@@ -20,7 +20,7 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
-from appell.cli import cli
+from appell.io.cli import cli
 from appell.examples import example_path, list_examples
 
 BAD_TOML = """\
@@ -423,10 +423,10 @@ def test_failed_simulation_leaves_no_partial_file(tmp_path):
 
 
 def test_installed_entry_point_exit_codes(tmp_path):
-    """The real process: ``python -m appell.cli`` (what the ``appell`` script runs)."""
-    bad = subprocess.run([sys.executable, "-m", "appell.cli", "check", str(tmp_path / "missing.toml")],
+    """The real process: ``python -m appell.io.cli`` (what the ``appell`` script runs)."""
+    bad = subprocess.run([sys.executable, "-m", "appell.io.cli", "check", str(tmp_path / "missing.toml")],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and bad.stderr.startswith("error: ") and "Traceback" not in bad.stderr
-    usage = subprocess.run([sys.executable, "-m", "appell.cli", "frobnicate"], capture_output=True, text=True,
+    usage = subprocess.run([sys.executable, "-m", "appell.io.cli", "frobnicate"], capture_output=True, text=True,
                            timeout=120)
     assert usage.returncode == 2 and "No such command" in usage.stderr

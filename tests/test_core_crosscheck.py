@@ -8,7 +8,7 @@ import pytest
 import sympy as sp
 
 from appell import augmented_solve, cross_check, derive
-from appell.crosscheck import relative_difference, sample_states
+from appell.numerics.crosscheck import relative_difference, sample_states
 from appell.errors import ModelError
 from appell.examples import CATALOG, catalog
 
@@ -102,6 +102,6 @@ def test_car_formulas_stay_compact():
     """No swell: each reaction formula of the car is a handful of operations (no blanket simplify)."""
     d = derive(catalog.car())
     for lam in d.reactions.multipliers:
-        from appell.equations import tidy
+        from appell.core.equations import tidy
 
         assert sp.count_ops(tidy(lam)) < 40

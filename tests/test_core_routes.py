@@ -7,7 +7,7 @@ import pytest
 import sympy as sp
 
 from appell import AppliedForce, AppliedTorque, Particle, RigidBody, System, derive, holonomic
-from appell.crosscheck import relative_difference
+from appell.numerics.crosscheck import relative_difference
 
 
 def test_acceleration_energy_of_a_rigid_body_equals_the_body_route():

@@ -13,7 +13,7 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 import appell
-from appell.cyclic import cyclic_coordinates, routh_reduction
+from appell.reduction.cyclic import cyclic_coordinates, routh_reduction
 from appell.errors import ModelError
 from appell.examples.cyclic_examples import (
     spherical_pendulum,

@@ -16,7 +16,7 @@ import sympy as sp
 import appell
 from appell.examples import pendulum
 from appell.examples.servo_examples import appell_ball
-from appell.report import equation_groups, mathml, render_report
+from appell.io.report import equation_groups, mathml, render_report
 
 
 @pytest.fixture(scope="module")

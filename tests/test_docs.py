@@ -26,7 +26,7 @@ import pytest
 from click.testing import CliRunner
 
 import appell
-from appell.cli import cli
+from appell.io.cli import cli
 from appell.examples import example_path, list_examples
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
@@ -128,8 +128,13 @@ def test_api_page_covers_every_public_module():
     text = (DOCS / "api.md").read_text(encoding="utf-8")
     documented = set(re.findall(r"automodule:: (appell[\w.]*)", text))
     package = Path(appell.__file__).parent
-    modules = {f"appell.{p.stem}" for p in package.glob("*.py") if not p.stem.startswith("_")}
-    modules |= {f"appell.{p.name}" for p in package.iterdir() if (p / "__init__.py").exists()}
+    modules = set()
+    for path in package.rglob("*.py"):
+        parts = path.relative_to(package).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        if parts and not any(p.startswith("_") for p in parts):
+            modules.add(".".join(("appell",) + parts))
     missing = sorted(modules - documented)
     assert not missing, f"docs/api.md does not document {missing}"
 

@@ -19,7 +19,7 @@ from appell.examples.cyclic_examples import (
     symmetric_top,
     turntable_particle,
 )
-from appell.first_integrals import augmented_system, check_first_integrals, integral_constraint
+from appell.reduction.first_integrals import augmented_system, check_first_integrals, integral_constraint
 from appell.model import FirstIntegral
 
 

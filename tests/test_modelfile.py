@@ -15,7 +15,7 @@ import sympy as sp
 import appell
 from appell import ModelError, cross_check, derive, load_model, loads_model
 from appell.examples import CATALOG, example_path, list_examples
-from appell.modelfile import ExpressionError, parse_expression, simulation_options
+from appell.io.modelfile import ExpressionError, parse_expression, simulation_options
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -74,7 +74,7 @@ def test_car_simulation_settings_are_stored():
 
 def test_simulation_settings_run_the_simulator():
     """The [simulation] keys are simulate()'s keywords: the pendulum file runs as written."""
-    from appell.simulate import simulate
+    from appell.simulation.simulate import simulate
 
     system = load_model(example_path("pendulum"))
     solution = simulate(derive(system), **simulation_options(system))

@@ -16,8 +16,8 @@ from appell import derive, derive_controlled, load_model
 from appell.examples import BUILDERS, example_path, list_examples
 from appell.examples.catalog import CATALOG
 from appell.examples.servo_examples import SERVO_EXAMPLES
-from appell.modelfile import simulation_options
-from appell.simulate import simulate
+from appell.io.modelfile import simulation_options
+from appell.simulation.simulate import simulate
 
 #: the files this test module adds beside the catalog's (which tests/test_modelfile.py checks)
 NEW = sorted(set(BUILDERS) - set(CATALOG))

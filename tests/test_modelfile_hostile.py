@@ -19,8 +19,8 @@ from hypothesis import strategies as st
 
 from appell import ModelError, System, loads_model
 from appell.examples import example_path
-from appell.modelfile import ExpressionError, parse_expression
-from appell.modelfile.expressions import FUNCTIONS, MAX_DEPTH
+from appell.io.modelfile import ExpressionError, parse_expression
+from appell.io.modelfile.expressions import FUNCTIONS, MAX_DEPTH
 
 FAST = 0.5  # seconds per case
 

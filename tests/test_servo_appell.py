@@ -14,10 +14,10 @@ import pytest
 import sympy as sp
 
 from appell import ModelError
-from appell.dynamics import Dynamics
+from appell.numerics.dynamics import Dynamics
 from appell.examples.servo_examples import appell_ball
-from appell.servo import derive_controlled
-from appell.servo_numeric import augmented_controlled_solve, cross_check_controlled
+from appell.control.servo import derive_controlled
+from appell.control.servo_numeric import augmented_controlled_solve, cross_check_controlled
 
 M, R, W = 1.0, 0.1, 2.0
 xi, eta, omega = sp.symbols("xi eta omega")

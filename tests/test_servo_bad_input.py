@@ -7,7 +7,7 @@ import sympy as sp
 
 from appell import Control, ModelError, System, acceleration_constraint, holonomic, nonholonomic
 from appell.examples.servo_examples import appell_ball
-from appell.servo import derive_controlled
+from appell.control.servo import derive_controlled
 
 x, y = sp.symbols("x y")
 xd, yd = sp.symbols("x_dot y_dot")

@@ -11,8 +11,8 @@ The two masses (flat case) follow y = y_d = 0.1 sin t.
 import numpy as np
 
 from appell.examples.servo_examples import appell_ball, spring_masses
-from appell.servo import derive_controlled
-from appell.simulate import simulate
+from appell.control.servo import derive_controlled
+from appell.simulation.simulate import simulate
 
 W, M = 2.0, 1.0
 

@@ -17,8 +17,8 @@ import pytest
 import sympy as sp
 
 from appell.examples.servo_examples import overhead_crane, spring_masses
-from appell.servo import derive_controlled
-from appell.servo_numeric import cross_check_controlled
+from appell.control.servo import derive_controlled
+from appell.control.servo_numeric import cross_check_controlled
 from appell.symbols import t
 
 m1, m2, k, d = sp.symbols("m1 m2 k d")

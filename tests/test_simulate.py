@@ -13,8 +13,8 @@ from scipy.integrate import solve_ivp
 
 import appell
 from appell import ModelError, simulate
-from appell.crosscheck import augmented_solve
-from appell.dynamics import Dynamics
+from appell.numerics.crosscheck import augmented_solve
+from appell.numerics.dynamics import Dynamics
 from appell.examples import catalog
 
 
@@ -114,7 +114,7 @@ def test_cone_particle_velocity_nonlinear_constraint():
 
 def test_car_against_independent_augmented_integration():
     """Car manoeuvre over 10 s (method.md Example 1) against a plain solve_ivp of the
-    augmented system [M -J^T; J 0][a; lambda] = [Q - h; -c] (appell.crosscheck): positions
+    augmented system [M -J^T; J 0][a; lambda] = [Q - h; -c] (appell.numerics.crosscheck): positions
     and lateral axle forces agree to 1e-6 relative."""
     d = appell.derive(catalog.car())
     t = np.linspace(0.0, 10.0, 101)

@@ -11,7 +11,7 @@ import pytest
 import appell
 from appell import Solution, simulate
 from appell.examples import catalog
-from appell.solution import EventRecord, ModelMetadata, SolverStatistics
+from appell.simulation.solution import EventRecord, ModelMetadata, SolverStatistics
 
 
 @pytest.fixture(scope="module")

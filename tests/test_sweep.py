@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 pytest.importorskip("dask.distributed")
-pytest.importorskip("appell.simulate")
+pytest.importorskip("appell.simulation.simulate")
 
 import appell  # noqa: E402
 from appell.examples.catalog import CATALOG  # noqa: E402
-from appell.sweep import parameter_grid, parse_spec, sweep  # noqa: E402
+from appell.simulation.sweep import parameter_grid, parse_spec, sweep  # noqa: E402
 
 
 def test_specs():

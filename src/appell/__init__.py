@@ -4,11 +4,11 @@ Pipeline: :class:`System` -> :func:`derive` -> :class:`Derivation` (reduced equa
 (1.4), reaction formulas (1.5), numeric functions) -> :func:`cross_check`.
 """
 
-from .crosscheck import CrossCheckReport, augmented_solve, cross_check
-from .derive import derive
-from .equations import Derivation, ReactionFormulas, ReducedEquations
-from .errors import AppellError, ComputationError, ModelError
-from .model import (
+from appell.numerics.crosscheck import CrossCheckReport, augmented_solve, cross_check
+from appell.core.derive import derive
+from appell.core.equations import Derivation, ReactionFormulas, ReducedEquations
+from appell.errors import AppellError, ComputationError, ModelError
+from appell.model import (
     AppliedForce,
     AppliedTorque,
     Constraint,
@@ -23,20 +23,20 @@ from .model import (
     holonomic,
     nonholonomic,
 )
-from .modelfile import load_model, loads_model
-from .numeric import NumericModel, StateSolution
-from .events import Event
-from .initial import InitialState, check_initial, complete_initial
-from .simulate import simulate
-from .solution import Solution
-from .cyclic import RouthReduction, cyclic_coordinates, routh_reduction
-from .first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
-from .symbols import derivative_symbol, t
-from .codegen_c import compile_c
-from .sweep import SweepResult, parameter_grid, sweep
-from .servo import ControlledDerivation, derive_controlled
-from .servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
-from .report import render_report, write_report
+from appell.io.modelfile import load_model, loads_model
+from appell.numerics.numeric import NumericModel, StateSolution
+from appell.simulation.events import Event
+from appell.simulation.initial import InitialState, check_initial, complete_initial
+from appell.simulation.simulate import simulate
+from appell.simulation.solution import Solution
+from appell.reduction.cyclic import RouthReduction, cyclic_coordinates, routh_reduction
+from appell.reduction.first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
+from appell.symbols import derivative_symbol, t
+from appell.numerics.codegen_c import compile_c
+from appell.simulation.sweep import SweepResult, parameter_grid, sweep
+from appell.control.servo import ControlledDerivation, derive_controlled
+from appell.control.servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
+from appell.io.report import render_report, write_report
 
 __version__ = "0.1.0"
 

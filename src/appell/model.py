@@ -2,7 +2,7 @@
 
 Everything here is a frozen dataclass holding SymPy expressions. A :class:`System` is
 what a user writes (in Python, or through a model file); the later stages
-(:mod:`appell.kinematics`, :mod:`appell.energy`, :mod:`appell.constraints`, ...) read it
+(:mod:`appell.core.kinematics`, :mod:`appell.core.energy`, :mod:`appell.core.constraints`, ...) read it
 and never change it.
 
 Notation (method.md §1): coordinates ``q`` (n_q), speeds ``w`` (n), accelerations
@@ -18,8 +18,8 @@ from typing import Iterable, Mapping
 
 import sympy as sp
 
-from .errors import ModelError
-from .symbols import as_symbols, derivative_symbol
+from appell.errors import ModelError
+from appell.symbols import as_symbols, derivative_symbol
 
 __all__ = [
     "Parameter",
@@ -77,7 +77,7 @@ class Program:
 
     def derivative(self, order: int) -> sp.Expr:
         """``d^order expr / dt^order``."""
-        from .symbols import t
+        from appell.symbols import t
 
         return sp.diff(self.expr, t, order) if order else self.expr
 

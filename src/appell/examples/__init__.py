@@ -30,7 +30,7 @@ def example_path(name: str) -> _Path:
     """Path of the bundled model file ``<name>.toml``; :class:`~appell.errors.ModelError` if none."""
     path = _Path(__file__).parent / f"{name}.toml"
     if not path.is_file():
-        from ..errors import ModelError
+        from appell.errors import ModelError
 
         raise ModelError(f"no bundled example {name!r}", hint="examples: " + ", ".join(list_examples()))
     return path

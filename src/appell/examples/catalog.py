@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ..model import (
+from appell.model import (
     Parameter,
     RigidBody,
     System,
@@ -17,7 +17,7 @@ from ..model import (
     holonomic,
     nonholonomic,
 )
-from ..symbols import t
+from appell.symbols import t
 
 
 def car() -> System:

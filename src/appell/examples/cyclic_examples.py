@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ..model import FirstIntegral, Parameter, System, holonomic
+from appell.model import FirstIntegral, Parameter, System, holonomic
 
 __all__ = [
     "spherical_pendulum",

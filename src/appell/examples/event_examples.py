@@ -9,8 +9,8 @@ import math
 
 import sympy as sp
 
-from ..model import Parameter, RigidBody, System, holonomic, nonholonomic
-from ..symbols import t
+from appell.model import Parameter, RigidBody, System, holonomic, nonholonomic
+from appell.symbols import t
 
 
 def particle_on_sphere(theta0: float = 0.4) -> System:
@@ -50,7 +50,7 @@ def ball_on_tilting_plane(alpha0: float = 0.1, rate: float = 0.1) -> System:
     so this is a test model, not a tilting table). At every instant the friction along
     the slope is lambda_roll_x = -2/7 m g sin(alpha) and the normal force
     lambda_contact = m g cos(alpha) (Routh, Advanced Rigid Dynamics, §240), so the
-    rolling needs |lambda_roll_x| <= mu lambda_contact, i.e. tan(alpha) <= 7 mu / 2:
+    rolling needs ``|lambda_roll_x| <= mu lambda_contact``, i.e. tan(alpha) <= 7 mu / 2:
     the friction limit is exceeded at t = (atan(3.5 mu) - alpha0) / rate.
     """
     x, y, z = sp.symbols("x y z")

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import sympy as sp
 
-from ..model import Control, Parameter, Particle, System, holonomic, nonholonomic
-from ..symbols import t
+from appell.model import Control, Parameter, Particle, System, holonomic, nonholonomic
+from appell.symbols import t
 
 __all__ = ["appell_ball", "spring_masses", "overhead_crane", "SERVO_EXAMPLES"]
 

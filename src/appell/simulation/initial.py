@@ -10,8 +10,8 @@ constraint's residual; :func:`complete_initial` solves for the dependent coordin
 (Newton on ``F = 0``) and then the dependent speeds (Newton on ``phi = 0``, exact in one
 step for constraints linear in the speeds), holding the given values fixed.
 
-Both accept a :class:`~appell.equations.Derivation` (its compiled
-:class:`~appell.numeric.NumericModel` is used) or any :class:`~appell.dynamics.Dynamics`.
+Both accept a :class:`~appell.core.equations.Derivation` (its compiled
+:class:`~appell.numerics.numeric.NumericModel` is used) or any :class:`~appell.numerics.dynamics.Dynamics`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .errors import ComputationError, ModelError
+from appell.errors import ComputationError, ModelError
 
 __all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians"]
 
@@ -60,7 +60,7 @@ class InitialState:
 
 
 def dynamics_of(model_or_derivation):
-    """The :class:`~appell.dynamics.Dynamics` of a derivation (its ``numeric``) or the
+    """The :class:`~appell.numerics.dynamics.Dynamics` of a derivation (its ``numeric``) or the
     object itself, and the :class:`~appell.model.System` behind it (or None)."""
     model = getattr(model_or_derivation, "numeric", None) if hasattr(model_or_derivation, "partition") else None
     if model is None:
@@ -69,7 +69,7 @@ def dynamics_of(model_or_derivation):
         if not hasattr(model, attr):
             raise ModelError(
                 f"{type(model_or_derivation).__name__} is neither a Derivation nor a Dynamics model (no {attr!r})",
-                hint="pass appell.derive(system) or a model implementing appell.dynamics.Dynamics",
+                hint="pass appell.derive(system) or a model implementing appell.numerics.dynamics.Dynamics",
             )
     derivation = getattr(model, "derivation", None)
     system = getattr(derivation, "system", None)
@@ -80,7 +80,7 @@ def residual_jacobians(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
     """``dF/dq`` and ``dphi/dw`` of the model's constraint residuals at ``(t, y)``.
 
     Uses the model's own ``residual_jacobians`` when it has one (compiled, for
-    :class:`~appell.numeric.NumericModel`); otherwise central finite differences of
+    :class:`~appell.numerics.numeric.NumericModel`); otherwise central finite differences of
     ``state_residuals`` (NaN entries are replaced by zero).
     """
     fn = getattr(model, "residual_jacobians", None)
@@ -152,7 +152,7 @@ def check_initial(derivation, values=None, tol: float = 1e-9, *, t: float = 0.0,
 
     Parameters
     ----------
-    derivation : a :class:`~appell.equations.Derivation` or a :class:`~appell.dynamics.Dynamics`.
+    derivation : a :class:`~appell.core.equations.Derivation` or a :class:`~appell.numerics.dynamics.Dynamics`.
     values : ``{name: value}`` of every state (coordinates and speeds); default the
         system's ``initial_values``.
     tol : largest admissible ``|F|`` and ``|phi|``.

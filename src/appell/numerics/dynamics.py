@@ -1,7 +1,7 @@
 """The contract between a derived model and the simulator.
 
 Anything that can be integrated — the plain constrained system
-(:class:`appell.numeric.NumericModel`), a controlled system with servo constraints, a
+(:class:`appell.numerics.numeric.NumericModel`), a controlled system with servo constraints, a
 Routh-reduced system — implements :class:`Dynamics`: a state vector ``y`` with named
 entries, and at each ``(t, y)`` an :class:`Evaluation` with ``dy/dt``, every multiplier
 and every control.

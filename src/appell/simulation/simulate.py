@@ -1,4 +1,4 @@
-"""Stage 8 — simulation of any :class:`~appell.dynamics.Dynamics` with drift control.
+"""Stage 8 — simulation of any :class:`~appell.numerics.dynamics.Dynamics` with drift control.
 
 The integrator is driven step by step through SciPy's ``OdeSolver`` interface (the
 classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``,
@@ -6,7 +6,7 @@ classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``
 
 1. the model is evaluated at the step's end (multipliers for events, the partition of
    dependent accelerations for the switch log);
-2. watched quantities (:mod:`appell.events`) are compared with their values at the
+2. watched quantities (:mod:`appell.simulation.events`) are compared with their values at the
    step's start; a crossing is located by Brent's method on the step's dense output;
 3. with ``stabilization='projection'``, when a constraint residual exceeds
    ``projection_tol`` the state is projected back onto the constraint manifold and the
@@ -23,7 +23,7 @@ classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``
 
 ``stabilization='baumgarte'`` instead integrates ``f + 2 alpha phi + beta^2 F = 0`` in
 place of ``f = 0`` (Baumgarte 1972); the model must accept ``bias=`` in ``evaluate``
-(:class:`~appell.numeric.NumericModel` does). ``None`` integrates ``f = 0`` as it is.
+(:class:`~appell.numerics.numeric.NumericModel` does). ``None`` integrates ``f = 0`` as it is.
 
 Unilateral constraints: when ``sign * lambda`` falls through zero the constraint is
 released; with ``on_release='continue'`` the system is derived again without it
@@ -41,10 +41,10 @@ import numpy as np
 import scipy.integrate as si
 from scipy.optimize import brentq
 
-from .errors import AppellError, ComputationError, ModelError
-from .events import Watch, check_event_names, watches_for
-from .initial import check_initial, complete_initial, dynamics_of, residual_jacobians
-from .solution import EventRecord, ModelMetadata, Solution, SolverStatistics
+from appell.errors import AppellError, ComputationError, ModelError
+from appell.simulation.events import Watch, check_event_names, watches_for
+from appell.simulation.initial import check_initial, complete_initial, dynamics_of, residual_jacobians
+from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 
 __all__ = ["simulate", "project", "METHODS"]
 
@@ -178,7 +178,7 @@ class _Run:
             self.log_switch(model, t, dep, ev.switched)
 
     def log_switch(self, model, t, dep, switched):
-        from .symbols import derivative_name, split_derivative_name
+        from appell.symbols import derivative_name, split_derivative_name
 
         acc = [derivative_name(*_next(split_derivative_name(model.speed_names[i]))) for i in dep]
         self.switches += 1
@@ -231,8 +231,8 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
 
     Parameters
     ----------
-    model_or_derivation : a :class:`~appell.equations.Derivation` or any
-        :class:`~appell.dynamics.Dynamics`.
+    model_or_derivation : a :class:`~appell.core.equations.Derivation` or any
+        :class:`~appell.numerics.dynamics.Dynamics`.
     t_end, t0 : final and initial time.
     t_eval : output times (default 501 equally spaced in [t0, t_end]).
     method : name in :data:`METHODS` or an ``OdeSolver`` subclass.
@@ -244,11 +244,11 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     on_release : ``'continue'`` (re-derive without the released constraint) or ``'stop'``.
     friction : ``{tangential constraint: (normal constraint, mu)}``; crossings of
         ``|lambda_t| = mu lambda_n`` are recorded as events (the motion is unchanged).
-    events : :class:`~appell.events.Event` items (or bare callables ``g(t, y, multipliers)``).
+    events : :class:`~appell.simulation.events.Event` items (or bare callables ``g(t, y, multipliers)``).
     params : parameter values (``{name: value}`` or a vector).
     initial : initial state (``{name: value}`` or a vector); default the system's.
-    complete : complete the dependent initial values (:func:`~appell.initial.complete_initial`)
-        instead of only checking them (:func:`~appell.initial.check_initial`).
+    complete : complete the dependent initial values (:func:`~appell.simulation.initial.complete_initial`)
+        instead of only checking them (:func:`~appell.simulation.initial.check_initial`).
     progress : show a tqdm progress bar; None: only when stderr is a terminal.
 
     Returns
@@ -447,7 +447,7 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
 
 def _without(system, released):
     """The numeric model of ``system`` without the released constraints (derived again)."""
-    from .derive import derive
+    from appell.core.derive import derive
 
     remaining = tuple(c for c in system.constraints if c.name not in set(released))
     return derive(system.replace(constraints=remaining)).numeric

@@ -23,9 +23,9 @@ from functools import cached_property
 
 import sympy as sp
 
-from .constraints import ConstraintBlocks
-from .energy import InertiaBlocks
-from .partition import Partition
+from appell.core.constraints import ConstraintBlocks
+from appell.core.energy import InertiaBlocks
+from appell.core.partition import Partition
 
 #: expressions with fewer operations than this are simplified for display
 TIDY_OPS = 80
@@ -173,39 +173,39 @@ class Derivation:
 
     @cached_property
     def numeric(self):
-        """Compiled numeric functions (:class:`appell.numeric.NumericModel`)."""
-        from .numeric import compile_model
+        """Compiled numeric functions (:class:`appell.numerics.numeric.NumericModel`)."""
+        from appell.numerics.numeric import compile_model
 
         return compile_model(self)
 
     def compiled(self, backend: str = "c"):
         """Numeric functions from a chosen backend: 'c' (C compiled and cached on disk),
-        'auto' or 'numpy' (:func:`appell.numeric.compile_model`); not cached here."""
-        from .numeric import compile_model
+        'auto' or 'numpy' (:func:`appell.numerics.numeric.compile_model`); not cached here."""
+        from appell.numerics.numeric import compile_model
 
         return compile_model(self, backend)
 
     def with_partition(self, dependent) -> "Derivation":
         """The same derivation with another choice of dependent accelerations (checked)."""
-        from .partition import choose_partition
+        from appell.core.partition import choose_partition
 
         p = choose_partition(sp.Matrix(self.constraints.jacobian), self.constraints.names,
                              self.accelerations, dependent)
         return Derivation(self.system, self.kinematics, self.inertia, self.constraints, p)
 
-    # display helpers live in appell.printing
+    # display helpers live in appell.io.printing
     def to_text(self) -> str:
-        from .printing import derivation_text
+        from appell.io.printing import derivation_text
 
         return derivation_text(self)
 
     def to_latex(self) -> str:
-        from .printing import derivation_latex
+        from appell.io.printing import derivation_latex
 
         return derivation_latex(self)
 
     def to_json(self) -> dict:
-        from .printing import derivation_json
+        from appell.io.printing import derivation_json
 
         return derivation_json(self)
 

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .errors import ModelError
-from .model import System
-from .symbols import derivative_symbol, split_derivative_name, t
+from appell.errors import ModelError
+from appell.model import System
+from appell.symbols import derivative_symbol, split_derivative_name, t
 
 
 @dataclass(frozen=True)

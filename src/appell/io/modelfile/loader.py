@@ -5,7 +5,7 @@ below (unknown keys are errors, so typos do not pass silently); every expression
 through the safe parser of :mod:`.expressions`. Errors are :class:`ModelError` with
 ``where="<file>:<line>"``, the key, the expression with a caret under the offending
 token, and what to do. Undeclared symbols are reported here too, with their line, by the
-same levels :func:`appell.validation.validate` uses.
+same levels :func:`appell.core.validation.validate` uses.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from typing import Mapping
 
 import sympy as sp
 
-from ..errors import ModelError
-from ..model import (
+from appell.errors import ModelError
+from appell.model import (
     AppliedForce,
     AppliedTorque,
     Constraint,
@@ -33,8 +33,8 @@ from ..model import (
     RigidBody,
     System,
 )
-from ..symbols import derivative_name, derivative_symbol, split_derivative_name
-from ..validation import declared_symbols, validate
+from appell.symbols import derivative_name, derivative_symbol, split_derivative_name
+from appell.core.validation import declared_symbols, validate
 from .expressions import FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_value, parse_expression
 from .locate import source_map
 
@@ -73,7 +73,7 @@ FIRST_INTEGRAL_KEYS = ("expr", "value")
 #: constraint kinds -> order (method.md §2)
 CONSTRAINT_KINDS = {"holonomic": 0, "first-order": 1, "second-order": 2}
 
-#: [simulation] keys (the keyword arguments of appell.simulate.simulate) -> what they hold
+#: [simulation] keys (the keyword arguments of appell.simulation.simulate.simulate) -> what they hold
 SIMULATION_KEYS = {
     "t_end": "number, the final time",
     "t0": "number, the initial time (default 0)",
@@ -520,7 +520,7 @@ def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
 
 
 def simulation_options(system: System) -> dict:
-    """``system.settings`` as keyword arguments of :func:`appell.simulate.simulate`.
+    """``system.settings`` as keyword arguments of :func:`appell.simulation.simulate.simulate`.
 
     The settings are stored hashable (pairs); ``unilateral`` and ``friction`` become
     dictionaries again, ``t_eval`` an array-like tuple.

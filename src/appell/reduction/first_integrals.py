@@ -51,11 +51,11 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
-from .errors import ComputationError, ModelError
-from .model import Constraint, FirstIntegral, System, holonomic, nonholonomic
-from .partition import generic_values, numeric_jacobian
-from .symbols import t
-from .validation import validate
+from appell.errors import ComputationError, ModelError
+from appell.model import Constraint, FirstIntegral, System, holonomic, nonholonomic
+from appell.core.partition import generic_values, numeric_jacobian
+from appell.symbols import t
+from appell.core.validation import validate
 
 __all__ = [
     "FirstIntegralCheck",
@@ -158,7 +158,7 @@ def integral_constraint(integral: FirstIntegral, taken: Sequence[str] = ()) -> C
 
 
 def _has_speed(expr) -> bool:
-    from .symbols import split_derivative_name
+    from appell.symbols import split_derivative_name
 
     return any(split_derivative_name(s.name)[1] >= 1 for s in sp.sympify(expr).free_symbols)
 
@@ -276,7 +276,7 @@ def check_first_integrals(system: System, integrals: Sequence[FirstIntegral] | N
         one :class:`FirstIntegralCheck` per candidate (a non-integral is a verdict, not
         an error) and ``reducible``.
     """
-    from .derive import derive
+    from appell.core.derive import derive
 
     cands = tuple(system.first_integrals if integrals is None else integrals)
     if not cands:
@@ -307,7 +307,7 @@ def _state_dict(system, tt, q, w) -> dict:
 
 
 def _check_one(system, base, fi, states, n_traj, tolerance, symbolic) -> FirstIntegralCheck:
-    from .derive import derive
+    from appell.core.derive import derive
 
     aug_sys = augmented_system(system, fi)
     con = aug_sys.constraints[-1]
@@ -370,7 +370,7 @@ def _check_one(system, base, fi, states, n_traj, tolerance, symbolic) -> FirstIn
 def _redundant(system, base, fi, con, states, n_traj, tolerance, common) -> FirstIntegralCheck:
     """A candidate implied at the level of accelerations by the constraints: decided by
     ``dg/dt = G a* + c_g`` along the original motion, relative to ``|G| |a*| + |c_g|``."""
-    from .constraints import second_order_blocks
+    from appell.core.constraints import second_order_blocks
 
     blocks = second_order_blocks((con,), base.kinematics)
     G, c = sp.Matrix(blocks.jacobian), sp.Matrix(blocks.bias)

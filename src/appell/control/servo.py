@@ -26,7 +26,7 @@ and (method.md §4)
 * (2.5) ``lambda_alpha = mu_alpha`` for every real row alpha — the reactions.
 
 (2.3) + (2.4) are p + r equations for ``(a_nu, xi)``, hence k = r controls. When a control
-does not appear, :mod:`appell.underactuated` differentiates the conditions along the motion.
+does not appear, :mod:`appell.control.underactuated` differentiates the conditions along the motion.
 """
 
 from __future__ import annotations
@@ -39,16 +39,16 @@ import json
 import numpy as np
 import sympy as sp
 
-from .constraints import ConstraintBlocks, second_order_blocks
-from .energy import InertiaBlocks, inertia_blocks, linear_split
-from .equations import ReactionFormulas, ReducedEquations, admissible_basis, tidy
-from .errors import ModelError
-from .kinematics import Kinematics, kinematics_of
-from .model import System
-from .partition import Partition, choose_partition, generic_values, pivoted_columns, redundant_rows
-from .symbols import latex_name
-from .underactuated import MAX_DIFFERENTIATIONS, ServoCondition, realise_conditions, servo_manifold
-from .validation import validate
+from appell.core.constraints import ConstraintBlocks, second_order_blocks
+from appell.core.energy import InertiaBlocks, inertia_blocks, linear_split
+from appell.core.equations import ReactionFormulas, ReducedEquations, admissible_basis, tidy
+from appell.errors import ModelError
+from appell.core.kinematics import Kinematics, kinematics_of
+from appell.model import System
+from appell.core.partition import Partition, choose_partition, generic_values, pivoted_columns, redundant_rows
+from appell.symbols import latex_name
+from appell.control.underactuated import MAX_DIFFERENTIATIONS, ServoCondition, realise_conditions, servo_manifold
+from appell.core.validation import validate
 
 __all__ = ["ControlledBlocks", "ControlledDerivation", "controlled_blocks", "derive_controlled"]
 
@@ -219,7 +219,7 @@ class ControlledDerivation:
     reduced : eq. (2.4), ``C^T E = 0`` (``forcing`` depends on xi).
     reactions : eq. (2.5), one formula per real constraint, in (t, q, w, a_nu, xi).
     motion_accelerations : ``{a_i: a_i(t, q, w, xi)}`` with ``a_nu`` from (2.4).
-    conditions : one :class:`~appell.underactuated.ServoCondition` per servo row, the form
+    conditions : one :class:`~appell.control.underactuated.ServoCondition` per servo row, the form
         of (2.3) in which the controls appear (after differentiation if underactuated).
     control_laws : ``{control name: expression}`` solving the conditions for xi (for a
         kinematic control the expression is its acceleration ``u_ddot``).
@@ -268,8 +268,8 @@ class ControlledDerivation:
 
     @cached_property
     def numeric(self):
-        """Compiled :class:`appell.servo_numeric.ControlledModel` (built on first access)."""
-        from .servo_numeric import compile_controlled
+        """Compiled :class:`appell.control.servo_numeric.ControlledModel` (built on first access)."""
+        from appell.control.servo_numeric import compile_controlled
 
         return compile_controlled(self)
 

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .errors import ModelError
-from .model import AppliedForce, AppliedTorque, RigidBody, System
-from .symbols import derivative_symbol, t
+from appell.errors import ModelError
+from appell.model import AppliedForce, AppliedTorque, RigidBody, System
+from appell.symbols import derivative_symbol, t
 
 
 def _chain(symbol: sp.Symbol, orders: int) -> set[sp.Symbol]:

@@ -2,8 +2,8 @@
 
 A sweep is the Cartesian product of one value list per parameter, each given as a spec
 ``NAME=START:STOP:NUM`` (NUM equally spaced values, both ends included), ``NAME=V1,V2,...``
-or ``NAME=V``. Every grid point is one :func:`appell.simulate.simulate` run of the same
-model (any :class:`~appell.dynamics.Dynamics`, or a System / Derivation compiled once per
+or ``NAME=V``. Every grid point is one :func:`appell.simulation.simulate.simulate` run of the same
+model (any :class:`~appell.numerics.dynamics.Dynamics`, or a System / Derivation compiled once per
 worker process). The runs go to a Dask cluster: a local one by default, or the scheduler
 at ``scheduler`` (``tcp://host:8786``) to use many machines.
 
@@ -36,7 +36,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .errors import ModelError
+from appell.errors import ModelError
 
 #: run status for a run that raised (simulate's own codes are 0, 1 and -1)
 RAISED = -2
@@ -120,16 +120,16 @@ def _model_on_worker(token: str, payload, backend: str):
     """The Dynamics of a sweep, built once per worker process (derivation, compilation)."""
     model = _MODELS.get(token)
     if model is None:
-        from .dynamics import Dynamics
-        from .model import System
+        from appell.numerics.dynamics import Dynamics
+        from appell.model import System
 
         model = payload
         if isinstance(model, System):
-            from .derive import derive
+            from appell.core.derive import derive
 
             model = derive(model)
         if not isinstance(model, Dynamics):
-            from .numeric import compile_model
+            from appell.numerics.numeric import compile_model
 
             model = compile_model(model, backend)
         _MODELS.clear()
@@ -140,7 +140,7 @@ def _model_on_worker(token: str, payload, backend: str):
 def _run_one(token, payload, backend, index, params, t_end, t_eval, options) -> dict:
     start = time.perf_counter()
     try:
-        from .simulate import simulate
+        from appell.simulation.simulate import simulate
 
         model = _model_on_worker(token, payload, backend)
         sol = simulate(model, t_end, t_eval=t_eval, params=params, progress=False, **options)
@@ -157,8 +157,8 @@ def _run_one(token, payload, backend, index, params, t_end, t_eval, options) -> 
 # ------------------------------------------------------------------ client side
 def _names(payload):
     """State, multiplier and control names and parameter names of the sweep's model."""
-    from .dynamics import Dynamics
-    from .model import System
+    from appell.numerics.dynamics import Dynamics
+    from appell.model import System
 
     if isinstance(payload, Dynamics):
         return (tuple(payload.state_names), tuple(payload.constraint_names), tuple(payload.control_names),
@@ -244,9 +244,9 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
 
     Parameters
     ----------
-    model : a :class:`~appell.model.System`, a :class:`~appell.equations.Derivation`
+    model : a :class:`~appell.model.System`, a :class:`~appell.core.equations.Derivation`
         (derived/compiled once per worker with ``backend``) or a picklable
-        :class:`~appell.dynamics.Dynamics`.
+        :class:`~appell.numerics.dynamics.Dynamics`.
     specs : ``['NAME=START:STOP:NUM', ...]`` (see :func:`parse_spec`) or
         ``{name: values}``; names are model parameters.
     t_end : final time of every run; ``t_eval`` output times (default ``samples``
@@ -257,7 +257,7 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
         workers (``processes=False``: threads in this process).
     backend : numeric backend on the workers: 'numpy', 'c' or 'auto'.
     progress : show a progress bar (tqdm) while runs complete.
-    simulate_options : passed to :func:`appell.simulate.simulate` (``rtol``, ``method``, ...).
+    simulate_options : passed to :func:`appell.simulation.simulate.simulate` (``rtol``, ``method``, ...).
 
     Returns
     -------

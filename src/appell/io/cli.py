@@ -1,11 +1,11 @@
 """The command line ``appell``: a thin layer over the Python API.
 
 =========================  ===========================================================
-``appell derive MODEL``    :func:`appell.derive` (or :func:`appell.servo.derive_controlled`
+``appell derive MODEL``    :func:`appell.derive` (or :func:`appell.control.servo.derive_controlled`
                            for a model with servo constraints), printed as text, LaTeX or JSON
-``appell simulate MODEL``  :func:`appell.simulate.simulate`, exported as CSV, HDF5 or netCDF
+``appell simulate MODEL``  :func:`appell.simulation.simulate.simulate`, exported as CSV, HDF5 or netCDF
 ``appell check MODEL``     :func:`appell.cross_check` against the augmented multiplier system
-``appell report MODEL``    :func:`appell.report.write_report`: one self-contained HTML page
+``appell report MODEL``    :func:`appell.io.report.write_report`: one self-contained HTML page
 ``appell examples``        the bundled model files (:mod:`appell.examples`)
 =========================  ===========================================================
 
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import click
 
-from .errors import AppellError, ComputationError, ModelError
+from appell.errors import AppellError, ComputationError, ModelError
 
 __all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
            "run_simulation", "export_solution", "write_netcdf", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
@@ -46,7 +46,7 @@ def resolve_model(model: str) -> Path:
     path = Path(model)
     if path.is_file():
         return path
-    from .examples import example_path, list_examples
+    from appell.examples import example_path, list_examples
 
     if path.suffix == "" and model in list_examples():
         return example_path(model)
@@ -70,14 +70,14 @@ def parse_assignments(items) -> dict[str, str]:
 
 def load_system(model: str, overrides=None):
     """Load a model file (or bundled example) with parameter / initial-value ``overrides``."""
-    from .modelfile import load_model
+    from appell.io.modelfile import load_model
 
     return load_model(resolve_model(model), overrides=overrides or None)
 
 
 def _canonical(name: str) -> str:
     """``x''`` -> ``x_ddot`` (the model-file prime notation for derivatives)."""
-    from .symbols import derivative_name, split_derivative_name
+    from appell.symbols import derivative_name, split_derivative_name
 
     stripped = name.rstrip("'")
     primes = len(name) - len(stripped)
@@ -88,14 +88,14 @@ def _canonical(name: str) -> str:
 
 
 def derive_model(system, dependent=None):
-    """:func:`appell.derive`, or :func:`appell.servo.derive_controlled` when the system has
+    """:func:`appell.derive`, or :func:`appell.control.servo.derive_controlled` when the system has
     servo constraints (method.md §4)."""
     dependent = [_canonical(d) for d in dependent] if dependent else None
     if system.servo_constraints:
-        from .servo import derive_controlled
+        from appell.control.servo import derive_controlled
 
         return derive_controlled(system, dependent=dependent)
-    from .derive import derive
+    from appell.core.derive import derive
 
     return derive(system, dependent=dependent)
 
@@ -116,7 +116,7 @@ def derivation_json(derivation) -> dict:
     """
     system = derivation.system
     if is_controlled(derivation):
-        from .equations import tidy
+        from appell.core.equations import tidy
 
         out = dict(derivation.to_json())
         kin = derivation.kinematics
@@ -140,8 +140,8 @@ def derivation_json(derivation) -> dict:
 
 
 def simulation_options(system, t_end: float | None = None) -> dict:
-    """Keyword arguments of :func:`appell.simulate.simulate` from the model's ``[simulation]``
-    table (:func:`appell.modelfile.simulation_options`), with ``t_end`` overriding the
+    """Keyword arguments of :func:`appell.simulation.simulate.simulate` from the model's ``[simulation]``
+    table (:func:`appell.io.modelfile.simulation_options`), with ``t_end`` overriding the
     table's final time (default :data:`DEFAULT_T_END`).
 
     When ``t_end`` changes the final time, equally spaced output times are regenerated
@@ -149,7 +149,7 @@ def simulation_options(system, t_end: float | None = None) -> dict:
     """
     import numpy as np
 
-    from .modelfile import simulation_options as table_options
+    from appell.io.modelfile import simulation_options as table_options
 
     opts = dict(table_options(system))
     t0 = float(opts.pop("t0", 0.0))
@@ -184,7 +184,7 @@ def run_simulation(derivation, t_end: float | None = None, **options):
     the model's ``[simulation]`` table says otherwise.
     Raises :class:`ComputationError` when the integration fails (status -1).
     """
-    from .simulate import simulate
+    from appell.simulation.simulate import simulate
 
     opts = {"complete": True, **simulation_options(derivation.system, t_end), **options}
     t0, t_end = opts.pop("t0"), opts.pop("t_end")
@@ -213,7 +213,7 @@ def export_solution(solution, path: Path) -> Path:
 
 
 def write_netcdf(solution, path: Path) -> Path:
-    """Write the columns of ``solution`` (:meth:`~appell.solution.Solution.columns`, the CSV's
+    """Write the columns of ``solution`` (:meth:`~appell.simulation.solution.Solution.columns`, the CSV's
     columns) as a netCDF (classic format) file along the dimension ``time``, atomically.
 
     Variables carry ``long_name`` (and ``units = 's'`` for ``t``); global attributes record
@@ -384,10 +384,10 @@ def _cross_check(derivation):
     """:func:`appell.cross_check`, or :func:`appell.cross_check_controlled` for a
     controlled derivation (the augmented system with the controls as unknowns)."""
     if is_controlled(derivation):
-        from .servo_numeric import cross_check_controlled
+        from appell.control.servo_numeric import cross_check_controlled
 
         return cross_check_controlled(derivation)
-    from .crosscheck import cross_check
+    from appell.numerics.crosscheck import cross_check
 
     return cross_check(derivation)
 
@@ -428,7 +428,7 @@ def report(model, output, t_end, no_simulation, assignments):
     The page needs no network (MathML, embedded PNG images, inline styles). A model with
     neither initial values nor a [simulation] table is reported without a simulation.
     """
-    from .report import write_report
+    from appell.io.report import write_report
 
     if output is not None and not Path(output).parent.is_dir():
         raise click.BadParameter(f"directory {str(Path(output).parent)!r} does not exist", param_hint="'-o'")
@@ -455,7 +455,7 @@ def report(model, output, t_end, no_simulation, assignments):
               help="Copy the example's model file into DIR.")
 def examples(name, to):
     """List the bundled examples, show one model file, or copy it out with --to."""
-    from .examples import example_path, list_examples
+    from appell.examples import example_path, list_examples
 
     if name is None:
         if to is not None:
@@ -496,5 +496,5 @@ def main(argv=None) -> int:
     return cli.main(args=argv, prog_name="appell")
 
 
-if __name__ == "__main__":  # python -m appell.cli
+if __name__ == "__main__":  # python -m appell.io.cli
     main()

@@ -7,7 +7,7 @@
 
 solved for all accelerations and multipliers at once (Newton's method on
 ``[E(a) - J(a)^T lambda; f(a)] = 0`` when a constraint is nonlinear in ``a``). It shares
-only the blocks with the split route of :mod:`appell.numeric`, so agreement of the two
+only the blocks with the split route of :mod:`appell.numerics.numeric`, so agreement of the two
 checks the partition, the projector ``C`` and the reaction formula (1.5).
 """
 
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .numeric import NumericModel, StateSolution, newton
+from appell.numerics.numeric import NumericModel, StateSolution, newton
 
 
 def augmented_solve(model: NumericModel, t, q, w, p=None) -> StateSolution:
@@ -102,7 +102,7 @@ def sample_states(derivation, count: int = 5, seed: int = 1):
 
 def cross_check(derivation, states=None, p=None) -> CrossCheckReport:
     """Compare the split route (1.4)/(1.5) with the augmented system at ``states``."""
-    from .numeric import split_basis
+    from appell.numerics.numeric import split_basis
 
     model = derivation.numeric
     states = states if states is not None else sample_states(derivation)

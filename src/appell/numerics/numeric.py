@@ -21,10 +21,10 @@ from typing import Callable, Mapping
 import numpy as np
 import sympy as sp
 
-from .dynamics import Evaluation
-from .errors import ComputationError, ModelError
-from .partition import RANK_TOL, pivoted_columns
-from .symbols import derivative_symbol, t
+from appell.numerics.dynamics import Evaluation
+from appell.errors import ComputationError, ModelError
+from appell.core.partition import RANK_TOL, pivoted_columns
+from appell.symbols import derivative_symbol, t
 
 #: condition number of J_h above which the partition is switched
 SWITCH_CONDITION = 1e8
@@ -349,10 +349,10 @@ def compile_model(derivation, backend: str = "numpy") -> NumericModel:
     """Generate the numeric functions of a derivation (once; CSE shared per function).
 
     ``backend``: 'numpy' (lambdify, here), 'c' or 'auto' (compiled C with the split solve
-    inside, :func:`appell.codegen_c.compile_c`; NumPy with a warning when no compiler).
+    inside, :func:`appell.numerics.codegen_c.compile_c`; NumPy with a warning when no compiler).
     """
     if backend != "numpy":
-        from .codegen_c import compile_c
+        from appell.numerics.codegen_c import compile_c
 
         return compile_c(derivation, backend)
     system = derivation.system

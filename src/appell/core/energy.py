@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .errors import ModelError
-from .kinematics import Kinematics
-from .model import AppliedForce, AppliedTorque, RigidBody, System
+from appell.errors import ModelError
+from appell.core.kinematics import Kinematics
+from appell.model import AppliedForce, AppliedTorque, RigidBody, System
 
 
 @dataclass(frozen=True)

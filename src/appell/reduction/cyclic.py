@@ -58,13 +58,13 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .energy import generalized_forces
-from .equations import block_inverse, tidy
-from .errors import ComputationError, ModelError
-from .kinematics import kinematics_of
-from .model import Parameter, System
-from .symbols import derivative_symbol, t
-from .validation import validate
+from appell.core.energy import generalized_forces
+from appell.core.equations import block_inverse, tidy
+from appell.errors import ComputationError, ModelError
+from appell.core.kinematics import kinematics_of
+from appell.model import Parameter, System
+from appell.symbols import derivative_symbol, t
+from appell.core.validation import validate
 
 __all__ = ["RouthReduction", "cyclic_coordinates", "routh_reduction"]
 
@@ -180,8 +180,8 @@ class RouthReduction:
 
     def to_latex(self) -> str:
         """LaTeX lines ``lhs = rhs`` of :meth:`equations` (dots for time derivatives)."""
-        from .printing import latex
-        from .symbols import latex_name
+        from appell.io.printing import latex
+        from appell.symbols import latex_name
 
         names = {"T*": "T^{*}", "V": "V", "L*": "L^{*}"}
         return " \\\\\n".join(f"{names.get(n) or latex_name(n)} = {latex(e)}" for n, e in self.equations())
@@ -225,7 +225,7 @@ class RouthReduction:
         """
         from scipy.integrate import solve_ivp
 
-        from .derive import derive
+        from appell.core.derive import derive
 
         num = derive(self.system).numeric
         m, k = len(self.positional), len(self.cyclic)

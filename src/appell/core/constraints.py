@@ -20,10 +20,10 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .energy import linear_split
-from .errors import ModelError
-from .kinematics import Kinematics
-from .model import Constraint
+from appell.core.energy import linear_split
+from appell.errors import ModelError
+from appell.core.kinematics import Kinematics
+from appell.model import Constraint
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """The report: one self-contained HTML page about a model (the last stage of the pipeline).
 
-:func:`render_report` turns a derivation, optionally a simulated :class:`~appell.solution.Solution`
-and a :class:`~appell.crosscheck.CrossCheckReport`, into a page with
+:func:`render_report` turns a derivation, optionally a simulated :class:`~appell.simulation.solution.Solution`
+and a :class:`~appell.numerics.crosscheck.CrossCheckReport`, into a page with
 
 * the model: parameters with units, coordinates and speeds, programs, constraints,
   controls, initial values;
@@ -41,8 +41,8 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
-from .equations import tidy
-from .printing import latex
+from appell.core.equations import tidy
+from appell.io.printing import latex
 
 __all__ = ["EquationRow", "equation_groups", "mathml", "render_report", "write_report", "solution_figures"]
 
@@ -62,7 +62,7 @@ class EquationRow:
 
     @property
     def latex(self) -> str:
-        """LaTeX with dotted time derivatives (:func:`appell.printing.latex`)."""
+        """LaTeX with dotted time derivatives (:func:`appell.io.printing.latex`)."""
         return f"{latex(self.lhs)} = {latex(self.rhs)}"
 
 
@@ -73,12 +73,12 @@ def _is_controlled(derivation) -> bool:
 def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
     """The equations shown in the report, grouped under titles.
 
-    For a :class:`~appell.equations.Derivation`: the reduced equations (1.4)
+    For a :class:`~appell.core.equations.Derivation`: the reduced equations (1.4)
     ``C^T (M a + h - Q) = 0``, the dependent accelerations solved from ``f = 0`` (or the
     constraints themselves when nonlinear in ``a``) and the multipliers (1.5)
-    ``lambda = J_h^{-T} E_h``. For a controlled derivation (:mod:`appell.servo`): the
+    ``lambda = J_h^{-T} E_h``. For a controlled derivation (:mod:`appell.control.servo`): the
     dynamic conditions (2.3), the reduced equations (2.4), the reactions (2.5) and the
-    control laws. Small expressions are simplified for display (:func:`appell.equations.tidy`).
+    control laws. Small expressions are simplified for display (:func:`appell.core.equations.tidy`).
     """
     if _is_controlled(derivation):
         return _controlled_groups(derivation)
@@ -168,7 +168,7 @@ def _png_data_uri(fig) -> str:
 
 
 def solution_figures(solution) -> list[tuple[str, str]]:
-    """``(caption, data URI)`` of PNG plots of a :class:`~appell.solution.Solution`:
+    """``(caption, data URI)`` of PNG plots of a :class:`~appell.simulation.solution.Solution`:
     coordinates, speeds, reactions (multipliers), controls and constraint residuals
     (panels with nothing to show are left out)."""
     import matplotlib
@@ -339,8 +339,8 @@ def _simulation_section(solution) -> str:
 
 
 def _check_section(check, tolerance: float) -> str:
-    """The cross-check table: a :class:`~appell.crosscheck.CrossCheckReport`, or the
-    controlled systems' check of :mod:`appell.servo_numeric` (controls as well)."""
+    """The cross-check table: a :class:`~appell.numerics.crosscheck.CrossCheckReport`, or the
+    controlled systems' check of :mod:`appell.control.servo_numeric` (controls as well)."""
     ok = check.passed(tolerance)
     verdict = "<span class='pass'>passed</span>" if ok else "<span class='fail'>failed</span>"
     rows = []
@@ -369,12 +369,12 @@ def _check_section(check, tolerance: float) -> str:
 
 def render_report(derivation, solution=None, check=None, *, title: str | None = None,
                   tolerance: float = 1e-9, simulation_note: str | None = None) -> str:
-    """The HTML page (a string) for ``derivation`` (a :class:`~appell.equations.Derivation`
-    or a controlled derivation of :mod:`appell.servo`), with the plots of ``solution``
-    (:class:`~appell.solution.Solution`) and the table of ``check``
-    (:class:`~appell.crosscheck.CrossCheckReport`, judged at ``tolerance``) when given.
+    """The HTML page (a string) for ``derivation`` (a :class:`~appell.core.equations.Derivation`
+    or a controlled derivation of :mod:`appell.control.servo`), with the plots of ``solution``
+    (:class:`~appell.simulation.solution.Solution`) and the table of ``check``
+    (:class:`~appell.numerics.crosscheck.CrossCheckReport`, judged at ``tolerance``) when given.
     ``simulation_note`` says why there is no simulation (shown in its place)."""
-    from . import __version__
+    from appell import __version__
 
     system = derivation.system
     title = title or f"appell report: {system.name}"

@@ -1,6 +1,6 @@
 """Stage 8 — presentation: text, LaTeX and JSON of a derivation.
 
-Formulas are shown as derived: small expressions are tidied (:func:`appell.equations.tidy`),
+Formulas are shown as derived: small expressions are tidied (:func:`appell.core.equations.tidy`),
 large ones are printed as they are. JSON expressions are strings that
 ``sympy.sympify`` parses back.
 """
@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .equations import tidy
-from .symbols import latex_name
+from appell.core.equations import tidy
+from appell.symbols import latex_name
 
 
 def latex(expr) -> str:

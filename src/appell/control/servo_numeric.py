@@ -1,5 +1,5 @@
 """Numeric side of controlled systems (method.md §4): the controls at a state and the motion
-they produce; implements :class:`appell.dynamics.Dynamics`.
+they produce; implements :class:`appell.numerics.dynamics.Dynamics`.
 
 State ``y = (q, w, u_1, u_1_dot, u_2, u_2_dot, ...)``: coordinates, speeds, then each
 kinematic control's position and rate. At ``(t, y)``:
@@ -10,7 +10,7 @@ kinematic control's position and rate. At ``(t, y)``:
      ``a = C a_nu + D xi + d``, solving the p + r linear equations
      ``C^T E = 0`` (2.4) and ``(J_h^{-T} E_h)_servo = 0`` (2.3) for ``(a_nu, xi)``;
    * otherwise: from the compiled conditions ``A xi + b = 0`` of
-     :mod:`appell.underactuated` (the control law in t, the state and the programs);
+     :mod:`appell.control.underactuated` (the control law in t, the state and the programs);
 
 2. the motion of the real system under these controls: the split (1.4)/(1.5) over the real
    constraints alone, ``E(a, xi) = J_f^T lambda``, ``f(a, xi) = 0``. The servo constraints
@@ -31,10 +31,10 @@ from typing import Callable, Mapping
 import numpy as np
 import sympy as sp
 
-from .dynamics import Evaluation
-from .errors import ComputationError, ModelError
-from .numeric import choose_dependent, lambdify_blocks, program_substitutions, well_conditioned
-from .symbols import derivative_symbol, t
+from appell.numerics.dynamics import Evaluation
+from appell.errors import ComputationError, ModelError
+from appell.numerics.numeric import choose_dependent, lambdify_blocks, program_substitutions, well_conditioned
+from appell.symbols import derivative_symbol, t
 
 __all__ = ["ControlledCrossCheck", "ControlledModel", "ControlledSolution", "augmented_controlled_solve",
            "compile_controlled", "cross_check_controlled", "real_motion", "sample_controlled_states"]
@@ -82,7 +82,7 @@ class ControlledSolution:
 
 @dataclass(frozen=True)
 class ControlledModel:
-    """Compiled controlled system; implements :class:`appell.dynamics.Dynamics`."""
+    """Compiled controlled system; implements :class:`appell.numerics.dynamics.Dynamics`."""
 
     derivation: object
     name: str
@@ -242,7 +242,7 @@ def augmented_controlled_solve(model: ControlledModel, t, y, p=None) -> Controll
 
 
 def compile_controlled(derivation) -> ControlledModel:
-    """Generate the numeric functions of a :class:`~appell.servo.ControlledDerivation`."""
+    """Generate the numeric functions of a :class:`~appell.control.servo.ControlledDerivation`."""
     system, kin, blk = derivation.system, derivation.kinematics, derivation.blocks
     max_order = 4 + max((c.differentiations for c in derivation.conditions), default=0)
     subs = program_substitutions(system, orders=max_order + 2)
@@ -344,7 +344,7 @@ def _rel(x, y) -> float:
 def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCheck:
     """Compare :meth:`ControlledModel.solve` with an independent route (see
     :class:`ControlledCrossCheck`)."""
-    from .symbols import t as time
+    from appell.symbols import t as time
 
     model = derivation.numeric
     states = states if states is not None else sample_controlled_states(model)

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from ..symbols import derivative_symbol, t
+from appell.symbols import derivative_symbol, t
 
 __all__ = [
     "ExpressionError",

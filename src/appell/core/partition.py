@@ -15,7 +15,7 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
-from .errors import ModelError
+from appell.errors import ModelError
 
 #: relative singular-value threshold under which a block counts as singular
 RANK_TOL = 1e-9
@@ -133,7 +133,7 @@ def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, 
 
     if s > MAX_BLOCK_SIZE or comb(n, s) > MAX_BLOCKS:
         return None
-    from .equations import tidy
+    from appell.core.equations import tidy
 
     best = None
     for cols in combinations(range(n), s):
@@ -155,7 +155,7 @@ def _index(item, accelerations) -> int:
         if a.name == name:
             return i
     # allow the speed or coordinate name for convenience
-    from .symbols import split_derivative_name
+    from appell.symbols import split_derivative_name
 
     for i, a in enumerate(accelerations):
         base, order = split_derivative_name(a.name)

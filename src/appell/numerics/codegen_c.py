@@ -1,12 +1,12 @@
 """Stage 7, compiled — the blocks and the split solve (1.4)/(1.5) as C (method.md §3).
 
-The same symbolic blocks as :mod:`appell.numeric` (``M``, ``h - Q``, ``J``, ``c``, the
+The same symbolic blocks as :mod:`appell.numerics.numeric` (``M``, ``h - Q``, ``J``, ``c``, the
 coordinate rates and the constraint residuals, programs replaced by their expressions in
 t) are written as C functions with common subexpressions shared (``sympy.cse``). For
 constraints linear in ``a`` one C call also does the linear algebra of the split route:
 
 1. ``J_h = J[:, dep]`` is LU-factored; if its 1-norm condition number is not below
-   :data:`appell.numeric.SWITCH_CONDITION` the call reports it and Python switches the
+   :data:`appell.numerics.numeric.SWITCH_CONDITION` the call reports it and Python switches the
    partition (the NumPy route on the compiled blocks);
 2. ``X = J_h^{-1} J_nu``, ``d_h = -J_h^{-1} c``, ``C = [I; -X]``;
 3. ``(C^T M C) a_nu = -C^T (M d + h - Q)``, ``a = C a_nu + d``          — (1.4);
@@ -36,10 +36,10 @@ import numpy as np
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from .dynamics import Evaluation
-from .errors import ComputationError
-from .numeric import SWITCH_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
-from .symbols import t
+from appell.numerics.dynamics import Evaluation
+from appell.errors import ComputationError
+from appell.numerics.numeric import SWITCH_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
+from appell.symbols import t
 
 #: environment variables: cache directory and C compiler
 CACHE_ENV = "APPELL_CACHE_DIR"
@@ -361,7 +361,7 @@ def _vec(x) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CompiledNumericModel(NumericModel):
-    """A :class:`~appell.numeric.NumericModel` whose functions run in compiled C.
+    """A :class:`~appell.numerics.numeric.NumericModel` whose functions run in compiled C.
 
     ``blocks``, ``rates``, ``residuals`` and ``constraint_function`` keep the NumPy
     signatures; :meth:`solve` and :meth:`evaluate` do the split route (1.4)/(1.5) in one C
@@ -447,7 +447,7 @@ def _wrap(fn, shapes, with_acc=False):
 def compile_c(derivation, backend: str = "c") -> NumericModel:
     """Compiled numeric functions of a derivation (``backend`` 'c' or 'auto').
 
-    Without a C compiler both fall back to :func:`appell.numeric.compile_model` (NumPy)
+    Without a C compiler both fall back to :func:`appell.numerics.numeric.compile_model` (NumPy)
     with a :class:`RuntimeWarning`; a failed compilation raises for 'c' and falls back
     (with a warning) for 'auto'.
     """

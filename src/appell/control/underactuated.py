@@ -7,7 +7,7 @@ While ``A`` is singular:
 
 * a row of ``A`` that vanishes is a relation on the state, ``phi_j(t, q, w) = 0``; it must
   hold along the controlled motion, so it is replaced by its total time derivative
-  (:meth:`appell.kinematics.Kinematics.diff`), in which the accelerations of the motion
+  (:meth:`appell.core.kinematics.Kinematics.diff`), in which the accelerations of the motion
   ``a(t, q, w, xi)`` (servo constraints and (2.4)) are substituted;
 * when no row vanishes but the rows of ``A`` are dependent, one row is replaced by the
   combination of the rows that is free of the controls, ``Phi_i - sum_j c_j Phi_j``.
@@ -26,10 +26,10 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .errors import ModelError
-from .kinematics import Kinematics
-from .model import System
-from .partition import generic_values, pivoted_columns
+from appell.errors import ModelError
+from appell.core.kinematics import Kinematics
+from appell.model import System
+from appell.core.partition import generic_values, pivoted_columns
 
 __all__ = ["MAX_DIFFERENTIATIONS", "ServoCondition", "realise_conditions", "servo_manifold"]
 

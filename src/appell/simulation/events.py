@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 import sympy as sp
 
-from .errors import ModelError
+from appell.errors import ModelError
 
 __all__ = ["Event", "Watch", "watches_for"]
 

@@ -17,13 +17,13 @@ from typing import Sequence
 
 import sympy as sp
 
-from .constraints import second_order_blocks
-from .energy import inertia_blocks
-from .equations import Derivation
-from .kinematics import kinematics_of
-from .model import System
-from .partition import choose_partition
-from .validation import validate
+from appell.core.constraints import second_order_blocks
+from appell.core.energy import inertia_blocks
+from appell.core.equations import Derivation
+from appell.core.kinematics import kinematics_of
+from appell.model import System
+from appell.core.partition import choose_partition
+from appell.core.validation import validate
 
 
 def derive(system: System, dependent: Sequence | None = None) -> Derivation:

@@ -1,0 +1,3 @@
+"""Input and output: model files (safe TOML + expression parser), text/LaTeX/JSON printing,
+the HTML report and the command line.
+"""

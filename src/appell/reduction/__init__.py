@@ -1,0 +1,3 @@
+"""Reductions (method.md §5): first integrals as constraints, cyclic coordinates and
+Routh reduction.
+"""
