@@ -179,3 +179,14 @@ def test_progress_bar_only_on_a_terminal(pendulum, capsys):
     assert capsys.readouterr().err == ""
     simulate(pendulum, 0.2, t_eval=[0.0, 0.2], progress=True)
     assert "simulating pendulum" in capsys.readouterr().err
+
+
+def test_t_end_equal_to_t0_records_the_initial_state_only():
+    """t_end == t0: one row, the (completed) initial state with its multipliers from the split solve."""
+    d = appell.derive(catalog.pendulum())
+    sol = simulate(d, 0.0)
+    assert sol.t.shape == (1,) and sol.status == 0
+    q0, w0 = [np.sin(np.pi / 3), -np.cos(np.pi / 3)], [0.0, 0.0]
+    expected = d.numeric.solve(0.0, q0, w0).multipliers[0]
+    assert sol.multipliers["rod"][0] == pytest.approx(expected, rel=1e-14)
+    assert expected == pytest.approx(9.81 * np.cos(np.pi / 3), rel=1e-12)  # m g cos(theta0) at rest

@@ -189,11 +189,8 @@ def run_simulation(derivation, t_end: float | None = None, **options):
     opts = {"complete": True, **simulation_options(derivation.system, t_end), **options}
     t0, t_end = opts.pop("t0"), opts.pop("t_end")
     if t_end == t0:
-        # one output time at the start: the integrator takes one tiny step and records only t0
         opts["t_eval"] = [t0]
-        solution = simulate(derivation, t0 + 1e-9 * max(1.0, abs(t0)), t0=t0, **opts)
-    else:
-        solution = simulate(derivation, t_end, t0=t0, **opts)
+    solution = simulate(derivation, t_end, t0=t0, **opts)
     if solution.status < 0:
         raise ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
                                hint="try another integration method or tighter tolerances "

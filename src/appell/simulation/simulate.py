@@ -233,7 +233,7 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     ----------
     model_or_derivation : a :class:`~appell.core.equations.Derivation` or any
         :class:`~appell.numerics.dynamics.Dynamics`.
-    t_end, t0 : final and initial time.
+    t_end, t0 : final and initial time; ``t_end == t0`` records the initial state only.
     t_eval : output times (default 501 equally spaced in [t0, t_end]).
     method : name in :data:`METHODS` or an ``OdeSolver`` subclass.
     rtol, atol, max_step : integrator tolerances and largest step.
@@ -273,9 +273,11 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
         raise ModelError("releasing a unilateral constraint needs the system to derive again",
                          hint="pass a Derivation, or on_release='stop'")
     t0, t_end = float(t0), float(t_end)
-    if not t_end > t0:
-        raise ModelError(f"t_end = {t_end} must exceed t0 = {t0}")
-    t_eval = np.linspace(t0, t_end, 501) if t_eval is None else np.asarray(t_eval, float).reshape(-1)
+    if t_end < t0:
+        raise ModelError(f"t_end = {t_end} is before t0 = {t0}")
+    if t_eval is None:
+        t_eval = np.linspace(t0, t_end, 501) if t_end > t0 else np.array([t0])
+    t_eval = np.asarray(t_eval, float).reshape(-1)
     if t_eval.size and (np.any(np.diff(t_eval) < 0) or t_eval[0] < t0 or t_eval[-1] > t_end):
         raise ModelError("t_eval must be increasing and lie in [t0, t_end]")
 
@@ -328,6 +330,8 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     while k < t_eval.size and t_eval[k] <= t:
         run.record(active, t_eval[k], y, ev)
         k += 1
+    if t_end == t0:
+        return run.solution(active, 0, "initial state only (t_end = t0)")
     bar = None
     if _show_progress(progress):
         from tqdm import tqdm
