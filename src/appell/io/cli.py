@@ -6,6 +6,7 @@
 ``appell simulate MODEL``  :func:`appell.simulation.simulate.simulate`, exported as CSV, HDF5 or netCDF
 ``appell check MODEL``     :func:`appell.cross_check` against the augmented multiplier system
 ``appell report MODEL``    :func:`appell.io.report.write_report`: one self-contained HTML page
+``appell sweep MODEL``     :func:`appell.simulation.sweep.sweep`: a parameter grid on Dask
 ``appell examples``        the bundled model files (:mod:`appell.examples`)
 =========================  ===========================================================
 
@@ -176,21 +177,24 @@ def simulation_options(system, t_end: float | None = None) -> dict:
     return opts
 
 
-def run_simulation(derivation, t_end: float | None = None, **options):
+def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy", **options):
     """Simulate ``derivation`` with the model's settings (:func:`simulation_options`).
 
     ``t_end`` equal to the start time gives the single row at the initial state.
     Dependent initial values are completed from the given ones (``complete=True``) unless
     the model's ``[simulation]`` table says otherwise.
+    ``backend`` ('numpy', 'c', 'auto') chooses the numeric code of a plain derivation
+    (:meth:`~appell.core.equations.Derivation.compiled`); a controlled one runs as it is.
     Raises :class:`ComputationError` when the integration fails (status -1).
     """
     from appell.simulation.simulate import simulate
 
+    model = derivation if backend == "numpy" or is_controlled(derivation) else derivation.compiled(backend)
     opts = {"complete": True, **simulation_options(derivation.system, t_end), **options}
     t0, t_end = opts.pop("t0"), opts.pop("t_end")
     if t_end == t0:
         opts["t_eval"] = [t0]
-    solution = simulate(derivation, t_end, t0=t0, **opts)
+    solution = simulate(model, t_end, t0=t0, **opts)
     if solution.status < 0:
         raise ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
                                hint="try another integration method or tighter tolerances "
@@ -303,6 +307,9 @@ def _report_error(message: str, hint: str | None, code: int) -> int:
 
 _CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 _model_argument = click.argument("model", metavar="MODEL")
+_backend_option = click.option("--backend", type=click.Choice(["auto", "c", "numpy"]), default="auto", show_default=True,
+                               help="Numeric code: C compiled and cached on first use (auto: C when a compiler "
+                                    "is found, else NumPy), or NumPy.")
 _set_option = click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
                            help="Override a parameter or an initial value (repeatable), e.g. --set M=1500 --set \"phi'=0.2\".")
 
@@ -350,8 +357,9 @@ def derive(model, fmt, dependent, assignments):
               help="Write the motion to FILE.csv, FILE.h5 or FILE.nc (by suffix).")
 @click.option("--plot", "plot", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE",
               help="Plot coordinates, reactions, controls and residuals to FILE (e.g. .png, .pdf, .svg).")
+@_backend_option
 @_set_option
-def simulate(model, t_end, out, plot, assignments):
+def simulate(model, t_end, out, plot, backend, assignments):
     """Simulate the motion with its reactions, controls and constraint residuals.
 
     CSV columns: t, each coordinate, each speed, lambda_<constraint>, control_<control>,
@@ -366,7 +374,7 @@ def simulate(model, t_end, out, plot, assignments):
             raise click.BadParameter(f"directory {str(target.parent)!r} does not exist", param_hint="'--out/--plot'")
     system = load_system(model, parse_assignments(assignments))
     derivation = derive_model(system)
-    solution = run_simulation(derivation, t_end)
+    solution = run_simulation(derivation, t_end, backend)
     if out_path is not None:
         export_solution(solution, out_path)
     if plot:
@@ -417,8 +425,9 @@ def check(model, tolerance, assignments):
 @click.option("--t-end", type=float, default=None, metavar="T",
               help="Final time of the simulation shown (default: the model's [simulation] t_end, else 10).")
 @click.option("--no-simulation", is_flag=True, help="Leave out the simulation and its plots.")
+@_backend_option
 @_set_option
-def report(model, output, t_end, no_simulation, assignments):
+def report(model, output, t_end, no_simulation, backend, assignments):
     """Write one self-contained HTML page: the model, its equations as mathematics,
     plots of coordinates, reactions and controls, and the cross-check.
 
@@ -438,12 +447,60 @@ def report(model, output, t_end, no_simulation, assignments):
     elif not system.initial and not system.settings:
         note = "Left out: the model gives neither initial values ([initial]) nor a [simulation] table."
     else:
-        solution = run_simulation(derivation, t_end)
+        solution = run_simulation(derivation, t_end, backend)
     path = Path(output) if output else Path(f"{system.name}-report.html")
     write_report(path, derivation, solution, check_report, simulation_note=note)
     click.echo(f"wrote {path}")
     if not check_report.passed():
         raise ComputationError("cross-check failed (see the report)")
+
+
+@cli.command(context_settings=_CONTEXT)
+@_model_argument
+@click.option("--param", "specs", multiple=True, required=True, metavar="NAME=START:STOP:NUM",
+              help="A parameter axis (repeatable): NUM values from START to STOP, or NAME=V1,V2,...; "
+                   "the runs are the Cartesian product of the axes.")
+@click.option("--t-end", type=float, default=None, metavar="T",
+              help="Final time of every run (default: the model's [simulation] t_end, else 10).")
+@click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE.h5",
+              help="Results dataset (default: <model name>-sweep.h5); the summary goes beside it as "
+                   "FILE.h5.summary.json.")
+@click.option("--samples", type=int, default=501, show_default=True, help="Output times per run.")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Dask scheduler address (tcp://host:8786) to run on many machines; default a local cluster.")
+@click.option("--workers", type=int, default=None, help="Workers of the local cluster (default: one per core).")
+@_backend_option
+@_set_option
+def sweep(model, specs, t_end, out, samples, scheduler, workers, backend, assignments):
+    """Simulate MODEL over a grid of parameter values, in parallel on Dask.
+
+    Writes one HDF5 dataset with every run (states, reactions, controls, status) and a
+    summary: the extreme value of each reaction across the sweep and where it occurs.
+    A failed run is recorded, not fatal; the exit code is 1 only when every run failed.
+    """
+    from appell.simulation.sweep import parameter_grid
+    from appell.simulation.sweep import sweep as run_sweep
+
+    if samples < 1:
+        raise click.BadParameter("must be at least 1", param_hint="'--samples'")
+    system = load_system(model, parse_assignments(assignments))
+    if system.servo_constraints:
+        raise ModelError("sweeps of models with servo constraints are not supported yet",
+                         hint="sweep the plain constrained system, or loop over appell simulate --set")
+    parameter_grid(specs)  # bad specs are bad input, before a cluster starts
+    opts = simulation_options(system, t_end)
+    t0, final = opts.pop("t0"), opts.pop("t_end")
+    opts.pop("t_eval", None)
+    if t0 != 0.0:
+        raise ModelError("sweeps start at t = 0", hint="remove t0 from the [simulation] table")
+    path = Path(out) if out else Path(f"{system.name}-sweep.h5")
+    if not path.parent.is_dir():
+        raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint="'--out'")
+    result = run_sweep(system, list(specs), final, output=path, samples=samples, scheduler=scheduler,
+                       n_workers=workers, backend=backend, progress=sys.stderr.isatty(), **opts)
+    click.echo(result.summary_text())
+    if result.runs and len(result.failed) == len(result.runs):
+        raise ComputationError("every run of the sweep failed (see the messages above)")
 
 
 @cli.command(context_settings=_CONTEXT)
