@@ -123,6 +123,10 @@ def overhead_crane() -> System:
             holonomic("load_x", xT + l * sp.sin(th) - xL),
             holonomic("load_z", -l * sp.cos(th) - zL),
         ),
+        # at t = 0 from the load's path alone (the rope along (x_L'', z_L'' + g)): theta = 0,
+        # l = 1.8, x_T = 0 and their rates
+        initial={"x_T": 0.0, "l": 1.8, "theta": 0.0, "x_T_dot": 0.23829344432882416, "l_dot": 0.0,
+                 "theta_dot": 0.0065036420395421434},
     )
 
 

@@ -306,14 +306,14 @@ class Solution:
         matplotlib.use("Agg", force=False)
         from matplotlib.figure import Figure
 
+        residuals = {f"{n} ({'F' if k == 'holonomic' else 'phi'})": np.abs(a)
+                     for (n, k), a in zip(zip(self.metadata.constraint_names, self.metadata.constraint_kinds),
+                                          self.residuals.values()) if k != "second-order"}
         panels = [("coordinates", {n: self.states[n] for n in self.coordinate_names}, False),
-                  ("reactions (multipliers)", dict(self.multipliers), False)]
-        if self.controls:
-            panels.append(("controls", dict(self.controls), False))
-        panels.append(("constraint residuals |F|, |phi|",
-                       {f"{n} ({'F' if k == 'holonomic' else 'phi'})": np.abs(a)
-                        for (n, k), a in zip(zip(self.metadata.constraint_names, self.metadata.constraint_kinds),
-                                             self.residuals.values()) if k != "second-order"}, True))
+                  ("reactions (multipliers)", dict(self.multipliers), False),
+                  ("controls", dict(self.controls), False),
+                  ("constraint residuals |F|, |phi|", residuals, True)]
+        panels = [p for p in panels if p[1] or p[0] == "coordinates"]  # no empty panels
         fig = Figure(figsize=(8, 2.6 * len(panels)), constrained_layout=True)
         axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
         for ax, (title, series, log) in zip(axes, panels):
