@@ -41,6 +41,17 @@ def derivative_name(base: str, order: int) -> str:
     return f"{base}_d{order}"
 
 
+def canonical_name(name: str) -> str:
+    """Prime notation to derivative names: ``"x'" -> "x_dot"``, ``"x''" -> "x_ddot"``,
+    ``"x_dot'" -> "x_ddot"``; other names unchanged."""
+    stripped = name.rstrip("'")
+    primes = len(name) - len(stripped)
+    if not primes:
+        return name
+    base, order = split_derivative_name(stripped)
+    return derivative_name(base, order + primes)
+
+
 def derivative_symbol(symbol: sp.Symbol, order: int = 1) -> sp.Symbol:
     """The symbol of ``d^order/dt^order`` of ``symbol``: ``x -> x_dot -> x_ddot -> x_d3``."""
     base, k = split_derivative_name(symbol.name)

@@ -33,24 +33,11 @@ import sympy as sp
 
 from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError, ModelError
-from appell.numerics.numeric import choose_dependent, lambdify_blocks, program_substitutions, well_conditioned
+from appell.numerics.numeric import choose_dependent, lambdify_blocks, program_substitutions, split_basis, well_conditioned
 from appell.symbols import derivative_symbol, t
 
 __all__ = ["ControlledCrossCheck", "ControlledModel", "ControlledSolution", "augmented_controlled_solve",
            "compile_controlled", "cross_check_controlled", "real_motion", "sample_controlled_states"]
-
-
-def _basis(J: np.ndarray, dep) -> tuple[np.ndarray, np.ndarray, list[int], list[int]]:
-    """``C = [I; -J_h^{-1} J_nu]`` (n x p) and ``J_h`` for the dependent columns ``dep``."""
-    n = J.shape[1]
-    dep = list(dep)
-    ind = [i for i in range(n) if i not in dep]
-    Jh = J[:, dep]
-    C = np.zeros((n, len(ind)))
-    C[ind, np.arange(len(ind))] = 1.0
-    if dep and ind:
-        C[dep, :] = -np.linalg.solve(Jh, J[:, ind])
-    return C, Jh, dep, ind
 
 
 def real_motion(M, hQ, Jf, cf, dep) -> tuple[np.ndarray, np.ndarray]:
@@ -59,7 +46,7 @@ def real_motion(M, hQ, Jf, cf, dep) -> tuple[np.ndarray, np.ndarray]:
     n = M.shape[0]
     if Jf.shape[0] == 0:
         return np.linalg.solve(M, -hQ), np.zeros(0)
-    C, Jh, dep, ind = _basis(Jf, dep)
+    C, Jh, dep, ind = split_basis(Jf, dep)
     d = np.zeros(n)
     d[dep] = -np.linalg.solve(Jh, cf)
     a = C @ np.linalg.solve(C.T @ M @ C, -C.T @ (M @ d + hQ)) + d if ind else d
@@ -146,7 +133,7 @@ class ControlledModel:
         dep = tuple(self.derivation.partition.dependent)
         if not well_conditioned(J[:, list(dep)]):
             dep = choose_dependent(J, self.constraint_names + self.servo_names)
-        C, Jh, dep, ind = _basis(J, dep)
+        C, Jh, dep, ind = split_basis(J, dep)
         n, k = M.shape[0], N.shape[1]
         D = np.zeros((n, k))
         d = np.zeros(n)

@@ -28,6 +28,7 @@ from pathlib import Path
 import click
 
 from appell.errors import AppellError, ComputationError, ModelError
+from appell.symbols import canonical_name
 
 __all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
            "run_simulation", "export_solution", "write_netcdf", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
@@ -76,22 +77,10 @@ def load_system(model: str, overrides=None):
     return load_model(resolve_model(model), overrides=overrides or None)
 
 
-def _canonical(name: str) -> str:
-    """``x''`` -> ``x_ddot`` (the model-file prime notation for derivatives)."""
-    from appell.symbols import derivative_name, split_derivative_name
-
-    stripped = name.rstrip("'")
-    primes = len(name) - len(stripped)
-    if not primes:
-        return name
-    base, order = split_derivative_name(stripped)
-    return derivative_name(base, order + primes)
-
-
 def derive_model(system, dependent=None):
     """:func:`appell.derive`, or :func:`appell.control.servo.derive_controlled` when the system has
     servo constraints (method.md §4)."""
-    dependent = [_canonical(d) for d in dependent] if dependent else None
+    dependent = [canonical_name(d) for d in dependent] if dependent else None
     if system.servo_constraints:
         from appell.control.servo import derive_controlled
 

@@ -33,7 +33,7 @@ from appell.model import (
     RigidBody,
     System,
 )
-from appell.symbols import derivative_name, derivative_symbol, split_derivative_name
+from appell.symbols import canonical_name, derivative_name, derivative_symbol, split_derivative_name
 from appell.core.validation import declared_symbols, validate
 from .expressions import FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_value, parse_expression
 from .locate import source_map
@@ -285,7 +285,7 @@ def _initial(r: _Reader, doc: dict, allowed: list[str]) -> dict[str, float]:
     out = {}
     for key, value in r.table(("initial",), doc.get("initial", {}), _Any()).items():
         path = ("initial", key)
-        name = _canonical(key)
+        name = canonical_name(key)
         if name not in allowed:
             raise r.error(path, f"{key!r} is not a coordinate or speed of the model",
                           hint=f"initial values can be given for: {', '.join(allowed)}")
@@ -293,16 +293,6 @@ def _initial(r: _Reader, doc: dict, allowed: list[str]) -> dict[str, float]:
             raise r.error(path, f"initial value of {name!r} given twice")
         out[name] = r.constant(path, value)
     return out
-
-
-def _canonical(name: str) -> str:
-    """``"x'"`` -> ``"x_dot"``, ``"x''"`` -> ``"x_ddot"``; other names unchanged."""
-    stripped = name.rstrip("'")
-    primes = len(name) - len(stripped)
-    if not primes:
-        return name
-    base, order = split_derivative_name(stripped)
-    return derivative_name(base, order + primes)
 
 
 def _mechanics(r: _Reader, doc: dict, n_speeds: int) -> dict:
@@ -649,7 +639,7 @@ def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
     new_parameters: dict[str, float] = {}
     initial = dict(system.initial)
     for key, value in overrides.items():
-        name = _canonical(str(key))
+        name = canonical_name(str(key))
         try:
             number = float(value)
         except (TypeError, ValueError):
