@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import RigidBody, System, derive, nonholonomic
+from appell import RigidBody, System, derive
 from appell.examples import catalog
 
 

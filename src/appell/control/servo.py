@@ -375,7 +375,7 @@ def derive_controlled(system: System, dependent: Sequence | None = None,
     real_partition = choose_partition(sp.Matrix(blocks.real.jacobian), blocks.real.names, a)
 
     # a = C a_nu + D xi + d at u'' = v'' = 0, and mu = J_h^{-T} E_h
-    n, s = len(a), blocks.real.count
+    s = blocks.real.count
     C, Jh_inv = admissible_basis(J, partition)
     C, Jh_inv = sp.Matrix(tidy(C)), sp.Matrix(tidy(Jh_inv))
     dep, ind = list(partition.dependent), list(partition.independent)

@@ -73,7 +73,7 @@ def spring_masses(damping: bool = False) -> System:
     if damping:
         params.append(Parameter(d, 0.5, "N*s/m"))
         damper = d * (ydot - x1d)
-    m1v, m2v, kv = 1.0, 2.0, 4.0
+    m2v, kv = 2.0, 4.0
     # consistent start (t = 0, y_d = 0.1 sin t): y = y_d, y' = y_d'; without damping the
     # first mass sits where m2 y_d'' = k (x1 - y): x1 = 0, x1' = 0.1 - 0.1 m2/k; with the damper x1 = 0 and
     # d (y_d' - x1') = k x1 - m2 y_d'' gives x1' = 0.1

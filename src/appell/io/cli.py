@@ -209,18 +209,14 @@ def write_netcdf(solution, path: Path) -> Path:
     Variables carry ``long_name`` (and ``units = 's'`` for ``t``); global attributes record
     the model, status, message, constraint names and kinds, and the appell version.
     """
-    import contextlib
-    import os
-    import tempfile
-
     import numpy as np
     from scipy.io import netcdf_file
 
+    from appell.io.files import atomic_path
+
     path = Path(path)
     md = solution.metadata
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".nc", dir=path.parent if str(path.parent) else ".")
-    os.close(fd)
-    try:
+    with atomic_path(path, suffix=".nc") as tmp:
         with netcdf_file(tmp, "w", version=2, mmap=False) as f:
             f.title = f"appell simulation of {md.name}"
             f.model = md.name
@@ -236,14 +232,6 @@ def write_netcdf(solution, path: Path) -> Path:
                 var.long_name = "time" if name == "t" else name
                 if name == "t":
                     var.units = "s"
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
     return path
 
 

@@ -27,13 +27,10 @@ of ``<body>`` (the test suite reads them from headless Chromium).
 from __future__ import annotations
 
 import base64
-import contextlib
 import datetime as _dt
 import html
 import io
-import os
 import re
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -42,6 +39,7 @@ import numpy as np
 import sympy as sp
 
 from appell.core.equations import tidy
+from appell.io.files import atomic_path
 from appell.io.printing import latex
 
 __all__ = ["EquationRow", "equation_groups", "mathml", "render_report", "write_report", "solution_figures"]
@@ -411,16 +409,6 @@ def write_report(path, derivation, solution=None, check=None, **options) -> Path
     it, so that a failure leaves no partial file. Returns the path."""
     page = render_report(derivation, solution, check, **options)
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent if str(path.parent) else ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(page)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates the file private (0600)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path, suffix=".tmp") as tmp:
+        tmp.write_text(page, encoding="utf-8")
     return path

@@ -23,7 +23,7 @@ import sympy as sp
 
 from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError, ModelError
-from appell.core.partition import RANK_TOL, pivoted_columns
+from appell.core.partition import pivoted_columns
 from appell.symbols import derivative_symbol, t
 
 #: condition number of J_h above which the partition is switched

@@ -14,11 +14,8 @@ neither; empty cells in the file are NaN.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import html
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -26,27 +23,9 @@ from typing import Mapping
 
 import numpy as np
 
+from appell.io.files import atomic_path
+
 __all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Solution", "atomic_path"]
-
-
-@contextlib.contextmanager
-def atomic_path(path, suffix: str | None = None):
-    """Yield a temporary path beside ``path``; on success move it over ``path``.
-
-    On any exception the temporary file is removed and ``path`` is left as it was.
-    """
-    path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix if suffix is not None else path.suffix,
-                               dir=directory)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
 
 
 @dataclass(frozen=True)

@@ -25,8 +25,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
-import tempfile
 import time
 import traceback
 import uuid
@@ -37,6 +35,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from appell.errors import ModelError
+from appell.io.files import atomic_path
 
 #: run status for a run that raised (simulate's own codes are 0, 1 and -1)
 RAISED = -2
@@ -213,9 +212,7 @@ def _write_hdf5(path: Path, t_eval, runs, groups, summary, attrs):
     import h5py
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
+    with atomic_path(path, suffix=".tmp") as tmp:
         with h5py.File(tmp, "w") as f:
             f["t"] = np.asarray(t_eval)
             names = list(runs[0].parameters) if runs else []
@@ -231,10 +228,6 @@ def _write_hdf5(path: Path, t_eval, runs, groups, summary, attrs):
             for k, v in attrs.items():
                 f.attrs[k] = v
             f.attrs["summary"] = json.dumps(summary, default=str)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples: int = 501,
@@ -315,9 +308,7 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
                                                           {k: list(map(float, v)) for k, v in specs.items()}),
                  "t_end": float(t_end), "backend": backend})
     summary_path = path.with_name(path.name + ".summary.json")
-    fd, tmp = tempfile.mkstemp(prefix=summary_path.name + ".", dir=path.parent)
-    with os.fdopen(fd, "w") as fh:
-        json.dump({"runs": [r.__dict__ | {"message": r.message.splitlines()[0] if r.message else ""} for r in runs],
-                   **summary}, fh, indent=1, default=str)
-    os.replace(tmp, summary_path)
+    with atomic_path(summary_path, suffix=".tmp") as tmp:
+        tmp.write_text(json.dumps({"runs": [r.__dict__ | {"message": r.message.splitlines()[0] if r.message else ""}
+                                            for r in runs], **summary}, indent=1, default=str))
     return SweepResult(path, runs, summary)

@@ -33,7 +33,7 @@ from appell.model import (
     RigidBody,
     System,
 )
-from appell.symbols import canonical_name, derivative_name, derivative_symbol, split_derivative_name
+from appell.symbols import canonical_name, derivative_name, split_derivative_name
 from appell.core.validation import declared_symbols, validate
 from .expressions import FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_value, parse_expression
 from .locate import source_map
