@@ -114,10 +114,23 @@ def split_basis(J: np.ndarray, dependent) -> tuple[np.ndarray, np.ndarray, list[
     return C, Jh, dep, ind
 
 
-def well_conditioned(Jh: np.ndarray) -> bool:
+def block_inverse(Jh: np.ndarray) -> np.ndarray | None:
+    """``J_h^{-1}`` of the small dependent block, or None when ``J_h`` is singular or its
+    1-norm condition number ``|J_h|_1 |J_h^{-1}|_1`` reaches :data:`SWITCH_CONDITION`
+    (the same test as the C backend)."""
     if Jh.size == 0:
-        return True
-    return np.linalg.cond(Jh) < SWITCH_CONDITION
+        return np.zeros((0, 0))
+    try:
+        inv = np.linalg.inv(Jh)
+    except np.linalg.LinAlgError:
+        return None
+    cond = np.abs(Jh).sum(axis=0).max() * np.abs(inv).sum(axis=0).max()
+    return inv if np.isfinite(cond) and cond < SWITCH_CONDITION else None
+
+
+def well_conditioned(Jh: np.ndarray) -> bool:
+    """Whether the dependent block ``J_h`` may be used (:func:`block_inverse`)."""
+    return block_inverse(Jh) is not None
 
 
 def choose_dependent(J: np.ndarray, names) -> tuple[int, ...]:
@@ -199,10 +212,11 @@ class NumericModel:
         dep = tuple(self.derivation.partition.dependent if dependent is None else dependent)
         if self.constraint_function is None:
             switched = False
-            if not well_conditioned(J[:, list(dep)]):
+            Jh_inv = block_inverse(J[:, list(dep)])
+            if Jh_inv is None:
                 dep = choose_dependent(J, names)
-                switched = True
-            a, lam = _split_linear(M, hQ, J, c, dep)
+                Jh_inv, switched = block_inverse(J[:, list(dep)]), True
+            a, lam = _split_linear(M, hQ, J, c, dep, Jh_inv)
             return StateSolution(a, lam, J.T @ lam, dep, switched)
         return self._solve_nonlinear(t, q, w, pv, M, hQ, dep, bias)
 
@@ -318,20 +332,23 @@ class NumericModel:
         return np.asarray(fn(float(t), q, w, a, self.params(p))[0], float).reshape(-1)
 
 
-def _split_linear(M, hQ, J, c, dep):
-    """Steps 2–4 of the module docstring for ``J a + c = 0``."""
+def _split_linear(M, hQ, J, c, dep, Jh_inv=None):
+    """Steps 2–4 of the module docstring for ``J a + c = 0`` (``Jh_inv``: ``J_h^{-1}`` if
+    already known)."""
     n = M.shape[0]
     if J.shape[0] == 0:
-        a = np.linalg.solve(M, -hQ)
-        return a, np.zeros(0)
-    C, Jh, dep, ind = split_basis(J, dep)
+        return np.linalg.solve(M, -hQ), np.zeros(0)
+    dep = list(dep)
+    ind = [i for i in range(n) if i not in dep]
+    if Jh_inv is None:
+        Jh_inv = np.linalg.inv(J[:, dep])
+    C = np.zeros((n, len(ind)))
+    C[ind, np.arange(len(ind))] = 1.0
+    C[dep, :] = -Jh_inv @ J[:, ind]
     d = np.zeros(n)
-    d[dep] = -np.linalg.solve(Jh, c)
-    A = C.T @ M @ C
-    b = -C.T @ (M @ d + hQ)
-    a = C @ np.linalg.solve(A, b) + d if ind else d
-    E = M @ a + hQ
-    lam = np.linalg.solve(Jh.T, E[dep])
+    d[dep] = -Jh_inv @ c
+    a = C @ np.linalg.solve(C.T @ M @ C, -C.T @ (M @ d + hQ)) + d if ind else d
+    lam = Jh_inv.T @ (M @ a + hQ)[dep]
     return a, lam
 
 
