@@ -108,3 +108,15 @@ def test_first_order_constraint_on_a_given_rate_only_points_to_programs():
     with pytest.raises(ModelError, match="involves no speed") as err:
         derive(sysm)
     assert "u_dot" in str(err.value) and "program" in str(err.value)
+
+
+def test_state_outside_the_models_domain_is_a_computation_error():
+    """sqrt(x) in the kinetic energy evaluated at x < 0: a clear ComputationError, not a NaN that
+    propagates or a ValueError from inside the generated code."""
+    k = sp.Symbol("k")
+    sysm = System(coordinates=(x,), parameters={k: 1.0}, kinetic_energy=sp.sqrt(x) * xd**2 / 2 + k * xd**2)
+    d = derive(sysm)
+    assert np.isfinite(d.numeric.solve(0.0, [0.5], [1.0]).accelerations).all()
+    with pytest.raises(ComputationError, match="cannot be evaluated at this state") as err:
+        d.numeric.solve(0.0, [-0.5], [1.0])
+    assert "domain" in str(err.value)
