@@ -17,10 +17,9 @@ classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``
    * speeds: then ``dw = -phi_w^+ phi`` on the velocity-level constraints (holonomic
      ``dF/dt`` and first-order), iterated when ``phi`` is nonlinear in ``w``;
 
-4. the output times inside the step are filled from the dense output (projected as in 3
-   when their residual exceeds ``projection_tol``); at each the model is evaluated
-   again, so that every multiplier, control and residual is the one of the recorded
-   state.
+4. the output times inside the step are filled from the dense output; at each the
+   model is evaluated again, so that every multiplier, control and residual is the one
+   of the recorded state.
 
 ``stabilization='baumgarte'`` instead integrates ``f + 2 alpha phi + beta^2 F = 0`` in
 place of ``f = 0`` (Baumgarte 1972); the model must accept ``bias=`` in ``evaluate``
@@ -157,16 +156,8 @@ class _Run:
         return [table.get(n, fill) for n in self.names]
 
     def record(self, model, t, y, ev=None):
-        """Record the state at an output time. A state from the dense output (``ev`` None)
-        is projected like a step's end when its residual exceeds ``projection_tol``."""
-        F, phi = model.state_residuals(t, y, self.p)
-        if ev is None and self.settings["stabilization"] == "projection":
-            worst = max(np.nanmax(np.abs(np.asarray(F, float)), initial=0.0),
-                        np.nanmax(np.abs(np.asarray(phi, float)), initial=0.0))
-            if worst > self.settings["projection_tol"]:
-                y = project(model, t, y, self.p)
-                F, phi = model.state_residuals(t, y, self.p)
         ev = self.evaluate(model, t, y) if ev is None else ev
+        F, phi = model.state_residuals(t, y, self.p)
         self.rows_t.append(float(t))
         self.rows_y.append(np.array(y, float))
         self.rows_lam.append(self.by_name(model, ev.multipliers, 0.0))
