@@ -470,3 +470,12 @@ def test_backends_give_the_same_motion(tmp_path):
         assert run("simulate", "knife_edge", "--t-end", "1", "--backend", backend, "--out", out).exit_code == 0
         rows[backend] = np.loadtxt(out, delimiter=",", skiprows=1)
     assert np.allclose(rows["numpy"], rows["c"], rtol=1e-8, atol=1e-10)
+
+
+def test_check_reports_first_integral_verdicts():
+    """Spherical pendulum: energy and p_phi are integrals (multipliers vanish), phi_dot is not."""
+    result = run("check", "spherical_pendulum")
+    assert result.exit_code == 0, result.output
+    assert "energy: integral" in result.output and "p_phi: integral" in result.output
+    assert "phi_rate: not an integral" in result.output
+    assert "reducible: yes, by 2 first integral(s)" in result.output

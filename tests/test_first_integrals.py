@@ -33,7 +33,8 @@ def test_spherical_pendulum_energy_and_momentum_are_integrals():
         assert c.verdict == "integral" and c.route == "symbolic", c.message
         assert c.largest_multiplier == 0.0
         assert c.drift < 1e-8  # g stays constant along the integrated motion (independent check)
-    assert not rep.reducible  # phi_rate is not an integral
+    assert rep.reducible and rep.integrals == ("energy", "p_phi")  # phi_rate is not an integral
+    assert "reducible: yes, by 2 first integral(s): energy, p_phi; not integrals: phi_rate" in rep.to_text()
 
 
 def test_spherical_pendulum_phi_rate_is_not_an_integral():
@@ -68,7 +69,7 @@ def test_cartesian_pendulum_integrals_on_the_constraint_manifold():
     assert e.largest_relative < 1e-8
     assert lz.verdict == "integral" and lz.route == "symbolic"
     assert xr.verdict == "not an integral" and xr.largest_relative > 0.1
-    assert not rep.reducible
+    assert rep.integrals == ("energy", "L_z")
 
 
 def test_symmetric_top_and_turntable_are_reducible():
@@ -118,3 +119,12 @@ def test_nonzero_multiplier_relative_to_random_states():
     assert c.route == "numeric" and c.verdict == "not an integral"
     assert set(c.where) == {"t", "theta", "phi", "theta_dot", "phi_dot"}
     assert np.isfinite(c.largest_multiplier) and c.largest_multiplier > 0.1
+
+
+def test_no_integral_among_the_candidates_is_not_reducible():
+    """Only the non-integral candidate phi_dot of the spherical pendulum: nothing to reduce by."""
+    sysm = spherical_pendulum()
+    only = [fi for fi in sysm.first_integrals if fi.name == "phi_rate"]
+    rep = check_first_integrals(sysm, integrals=only)
+    assert not rep.reducible and rep.integrals == ()
+    assert "reducible: no" in rep.to_text()

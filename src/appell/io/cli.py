@@ -362,6 +362,16 @@ def simulate(model, t_end, out, plot, backend, assignments):
             click.echo(f"wrote {path}")
 
 
+def _first_integrals(derivation):
+    """The verdicts on the model's candidate first integrals, or None when it has none
+    (or is a controlled system, whose integrals are not checked)."""
+    if not derivation.system.first_integrals or is_controlled(derivation):
+        return None
+    from appell.reduction.first_integrals import check_first_integrals
+
+    return check_first_integrals(derivation.system)
+
+
 def _cross_check(derivation):
     """:func:`appell.cross_check`, or :func:`appell.cross_check_controlled` for a
     controlled derivation (the augmented system with the controls as unknowns)."""
@@ -384,11 +394,17 @@ def check(model, tolerance, assignments):
 
     Prints the largest discrepancies of the accelerations and of each multiplier and the
     power of the reactions on admissible motions; exits with 1 when one exceeds the
-    tolerance.
+    tolerance. A model with candidate first integrals also gets the verdict on each: its
+    multiplier (1.5) as an added constraint vanishes on the motion exactly when it is an
+    integral (method.md §5).
     """
     system = load_system(model, parse_assignments(assignments))
-    report = _cross_check(derive_model(system))
+    derivation = derive_model(system)
+    report = _cross_check(derivation)
     click.echo(str(report))
+    integrals = _first_integrals(derivation)
+    if integrals is not None:
+        click.echo(integrals.to_text())
     if not report.passed(tolerance):
         raise ComputationError(f"cross-check failed: a relative difference exceeds {tolerance:g}",
                                hint="the split route and the augmented system disagree; see the table above")
@@ -426,7 +442,8 @@ def report(model, output, t_end, no_simulation, backend, assignments):
     else:
         solution = run_simulation(derivation, t_end, backend)
     path = Path(output) if output else Path(f"{system.name}-report.html")
-    write_report(path, derivation, solution, check_report, simulation_note=note)
+    write_report(path, derivation, solution, check_report, simulation_note=note,
+                 integrals=_first_integrals(derivation))
     click.echo(f"wrote {path}")
     if not check_report.passed():
         raise ComputationError("cross-check failed (see the report)")

@@ -365,13 +365,25 @@ def _check_section(check, tolerance: float) -> str:
     ])
 
 
+def _integrals_section(report) -> str:
+    """The verdict on each candidate first integral (:mod:`appell.reduction.first_integrals`)."""
+    rows = [(_e(c.name), _e(c.verdict), _e(c.route), _e(c.message)) for c in report.checks]
+    verdict = (f"Reducible by {len(report.integrals)} first integral(s): {', '.join(report.integrals)}."
+               if report.reducible else "Not reducible: no candidate is a first integral.")
+    return ("<h2 id='integrals'>First integrals (method.md §5)</h2>"
+            "<p>Each candidate is added as a constraint; its multiplier (1.5) vanishes on the motion "
+            "exactly when it is a first integral.</p>"
+            + _table(("candidate", "verdict", "shown", "detail"), rows) + f"<p>{_e(verdict)}</p>")
+
+
 def render_report(derivation, solution=None, check=None, *, title: str | None = None,
-                  tolerance: float = 1e-9, simulation_note: str | None = None) -> str:
+                  tolerance: float = 1e-9, simulation_note: str | None = None, integrals=None) -> str:
     """The HTML page (a string) for ``derivation`` (a :class:`~appell.core.equations.Derivation`
     or a controlled derivation of :mod:`appell.control.servo`), with the plots of ``solution``
     (:class:`~appell.simulation.solution.Solution`) and the table of ``check``
     (:class:`~appell.numerics.crosscheck.CrossCheckReport`, judged at ``tolerance``) when given.
-    ``simulation_note`` says why there is no simulation (shown in its place)."""
+    ``simulation_note`` says why there is no simulation (shown in its place); ``integrals``
+    a :class:`~appell.reduction.first_integrals.FirstIntegralReport` to show."""
     from appell import __version__
 
     system = derivation.system
@@ -386,6 +398,9 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
     if check is not None:
         sections.append(_check_section(check, tolerance))
         nav.append("<a href='#check'>cross-check</a>")
+    if integrals is not None:
+        sections.append(_integrals_section(integrals))
+        nav.append("<a href='#integrals'>first integrals</a>")
     stamp = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
     return "\n".join([
         "<!DOCTYPE html>",

@@ -117,15 +117,22 @@ class FirstIntegralCheck:
 
 @dataclass(frozen=True)
 class FirstIntegralReport:
-    """The checks of all candidates of a system; ``reducible`` if every one is an integral."""
+    """The checks of all candidates of a system. The system is ``reducible`` when at least
+    one candidate is a first integral: each integral lowers the order of the motion by one
+    (method.md §5); ``integrals`` names them."""
 
     system: System
     checks: tuple[FirstIntegralCheck, ...]
 
     @property
+    def integrals(self) -> tuple[str, ...]:
+        """Names of the candidates that are first integrals (multiplier identically zero)."""
+        return tuple(c.name for c in self.checks if c.is_integral)
+
+    @property
     def reducible(self) -> bool:
-        """True when every candidate is a first integral (all multipliers vanish)."""
-        return all(c.is_integral for c in self.checks)
+        """True when at least one candidate is a first integral."""
+        return bool(self.integrals)
 
     def __getitem__(self, name: str) -> FirstIntegralCheck:
         for c in self.checks:
@@ -137,7 +144,12 @@ class FirstIntegralReport:
         lines = [f"first integrals of {self.system.name}:"]
         for c in self.checks:
             lines.append(f"  {c.name}: {c.verdict} ({c.route}) — {c.message}")
-        lines.append("  reducible: " + ("yes" if self.reducible else "no"))
+        others = [c.name for c in self.checks if not c.is_integral]
+        if self.reducible:
+            lines.append(f"  reducible: yes, by {len(self.integrals)} first integral(s): {', '.join(self.integrals)}"
+                         + (f"; not integrals: {', '.join(others)}" if others else ""))
+        else:
+            lines.append("  reducible: no (no candidate is a first integral)")
         return "\n".join(lines)
 
 
