@@ -479,3 +479,17 @@ def test_check_reports_first_integral_verdicts():
     assert "energy: integral" in result.output and "p_phi: integral" in result.output
     assert "phi_rate: not an integral" in result.output
     assert "reducible: yes, by 2 first integral(s)" in result.output
+
+
+def test_an_internal_error_is_reported_without_traceback(monkeypatch):
+    """A bug (here: derive raising RuntimeError) gives 'error: internal error ...', exit 1, no traceback."""
+    import appell.io.cli as cli_module
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(cli_module, "derive_model", broken)
+    monkeypatch.delenv("APPELL_DEBUG", raising=False)
+    result = run("derive", "pendulum")
+    assert result.exit_code == 1
+    assert "error: internal error: RuntimeError: boom" in result.output and "Traceback" not in result.output

@@ -21,6 +21,7 @@ stderr, never as a traceback, and no output file is left behind.
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -267,6 +268,12 @@ class _AppellGroup(click.Group):
                                  EXIT_BAD_INPUT)
         except KeyboardInterrupt:
             code = _report_error("interrupted", None, 130)
+        except Exception as exc:  # a bug, not the user's input: no traceback unless asked for
+            if os.environ.get("APPELL_DEBUG"):
+                raise
+            code = _report_error(f"internal error: {type(exc).__name__}: {exc}",
+                                 "this is a bug in appell; rerun with APPELL_DEBUG=1 for the traceback "
+                                 "and report it with the model file", EXIT_FAILURE)
         else:
             code = rv if isinstance(rv, int) else EXIT_OK
         if standalone_mode:
