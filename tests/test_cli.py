@@ -493,3 +493,20 @@ def test_an_internal_error_is_reported_without_traceback(monkeypatch):
     result = run("derive", "pendulum")
     assert result.exit_code == 1
     assert "error: internal error: RuntimeError: boom" in result.output and "Traceback" not in result.output
+
+
+def test_derive_routh_prints_the_reduced_lagrangian():
+    """Heavy symmetric top over its cyclic angles phi, psi: T* = I1 theta'^2/2 (Goldstein 3rd ed.
+    §5.7: the reduced kinetic energy keeps only the nutation), momenta from the initial state;
+    a model without cyclic coordinates is bad input."""
+    result = run("derive", "symmetric_top", "--routh", "--format", "json")
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.output)
+    assert out["routh"]["cyclic"] == ["phi", "psi"] and set(out["routh"]["momenta"]) == {"h_phi", "h_psi"}
+    I1, theta_dot = sp.symbols("I1 theta_dot")
+    assert sp.simplify(sp.sympify(out["routh"]["T*"]) - I1 * theta_dot**2 / 2) == 0
+    assert out["coordinates"] == ["theta"]
+    # p_psi = I3 (psi' + cos(theta) phi') at the initial state of the model file
+    assert out["routh"]["momenta"]["h_psi"] == pytest.approx(0.4 * (12.0 + math.cos(0.6) * 0.5), rel=1e-12)
+    bad = run("derive", "car", "--routh")
+    assert bad.exit_code == 2 and "no cyclic coordinate" in bad.output

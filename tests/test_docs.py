@@ -152,3 +152,16 @@ def test_sphinx_build_without_warnings(tmp_path):
         assert (out / f"{page}.html").exists(), page
     api = (out / "api.html").read_text(encoding="utf-8")
     assert "derive_controlled" in api and "write_report" in api  # autodoc found the docstrings
+
+
+def test_readme_python_example_runs(workdir, capsys):
+    """The README's Python example runs as printed and gives the rod tension it states
+    (m g cos(theta) = 9.81 * 0.8 = 7.848 N at rest at x = 0.6, y = -0.8)."""
+    readme = (DOCS.parent / "README.md").read_text(encoding="utf-8")
+    blocks = [(line, code) for language, line, code in code_blocks(readme) if language == "python"]
+    assert blocks, "README.md has no python block"
+    for line, code in blocks:
+        namespace: dict = {"__name__": "readme"}
+        exec(compile(code, f"README.md:{line}", "exec"), namespace)  # noqa: S102 - our own README
+    assert namespace["sol"].multipliers[0] == pytest.approx(9.81 * 0.8, rel=1e-12)
+    assert "lambda_rod" in capsys.readouterr().out

@@ -315,21 +315,37 @@ def cli():
               help="Output format; JSON expressions are SymPy-parsable strings.")
 @click.option("--dependent", multiple=True, metavar="NAME",
               help="A dependent acceleration of the partition (repeat once per constraint), e.g. x_ddot or x''.")
+@click.option("--routh", is_flag=True,
+              help="First reduce over the cyclic coordinates (Routh, method.md §5): print the cyclic "
+                   "velocities (3.4), T*, V and L* = T* - V, then the reduced system's equations.")
 @_set_option
-def derive(model, fmt, dependent, assignments):
+def derive(model, fmt, dependent, routh, assignments):
     """Print the reduced equations (1.4) and one reaction formula per constraint (1.5).
 
     For a model with servo constraints: the dynamic conditions (2.3), the reduced
     equations (2.4), the reactions (2.5) and the control laws.
     """
     system = load_system(model, parse_assignments(assignments))
+    reduction = None
+    if routh:
+        from appell.reduction.cyclic import routh_reduction
+
+        reduction = routh_reduction(system)
+        system = reduction.system
     derivation = derive_model(system, dependent)
     if fmt == "json":
-        click.echo(json.dumps(derivation_json(derivation), indent=2))
+        out = derivation_json(derivation)
+        if reduction is not None:
+            out["routh"] = {
+                "cyclic": [q.name for q in reduction.cyclic],
+                "momenta": {h.name: v for h, v in zip(reduction.momenta, reduction.momentum_values)},
+                **{name: str(e) for name, e in reduction.equations()},
+            }
+        click.echo(json.dumps(out, indent=2))
     elif fmt == "latex":
-        click.echo(derivation.to_latex())
+        click.echo((reduction.to_latex() + "\n\n" if reduction is not None else "") + derivation.to_latex())
     else:
-        click.echo(derivation.to_text())
+        click.echo((reduction.to_text() + "\n\n" if reduction is not None else "") + derivation.to_text())
 
 
 @cli.command(context_settings=_CONTEXT)
