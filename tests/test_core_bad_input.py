@@ -120,3 +120,10 @@ def test_state_outside_the_models_domain_is_a_computation_error():
     with pytest.raises(ComputationError, match="cannot be evaluated at this state") as err:
         d.numeric.solve(0.0, [-0.5], [1.0])
     assert "domain" in str(err.value)
+
+
+def test_units_for_an_unknown_name():
+    sysm = _particle((holonomic("rod", x**2 + y**2 - 1),), units={"x": "m", "bob": "kg"})
+    with pytest.raises(ModelError, match="units given for unknown name") as err:
+        derive(sysm)
+    assert "bob" in str(err.value)

@@ -44,6 +44,7 @@ def test_model_file_equals_builder(name):
     assert [(p.symbol, p.value, p.unit) for p in from_file.parameters] == \
         [(p.symbol, p.value, p.unit) for p in built.parameters]
     assert dict(from_file.initial) == pytest.approx(dict(built.initial), abs=1e-15)
+    assert dict(from_file.units) == dict(built.units)
     assert [(c.name, c.order) for c in from_file.constraints] == [(c.name, c.order) for c in built.constraints]
     for c in from_file.constraints:
         assert c.where.startswith(str(example_path(name))) and c.where.rsplit(":", 1)[1].isdigit()
@@ -405,3 +406,23 @@ def test_reference_page_examples_load():
     for block in complete:
         system = loads_model(block, source="model-format.md")
         assert cross_check(derive(system)).passed()
+
+
+def test_units_table_reaches_the_result_files(tmp_path):
+    """[units] of car.toml: HDF5 datasets carry them (states, multipliers); an unknown name in
+    [units] is an error with its line."""
+    import h5py
+
+    from appell.simulation.simulate import simulate
+
+    system = load_model(example_path("car"))
+    assert system.unit_of["lambda_rear"] == "N" and system.unit_of["phi_dot"] == "rad/s"
+    sol = simulate(derive(system), 0.5, complete=True)
+    sol.to_hdf5(tmp_path / "car.h5")
+    with h5py.File(tmp_path / "car.h5") as f:
+        assert f["states/x"].attrs["units"] == "m" and f["states/phi_dot"].attrs["units"] == "rad/s"
+        assert f["multipliers/front"].attrs["units"] == "N"
+    text = example_path("pendulum").read_text() + '\nbob = "kg"\n'
+    with pytest.raises(ModelError, match="not a coordinate, speed, constraint or control") as err:
+        loads_model(text, source="p.toml")
+    assert err.value.where.startswith("p.toml:")

@@ -280,6 +280,8 @@ class System:
     initial : initial values ``{name or symbol: value}`` of coordinates and speeds.
     settings : ``((key, value), ...)`` or a mapping — run settings such as a model file's
         ``[simulation]`` table (t_end, method, rtol, ...); stored, not interpreted here.
+    units : ``{name: unit}`` for coordinates, speeds, constraints (the unit of their
+        multiplier) and controls; recorded in result files.
     """
 
     coordinates: tuple[sp.Symbol, ...]
@@ -301,6 +303,7 @@ class System:
     name: str = "system"
     description: str = ""
     settings: tuple[tuple[str, object], ...] = ()
+    units: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self):
         s = object.__setattr__
@@ -346,6 +349,8 @@ class System:
         s(self, "initial", tuple((str(k), float(v)) for k, v in init))
         settings = self.settings.items() if isinstance(self.settings, Mapping) else self.settings
         s(self, "settings", tuple((str(k), v) for k, v in settings))
+        units = self.units.items() if isinstance(self.units, Mapping) else self.units
+        s(self, "units", tuple((str(k), str(v)) for k, v in units))
         if self.kinetic_energy is None and self.acceleration_energy is None and not self.bodies:
             raise ModelError(
                 f"system {self.name!r} has no mechanics",
@@ -369,6 +374,17 @@ class System:
     @property
     def initial_values(self) -> dict[str, float]:
         return dict(self.initial)
+
+    @property
+    def unit_of(self) -> dict[str, str]:
+        """Units by result column: state names, ``lambda_<constraint>``, ``control_<name>``."""
+        constraints = {c.name for c in self.constraints}
+        controls = {c.name for c in self.controls}
+        out = {}
+        for name, unit in self.units:
+            key = f"lambda_{name}" if name in constraints else f"control_{name}" if name in controls else name
+            out[key] = unit
+        return out
 
     def replace(self, **changes) -> "System":
         """A copy with some fields changed (the original is untouched)."""

@@ -49,6 +49,8 @@ def car() -> System:
             nonholonomic("front", xd * sp.sin(phi + theta) - yd * sp.cos(phi + theta) - a * sp.cos(theta) * phid),
         ),
         initial={"x": 0.0, "y": 0.0, "phi": 0.3, "phi_dot": 0.1},
+        units={"x": "m", "y": "m", "phi": "rad", "x_dot": "m/s", "y_dot": "m/s", "phi_dot": "rad/s",
+               "rear": "N", "front": "N"},
     )
 
 
@@ -72,6 +74,7 @@ def pendulum() -> System:
         potential_energy=m * g * y,
         constraints=(holonomic("rod", (L**2 - x**2 - y**2) / (2 * L)),),
         initial={"x": float(sp.sin(th0)), "y": float(-sp.cos(th0)), "x_dot": 0.0, "y_dot": 0.0},
+        units={"x": "m", "y": "m", "x_dot": "m/s", "y_dot": "m/s", "rod": "N"},
     )
 
 

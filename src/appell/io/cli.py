@@ -231,8 +231,9 @@ def write_netcdf(solution, path: Path) -> Path:
                 var = f.createVariable(name, "d", ("time",))
                 var[:] = np.asarray(values, float)
                 var.long_name = "time" if name == "t" else name
-                if name == "t":
-                    var.units = "s"
+                unit = "s" if name == "t" else md.units.get(name)
+                if unit:
+                    var.units = unit
     return path
 
 

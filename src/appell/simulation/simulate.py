@@ -103,7 +103,8 @@ def _metadata(model, system, p, kinds, settings) -> ModelMetadata:
         units = {prm.symbol.name: (prm.unit or "", prm.description or "") for prm in system.parameters}
     params = tuple((n, float(v), *units.get(n, ("", ""))) for n, v in zip(model.parameter_names, p))
     return ModelMetadata(model.name, params, tuple(model.constraint_names), kinds,
-                         getattr(appell, "__version__", ""), settings)
+                         getattr(appell, "__version__", ""), settings,
+                         system.unit_of if system is not None else {})
 
 
 def _initial_state(model, initial, complete, t0, p):

@@ -66,8 +66,8 @@ class SolverStatistics:
 class ModelMetadata:
     """What a result file records about its model: ``name``, ``parameters`` as
     ``(name, value, unit, description)``, ``constraint_names``, ``constraint_kinds``
-    (``'holonomic'``, ``'first-order'``, ``'second-order'``), ``appell_version`` and the
-    integration settings."""
+    (``'holonomic'``, ``'first-order'``, ``'second-order'``), ``appell_version``, the
+    integration settings and the ``units`` of result columns the model declares."""
 
     name: str
     parameters: tuple[tuple[str, float, str, str], ...] = ()
@@ -75,6 +75,7 @@ class ModelMetadata:
     constraint_kinds: tuple[str, ...] = ()
     appell_version: str = ""
     settings: Mapping[str, str] = field(default_factory=dict)
+    units: Mapping[str, str] = field(default_factory=dict)
 
 
 def _frozen_arrays(mapping) -> Mapping[str, np.ndarray]:
@@ -215,7 +216,8 @@ class Solution:
         Datasets ``/t``, ``/states/<name>``, ``/multipliers/<constraint>``,
         ``/controls/<name>``, ``/residuals/position/<c>``, ``/residuals/velocity/<c>``,
         each with ``units`` and ``description`` attributes (``units`` from the mapping
-        ``units`` by column name, else ``'s'`` for time and ``'unspecified'``); root
+        ``units`` by column name, else the model's declared units, else ``'s'`` for time
+        and ``'unspecified'``); root
         attributes: model name, status, message, appell version, constraint names and
         kinds, solver statistics, settings; group ``/parameters`` with one attribute per
         parameter value and ``<name>.unit`` / ``<name>.description``; ``/events`` and
@@ -223,9 +225,9 @@ class Solution:
         """
         import h5py
 
-        units = dict(units or {})
-        path = Path(path)
         md = self.metadata
+        units = {**md.units, **(units or {})}
+        path = Path(path)
         with atomic_path(path) as tmp:
             with h5py.File(tmp, "w") as f:
                 f.attrs["format"] = "appell simulation result"

@@ -59,6 +59,7 @@ TABLES = {
     "servo_constraints": "[servo_constraints.NAME] kind, expr",
     "first_integrals": "[first_integrals.NAME] expr, value",
     "simulation": "run settings",
+    "units": "NAME = unit of a coordinate, speed, constraint's multiplier or control (recorded in result files)",
 }
 
 MODEL_KEYS = ("name", "description", "coordinates", "speeds")
@@ -539,6 +540,24 @@ def _check_declared(r: _Reader, system: System):
                           line=r.map.content_line(path))
 
 
+def _units(r: _Reader, doc: dict, allowed: list[str]) -> tuple[tuple[str, str], ...]:
+    """``[units]``: ``NAME = "unit"`` (prime notation allowed for speeds)."""
+    if "units" not in doc:
+        return ()
+    section = doc["units"]
+    if not isinstance(section, dict):
+        raise r.error(("units",), f"must be a table, got {_kind(section)}",
+                      hint='write [units] followed by NAME = "unit" lines')
+    out = []
+    for key, value in section.items():
+        name = canonical_name(key)
+        if name not in allowed:
+            raise r.error(("units", key), f"{key!r} is not a coordinate, speed, constraint or control",
+                          hint=f"units can be given for: {', '.join(allowed)}")
+        out.append((name, r.string(("units", key), value)))
+    return tuple(out)
+
+
 def _build(r: _Reader, doc: dict) -> System:
     top = r.table((), doc, tuple(TABLES))
     name, description, coordinates, speeds = _model(r, top)
@@ -589,6 +608,7 @@ def _build(r: _Reader, doc: dict) -> System:
     servo = _constraints(r, top, "servo_constraints")
     first_integrals = _first_integrals(r, top)
     settings = _simulation(r, top, [c.name for c in constraints])
+    units = _units(r, top, allowed_initial + [c.name for c in constraints] + [c.name for c in controls])
 
     if not bodies and "kinetic_energy" not in mechanics and "acceleration_energy" not in mechanics:
         raise r.error(("mechanics",), "the model has no mechanics",
@@ -619,6 +639,7 @@ def _build(r: _Reader, doc: dict) -> System:
             name=name,
             description=description,
             settings=settings,
+            units=units,
         )
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
