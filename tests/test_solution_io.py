@@ -63,15 +63,17 @@ def test_csv_controls_and_second_order_residual(tmp_path):
 
 
 def test_hdf5_is_self_describing(car_solution, tmp_path):
-    path = car_solution.to_hdf5(tmp_path / "car.h5", units={"x": "m", "lambda_rear": "N"})
+    # the car declares its units ([units] / System.units); an explicit mapping overrides them
+    path = car_solution.to_hdf5(tmp_path / "car.h5", units={"x": "km"})
     with h5py.File(path, "r") as f:
         assert f.attrs["model"] == "car"
         assert f.attrs["appell_version"] == appell.__version__
         assert list(f.attrs["constraint_names"]) == ["rear", "front"]
         assert list(f.attrs["constraint_kinds"]) == ["first-order", "first-order"]
         assert f["t"].attrs["units"] == "s"
-        assert f["states/x"].attrs["units"] == "m"
-        assert f["states/y"].attrs["units"] == "unspecified"
+        assert f["states/x"].attrs["units"] == "km"
+        assert f["states/y"].attrs["units"] == "m"
+        assert f["residuals/velocity/rear"].attrs["units"] == "unspecified"
         assert "coordinate" in f["states/x"].attrs["description"]
         assert f["multipliers/rear"].attrs["units"] == "N"
         assert "rear" in f["multipliers/rear"].attrs["description"]
