@@ -13,14 +13,13 @@ import numpy as np
 import sympy as sp
 
 import appell
+from appell.examples.catalog import nlink_pendulum
 
 
 def nlink_parameters(n: int) -> dict[str, float]:
-    """Parameter values: masses 1 + 0.1 i kg, lengths 1 - 0.02 i m, g, d = 0.3 m."""
-    out = {f"m{i}": 1.0 + 0.1 * i for i in range(1, n + 1)}
-    out.update({f"l{i}": 1.0 - 0.02 * i for i in range(1, n + 1)})
-    out.update({"g": 9.81, "d": 0.3})
-    return out
+    """Parameter values of :func:`appell.examples.catalog.nlink_pendulum` (masses
+    1 + 0.1 i kg, lengths 1 - 0.02 i m, g, d = 0.3 m)."""
+    return {p.symbol.name: p.value for p in nlink_pendulum(n).parameters}
 
 
 def nlink_state(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -36,32 +35,9 @@ def nlink_state(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
 
 
 def nlink_appell(n: int, s: int = 1) -> appell.System:
-    """The family as an :class:`appell.System` (point masses as bodies); ``s = 2`` also
-    holds the tip at the height ``y = e`` (constraint ``tip_y``)."""
-    th = sp.symbols(f"theta1:{n + 1}")
-    m = sp.symbols(f"m1:{n + 1}")
-    l = sp.symbols(f"l1:{n + 1}")
-    g, d, e = sp.symbols("g d e")
-    x = y = sp.S.Zero
-    bodies, V = [], sp.S.Zero
-    for i in range(n):
-        x += l[i] * sp.sin(th[i])
-        y -= l[i] * sp.cos(th[i])
-        bodies.append(appell.Particle(f"bob{i + 1}", m[i], position=(x, y, 0)))
-        V += m[i] * g * y
-    values = nlink_parameters(n) | {"e": -0.5 * n}
-    extra = (e,) if s == 2 else ()
-    params = [appell.Parameter(sym, values[sym.name]) for sym in (*m, *l, g, d, *extra)]
-    cons = (appell.holonomic("tip", x - d),) + ((appell.holonomic("tip_y", y - e),) if s == 2 else ())
-    return appell.System(
-        name=f"pendulum{n}",
-        description=f"{n}-link pendulum, tip held on the vertical line x = d",
-        coordinates=th,
-        parameters=params,
-        bodies=bodies,
-        potential_energy=V,
-        constraints=cons,
-    )
+    """The family as an :class:`appell.System`: the bundled builder
+    :func:`appell.examples.catalog.nlink_pendulum` (``s = 2`` also holds the tip at ``y = e``)."""
+    return nlink_pendulum(n, s)
 
 
 def _mechanics(n: int):

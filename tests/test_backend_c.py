@@ -4,11 +4,10 @@ loop closure; the disk cache; the fallback without a compiler."""
 
 import numpy as np
 import pytest
-import sympy as sp
 
 import appell
 from appell.numerics.codegen_c import CompiledNumericModel, c_source, compile_c
-from appell.examples.catalog import CATALOG
+from appell.examples.catalog import CATALOG, nlink_pendulum
 from appell.numerics.numeric import compile_model
 
 pytestmark = pytest.mark.skipif(__import__("shutil").which("cc") is None, reason="no C compiler")
@@ -20,20 +19,8 @@ def _cache(tmp_path_factory, monkeypatch):
 
 
 def nlink(n):
-    """n-link pendulum with point masses, tip held on the line x = d (as in benchmarks/)."""
-    th, m, l = sp.symbols(f"theta1:{n + 1}"), sp.symbols(f"m1:{n + 1}"), sp.symbols(f"l1:{n + 1}")
-    g, d = sp.symbols("g d")
-    x = y = sp.S.Zero
-    bodies, V = [], sp.S.Zero
-    for i in range(n):
-        x += l[i] * sp.sin(th[i])
-        y -= l[i] * sp.cos(th[i])
-        bodies.append(appell.Particle(f"bob{i + 1}", m[i], position=(x, y, 0)))
-        V += m[i] * g * y
-    params = [appell.Parameter(s, 1.0 + 0.1 * k) for k, s in enumerate((*m, *l))]
-    params += [appell.Parameter(g, 9.81), appell.Parameter(d, 0.3)]
-    return appell.System(name=f"pendulum{n}", coordinates=th, parameters=params, bodies=bodies,
-                         potential_energy=V, constraints=(appell.holonomic("tip", x - d),))
+    """n-link pendulum with point masses, tip held on the line x = d (the benchmark family)."""
+    return nlink_pendulum(n)
 
 
 def close(x, y, rtol=1e-12):

@@ -11,6 +11,7 @@ import sympy as sp
 
 from appell.model import (
     Parameter,
+    Particle,
     RigidBody,
     System,
     acceleration_constraint,
@@ -200,6 +201,47 @@ def cubic_acceleration() -> System:
         generalized_forces=(F, -m * g),
         constraints=(acceleration_constraint("guide", ydd - c * xdd**2),),
         initial={"x": 0.0, "y": 0.0, "x_dot": 0.0, "y_dot": 0.0},
+    )
+
+
+def nlink_pendulum(n: int, constraints: int = 1) -> System:
+    """The growing family of the benchmarks: an n-link planar pendulum whose tip is held on
+    the vertical line ``x = d`` (``tip``), and with ``constraints = 2`` also at the height
+    ``y = e`` (``tip_y``).
+
+    Link i has length ``l_i`` and a point mass ``m_i`` at its outer end; ``theta_i`` is its
+    absolute angle from the downward vertical. Parameter values: masses 1 + 0.1 i kg,
+    lengths 1 - 0.02 i m, d = 0.3 m, e = -n/2 m. lambda_tip is the horizontal force of the
+    line on the tip (newtons).
+    """
+    if constraints not in (1, 2):
+        raise ValueError("constraints must be 1 or 2")
+    th = sp.symbols(f"theta1:{n + 1}")
+    m = sp.symbols(f"m1:{n + 1}")
+    ell = sp.symbols(f"l1:{n + 1}")
+    g, d, e = sp.symbols("g d e")
+    x = y = sp.S.Zero
+    bodies, V = [], sp.S.Zero
+    for i in range(n):
+        x += ell[i] * sp.sin(th[i])
+        y -= ell[i] * sp.cos(th[i])
+        bodies.append(Particle(f"bob{i + 1}", m[i], position=(x, y, 0)))
+        V += m[i] * g * y
+    params = [Parameter(m[i], 1.0 + 0.1 * (i + 1), "kg") for i in range(n)]
+    params += [Parameter(ell[i], 1.0 - 0.02 * (i + 1), "m") for i in range(n)]
+    params += [Parameter(g, 9.81, "m/s^2"), Parameter(d, 0.3, "m")]
+    cons = [holonomic("tip", x - d)]
+    if constraints == 2:
+        params.append(Parameter(e, -0.5 * n, "m"))
+        cons.append(holonomic("tip_y", y - e))
+    return System(
+        name=f"pendulum{n}",
+        description=f"{n}-link pendulum, tip held on the vertical line x = d",
+        coordinates=th,
+        parameters=tuple(params),
+        bodies=tuple(bodies),
+        potential_energy=V,
+        constraints=tuple(cons),
     )
 
 

@@ -9,7 +9,8 @@ import math
 
 import sympy as sp
 
-from appell.model import Parameter, RigidBody, System, holonomic, nonholonomic
+from appell.examples.catalog import rolling_ball
+from appell.model import Parameter, System, holonomic
 from appell.symbols import t
 
 
@@ -53,25 +54,12 @@ def ball_on_tilting_plane(alpha0: float = 0.1, rate: float = 0.1) -> System:
     rolling needs ``|lambda_roll_x| <= mu lambda_contact``, i.e. tan(alpha) <= 7 mu / 2:
     the friction limit is exceeded at t = (atan(3.5 mu) - alpha0) / rate.
     """
-    x, y, z = sp.symbols("x y z")
-    vx, vy, vz, wx, wy, wz = sp.symbols("vx vy vz wx wy wz")
-    m, R, g, alpha = sp.symbols("m R g alpha")
-    ball = RigidBody("ball", m, velocity=(vx, vy, vz), inertia=(2 * m * R**2 / 5,) * 3, angular_velocity=(wx, wy, wz))
-    return System(
+    base = rolling_ball()
+    return base.replace(
         name="ball_on_tilting_plane",
         description="sphere rolling on a plane of growing slope (friction limit test)",
-        coordinates=(x, y, z),
-        speeds=(vx, vy, vz, wx, wy, wz),
-        kinematics={x: vx, y: vy, z: vz},
-        parameters=(Parameter(m, 1.0, "kg"), Parameter(R, 0.1, "m"), Parameter(g, 9.81, "m/s^2")),
-        programs={alpha: alpha0 + rate * t},
-        bodies=(ball,),
-        potential_energy=m * g * (-x * sp.sin(alpha) + z * sp.cos(alpha)),
-        constraints=(
-            holonomic("contact", z - R),
-            nonholonomic("roll_x", vx - R * wy),
-            nonholonomic("roll_y", vy + R * wx),
-        ),
+        parameters=tuple(p for p in base.parameters if p.symbol.name != "alpha"),
+        programs={sp.Symbol("alpha"): alpha0 + rate * t},
         initial={"x": 0.0, "y": 0.0, "z": 0.1, "vx": 0.0, "vy": 0.0, "vz": 0.0, "wx": 0.0, "wy": 0.0, "wz": 0.0},
     )
 
