@@ -66,3 +66,21 @@ def test_overhead_crane_closed_loop():
     # the winch force is the tension of the closed form all along
     fw = 2.0 * np.hypot(-np.sin(tt / 2) / 8, 9.81 - np.cos(tt) / 5)
     np.testing.assert_allclose(sol["control_F_W"], fw, rtol=1e-8)
+
+
+def test_tracking_error_is_recorded_for_the_servo_constraints(tmp_path):
+    """Appell's problem in closed loop: the servo constraints (the ball's centre on the circle,
+    method.md Example 2) appear as residual_circle_x, residual_circle_y after the real constraints'
+    columns, and stay at the integration tolerance."""
+    import csv
+
+    from appell import derive_controlled, simulate
+    from appell.examples.servo_examples import appell_ball
+
+    sol = simulate(derive_controlled(appell_ball()), 3.0, rtol=1e-10, atol=1e-12)
+    assert set(sol.tracking) == {"circle_x", "circle_y"}
+    assert 0 < sol.max_tracking_error < 1e-8
+    assert "tracking error" in sol.summary()
+    with open(sol.to_csv(tmp_path / "ball.csv"), newline="") as fh:
+        header = next(csv.reader(fh))
+    assert header[-4:] == ["residual_roll_x", "residual_roll_y", "residual_circle_x", "residual_circle_y"]

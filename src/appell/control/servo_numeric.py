@@ -210,6 +210,19 @@ class ControlledModel:
         acc = Jg @ sol.accelerations + Kg @ sol.controls + cg
         return (np.where(self.has_position[1], F, np.nan), np.where(self.has_velocity[1], phi, np.nan), acc)
 
+    def tracking_residuals(self, t, y, p=None) -> np.ndarray:
+        """The residual of each servo constraint at its own level (the tracking error): ``F``
+        for a holonomic one, ``phi`` for a first-order one, the acceleration-level residual
+        for a second-order one (which needs the solve; the others do not)."""
+        pv = self.params(p)
+        if np.all(self.has_position[1] | self.has_velocity[1]):
+            _, _, F, phi = self._residuals(t, y, pv)
+            acc = None
+        else:
+            F, phi, acc = self.servo_residuals(t, y, pv)
+        out = np.where(self.has_position[1], F, np.where(self.has_velocity[1], phi, np.nan))
+        return out if acc is None else np.where(np.isnan(out), acc, out)
+
 
 def augmented_controlled_solve(model: ControlledModel, t, y, p=None) -> ControlledSolution:
     """The independent route: ``[M N -J_f^T; J_f K_f 0; J_g K_g 0] [a; xi; lambda] = [-e; -c_f; -c_g]``.

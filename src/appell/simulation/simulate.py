@@ -136,7 +136,8 @@ class _Run:
         self.names, self.kinds = names, kinds
         self.settings = settings
         self.rows_t, self.rows_y, self.rows_lam, self.rows_ctl = [], [], [], []
-        self.rows_F, self.rows_phi = [], []
+        self.rows_F, self.rows_phi, self.rows_track = [], [], []
+        self.tracking_names = tuple(getattr(model, "servo_names", ()))
         self.events: list[EventRecord] = []
         self.log: list[str] = []
         self.nfev = self.steps = self.projections = self.switches = self.restarts = 0
@@ -165,6 +166,8 @@ class _Run:
         self.rows_ctl.append(np.asarray(ev.controls, float))
         self.rows_F.append(self.by_name(model, F, np.nan))
         self.rows_phi.append(self.by_name(model, phi, np.nan))
+        if self.tracking_names:
+            self.rows_track.append(np.asarray(model.tracking_residuals(t, y, self.p), float))
         self.note_partition(model, t, ev)
 
     def note_partition(self, model, t, ev):
@@ -201,6 +204,7 @@ class _Run:
         lam = np.array(self.rows_lam, float).reshape(len(self.rows_t), len(self.names))
         F = np.array(self.rows_F, float).reshape(lam.shape)
         phi = np.array(self.rows_phi, float).reshape(lam.shape)
+        track = np.array(self.rows_track, float).reshape(len(self.rows_t), len(self.tracking_names))
         ctl = np.array(self.rows_ctl, float).reshape(len(self.rows_t), len(root.control_names))
         stats = SolverStatistics(self.nfev, self.steps, self.projections, self.switches, self.restarts)
         return Solution(
@@ -211,6 +215,7 @@ class _Run:
             controls={n: ctl[:, i] for i, n in enumerate(root.control_names)},
             position_residuals={n: F[:, i] for i, n in enumerate(self.names)},
             velocity_residuals={n: phi[:, i] for i, n in enumerate(self.names)},
+            tracking={n: track[:, i] for i, n in enumerate(self.tracking_names)},
             status=status, message=message, statistics=stats, events=tuple(self.events), log=tuple(self.log),
             metadata=_metadata(root, self.system, self.p, self.kinds,
                                {k: str(v) for k, v in self.settings.items()}),

@@ -9,7 +9,8 @@ CSV columns, in this order: ``t``, each coordinate, each speed (then any extra s
 the model), ``lambda_<constraint>``, ``control_<control>``, ``residual_<constraint>``.
 ``residual_<c>`` is the position residual ``F`` for a holonomic constraint, the velocity
 residual ``phi`` for a first-order one, and empty (NaN) for a second-order one, which has
-neither; empty cells in the file are NaN.
+neither; empty cells in the file are NaN. A controlled system's servo constraints follow
+the real ones as ``residual_<servo>``: their tracking error at their own level.
 """
 
 from __future__ import annotations
@@ -107,6 +108,8 @@ class Solution:
     events : :class:`EventRecord` items in time order.
     log : messages in time order (partition switches, releases, restarts).
     metadata : :class:`ModelMetadata`.
+    tracking : ``{servo constraint: residual at its own level}`` — the tracking error of a
+        controlled system (empty otherwise).
     """
 
     t: np.ndarray
@@ -123,12 +126,13 @@ class Solution:
     events: tuple[EventRecord, ...]
     log: tuple[str, ...]
     metadata: ModelMetadata
+    tracking: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         t = np.array(self.t, dtype=float)
         t.setflags(write=False)
         object.__setattr__(self, "t", t)
-        for name in ("states", "multipliers", "controls", "position_residuals", "velocity_residuals"):
+        for name in ("states", "multipliers", "controls", "position_residuals", "velocity_residuals", "tracking"):
             object.__setattr__(self, name, _frozen_arrays(getattr(self, name)))
         object.__setattr__(self, "events", tuple(self.events))
         object.__setattr__(self, "log", tuple(self.log))
@@ -158,6 +162,8 @@ class Solution:
                 return table[name[len(prefix):]]
         if name.startswith("residual_") and name[9:] in self.residuals:
             return self.residuals[name[9:]]
+        if name.startswith("residual_") and name[9:] in self.tracking:
+            return self.tracking[name[9:]]
         raise KeyError(name)
 
     @property
@@ -184,6 +190,11 @@ class Solution:
         """Largest ``|phi|`` over the output times and holonomic/first-order constraints."""
         return _nanmax_abs(self.velocity_residuals.values())
 
+    @property
+    def max_tracking_error(self) -> float:
+        """Largest residual of the servo constraints over the output times (0 if none)."""
+        return _nanmax_abs(self.tracking.values())
+
     # ---------------------------------------------------------------- export
     def columns(self) -> list[tuple[str, np.ndarray]]:
         """The CSV columns in file order (see the module docstring)."""
@@ -192,6 +203,7 @@ class Solution:
         cols += [(f"lambda_{n}", a) for n, a in self.multipliers.items()]
         cols += [(f"control_{n}", a) for n, a in self.controls.items()]
         cols += [(f"residual_{n}", a) for n, a in self.residuals.items()]
+        cols += [(f"residual_{n}", a) for n, a in self.tracking.items()]
         return cols
 
     def _csv_rows(self):
@@ -215,6 +227,7 @@ class Solution:
 
         Datasets ``/t``, ``/states/<name>``, ``/multipliers/<constraint>``,
         ``/controls/<name>``, ``/residuals/position/<c>``, ``/residuals/velocity/<c>``,
+        ``/residuals/servo/<c>`` (tracking errors of servo constraints),
         each with ``units`` and ``description`` attributes (``units`` from the mapping
         ``units`` by column name, else the model's declared units, else ``'s'`` for time
         and ``'unspecified'``); root
@@ -273,6 +286,10 @@ class Solution:
                     put(gp, n, f"residual_{n}", a, f"position residual F of constraint {n} (NaN: no such level)")
                 for n, a in self.velocity_residuals.items():
                     put(gv, n, f"residual_{n}", a, f"velocity residual phi of constraint {n} (NaN: no such level)")
+                if self.tracking:
+                    gt = g.create_group("servo")
+                    for n, a in self.tracking.items():
+                        put(gt, n, f"residual_{n}", a, f"tracking error of servo constraint {n} at its own level")
                 f.create_dataset("events", data=np.array([str(e) for e in self.events], dtype=h5py.string_dtype()))
                 f.create_dataset("log", data=np.array(list(self.log), dtype=h5py.string_dtype()))
         return path
@@ -290,6 +307,7 @@ class Solution:
         residuals = {f"{n} ({'F' if k == 'holonomic' else 'phi'})": np.abs(a)
                      for (n, k), a in zip(zip(self.metadata.constraint_names, self.metadata.constraint_kinds),
                                           self.residuals.values()) if k != "second-order"}
+        residuals.update({f"{n} (servo)": np.abs(a) for n, a in self.tracking.items()})
         panels = [("coordinates", {n: self.states[n] for n in self.coordinate_names}, False),
                   ("reactions (multipliers)", dict(self.multipliers), False),
                   ("controls", dict(self.controls), False),
@@ -330,6 +348,8 @@ class Solution:
             f"  {s.steps} steps, {s.nfev} evaluations, {s.projections} projections, {s.switches} partition switches",
             f"  largest residuals: position {self.max_position_residual:.3e}, velocity {self.max_velocity_residual:.3e}",
         ]
+        if self.tracking:
+            lines.append(f"  largest tracking error of the servo constraints: {self.max_tracking_error:.3e}")
         lines += [f"  event: {e}" for e in self.events]
         return "\n".join(lines)
 
