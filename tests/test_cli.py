@@ -345,8 +345,8 @@ def test_servo_model_derive_json_controls_and_simulate(tmp_path):
     result = run("simulate", model, "--t-end", "0.5", "--out", out)
     assert result.exit_code == 0, result.output + result.stderr
     header, data = read_csv(out)
-    assert header[-6:] == ["lambda_roll_x", "lambda_roll_y", "control_u", "control_v",
-                           "residual_roll_x", "residual_roll_y"]
+    assert header[-8:] == ["lambda_roll_x", "lambda_roll_y", "control_u", "control_v",
+                           "residual_roll_x", "residual_roll_y", "residual_circle_x", "residual_circle_y"]
     col = {name: data[:, i] for i, name in enumerate(header)}
     np.testing.assert_allclose(col["control_u"], -3.5 * 4.0 * col["xi"], rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(col["lambda_roll_y"], -1.0 * 4.0 * col["eta"], rtol=1e-6, atol=1e-9)
