@@ -1,4 +1,4 @@
-"""Stage 8 — controlled systems: servo constraints and the controls realising them (method.md §4).
+"""Controlled systems: servo constraints and the controls realising them (method.md §4).
 
 Unknowns ``z = (a, xi)``: the accelerations ``a`` (n) and the controls ``xi`` (k). A force
 control is its own symbol; a kinematic control is a driven coordinate ``u`` that is *not*

@@ -8,7 +8,16 @@
       -> inertia blocks  M, h, Q       dS/da = M a + h                (energy, §1)
       -> constraint blocks  J, c       f = J a + c                    (constraints, §2)
       -> partition  a_nu | a_h         condition (1.2)                (partition, §3)
-      => Derivation  .reduced (1.4)  .reactions (1.5)  .numeric       (equations, numeric)
+      => Derivation  .reduced (1.4)  .reactions (1.5)  .numeric       (equations, numerics.numeric)
+
+and after it, in their own folders::
+
+    Derivation.numeric / .compiled("c")    blocks and split solve at a state     (numerics/)
+    cross_check(derivation)                 the augmented system, independent    (numerics/crosscheck)
+    simulate(derivation, t_end)             drift control, events, Solution     (simulation/)
+    derive_controlled(system)               servo constraints (2.3)-(2.5)       (control/, §4)
+    routh_reduction(system)                 cyclic coordinates, L* = T* - V      (reduction/, §5)
+    to_text / to_latex / to_json, report    presentation, HTML, command line     (io/)
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Stage 8 — presentation: text, LaTeX and JSON of a derivation.
+"""Presentation: text, LaTeX and JSON of a derivation.
 
 Formulas are shown as derived: small expressions are tidied (:func:`appell.core.equations.tidy`),
 large ones are printed as they are. JSON expressions are strings that

@@ -1,4 +1,4 @@
-"""Stage 7, compiled — the blocks and the split solve (1.4)/(1.5) as C (method.md §3).
+"""Compiled numerics — the blocks and the split solve (1.4)/(1.5) as C (method.md §3).
 
 The same symbolic blocks as :mod:`appell.numerics.numeric` (``M``, ``h - Q``, ``J``, ``c``, the
 coordinate rates and the constraint residuals, programs replaced by their expressions in

@@ -1,4 +1,4 @@
-"""Stage 7 — numeric code and the split solve at a state (method.md §3, matrix form).
+"""Numeric code and the split solve at a state (method.md §3, matrix form).
 
 The symbolic blocks are compiled once (SymPy ``lambdify`` with common-subexpression
 elimination; programs replaced by their expressions in t). At a state (t, q, w):

@@ -1,4 +1,4 @@
-"""Stage 8 — simulation of any :class:`~appell.numerics.dynamics.Dynamics` with drift control.
+"""Simulation of any :class:`~appell.numerics.dynamics.Dynamics` with drift control.
 
 The integrator is driven step by step through SciPy's ``OdeSolver`` interface (the
 classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``,
