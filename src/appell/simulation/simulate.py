@@ -17,9 +17,9 @@ classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``
    * speeds: then ``dw = -phi_w^+ phi`` on the velocity-level constraints (holonomic
      ``dF/dt`` and first-order), iterated when ``phi`` is nonlinear in ``w``;
 
-4. the output times inside the step are filled from the dense output; at each the
-   model is evaluated again, so that every multiplier, control and residual is the one
-   of the recorded state.
+4. the output times inside the step are filled from the dense output (projected as in 3
+   with ``project_output=True``); at each the model is evaluated again, so that every
+   multiplier, control and residual is the one of the recorded state.
 
 ``stabilization='baumgarte'`` instead integrates ``f + 2 alpha phi + beta^2 F = 0`` in
 place of ``f = 0`` (Baumgarte 1972); the model must accept ``bias=`` in ``evaluate``
@@ -158,8 +158,17 @@ class _Run:
         return [table.get(n, fill) for n in self.names]
 
     def record(self, model, t, y, ev=None):
-        ev = self.evaluate(model, t, y) if ev is None else ev
+        """Record the state at an output time; with ``project_output`` a state from the
+        dense output (``ev`` None) is projected like a step's end when its residual
+        exceeds ``projection_tol``."""
         F, phi = model.state_residuals(t, y, self.p)
+        if ev is None and self.settings["project_output"]:
+            worst = max(np.nanmax(np.abs(np.asarray(F, float)), initial=0.0),
+                        np.nanmax(np.abs(np.asarray(phi, float)), initial=0.0))
+            if worst > self.settings["projection_tol"]:
+                y = project(model, t, y, self.p)
+                F, phi = model.state_residuals(t, y, self.p)
+        ev = self.evaluate(model, t, y) if ev is None else ev
         self.rows_t.append(float(t))
         self.rows_y.append(np.array(y, float))
         self.rows_lam.append(self.by_name(model, ev.multipliers, 0.0))
@@ -230,7 +239,7 @@ def _next(base_order):
 def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None, method="DOP853",
              rtol: float = 1e-9, atol: float = 1e-12, max_step: float = np.inf,
              stabilization: str | None = "projection", baumgarte=(10.0, 10.0), projection_tol: float = 1e-10,
-             unilateral: Mapping[str, int] | None = None, on_release: str = "continue",
+             project_output: bool = False, unilateral: Mapping[str, int] | None = None, on_release: str = "continue",
              friction: Mapping | None = None, events=(), params=None, initial=None, complete: bool = False,
              progress: bool | None = None) -> Solution:
     """Integrate the motion and record states, multipliers, controls and residuals.
@@ -246,6 +255,9 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     stabilization : ``'projection'`` (default), ``'baumgarte'`` or None (module docstring).
     baumgarte : ``(alpha, beta)`` of ``f + 2 alpha phi + beta^2 F = 0``.
     projection_tol : residual above which the state is projected after a step.
+    project_output : with projection, also project the output states taken from the
+        dense output inside a step (their residual can exceed ``projection_tol``; costs
+        about one extra evaluation per output time, so it is off by default).
     unilateral : ``{constraint: +1 or -1}``, the sign its multiplier must keep.
     on_release : ``'continue'`` (re-derive without the released constraint) or ``'stop'``.
     friction : ``{tangential constraint: (normal constraint, mu)}``; crossings of
@@ -291,7 +303,8 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     y0 = _initial_state(model, initial, complete, t0, p)
     names = tuple(model.constraint_names)
     settings = {"method": getattr(solver_cls, "__name__", str(method)), "rtol": rtol, "atol": atol,
-                "stabilization": stabilization, "projection_tol": projection_tol}
+                "stabilization": stabilization, "projection_tol": projection_tol,
+                "project_output": bool(project_output and stabilization == "projection")}
     if stabilization == "baumgarte":
         settings["baumgarte"] = tuple(float(v) for v in baumgarte)
     run = _Run(model, system, p, names, _kinds(model, y0, t0, p), settings)

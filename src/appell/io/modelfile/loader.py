@@ -91,6 +91,7 @@ SIMULATION_KEYS = {
     "on_release": "'continue' or 'stop'",
     "friction": "table: tangential constraint = { normal = constraint name, mu = number }",
     "complete": "boolean: complete the dependent initial values",
+    "project_output": "boolean: also project output states taken from inside a step",
 }
 STABILIZATIONS = ("projection", "baumgarte", "none")
 RELEASES = ("continue", "stop")
@@ -458,7 +459,7 @@ def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
             out[key] = None if choice(key, STABILIZATIONS) == "none" else section[key]
         elif key == "on_release":
             out[key] = choice(key, RELEASES)
-        elif key == "complete":
+        elif key in ("complete", "project_output"):
             if not isinstance(value, bool):
                 raise r.error(path, f"must be true or false, got {_kind(value)}")
             out[key] = value
