@@ -161,3 +161,16 @@ def test_summary_and_html():
     assert html.startswith("<table>") and "toy" in html and "reached the final time" in html
     assert "t = 0.25: user e" in str(sol)
     assert math.isclose(sol.max_velocity_residual, 3e-12)
+
+
+def test_netcdf_has_the_csv_columns_and_units(car_solution, tmp_path):
+    """to_netcdf: the same columns as the CSV, the model's units on the variables."""
+    from scipy.io import netcdf_file
+
+    path = car_solution.to_netcdf(tmp_path / "car.nc")
+    with netcdf_file(path, "r", mmap=False) as f:
+        names = [n for n, _ in car_solution.columns()]
+        assert set(names) <= set(f.variables)
+        assert f.variables["x"].units == b"m" and f.variables["lambda_rear"].units == b"N"
+        assert np.allclose(f.variables["lambda_front"][:], car_solution.multipliers["front"])
+        assert f.model == b"car"

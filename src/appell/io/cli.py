@@ -32,7 +32,7 @@ from appell.errors import AppellError, ComputationError, ModelError
 from appell.symbols import canonical_name
 
 __all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
-           "run_simulation", "export_solution", "write_netcdf", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
+           "run_simulation", "export_solution", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -199,42 +199,7 @@ def export_solution(solution, path: Path) -> Path:
         return solution.to_csv(path)
     if kind == "hdf5":
         return solution.to_hdf5(path)
-    writer = getattr(solution, "to_netcdf", None)
-    return writer(path) if writer is not None else write_netcdf(solution, path)
-
-
-def write_netcdf(solution, path: Path) -> Path:
-    """Write the columns of ``solution`` (:meth:`~appell.simulation.solution.Solution.columns`, the CSV's
-    columns) as a netCDF (classic format) file along the dimension ``time``, atomically.
-
-    Variables carry ``long_name`` (and ``units = 's'`` for ``t``); global attributes record
-    the model, status, message, constraint names and kinds, and the appell version.
-    """
-    import numpy as np
-    from scipy.io import netcdf_file
-
-    from appell.io.files import atomic_path
-
-    path = Path(path)
-    md = solution.metadata
-    with atomic_path(path, suffix=".nc") as tmp:
-        with netcdf_file(tmp, "w", version=2, mmap=False) as f:
-            f.title = f"appell simulation of {md.name}"
-            f.model = md.name
-            f.status = int(solution.status)
-            f.message = solution.message
-            f.appell_version = md.appell_version
-            f.constraint_names = " ".join(md.constraint_names)
-            f.constraint_kinds = " ".join(md.constraint_kinds)
-            f.createDimension("time", solution.t.size)
-            for name, values in solution.columns():
-                var = f.createVariable(name, "d", ("time",))
-                var[:] = np.asarray(values, float)
-                var.long_name = "time" if name == "t" else name
-                unit = "s" if name == "t" else md.units.get(name)
-                if unit:
-                    var.units = unit
-    return path
+    return solution.to_netcdf(path)
 
 
 # ---------------------------------------------------------------- the commands

@@ -222,6 +222,37 @@ class Solution:
                     writer.writerow(row)
         return path
 
+    def to_netcdf(self, path, units: Mapping[str, str] | None = None) -> Path:
+        """Write the CSV's columns (:meth:`columns`) as a netCDF file (classic format, SciPy's
+        writer) along the dimension ``time``, atomically.
+
+        Variables carry ``long_name`` and ``units`` (from ``units`` by column name, else the
+        model's declared units, ``'s'`` for time); global attributes record the model,
+        status, message, constraint names and kinds, and the appell version.
+        """
+        from scipy.io import netcdf_file
+
+        md = self.metadata
+        units = {"t": "s", **md.units, **(units or {})}
+        path = Path(path)
+        with atomic_path(path, suffix=".nc") as tmp:
+            with netcdf_file(tmp, "w", version=2, mmap=False) as f:
+                f.title = f"appell simulation of {md.name}"
+                f.model = md.name
+                f.status = int(self.status)
+                f.message = self.message
+                f.appell_version = md.appell_version
+                f.constraint_names = " ".join(md.constraint_names)
+                f.constraint_kinds = " ".join(md.constraint_kinds)
+                f.createDimension("time", self.t.size)
+                for name, values in self.columns():
+                    var = f.createVariable(name, "d", ("time",))
+                    var[:] = np.asarray(values, float)
+                    var.long_name = "time" if name == "t" else name
+                    if units.get(name):
+                        var.units = units[name]
+        return path
+
     def to_hdf5(self, path, units: Mapping[str, str] | None = None) -> Path:
         """Write a self-describing HDF5 file (atomically).
 
