@@ -288,11 +288,15 @@ def _model_section(system, kinematics) -> str:
         rows.append(("kinematic relations", "<br>".join(_inline(sp.Eq(d, r, evaluate=False)) for d, r in relations)))
     for prog in system.programs:
         rows.append((f"program {_e(prog.symbol)}(t)", _inline(sp.Eq(prog.symbol, prog.expr, evaluate=False))))
+    units = system.unit_of
     if system.initial:
-        rows.append(("initial values", _e(", ".join(f"{k} = {v:g}" for k, v in system.initial))))
+        rows.append(("initial values", _e(", ".join(
+            f"{k} = {v:g}" + (f" {units[k]}" if k in units else "") for k, v in system.initial))))
     parts.append("<h3>Coordinates and speeds</h3>" + _table(None, rows))
     if system.constraints:
-        rows = [(_e(c.name), _e(c.kind), _inline(sp.Eq(c.expr, 0, evaluate=False)), _inline(sp.Symbol(f"lambda_{c.name}")))
+        rows = [(_e(c.name), _e(c.kind), _inline(sp.Eq(c.expr, 0, evaluate=False)),
+                 _inline(sp.Symbol(f"lambda_{c.name}")) + _e(f" [{units[f'lambda_{c.name}']}]"
+                                                             if f"lambda_{c.name}" in units else ""))
                 for c in system.constraints]
         parts.append("<h3>Constraints (ideal)</h3>" + _table(("name", "kind", "constraint", "multiplier"), rows))
     if system.controls:
