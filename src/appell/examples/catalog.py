@@ -101,6 +101,7 @@ def knife_edge() -> System:
         potential_energy=-m * g * sp.sin(alpha) * x,
         constraints=(nonholonomic("blade", xd * sp.sin(phi) - yd * sp.cos(phi)),),
         initial={"x": 0.0, "y": 0.0, "phi": 0.0, "x_dot": 0.0, "y_dot": 0.0, "phi_dot": 1.5},
+        units={"x": "m", "y": "m", "phi": "rad", "x_dot": "m/s", "y_dot": "m/s", "phi_dot": "rad/s", "blade": "N"},
     )
 
 
@@ -122,6 +123,7 @@ def chaplygin_sleigh() -> System:
         kinetic_energy=m / 2 * (xd**2 + yd**2) + I / 2 * thd**2,
         constraints=(nonholonomic("blade", -xd * sp.sin(th) + yd * sp.cos(th) - a * thd),),
         initial={"x": 0.0, "y": 0.0, "theta": 0.0, "theta_dot": 1.0, "x_dot": 0.5},
+        units={"x": "m", "y": "m", "theta": "rad", "x_dot": "m/s", "y_dot": "m/s", "theta_dot": "rad/s", "blade": "N"},
     )
 
 
@@ -177,6 +179,8 @@ def rolling_ball() -> System:
             nonholonomic("roll_y", vy + R * wx),
         ),
         initial={"x": 0.0, "y": 0.0, "z": 0.1, "vx": 0.0, "vy": 0.5, "vz": 0.0, "wx": -5.0, "wy": 0.0, "wz": 2.0},
+        units={"x": "m", "y": "m", "z": "m", "vx": "m/s", "vy": "m/s", "vz": "m/s",
+               "wx": "rad/s", "wy": "rad/s", "wz": "rad/s", "contact": "N", "roll_x": "N", "roll_y": "N"},
     )
 
 
@@ -201,6 +205,7 @@ def cubic_acceleration() -> System:
         generalized_forces=(F, -m * g),
         constraints=(acceleration_constraint("guide", ydd - c * xdd**2),),
         initial={"x": 0.0, "y": 0.0, "x_dot": 0.0, "y_dot": 0.0},
+        units={"x": "m", "y": "m", "x_dot": "m/s", "y_dot": "m/s", "guide": "N"},
     )
 
 
