@@ -45,6 +45,7 @@ def _assert_same_declarations(from_file, built, name):
         [(p.symbol, p.value, p.unit, p.description) for p in built.parameters]
     assert dict(from_file.initial) == pytest.approx(dict(built.initial), abs=1e-15)
     assert set(dict(from_file.initial)) == set(dict(built.initial))
+    assert dict(from_file.units) == dict(built.units)
     assert [p.symbol for p in from_file.programs] == [p.symbol for p in built.programs]
     for a, b in zip(from_file.programs, built.programs):
         assert _same(a.expr, b.expr), (a, b)
