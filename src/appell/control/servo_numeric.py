@@ -33,7 +33,7 @@ import sympy as sp
 
 from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError, ModelError
-from appell.numerics.numeric import choose_dependent, lambdify_blocks, program_substitutions, split_basis, well_conditioned
+from appell.numerics.numeric import lambdify_blocks, program_substitutions, split_basis, usable_partition
 from appell.symbols import derivative_symbol, t
 
 __all__ = ["ControlledCrossCheck", "ControlledModel", "ControlledSolution", "augmented_controlled_solve",
@@ -130,9 +130,8 @@ class ControlledModel:
 
     def _joint_controls(self, M, N, e, J, K, c, s):
         """Steps (2.3) + (2.4) of the module docstring, for ``(a_nu, xi)``."""
-        dep = tuple(self.derivation.partition.dependent)
-        if not well_conditioned(J[:, list(dep)]):
-            dep = choose_dependent(J, self.constraint_names + self.servo_names)
+        dep, _, _ = usable_partition(J, self.derivation.partition.dependent,
+                                     self.constraint_names + self.servo_names)
         C, Jh, dep, ind = split_basis(J, dep)
         n, k = M.shape[0], N.shape[1]
         D = np.zeros((n, k))
@@ -167,10 +166,9 @@ class ControlledModel:
         else:
             xi = self._joint_controls(M, N, e, np.vstack([Jf, Jg]), np.vstack([Kf, Kg]),
                                       np.concatenate([cf, cg]), s)
-        dep = tuple(self.derivation.real_partition.dependent)
-        switched = False
-        if s and not well_conditioned(Jf[:, list(dep)]):
-            dep, switched = choose_dependent(Jf, self.constraint_names), True
+        dep, switched = tuple(self.derivation.real_partition.dependent), False
+        if s:
+            dep, _, switched = usable_partition(Jf, dep, self.constraint_names)
         a, lam = real_motion(M, N @ xi + e, Jf, Kf @ xi + cf, dep)
         # servo multipliers (2.3) at the solution: least squares of E = J_f^T lam + J_g^T mu
         J = np.vstack([Jf, Jg])

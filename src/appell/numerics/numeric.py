@@ -171,9 +171,6 @@ def block_inverse(Jh: np.ndarray) -> np.ndarray | None:
     return inv if np.isfinite(cond) and cond < SWITCH_CONDITION else None
 
 
-def well_conditioned(Jh: np.ndarray) -> bool:
-    """Whether the dependent block ``J_h`` may be used (:func:`block_inverse`)."""
-    return block_inverse(Jh) is not None
 
 
 def choose_dependent(J: np.ndarray, names) -> tuple[int, ...]:
@@ -184,6 +181,20 @@ def choose_dependent(J: np.ndarray, names) -> tuple[int, ...]:
             hint="constraints " + ", ".join(names) + " are dependent at this state (a singular configuration)",
         )
     return tuple(sorted(int(i) for i in piv[: J.shape[0]]))
+
+
+def usable_partition(J: np.ndarray, dependent, names) -> tuple[tuple[int, ...], np.ndarray | None, bool]:
+    """The dependent columns to use at this state: ``dependent`` while its block ``J_h``
+    passes :func:`block_inverse`, else the columns of :func:`choose_dependent`.
+
+    Returns ``(dependent, J_h^{-1} or None, switched)``.
+    """
+    dep = tuple(dependent)
+    inv = block_inverse(J[:, list(dep)])
+    if inv is not None:
+        return dep, inv, False
+    dep = choose_dependent(J, names)
+    return dep, block_inverse(J[:, list(dep)]), True
 
 
 @dataclass(frozen=True)
@@ -254,11 +265,7 @@ class NumericModel:
         names = self.derivation.constraints.names
         dep = tuple(self.derivation.partition.dependent if dependent is None else dependent)
         if self.constraint_function is None:
-            switched = False
-            Jh_inv = block_inverse(J[:, list(dep)])
-            if Jh_inv is None:
-                dep = choose_dependent(J, names)
-                Jh_inv, switched = block_inverse(J[:, list(dep)]), True
+            dep, Jh_inv, switched = usable_partition(J, dep, names)
             a, lam = _split_linear(M, hQ, J, c, dep, Jh_inv)
             return StateSolution(a, lam, J.T @ lam, dep, switched)
         return self._solve_nonlinear(t, q, w, pv, M, hQ, dep, bias)
@@ -274,11 +281,8 @@ class NumericModel:
             return f, np.asarray(J, float).reshape(-1, len(w))
 
         f0, J0 = fJ(np.zeros(len(w)))
-        switched = False
-        if not well_conditioned(J0[:, list(dep)]):
-            dep = choose_dependent(J0, names)
-            switched = True
-        a0, _ = _split_linear(M, hQ, J0, f0, dep)
+        dep, Jh_inv, switched = usable_partition(J0, dep, names)
+        a0, _ = _split_linear(M, hQ, J0, f0, dep, Jh_inv)
 
         def G(a):
             f, J = fJ(a)
