@@ -33,25 +33,11 @@ import sympy as sp
 
 from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError, ModelError
-from appell.numerics.numeric import lambdify_blocks, program_substitutions, split_basis, usable_partition
+from appell.numerics.numeric import lambdify_blocks, program_substitutions, split_basis, split_solve, usable_partition
 from appell.symbols import derivative_symbol, t
 
 __all__ = ["ControlledCrossCheck", "ControlledModel", "ControlledSolution", "augmented_controlled_solve",
-           "compile_controlled", "cross_check_controlled", "real_motion", "sample_controlled_states"]
-
-
-def real_motion(M, hQ, Jf, cf, dep) -> tuple[np.ndarray, np.ndarray]:
-    """Accelerations and multipliers of ``M a + hQ = J_f^T lambda``, ``J_f a + c_f = 0`` by the
-    split (1.4)/(1.5): ``(C^T M C) a_nu = -C^T (M d + hQ)``, ``lambda = J_h^{-T} E_h``."""
-    n = M.shape[0]
-    if Jf.shape[0] == 0:
-        return np.linalg.solve(M, -hQ), np.zeros(0)
-    C, Jh, dep, ind = split_basis(Jf, dep)
-    d = np.zeros(n)
-    d[dep] = -np.linalg.solve(Jh, cf)
-    a = C @ np.linalg.solve(C.T @ M @ C, -C.T @ (M @ d + hQ)) + d if ind else d
-    lam = np.linalg.solve(Jh.T, (M @ a + hQ)[dep])
-    return a, lam
+           "compile_controlled", "cross_check_controlled", "sample_controlled_states"]
 
 
 @dataclass(frozen=True)
@@ -169,7 +155,7 @@ class ControlledModel:
         dep, switched = tuple(self.derivation.real_partition.dependent), False
         if s:
             dep, _, switched = usable_partition(Jf, dep, self.constraint_names)
-        a, lam = real_motion(M, N @ xi + e, Jf, Kf @ xi + cf, dep)
+        a, lam = split_solve(M, N @ xi + e, Jf, Kf @ xi + cf, dep)
         # servo multipliers (2.3) at the solution: least squares of E = J_f^T lam + J_g^T mu
         J = np.vstack([Jf, Jg])
         E = M @ a + N @ xi + e

@@ -266,7 +266,7 @@ class NumericModel:
         dep = tuple(self.derivation.partition.dependent if dependent is None else dependent)
         if self.constraint_function is None:
             dep, Jh_inv, switched = usable_partition(J, dep, names)
-            a, lam = _split_linear(M, hQ, J, c, dep, Jh_inv)
+            a, lam = split_solve(M, hQ, J, c, dep, Jh_inv)
             return StateSolution(a, lam, J.T @ lam, dep, switched)
         return self._solve_nonlinear(t, q, w, pv, M, hQ, dep, bias)
 
@@ -282,7 +282,7 @@ class NumericModel:
 
         f0, J0 = fJ(np.zeros(len(w)))
         dep, Jh_inv, switched = usable_partition(J0, dep, names)
-        a0, _ = _split_linear(M, hQ, J0, f0, dep, Jh_inv)
+        a0, _ = split_solve(M, hQ, J0, f0, dep, Jh_inv)
 
         def G(a):
             f, J = fJ(a)
@@ -379,9 +379,10 @@ class NumericModel:
         return np.asarray(fn(float(t), q, w, a, self.params(p))[0], float).reshape(-1)
 
 
-def _split_linear(M, hQ, J, c, dep, Jh_inv=None):
-    """Steps 2–4 of the module docstring for ``J a + c = 0`` (``Jh_inv``: ``J_h^{-1}`` if
-    already known)."""
+def split_solve(M, hQ, J, c, dep, Jh_inv=None):
+    """Accelerations and multipliers of ``M a + hQ = J^T lambda``, ``J a + c = 0`` by the
+    split (steps 2–4 of the module docstring): ``(C^T M C) a_nu = -C^T (M d + hQ)``,
+    ``lambda = J_h^{-T} E_h``. ``Jh_inv``: ``J_h^{-1}`` if already known."""
     n = M.shape[0]
     if J.shape[0] == 0:
         return np.linalg.solve(M, -hQ), np.zeros(0)
