@@ -33,6 +33,7 @@ import sympy as sp
 
 from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError, ModelError
+from appell.numerics.crosscheck import relative_difference
 from appell.numerics.numeric import lambdify_blocks, program_substitutions, split_basis, split_solve, usable_partition
 from appell.symbols import derivative_symbol, t
 
@@ -332,13 +333,6 @@ def sample_controlled_states(model: ControlledModel, count: int = 5, seed: int =
             for k in range(count)]
 
 
-def _rel(x, y) -> float:
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    if x.size == 0:
-        return 0.0
-    return float(np.max(np.abs(x - y)) / max(np.max(np.abs(x)), np.max(np.abs(y)), 1e-12))
-
-
 def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCheck:
     """Compare :meth:`ControlledModel.solve` with an independent route (see
     :class:`ControlledCrossCheck`)."""
@@ -352,8 +346,8 @@ def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCh
         for tt, y in states:
             s1 = model.solve(tt, y, pv)
             s2 = augmented_controlled_solve(model, tt, y, pv)
-            dc, da, dl = max(dc, _rel(s1.controls, s2.controls)), max(da, _rel(s1.accelerations, s2.accelerations)), \
-                max(dl, _rel(s1.multipliers, s2.multipliers))
+            dc, da, dl = max(dc, relative_difference(s1.controls, s2.controls)), max(da, relative_difference(s1.accelerations, s2.accelerations)), \
+                max(dl, relative_difference(s1.multipliers, s2.multipliers))
             ds = max(ds, float(np.max(np.abs(s1.servo_multipliers), initial=0.0)))
         return ControlledCrossCheck("augmented", dc, da, dl, ds, len(states))
     system = derivation.system
@@ -364,7 +358,7 @@ def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCh
     for tt, y in states:
         vals = {**prm, **dict(zip(syms, y)), time: tt}
         ref = [float(e.xreplace(vals).evalf()) for e in laws]
-        dc = max(dc, _rel(model.solve(tt, y, pv).controls, ref))
+        dc = max(dc, relative_difference(model.solve(tt, y, pv).controls, ref))
     tracking = float("nan")
     if system.initial:
         from appell.simulation.simulate import simulate
