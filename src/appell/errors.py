@@ -42,3 +42,9 @@ class ComputationError(AppellError):
     """A numeric or symbolic computation failed on a valid model; exit code 1."""
 
     exit_code = 1
+
+
+class SingularConfigurationError(ModelError):
+    """The motion reached a state where the constraint Jacobian lost rank: no partition
+    satisfies condition (1.2), so the reactions are not determined there; exit code 2.
+    The message names the constraints involved."""

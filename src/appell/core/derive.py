@@ -55,5 +55,22 @@ def derive(system: System, dependent: Sequence | None = None) -> Derivation:
     inertia = inertia_blocks(system, kin)
     cons = second_order_blocks(system.constraints, kin)
     known = {**system.parameter_values, **{sp.Symbol(k): v for k, v in system.initial}}
+    known.update(_programs_at_start(system, known))
     partition = choose_partition(sp.Matrix(cons.jacobian), cons.names, kin.accelerations, dependent, at=known)
     return Derivation(system, kin, inertia, cons, partition)
+
+
+def _programs_at_start(system: System, known: dict) -> dict:
+    """Values of the programs (and their derivatives) at t = 0, where they are numbers:
+    the partition is chosen at the model's initial state."""
+    from appell.symbols import derivative_symbol, t
+
+    out = {}
+    for prog in system.programs:
+        sym = prog.symbol
+        for order in range(3):
+            value = prog.derivative(order).xreplace({**known, t: 0})
+            if value.is_number and value.is_real:
+                out[sym] = float(value)
+            sym = derivative_symbol(sym)
+    return out

@@ -19,6 +19,13 @@ from appell.errors import ModelError
 
 #: relative singular-value threshold under which a block counts as singular
 RANK_TOL = 1e-9
+#: relative condition number (:func:`partition_condition`) above which the derivation's
+#: partition is replaced by the best-conditioned one at that state (about 4 digits of the
+#: 16 may be lost before the switch)
+KEEP_CONDITION = 1e4
+#: relative condition number of the best partition above which the constraint Jacobian
+#: counts as rank-deficient (a singular configuration: the reactions are undetermined)
+RANK_CONDITION = 1e12
 
 
 @dataclass(frozen=True)
@@ -27,14 +34,24 @@ class Partition:
 
     independent: tuple[int, ...]
     dependent: tuple[int, ...]
+    #: ``det J_h`` of the dependent block (None where not formed: blocks over
+    #: :data:`MAX_BLOCK_SIZE`); the formulas (1.4)/(1.5) of this partition are singular where
+    #: it vanishes, and the numeric solve switches partitions before that
+    determinant: sp.Expr | None = None
 
     def names(self, accelerations: Sequence[sp.Symbol]) -> tuple[list[str], list[str]]:
         return [accelerations[i].name for i in self.independent], [accelerations[i].name for i in self.dependent]
 
 
-def from_dependent(dependent: Sequence[int], n: int) -> Partition:
+def from_dependent(dependent: Sequence[int], n: int, J: sp.Matrix | None = None) -> Partition:
+    """The partition with these dependent columns; with ``J`` also ``det J_h`` (small blocks)."""
     dep = tuple(int(i) for i in dependent)
-    return Partition(tuple(i for i in range(n) if i not in dep), dep)
+    det = None
+    if J is not None and 0 < len(dep) <= MAX_BLOCK_SIZE:
+        from appell.core.equations import tidy
+
+        det = tidy(J[:, list(dep)].det(method="berkowitz"))
+    return Partition(tuple(i for i in range(n) if i not in dep), dep, det)
 
 
 def generic_values(symbols, seed: int = 0) -> dict:
@@ -56,6 +73,44 @@ def pivoted_columns(Jn: np.ndarray) -> tuple[np.ndarray, int]:
     d = np.abs(np.diag(R))
     rank = int(np.sum(d > RANK_TOL * max(d[0], 1e-300))) if d.size else 0
     return piv, rank
+
+
+def row_scales(J: np.ndarray) -> np.ndarray:
+    """``D = diag(1 / max_j |J_rj|)``: the scaling that gives every constraint row of ``J`` a
+    largest entry of one (zero for a row that vanishes). Scaling a row of ``J`` rescales
+    its multiplier only, so a partition judged on ``D J`` is judged independently of how
+    each constraint happens to be written."""
+    big = np.abs(J).max(axis=1) if J.size else np.zeros(J.shape[0])
+    with np.errstate(divide="ignore"):
+        return np.where(big > 0.0, 1.0 / np.where(big > 0.0, big, 1.0), 0.0)
+
+
+def partition_condition(J: np.ndarray, dependent) -> tuple[float, np.ndarray | None]:
+    """Relative condition number of a partition and ``J_h^{-1}``.
+
+    ``kappa = |(D J_h)^{-1}|_1 |D J|_1`` with ``D`` from :func:`row_scales`: the dependent
+    block is measured against the whole row-normalised constraint Jacobian, not against
+    itself (the condition number of ``J_h`` alone is 1 for every 1 x 1 block, however
+    small). ``kappa`` bounds the entries of ``J_h^{-1} J_nu`` and the amplification of
+    rounding errors in ``a_h`` and in ``lambda``; it is infinite where ``J_h`` is singular
+    or a constraint row vanishes. Returns ``(kappa, J_h^{-1})`` (the inverse is None when
+    infinite). The numeric split and the C backend use the same number.
+    """
+    s = J.shape[0]
+    if s == 0:
+        return 1.0, np.zeros((0, 0))
+    D = row_scales(J)
+    if not np.all(D > 0.0):
+        return np.inf, None
+    Jn = J * D[:, None]
+    try:
+        inv_n = np.linalg.inv(Jn[:, list(dependent)])
+    except np.linalg.LinAlgError:
+        return np.inf, None
+    kappa = float(np.abs(inv_n).sum(axis=0).max() * np.abs(Jn).sum(axis=0).max())
+    if not np.isfinite(kappa):
+        return np.inf, None
+    return kappa, inv_n * D[None, :]
 
 
 def redundant_rows(Jn: np.ndarray) -> list[int]:
@@ -107,26 +162,45 @@ def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence
                 f"({', '.join(accelerations[i].name for i in idx)}) make df/da_h singular (condition 1.2)",
                 hint="choose instead e.g. " + ", ".join(accelerations[i].name for i in auto.dependent),
             )
-        return from_dependent(idx, n)
-    preferred = _simplest_determinant(J, J1, J2, s, n, at or {})
+        return from_dependent(idx, n, J)
+    start = _at_state(J, at or {}, seed)
+    preferred = _simplest_determinant(J, J1, J2, s, n, start)
     if preferred is not None:
-        return from_dependent(preferred, n)
-    Jn = J1 if r1 >= r2 else J2
-    piv, _ = pivoted_columns(Jn)
-    return from_dependent(sorted(int(i) for i in piv[:s]), n)
+        return from_dependent(preferred, n, J)
+    Jn = start if start is not None else (J1 if r1 >= r2 else J2)
+    piv, _ = pivoted_columns(Jn * row_scales(Jn)[:, None])
+    return from_dependent(sorted(int(i) for i in piv[:s]), n, J)
 
 
 #: the symbolic determinant search is used while it stays this small
 MAX_BLOCKS, MAX_BLOCK_SIZE = 64, 3
 
 
-def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, n: int, at: dict):
-    """Dependent columns whose block determinant is nonzero at the known state ``at`` and
-    depends on the fewest symbols.
+def _at_state(J: sp.Matrix, at: dict, seed: int) -> np.ndarray | None:
+    """``J`` at the known values ``at`` (the model's parameters and initial state; generic
+    values for the rest), or None when nothing is known or ``J`` has lost rank there."""
+    if not at:
+        return None
+    vals = {**generic_values(J.free_symbols - set(at), seed), **{k: v for k, v in at.items() if k in J.free_symbols}}
+    try:
+        Jn = np.array(J.xreplace(vals).evalf(), dtype=float).reshape(J.shape)
+    except (TypeError, ValueError):
+        return None
+    if not np.all(np.isfinite(Jn)) or pivoted_columns(Jn * row_scales(Jn)[:, None])[1] < J.shape[0]:
+        return None
+    return Jn
 
-    A determinant free of coordinates and speeds (the car's ``sin(theta)``) cannot vanish
-    along the motion by itself; among equals, fewer operations, then later columns
-    (dependent accelerations last, as in the paper). None when the search is too large.
+
+def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, n: int, start):
+    """Dependent columns that are well conditioned at the model's start and whose block
+    determinant depends on the fewest symbols.
+
+    ``start`` is ``J`` at the initial state (or None): a block whose relative condition
+    number (:func:`partition_condition`) there reaches :data:`KEEP_CONDITION` would be
+    switched at once, so it ranks last. A determinant free of coordinates and speeds (the
+    car's ``sin(theta)``) cannot vanish along the motion by itself; among equals, fewer
+    operations, then later columns (dependent accelerations last, as in the paper). None
+    when the search is too large.
     """
     from itertools import combinations
     from math import comb
@@ -141,7 +215,8 @@ def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, 
         if min(pivoted_columns(J1[:, cols])[1], pivoted_columns(J2[:, cols])[1]) < s:
             continue
         det = tidy(J[:, cols].det(method="berkowitz"))
-        score = (_vanishes_at(det, at), len(det.free_symbols), sp.count_ops(det), [-c for c in reversed(cols)])
+        poor = start is not None and partition_condition(start, cols)[0] >= KEEP_CONDITION
+        score = (poor, len(det.free_symbols), sp.count_ops(det), [-c for c in reversed(cols)])
         if best is None or score < best[0]:
             best = (score, cols)
     return None if best is None else best[1]
@@ -166,15 +241,3 @@ def _index(item, accelerations) -> int:
         f"{name!r} is not an acceleration of the system",
         hint="choose among " + ", ".join(a.name for a in accelerations),
     )
-
-
-def _vanishes_at(det: sp.Expr, at: dict) -> bool:
-    """Whether ``det`` is (numerically) zero at the known values, others generic."""
-    if not at:
-        return False
-    rest = generic_values(det.free_symbols - set(at), seed=7)
-    try:
-        value = complex(det.xreplace({**rest, **{k: v for k, v in at.items() if k in det.free_symbols}}))
-    except (TypeError, ValueError):
-        return False
-    return not np.isfinite(value) or abs(value) < 1e-9

@@ -56,11 +56,37 @@ def derivation_text(derivation) -> str:
     for c in sysm.constraints:
         lines.append(f"  constraint   {c.name} ({c.kind}): {c.expr} = 0")
     lines.append(f"  independent accelerations {', '.join(ind) or '-'}; dependent {', '.join(dep) or '-'}")
+    where = singular_where(derivation)
+    if where:
+        lines.append(f"  {where}")
     lines.append("")
     lines.append("reduced equations of motion (1.4) and reactions (1.5):")
     for label, lhs, rhs in _named_equations(derivation):
         lines.append(f"  {label:<10s} {lhs} = {rhs}")
     return "\n".join(lines)
+
+
+def singular_where(derivation) -> str | None:
+    """Where the printed formulas of this partition are singular: the factors of
+    ``det J_h`` that depend on the state (parameter-only factors are left out), e.g.
+    ``sin(theta) = 0`` for the car. The numeric solve switches partitions before such a
+    state; the printed formulas do not."""
+    part = derivation.partition
+    if not part.dependent:
+        return None
+    det = part.determinant
+    if det is None:
+        return "formulas singular where det J_h = 0 (the block is too large to print its determinant)"
+    state = set(derivation.kinematics.coordinates) | set(derivation.kinematics.speeds) | {
+        p.symbol for p in derivation.system.programs}
+    zeros = []
+    for f in sp.Mul.make_args(sp.factor_terms(det)):
+        base = f.base if f.is_Pow and f.exp.is_number else f
+        if base.free_symbols & state and f"{base} = 0" not in zeros:
+            zeros.append(f"{base} = 0")
+    if not zeros:
+        return f"formulas regular at every state (det J_h = {det})"
+    return "formulas singular where " + " or ".join(zeros) + f" (det J_h = {det})"
 
 
 def derivation_latex(derivation) -> str:

@@ -5,12 +5,14 @@ coordinate rates and the constraint residuals, programs replaced by their expres
 t) are written as C functions with common subexpressions shared (``sympy.cse``). For
 constraints linear in ``a`` one C call also does the linear algebra of the split route:
 
-1. ``J_h = J[:, dep]`` is LU-factored; if its 1-norm condition number is not below
-   :data:`appell.numerics.numeric.SWITCH_CONDITION` the call reports it and Python switches the
-   partition (the NumPy route on the compiled blocks);
+1. the rows of ``J`` are scaled to a largest entry of one (``D J``) and ``D J_h`` is
+   LU-factored; if the partition's relative condition number
+   ``kappa = |(D J_h)^{-1}|_1 |D J|_1`` is not below
+   :data:`appell.numerics.numeric.KEEP_CONDITION` the call reports it and Python switches
+   the partition (:func:`appell.numerics.numeric.usable_partition` on the compiled blocks);
 2. ``X = J_h^{-1} J_nu``, ``d_h = -J_h^{-1} c``, ``C = [I; -X]``;
 3. ``(C^T M C) a_nu = -C^T (M d + h - Q)``, ``a = C a_nu + d``          — (1.4);
-4. ``lambda = J_h^{-T} E_h`` with ``E = M a + h - Q``, ``R = J^T lambda`` — (1.5).
+4. ``lambda = D (D J_h)^{-T} E_h`` with ``E = M a + h - Q``, ``R = J^T lambda`` — (1.5).
 
 The library is compiled once with the system C compiler (``$APPELL_CC``, else ``$CC``,
 else ``cc``; ``-O2 -shared -fPIC``), cached on disk under ``$APPELL_CACHE_DIR`` (default
@@ -38,7 +40,7 @@ from sympy.printing.c import C99CodePrinter
 
 from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError
-from appell.numerics.numeric import SWITCH_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
+from appell.numerics.numeric import KEEP_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
 from appell.symbols import t
 
 #: environment variables: cache directory and C compiler
@@ -167,35 +169,48 @@ static double norm1(int n, const double *A)
     return best;
 }
 
-/* 0: solved; 1: J_h ill-conditioned or singular (switch the partition); 2: not finite */
+/* 0: solved; 1: the partition's relative condition number kappa reaches cond_max, or a row of J
+   vanishes (Python switches the partition or names the singular constraints); 2: not finite */
 int appell_split(const double *M, const double *hQ, const double *J, const double *c, const int *dep,
                  double cond_max, double *a, double *lam, double *R)
 {
     int isdep[N] = {0}, ind[DIM(P)], piv[DIM(S)], pivA[DIM(P)];
-    double Jh[DIM(S * S)], inv[DIM(S * S)], X[DIM(S * P)], d[N], A[DIM(P * P)], b[DIM(P)];
+    double Jh[DIM(S * S)], inv[DIM(S * S)], D[DIM(S)], X[DIM(S * P)], d[N], A[DIM(P * P)], b[DIM(P)];
     double MC[DIM(N * P)], Md[N], E[N];
     for (int k = 0; k < S; ++k) isdep[dep[k]] = 1;
     for (int i = 0, j = 0; i < N; ++i) if (!isdep[i]) ind[j++] = i;
     for (int i = 0; i < N; ++i) d[i] = 0.0;
     if (S > 0) {
-        for (int r = 0; r < S; ++r) for (int k = 0; k < S; ++k) Jh[r * S + k] = J[r * N + dep[k]];
-        double nrm = norm1(S, Jh);
+        /* row scales D = 1 / max_j |J_rj| and kappa = |(D J_h)^{-1}|_1 |D J|_1 (numeric.partition_condition) */
+        double nrm = 0.0;
+        for (int r = 0; r < S; ++r) {
+            double big = 0.0;
+            for (int i = 0; i < N; ++i) if (fabs(J[r * N + i]) > big) big = fabs(J[r * N + i]);
+            if (!(big > 0.0) || !isfinite(big)) return 1;
+            D[r] = 1.0 / big;
+        }
+        for (int i = 0; i < N; ++i) {
+            double s = 0.0;
+            for (int r = 0; r < S; ++r) s += fabs(J[r * N + i]) * D[r];
+            if (s > nrm) nrm = s;
+        }
+        for (int r = 0; r < S; ++r) for (int k = 0; k < S; ++k) Jh[r * S + k] = D[r] * J[r * N + dep[k]];
         if (lu_factor(S, Jh, piv)) return 1;
-        for (int k = 0; k < S; ++k) {          /* columns of J_h^{-1}, for the condition number */
+        for (int k = 0; k < S; ++k) {          /* columns of (D J_h)^{-1}, for kappa */
             double e[DIM(S)];
             for (int r = 0; r < S; ++r) e[r] = (r == k);
             lu_solve(S, Jh, piv, e);
             for (int r = 0; r < S; ++r) inv[r * S + k] = e[r];
         }
         if (!(nrm * norm1(S, inv) < cond_max)) return 1;
-        for (int j = 0; j < P; ++j) {           /* X = J_h^{-1} J_nu */
+        for (int j = 0; j < P; ++j) {           /* X = J_h^{-1} J_nu = (D J_h)^{-1} D J_nu */
             double col[DIM(S)];
-            for (int r = 0; r < S; ++r) col[r] = J[r * N + ind[j]];
+            for (int r = 0; r < S; ++r) col[r] = D[r] * J[r * N + ind[j]];
             lu_solve(S, Jh, piv, col);
             for (int r = 0; r < S; ++r) X[r * P + j] = col[r];
         }
         double dh[DIM(S)];                      /* d_h = -J_h^{-1} c */
-        for (int r = 0; r < S; ++r) dh[r] = -c[r];
+        for (int r = 0; r < S; ++r) dh[r] = -D[r] * c[r];
         lu_solve(S, Jh, piv, dh);
         for (int r = 0; r < S; ++r) d[dep[r]] = dh[r];
     }
@@ -238,9 +253,10 @@ int appell_split(const double *M, const double *hQ, const double *J, const doubl
         for (int j = 0; j < N; ++j) s += M[i * N + j] * a[j];
         E[i] = s;
     }
-    if (S > 0) {
+    if (S > 0) {                            /* lambda = D (D J_h)^{-T} E_h */
         for (int r = 0; r < S; ++r) lam[r] = E[dep[r]];
         lu_solve_t(S, Jh, piv, lam);
+        for (int r = 0; r < S; ++r) lam[r] *= D[r];
     }
     for (int i = 0; i < N; ++i) {
         double s = 0.0;
@@ -399,7 +415,7 @@ class CompiledNumericModel(NumericModel):
         n, s = len(w), len(self._default_dep)
         a, lam, R = np.empty(n), np.empty(s), np.empty(n)
         status = self._lib.appell_solve(float(t), _ptr(q), _ptr(w), _ptr(pv), None if bv is None else _ptr(bv),
-                                        _ptr(dep), SWITCH_CONDITION, _ptr(a), _ptr(lam), _ptr(R))
+                                        _ptr(dep), KEEP_CONDITION, _ptr(a), _ptr(lam), _ptr(R))
         if status != 0:
             return self._fallback_solve(t, q, w, pv, dependent, bias)
         return StateSolution(a, lam, R, tuple(int(i) for i in dep), False)
@@ -423,7 +439,7 @@ class CompiledNumericModel(NumericModel):
         bv = None if bias is None else _vec(bias)
         dy, lam = np.empty(len(y)), np.empty(len(self._default_dep))
         status = self._lib.appell_evaluate(float(t), _ptr(y), paddr, None if bv is None else _ptr(bv),
-                                           self._formula["addr"][1], SWITCH_CONDITION, _ptr(dy), _ptr(lam))
+                                           self._formula["addr"][1], KEEP_CONDITION, _ptr(dy), _ptr(lam))
         if status != 0:
             q, w = self.split_state(y)
             sol = self._fallback_solve(t, q, w, pv, None, bias)

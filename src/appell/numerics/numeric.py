@@ -22,12 +22,10 @@ import numpy as np
 import sympy as sp
 
 from appell.numerics.dynamics import Evaluation
-from appell.errors import ComputationError, ModelError
-from appell.core.partition import pivoted_columns
+from appell.errors import ComputationError, ModelError, SingularConfigurationError
+from appell.core.partition import KEEP_CONDITION, RANK_CONDITION, partition_condition, pivoted_columns, row_scales
 from appell.symbols import derivative_symbol, t
 
-#: condition number of J_h above which the partition is switched
-SWITCH_CONDITION = 1e8
 
 
 def program_substitutions(system, orders: int = 8) -> dict:
@@ -157,44 +155,56 @@ def split_basis(J: np.ndarray, dependent) -> tuple[np.ndarray, np.ndarray, list[
     return C, Jh, dep, ind
 
 
-def block_inverse(Jh: np.ndarray) -> np.ndarray | None:
-    """``J_h^{-1}`` of the small dependent block, or None when ``J_h`` is singular or its
-    1-norm condition number ``|J_h|_1 |J_h^{-1}|_1`` reaches :data:`SWITCH_CONDITION`
-    (the same test as the C backend)."""
-    if Jh.size == 0:
-        return np.zeros((0, 0))
-    try:
-        inv = np.linalg.inv(Jh)
-    except np.linalg.LinAlgError:
-        return None
-    cond = np.abs(Jh).sum(axis=0).max() * np.abs(inv).sum(axis=0).max()
-    return inv if np.isfinite(cond) and cond < SWITCH_CONDITION else None
-
-
-
-
 def choose_dependent(J: np.ndarray, names) -> tuple[int, ...]:
-    piv, rank = pivoted_columns(J)
-    if rank < J.shape[0]:
-        raise ComputationError(
-            "the constraint Jacobian lost rank at this state: no nonsingular partition (1.2) exists here",
-            hint="constraints " + ", ".join(names) + " are dependent at this state (a singular configuration)",
+    """The best-conditioned dependent columns at this state: the first ``s`` columns of QR
+    with column pivoting on the row-normalised Jacobian ``D J``. Raises
+    :class:`SingularConfigurationError` naming the dependent constraints when ``J`` has
+    lost rank (no partition satisfies condition (1.2))."""
+    D = row_scales(J)
+    zero = [names[i] for i in range(J.shape[0]) if D[i] == 0.0]
+    if zero:
+        raise SingularConfigurationError(
+            "the reaction direction df/da of constraint(s) " + ", ".join(zero) + " vanishes at this state: "
+            "no partition (1.2) exists and the reaction is undetermined",
+            hint="the configuration is singular for these constraints; start elsewhere, shorten the time span, "
+                 "or rewrite the constraint so that its gradient does not vanish",
         )
-    return tuple(sorted(int(i) for i in piv[: J.shape[0]]))
+    Jn = J * D[:, None]
+    piv, rank = pivoted_columns(Jn)
+    dep = tuple(sorted(int(i) for i in piv[: J.shape[0]]))
+    if rank < J.shape[0] or partition_condition(J, dep)[0] >= RANK_CONDITION:
+        # the constraints in a combination sum(u_i J_i) ~ 0: the left singular vectors of
+        # the smallest singular values
+        U = np.linalg.svd(Jn)[0]
+        lost = max(1, J.shape[0] - rank)
+        bad = [names[i] for i in range(J.shape[0]) if np.max(np.abs(U[i, -lost:])) > 1e-8]
+        raise SingularConfigurationError(
+            "the constraint Jacobian lost rank at this state: no nonsingular partition (1.2) exists, "
+            "so the reactions of " + ", ".join(bad) + " are not determined",
+            hint="constraints " + ", ".join(bad) + " are dependent here (a singular configuration "
+                 "of the mechanism); start elsewhere or stop the run before this state",
+        )
+    return dep
 
 
-def usable_partition(J: np.ndarray, dependent, names) -> tuple[tuple[int, ...], np.ndarray | None, bool]:
-    """The dependent columns to use at this state: ``dependent`` while its block ``J_h``
-    passes :func:`block_inverse`, else the columns of :func:`choose_dependent`.
+def usable_partition(J: np.ndarray, dependent, names) -> tuple[tuple[int, ...], np.ndarray, bool]:
+    """The dependent columns to use at this state, and ``J_h^{-1}``.
 
-    Returns ``(dependent, J_h^{-1} or None, switched)``.
+    ``dependent`` (the derivation's choice) is kept while its :func:`partition_condition`
+    stays below :data:`KEEP_CONDITION`; otherwise the columns of :func:`choose_dependent`
+    take over (which raises when none is admissible). This one rule serves the split
+    solve, the Newton start of constraints nonlinear in ``a``, and the servo solves; the
+    C backend applies the same test before it hands a state back to it.
+
+    Returns ``(dependent, J_h^{-1}, switched)``.
     """
     dep = tuple(dependent)
-    inv = block_inverse(J[:, list(dep)])
-    if inv is not None:
+    kappa, inv = partition_condition(J, dep)
+    if kappa < KEEP_CONDITION:
         return dep, inv, False
-    dep = choose_dependent(J, names)
-    return dep, block_inverse(J[:, list(dep)]), True
+    new = choose_dependent(J, names)
+    kappa, inv = partition_condition(J, new)
+    return new, inv, new != dep
 
 
 @dataclass(frozen=True)
@@ -280,19 +290,45 @@ class NumericModel:
             f = np.asarray(f, float).reshape(-1) + (0.0 if bias is None else np.asarray(bias, float))
             return f, np.asarray(J, float).reshape(-1, len(w))
 
-        f0, J0 = fJ(np.zeros(len(w)))
-        dep, Jh_inv, switched = usable_partition(J0, dep, names)
-        a0, _ = split_solve(M, hQ, J0, f0, dep, Jh_inv)
+        # Newton starts from the linearisation of f at a point where df/da has full rank:
+        # a = 0 first, else the unconstrained accelerations -M^{-1}(h - Q) (a constraint
+        # such as |a| = a0 has df/da = 0 at a = 0)
+        starts = [np.zeros(len(w))]
+        try:
+            starts.append(np.linalg.solve(M, -hQ))
+        except np.linalg.LinAlgError:
+            pass
+        for k, a_s in enumerate(starts):
+            f0, J0 = fJ(a_s)
+            try:
+                dep, Jh_inv, switched = usable_partition(J0, dep, names)
+            except SingularConfigurationError:
+                if k + 1 < len(starts):
+                    continue
+                raise
+            break
+        a0, _ = split_solve(M, hQ, J0, f0 - J0 @ a_s, dep, Jh_inv)
 
         def G(a):
             f, J = fJ(a)
             C, _, _, _ = split_basis(J, dep)
             return np.concatenate([C.T @ (M @ a + hQ), f])
 
-        a, its = newton(G, a0, "the constraints nonlinear in the accelerations")
+        try:
+            a, its = newton(G, a0, "the constraints nonlinear in the accelerations")
+        except ComputationError as exc:
+            f_end, _ = fJ(a0)
+            worst = int(np.argmax(np.abs(f_end))) if f_end.size else 0
+            raise ComputationError(
+                f"{exc.message} at t = {float(t):.10g}; residual of the start: "
+                + ", ".join(f"{n} {v:.3g}" for n, v in zip(names, f_end)),
+                hint=f"constraint {names[worst]!r} may have no real solution for the accelerations at this "
+                     "state; check its expression and the initial values",
+            ) from exc
         f, J = fJ(a)
-        lam = np.linalg.solve(J[:, list(dep)].T, (M @ a + hQ)[list(dep)])
-        return StateSolution(a, lam, J.T @ lam, tuple(dep), switched, its)
+        dep, Jh_inv, moved = usable_partition(J, dep, names)
+        lam = Jh_inv.T @ (M @ a + hQ)[list(dep)]
+        return StateSolution(a, lam, J.T @ lam, tuple(dep), switched or moved, its)
 
     # ------------------------------------------------- Dynamics protocol
     @property

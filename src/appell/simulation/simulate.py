@@ -143,15 +143,24 @@ class _Run:
         self.nfev = self.steps = self.projections = self.switches = self.restarts = 0
         self.released: list[str] = []
         self.dependent = None
+        self.partition_of = model
 
     def evaluate(self, model, t, y):
+        """The model at (t, y) (with the Baumgarte bias); every change of the partition in
+        use is logged, also inside a step, where the integrator's stages meet it."""
         b = self.settings.get("baumgarte")
         if b is None:
-            return model.evaluate(t, y, self.p)
-        alpha, beta = b
-        F, phi = model.state_residuals(t, y, self.p)
-        bias = 2.0 * alpha * np.nan_to_num(np.asarray(phi, float)) + beta**2 * np.nan_to_num(np.asarray(F, float))
-        return model.evaluate(t, y, self.p, bias=bias)
+            ev = model.evaluate(t, y, self.p)
+        else:
+            alpha, beta = b
+            F, phi = model.state_residuals(t, y, self.p)
+            bias = 2.0 * alpha * np.nan_to_num(np.asarray(phi, float)) + beta**2 * np.nan_to_num(np.asarray(F, float))
+            ev = model.evaluate(t, y, self.p, bias=bias)
+        if model is not self.partition_of:  # a new model (a release): its partition is not a switch
+            self.partition_of, self.dependent = model, tuple(ev.dependent)
+        elif self.dependent is not None and tuple(ev.dependent) != self.dependent:
+            self.note_partition(model, t, ev)
+        return ev
 
     def by_name(self, model, values, fill):
         table = dict(zip(model.constraint_names, np.asarray(values, float)))
