@@ -27,6 +27,10 @@ from appell.core.partition import KEEP_CONDITION, RANK_CONDITION, partition_cond
 from appell.symbols import derivative_symbol, t
 
 
+#: a row of df/da at the solution of a constraint nonlinear in a smaller than this fraction
+#: of its size at Newton's start counts as vanishing (the multiplier is then undetermined)
+VANISHING_ROW = 1e-4
+
 
 def program_substitutions(system, orders: int = 8) -> dict:
     """``{theta: expr(t), theta_dot: expr'(t), ...}`` for every program."""
@@ -326,6 +330,18 @@ class NumericModel:
                      "state; check its expression and the initial values",
             ) from exc
         f, J = fJ(a)
+        # a reaction direction that (nearly) vanishes at the solution leaves its multiplier
+        # undetermined: Newton fixes a to ~1e-12, so a row shrunk below 1e-4 of its size at
+        # the start would carry that error into lambda beyond 1e-8
+        shrunk = np.linalg.norm(J, axis=1) < VANISHING_ROW * np.linalg.norm(J0, axis=1)
+        if np.any(shrunk):
+            bad = [n for n, b in zip(names, shrunk) if b]
+            raise SingularConfigurationError(
+                f"the reaction direction df/da of constraint(s) {', '.join(bad)} vanishes at the solution "
+                f"a = {np.array2string(a, precision=6)} (t = {float(t):.10g}): the multiplier is not determined",
+                hint="the constraint's gradient in the accelerations is zero where it holds, so its reaction "
+                     "has no direction there; prescribe the motion another way (its components, say)",
+            )
         dep, Jh_inv, moved = usable_partition(J, dep, names)
         lam = Jh_inv.T @ (M @ a + hQ)[list(dep)]
         return StateSolution(a, lam, J.T @ lam, tuple(dep), switched or moved, its)
