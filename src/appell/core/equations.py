@@ -194,15 +194,15 @@ class Derivation:
         return Derivation(self.system, self.kinematics, self.inertia, self.constraints, p)
 
     # display helpers live in appell.io.printing
-    def to_text(self) -> str:
+    def to_text(self, only=None) -> str:
         from appell.io.printing import derivation_text
 
-        return derivation_text(self)
+        return derivation_text(self, only)
 
-    def to_latex(self) -> str:
+    def to_latex(self, only=None) -> str:
         from appell.io.printing import derivation_latex
 
-        return derivation_latex(self)
+        return derivation_latex(self, only)
 
     def to_json(self) -> dict:
         from appell.io.printing import derivation_json

@@ -284,8 +284,11 @@ def cli():
 @click.option("--routh", is_flag=True,
               help="First reduce over the cyclic coordinates (Routh, method.md §5): print the cyclic "
                    "velocities (3.4), T*, V and L* = T* - V, then the reduced system's equations.")
+@click.option("--only", "only", multiple=True, type=click.Choice(["motion", "reactions", "controls"]),
+              help="Print only these items (repeatable): motion (the accelerations of (1.4) and f = 0), "
+                   "reactions ((1.5), also solved in t, q, w) or controls (control laws and (2.3)).")
 @_set_option
-def derive(model, fmt, dependent, routh, assignments):
+def derive(model, fmt, dependent, routh, assignments, only):
     """Print the reduced equations (1.4) and one reaction formula per constraint (1.5).
 
     For a model with servo constraints: the dynamic conditions (2.3), the reduced
@@ -309,9 +312,15 @@ def derive(model, fmt, dependent, routh, assignments):
             }
         click.echo(json.dumps(out, indent=2))
     elif fmt == "latex":
-        click.echo((reduction.to_latex() + "\n\n" if reduction is not None else "") + derivation.to_latex())
+        from appell.io.printing import derivation_latex
+
+        body = derivation_latex(derivation, only) if only else derivation.to_latex()
+        click.echo((reduction.to_latex() + "\n\n" if reduction is not None else "") + body)
     else:
-        click.echo((reduction.to_text() + "\n\n" if reduction is not None else "") + derivation.to_text())
+        from appell.io.printing import derivation_text
+
+        body = derivation_text(derivation, only) if only else derivation.to_text()
+        click.echo((reduction.to_text() + "\n\n" if reduction is not None else "") + body)
 
 
 @cli.command(context_settings=_CONTEXT)
