@@ -28,7 +28,8 @@ place of ``f = 0`` (Baumgarte 1972); the model must accept ``bias=`` in ``evalua
 Unilateral constraints: when ``sign * lambda`` falls through zero the constraint is
 released; with ``on_release='continue'`` the system is derived again without it
 (``appell.derive(system.replace(constraints=...))``, once per set of released
-constraints), the state is carried over by name, and the integration goes on; with
+constraints), the state carries over (the models of one run share their state vector),
+and the integration goes on; with
 ``'stop'`` it ends there. A unilateral holonomic constraint whose gap ``sign * F`` is open
 at the start (beyond the tolerance 1e-9 of the initial check) starts released.
 
@@ -335,7 +336,8 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
         raise ModelError(f"model {model.name!r} does not accept a constraint bias: Baumgarte stabilization "
                          "is not available for it", hint="use stabilization='projection'")
     check_event_names(model, unilateral, friction)
-    if not (isinstance(rest_speed, (int, float)) and np.isfinite(rest_speed) and rest_speed > 0):
+    if isinstance(rest_speed, bool) or not (isinstance(rest_speed, (int, float)) and np.isfinite(rest_speed)
+                                            and rest_speed > 0):
         raise ModelError(f"rest_speed must be a positive number, not {rest_speed!r}")
     if unilateral and on_release == "continue" and system is None:
         raise ModelError("releasing a unilateral constraint needs the system to derive again",
