@@ -359,3 +359,18 @@ def test_cli_simulates_the_slack_pendulum_file(tmp_path):
     assert impacts and abs(impacts[0] - t_star) < 1e-8
     data = np.genfromtxt(out, delimiter=",", names=True)
     assert np.max(np.hypot(data["x"], data["y"])) < 1 + 1e-8
+
+
+@pytest.mark.skipif(__import__("shutil").which("cc") is None, reason="no C compiler")
+def test_compiled_backend_gives_the_same_snap_as_the_closed_form():
+    """slack_pendulum run on the C backend (the released and re-engaged models are derived
+    again with NumPy; the impact uses the compiled model's blocks): the snap at
+    t* = 2 sqrt(g L - v0^2)/g with the impulse m (1 + e) v_r (event_examples.slack_pendulum)."""
+    e, v0, L = 0.3, 2.0, 1.0
+    compiled = appell.derive(event_examples.slack_pendulum(v0, e)).compiled("c")
+    sol = simulate(compiled, 0.6, unilateral={"rod": +1}, rtol=1e-11, atol=1e-12)
+    t_star = 2 * math.sqrt(G * L - v0**2) / G
+    snap = sol.impacts[0]
+    assert abs(snap.t - t_star) < 1e-9
+    x, y, vx, vy = v0 * t_star, L - G * t_star**2 / 2, v0, -G * t_star
+    assert snap.impulses["rod"] == pytest.approx((1 + e) * (x * vx + y * vy) / L, rel=1e-9)
