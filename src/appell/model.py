@@ -13,6 +13,7 @@ By default the speeds are the coordinates' derivatives ``<q>_dot`` and ``a`` is
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field
 from typing import Iterable, Mapping
 
@@ -179,12 +180,18 @@ class Constraint:
     2: ``f(t,q,w,a)`` (linear or not in a). The name labels the multiplier
     ``lambda_<name>``; its sign follows the way ``expr`` is written (method.md §2).
     ``where`` optionally records the origin (file and line) for error messages.
+
+    ``restitution`` is Newton's coefficient ``e`` (0 <= e <= 1) of a holonomic constraint
+    simulated as unilateral contact: when its gap closes again after a release, the
+    constraint's velocity ``phi = dF/dt`` jumps from ``phi-`` to ``-e phi-``
+    (:mod:`appell.simulation.impact`); 0 (the default) is a plastic impact.
     """
 
     name: str
     expr: sp.Expr
     order: int
     where: str | None = None
+    restitution: float = 0.0
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -192,15 +199,25 @@ class Constraint:
         if self.order not in ORDERS:
             raise ModelError(f"constraint {self.name!r}: order must be 0, 1 or 2", where=self.where)
         object.__setattr__(self, "expr", _expr(self.expr, f"constraint {self.name!r}"))
+        e = self.restitution
+        if isinstance(e, bool) or not isinstance(e, numbers.Real) or not 0.0 <= float(e) <= 1.0:
+            raise ModelError(f"constraint {self.name!r}: the restitution coefficient must be a number "
+                             f"from 0 to 1, got {e!r}", where=self.where,
+                             hint="0 is a plastic impact, 1 an elastic one")
+        if e and self.order != 0:
+            raise ModelError(f"constraint {self.name!r}: a restitution coefficient needs a holonomic constraint "
+                             f"(a contact whose gap F can close), not a {ORDERS[self.order]} one", where=self.where)
+        object.__setattr__(self, "restitution", float(e))
 
     @property
     def kind(self) -> str:
         return ORDERS[self.order]
 
 
-def holonomic(name: str, expr, where: str | None = None) -> Constraint:
-    """Holonomic constraint ``F(t, q) = 0``."""
-    return Constraint(name, expr, 0, where)
+def holonomic(name: str, expr, where: str | None = None, restitution: float = 0.0) -> Constraint:
+    """Holonomic constraint ``F(t, q) = 0``; ``restitution`` Newton's coefficient e of the
+    impact when, simulated as unilateral, its gap closes again (:class:`Constraint`)."""
+    return Constraint(name, expr, 0, where, restitution)
 
 
 def nonholonomic(name: str, expr, where: str | None = None) -> Constraint:

@@ -64,8 +64,65 @@ def ball_on_tilting_plane(alpha0: float = 0.1, rate: float = 0.1) -> System:
     )
 
 
+def bouncing_ball(h0: float = 1.0, restitution: float = 0.8, vx: float = 0.5) -> System:
+    """A ball (a particle) dropped from the height h0 onto a floor, bouncing with Newton's
+    restitution coefficient e.
+
+    ``floor``: y = 0, unilateral (+1): lambda_floor is the normal force. The gap y is open
+    at the start; it closes at speed v0 = sqrt(2 g h0) at t1 = sqrt(2 h0 / g). The n-th
+    rebound leaves at speed e^n v0 and rises to the apex height h_n = e^(2n) h0; the
+    flights last 2 e^n v0 / g, so the bounces end (Zeno) at
+    t_inf = t1 + 2 e v0 / (g (1 - e)), after which the ball rests, lambda_floor = m g.
+    The horizontal speed vx is never changed (a smooth floor).
+    """
+    x, y = sp.symbols("x y")
+    m, g = sp.symbols("m g")
+    xd, yd = sp.symbols("x_dot y_dot")
+    return System(
+        name="bouncing_ball",
+        description="ball dropped onto a floor: bounces with restitution e until it comes to rest",
+        coordinates=(x, y),
+        parameters=(Parameter(m, 1.0, "kg", "mass"), Parameter(g, 9.81, "m/s^2", "gravity")),
+        kinetic_energy=m / 2 * (xd**2 + yd**2),
+        potential_energy=m * g * y,
+        constraints=(holonomic("floor", y, restitution=restitution),),
+        initial={"x": 0.0, "y": h0, "x_dot": vx, "y_dot": 0.0},
+        units={"x": "m", "y": "m", "x_dot": "m/s", "y_dot": "m/s", "floor": "N"},
+    )
+
+
+def slack_pendulum(v0: float = 2.0, restitution: float = 0.3) -> System:
+    """A bob on a string of length L, started at the top with the horizontal speed v0.
+
+    ``rod``: (L^2 - x^2 - y^2)/(2L) = 0, unilateral (+1): lambda_rod is the string's
+    tension, m v0^2 / L - m g at the start. With v0^2 < g L it is negative: the string is
+    slack at once and the bob flies on the parabola x = v0 t, y = L - g t^2 / 2, which
+    meets the circle r = L again at t* = 2 sqrt(g L - v0^2) / g (where
+    v0^2 t^2 + (L - g t^2/2)^2 = L^2). There the string snaps taut: the radial speed
+    v_r reverses with the factor e, the tangential speed is unchanged, and the impact
+    takes the energy m (1 - e^2) v_r^2 / 2.
+    """
+    x, y = sp.symbols("x y")
+    m, L, g = sp.symbols("m L g")
+    xd, yd = sp.symbols("x_dot y_dot")
+    return System(
+        name="slack_pendulum",
+        description="bob on a string started at the top too slowly: the string goes slack and snaps taut",
+        coordinates=(x, y),
+        parameters=(Parameter(m, 1.0, "kg", "mass"), Parameter(L, 1.0, "m", "string length"),
+                    Parameter(g, 9.81, "m/s^2", "gravity")),
+        kinetic_energy=m / 2 * (xd**2 + yd**2),
+        potential_energy=m * g * y,
+        constraints=(holonomic("rod", (L**2 - x**2 - y**2) / (2 * L), restitution=restitution),),
+        initial={"x": 0.0, "y": 1.0, "x_dot": v0, "y_dot": 0.0},
+        units={"x": "m", "y": "m", "x_dot": "m/s", "y_dot": "m/s", "rod": "N"},
+    )
+
+
 #: name -> builder
 EVENT_EXAMPLES = {
     "particle_on_sphere": particle_on_sphere,
     "ball_on_tilting_plane": ball_on_tilting_plane,
+    "bouncing_ball": bouncing_ball,
+    "slack_pendulum": slack_pendulum,
 }

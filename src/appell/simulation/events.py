@@ -5,6 +5,15 @@ located by Brent's method on the integrator's dense output (to ``1e-13`` in time
 
 * unilateral constraint ``c`` with sign ``s`` (``unilateral={'c': +1}``):
   ``g = s lambda_c``; when it falls through zero the constraint is released;
+* contact: a released unilateral holonomic constraint ``c`` (or one whose gap is open at
+  the start): ``g = s F_c + offset``, the gap on the admissible side ``s F_c >= 0``; when
+  it falls through zero the gap has closed and an impact follows
+  (:mod:`appell.simulation.impact`). Right after a release the gap lies within the
+  constraint's residual, so the watch starts with ``offset = max(2 |s F_c|, 1e-12)``
+  (only a closing beyond that residual counts) and is armed (``offset = 0``) once the gap
+  has opened by ``offset`` at a step's end. Right after a bounce the gap is taken as
+  exactly zero and opening (at the rebound speed); the simulator also looks for a return
+  within the first step;
 * friction limit (``friction={'t': ('n', mu)}``): ``g = mu lambda_n - |lambda_t|``; each
   crossing is recorded ('exceeded' when ``|lambda_t|`` rises above ``mu lambda_n``);
 * user events (:class:`Event`): a callable ``g(t, y, multipliers)`` with
@@ -23,7 +32,7 @@ import sympy as sp
 
 from appell.errors import ModelError
 
-__all__ = ["Event", "Watch", "watches_for"]
+__all__ = ["Event", "Watch", "watches_for", "contact_watch", "gap_constraints"]
 
 
 @dataclass(frozen=True)
@@ -45,7 +54,8 @@ class Event:
 @dataclass(frozen=True)
 class Watch:
     """A compiled watched quantity: ``g(t, y, evaluation, p) -> float``; ``kind`` one of
-    'release', 'friction', 'user'; ``action`` 'record', 'stop' or 'release'."""
+    'release', 'contact', 'friction', 'user'; ``action`` 'record', 'stop', 'release' or
+    'impact'; ``offset`` the band a contact's gap must close beyond (module docstring)."""
 
     kind: str
     name: str
@@ -53,6 +63,7 @@ class Watch:
     direction: int
     action: str
     constraints: tuple[str, ...] = ()
+    offset: float = 0.0
 
     def crossed(self, g0: float, g1: float) -> bool:
         """Whether a crossing of the watched direction lies between the values g0, g1."""
@@ -93,9 +104,31 @@ def _sympy_event(event: Event, model):
     return g, ()
 
 
-def watches_for(model, unilateral=None, on_release="continue", friction=None, events=()) -> list[Watch]:
-    """The :class:`Watch` list for a model; entries naming constraints the model lacks
-    (already released) are left out."""
+def contact_watch(root, name: str, sign: float, offset: float = 0.0) -> Watch:
+    """The gap ``s F_c + offset`` of the holonomic constraint ``name`` of ``root`` (a model
+    holding every constraint; the state vectors of all the models of one run agree)."""
+    i = list(root.constraint_names).index(name)
+    s = float(np.sign(sign))
+
+    def g(t, y, ev, p):
+        return s * float(root.state_residuals(t, y, p)[0][i]) + offset
+
+    return Watch("contact", name, g, -1, "impact", (name,), float(offset))
+
+
+def gap_constraints(root, unilateral, t, y, p) -> tuple[str, ...]:
+    """The unilateral constraints of ``root`` that have a gap (holonomic ones)."""
+    F, _ = root.state_residuals(t, y, p)
+    names = list(root.constraint_names)
+    return tuple(c for c in dict(unilateral or {}) if c in names and not np.isnan(F[names.index(c)]))
+
+
+def watches_for(model, unilateral=None, on_release="continue", friction=None, events=(), root=None,
+                offsets=None) -> list[Watch]:
+    """The :class:`Watch` list for a model; release and friction entries naming
+    constraints the model lacks (released) are left out. ``root`` the model with every
+    constraint: its holonomic unilateral constraints that ``model`` lacks are watched for
+    contact, with ``offsets`` ``{constraint: offset}`` (default 0)."""
     names = set(model.constraint_names)
     out = []
     for c, sign in dict(unilateral or {}).items():
@@ -105,6 +138,13 @@ def watches_for(model, unilateral=None, on_release="continue", friction=None, ev
         lam = _multiplier(model, c)
         out.append(Watch("release", c, lambda t, y, ev, p, lam=lam, s=sign: s * lam(ev), -1,
                          "stop" if on_release == "stop" else "release", (c,)))
+    if root is not None:
+        offsets = dict(offsets or {})
+        kinds = getattr(root, "has_position", None)
+        for c, sign in dict(unilateral or {}).items():
+            i = list(root.constraint_names).index(c)
+            if c not in names and (kinds is None or kinds[i]):
+                out.append(contact_watch(root, c, sign, offsets.get(c, 0.0)))
     for ct, (cn, mu) in dict(friction or {}).items():
         if ct not in names or cn not in names:
             continue

@@ -27,8 +27,20 @@ place of ``f = 0`` (Baumgarte 1972); the model must accept ``bias=`` in ``evalua
 
 Unilateral constraints: when ``sign * lambda`` falls through zero the constraint is
 released; with ``on_release='continue'`` the system is derived again without it
-(``appell.derive(system.replace(constraints=...))``), the state is carried over by
-name, and the integration goes on; with ``'stop'`` it ends there.
+(``appell.derive(system.replace(constraints=...))``, once per set of released
+constraints), the state carries over (the models of one run share their state vector),
+and the integration goes on; with
+``'stop'`` it ends there. A unilateral holonomic constraint whose gap ``sign * F`` is open
+at the start (beyond the tolerance 1e-9 of the initial check) starts released.
+
+Contacts: the gap ``sign * F`` of a released holonomic unilateral constraint is watched
+(:mod:`appell.simulation.events`); where it closes, the speeds jump by the impact law of
+:mod:`appell.simulation.impact` (Newton's restitution coefficient of the constraint,
+impulses by the split), recorded as an event of kind 'impact' with the impulses and the
+states before and after. The contact then engages again (bilateral, until its multiplier
+changes sign) when it comes to rest (rebound speed at most ``rest_speed``), or stays
+released and flies off. A unilateral constraint whose multiplier has the wrong sign just
+after an impact is released at once.
 """
 
 from __future__ import annotations
@@ -42,7 +54,8 @@ import scipy.integrate as si
 from scipy.optimize import brentq
 
 from appell.errors import AppellError, ComputationError, ModelError
-from appell.simulation.events import Watch, check_event_names, watches_for
+from appell.simulation.events import check_event_names, contact_watch, watches_for
+from appell.simulation.impact import impact
 from appell.simulation.initial import check_initial, complete_initial, dynamics_of, residual_jacobians
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 
@@ -144,6 +157,38 @@ class _Run:
         self.released: list[str] = []
         self.dependent = None
         self.partition_of = model
+        self.models = {frozenset(): model}
+        self.contact_times: dict[str, tuple[float, int]] = {}
+
+    def model(self, released):
+        """The model without the ``released`` constraints (derived once per set)."""
+        key = frozenset(released)
+        if key not in self.models:
+            self.models[key] = _without(self.system, key)
+        return self.models[key]
+
+    def impact_model(self):
+        """A model with every constraint and the blocks of the impact law
+        (:func:`appell.simulation.impact.impact`): the run's own, or derived from the system."""
+        if hasattr(self.root, "evaluate_blocks") and hasattr(self.root, "residual_jacobians"):
+            return self.root
+        if "impact" not in self.models:
+            from appell.core.derive import derive
+
+            self.models["impact"] = derive(self.system).numeric
+        return self.models["impact"]
+
+    def chatter(self, contacts, t, limit: int = 10):
+        """Count impacts of each contact at the same instant; raise ComputationError when
+        one meets more than ``limit`` impacts without time passing."""
+        for c in contacts:
+            t_last, count = self.contact_times.get(c, (None, 0))
+            count = count + 1 if t_last is not None and abs(t - t_last) <= 1e-12 * max(1.0, abs(t)) else 1
+            self.contact_times[c] = (t, count)
+            if count > limit:
+                raise ComputationError(
+                    f"contact {c!r} met {count} impacts at t = {t:.10g} without time passing",
+                    hint="the contact chatters: raise rest_speed so that it engages, or check its sign")
 
     def evaluate(self, model, t, y):
         """The model at (t, y) (with the Baumgarte bias); every change of the partition in
@@ -209,10 +254,10 @@ class _Run:
         self.events.append(EventRecord("switch", "partition", float(t), text))
         self.log.append(f"t = {t:.10g}: {what}; {text}")
 
-    def event_record(self, model, watch: Watch, t, y, ev, detail):
+    def event_record(self, model, kind, name, t, y, ev, detail, impulses=None, state_after=None):
         state = dict(zip(model.state_names, (float(v) for v in y)))
         lam = dict(zip(self.names, (float(v) for v in self.by_name(model, ev.multipliers, 0.0))))
-        rec = EventRecord(watch.kind, watch.name, float(t), detail, state, lam)
+        rec = EventRecord(kind, name, float(t), detail, state, lam, dict(impulses or {}), dict(state_after or {}))
         self.events.append(rec)
         self.log.append(str(rec))
 
@@ -250,7 +295,7 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
              stabilization: str | None = "projection", baumgarte=(10.0, 10.0), projection_tol: float = 1e-10,
              project_output: bool = False, unilateral: Mapping[str, int] | None = None, on_release: str = "continue",
              friction: Mapping | None = None, events=(), params=None, initial=None, complete: bool = False,
-             progress: bool | None = None) -> Solution:
+             progress: bool | None = None, rest_speed: float = 1e-6) -> Solution:
     """Integrate the motion and record states, multipliers, controls and residuals.
 
     Parameters
@@ -267,8 +312,12 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     project_output : with projection, also project the output states taken from the
         dense output inside a step (their residual can exceed ``projection_tol``; costs
         about one extra evaluation per output time, so it is off by default).
-    unilateral : ``{constraint: +1 or -1}``, the sign its multiplier must keep.
+    unilateral : ``{constraint: +1 or -1}``, the sign its multiplier must keep. A holonomic
+        one whose gap ``sign * F`` is open at the start starts released; once released its
+        gap is watched, and where it closes an impact follows (module docstring).
     on_release : ``'continue'`` (re-derive without the released constraint) or ``'stop'``.
+    rest_speed : a contact whose rebound speed ``e |dF/dt|`` would be at most this comes to
+        rest (a plastic impact) and engages again; ends Zeno sequences of bounces.
     friction : ``{tangential constraint: (normal constraint, mu)}``; crossings of
         ``|lambda_t| = mu lambda_n`` are recorded as events (the motion is unchanged).
     events : :class:`~appell.simulation.events.Event` items (or bare callables ``g(t, y, multipliers)``).
@@ -296,6 +345,9 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
         raise ModelError(f"model {model.name!r} does not accept a constraint bias: Baumgarte stabilization "
                          "is not available for it", hint="use stabilization='projection'")
     check_event_names(model, unilateral, friction)
+    if isinstance(rest_speed, bool) or not (isinstance(rest_speed, (int, float)) and np.isfinite(rest_speed)
+                                            and rest_speed > 0):
+        raise ModelError(f"rest_speed must be a positive number, not {rest_speed!r}")
     if unilateral and on_release == "continue" and system is None:
         raise ModelError("releasing a unilateral constraint needs the system to derive again",
                          hint="pass a Derivation, or on_release='stop'")
@@ -309,18 +361,27 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
         raise ModelError("t_eval must be increasing and lie in [t0, t_end]")
 
     p = model.params(params)
-    y0 = _initial_state(model, initial, complete, t0, p)
     names = tuple(model.constraint_names)
     settings = {"method": getattr(solver_cls, "__name__", str(method)), "rtol": rtol, "atol": atol,
                 "stabilization": stabilization, "projection_tol": projection_tol,
                 "project_output": bool(project_output and stabilization == "projection")}
     if stabilization == "baumgarte":
         settings["baumgarte"] = tuple(float(v) for v in baumgarte)
-    run = _Run(model, system, p, names, _kinds(model, y0, t0, p), settings)
-    watch_args = dict(unilateral=unilateral, on_release=on_release, friction=friction, events=tuple(events))
+    signs = {c: float(np.sign(s)) for c, s in dict(unilateral or {}).items()}
+    if signs:
+        settings["rest_speed"] = rest_speed
+    run = _Run(model, system, p, names, (), settings)
+    opened = _open_contacts(model, system, initial, signs, t0, p) if system is not None else ()
+    run.released = list(opened)
+    y0 = _initial_state(run.model(run.released), initial, complete, t0, p)
+    run.kinds = _kinds(model, y0, t0, p)
+    watch_args = dict(unilateral=unilateral, on_release=on_release, friction=friction, events=tuple(events),
+                      root=model if system is not None else None)
+    restitution = {c.name: c.restitution for c in system.constraints} if system is not None else {}
+    offsets: dict[str, float] = {}
 
-    active, t, y = model, t0, y0
-    state = {"solver": None}
+    t, y = t0, y0
+    state = {"solver": None, "active": None}
 
     def fun(tt, yy):
         run.nfev += 1
@@ -332,28 +393,47 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
             kw["first_step"] = min(first_step, t_end - tt)
         state["solver"] = solver_cls(fun, tt, yy, t_end, **kw)
 
-    state["active"] = active
-    ev = run.evaluate(active, t, y)
-    watches = watches_for(active, **watch_args)
-    g = [w.g(t, y, ev, p) for w in watches]
+    def configure(tt, yy, released=(), bounced=(), when="at the start"):
+        """The model without the released constraints, its evaluation, watches and their
+        values at (tt, yy). A unilateral constraint whose multiplier has the wrong sign
+        there is released at once, or, with on_release='stop', named as the fifth item."""
+        released = list(released)
+        while True:
+            act = run.model(run.released)
+            evv = run.evaluate(act, tt, yy)
+            lam = dict(zip(act.constraint_names, np.asarray(evv.multipliers, float)))
+            wrong = [c for c, s in signs.items() if c in lam and s * lam[c] < 0]
+            for c in wrong:
+                run.event_record(act, "release", c, tt, yy, evv, f"lambda_{c} has the wrong sign {when}")
+            if wrong and on_release == "stop":
+                return act, evv, [], [], wrong[0]
+            if not wrong:
+                break
+            run.released += wrong
+            released += wrong
+            run.log.append(f"t = {tt:.10g}: continuing without constraint(s) {', '.join(run.released)}")
+        for c in released:
+            gap = abs(float(model.state_residuals(tt, yy, p)[0][names.index(c)]))
+            if np.isfinite(gap):
+                offsets[c] = max(2.0 * gap, 1e-12)
+        for c in bounced:
+            offsets[c] = 0.0
+        state["active"] = act
+        ws = watches_for(act, **watch_args, offsets=offsets)
+        gs = [0.0 if w.kind == "contact" and w.name in bounced else w.g(tt, yy, evv, p) for w in ws]
+        return act, evv, ws, gs, None
+
+    if opened:
+        run.log.append(f"t = {t:.10g}: the gap of contact(s) {', '.join(opened)} is open at the start")
+    active, ev, watches, g, stopped = configure(t, y)
+    if stopped is not None:
+        run.record(active, t, y, ev)
+        return run.solution(active, 1, f"stopped by event release {stopped} at t = {t:.10g}")
+    run.dependent = tuple(ev.dependent) if run.released else None
     status, message = 0, "reached the final time"
     for w, gv in zip(watches, g):
         if w.kind == "friction" and gv < 0:
-            run.event_record(active, w, t, y, ev, "|lambda_t| exceeds mu lambda_n at the start")
-        if w.kind == "release" and gv < 0:
-            run.event_record(active, w, t, y, ev, f"lambda_{w.name} has the wrong sign at the start")
-            if w.action == "stop":
-                run.record(active, t, y, ev)
-                return run.solution(active, 1, f"stopped by event release {w.name} at t = {t:.10g}")
-            run.released.append(w.name)
-    if run.released:
-        active = _without(system, run.released)
-        state["active"] = active
-        run.log.append(f"t = {t:.10g}: continuing without constraint(s) {', '.join(run.released)}")
-        watches = watches_for(active, **watch_args)
-        ev = run.evaluate(active, t, y)
-        run.dependent = tuple(ev.dependent)
-        g = [w.g(t, y, ev, p) for w in watches]
+            run.event_record(active, w.kind, w.name, t, y, ev, "|lambda_t| exceeds mu lambda_n at the start")
     k = 0
     while k < t_eval.size and t_eval[k] <= t:
         run.record(active, t_eval[k], y, ev)
@@ -385,13 +465,20 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
                 g_new = [w.g(t_new, y_new, ev_new, p) for w in watches]
                 hits = []
                 for i, w in enumerate(watches):
-                    if w.crossed(g[i], g_new[i]):
-                        def gi(s, w=w):
-                            ys = dense(s)
-                            return w.g(s, ys, run.evaluate(active, s, ys), p)
+                    def gi(s, w=w):
+                        ys = dense(s)
+                        return w.g(s, ys, None if w.kind == "contact" else run.evaluate(active, s, ys), p)
 
+                    lo = t if w.crossed(g[i], g_new[i]) else None
+                    if lo is None and w.kind == "contact" and g[i] == 0.0 and g_new[i] < 0.0:
+                        # a bounce at t: the gap opens and closes again within this step
+                        lo = _opening(gi, t, t_new)
+                        if lo is None:
+                            hits.append((t, i, w))
+                            continue
+                    if lo is not None:
                         try:
-                            ts = brentq(gi, t, t_new, xtol=1e-13, rtol=4 * np.finfo(float).eps, maxiter=200)
+                            ts = brentq(gi, lo, t_new, xtol=1e-13, rtol=4 * np.finfo(float).eps, maxiter=200)
                         except ValueError:  # the interpolant lost the sign change: take the step's end
                             ts = t_new
                         hits.append((ts, i, w))
@@ -399,7 +486,7 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
                 status, message = -1, f"the model could not be evaluated near t = {t_new:.10g}: {exc}"
                 break
             hits.sort(key=lambda h: h[0])
-            stop = next((h for h in hits if h[2].action in ("stop", "release")), None)
+            stop = next((h for h in hits if h[2].action in ("stop", "release", "impact")), None)
             t_cut = stop[0] if stop is not None else t_new
             for ts, i, w in hits:
                 if ts <= t_cut and w.action == "record":
@@ -409,7 +496,7 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
                     if w.kind == "friction":
                         detail = ("|lambda_t| rises above mu lambda_n (friction limit exceeded)" if g[i] > 0
                                   else "|lambda_t| falls below mu lambda_n (within the friction limit)")
-                    run.event_record(active, w, ts, ys, evs, detail)
+                    run.event_record(active, w.kind, w.name, ts, ys, evs, detail)
             if stop is not None:
                 ts, i, w = stop
                 ys = np.array(dense(ts), float)
@@ -418,26 +505,45 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
                     run.record(active, t_eval[k], dense(t_eval[k]))
                     k += 1
                 if w.kind == "release":
-                    run.event_record(active, w, ts, ys, evs,
+                    run.event_record(active, w.kind, w.name, ts, ys, evs,
                                      f"lambda_{w.name} reaches zero: the unilateral constraint is released")
-                else:
-                    run.event_record(active, w, ts, ys, evs, "terminal event")
+                elif w.kind != "contact":
+                    run.event_record(active, w.kind, w.name, ts, ys, evs, "terminal event")
                 if w.action == "stop":
                     run.record(active, ts, ys, evs)
                     status, message = 1, f"stopped by event {w.kind} {w.name} at t = {ts:.10g}"
                     if bar is not None:
                         bar.update(ts - t)
                     break
-                run.released.append(w.name)
-                active = _without(system, run.released)
-                state["active"] = active
-                yy = dict(zip(model.state_names, ys))
-                ys = np.array([yy[n] for n in active.state_names], float)
-                run.log.append(f"t = {ts:.10g}: continuing without constraint(s) {', '.join(run.released)}")
-                watches = watches_for(active, **watch_args)
-                ev = run.evaluate(active, ts, ys)
+                released, bounced, when = (), (), "after the impact"
+                if w.action == "impact":
+                    same = 1e-12 * max(1.0, abs(ts))
+                    contacts = {h[2].name: (signs[h[2].name], restitution.get(h[2].name, 0.0))
+                                for h in hits if h[2].action == "impact" and h[0] - ts <= same}
+                    try:
+                        run.chatter(contacts, ts)
+                        imp = impact(run.impact_model(), ts, ys, p, contacts, active.constraint_names, rest_speed)
+                    except AppellError as exc:
+                        status, message = -1, str(exc)
+                        break
+                    after = dict(zip(model.state_names, (float(v) for v in imp.y_after)))
+                    for c in contacts:
+                        run.event_record(active, "impact", c, ts, ys, evs, imp.describe(c),
+                                         impulses=imp.impulses, state_after=after)
+                    run.released = [c for c in run.released if c not in imp.engaged]
+                    ys, bounced = imp.y_after, imp.bounced
+                    if imp.engaged:
+                        run.log.append(f"t = {ts:.10g}: constraint(s) {', '.join(imp.engaged)} engaged again")
+                else:
+                    run.released.append(w.name)
+                    released, when = (w.name,), "at the release"
+                    run.log.append(f"t = {ts:.10g}: continuing without constraint(s) {', '.join(run.released)}")
+                active, ev, watches, g, stopped = configure(ts, ys, released, bounced, when)
+                if stopped is not None:
+                    run.record(active, ts, ys, ev)
+                    status, message = 1, f"stopped by event release {stopped} at t = {ts:.10g}"
+                    break
                 run.dependent = tuple(ev.dependent)  # a new model: its partition is not a switch
-                g = [w_.g(ts, ys, ev, p) for w_ in watches]
                 if bar is not None:
                     bar.update(ts - t)
                 t, y = ts, ys
@@ -467,6 +573,11 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
             run.note_partition(active, t_new, ev_new)
             if bar is not None:
                 bar.update(t_new - t)
+            for i, w in enumerate(watches):  # a gap opened beyond its band: watch its closing at zero
+                if w.kind == "contact" and w.offset > 0.0 and g_new[i] >= 2.0 * w.offset:
+                    offsets[w.name] = 0.0
+                    watches[i] = contact_watch(model, w.name, signs[w.name])
+                    g_new[i] -= w.offset
             t, y, ev, g = t_new, y_new, ev_new, g_new
             if restarted and t < t_end:
                 start(t, y, getattr(solver, "h_abs", None) or solver.step_size)
@@ -478,8 +589,49 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
 
 
 def _without(system, released):
-    """The numeric model of ``system`` without the released constraints (derived again)."""
+    """The numeric model of ``system`` without the released constraints (derived again).
+
+    The units of the released constraints' multipliers stay declared on ``system`` (the
+    run's metadata); the reduced system, which has no such multipliers, leaves them out."""
     from appell.core.derive import derive
 
-    remaining = tuple(c for c in system.constraints if c.name not in set(released))
-    return derive(system.replace(constraints=remaining)).numeric
+    gone = set(released)
+    remaining = tuple(c for c in system.constraints if c.name not in gone)
+    units = tuple((k, u) for k, u in system.units if k not in gone)
+    return derive(system.replace(constraints=remaining, units=units)).numeric
+
+
+def _open_contacts(model, system, initial, signs, t0, p, tol: float = 1e-9) -> tuple[str, ...]:
+    """The unilateral holonomic constraints whose gap ``s F`` exceeds ``tol`` (the tolerance
+    of :func:`~appell.simulation.initial.check_initial`) at the given initial values: they
+    start released. A gap below ``-tol`` is left to the check of the initial values."""
+    if not signs:
+        return ()
+    values = dict(system.initial_values)
+    if isinstance(initial, Mapping):
+        values.update({str(k): v for k, v in initial.items()})
+    elif initial is not None:
+        arr = np.asarray(initial, float).reshape(-1)
+        if arr.size != len(model.state_names):
+            return ()
+        values = dict(zip(model.state_names, arr))
+    try:
+        y = np.array([float(values.get(n, np.nan)) for n in model.state_names])
+    except (TypeError, ValueError):
+        return ()
+    F = np.asarray(model.state_residuals(t0, y, p)[0], float)
+    names = list(model.constraint_names)
+    return tuple(c for c, s in signs.items() if s * F[names.index(c)] > tol)
+
+
+def _opening(g, a: float, b: float):
+    """A time in (a, b] where ``g > 0``, searched at ``a + (b - a) / 2^k`` (k = 1..60):
+    after a bounce at ``a`` the gap grows at the rebound speed, so it is positive just
+    after ``a``; None when no such time is found."""
+    for k in range(1, 61):
+        s = a + (b - a) * 0.5**k
+        if s <= a:
+            break
+        if g(s) > 0.0:
+            return s
+    return None

@@ -34,9 +34,12 @@ class EventRecord:
     """One event met during the integration.
 
     ``kind``: ``'release'`` (a unilateral constraint's multiplier reached zero),
-    ``'friction'`` (``|lambda_t|`` crossed ``mu lambda_n``), ``'user'``, ``'switch'``
-    (the partition of dependent accelerations changed). ``name`` the constraint or event;
-    ``t`` its time; ``state`` and ``multipliers`` there; ``detail`` in words.
+    ``'impact'`` (a released contact's gap closed), ``'friction'`` (``|lambda_t|``
+    crossed ``mu lambda_n``), ``'user'``, ``'switch'`` (the partition of dependent
+    accelerations changed). ``name`` the constraint or event; ``t`` its time; ``state``
+    and ``multipliers`` there (before an impact); ``detail`` in words. An impact also
+    records ``impulses`` ``{constraint: Lambda}`` (the impulsive reactions, in the units
+    of the multiplier times time) and ``state_after``, the state just after it.
     """
 
     kind: str
@@ -45,6 +48,8 @@ class EventRecord:
     detail: str = ""
     state: Mapping[str, float] = field(default_factory=dict)
     multipliers: Mapping[str, float] = field(default_factory=dict)
+    impulses: Mapping[str, float] = field(default_factory=dict)
+    state_after: Mapping[str, float] = field(default_factory=dict)
 
     def __str__(self) -> str:
         return f"t = {self.t:.10g}: {self.kind} {self.name}" + (f" — {self.detail}" if self.detail else "")
@@ -141,6 +146,11 @@ class Solution:
     @property
     def success(self) -> bool:
         return self.status >= 0
+
+    @property
+    def impacts(self) -> tuple[EventRecord, ...]:
+        """The impacts (events of kind ``'impact'``), in time order."""
+        return tuple(e for e in self.events if e.kind == "impact")
 
     @property
     def state_names(self) -> tuple[str, ...]:

@@ -54,7 +54,7 @@ TABLES = {
     "bodies": "[[bodies]] particles and rigid bodies",
     "forces": "[[forces]] applied forces",
     "torques": "[[torques]] applied torques",
-    "constraints": "[constraints.NAME] kind, expr",
+    "constraints": "[constraints.NAME] kind, expr, restitution",
     "controls": "NAME = 'kinematic' or 'force'",
     "servo_constraints": "[servo_constraints.NAME] kind, expr",
     "first_integrals": "[first_integrals.NAME] expr, value",
@@ -90,6 +90,7 @@ SIMULATION_KEYS = {
     "unilateral": "table: constraint name = 1 or -1 (the sign its multiplier keeps)",
     "on_release": "'continue' or 'stop'",
     "friction": "table: tangential constraint = { normal = constraint name, mu = number }",
+    "rest_speed": "positive number: a contact whose rebound speed would be at most this engages again",
     "complete": "boolean: complete the dependent initial values",
     "project_output": "boolean: also project output states taken from inside a step",
 }
@@ -383,13 +384,24 @@ def _constraints(r: _Reader, doc: dict, table: str) -> list[Constraint]:
     for key, value in r.table((table,), doc.get(table, {}), _Any()).items():
         path = (table, key)
         r.name(path, key, "constraint")
-        r.table(path, value, CONSTRAINT_KEYS, required=("kind", "expr"))
+        r.table(path, value, CONSTRAINT_KEYS + (("restitution",) if table == "constraints" else ()),
+                required=("kind", "expr"))
         kind = r.string(path + ("kind",), value["kind"])
         if kind not in CONSTRAINT_KINDS:
             raise r.error(path + ("kind",), f"unknown constraint kind {kind!r}",
                           hint=f"kind is one of {', '.join(map(repr, CONSTRAINT_KINDS))}")
         expr = r.expr(path + ("expr",), value["expr"], "acceleration", equation=True)
-        out.append(Constraint(key, expr, CONSTRAINT_KINDS[kind], where=r.where(path + ("expr",))))
+        restitution = 0.0
+        if "restitution" in value:
+            restitution = r.constant(path + ("restitution",), value["restitution"])
+            if not 0.0 <= restitution <= 1.0:
+                raise r.error(path + ("restitution",), f"must lie from 0 to 1, got {restitution}",
+                              hint="Newton's restitution coefficient: 0 a plastic impact, 1 an elastic one")
+            if kind != "holonomic" and restitution:
+                raise r.error(path + ("restitution",), f"a restitution coefficient needs a holonomic constraint, "
+                              f"not a {kind} one", hint="only a contact whose gap F(t, q) can close has impacts")
+        out.append(Constraint(key, expr, CONSTRAINT_KINDS[kind], where=r.where(path + ("expr",)),
+                              restitution=restitution))
     return out
 
 
@@ -451,7 +463,7 @@ def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
         value = section[key]
         if key in ("t_end", "t0"):
             out[key] = r.constant(path, value)
-        elif key in ("rtol", "atol", "max_step", "projection_tol", "output_step"):
+        elif key in ("rtol", "atol", "max_step", "projection_tol", "output_step", "rest_speed"):
             out[key] = positive(key)
         elif key == "method":
             out[key] = r.string(path, value)
