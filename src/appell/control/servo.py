@@ -324,18 +324,34 @@ class ControlledDerivation:
                     rows.append(rf"{tex(v)} &= 0 \quad \text{{({label})}}")
         return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"
 
-    def to_json(self) -> dict:
-        """JSON-ready dict; every expression is a SymPy-parsable string."""
+    def json_expressions(self) -> dict:
+        """The JSON document with SymPy expressions still in it (see :meth:`to_json`)."""
         a_nu, a_h = self.partition.names(self.accelerations)
-        out = {"system": self.system.name, "independent": a_nu, "dependent": a_h}
+        kin, system = self.kinematics, self.system
+        out = {"system": system.name, "name": system.name, "independent": a_nu, "dependent": a_h,
+               "coordinates": [s.name for s in kin.coordinates], "speeds": [s.name for s in kin.speeds],
+               "accelerations": [s.name for s in kin.accelerations]}
         for title, body in self._sections():
             if title != "partition":
                 key = title.split(") ")[-1].replace(" ", "_")
-                out[key] = {k: str(v) for k, v in body.items()}
-        out["control_unknowns"] = {c.name: c.unknown.name for c in self.system.controls}
+                out[key] = dict(body)
+        out["reduced_equations"] = [tidy(e) for e in self.reduced.equations]
+        out["multipliers"] = self.reactions.as_dict()
+        out["controls"] = dict(self.control_laws)
+        out["constraints"] = {c.name: {"kind": c.kind, "expression": c.expr} for c in system.constraints}
+        out["servo_constraints"] = {c.name: {"kind": c.kind, "expression": c.expr} for c in system.servo_constraints}
+        out["control_unknowns"] = {c.name: c.unknown.name for c in system.controls}
         out["relative_degree"] = self.relative_degree
         out["differentiations"] = self.differentiations
         out["internal_dimension"] = self.internal_dimension
+        return out
+
+    def to_json(self) -> dict:
+        """JSON-ready dict: each expression as a string for reading and as an exact tree
+        under ``exact`` over the ``symbols`` table (:func:`appell.io.printing.read_json`)."""
+        from appell.io.printing import json_document
+
+        out = json_document(self.json_expressions(), self)
         json.dumps(out)
         return out
 

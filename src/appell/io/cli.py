@@ -96,38 +96,31 @@ def is_controlled(derivation) -> bool:
     return hasattr(derivation, "control_laws") and hasattr(derivation, "dynamic_conditions")
 
 
-def derivation_json(derivation) -> dict:
+def derivation_json(derivation, reduction=None) -> dict:
     """The JSON document of ``appell derive --format json``.
 
     Keys (at least): ``coordinates``, ``speeds``, ``independent``, ``dependent``,
     ``reduced_equations`` (1.4)/(2.4), ``multipliers`` (constraint name -> formula
     (1.5)/(2.5)), ``controls`` (control name -> control law from the dynamic conditions
-    (2.3); empty without servo constraints) and ``first_integrals`` (name -> expression);
-    every expression is a string that :func:`sympy.sympify` parses.
+    (2.3); empty without servo constraints), ``first_integrals`` (name -> expression) and,
+    with ``reduction`` (a :class:`~appell.reduction.cyclic.RouthReduction`), ``routh``.
+    Every expression is a string for reading; ``symbols`` and ``exact`` give them exactly
+    (:func:`appell.io.printing.read_json`).
     """
-    system = derivation.system
-    if is_controlled(derivation):
-        from appell.core.equations import tidy
+    from appell.io.printing import derivation_document, json_document
 
-        out = dict(derivation.to_json())
-        kin = derivation.kinematics
-        out.setdefault("name", system.name)
-        out["coordinates"] = [s.name for s in kin.coordinates]
-        out["speeds"] = [s.name for s in kin.speeds]
-        out["accelerations"] = [s.name for s in kin.accelerations]
-        out["reduced_equations"] = [str(tidy(e)) for e in derivation.reduced.equations]
-        out["multipliers"] = {n: str(e) for n, e in derivation.reactions.as_dict().items()}
-        out["controls"] = {n: str(e) for n, e in derivation.control_laws.items()}
-        out["dynamic_conditions"] = {n: str(e) for n, e in derivation.dynamic_conditions.items()}
-        out["constraints"] = {c.name: {"kind": c.kind, "expression": str(c.expr)} for c in system.constraints}
-        out["servo_constraints"] = {c.name: {"kind": c.kind, "expression": str(c.expr)}
-                                    for c in system.servo_constraints}
-    else:
-        out = dict(derivation.to_json())
-        out.setdefault("controls", {})
+    system = derivation.system
+    out = derivation.json_expressions() if is_controlled(derivation) else derivation_document(derivation)
+    out.setdefault("controls", {})
     if not out.get("first_integrals"):
-        out["first_integrals"] = {f.name: str(f.expr) for f in system.first_integrals}
-    return out
+        out["first_integrals"] = {f.name: f.expr for f in system.first_integrals}
+    if reduction is not None:
+        out["routh"] = {
+            "cyclic": [q.name for q in reduction.cyclic],
+            "momenta": {h.name: v for h, v in zip(reduction.momenta, reduction.momentum_values)},
+            **dict(reduction.equations()),
+        }
+    return json_document(out, derivation)
 
 
 def simulation_options(system, t_end: float | None = None) -> dict:
@@ -278,7 +271,8 @@ def cli():
 @cli.command(context_settings=_CONTEXT)
 @_model_argument
 @click.option("--format", "fmt", type=click.Choice(["text", "latex", "json"]), default="text", show_default=True,
-              help="Output format; JSON expressions are SymPy-parsable strings.")
+              help="Output format; JSON gives each expression as text and exactly (read it with "
+                   "appell.io.printing.read_json).")
 @click.option("--dependent", multiple=True, metavar="NAME",
               help="A dependent acceleration of the partition (repeat once per constraint), e.g. x_ddot or x''.")
 @click.option("--routh", is_flag=True,
@@ -300,13 +294,7 @@ def derive(model, fmt, dependent, routh, assignments):
         system = reduction.system
     derivation = derive_model(system, dependent)
     if fmt == "json":
-        out = derivation_json(derivation)
-        if reduction is not None:
-            out["routh"] = {
-                "cyclic": [q.name for q in reduction.cyclic],
-                "momenta": {h.name: v for h, v in zip(reduction.momenta, reduction.momentum_values)},
-                **{name: str(e) for name, e in reduction.equations()},
-            }
+        out = derivation_json(derivation, reduction)
         click.echo(json.dumps(out, indent=2))
     elif fmt == "latex":
         click.echo((reduction.to_latex() + "\n\n" if reduction is not None else "") + derivation.to_latex())
