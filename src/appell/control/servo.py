@@ -294,13 +294,25 @@ class ControlledDerivation:
                 lines.append(f"  independent accelerations: {', '.join(body[0]) or 'none'}; "
                              f"dependent: {', '.join(body[1])}")
                 continue
-            lines.append(f"{title}:")
+            if title == "internal dynamics":
+                continue
+            lines.append(f"{title}:" + ("" if body else " none"))
             for k, v in body.items():
                 lines.append(f"  {k}: {v} {'= 0' if not title.startswith(('(2.5)', 'controls')) else ''}".rstrip())
         lines.append("relative degree: " + ", ".join(
             f"{c.name} {c.relative_degree} ({c.differentiations} differentiation(s) of (2.3))" for c in self.conditions))
         lines.append(f"internal dimension: {self.internal_dimension}")
+        lines += self._internal_lines()
         return "\n".join(lines)
+
+    def _internal_lines(self) -> list[str]:
+        """What is left of the motion once the controls realise the servo constraints."""
+        if self.internal_dimension == 0:
+            return ["internal dynamics: none (the servo and real constraints fix the motion)"]
+        lines = [f"internal dynamics: the motion (2.4) on the servo manifold, dimension {self.internal_dimension}"
+                 + (", with the state relations" if self.internal_dynamics else "")]
+        lines += [f"  {k}: {v} = 0" for k, v in self.internal_dynamics.items()]
+        return lines
 
     def to_latex(self) -> str:
         """LaTeX (``align*``) of (2.3), (2.4), (2.5) and the control laws."""
@@ -310,7 +322,7 @@ class ControlledDerivation:
 
         rows = []
         for title, body in self._sections():
-            if title == "partition":
+            if title == "partition" or not body:
                 continue
             rows.append(rf"&\text{{{title}}}")
             for k, v in body.items():

@@ -96,6 +96,32 @@ def is_controlled(derivation) -> bool:
     return hasattr(derivation, "control_laws") and hasattr(derivation, "dynamic_conditions")
 
 
+def internal_stability(derivation, solution=None):
+    """``(linearisation, note)``: the internal dynamics of a controlled derivation linearised
+    at its initial state (:func:`appell.control.internal_dynamics.internal_linearisation`), at
+    the first row of ``solution`` when given; ``(None, None)`` without internal dynamics or
+    initial values, ``(None, reason)`` when the linearisation cannot be computed there."""
+    if not is_controlled(derivation) or derivation.internal_dimension == 0 or not derivation.system.initial:
+        return None, None
+    from appell.control.internal_dynamics import internal_linearisation
+
+    time = state = None
+    if solution is not None and solution.t.size:
+        model = derivation.numeric
+        time, state = float(solution.t[0]), [float(solution.states[n][0]) for n in model.state_names]
+    try:
+        return internal_linearisation(derivation, time, state), None
+    except ComputationError as exc:
+        return None, f"the internal dynamics were not linearised at the initial state: {exc}"
+
+
+def _warn_internal(linearisation, note) -> None:
+    """``warning: ...`` on stderr for an unstable internal dynamics (or one not linearised)."""
+    message = linearisation.warning() if linearisation is not None else note
+    if message:
+        click.echo(f"warning: {message}", err=True)
+
+
 def derivation_json(derivation, reduction=None) -> dict:
     """The JSON document of ``appell derive --format json``.
 
@@ -111,6 +137,9 @@ def derivation_json(derivation, reduction=None) -> dict:
 
     system = derivation.system
     out = derivation.json_expressions() if is_controlled(derivation) else derivation_document(derivation)
+    linearisation, _ = internal_stability(derivation)
+    if linearisation is not None:
+        out["internal_linearisation"] = linearisation.to_json()
     out.setdefault("controls", {})
     if not out.get("first_integrals"):
         out["first_integrals"] = {f.name: f.expr for f in system.first_integrals}
@@ -293,6 +322,7 @@ def derive(model, fmt, dependent, routh, assignments):
         reduction = routh_reduction(system)
         system = reduction.system
     derivation = derive_model(system, dependent)
+    linearisation, note = internal_stability(derivation)
     if fmt == "json":
         out = derivation_json(derivation, reduction)
         click.echo(json.dumps(out, indent=2))
@@ -300,6 +330,9 @@ def derive(model, fmt, dependent, routh, assignments):
         click.echo((reduction.to_latex() + "\n\n" if reduction is not None else "") + derivation.to_latex())
     else:
         click.echo((reduction.to_text() + "\n\n" if reduction is not None else "") + derivation.to_text())
+        if linearisation is not None:
+            click.echo(linearisation.to_text())
+    _warn_internal(linearisation, note)
 
 
 @cli.command(context_settings=_CONTEXT)
@@ -334,6 +367,7 @@ def simulate(model, t_end, out, plot, backend, assignments):
     if plot:
         solution.plot(plot)
     click.echo(solution.summary())
+    _warn_internal(*internal_stability(derivation, solution))
     for path in (out_path, plot):
         if path:
             click.echo(f"wrote {path}")
@@ -379,6 +413,10 @@ def check(model, tolerance, assignments):
     derivation = derive_model(system)
     report = _cross_check(derivation)
     click.echo(str(report))
+    linearisation, note = internal_stability(derivation)
+    if linearisation is not None:
+        click.echo("internal dynamics:\n" + linearisation.to_text())
+    _warn_internal(linearisation, note)
     integrals = _first_integrals(derivation)
     if integrals is not None:
         click.echo(integrals.to_text())
@@ -418,9 +456,11 @@ def report(model, output, t_end, no_simulation, backend, assignments):
         note = "Left out: the model gives neither initial values ([initial]) nor a [simulation] table."
     else:
         solution = run_simulation(derivation, t_end, backend)
+    linearisation, internal_note = internal_stability(derivation, solution)
+    _warn_internal(linearisation, internal_note)
     path = Path(output) if output else Path(f"{system.name}-report.html")
     write_report(path, derivation, solution, check_report, simulation_note=note,
-                 integrals=_first_integrals(derivation))
+                 integrals=_first_integrals(derivation), internal=linearisation)
     click.echo(f"wrote {path}")
     if not check_report.passed():
         raise ComputationError("cross-check failed (see the report)")

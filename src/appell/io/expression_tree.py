@@ -5,17 +5,15 @@ imaginary unit, ``E`` Euler's number, ``S``, ``N``, ``O``, ``Q`` SymPy objects, 
 re-parsing re-evaluates (``2*(x + y)`` from :func:`sympy.factor` comes back expanded).
 Here an expression is a JSON array ``[head, ...]``:
 
-==========================================  ===========================================
-``["Symbol", name]``                        the symbol ``name`` of the symbol table
-``["Integer", "-12"]``                      an integer (decimal digits)
-``["Rational", "p", "q"]``                  p/q in lowest terms, q > 1
-``["Float", sign, "hex", exp, bits, prec]``  the binary float ``(-1)^sign hex 2^exp`` of
-                                            ``bits`` mantissa bits, at precision ``prec``
-``["Constant", name]``                      ``pi``, ``E``, ``I``, ``oo``, ``-oo``, ``zoo``,
-                                            ``nan``, ``true``, ``false``, ...
-``[head, arg, ...]``                        ``Add``, ``Mul``, ``Pow``, a function of
-                                            :data:`HEADS` (``sin``, ``Abs``, ``Piecewise``...)
-==========================================  ===========================================
+* ``["Symbol", name]``: the symbol ``name`` of the symbol table;
+* ``["Integer", "-12"]``: an integer (decimal digits);
+* ``["Rational", "p", "q"]``: p/q in lowest terms, q > 1;
+* ``["Float", sign, "hex", exp, bits, prec]``: the binary float ``(-1)^sign hex 2^exp``
+  with ``bits`` mantissa bits, at precision ``prec``;
+* ``["Constant", name]``: ``pi``, ``E``, ``I``, ``oo``, ``-oo``, ``zoo``, ``nan``, ``true``,
+  ``false``, ...;
+* ``[head, arg, ...]``: ``Add``, ``Mul``, ``Pow`` or a function of :data:`HEADS` (``sin``,
+  ``Abs``, ``Piecewise``, ...) applied to the argument trees;
 
 and the symbol table maps each name to the assumptions it was created with
 (``{"positive": true}``; a plain symbol has none). :func:`expression_from_tree` rebuilds every node
