@@ -59,9 +59,10 @@ def test_c_equals_numpy(name):
             close(np.nan_to_num(x), np.nan_to_num(y))
 
 
-def test_partition_switch_and_bias():
-    """Near theta = 0 the car's (x, y) partition is singular: C hands over to the NumPy
-    route, which switches; a constraint bias (Baumgarte) is honoured."""
+def test_c_matches_numpy_with_a_chosen_partition_and_a_baumgarte_bias():
+    """The car at theta = 0.2 with (x'', y'') dependent given explicitly, and with a constraint
+    bias (Baumgarte): the C code gives the NumPy route's accelerations, multipliers and rates.
+    (No partition switch happens here: that is tested in test_events.py and test_core_crosscheck.py.)"""
     d = appell.derive(CATALOG["car"]())
     nm, cm = d.numeric, compile_c(d, "c")
     q, w = np.array([0.1, 0.2, 0.3]), np.array([1.0, 0.5, 0.2])

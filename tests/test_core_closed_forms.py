@@ -146,7 +146,7 @@ def test_kinetic_energy_route_polar_coordinates():
     assert acc[1] == pytest.approx(-2 * 0.4 * 0.9 / 1.5, rel=1e-13)
 
 
-def test_appell_ball_dynamic_relation_through_second_order_constraint():
+def test_car_front_constraint_second_order_form_contains_the_steering_rate():
     """A time-dependent first-order constraint (steering program) is differentiated with the program's
     derivative: the car's front constraint contains theta_dot in f (method.md Example 1)."""
     d = derive(catalog.car())

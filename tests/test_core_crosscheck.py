@@ -80,7 +80,7 @@ def test_symbolic_reactions_are_the_same_for_two_partitions():
         assert relative_difference(l1, l2) < 1e-10
 
 
-def test_car_closed_form_has_sin_theta_denominator_and_switches_at_theta_zero():
+def test_car_reaction_formulas_have_sin_theta_denominator_and_the_solve_switches_at_theta_zero():
     """With x, y dependent the car's reactions carry 1/sin(theta) (method.md Example 1); at theta = 0
     that partition is singular and the numeric solve takes another one, still matching the augmented
     system."""

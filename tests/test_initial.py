@@ -120,7 +120,7 @@ def test_count_mismatch_is_explained(pendulum):
         complete_initial(pendulum, {"x_dot": 0.0, "y_dot": 0.0})
 
 
-def test_no_real_solution_does_not_converge(pendulum):
+def test_completion_without_a_real_solution_raises_an_appell_error(pendulum):
     # x = 2 > L: x^2 + y^2 = 1 has no real y
     with pytest.raises((ComputationError, ModelError)):
         complete_initial(pendulum, {"x": 2.0, "x_dot": 0.0, "y_dot": 0.0})

@@ -105,7 +105,7 @@ def test_independent_route_augmented_system(derivation):
     assert cross_check_controlled(derivation).passed(1e-10)
 
 
-def test_printing(derivation):
+def test_text_latex_and_json_show_the_conditions_and_control_laws(derivation):
     text = derivation.to_text()
     assert "(2.3) dynamic conditions" in text and "circle_x" in text and "lambda_roll_x" in text
     tex = derivation.to_latex()

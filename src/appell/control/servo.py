@@ -294,13 +294,25 @@ class ControlledDerivation:
                 lines.append(f"  independent accelerations: {', '.join(body[0]) or 'none'}; "
                              f"dependent: {', '.join(body[1])}")
                 continue
-            lines.append(f"{title}:")
+            if title == "internal dynamics":
+                continue
+            lines.append(f"{title}:" + ("" if body else " none"))
             for k, v in body.items():
                 lines.append(f"  {k}: {v} {'= 0' if not title.startswith(('(2.5)', 'controls')) else ''}".rstrip())
         lines.append("relative degree: " + ", ".join(
             f"{c.name} {c.relative_degree} ({c.differentiations} differentiation(s) of (2.3))" for c in self.conditions))
         lines.append(f"internal dimension: {self.internal_dimension}")
+        lines += self._internal_lines()
         return "\n".join(lines)
+
+    def _internal_lines(self) -> list[str]:
+        """What is left of the motion once the controls realise the servo constraints."""
+        if self.internal_dimension == 0:
+            return ["internal dynamics: none (the servo and real constraints fix the motion)"]
+        lines = [f"internal dynamics: the motion (2.4) on the servo manifold, dimension {self.internal_dimension}"
+                 + (", with the state relations" if self.internal_dynamics else "")]
+        lines += [f"  {k}: {v} = 0" for k, v in self.internal_dynamics.items()]
+        return lines
 
     def to_latex(self) -> str:
         """LaTeX (``align*``) of (2.3), (2.4), (2.5) and the control laws."""
@@ -310,7 +322,7 @@ class ControlledDerivation:
 
         rows = []
         for title, body in self._sections():
-            if title == "partition":
+            if title == "partition" or not body:
                 continue
             rows.append(rf"&\text{{{title}}}")
             for k, v in body.items():
@@ -324,18 +336,34 @@ class ControlledDerivation:
                     rows.append(rf"{tex(v)} &= 0 \quad \text{{({label})}}")
         return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"
 
-    def to_json(self) -> dict:
-        """JSON-ready dict; every expression is a SymPy-parsable string."""
+    def json_expressions(self) -> dict:
+        """The JSON document with SymPy expressions still in it (see :meth:`to_json`)."""
         a_nu, a_h = self.partition.names(self.accelerations)
-        out = {"system": self.system.name, "independent": a_nu, "dependent": a_h}
+        kin, system = self.kinematics, self.system
+        out = {"system": system.name, "name": system.name, "independent": a_nu, "dependent": a_h,
+               "coordinates": [s.name for s in kin.coordinates], "speeds": [s.name for s in kin.speeds],
+               "accelerations": [s.name for s in kin.accelerations]}
         for title, body in self._sections():
             if title != "partition":
                 key = title.split(") ")[-1].replace(" ", "_")
-                out[key] = {k: str(v) for k, v in body.items()}
-        out["control_unknowns"] = {c.name: c.unknown.name for c in self.system.controls}
+                out[key] = dict(body)
+        out["reduced_equations"] = [tidy(e) for e in self.reduced.equations]
+        out["multipliers"] = self.reactions.as_dict()
+        out["controls"] = dict(self.control_laws)
+        out["constraints"] = {c.name: {"kind": c.kind, "expression": c.expr} for c in system.constraints}
+        out["servo_constraints"] = {c.name: {"kind": c.kind, "expression": c.expr} for c in system.servo_constraints}
+        out["control_unknowns"] = {c.name: c.unknown.name for c in system.controls}
         out["relative_degree"] = self.relative_degree
         out["differentiations"] = self.differentiations
         out["internal_dimension"] = self.internal_dimension
+        return out
+
+    def to_json(self) -> dict:
+        """JSON-ready dict: each expression as a string for reading and as an exact tree
+        under ``exact`` over the ``symbols`` table (:func:`appell.io.printing.read_json`)."""
+        from appell.io.printing import json_document
+
+        out = json_document(self.json_expressions(), self)
         json.dumps(out)
         return out
 

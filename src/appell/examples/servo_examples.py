@@ -10,7 +10,7 @@ import sympy as sp
 from appell.model import Control, Parameter, Particle, System, holonomic, nonholonomic
 from appell.symbols import t
 
-__all__ = ["appell_ball", "spring_masses", "overhead_crane", "SERVO_EXAMPLES"]
+__all__ = ["appell_ball", "spring_masses", "overhead_crane", "cart_pole", "SERVO_EXAMPLES"]
 
 
 def appell_ball() -> System:
@@ -130,10 +130,50 @@ def overhead_crane() -> System:
     )
 
 
+def cart_pole(upright: bool = True) -> System:
+    """A cart (mass m_c, position x, force control F) carrying a pendulum (point mass m on a
+    massless rod of length l, angle theta from the upward vertical, or from the downward
+    one with ``upright=False``). Servo: the cart follows ``x_d(t) = 0.5 sin t``.
+
+    The force appears in the dynamic condition (relative degree 2); what is left is the
+    pendulum driven by the cart's prescribed acceleration (Lagrange's equation of theta):
+    ``theta'' = (g/l) sin(theta) - (x_d''/l) cos(theta)`` upright, ``theta'' = -(g/l)
+    sin(theta) - (x_d''/l) cos(theta)`` hanging: internal dynamics of dimension 2,
+    linearised at theta = theta' = 0 with eigenvalues ``+-sqrt(g/l)`` (unstable) upright and
+    ``+-i sqrt(g/l)`` hanging (Spong, "Underactuated mechanical systems", 1998, the cart-pole's
+    zero dynamics for the cart position as output).
+    """
+    x, th, xd_ = sp.symbols("x theta x_d")
+    xdot, thdot = sp.symbols("x_dot theta_dot")
+    mc, m, l, g, F = sp.symbols("m_c m l g F")
+    up = 1 if upright else -1
+    return System(
+        name="cart_pole" if upright else "cart_pendulum",
+        description=("cart-pole: the cart follows a prescribed motion, the upright pendulum's internal "
+                     "dynamics are unstable") if upright else "cart with a hanging pendulum following a prescribed motion",
+        coordinates=(x, th),
+        parameters=(Parameter(mc, 1.0, "kg"), Parameter(m, 0.2, "kg"), Parameter(l, 0.5, "m"),
+                    Parameter(g, 9.81, "m/s^2")),
+        programs={xd_: sp.sin(t) / 2},
+        bodies=(
+            Particle("cart", mc, position=(x, 0, 0)),
+            Particle("bob", m, position=(x + l * sp.sin(th), 0, up * l * sp.cos(th))),
+        ),
+        potential_energy=up * m * g * l * sp.cos(th),
+        generalized_forces=(F, 0),
+        controls=(Control(F, "force"),),
+        servo_constraints=(holonomic("track", x - xd_),),
+        # on the servo manifold at t = 0: x = x_d(0) = 0, x' = x_d'(0) = 0.5; the pole 0.05 rad off
+        initial={"x": 0.0, "theta": 0.05, "x_dot": 0.5, "theta_dot": 0.0},
+        units={"x": "m", "theta": "rad", "x_dot": "m/s", "theta_dot": "rad/s", "F": "N"},
+    )
+
+
 #: name -> builder
 SERVO_EXAMPLES = {
     "appell_ball": appell_ball,
     "spring_masses": spring_masses,
     "spring_masses_damped": lambda: spring_masses(damping=True),
     "overhead_crane": overhead_crane,
+    "cart_pole": cart_pole,
 }

@@ -96,38 +96,60 @@ def is_controlled(derivation) -> bool:
     return hasattr(derivation, "control_laws") and hasattr(derivation, "dynamic_conditions")
 
 
-def derivation_json(derivation) -> dict:
+def internal_stability(derivation, solution=None):
+    """``(linearisation, note)``: the internal dynamics of a controlled derivation linearised
+    at its initial state (:func:`appell.control.internal_dynamics.internal_linearisation`), at
+    the first row of ``solution`` when given; ``(None, None)`` without internal dynamics or
+    initial values, ``(None, reason)`` when the linearisation cannot be computed there."""
+    if not is_controlled(derivation) or derivation.internal_dimension == 0 or not derivation.system.initial:
+        return None, None
+    from appell.control.internal_dynamics import internal_linearisation
+
+    time = state = None
+    if solution is not None and solution.t.size:
+        model = derivation.numeric
+        time, state = float(solution.t[0]), [float(solution.states[n][0]) for n in model.state_names]
+    try:
+        return internal_linearisation(derivation, time, state), None
+    except ComputationError as exc:
+        return None, f"the internal dynamics were not linearised at the initial state: {exc}"
+
+
+def _warn_internal(linearisation, note) -> None:
+    """``warning: ...`` on stderr for an unstable internal dynamics (or one not linearised)."""
+    message = linearisation.warning() if linearisation is not None else note
+    if message:
+        click.echo(f"warning: {message}", err=True)
+
+
+def derivation_json(derivation, reduction=None) -> dict:
     """The JSON document of ``appell derive --format json``.
 
     Keys (at least): ``coordinates``, ``speeds``, ``independent``, ``dependent``,
     ``reduced_equations`` (1.4)/(2.4), ``multipliers`` (constraint name -> formula
     (1.5)/(2.5)), ``controls`` (control name -> control law from the dynamic conditions
-    (2.3); empty without servo constraints) and ``first_integrals`` (name -> expression);
-    every expression is a string that :func:`sympy.sympify` parses.
+    (2.3); empty without servo constraints), ``first_integrals`` (name -> expression) and,
+    with ``reduction`` (a :class:`~appell.reduction.cyclic.RouthReduction`), ``routh``.
+    Every expression is a string for reading; ``symbols`` and ``exact`` give them exactly
+    (:func:`appell.io.printing.read_json`).
     """
-    system = derivation.system
-    if is_controlled(derivation):
-        from appell.core.equations import tidy
+    from appell.io.printing import derivation_document, json_document
 
-        out = dict(derivation.to_json())
-        kin = derivation.kinematics
-        out.setdefault("name", system.name)
-        out["coordinates"] = [s.name for s in kin.coordinates]
-        out["speeds"] = [s.name for s in kin.speeds]
-        out["accelerations"] = [s.name for s in kin.accelerations]
-        out["reduced_equations"] = [str(tidy(e)) for e in derivation.reduced.equations]
-        out["multipliers"] = {n: str(e) for n, e in derivation.reactions.as_dict().items()}
-        out["controls"] = {n: str(e) for n, e in derivation.control_laws.items()}
-        out["dynamic_conditions"] = {n: str(e) for n, e in derivation.dynamic_conditions.items()}
-        out["constraints"] = {c.name: {"kind": c.kind, "expression": str(c.expr)} for c in system.constraints}
-        out["servo_constraints"] = {c.name: {"kind": c.kind, "expression": str(c.expr)}
-                                    for c in system.servo_constraints}
-    else:
-        out = dict(derivation.to_json())
-        out.setdefault("controls", {})
+    system = derivation.system
+    out = derivation.json_expressions() if is_controlled(derivation) else derivation_document(derivation)
+    linearisation, _ = internal_stability(derivation)
+    if linearisation is not None:
+        out["internal_linearisation"] = linearisation.to_json()
+    out.setdefault("controls", {})
     if not out.get("first_integrals"):
-        out["first_integrals"] = {f.name: str(f.expr) for f in system.first_integrals}
-    return out
+        out["first_integrals"] = {f.name: f.expr for f in system.first_integrals}
+    if reduction is not None:
+        out["routh"] = {
+            "cyclic": [q.name for q in reduction.cyclic],
+            "momenta": {h.name: v for h, v in zip(reduction.momenta, reduction.momentum_values)},
+            **dict(reduction.equations()),
+        }
+    return json_document(out, derivation)
 
 
 def simulation_options(system, t_end: float | None = None) -> dict:
@@ -278,7 +300,8 @@ def cli():
 @cli.command(context_settings=_CONTEXT)
 @_model_argument
 @click.option("--format", "fmt", type=click.Choice(["text", "latex", "json"]), default="text", show_default=True,
-              help="Output format; JSON expressions are SymPy-parsable strings.")
+              help="Output format; JSON gives each expression as text and exactly (read it with "
+                   "appell.io.printing.read_json).")
 @click.option("--dependent", multiple=True, metavar="NAME",
               help="A dependent acceleration of the partition (repeat once per constraint), e.g. x_ddot or x''.")
 @click.option("--routh", is_flag=True,
@@ -302,14 +325,9 @@ def derive(model, fmt, dependent, routh, assignments, only):
         reduction = routh_reduction(system)
         system = reduction.system
     derivation = derive_model(system, dependent)
+    linearisation, note = internal_stability(derivation)
     if fmt == "json":
-        out = derivation_json(derivation)
-        if reduction is not None:
-            out["routh"] = {
-                "cyclic": [q.name for q in reduction.cyclic],
-                "momenta": {h.name: v for h, v in zip(reduction.momenta, reduction.momentum_values)},
-                **{name: str(e) for name, e in reduction.equations()},
-            }
+        out = derivation_json(derivation, reduction)
         click.echo(json.dumps(out, indent=2))
     elif fmt == "latex":
         from appell.io.printing import derivation_latex
@@ -321,6 +339,9 @@ def derive(model, fmt, dependent, routh, assignments, only):
 
         body = derivation_text(derivation, only) if only else derivation.to_text()
         click.echo((reduction.to_text() + "\n\n" if reduction is not None else "") + body)
+        if linearisation is not None and (not only or "controls" in only):
+            click.echo(linearisation.to_text())
+    _warn_internal(linearisation, note)
 
 
 @cli.command(context_settings=_CONTEXT)
@@ -355,6 +376,7 @@ def simulate(model, t_end, out, plot, backend, assignments):
     if plot:
         solution.plot(plot)
     click.echo(solution.summary())
+    _warn_internal(*internal_stability(derivation, solution))
     for path in (out_path, plot):
         if path:
             click.echo(f"wrote {path}")
@@ -400,6 +422,10 @@ def check(model, tolerance, assignments):
     derivation = derive_model(system)
     report = _cross_check(derivation)
     click.echo(str(report))
+    linearisation, note = internal_stability(derivation)
+    if linearisation is not None:
+        click.echo("internal dynamics:\n" + linearisation.to_text())
+    _warn_internal(linearisation, note)
     integrals = _first_integrals(derivation)
     if integrals is not None:
         click.echo(integrals.to_text())
@@ -439,9 +465,11 @@ def report(model, output, t_end, no_simulation, backend, assignments):
         note = "Left out: the model gives neither initial values ([initial]) nor a [simulation] table."
     else:
         solution = run_simulation(derivation, t_end, backend)
+    linearisation, internal_note = internal_stability(derivation, solution)
+    _warn_internal(linearisation, internal_note)
     path = Path(output) if output else Path(f"{system.name}-report.html")
     write_report(path, derivation, solution, check_report, simulation_note=note,
-                 integrals=_first_integrals(derivation))
+                 integrals=_first_integrals(derivation), internal=linearisation)
     click.echo(f"wrote {path}")
     if not check_report.passed():
         raise ComputationError("cross-check failed (see the report)")

@@ -380,20 +380,40 @@ def _integrals_section(report) -> str:
             + _table(("candidate", "verdict", "shown", "detail"), rows) + f"<p>{_e(verdict)}</p>")
 
 
+def _internal_section(linearisation) -> str:
+    """The internal dynamics linearised at the initial state
+    (:class:`~appell.control.internal_dynamics.InternalLinearisation`), with a warning when unstable."""
+    values = ", ".join(f"{z.real:.6g}" + (f" {'+' if z.imag >= 0 else '−'} {abs(z.imag):.6g}i" if z.imag else "")
+                       for z in linearisation.eigenvalues)
+    warning = linearisation.warning()
+    verdict = (f"<p class='fail'>Unstable: {_e(warning)}.</p>" if warning
+               else "<p class='pass'>Not unstable to first order.</p>")
+    return ("<h2 id='internal'>Internal dynamics</h2>"
+            f"<p>What is left of the motion once the controls realise the servo constraints, linearised at "
+            f"t = {linearisation.time:g} in {_e(', '.join(linearisation.coordinates))} "
+            f"(Jacobian of the closed-loop motion on the servo manifold): eigenvalues {_e(values)}.</p>" + verdict)
+
+
 def render_report(derivation, solution=None, check=None, *, title: str | None = None,
-                  tolerance: float = 1e-9, simulation_note: str | None = None, integrals=None) -> str:
+                  tolerance: float = 1e-9, simulation_note: str | None = None, integrals=None,
+                  internal=None) -> str:
     """The HTML page (a string) for ``derivation`` (a :class:`~appell.core.equations.Derivation`
     or a controlled derivation of :mod:`appell.control.servo`), with the plots of ``solution``
     (:class:`~appell.simulation.solution.Solution`) and the table of ``check``
     (:class:`~appell.numerics.crosscheck.CrossCheckReport`, judged at ``tolerance``) when given.
     ``simulation_note`` says why there is no simulation (shown in its place); ``integrals``
-    a :class:`~appell.reduction.first_integrals.FirstIntegralReport` to show."""
+    a :class:`~appell.reduction.first_integrals.FirstIntegralReport` to show; ``internal`` the
+    linearised internal dynamics of a controlled system
+    (:func:`appell.control.internal_dynamics.internal_linearisation`), flagged when unstable."""
     from appell import __version__
 
     system = derivation.system
     title = title or f"appell report: {system.name}"
     sections = [_model_section(system, derivation.kinematics), _equation_section(derivation)]
     nav = ["<a href='#model'>model</a>", "<a href='#equations'>equations</a>"]
+    if internal is not None:
+        sections.append(_internal_section(internal))
+        nav.append("<a href='#internal'>internal dynamics</a>")
     if solution is not None:
         sections.append(_simulation_section(solution))
         nav.append("<a href='#simulation'>simulation</a>")
