@@ -42,3 +42,15 @@ class ComputationError(AppellError):
     """A numeric or symbolic computation failed on a valid model; exit code 1."""
 
     exit_code = 1
+
+
+class InitialValueError(ModelError):
+    """Initial values that violate constraints (exit code 2).
+
+    ``violations``: ``(constraint, level, residual)`` for every residual over the
+    tolerance; ``level`` is ``'position'`` (``F``) or ``'velocity'`` (``phi``).
+    """
+
+    def __init__(self, message: str, *, violations=(), where: str | None = None, hint: str | None = None):
+        self.violations = tuple(violations)
+        super().__init__(message, where=where, hint=hint)
