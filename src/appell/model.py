@@ -427,7 +427,7 @@ def initial_value(name: str, expr: sp.Expr, known: Mapping[sp.Symbol, float]) ->
     args = sorted(expr.free_symbols, key=lambda s_: s_.name)
     try:
         value = float(sp.lambdify(args, expr, modules="math")(*(float(known[a]) for a in args)))
-    except (ArithmeticError, ValueError, TypeError) as exc:
+    except (ArithmeticError, ValueError, TypeError, NameError, AttributeError) as exc:  # NameError: no math function
         reason = str(exc) or type(exc).__name__
     else:
         if value == value and abs(value) != float("inf"):

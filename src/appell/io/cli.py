@@ -485,6 +485,8 @@ def sweep(model, specs, t_end, out, samples, scheduler, workers, backend, assign
     Writes one HDF5 dataset with every run (states, reactions, controls, status) and a
     summary: the extreme value of each reaction across the sweep and where it occurs.
     A failed run is recorded, not fatal; the exit code is 1 only when every run failed.
+    Initial values written as expressions of the parameters are evaluated for each run; a
+    run whose start violates a constraint fails (given values are never changed here).
     """
     from appell.simulation.sweep import parameter_grid
     from appell.simulation.sweep import sweep as run_sweep
@@ -499,6 +501,8 @@ def sweep(model, specs, t_end, out, samples, scheduler, workers, backend, assign
     opts = simulation_options(system, t_end)
     t0, final = opts.pop("t0"), opts.pop("t_end")
     opts.pop("t_eval", None)
+    if opts.get("complete"):  # missing values are computed; a run whose given values violate a constraint fails
+        opts["adjust"] = ()  # (its changes could not be reported), instead of being changed silently
     if t0 != 0.0:
         raise ModelError("sweeps start at t = 0", hint="remove t0 from the [simulation] table")
     path = Path(out) if out else Path(f"{system.name}-sweep.h5")

@@ -35,7 +35,7 @@ from appell.symbols import derivative_name, split_derivative_name
 __all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians",
            "COMPLETION_HINT", "CHECK_TOLERANCE"]
 
-#: largest admissible |F| and |phi| of a start (absolute)
+#: largest admissible ``|F|`` and ``|phi|`` of a start (absolute)
 CHECK_TOLERANCE = 1e-9
 
 COMPLETION_HINT = (

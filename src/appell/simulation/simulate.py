@@ -271,7 +271,7 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
         only checking them (:func:`~appell.simulation.initial.check_initial`, which raises
         :class:`~appell.errors.InitialValueError` for a start off a constraint, servo
         constraints included). Each computed or changed value is recorded as an event of
-        kind ``'initial'`` and a line of the log.
+        kind ``'initial'``; each changed given value also as a line of the log.
     adjust : with ``complete``, which given values may change: None (chosen automatically
         where a constraint is violated), a list of names, or ``()`` (none: only missing
         values are computed and a violation raises).
@@ -317,9 +317,10 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     if stabilization == "baumgarte":
         settings["baumgarte"] = tuple(float(v) for v in baumgarte)
     run = _Run(model, system, p, names, _kinds(model, y0, t0, p), settings)
-    for name, text in start.describe_changes():
+    for (name, text), (_, given, _) in zip(start.describe_changes(), start.changes):
         run.events.append(EventRecord("initial", name, t0, text))
-        run.log.append(f"t = {t0:.10g}: initial value {name}: {text}")
+        if given is not None:  # a given value changed (a missing one computed is an event only)
+            run.log.append(f"t = {t0:.10g}: initial value {name}: {text}")
     watch_args = dict(unilateral=unilateral, on_release=on_release, friction=friction, events=tuple(events))
 
     active, t, y = model, t0, y0
