@@ -7,7 +7,7 @@ Pipeline: :class:`System` -> :func:`derive` -> :class:`Derivation` (reduced equa
 from appell.numerics.crosscheck import CrossCheckReport, augmented_solve, cross_check
 from appell.core.derive import derive
 from appell.core.equations import Derivation, ReactionFormulas, ReducedEquations
-from appell.errors import AppellError, ComputationError, ModelError
+from appell.errors import AppellError, ComputationError, InitialValueError, ModelError
 from appell.model import (
     AppliedForce,
     AppliedTorque,
@@ -46,7 +46,7 @@ __all__ = [
     "Program", "ReactionFormulas", "ReducedEquations", "RigidBody", "StateSolution", "System",
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",
-    "Event", "InitialState", "Solution", "check_initial", "complete_initial", "simulate",
+    "Event", "InitialState", "InitialValueError", "Solution", "check_initial", "complete_initial", "simulate",
     "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",
     "routh_reduction",
     "SweepResult", "compile_c", "parameter_grid", "sweep",

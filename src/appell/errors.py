@@ -48,3 +48,15 @@ class SingularConfigurationError(ModelError):
     """The motion reached a state where the constraint Jacobian lost rank: no partition
     satisfies condition (1.2), so the reactions are not determined there; exit code 2.
     The message names the constraints involved."""
+
+
+class InitialValueError(ModelError):
+    """Initial values that violate constraints (exit code 2).
+
+    ``violations``: ``(constraint, level, residual)`` for every residual over the
+    tolerance; ``level`` is ``'position'`` (``F``) or ``'velocity'`` (``phi``).
+    """
+
+    def __init__(self, message: str, *, violations=(), where: str | None = None, hint: str | None = None):
+        self.violations = tuple(violations)
+        super().__init__(message, where=where, hint=hint)

@@ -36,6 +36,7 @@ __all__ = [
     "Control",
     "FirstIntegral",
     "System",
+    "initial_value",
 ]
 
 
@@ -294,7 +295,12 @@ class System:
     constraints : :class:`Constraint` items (names must be unique).
     controls, servo_constraints : method.md §4.
     first_integrals : method.md §5.
-    initial : initial values ``{name or symbol: value}`` of coordinates and speeds.
+    initial : initial values ``{name or symbol: value}`` of coordinates, speeds and kinematic
+        controls (``u``, ``u_dot``). A value may be a SymPy expression: a coordinate's (or
+        control position's) in the parameters, a speed's (or control rate's) in the
+        parameters and the initial coordinates, e.g. ``{"xi_dot": -omega*eta}``; it is
+        evaluated here (stored in ``initial``) and kept in ``initial_expressions``, so that
+        :meth:`with_parameters` evaluates it again and the start stays consistent.
     settings : ``((key, value), ...)`` or a mapping — run settings such as a model file's
         ``[simulation]`` table (t_end, method, rtol, ...); stored, not interpreted here.
     units : ``{name: unit}`` for coordinates, speeds, constraints (the unit of their
@@ -317,6 +323,7 @@ class System:
     servo_constraints: tuple[Constraint, ...] = ()
     first_integrals: tuple[FirstIntegral, ...] = ()
     initial: tuple[tuple[str, float], ...] = ()
+    initial_expressions: tuple[tuple[str, sp.Expr], ...] = ()
     name: str = "system"
     description: str = ""
     settings: tuple[tuple[str, object], ...] = ()
@@ -362,8 +369,9 @@ class System:
         s(self, "controls", _tuple(self.controls, lambda k, v: Control(sp.Symbol(str(k)), v)))
         s(self, "servo_constraints", tuple(self.servo_constraints))
         s(self, "first_integrals", tuple(self.first_integrals))
-        init = self.initial.items() if isinstance(self.initial, Mapping) else self.initial
-        s(self, "initial", tuple((str(k), float(v)) for k, v in init))
+        values, expressions = _initial_values(self)
+        s(self, "initial", values)
+        s(self, "initial_expressions", expressions)
         settings = self.settings.items() if isinstance(self.settings, Mapping) else self.settings
         s(self, "settings", tuple((str(k), v) for k, v in settings))
         units = self.units.items() if isinstance(self.units, Mapping) else self.units
@@ -393,6 +401,12 @@ class System:
         return dict(self.initial)
 
     @property
+    def initial_definitions(self) -> dict[str, float | sp.Expr]:
+        """``{name: value}`` of the initial values, with the expression where one was given
+        (what :meth:`replace` needs to evaluate them again)."""
+        return {**dict(self.initial), **dict(self.initial_expressions)}
+
+    @property
     def unit_of(self) -> dict[str, str]:
         """Units by result column: state names, ``lambda_<constraint>``, ``control_<name>``."""
         constraints = {c.name for c in self.constraints}
@@ -419,7 +433,79 @@ class System:
             Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description)
             for p in self.parameters
         )
-        return self.replace(parameters=params)
+        return self.replace(parameters=params, initial=tuple(self.initial_definitions.items()))
+
+
+def initial_value(name: str, expr: sp.Expr, known: Mapping[sp.Symbol, float]) -> float:
+    """The initial value ``expr`` of ``name`` at the values ``known`` (parameters, initial
+    coordinates), in floating point with :mod:`math` (no SymPy evaluation, so that an
+    overflow such as ``exp(exp(exp(w)))`` fails at once); a :class:`ModelError` when it
+    is undefined or not finite."""
+    args = sorted(expr.free_symbols, key=lambda s_: s_.name)
+    try:
+        value = float(sp.lambdify(args, expr, modules="math")(*(float(known[a]) for a in args)))
+    except (ArithmeticError, ValueError, TypeError, NameError, AttributeError) as exc:  # NameError: no math function
+        reason = str(exc) or type(exc).__name__
+    else:
+        if value == value and abs(value) != float("inf"):
+            return value
+        reason = "the value is not finite"
+    raise ModelError(f"initial value of {name} = {expr} cannot be evaluated: {reason}",
+                     hint="check the expression and the parameter values it uses")
+
+
+def _initial_values(system: "System") -> tuple[tuple, tuple]:
+    """``(initial, initial_expressions)`` of a System being built.
+
+    A number is taken as it is; a SymPy expression with symbols is evaluated: one of a
+    coordinate or kinematic control position in the parameters, one of a speed or control
+    rate in the parameters and the initial positions (evaluated first). A number given
+    where an expression was stored (``replace(initial=...)``) keeps the expression only
+    while it still equals the expression's value (else it was overridden).
+    """
+    init = system.initial.items() if isinstance(system.initial, Mapping) else system.initial
+    stored = dict(system.initial_expressions)
+    params = {p.symbol: p.value for p in system.parameters}
+    positions = {q.name for q in system.coordinates} | {c.name for c in system.controls if c.kind == "kinematic"}
+    items = [(str(k), v) for k, v in init]
+    exprs, numbers = {}, {}
+    for name, value in items:
+        if isinstance(value, sp.Basic) and value.free_symbols:
+            exprs[name] = value
+        else:
+            try:
+                numbers[name] = float(value)
+            except (TypeError, ValueError):
+                raise ModelError(f"initial value of {name} is not a number or an expression: {value!r}",
+                                 hint="give a number, or a SymPy expression in the parameters") from None
+    values: dict[str, float] = {}
+    kept: dict[str, sp.Expr] = {}
+    for level in ("position", "rate"):
+        known = dict(params)
+        if level == "rate":
+            known.update({sp.Symbol(n): v for n, v in values.items() if n in positions})
+        for name, _ in items:
+            if (name in positions) != (level == "position"):
+                continue
+            expr = exprs.get(name)
+            if expr is None:
+                values[name] = numbers[name]
+                old = stored.get(name)
+                if old is not None and old.free_symbols <= set(known) and \
+                        initial_value(name, old, known) == numbers[name]:
+                    kept[name] = old
+                continue
+            bad = sorted((s.name for s in expr.free_symbols if s not in known), key=str)
+            if bad:
+                allowed = "parameters" if level == "position" else "parameters and initial coordinates"
+                raise ModelError(f"initial value of {name} = {expr} uses {', '.join(bad)}, which are not "
+                                 f"{allowed} with values",
+                                 hint="a coordinate's initial value may use parameters; a speed's may also use "
+                                      "the initial values of the coordinates")
+            values[name] = initial_value(name, expr, known)
+            kept[name] = expr
+    order = [name for name, _ in items]
+    return (tuple((n, values[n]) for n in order), tuple((n, kept[n]) for n in order if n in kept))
 
 
 def symbols_of(items: Iterable[sp.Basic]) -> set[sp.Symbol]:

@@ -76,6 +76,9 @@ class ControlledModel:
     has_position: tuple[np.ndarray, np.ndarray]
     has_velocity: tuple[np.ndarray, np.ndarray]
     underactuated: bool
+    relations: Callable | None = None  # -> [phi_0 .. phi_{m-1} of every servo row]
+    relation_of: tuple[tuple[str, int], ...] = ()  # (servo constraint, order of its time derivative)
+    relation_velocity: tuple[bool, ...] = ()  # whether a relation involves speeds or control rates
 
     # ---------------------------------------------------------------- helpers
     def params(self, p=None) -> np.ndarray:
@@ -185,6 +188,30 @@ class ControlledModel:
         F, phi, _, _ = self._residuals(t, y, p)
         return (np.where(self.has_position[0], F, np.nan), np.where(self.has_velocity[0], phi, np.nan))
 
+    @property
+    def start_conditions(self) -> tuple[str, ...]:
+        """What a start must satisfy beyond the real constraints for the controls to realise
+        the servo constraints: each servo constraint, then each state relation
+        ``phi_0 .. phi_{m-1}`` of an underactuated servo row (:mod:`appell.control.underactuated`),
+        named ``<servo>^(k)``: the k-th time derivative of the servo constraint, in the form
+        of the dynamic condition (2.3) before a control appears. A start off a relation is
+        not corrected by the controls: the tracking error grows like a power of t."""
+        return self.servo_names + tuple(f"{name}^({k})" for name, k in self.relation_of)
+
+    def start_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """Position- and velocity-level residuals of :attr:`start_conditions` at ``(t, y)``
+        (NaN where a level does not exist); a relation free of speeds and control rates is
+        position level. No solve is needed."""
+        pv = self.params(p)
+        _, _, F, phi = self._residuals(t, y, pv)
+        F, phi = np.where(self.has_position[1], F, np.nan), np.where(self.has_velocity[1], phi, np.nan)
+        if not self.relation_of:
+            return F, phi
+        q, w, uc = self.split_state(y)
+        rel = np.asarray(self.relations(float(t), q, w, uc, pv)[0], float).reshape(-1)
+        vel = np.asarray(self.relation_velocity, bool)
+        return np.concatenate([F, np.where(vel, np.nan, rel)]), np.concatenate([phi, np.where(vel, rel, np.nan)])
+
     def servo_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity and acceleration residuals of the servo constraints along the
         motion under the controls (NaN where a level does not exist)."""
@@ -261,6 +288,13 @@ def compile_controlled(derivation) -> ControlledModel:
 
     residuals = lambdify_blocks(args, [level(real.position_residual, s), level(real.velocity_residual, s),
                                        level(servo.position_residual, r), level(servo.velocity_residual, r)], subs)
+    rates_of_state = set(kin.speeds) | set(uc[1::2])
+    relation_of, relation_exprs = [], []
+    for c in derivation.conditions:
+        for j, e in enumerate(c.state_relations):
+            relation_of.append((c.name, c.relative_degree - c.differentiations + j))
+            relation_exprs.append(e)
+    relations = lambdify_blocks(args, [sp.Matrix(relation_exprs) if relation_exprs else sp.zeros(0, 1)], subs)
     kin_idx = tuple(i for i, c in enumerate(system.controls) if c.kind == "kinematic")
     coords = tuple(q.name for q in kin.coordinates)
     speeds = tuple(w.name for w in kin.speeds)
@@ -275,7 +309,8 @@ def compile_controlled(derivation) -> ControlledModel:
                       np.array([e is not None for e in servo.position_residual], bool)),
         has_velocity=(np.array([e is not None for e in real.velocity_residual], bool),
                       np.array([e is not None for e in servo.velocity_residual], bool)),
-        underactuated=derivation.underactuated,
+        underactuated=derivation.underactuated, relations=relations, relation_of=tuple(relation_of),
+        relation_velocity=tuple(bool(e.free_symbols & rates_of_state) for e in relation_exprs),
     )
 
 

@@ -30,7 +30,7 @@ def appell_ball() -> System:
     ud, vd = sp.symbols("u_dot v_dot")
     acc = sp.symbols("xi_ddot eta_ddot p_dot q_dot r_dot")
     S = M / 2 * (acc[0] ** 2 + acc[1] ** 2) + M * R**2 / 5 * (acc[2] ** 2 + acc[3] ** 2 + acc[4] ** 2)
-    x0, y0, w0, R0 = 0.3, 0.1, 2.0, 0.1
+    x0, y0, w0, R0 = 0.3, 0.1, 2.0, 0.1  # start, omega, R
     return System(
         name="appell_ball",
         description="Appell's problem: a plate driven so that a ball rolling on it moves on a circle",
@@ -49,9 +49,10 @@ def appell_ball() -> System:
             nonholonomic("circle_x", xid + omega * eta),
             nonholonomic("circle_y", etad - omega * xi),
         ),
-        # xi', eta' from the servo constraints; u', v' from the rolling constraints (p = q = 0)
-        initial={"xi": x0, "eta": y0, "xi_dot": -w0 * y0, "eta_dot": w0 * x0, "p": 0.0, "q": 0.0, "r": 0.0,
-                 "u": 0.0, "v": 0.0, "u_dot": -w0 * y0, "v_dot": w0 * x0},
+        # xi', eta' from the servo constraints; u', v' from the rolling constraints (p = q = 0);
+        # written in omega and the initial position, so the start stays on the circle for any omega
+        initial={"xi": x0, "eta": y0, "xi_dot": -omega * eta, "eta_dot": omega * xi, "p": 0.0, "q": 0.0,
+                 "r": 0.0, "u": 0.0, "v": 0.0, "u_dot": -omega * eta, "v_dot": omega * xi},
     )
 
 
@@ -73,11 +74,12 @@ def spring_masses(damping: bool = False) -> System:
     if damping:
         params.append(Parameter(d, 0.5, "N*s/m"))
         damper = d * (ydot - x1d)
-    m2v, kv = 2.0, 4.0
     # consistent start (t = 0, y_d = 0.1 sin t): y = y_d, y' = y_d'; without damping the
-    # first mass sits where m2 y_d'' = k (x1 - y): x1 = 0, x1' = 0.1 - 0.1 m2/k; with the damper x1 = 0 and
-    # d (y_d' - x1') = k x1 - m2 y_d'' gives x1' = 0.1
-    init = {"x1": 0.0, "y": 0.0, "y_dot": 0.1, "x1_dot": 0.1 - 0.1 * m2v / kv if not damping else 0.1}
+    # first mass sits where m2 y_d'' = k (x1 - y): x1 = 0, and its derivative gives
+    # x1' = 0.1 - 0.1 m2/k (in the parameters: consistent for any m2, k); with the damper
+    # x1 = 0 and d (y_d' - x1') = k x1 - m2 y_d'' gives x1' = 0.1
+    init = {"x1": 0.0, "y": 0.0, "y_dot": 0.1,
+            "x1_dot": sp.Rational(1, 10) - m2 / (10 * k) if not damping else 0.1}
     return System(
         name="spring_masses_damped" if damping else "spring_masses",
         description="two masses and a spring (and damper); force on the first, the second tracks y_d(t)",
@@ -124,9 +126,10 @@ def overhead_crane() -> System:
             holonomic("load_z", -l * sp.cos(th) - zL),
         ),
         # at t = 0 from the load's path alone (the rope along (x_L'', z_L'' + g)): theta = 0,
-        # l = 1.8, x_T = 0 and their rates
-        initial={"x_T": 0.0, "l": 1.8, "theta": 0.0, "x_T_dot": 0.23829344432882416, "l_dot": 0.0,
-                 "theta_dot": 0.0065036420395421434},
+        # l = 1.8, x_T = 0; tan(theta) = -x_L''/(z_L'' + g) differentiated: theta' = 1/(16 (g - 1/5)),
+        # and x_T' = x_L' - l theta' (in g: consistent for any g)
+        initial={"x_T": 0.0, "l": 1.8, "theta": 0.0, "x_T_dot": sp.Rational(1, 4) - l / (16 * (g - sp.Rational(1, 5))),
+                 "l_dot": 0.0, "theta_dot": 1 / (16 * (g - sp.Rational(1, 5)))},
     )
 
 

@@ -193,8 +193,12 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
     """Simulate ``derivation`` with the model's settings (:func:`simulation_options`).
 
     ``t_end`` equal to the start time gives the single row at the initial state.
-    Dependent initial values are completed from the given ones (``complete=True``) unless
-    the model's ``[simulation]`` table says otherwise.
+    Initial values the model does not give are computed from the given ones
+    (``complete=True, adjust=()``); given values that violate a constraint are refused
+    (:class:`~appell.errors.InitialValueError`, exit code 2) unless completion is requested,
+    by ``complete=True`` in the model's ``[simulation]`` table or ``adjust=None`` /
+    ``adjust=[names]`` here (``--complete`` / ``--adjust NAME``); the changes are events of
+    the solution. ``complete = false`` in the table checks the values only.
     ``backend`` ('numpy', 'c', 'auto') chooses the numeric code of a plain derivation
     (:meth:`~appell.core.equations.Derivation.compiled`); a controlled one runs as it is.
     Raises :class:`ComputationError` when the integration fails (status -1).
@@ -202,7 +206,8 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
     from appell.simulation.simulate import simulate
 
     model = derivation if backend == "numpy" or is_controlled(derivation) else derivation.compiled(backend)
-    opts = {"complete": True, **simulation_options(derivation.system, t_end), **options}
+    table = simulation_options(derivation.system, t_end)
+    opts = {"complete": True, "adjust": None if table.get("complete") else (), **table, **options}
     t0, t_end = opts.pop("t0"), opts.pop("t_end")
     if t_end == t0:
         opts["t_eval"] = [t0]
@@ -284,6 +289,20 @@ _backend_option = click.option("--backend", type=click.Choice(["auto", "c", "num
                                     "is found, else NumPy), or NumPy.")
 _set_option = click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
                            help="Override a parameter or an initial value (repeatable), e.g. --set M=1500 --set \"phi'=0.2\".")
+_complete_option = click.option("--complete", is_flag=True,
+                                help="Change given initial values that violate a constraint (servo constraints "
+                                     "included) so that it holds, and print each change; without it such a start "
+                                     "is refused (exit 2).")
+_adjust_option = click.option("--adjust", "adjust", multiple=True, metavar="NAME",
+                              help="An initial value to compute from the constraints instead of taking it as given "
+                                   "(repeatable, e.g. --adjust \"xi'\"); implies --complete with these values only.")
+
+
+def _completion(complete: bool, adjust) -> dict:
+    """``run_simulation`` options of ``--complete`` / ``--adjust``: none, automatic, or the named values."""
+    if adjust:
+        return {"complete": True, "adjust": [canonical_name(a) for a in adjust]}
+    return {"complete": True, "adjust": None} if complete else {}
 
 
 @click.group(name="appell", cls=_AppellGroup, context_settings=_CONTEXT)
@@ -355,11 +374,15 @@ def derive(model, fmt, dependent, routh, assignments, only):
               help="Plot coordinates, reactions, controls and residuals to FILE (e.g. .png, .pdf, .svg).")
 @_backend_option
 @_set_option
-def simulate(model, t_end, out, plot, backend, assignments):
+@_complete_option
+@_adjust_option
+def simulate(model, t_end, out, plot, backend, assignments, complete, adjust):
     """Simulate the motion with its reactions, controls and constraint residuals.
 
     CSV columns: t, each coordinate, each speed, lambda_<constraint>, control_<control>,
-    residual_<constraint>. Nothing is written when the simulation fails.
+    residual_<constraint>. Nothing is written when the simulation fails. Initial values
+    the model does not give are computed; a start that violates a constraint is refused
+    (exit 2) unless --complete (or --adjust) is given, which prints each changed value.
     """
     out_path = Path(out) if out else None
     if out_path is not None and out_path.suffix.lower() not in OUTPUT_FORMATS:
@@ -370,7 +393,7 @@ def simulate(model, t_end, out, plot, backend, assignments):
             raise click.BadParameter(f"directory {str(target.parent)!r} does not exist", param_hint="'--out/--plot'")
     system = load_system(model, parse_assignments(assignments))
     derivation = derive_model(system)
-    solution = run_simulation(derivation, t_end, backend)
+    solution = run_simulation(derivation, t_end, backend, **_completion(complete, adjust))
     if out_path is not None:
         export_solution(solution, out_path)
     if plot:
@@ -444,7 +467,9 @@ def check(model, tolerance, assignments):
 @click.option("--no-simulation", is_flag=True, help="Leave out the simulation and its plots.")
 @_backend_option
 @_set_option
-def report(model, output, t_end, no_simulation, backend, assignments):
+@_complete_option
+@_adjust_option
+def report(model, output, t_end, no_simulation, backend, assignments, complete, adjust):
     """Write one self-contained HTML page: the model, its equations as mathematics,
     plots of coordinates, reactions and controls, and the cross-check.
 
@@ -464,7 +489,7 @@ def report(model, output, t_end, no_simulation, backend, assignments):
     elif not system.initial and not system.settings:
         note = "Left out: the model gives neither initial values ([initial]) nor a [simulation] table."
     else:
-        solution = run_simulation(derivation, t_end, backend)
+        solution = run_simulation(derivation, t_end, backend, **_completion(complete, adjust))
     linearisation, internal_note = internal_stability(derivation, solution)
     _warn_internal(linearisation, internal_note)
     path = Path(output) if output else Path(f"{system.name}-report.html")
@@ -497,6 +522,8 @@ def sweep(model, specs, t_end, out, samples, scheduler, workers, backend, assign
     Writes one HDF5 dataset with every run (states, reactions, controls, status) and a
     summary: the extreme value of each reaction across the sweep and where it occurs.
     A failed run is recorded, not fatal; the exit code is 1 only when every run failed.
+    Initial values written as expressions of the parameters are evaluated for each run; a
+    run whose start violates a constraint fails (given values are never changed here).
     """
     from appell.simulation.sweep import parameter_grid
     from appell.simulation.sweep import sweep as run_sweep
@@ -511,6 +538,8 @@ def sweep(model, specs, t_end, out, samples, scheduler, workers, backend, assign
     opts = simulation_options(system, t_end)
     t0, final = opts.pop("t0"), opts.pop("t_end")
     opts.pop("t_eval", None)
+    if opts.get("complete"):  # missing values are computed; a run whose given values violate a constraint fails
+        opts["adjust"] = ()  # (its changes could not be reported), instead of being changed silently
     if t0 != 0.0:
         raise ModelError("sweeps start at t = 0", hint="remove t0 from the [simulation] table")
     path = Path(out) if out else Path(f"{system.name}-sweep.h5")

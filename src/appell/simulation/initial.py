@@ -1,14 +1,21 @@
 """Consistent initial values (method.md §2: the constraints at position and velocity level).
 
-A state ``y = (q, w)`` is consistent when every holonomic constraint holds at position
-level, ``F(t, q) = 0``, and every holonomic and first-order constraint at velocity level,
-``phi(t, q, w) = 0`` (``phi = dF/dt`` for holonomic ones). Second-order constraints
-restrict only the accelerations and are not checked here.
+A state ``y = (q, w)`` (with a controlled system's kinematic controls ``u, u_dot`` after
+them) is consistent when every holonomic constraint holds at position level,
+``F(t, q) = 0``, and every holonomic and first-order constraint at velocity level,
+``phi(t, q, w) = 0`` (``phi = dF/dt`` for holonomic ones). Servo constraints (method.md
+§4) count as well: the controls keep a servo constraint's residual where it starts, so a
+start off the programme is never tracked. Second-order constraints restrict only the
+accelerations and are not checked here.
 
 :func:`check_initial` builds the state vector from ``{name: value}`` and reports every
-constraint's residual; :func:`complete_initial` solves for the dependent coordinates
-(Newton on ``F = 0``) and then the dependent speeds (Newton on ``phi = 0``, exact in one
-step for constraints linear in the speeds), holding the given values fixed.
+constraint's residual (a violation raises :class:`~appell.errors.InitialValueError`);
+:func:`complete_initial` computes the missing values and, where the given ones violate a
+constraint, changes some of them (chosen automatically or named with ``adjust``), one
+level at a time: Newton's method on ``F = 0`` in position-level unknowns (coordinates,
+control positions), then on ``phi = 0`` in velocity-level unknowns (speeds, control
+rates), exact in one step for constraints linear in the speeds. Every computed or
+changed value is listed in :attr:`InitialState.changes`.
 
 Both accept a :class:`~appell.core.equations.Derivation` (its compiled
 :class:`~appell.numerics.numeric.NumericModel` is used) or any :class:`~appell.numerics.dynamics.Dynamics`.
@@ -22,13 +29,24 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from appell.errors import ComputationError, ModelError
+from appell.errors import ComputationError, InitialValueError, ModelError
+from appell.symbols import derivative_name, split_derivative_name
 
-__all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians"]
+__all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians",
+           "COMPLETION_HINT", "CHECK_TOLERANCE"]
+
+#: largest admissible ``|F|`` and ``|phi|`` of a start (absolute)
+CHECK_TOLERANCE = 1e-9
 
 COMPLETION_HINT = (
-    "use appell.complete_initial(derivation, values) (or simulate(..., complete=True)) to compute "
-    "the dependent coordinates and speeds from the given ones"
+    "complete them: 'appell simulate --complete' changes given values so that every constraint holds "
+    "and prints each change ('--adjust NAME' chooses the values to change); in Python "
+    "simulate(..., complete=True) or appell.complete_initial(derivation, values, adjust=[...])"
+)
+
+MISSING_HINT = (
+    "give them, or compute them from the constraints: simulate(..., complete=True) or "
+    "appell.complete_initial(derivation, values) ('appell simulate' computes missing values itself)"
 )
 
 
@@ -37,9 +55,11 @@ class InitialState:
     """A checked initial state.
 
     ``t`` time; ``y`` the state vector (order of ``names``); ``values`` ``{name: value}``;
-    ``position_residuals`` ``{constraint: F}`` (holonomic only) and
+    ``position_residuals`` ``{constraint: F}`` (holonomic, servo ones included) and
     ``velocity_residuals`` ``{constraint: phi}`` (holonomic and first-order);
-    ``completed`` the names computed by :func:`complete_initial` (empty for a check).
+    ``completed`` the names computed by :func:`complete_initial` (empty for a check);
+    ``changes`` ``(name, given, new)`` for each of them whose value changed, ``given``
+    None when no value was given.
     """
 
     t: float
@@ -48,6 +68,7 @@ class InitialState:
     position_residuals: Mapping[str, float]
     velocity_residuals: Mapping[str, float]
     completed: tuple[str, ...] = ()
+    changes: tuple[tuple[str, float | None, float], ...] = ()
 
     @property
     def values(self) -> dict[str, float]:
@@ -57,6 +78,13 @@ class InitialState:
     def largest_residual(self) -> float:
         res = list(self.position_residuals.values()) + list(self.velocity_residuals.values())
         return float(max((abs(r) for r in res), default=0.0))
+
+    def describe_changes(self) -> list[tuple[str, str]]:
+        """``(name, 'given -> new (why)')`` per computed or changed value, e.g.
+        ``('xi_dot', '-0.2 -> -0.3 (given value changed to satisfy the constraints)')``."""
+        return [(name, f"{'(not given)' if old is None else f'{old:.10g}'} -> {new:.10g} "
+                       f"({'computed' if old is None else 'given value changed to satisfy the constraints'})")
+                for name, old, new in self.changes]
 
 
 def dynamics_of(model_or_derivation):
@@ -87,25 +115,80 @@ def residual_jacobians(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
     if fn is not None:
         return fn(t, y, p)
     nq, n = len(model.coordinate_names), len(model.speed_names)
-    y = np.asarray(y, float)
     s = len(model.constraint_names)
-    jq, jw = np.zeros((s, nq)), np.zeros((s, n))
-    for j in range(nq + n):
+    jq = _difference_jacobian(lambda yy: model.state_residuals(t, yy, p)[0], y, range(nq), s)
+    jw = _difference_jacobian(lambda yy: model.state_residuals(t, yy, p)[1], y, range(nq, nq + n), s)
+    return jq, jw
+
+
+def _difference_jacobian(residual, y, columns, rows: int) -> np.ndarray:
+    """Central differences of ``residual(y)`` in the entries ``columns`` of ``y`` (NaN -> 0)."""
+    y = np.asarray(y, float)
+    columns = list(columns)
+    out = np.zeros((rows, len(columns)))
+    for k, j in enumerate(columns):
         h = 1e-7 * max(1.0, abs(y[j]))
         yp, ym = y.copy(), y.copy()
         yp[j] += h
         ym[j] -= h
-        Fp, php = model.state_residuals(t, yp, p)
-        Fm, phm = model.state_residuals(t, ym, p)
-        if j < nq:
-            jq[:, j] = np.nan_to_num((np.asarray(Fp) - np.asarray(Fm)) / (2 * h))
-        else:
-            jw[:, j - nq] = np.nan_to_num((np.asarray(php) - np.asarray(phm)) / (2 * h))
-    return jq, jw
+        out[:, k] = np.nan_to_num((np.asarray(residual(yp), float) - np.asarray(residual(ym), float)) / (2 * h))
+    return out
+
+
+# ------------------------------------------------------------ the constraints of a start
+def _constraint_names(model) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The real constraints, then what a controlled model's start must satisfy besides
+    (its servo constraints and their state relations, ``start_conditions``)."""
+    return tuple(model.constraint_names), tuple(getattr(model, "start_conditions", ()))
+
+
+def _residuals(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
+    """``F`` and ``phi`` of the real constraints followed by the start conditions of a
+    controlled model (NaN where a constraint has no such level)."""
+    F, phi = (np.asarray(r, float).reshape(-1) for r in model.state_residuals(t, y, p))
+    if _constraint_names(model)[1]:
+        Fs, phis = (np.asarray(r, float).reshape(-1) for r in model.start_residuals(t, y, p))
+        F, phi = np.concatenate([F, Fs]), np.concatenate([phi, phis])
+    return F, phi
+
+
+def _label(model, name: str) -> str:
+    """A constraint's name as the messages show it (servo constraints and their relations marked)."""
+    servo_names = tuple(getattr(model, "servo_names", ()))
+    if name in servo_names:
+        return f"{name} (servo constraint)"
+    for (servo, k), full in zip(getattr(model, "relation_of", ()), _constraint_names(model)[1][len(servo_names):]):
+        if full == name:
+            return f"{name} (time derivative {k} of servo constraint {servo}, its dynamic condition (2.3))"
+    return name
+
+
+def _state_levels(model) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Position-level and velocity-level state names: coordinates and speeds, then each
+    extra state (a kinematic control ``u`` and its rate ``u_dot``) by its name."""
+    names = tuple(model.state_names)
+    positions, rates = list(model.coordinate_names), list(model.speed_names)
+    for name in names[len(positions) + len(rates):]:
+        base, order = split_derivative_name(name)
+        (rates if order >= 1 and derivative_name(base, order - 1) in names else positions).append(name)
+    return tuple(positions), tuple(rates)
 
 
 def _names_values(values) -> dict[str, float]:
     return {str(k): float(v) for k, v in dict(values).items()}
+
+
+def _default_values(model, system, p) -> dict[str, float]:
+    """The system's initial values at the parameters ``p`` (its initial expressions
+    evaluated there, :attr:`appell.model.System.initial_expressions`)."""
+    if system is None:
+        return {}
+    if system.initial_expressions:
+        known = {prm.symbol.name for prm in system.parameters}
+        given = {n: float(v) for n, v in zip(model.parameter_names, np.asarray(p, float)) if n in known}
+        if any(given[prm.symbol.name] != prm.value for prm in system.parameters if prm.symbol.name in given):
+            return system.with_parameters(given).initial_values
+    return system.initial_values
 
 
 def _state_vector(model, values: Mapping[str, float], fallback: Mapping[str, float] | None = None):
@@ -123,9 +206,8 @@ def _state_vector(model, values: Mapping[str, float], fallback: Mapping[str, flo
 
 
 def _residual_table(model, t, y, p):
-    F, phi = model.state_residuals(t, y, p)
-    F, phi = np.asarray(F, float), np.asarray(phi, float)
-    names = tuple(model.constraint_names)
+    F, phi = _residuals(model, t, y, p)
+    names = sum(_constraint_names(model), ())
     pos = {n: float(v) for n, v in zip(names, F) if not np.isnan(v)}
     vel = {n: float(v) for n, v in zip(names, phi) if not np.isnan(v)}
     return pos, vel
@@ -134,7 +216,8 @@ def _residual_table(model, t, y, p):
 def describe_residuals(model, pos: Mapping[str, float], vel: Mapping[str, float], tol: float) -> str:
     """One line per constraint: its position and velocity residual, marked when over tol."""
     lines = []
-    for name in model.constraint_names:
+    real, servo = _constraint_names(model)
+    for name in real + servo:
         parts = []
         if name in pos:
             parts.append(f"position residual F = {pos[name]:.3e}")
@@ -143,18 +226,20 @@ def describe_residuals(model, pos: Mapping[str, float], vel: Mapping[str, float]
         if not parts:
             parts.append("second order: no position or velocity residual")
         bad = abs(pos.get(name, 0.0)) > tol or abs(vel.get(name, 0.0)) > tol
-        lines.append(f"  {name}: " + "; ".join(parts) + ("   <-- over tolerance" if bad else ""))
+        lines.append(f"  {_label(model, name)}: " + "; ".join(parts) + ("   <-- over tolerance" if bad else ""))
     return "\n".join(lines)
 
 
-def check_initial(derivation, values=None, tol: float = 1e-9, *, t: float = 0.0, params=None) -> InitialState:
+def check_initial(derivation, values=None, tol: float = CHECK_TOLERANCE, *, t: float = 0.0,
+                  params=None) -> InitialState:
     """Check that initial values satisfy every constraint at position and velocity level.
 
     Parameters
     ----------
-    derivation : a :class:`~appell.core.equations.Derivation` or a :class:`~appell.numerics.dynamics.Dynamics`.
+    derivation : a :class:`~appell.core.equations.Derivation` or a :class:`~appell.numerics.dynamics.Dynamics`
+        (a controlled model's servo constraints are checked too).
     values : ``{name: value}`` of every state (coordinates and speeds); default the
-        system's ``initial_values``.
+        system's initial values (its initial expressions evaluated at ``params``).
     tol : largest admissible ``|F|`` and ``|phi|``.
     t, params : time and parameters (``{name: value}`` or a vector) of the check.
 
@@ -166,28 +251,32 @@ def check_initial(derivation, values=None, tol: float = 1e-9, *, t: float = 0.0,
     Raises
     ------
     ModelError
-        when a state has no value (the missing names are listed) or a residual exceeds
-        ``tol`` (each constraint is listed with its residuals); the hint points to
-        :func:`complete_initial`.
+        when a state has no value (the missing names are listed);
+    InitialValueError
+        (a :class:`ModelError`) when a residual exceeds ``tol``: each constraint is listed
+        with its residuals, the violated ones are in ``violations``; the hint says how to
+        complete them.
     """
     model, system = dynamics_of(derivation)
+    p = model.params(params)
     if values is None:
-        values = system.initial_values if system is not None else {}
+        values = _default_values(model, system, p)
     values = _names_values(values)
     y, missing = _state_vector(model, values)
     if missing:
         raise ModelError(
             f"no initial value for {', '.join(missing)} (model {model.name!r})",
-            hint=COMPLETION_HINT,
+            hint=MISSING_HINT,
         )
-    p = model.params(params)
     pos, vel = _residual_table(model, t, y, p)
-    worst = max([abs(v) for v in list(pos.values()) + list(vel.values())], default=0.0)
-    if not worst <= tol:
-        raise ModelError(
-            f"initial values of model {model.name!r} violate the constraints (tolerance {tol:g}):\n"
+    violations = [(n, "position", r) for n, r in pos.items() if not abs(r) <= tol] + \
+        [(n, "velocity", r) for n, r in vel.items() if not abs(r) <= tol]
+    if violations:
+        names = ", ".join(dict.fromkeys(n for n, _, _ in violations))
+        raise InitialValueError(
+            f"initial values of model {model.name!r} violate {names} (tolerance {tol:g}):\n"
             + describe_residuals(model, pos, vel, tol),
-            hint=COMPLETION_HINT,
+            violations=violations, hint=COMPLETION_HINT,
         )
     return InitialState(float(t), y, tuple(model.state_names), MappingProxyType(pos), MappingProxyType(vel))
 
@@ -206,7 +295,7 @@ def _newton_block(residual, jacobian, x0, what: str, tol: float, maxiter: int):
             raise ModelError(
                 f"cannot complete {what}: the Jacobian of the constraints with respect to them is singular",
                 hint="these unknowns do not determine the constraints here; choose others with adjust=[...] "
-                     "or give a different starting guess",
+                     "(appell simulate --adjust NAME) or give a different starting guess",
             ) from exc
         x = x + dx
         r = residual(x)
@@ -222,94 +311,142 @@ def _newton_block(residual, jacobian, x0, what: str, tol: float, maxiter: int):
     )
 
 
+def _level_jacobian(model, t, y, p, level: int, columns: Sequence[int], rows: np.ndarray) -> np.ndarray:
+    """``d(F or phi)/d(y[columns])`` in the rows ``rows`` (real then servo constraints):
+    the model's compiled Jacobian when it covers them, else central differences."""
+    nq, n = len(model.coordinate_names), len(model.speed_names)
+    first, stop = (0, nq) if level == 0 else (nq, nq + n)
+    if hasattr(model, "residual_jacobians") and not _constraint_names(model)[1] \
+            and all(first <= c < stop for c in columns):
+        J = np.asarray(model.residual_jacobians(t, y, p)[level], float)
+        return J[np.ix_(rows, [c - first for c in columns])]
+    total = len(sum(_constraint_names(model), ()))
+    J = _difference_jacobian(lambda yy: _residuals(model, t, yy, p)[level], y, columns, total)
+    return J[rows]
+
+
+def _choose_unknowns(J: np.ndarray, forced: Sequence[int], candidates: Sequence[int], count: int,
+                     names: Sequence[str], constraints: Sequence[str], kind: str) -> list[int]:
+    """Add to the ``forced`` columns of ``J`` (rows: constraints, columns: state entries)
+    ``count - len(forced)`` of ``candidates``, by QR with column pivoting of the
+    candidates' columns projected off the forced ones: the best-conditioned choice."""
+    need = count - len(forced)
+    A = J[:, list(candidates)]
+    if forced:
+        Q, _ = np.linalg.qr(J[:, list(forced)])
+        A = A - Q @ (Q.T @ A)
+    from scipy.linalg import qr
+
+    _, R, piv = qr(A, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(R))
+    scale = max(float(np.max(np.abs(J), initial=0.0)), 1.0)
+    if len(candidates) < need or diag.size < need or not np.all(diag[:need] > 1e-10 * scale):
+        raise ModelError(
+            f"cannot complete the {kind}-level constraints {', '.join(constraints)}: no choice of "
+            f"{kind}-level values determines them here (the constraints are dependent at this state)",
+            hint="give consistent values, or name the values to compute with adjust=[...] "
+                 "(appell simulate --adjust NAME)",
+        )
+    return list(forced) + [candidates[i] for i in piv[:need]]
+
+
 def complete_initial(derivation, values=None, adjust: Sequence[str] | None = None, *, t: float = 0.0,
                      params=None, guess: Mapping | None = None, tol: float = 1e-12,
                      maxiter: int = 50) -> InitialState:
-    """Complete the dependent coordinates and speeds so that every constraint holds.
+    """Complete the initial values so that every constraint (servo constraints included) holds.
 
-    The unknowns are the state names without a value in ``values`` (default the system's
-    ``initial_values``), or the names in ``adjust``. The given values are held fixed.
+    Unknowns: the state names without a value in ``values`` (default the system's initial
+    values, its initial expressions evaluated at ``params``), and
 
-    1. Coordinates: Newton's method on the holonomic constraints ``F(t, q) = 0`` in the
-       unknown coordinates (as many as there are holonomic constraints).
-    2. Speeds: Newton's method on the velocity-level constraints ``phi(t, q, w) = 0``
-       (holonomic ``dF/dt`` and first order) in the unknown speeds, at the completed
+    * ``adjust=None`` (default): where the given values violate a constraint level, as
+      many given values of that level as make the unknowns determine it, chosen by QR
+      with column pivoting of the constraint Jacobian (the best-conditioned choice);
+    * ``adjust=[names]``: these names (their given values are starting guesses);
+    * ``adjust=()``: none; the given values are held fixed and a violation raises.
+
+    1. Position level: Newton's method on the holonomic constraints ``F(t, q) = 0`` in the
+       unknown coordinates (and kinematic control positions).
+    2. Velocity level: Newton's method on ``phi(t, q, w) = 0`` (holonomic ``dF/dt`` and
+       first order) in the unknown speeds (and control rates), at the completed
        coordinates; one step is exact when ``phi`` is linear in the speeds.
 
-    Starting guesses: ``guess``, else the given value (for names in ``adjust``), else
-    the system's default initial value, else 0.
+    Starting guesses: ``guess``, else the given value, else the system's default initial
+    value, else 0.
 
     Returns
     -------
     InitialState
-        checked with :func:`check_initial` (residuals at most ``max(tol, 1e-9)``).
+        checked with :func:`check_initial` (residuals at most ``max(tol, 1e-9)``);
+        ``changes`` lists every computed value and every given value that changed.
 
     Raises
     ------
     ModelError
-        if the number of unknowns at a level differs from the number of constraints that
-        determine them, or an unknown is not a coordinate or speed.
+        if the unknowns at a level outnumber the constraints that determine them, or
+        cannot determine them, or an unknown is not a state; an
+        :class:`~appell.errors.InitialValueError` when ``adjust=()`` and the given values
+        violate a constraint.
     ComputationError
         if Newton's method does not converge.
     """
     model, system = dynamics_of(derivation)
-    defaults = system.initial_values if system is not None else {}
+    p = model.params(params)
+    defaults = _default_values(model, system, p)
     values = _names_values(defaults if values is None else values)
     names = tuple(model.state_names)
-    if adjust is None:
-        unknowns = [n for n in names if n not in values]
-    else:
-        unknowns = [str(a) for a in adjust]
-        bad = [u for u in unknowns if u not in names]
-        if bad:
-            raise ModelError(f"adjust names unknown state(s) {', '.join(bad)}", hint="state names: " + ", ".join(names))
+    automatic = adjust is None
+    chosen = [] if adjust is None else [str(a) for a in ([adjust] if isinstance(adjust, str) else adjust)]
+    bad = [u for u in chosen if u not in names]
+    if bad:
+        raise ModelError(f"adjust names unknown state(s) {', '.join(bad)}", hint="state names: " + ", ".join(names))
+    _state_vector(model, values)  # unknown names in values
+    unknowns = [n for n in names if n not in values or n in chosen]
     start = dict(defaults)
     start.update(values)
     start.update(_names_values(guess or {}))
     given = {k: v for k, v in values.items() if k not in unknowns}
     y, _ = _state_vector(model, given, start)
-    p = model.params(params)
-    coords, speeds = tuple(model.coordinate_names), tuple(model.speed_names)
-    nq = len(coords)
-    extra = [u for u in unknowns if u not in coords and u not in speeds]
-    if extra:
-        raise ModelError(
-            f"cannot complete {', '.join(extra)}: only coordinates and speeds are completed",
-            hint="give a value for each of them",
-        )
-    F0, phi0 = model.state_residuals(t, y, p)
-    cnames = tuple(model.constraint_names)
-    pos_rows = np.flatnonzero(~np.isnan(np.asarray(F0, float)))
-    vel_rows = np.flatnonzero(~np.isnan(np.asarray(phi0, float)))
+    constraints = sum(_constraint_names(model), ())
+    F0, phi0 = _residuals(model, t, y, p)
+    completed: list[str] = []
 
-    def level(kind, unknown_names, rows, offset, state_names):
-        idx = [offset + state_names.index(u) for u in unknown_names]
-        if not idx:
-            return
-        if len(idx) != len(rows):
-            cons = ", ".join(cnames[r] for r in rows) or "none"
+    for level, (kind, level_names) in enumerate(zip(("position", "velocity"), _state_levels(model))):
+        rows = np.flatnonzero(~np.isnan((F0, phi0)[level]))
+        forced = [names.index(u) for u in unknowns if u in level_names]
+        residual_now = np.asarray(_residuals(model, t, y, p)[level], float)[rows]
+        over = bool(rows.size) and not np.max(np.abs(residual_now)) <= CHECK_TOLERANCE
+        if len(forced) > len(rows) or (forced and len(forced) < len(rows) and not automatic):
+            cons = ", ".join(constraints[r] for r in rows) or "none"
             raise ModelError(
-                f"cannot complete the {kind}s {', '.join(unknown_names)}: {len(idx)} unknown(s) but "
-                f"{len(rows)} {kind}-level constraint(s) ({cons}) to determine them",
-                hint=f"give values so that exactly {len(rows)} {kind}(s) remain unknown, or name them with adjust=[...]",
+                f"cannot complete the {kind}-level values {', '.join(names[i] for i in forced)}: {len(forced)} "
+                f"unknown(s) but {len(rows)} {kind}-level constraint(s) ({cons}) to determine them",
+                hint=f"give values so that exactly {len(rows)} {kind}-level value(s) remain unknown, or name "
+                     "them with adjust=[...] (appell simulate --adjust NAME)",
             )
+        if automatic and len(forced) < len(rows) and (forced or over):
+            candidates = [names.index(n) for n in level_names if names.index(n) not in forced]
+            J = _level_jacobian(model, t, y, p, level, forced + candidates, rows)
+            cols = _choose_unknowns(J, list(range(len(forced))), list(range(len(forced), J.shape[1])), len(rows),
+                                    names, [constraints[r] for r in rows], kind)
+            forced = [(forced + candidates)[c] for c in cols]
+        if not forced:
+            continue
 
-        def residual(x):
+        def residual(x, idx=forced, lv=level, rows=rows):
             y[idx] = x
-            r = model.state_residuals(t, y, p)[0 if kind == "coordinate" else 1]
-            return np.asarray(r, float)[rows]
+            return np.asarray(_residuals(model, t, y, p)[lv], float)[rows]
 
-        def jacobian(x):
+        def jacobian(x, idx=forced, lv=level, rows=rows):
             y[idx] = x
-            jq, jw = residual_jacobians(model, t, y, p)
-            J = jq if kind == "coordinate" else jw
-            return np.asarray(J, float)[np.ix_(rows, [i - offset for i in idx])]
+            return _level_jacobian(model, t, y, p, lv, idx, rows)
 
-        x, _ = _newton_block(residual, jacobian, y[idx], f"the {kind}s {', '.join(unknown_names)}", tol, maxiter)
-        y[idx] = x
+        what = f"the {kind}-level values {', '.join(names[i] for i in forced)}"
+        x, _ = _newton_block(residual, jacobian, y[forced], what, tol, maxiter)
+        y[forced] = x
+        completed += [names[i] for i in forced]
 
-    level("coordinate", [u for u in unknowns if u in coords], pos_rows, 0, coords)
-    level("speed", [u for u in unknowns if u in speeds], vel_rows, nq, speeds)
-    state = check_initial(model, dict(zip(names, y)), max(tol, 1e-9), t=t, params=p)
+    state = check_initial(model, dict(zip(names, y)), max(tol, CHECK_TOLERANCE), t=t, params=p)
+    new = state.values
+    changes = tuple((n, values.get(n), new[n]) for n in completed if n not in values or new[n] != values[n])
     return InitialState(state.t, state.y, state.names, state.position_residuals, state.velocity_residuals,
-                        tuple(unknowns))
+                        tuple(completed), changes)

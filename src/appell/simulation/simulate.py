@@ -120,7 +120,8 @@ def _metadata(model, system, p, kinds, settings) -> ModelMetadata:
                          system.unit_of if system is not None else {})
 
 
-def _initial_state(model, initial, complete, t0, p):
+def _initial_state(model, initial, complete, adjust, t0, p):
+    """The checked (or, with ``complete``, completed) :class:`~appell.simulation.initial.InitialState`."""
     if initial is not None and not isinstance(initial, Mapping):
         arr = np.asarray(initial, float).reshape(-1)
         if arr.size != len(model.state_names):
@@ -128,8 +129,8 @@ def _initial_state(model, initial, complete, t0, p):
                              f"{len(model.state_names)} states", hint="states: " + ", ".join(model.state_names))
         initial = dict(zip(model.state_names, arr))
     if complete:
-        return complete_initial(model, initial, t=t0, params=p).y
-    return check_initial(model, initial, t=t0, params=p).y
+        return complete_initial(model, initial, adjust, t=t0, params=p)
+    return check_initial(model, initial, t=t0, params=p)
 
 
 def _show_progress(progress) -> bool:
@@ -295,7 +296,7 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
              stabilization: str | None = "projection", baumgarte=(10.0, 10.0), projection_tol: float = 1e-10,
              project_output: bool = False, unilateral: Mapping[str, int] | None = None, on_release: str = "continue",
              friction: Mapping | None = None, events=(), params=None, initial=None, complete: bool = False,
-             progress: bool | None = None, rest_speed: float = 1e-6) -> Solution:
+             adjust=None, progress: bool | None = None, rest_speed: float = 1e-6) -> Solution:
     """Integrate the motion and record states, multipliers, controls and residuals.
 
     Parameters
@@ -323,8 +324,15 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     events : :class:`~appell.simulation.events.Event` items (or bare callables ``g(t, y, multipliers)``).
     params : parameter values (``{name: value}`` or a vector).
     initial : initial state (``{name: value}`` or a vector); default the system's.
-    complete : complete the dependent initial values (:func:`~appell.simulation.initial.complete_initial`)
-        instead of only checking them (:func:`~appell.simulation.initial.check_initial`).
+    complete : complete the initial values (:func:`~appell.simulation.initial.complete_initial`: the
+        missing ones computed, given ones that violate a constraint changed) instead of
+        only checking them (:func:`~appell.simulation.initial.check_initial`, which raises
+        :class:`~appell.errors.InitialValueError` for a start off a constraint, servo
+        constraints included). Each computed or changed value is recorded as an event of
+        kind ``'initial'``; each changed given value also as a line of the log.
+    adjust : with ``complete``, which given values may change: None (chosen automatically
+        where a constraint is violated), a list of names, or ``()`` (none: only missing
+        values are computed and a violation raises).
     progress : show a tqdm progress bar; None: only when stderr is a terminal.
 
     Returns
@@ -373,8 +381,13 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     run = _Run(model, system, p, names, (), settings)
     opened = _open_contacts(model, system, initial, signs, t0, p) if system is not None else ()
     run.released = list(opened)
-    y0 = _initial_state(run.model(run.released), initial, complete, t0, p)
+    init = _initial_state(run.model(run.released), initial, complete, adjust, t0, p)
+    y0 = init.y
     run.kinds = _kinds(model, y0, t0, p)
+    for (name, text), (_, given, _) in zip(init.describe_changes(), init.changes):
+        run.events.append(EventRecord("initial", name, t0, text))
+        if given is not None:  # a given value changed (a missing one computed is an event only)
+            run.log.append(f"t = {t0:.10g}: initial value {name}: {text}")
     watch_args = dict(unilateral=unilateral, on_release=on_release, friction=friction, events=tuple(events),
                       root=model if system is not None else None)
     restitution = {c.name: c.restitution for c in system.constraints} if system is not None else {}

@@ -33,7 +33,8 @@ __all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Solution", "atom
 class EventRecord:
     """One event met during the integration.
 
-    ``kind``: ``'release'`` (a unilateral constraint's multiplier reached zero),
+    ``kind``: ``'initial'`` (an initial value computed or changed by the completion),
+    ``'release'`` (a unilateral constraint's multiplier reached zero),
     ``'impact'`` (a released contact's gap closed), ``'friction'`` (``|lambda_t|``
     crossed ``mu lambda_n``), ``'user'``, ``'switch'`` (the partition of dependent
     accelerations changed). ``name`` the constraint or event; ``t`` its time; ``state``

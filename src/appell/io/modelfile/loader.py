@@ -32,6 +32,7 @@ from appell.model import (
     Program,
     RigidBody,
     System,
+    initial_value,
 )
 from appell.symbols import canonical_name, derivative_name, split_derivative_name
 from appell.core.validation import declared_symbols, validate
@@ -49,7 +50,7 @@ TABLES = {
     "parameters": "NAME = value or {value, unit, description}",
     "programs": "NAME = expression in t",
     "kinematics": "COORDINATE = its time derivative in t, q and the speeds",
-    "initial": "NAME = initial value of a coordinate or speed",
+    "initial": "NAME = initial value of a coordinate or speed (a number or an expression in the parameters)",
     "mechanics": "kinetic_energy, acceleration_energy, potential_energy, generalized_forces",
     "bodies": "[[bodies]] particles and rigid bodies",
     "forces": "[[forces]] applied forces",
@@ -284,8 +285,14 @@ def _named_expressions(r: _Reader, doc: dict, table: str, level: str, what: str)
     return out
 
 
-def _initial(r: _Reader, doc: dict, allowed: list[str]) -> dict[str, float]:
-    out = {}
+def _initial(r: _Reader, doc: dict, allowed: list[str], positions: list[str],
+             parameters: list[Parameter]) -> dict[str, float | sp.Expr]:
+    """``[initial]``: a number, a constant expression, or an expression in the parameters
+    (coordinates and kinematic control positions) or in the parameters and the initial
+    coordinates (speeds and control rates), e.g. ``"xi'" = "-omega*eta"``. Such an
+    expression is kept in the System and evaluated again when parameters change (--set)."""
+    out: dict[str, float | sp.Expr] = {}
+    paths: dict[str, tuple] = {}
     for key, value in r.table(("initial",), doc.get("initial", {}), _Any()).items():
         path = ("initial", key)
         name = canonical_name(key)
@@ -294,7 +301,31 @@ def _initial(r: _Reader, doc: dict, allowed: list[str]) -> dict[str, float]:
                           hint=f"initial values can be given for: {', '.join(allowed)}")
         if name in out:
             raise r.error(path, f"initial value of {name!r} given twice")
-        out[name] = r.constant(path, value)
+        expr = r.expr(path, value) if isinstance(value, str) else None
+        out[name] = r.constant(path, value) if expr is None or not expr.free_symbols else expr
+        paths[name] = path
+    known = {p.symbol: p.value for p in parameters}
+    for level in ("position", "rate"):
+        values: dict[str, float] = {}
+        for name, value in out.items():
+            if (name in positions) != (level == "position"):
+                continue
+            if not isinstance(value, sp.Expr):
+                values[name] = value
+                continue
+            bad = sorted((s_.name for s_ in value.free_symbols if s_ not in known), key=str)
+            if bad:
+                allowed_names = "parameters" if level == "position" else "parameters and the initial coordinates"
+                raise r.error(paths[name], f"the initial value uses {', '.join(bad)}; it may use only "
+                                           f"{allowed_names}",
+                              hint="a coordinate's initial value may use parameters; a speed's may also use the "
+                                   "initial values of the coordinates (given in [initial])",
+                              line=r.map.content_line(paths[name]))
+            try:
+                values[name] = initial_value(name, value, known)
+            except ModelError as exc:
+                raise r.error(paths[name], exc.message, hint=exc.hint) from None
+        known.update({sp.Symbol(n): v for n, v in values.items()})  # speeds may use the initial coordinates
     return out
 
 
@@ -613,7 +644,7 @@ def _build(r: _Reader, doc: dict) -> System:
     kinematic_controls = [c.name for c in controls if c.kind == "kinematic"]
     allowed_initial = list(coordinates) + list(speed_names) + [
         n for c in kinematic_controls for n in (c, derivative_name(c, 1))]
-    initial = _initial(r, top, allowed_initial)
+    initial = _initial(r, top, allowed_initial, list(coordinates) + kinematic_controls, parameters)
     mechanics = _mechanics(r, top, len(speed_names))
     bodies = _bodies(r, top)
     loads = _loads(r, top)
@@ -671,7 +702,7 @@ def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
     state = [s.name for s in system.coordinates + system.speeds] + [
         n for c in system.controls if c.kind == "kinematic" for n in (c.name, derivative_name(c.name, 1))]
     new_parameters: dict[str, float] = {}
-    initial = dict(system.initial)
+    initial = system.initial_definitions  # initial expressions are evaluated again below
     for key, value in overrides.items():
         name = canonical_name(str(key))
         try:
@@ -689,9 +720,11 @@ def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
                 f"override {key!r}: not a parameter, coordinate or speed of {system.name!r}", where=source,
                 hint=f"parameters: {', '.join(sorted(parameters)) or '(none)'}; "
                      f"initial values: {', '.join(state)}")
-    if new_parameters:
-        system = system.with_parameters(new_parameters)
-    return system.replace(initial=tuple(initial.items()))
+    try:
+        system = system.replace(initial=tuple(initial.items()))
+        return system.with_parameters(new_parameters) if new_parameters else system
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or source, hint=exc.hint) from None
 
 
 def loads_model(text: str, source: str = "<string>", overrides: Mapping | None = None) -> System:
