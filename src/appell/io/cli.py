@@ -385,7 +385,7 @@ def _energy_balance(derivation, t_end=None):
     opts = simulation_options(system, t_end)
     if not opts["t_end"] > opts["t0"]:
         return EnergyBalance(None, "the simulation span is empty (t_end = t0)")
-    return energy_balance(derivation, opts["t_end"], t0=opts["t0"], params=None)
+    return energy_balance(derivation, opts["t_end"], t0=opts["t0"])
 
 
 def _verdict(check_report, energy, tolerance: float, energy_tolerance: float) -> tuple[bool, str]:
