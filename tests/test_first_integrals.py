@@ -128,3 +128,52 @@ def test_no_integral_among_the_candidates_is_not_reducible():
     rep = check_first_integrals(sysm, integrals=only)
     assert not rep.reducible and rep.integrals == ()
     assert "reducible: no" in rep.to_text()
+
+
+def _planar_swing():
+    """The Cartesian spherical pendulum released at rest at 1 rad in the x-z plane: along
+    this one motion y, y_dot and L_x = m (y z_dot - z y_dot) stay zero."""
+    s = spherical_pendulum_cartesian()
+    return s.replace(initial={"x": float(np.sin(1.0)), "y": 0.0, "z": float(-np.cos(1.0)),
+                              "x_dot": 0.0, "y_dot": 0.0, "z_dot": 0.0})
+
+
+def test_a_planar_swing_does_not_make_y_rate_and_L_x_integrals():
+    """The verdict comes from random states on the sphere, not from the one (planar)
+    trajectory: y_dot and L_x are not integrals although their drift along the swing is 0;
+    L_z (vertical symmetry) and the energy are. At the worst state the reported dL_x/dt is
+    the moment of gravity about the x axis, -m g y (the rod's reaction is radial and has
+    none), and dy_dot/dt is y'' = -T y / (m L) with the rod tension
+    T = m |v|^2 / L - m g z / L (radial Newton equation)."""
+    m, g, L = 1.0, 9.81, 1.0
+    x, y, z, xd, yd, zd, M = sp.symbols("x y z x_dot y_dot z_dot m")
+    cands = [FirstIntegral("y_rate", yd), FirstIntegral("L_x", M * (y * zd - z * yd)),
+             FirstIntegral("L_z", M * (x * yd - y * xd)),
+             FirstIntegral("energy", M / 2 * (xd**2 + yd**2 + zd**2) + M * sp.Symbol("g") * z)]
+    rep = check_first_integrals(_planar_swing(), cands, symbolic=False)
+    assert rep.integrals == ("L_z", "energy"), rep.to_text()
+    for name in ("y_rate", "L_x"):
+        c = rep[name]
+        assert c.drift == 0.0 and c.verdict == "not an integral" and c.largest_relative > 0.5
+        assert c.states == 40
+    lx = rep["L_x"]
+    assert lx.rate_at_where == pytest.approx(-m * g * lx.where["y"], rel=1e-10)
+    w = rep["y_rate"].where
+    v2 = w["x_dot"] ** 2 + w["y_dot"] ** 2 + w["z_dot"] ** 2
+    tension = m * v2 / L - m * g * w["z"] / L
+    assert rep["y_rate"].rate_at_where == pytest.approx(-tension * w["y"] / (m * L), rel=1e-10)
+    assert rep["L_z"].largest_relative < 1e-12 and rep["energy"].largest_relative < 1e-12
+
+
+def test_random_states_lie_on_the_constraints_and_spread_out():
+    """consistent_states: every state satisfies the rod at position and velocity level
+    (|x|^2 = L^2, x.v = 0, to 1e-12) and they leave the plane of the initial swing."""
+    from appell import derive
+    from appell.reduction.first_integrals import consistent_states
+
+    d = derive(_planar_swing())
+    states, failed = consistent_states(d, 25, seed=3)
+    assert len(states) == 25 and failed <= 5
+    for _, q, w in states:
+        assert abs(q @ q - 1.0) < 1e-12 and abs(q @ w) < 1e-12
+    assert np.ptp([q[1] for _, q, _ in states]) > 0.5 and np.ptp([w[1] for _, _, w in states]) > 0.5

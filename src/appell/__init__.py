@@ -27,6 +27,7 @@ from appell.io.modelfile import load_model, loads_model
 from appell.numerics.numeric import NumericModel, StateSolution
 from appell.simulation.events import Event
 from appell.simulation.initial import InitialState, check_initial, complete_initial
+from appell.simulation.energy_balance import EnergyBalance, energy_balance
 from appell.simulation.simulate import simulate
 from appell.simulation.solution import Solution
 from appell.reduction.cyclic import RouthReduction, cyclic_coordinates, routh_reduction
@@ -47,6 +48,7 @@ __all__ = [
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",
     "Event", "InitialState", "InitialValueError", "Solution", "check_initial", "complete_initial", "simulate",
+    "EnergyBalance", "energy_balance",
     "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",
     "routh_reduction",
     "SweepResult", "compile_c", "parameter_grid", "sweep",

@@ -4,7 +4,7 @@
 ``appell derive MODEL``    :func:`appell.derive` (or :func:`appell.control.servo.derive_controlled`
                            for a model with servo constraints), printed as text, LaTeX or JSON
 ``appell simulate MODEL``  :func:`appell.simulation.simulate.simulate`, exported as CSV, HDF5 or netCDF
-``appell check MODEL``     :func:`appell.cross_check` against the augmented multiplier system
+``appell check MODEL``     :func:`appell.cross_check` (independent routes) and the energy balance
 ``appell report MODEL``    :func:`appell.io.report.write_report`: one self-contained HTML page
 ``appell sweep MODEL``     :func:`appell.simulation.sweep.sweep`: a parameter grid on Dask
 ``appell examples``        the bundled model files (:mod:`appell.examples`)
@@ -427,20 +427,67 @@ def _cross_check(derivation):
     return cross_check(derivation)
 
 
+def _energy_balance(derivation, t_end=None):
+    """:func:`appell.simulation.energy_balance.energy_balance` over the model's simulation
+    span (``t_end`` overriding its final time), or not formed when the model gives no
+    initial values."""
+    from appell.simulation.energy_balance import EnergyBalance, energy_balance
+
+    system = derivation.system
+    if not system.initial:
+        return EnergyBalance(None, "the model gives no initial values ([initial]) to start a motion from")
+    opts = simulation_options(system, t_end)
+    if not opts["t_end"] > opts["t0"]:
+        return EnergyBalance(None, "the simulation span is empty (t_end = t0)")
+    return energy_balance(derivation, opts["t_end"], t0=opts["t0"])
+
+
+def _verdict(check_report, energy, tolerance: float, energy_tolerance: float) -> tuple[bool, str]:
+    """``(passed, one line)`` over every line of the cross-check and the energy balance."""
+    failed = []
+    if not check_report.passed(tolerance):
+        failed.append(check_report.verdict(tolerance) if hasattr(check_report, "verdict")
+                      else f"cross-check: a relative difference exceeds {tolerance:g}")
+    if energy is not None and not energy.passed(energy_tolerance):
+        failed.append(energy.verdict(energy_tolerance))
+    if failed:
+        return False, "; ".join(failed)
+    checked = getattr(check_report, "checked", True)
+    if not checked and (energy is None or not energy.formed):
+        return True, "nothing to cross-check: no independent route applies to this model (see above)"
+    parts = [f"every cross-check line is at most {tolerance:g}" if checked else "no cross-check line"]
+    if energy is not None and energy.formed:
+        parts.append(f"the energy balance holds within {energy_tolerance:g}")
+    return True, "passed: " + " and ".join(parts)
+
+
 @cli.command(context_settings=_CONTEXT)
 @_model_argument
 @click.option("--tolerance", type=float, default=1e-9, show_default=True,
-              help="Largest relative difference accepted.")
+              help="Largest normalised difference accepted on any cross-check line.")
+@click.option("--energy-tolerance", type=float, default=None, metavar="TOL",
+              help="Largest relative residual of the energy balance accepted [default: 1e-9].")
+@click.option("--t-end", type=float, default=None, metavar="T",
+              help="Final time of the motion whose energy balance is checked (default: the model's "
+                   "[simulation] t_end, else 10).")
 @_set_option
-def check(model, tolerance, assignments):
-    """Cross-check the split (1.4)/(1.5) against the augmented multiplier system.
+def check(model, tolerance, energy_tolerance, t_end, assignments):
+    """Check the split (1.4)/(1.5) against independent routes, and the energy balance.
 
-    Prints the largest discrepancies of the accelerations and of each multiplier and the
-    power of the reactions on admissible motions; exits with 1 when one exceeds the
-    tolerance. A model with candidate first integrals also gets the verdict on each: its
-    multiplier (1.5) as an added constraint vanishes on the motion exactly when it is an
-    integral (method.md §5).
+    Prints, per route, the largest normalised difference of the accelerations and of each
+    multiplier (the normalisation is stated in the output): the augmented multiplier
+    system, the reaction formulas (1.5) as derive prints them, and Lagrange's equations
+    formed again from T. Then the energy balance along the motion from the initial values
+    (E(t) - E(0) against the work of the applied forces and the reactions). Exits with 1
+    when any line exceeds its tolerance. A model with candidate first integrals also gets
+    the verdict on each (method.md §5).
     """
+    from appell.simulation.energy_balance import ENERGY_TOLERANCE
+
+    energy_tolerance = ENERGY_TOLERANCE if energy_tolerance is None else energy_tolerance
+    for name, value in (("--tolerance", tolerance), ("--energy-tolerance", energy_tolerance)):
+        if not value > 0:
+            raise click.BadParameter("must be positive", param_hint=f"'{name}'")
     system = load_system(model, parse_assignments(assignments))
     derivation = derive_model(system)
     report = _cross_check(derivation)
@@ -449,13 +496,16 @@ def check(model, tolerance, assignments):
     if linearisation is not None:
         click.echo("internal dynamics:\n" + linearisation.to_text())
     _warn_internal(linearisation, note)
+    energy = _energy_balance(derivation, t_end)
+    click.echo(str(energy))
     integrals = _first_integrals(derivation)
     if integrals is not None:
         click.echo(integrals.to_text())
-    if not report.passed(tolerance):
-        raise ComputationError(f"cross-check failed: a relative difference exceeds {tolerance:g}",
-                               hint="the split route and the augmented system disagree; see the table above")
-    click.echo(f"passed (tolerance {tolerance:g})")
+    ok, line = _verdict(report, energy, tolerance, energy_tolerance)
+    if not ok:
+        raise ComputationError(f"check failed: {line}",
+                               hint="a route or the energy balance disagrees with the split; see the lines above")
+    click.echo(line)
 
 
 @cli.command(context_settings=_CONTEXT)
@@ -492,12 +542,16 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
         solution = run_simulation(derivation, t_end, backend, **_completion(complete, adjust))
     linearisation, internal_note = internal_stability(derivation, solution)
     _warn_internal(linearisation, internal_note)
+    from appell.simulation.energy_balance import ENERGY_TOLERANCE
+
+    energy = _energy_balance(derivation, t_end)
     path = Path(output) if output else Path(f"{system.name}-report.html")
     write_report(path, derivation, solution, check_report, simulation_note=note,
-                 integrals=_first_integrals(derivation), internal=linearisation)
+                 integrals=_first_integrals(derivation), internal=linearisation, energy=energy)
     click.echo(f"wrote {path}")
-    if not check_report.passed():
-        raise ComputationError("cross-check failed (see the report)")
+    ok, line = _verdict(check_report, energy, 1e-9, ENERGY_TOLERANCE)
+    if not ok:
+        raise ComputationError(f"check failed (see the report): {line}")
 
 
 @cli.command(context_settings=_CONTEXT)

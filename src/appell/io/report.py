@@ -9,7 +9,8 @@ and a :class:`~appell.numerics.crosscheck.CrossCheckReport`, into a page with
   dependent accelerations from ``f = 0``, one reaction formula per constraint (1.5)
   (or (2.5)), and for a controlled system the dynamic conditions (2.3) and the control laws;
 * plots of the coordinates, reactions, controls and constraint residuals;
-* the cross-check against the augmented multiplier system.
+* the cross-check against the independent routes (augmented multiplier system, the
+  printed reaction formulas, Lagrange's equations) and the energy balance.
 
 The page needs no network: formulas are converted from LaTeX to MathML (rendered natively
 by browsers) with the pure-Python ``latex2mathml``; each formula keeps a plain-text form
@@ -340,33 +341,58 @@ def _simulation_section(solution) -> str:
     return "\n".join(parts)
 
 
-def _check_section(check, tolerance: float) -> str:
-    """The cross-check table: a :class:`~appell.numerics.crosscheck.CrossCheckReport`, or the
-    controlled systems' check of :mod:`appell.control.servo_numeric` (controls as well)."""
-    ok = check.passed(tolerance)
+def _check_section(check, tolerance: float, energy=None, energy_tolerance: float | None = None) -> str:
+    """The cross-check: a :class:`~appell.numerics.crosscheck.CrossCheckReport` (one table
+    row per route and line, with the normalisation stated) or the controlled systems'
+    check of :mod:`appell.control.servo_numeric`; then the energy balance
+    (:class:`~appell.simulation.energy_balance.EnergyBalance`) when given. The verdict
+    fails when any line exceeds its tolerance."""
+    from appell.simulation.energy_balance import ENERGY_TOLERANCE
+
+    energy_tolerance = ENERGY_TOLERANCE if energy_tolerance is None else energy_tolerance
+    ok = check.passed(tolerance) and (energy is None or energy.passed(energy_tolerance))
     verdict = "<span class='pass'>passed</span>" if ok else "<span class='fail'>failed</span>"
-    rows = []
-    if hasattr(check, "controls"):
-        rows.append(("controls", f"{check.controls:.3e}"))
-    rows += [("accelerations", f"{check.accelerations:.3e}"), ("multipliers (all)", f"{check.multipliers:.3e}")]
-    rows += [(_e(f"lambda_{n}"), f"{v:.3e}") for n, v in getattr(check, "per_multiplier", {}).items()]
-    if hasattr(check, "reaction_power"):
-        rows.append(("reaction power on admissible motions |Rᵀ C|", f"{check.reaction_power:.3e}"))
-    if hasattr(check, "servo_multipliers") and np.isfinite(check.servo_multipliers):
-        rows.append(("servo multipliers (2.3) at the solution (absolute)", f"{check.servo_multipliers:.3e}"))
-    route = getattr(check, "route", "augmented")
-    if route == "augmented":
-        what = ("the independent augmented multiplier system [M −Jᵀ; J 0][a; λ] = [Q − h; −c]"
-                + (" with the controls as unknowns" if hasattr(check, "controls") else ""))
+    parts = ["<h2 id='check'>Cross-check</h2>"]
+    if hasattr(check, "comparisons"):
+        from appell.numerics.crosscheck import NORMALISATION
+
+        rows = []
+        for c in check.comparisons:
+            note = f" ({c.skipped} state(s) skipped: {c.note})" if c.skipped else ""
+            for key, value in c.lines.items():
+                flag = "" if value <= tolerance else " <span class='fail'>exceeds</span>"
+                rows.append((_e(c.route), _e(c.description + note), _e(key), f"{value:.3e}{flag}"))
+        text = ("nothing was cross-checked" if not check.checked else
+                f"the split route against independent routes at {check.states} states")
+        parts.append(f"<p>{_e(text)}: {verdict} (tolerance {tolerance:g} on every line"
+                     + (f", {energy_tolerance:g} on the energy balance" if energy is not None and energy.formed else "")
+                     + f"). Normalisation: {_e(NORMALISATION)}.</p>")
+        if rows:
+            parts.append(_table(("route", "against", "quantity", "largest normalised difference"), rows))
+        for route, reason in check.unavailable.items():
+            parts.append(f"<p class='muted'>{_e(route)}: not available — {_e(reason)}</p>")
     else:
-        what = f"the {_e(route)} route"
-    return "\n".join([
-        "<h2 id='check'>Cross-check</h2>",
-        f"<p>The split route against {what} at {check.states} states: {verdict} "
-        f"(tolerance {tolerance:g} on the largest relative difference).</p>",
-        _table(("quantity", "largest relative difference"), rows),
-        f"<pre class='muted'>{_e(str(check))}</pre>",
-    ])
+        rows = [("controls", f"{check.controls:.3e}"), ("accelerations", f"{check.accelerations:.3e}"),
+                ("multipliers", f"{check.multipliers:.3e}")]
+        if np.isfinite(check.servo_multipliers):
+            rows.append(("servo multipliers (2.3) at the solution (absolute)", f"{check.servo_multipliers:.3e}"))
+        route = getattr(check, "route", "augmented")
+        what = ("the independent augmented multiplier system with the controls as unknowns"
+                if route == "augmented" else f"the {_e(route)} route")
+        parts.append(f"<p>The split route against {what} at {check.states} states: {verdict} "
+                     f"(tolerance {tolerance:g} on the largest relative difference).</p>")
+        parts.append(_table(("quantity", "largest relative difference"), rows))
+    parts.append(f"<pre class='muted'>{_e(str(check))}</pre>")
+    if energy is not None:
+        parts.append("<h3>Energy balance</h3>")
+        if energy.formed:
+            state = "<span class='pass'>holds</span>" if energy.passed(energy_tolerance) else \
+                "<span class='fail'>fails</span>"
+            parts.append(f"<p>E(t) − E(0) against the work of the applied forces and of the reactions along the "
+                         f"motion from the initial values: {state} (relative residual {energy.relative:.3e}, "
+                         f"tolerance {energy_tolerance:g}).</p>")
+        parts.append(f"<pre class='muted'>{_e(str(energy))}</pre>")
+    return "\n".join(parts)
 
 
 def _integrals_section(report) -> str:
@@ -396,7 +422,7 @@ def _internal_section(linearisation) -> str:
 
 def render_report(derivation, solution=None, check=None, *, title: str | None = None,
                   tolerance: float = 1e-9, simulation_note: str | None = None, integrals=None,
-                  internal=None) -> str:
+                  internal=None, energy=None, energy_tolerance: float | None = None) -> str:
     """The HTML page (a string) for ``derivation`` (a :class:`~appell.core.equations.Derivation`
     or a controlled derivation of :mod:`appell.control.servo`), with the plots of ``solution``
     (:class:`~appell.simulation.solution.Solution`) and the table of ``check``
@@ -404,7 +430,10 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
     ``simulation_note`` says why there is no simulation (shown in its place); ``integrals``
     a :class:`~appell.reduction.first_integrals.FirstIntegralReport` to show; ``internal`` the
     linearised internal dynamics of a controlled system
-    (:func:`appell.control.internal_dynamics.internal_linearisation`), flagged when unstable."""
+    (:func:`appell.control.internal_dynamics.internal_linearisation`), flagged when unstable;
+    ``energy`` an :class:`~appell.simulation.energy_balance.EnergyBalance` shown with the
+    cross-check and judged at ``energy_tolerance`` (the verdict fails when any line exceeds
+    its tolerance)."""
     from appell import __version__
 
     system = derivation.system
@@ -420,7 +449,7 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
     elif simulation_note:
         sections.append(f"<h2 id='simulation'>Simulation</h2><p class='muted'>{_e(simulation_note)}</p>")
     if check is not None:
-        sections.append(_check_section(check, tolerance))
+        sections.append(_check_section(check, tolerance, energy, energy_tolerance))
         nav.append("<a href='#check'>cross-check</a>")
     if integrals is not None:
         sections.append(_integrals_section(integrals))

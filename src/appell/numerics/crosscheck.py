@@ -1,49 +1,97 @@
-"""The independent route: the augmented multiplier system (method.md §3).
+"""Independent routes against the split (1.4)/(1.5) (method.md §3).
 
-.. math::
-    \\begin{bmatrix} M & -J^T \\\\ J & 0 \\end{bmatrix}
-    \\begin{bmatrix} a \\\\ \\lambda \\end{bmatrix} =
-    \\begin{bmatrix} Q - h \\\\ -c \\end{bmatrix}
+At sampled states ``(t, q, w)`` the accelerations and multipliers of the split
+(:meth:`~appell.numerics.numeric.NumericModel.solve`) are compared with
 
-solved for all accelerations and multipliers at once (Newton's method on
-``[E(a) - J(a)^T lambda; f(a)] = 0`` when a constraint is nonlinear in ``a``). It shares
-only the blocks with the split route of :mod:`appell.numerics.numeric`, so agreement of the two
-checks the partition, the projector ``C`` and the reaction formula (1.5).
+``augmented``
+    the augmented multiplier system, solved for all accelerations and multipliers at once
+
+    .. math::
+        \\begin{bmatrix} M & -J^T \\\\ J & 0 \\end{bmatrix}
+        \\begin{bmatrix} a \\\\ \\lambda \\end{bmatrix} =
+        \\begin{bmatrix} Q - h \\\\ -c \\end{bmatrix}
+
+    (Newton's method on ``[E(a) - J(a)^T lambda; f(a)] = 0`` when a constraint is
+    nonlinear in ``a``). It shares the blocks with the split, so it checks the partition,
+    the projector ``C`` and the numeric reaction formula, not the blocks;
+``formulas``
+    the closed-form reaction formulas (1.5) that ``derive`` prints, evaluated at the
+    accelerations of the augmented system (skipped where the derivation's partition is
+    singular: there the numeric solve switches and the printed formulas do not hold);
+``lagrange``
+    Lagrange's equations from the kinetic energy, with every block formed again by plain
+    differentiation (:mod:`appell.numerics.lagrange`) and solved as the augmented system:
+    this checks the blocks ``M``, ``h``, ``Q``, ``J``, ``c`` themselves. Not available for
+    quasi-velocities, bodies given by their velocity alone, or an acceleration energy ``S``.
+
+A system without constraints has nothing to compare in the first two (the split is then
+``M a = Q - h`` itself); without the Lagrange route it has nothing independent at all,
+and the report says so.
+
+One normalisation for every line (:data:`NORMALISATION`): an acceleration difference is
+divided by ``max|a|`` at its state; a multiplier difference by
+``max(max_j |lambda_j|, F / max|J|)`` at its state, ``F = max(|M a|, |h - Q|)`` (the
+multiplier that balances the largest generalized force there). A line is the largest of
+these over the states; the verdict fails when any line exceeds the tolerance.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Mapping
 
 import numpy as np
 
+from appell.errors import ComputationError
 from appell.numerics.numeric import NumericModel, StateSolution, newton
+
+NORMALISATION = ("accelerations relative to max|a|; each multiplier relative to max(max_j |lambda_j|, F/max|J|) "
+                 "at its state, F = max(|M a|, |h - Q|) (the multiplier that balances the largest generalized force)")
+
+ROUTES = {
+    "augmented": "the augmented multiplier system [M -J^T; J 0][a; lambda] = [Q - h; -c] (same blocks, solved at once)",
+    "formulas": "the reaction formulas (1.5) as `derive` prints them, at the accelerations of the augmented system",
+    "lagrange": "Lagrange's equations from T, the blocks M, h, Q, J, c formed again by differentiation",
+}
+
+
+def solve_augmented(M, hQ, J, c, constraint_function=None):
+    """``(a, lambda, J(a), newton iterations)`` of the augmented system for the blocks
+    ``M``, ``h - Q``, ``J``, ``c``; ``constraint_function(a) -> (f, J(a))`` when a
+    constraint is nonlinear in ``a`` (Newton's method from the linearisation at a = 0)."""
+    n, s = M.shape[0], J.shape[0]
+    K = np.block([[M, -J.T], [J, np.zeros((s, s))]])
+    x = np.linalg.solve(K, np.concatenate([-hQ, -c]))
+    if constraint_function is None:
+        return x[:n], x[n:], J, 0
+
+    def F(x):
+        a, lam = x[:n], x[n:]
+        f, Ja = constraint_function(a)
+        return np.concatenate([M @ a + hQ - Ja.T @ lam, f])
+
+    x, its = newton(F, x, "the augmented system")
+    return x[:n], x[n:], constraint_function(x[:n])[1], its
+
+
+def _model_constraint_function(model: NumericModel, t, q, w, pv):
+    if model.constraint_function is None:
+        return None
+    q, w = np.asarray(q, float), np.asarray(w, float)
+
+    def fJ(a):
+        f, Ja = model.constraint_function(float(t), q, w, a, pv)
+        return np.asarray(f, float).reshape(-1), np.asarray(Ja, float).reshape(-1, len(w))
+
+    return fJ
 
 
 def augmented_solve(model: NumericModel, t, q, w, p=None) -> StateSolution:
     """Accelerations and multipliers from the augmented system at (t, q, w)."""
     pv = model.params(p)
     M, hQ, J, c = model.evaluate_blocks(t, q, w, pv)
-    n, s = M.shape[0], J.shape[0]
-    if model.constraint_function is None:
-        K = np.block([[M, -J.T], [J, np.zeros((s, s))]])
-        x = np.linalg.solve(K, np.concatenate([-hQ, -c]))
-        a, lam = x[:n], x[n:]
-        return StateSolution(a, lam, J.T @ lam, (), False)
-    q = np.asarray(q, float)
-    w = np.asarray(w, float)
-
-    def F(x):
-        a, lam = x[:n], x[n:]
-        f, Ja = model.constraint_function(float(t), q, w, a, pv)
-        Ja = np.asarray(Ja, float).reshape(s, n)
-        return np.concatenate([M @ a + hQ - Ja.T @ lam, np.asarray(f, float).reshape(-1)])
-
-    K = np.block([[M, -J.T], [J, np.zeros((s, s))]])
-    x0 = np.linalg.solve(K, np.concatenate([-hQ, -c]))
-    x, its = newton(F, x0, "the augmented system")
-    _, Ja = model.constraint_function(float(t), q, w, x[:n], pv)
-    return StateSolution(x[:n], x[n:], np.asarray(Ja, float).reshape(s, n).T @ x[n:], (), False, its)
+    a, lam, Ja, its = solve_augmented(M, hQ, J, c, _model_constraint_function(model, t, q, w, pv))
+    return StateSolution(a, lam, Ja.T @ lam, (), False, its)
 
 
 def relative_difference(x, y) -> float:
@@ -56,33 +104,112 @@ def relative_difference(x, y) -> float:
     return float(np.max(np.abs(x - y)) / scale)
 
 
+def _ratio(difference: float, scale: float) -> float:
+    if difference == 0.0:
+        return 0.0
+    return difference / scale if scale > 0.0 else float("inf")
+
+
+def multiplier_scale(M, hQ, J, a, lam) -> float:
+    """``max(max|lambda|, F / max|J|)`` with ``F = max(|M a|, |h - Q|)`` (:data:`NORMALISATION`)."""
+    force = max(float(np.max(np.abs(M @ a), initial=0.0)), float(np.max(np.abs(hQ), initial=0.0)))
+    jmax = float(np.max(np.abs(J), initial=0.0))
+    return max(float(np.max(np.abs(lam), initial=0.0)), force / jmax if jmax > 0 else 0.0)
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One independent route against the split: ``lines`` maps ``'accelerations'`` and
+    ``'lambda_<name>'`` to the largest normalised difference over ``states`` states
+    (``skipped`` more were not comparable, for the reason in ``note``)."""
+
+    route: str
+    lines: Mapping[str, float]
+    states: int
+    skipped: int = 0
+    note: str = ""
+
+    @property
+    def description(self) -> str:
+        return ROUTES[self.route]
+
+    @property
+    def largest(self) -> float:
+        return max(self.lines.values(), default=0.0)
+
+
 @dataclass(frozen=True)
 class CrossCheckReport:
-    """Largest relative discrepancies between the split route and the augmented system.
+    """The split route against the independent routes of the module docstring.
 
-    ``accelerations`` and ``multipliers``: max over the states of the relative
-    differences; ``reaction_power``: ``max |R^T C| / (|R| |C|)``, the work of the ideal
-    reactions on admissible motions (zero in exact arithmetic); ``states`` checked.
+    ``comparisons``: one :class:`Comparison` per route that ran; ``unavailable``: ``{route:
+    reason}`` for the routes that could not; ``states`` sampled. Every line is normalised by
+    :data:`NORMALISATION`; :meth:`passed` fails when any line exceeds the tolerance.
     """
 
-    accelerations: float
-    multipliers: float
-    reaction_power: float
     states: int
-    per_multiplier: dict
+    comparisons: tuple[Comparison, ...]
+    unavailable: Mapping[str, str] = field(default_factory=dict)
+    names: tuple[str, ...] = ()
+
+    def _lines(self):
+        for c in self.comparisons:
+            for key, value in c.lines.items():
+                yield c.route, key, value
+
+    @property
+    def accelerations(self) -> float:
+        """Largest normalised acceleration difference over all routes."""
+        return max((v for _, k, v in self._lines() if k == "accelerations"), default=0.0)
+
+    @property
+    def multipliers(self) -> float:
+        """Largest normalised multiplier difference over all routes and multipliers."""
+        return max((v for _, k, v in self._lines() if k.startswith("lambda_")), default=0.0)
+
+    @property
+    def per_multiplier(self) -> dict[str, float]:
+        """``{constraint: largest normalised difference of its multiplier over all routes}``."""
+        return {n: max((v for _, k, v in self._lines() if k == f"lambda_{n}"), default=0.0) for n in self.names}
+
+    @property
+    def largest(self) -> tuple[float, str, str]:
+        """``(value, line, route)`` of the largest line (0.0 when nothing was compared)."""
+        return max(((v, k, r) for r, k, v in self._lines()), default=(0.0, "", ""))
+
+    @property
+    def checked(self) -> bool:
+        """Whether any independent route was compared at any state."""
+        return any(c.states for c in self.comparisons)
+
+    def failures(self, tol: float = 1e-9) -> list[tuple[str, str, float]]:
+        """``(route, line, value)`` of every line above ``tol`` (or not finite)."""
+        return [(r, k, v) for r, k, v in self._lines() if not v <= tol]
 
     def passed(self, tol: float = 1e-9) -> bool:
-        return max(self.accelerations, self.multipliers, self.reaction_power) <= tol
+        return not self.failures(tol)
+
+    def verdict(self, tol: float = 1e-9) -> str:
+        """One line: passed, failed (naming the lines) or nothing compared."""
+        if not self.checked:
+            return "nothing was cross-checked: " + "; ".join(self.unavailable.values())
+        bad = self.failures(tol)
+        if bad:
+            return (f"failed (tolerance {tol:g}): "
+                    + ", ".join(f"{k} [{r}] {v:.3e}" for r, k, v in bad))
+        value, key, route = self.largest
+        return f"passed: every line is at most the tolerance {tol:g} (largest {key} [{route}] {value:.3e})"
 
     def __str__(self) -> str:
-        lines = [
-            f"cross-check against the augmented multiplier system at {self.states} states:",
-            f"  accelerations  max relative difference {self.accelerations:.3e}",
-            f"  multipliers    max relative difference {self.multipliers:.3e}",
-        ]
-        for name, v in self.per_multiplier.items():
-            lines.append(f"    lambda_{name:<12s} {v:.3e}")
-        lines.append(f"  reaction power on admissible motions |R^T C| {self.reaction_power:.3e}")
+        lines = [f"cross-check of the split route (1.4)/(1.5) at {self.states} states",
+                 f"  normalisation: {NORMALISATION}"]
+        for c in self.comparisons:
+            extra = f"; {c.skipped} state(s) skipped: {c.note}" if c.skipped else ""
+            lines.append(f"  [{c.route}] against {c.description} ({c.states} states{extra}):")
+            for key, value in c.lines.items():
+                lines.append(f"    {key:<22s} {value:.3e}")
+        for route, reason in self.unavailable.items():
+            lines.append(f"  [{route}] not available: {reason}")
         return "\n".join(lines)
 
 
@@ -100,30 +227,91 @@ def sample_states(derivation, count: int = 5, seed: int = 1):
     return out
 
 
-def cross_check(derivation, states=None, p=None) -> CrossCheckReport:
-    """Compare the split route (1.4)/(1.5) with the augmented system at ``states``."""
-    from appell.numerics.numeric import split_basis
+class _Lines:
+    """Running maxima of the normalised differences of one route."""
 
-    model = derivation.numeric
+    def __init__(self, names, with_accelerations=True):
+        self.values = {"accelerations": 0.0} if with_accelerations else {}
+        self.values.update({f"lambda_{n}": 0.0 for n in names})
+        self.names = names
+        self.states = self.skipped = 0
+
+    def add(self, a, a_ref, lam, lam_ref, lam_scale):
+        if "accelerations" in self.values:
+            d = float(np.max(np.abs(np.asarray(a) - a_ref), initial=0.0))
+            self.values["accelerations"] = max(self.values["accelerations"],
+                                               _ratio(d, float(np.max(np.abs(a_ref), initial=0.0))))
+        for i, n in enumerate(self.names):
+            d = abs(float(lam[i]) - float(lam_ref[i]))
+            v = _ratio(d, lam_scale) if np.isfinite(d) else float("inf")
+            self.values[f"lambda_{n}"] = max(self.values[f"lambda_{n}"], v)
+        self.states += 1
+
+    def comparison(self, route, note=""):
+        return Comparison(route, dict(self.values), self.states, self.skipped, note)
+
+
+def cross_check(derivation, states=None, p=None, model: NumericModel | None = None) -> CrossCheckReport:
+    """Compare the split (1.4)/(1.5) with the independent routes of the module docstring at
+    ``states`` (default :func:`sample_states`). ``model``: the numeric model to check
+    (default ``derivation.numeric``)."""
+    from appell.numerics.lagrange import lagrange_route, lagrange_unavailable
+
+    model = derivation.numeric if model is None else model
     states = states if states is not None else sample_states(derivation)
-    names = derivation.constraints.names
-    da = dl = power = 0.0
-    per = {n: 0.0 for n in names}
+    names = tuple(derivation.constraints.names)
+    pv = model.params(p)
+    unavailable: dict[str, str] = {}
+    aug, formulas = _Lines(names), _Lines(names, with_accelerations=False)
+    reason = lagrange_unavailable(derivation.system)
+    route = None
+    if reason is None:
+        route = lagrange_route(derivation)
+    else:
+        unavailable["lagrange"] = reason
+    lag = _Lines(names)
     for t, q, w in states:
-        s1 = model.solve(t, q, w, p)
-        s2 = augmented_solve(model, t, q, w, p)
-        da = max(da, relative_difference(s1.accelerations, s2.accelerations))
-        dl = max(dl, relative_difference(s1.multipliers, s2.multipliers))
-        for i, n in enumerate(names):
-            per[n] = max(per[n], relative_difference(s1.multipliers[i:i + 1], s2.multipliers[i:i + 1]))
+        sol = model.solve(t, q, w, pv)
+        M, hQ, J, c = model.evaluate_blocks(t, q, w, pv)
         if names:
-            if model.constraint_function is None:
-                J = model.evaluate_blocks(t, q, w, p)[2]
+            ref = augmented_solve(model, t, q, w, pv)
+            scale = multiplier_scale(M, hQ, J, ref.accelerations, ref.multipliers)
+            aug.add(sol.accelerations, ref.accelerations, sol.multipliers, ref.multipliers, scale)
+            lam_f = model.reaction_formulas(t, q, w, ref.accelerations, pv) if not sol.switched else None
+            if lam_f is None or not np.all(np.isfinite(lam_f)):
+                formulas.skipped += 1
             else:
-                J = np.asarray(model.constraint_function(float(t), np.asarray(q, float), np.asarray(w, float),
-                                                         s1.accelerations, model.params(p))[1], float).reshape(len(names), -1)
-            C = split_basis(J, s1.dependent)[0]
-            R = s1.generalized_reactions
-            if C.size and np.linalg.norm(R) > 0:
-                power = max(power, float(np.max(np.abs(R @ C)) / (np.linalg.norm(R) * np.linalg.norm(C, axis=0).max())))
-    return CrossCheckReport(da, dl, power, len(states), per)
+                formulas.add(None, None, lam_f, ref.multipliers, scale)
+        if route is not None:
+            a_l, lam_l = _lagrange_solve(route, t, q, w, pv)
+            scale = multiplier_scale(M, hQ, J, a_l, lam_l)
+            lag.add(sol.accelerations, a_l, sol.multipliers, lam_l, scale)
+    comparisons = []
+    if names:
+        comparisons.append(aug.comparison("augmented"))
+        comparisons.append(formulas.comparison(
+            "formulas", "the derivation's partition is singular there (the numeric solve switched)"))
+    else:
+        unavailable["augmented"] = "no constraints: the augmented system is the split itself (M a = Q - h)"
+    if route is not None:
+        comparisons.append(lag.comparison("lagrange"))
+    return CrossCheckReport(len(states), tuple(comparisons), unavailable, names)
+
+
+def _lagrange_solve(route, t, q, w, pv):
+    """Accelerations and multipliers of Lagrange's equations (:mod:`appell.numerics.lagrange`)."""
+    q, w = np.asarray(q, float), np.asarray(w, float)
+    n = len(w)
+    M, hQ, J, c = (np.asarray(x, float) for x in route.blocks(float(t), q, w, pv))
+    M, hQ, J, c = M.reshape(n, n), hQ.reshape(n), J.reshape(-1, n), c.reshape(-1)
+    fJ = None
+    if route.constraint_function is not None:
+        def fJ(a):
+            f, Ja = route.constraint_function(float(t), q, w, a, pv)
+            return np.asarray(f, float).reshape(-1), np.asarray(Ja, float).reshape(-1, n)
+    try:
+        a, lam, _, _ = solve_augmented(M, hQ, J, c, fJ)
+    except np.linalg.LinAlgError as exc:
+        raise ComputationError("Lagrange's equations are singular at a sampled state",
+                               hint="the kinetic energy is not positive definite there") from exc
+    return a, lam

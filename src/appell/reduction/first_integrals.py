@@ -36,10 +36,22 @@ Verdict, per candidate and on its own augmented system:
    are small: probed at random points with 30 digits, then shown to be zero by
    ``together``/``expand`` (and ``trigsimp`` only on small numerators). A zero proves the
    integral for every state, also off the constraint manifold.
-2. numeric — otherwise ``mu`` from the compiled split solve at random states (systems
-   without constraints) and at states along a trajectory of the original system from its
-   initial values (``scipy.integrate.solve_ivp``), compared, as the generalized force
-   ``G^T mu``, with the size of ``M a`` and ``h - Q`` there.
+2. numeric — otherwise at many random states consistent with the constraints,
+   independent of any single trajectory: random ``q`` and ``w`` around the initial values,
+   projected onto the constraint manifold (``F = 0``, then ``phi = 0``, by the projection
+   of :func:`appell.simulation.simulate.project`). At each the rate of ``g`` along the
+   original motion through that state,
+
+   .. math::  \\dot g = \\partial_t g + \\frac{\\partial g}{\\partial q}\\,\\dot q
+              + \\frac{\\partial g}{\\partial w}\\, a^*,
+
+   ``a*`` from (1.4), is compared with the size of its terms
+   ``|g_t| + sum |g_q,i qdot_i| + sum |g_w,i a*_i|``; the worst ratio decides, and the
+   multiplier ``mu`` of the augmented system is reported at that state. A state that
+   cannot be projected (no real solution near the random point) is skipped and counted.
+   The drift of ``g`` along one trajectory from the initial values is reported as a
+   diagnostic only: a single motion (a planar swing, say) can keep a non-integral
+   constant.
 """
 
 from __future__ import annotations
@@ -87,11 +99,16 @@ class FirstIntegralCheck:
         ``(t, q, w)``; None when the expressions were too large for the symbolic route.
     verdict : ``'integral'`` or ``'not an integral'``.
     route : ``'symbolic'`` (mu shown to vanish identically) or ``'numeric'``.
-    largest_multiplier : the largest ``|mu|`` found (0.0 after a symbolic proof).
-    largest_relative : ``|G^T mu| / (|M a| + |h - Q|)`` at that state (infinity norms).
-    where : the state ``{name: value}`` of the largest multiplier, None if none sampled.
-    states, skipped : number of states evaluated / skipped (no partition there).
-    drift : ``max |g(t) - g(t_0)|`` along the trajectory, an independent diagnostic.
+    largest_multiplier : ``|mu|`` at the state ``where`` (0.0 after a symbolic proof; NaN
+        when the candidate is redundant with the constraints).
+    largest_rate : the largest ``|dg/dt|`` along the motion over the sampled states.
+    largest_relative : the largest ``|dg/dt| / (|g_t| + sum|g_q qdot| + sum|g_w a|)``.
+    where : the state ``{name: value}`` of the largest relative rate, None if none sampled;
+        ``rate_at_where``: ``dg/dt`` there (signed).
+    states, skipped : number of random consistent states evaluated / skipped (no
+        projection onto the constraints or no solve there).
+    drift : ``max |g(t) - g(t_0)|`` along one trajectory from the initial values, a
+        diagnostic only (not the verdict).
     message : one line in words.
     """
 
@@ -109,6 +126,8 @@ class FirstIntegralCheck:
     skipped: int
     drift: float | None
     message: str
+    largest_rate: float = 0.0
+    rate_at_where: float = 0.0
 
     @property
     def is_integral(self) -> bool:
@@ -245,11 +264,8 @@ def _initial_state(system: System) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _integrate_motion(numeric, q0, w0, times, t0: float = 0.0, rtol: float = 1e-10, atol: float = 1e-12):
-    """States ``(q, w)`` of the original motion at ``times`` (solve_ivp, DOP853).
-
-    A private stand-in for a simulation module: ``dq/dt = K w + k``, ``dw/dt`` from the
-    split solve (1.4).
-    """
+    """States ``(q, w)`` of the original motion at ``times`` (solve_ivp, DOP853), for the
+    drift diagnostic: ``dq/dt = K w + k``, ``dw/dt`` from the split solve (1.4)."""
     from scipy.integrate import solve_ivp
 
     nq = len(q0)
@@ -265,21 +281,60 @@ def _integrate_motion(numeric, q0, w0, times, t0: float = 0.0, rtol: float = 1e-
     return sol.t, sol.y[:nq].T, sol.y[nq:].T
 
 
+def consistent_states(derivation, count: int, *, seed: int = 0, t_span: float = 10.0, attempts: int = 5):
+    """``count`` random states ``(t, q, w)`` that satisfy every holonomic and first-order
+    constraint, independent of any trajectory.
+
+    Each coordinate and speed is drawn uniformly around its initial value (0 where none
+    is given), within ``max(0.5, |value|)`` for coordinates and ``max(1, |value|)`` for
+    speeds, ``t`` uniformly in ``[0, t_span]``; the state is then projected onto the
+    constraint manifold (:func:`appell.simulation.simulate.project`: minimum-norm Newton
+    steps on ``F = 0``, then on ``phi = 0``). Draws that cannot be projected are retried, at
+    most ``attempts * count`` draws in all. Returns ``(states, failed draws)``.
+    """
+    from appell.simulation.simulate import project
+
+    model = derivation.numeric
+    q0, w0 = _initial_state(derivation.system)
+    nq = len(q0)
+    rng = np.random.default_rng(seed)
+    sq, sw = np.maximum(0.5, np.abs(q0)), np.maximum(1.0, np.abs(w0))
+    pv = model.params(None)
+    states, failed = [], 0
+    for _ in range(attempts * count):
+        if len(states) == count:
+            break
+        tt = float(rng.uniform(0.0, t_span))
+        y = np.concatenate([q0 + sq * rng.uniform(-1, 1, nq), w0 + sw * rng.uniform(-1, 1, len(w0))])
+        if derivation.constraints.count:
+            try:
+                y = project(model, tt, y, pv, tol=1e-13)
+            except (ComputationError, np.linalg.LinAlgError, FloatingPointError):
+                failed += 1
+                continue
+        if not np.all(np.isfinite(y)):
+            failed += 1
+            continue
+        states.append((tt, y[:nq], y[nq:]))
+    return states, failed
+
+
 def check_first_integrals(system: System, integrals: Sequence[FirstIntegral] | None = None, *,
-                          samples: int = 6, t_final: float = 10.0, trajectory_points: int = 40,
+                          samples: int = 40, t_final: float = 10.0, trajectory_points: int = 40,
                           tolerance: float = RELATIVE_TOLERANCE, symbolic: bool = True,
                           seed: int = 0) -> FirstIntegralReport:
     """Test candidate first integrals by their multipliers (1.5) (method.md §5).
 
     Parameters
     ----------
-    system : the constrained system; its ``initial`` values start the trajectory and must
-        satisfy the constraints.
+    system : the constrained system.
     integrals : candidates; default ``system.first_integrals``.
-    samples : random states (only for systems without constraints, whose every state
-        is admissible).
-    t_final, trajectory_points : the trajectory of the original motion that is sampled.
-    tolerance : ``|G^T mu|`` relative to ``|M a| + |h - Q|`` under which mu counts as zero.
+    samples : random states consistent with the constraints (:func:`consistent_states`)
+        at which the numeric route evaluates ``dg/dt`` along the motion.
+    t_final : the span of the random times, and of the trajectory from the initial values
+        whose drift of ``g`` is reported (``trajectory_points`` times; a diagnostic).
+    tolerance : ``|dg/dt|`` relative to the size of its terms under which ``g`` counts
+        as conserved.
     symbolic : try the symbolic route first.
 
     Returns
@@ -300,14 +355,9 @@ def check_first_integrals(system: System, integrals: Sequence[FirstIntegral] | N
     q0, w0 = _initial_state(system)
     times = np.linspace(0.0, t_final, trajectory_points)
     _, Qs, Ws = _integrate_motion(num, q0, w0, times)
-    states = [(float(tt), q, w) for tt, q, w in zip(times, Qs, Ws)]
-    if not system.constraints and samples:
-        rng = np.random.default_rng(seed)
-        for _ in range(samples):
-            q = rng.uniform(0.3, 1.3, len(q0))
-            w = rng.uniform(0.3, 1.3, len(w0)) * rng.choice([-1.0, 1.0], len(w0))
-            states.append((float(rng.uniform(0.0, 1.0)), q, w))
-    checks = tuple(_check_one(system, base, fi, states, len(times), tolerance, symbolic) for fi in cands)
+    trajectory = [(float(tt), q, w) for tt, q, w in zip(times, Qs, Ws)]
+    states, failed = consistent_states(base, samples, seed=seed, t_span=t_final)
+    checks = tuple(_check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic) for fi in cands)
     return FirstIntegralReport(system, checks)
 
 
@@ -318,19 +368,43 @@ def _state_dict(system, tt, q, w) -> dict:
     return d
 
 
-def _check_one(system, base, fi, states, n_traj, tolerance, symbolic) -> FirstIntegralCheck:
+class _Rate:
+    """``g`` and its partial derivatives ``(g_t, g_q, g_w)`` compiled (programs replaced)."""
+
+    def __init__(self, system, g):
+        from appell.numerics.numeric import lambdify_blocks, program_substitutions
+
+        q, w = sp.Matrix(system.coordinates), sp.Matrix(system.speeds)
+        g = sp.sympify(g).xreplace(program_substitutions(system))
+        args = [t, list(q), list(w), [p.symbol for p in system.parameters]]
+        self.fn = lambdify_blocks(args, [sp.Matrix([g, sp.diff(g, t)]), sp.Matrix([g]).jacobian(q),
+                                         sp.Matrix([g]).jacobian(w)], what="first-integral candidate")
+
+    def value(self, tt, q, w, pv) -> float:
+        return float(self.fn(tt, q, w, pv)[0][0, 0])
+
+    def rate(self, numeric, tt, q, w, pv) -> tuple[float, float]:
+        """``(dg/dt, |g_t| + sum|g_q qdot| + sum|g_w a|)`` along the original motion."""
+        gt, gq, gw = self.fn(tt, q, w, pv)
+        qd = numeric.coordinate_rates(tt, q, w, pv)
+        a = numeric.accelerations(tt, q, w, pv)
+        terms = np.concatenate([[gt[1, 0]], gq.reshape(-1) * qd, gw.reshape(-1) * a])
+        return float(np.sum(terms)), float(np.sum(np.abs(terms)))
+
+
+def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic) -> FirstIntegralCheck:
     from appell.core.derive import derive
 
     aug_sys = augmented_system(system, fi)
     con = aug_sys.constraints[-1]
     g = sp.sympify(fi.expr)
-    gfun = sp.lambdify([t, list(system.coordinates), list(system.speeds),
-                        [p.symbol for p in system.parameters]], g, modules="numpy")
+    rate = _Rate(system, g)
     pv = base.numeric.default_parameters
-    gv = np.array([float(gfun(tt, q, w, pv)) for tt, q, w in states[:n_traj]])
+    gv = np.array([rate.value(tt, q, w, pv) for tt, q, w in trajectory])
     drift = float(np.max(np.abs(gv - gv[0])))
     common = dict(name=fi.name, expression=g, constraint=con, drift=drift)
 
+    aug = None
     try:
         probe = derive(aug_sys)
         dep = _augmented_partition(base, sp.Matrix(probe.constraints.jacobian), len(system.speeds))
@@ -338,67 +412,49 @@ def _check_one(system, base, fi, states, n_traj, tolerance, symbolic) -> FirstIn
     except ModelError as exc:
         if "redundant" not in exc.message:
             raise
-        return _redundant(system, base, fi, con, states, n_traj, tolerance, common)
 
-    mu = aug.reactions.multipliers[-1]
-    mu_motion = None
-    if symbolic and aug.constraints.linear:
-        acc = _motion_accelerations(aug)
-        if acc is not None:
-            mu_motion = mu.xreplace(dict(zip(aug.accelerations, acc)))
-            if _vanishes_identically(mu_motion) is True:
-                return FirstIntegralCheck(
-                    multiplier=mu, multiplier_on_motion=mu_motion, verdict="integral", route="symbolic",
-                    largest_multiplier=0.0, largest_relative=0.0, where=None, states=0, skipped=0,
-                    message="the multiplier (1.5) vanishes identically on the motion", **common)
+    mu = mu_motion = None
+    if aug is not None:
+        mu = aug.reactions.multipliers[-1]
+        if symbolic and aug.constraints.linear:
+            acc = _motion_accelerations(aug)
+            if acc is not None:
+                mu_motion = mu.xreplace(dict(zip(aug.accelerations, acc)))
+                if _vanishes_identically(mu_motion) is True:
+                    return FirstIntegralCheck(
+                        multiplier=mu, multiplier_on_motion=mu_motion, verdict="integral", route="symbolic",
+                        largest_multiplier=0.0, largest_relative=0.0, where=None, states=0, skipped=0,
+                        message="the multiplier (1.5) vanishes identically on the motion", **common)
 
-    numa = aug.numeric
-    worst_rel, worst_abs, where, used, skipped = 0.0, 0.0, None, 0, 0
+    worst_rel, worst_rate, at_where, largest, where, used, skipped = 0.0, 0.0, 0.0, 0.0, None, 0, failed
+    worst_state = None
     for tt, q, w in states:
         try:
-            sol = numa.solve(tt, q, w)
+            r, size = rate.rate(base.numeric, tt, q, w, pv)
         except (ComputationError, np.linalg.LinAlgError):
             skipped += 1
             continue
-        M, hQ, J, _ = numa.evaluate_blocks(tt, q, w)
-        scale = np.max(np.abs(M @ sol.accelerations)) + np.max(np.abs(hQ)) + 1e-300
-        m_ = float(sol.multipliers[-1])
-        rel = float(np.max(np.abs(J[-1] * m_))) / scale
+        rel = 0.0 if r == 0.0 else abs(r) / size
         used += 1
-        if rel > worst_rel or where is None:
-            worst_rel, worst_abs, where = rel, abs(m_), _state_dict(system, tt, q, w)
+        largest = max(largest, abs(r))
+        if where is None or rel > worst_rel:
+            worst_rel, at_where, where, worst_state = rel, r, _state_dict(system, tt, q, w), (tt, q, w)
     if used == 0:
-        raise ComputationError(f"first integral {fi.name!r}: no sampled state admits a partition (1.2)",
-                               hint="give initial values where dg/dw is not zero")
+        raise ComputationError(f"first integral {fi.name!r}: no random state could be brought onto the constraints",
+                               hint="give initial values that satisfy the constraints")
+    mu_value = float("nan")
+    if aug is not None:
+        try:
+            mu_value = abs(float(aug.numeric.solve(*worst_state).multipliers[-1]))
+        except (ComputationError, np.linalg.LinAlgError):
+            mu_value = float("nan")
     ok = worst_rel <= tolerance
-    msg = (f"largest |mu| = {worst_abs:.3g} (relative {worst_rel:.2g}) over {used} states"
-           + (f", {skipped} skipped" if skipped else "") + f"; drift of g along the motion {drift:.2g}")
+    msg = (f"largest |dg/dt| along the motion {largest:.3g} (relative {worst_rel:.2g}) over {used} random states "
+           f"consistent with the constraints" + (f", {skipped} skipped" if skipped else "")
+           + (f"; |mu| = {mu_value:.3g} there" if aug is not None else
+              "; redundant with the constraints (no multiplier)")
+           + f"; drift of g along one trajectory {drift:.2g}")
     return FirstIntegralCheck(
         multiplier=mu, multiplier_on_motion=mu_motion, verdict="integral" if ok else "not an integral",
-        route="numeric", largest_multiplier=worst_abs, largest_relative=worst_rel, where=where,
-        states=used, skipped=skipped, message=msg, **common)
-
-
-def _redundant(system, base, fi, con, states, n_traj, tolerance, common) -> FirstIntegralCheck:
-    """A candidate implied at the level of accelerations by the constraints: decided by
-    ``dg/dt = G a* + c_g`` along the original motion, relative to ``|G| |a*| + |c_g|``."""
-    from appell.core.constraints import second_order_blocks
-
-    blocks = second_order_blocks((con,), base.kinematics)
-    G, c = sp.Matrix(blocks.jacobian), sp.Matrix(blocks.bias)
-    args = [t, list(system.coordinates), list(system.speeds), [p.symbol for p in system.parameters]]
-    fG = sp.lambdify(args, [G, c], modules="numpy")
-    pv = base.numeric.default_parameters
-    worst, where = 0.0, None
-    for tt, q, w in states[:n_traj]:
-        a = base.numeric.accelerations(tt, q, w)
-        Gn, cn = (np.asarray(x, float).reshape(-1) for x in fG(tt, q, w, pv))
-        rel = abs(Gn @ a + cn[0]) / (np.max(np.abs(Gn)) * np.max(np.abs(a)) + abs(cn[0]) + 1e-300)
-        if rel > worst or where is None:
-            worst, where = rel, _state_dict(system, tt, q, w)
-    ok = worst <= tolerance
-    return FirstIntegralCheck(
-        multiplier=None, multiplier_on_motion=None, verdict="integral" if ok else "not an integral",
-        route="numeric", largest_multiplier=float("nan"), largest_relative=worst, where=where,
-        states=n_traj, skipped=0,
-        message=f"redundant with the constraints (no multiplier); largest relative dg/dt {worst:.2g}", **common)
+        route="numeric", largest_multiplier=mu_value, largest_relative=worst_rel, where=where,
+        states=used, skipped=skipped, message=msg, largest_rate=largest, rate_at_where=at_where, **common)

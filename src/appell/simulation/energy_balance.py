@@ -1,0 +1,240 @@
+"""The energy balance along a simulated motion: a check that can fail.
+
+The kinetic energy ``T(t, q, w)``, the potential ``V(t, q)`` and the non-conservative
+generalized forces ``Q_nc`` are formed from the system's description by
+:func:`appell.numerics.lagrange.mechanical_energy`, independently of the blocks ``M``,
+``h``, ``Q`` that the motion is computed with. Along any motion of
+``M a + h - Q = R``, ``R = J^T lambda`` (method.md §1-§3), one of two identities holds:
+
+``jacobi`` — true coordinates (``w = dq/dt``) where Lagrange's equations hold (kinetic
+energy given, or bodies given by their positions), any dependence on ``t``:
+
+.. math::
+    H = \\frac{\\partial T}{\\partial w} w - T + V, \\qquad
+    \\dot H = Q_{nc}\\cdot w + R\\cdot w - \\frac{\\partial T}{\\partial t} + \\frac{\\partial V}{\\partial t}
+
+(``H = T + V`` when ``T`` is quadratic in ``w`` and free of ``t``);
+
+``power`` — quasi-velocities ``dq/dt = K w + k`` (or bodies given by their velocity) whose
+body velocities ``v`` and angular velocities are linear in ``w`` without terms free of
+``w`` (so that ``w.(M a + h) = dT/dt``):
+
+.. math::
+    E = T + V, \\qquad \\dot E = Q_{nc}\\cdot w + R\\cdot w + \\frac{\\partial V}{\\partial q} k
+    + \\frac{\\partial V}{\\partial t} .
+
+``R.w = lambda^T J w`` is the power of the reactions: zero for constraints homogeneous
+in the velocities, ``-lambda^T dF/dt`` for a rheonomic holonomic ``F(t, q)``,
+``-lambda^T b`` for ``phi = A w + b``, and in general nonzero for constraints nonlinear in
+``w`` or of second order. The balance is not formed (:attr:`EnergyBalance.reason` says why)
+for an acceleration energy ``S`` (no ``T``), for controls (their power is not separated) and
+for quasi-velocities with terms free of ``w``.
+
+:func:`energy_balance` integrates the motion of the numeric model (the split (1.4)/(1.5))
+together with the works ``W_applied = int Q_nc.w dt``, ``W_reactions = int R.w dt``,
+``W_explicit = int (explicit time dependence) dt`` and ``A = int (|P_applied| +
+|P_reactions| + |P_explicit|) dt`` (DOP853, rtol 1e-11), and reports
+
+.. math::  r = \\max_t |H(t) - H(t_0) - W(t)| \\,/\\, \\big(\\max_t |H_{kin}| + \\max_t |V - V(t_0)| + A(t_{end})\\big)
+
+with ``H_kin = H - V``. It is at the level of the integration error for the true equations;
+an error in ``M``, ``h``, ``Q`` (the motion leaves the balance) or in a reaction that does
+work shows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+import sympy as sp
+
+from appell.errors import ComputationError, ModelError
+
+__all__ = ["ENERGY_TOLERANCE", "EnergyBalance", "energy_balance", "energy_form"]
+
+#: largest relative balance residual accepted (the integration runs at rtol 1e-11; the
+#: bundled examples stay below 4e-11 over their spans)
+ENERGY_TOLERANCE = 1e-9
+#: most evaluations of the motion the balance's integration may take
+MAX_EVALUATIONS = 400_000
+
+FORMS = {
+    "jacobi": "H = (dT/dw).w - T + V (= T + V when T is quadratic in w and free of t), "
+              "dH/dt = Q_nc.w + R.w - dT/dt|explicit + dV/dt|explicit",
+    "power": "E = T + V, dE/dt = Q_nc.w + R.w + (dV/dq) k + dV/dt|explicit",
+}
+
+
+@dataclass(frozen=True)
+class EnergyBalance:
+    """The energy balance of a motion (module docstring).
+
+    ``form``: 'jacobi' or 'power', or None when not formed (``reason`` says why);
+    ``t0``, ``t_end``, ``samples``: the span and the number of times compared;
+    ``energy_change``: ``H(t_end) - H(t0)``; ``work_applied``, ``work_reactions``,
+    ``work_explicit``: the works up to ``t_end``; ``residual``: ``max |H(t) - H(t0) - W(t)|``;
+    ``scale`` and ``relative = residual / scale``; ``where``: the time of the largest residual.
+    """
+
+    form: str | None
+    reason: str = ""
+    t0: float = 0.0
+    t_end: float = 0.0
+    samples: int = 0
+    energy_change: float = float("nan")
+    work_applied: float = float("nan")
+    work_reactions: float = float("nan")
+    work_explicit: float = float("nan")
+    residual: float = float("nan")
+    scale: float = float("nan")
+    relative: float = float("nan")
+    where: float = float("nan")
+
+    @property
+    def formed(self) -> bool:
+        return self.form is not None
+
+    def passed(self, tol: float = ENERGY_TOLERANCE) -> bool:
+        """True when the balance holds within ``tol`` (or was not formed: nothing to judge)."""
+        return not self.formed or bool(self.relative <= tol)
+
+    def verdict(self, tol: float = ENERGY_TOLERANCE) -> str:
+        if not self.formed:
+            return f"energy balance not formed: {self.reason}"
+        state = "holds" if self.passed(tol) else "FAILS"
+        return f"energy balance {state}: relative residual {self.relative:.3e} (tolerance {tol:g})"
+
+    def __str__(self) -> str:
+        if not self.formed:
+            return f"energy balance: not formed: {self.reason}"
+        return "\n".join([
+            f"energy balance along the motion from the initial values, t = {self.t0:g} .. {self.t_end:g} "
+            f"(DOP853, rtol 1e-11, {self.samples} times compared):",
+            f"  {FORMS[self.form]}",
+            f"  energy change {self.energy_change:.6e} = work of applied forces {self.work_applied:.6e} "
+            f"+ of reactions {self.work_reactions:.6e} + of explicit time dependence {self.work_explicit:.6e} "
+            f"+ residual",
+            f"  largest residual |H(t) - H(t0) - W(t)| {self.residual:.3e} at t = {self.where:g}, relative to "
+            f"{self.scale:.3e} (max kinetic part + max |V - V(t0)| + integral of |power|): {self.relative:.3e}",
+        ])
+
+
+def energy_form(derivation) -> tuple[str | None, str]:
+    """``('jacobi' | 'power', '')`` or ``(None, reason)`` (module docstring)."""
+    from appell.numerics.lagrange import energy_unavailable, lagrange_unavailable, mechanical_energy
+
+    system = derivation.system
+    if hasattr(derivation, "control_laws"):
+        return None, "the system has controls: their power is not separated from the applied forces"
+    reason = energy_unavailable(system)
+    if reason:
+        return None, reason
+    if lagrange_unavailable(system) is None:
+        return "jacobi", ""
+    energy = mechanical_energy(system)
+    w = list(system.speeds)
+    zero = {s: 0 for s in w}
+    T = sp.expand(energy.kinetic)
+    if T.xreplace(zero) != 0 or any(sp.expand(e) != 0 for e in sp.Matrix([T]).jacobian(sp.Matrix(w)).xreplace(zero)):
+        return None, ("the velocities of the bodies have terms free of the speeds (rheonomic quasi-velocities): "
+                      "no energy identity is formed for them")
+    return "power", ""
+
+
+class _Balance:
+    """Compiled ``[H_kin, V, Q_nc, P_explicit]`` at ``(t, q, w, p)``."""
+
+    def __init__(self, derivation, form):
+        from appell.numerics.lagrange import mechanical_energy
+        from appell.numerics.numeric import lambdify_blocks
+        from appell.symbols import t
+
+        system = derivation.system
+        energy = mechanical_energy(system)
+        q, w = sp.Matrix(system.coordinates), sp.Matrix(system.speeds)
+        T, V = energy.kinetic, energy.potential
+        k = energy.rates.xreplace({s: 0 for s in w})
+        explicit = sp.diff(V, t) + (sp.Matrix([V]).jacobian(q) * k)[0]
+        if form == "jacobi":
+            kinetic = (sp.Matrix([T]).jacobian(w) * w)[0] - T
+            explicit -= sp.diff(T, t)
+        else:
+            kinetic = T
+        args = [t, list(q), list(w), [p.symbol for p in system.parameters]]
+        self.fn = lambdify_blocks(args, [sp.Matrix([kinetic]), sp.Matrix([V]), energy.applied,
+                                         sp.Matrix([explicit])], what="energy balance")
+
+    def __call__(self, t, q, w, pv):
+        kin, V, Q, P = self.fn(float(t), q, w, pv)
+        return float(kin[0, 0]), float(V[0, 0]), np.asarray(Q, float).reshape(-1), float(P[0, 0])
+
+
+def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mapping | None = None, params=None,
+                   model=None, samples: int = 201, rtol: float = 1e-11, atol: float = 1e-12) -> EnergyBalance:
+    """The energy balance of the motion of ``derivation`` from ``initial`` (default the
+    system's initial values, dependent ones completed by
+    :func:`~appell.simulation.initial.complete_initial`) over ``[t0, t_end]``, compared at
+    ``samples`` equally spaced times (module docstring). ``model``: the numeric model whose
+    motion is checked (default ``derivation.numeric``).
+
+    Returns an :class:`EnergyBalance`; not formed (with the reason) where no energy
+    identity exists. Raises :class:`ComputationError` when the integration fails.
+    """
+    from scipy.integrate import solve_ivp
+
+    from appell.simulation.initial import complete_initial
+
+    form, reason = energy_form(derivation)
+    if form is None:
+        return EnergyBalance(None, reason)
+    model = derivation.numeric if model is None else model
+    t0, t_end = float(t0), float(t_end)
+    if not t_end > t0:
+        raise ModelError(f"the energy balance needs t_end > t0 (got t0 = {t0:g}, t_end = {t_end:g})")
+    pv = model.params(params)
+    y0 = complete_initial(model, initial, t=t0, params=pv).y
+    nq, n = len(model.coordinate_names), len(model.speed_names)
+    balance = _Balance(derivation, form)
+
+    def powers(tt, q, w):
+        sol = model.solve(tt, q, w, pv)
+        _, _, Q, P_explicit = balance(tt, q, w, pv)
+        return sol.accelerations, float(Q @ w), float(sol.generalized_reactions @ w), P_explicit
+
+    calls = [0]
+
+    def rhs(tt, y):
+        calls[0] += 1
+        if calls[0] > MAX_EVALUATIONS:
+            raise ComputationError(
+                f"the energy balance's integration needs more than {MAX_EVALUATIONS} evaluations "
+                f"(stopped at t = {tt:.6g} of {t_end:g}; a stiff or fast motion)",
+                hint="check a shorter span (appell check --t-end)")
+        q, w = y[:nq], y[nq:nq + n]
+        a, p_app, p_reac, p_expl = powers(tt, q, w)
+        dq = model.coordinate_rates(tt, q, w, pv)
+        return np.concatenate([dq, a, [p_app, p_reac, p_expl, abs(p_app) + abs(p_reac) + abs(p_expl)]])
+
+    kin0, V0, _, _ = balance(t0, y0[:nq], y0[nq:], pv)
+    times = np.linspace(t0, t_end, max(int(samples), 2))
+    start = np.concatenate([y0, np.zeros(4)])
+    scale0 = max(1.0, abs(kin0) + abs(V0))
+    tolerances = np.concatenate([np.full(nq + n, atol), np.full(4, atol * scale0)])
+    run = solve_ivp(rhs, (t0, t_end), start, method="DOP853", t_eval=times, rtol=rtol, atol=tolerances)
+    if not run.success:
+        raise ComputationError(f"the energy balance's integration failed: {run.message}",
+                               hint="try a shorter span (--t-end)")
+    H, V = np.empty(run.t.size), np.empty(run.t.size)
+    for i, tt in enumerate(run.t):
+        kin, V[i], _, _ = balance(tt, run.y[:nq, i], run.y[nq:nq + n, i], pv)
+        H[i] = kin + V[i]
+    W_app, W_reac, W_expl, A = run.y[nq + n:]
+    r = np.abs(H - H[0] - (W_app + W_reac + W_expl))
+    scale = float(np.max(np.abs(H - V)) + np.max(np.abs(V - V[0])) + A[-1])
+    worst = int(np.argmax(r))
+    relative = 0.0 if r[worst] == 0.0 else (float(r[worst]) / scale if scale > 0 else float("inf"))
+    return EnergyBalance(form, "", t0, t_end, int(run.t.size), float(H[-1] - H[0]), float(W_app[-1]),
+                         float(W_reac[-1]), float(W_expl[-1]), float(r[worst]), scale, relative,
+                         float(run.t[worst]))
