@@ -267,3 +267,12 @@ def test_simulate_accepts_what_complete_initial_returns(pendulum):
     sol = simulate(pendulum, 0.0, initial=state)
     assert sol["y"][0] == pytest.approx(-0.8, abs=1e-12)
     assert sol["lambda_rod"][0] == pytest.approx(9.81 * 0.8, rel=1e-12)
+
+
+def test_report_figures_keep_the_users_backend(pendulum_solution, svg_backend):
+    from appell.io.report import solution_figures
+
+    figures = solution_figures(pendulum_solution)
+    assert [key for key, _ in figures] == ["coordinates", "speeds", "reactions", "residuals"]
+    assert all(uri.startswith("data:image/png;base64,") for _, uri in figures)
+    assert matplotlib.get_backend() == "svg"

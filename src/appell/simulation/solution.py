@@ -38,7 +38,7 @@ from appell.errors import ComputationError, ModelError
 from appell.io.files import atomic_path
 
 __all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Column", "Solution", "UNSPECIFIED", "per_second",
-           "atomic_path"]
+           "draw_panel", "atomic_path"]
 
 
 @dataclass(frozen=True)
@@ -143,7 +143,8 @@ class Solution:
     coordinate_names, speed_names : which states are which.
     accelerations : ``{acceleration name: array}``: the time derivative of each speed
         (the speed part of the model's ``dy/dt``) at the output times, in the order of
-        ``speed_names`` (``x_dot -> x_ddot``).
+        ``speed_names`` (``x_dot -> x_ddot``); with Baumgarte stabilization, those of the
+        stabilized equations that were integrated (as are the multipliers).
     multipliers : ``{constraint name: lambda array}`` (method.md §2 sign convention);
         zero after a unilateral constraint has been released.
     controls : ``{control name: array}``.
@@ -492,9 +493,29 @@ class Solution:
         return path
 
     # ------------------------------------------------------------------ plot
+    def panels(self, accelerations: bool = False) -> list[tuple[str, str, list[Column], bool]]:
+        """What :meth:`plot` (and the report) draws: ``(key, axis label, columns, log scale)``
+        per kind of quantity: ``coordinates`` (always), then, when there is something to
+        show, ``speeds``, ``states`` (extra states), ``accelerations`` (when asked for),
+        ``reactions`` (multipliers), ``controls`` and ``residuals`` (absolute values, log
+        scale; second-order constraints have none)."""
+        cols = self.column_info()
+        kinds = [("coordinates", "coordinates", "coordinate"), ("speeds", "speeds", "speed"),
+                 ("states", "other states", "state")]
+        if accelerations:
+            kinds.append(("accelerations", "accelerations", "acceleration"))
+        kinds += [("reactions", "reactions (multipliers lambda)", "multiplier"), ("controls", "controls", "control"),
+                  ("residuals", "|constraint residuals|", "residual")]
+        out = []
+        for key, label, kind in kinds:
+            series = [c for c in cols if c.kind == kind and (kind != "residual" or np.any(np.isfinite(c.values)))]
+            if series or key == "coordinates":
+                out.append((key, label, series, kind == "residual"))
+        return out
+
     def plot(self, path=None, *, accelerations: bool = False):
-        """One panel per kind of quantity on a shared time axis: coordinates, speeds (and
-        any extra states), accelerations (with ``accelerations=True``), reactions
+        """One panel per kind of quantity on a shared time axis (:meth:`panels`): coordinates,
+        speeds (and any extra states), accelerations (with ``accelerations=True``), reactions
         (multipliers), controls, and the absolute constraint residuals on a log scale.
 
         Every line is labelled with its name and unit, every axis with its quantity (and
@@ -506,43 +527,12 @@ class Solution:
         """
         from matplotlib.figure import Figure
 
-        cols = self.column_info()
-        kinds = [("coordinates", ("coordinate",)), ("speeds", ("speed",)), ("other states", ("state",))]
-        if accelerations:
-            kinds.append(("accelerations", ("acceleration",)))
-        kinds += [("reactions (multipliers lambda)", ("multiplier",)), ("controls", ("control",)),
-                  ("|constraint residuals|", ("residual",))]
-        panels = []
-        for title, which in kinds:
-            series = [c for c in cols if c.kind in which]
-            if which == ("residual",):
-                series = [c for c in series if np.any(np.isfinite(c.values))]
-            if series or which == ("coordinate",):
-                panels.append((title, series, which == ("residual",)))
+        panels = self.panels(accelerations)
         fig = Figure(figsize=(8, 2.3 * len(panels) + 0.6), constrained_layout=True)
         axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
-        for ax, (title, series, log) in zip(axes, panels):
-            for c in series:
-                a = np.asarray(c.values, float)
-                if log:
-                    a = np.abs(a)
-                    a = np.where(a > 0, a, np.nan)  # an exact zero has no place on a log scale
-                label = c.name if c.units == UNSPECIFIED else f"{c.name} [{c.units}]"
-                ax.plot(self.t, a, label=label, marker="o" if self.t.size == 1 else None)
-            shared = {c.units for c in series}
-            unit = f" [{shared.pop()}]" if len(shared) == 1 and UNSPECIFIED not in shared else ""
-            ax.set_ylabel(title + unit)
-            if log and any(np.any(np.abs(c.values) > 0) for c in series):
-                ax.set_yscale("log")
-            else:
-                ax.ticklabel_format(axis="y", useOffset=False)
-            if series:
-                ax.legend(loc="best", fontsize="small")
-            ax.grid(True, alpha=0.3)
-            for e in self.events:
-                ax.axvline(e.t, color="k", lw=0.6, ls=":")
-        axes[-1].ticklabel_format(axis="x", useOffset=False)
-        axes[-1].set_xlabel(f"t [{cols[0].units}]")
+        for ax, (_, label, series, log) in zip(axes, panels):
+            draw_panel(ax, self.t, label, series, log, self.events)
+        axes[-1].set_xlabel("t [s]")
         fig.suptitle(f"{self.metadata.name}: {self.message}")
         if path is not None:
             path = Path(path)
@@ -619,6 +609,33 @@ class Solution:
                             f"<td>{th:g}</td></tr>" for n, u, lo, tl, hi, th in ext)
             out += f"<table>{head}{cells}</table>"
         return out
+
+
+def draw_panel(ax, t, label: str, series, log: bool, events=()) -> None:
+    """Draw ``series`` (:class:`Column` items) against ``t`` on the matplotlib axes ``ax``:
+    each line labelled ``name [unit]``, the y axis ``label [unit]`` when the lines share
+    a unit, absolute values on a log scale with ``log`` (an exact zero is left out), no
+    offset notation, a dotted vertical line at each event."""
+    t = np.asarray(t, float)
+    for c in series:
+        a = np.asarray(c.values, float)
+        if log:
+            a = np.abs(a)
+            a = np.where(a > 0, a, np.nan)
+        name = c.name if c.units == UNSPECIFIED else f"{c.name} [{c.units}]"
+        ax.plot(t, a, label=name, marker="o" if t.size == 1 else None)
+    shared = {c.units for c in series}
+    ax.set_ylabel(label + (f" [{shared.pop()}]" if len(shared) == 1 and UNSPECIFIED not in shared else ""))
+    if log and any(np.any(np.abs(np.asarray(c.values, float)) > 0) for c in series):
+        ax.set_yscale("log")
+    else:
+        ax.ticklabel_format(axis="y", useOffset=False)
+    ax.ticklabel_format(axis="x", useOffset=False)
+    if series:
+        ax.legend(loc="best", fontsize="small")
+    ax.grid(True, alpha=0.3)
+    for e in events:
+        ax.axvline(e.t, color="k", lw=0.6, ls=":")
 
 
 def _nanmax_abs(arrays) -> float:
