@@ -11,6 +11,9 @@ Closed forms used:
 * Appell's problem (src/appell/examples/appell_ball.toml, method.md §6 Example 2): on the
   servo circle xi'' = -omega^2 xi, eta'' = -omega^2 eta, and the ball turns with
   q' = 5 omega^2 xi / (2 R), p' = -5 omega^2 eta / (2 R), r' = 0.
+* particle on a smooth sphere (src/appell/examples/particle_on_sphere.toml): on the sphere
+  the same tangential/centripetal split as the pendulum; after the unilateral surface
+  releases, free flight x'' = 0, y'' = -g.
 """
 
 from __future__ import annotations
@@ -276,3 +279,21 @@ def test_report_figures_keep_the_users_backend(pendulum_solution, svg_backend):
     assert [key for key, _ in figures] == ["coordinates", "speeds", "reactions", "residuals"]
     assert all(uri.startswith("data:image/png;base64,") for _, uri in figures)
     assert matplotlib.get_backend() == "svg"
+
+
+def test_accelerations_after_a_release_are_free_flight():
+    """particle_on_sphere.toml: on the sphere the speed part of dy/dt is the constrained one;
+    after the surface releases (lambda_surface reaches 0, unilateral in the file's
+    [simulation]) the particle flies freely: x'' = 0, y'' = -g."""
+    sol = simulate(appell.derive(load_model("particle_on_sphere")))  # the file's t_end, output_step, unilateral
+    release = next(e for e in sol.events if e.kind == "release")
+    after, before = sol.t > release.t, sol.t < release.t
+    assert after.sum() > 10 and before.sum() > 10
+    np.testing.assert_allclose(sol["x_ddot"][after], 0.0, atol=1e-12)
+    np.testing.assert_allclose(sol["y_ddot"][after], -G, atol=1e-12)
+    # on the sphere, released at rest at th0 = 0.4 from the top: a = g sin th e_th + (v^2/R) (-e_r),
+    # v^2 = 2 g R (cos th0 - cos th), e_r = (sin th, cos th), e_th = (cos th, -sin th)
+    th = np.arctan2(sol["x"], sol["y"])[before]
+    v2 = 2 * G * (math.cos(0.4) - np.cos(th))
+    np.testing.assert_allclose(sol["x_ddot"][before], G * np.sin(th) * np.cos(th) - v2 * np.sin(th), atol=1e-7)
+    np.testing.assert_allclose(sol["y_ddot"][before], -G * np.sin(th) ** 2 - v2 * np.cos(th), atol=1e-7)
