@@ -238,7 +238,7 @@ def test_simulate_csv_columns_and_tension(tmp_path):
     result = run("simulate", "pendulum", "--t-end", "1.0", "--out", out)
     assert result.exit_code == 0, result.output
     header, data = read_csv(out)
-    assert header == ["t", "x", "y", "x_dot", "y_dot", "lambda_rod", "residual_rod"]
+    assert header == ["t", "x", "y", "x_dot", "y_dot", "x_ddot", "y_ddot", "lambda_rod", "residual_rod"]
     assert data.shape[0] > 10 and data[0, 0] == 0.0 and data[-1, 0] == pytest.approx(1.0)
     col = {name: data[:, i] for i, name in enumerate(header)}
     expected = pendulum_tension(1.0, 9.81, col["y"])
@@ -250,8 +250,8 @@ def test_simulate_car_csv_header_order(tmp_path):
     result = run("simulate", "car", "--t-end", "0.5", "--out", out)
     assert result.exit_code == 0, result.output
     header, data = read_csv(out)
-    assert header == ["t", "x", "y", "phi", "x_dot", "y_dot", "phi_dot", "lambda_rear", "lambda_front",
-                      "residual_rear", "residual_front"]
+    assert header == ["t", "x", "y", "phi", "x_dot", "y_dot", "phi_dot", "x_ddot", "y_ddot", "phi_ddot",
+                      "lambda_rear", "lambda_front", "residual_rear", "residual_front"]
     assert np.all(np.abs(data[:, -2:]) < 1e-8), "the constraints hold along the motion"
 
 
@@ -303,17 +303,19 @@ def test_simulate_hdf5_and_plot(tmp_path):
 
 
 def test_simulate_netcdf_has_the_csv_columns(tmp_path):
-    from scipy.io import netcdf_file
+    xr = pytest.importorskip("xarray")
 
     csv_path, nc_path = tmp_path / "car.csv", tmp_path / "car.nc"
     for out in (csv_path, nc_path):
         assert run("simulate", "car", "--t-end", "0.3", "--out", out).exit_code == 0
     header, data = read_csv(csv_path)
-    with netcdf_file(nc_path, mmap=False) as f:
-        assert list(f.variables) == header and f.dimensions == {"time": data.shape[0]}
-        for i, name in enumerate(header):
-            np.testing.assert_array_equal(f.variables[name][:], data[:, i])
-        assert f.model == b"car" and f.variables["t"].units == b"s"
+    with xr.open_dataset(nc_path) as ds:
+        assert list(ds.data_vars) == header[1:] and dict(ds.sizes) == {"time": data.shape[0]}
+        np.testing.assert_array_equal(ds["time"].values, data[:, 0])
+        for i, name in enumerate(header[1:], start=1):
+            np.testing.assert_array_equal(ds[name].values, data[:, i])
+        assert ds.attrs["model"] == "car" and ds["time"].attrs["units"] == "s"
+        assert ds.attrs["Conventions"] == "CF-1.10"
 
 
 def test_simulate_unknown_output_format_is_bad_input(tmp_path):

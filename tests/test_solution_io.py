@@ -40,14 +40,15 @@ def test_csv_columns_in_the_documented_order(car_solution, tmp_path):
     path = car_solution.to_csv(tmp_path / "car.csv")
     with open(path, newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["t", "x", "y", "phi", "x_dot", "y_dot", "phi_dot", "lambda_rear", "lambda_front",
-                       "residual_rear", "residual_front"]
+    assert rows[0] == ["t", "x", "y", "phi", "x_dot", "y_dot", "phi_dot", "x_ddot", "y_ddot", "phi_ddot",
+                       "lambda_rear", "lambda_front", "residual_rear", "residual_front"]
     data = np.array(rows[1:], dtype=float)
-    assert data.shape == (21, 11)
+    assert data.shape == (21, 14)
     assert np.array_equal(data[:, 0], car_solution.t)  # repr round-trips exactly
-    assert np.array_equal(data[:, 7], car_solution.multipliers["rear"])
+    assert np.array_equal(data[:, 7], car_solution.accelerations["x_ddot"])
+    assert np.array_equal(data[:, 10], car_solution.multipliers["rear"])
     # first-order constraints: the residual column is the velocity residual phi
-    assert np.array_equal(data[:, 9], car_solution.velocity_residuals["rear"])
+    assert np.array_equal(data[:, 12], car_solution.velocity_residuals["rear"])
 
 
 def test_csv_controls_and_second_order_residual(tmp_path):
@@ -127,7 +128,7 @@ def test_plot_written_atomically(car_solution, tmp_path, monkeypatch):
     path = tmp_path / "car.png"
     fig = car_solution.plot(path)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert len(fig.axes) == 3  # coordinates, reactions, residuals (no controls)
+    assert len(fig.axes) == 4  # coordinates, speeds, reactions, residuals (no controls)
     from matplotlib.figure import Figure
 
     def broken(self, fname, **kw):
@@ -161,16 +162,3 @@ def test_summary_and_html():
     assert html.startswith("<table>") and "toy" in html and "reached the final time" in html
     assert "t = 0.25: user e" in str(sol)
     assert math.isclose(sol.max_velocity_residual, 3e-12)
-
-
-def test_netcdf_has_the_csv_columns_and_units(car_solution, tmp_path):
-    """to_netcdf: the same columns as the CSV, the model's units on the variables."""
-    from scipy.io import netcdf_file
-
-    path = car_solution.to_netcdf(tmp_path / "car.nc")
-    with netcdf_file(path, "r", mmap=False) as f:
-        names = [n for n, _ in car_solution.columns()]
-        assert set(names) <= set(f.variables)
-        assert f.variables["x"].units == b"m" and f.variables["lambda_rear"].units == b"N"
-        assert np.allclose(f.variables["lambda_front"][:], car_solution.multipliers["front"])
-        assert f.model == b"car"

@@ -29,6 +29,7 @@ from pathlib import Path
 import click
 
 from appell.errors import AppellError, ComputationError, ModelError
+from appell.simulation.defaults import DEFAULT_T_END  # final time when neither --t-end nor the model gives one
 from appell.symbols import canonical_name
 
 __all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
@@ -38,9 +39,6 @@ EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 
 #: file suffix -> export format of ``appell simulate --out``
 OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"}
-
-#: final time when neither ``--t-end`` nor the model's [simulation] table gives one
-DEFAULT_T_END = 10.0
 
 
 # ---------------------------------------------------------------- the API the commands use
@@ -154,39 +152,12 @@ def derivation_json(derivation, reduction=None) -> dict:
 
 def simulation_options(system, t_end: float | None = None) -> dict:
     """Keyword arguments of :func:`appell.simulation.simulate.simulate` from the model's ``[simulation]``
-    table (:func:`appell.io.modelfile.simulation_options`), with ``t_end`` overriding the
-    table's final time (default :data:`DEFAULT_T_END`).
-
-    When ``t_end`` changes the final time, equally spaced output times are regenerated
-    with their step up to the new final time, and other output times are cut to it.
+    table, with ``t_end`` overriding the table's final time (default :data:`DEFAULT_T_END`):
+    :func:`appell.simulation.defaults.model_options`, the same defaults the API applies.
     """
-    import numpy as np
+    from appell.simulation.defaults import model_options
 
-    from appell.io.modelfile import simulation_options as table_options
-
-    opts = dict(table_options(system))
-    t0 = float(opts.pop("t0", 0.0))
-    table_t_end = opts.pop("t_end", None)
-    final = float(t_end if t_end is not None else table_t_end if table_t_end is not None else DEFAULT_T_END)
-    step = opts.pop("output_step", None)
-    times = opts.pop("t_eval", None)
-    if times is not None and step is None and final != table_t_end:
-        grid = np.asarray(times, float)
-        spacing = np.diff(grid)
-        if grid.size > 2 and grid[0] == t0 and np.allclose(spacing, spacing[0], rtol=1e-9, atol=0.0):
-            step, times = float(spacing[0]), None
-        else:
-            times = grid[(grid >= t0) & (grid <= final)]
-    if step is not None and final > t0:
-        count = int(np.floor((final - t0) / float(step) + 1e-9))
-        grid = np.minimum(t0 + float(step) * np.arange(count + 1), final)
-        if np.isclose(grid[-1], final, rtol=1e-12, atol=1e-12 * float(step)):
-            grid[-1] = final
-        times = grid if grid[-1] == final else np.append(grid, final)
-    if times is not None and len(times):
-        opts["t_eval"] = np.asarray(times, float)
-    opts["t0"], opts["t_end"] = t0, final
-    return opts
+    return model_options(system, t_end)
 
 
 def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy", **options):

@@ -167,44 +167,23 @@ def _png_data_uri(fig) -> str:
 
 
 def solution_figures(solution) -> list[tuple[str, str]]:
-    """``(caption, data URI)`` of PNG plots of a :class:`~appell.simulation.solution.Solution`:
-    coordinates, speeds, reactions (multipliers), controls and constraint residuals
-    (panels with nothing to show are left out)."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
+    """``(caption, data URI)`` of PNG plots of a :class:`~appell.simulation.solution.Solution`,
+    one per panel of :meth:`~appell.simulation.solution.Solution.panels` (coordinates,
+    speeds, reactions, controls, constraint residuals; panels with nothing to show are
+    left out), drawn as :meth:`~appell.simulation.solution.Solution.plot` draws them. The
+    figures are made without :mod:`matplotlib.pyplot`: the user's backend is left alone."""
     from matplotlib.figure import Figure
 
-    t = np.asarray(solution.t, float)
-    residuals = {}
-    for name, values in solution.residuals.items():
-        values = np.abs(np.asarray(values, float))
-        if np.any(np.isfinite(values)):
-            residuals[name] = np.where(values > 0, values, np.nan)
-    panels = [
-        ("coordinates", "coordinates q(t)", {n: solution.states[n] for n in solution.coordinate_names}, False),
-        ("speeds", "speeds w(t)", {n: solution.states[n] for n in solution.speed_names}, False),
-        ("reactions", "reactions: multipliers lambda(t)", {f"lambda_{n}": a for n, a in solution.multipliers.items()},
-         False),
-        ("controls", "controls", {f"control_{n}": a for n, a in solution.controls.items()}, False),
-        ("residuals", "constraint residuals |F|, |phi| (drift)", residuals, True),
-    ]
+    from appell.simulation.solution import draw_panel
+
     out = []
-    for key, title, series, log in panels:
+    for key, label, series, log in solution.panels():
         if not series:
             continue
         fig = Figure(figsize=(7.5, 3.0), constrained_layout=True)
         ax = fig.subplots()
-        for name, values in series.items():
-            ax.plot(t, np.asarray(values, float), label=name, marker="o" if t.size == 1 else None)
-        if log and any(np.any(np.isfinite(v)) for v in series.values()):
-            ax.set_yscale("log")
-        ax.set_title(title)
-        ax.set_xlabel("t")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize="small")
-        for e in getattr(solution, "events", ()):
-            ax.axvline(e.t, color="k", lw=0.6, ls=":")
+        draw_panel(ax, solution.t, label, series, log, getattr(solution, "events", ()))
+        ax.set_xlabel("t [s]")
         out.append((key, _png_data_uri(fig)))
     return out
 

@@ -19,7 +19,8 @@ classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``
 
 4. the output times inside the step are filled from the dense output (projected as in 3
    with ``project_output=True``); at each the model is evaluated again, so that every
-   multiplier, control and residual is the one of the recorded state.
+   acceleration (the speed part of ``dy/dt``), multiplier, control and residual is the
+   one of the recorded state.
 
 ``stabilization='baumgarte'`` instead integrates ``f + 2 alpha phi + beta^2 F = 0`` in
 place of ``f = 0`` (Baumgarte 1972); the model must accept ``bias=`` in ``evaluate``
@@ -54,9 +55,10 @@ import scipy.integrate as si
 from scipy.optimize import brentq
 
 from appell.errors import AppellError, ComputationError, ModelError
+from appell.simulation.defaults import with_model_defaults
 from appell.simulation.events import check_event_names, contact_watch, watches_for
 from appell.simulation.impact import impact
-from appell.simulation.initial import check_initial, complete_initial, dynamics_of, residual_jacobians
+from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, residual_jacobians
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 
 __all__ = ["simulate", "project", "METHODS"]
@@ -122,6 +124,8 @@ def _metadata(model, system, p, kinds, settings) -> ModelMetadata:
 
 def _initial_state(model, initial, complete, adjust, t0, p):
     """The checked (or, with ``complete``, completed) :class:`~appell.simulation.initial.InitialState`."""
+    if isinstance(initial, InitialState):  # from check_initial / complete_initial
+        initial = initial.values
     if initial is not None and not isinstance(initial, Mapping):
         arr = np.asarray(initial, float).reshape(-1)
         if arr.size != len(model.state_names):
@@ -151,6 +155,9 @@ class _Run:
         self.settings = settings
         self.rows_t, self.rows_y, self.rows_lam, self.rows_ctl = [], [], [], []
         self.rows_F, self.rows_phi, self.rows_track = [], [], []
+        self.rows_acc = []
+        nq = len(model.coordinate_names)
+        self.speed_part = slice(nq, nq + len(model.speed_names))
         self.tracking_names = tuple(getattr(model, "servo_names", ()))
         self.events: list[EventRecord] = []
         self.log: list[str] = []
@@ -226,6 +233,7 @@ class _Run:
         ev = self.evaluate(model, t, y) if ev is None else ev
         self.rows_t.append(float(t))
         self.rows_y.append(np.array(y, float))
+        self.rows_acc.append(np.asarray(ev.derivative, float)[self.speed_part])  # dw/dt: the accelerations
         self.rows_lam.append(self.by_name(model, ev.multipliers, 0.0))
         self.rows_ctl.append(np.asarray(ev.controls, float))
         self.rows_F.append(self.by_name(model, F, np.nan))
@@ -246,9 +254,7 @@ class _Run:
             self.log_switch(model, t, dep, ev.switched)
 
     def log_switch(self, model, t, dep, switched):
-        from appell.symbols import derivative_name, split_derivative_name
-
-        acc = [derivative_name(*_next(split_derivative_name(model.speed_names[i]))) for i in dep]
+        acc = [acceleration_name(model.speed_names[i]) for i in dep]
         self.switches += 1
         what = "partition switched (J_h ill-conditioned)" if switched else "partition restored"
         text = f"dependent accelerations now {', '.join(acc)}"
@@ -270,11 +276,13 @@ class _Run:
         phi = np.array(self.rows_phi, float).reshape(lam.shape)
         track = np.array(self.rows_track, float).reshape(len(self.rows_t), len(self.tracking_names))
         ctl = np.array(self.rows_ctl, float).reshape(len(self.rows_t), len(root.control_names))
+        acc = np.array(self.rows_acc, float).reshape(len(self.rows_t), len(root.speed_names))
         stats = SolverStatistics(self.nfev, self.steps, self.projections, self.switches, self.restarts)
         return Solution(
             t=np.array(self.rows_t),
             states={n: ys[:, i] for i, n in enumerate(root.state_names)},
             coordinate_names=tuple(root.coordinate_names), speed_names=tuple(root.speed_names),
+            accelerations={acceleration_name(n): acc[:, i] for i, n in enumerate(root.speed_names)},
             multipliers={n: lam[:, i] for i, n in enumerate(self.names)},
             controls={n: ctl[:, i] for i, n in enumerate(root.control_names)},
             position_residuals={n: F[:, i] for i, n in enumerate(self.names)},
@@ -286,24 +294,38 @@ class _Run:
         )
 
 
+def acceleration_name(speed: str) -> str:
+    """The name of a speed's time derivative: ``x_dot -> x_ddot``, ``w1 -> w1_dot``."""
+    from appell.symbols import derivative_name, split_derivative_name
+
+    return derivative_name(*_next(split_derivative_name(speed)))
+
+
 def _next(base_order):
     base, order = base_order
     return base, order + 1
 
 
-def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None, method="DOP853",
+@with_model_defaults
+def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0, t_eval=None, method="DOP853",
              rtol: float = 1e-9, atol: float = 1e-12, max_step: float = np.inf,
              stabilization: str | None = "projection", baumgarte=(10.0, 10.0), projection_tol: float = 1e-10,
              project_output: bool = False, unilateral: Mapping[str, int] | None = None, on_release: str = "continue",
              friction: Mapping | None = None, events=(), params=None, initial=None, complete: bool = False,
              adjust=None, progress: bool | None = None, rest_speed: float = 1e-6) -> Solution:
-    """Integrate the motion and record states, multipliers, controls and residuals.
+    """Integrate the motion and record states, accelerations, multipliers, controls and residuals.
+
+    Every argument left out takes the model's run settings (a model file's ``[simulation]``
+    table, ``System.settings``) when it makes one, else the default below
+    (:mod:`appell.simulation.defaults`): the API and ``appell simulate`` read a model alike.
 
     Parameters
     ----------
     model_or_derivation : a :class:`~appell.core.equations.Derivation` or any
         :class:`~appell.numerics.dynamics.Dynamics`.
     t_end, t0 : final and initial time; ``t_end == t0`` records the initial state only.
+        ``t_end`` defaults to the model's ``t_end``, else
+        :data:`~appell.simulation.defaults.DEFAULT_T_END`.
     t_eval : output times (default 501 equally spaced in [t0, t_end]).
     method : name in :data:`METHODS` or an ``OdeSolver`` subclass.
     rtol, atol, max_step : integrator tolerances and largest step.
@@ -323,7 +345,9 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
         ``|lambda_t| = mu lambda_n`` are recorded as events (the motion is unchanged).
     events : :class:`~appell.simulation.events.Event` items (or bare callables ``g(t, y, multipliers)``).
     params : parameter values (``{name: value}`` or a vector).
-    initial : initial state (``{name: value}`` or a vector); default the system's.
+    initial : initial state (``{name: value}``, a vector, or the
+        :class:`~appell.simulation.initial.InitialState` of :func:`~appell.simulation.initial.check_initial`
+        or :func:`~appell.simulation.initial.complete_initial`); default the system's.
     complete : complete the initial values (:func:`~appell.simulation.initial.complete_initial`: the
         missing ones computed, given ones that violate a constraint changed) instead of
         only checking them (:func:`~appell.simulation.initial.check_initial`, which raises

@@ -1,16 +1,26 @@
 """The result of a simulation: named arrays, diagnostics and export (stage after simulate).
 
 A :class:`Solution` is frozen: its arrays are read-only and its mappings are views.
-Every file it writes (CSV, HDF5, plots) is written atomically: to a temporary file in
-the target's directory, then moved over the target with :func:`os.replace`, so that an
+Every file it writes (CSV, netCDF, HDF5, plots) is written atomically: to a temporary file
+in the target's directory, then moved over the target with :func:`os.replace`, so that an
 error part way leaves neither a partial file nor a changed target.
 
-CSV columns, in this order: ``t``, each coordinate, each speed (then any extra states of
-the model), ``lambda_<constraint>``, ``control_<control>``, ``residual_<constraint>``.
+Columns (CSV, netCDF variables, :meth:`Solution.to_dataframe`), in this order: ``t``, each
+coordinate, each speed (then any extra states of the model), each acceleration (the time
+derivative of each speed, named like the derivation's acceleration symbols: ``x_dot ->
+x_ddot``), ``lambda_<constraint>``, ``control_<control>``, ``residual_<constraint>``.
 ``residual_<c>`` is the position residual ``F`` for a holonomic constraint, the velocity
 residual ``phi`` for a first-order one, and empty (NaN) for a second-order one, which has
 neither; empty cells in the file are NaN. A controlled system's servo constraints follow
 the real ones as ``residual_<servo>``: their tracking error at their own level.
+
+Units: those the model declares (``[units]``, ``System.units``), an acceleration's from its
+speed's (``m/s -> m/s^2``), ``s`` for time, else ``unspecified``.
+
+:meth:`Solution.to_xarray` gives an :class:`xarray.Dataset` on the dimension ``time``;
+:meth:`Solution.to_netcdf` writes it as netCDF-4 following the CF conventions (CF-1.10):
+``time`` a coordinate variable in seconds, ``units`` and ``long_name`` on every variable,
+the model, parameters, solver settings, statistics and status as global attributes.
 """
 
 from __future__ import annotations
@@ -24,9 +34,11 @@ from typing import Mapping
 
 import numpy as np
 
+from appell.errors import ComputationError, ModelError
 from appell.io.files import atomic_path
 
-__all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Solution", "atomic_path"]
+__all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Column", "Solution", "UNSPECIFIED", "per_second",
+           "draw_panel", "atomic_path"]
 
 
 @dataclass(frozen=True)
@@ -94,15 +106,51 @@ def _frozen_arrays(mapping) -> Mapping[str, np.ndarray]:
     return MappingProxyType(out)
 
 
+#: the unit recorded for a column whose unit the model does not declare
+UNSPECIFIED = "unspecified"
+
+#: at most this many events are listed by :meth:`Solution.summary`
+SUMMARY_EVENTS = 10
+
+
+def per_second(unit: str) -> str:
+    """The unit of a rate of a quantity in ``unit``: ``m/s -> m/s^2``, ``m -> m/s``."""
+    unit = unit.strip()
+    if unit in ("", "1"):
+        return "1/s"
+    if unit.endswith("/s"):
+        return unit + "^2"
+    if any(c in unit for c in " */^"):
+        return f"({unit})/s"
+    return f"{unit}/s"
+
+
 @dataclass(frozen=True)
+class Column:
+    """One result column: ``name``, ``values``, ``kind`` (``'time'``, ``'coordinate'``,
+    ``'speed'``, ``'state'``, ``'acceleration'``, ``'multiplier'``, ``'control'``,
+    ``'residual'``), ``long_name`` (what it is, in words) and ``units``."""
+
+    name: str
+    values: np.ndarray
+    kind: str
+    long_name: str
+    units: str
+
+
+@dataclass(frozen=True, repr=False)
 class Solution:
-    """A simulated motion with its reactions, controls, residuals and diagnostics.
+    """A simulated motion with its accelerations, reactions, controls, residuals and diagnostics.
 
     Attributes
     ----------
     t : output times.
     states : ``{state name: array}`` (coordinates, speeds, extra states).
     coordinate_names, speed_names : which states are which.
+    accelerations : ``{acceleration name: array}``: the time derivative of each speed
+        (the speed part of the model's ``dy/dt``) at the output times, in the order of
+        ``speed_names`` (``x_dot -> x_ddot``); with Baumgarte stabilization, those of the
+        stabilized equations that were integrated (as are the multipliers).
     multipliers : ``{constraint name: lambda array}`` (method.md §2 sign convention);
         zero after a unilateral constraint has been released.
     controls : ``{control name: array}``.
@@ -116,6 +164,8 @@ class Solution:
     metadata : :class:`ModelMetadata`.
     tracking : ``{servo constraint: residual at its own level}`` — the tracking error of a
         controlled system (empty otherwise).
+
+    Printed (``str``, ``repr``) it is its :meth:`summary`; in Jupyter an HTML table.
     """
 
     t: np.ndarray
@@ -133,12 +183,14 @@ class Solution:
     log: tuple[str, ...]
     metadata: ModelMetadata
     tracking: Mapping[str, np.ndarray] = field(default_factory=dict)
+    accelerations: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         t = np.array(self.t, dtype=float)
         t.setflags(write=False)
         object.__setattr__(self, "t", t)
-        for name in ("states", "multipliers", "controls", "position_residuals", "velocity_residuals", "tracking"):
+        for name in ("states", "multipliers", "controls", "position_residuals", "velocity_residuals", "tracking",
+                     "accelerations"):
             object.__setattr__(self, name, _frozen_arrays(getattr(self, name)))
         object.__setattr__(self, "events", tuple(self.events))
         object.__setattr__(self, "log", tuple(self.log))
@@ -158,16 +210,22 @@ class Solution:
         return tuple(self.states)
 
     @property
+    def acceleration_names(self) -> tuple[str, ...]:
+        return tuple(self.accelerations)
+
+    @property
     def y(self) -> np.ndarray:
         """States as an array (n_states x n_times), in the order of ``state_names``."""
         return np.array([self.states[n] for n in self.states]) if self.states else np.zeros((0, self.t.size))
 
     def __getitem__(self, name: str) -> np.ndarray:
-        """A state, ``lambda_<c>``, ``control_<c>`` or ``residual_<c>`` by name."""
+        """A state, an acceleration, ``lambda_<c>``, ``control_<c>`` or ``residual_<c>`` by name."""
         if name == "t":
             return self.t
         if name in self.states:
             return self.states[name]
+        if name in self.accelerations:
+            return self.accelerations[name]
         for prefix, table in (("lambda_", self.multipliers), ("control_", self.controls)):
             if name.startswith(prefix) and name[len(prefix):] in table:
                 return table[name[len(prefix):]]
@@ -206,17 +264,50 @@ class Solution:
         """Largest residual of the servo constraints over the output times (0 if none)."""
         return _nanmax_abs(self.tracking.values())
 
-    # ---------------------------------------------------------------- export
-    def columns(self) -> list[tuple[str, np.ndarray]]:
-        """The CSV columns in file order (see the module docstring)."""
-        cols = [("t", self.t)]
-        cols += [(n, a) for n, a in self.states.items()]
-        cols += [(f"lambda_{n}", a) for n, a in self.multipliers.items()]
-        cols += [(f"control_{n}", a) for n, a in self.controls.items()]
-        cols += [(f"residual_{n}", a) for n, a in self.residuals.items()]
-        cols += [(f"residual_{n}", a) for n, a in self.tracking.items()]
+    # ---------------------------------------------------------------- columns
+    def column_info(self, units: Mapping[str, str] | None = None) -> list[Column]:
+        """The result columns in file order (module docstring), each with its kind, long
+        name and unit: ``units`` by column name, else the model's declared units, else (an
+        acceleration) its speed's unit per second, else ``'s'`` for time, else
+        :data:`UNSPECIFIED`."""
+        table = {"t": "s", **self.metadata.units, **(units or {})}
+        speed_of = dict(zip(self.accelerations, self.speed_names))
+
+        def unit(name):
+            if table.get(name):
+                return table[name]
+            if table.get(speed_of.get(name)):
+                return per_second(table[speed_of[name]])
+            return UNSPECIFIED
+
+        cols = [Column("t", self.t, "time", "time", unit("t"))]
+        for n, a in self.states.items():
+            kind = "coordinate" if n in self.coordinate_names else "speed" if n in self.speed_names else "state"
+            cols.append(Column(n, a, kind, f"{kind} {n}", unit(n)))
+        for n, a in self.accelerations.items():
+            of = f" (time derivative of the speed {speed_of[n]})" if n in speed_of else ""
+            cols.append(Column(n, a, "acceleration", f"acceleration {n}{of}", unit(n)))
+        for n, a in self.multipliers.items():
+            cols.append(Column(f"lambda_{n}", a, "multiplier",
+                               f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)", unit(f"lambda_{n}")))
+        for n, a in self.controls.items():
+            cols.append(Column(f"control_{n}", a, "control", f"control {n}", unit(f"control_{n}")))
+        kinds = dict(zip(self.metadata.constraint_names, self.metadata.constraint_kinds))
+        for n, a in self.residuals.items():
+            what = {"holonomic": f"position residual F of the holonomic constraint {n}",
+                    "first-order": f"velocity residual phi of the first-order constraint {n}"}.get(
+                kinds.get(n), f"second-order constraint {n}: no position or velocity residual (NaN)")
+            cols.append(Column(f"residual_{n}", a, "residual", what, unit(f"residual_{n}")))
+        for n, a in self.tracking.items():
+            cols.append(Column(f"residual_{n}", a, "residual", f"tracking error of the servo constraint {n} "
+                               "at its own level", unit(f"residual_{n}")))
         return cols
 
+    def columns(self) -> list[tuple[str, np.ndarray]]:
+        """The CSV columns in file order (see the module docstring)."""
+        return [(c.name, c.values) for c in self.column_info()]
+
+    # ---------------------------------------------------------------- export
     def _csv_rows(self):
         cols = self.columns()
         yield [c for c, _ in cols]
@@ -233,46 +324,112 @@ class Solution:
                     writer.writerow(row)
         return path
 
-    def to_netcdf(self, path, units: Mapping[str, str] | None = None) -> Path:
-        """Write the CSV's columns (:meth:`columns`) as a netCDF file (classic format, SciPy's
-        writer) along the dimension ``time``, atomically.
+    def to_dataframe(self, units: Mapping[str, str] | None = None):
+        """The columns as a :class:`pandas.DataFrame` indexed by time (index ``t``, in s).
 
-        Variables carry ``long_name`` and ``units`` (from ``units`` by column name, else the
-        model's declared units, ``'s'`` for time); global attributes record the model,
-        status, message, constraint names and kinds, and the appell version.
+        ``df.attrs`` holds ``units`` and ``long_names`` by column, ``model``, ``status`` and
+        ``message``.
         """
-        from scipy.io import netcdf_file
+        import pandas as pd
+
+        cols = self.column_info(units)
+        df = pd.DataFrame({c.name: np.array(c.values, float) for c in cols[1:]},
+                          index=pd.Index(np.array(self.t, float), name="t"))
+        df.attrs.update(units={c.name: c.units for c in cols}, long_names={c.name: c.long_name for c in cols},
+                        model=self.metadata.name, status=int(self.status), message=self.message)
+        return df
+
+    def attributes(self) -> dict:
+        """Global attributes of the netCDF file and of :meth:`to_xarray` (CF-1.10 and the
+        run's record): model, status, message, names, statistics (``statistics_<k>``),
+        settings (``setting_<k>``), parameters (``parameter_<name>`` with ``_units`` and
+        ``_description``), largest residuals, events and log (one per line)."""
+        import datetime
 
         md = self.metadata
-        units = {"t": "s", **md.units, **(units or {})}
+        version = md.appell_version or "unknown version"
+        now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+        attrs = {
+            "Conventions": "CF-1.10",
+            "title": f"appell simulation of {md.name}",
+            "source": f"appell {version}: Gibbs-Appell equations split by Do Shan's method",
+            "history": f"{now} created by appell {version}",
+            "references": "Do Shan, On determining constraint reaction forces, "
+                          "Prikladnaya Matematika i Mekhanika, 1974",
+            "comment": "lambda_<constraint>: multiplier of the constraint, reaction R = J^T lambda; "
+                       "residual_<constraint>: its residual at its own level",
+            "model": md.name,
+            "status": int(self.status),
+            "message": self.message,
+            "constraint_names": " ".join(md.constraint_names),
+            "constraint_kinds": " ".join(md.constraint_kinds),
+            "coordinate_names": " ".join(self.coordinate_names),
+            "speed_names": " ".join(self.speed_names),
+            "acceleration_names": " ".join(self.accelerations),
+            "control_names": " ".join(self.controls),
+            "max_position_residual": self.max_position_residual,
+            "max_velocity_residual": self.max_velocity_residual,
+        }
+        if self.tracking:
+            attrs["max_tracking_error"] = self.max_tracking_error
+        attrs.update({f"statistics_{k}": int(v) for k, v in vars(self.statistics).items()})
+        attrs.update({f"setting_{k}": str(v) for k, v in md.settings.items()})
+        for name, value, unit, desc in md.parameters:
+            attrs[f"parameter_{name}"] = float(value)
+            attrs[f"parameter_{name}_units"] = unit or UNSPECIFIED
+            if desc:
+                attrs[f"parameter_{name}_description"] = desc
+        attrs["events"] = "\n".join(str(e) for e in self.events)
+        attrs["log"] = "\n".join(self.log)
+        return attrs
+
+    def to_xarray(self, units: Mapping[str, str] | None = None):
+        """The columns as an :class:`xarray.Dataset` on the dimension ``time``.
+
+        ``time`` is a coordinate (``units = 's'``); every other column is a variable with
+        ``units``, ``long_name`` and ``kind`` (:class:`Column`); the dataset's attributes
+        are :meth:`attributes` (model, parameters, solver settings, statistics, status).
+        """
+        import xarray as xr
+
+        cols = self.column_info(units)
+        clash = [c.name for c in cols[1:] if c.name == "time"]
+        if clash:
+            raise ModelError("a result column is named 'time', the name of the time coordinate",
+                             hint="rename that coordinate, speed, constraint or control")
+        time = cols[0]
+        data = {c.name: ("time", np.array(c.values, float), {"units": c.units, "long_name": c.long_name,
+                                                           "kind": c.kind}) for c in cols[1:]}
+        coords = {"time": ("time", np.array(time.values, float), {"units": time.units, "long_name": "time"})}
+        return xr.Dataset(data, coords=coords, attrs=self.attributes())
+
+    def to_netcdf(self, path, units: Mapping[str, str] | None = None) -> Path:
+        """Write :meth:`to_xarray` as a netCDF-4 file (CF-1.10; engine h5netcdf), atomically.
+
+        The file is built in memory and then written by :func:`atomic_path`;
+        ``xarray.open_dataset(path)`` reads it back (as do ncview and Panoply).
+        """
+        try:
+            import h5netcdf  # noqa: F401  (xarray's engine for netCDF-4)
+        except ImportError as exc:
+            raise ComputationError("netCDF output needs the package h5netcdf, which is not installed",
+                                   hint="pip install h5netcdf (or pip install appell, which brings it)") from exc
+        data = self.to_xarray(units).to_netcdf(engine="h5netcdf", encoding={"time": {"_FillValue": None}})
         path = Path(path)
         with atomic_path(path, suffix=".nc") as tmp:
-            with netcdf_file(tmp, "w", version=2, mmap=False) as f:
-                f.title = f"appell simulation of {md.name}"
-                f.model = md.name
-                f.status = int(self.status)
-                f.message = self.message
-                f.appell_version = md.appell_version
-                f.constraint_names = " ".join(md.constraint_names)
-                f.constraint_kinds = " ".join(md.constraint_kinds)
-                f.createDimension("time", self.t.size)
-                for name, values in self.columns():
-                    var = f.createVariable(name, "d", ("time",))
-                    var[:] = np.asarray(values, float)
-                    var.long_name = "time" if name == "t" else name
-                    if units.get(name):
-                        var.units = units[name]
+            with open(tmp, "wb") as fh:
+                fh.write(bytes(data))
         return path
 
     def to_hdf5(self, path, units: Mapping[str, str] | None = None) -> Path:
         """Write a self-describing HDF5 file (atomically).
 
-        Datasets ``/t``, ``/states/<name>``, ``/multipliers/<constraint>``,
-        ``/controls/<name>``, ``/residuals/position/<c>``, ``/residuals/velocity/<c>``,
-        ``/residuals/servo/<c>`` (tracking errors of servo constraints),
-        each with ``units`` and ``description`` attributes (``units`` from the mapping
-        ``units`` by column name, else the model's declared units, else ``'s'`` for time
-        and ``'unspecified'``); root
+        Datasets ``/t``, ``/states/<name>``, ``/accelerations/<name>``,
+        ``/multipliers/<constraint>``, ``/controls/<name>``, ``/residuals/position/<c>``,
+        ``/residuals/velocity/<c>``, ``/residuals/servo/<c>`` (tracking errors of servo
+        constraints), each with ``units`` and ``description`` attributes (the units of
+        :meth:`column_info`); ``/t`` is the dimension scale of every other dataset, so that
+        ``xarray.open_datatree(path, engine="h5netcdf")`` reads each group on ``t``. Root
         attributes: model name, status, message, appell version, constraint names and
         kinds, solver statistics, settings; group ``/parameters`` with one attribute per
         parameter value and ``<name>.unit`` / ``<name>.description``; ``/events`` and
@@ -281,99 +438,113 @@ class Solution:
         import h5py
 
         md = self.metadata
-        units = {**md.units, **(units or {})}
+        info = {c.name: c for c in self.column_info(units)}
         path = Path(path)
+
+        def fill(f):
+            f.attrs["format"] = "appell simulation result"
+            f.attrs["model"] = md.name
+            f.attrs["appell_version"] = md.appell_version
+            f.attrs["status"] = self.status
+            f.attrs["message"] = self.message
+            f.attrs["constraint_names"] = np.array(md.constraint_names, dtype=h5py.string_dtype())
+            f.attrs["constraint_kinds"] = np.array(md.constraint_kinds, dtype=h5py.string_dtype())
+            f.attrs["coordinate_names"] = np.array(self.coordinate_names, dtype=h5py.string_dtype())
+            f.attrs["speed_names"] = np.array(self.speed_names, dtype=h5py.string_dtype())
+            f.attrs["acceleration_names"] = np.array(self.acceleration_names, dtype=h5py.string_dtype())
+            f.attrs["max_position_residual"] = self.max_position_residual
+            f.attrs["max_velocity_residual"] = self.max_velocity_residual
+            for k, v in vars(self.statistics).items():
+                f.attrs[f"statistics.{k}"] = v
+            for k, v in md.settings.items():
+                f.attrs[f"settings.{k}"] = str(v)
+            pg = f.create_group("parameters")
+            for name, value, unit, desc in md.parameters:
+                pg.attrs[name] = value
+                pg.attrs[f"{name}.unit"] = unit or UNSPECIFIED
+                pg.attrs[f"{name}.description"] = desc or ""
+
+            def put(group, key, column, data, description=None):
+                ds = group.create_dataset(key, data=np.asarray(data, float))
+                ds.attrs["units"] = info[column].units
+                ds.attrs["description"] = description or info[column].long_name
+                if key != "t" or group.name != "/":
+                    ds.dims[0].attach_scale(f["t"])
+                return ds
+
+            put(f, "t", "t", self.t).make_scale("t")
+            g = f.create_group("states")
+            for n, a in self.states.items():
+                put(g, n, n, a)
+            g = f.create_group("accelerations")
+            for n, a in self.accelerations.items():
+                put(g, n, n, a)
+            g = f.create_group("multipliers")
+            for n, a in self.multipliers.items():
+                put(g, n, f"lambda_{n}", a)
+            g = f.create_group("controls")
+            for n, a in self.controls.items():
+                put(g, n, f"control_{n}", a)
+            g = f.create_group("residuals")
+            gp, gv = g.create_group("position"), g.create_group("velocity")
+            for n, a in self.position_residuals.items():
+                put(gp, n, f"residual_{n}", a, f"position residual F of constraint {n} (NaN: no such level)")
+            for n, a in self.velocity_residuals.items():
+                put(gv, n, f"residual_{n}", a, f"velocity residual phi of constraint {n} (NaN: no such level)")
+            if self.tracking:
+                gt = g.create_group("servo")
+                for n, a in self.tracking.items():
+                    put(gt, n, f"residual_{n}", a)
+            for key, lines in (("events", [str(e) for e in self.events]), ("log", list(self.log))):
+                f.create_dataset(key, data=np.array(lines, dtype=h5py.string_dtype())).make_scale(key)
+
         with atomic_path(path) as tmp:
             with h5py.File(tmp, "w") as f:
-                f.attrs["format"] = "appell simulation result"
-                f.attrs["model"] = md.name
-                f.attrs["appell_version"] = md.appell_version
-                f.attrs["status"] = self.status
-                f.attrs["message"] = self.message
-                f.attrs["constraint_names"] = np.array(md.constraint_names, dtype=h5py.string_dtype())
-                f.attrs["constraint_kinds"] = np.array(md.constraint_kinds, dtype=h5py.string_dtype())
-                f.attrs["coordinate_names"] = np.array(self.coordinate_names, dtype=h5py.string_dtype())
-                f.attrs["speed_names"] = np.array(self.speed_names, dtype=h5py.string_dtype())
-                f.attrs["max_position_residual"] = self.max_position_residual
-                f.attrs["max_velocity_residual"] = self.max_velocity_residual
-                for k, v in vars(self.statistics).items():
-                    f.attrs[f"statistics.{k}"] = v
-                for k, v in md.settings.items():
-                    f.attrs[f"settings.{k}"] = str(v)
-                pg = f.create_group("parameters")
-                for name, value, unit, desc in md.parameters:
-                    pg.attrs[name] = value
-                    pg.attrs[f"{name}.unit"] = unit or "unspecified"
-                    pg.attrs[f"{name}.description"] = desc or ""
-
-                def put(group, key, column, data, description, default_unit="unspecified"):
-                    ds = group.create_dataset(key, data=np.asarray(data, float))
-                    ds.attrs["units"] = units.get(column, default_unit)
-                    ds.attrs["description"] = description
-
-                put(f, "t", "t", self.t, "time", "s")
-                g = f.create_group("states")
-                for n, a in self.states.items():
-                    what = "coordinate" if n in self.coordinate_names else "speed" if n in self.speed_names else "state"
-                    put(g, n, n, a, f"{what} {n}")
-                g = f.create_group("multipliers")
-                for n, a in self.multipliers.items():
-                    put(g, n, f"lambda_{n}", a, f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)")
-                g = f.create_group("controls")
-                for n, a in self.controls.items():
-                    put(g, n, f"control_{n}", a, f"control {n}")
-                g = f.create_group("residuals")
-                gp, gv = g.create_group("position"), g.create_group("velocity")
-                for n, a in self.position_residuals.items():
-                    put(gp, n, f"residual_{n}", a, f"position residual F of constraint {n} (NaN: no such level)")
-                for n, a in self.velocity_residuals.items():
-                    put(gv, n, f"residual_{n}", a, f"velocity residual phi of constraint {n} (NaN: no such level)")
-                if self.tracking:
-                    gt = g.create_group("servo")
-                    for n, a in self.tracking.items():
-                        put(gt, n, f"residual_{n}", a, f"tracking error of servo constraint {n} at its own level")
-                f.create_dataset("events", data=np.array([str(e) for e in self.events], dtype=h5py.string_dtype()))
-                f.create_dataset("log", data=np.array(list(self.log), dtype=h5py.string_dtype()))
+                fill(f)
         return path
 
-    def plot(self, path=None):
-        """Plot coordinates, reactions, controls and residuals (matplotlib, Agg backend).
+    # ------------------------------------------------------------------ plot
+    def panels(self, accelerations: bool = False) -> list[tuple[str, str, list[Column], bool]]:
+        """What :meth:`plot` (and the report) draws: ``(key, axis label, columns, log scale)``
+        per kind of quantity: ``coordinates`` (always), then, when there is something to
+        show, ``speeds``, ``states`` (extra states), ``accelerations`` (when asked for),
+        ``reactions`` (multipliers), ``controls`` and ``residuals`` (absolute values, log
+        scale; second-order constraints have none)."""
+        cols = self.column_info()
+        kinds = [("coordinates", "coordinates", "coordinate"), ("speeds", "speeds", "speed"),
+                 ("states", "other states", "state")]
+        if accelerations:
+            kinds.append(("accelerations", "accelerations", "acceleration"))
+        kinds += [("reactions", "reactions (multipliers lambda)", "multiplier"), ("controls", "controls", "control"),
+                  ("residuals", "|constraint residuals|", "residual")]
+        out = []
+        for key, label, kind in kinds:
+            series = [c for c in cols if c.kind == kind and (kind != "residual" or np.any(np.isfinite(c.values)))]
+            if series or key == "coordinates":
+                out.append((key, label, series, kind == "residual"))
+        return out
 
-        Saved atomically to ``path`` when given (format from its suffix); returns the figure.
+    def plot(self, path=None, *, accelerations: bool = False):
+        """One panel per kind of quantity on a shared time axis (:meth:`panels`): coordinates,
+        speeds (and any extra states), accelerations (with ``accelerations=True``), reactions
+        (multipliers), controls, and the absolute constraint residuals on a log scale.
+
+        Every line is labelled with its name and unit, every axis with its quantity (and
+        unit when the panel has one); no offset notation. Returns a
+        :class:`matplotlib.figure.Figure`, built without :mod:`matplotlib.pyplot`: the
+        user's backend is never touched, and Jupyter displays the returned figure. Saved
+        atomically to ``path`` when given (format from its suffix), as ``appell simulate
+        --plot FILE`` does.
         """
-        import matplotlib
-
-        matplotlib.use("Agg", force=False)
         from matplotlib.figure import Figure
 
-        residuals = {f"{n} ({'F' if k == 'holonomic' else 'phi'})": np.abs(a)
-                     for (n, k), a in zip(zip(self.metadata.constraint_names, self.metadata.constraint_kinds),
-                                          self.residuals.values()) if k != "second-order"}
-        residuals.update({f"{n} (servo)": np.abs(a) for n, a in self.tracking.items()})
-        panels = [("coordinates", {n: self.states[n] for n in self.coordinate_names}, False),
-                  ("reactions (multipliers)", dict(self.multipliers), False),
-                  ("controls", dict(self.controls), False),
-                  ("constraint residuals |F|, |phi|", residuals, True)]
-        panels = [p for p in panels if p[1] or p[0] == "coordinates"]  # no empty panels
-        fig = Figure(figsize=(8, 2.6 * len(panels)), constrained_layout=True)
+        panels = self.panels(accelerations)
+        fig = Figure(figsize=(8, 2.3 * len(panels) + 0.6), constrained_layout=True)
         axes = fig.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
-        for ax, (title, series, log) in zip(axes, panels):
-            for name, a in series.items():
-                a = np.asarray(a, float)
-                if log:
-                    a = np.where(a > 0, a, np.nan)
-                ax.plot(self.t, a, label=name)
-            if log and series:
-                ax.set_yscale("log")
-            ax.set_title(title)
-            if series:
-                ax.legend(loc="best", fontsize="small")
-            ax.grid(True, alpha=0.3)
-        axes[-1].set_xlabel("t")
+        for ax, (_, label, series, log) in zip(axes, panels):
+            draw_panel(ax, self.t, label, series, log, self.events)
+        axes[-1].set_xlabel("t [s]")
         fig.suptitle(f"{self.metadata.name}: {self.message}")
-        for e in self.events:
-            for ax in axes:
-                ax.axvline(e.t, color="k", lw=0.6, ls=":")
         if path is not None:
             path = Path(path)
             with atomic_path(path) as tmp:
@@ -381,40 +552,101 @@ class Solution:
         return fig
 
     # --------------------------------------------------------------- display
+    def extremes(self) -> list[tuple[str, str, float, float, float, float]]:
+        """``(column, units, min, t at min, max, t at max)`` of each reaction (multiplier)
+        and control over the output times (NaN where a column has no values)."""
+        out = []
+        for c in self.column_info():
+            if c.kind not in ("multiplier", "control"):
+                continue
+            a = np.asarray(c.values, float)
+            if not np.any(np.isfinite(a)):
+                out.append((c.name, c.units, np.nan, np.nan, np.nan, np.nan))
+                continue
+            i, j = int(np.nanargmin(a)), int(np.nanargmax(a))
+            out.append((c.name, c.units, float(a[i]), float(self.t[i]), float(a[j]), float(self.t[j])))
+        return out
+
     def summary(self) -> str:
-        """A few lines: status, times, statistics, residuals, events, log."""
+        """A few lines: status, time span, steps, the extremes of each reaction and control
+        with units, the largest residuals, and the first events."""
         s = self.statistics
         lines = [
             f"simulation of {self.metadata.name!r}: {self.message} (status {self.status})",
-            f"  t from {self.t[0]:g} to {self.t[-1]:g}, {self.t.size} output times" if self.t.size else "  no output",
+            f"  t from {self.t[0]:g} s to {self.t[-1]:g} s, {self.t.size} output times" if self.t.size
+            else "  no output",
             f"  {s.steps} steps, {s.nfev} evaluations, {s.projections} projections, {s.switches} partition switches",
-            f"  largest residuals: position {self.max_position_residual:.3e}, velocity {self.max_velocity_residual:.3e}",
         ]
+        for name, unit, lo, t_lo, hi, t_hi in self.extremes():
+            u = "" if unit == UNSPECIFIED else f" {unit}"
+            lines.append(f"  {name}: no values" if np.isnan(lo) else
+                         f"  {name}: min {lo:.6g}{u} (t = {t_lo:g} s), max {hi:.6g}{u} (t = {t_hi:g} s)")
+        lines.append(f"  largest residuals: position {self.max_position_residual:.3e}, "
+                     f"velocity {self.max_velocity_residual:.3e}")
         if self.tracking:
             lines.append(f"  largest tracking error of the servo constraints: {self.max_tracking_error:.3e}")
-        lines += [f"  event: {e}" for e in self.events]
+        lines += [f"  event: {e}" for e in self.events[:SUMMARY_EVENTS]]
+        if len(self.events) > SUMMARY_EVENTS:
+            lines.append(f"  ... and {len(self.events) - SUMMARY_EVENTS} more events (Solution.events)")
         return "\n".join(lines)
 
     def __str__(self) -> str:
         return self.summary()
 
+    def __repr__(self) -> str:
+        return self.summary()
+
     def _repr_html_(self) -> str:
+        e = html.escape
         s = self.statistics
         rows = [
             ("model", self.metadata.name), ("status", f"{self.status} — {self.message}"),
-            ("t", f"{self.t[0]:g} … {self.t[-1]:g} ({self.t.size} points)" if self.t.size else "—"),
+            ("t", f"{self.t[0]:g} … {self.t[-1]:g} s ({self.t.size} points)" if self.t.size else "—"),
             ("steps / evaluations", f"{s.steps} / {s.nfev}"),
             ("projections / switches", f"{s.projections} / {s.switches}"),
             ("largest |F| / |phi|", f"{self.max_position_residual:.2e} / {self.max_velocity_residual:.2e}"),
         ]
-        rows += [("event", str(e)) for e in self.events[:10]]
-        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
-                       for k, v in rows)
-        final = ""
-        if self.t.size:
-            cells = "".join(f"<tr><td>{html.escape(n)}</td><td>{a[-1]:.6g}</td></tr>" for n, a in self.columns()[1:13])
-            final = f"<table><tr><th>final value</th><th></th></tr>{cells}</table>"
-        return f"<table>{body}</table>{final}"
+        if self.tracking:
+            rows.append(("largest tracking error", f"{self.max_tracking_error:.2e}"))
+        rows += [("event", str(ev)) for ev in self.events[:SUMMARY_EVENTS]]
+        if len(self.events) > SUMMARY_EVENTS:
+            rows.append(("", f"… and {len(self.events) - SUMMARY_EVENTS} more events"))
+        body = "".join(f"<tr><th style='text-align:left'>{e(k)}</th><td>{e(v)}</td></tr>" for k, v in rows)
+        out = f"<table>{body}</table>"
+        ext = self.extremes()
+        if ext and self.t.size:
+            head = "<tr><th>reaction / control</th><th>unit</th><th>min</th><th>at t</th><th>max</th><th>at t</th></tr>"
+            cells = "".join(f"<tr><td>{e(n)}</td><td>{e(u)}</td><td>{lo:.6g}</td><td>{tl:g}</td><td>{hi:.6g}</td>"
+                            f"<td>{th:g}</td></tr>" for n, u, lo, tl, hi, th in ext)
+            out += f"<table>{head}{cells}</table>"
+        return out
+
+
+def draw_panel(ax, t, label: str, series, log: bool, events=()) -> None:
+    """Draw ``series`` (:class:`Column` items) against ``t`` on the matplotlib axes ``ax``:
+    each line labelled ``name [unit]``, the y axis ``label [unit]`` when the lines share
+    a unit, absolute values on a log scale with ``log`` (an exact zero is left out), no
+    offset notation, a dotted vertical line at each event."""
+    t = np.asarray(t, float)
+    for c in series:
+        a = np.asarray(c.values, float)
+        if log:
+            a = np.abs(a)
+            a = np.where(a > 0, a, np.nan)
+        name = c.name if c.units == UNSPECIFIED else f"{c.name} [{c.units}]"
+        ax.plot(t, a, label=name, marker="o" if t.size == 1 else None)
+    shared = {c.units for c in series}
+    ax.set_ylabel(label + (f" [{shared.pop()}]" if len(shared) == 1 and UNSPECIFIED not in shared else ""))
+    if log and any(np.any(np.abs(np.asarray(c.values, float)) > 0) for c in series):
+        ax.set_yscale("log")
+    else:
+        ax.ticklabel_format(axis="y", useOffset=False)
+    ax.ticklabel_format(axis="x", useOffset=False)
+    if series:
+        ax.legend(loc="best", fontsize="small")
+    ax.grid(True, alpha=0.3)
+    for e in events:
+        ax.axvline(e.t, color="k", lw=0.6, ls=":")
 
 
 def _nanmax_abs(arrays) -> float:

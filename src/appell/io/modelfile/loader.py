@@ -560,11 +560,9 @@ def simulation_options(system: System) -> dict:
     The settings are stored hashable (pairs); ``unilateral`` and ``friction`` become
     dictionaries again, ``t_eval`` an array-like tuple.
     """
-    options = dict(system.settings)
-    for key in ("unilateral", "friction"):
-        if key in options:
-            options[key] = dict(options[key])
-    return options
+    from appell.simulation.defaults import settings_options
+
+    return settings_options(system)
 
 
 # ------------------------------------------------------------------ the load
@@ -761,9 +759,20 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None) -> System
 
     ``overrides`` ``{name: value}`` replaces parameter values or initial values (as
     ``appell simulate --set NAME=VALUE`` does); unknown names raise :class:`ModelError`.
+    ``path`` may also be the name of a bundled example (``load_model("pendulum")``, as
+    listed by ``appell examples``) when no file of that name exists.
     Every error is a :class:`ModelError` with ``where="<file>:<line>"``.
     """
     path = Path(path)
+    if not path.exists() and path.suffix == "" and len(path.parts) == 1:
+        from appell.examples import example_path, list_examples
+
+        if path.name in list_examples():
+            path = example_path(path.name)
+        else:
+            raise ModelError(f"{path}: no such model file, nor a bundled example",
+                             hint="give the path of a model file (.toml), or a bundled example: "
+                                  + ", ".join(list_examples()))
     try:
         raw = path.read_bytes()
     except OSError as exc:
