@@ -9,12 +9,13 @@ def _builders() -> dict:
     """name -> builder (a callable returning the System) for every bundled model file."""
     from .cyclic_examples import (spherical_pendulum, spherical_pendulum_cartesian, spherical_pendulum_rod,
                                   symmetric_top, turntable_particle)
+    from .drive_examples import DRIVE_EXAMPLES
     from .event_examples import EVENT_EXAMPLES
     from .servo_examples import SERVO_EXAMPLES
 
     cyclic = (spherical_pendulum, spherical_pendulum_rod, spherical_pendulum_cartesian, symmetric_top,
               turntable_particle)
-    return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES}
+    return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES, **DRIVE_EXAMPLES}
 
 
 #: name of each bundled ``<name>.toml`` -> the Python builder of the same system

@@ -13,6 +13,11 @@ from appell.core.equations import tidy
 from appell.symbols import latex_name
 
 
+#: shown where no acceleration is free (p = 0): (1.4) has no rows
+NO_FREE_ACCELERATION = ("no free acceleration (0 degrees of freedom): the constraints prescribe the motion; "
+                        "(1.4) is empty and (1.5) gives the reactions along the prescribed motion")
+
+
 def latex(expr) -> str:
     """LaTeX with dotted time derivatives (``x_ddot`` -> ``\\ddot{x}``)."""
     expr = sp.sympify(expr)
@@ -56,6 +61,8 @@ def derivation_text(derivation) -> str:
     for c in sysm.constraints:
         lines.append(f"  constraint   {c.name} ({c.kind}): {c.expr} = 0")
     lines.append(f"  independent accelerations {', '.join(ind) or '-'}; dependent {', '.join(dep) or '-'}")
+    if not ind:
+        lines.append(f"  {NO_FREE_ACCELERATION}")
     lines.append("")
     lines.append("reduced equations of motion (1.4) and reactions (1.5):")
     for label, lhs, rhs in _named_equations(derivation):

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from appell.errors import ModelError
 from appell.numerics.numeric import NumericModel, StateSolution, newton
 
 
@@ -104,6 +105,11 @@ def cross_check(derivation, states=None, p=None) -> CrossCheckReport:
     """Compare the split route (1.4)/(1.5) with the augmented system at ``states``."""
     from appell.numerics.numeric import split_basis
 
+    if hasattr(derivation, "control_laws"):
+        raise ModelError(
+            f"{derivation.system.name!r} is a controlled derivation: its check needs the controls as unknowns",
+            hint="use appell.cross_check_controlled(derivation) (the augmented system with the controls)",
+        )
     model = derivation.numeric
     states = states if states is not None else sample_states(derivation)
     names = derivation.constraints.names
