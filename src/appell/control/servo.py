@@ -41,7 +41,7 @@ import sympy as sp
 
 from appell.core.constraints import ConstraintBlocks, second_order_blocks
 from appell.core.energy import InertiaBlocks, inertia_blocks, linear_split
-from appell.core.equations import ReactionFormulas, ReducedEquations, admissible_basis, tidy
+from appell.core.equations import ReactionFormulas, ReducedEquations, admissible_basis, column, tidy
 from appell.errors import ModelError
 from appell.core.kinematics import Kinematics, kinematics_of
 from appell.model import System
@@ -296,6 +296,11 @@ class ControlledDerivation:
                 continue
             if title == "internal dynamics":
                 continue
+            if not body and title.startswith("(2.4)"):
+                lines.append(f"{title}:")
+                lines.append("  none: no free acceleration (p = 0); the real and servo constraints prescribe "
+                             "the motion, the controls realise it (inverse dynamics)")
+                continue
             lines.append(f"{title}:" + ("" if body else " none"))
             for k, v in body.items():
                 lines.append(f"  {k}: {v} {'= 0' if not title.startswith(('(2.5)', 'controls')) else ''}".rstrip())
@@ -410,7 +415,7 @@ def derive_controlled(system: System, dependent: Sequence | None = None,
     xi = sp.Matrix(blocks.unknowns)
     Dh = -Jh_inv * K
     dh = -Jh_inv * c
-    a_nu = sp.Matrix([a[i] for i in ind])
+    a_nu = column([a[i] for i in ind])
     a_sub = sp.Matrix(C * a_nu)
     for row, h in enumerate(dep):
         a_sub[h] += (Dh[row, :] * xi)[0] + dh[row]

@@ -33,6 +33,7 @@ from appell.core.kinematics import kinematics_of
 from appell.model import System
 from appell.core.partition import choose_partition
 from appell.core.validation import validate
+from appell.errors import ModelError
 
 
 def derive(system: System, dependent: Sequence | None = None) -> Derivation:
@@ -51,6 +52,15 @@ def derive(system: System, dependent: Sequence | None = None) -> Derivation:
         and, on access, ``reduced``, ``reactions`` and ``numeric``.
     """
     validate(system)
+    if system.servo_constraints:
+        servo = ", ".join(c.name for c in system.servo_constraints)
+        controls = ", ".join(c.name for c in system.controls) or "none"
+        raise ModelError(
+            f"system {system.name!r} has servo constraints ({servo}) realised by controls ({controls}): "
+            "derive does not impose them",
+            hint="use appell.derive_controlled(system) for the dynamic conditions (2.3), the controls and the "
+                 "reactions (2.5); the command line does so by itself",
+        )
     kin = kinematics_of(system)
     inertia = inertia_blocks(system, kin)
     cons = second_order_blocks(system.constraints, kin)

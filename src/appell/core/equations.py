@@ -41,11 +41,17 @@ def tidy(expr):
 
 
 def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
-    """``J_h^{-1}`` of the small dependent block, as adjugate over determinant."""
+    """``J_h^{-1}`` of the small dependent block, as adjugate over determinant.
+
+    Both by Bareiss' fraction-free elimination, which cancels as it goes: for the
+    dependent block of a fully driven mechanism (every acceleration dependent, e.g. the
+    5 x 5 block of a differential-drive robot) the determinant comes out as ``-R**2``,
+    where the Berkowitz expansion leaves 150 operations that no small ``tidy`` removes.
+    """
     if Jh.shape == (1, 1):
         return sp.Matrix([[1 / Jh[0, 0]]])
-    det = tidy(Jh.det(method="berkowitz"))
-    return Jh.adjugate() / det
+    det = tidy(Jh.det(method="bareiss"))
+    return Jh.adjugate(method="bareiss") / det
 
 
 @dataclass(frozen=True)
@@ -85,6 +91,13 @@ class ReactionFormulas:
         return dict(zip(self.names, self.multipliers))
 
 
+def column(items) -> sp.Matrix:
+    """A column vector of ``items``; ``0 x 1`` when there are none (no free accelerations:
+    a fully driven mechanism, p = 0), so that ``C * column(a_nu)`` keeps its n rows."""
+    items = list(items)
+    return sp.Matrix(items) if items else sp.zeros(0, 1)
+
+
 def admissible_basis(J: sp.Matrix, partition: Partition) -> tuple[sp.Matrix, sp.Matrix]:
     """``C`` (n x p) and ``J_h^{-1}`` for a partition (symbolic)."""
     n = J.shape[1]
@@ -115,7 +128,7 @@ def reduced_equations(inertia: InertiaBlocks, cons: ConstraintBlocks, partition:
         dh = -Jh_inv * sp.Matrix(cons.bias)
         for row, h in enumerate(partition.dependent):
             d[h] = dh[row]
-        a_nu = sp.Matrix([accelerations[i] for i in partition.independent])
+        a_nu = column([accelerations[i] for i in partition.independent])
         a_full = C * a_nu + d
         dep_sol = sp.Matrix([a_full[h] for h in partition.dependent])
         mass = C.T * sp.Matrix(inertia.mass_matrix) * C

@@ -10,12 +10,14 @@ def _builders() -> dict:
     from .cyclic_examples import (spherical_pendulum, spherical_pendulum_cartesian, spherical_pendulum_rod,
                                   symmetric_top, turntable_particle)
     from .benchmark_examples import BENCHMARK_EXAMPLES
+    from .drive_examples import DRIVE_EXAMPLES
     from .event_examples import EVENT_EXAMPLES
     from .servo_examples import SERVO_EXAMPLES
 
     cyclic = (spherical_pendulum, spherical_pendulum_rod, spherical_pendulum_cartesian, symmetric_top,
               turntable_particle)
-    return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES, **BENCHMARK_EXAMPLES}
+    return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES, **BENCHMARK_EXAMPLES,
+            **DRIVE_EXAMPLES}
 
 
 #: name of each bundled ``<name>.toml`` -> the Python builder of the same system

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from appell.examples.drive_examples import DRIVEN_SERVO_EXAMPLES
 from appell.model import Control, Parameter, Particle, System, holonomic, nonholonomic
 from appell.symbols import t
 
@@ -172,11 +173,12 @@ def cart_pole(upright: bool = True) -> System:
     )
 
 
-#: name -> builder
+#: name -> builder (with the fully driven systems of :mod:`appell.examples.drive_examples`)
 SERVO_EXAMPLES = {
     "appell_ball": appell_ball,
     "spring_masses": spring_masses,
     "spring_masses_damped": lambda: spring_masses(damping=True),
     "overhead_crane": overhead_crane,
     "cart_pole": cart_pole,
+    **DRIVEN_SERVO_EXAMPLES,
 }

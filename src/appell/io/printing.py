@@ -20,6 +20,11 @@ from appell.io.expression_tree import expression_from_tree, expression_tree, sym
 from appell.symbols import derivative_symbol, latex_name, t as time
 
 
+#: shown where no acceleration is free (p = 0): (1.4) has no rows
+NO_FREE_ACCELERATION = ("no free acceleration (0 degrees of freedom): the constraints prescribe the motion; "
+                        "(1.4) is empty and (1.5) gives the reactions along the prescribed motion")
+
+
 def latex(expr) -> str:
     """LaTeX with dotted time derivatives (``x_ddot`` -> ``\\ddot{x}``)."""
     expr = sp.sympify(expr)
@@ -172,6 +177,8 @@ def derivation_text(derivation, only=None) -> str:
     where = singular_where(derivation)
     if where:
         lines.append(f"  {where}")
+    if not ind:
+        lines.append(f"  {NO_FREE_ACCELERATION}")
     printed = printed_equations(derivation, only)
     titles = {"motion": "motion: accelerations (1.4) and f = 0", "reactions": "reactions (1.5)",
               "controls": "controls"}

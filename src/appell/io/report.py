@@ -300,6 +300,12 @@ def _equation_section(derivation) -> str:
              f"dependent accelerations: {', '.join(_inline(sp.Symbol(n)) for n in dep) or '—'} "
              "(condition (1.2): the block of the constraint Jacobian on the dependent accelerations is "
              "nonsingular).</p>"]
+    if not ind:
+        parts.append("<p>No acceleration is free (p = 0): the constraints"
+                     + (" and the servo constraints" if _is_controlled(derivation) else "")
+                     + " prescribe the motion; the formulas below give "
+                     + ("the controls and " if _is_controlled(derivation) else "")
+                     + "every reaction along it.</p>")
     for title, rows in equation_groups(derivation):
         parts.append(f"<h3>{_e(title)}</h3>")
         if not rows:

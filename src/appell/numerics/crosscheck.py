@@ -42,7 +42,7 @@ from typing import Mapping
 
 import numpy as np
 
-from appell.errors import ComputationError
+from appell.errors import ComputationError, ModelError
 from appell.numerics.numeric import NumericModel, StateSolution, newton
 
 NORMALISATION = ("accelerations relative to max|a|; each multiplier relative to max(max_j |lambda_j|, F/max|J|) "
@@ -257,6 +257,11 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
     (default ``derivation.numeric``)."""
     from appell.numerics.lagrange import lagrange_route, lagrange_unavailable
 
+    if hasattr(derivation, "control_laws"):
+        raise ModelError(
+            f"{derivation.system.name!r} is a controlled derivation: its check needs the controls as unknowns",
+            hint="use appell.cross_check_controlled(derivation) (the augmented system with the controls)",
+        )
     model = derivation.numeric if model is None else model
     states = states if states is not None else sample_states(derivation)
     names = tuple(derivation.constraints.names)
