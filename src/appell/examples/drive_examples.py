@@ -53,7 +53,7 @@ def slider_crank_drive() -> System:
     rod = RigidBody("rod", mr, position=(A[0] + l / 2 * sp.cos(ph), A[1] + l / 2 * sp.sin(ph), 0),
                     inertia=(0, 0, mr * l**2 / 12), angular_velocity=(0, 0, phd))
     slider = Particle("slider", ms, position=(x, y, 0))
-    r0, l0, w0 = 0.1, 0.35, 10.0  # x = r + l = 0.45 at the start
+    r0, l0, w0 = 0.1, 0.35, 10.0
     return System(
         name="slider_crank_drive",
         description="slider-crank turned at constant speed by a motor torque: drive torque and bearing loads",
@@ -82,8 +82,9 @@ def slider_crank_drive() -> System:
         controls=(Control(tau, "force"),),
         servo_constraints=(nonholonomic("crank_speed", thd - omega),),
         # top dead centre theta = 0: phi = 0, x = r + l; rates from the loop, phi' = -r omega / l
-        initial={"x_O": 0.0, "y_O": 0.0, "theta": 0.0, "phi": 0.0, "x": 0.45, "y": 0.0,
-                 "x_O_dot": 0.0, "y_O_dot": 0.0, "theta_dot": w0, "phi_dot": -r0 * w0 / l0, "x_dot": 0.0,
+        # (expressions of the parameters, so that --set r=.. or omega=.. keeps the start consistent)
+        initial={"x_O": 0.0, "y_O": 0.0, "theta": 0.0, "phi": 0.0, "x": r + l, "y": 0.0,
+                 "x_O_dot": 0.0, "y_O_dot": 0.0, "theta_dot": omega, "phi_dot": -r * omega / l, "x_dot": 0.0,
                  "y_dot": 0.0},
         units={"x_O": "m", "y_O": "m", "theta": "rad", "phi": "rad", "x": "m", "y": "m",
                "bearing_x": "N", "bearing_y": "N", "pin_x": "N", "pin_y": "N", "guide": "N", "tau": "N*m"},
