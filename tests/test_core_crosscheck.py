@@ -104,6 +104,6 @@ def test_car_formulas_stay_compact():
     """No swell: each reaction formula of the car is a handful of operations (no blanket simplify)."""
     d = derive(catalog.car())
     for lam in d.reactions.multipliers:
-        from appell.core.equations import tidy
+        from appell.core.simplification import tidy
 
         assert sp.count_ops(tidy(lam)) < 40

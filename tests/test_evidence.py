@@ -373,8 +373,8 @@ def test_cli_check_and_report_fail_on_a_perturbed_mass_matrix(monkeypatch, tmp_p
     `appell check` and `appell report` exit with 1 and say why; the page says failed."""
     original = numeric_module.compile_model
 
-    def compile_perturbed(derivation, backend="numpy"):
-        return perturbed_mass_matrix(original(derivation, backend))
+    def compile_perturbed(derivation):
+        return perturbed_mass_matrix(original(derivation))
 
     monkeypatch.setattr(numeric_module, "compile_model", compile_perturbed)
     result = run("check", "pendulum")

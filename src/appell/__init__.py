@@ -41,6 +41,61 @@ from appell.io.report import render_report, write_report
 
 __version__ = "0.1.0"
 
+
+def _install_conveniences() -> None:
+    """Attach the conveniences of the layers above to the plain data of the lower ones:
+    ``Derivation.numeric`` (NumPy functions, built once), ``Derivation.compiled(backend)``
+    (:func:`compile_c`), and the printed forms ``to_text``, ``to_latex``, ``to_json`` and
+    ``_repr_latex_`` of :mod:`appell.io.printing`; ``ControlledDerivation.to_json``.
+    The lower layers import none of these (tests/test_architecture.py)."""
+    from functools import cached_property
+
+    from appell.io import printing
+    from appell.numerics import numeric as numeric_module
+
+    def numeric(self):
+        """Numeric functions of the split (:class:`appell.numerics.numeric.NumericModel`), built once."""
+        return numeric_module.compile_model(self)
+
+    def compiled(self, backend: str = "c"):
+        """Numeric functions from a chosen backend: 'c' (C compiled and cached on disk), 'auto' or
+        'numpy' (:func:`appell.numerics.codegen_c.compile_c`); not cached here."""
+        return compile_c(self, backend)
+
+    def to_text(self, only=None) -> str:
+        """:func:`appell.io.printing.derivation_text`."""
+        return printing.derivation_text(self, only)
+
+    def to_latex(self, only=None) -> str:
+        """:func:`appell.io.printing.derivation_latex`."""
+        return printing.derivation_latex(self, only)
+
+    def to_json(self) -> dict:
+        """:func:`appell.io.printing.derivation_json`."""
+        return printing.derivation_json(self)
+
+    def _repr_latex_(self) -> str:
+        return "$\\displaystyle " + self.to_latex().replace("\n", " ") + "$"
+
+    def controlled_json(self) -> dict:
+        """JSON-ready dict: each expression as a string for reading and as an exact tree under
+        ``exact`` over the ``symbols`` table (:func:`appell.io.printing.read_json`)."""
+        import json
+
+        out = printing.json_document(self.json_expressions(), self)
+        json.dumps(out)
+        return out
+
+    prop = cached_property(numeric)
+    prop.__set_name__(Derivation, "numeric")
+    Derivation.numeric = prop
+    for fn in (compiled, to_text, to_latex, to_json, _repr_latex_):
+        setattr(Derivation, fn.__name__, fn)
+    ControlledDerivation.to_json = controlled_json
+
+
+_install_conveniences()
+
 __all__ = [
     "AppellError", "AppliedForce", "AppliedTorque", "ComputationError", "Constraint", "Control",
     "CrossCheckReport", "Derivation", "FirstIntegral", "ModelError", "NumericModel", "Parameter", "Particle",

@@ -81,3 +81,10 @@ def as_symbols(items) -> tuple[sp.Symbol, ...]:
     for item in items:
         out.extend(as_symbols(item))
     return tuple(out)
+
+
+def latex(expr) -> str:
+    """LaTeX with dotted time derivatives (``x_ddot`` -> ``\\ddot{x}``)."""
+    expr = sp.sympify(expr)
+    names = {s: latex_name(s.name) for s in expr.free_symbols if isinstance(s, sp.Symbol)}
+    return sp.latex(expr, symbol_names=names)

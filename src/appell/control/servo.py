@@ -35,13 +35,13 @@ from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import Sequence
 
-import json
 import numpy as np
 import sympy as sp
 
 from appell.core.constraints import ConstraintBlocks, second_order_blocks
 from appell.core.energy import InertiaBlocks, inertia_blocks, linear_split
-from appell.core.equations import ReactionFormulas, ReducedEquations, admissible_basis, column, tidy
+from appell.core.equations import ReactionFormulas, ReducedEquations, admissible_basis, column
+from appell.core.simplification import tidy
 from appell.errors import ModelError
 from appell.core.kinematics import Kinematics, kinematics_of
 from appell.model import System
@@ -361,15 +361,6 @@ class ControlledDerivation:
         out["relative_degree"] = self.relative_degree
         out["differentiations"] = self.differentiations
         out["internal_dimension"] = self.internal_dimension
-        return out
-
-    def to_json(self) -> dict:
-        """JSON-ready dict: each expression as a string for reading and as an exact tree
-        under ``exact`` over the ``symbols`` table (:func:`appell.io.printing.read_json`)."""
-        from appell.io.printing import json_document
-
-        out = json_document(self.json_expressions(), self)
-        json.dumps(out)
         return out
 
     def _repr_latex_(self) -> str:

@@ -25,20 +25,8 @@ import sympy as sp
 
 from appell.core.constraints import ConstraintBlocks
 from appell.core.energy import InertiaBlocks
+from appell.core.simplification import tidy
 from appell.core.partition import Partition
-
-#: expressions with fewer operations than this are simplified for display
-TIDY_OPS = 80
-
-
-def tidy(expr):
-    """Simplify small expressions only; large ones are returned as they are."""
-    if isinstance(expr, sp.MatrixBase):
-        return sp.ImmutableMatrix(expr.shape[0], expr.shape[1], [tidy(e) for e in expr])
-    if sp.count_ops(expr) <= TIDY_OPS:
-        return sp.simplify(expr)
-    return expr
-
 
 def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
     """``J_h^{-1}`` of the small dependent block, as adjugate over determinant.
@@ -161,7 +149,11 @@ class Derivation:
     """Everything derived from a :class:`~appell.model.System`, block by block.
 
     Built by :func:`appell.derive`. The closed-form equations are computed on first
-    access: ``reduced`` (1.4) and ``reactions`` (1.5).
+    access: ``reduced`` (1.4) and ``reactions`` (1.5). Plain data of the symbolic layer:
+    its numeric functions and its printed forms come from the layers above
+    (:func:`appell.numerics.numeric.compile_model`, :mod:`appell.io.printing`); the package's
+    ``__init__`` attaches them as the conveniences ``numeric``, ``compiled(backend)``,
+    ``to_text``, ``to_latex``, ``to_json`` and the Jupyter display.
     """
 
     system: object
@@ -184,20 +176,6 @@ class Derivation:
         """Multiplier formulas, eq. (1.5)."""
         return reaction_formulas(self.inertia, self.constraints, self.partition, self.accelerations)
 
-    @cached_property
-    def numeric(self):
-        """Compiled numeric functions (:class:`appell.numerics.numeric.NumericModel`)."""
-        from appell.numerics.numeric import compile_model
-
-        return compile_model(self)
-
-    def compiled(self, backend: str = "c"):
-        """Numeric functions from a chosen backend: 'c' (C compiled and cached on disk),
-        'auto' or 'numpy' (:func:`appell.numerics.numeric.compile_model`); not cached here."""
-        from appell.numerics.numeric import compile_model
-
-        return compile_model(self, backend)
-
     def with_partition(self, dependent) -> "Derivation":
         """The same derivation with another choice of dependent accelerations (checked)."""
         from appell.core.partition import choose_partition
@@ -205,22 +183,3 @@ class Derivation:
         p = choose_partition(sp.Matrix(self.constraints.jacobian), self.constraints.names,
                              self.accelerations, dependent)
         return Derivation(self.system, self.kinematics, self.inertia, self.constraints, p)
-
-    # display helpers live in appell.io.printing
-    def to_text(self, only=None) -> str:
-        from appell.io.printing import derivation_text
-
-        return derivation_text(self, only)
-
-    def to_latex(self, only=None) -> str:
-        from appell.io.printing import derivation_latex
-
-        return derivation_latex(self, only)
-
-    def to_json(self) -> dict:
-        from appell.io.printing import derivation_json
-
-        return derivation_json(self)
-
-    def _repr_latex_(self) -> str:
-        return "$\\displaystyle " + self.to_latex().replace("\n", " ") + "$"

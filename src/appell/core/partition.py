@@ -15,6 +15,7 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
+from appell.core.simplification import tidy
 from appell.errors import ModelError
 
 #: relative singular-value threshold under which a block counts as singular
@@ -48,8 +49,6 @@ def from_dependent(dependent: Sequence[int], n: int, J: sp.Matrix | None = None)
     dep = tuple(int(i) for i in dependent)
     det = None
     if J is not None and 0 < len(dep) <= MAX_BLOCK_SIZE:
-        from appell.core.equations import tidy
-
         det = tidy(J[:, list(dep)].det(method="berkowitz"))
     return Partition(tuple(i for i in range(n) if i not in dep), dep, det)
 
@@ -207,8 +206,6 @@ def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, 
 
     if s > MAX_BLOCK_SIZE or comb(n, s) > MAX_BLOCKS:
         return None
-    from appell.core.equations import tidy
-
     best = None
     for cols in combinations(range(n), s):
         cols = list(cols)

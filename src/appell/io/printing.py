@@ -1,6 +1,6 @@
 """Presentation: text, LaTeX and JSON of a derivation.
 
-Formulas are shown as derived: small expressions are tidied (:func:`appell.core.equations.tidy`),
+Formulas are shown as derived: small expressions are tidied (:func:`appell.core.simplification.tidy`),
 large ones are printed as they are. The JSON document carries each expression twice: as a
 string for reading and as an exact tree (:mod:`appell.io.expression_tree`) over a symbol
 table, which :func:`read_json` turns back into the same expression.
@@ -14,22 +14,15 @@ from pathlib import Path
 
 import sympy as sp
 
-from appell.core.equations import tidy
+from appell.core.simplification import tidy
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
-from appell.symbols import derivative_symbol, latex_name, t as time
+from appell.symbols import derivative_symbol, latex, t as time  # noqa: F401 (latex is re-exported)
 
 
 #: shown where no acceleration is free (p = 0): (1.4) has no rows
 NO_FREE_ACCELERATION = ("no free acceleration (0 degrees of freedom): the constraints prescribe the motion; "
                         "(1.4) is empty and (1.5) gives the reactions along the prescribed motion")
-
-
-def latex(expr) -> str:
-    """LaTeX with dotted time derivatives (``x_ddot`` -> ``\\ddot{x}``)."""
-    expr = sp.sympify(expr)
-    names = {s: latex_name(s.name) for s in expr.free_symbols if isinstance(s, sp.Symbol)}
-    return sp.latex(expr, symbol_names=names)
 
 
 #: items that ``appell derive --only`` can select
@@ -116,7 +109,7 @@ def equation_formulas(derivation) -> list[Formula]:
 def printed_equations(derivation, only=None) -> PrintedEquations:
     """The formulas of ``only`` (items of :data:`ITEMS`; all by default) with their shared
     subexpressions named once (``sympy.cse``), each definition and formula then tidied
-    (:func:`appell.core.equations.tidy`: small expressions only, so the cost is bounded)."""
+    (:func:`appell.core.simplification.tidy`: small expressions only, so the cost is bounded)."""
     rows = [f for f in equation_formulas(derivation) if only is None or f.item in only]
     exprs = [e for f in rows for e in (f.lhs, f.rhs)]
     taken = {s.name for e in exprs for s in sp.sympify(e).free_symbols}

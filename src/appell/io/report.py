@@ -39,7 +39,7 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
-from appell.core.equations import tidy
+from appell.core.simplification import tidy
 from appell.io.files import atomic_path
 from appell.io.printing import latex
 
@@ -77,7 +77,7 @@ def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
     constraints themselves when nonlinear in ``a``) and the multipliers (1.5)
     ``lambda = J_h^{-T} E_h``. For a controlled derivation (:mod:`appell.control.servo`): the
     dynamic conditions (2.3), the reduced equations (2.4), the reactions (2.5) and the
-    control laws. Small expressions are simplified for display (:func:`appell.core.equations.tidy`).
+    control laws. Small expressions are simplified for display (:func:`appell.core.simplification.tidy`).
     """
     if _is_controlled(derivation):
         return _controlled_groups(derivation)

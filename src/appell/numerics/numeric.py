@@ -462,16 +462,11 @@ def _args(derivation, with_acc=False):
     return args
 
 
-def compile_model(derivation, backend: str = "numpy") -> NumericModel:
-    """Generate the numeric functions of a derivation (once; CSE shared per function).
-
-    ``backend``: 'numpy' (lambdify, here), 'c' or 'auto' (compiled C with the split solve
-    inside, :func:`appell.numerics.codegen_c.compile_c`; NumPy with a warning when no compiler).
+def compile_model(derivation) -> NumericModel:
+    """Generate the NumPy/``math`` numeric functions of a derivation (once; CSE shared per
+    function). The compiled C backend and the choice between backends are
+    :func:`appell.numerics.codegen_c.compile_c`.
     """
-    if backend != "numpy":
-        from appell.numerics.codegen_c import compile_c
-
-        return compile_c(derivation, backend)
     system = derivation.system
     subs = program_substitutions(system)
     inertia, cons = derivation.inertia, derivation.constraints

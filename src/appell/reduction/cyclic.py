@@ -59,7 +59,8 @@ import numpy as np
 import sympy as sp
 
 from appell.core.energy import generalized_forces
-from appell.core.equations import block_inverse, tidy
+from appell.core.equations import block_inverse
+from appell.core.simplification import tidy
 from appell.errors import ComputationError, ModelError
 from appell.core.kinematics import kinematics_of
 from appell.model import Parameter, System
@@ -180,8 +181,7 @@ class RouthReduction:
 
     def to_latex(self) -> str:
         """LaTeX lines ``lhs = rhs`` of :meth:`equations` (dots for time derivatives)."""
-        from appell.io.printing import latex
-        from appell.symbols import latex_name
+        from appell.symbols import latex, latex_name
 
         names = {"T*": "T^{*}", "V": "V", "L*": "L^{*}"}
         return " \\\\\n".join(f"{names.get(n) or latex_name(n)} = {latex(e)}" for n, e in self.equations())

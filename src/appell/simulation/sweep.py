@@ -128,9 +128,9 @@ def _model_on_worker(token: str, payload, backend: str):
 
             model = derive(model)
         if not isinstance(model, Dynamics):
-            from appell.numerics.numeric import compile_model
+            from appell.numerics.codegen_c import compile_c
 
-            model = compile_model(model, backend)
+            model = compile_c(model, backend)
         _MODELS.clear()
         _MODELS[token] = model
     return model
