@@ -42,3 +42,11 @@ class ComputationError(AppellError):
     """A numeric or symbolic computation failed on a valid model; exit code 1."""
 
     exit_code = 1
+
+
+class ResourceError(AppellError):
+    """The environment failed, not the model nor appell: a full disk, a read-only file
+    system, an unreachable Dask scheduler, lost workers; exit code 1. The message names the
+    resource and the system's reason."""
+
+    exit_code = 1

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from appell.numerics.inertia import check_inertia
 from appell.numerics.numeric import NumericModel, StateSolution, newton
 
 
@@ -106,6 +107,9 @@ def cross_check(derivation, states=None, p=None) -> CrossCheckReport:
 
     model = derivation.numeric
     states = states if states is not None else sample_states(derivation)
+    if states:  # a zero or negative mass is named here, not met as a singular matrix below
+        t0, q0, w0 = states[0]
+        check_inertia(model, t0, np.concatenate([np.asarray(q0, float), np.asarray(w0, float)]), model.params(p))
     names = derivation.constraints.names
     da = dl = power = 0.0
     per = {n: 0.0 for n in names}

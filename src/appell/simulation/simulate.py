@@ -43,7 +43,10 @@ from scipy.optimize import brentq
 
 from appell.errors import AppellError, ComputationError, ModelError
 from appell.simulation.events import Watch, check_event_names, watches_for
+from appell.arguments import number, vector
+from appell.numerics.inertia import check_inertia
 from appell.simulation.initial import check_initial, complete_initial, dynamics_of, residual_jacobians
+from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 
 __all__ = ["simulate", "project", "METHODS"]
@@ -109,11 +112,11 @@ def _metadata(model, system, p, kinds, settings) -> ModelMetadata:
 
 def _initial_state(model, initial, complete, t0, p):
     if initial is not None and not isinstance(initial, Mapping):
-        arr = np.asarray(initial, float).reshape(-1)
-        if arr.size != len(model.state_names):
-            raise ModelError(f"initial state has {arr.size} entries, model {model.name!r} has "
-                             f"{len(model.state_names)} states", hint="states: " + ", ".join(model.state_names))
+        arr = vector(initial, f"the initial state of {model.name!r}", len(model.state_names),
+                     names=list(model.state_names))
         initial = dict(zip(model.state_names, arr))
+    elif initial is not None:
+        initial = {k: number(v, f"initial value of {k}") for k, v in initial.items()}
     if complete:
         return complete_initial(model, initial, t=t0, params=p).y
     return check_initial(model, initial, t=t0, params=p).y
@@ -286,21 +289,19 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     if stabilization == "baumgarte" and "bias" not in inspect.signature(model.evaluate).parameters:
         raise ModelError(f"model {model.name!r} does not accept a constraint bias: Baumgarte stabilization "
                          "is not available for it", hint="use stabilization='projection'")
+    args = check_arguments(model, t0=t0, t_end=t_end, t_eval=t_eval, rtol=rtol, atol=atol, max_step=max_step,
+                           projection_tol=projection_tol, baumgarte=baumgarte, stabilization=stabilization,
+                           unilateral=unilateral, friction=friction, events=events)
+    t0, t_end, t_eval, rtol, atol, max_step = args.t0, args.t_end, args.t_eval, args.rtol, args.atol, args.max_step
+    projection_tol, baumgarte = args.projection_tol, args.baumgarte
     check_event_names(model, unilateral, friction)
     if unilateral and on_release == "continue" and system is None:
         raise ModelError("releasing a unilateral constraint needs the system to derive again",
                          hint="pass a Derivation, or on_release='stop'")
-    t0, t_end = float(t0), float(t_end)
-    if t_end < t0:
-        raise ModelError(f"t_end = {t_end} is before t0 = {t0}")
-    if t_eval is None:
-        t_eval = np.linspace(t0, t_end, 501) if t_end > t0 else np.array([t0])
-    t_eval = np.asarray(t_eval, float).reshape(-1)
-    if t_eval.size and (np.any(np.diff(t_eval) < 0) or t_eval[0] < t0 or t_eval[-1] > t_end):
-        raise ModelError("t_eval must be increasing and lie in [t0, t_end]")
 
-    p = model.params(params)
+    p = vector(model.params(params), "params", len(model.parameter_names), names=list(model.parameter_names))
     y0 = _initial_state(model, initial, complete, t0, p)
+    check_inertia(model, t0, y0, p)
     names = tuple(model.constraint_names)
     settings = {"method": getattr(solver_cls, "__name__", str(method)), "rtol": rtol, "atol": atol,
                 "stabilization": stabilization, "projection_tol": projection_tol,

@@ -24,9 +24,22 @@ from typing import Mapping
 
 import numpy as np
 
-from appell.io.files import atomic_path
+from appell.io.files import atomic_path, write_hdf5
 
 __all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Solution", "atomic_path"]
+
+
+def _utf8(text: str) -> bytes:
+    """A netCDF text attribute: UTF-8 bytes (SciPy's writer encodes ``str`` as ASCII and
+    fails on any other character, e.g. in a model's name)."""
+    return str(text).encode("utf-8")
+
+
+def _netcdf_name(name: str) -> str:
+    """A variable name for SciPy's netCDF writer, which encodes names as Latin-1: the
+    netCDF classic format stores names as UTF-8, so the UTF-8 bytes are handed over as
+    Latin-1 characters (ASCII names are unchanged)."""
+    return name.encode("utf-8").decode("latin-1")
 
 
 @dataclass(frozen=True)
@@ -237,20 +250,20 @@ class Solution:
         path = Path(path)
         with atomic_path(path, suffix=".nc") as tmp:
             with netcdf_file(tmp, "w", version=2, mmap=False) as f:
-                f.title = f"appell simulation of {md.name}"
-                f.model = md.name
+                f.title = _utf8(f"appell simulation of {md.name}")
+                f.model = _utf8(md.name)
                 f.status = int(self.status)
-                f.message = self.message
-                f.appell_version = md.appell_version
-                f.constraint_names = " ".join(md.constraint_names)
-                f.constraint_kinds = " ".join(md.constraint_kinds)
+                f.message = _utf8(self.message)
+                f.appell_version = _utf8(md.appell_version)
+                f.constraint_names = _utf8(" ".join(md.constraint_names))
+                f.constraint_kinds = _utf8(" ".join(md.constraint_kinds))
                 f.createDimension("time", self.t.size)
                 for name, values in self.columns():
-                    var = f.createVariable(name, "d", ("time",))
+                    var = f.createVariable(_netcdf_name(name), "d", ("time",))
                     var[:] = np.asarray(values, float)
-                    var.long_name = "time" if name == "t" else name
+                    var.long_name = _utf8("time" if name == "t" else name)
                     if units.get(name):
-                        var.units = units[name]
+                        var.units = _utf8(units[name])
         return path
 
     def to_hdf5(self, path, units: Mapping[str, str] | None = None) -> Path:
@@ -272,57 +285,59 @@ class Solution:
         md = self.metadata
         units = {**md.units, **(units or {})}
         path = Path(path)
-        with atomic_path(path) as tmp:
-            with h5py.File(tmp, "w") as f:
-                f.attrs["format"] = "appell simulation result"
-                f.attrs["model"] = md.name
-                f.attrs["appell_version"] = md.appell_version
-                f.attrs["status"] = self.status
-                f.attrs["message"] = self.message
-                f.attrs["constraint_names"] = np.array(md.constraint_names, dtype=h5py.string_dtype())
-                f.attrs["constraint_kinds"] = np.array(md.constraint_kinds, dtype=h5py.string_dtype())
-                f.attrs["coordinate_names"] = np.array(self.coordinate_names, dtype=h5py.string_dtype())
-                f.attrs["speed_names"] = np.array(self.speed_names, dtype=h5py.string_dtype())
-                f.attrs["max_position_residual"] = self.max_position_residual
-                f.attrs["max_velocity_residual"] = self.max_velocity_residual
-                for k, v in vars(self.statistics).items():
-                    f.attrs[f"statistics.{k}"] = v
-                for k, v in md.settings.items():
-                    f.attrs[f"settings.{k}"] = str(v)
-                pg = f.create_group("parameters")
-                for name, value, unit, desc in md.parameters:
-                    pg.attrs[name] = value
-                    pg.attrs[f"{name}.unit"] = unit or "unspecified"
-                    pg.attrs[f"{name}.description"] = desc or ""
 
-                def put(group, key, column, data, description, default_unit="unspecified"):
-                    ds = group.create_dataset(key, data=np.asarray(data, float))
-                    ds.attrs["units"] = units.get(column, default_unit)
-                    ds.attrs["description"] = description
+        def fill(f):
+            f.attrs["format"] = "appell simulation result"
+            f.attrs["model"] = md.name
+            f.attrs["appell_version"] = md.appell_version
+            f.attrs["status"] = self.status
+            f.attrs["message"] = self.message
+            f.attrs["constraint_names"] = np.array(md.constraint_names, dtype=h5py.string_dtype())
+            f.attrs["constraint_kinds"] = np.array(md.constraint_kinds, dtype=h5py.string_dtype())
+            f.attrs["coordinate_names"] = np.array(self.coordinate_names, dtype=h5py.string_dtype())
+            f.attrs["speed_names"] = np.array(self.speed_names, dtype=h5py.string_dtype())
+            f.attrs["max_position_residual"] = self.max_position_residual
+            f.attrs["max_velocity_residual"] = self.max_velocity_residual
+            for k, v in vars(self.statistics).items():
+                f.attrs[f"statistics.{k}"] = v
+            for k, v in md.settings.items():
+                f.attrs[f"settings.{k}"] = str(v)
+            pg = f.create_group("parameters")
+            for name, value, unit, desc in md.parameters:
+                pg.attrs[name] = value
+                pg.attrs[f"{name}.unit"] = unit or "unspecified"
+                pg.attrs[f"{name}.description"] = desc or ""
 
-                put(f, "t", "t", self.t, "time", "s")
-                g = f.create_group("states")
-                for n, a in self.states.items():
-                    what = "coordinate" if n in self.coordinate_names else "speed" if n in self.speed_names else "state"
-                    put(g, n, n, a, f"{what} {n}")
-                g = f.create_group("multipliers")
-                for n, a in self.multipliers.items():
-                    put(g, n, f"lambda_{n}", a, f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)")
-                g = f.create_group("controls")
-                for n, a in self.controls.items():
-                    put(g, n, f"control_{n}", a, f"control {n}")
-                g = f.create_group("residuals")
-                gp, gv = g.create_group("position"), g.create_group("velocity")
-                for n, a in self.position_residuals.items():
-                    put(gp, n, f"residual_{n}", a, f"position residual F of constraint {n} (NaN: no such level)")
-                for n, a in self.velocity_residuals.items():
-                    put(gv, n, f"residual_{n}", a, f"velocity residual phi of constraint {n} (NaN: no such level)")
-                if self.tracking:
-                    gt = g.create_group("servo")
-                    for n, a in self.tracking.items():
-                        put(gt, n, f"residual_{n}", a, f"tracking error of servo constraint {n} at its own level")
-                f.create_dataset("events", data=np.array([str(e) for e in self.events], dtype=h5py.string_dtype()))
-                f.create_dataset("log", data=np.array(list(self.log), dtype=h5py.string_dtype()))
+            def put(group, key, column, data, description, default_unit="unspecified"):
+                ds = group.create_dataset(key, data=np.asarray(data, float))
+                ds.attrs["units"] = units.get(column, default_unit)
+                ds.attrs["description"] = description
+
+            put(f, "t", "t", self.t, "time", "s")
+            g = f.create_group("states")
+            for n, a in self.states.items():
+                what = "coordinate" if n in self.coordinate_names else "speed" if n in self.speed_names else "state"
+                put(g, n, n, a, f"{what} {n}")
+            g = f.create_group("multipliers")
+            for n, a in self.multipliers.items():
+                put(g, n, f"lambda_{n}", a, f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)")
+            g = f.create_group("controls")
+            for n, a in self.controls.items():
+                put(g, n, f"control_{n}", a, f"control {n}")
+            g = f.create_group("residuals")
+            gp, gv = g.create_group("position"), g.create_group("velocity")
+            for n, a in self.position_residuals.items():
+                put(gp, n, f"residual_{n}", a, f"position residual F of constraint {n} (NaN: no such level)")
+            for n, a in self.velocity_residuals.items():
+                put(gv, n, f"residual_{n}", a, f"velocity residual phi of constraint {n} (NaN: no such level)")
+            if self.tracking:
+                gt = g.create_group("servo")
+                for n, a in self.tracking.items():
+                    put(gt, n, f"residual_{n}", a, f"tracking error of servo constraint {n} at its own level")
+            f.create_dataset("events", data=np.array([str(e) for e in self.events], dtype=h5py.string_dtype()))
+            f.create_dataset("log", data=np.array(list(self.log), dtype=h5py.string_dtype()))
+
+        write_hdf5(path, fill)
         return path
 
     def plot(self, path=None):
