@@ -489,16 +489,20 @@ def report(model, output, t_end, no_simulation, backend, assignments):
               help="Workers of the local cluster (default: one per core).")
 @click.option("--worker-timeout", type=click.FloatRange(min=0, min_open=True), default=60.0, show_default=True,
               metavar="SECONDS", help="Give up the runs not yet done when the cluster has had no worker for this long.")
+@click.option("--resume", is_flag=True,
+              help="Take the runs kept in FILE.h5.partial by an earlier, interrupted sweep (same model, grid "
+                   "and times) and compute only the others.")
 @_backend_option
 @_set_option
-def sweep(model, specs, t_end, out, samples, scheduler, workers, worker_timeout, backend, assignments):
+def sweep(model, specs, t_end, out, samples, scheduler, workers, worker_timeout, resume, backend, assignments):
     """Simulate MODEL over a grid of parameter values, in parallel on Dask.
 
     Writes one HDF5 dataset with every run (states, reactions, controls, status) and a
     summary: the extreme value of each reaction over the successful runs and where it
     occurs, and the failed runs. A failed run is recorded, not fatal to the others; the
     exit code is 1 when any run failed. While the sweep runs, the finished runs are kept
-    in FILE.h5.partial, which stays (and is named) when the dataset cannot be written.
+    in FILE.h5.partial, which stays (and is named) when the dataset cannot be written or
+    the sweep is interrupted; --resume then computes only the runs not kept there.
     """
     from appell.simulation.sweep import parameter_grid
     from appell.simulation.sweep import sweep as run_sweep
@@ -521,7 +525,7 @@ def sweep(model, specs, t_end, out, samples, scheduler, workers, worker_timeout,
     output_target(path)
     result = run_sweep(system, list(specs), final, output=path, samples=samples, scheduler=scheduler,
                        n_workers=workers, backend=backend, progress=sys.stderr.isatty(),
-                       worker_timeout=worker_timeout, **opts)
+                       worker_timeout=worker_timeout, resume=resume, **opts)
     click.echo(result.summary_text())
     if result.failed:
         which = "every run" if len(result.failed) == len(result.runs) else f"{len(result.failed)} of {len(result.runs)} runs"

@@ -31,7 +31,7 @@ from pathlib import Path
 
 from appell.errors import ModelError
 
-__all__ = ["atomic_path", "output_target", "default_file_name", "remove_stale_temporaries", "write_hdf5"]
+__all__ = ["atomic_path", "output_target", "default_file_name", "remove_stale_temporaries", "write_hdf5", "write_bytes"]
 
 _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
           (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISSOCK, "a socket"))
@@ -169,6 +169,11 @@ def write_hdf5(path, fill, suffix: str | None = None) -> Path:
     with h5py.File(buffer, "w") as f:
         fill(f)
     with atomic_path(path, suffix) as tmp:
-        with open(tmp, "wb") as fh:
-            fh.write(buffer.getbuffer())
+        write_bytes(tmp, buffer.getbuffer())
     return Path(path)
+
+
+def write_bytes(path, data) -> None:
+    """Write ``data`` (bytes or a buffer) to ``path`` (the last step of :func:`write_hdf5`)."""
+    with open(path, "wb") as fh:
+        fh.write(data)

@@ -282,11 +282,13 @@ class _PartialFile:
     longer appended; the sweep itself goes on (its runs stay in memory).
     """
 
-    def __init__(self, path: Path, header: dict):
-        self.path, self.kept, self.error = path, 0, None
+    def __init__(self, path: Path, header: dict, kept: int | None = None):
+        """A new file with ``header``; with ``kept`` (resuming) the file is appended to."""
+        self.path, self.kept, self.error = path, kept or 0, None
         try:
-            self.fh = open(path, "w", encoding="utf-8")
-            self._append(header)
+            self.fh = open(path, "a" if kept is not None else "w", encoding="utf-8")
+            if kept is None:
+                self._append(header)
         except OSError as exc:
             self._fail(exc)
 
@@ -329,10 +331,37 @@ class _PartialFile:
             os.unlink(self.path)
 
     def describe(self) -> str:
+        """Where the finished runs are kept (a partial file without runs is removed)."""
         if self.kept and self.path.exists():
             cut = f" (it could not take more: {self.error.strerror or self.error})" if self.error else ""
-            return f"the {self.kept} finished run(s) are kept in {self.path}{cut}"
-        return "no finished run could be kept on disk"
+            return (f"the {self.kept} finished run(s) are kept in {self.path}{cut}; free space (or choose "
+                    "another --out) and run the sweep again with --resume (resume=True) to compute only the others")
+        self.remove()
+        return "no finished run could be kept on disk; free space (or choose another --out) and run it again"
+
+
+def read_partial(path) -> tuple[dict, list[dict]]:
+    """The header and the runs of a partial file (``<output>.partial``, see the module
+    docstring); a last line cut short is ignored. Arrays come back as NumPy arrays."""
+    header, runs = None, []
+    with open(path, encoding="utf-8") as fh:
+        for line in fh:
+            try:
+                obj = json.loads(line)
+            except json.JSONDecodeError:
+                break  # cut short: the runs before it are complete
+            if header is None:
+                header = obj
+                continue
+            for group in ("states", "multipliers", "controls"):
+                if group in obj:
+                    obj[group] = {k: np.asarray(v, float) for k, v in obj[group].items()}
+            if "t" in obj:
+                obj["t"] = np.asarray(obj["t"], float)
+            runs.append(obj)
+    if not isinstance(header, dict) or header.get("appell_sweep_partial") != 1:
+        raise ModelError(f"{path} is not the partial file of an appell sweep")
+    return header, runs
 
 
 class _suppress_os_error:
@@ -372,22 +401,35 @@ def _connect(scheduler: str, timeout: float):
                                  "the scheduler to run on a local cluster") from None
 
 
-def _gather(client, futures, on_result, worker_timeout: float, bar=None):
+def _cancelled(exc: BaseException) -> bool:
+    """Whether ``exc`` says a future was cancelled (asyncio's or concurrent.futures' error)."""
+    import asyncio
+    import concurrent.futures
+
+    return isinstance(exc, (asyncio.CancelledError, concurrent.futures.CancelledError))
+
+
+def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None):
     """Collect the runs as they finish (``on_result(dict)``); a run whose worker was lost
     for good, or that was cancelled, is a failed run. When the cluster has had no worker
     for ``worker_timeout`` seconds (or the scheduler is lost), the pending runs are
     cancelled and recorded as failed."""
-    pending = dict(enumerate(futures))
+    pending = dict(zip(indices, futures))
     no_worker_since, last_check = None, 0.0
     while pending:
         finished = [i for i, f in pending.items() if f.done()]
         for i in finished:
             fut = pending.pop(i)
             try:
-                on_result(fut.result())
-            except Exception as exc:  # noqa: BLE001 (a lost worker, a cancelled run: record it)
-                on_result({"index": i, "status": RAISED, "message": f"{type(exc).__name__}: {exc}",
-                           "wall_time": float("nan")})
+                result = fut.result()
+            except BaseException as exc:  # noqa: BLE001 (a lost worker, a cancelled run: record it)
+                if not isinstance(exc, Exception) and not _cancelled(exc):
+                    raise
+                lost = "lost with the Dask workers (killed, or gone with its input): " \
+                    if _cancelled(exc) or type(exc).__name__ == "KilledWorker" else ""
+                result = {"index": i, "status": RAISED, "message": f"{lost}{type(exc).__name__}: {exc}",
+                          "wall_time": float("nan")}
+            on_result(result)
             if bar is not None:
                 bar.update(1)
         if finished or not pending:
@@ -421,10 +463,60 @@ def _gather(client, futures, on_result, worker_timeout: float, bar=None):
         pending.clear()
 
 
+def _resumed(path: Path, header: dict, runs: int) -> list[dict]:
+    """The successful runs kept in the partial file ``path`` by an earlier call of the same
+    sweep (:func:`read_partial`); none when there is no such file."""
+    if not path.exists():
+        return []
+    old_header, old = read_partial(path)
+    same = (old_header.get("model") == header["model"] and old_header.get("specs") == header["specs"]
+            and np.array_equal(np.asarray(old_header.get("t", []), float), np.asarray(header["t"], float)))
+    if not same:
+        raise ModelError(f"{path} holds the runs of another sweep (its model, grid or output times differ)",
+                         hint="run without resume (the file is then replaced), or remove it")
+    kept = {}
+    for r in old:
+        if isinstance(r.get("index"), int) and 0 <= r["index"] < runs and r.get("status", RAISED) >= 0:
+            kept[r["index"]] = r
+    return list(kept.values())
+
+
+def _compute(model, todo, t_end, t_eval, simulate_options, on_result, *, backend, scheduler, n_workers, processes,
+             progress, worker_timeout, connect_timeout):
+    """Run the grid points ``todo`` (``[(index, parameters), ...]``) on a Dask cluster, local
+    or at ``scheduler``; every finished run goes to ``on_result``."""
+    from dask.distributed import Client, LocalCluster
+
+    own_cluster = None
+    if scheduler is None:
+        own_cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
+                                   dashboard_address=None)
+        client = Client(own_cluster)
+    else:
+        client = _connect(scheduler, connect_timeout)
+    token = uuid.uuid4().hex
+    bar = None
+    try:
+        payload = client.scatter(model, broadcast=True)
+        futures = [client.submit(_run_one, token, payload, backend, i, params, t_end, t_eval, simulate_options,
+                                 key=f"appell-run-{i}-{token}", pure=False) for i, params in todo]
+        if progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=len(futures), desc="sweep", unit="run")
+        _gather(client, futures, [i for i, _ in todo], on_result, worker_timeout, bar)
+    finally:
+        if bar is not None:
+            bar.close()
+        client.close()
+        if own_cluster is not None:
+            own_cluster.close()
+
+
 def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples: int = 501,
           scheduler: str | None = None, n_workers: int | None = None, processes: bool = True,
           backend: str = "auto", progress: bool = True, worker_timeout: float = 60.0, connect_timeout: float = 30.0,
-          **simulate_options) -> SweepResult:
+          resume: bool = False, **simulate_options) -> SweepResult:
     """Simulate ``model`` at every point of a parameter grid, in parallel on Dask.
 
     Parameters
@@ -445,6 +537,9 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     progress : show a progress bar (tqdm) while runs complete.
     worker_timeout : seconds without any worker after which the runs not yet done are
         recorded as failed; ``connect_timeout`` seconds to reach the scheduler.
+    resume : take the successful runs kept in ``<output>.partial`` by an earlier call with
+        the same model, grid and output times (whose dataset could not be written), and
+        compute only the others.
     simulate_options : passed to :func:`appell.simulation.simulate.simulate` (``rtol``, ``method``, ...).
 
     Returns
@@ -456,8 +551,6 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     ModelError : bad arguments (before any run); ResourceError : the scheduler cannot be
         reached, or the dataset cannot be written (the runs are on ``exc.result``).
     """
-    from dask.distributed import LocalCluster
-
     from appell.numerics.codegen_c import BACKENDS
 
     t_end = number(t_end, "t_end", positive=True, hint="sweeps run from t = 0 to a finite t_end > 0")
@@ -484,46 +577,29 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     name = getattr(model, "name", None) or getattr(getattr(model, "system", None), "name", "model")
     spec_text = json.dumps(list(specs) if not isinstance(specs, Mapping) else
                            {k: list(map(float, np.asarray(v, float).reshape(-1))) for k, v in specs.items()})
-    partial = _PartialFile(path.with_name(path.name + ".partial"),
-                           {"appell_sweep_partial": 1, "model": str(name), "specs": spec_text, "t": t_eval})
-    token = uuid.uuid4().hex
-    own_cluster = None
-    results = []
+    header = {"appell_sweep_partial": 1, "model": str(name), "specs": spec_text, "t": t_eval}
+    partial_path = path.with_name(path.name + ".partial")
+    earlier = _resumed(partial_path, header, len(grid)) if resume else []
+    # resuming appends to the partial file: the runs kept there are never at risk
+    partial = _PartialFile(partial_path, header, kept=len(earlier) if earlier else None)
+    results = list(earlier)
 
     def on_result(r):
         results.append(r)
         partial.add(r)
 
+    done = {r["index"] for r in earlier}
+    todo = [(i, params) for i, params in enumerate(grid) if i not in done]
     try:
-        if scheduler is None:
-            own_cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
-                                       dashboard_address=None)
-            from dask.distributed import Client
-
-            client = Client(own_cluster)
+        if todo:
+            _compute(model, todo, float(t_end), t_eval, simulate_options, on_result, backend=backend,
+                     scheduler=scheduler, n_workers=n_workers, processes=processes, progress=progress,
+                     worker_timeout=worker_timeout, connect_timeout=connect_timeout)
+    except BaseException:  # interrupted, or no cluster: keep the finished runs for --resume
+        if partial.kept:
+            partial.close()
         else:
-            client = _connect(scheduler, connect_timeout)
-        try:
-            payload = client.scatter(model, broadcast=True)
-            futures = [client.submit(_run_one, token, payload, backend, i, params, t_end, t_eval,
-                                     simulate_options, key=f"appell-run-{i}-{token}", pure=False)
-                       for i, params in enumerate(grid)]
-            bar = None
-            if progress:
-                from tqdm.auto import tqdm
-
-                bar = tqdm(total=len(futures), desc="sweep", unit="run")
-            try:
-                _gather(client, futures, on_result, worker_timeout, bar)
-            finally:
-                if bar is not None:
-                    bar.close()
-        finally:
-            client.close()
-            if own_cluster is not None:
-                own_cluster.close()
-    except BaseException:
-        partial.close()
+            partial.remove()
         raise
     partial.close()
     results.sort(key=lambda r: r["index"])
@@ -541,7 +617,7 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     except OSError as exc:
         error = ResourceError(f"cannot write the sweep's results to {exc.filename or path}: "
                               f"{exc.strerror or exc}",
-                              hint=partial.describe() + "; free space (or choose another --out) and run it again")
+                              hint=partial.describe())
         error.result = result
         raise error from exc
     partial.remove()
