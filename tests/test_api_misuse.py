@@ -77,6 +77,7 @@ SIMULATE_MISUSES = {
     "friction negative mu": (dict(friction={"rod": ("rod", -0.5)}), "friction coefficient"),
     "friction malformed": (dict(friction={"rod": 3}), "friction"),
     "on_release unknown": (dict(on_release="later"), "on_release"),
+    "complete not a flag": (dict(complete="yes"), "complete must be True or False"),
 }
 
 
@@ -117,6 +118,12 @@ def test_derive_solve_sweep_load_model_misuse(pendulum, tmp_path):
         (lambda: appell.load_model(3), "path of a model file"),
         (lambda: appell.load_model(example_path("pendulum"), overrides=["m=2"]), "overrides must be a mapping"),
         (lambda: appell.load_model(example_path("pendulum"), overrides={"m": "nan"}), "not finite"),
+        (lambda: appell.check_initial(pendulum, {"x": "a"}), "initial value of x"),
+        (lambda: appell.check_initial(pendulum, [1.0, 2.0]), "initial values must be a mapping"),
+        (lambda: appell.complete_initial(pendulum, {"x": math.nan}), "initial value of x"),
+        (lambda: CATALOG["pendulum"]().with_parameters({"m": "heavy"}), "parameter m"),
+        (lambda: appell.parameter_grid(3), "sweep specs"),
+        (lambda: appell.compile_c(pendulum, "fortran"), "backend"),
         (lambda: appell.System(coordinates=3, kinetic_energy=sp.Symbol("x_dot") ** 2), "expected symbols"),
         (lambda: appell.System(coordinates="x", parameters={"m": "heavy"}, kinetic_energy=sp.Symbol("x_dot") ** 2),
          "parameter m"),
@@ -233,3 +240,15 @@ def test_inertia_check_looks_at_admissible_motions_only():
     free = tied.replace(constraints=())
     with pytest.raises(ModelError, match="zero for the admissible motion along y_dot"):
         sim(appell.derive(free))
+
+
+@pytest.mark.parametrize("command", [["simulate", "car"], ["simulate", "pendulum"], ["report", "car"],
+                                     ["sweep", "pendulum", "--param", "m=1"]])
+@pytest.mark.parametrize("t_end", ["inf", "nan"])
+def test_command_line_refuses_a_final_time_that_is_not_finite(command, t_end, tmp_path):
+    """--t-end inf hung (pendulum) or was an internal OverflowError (car: output_step)."""
+    out = ["--out", str(tmp_path / "s.h5")] if command[0] == "sweep" else \
+        ["-o", str(tmp_path / "r.html")] if command[0] == "report" else []
+    result = CliRunner().invoke(cli, [*command, "--t-end", t_end, *out], catch_exceptions=False)
+    assert result.exit_code == 2 and "t_end" in result.stderr and "finite" in result.stderr, result.output
+    assert list(tmp_path.iterdir()) == []

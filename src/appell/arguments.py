@@ -15,6 +15,7 @@ import numbers
 from typing import Mapping
 
 import numpy as np
+import sympy as sp
 
 from appell.errors import ModelError
 
@@ -27,6 +28,11 @@ def number(value, name: str, *, positive: bool = False, nonnegative: bool = Fals
     ``finite=False`` (then +inf is allowed, never NaN), and > 0 or >= 0 when asked."""
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value.item()
+    if isinstance(value, sp.Basic) and value.is_number and value.is_real is not False:
+        try:
+            value = float(value)  # a SymPy constant such as pi/3
+        except TypeError:
+            pass
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
         raise ModelError(f"{name} must be a number, got {value!r} ({type(value).__name__})", hint=hint)
     x = float(value)

@@ -415,7 +415,7 @@ class System:
 
     def with_parameters(self, values: Mapping) -> "System":
         """A copy with new default parameter values ``{name: value}``."""
-        values = {str(k): float(v) for k, v in values.items()}
+        values = {str(k): v for k, v in values.items()}
         unknown = set(values) - {p.symbol.name for p in self.parameters}
         if unknown:
             raise ModelError(f"unknown parameter(s): {', '.join(sorted(unknown))}")

@@ -34,7 +34,7 @@ from pathlib import Path
 import click
 
 from appell.errors import AppellError, ComputationError, ModelError
-from appell.io.files import default_file_name, output_target
+from appell.io.files import atomic_path, default_file_name, output_target
 from appell.symbols import canonical_name
 
 __all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
@@ -148,12 +148,14 @@ def simulation_options(system, t_end: float | None = None) -> dict:
     """
     import numpy as np
 
+    from appell.arguments import number
     from appell.io.modelfile import simulation_options as table_options
 
     opts = dict(table_options(system))
     t0 = float(opts.pop("t0", 0.0))
     table_t_end = opts.pop("t_end", None)
-    final = float(t_end if t_end is not None else table_t_end if table_t_end is not None else DEFAULT_T_END)
+    final = t_end if t_end is not None else table_t_end if table_t_end is not None else DEFAULT_T_END
+    final = number(final, "t_end (--t-end)", hint="give a finite final time")
     step = opts.pop("output_step", None)
     times = opts.pop("t_eval", None)
     if times is not None and step is None and final != table_t_end:
@@ -554,7 +556,8 @@ def examples(name, to):
     target_dir = Path(to)
     target_dir.mkdir(parents=True, exist_ok=True)
     target = target_dir / source.name
-    shutil.copyfile(source, target)
+    with atomic_path(target) as tmp:
+        shutil.copyfile(source, tmp)
     click.echo(f"wrote {target}")
 
 

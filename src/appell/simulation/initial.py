@@ -22,6 +22,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from appell.arguments import number
 from appell.errors import ComputationError, ModelError
 
 __all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians"]
@@ -105,7 +106,13 @@ def residual_jacobians(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _names_values(values) -> dict[str, float]:
-    return {str(k): float(v) for k, v in dict(values).items()}
+    """``{name: value}`` with every value a finite number (ModelError naming the first that is not)."""
+    try:
+        values = dict(values)
+    except (TypeError, ValueError):
+        raise ModelError(f"initial values must be a mapping {{state name: value}}, got {type(values).__name__}") \
+            from None
+    return {str(k): number(v, f"initial value of {k}") for k, v in values.items()}
 
 
 def _state_vector(model, values: Mapping[str, float], fallback: Mapping[str, float] | None = None):

@@ -12,7 +12,6 @@ items. A wrong value is a :class:`~appell.errors.ModelError` naming the argument
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 import sympy as sp
@@ -42,8 +41,12 @@ class SimulateArguments:
 
 
 def check_arguments(model, *, t0, t_end, t_eval, rtol, atol, max_step, projection_tol, baumgarte, stabilization,
-                    unilateral, friction, events) -> SimulateArguments:
-    """Check the arguments of ``simulate`` for ``model`` (a Dynamics); see the module docstring."""
+                    unilateral, friction, events, flags=None) -> SimulateArguments:
+    """Check the arguments of ``simulate`` for ``model`` (a Dynamics); see the module
+    docstring. ``flags`` ``{name: value}`` are options that must be True or False."""
+    for name, value in (flags or {}).items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise ModelError(f"{name} must be True or False, got {value!r}")
     t0 = number(t0, "t0")
     t_end = number(t_end, "t_end", hint="give a finite final time")
     if t_end < t0:

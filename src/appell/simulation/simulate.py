@@ -291,7 +291,8 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
                          "is not available for it", hint="use stabilization='projection'")
     args = check_arguments(model, t0=t0, t_end=t_end, t_eval=t_eval, rtol=rtol, atol=atol, max_step=max_step,
                            projection_tol=projection_tol, baumgarte=baumgarte, stabilization=stabilization,
-                           unilateral=unilateral, friction=friction, events=events)
+                           unilateral=unilateral, friction=friction, events=events,
+                           flags={"complete": complete, "project_output": project_output})
     t0, t_end, t_eval, rtol, atol, max_step = args.t0, args.t_end, args.t_eval, args.rtol, args.atol, args.max_step
     projection_tol, baumgarte = args.projection_tol, args.baumgarte
     check_event_names(model, unilateral, friction)

@@ -33,6 +33,7 @@ ResourceError naming the address.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import math
@@ -88,6 +89,9 @@ def parameter_grid(specs: Sequence[str] | Mapping[str, Sequence[float]]) -> list
     """The Cartesian product of the specs, one ``{name: value}`` per run (last name fastest)."""
     if isinstance(specs, (str, bytes)):
         specs = [specs]
+    if not isinstance(specs, Mapping) and not hasattr(specs, "__iter__"):
+        raise ModelError(f"sweep specs must be a list of 'NAME=...' strings or a mapping {{name: values}}, "
+                         f"got {type(specs).__name__}")
     if isinstance(specs, Mapping):
         from appell.arguments import vector
 
@@ -306,7 +310,7 @@ class _PartialFile:
         self.error = exc
         fh = getattr(self, "fh", None)
         if fh is not None:
-            with _suppress_os_error():
+            with contextlib.suppress(OSError):
                 fh.close()
         self.fh = None
 
@@ -321,13 +325,13 @@ class _PartialFile:
 
     def close(self):
         if self.fh is not None:
-            with _suppress_os_error():
+            with contextlib.suppress(OSError):
                 self.fh.close()
             self.fh = None
 
     def remove(self):
         self.close()
-        with _suppress_os_error():
+        with contextlib.suppress(OSError):
             os.unlink(self.path)
 
     def describe(self) -> str:
@@ -362,14 +366,6 @@ def read_partial(path) -> tuple[dict, list[dict]]:
     if not isinstance(header, dict) or header.get("appell_sweep_partial") != 1:
         raise ModelError(f"{path} is not the partial file of an appell sweep")
     return header, runs
-
-
-class _suppress_os_error:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, kind, value, tb):
-        return kind is not None and issubclass(kind, OSError)
 
 
 def _json_default(value):
@@ -414,12 +410,17 @@ def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None
     for good, or that was cancelled, is a failed run. When the cluster has had no worker
     for ``worker_timeout`` seconds (or the scheduler is lost), the pending runs are
     cancelled and recorded as failed."""
-    pending = dict(zip(indices, futures))
+    from dask.distributed import as_completed
+
+    index = {fut.key: i for fut, i in zip(futures, indices)}
+    pending = set(index)
+    finished = as_completed(futures)
     no_worker_since, last_check = None, 0.0
     while pending:
-        finished = [i for i, f in pending.items() if f.done()]
-        for i in finished:
-            fut = pending.pop(i)
+        batch = finished.next_batch(block=False) if finished.has_ready() else []
+        for fut in batch:
+            i = index[fut.key]
+            pending.discard(fut.key)
             try:
                 result = fut.result()
             except BaseException as exc:  # noqa: BLE001 (a lost worker, a cancelled run: record it)
@@ -432,7 +433,7 @@ def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None
             on_result(result)
             if bar is not None:
                 bar.update(1)
-        if finished or not pending:
+        if batch or not pending:
             continue
         time.sleep(0.05)
         now = time.monotonic()
@@ -453,12 +454,12 @@ def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None
         if reason is None and now - no_worker_since < worker_timeout:
             continue
         reason = reason or f"no Dask worker for {worker_timeout:g} s (all workers lost?)"
-        with _suppress_os_error():
-            try:
-                client.cancel(list(pending.values()))
-            except Exception:  # noqa: BLE001
-                pass
-        for i in sorted(pending):
+        left = [f for f in futures if f.key in pending]
+        try:
+            client.cancel(left)
+        except Exception:  # noqa: BLE001 (the scheduler may be gone too)
+            pass
+        for i in sorted(index[f.key] for f in left):
             on_result({"index": i, "status": RAISED, "message": f"not run: {reason}", "wall_time": float("nan")})
         pending.clear()
 
