@@ -118,10 +118,11 @@ def test_read_only_file_system_is_an_environment_error(tmp_path, monkeypatch):
 
 def _tmpfs_command(size_kb: int, directory: Path, inner: str) -> list[str] | None:
     """A command running ``inner`` (sh) with a tmpfs of ``size_kb`` KiB mounted on
-    ``directory``: directly when we may mount, else in a user namespace; None if neither."""
+    ``directory``: in a private mount namespace (unshare) where possible, so that nothing
+    leaks to the machine's mounts, else directly when we may mount; None if neither."""
     probe = directory / "probe"
     probe.mkdir()
-    for prefix in ([], ["unshare", "-rm"]):
+    for prefix in (["unshare", "-rm"], []):
         if prefix and shutil.which("unshare") is None:
             continue
         check = subprocess.run(prefix + ["sh", "-c", f"mount -t tmpfs -o size=16k tmpfs {probe} && umount {probe}"],
