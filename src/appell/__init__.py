@@ -7,7 +7,7 @@ Pipeline: :class:`System` -> :func:`derive` -> :class:`Derivation` (reduced equa
 from appell.numerics.crosscheck import CrossCheckReport, augmented_solve, cross_check
 from appell.core.derive import derive
 from appell.core.equations import Derivation, ReactionFormulas, ReducedEquations
-from appell.errors import AppellError, ComputationError, InitialValueError, ModelError
+from appell.errors import AppellError, ComputationError, InitialValueError, ModelError, ResourceError
 from appell.model import (
     AppliedForce,
     AppliedTorque,
@@ -99,7 +99,7 @@ _install_conveniences()
 __all__ = [
     "AppellError", "AppliedForce", "AppliedTorque", "ComputationError", "Constraint", "Control",
     "CrossCheckReport", "Derivation", "FirstIntegral", "ModelError", "NumericModel", "Parameter", "Particle",
-    "Program", "ReactionFormulas", "ReducedEquations", "RigidBody", "StateSolution", "System",
+    "Program", "ReactionFormulas", "ReducedEquations", "ResourceError", "RigidBody", "StateSolution", "System",
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",
     "Event", "InitialState", "InitialValueError", "Solution", "check_initial", "complete_initial", "simulate",

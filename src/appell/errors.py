@@ -60,3 +60,11 @@ class InitialValueError(ModelError):
     def __init__(self, message: str, *, violations=(), where: str | None = None, hint: str | None = None):
         self.violations = tuple(violations)
         super().__init__(message, where=where, hint=hint)
+
+
+class ResourceError(AppellError):
+    """The environment failed, not the model nor appell: a full disk, a read-only file
+    system, an unreachable Dask scheduler, lost workers; exit code 1. The message names the
+    resource and the system's reason."""
+
+    exit_code = 1

@@ -13,9 +13,10 @@ By default the speeds are the coordinates' derivatives ``<q>_dot`` and ``a`` is
 
 from __future__ import annotations
 
+import math
 import numbers
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping
+from typing import Iterable, Mapping, Sequence
 
 import sympy as sp
 
@@ -65,6 +66,18 @@ class Parameter:
     unit: str | None = None
     description: str | None = None
 
+    def __post_init__(self):
+        if not isinstance(self.symbol, sp.Symbol):
+            raise ModelError(f"parameter {self.symbol!r} must be a SymPy symbol")
+        if self.value is not None:
+            try:
+                value = float(self.value)
+            except (TypeError, ValueError):
+                raise ModelError(f"parameter {self.symbol.name}: value {self.value!r} is not a number") from None
+            if not math.isfinite(value):
+                raise ModelError(f"parameter {self.symbol.name}: value {value} is not a finite number")
+            object.__setattr__(self, "value", value)
+
 
 @dataclass(frozen=True)
 class Program:
@@ -96,6 +109,8 @@ class Particle:
 
     def __post_init__(self):
         object.__setattr__(self, "mass", _expr(self.mass, f"mass of {self.name!r}"))
+        if self.mass.is_number and self.mass.is_positive is not True:
+            raise ModelError(f"body {self.name!r} has mass {self.mass}; a mass must be positive")
         if self.position is None and self.velocity is None:
             raise ModelError(f"body {self.name!r} needs a position or a velocity")
         if self.position is not None:
@@ -348,7 +363,7 @@ class System:
         else:
             kin = self.kinematics.items() if isinstance(self.kinematics, Mapping) else self.kinematics
             s(self, "kinematics", tuple((sp.Symbol(str(q)), _expr(e, f"kinematic relation of {q}")) for q, e in kin))
-        s(self, "parameters", _tuple(self.parameters, lambda k, v: Parameter(sp.Symbol(str(k)), float(v))))
+        s(self, "parameters", _tuple(self.parameters, lambda k, v: Parameter(sp.Symbol(str(k)), v)))
         s(self, "programs", _tuple(self.programs, lambda k, v: Program(sp.Symbol(str(k)), _expr(v, f"program {k}"))))
         for attr in ("kinetic_energy", "acceleration_energy"):
             value = getattr(self, attr)
@@ -385,6 +400,12 @@ class System:
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ModelError(f"constraint names must be unique; repeated: {', '.join(dup)}")
+        names = declared_names(self)
+        kinds = declared_kinds(names)
+        clash = next(filter(None, (name_clash(name, kind, kinds) for name, kind in names)), None)
+        if clash:
+            raise ModelError(clash, hint="rename it: derivative names (x_dot, x_ddot, x_d3, ...) of coordinates, "
+                                         "speeds, programs and controls are reserved")
 
     # ------------------------------------------------------------------ views
     @property
@@ -425,7 +446,7 @@ class System:
 
     def with_parameters(self, values: Mapping) -> "System":
         """A copy with new default parameter values ``{name: value}``."""
-        values = {str(k): float(v) for k, v in values.items()}
+        values = {str(k): v for k, v in values.items()}
         unknown = set(values) - {p.symbol.name for p in self.parameters}
         if unknown:
             raise ModelError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
@@ -506,6 +527,52 @@ def _initial_values(system: "System") -> tuple[tuple, tuple]:
             kept[name] = expr
     order = [name for name, _ in items]
     return (tuple((n, values[n]) for n in order), tuple((n, kept[n]) for n in order if n in kept))
+
+
+def declared_names(system: System) -> list[tuple[str, str]]:
+    """``(name, kind)`` of every name a system declares, in the order of the model file:
+    coordinates, speeds, parameters, programs, controls."""
+    return ([(q.name, "coordinate") for q in system.coordinates] + [(w.name, "speed") for w in system.speeds]
+            + [(p.symbol.name, "parameter") for p in system.parameters]
+            + [(p.symbol.name, "program") for p in system.programs] + [(c.name, "control") for c in system.controls])
+
+
+def declared_kinds(pairs) -> dict[str, list[str]]:
+    """``{name: [kind, ...]}`` from ``(name, kind)`` pairs (:func:`declared_names`)."""
+    kinds: dict[str, list[str]] = {}
+    for name, kind in pairs:
+        kinds.setdefault(name, []).append(kind)
+    return kinds
+
+
+def name_clash(name: str, kind: str, declared: Mapping[str, Sequence[str]]) -> str | None:
+    """Why ``name`` (declared as ``kind``) clashes with another name, or None; ``declared``
+    maps every declared name to its kinds (:func:`declared_kinds`).
+
+    Time derivatives are named ``x_dot``, ``x_ddot``, ``x_d3``, ... (:mod:`appell.symbols`), so
+    a parameter ``x_dot`` next to a coordinate ``x`` would silently be the speed of ``x``,
+    and a parameter ``y_ddot`` its acceleration. Refused: a name declared twice; ``t``; a
+    name (other than a declared speed) that is a derivative of a coordinate, speed, program
+    or control.
+    """
+    from appell.symbols import split_derivative_name
+
+    kinds = declared
+    if name == "t":
+        return f"{kind} name 't' is reserved for time"
+    if len(kinds.get(name, ())) > 1:
+        return f"the name {name!r} is used twice: as a {' and as a '.join(kinds[name])}"
+    if kind == "speed":
+        return None
+    base, order = split_derivative_name(name)
+    owner = next((k for k in kinds.get(base, ()) if k != "parameter"), None) if order >= 1 else None
+    if owner is None:
+        return None
+    return (f"{kind} name {name!r} is reserved: it is the name of the "
+            f"{_ORDINAL.get(order, f'order-{order}')} time derivative of the {owner} {base!r}")
+
+
+_ORDINAL = {1: "first", 2: "second", 3: "third"}
 
 
 def symbols_of(items: Iterable[sp.Basic]) -> set[sp.Symbol]:

@@ -77,6 +77,10 @@ def as_symbols(items) -> tuple[sp.Symbol, ...]:
         return tuple(sp.Symbol(n) for n in items.replace(",", " ").split())
     if isinstance(items, sp.Symbol):
         return (items,)
+    if not hasattr(items, "__iter__"):
+        from appell.errors import ModelError
+
+        raise ModelError(f"expected symbols (a SymPy symbol, a name or a list of them), got {items!r}")
     out = []
     for item in items:
         out.extend(as_symbols(item))

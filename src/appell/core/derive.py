@@ -30,10 +30,10 @@ from appell.core.constraints import second_order_blocks
 from appell.core.energy import inertia_blocks
 from appell.core.equations import Derivation
 from appell.core.kinematics import kinematics_of
+from appell.errors import ModelError
 from appell.model import System
 from appell.core.partition import choose_partition
 from appell.core.validation import validate
-from appell.errors import ModelError
 
 
 def derive(system: System, dependent: Sequence | None = None) -> Derivation:
@@ -52,6 +52,8 @@ def derive(system: System, dependent: Sequence | None = None) -> Derivation:
         and, on access, ``reduced``, ``reactions`` and ``numeric``.
     """
     validate(system)
+    if dependent is not None and (isinstance(dependent, (str, bytes)) or not hasattr(dependent, "__iter__")):
+        raise ModelError(f"dependent must be a list of accelerations (names, symbols or indices), got {dependent!r}")
     if system.servo_constraints:
         servo = ", ".join(c.name for c in system.servo_constraints)
         controls = ", ".join(c.name for c in system.controls) or "none"

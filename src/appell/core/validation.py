@@ -57,6 +57,9 @@ def _check(expr, allowed: set, where: str, extra_hint: str = ""):
 
 def validate(system: System) -> None:
     """Raise :class:`ModelError` for the first undeclared symbol found."""
+    if not isinstance(system, System):
+        raise ModelError(f"expected an appell.System, got {type(system).__name__}",
+                         hint="build one with appell.System(...) or read a model file with appell.load_model")
     lv = declared_symbols(system)
     for p in system.programs:
         _check(p.expr, lv["time"], f"program {p.symbol.name}", "a program depends on t and parameters only")

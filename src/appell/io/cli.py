@@ -13,9 +13,13 @@
 ``MODEL`` is a model file (docs/model-format.md) or the name of a bundled example.
 
 Exit codes: 0 success; 1 the computation failed (:class:`~appell.errors.ComputationError`,
-a failed cross-check, a failed integration); 2 bad input (:class:`~appell.errors.ModelError`,
-bad options, a missing file). Errors are printed as ``error: <message>`` (and a hint) on
-stderr, never as a traceback, and no output file is left behind.
+a failed cross-check, a failed integration, a failed run of a sweep) or the environment
+did (:class:`~appell.errors.ResourceError`, an :class:`OSError` such as a full disk or a
+read-only file system, an unreachable Dask scheduler); 2 bad input
+(:class:`~appell.errors.ModelError`, bad options, a missing file, an output path that is not
+a regular file); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM). Errors are printed as
+``error: <message>`` (and a hint) on stderr, never as a traceback, and no output file
+(nor a temporary one) is left behind.
 """
 
 from __future__ import annotations
@@ -23,19 +27,22 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import sys
 from pathlib import Path
 
 import click
 
 from appell.errors import AppellError, ComputationError, ModelError
-from appell.simulation.defaults import DEFAULT_T_END  # final time when neither --t-end nor the model gives one
+from appell.io.files import atomic_path, default_file_name, output_target
 from appell.symbols import canonical_name
 
 __all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
            "run_simulation", "export_solution", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
+#: exit codes of a command stopped by Ctrl-C (SIGINT) or SIGTERM: 128 + the signal number
+EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
 
 #: file suffix -> export format of ``appell simulate --out``
 OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"}
@@ -157,7 +164,11 @@ def simulation_options(system, t_end: float | None = None) -> dict:
     """
     from appell.simulation.defaults import model_options
 
-    return model_options(system, t_end)
+    from appell.arguments import number
+
+    opts = model_options(system, t_end)
+    opts["t_end"] = number(opts["t_end"], "t_end (--t-end)", hint="give a finite final time")
+    return opts
 
 
 def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy", **options):
@@ -219,8 +230,12 @@ class _AppellGroup(click.Group):
             code = _report_error(exc.format_message(), hint, EXIT_BAD_INPUT)
         except click.exceptions.Exit as exc:
             code = exc.exit_code
-        except click.Abort:
-            code = _report_error("aborted", None, EXIT_FAILURE)
+        except click.Abort as exc:  # click turns Ctrl-C into Abort
+            interrupted = isinstance(exc.__context__, KeyboardInterrupt)
+            code = _report_error("interrupted" if interrupted else "aborted", None,
+                                 EXIT_INTERRUPTED if interrupted else EXIT_FAILURE)
+        except Terminated:
+            code = _report_error("terminated (SIGTERM)", None, EXIT_TERMINATED)
         except click.ClickException as exc:
             code = _report_error(exc.format_message(), None, EXIT_BAD_INPUT)
         except ModelError as exc:
@@ -230,8 +245,16 @@ class _AppellGroup(click.Group):
         except (FileNotFoundError, IsADirectoryError, PermissionError, NotADirectoryError) as exc:
             code = _report_error(f"{exc.strerror or exc}: {exc.filename}" if exc.filename else str(exc), None,
                                  EXIT_BAD_INPUT)
+        except OSError as exc:  # the environment (a full disk, a read-only file system, I/O), not a bug
+            reason = (exc.strerror or str(exc)).strip()
+            code = _report_error(f"{exc.filename}: {reason}" if exc.filename else reason,
+                                 "the operating system refused (see the reason above); the previous output "
+                                 "files are unchanged", EXIT_FAILURE)
+        except MemoryError:
+            code = _report_error("out of memory", "the machine ran out of memory; try a smaller problem",
+                                 EXIT_FAILURE)
         except KeyboardInterrupt:
-            code = _report_error("interrupted", None, 130)
+            code = _report_error("interrupted", None, EXIT_INTERRUPTED)
         except Exception as exc:  # a bug, not the user's input: no traceback unless asked for
             if os.environ.get("APPELL_DEBUG"):
                 raise
@@ -243,6 +266,15 @@ class _AppellGroup(click.Group):
         if standalone_mode:
             sys.exit(code)
         return code
+
+
+class Terminated(BaseException):
+    """Raised in the main thread by SIGTERM (see :func:`main`), so that a write under way
+    removes its temporary file before the command exits with :data:`EXIT_TERMINATED`."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
 
 
 def _report_error(message: str, hint: str | None, code: int) -> int:
@@ -362,6 +394,8 @@ def simulate(model, t_end, out, plot, backend, assignments, complete, adjust):
     for target in (out_path, Path(plot) if plot else None):
         if target is not None and not target.parent.is_dir():
             raise click.BadParameter(f"directory {str(target.parent)!r} does not exist", param_hint="'--out/--plot'")
+        if target is not None:
+            output_target(target)  # a device, a FIFO, a directory: refused before the simulation
     system = load_system(model, parse_assignments(assignments))
     derivation = derive_model(system)
     solution = run_simulation(derivation, t_end, backend, **_completion(complete, adjust))
@@ -501,6 +535,8 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
 
     if output is not None and not Path(output).parent.is_dir():
         raise click.BadParameter(f"directory {str(Path(output).parent)!r} does not exist", param_hint="'-o'")
+    if output is not None:
+        output_target(output)
     system = load_system(model, parse_assignments(assignments))
     derivation = derive_model(system)
     check_report = _cross_check(derivation)
@@ -516,7 +552,8 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
     from appell.simulation.energy_balance import ENERGY_TOLERANCE
 
     energy = _energy_balance(derivation, t_end)
-    path = Path(output) if output else Path(f"{system.name}-report.html")
+    path = Path(output) if output else default_file_name(system.name, "-report.html")
+    output_target(path)
     write_report(path, derivation, solution, check_report, simulation_note=note,
                  integrals=_first_integrals(derivation), internal=linearisation, energy=energy)
     click.echo(f"wrote {path}")
@@ -538,17 +575,27 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
 @click.option("--samples", type=int, default=501, show_default=True, help="Output times per run.")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Dask scheduler address (tcp://host:8786) to run on many machines; default a local cluster.")
-@click.option("--workers", type=int, default=None, help="Workers of the local cluster (default: one per core).")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Workers of the local cluster (default: one per core).")
+@click.option("--worker-timeout", type=click.FloatRange(min=0, min_open=True), default=60.0, show_default=True,
+              metavar="SECONDS", help="Give up the runs not yet done when the cluster has had no worker for this long.")
+@click.option("--resume", is_flag=True,
+              help="Take the runs kept in FILE.h5.partial by an earlier, interrupted sweep (same model, grid "
+                   "and times) and compute only the others.")
 @_backend_option
 @_set_option
-def sweep(model, specs, t_end, out, samples, scheduler, workers, backend, assignments):
+def sweep(model, specs, t_end, out, samples, scheduler, workers, worker_timeout, resume, backend, assignments):
     """Simulate MODEL over a grid of parameter values, in parallel on Dask.
 
     Writes one HDF5 dataset with every run (states, reactions, controls, status) and a
-    summary: the extreme value of each reaction across the sweep and where it occurs.
-    A failed run is recorded, not fatal; the exit code is 1 only when every run failed.
-    Initial values written as expressions of the parameters are evaluated for each run; a
-    run whose start violates a constraint fails (given values are never changed here).
+        solution = run_simulation(derivation, t_end, backend, **_completion(complete, adjust))
+    linearisation, internal_note = internal_stability(derivation, solution)
+    _warn_internal(linearisation, internal_note)
+    from appell.simulation.energy_balance import ENERGY_TOLERANCE
+
+    energy = _energy_balance(derivation, t_end)
+    path = Path(output) if output else default_file_name(system.name, "-report.html")
+    output_target(path)
     """
     from appell.simulation.sweep import parameter_grid
     from appell.simulation.sweep import sweep as run_sweep
@@ -567,14 +614,18 @@ def sweep(model, specs, t_end, out, samples, scheduler, workers, backend, assign
         opts["adjust"] = ()  # (its changes could not be reported), instead of being changed silently
     if t0 != 0.0:
         raise ModelError("sweeps start at t = 0", hint="remove t0 from the [simulation] table")
-    path = Path(out) if out else Path(f"{system.name}-sweep.h5")
+    path = Path(out) if out else default_file_name(system.name, "-sweep.h5")
     if not path.parent.is_dir():
         raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint="'--out'")
+    output_target(path)
     result = run_sweep(system, list(specs), final, output=path, samples=samples, scheduler=scheduler,
-                       n_workers=workers, backend=backend, progress=sys.stderr.isatty(), **opts)
+                       n_workers=workers, backend=backend, progress=sys.stderr.isatty(),
+                       worker_timeout=worker_timeout, resume=resume, **opts)
     click.echo(result.summary_text())
-    if result.runs and len(result.failed) == len(result.runs):
-        raise ComputationError("every run of the sweep failed (see the messages above)")
+    if result.failed:
+        which = "every run" if len(result.failed) == len(result.runs) else f"{len(result.failed)} of {len(result.runs)} runs"
+        raise ComputationError(f"{which} of the sweep failed (listed above); the summary uses the successful runs only",
+                               hint="the dataset records every run with its status and message")
 
 
 @cli.command(context_settings=_CONTEXT)
@@ -598,7 +649,8 @@ def examples(name, to):
     target_dir = Path(to)
     target_dir.mkdir(parents=True, exist_ok=True)
     target = target_dir / source.name
-    shutil.copyfile(source, target)
+    with atomic_path(target) as tmp:
+        shutil.copyfile(source, tmp)
     click.echo(f"wrote {target}")
 
 
@@ -620,8 +672,21 @@ def _first_line(path: Path) -> str:
 
 
 def main(argv=None) -> int:
-    """Entry point of the ``appell`` command (``argv`` defaults to ``sys.argv[1:]``)."""
-    return cli.main(args=argv, prog_name="appell")
+    """Entry point of the ``appell`` command (``argv`` defaults to ``sys.argv[1:]``).
+
+    SIGTERM raises :class:`Terminated` in the main thread, so that a write under way removes
+    its temporary file; the command then exits with :data:`EXIT_TERMINATED`.
+    """
+    previous = None
+    try:
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread: leave the signal alone
+        pass
+    try:
+        return cli.main(args=argv, prog_name="appell")
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":  # python -m appell.io.cli

@@ -17,12 +17,16 @@ constraints linear in ``a`` one C call also does the linear algebra of the split
 The library is compiled once with the system C compiler (``$APPELL_CC``, else ``$CC``,
 else ``cc``; ``-O2 -shared -fPIC``), cached on disk under ``$APPELL_CACHE_DIR`` (default
 ``~/.cache/appell``) keyed by the SHA-256 of the generated source and the compile command,
-written atomically (temporary file, then rename), and loaded with :mod:`ctypes`. Without a
-compiler the NumPy functions are used instead, with a warning.
+written atomically (temporary file, then rename) under a per-entry lock, with the SHA-256
+of the library recorded beside it (checked before loading) and the key compiled into it
+(checked after loading): a truncated, empty or foreign library is compiled again, never
+run. Loaded with :mod:`ctypes`. Without a compiler ``backend='auto'`` uses the NumPy
+functions instead, with a warning, and ``backend='c'`` is refused.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
 import os
@@ -39,7 +43,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from appell.numerics.dynamics import Evaluation
-from appell.errors import ComputationError
+from appell.errors import ComputationError, ModelError, ResourceError
 from appell.numerics.numeric import KEEP_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
 from appell.symbols import t
 
@@ -324,42 +328,161 @@ def c_source(derivation) -> str:
     return "\n\n".join(parts) + "\n"
 
 
-def build_library(source: str, compiler: list[str] | None = None) -> tuple[Path, bool]:
-    """Compile ``source`` to a shared library in the cache unless it is there already.
+#: bumped when the layout of a cached library changes (part of the cache key)
+LIBRARY_FORMAT = 2
+#: the C symbol holding a library's cache key, checked after loading
+KEY_SYMBOL = "appell_library_key"
+
+
+def _sha256_file(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _verified(lib: Path) -> bool:
+    """Whether ``lib`` and its checksum file agree (SHA-256 of the library's bytes)."""
+    try:
+        return _checksum_path(lib).read_text().strip() == _sha256_file(lib)
+    except OSError:
+        return False
+
+
+def _checksum_path(lib: Path) -> Path:
+    return lib.with_name(lib.name + ".sha256")
+
+
+@contextlib.contextmanager
+def _cache_lock(root: Path, key: str):
+    """An exclusive lock on one cache entry (``fcntl.flock``; none where it is missing):
+    concurrent processes compile, verify and replace an entry one at a time."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: atomic renames alone
+        yield
+        return
+    with open(root / f"appell_{key}.lock", "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _discard(lib: Path) -> None:
+    for path in (lib, _checksum_path(lib)):
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(path)
+
+
+def build_library(source: str, compiler: list[str] | None = None, *, force: bool = False) -> tuple[Path, bool]:
+    """Compile ``source`` to a shared library in the cache unless a verified one is there.
 
     Returns the library path and whether it was compiled now. The key is the SHA-256 of the
-    source and the compile command; files are written to a temporary name and renamed, so
-    that concurrent processes never load a half-written library.
+    source, the compile command and :data:`LIBRARY_FORMAT`. A cached library is used only
+    when the SHA-256 of its bytes matches the checksum recorded beside it
+    (``<library>.sha256``); a truncated, empty or foreign file is compiled again (with a
+    warning), never loaded. The library also carries its key as the string
+    :data:`KEY_SYMBOL`, checked after loading (:func:`load_library`). Entries are built
+    under a per-entry file lock and written to temporary names, then renamed, so that
+    concurrent processes never see a half-written library. ``force`` compiles even when a
+    verified library is cached.
     """
     compiler = compiler or find_compiler()
     if compiler is None:
         raise ComputationError("no C compiler found", hint=f"install cc or set ${COMPILER_ENV}")
-    key = hashlib.sha256((" ".join(compiler + list(CFLAGS)) + "\n" + source).encode()).hexdigest()[:24]
+    command = " ".join(compiler + list(CFLAGS))
+    key = hashlib.sha256(f"{command}\nformat {LIBRARY_FORMAT}\n{source}".encode()).hexdigest()[:24]
     root = cache_dir()
     root.mkdir(parents=True, exist_ok=True)
     lib = root / f"appell_{key}.so"
-    if lib.exists():
-        return lib, False
-    fd, src_tmp = tempfile.mkstemp(prefix=f"appell_{key}_", suffix=".c", dir=root)
-    with os.fdopen(fd, "w") as fh:
-        fh.write(source)
-    fd, lib_tmp = tempfile.mkstemp(prefix=f"appell_{key}_", suffix=".so.tmp", dir=root)
-    os.close(fd)
+    with _cache_lock(root, key):
+        if not force and _verified(lib):
+            return lib, False
+        if lib.exists() and not force:
+            warnings.warn(f"the cached library {lib} does not match its checksum (truncated, empty or foreign); "
+                          "compiling it again", RuntimeWarning, stacklevel=3)
+        _discard(lib)
+        _compile(source, compiler, root, key, lib)
+    return lib, True
+
+
+def _compile(source: str, compiler: list[str], root: Path, key: str, lib: Path) -> None:
+    """Compile ``source`` plus the key symbol into ``lib`` and record its checksum."""
+    temporaries = []
+
+    def temporary(suffix: str) -> str:
+        fd, name = tempfile.mkstemp(prefix=f"appell_{key}_", suffix=suffix, dir=root)
+        os.close(fd)
+        temporaries.append(name)
+        return name
+
     try:
-        proc = subprocess.run(compiler + list(CFLAGS) + ["-o", lib_tmp, src_tmp, "-lm"],
+        src_tmp, key_tmp, lib_tmp, sum_tmp = temporary(".c"), temporary("_key.c"), temporary(".so.tmp"), temporary(".sha")
+        Path(src_tmp).write_text(source)
+        Path(key_tmp).write_text(f'const char {KEY_SYMBOL}[] = "{key}";\n')
+        proc = subprocess.run(compiler + list(CFLAGS) + ["-o", lib_tmp, src_tmp, key_tmp, "-lm"],
                               capture_output=True, text=True)
         if proc.returncode != 0:
             raise ComputationError(
                 f"C compilation failed ({' '.join(compiler)}): {proc.stderr.strip()[:2000]}",
                 hint="use backend='numpy', or set $APPELL_CC to a working C compiler",
             )
+        Path(sum_tmp).write_text(_sha256_file(Path(lib_tmp)) + "\n")
         os.replace(src_tmp, root / f"appell_{key}.c")
         os.replace(lib_tmp, lib)
+        os.replace(sum_tmp, _checksum_path(lib))
     finally:
-        for tmp in (src_tmp, lib_tmp):
-            if os.path.exists(tmp):
+        for tmp in temporaries:
+            with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
-    return lib, True
+
+
+#: libraries loaded by this process, by (path, checksum): the dynamic loader caches by
+#: path, so a library rebuilt at the path of a rejected one is reached through this table
+_LOADED: dict = {}
+
+
+def _library_key(lib, key: str) -> str | None:
+    """The string :data:`KEY_SYMBOL` of a loaded library (None when it has none)."""
+    try:
+        return (ctypes.c_char * (len(key) + 1)).in_dll(lib, KEY_SYMBOL).value.decode("ascii", "replace")
+    except ValueError:  # no such symbol
+        return None
+
+
+def load_library(path: Path, source: str, compiler: list[str]) -> tuple[ctypes.CDLL, Path, bool]:
+    """Load the cached library ``path`` and check its key symbol; on a mismatch (or a file
+    the loader rejects) compile it again and load the new one. Returns the library, its path
+    and whether it was compiled here."""
+    key = path.stem.removeprefix("appell_")
+    checksum = _checksum_path(path).read_text().strip()
+    lib = _LOADED.get((str(path), checksum))
+    if lib is not None:
+        return lib, path, False
+    try:
+        lib = ctypes.CDLL(str(path))
+        found = _library_key(lib, key)
+    except OSError:
+        found = None
+    if found == key:
+        _LOADED[(str(path), checksum)] = lib
+        return lib, path, False
+    warnings.warn(f"the cached library {path} is not the one compiled for this model (key {found!r}); "
+                  "compiling it again", RuntimeWarning, stacklevel=3)
+    path, _ = build_library(source, compiler, force=True)
+    # the dynamic loader caches libraries by name: load the new one through a fresh name
+    fd, fresh = tempfile.mkstemp(prefix=f"appell_{key}_load_", suffix=".so", dir=path.parent)
+    os.close(fd)
+    try:
+        shutil.copyfile(path, fresh)
+        lib = ctypes.CDLL(fresh)
+    finally:
+        os.unlink(fresh)
+    found = _library_key(lib, key)
+    if found != key:
+        raise ComputationError(f"the compiled library {path} does not carry its key {key!r}",
+                               hint="remove the cache directory ($APPELL_CACHE_DIR) and try again")
+    _LOADED[(str(path), _checksum_path(path).read_text().strip())] = lib
+    return lib, path, True
 
 
 _D, _P, _I = ctypes.c_double, ctypes.c_void_p, ctypes.c_int
@@ -463,28 +586,39 @@ def _wrap(fn, shapes, with_acc=False):
 def compile_c(derivation, backend: str = "c") -> NumericModel:
     """Compiled numeric functions of a derivation (``backend`` 'c' or 'auto').
 
-    Without a C compiler both fall back to :func:`appell.numerics.numeric.compile_model` (NumPy)
-    with a :class:`RuntimeWarning`; a failed compilation raises for 'c' and falls back
-    (with a warning) for 'auto'.
+    Without a C compiler 'c' is refused (:class:`ModelError`) and 'auto' falls back to
+    :func:`appell.numerics.numeric.compile_model` (NumPy) with a :class:`RuntimeWarning`; a
+    failed compilation or an unusable cache raises for 'c' and falls back (with a warning)
+    for 'auto'. A cached library is verified before and after loading (:func:`build_library`,
+    :func:`load_library`).
     """
     if backend not in BACKENDS:
-        raise ComputationError(f"unknown numeric backend {backend!r}", hint="choose one of " + ", ".join(BACKENDS))
+        raise ModelError(f"unknown numeric backend {backend!r}", hint="choose one of " + ", ".join(BACKENDS))
     if backend == "numpy":
         return compile_model(derivation)
     compiler = find_compiler()
     if compiler is None:
+        if backend == "c":
+            raise ModelError("the C backend needs a C compiler, and none was found",
+                             hint=f"install cc or set ${COMPILER_ENV}, or choose the backend 'auto' (C when a "
+                                  "compiler is found, else NumPy) or 'numpy'")
         warnings.warn(f"no C compiler found (set ${COMPILER_ENV} or $CC); using the NumPy backend",
                       RuntimeWarning, stacklevel=2)
         return compile_model(derivation)
     source = c_source(derivation)
     try:
         path, fresh = build_library(source, compiler)
-    except ComputationError as exc:
+        lib, path, reloaded = load_library(path, source, compiler)
+        fresh = fresh or reloaded
+    except (ComputationError, OSError) as exc:
         if backend == "c":
+            if isinstance(exc, OSError):
+                raise ResourceError(f"cannot use the compiled-code cache {cache_dir()}: {exc.strerror or exc}",
+                                    hint=f"set ${CACHE_ENV} to a writable directory, or use the backend "
+                                         "'numpy'") from exc
             raise
         warnings.warn(f"{exc}; using the NumPy backend", RuntimeWarning, stacklevel=2)
         return compile_model(derivation)
-    lib = ctypes.CDLL(str(path))
     kin, cons = derivation.kinematics, derivation.constraints
     n, s, nq = len(kin.speeds), cons.count, len(kin.coordinates)
     expr_args = [_D, _P, _P, _P, _P]

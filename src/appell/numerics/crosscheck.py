@@ -43,6 +43,7 @@ from typing import Mapping
 import numpy as np
 
 from appell.errors import ComputationError, ModelError
+from appell.numerics.inertia import check_inertia
 from appell.numerics.numeric import NumericModel, StateSolution, newton
 
 NORMALISATION = ("accelerations relative to max|a|; each multiplier relative to max(max_j |lambda_j|, F/max|J|) "
@@ -264,6 +265,9 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
         )
     model = derivation.numeric if model is None else model
     states = states if states is not None else sample_states(derivation)
+    if states:  # a zero or negative mass is named here, not met as a singular matrix below
+        t0, q0, w0 = states[0]
+        check_inertia(model, t0, np.concatenate([np.asarray(q0, float), np.asarray(w0, float)]), model.params(p))
     names = tuple(derivation.constraints.names)
     pv = model.params(p)
     unavailable: dict[str, str] = {}

@@ -22,6 +22,7 @@ import numpy as np
 import sympy as sp
 
 from appell.numerics.dynamics import Evaluation
+from appell.arguments import number, vector
 from appell.errors import ComputationError, ModelError, SingularConfigurationError
 from appell.core.partition import KEEP_CONDITION, RANK_CONDITION, partition_condition, pivoted_columns, row_scales
 from appell.symbols import derivative_symbol, t
@@ -235,20 +236,29 @@ class NumericModel:
         """Parameter vector from None, an array or a ``{name: value}`` mapping."""
         if p is None:
             return self.default_parameters
+        names = [s.name for s in self.parameters]
+        if isinstance(p, np.ndarray) and p.dtype == float and p.shape == (len(names),):
+            return p  # the fast path of the integrator (checked once by simulate)
         if isinstance(p, Mapping):
             out = self.default_parameters.copy()
-            names = [s.name for s in self.parameters]
             for k, v in p.items():
                 key = str(k)
                 if key not in names:
                     raise ModelError(f"unknown parameter {key!r}", hint="parameters: " + ", ".join(names))
-                out[names.index(key)] = float(v)
+                out[names.index(key)] = number(v, f"parameter {key}")
             return out
-        return np.asarray(p, dtype=float)
+        return vector(p, "the parameter vector", len(names), names=names)
 
     def evaluate_blocks(self, t, q, w, p=None):
         """``M``, ``h - Q``, ``J``, ``c`` at a state."""
-        M, hQ, J, c = self.blocks(float(t), np.asarray(q, float), np.asarray(w, float), self.params(p))
+        q, w = np.asarray(q, float), np.asarray(w, float)
+        kin = self.derivation.kinematics
+        if q.shape != (len(kin.coordinates),) or w.shape != (len(kin.speeds),):
+            raise ModelError(f"a state of {self.name!r} has {len(kin.coordinates)} coordinates and "
+                             f"{len(kin.speeds)} speeds, got q of shape {q.shape} and w of shape {w.shape}",
+                             hint="coordinates: " + ", ".join(s.name for s in kin.coordinates)
+                                  + "; speeds: " + ", ".join(s.name for s in kin.speeds))
+        M, hQ, J, c = self.blocks(number(t, "t"), q, w, self.params(p))
         n = len(w)
         return (np.asarray(M, float).reshape(n, n), np.asarray(hQ, float).reshape(n),
                 np.asarray(J, float).reshape(-1, n), np.asarray(c, float).reshape(-1))

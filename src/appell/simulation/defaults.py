@@ -22,6 +22,8 @@ import inspect
 
 import numpy as np
 
+from appell.arguments import number
+
 __all__ = ["DEFAULT_T_END", "settings_options", "model_options", "with_model_defaults"]
 
 #: final time when neither the caller nor the model's settings give one
@@ -51,8 +53,9 @@ def model_options(system, t_end: float | None = None, t0: float | None = None) -
     opts = settings_options(system)
     table_t0 = float(opts.pop("t0", 0.0))
     table_t_end = opts.pop("t_end", None)
-    start = table_t0 if t0 is None else float(t0)
-    final = float(t_end if t_end is not None else table_t_end if table_t_end is not None else DEFAULT_T_END)
+    start = table_t0 if t0 is None else number(t0, "t0")
+    final = number(t_end if t_end is not None else table_t_end if table_t_end is not None else DEFAULT_T_END,
+                   "t_end", hint="give a finite final time")
     step = opts.pop("output_step", None)
     times = opts.pop("t_eval", None)
     if times is not None and step is None and (final != table_t_end or start != table_t0):

@@ -29,6 +29,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from appell.arguments import number
 from appell.errors import ComputationError, InitialValueError, ModelError
 from appell.symbols import derivative_name, split_derivative_name
 
@@ -175,7 +176,13 @@ def _state_levels(model) -> tuple[tuple[str, ...], tuple[str, ...]]:
 
 
 def _names_values(values) -> dict[str, float]:
-    return {str(k): float(v) for k, v in dict(values).items()}
+    """``{name: value}`` with every value a finite number (ModelError naming the first that is not)."""
+    try:
+        values = dict(values)
+    except (TypeError, ValueError):
+        raise ModelError(f"initial values must be a mapping {{state name: value}}, got {type(values).__name__}") \
+            from None
+    return {str(k): number(v, f"initial value of {k}") for k, v in values.items()}
 
 
 def _default_values(model, system, p) -> dict[str, float]:

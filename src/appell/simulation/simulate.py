@@ -55,10 +55,13 @@ import scipy.integrate as si
 from scipy.optimize import brentq
 
 from appell.errors import AppellError, ComputationError, ModelError
+from appell.arguments import number, vector
+from appell.numerics.inertia import check_inertia
 from appell.simulation.defaults import with_model_defaults
 from appell.simulation.events import check_event_names, contact_watch, watches_for
 from appell.simulation.impact import impact
 from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, residual_jacobians
+from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 
 __all__ = ["simulate", "project", "METHODS"]
@@ -127,11 +130,11 @@ def _initial_state(model, initial, complete, adjust, t0, p):
     if isinstance(initial, InitialState):  # from check_initial / complete_initial
         initial = initial.values
     if initial is not None and not isinstance(initial, Mapping):
-        arr = np.asarray(initial, float).reshape(-1)
-        if arr.size != len(model.state_names):
-            raise ModelError(f"initial state has {arr.size} entries, model {model.name!r} has "
-                             f"{len(model.state_names)} states", hint="states: " + ", ".join(model.state_names))
+        arr = vector(initial, f"the initial state of {model.name!r}", len(model.state_names),
+                     names=list(model.state_names))
         initial = dict(zip(model.state_names, arr))
+    elif initial is not None:
+        initial = {k: number(v, f"initial value of {k}") for k, v in initial.items()}
     if complete:
         return complete_initial(model, initial, adjust, t=t0, params=p)
     return check_initial(model, initial, t=t0, params=p)
@@ -376,23 +379,19 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     if stabilization == "baumgarte" and "bias" not in inspect.signature(model.evaluate).parameters:
         raise ModelError(f"model {model.name!r} does not accept a constraint bias: Baumgarte stabilization "
                          "is not available for it", hint="use stabilization='projection'")
+    args = check_arguments(model, t0=t0, t_end=t_end, t_eval=t_eval, rtol=rtol, atol=atol, max_step=max_step,
+                           projection_tol=projection_tol, baumgarte=baumgarte, stabilization=stabilization,
+                           unilateral=unilateral, friction=friction, events=events,
+                           flags={"complete": complete, "project_output": project_output})
+    t0, t_end, t_eval, rtol, atol, max_step = args.t0, args.t_end, args.t_eval, args.rtol, args.atol, args.max_step
+    projection_tol, baumgarte = args.projection_tol, args.baumgarte
     check_event_names(model, unilateral, friction)
-    if isinstance(rest_speed, bool) or not (isinstance(rest_speed, (int, float)) and np.isfinite(rest_speed)
-                                            and rest_speed > 0):
-        raise ModelError(f"rest_speed must be a positive number, not {rest_speed!r}")
+    rest_speed = number(rest_speed, "rest_speed", positive=True)
     if unilateral and on_release == "continue" and system is None:
         raise ModelError("releasing a unilateral constraint needs the system to derive again",
                          hint="pass a Derivation, or on_release='stop'")
-    t0, t_end = float(t0), float(t_end)
-    if t_end < t0:
-        raise ModelError(f"t_end = {t_end} is before t0 = {t0}")
-    if t_eval is None:
-        t_eval = np.linspace(t0, t_end, 501) if t_end > t0 else np.array([t0])
-    t_eval = np.asarray(t_eval, float).reshape(-1)
-    if t_eval.size and (np.any(np.diff(t_eval) < 0) or t_eval[0] < t0 or t_eval[-1] > t_end):
-        raise ModelError("t_eval must be increasing and lie in [t0, t_end]")
 
-    p = model.params(params)
+    p = vector(model.params(params), "params", len(model.parameter_names), names=list(model.parameter_names))
     names = tuple(model.constraint_names)
     settings = {"method": getattr(solver_cls, "__name__", str(method)), "rtol": rtol, "atol": atol,
                 "stabilization": stabilization, "projection_tol": projection_tol,
@@ -407,6 +406,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     run.released = list(opened)
     init = _initial_state(run.model(run.released), initial, complete, adjust, t0, p)
     y0 = init.y
+    check_inertia(model, t0, y0, p)
     run.kinds = _kinds(model, y0, t0, p)
     for (name, text), (_, given, _) in zip(init.describe_changes(), init.changes):
         run.events.append(EventRecord("initial", name, t0, text))

@@ -35,7 +35,7 @@ from typing import Mapping
 import numpy as np
 
 from appell.errors import ComputationError, ModelError
-from appell.io.files import atomic_path
+from appell.io.files import atomic_path, write_bytes, write_hdf5
 
 __all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Column", "Solution", "UNSPECIFIED", "per_second",
            "draw_panel", "atomic_path"]
@@ -417,8 +417,7 @@ class Solution:
         data = self.to_xarray(units).to_netcdf(engine="h5netcdf", encoding={"time": {"_FillValue": None}})
         path = Path(path)
         with atomic_path(path, suffix=".nc") as tmp:
-            with open(tmp, "wb") as fh:
-                fh.write(bytes(data))
+            write_bytes(tmp, data)
         return path
 
     def to_hdf5(self, path, units: Mapping[str, str] | None = None) -> Path:
@@ -498,9 +497,7 @@ class Solution:
             for key, lines in (("events", [str(e) for e in self.events]), ("log", list(self.log))):
                 f.create_dataset(key, data=np.array(lines, dtype=h5py.string_dtype())).make_scale(key)
 
-        with atomic_path(path) as tmp:
-            with h5py.File(tmp, "w") as f:
-                fill(f)
+        write_hdf5(path, fill)
         return path
 
     # ------------------------------------------------------------------ plot

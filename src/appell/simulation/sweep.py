@@ -16,15 +16,29 @@ Output: one HDF5 file (written to a temporary name, then renamed) with
 * ``status`` (R; 0 reached t_end, 1 terminal event, -1 integration failed, -2 raised),
   ``message`` (R), ``wall_time`` (R);
 
-and a summary: per multiplier the extreme values across the sweep with the parameters of
-the run where each occurs, and the count of runs per status. A failed run is recorded, never
-fatal to the sweep.
+and a summary: per multiplier the extreme values over the successful runs (status 0 or 1)
+with the parameters of the run where each occurs, the count of runs per status and the
+list of failed runs. A failed run is recorded, never fatal to the other runs.
+
+Faults of the environment: while the sweep runs, every finished run is appended to
+``<output>.partial`` (JSON lines: a header, then one object per run with its arrays;
+NaN written as ``NaN``), removed once the dataset is written. When the dataset cannot be
+written (a full disk), :class:`~appell.errors.ResourceError` says so and names the partial
+file with the runs it keeps; the runs are also on the exception (``.result``). Workers
+lost during the sweep are replaced by Dask (their runs are computed again elsewhere);
+when the cluster has had no worker at all for ``worker_timeout`` seconds the runs not yet
+done are cancelled and recorded as failed. A scheduler that cannot be reached is a
+ResourceError naming the address.
 """
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
+import math
+import os
+import re
 import time
 import traceback
 import uuid
@@ -34,11 +48,16 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from appell.errors import ModelError
-from appell.io.files import atomic_path
+from appell.arguments import count, number, times
+from appell.errors import ModelError, ResourceError
+from appell.io.files import atomic_path, output_target, write_hdf5
 
 #: run status for a run that raised (simulate's own codes are 0, 1 and -1)
 RAISED = -2
+#: the most runs and output times per run a sweep accepts
+MAX_RUNS, MAX_SAMPLES = 1_000_000, 10_000_000
+#: Dask scheduler addresses: ``protocol://host:port`` or ``host:port``
+_ADDRESS = re.compile(r"^(?:(?:tcp|tls|ws|wss|ucx)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(\d{1,5})$")
 
 
 def parse_spec(spec: str) -> tuple[str, np.ndarray]:
@@ -54,21 +73,39 @@ def parse_spec(spec: str) -> tuple[str, np.ndarray]:
             if len(parts) != 3:
                 raise ValueError
             start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
-            if num < 1:
+            if num < 1 or num > MAX_RUNS or not (math.isfinite(start) and math.isfinite(stop)):
                 raise ValueError
             return name, np.linspace(start, stop, num)
-        return name, np.array([float(v) for v in values.split(",")])
+        out = np.array([float(v) for v in values.split(",")])
+        if not np.all(np.isfinite(out)):
+            raise ValueError
+        return name, out
     except ValueError:
-        raise ModelError(f"bad sweep spec {spec!r}: values must be numbers and NUM a positive integer",
+        raise ModelError(f"bad sweep spec {spec!r}: values must be finite numbers and NUM a positive integer",
                          hint="e.g. m=0.5:2:4 or L=1,1.5,2") from None
 
 
 def parameter_grid(specs: Sequence[str] | Mapping[str, Sequence[float]]) -> list[dict[str, float]]:
     """The Cartesian product of the specs, one ``{name: value}`` per run (last name fastest)."""
-    axes = dict(parse_spec(s) for s in specs) if not isinstance(specs, Mapping) else \
-        {k: np.asarray(v, float).reshape(-1) for k, v in specs.items()}
+    if isinstance(specs, (str, bytes)):
+        specs = [specs]
+    if not isinstance(specs, Mapping) and not hasattr(specs, "__iter__"):
+        raise ModelError(f"sweep specs must be a list of 'NAME=...' strings or a mapping {{name: values}}, "
+                         f"got {type(specs).__name__}")
+    if isinstance(specs, Mapping):
+        from appell.arguments import vector
+
+        axes = {str(k): vector(v, f"sweep values of {k}") for k, v in specs.items()}
+    else:
+        axes = dict(parse_spec(s) if isinstance(s, str) else _not_a_spec(s) for s in specs)
+    if math.prod(len(v) for v in axes.values()) > MAX_RUNS:
+        raise ModelError(f"the sweep grid has more than {MAX_RUNS} runs", hint="use fewer values per parameter")
     names = list(axes)
     return [dict(zip(names, map(float, combo))) for combo in itertools.product(*(axes[n] for n in names))]
+
+
+def _not_a_spec(spec):
+    raise ModelError(f"bad sweep spec {spec!r}: a spec is a string NAME=START:STOP:NUM, NAME=V1,V2,... or NAME=V")
 
 
 @dataclass(frozen=True)
@@ -86,7 +123,8 @@ class RunRecord:
 class SweepResult:
     """What :func:`sweep` wrote: the HDF5 ``path``, the ``runs`` and the ``summary``
     (``{'multipliers': {name: {max, argmax_parameters, min, argmin_parameters, max_abs}},
-    'status_counts': {status: count}}``)."""
+    'status_counts': {status: count}, 'successful_runs': count, 'failed_runs': [{run,
+    parameters, status, message}]}``; the extremes are over the successful runs only)."""
 
     path: Path
     runs: tuple[RunRecord, ...]
@@ -100,12 +138,17 @@ class SweepResult:
         """The summary as a short table."""
         lines = [f"{len(self.runs)} runs -> {self.path}",
                  "status counts: " + ", ".join(f"{k}: {v}" for k, v in self.summary["status_counts"].items())]
+        ok = len(self.runs) - len(self.failed)
+        if self.summary["multipliers"]:
+            lines.append(f"extreme reactions over the {ok} successful run(s):")
         for name, s in self.summary["multipliers"].items():
             if s["max"] is None:
                 lines.append(f"lambda_{name}: no finite values")
                 continue
             lines.append(f"lambda_{name}: max {s['max']:.6g} at {s['argmax_parameters']}, "
                          f"min {s['min']:.6g} at {s['argmin_parameters']}")
+        if self.failed:
+            lines.append(f"{len(self.failed)} failed run(s):")
         for r in self.failed:
             lines.append(f"run {r.index} {r.parameters} failed ({r.status}): {r.message.splitlines()[0][:200]}")
         return "\n".join(lines)
@@ -137,6 +180,7 @@ def _model_on_worker(token: str, payload, backend: str):
 
 
 def _run_one(token, payload, backend, index, params, t_end, t_eval, options) -> dict:
+    """One run on a worker: its arrays, status and message (an exception is a failed run)."""
     start = time.perf_counter()
     try:
         from appell.simulation.simulate import simulate
@@ -188,11 +232,16 @@ def _assemble(results, runs_params, t_eval):
 
 
 def _summary(groups, runs) -> dict:
-    out = {"multipliers": {}, "status_counts": {}}
+    """Status counts, the failed runs, and the extreme multipliers over the successful runs."""
+    out = {"multipliers": {}, "status_counts": {}, "successful_runs": sum(r.status >= 0 for r in runs),
+           "failed_runs": [{"run": r.index, "parameters": r.parameters, "status": r.status,
+                            "message": r.message.splitlines()[0] if r.message else ""}
+                           for r in runs if r.status < 0]}
     for r in runs:
         out["status_counts"][r.status] = out["status_counts"].get(r.status, 0) + 1
+    ok = np.array([r.status >= 0 for r in runs], dtype=bool).reshape(-1, 1)
     for name, arr in groups["multipliers"].items():
-        finite = np.isfinite(arr)
+        finite = np.isfinite(arr) & ok  # a failed run's values are not evidence
         if not finite.any():
             out["multipliers"][name] = {"max": None, "min": None, "max_abs": None}
             continue
@@ -211,28 +260,264 @@ def _summary(groups, runs) -> dict:
 def _write_hdf5(path: Path, t_eval, runs, groups, summary, attrs):
     import h5py
 
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path, suffix=".tmp") as tmp:
-        with h5py.File(tmp, "w") as f:
-            f["t"] = np.asarray(t_eval)
-            names = list(runs[0].parameters) if runs else []
-            for n in names:
-                f[f"parameters/{n}"] = np.array([r.parameters[n] for r in runs])
-            for g, items in groups.items():
-                grp = f.require_group(g)
-                for k, v in items.items():
-                    grp.create_dataset(k, data=v, compression="gzip" if v.size > 4096 else None)
-            f["status"] = np.array([r.status for r in runs], dtype=np.int8)
-            f["message"] = np.array([r.message.encode() for r in runs], dtype=h5py.string_dtype())
-            f["wall_time"] = np.array([r.wall_time for r in runs])
-            for k, v in attrs.items():
-                f.attrs[k] = v
-            f.attrs["summary"] = json.dumps(summary, default=str)
+    def fill(f):
+        f["t"] = np.asarray(t_eval)
+        names = list(runs[0].parameters) if runs else []
+        for n in names:
+            f[f"parameters/{n}"] = np.array([r.parameters[n] for r in runs])
+        for g, items in groups.items():
+            grp = f.require_group(g)
+            for k, v in items.items():
+                grp.create_dataset(k, data=v, compression="gzip" if v.size > 4096 else None)
+        f["status"] = np.array([r.status for r in runs], dtype=np.int8)
+        f["message"] = np.array([r.message.encode() for r in runs], dtype=h5py.string_dtype())
+        f["wall_time"] = np.array([r.wall_time for r in runs])
+        for k, v in attrs.items():
+            f.attrs[k] = v
+        f.attrs["summary"] = json.dumps(summary, default=str)
+
+    write_hdf5(path, fill, suffix=".tmp")
+
+
+class _PartialFile:
+    """``<output>.partial``: the finished runs, appended one JSON line each as they arrive.
+
+    A failed append (a full disk) is remembered, the line cut back, and later runs are no
+    longer appended; the sweep itself goes on (its runs stay in memory).
+    """
+
+    def __init__(self, path: Path, header: dict, kept: int | None = None):
+        """A new file with ``header``; with ``kept`` (resuming) the file is appended to."""
+        self.path, self.kept, self.error = path, kept or 0, None
+        try:
+            self.fh = open(path, "a" if kept is not None else "w", encoding="utf-8")
+            if kept is None:
+                self._append(header)
+        except OSError as exc:
+            self._fail(exc)
+
+    def _append(self, obj):
+        start = self.fh.tell()
+        try:
+            self.fh.write(json.dumps(obj, default=_json_default) + "\n")
+            self.fh.flush()
+        except OSError:
+            self.fh.seek(start)
+            self.fh.truncate()
+            raise
+
+    def _fail(self, exc: OSError):
+        self.error = exc
+        fh = getattr(self, "fh", None)
+        if fh is not None:
+            with contextlib.suppress(OSError):
+                fh.close()
+        self.fh = None
+
+    def add(self, result: dict):
+        if self.fh is None:
+            return
+        try:
+            self._append(result)
+            self.kept += 1
+        except OSError as exc:
+            self._fail(exc)
+
+    def close(self):
+        if self.fh is not None:
+            with contextlib.suppress(OSError):
+                self.fh.close()
+            self.fh = None
+
+    def remove(self):
+        self.close()
+        with contextlib.suppress(OSError):
+            os.unlink(self.path)
+
+    def describe(self) -> str:
+        """Where the finished runs are kept (a partial file without runs is removed)."""
+        if self.kept and self.path.exists():
+            cut = f" (it could not take more: {self.error.strerror or self.error})" if self.error else ""
+            return (f"the {self.kept} finished run(s) are kept in {self.path}{cut}; free space (or choose "
+                    "another --out) and run the sweep again with --resume (resume=True) to compute only the others")
+        self.remove()
+        return "no finished run could be kept on disk; free space (or choose another --out) and run it again"
+
+
+def read_partial(path) -> tuple[dict, list[dict]]:
+    """The header and the runs of a partial file (``<output>.partial``, see the module
+    docstring); a last line cut short is ignored. Arrays come back as NumPy arrays."""
+    header, runs = None, []
+    with open(path, encoding="utf-8") as fh:
+        for line in fh:
+            try:
+                obj = json.loads(line)
+            except json.JSONDecodeError:
+                break  # cut short: the runs before it are complete
+            if header is None:
+                header = obj
+                continue
+            for group in ("states", "multipliers", "controls"):
+                if group in obj:
+                    obj[group] = {k: np.asarray(v, float) for k, v in obj[group].items()}
+            if "t" in obj:
+                obj["t"] = np.asarray(obj["t"], float)
+            runs.append(obj)
+    if not isinstance(header, dict) or header.get("appell_sweep_partial") != 1:
+        raise ModelError(f"{path} is not the partial file of an appell sweep")
+    return header, runs
+
+
+def _json_default(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)
+
+
+def check_scheduler_address(scheduler: str) -> str:
+    """``scheduler`` if it looks like a Dask scheduler address (``tcp://host:port``, also
+    ``tls://``, ``ws://``, ``ucx://`` or a bare ``host:port``), else a ModelError."""
+    if not isinstance(scheduler, str) or not (m := _ADDRESS.match(scheduler.strip())) or \
+            not 0 < int(m.group(1)) < 65536:
+        raise ModelError(f"bad Dask scheduler address {scheduler!r}",
+                         hint="give the address 'dask scheduler' prints, e.g. tcp://192.168.1.10:8786")
+    return scheduler.strip()
+
+
+def _connect(scheduler: str, timeout: float):
+    from dask.distributed import Client
+
+    try:
+        return Client(scheduler, timeout=timeout)
+    except Exception as exc:  # noqa: BLE001 (refused, timed out, or not a Dask scheduler at all)
+        raise ResourceError(f"cannot connect to the Dask scheduler at {scheduler}: {type(exc).__name__}: {exc}",
+                            hint="start one with 'dask scheduler' and give the address it prints, or leave out "
+                                 "the scheduler to run on a local cluster") from None
+
+
+def _cancelled(exc: BaseException) -> bool:
+    """Whether ``exc`` says a future was cancelled (asyncio's or concurrent.futures' error)."""
+    import asyncio
+    import concurrent.futures
+
+    return isinstance(exc, (asyncio.CancelledError, concurrent.futures.CancelledError))
+
+
+def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None):
+    """Collect the runs as they finish (``on_result(dict)``); a run whose worker was lost
+    for good, or that was cancelled, is a failed run. When the cluster has had no worker
+    for ``worker_timeout`` seconds (or the scheduler is lost), the pending runs are
+    cancelled and recorded as failed."""
+    from dask.distributed import as_completed
+
+    index = {fut.key: i for fut, i in zip(futures, indices)}
+    pending = set(index)
+    finished = as_completed(futures)
+    no_worker_since, last_check = None, 0.0
+    while pending:
+        batch = finished.next_batch(block=False) if finished.has_ready() else []
+        for fut in batch:
+            i = index[fut.key]
+            pending.discard(fut.key)
+            try:
+                result = fut.result()
+            except BaseException as exc:  # noqa: BLE001 (a lost worker, a cancelled run: record it)
+                if not isinstance(exc, Exception) and not _cancelled(exc):
+                    raise
+                lost = "lost with the Dask workers (killed, or gone with its input): " \
+                    if _cancelled(exc) or type(exc).__name__ == "KilledWorker" else ""
+                result = {"index": i, "status": RAISED, "message": f"{lost}{type(exc).__name__}: {exc}",
+                          "wall_time": float("nan")}
+            on_result(result)
+            if bar is not None:
+                bar.update(1)
+        if batch or not pending:
+            continue
+        time.sleep(0.05)
+        now = time.monotonic()
+        if now - last_check < 0.5:
+            continue
+        last_check = now
+        reason = None
+        try:
+            workers = len(client.scheduler_info(n_workers=-1).get("workers", {}))
+        except TypeError:  # older distributed: no n_workers argument
+            workers = len(client.scheduler_info().get("workers", {}))
+        except Exception as exc:  # noqa: BLE001 (the scheduler is gone)
+            workers, reason = 0, f"lost the Dask scheduler ({type(exc).__name__}: {exc})"
+        if workers:
+            no_worker_since = None
+            continue
+        no_worker_since = no_worker_since or now
+        if reason is None and now - no_worker_since < worker_timeout:
+            continue
+        reason = reason or f"no Dask worker for {worker_timeout:g} s (all workers lost?)"
+        left = [f for f in futures if f.key in pending]
+        try:
+            client.cancel(left)
+        except Exception:  # noqa: BLE001 (the scheduler may be gone too)
+            pass
+        for i in sorted(index[f.key] for f in left):
+            on_result({"index": i, "status": RAISED, "message": f"not run: {reason}", "wall_time": float("nan")})
+        pending.clear()
+
+
+def _resumed(path: Path, header: dict, runs: int) -> list[dict]:
+    """The successful runs kept in the partial file ``path`` by an earlier call of the same
+    sweep (:func:`read_partial`); none when there is no such file."""
+    if not path.exists():
+        return []
+    old_header, old = read_partial(path)
+    same = (old_header.get("model") == header["model"] and old_header.get("specs") == header["specs"]
+            and np.array_equal(np.asarray(old_header.get("t", []), float), np.asarray(header["t"], float)))
+    if not same:
+        raise ModelError(f"{path} holds the runs of another sweep (its model, grid or output times differ)",
+                         hint="run without resume (the file is then replaced), or remove it")
+    kept = {}
+    for r in old:
+        if isinstance(r.get("index"), int) and 0 <= r["index"] < runs and r.get("status", RAISED) >= 0:
+            kept[r["index"]] = r
+    return list(kept.values())
+
+
+def _compute(model, todo, t_end, t_eval, simulate_options, on_result, *, backend, scheduler, n_workers, processes,
+             progress, worker_timeout, connect_timeout):
+    """Run the grid points ``todo`` (``[(index, parameters), ...]``) on a Dask cluster, local
+    or at ``scheduler``; every finished run goes to ``on_result``."""
+    from dask.distributed import Client, LocalCluster
+
+    own_cluster = None
+    if scheduler is None:
+        own_cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
+                                   dashboard_address=None)
+        client = Client(own_cluster)
+    else:
+        client = _connect(scheduler, connect_timeout)
+    token = uuid.uuid4().hex
+    bar = None
+    try:
+        payload = client.scatter(model, broadcast=True)
+        futures = [client.submit(_run_one, token, payload, backend, i, params, t_end, t_eval, simulate_options,
+                                 key=f"appell-run-{i}-{token}", pure=False) for i, params in todo]
+        if progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=len(futures), desc="sweep", unit="run")
+        _gather(client, futures, [i for i, _ in todo], on_result, worker_timeout, bar)
+    finally:
+        if bar is not None:
+            bar.close()
+        client.close()
+        if own_cluster is not None:
+            own_cluster.close()
 
 
 def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples: int = 501,
           scheduler: str | None = None, n_workers: int | None = None, processes: bool = True,
-          backend: str = "auto", progress: bool = True, **simulate_options) -> SweepResult:
+          backend: str = "auto", progress: bool = True, worker_timeout: float = 60.0, connect_timeout: float = 30.0,
+          resume: bool = False, **simulate_options) -> SweepResult:
     """Simulate ``model`` at every point of a parameter grid, in parallel on Dask.
 
     Parameters
@@ -245,19 +530,40 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     t_end : final time of every run; ``t_eval`` output times (default ``samples``
         equally spaced in [0, t_end]).
     output : the HDF5 file to write (module docstring); a summary JSON is written beside it
-        (``<output>.summary.json``).
+        (``<output>.summary.json``), and ``<output>.partial`` holds the finished runs while
+        the sweep runs.
     scheduler : address of a Dask scheduler; default a local cluster with ``n_workers``
         workers (``processes=False``: threads in this process).
     backend : numeric backend on the workers: 'numpy', 'c' or 'auto'.
     progress : show a progress bar (tqdm) while runs complete.
+    worker_timeout : seconds without any worker after which the runs not yet done are
+        recorded as failed; ``connect_timeout`` seconds to reach the scheduler.
+    resume : take the successful runs kept in ``<output>.partial`` by an earlier call with
+        the same model, grid and output times (whose dataset could not be written), and
+        compute only the others.
     simulate_options : passed to :func:`appell.simulation.simulate.simulate` (``rtol``, ``method``, ...).
 
     Returns
     -------
     SweepResult
-    """
-    from dask.distributed import Client, LocalCluster, as_completed
 
+    Raises
+    ------
+    ModelError : bad arguments (before any run); ResourceError : the scheduler cannot be
+        reached, or the dataset cannot be written (the runs are on ``exc.result``).
+    """
+    from appell.numerics.codegen_c import BACKENDS
+
+    t_end = number(t_end, "t_end", positive=True, hint="sweeps run from t = 0 to a finite t_end > 0")
+    samples = count(samples, "samples", maximum=MAX_SAMPLES)
+    if n_workers is not None:
+        n_workers = count(n_workers, "n_workers", maximum=4096)
+    worker_timeout = number(worker_timeout, "worker_timeout", positive=True)
+    connect_timeout = number(connect_timeout, "connect_timeout", positive=True)
+    if backend not in BACKENDS:
+        raise ModelError(f"unknown numeric backend {backend!r}", hint="choose one of " + ", ".join(BACKENDS))
+    if scheduler is not None:
+        scheduler = check_scheduler_address(scheduler)
     grid = parameter_grid(specs)
     if not grid:
         raise ModelError("the sweep grid is empty")
@@ -266,49 +572,54 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     if unknown:
         raise ModelError(f"sweep over unknown parameter(s) {', '.join(unknown)}",
                          hint="parameters of the model: " + ", ".join(pnames))
-    t_eval = np.linspace(0.0, float(t_end), samples) if t_eval is None else np.asarray(t_eval, float)
-    token = uuid.uuid4().hex
-    own_cluster = None
-    if scheduler is None:
-        own_cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
-                                   dashboard_address=None)
-        client = Client(own_cluster)
-    else:
-        client = Client(scheduler)
-    results = []
-    try:
-        payload = client.scatter(model, broadcast=True)
-        futures = [client.submit(_run_one, token, payload, backend, i, params, float(t_end), t_eval,
-                                 simulate_options, key=f"appell-run-{i}-{token}", pure=False)
-                   for i, params in enumerate(grid)]
-        done = as_completed(futures)
-        if progress:
-            from tqdm.auto import tqdm
+    t_eval = np.linspace(0.0, t_end, samples) if t_eval is None else times(t_eval, "t_eval", 0.0, t_end)
+    path = Path(output)
+    output_target(path)  # a device, a FIFO, a directory: refused before the runs
+    name = getattr(model, "name", None) or getattr(getattr(model, "system", None), "name", "model")
+    spec_text = json.dumps(list(specs) if not isinstance(specs, Mapping) else
+                           {k: list(map(float, np.asarray(v, float).reshape(-1))) for k, v in specs.items()})
+    header = {"appell_sweep_partial": 1, "model": str(name), "specs": spec_text, "t": t_eval}
+    partial_path = path.with_name(path.name + ".partial")
+    earlier = _resumed(partial_path, header, len(grid)) if resume else []
+    # resuming appends to the partial file: the runs kept there are never at risk
+    partial = _PartialFile(partial_path, header, kept=len(earlier) if earlier else None)
+    results = list(earlier)
 
-            done = tqdm(done, total=len(futures), desc="sweep", unit="run")
-        for fut in done:
-            try:
-                results.append(fut.result())
-            except Exception as exc:  # noqa: BLE001 (a lost worker: record the run as failed)
-                i = futures.index(fut)
-                results.append({"index": i, "status": RAISED, "message": f"{type(exc).__name__}: {exc}",
-                                "wall_time": float("nan")})
-    finally:
-        client.close()
-        if own_cluster is not None:
-            own_cluster.close()
+    def on_result(r):
+        results.append(r)
+        partial.add(r)
+
+    done = {r["index"] for r in earlier}
+    todo = [(i, params) for i, params in enumerate(grid) if i not in done]
+    try:
+        if todo:
+            _compute(model, todo, float(t_end), t_eval, simulate_options, on_result, backend=backend,
+                     scheduler=scheduler, n_workers=n_workers, processes=processes, progress=progress,
+                     worker_timeout=worker_timeout, connect_timeout=connect_timeout)
+    except BaseException:  # interrupted, or no cluster: keep the finished runs for --resume
+        if partial.kept:
+            partial.close()
+        else:
+            partial.remove()
+        raise
+    partial.close()
     results.sort(key=lambda r: r["index"])
     runs = tuple(RunRecord(r["index"], grid[r["index"]], r["status"], r["message"], r["wall_time"]) for r in results)
     groups = _assemble(results, grid, t_eval)
     summary = _summary(groups, runs)
-    path = Path(output)
-    name = getattr(model, "name", None) or getattr(getattr(model, "system", None), "name", "model")
-    _write_hdf5(path, t_eval, runs, groups, summary,
-                {"model": str(name), "specs": json.dumps(list(specs) if not isinstance(specs, Mapping) else
-                                                          {k: list(map(float, v)) for k, v in specs.items()}),
-                 "t_end": float(t_end), "backend": backend})
+    result = SweepResult(path, runs, summary)
     summary_path = path.with_name(path.name + ".summary.json")
-    with atomic_path(summary_path, suffix=".tmp") as tmp:
-        tmp.write_text(json.dumps({"runs": [r.__dict__ | {"message": r.message.splitlines()[0] if r.message else ""}
-                                            for r in runs], **summary}, indent=1, default=str))
-    return SweepResult(path, runs, summary)
+    try:
+        _write_hdf5(path, t_eval, runs, groups, summary,
+                    {"model": str(name), "specs": spec_text, "t_end": float(t_end), "backend": backend})
+        with atomic_path(summary_path, suffix=".tmp") as tmp:
+            tmp.write_text(json.dumps({"runs": [r.__dict__ | {"message": r.message.splitlines()[0] if r.message else ""}
+                                                for r in runs], **summary}, indent=1, default=str))
+    except OSError as exc:
+        error = ResourceError(f"cannot write the sweep's results to {exc.filename or path}: "
+                              f"{exc.strerror or exc}",
+                              hint=partial.describe())
+        error.result = result
+        raise error from exc
+    partial.remove()
+    return result

@@ -32,6 +32,8 @@ from appell.model import (
     Program,
     RigidBody,
     System,
+    declared_kinds,
+    name_clash,
     initial_value,
 )
 from appell.symbols import canonical_name, derivative_name, split_derivative_name
@@ -43,6 +45,8 @@ __all__ = ["load_model", "loads_model", "simulation_options", "TABLES", "SIMULAT
 
 #: largest model file accepted, in characters
 MAX_FILE_SIZE = 1_000_000
+#: the UTF-8 byte-order mark, accepted (and ignored) at the start of a model file
+BOM = "\ufeff"
 
 #: top-level tables and what they hold
 TABLES = {
@@ -623,6 +627,13 @@ def _build(r: _Reader, doc: dict) -> System:
 
     default_speeds = [derivative_name(q, 1) for q in coordinates]
     speed_names = speeds if speeds is not None else default_speeds
+    kinds = declared_kinds([(q, "coordinate") for q in coordinates] + [(w, "speed") for w in speed_names]
+                           + [(key, what) for key, what, _ in declarations[len(coordinates) + len(speeds or ()):]])
+    for key, what, path in declarations:
+        clash = name_clash(key, what, kinds)
+        if clash:
+            raise r.error(path, clash, hint="choose another name: derivative names (x_dot, x_ddot, x_d3, ...) "
+                                            "of coordinates, speeds, programs and controls are reserved")
     kinematics = None
     if "kinematics" in top:
         pairs = _named_expressions(r, top, "kinematics", "state", "coordinate")
@@ -694,6 +705,8 @@ def _build(r: _Reader, doc: dict) -> System:
 
 
 def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise ModelError(f"overrides must be a mapping {{name: value}}, got {type(overrides).__name__}", where=source)
     if not overrides:
         return system
     parameters = {p.symbol.name for p in system.parameters}
@@ -736,6 +749,8 @@ def loads_model(text: str, source: str = "<string>", overrides: Mapping | None =
         raise ModelError(f"a model must be text, got {type(text).__name__}", where=source)
     if len(text) > MAX_FILE_SIZE:
         raise ModelError(f"the model has {len(text)} characters; at most {MAX_FILE_SIZE} are read", where=source)
+    if text.startswith(BOM):  # editors on Windows start UTF-8 files with a byte-order mark
+        text = text[len(BOM):]
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -763,6 +778,8 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None) -> System
     listed by ``appell examples``) when no file of that name exists.
     Every error is a :class:`ModelError` with ``where="<file>:<line>"``.
     """
+    if not isinstance(path, (str, PathLike)):
+        raise ModelError(f"the path of a model file must be a string or a path, got {type(path).__name__}")
     path = Path(path)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
         from appell.examples import example_path, list_examples
