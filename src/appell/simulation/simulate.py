@@ -312,7 +312,7 @@ def simulate(model_or_derivation, t_end: float, *, t0: float = 0.0, t_eval=None,
     y0 = _initial_state(model, initial, complete, t0, p)
     names = tuple(model.constraint_names)
     settings = {"method": getattr(solver_cls, "__name__", str(method)), "rtol": rtol, "atol": atol,
-                "stabilization": stabilization, "projection_tol": projection_tol,
+                "max_step": max_step, "stabilization": stabilization, "projection_tol": projection_tol,
                 "project_output": bool(project_output and stabilization == "projection")}
     if stabilization == "baumgarte":
         settings["baumgarte"] = tuple(float(v) for v in baumgarte)

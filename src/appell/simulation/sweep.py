@@ -256,7 +256,10 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     -------
     SweepResult
     """
-    from dask.distributed import Client, LocalCluster, as_completed
+    from appell.errors import import_optional
+
+    distributed = import_optional("dask.distributed", extra="sweep", feature="a parameter sweep")
+    Client, LocalCluster, as_completed = distributed.Client, distributed.LocalCluster, distributed.as_completed
 
     grid = parameter_grid(specs)
     if not grid:
