@@ -165,10 +165,11 @@ def _png_data_uri(fig) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def solution_figures(solution) -> list[tuple[str, str]]:
+def solution_figures(solution, panels=None) -> list[tuple[str, str]]:
     """``(caption, data URI)`` of PNG plots of a :class:`~appell.simulation.solution.Solution`:
     coordinates, speeds, reactions (multipliers), controls and constraint residuals
-    (panels with nothing to show are left out)."""
+    (panels with nothing to show are left out); ``panels`` keeps only the named ones
+    (``('reactions', 'controls')``, say)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -180,7 +181,7 @@ def solution_figures(solution) -> list[tuple[str, str]]:
         values = np.abs(np.asarray(values, float))
         if np.any(np.isfinite(values)):
             residuals[name] = np.where(values > 0, values, np.nan)
-    panels = [
+    chosen = [
         ("coordinates", "coordinates q(t)", {n: solution.states[n] for n in solution.coordinate_names}, False),
         ("speeds", "speeds w(t)", {n: solution.states[n] for n in solution.speed_names}, False),
         ("reactions", "reactions: multipliers lambda(t)", {f"lambda_{n}": a for n, a in solution.multipliers.items()},
@@ -189,8 +190,8 @@ def solution_figures(solution) -> list[tuple[str, str]]:
         ("residuals", "constraint residuals |F|, |phi| (drift)", residuals, True),
     ]
     out = []
-    for key, title, series, log in panels:
-        if not series:
+    for key, title, series, log in chosen:
+        if not series or (panels is not None and key not in panels):
             continue
         fig = Figure(figsize=(7.5, 3.0), constrained_layout=True)
         ax = fig.subplots()
