@@ -302,3 +302,26 @@ def test_derive_and_compile_show_their_stage_on_a_terminal(monkeypatch):
 def test_commands_are_quiet_when_stderr_is_not_a_terminal(tmp_path):
     result = run("simulate", "pendulum", "--t-end", "0.5", "--out", tmp_path / "p.csv")
     assert result.exit_code == 0 and result.stderr == ""
+
+
+def test_missing_netcdf_engine_is_reported_with_the_install_command(tmp_path, monkeypatch):
+    """The netCDF writer's package is missing (simulated: importing any netCDF engine fails):
+    the command names the package and the install command, writes nothing, exit code 1."""
+    import builtins
+
+    engines = {"netCDF4", "h5netcdf", "xarray", "scipy.io", "scipy.io.netcdf"}
+    real_import = builtins.__import__
+
+    def without_engines(name, globals=None, locals=None, fromlist=(), level=0):
+        if level == 0 and name in engines:
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return real_import(name, globals, locals, fromlist, level)
+
+    out = tmp_path / "p.nc"
+    monkeypatch.setattr(builtins, "__import__", without_engines)
+    result = run("simulate", "pendulum", "--t-end", "0.5", "--out", out)
+    monkeypatch.undo()
+    assert result.exit_code == 1, result.output
+    assert "needs the package" in result.output and "pip install" in result.output
+    assert "bug" not in result.output and "Traceback" not in result.output
+    assert not out.exists()

@@ -246,13 +246,25 @@ def solver_line(solution) -> str:
 
 
 def export_solution(solution, path: Path) -> Path:
-    """Write ``solution`` to ``path`` in the format of its suffix (:data:`OUTPUT_FORMATS`)."""
+    """Write ``solution`` to ``path`` in the format of its suffix (:data:`OUTPUT_FORMATS`).
+
+    A writer whose package is not installed (a netCDF engine, say) raises
+    :class:`~appell.errors.MissingDependencyError` naming the package, not an internal error.
+    """
+    from appell.errors import MissingDependencyError
+
     kind = OUTPUT_FORMATS[path.suffix.lower()]
-    if kind == "csv":
-        return solution.to_csv(path)
-    if kind == "hdf5":
-        return solution.to_hdf5(path)
-    return solution.to_netcdf(path)
+    try:
+        if kind == "csv":
+            return solution.to_csv(path)
+        if kind == "hdf5":
+            return solution.to_hdf5(path)
+        return solution.to_netcdf(path)
+    except ModuleNotFoundError as exc:
+        package = (exc.name or "").split(".")[0] or str(exc)
+        raise MissingDependencyError(f"writing {path.suffix} files ({kind}) needs the package {package!r}, "
+                                     "which is not installed",
+                                     hint=f"install it with: pip install {package}, or write .csv") from None
 
 
 # ---------------------------------------------------------------- the commands
