@@ -18,15 +18,20 @@ author = "the appell authors"
 copyright = "the appell authors"
 release = version = appell.__version__
 
+sys.path.insert(0, str(Path(__file__).resolve().parent / "_ext"))
+
 extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
-    "sphinx.ext.mathjax",
+    "mathml_math",      # _ext/mathml_math.py: LaTeX -> MathML at build time, no script, no network
+    "gallery_figures",  # _ext/gallery_figures.py: the figure of each example's reactions on the gallery
 ]
+html_math_renderer = "mathml"
+html_static_path = ["_static"]
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}
 root_doc = "index"
-exclude_patterns = ["_build"]
+exclude_patterns = ["_build", "_ext", "_static"]
 
 myst_enable_extensions = ["dollarmath", "amsmath", "deflist"]
 myst_heading_anchors = 3
@@ -39,6 +44,7 @@ napoleon_google_docstring = False
 
 html_theme = "alabaster"
 html_title = f"appell {release}"
+html_show_sphinx = False  # no link out of the pages (they are read offline)
 # reference targets that docstrings name in double backticks are literal text, not links
 nitpicky = False
 

@@ -15,11 +15,8 @@ gallery and the API page are checked to cover every bundled example and public m
 
 from __future__ import annotations
 
-import os
 import re
 import shlex
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -139,14 +136,8 @@ def test_api_page_covers_every_public_module():
     assert not missing, f"docs/api.md does not document {missing}"
 
 
-def test_sphinx_build_without_warnings(tmp_path):
-    pytest.importorskip("sphinx", reason="sphinx is not installed (pip install -e '.[docs]')")
-    pytest.importorskip("myst_parser", reason="myst-parser is not installed (pip install -e '.[docs]')")
-    out = tmp_path / "html"
-    env = {**os.environ, "MPLBACKEND": "Agg"}
-    done = subprocess.run(
-        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", "-d", str(tmp_path / "doctrees"),
-         str(DOCS), str(out)], capture_output=True, text=True, timeout=300, env=env)
+def test_sphinx_build_without_warnings(docs_build):
+    done, out = docs_build  # conftest.py: built once per session
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     for page in ("index", "tutorial", "method", "gallery", "api", "model-format"):
         assert (out / f"{page}.html").exists(), page

@@ -10,9 +10,6 @@ images that decoded, and writes the counts into attributes of ``<body>``. Chromi
 from __future__ import annotations
 
 import re
-import shutil
-import subprocess
-from html.parser import HTMLParser
 from pathlib import Path
 
 import numpy as np
@@ -20,16 +17,9 @@ import pytest
 from click.testing import CliRunner
 
 from appell.io.cli import cli
+from browser import CHROMIUM, SKIP_REASON, body_attributes, chromium, references
 
-CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None)
-
-pytestmark = pytest.mark.skipif(
-    CHROMIUM is None, reason="headless Chromium is not installed (Debian: apt-get install chromium; .ci/run does it)")
-
-# flags keep the browser off the network and away from the user's profile
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-         "--disable-extensions", "--disable-default-apps", "--mute-audio", "--hide-scrollbars"]
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)
 
 
 @pytest.fixture(scope="module")
@@ -41,42 +31,20 @@ def car_report(tmp_path_factory) -> Path:
     return out
 
 
-def chromium(args, tmp_path, timeout=90) -> subprocess.CompletedProcess:
-    profile = tmp_path / "profile"
-    cmd = [CHROMIUM, *FLAGS, f"--user-data-dir={profile}", *args]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
-
-
-class _Resources(HTMLParser):
-    """Every attribute value that could make the browser fetch something."""
-
-    def __init__(self):
-        super().__init__()
-        self.references: list[tuple[str, str, str]] = []
-
-    def handle_starttag(self, tag, attrs):
-        for name, value in attrs:
-            if name in ("src", "href", "srcset", "data", "poster", "action", "background") and value:
-                self.references.append((tag, name, value))
-
-
 def test_report_references_nothing_outside_the_page(car_report):
     page = car_report.read_text(encoding="utf-8")
     assert "http://" not in page and "https://" not in page
     assert not re.search(r"<link\b|@import|url\(", page, re.IGNORECASE)
-    parser = _Resources()
-    parser.feed(page)
-    for tag, attr, value in parser.references:
+    found = references(page)
+    for tag, attr, value in found:
         assert value.startswith(("#", "data:image/png;base64,")), (tag, attr, value[:60])
-    assert any(attr == "src" for _, attr, _ in parser.references), "the plots are embedded images"
+    assert any(attr == "src" for _, attr, _ in found), "the plots are embedded images"
 
 
 def test_mathematics_and_plots_render_in_chromium(car_report, tmp_path):
     done = chromium(["--virtual-time-budget=10000", "--dump-dom", car_report.as_uri()], tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
-    body = re.search(r"<body([^>]*)>", done.stdout)
-    assert body, done.stdout[:500]
-    attrs = dict(re.findall(r'(data-[a-z-]+)="([^"]*)"', body.group(1)))
+    attrs = body_attributes(done.stdout)
     assert attrs.get("data-render-check") == "done", "the report's load-time check did not run"
     counts = {k: int(v) for k, v in attrs.items() if k != "data-render-check"}
     # the car: 3 reduced/dependent equations, 2 reactions, constraints, parameters, ...

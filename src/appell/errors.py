@@ -7,6 +7,9 @@ Two families, matching the command line's exit codes:
   The message names the culprit and says what to do.
 * :class:`ComputationError` (exit code 1) — the input is acceptable but the computation
   failed: Newton's method did not converge, the integrator stopped.
+
+:class:`MissingDependencyError` (exit code 1) says that a feature needs an optional package
+that is not installed, with the command that installs it (:func:`import_optional`).
 """
 
 from __future__ import annotations
@@ -30,6 +33,28 @@ class AppellError(Exception):
         if self.hint:
             text = f"{text}\n  hint: {self.hint}"
         return text
+
+
+class MissingDependencyError(AppellError):
+    """An optional package that a feature needs is not installed (not a bug in appell, nor bad
+    input); exit code 1. The hint gives the command that installs it."""
+
+    exit_code = 1
+
+
+def import_optional(module: str, *, extra: str, feature: str):
+    """Import ``module`` for ``feature``, or raise :class:`MissingDependencyError` saying so
+    with the install command of the package's optional dependencies ``appell[extra]``
+    (pyproject.toml ``[project.optional-dependencies]``)."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        missing = getattr(exc, "name", None) or module.split(".")[0]
+        raise MissingDependencyError(
+            f"{feature} needs the optional package {missing.split('.')[0]!r}, which is not installed",
+            hint=f"install it with: pip install 'appell[{extra}]'") from None
 
 
 class ModelError(AppellError):

@@ -24,6 +24,7 @@ a regular file); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM). Errors are 
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import shutil
@@ -46,6 +47,10 @@ EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
 
 #: file suffix -> export format of ``appell simulate --out``
 OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"}
+
+#: the integrator's command-line options (``--max-step`` is ``max_step``); each defaults to the
+#: model's ``[simulation]`` value (:func:`simulation_options`)
+SOLVER_OPTIONS = ("method", "rtol", "atol", "max_step", "t0", "samples", "output_step", "stabilization")
 
 
 # ---------------------------------------------------------------- the API the commands use
@@ -83,17 +88,26 @@ def load_system(model: str, overrides=None):
     return load_model(resolve_model(model), overrides=overrides or None)
 
 
-def derive_model(system, dependent=None):
+def derive_model(system, dependent=None, formulas: bool = False):
     """:func:`appell.derive`, or :func:`appell.control.servo.derive_controlled` when the system has
-    servo constraints (method.md §4)."""
+    servo constraints (method.md §4); ``formulas`` also computes the reduced equations (1.4)
+    and the reaction formulas (1.5) now (they are otherwise built on first use). A status
+    line shows the stage on a terminal (:func:`appell.io.progress.status`)."""
+    from appell.io.progress import status
+
     dependent = [canonical_name(d) for d in dependent] if dependent else None
-    if system.servo_constraints:
-        from appell.control.servo import derive_controlled
+    with status(f"deriving {system.name}"):
+        if system.servo_constraints:
+            from appell.control.servo import derive_controlled
 
-        return derive_controlled(system, dependent=dependent)
-    from appell.core.derive import derive
+            derivation = derive_controlled(system, dependent=dependent)
+        else:
+            from appell.core.derive import derive
 
-    return derive(system, dependent=dependent)
+            derivation = derive(system, dependent=dependent)
+        if formulas:
+            derivation.reduced, derivation.reactions  # noqa: B018 (computed and cached here)
+    return derivation
 
 
 def is_controlled(derivation) -> bool:
@@ -157,22 +171,42 @@ def derivation_json(derivation, reduction=None) -> dict:
     return json_document(out, derivation)
 
 
-def simulation_options(system, t_end: float | None = None) -> dict:
+def simulation_options(system, t_end: float | None = None, **solver) -> dict:
     """Keyword arguments of :func:`appell.simulation.simulate.simulate` from the model's ``[simulation]``
-    table, with ``t_end`` overriding the table's final time (default :data:`DEFAULT_T_END`):
-    :func:`appell.simulation.defaults.model_options`, the same defaults the API applies.
+    table (:func:`appell.simulation.defaults.model_options`, the same defaults the API
+    applies), with ``t_end`` overriding the
+    table's final time (default :data:`appell.simulation.defaults.DEFAULT_T_END`) and the command line's solver
+    options (:data:`SOLVER_OPTIONS`) overriding the table's values: ``t0``, ``method``,
+    ``rtol``, ``atol``, ``max_step``, ``stabilization`` (``'none'`` for None), and the output
+    times as ``samples`` (that many equally spaced times from t0 to t_end) or
+    ``output_step`` (t0, t0 + step, ... and t_end). A value of None keeps the table's.
+
+    When ``t_end`` or ``t0`` changes the span, equally spaced output times of the table are
+    regenerated with their step over the new span, and other output times are cut to it.
     """
     from appell.simulation.defaults import model_options
 
     from appell.arguments import number
 
-    opts = model_options(system, t_end)
+    solver = {k: v for k, v in solver.items() if v is not None}
+    unknown = sorted(set(solver) - set(SOLVER_OPTIONS))
+    if unknown:
+        raise TypeError(f"unknown solver option(s) {', '.join(unknown)}")
+    if "samples" in solver and "output_step" in solver:
+        raise click.UsageError("give --samples or --output-step, not both")
+    opts = model_options(system, t_end, solver.pop("t0", None), samples=solver.pop("samples", None),
+                         output_step=solver.pop("output_step", None))
     opts["t_end"] = number(opts["t_end"], "t_end (--t-end)", hint="give a finite final time")
+    if "stabilization" in solver:
+        solver["stabilization"] = None if solver["stabilization"] == "none" else solver["stabilization"]
+    opts.update(solver)
     return opts
 
 
-def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy", **options):
-    """Simulate ``derivation`` with the model's settings (:func:`simulation_options`).
+def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy", solver=None, **options):
+    """Simulate ``derivation`` with the model's settings (:func:`simulation_options`), the
+    command line's ``solver`` options (``{name: value or None}``, :data:`SOLVER_OPTIONS`)
+    overriding them.
 
     ``t_end`` equal to the start time gives the single row at the initial state.
     Initial values the model does not give are computed from the given ones
@@ -185,10 +219,16 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
     (:meth:`~appell.core.equations.Derivation.compiled`); a controlled one runs as it is.
     Raises :class:`ComputationError` when the integration fails (status -1).
     """
+    from appell.io.progress import status
     from appell.simulation.simulate import simulate
 
-    model = derivation if backend == "numpy" or is_controlled(derivation) else derivation.compiled(backend)
-    table = simulation_options(derivation.system, t_end)
+    with status(f"compiling the numeric code of {derivation.system.name} ({backend})"):
+        if backend == "numpy" or is_controlled(derivation):
+            model = derivation
+            derivation.numeric  # noqa: B018 (built and cached here, under the status line)
+        else:
+            model = derivation.compiled(backend)
+    table = simulation_options(derivation.system, t_end, **(solver or {}))
     opts = {"complete": True, "adjust": None if table.get("complete") else (), **table, **options}
     t0, t_end = opts.pop("t0"), opts.pop("t_end")
     if t_end == t0:
@@ -201,14 +241,38 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
     return solution
 
 
+def solver_line(solution) -> str:
+    """One line: the integrator's settings as they ran (from the solution's metadata) and
+    its statistics, e.g. ``solver: RK45, rtol 1e-06, atol 1e-09, max_step inf, stabilization
+    projection; 52 steps, 320 evaluations, 3 projections``."""
+    settings, stats = dict(solution.metadata.settings), solution.statistics
+    if settings.get("stabilization") in (None, "None"):
+        settings["stabilization"] = "none"
+    names = [k for k in ("rtol", "atol", "max_step", "stabilization") if k in settings]
+    return (f"solver: {settings.get('method', '?')}, " + ", ".join(f"{k} {settings[k]}" for k in names)
+            + f"; {stats.steps} steps, {stats.nfev} evaluations, {stats.projections} projections")
+
+
 def export_solution(solution, path: Path) -> Path:
-    """Write ``solution`` to ``path`` in the format of its suffix (:data:`OUTPUT_FORMATS`)."""
+    """Write ``solution`` to ``path`` in the format of its suffix (:data:`OUTPUT_FORMATS`).
+
+    A writer whose package is not installed (a netCDF engine, say) raises
+    :class:`~appell.errors.MissingDependencyError` naming the package, not an internal error.
+    """
+    from appell.errors import MissingDependencyError
+
     kind = OUTPUT_FORMATS[path.suffix.lower()]
-    if kind == "csv":
-        return solution.to_csv(path)
-    if kind == "hdf5":
-        return solution.to_hdf5(path)
-    return solution.to_netcdf(path)
+    try:
+        if kind == "csv":
+            return solution.to_csv(path)
+        if kind == "hdf5":
+            return solution.to_hdf5(path)
+        return solution.to_netcdf(path)
+    except ModuleNotFoundError as exc:
+        package = (exc.name or "").split(".")[0] or str(exc)
+        raise MissingDependencyError(f"writing {path.suffix} files ({kind}) needs the package {package!r}, "
+                                     "which is not installed",
+                                     hint=f"install it with: pip install {package}, or write .csv") from None
 
 
 # ---------------------------------------------------------------- the commands
@@ -308,6 +372,65 @@ def _completion(complete: bool, adjust) -> dict:
     return {"complete": True, "adjust": None} if complete else {}
 
 
+class _Positive(click.ParamType):
+    """A positive number (``inf`` allowed where ``infinite``); anything else is bad input."""
+
+    name = "positive number"
+
+    def __init__(self, infinite: bool = False):
+        self.infinite = infinite
+
+    def convert(self, value, param, ctx):
+        import math
+
+        if isinstance(value, float):
+            return value
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"must be a positive number, got {value!r}", param, ctx)
+        if not number > 0 or math.isnan(number) or (math.isinf(number) and not self.infinite):
+            self.fail(f"must be a positive{'' if self.infinite else ' finite'} number, got {value}", param, ctx)
+        return number
+
+
+def _solver_options(command):
+    """The integrator's options (:data:`SOLVER_OPTIONS`), each defaulting to the model's
+    ``[simulation]`` value, collected into the command's ``solver`` argument
+    (``{name: value, or None where not given}``) for :func:`simulation_options`."""
+    from appell.simulation.simulate import METHODS
+
+    positive = _Positive()
+    table = " (default: the model's [simulation] value, else {})."
+    options = [
+        click.option("--method", type=click.Choice(list(METHODS)), default=None,
+                     help="Integration method" + table.format("DOP853")),
+        click.option("--rtol", type=positive, default=None, metavar="R",
+                     help="Relative tolerance of the integrator" + table.format("1e-9")),
+        click.option("--atol", type=positive, default=None, metavar="A",
+                     help="Absolute tolerance of the integrator" + table.format("1e-12")),
+        click.option("--max-step", "max_step", type=_Positive(infinite=True), default=None, metavar="H",
+                     help="Largest integration step" + table.format("unbounded")),
+        click.option("--t0", "t0", type=float, default=None, metavar="T",
+                     help="Start time; the initial values hold at t0" + table.format("0")),
+        click.option("--samples", type=click.IntRange(min=2), default=None, metavar="N",
+                     help="N equally spaced output times from t0 to t_end" + table.format("501")),
+        click.option("--output-step", "output_step", type=positive, default=None, metavar="H",
+                     help="Output times t0, t0 + H, ... and t_end (excludes --samples)."),
+        click.option("--stabilization", type=click.Choice(["projection", "baumgarte", "none"]), default=None,
+                     help="Constraint drift control" + table.format("projection")),
+    ]
+
+    @functools.wraps(command)
+    def with_solver(*args, **kwargs):
+        kwargs["solver"] = {name: kwargs.pop(name) for name in SOLVER_OPTIONS}
+        return command(*args, **kwargs)
+
+    for option in reversed(options):
+        with_solver = option(with_solver)
+    return with_solver
+
+
 @click.group(name="appell", cls=_AppellGroup, context_settings=_CONTEXT)
 @click.version_option(package_name="appell", prog_name="appell", message="%(prog)s %(version)s")
 def cli():
@@ -346,7 +469,7 @@ def derive(model, fmt, dependent, routh, assignments, only):
 
         reduction = routh_reduction(system)
         system = reduction.system
-    derivation = derive_model(system, dependent)
+    derivation = derive_model(system, dependent, formulas=True)
     linearisation, note = internal_stability(derivation)
     if fmt == "json":
         out = derivation_json(derivation, reduction)
@@ -375,11 +498,12 @@ def derive(model, fmt, dependent, routh, assignments, only):
               help="Write the motion to FILE.csv, FILE.h5 or FILE.nc (by suffix).")
 @click.option("--plot", "plot", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE",
               help="Plot coordinates, reactions, controls and residuals to FILE (e.g. .png, .pdf, .svg).")
+@_solver_options
 @_backend_option
 @_set_option
 @_complete_option
 @_adjust_option
-def simulate(model, t_end, out, plot, backend, assignments, complete, adjust):
+def simulate(model, t_end, out, plot, backend, assignments, complete, adjust, solver):
     """Simulate the motion with its reactions, controls and constraint residuals.
 
     CSV columns: t, each coordinate, each speed, lambda_<constraint>, control_<control>,
@@ -398,12 +522,13 @@ def simulate(model, t_end, out, plot, backend, assignments, complete, adjust):
             output_target(target)  # a device, a FIFO, a directory: refused before the simulation
     system = load_system(model, parse_assignments(assignments))
     derivation = derive_model(system)
-    solution = run_simulation(derivation, t_end, backend, **_completion(complete, adjust))
+    solution = run_simulation(derivation, t_end, backend, solver, **_completion(complete, adjust))
     if out_path is not None:
         export_solution(solution, out_path)
     if plot:
         solution.plot(plot)
     click.echo(solution.summary())
+    click.echo(solver_line(solution))
     _warn_internal(*internal_stability(derivation, solution))
     for path in (out_path, plot):
         if path:
@@ -520,11 +645,12 @@ def check(model, tolerance, energy_tolerance, t_end, assignments):
 @click.option("--t-end", type=float, default=None, metavar="T",
               help="Final time of the simulation shown (default: the model's [simulation] t_end, else 10).")
 @click.option("--no-simulation", is_flag=True, help="Leave out the simulation and its plots.")
+@_solver_options
 @_backend_option
 @_set_option
 @_complete_option
 @_adjust_option
-def report(model, output, t_end, no_simulation, backend, assignments, complete, adjust):
+def report(model, output, t_end, no_simulation, backend, assignments, complete, adjust, solver):
     """Write one self-contained HTML page: the model, its equations as mathematics,
     plots of coordinates, reactions and controls, and the cross-check.
 
@@ -546,7 +672,7 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
     elif not system.initial and not system.settings:
         note = "Left out: the model gives neither initial values ([initial]) nor a [simulation] table."
     else:
-        solution = run_simulation(derivation, t_end, backend, **_completion(complete, adjust))
+        solution = run_simulation(derivation, t_end, backend, solver, **_completion(complete, adjust))
     linearisation, internal_note = internal_stability(derivation, solution)
     _warn_internal(linearisation, internal_note)
     from appell.simulation.energy_balance import ENERGY_TOLERANCE
@@ -572,7 +698,7 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
 @click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE.h5",
               help="Results dataset (default: <model name>-sweep.h5); the summary goes beside it as "
                    "FILE.h5.summary.json.")
-@click.option("--samples", type=int, default=501, show_default=True, help="Output times per run.")
+@_solver_options
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Dask scheduler address (tcp://host:8786) to run on many machines; default a local cluster.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
@@ -584,41 +710,36 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
                    "and times) and compute only the others.")
 @_backend_option
 @_set_option
-def sweep(model, specs, t_end, out, samples, scheduler, workers, worker_timeout, resume, backend, assignments):
+def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, backend, assignments, solver):
     """Simulate MODEL over a grid of parameter values, in parallel on Dask.
 
     Writes one HDF5 dataset with every run (states, reactions, controls, status) and a
-        solution = run_simulation(derivation, t_end, backend, **_completion(complete, adjust))
-    linearisation, internal_note = internal_stability(derivation, solution)
-    _warn_internal(linearisation, internal_note)
-    from appell.simulation.energy_balance import ENERGY_TOLERANCE
-
-    energy = _energy_balance(derivation, t_end)
-    path = Path(output) if output else default_file_name(system.name, "-report.html")
-    output_target(path)
+    summary: the extreme value of each reaction across the successful runs and where it
+    occurs. A failed run is recorded, not fatal to the others, and listed with its
+    parameters and error; the exit code is 0 only when every run succeeded, 1 when any
+    run failed.
     """
     from appell.simulation.sweep import parameter_grid
     from appell.simulation.sweep import sweep as run_sweep
 
-    if samples < 1:
-        raise click.BadParameter("must be at least 1", param_hint="'--samples'")
     system = load_system(model, parse_assignments(assignments))
     if system.servo_constraints:
         raise ModelError("sweeps of models with servo constraints are not supported yet",
                          hint="sweep the plain constrained system, or loop over appell simulate --set")
     parameter_grid(specs)  # bad specs are bad input, before a cluster starts
-    opts = simulation_options(system, t_end)
-    t0, final = opts.pop("t0"), opts.pop("t_end")
-    opts.pop("t_eval", None)
+    opts = simulation_options(system, t_end, **solver)
+    final, times = opts.pop("t_end"), opts.pop("t_eval", None)
+    if times is None:  # neither the command line nor the model gives output times
+        import numpy as np
+
+        times = np.linspace(opts["t0"], final, 501) if final > opts["t0"] else np.array([opts["t0"]])
     if opts.get("complete"):  # missing values are computed; a run whose given values violate a constraint fails
         opts["adjust"] = ()  # (its changes could not be reported), instead of being changed silently
-    if t0 != 0.0:
-        raise ModelError("sweeps start at t = 0", hint="remove t0 from the [simulation] table")
     path = Path(out) if out else default_file_name(system.name, "-sweep.h5")
     if not path.parent.is_dir():
         raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint="'--out'")
     output_target(path)
-    result = run_sweep(system, list(specs), final, output=path, samples=samples, scheduler=scheduler,
+    result = run_sweep(system, list(specs), final, output=path, t_eval=times, scheduler=scheduler,
                        n_workers=workers, backend=backend, progress=sys.stderr.isatty(),
                        worker_timeout=worker_timeout, resume=resume, **opts)
     click.echo(result.summary_text())

@@ -166,11 +166,12 @@ def _png_data_uri(fig) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def solution_figures(solution) -> list[tuple[str, str]]:
+def solution_figures(solution, panels=None) -> list[tuple[str, str]]:
     """``(caption, data URI)`` of PNG plots of a :class:`~appell.simulation.solution.Solution`,
     one per panel of :meth:`~appell.simulation.solution.Solution.panels` (coordinates,
     speeds, reactions, controls, constraint residuals; panels with nothing to show are
-    left out), drawn as :meth:`~appell.simulation.solution.Solution.plot` draws them. The
+    left out; ``panels`` keeps only the named ones, ``('reactions', 'controls')`` say), drawn
+    as :meth:`~appell.simulation.solution.Solution.plot` draws them. The
     figures are made without :mod:`matplotlib.pyplot`: the user's backend is left alone."""
     from matplotlib.figure import Figure
 
@@ -178,7 +179,7 @@ def solution_figures(solution) -> list[tuple[str, str]]:
 
     out = []
     for key, label, series, log in solution.panels():
-        if not series:
+        if not series or (panels is not None and key not in panels):
             continue
         fig = Figure(figsize=(7.5, 3.0), constrained_layout=True)
         ax = fig.subplots()

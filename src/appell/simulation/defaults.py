@@ -43,12 +43,17 @@ def settings_options(system) -> dict:
     return options
 
 
-def model_options(system, t_end: float | None = None, t0: float | None = None) -> dict:
+def model_options(system, t_end: float | None = None, t0: float | None = None, *,
+                  samples: int | None = None, output_step: float | None = None) -> dict:
     """Keyword arguments of ``simulate`` from the model's settings (module docstring), with
-    ``t_end`` and ``t0`` (when not None) overriding the model's final and initial time.
+    ``t_end`` and ``t0`` (when not None) overriding the model's final and initial time, and
+    ``samples`` (that many equally spaced times) or ``output_step`` (t0, t0 + step, ... and
+    t_end) replacing the model's output times.
 
-    The result always holds ``t0`` and ``t_end``, and ``t_eval`` when the model gives
-    output times (``t_eval`` or ``output_step``).
+    The result always holds ``t0`` and ``t_end``, and ``t_eval`` when output times are
+    given (``t_eval`` or ``output_step`` of the model, or the arguments). When ``t_end`` or
+    ``t0`` changes the span, equally spaced output times of the model are regenerated with
+    their step over the new span, and other output times are cut to it.
     """
     opts = settings_options(system)
     table_t0 = float(opts.pop("t0", 0.0))
@@ -58,6 +63,9 @@ def model_options(system, t_end: float | None = None, t0: float | None = None) -
                    "t_end", hint="give a finite final time")
     step = opts.pop("output_step", None)
     times = opts.pop("t_eval", None)
+    if samples is not None or output_step is not None:  # given output times replace the model's
+        step = None if output_step is None else number(output_step, "output_step", positive=True)
+        times = np.linspace(start, final, int(samples)) if samples is not None and final > start else None
     if times is not None and step is None and (final != table_t_end or start != table_t0):
         grid = np.asarray(times, float)
         spacing = np.diff(grid)

@@ -394,7 +394,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     p = vector(model.params(params), "params", len(model.parameter_names), names=list(model.parameter_names))
     names = tuple(model.constraint_names)
     settings = {"method": getattr(solver_cls, "__name__", str(method)), "rtol": rtol, "atol": atol,
-                "stabilization": stabilization, "projection_tol": projection_tol,
+                "max_step": max_step, "stabilization": stabilization, "projection_tol": projection_tol,
                 "project_output": bool(project_output and stabilization == "projection")}
     if stabilization == "baumgarte":
         settings["baumgarte"] = tuple(float(v) for v in baumgarte)

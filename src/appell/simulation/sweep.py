@@ -60,6 +60,14 @@ MAX_RUNS, MAX_SAMPLES = 1_000_000, 10_000_000
 _ADDRESS = re.compile(r"^(?:(?:tcp|tls|ws|wss|ucx)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(\d{1,5})$")
 
 
+def _distributed():
+    """``dask.distributed``, or :class:`~appell.errors.MissingDependencyError` with the install
+    command (``pip install 'appell[sweep]'``)."""
+    from appell.errors import import_optional
+
+    return import_optional("dask.distributed", extra="sweep", feature="a parameter sweep")
+
+
 def parse_spec(spec: str) -> tuple[str, np.ndarray]:
     """``'NAME=START:STOP:NUM'`` -> ``(NAME, linspace(START, STOP, NUM))``; also
     ``'NAME=V1,V2,...'`` and ``'NAME=V'``."""
@@ -387,7 +395,7 @@ def check_scheduler_address(scheduler: str) -> str:
 
 
 def _connect(scheduler: str, timeout: float):
-    from dask.distributed import Client
+    Client = _distributed().Client
 
     try:
         return Client(scheduler, timeout=timeout)
@@ -410,7 +418,7 @@ def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None
     for good, or that was cancelled, is a failed run. When the cluster has had no worker
     for ``worker_timeout`` seconds (or the scheduler is lost), the pending runs are
     cancelled and recorded as failed."""
-    from dask.distributed import as_completed
+    as_completed = _distributed().as_completed
 
     index = {fut.key: i for fut, i in zip(futures, indices)}
     pending = set(index)
@@ -486,7 +494,8 @@ def _compute(model, todo, t_end, t_eval, simulate_options, on_result, *, backend
              progress, worker_timeout, connect_timeout):
     """Run the grid points ``todo`` (``[(index, parameters), ...]``) on a Dask cluster, local
     or at ``scheduler``; every finished run goes to ``on_result``."""
-    from dask.distributed import Client, LocalCluster
+    distributed = _distributed()
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
 
     own_cluster = None
     if scheduler is None:
