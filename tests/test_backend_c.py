@@ -114,3 +114,25 @@ def test_simulation_with_c_backend():
     s2 = simulate(d.compiled("c"), 2.0, t_eval=t_eval, progress=False, complete=True)
     for k in s1.multipliers:
         np.testing.assert_allclose(s2.multipliers[k], s1.multipliers[k], rtol=1e-8, atol=1e-8)
+
+
+@pytest.mark.parametrize("call", ["short q", "long w", "dependent out of range", "repeated dependent",
+                                  "short state", "short bias"])
+def test_compiled_model_refuses_wrong_sizes_before_the_c_code_reads_them(call):
+    """The C functions read exactly n_q, n, s entries: a wrong length or an index outside
+    0..n-1 would be read out of bounds. Each is a ModelError naming the sizes instead."""
+    d = appell.derive(CATALOG["car"]())
+    m = d.compiled("c")
+    q, w = [0.0, 0.0, 0.3], [1.0, 0.2, 0.1]
+    calls = {
+        "short q": lambda: m.solve(0.0, q[:2], w),
+        "long w": lambda: m.solve(0.0, q, w + [0.0]),
+        "dependent out of range": lambda: m.solve(0.0, q, w, dependent=[0, 7]),
+        "repeated dependent": lambda: m.solve(0.0, q, w, dependent=[1, 1]),
+        "short state": lambda: m.evaluate(0.0, np.zeros(5)),
+        "short bias": lambda: m.evaluate(0.0, np.zeros(6), bias=[0.0]),
+    }
+    with pytest.raises(appell.ModelError):
+        calls[call]()
+    # and a right call still agrees with the NumPy split
+    assert np.allclose(m.solve(0.0, q, w).multipliers, d.numeric.solve(0.0, q, w).multipliers, rtol=1e-12)

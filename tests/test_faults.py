@@ -31,7 +31,7 @@ from click.testing import CliRunner
 import appell
 from appell.examples import example_path
 from appell.examples.catalog import CATALOG
-from appell.io import files
+from appell import files
 from appell.io.cli import cli
 
 SRC = str(Path(appell.__file__).resolve().parents[1])

@@ -52,3 +52,20 @@ def test_tiny_sweep(tmp_path):
     # the bottom is passed within 1.2 s (L = 1 m; quarter period about 0.55 s at g = 9.81)
     assert top["max"] == pytest.approx(2 * 2.0 * 9.81, rel=1e-3)
     assert "rod" in res.summary_text()
+
+
+def test_a_sweep_leaves_no_default_dask_client_behind(tmp_path):
+    """After a sweep in the same process, a netCDF export (xarray, which uses dask's default
+    scheduler when one is configured) still works: the sweep's client is not made the
+    default ('Requested dask.distributed scheduler but no Client active' before)."""
+    import dask
+
+    sweep(CATALOG["pendulum"](), ["m=1,2"], 0.2, output=tmp_path / "s.h5", samples=11,
+          n_workers=1, processes=False, backend="numpy", progress=False)
+    assert dask.config.get("scheduler", None) != "dask.distributed"
+    sol = appell.simulate(appell.derive(CATALOG["pendulum"]()), 0.1, t_eval=[0.0, 0.1], progress=False)
+    sol.to_netcdf(tmp_path / "after.nc")
+    import xarray as xr
+
+    with xr.open_dataset(tmp_path / "after.nc", engine="h5netcdf") as ds:
+        assert ds["lambda_rod"].values[0] == pytest.approx(9.81 * 0.5, rel=1e-9)  # m g cos 60 deg at rest

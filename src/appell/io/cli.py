@@ -35,7 +35,7 @@ from pathlib import Path
 import click
 
 from appell.errors import AppellError, ComputationError, ModelError
-from appell.io.files import atomic_path, default_file_name, output_target
+from appell.files import atomic_path, default_file_name, output_target
 from appell.symbols import canonical_name
 
 __all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",

@@ -40,7 +40,7 @@ import numpy as np
 import sympy as sp
 
 from appell.core.simplification import tidy
-from appell.io.files import atomic_path
+from appell.files import atomic_path
 from appell.io.printing import latex
 
 __all__ = ["EquationRow", "equation_groups", "mathml", "render_report", "write_report", "solution_figures"]

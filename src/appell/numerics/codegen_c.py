@@ -532,10 +532,11 @@ class CompiledNumericModel(NumericModel):
         if self.constraint_function is not None:
             return self._fallback_solve(t, q, w, p, dependent, bias)
         pv = _vec(self.params(p))
-        bv = None if bias is None else _vec(bias)
-        dep = self._default_dep if dependent is None else np.ascontiguousarray(dependent, dtype=np.intc)
-        q, w = _vec(q), _vec(w)
+        q, w = self.checked_state(q, w)
         n, s = len(w), len(self._default_dep)
+        bv = None if bias is None else _bias(bias, s)
+        dep = self._default_dep if dependent is None else np.ascontiguousarray(self.checked_dependent(dependent),
+                                                                                 dtype=np.intc)
         a, lam, R = np.empty(n), np.empty(s), np.empty(n)
         status = self._lib.appell_solve(float(t), _ptr(q), _ptr(w), _ptr(pv), None if bv is None else _ptr(bv),
                                         _ptr(dep), KEEP_CONDITION, _ptr(a), _ptr(lam), _ptr(R))
@@ -558,8 +559,11 @@ class CompiledNumericModel(NumericModel):
             return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
                               sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
         y = _vec(y)
+        if y.shape != (len(self.state_names),):
+            self.checked_state(*self.split_state(y.reshape(-1)))  # names the sizes
+            raise ModelError(f"the state of {self.name!r} has {len(self.state_names)} entries, got shape {y.shape}")
         pv, paddr = self._param_address(self.params(p))
-        bv = None if bias is None else _vec(bias)
+        bv = None if bias is None else _bias(bias, len(self._default_dep))
         dy, lam = np.empty(len(y)), np.empty(len(self._default_dep))
         status = self._lib.appell_evaluate(float(t), _ptr(y), paddr, None if bv is None else _ptr(bv),
                                            self._formula["addr"][1], KEEP_CONDITION, _ptr(dy), _ptr(lam))
@@ -569,6 +573,14 @@ class CompiledNumericModel(NumericModel):
             return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
                               sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
         return Evaluation(dy, lam, _EMPTY, self._formula["dep"], False)
+
+
+def _bias(bias, s: int) -> np.ndarray:
+    """The constraint bias as a contiguous float array of ``s`` entries (read by the C code)."""
+    bv = _vec(bias).reshape(-1)
+    if bv.size != s:
+        raise ModelError(f"the constraint bias must have {s} entries (one per constraint), got {bv.size}")
+    return bv
 
 
 def _wrap(fn, shapes, with_acc=False):

@@ -249,15 +249,35 @@ class NumericModel:
             return out
         return vector(p, "the parameter vector", len(names), names=names)
 
-    def evaluate_blocks(self, t, q, w, p=None):
-        """``M``, ``h - Q``, ``J``, ``c`` at a state."""
-        q, w = np.asarray(q, float), np.asarray(w, float)
+    def checked_state(self, q, w) -> tuple[np.ndarray, np.ndarray]:
+        """``q`` and ``w`` as contiguous float arrays of the model's sizes; a
+        :class:`ModelError` naming the sizes otherwise (the compiled code reads exactly that
+        many entries, so a wrong length is refused before it)."""
+        q, w = np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(w, dtype=float)
         kin = self.derivation.kinematics
         if q.shape != (len(kin.coordinates),) or w.shape != (len(kin.speeds),):
             raise ModelError(f"a state of {self.name!r} has {len(kin.coordinates)} coordinates and "
                              f"{len(kin.speeds)} speeds, got q of shape {q.shape} and w of shape {w.shape}",
                              hint="coordinates: " + ", ".join(s.name for s in kin.coordinates)
                                   + "; speeds: " + ", ".join(s.name for s in kin.speeds))
+        return q, w
+
+    def checked_dependent(self, dependent) -> tuple[int, ...]:
+        """``dependent`` as ``s`` distinct indices of accelerations (one per constraint)."""
+        n, s = len(self.derivation.kinematics.speeds), len(self.derivation.constraints.names)
+        try:
+            dep = tuple(int(i) for i in dependent)
+        except (TypeError, ValueError):
+            dep = ()
+        if len(dep) != s or len(set(dep)) != s or any(not 0 <= i < n for i in dep) or any(
+                isinstance(i, bool) for i in dependent):
+            raise ModelError(f"dependent must be {s} distinct acceleration indices in 0..{n - 1}, "
+                             f"one per constraint, got {dependent!r}")
+        return dep
+
+    def evaluate_blocks(self, t, q, w, p=None):
+        """``M``, ``h - Q``, ``J``, ``c`` at a state."""
+        q, w = self.checked_state(q, w)
         M, hQ, J, c = self.blocks(number(t, "t"), q, w, self.params(p))
         n = len(w)
         return (np.asarray(M, float).reshape(n, n), np.asarray(hQ, float).reshape(n),
@@ -287,7 +307,7 @@ class NumericModel:
         if bias is not None:
             c = c + np.asarray(bias, float)
         names = self.derivation.constraints.names
-        dep = tuple(self.derivation.partition.dependent if dependent is None else dependent)
+        dep = tuple(self.derivation.partition.dependent) if dependent is None else self.checked_dependent(dependent)
         if self.constraint_function is None:
             dep, Jh_inv, switched = usable_partition(J, dep, names)
             a, lam = split_solve(M, hQ, J, c, dep, Jh_inv)

@@ -35,7 +35,7 @@ from typing import Mapping
 import numpy as np
 
 from appell.errors import ComputationError, ModelError
-from appell.io.files import atomic_path, write_bytes, write_hdf5
+from appell.files import atomic_path, write_bytes, write_hdf5
 
 __all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Column", "Solution", "UNSPECIFIED", "per_second",
            "draw_panel", "atomic_path"]

@@ -50,7 +50,7 @@ import numpy as np
 
 from appell.arguments import count, number, times
 from appell.errors import ModelError, ResourceError
-from appell.io.files import atomic_path, output_target, write_hdf5
+from appell.files import atomic_path, output_target, write_hdf5
 
 #: run status for a run that raised (simulate's own codes are 0, 1 and -1)
 RAISED = -2
@@ -398,7 +398,7 @@ def _connect(scheduler: str, timeout: float):
     Client = _distributed().Client
 
     try:
-        return Client(scheduler, timeout=timeout)
+        return Client(scheduler, timeout=timeout, set_as_default=False)
     except Exception as exc:  # noqa: BLE001 (refused, timed out, or not a Dask scheduler at all)
         raise ResourceError(f"cannot connect to the Dask scheduler at {scheduler}: {type(exc).__name__}: {exc}",
                             hint="start one with 'dask scheduler' and give the address it prints, or leave out "
@@ -422,7 +422,7 @@ def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None
 
     index = {fut.key: i for fut, i in zip(futures, indices)}
     pending = set(index)
-    finished = as_completed(futures)
+    finished = as_completed(futures, loop=client.loop)  # the sweep's client is not the default one
     no_worker_since, last_check = None, 0.0
     while pending:
         batch = finished.next_batch(block=False) if finished.has_ready() else []
@@ -501,7 +501,7 @@ def _compute(model, todo, t_end, t_eval, simulate_options, on_result, *, backend
     if scheduler is None:
         own_cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
                                    dashboard_address=None)
-        client = Client(own_cluster)
+        client = Client(own_cluster, set_as_default=False)
     else:
         client = _connect(scheduler, connect_timeout)
     token = uuid.uuid4().hex
