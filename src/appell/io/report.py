@@ -39,9 +39,8 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
-from appell.core.simplification import tidy
 from appell.files import atomic_path
-from appell.io.printing import latex
+from appell.io.printing import ITEMS, latex, printed_equations
 
 __all__ = ["EquationRow", "equation_groups", "mathml", "render_report", "write_report", "solution_figures"]
 
@@ -70,52 +69,47 @@ def _is_controlled(derivation) -> bool:
 
 
 def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
-    """The equations shown in the report, grouped under titles.
+    """The equations shown in the report, grouped under titles, as ``appell derive`` prints
+    them (:func:`appell.io.printing.printed_equations`): the shared subexpressions defined
+    once, then short formulas.
 
-    For a :class:`~appell.core.equations.Derivation`: the reduced equations (1.4)
-    ``C^T (M a + h - Q) = 0``, the dependent accelerations solved from ``f = 0`` (or the
-    constraints themselves when nonlinear in ``a``) and the multipliers (1.5)
-    ``lambda = J_h^{-T} E_h``. For a controlled derivation (:mod:`appell.control.servo`): the
-    dynamic conditions (2.3), the reduced equations (2.4), the reactions (2.5) and the
-    control laws. Small expressions are simplified for display (:func:`appell.core.simplification.tidy`).
+    For a :class:`~appell.core.equations.Derivation`: the accelerations of (1.4) and the
+    dependent ones from ``f = 0`` (or the equations themselves when they are not solved),
+    the multipliers (1.5) ``lambda = J_h^{-T} E_h``, and each multiplier in terms of the
+    state. For a controlled derivation (:mod:`appell.control.servo`): the dynamic
+    conditions (2.3), the reduced equations (2.4), the reactions (2.5), the control laws
+    and the internal dynamics.
     """
+    printed = printed_equations(derivation)
+    rows = {item: [f for f in printed.formulas if f.item == item] for item in ITEMS}
+    groups = []
+    if printed.definitions:
+        groups.append(("Shared subexpressions (each defined once, used below)",
+                       [EquationRow("", sym, e) for sym, e in printed.definitions]))
     if _is_controlled(derivation):
-        return _controlled_groups(derivation)
-    red = derivation.reduced
-    cons = derivation.constraints
-    motion = [EquationRow("(1.4)", tidy(e), sp.S.Zero) for e in red.equations]
-    if red.dependent_solution is not None:
-        dependent = [EquationRow("f = 0", a_h, tidy(e)) for a_h, e in zip(red.dependent, red.dependent_solution)]
-    else:
-        dependent = [EquationRow(f"f_{name} = 0", tidy(f), sp.S.Zero) for name, f in zip(cons.names, cons.second_order)]
-    reactions = [EquationRow("(1.5)", sp.Symbol(f"lambda_{name}"), tidy(lam))
-                 for name, lam in derivation.reactions.as_dict().items()]
-    groups = [("Reduced equations of motion (1.4) — free of multipliers", motion)]
-    if dependent:
-        groups.append(("Dependent accelerations from the constraints", dependent))
-    if reactions:
-        groups.append(("Reactions (1.5) — one formula per constraint multiplier", reactions))
-    return groups
-
-
-def _controlled_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
-    conditions = [EquationRow(f"(2.3) {name}", sp.sympify(e), sp.S.Zero)
-                  for name, e in derivation.dynamic_conditions.items()]
-    motion = [EquationRow("(2.4)", sp.sympify(e), sp.S.Zero) for e in derivation.reduced.equations]
-    reactions = [EquationRow("(2.5)", sp.Symbol(f"lambda_{name}"), sp.sympify(e))
-                 for name, e in derivation.reactions.as_dict().items()]
-    unknowns = {c.name: c.unknown for c in derivation.system.controls}
-    controls = [EquationRow("control", unknowns.get(name, sp.Symbol(name)), sp.sympify(e))
-                for name, e in derivation.control_laws.items()]
-    internal = [EquationRow("internal", sp.sympify(e), sp.S.Zero)
-                for e in getattr(derivation, "internal_dynamics", {}).values()]
-    groups = [("Dynamic conditions (2.3) — the equations of the controls", conditions),
-              ("Reduced equations of motion (2.4)", motion)]
-    if reactions:
-        groups.append(("Reactions of the real constraints (2.5)", reactions))
-    groups.append(("Control laws", controls))
-    if internal:
-        groups.append(("Internal dynamics left by the servo constraints", internal))
+        controls = rows["controls"]
+        groups.append(("Dynamic conditions (2.3) — the equations of the controls",
+                       [EquationRow(f.label, f.lhs, f.rhs) for f in controls if f.label.startswith("(2.3)")]))
+        groups.append(("Reduced equations of motion (2.4)", [EquationRow(f.label, f.lhs, f.rhs) for f in rows["motion"]]))
+        reactions = [EquationRow(f.label, f.lhs, f.rhs) for f in rows["reactions"]]
+        if reactions:
+            groups.append(("Reactions of the real constraints (2.5)", reactions))
+        groups.append(("Control laws", [EquationRow("control", f.lhs, f.rhs) for f in controls
+                                        if f.label == "(control)"]))
+        internal = [EquationRow("internal", sp.sympify(e), sp.S.Zero)
+                    for e in getattr(derivation, "internal_dynamics", {}).values()]
+        if internal:
+            groups.append(("Internal dynamics left by the servo constraints", internal))
+        return groups
+    groups.append(("Motion: the accelerations of (1.4) — free of multipliers — and f = 0",
+                   [EquationRow(f.label, f.lhs, f.rhs) for f in rows["motion"]]))
+    by_formula = [EquationRow(f.label, f.lhs, f.rhs) for f in rows["reactions"] if f.label == "(1.5)"]
+    by_state = [EquationRow(f.label, f.lhs, f.rhs) for f in rows["reactions"] if f.label != "(1.5)"]
+    if by_formula:
+        groups.append(("Reactions (1.5) — one formula per constraint multiplier", by_formula))
+    if by_state:
+        groups.append(("Each reaction in terms of the state (t, q, w), the accelerations of (1.4) put in",
+                       by_state))
     return groups
 
 
