@@ -44,13 +44,18 @@ class Partition:
         return [accelerations[i].name for i in self.independent], [accelerations[i].name for i in self.dependent]
 
 
-def from_dependent(dependent: Sequence[int], n: int, J: sp.Matrix | None = None) -> Partition:
-    """The partition with these dependent columns; with ``J`` also ``det J_h`` (small blocks)."""
+def from_dependent(dependent: Sequence[int], n: int, J: sp.Matrix | None = None, det=None) -> Partition:
+    """The partition with these dependent columns; with ``J`` also ``det J_h`` (small blocks),
+    unless ``det`` is given already."""
     dep = tuple(int(i) for i in dependent)
-    det = None
-    if J is not None and 0 < len(dep) <= MAX_BLOCK_SIZE:
-        det = tidy(J[:, list(dep)].det(method="berkowitz"))
+    if det is None and J is not None and 0 < len(dep) <= MAX_BLOCK_SIZE:
+        det = block_determinant(J, dep)
     return Partition(tuple(i for i in range(n) if i not in dep), dep, det)
+
+
+def block_determinant(J: sp.Matrix, dependent) -> sp.Expr:
+    """``det J_h`` of a small dependent block, tidied for display."""
+    return tidy(J[:, list(dependent)].det(method="berkowitz"))
 
 
 def generic_values(symbols, seed: int = 0) -> dict:
@@ -72,6 +77,11 @@ def pivoted_columns(Jn: np.ndarray) -> tuple[np.ndarray, int]:
     d = np.abs(np.diag(R))
     rank = int(np.sum(d > RANK_TOL * max(d[0], 1e-300))) if d.size else 0
     return piv, rank
+
+
+def row_normalised(J: np.ndarray) -> np.ndarray:
+    """``D J`` with :func:`row_scales`: every constraint row with a largest entry of one."""
+    return J * row_scales(J)[:, None]
 
 
 def row_scales(J: np.ndarray) -> np.ndarray:
@@ -165,9 +175,9 @@ def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence
     start = _at_state(J, at or {}, seed)
     preferred = _simplest_determinant(J, J1, J2, s, n, start)
     if preferred is not None:
-        return from_dependent(preferred, n, J)
+        return from_dependent(preferred[0], n, det=preferred[1])
     Jn = start if start is not None else (J1 if r1 >= r2 else J2)
-    piv, _ = pivoted_columns(Jn * row_scales(Jn)[:, None])
+    piv, _ = pivoted_columns(row_normalised(Jn))
     return from_dependent(sorted(int(i) for i in piv[:s]), n, J)
 
 
@@ -185,14 +195,14 @@ def _at_state(J: sp.Matrix, at: dict, seed: int) -> np.ndarray | None:
         Jn = np.array(J.xreplace(vals).evalf(), dtype=float).reshape(J.shape)
     except (TypeError, ValueError):
         return None
-    if not np.all(np.isfinite(Jn)) or pivoted_columns(Jn * row_scales(Jn)[:, None])[1] < J.shape[0]:
+    if not np.all(np.isfinite(Jn)) or pivoted_columns(row_normalised(Jn))[1] < J.shape[0]:
         return None
     return Jn
 
 
 def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, n: int, start):
-    """Dependent columns that are well conditioned at the model's start and whose block
-    determinant depends on the fewest symbols.
+    """``(columns, det J_h)``: dependent columns that are well conditioned at the model's
+    start and whose block determinant depends on the fewest symbols.
 
     ``start`` is ``J`` at the initial state (or None): a block whose relative condition
     number (:func:`partition_condition`) there reaches :data:`KEEP_CONDITION` would be
@@ -211,12 +221,12 @@ def _simplest_determinant(J: sp.Matrix, J1: np.ndarray, J2: np.ndarray, s: int, 
         cols = list(cols)
         if min(pivoted_columns(J1[:, cols])[1], pivoted_columns(J2[:, cols])[1]) < s:
             continue
-        det = tidy(J[:, cols].det(method="berkowitz"))
+        det = block_determinant(J, cols)
         poor = start is not None and partition_condition(start, cols)[0] >= KEEP_CONDITION
         score = (poor, len(det.free_symbols), sp.count_ops(det), [-c for c in reversed(cols)])
         if best is None or score < best[0]:
-            best = (score, cols)
-    return None if best is None else best[1]
+            best = (score, cols, det)
+    return None if best is None else best[1:]
 
 
 def _index(item, accelerations) -> int:

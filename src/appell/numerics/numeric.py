@@ -165,6 +165,11 @@ def choose_dependent(J: np.ndarray, names) -> tuple[int, ...]:
     with column pivoting on the row-normalised Jacobian ``D J``. Raises
     :class:`SingularConfigurationError` naming the dependent constraints when ``J`` has
     lost rank (no partition satisfies condition (1.2))."""
+    return _best_partition(J, names)[0]
+
+
+def _best_partition(J: np.ndarray, names) -> tuple[tuple[int, ...], np.ndarray]:
+    """:func:`choose_dependent` and the ``J_h^{-1}`` of its columns."""
     D = row_scales(J)
     zero = [names[i] for i in range(J.shape[0]) if D[i] == 0.0]
     if zero:
@@ -177,7 +182,8 @@ def choose_dependent(J: np.ndarray, names) -> tuple[int, ...]:
     Jn = J * D[:, None]
     piv, rank = pivoted_columns(Jn)
     dep = tuple(sorted(int(i) for i in piv[: J.shape[0]]))
-    if rank < J.shape[0] or partition_condition(J, dep)[0] >= RANK_CONDITION:
+    kappa, inv = partition_condition(J, dep)
+    if rank < J.shape[0] or kappa >= RANK_CONDITION:
         # the constraints in a combination sum(u_i J_i) ~ 0: the left singular vectors of
         # the smallest singular values
         U = np.linalg.svd(Jn)[0]
@@ -189,7 +195,7 @@ def choose_dependent(J: np.ndarray, names) -> tuple[int, ...]:
             hint="constraints " + ", ".join(bad) + " are dependent here (a singular configuration "
                  "of the mechanism); start elsewhere or stop the run before this state",
         )
-    return dep
+    return dep, inv
 
 
 def usable_partition(J: np.ndarray, dependent, names) -> tuple[tuple[int, ...], np.ndarray, bool]:
@@ -207,8 +213,7 @@ def usable_partition(J: np.ndarray, dependent, names) -> tuple[tuple[int, ...], 
     kappa, inv = partition_condition(J, dep)
     if kappa < KEEP_CONDITION:
         return dep, inv, False
-    new = choose_dependent(J, names)
-    kappa, inv = partition_condition(J, new)
+    new, inv = _best_partition(J, names)
     return new, inv, new != dep
 
 
@@ -266,11 +271,11 @@ class NumericModel:
         """``dependent`` as ``s`` distinct indices of accelerations (one per constraint)."""
         n, s = len(self.derivation.kinematics.speeds), len(self.derivation.constraints.names)
         try:
-            dep = tuple(int(i) for i in dependent)
+            dep = tuple(int(i) for i in dependent if not isinstance(i, (bool, np.bool_)))
+            given = len(tuple(dependent))
         except (TypeError, ValueError):
-            dep = ()
-        if len(dep) != s or len(set(dep)) != s or any(not 0 <= i < n for i in dep) or any(
-                isinstance(i, bool) for i in dependent):
+            dep, given = (), -1
+        if given != s or len(set(dep)) != s or any(not 0 <= i < n for i in dep):
             raise ModelError(f"dependent must be {s} distinct acceleration indices in 0..{n - 1}, "
                              f"one per constraint, got {dependent!r}")
         return dep

@@ -426,7 +426,7 @@ def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic
                         largest_multiplier=0.0, largest_relative=0.0, where=None, states=0, skipped=0,
                         message="the multiplier (1.5) vanishes identically on the motion", **common)
 
-    worst_rel, worst_rate, at_where, largest, where, used, skipped = 0.0, 0.0, 0.0, 0.0, None, 0, failed
+    worst_rel, at_where, largest, where, used, skipped = 0.0, 0.0, 0.0, None, 0, failed
     worst_state = None
     for tt, q, w in states:
         try:

@@ -466,7 +466,6 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     if stopped is not None:
         run.record(active, t, y, ev)
         return run.solution(active, 1, f"stopped by event release {stopped} at t = {t:.10g}")
-    run.dependent = tuple(ev.dependent) if run.released else None
     status, message = 0, "reached the final time"
     for w, gv in zip(watches, g):
         if w.kind == "friction" and gv < 0:
@@ -580,7 +579,6 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                     run.record(active, ts, ys, ev)
                     status, message = 1, f"stopped by event release {stopped} at t = {ts:.10g}"
                     break
-                run.dependent = tuple(ev.dependent)  # a new model: its partition is not a switch
                 if bar is not None:
                     bar.update(ts - t)
                 t, y = ts, ys
