@@ -1,0 +1,138 @@
+"""appell.from_sympy: a sympy.physics.mechanics System as an appell model (issue 12 §3).
+
+Independent references: SymPy's own KanesMethod with auxiliary speeds (the SymPy
+documentation's "rolling disc with reaction forces" example, recomputed here) for the
+contact force of a rolling disc; a planar Newton-Euler solution written in this file for
+the pin forces of a double pendulum built with SymPy PinJoints.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+from sympy.physics import mechanics as me
+
+from appell import derive, from_sympy
+from appell.errors import ModelError
+
+m, r, g = sp.symbols("m r g")
+VALUES = {m: 2.0, r: 0.5, g: 9.81}
+
+
+def rolling_disc_system():
+    """A disc rolling without slip on the plane z = 0: yaw q1, lean q2, spin q3 (frames as
+    in SymPy's rolling-disc example), centre (x, y, z); speeds u1..u3 the angular velocity
+    along the lean frame L, u4..u6 the centre's velocity. The constraints are the contact
+    point's velocity: vertical as the derivative of z - r cos(q2) = 0, horizontal as two
+    nonholonomic constraints, so that (method.md sign convention R = J^T lambda) the
+    multipliers are the contact force's components along N."""
+    q1, q2, q3, x, y, z = me.dynamicsymbols("q1 q2 q3 x y z")
+    u1, u2, u3, u4, u5, u6 = me.dynamicsymbols("u1:7")
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    A = N.orientnew("A", "Axis", [q1, N.z])
+    L = A.orientnew("L", "Axis", [q2, A.x])
+    R = L.orientnew("R", "Axis", [q3, L.y])
+    w_qd = R.ang_vel_in(N)
+    R.set_ang_vel(N, u1 * L.x + u2 * L.y + u3 * L.z)
+    D = O.locatenew("D", x * N.x + y * N.y + z * N.z)
+    D.set_vel(N, u4 * N.x + u5 * N.y + u6 * N.z)
+    P = D.locatenew("P", -r * L.z)
+    P.v2pt_theory(D, N, R)
+    disc = me.RigidBody("disc", D, R, m, (me.inertia(L, m * r**2 / 4, m * r**2 / 2, m * r**2 / 4), D))
+    system = me.System(N, O)
+    system.add_coordinates(q1, q2, q3, x, y)
+    system.add_coordinates(z, independent=False)
+    system.add_speeds(u1, u2, u3)
+    system.add_speeds(u4, u5, u6, independent=False)
+    system.add_kdes(*[(R.ang_vel_in(N) - w_qd).dot(e) for e in L], x.diff() - u4, y.diff() - u5, z.diff() - u6)
+    system.add_holonomic_constraints(z - r * sp.cos(q2))
+    system.add_nonholonomic_constraints(P.vel(N).dot(N.x), P.vel(N).dot(N.y))
+    system.add_bodies(disc)
+    system.apply_uniform_gravity(-g * N.z)
+    return system
+
+
+def kane_auxiliary_speeds_reference(q, u):
+    """SymPy's KanesMethod with auxiliary speeds u4..u6 at the contact point C and the
+    contact force f1 L.x + f2 L.y + f3 L.z (SymPy docs, "A rolling disc, with Kane's method
+    and constraint forces"): returns (u1', u2', u3') and the force's N components."""
+    q1, q2, q3 = me.dynamicsymbols("q1 q2 q3")
+    u1, u2, u3, u4, u5, u6 = me.dynamicsymbols("u1:7")
+    f1, f2, f3 = sp.symbols("f1:4")
+    N = me.ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [q1, N.z])
+    L = Y.orientnew("L", "Axis", [q2, Y.x])
+    R = L.orientnew("R", "Axis", [q3, L.y])
+    w_qd = R.ang_vel_in(N)
+    R.set_ang_vel(N, u1 * L.x + u2 * L.y + u3 * L.z)
+    C = me.Point("C")
+    C.set_vel(N, u4 * L.x + u5 * L.y + u6 * L.z)
+    Dmc = C.locatenew("Dmc", r * L.z)
+    Dmc.v2pt_theory(C, N, R)
+    body = me.RigidBody("D", Dmc, R, m, (me.inertia(L, m / 4 * r**2, m / 2 * r**2, m / 4 * r**2), Dmc))
+    kd = [(R.ang_vel_in(N) - w_qd).dot(e) for e in L]
+    kane = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3], kd_eqs=kd, u_auxiliary=[u4, u5, u6])
+    fr, frstar = kane.kanes_equations([body], [(Dmc, -m * g * Y.z), (C, f1 * L.x + f2 * L.y + f3 * L.z)])
+    state = {**dict(zip((q1, q2, q3), q)), **dict(zip((u1, u2, u3), u)), u4: 0, u5: 0, u6: 0, **VALUES}
+    udot = np.linalg.solve(np.array(kane.mass_matrix.xreplace(state), float),
+                           np.array(kane.forcing.xreplace(state), float)).ravel()
+    state.update(dict(zip((u1.diff(), u2.diff(), u3.diff()), udot)))
+    force = sp.solve(list((fr + frstar)[3:, :].xreplace(state)), [f1, f2, f3])
+    f_L = np.array([float(force[f]) for f in (f1, f2, f3)])
+    dcm = np.array(N.dcm(L).xreplace(state), float)  # N components = dcm @ L components
+    return udot, dcm @ f_L, dcm
+
+
+def test_rolling_disc_contact_force_matches_kanes_method_with_auxiliary_speeds():
+    """The multipliers of the imported contact constraints are the contact force of
+    KanesMethod with auxiliary speeds, and the accelerations agree, at random states."""
+    model = from_sympy(rolling_disc_system(), parameters=VALUES, constraint_names=("normal", "rolling_x", "rolling_y"))
+    assert [s.name for s in model.coordinates] == ["q1", "q2", "q3", "x", "y", "z"]
+    assert [s.name for s in model.speeds] == ["u1", "u2", "u3", "u4", "u5", "u6"]
+    numeric = derive(model).numeric
+    rng = np.random.default_rng(7)
+    for _ in range(4):
+        q = np.array([rng.uniform(-1, 1), rng.uniform(0.2, 1.2), rng.uniform(-1, 1)])
+        u = rng.uniform(-2, 2, 3)
+        udot, force, dcm = kane_auxiliary_speeds_reference(q, u)
+        v_centre = dcm @ np.cross(u, [0.0, 0.0, VALUES[r]])  # rolling: v_D = omega x (r L.z)
+        state_q = [*q, 0.3, -0.2, VALUES[r] * np.cos(q[1])]
+        sol = numeric.solve(0.0, state_q, [*u, *v_centre])
+        np.testing.assert_allclose(sol.accelerations[:3], udot, rtol=1e-10, atol=1e-10)
+        lam = dict(zip(("normal", "rolling_x", "rolling_y"), sol.multipliers))
+        np.testing.assert_allclose([lam["rolling_x"], lam["rolling_y"], lam["normal"]], force, rtol=1e-10, atol=1e-10)
+
+
+def test_from_sympy_names_the_missing_parameter():
+    with pytest.raises(ModelError, match="no value for the parameter.*\\bg\\b"):
+        from_sympy(rolling_disc_system(), parameters={m: 1.0, r: 0.5}, reactions=None)
+
+
+def test_from_sympy_refuses_auxiliary_speeds_and_non_systems():
+    system = rolling_disc_system()
+    system.add_auxiliary_speeds(me.dynamicsymbols("ua"))
+    with pytest.raises(ModelError, match="auxiliary speeds"):
+        from_sympy(system, parameters=VALUES)
+    with pytest.raises(ModelError, match="needs a sympy.physics.mechanics.System"):
+        from_sympy(object())
+
+
+def test_from_sympy_names_an_unknown_function_of_time():
+    """A load that depends on a function of time that is no coordinate or speed is named."""
+    q, u = me.dynamicsymbols("q u")
+    F = me.dynamicsymbols("F")
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", q * N.x)
+    system = me.System(N, O)
+    system.add_coordinates(q)
+    system.add_speeds(u)
+    system.add_kdes(q.diff() - u)
+    system.add_bodies(me.Particle("bob", P, m))
+    system.add_loads(me.Force(P, F * N.x))
+    with pytest.raises(ModelError, match=r"depends on F\(t\)"):
+        from_sympy(system, parameters={m: 1.0})
