@@ -26,9 +26,12 @@ import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import sympy as sp
+
 from appell.errors import ModelError
 
-__all__ = ["UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "parse_urdf", "read_urdf",
+__all__ = ["UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "parse_urdf", "read_urdf", "urdf_mechanism",
+           "urdf_system", "urdf_units",
            "JOINT_TYPES", "MAX_URDF_SIZE"]
 
 #: joint types read; ``continuous`` is a revolute joint without limits
@@ -386,3 +389,148 @@ def read_urdf(path) -> UrdfRobot:
     except UnicodeDecodeError as exc:
         raise ModelError(f"the URDF is not UTF-8 text: {exc.reason} at byte {exc.start}", where=str(path)) from None
     return parse_urdf(text, str(path))
+
+
+# ------------------------------------------------------------------ mechanism
+def _identifier(name: str) -> str:
+    """A URDF name as an identifier: characters other than letters, digits and ``_`` become
+    ``_``; a leading digit gets a ``_`` before it."""
+    out = "".join(c if c.isalnum() and c.isascii() or c == "_" else "_" for c in name)
+    return out if out and not out[0].isdigit() else f"_{out}"
+
+
+def _rotation(rpy):
+    from appell.mechanism.rotations import rpy_rotation
+
+    return rpy_rotation([float(v) for v in rpy])
+
+
+def _rpy_of(R) -> tuple[float, float, float]:
+    """``(roll, pitch, yaw)`` with ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (numeric ``R``)."""
+    R = [[float(R[i, j]) for j in range(3)] for i in range(3)]
+    pitch = math.atan2(-R[2][0], math.hypot(R[0][0], R[1][0]))
+    if math.hypot(R[0][0], R[1][0]) < 1e-12:  # gimbal lock: roll and yaw share one angle
+        return math.atan2(-R[1][2], R[1][1]), pitch, 0.0
+    return math.atan2(R[2][1], R[2][2]), pitch, math.atan2(R[1][0], R[0][0])
+
+
+def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
+    """The :class:`~appell.mechanism.Mechanism` of ``robot`` and the extra constraints of its
+    mimic joints: ``(mechanism, constraints)``.
+
+    The root link is the ground (its frame the world frame); gravity ``g`` (a parameter,
+    default 9.81 m/s^2) acts along -z of the root. Every other link is a body with the
+    link frame as body frame, mass centre at the inertial ``xyz`` and inertia
+    ``R(rpy) I R(rpy)^T``. Joints keep their names (characters that are not allowed in an
+    identifier become ``_``); a movable joint's coordinate is the joint's name. A link
+    whose name is taken by a joint is named ``<link>_link``. A link without ``<inertial>``
+    (massless) fixed to its parent is merged into it (its child joints re-attached); a
+    massless link on a movable joint is refused. ``floating`` joints are free joints
+    (quaternion), ``planar`` joints need the axis (plane normal) z.
+    """
+    from appell.mechanism.builder import GROUND, Mechanism
+    from appell.model import holonomic
+
+    src = robot.source
+    mech = Mechanism(_identifier(robot.name), gravity=(0, 0, -sp.Symbol("g")))
+    mech.parameter("g", gravity, unit="m/s^2", description="gravity, along -z of the root link")
+    joint_names = {j.name: _identifier(j.name) for j in robot.joints}
+    if len(set(joint_names.values())) != len(joint_names):
+        clash = next(j for j in robot.joints if list(joint_names.values()).count(joint_names[j.name]) > 1)
+        raise ModelError(f"joint {clash.name!r} and another joint have the same identifier "
+                         f"{joint_names[clash.name]!r}", where=f"{src}:{clash.line}", hint="rename one of them")
+    taken = set(joint_names.values()) | {"g", GROUND}
+    # link -> (body, rotation, offset) of the link frame in the body frame
+    place = {robot.root: (mech.ground, None, None)}
+    moving_name: dict[str, str] = {}
+    for joint in robot.joints_from_root():
+        body, R_off, p_off = place[joint.parent]
+        xyz, rpy = joint.xyz, joint.rpy
+        if R_off is not None:  # the parent link was merged into a body: re-express the origin
+            xyz = tuple(float(v) for v in p_off + R_off * sp.Matrix(xyz))
+            rpy = _rpy_of(R_off * _rotation(rpy))
+        link = robot.link(joint.child)
+        where = f"{src}:{joint.line}"
+        if link.inertial is None:
+            if joint.type == "fixed":
+                R = _rotation(rpy)
+                place[link.name] = (body, R, sp.Matrix(xyz))
+                continue
+            if any(k.parent == link.name for k in robot.joints):
+                raise ModelError(f"link {link.name!r} has no <inertial> but moves on joint {joint.name!r}",
+                                 where=f"{src}:{link.line}",
+                                 hint="give it an <inertial> with its mass and inertia (a massless link "
+                                      "between moving joints is not supported)")
+            raise ModelError(f"link {link.name!r} has no <inertial>: nothing moves with joint {joint.name!r}",
+                             where=f"{src}:{link.line}", hint="give the link an <inertial>, or remove the joint")
+        name = _identifier(link.name)
+        if name in taken:
+            name = f"{name}_link"
+        if name in taken:
+            raise ModelError(f"link {link.name!r}: its name is taken", where=f"{src}:{link.line}",
+                             hint="rename the link")
+        taken.add(name)
+        inertial = link.inertial
+        Ri = _rotation(inertial.rpy)
+        inertia = Ri * sp.Matrix(inertial.inertia_matrix) * Ri.T
+        inertia = (inertia + inertia.T) / 2  # symmetric also in floating point
+        try:
+            child = mech.body(name, inertial.mass, inertia=inertia, com=inertial.xyz)
+            jname = joint_names[joint.name]
+            kw = dict(origin=xyz, rpy=rpy)
+            if joint.type in ("revolute", "continuous"):
+                mech.revolute(jname, body, child, axis=joint.axis, **kw)
+            elif joint.type == "prismatic":
+                mech.prismatic(jname, body, child, axis=joint.axis, **kw)
+            elif joint.type == "fixed":
+                mech.fixed(jname, body, child, **kw)
+            elif joint.type == "floating":
+                mech.free(jname, body, child, **kw)
+            else:  # planar: motion in the plane normal to the axis
+                if any(abs(a - b) > 1e-12 for a, b in zip(joint.axis, (0.0, 0.0, 1.0))):
+                    raise ModelError(f"planar joint {joint.name!r}: only the plane normal z = (0 0 1) is read, "
+                                     f"got axis {joint.axis}", hint="rotate the joint frame with the origin's rpy "
+                                                                    "so that the plane normal is z")
+                mech.planar(jname, body, child, **kw)
+        except ModelError as exc:
+            raise ModelError(exc.message, where=exc.where or where, hint=exc.hint) from None
+        place[link.name] = (child, None, None)
+        if joint.movable:
+            moving_name[joint.name] = jname
+    constraints = []
+    for joint in robot.joints:
+        if joint.mimic is not None:
+            if joint.name not in moving_name or joint.mimic.joint not in moving_name:
+                raise ModelError(f"joint {joint.name!r}: <mimic> needs two movable joints", where=f"{src}:{joint.line}")
+            q, q_m = sp.Symbol(moving_name[joint.name]), sp.Symbol(moving_name[joint.mimic.joint])
+            constraints.append(holonomic(f"{moving_name[joint.name]}_mimic",
+                                         q - joint.mimic.multiplier * q_m - joint.mimic.offset, where=f"{src}:{joint.line}"))
+    return mech, tuple(constraints)
+
+
+def urdf_units(robot: UrdfRobot) -> dict[str, str]:
+    """Units of the joints' coordinates and speeds (rad, m) and of the mimic multipliers."""
+    units = {}
+    for j in robot.joints:
+        name = _identifier(j.name)
+        if j.type in ("revolute", "continuous"):
+            units.update({name: "rad", f"{name}_dot": "rad/s"})
+        elif j.type == "prismatic":
+            units.update({name: "m", f"{name}_dot": "m/s"})
+    return units
+
+
+def urdf_system(source, *, gravity: float = 9.81, reactions="all", initial=None, **system_options):
+    """The :class:`appell.System` of a URDF file (path) or :class:`UrdfRobot`: the
+    :func:`urdf_mechanism` with every joint's reaction as outputs (``reactions``, as in
+    :meth:`Mechanism.system <appell.mechanism.Mechanism.system>`); ``initial`` values by
+    joint name (``{"shoulder": 0.4, "shoulder_dot": 1.0}``); other keywords go to
+    :meth:`Mechanism.system`."""
+    robot = source if isinstance(source, UrdfRobot) else read_urdf(source)
+    mech, constraints = urdf_mechanism(robot, gravity)
+    units = {**urdf_units(robot), **dict(system_options.pop("units", None) or {})}
+    try:
+        return mech.system(initial=initial, reactions=reactions, units=units,
+                           constraints=constraints + tuple(system_options.pop("constraints", ())), **system_options)
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or robot.source, hint=exc.hint) from None

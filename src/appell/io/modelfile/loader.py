@@ -65,6 +65,8 @@ TABLES = {
     "first_integrals": "[first_integrals.NAME] expr, value",
     "simulation": "run settings",
     "units": "NAME = unit of a coordinate, speed, constraint's multiplier or control (recorded in result files)",
+    "mechanism": "bodies joined by joints (urdf, gravity, reactions, frame) with [[bodies]], [[joints]], "
+                 "[[closures]], [[loads]]",
 }
 
 MODEL_KEYS = ("name", "description", "coordinates", "speeds")
@@ -604,7 +606,48 @@ def _units(r: _Reader, doc: dict, allowed: list[str]) -> tuple[tuple[str, str], 
     return tuple(out)
 
 
+def _build_mechanism(r: _Reader, doc: dict) -> System:
+    """A model file with a ``[mechanism]`` table (:mod:`.mechanism_tables`): the mechanism's
+    System with the file's constraints, controls, servo constraints, initial values,
+    simulation settings and units."""
+    from .mechanism_tables import MECHANISM_TABLES, build_mechanism
+
+    top = r.table((), doc, MECHANISM_TABLES)
+    source = Path(r.source)
+    mech, extra, reactions, frame = build_mechanism(r, top, source.parent if source.is_file() else Path.cwd())
+    controls = _controls(r, top)
+    constraints = _constraints(r, top, "constraints")
+    servo = _constraints(r, top, "servo_constraints")
+    try:
+        system = mech.system(reactions=reactions, frame=frame, constraints=tuple(extra) + tuple(constraints),
+                             controls=tuple(controls), servo_constraints=tuple(servo))
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or r.where(("mechanism",)), hint=exc.hint) from None
+    states = [s.name for s in system.coordinates + system.speeds]
+    kinematic = [c.name for c in system.controls if c.kind == "kinematic"]
+    allowed = states + [n for c in kinematic for n in (c, derivative_name(c, 1))]
+    initial = {**system.initial_definitions,
+               **_initial(r, top, allowed, [q.name for q in system.coordinates] + kinematic, list(system.parameters))}
+    settings = _simulation(r, top, [c.name for c in system.constraints])
+    units = {**dict(system.units), **dict(_units(r, top, allowed + [c.name for c in system.constraints + system.servo_constraints]
+                                                  + [c.name for c in system.controls]))}
+    model = top.get("model", {})
+    try:
+        system = system.replace(initial=tuple(initial.items()), settings=settings, units=tuple(units.items()),
+                                description=r.string(("model", "description"), model.get("description", system.description)))
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
+    _check_declared(r, system)
+    try:
+        validate(system)
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
+    return system
+
+
 def _build(r: _Reader, doc: dict) -> System:
+    if isinstance(doc, dict) and "mechanism" in doc:
+        return _build_mechanism(r, doc)
     top = r.table((), doc, tuple(TABLES))
     name, description, coordinates, speeds = _model(r, top)
     parameters = _parameters(r, top)
@@ -790,6 +833,10 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None) -> System
             raise ModelError(f"{path}: no such model file, nor a bundled example",
                              hint="give the path of a model file (.toml), or a bundled example: "
                                   + ", ".join(list_examples()))
+    if path.suffix.lower() == ".urdf":  # a robot description: its mechanism with every joint's reaction
+        from appell.mechanism.urdf import urdf_system
+
+        return _apply_overrides(urdf_system(path), overrides, str(path))
     try:
         raw = path.read_bytes()
     except OSError as exc:
