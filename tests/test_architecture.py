@@ -19,6 +19,7 @@ PACKAGE = Path(appell.__file__).parent
 LAYERS = {
     "errors": 0, "symbols": 0, "files": 0, "arguments": 0,
     "model": 1,
+    "mechanism": 1.5,
     "examples": 2,
     "core": 3,
     "numerics": 4,

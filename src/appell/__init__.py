@@ -14,6 +14,7 @@ from appell.model import (
     Constraint,
     Control,
     FirstIntegral,
+    Output,
     Parameter,
     Particle,
     Program,
@@ -99,7 +100,7 @@ _install_conveniences()
 
 __all__ = [
     "AppellError", "AppliedForce", "AppliedTorque", "ComputationError", "Constraint", "Control",
-    "CrossCheckReport", "Derivation", "FirstIntegral", "ModelError", "NumericModel", "Parameter", "Particle",
+    "CrossCheckReport", "Derivation", "FirstIntegral", "ModelError", "NumericModel", "Output", "Parameter", "Particle",
     "Program", "ReactionFormulas", "ReducedEquations", "ResourceError", "RigidBody", "StateSolution", "System",
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",

@@ -36,6 +36,7 @@ __all__ = [
     "acceleration_constraint",
     "Control",
     "FirstIntegral",
+    "Output",
     "System",
     "initial_value",
 ]
@@ -281,6 +282,30 @@ class FirstIntegral:
     value: float | None = None
 
 
+@dataclass(frozen=True)
+class Output:
+    """A named quantity computed from the solved state, ``name = expr(t, q, w, a, lambda, u)``.
+
+    ``expr`` may use time, coordinates, speeds, accelerations ``<speed>_dot``, the
+    multipliers ``lambda_<constraint>``, controls, parameters and programs; it is evaluated
+    after the split solve (method.md §3) and recorded as the column ``name`` after the
+    multipliers (e.g. a joint's reaction force ``F_shoulder_x``, :mod:`appell.mechanism`).
+    """
+
+    name: str
+    expr: sp.Expr
+    unit: str | None = None
+    description: str = ""
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ModelError(f"output name {self.name!r} must be an identifier")
+        object.__setattr__(self, "expr", _expr(self.expr, f"output {self.name!r}"))
+        if self.unit is not None:
+            object.__setattr__(self, "unit", str(self.unit))
+        object.__setattr__(self, "description", str(self.description or ""))
+
+
 def _tuple(items, kind) -> tuple:
     if items is None:
         return ()
@@ -320,6 +345,9 @@ class System:
         ``[simulation]`` table (t_end, method, rtol, ...); stored, not interpreted here.
     units : ``{name: unit}`` for coordinates, speeds, constraints (the unit of their
         multiplier) and controls; recorded in result files.
+    outputs : :class:`Output` items (or ``{name: expr}``), quantities evaluated after the
+        solve from ``t, q, w, a``, the multipliers ``lambda_<constraint>`` and the controls;
+        recorded as columns after the multipliers.
     """
 
     coordinates: tuple[sp.Symbol, ...]
@@ -343,6 +371,7 @@ class System:
     description: str = ""
     settings: tuple[tuple[str, object], ...] = ()
     units: tuple[tuple[str, str], ...] = ()
+    outputs: tuple[Output, ...] = ()
 
     def __post_init__(self):
         s = object.__setattr__
@@ -400,6 +429,12 @@ class System:
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ModelError(f"constraint names must be unique; repeated: {', '.join(dup)}")
+        s(self, "outputs", _tuple(self.outputs, lambda k, v: Output(str(k), v)))
+        if any(not isinstance(o, Output) for o in self.outputs):
+            bad = next(o for o in self.outputs if not isinstance(o, Output))
+            raise ModelError(f"outputs must be appell.Output items, got {bad!r}",
+                             hint="write Output(name, expr, unit) or pass {name: expr}")
+        _check_output_names(self)
         names = declared_names(self)
         kinds = declared_kinds(names)
         clash = next(filter(None, (name_clash(name, kind, kinds) for name, kind in names)), None)
@@ -432,7 +467,7 @@ class System:
         """Units by result column: state names, ``lambda_<constraint>``, ``control_<name>``."""
         constraints = {c.name for c in self.constraints}
         controls = {c.name for c in self.controls}
-        out = {}
+        out = {o.name: o.unit for o in self.outputs if o.unit}
         for name, unit in self.units:
             key = f"lambda_{name}" if name in constraints else f"control_{name}" if name in controls else name
             out[key] = unit
@@ -455,6 +490,23 @@ class System:
             for p in self.parameters
         )
         return self.replace(parameters=params, initial=tuple(self.initial_definitions.items()))
+
+
+def _check_output_names(system: "System") -> None:
+    """Output names are unique and clash with no result column: states, accelerations,
+    ``t``, ``lambda_*``, ``control_*``, ``residual_*``, declared names."""
+    seen = set()
+    taken = ({"t"} | {s.name for s in system.coordinates + system.speeds + system.accelerations}
+             | {p.symbol.name for p in system.parameters} | {p.symbol.name for p in system.programs}
+             | {c.name for c in system.controls})
+    for o in system.outputs:
+        if o.name in seen:
+            raise ModelError(f"output name {o.name!r} is used twice", hint="give every output its own name")
+        seen.add(o.name)
+        if o.name in taken or o.name.startswith(("lambda_", "control_", "residual_")):
+            raise ModelError(f"output name {o.name!r} clashes with a result column or a declared name",
+                             hint="names lambda_*, control_*, residual_*, t and the names of states, "
+                                  "accelerations, parameters, programs and controls are taken")
 
 
 def initial_value(name: str, expr: sp.Expr, known: Mapping[sp.Symbol, float]) -> float:

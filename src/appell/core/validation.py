@@ -98,6 +98,10 @@ def validate(system: System) -> None:
             raise
     for fi in system.first_integrals:
         _check(fi.expr, lv["state"], f"first integral {fi.name!r}")
+    allowed = lv["acceleration"] | {sp.Symbol(f"lambda_{c.name}") for c in system.constraints}
+    for o in system.outputs:
+        _check(o.expr, allowed, f"output {o.name!r}",
+               "an output may also use accelerations <speed>_dot, multipliers lambda_<constraint> and controls")
     known = {s.name for s in system.coordinates + system.speeds} | {c.name for c in system.constraints} | {
         c.name for c in system.controls} | {n for c in system.controls if c.kind == "kinematic"
                                             for n in (derivative_symbol(c.symbol).name,)}

@@ -150,12 +150,15 @@ def derivation_json(derivation, reduction=None) -> dict:
     (2.3); empty without servo constraints), ``first_integrals`` (name -> expression) and,
     with ``reduction`` (a :class:`~appell.reduction.cyclic.RouthReduction`), ``routh``.
     Every expression is a string for reading; ``symbols`` and ``exact`` give them exactly
-    (:func:`appell.io.printing.read_json`).
+    (:func:`appell.io.printing.read_json`). ``outputs``: output name -> ``expression``,
+    ``unit``, ``description``.
     """
     from appell.io.printing import derivation_document, json_document
 
     system = derivation.system
     out = derivation.json_expressions() if is_controlled(derivation) else derivation_document(derivation)
+    out.setdefault("outputs", {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
+                               for o in system.outputs})
     linearisation, _ = internal_stability(derivation)
     if linearisation is not None:
         out["internal_linearisation"] = linearisation.to_json()
@@ -452,9 +455,10 @@ def cli():
 @click.option("--routh", is_flag=True,
               help="First reduce over the cyclic coordinates (Routh, method.md §5): print the cyclic "
                    "velocities (3.4), T*, V and L* = T* - V, then the reduced system's equations.")
-@click.option("--only", "only", multiple=True, type=click.Choice(["motion", "reactions", "controls"]),
+@click.option("--only", "only", multiple=True, type=click.Choice(["motion", "reactions", "outputs", "controls"]),
               help="Print only these items (repeatable): motion (the accelerations of (1.4) and f = 0), "
-                   "reactions ((1.5), also solved in t, q, w) or controls (control laws and (2.3)).")
+                   "reactions ((1.5), also solved in t, q, w), outputs (e.g. joint forces and moments, "
+                   "in t, q, w, a and the multipliers) or controls (control laws and (2.3)).")
 @_set_option
 def derive(model, fmt, dependent, routh, assignments, only):
     """Print the reduced equations (1.4) and one reaction formula per constraint (1.5).

@@ -26,7 +26,7 @@ NO_FREE_ACCELERATION = ("no free acceleration (0 degrees of freedom): the constr
 
 
 #: items that ``appell derive --only`` can select
-ITEMS = ("motion", "reactions", "controls")
+ITEMS = ("motion", "reactions", "outputs", "controls")
 #: a closed-form solve of the reduced mass matrix is printed up to this size (adjugate)
 SOLVE_SIZE = 3
 
@@ -71,8 +71,9 @@ def equation_formulas(derivation) -> list[Formula]:
     else the reduced equations ``M_r a_nu = f_r``), then ``a_h`` from ``f = 0``; for
     constraints nonlinear in ``a``: ``C^T E = 0`` and ``f = 0``. reactions: each
     ``lambda`` by (1.5) in ``(t, q, w, a)`` and, where the accelerations are solved, in
-    ``(t, q, w)``. controls (servo constraints): the control laws and the dynamic
-    conditions (2.3).
+    ``(t, q, w)``. outputs: each output (e.g. a joint's reaction force) in terms of
+    ``t, q, w, a`` and the multipliers. controls (servo constraints): the control laws and
+    the dynamic conditions (2.3).
     """
     red, rows = derivation.reduced, []
     controlled = hasattr(derivation, "control_laws")
@@ -98,6 +99,7 @@ def equation_formulas(derivation) -> list[Formula]:
         a_nu = dict(zip(red.independent, solved))
         acc = {**a_nu, **{a: e.xreplace(a_nu) for a, e in zip(red.dependent, red.dependent_solution)}}
         rows += [Formula("(t, q, w)", sp.Symbol(f"lambda_{n}"), e.xreplace(acc), "reactions") for n, e in lam.items()]
+    rows += [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
     if controlled:
         controls = {c.name: c.unknown for c in derivation.system.controls}
         rows += [Formula("(control)", controls.get(k, sp.Symbol(k)), v, "controls")
@@ -174,7 +176,7 @@ def derivation_text(derivation, only=None) -> str:
         lines.append(f"  {NO_FREE_ACCELERATION}")
     printed = printed_equations(derivation, only)
     titles = {"motion": "motion: accelerations (1.4) and f = 0", "reactions": "reactions (1.5)",
-              "controls": "controls"}
+              "outputs": "outputs (from t, q, w, a and the multipliers)", "controls": "controls"}
     if printed.definitions:
         lines += ["", "where"]
         lines += [f"  {sym} = {e}" for sym, e in printed.definitions]
@@ -244,6 +246,8 @@ def derivation_document(derivation) -> dict:
         ),
         "multipliers": {n: tidy(e) for n, e in derivation.reactions.as_dict().items()},
         "generalized_reactions": list(derivation.reactions.generalized),
+        "outputs": {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
+                    for o in derivation.system.outputs},
         "blocks": {
             "mass_matrix": derivation.inertia.mass_matrix,
             "inertial_forces": list(derivation.inertia.inertial_forces),
@@ -309,7 +313,8 @@ def _free_symbols(node, out: set) -> set:
 
 def symbol_roles(derivation) -> dict:
     """``{symbol: role}`` for the symbols of a derivation's model: 'time', 'coordinate',
-    'speed', 'acceleration', 'parameter', 'program' (and its time derivatives), 'control'."""
+    'speed', 'acceleration', 'parameter', 'program' (and its time derivatives), 'control',
+    'multiplier' (``lambda_<constraint>``, used by outputs)."""
     system, kin = derivation.system, derivation.kinematics
     roles = {time: "time"}
     for p in system.programs:
@@ -323,6 +328,8 @@ def symbol_roles(derivation) -> dict:
             roles[derivative_symbol(c.symbol)] = "control"
     for p in system.parameters:
         roles[p.symbol] = "parameter"
+    for c in system.constraints:
+        roles[sp.Symbol(f"lambda_{c.name}")] = "multiplier"
     for role, syms in (("coordinate", kin.coordinates), ("speed", kin.speeds), ("acceleration", kin.accelerations)):
         roles.update({s: role for s in syms})
     return roles

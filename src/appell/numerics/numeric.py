@@ -455,6 +455,27 @@ class NumericModel:
         """Accelerations only (for integrators)."""
         return self.solve(t, q, w, p).accelerations
 
+    def outputs(self, t, q, w, p=None, solution: StateSolution | None = None) -> dict[str, float]:
+        """The system's outputs (:class:`appell.model.Output`) at a state, from the split
+        solve's accelerations and multipliers (``solution``, solved here when not given);
+        one compiled function for both backends (:mod:`appell.numerics.outputs`)."""
+        from appell.numerics.outputs import compile_outputs
+
+        q, w = self.checked_state(q, w)
+        pv = self.params(p)
+        sol = self.solve(t, q, w, pv) if solution is None else solution
+        fn = self._formula.get("outputs")
+        if fn is None:
+            fn = self._formula["outputs"] = compile_outputs(self.derivation.system,
+                                                           program_substitutions(self.derivation.system))
+        kin = self.derivation.kinematics
+        columns = {"t": float(t), **{s.name: v for s, v in zip(kin.coordinates, q)},
+                   **{s.name: v for s, v in zip(kin.speeds, w)},
+                   **{s.name: v for s, v in zip(kin.accelerations, sol.accelerations)},
+                   **{f"lambda_{n}": v for n, v in zip(self.constraint_names, sol.multipliers)},
+                   **dict(zip(self.parameter_names, pv))}
+        return {k: float(v) for k, v in fn(columns).items()}
+
     def reaction_formulas(self, t, q, w, a, p=None) -> np.ndarray:
         """Evaluate the closed-form multipliers (1.5) of the derivation at (t, q, w, a)."""
         fn = self._formula.get("lambda")

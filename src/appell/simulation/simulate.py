@@ -281,6 +281,12 @@ class _Run:
         ctl = np.array(self.rows_ctl, float).reshape(len(self.rows_t), len(root.control_names))
         acc = np.array(self.rows_acc, float).reshape(len(self.rows_t), len(root.speed_names))
         stats = SolverStatistics(self.nfev, self.steps, self.projections, self.switches, self.restarts)
+        columns = {"t": np.array(self.rows_t, float), **{n: ys[:, i] for i, n in enumerate(root.state_names)},
+                   **{acceleration_name(n): acc[:, i] for i, n in enumerate(root.speed_names)},
+                   **{f"lambda_{n}": lam[:, i] for i, n in enumerate(self.names)},
+                   **{f"control_{n}": ctl[:, i] for i, n in enumerate(root.control_names)},
+                   **dict(zip(root.parameter_names, (float(v) for v in self.p)))}
+        outputs = recorded_outputs(self.system, columns)
         return Solution(
             t=np.array(self.rows_t),
             states={n: ys[:, i] for i, n in enumerate(root.state_names)},
@@ -291,10 +297,24 @@ class _Run:
             position_residuals={n: F[:, i] for i, n in enumerate(self.names)},
             velocity_residuals={n: phi[:, i] for i, n in enumerate(self.names)},
             tracking={n: track[:, i] for i, n in enumerate(self.tracking_names)},
+            outputs=outputs, output_descriptions={o.name: o.description for o in getattr(self.system, "outputs", ())},
             status=status, message=message, statistics=stats, events=tuple(self.events), log=tuple(self.log),
             metadata=_metadata(root, self.system, self.p, self.kinds,
                                {k: str(v) for k, v in self.settings.items()}),
         )
+
+
+def recorded_outputs(system, columns) -> dict:
+    """The outputs of ``system`` (:class:`appell.model.Output`) from the recorded
+    ``columns`` (``{name: array}``: t, states, accelerations, ``lambda_<c>``,
+    ``control_<c>``, parameters), vectorised over the output times
+    (:func:`appell.numerics.outputs.compile_outputs`); empty without outputs."""
+    if system is None or not getattr(system, "outputs", ()):
+        return {}
+    from appell.numerics.numeric import program_substitutions
+    from appell.numerics.outputs import compile_outputs
+
+    return compile_outputs(system, program_substitutions(system))(columns)
 
 
 def acceleration_name(speed: str) -> str:

@@ -8,7 +8,8 @@ error part way leaves neither a partial file nor a changed target.
 Columns (CSV, netCDF variables, :meth:`Solution.to_dataframe`), in this order: ``t``, each
 coordinate, each speed (then any extra states of the model), each acceleration (the time
 derivative of each speed, named like the derivation's acceleration symbols: ``x_dot ->
-x_ddot``), ``lambda_<constraint>``, ``control_<control>``, ``residual_<constraint>``.
+x_ddot``), ``lambda_<constraint>``, the outputs (:class:`appell.model.Output`, e.g. a joint's
+``F_<joint>_x``), ``control_<control>``, ``residual_<constraint>``.
 ``residual_<c>`` is the position residual ``F`` for a holonomic constraint, the velocity
 residual ``phi`` for a first-order one, and empty (NaN) for a second-order one, which has
 neither; empty cells in the file are NaN. A controlled system's servo constraints follow
@@ -164,6 +165,8 @@ class Solution:
     metadata : :class:`ModelMetadata`.
     tracking : ``{servo constraint: residual at its own level}`` — the tracking error of a
         controlled system (empty otherwise).
+    outputs : ``{output name: array}``, the system's outputs (:class:`appell.model.Output`)
+        at the output times; ``output_descriptions`` their descriptions.
 
     Printed (``str``, ``repr``) it is its :meth:`summary`; in Jupyter an HTML table.
     """
@@ -184,13 +187,15 @@ class Solution:
     metadata: ModelMetadata
     tracking: Mapping[str, np.ndarray] = field(default_factory=dict)
     accelerations: Mapping[str, np.ndarray] = field(default_factory=dict)
+    outputs: Mapping[str, np.ndarray] = field(default_factory=dict)
+    output_descriptions: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self):
         t = np.array(self.t, dtype=float)
         t.setflags(write=False)
         object.__setattr__(self, "t", t)
         for name in ("states", "multipliers", "controls", "position_residuals", "velocity_residuals", "tracking",
-                     "accelerations"):
+                     "accelerations", "outputs"):
             object.__setattr__(self, name, _frozen_arrays(getattr(self, name)))
         object.__setattr__(self, "events", tuple(self.events))
         object.__setattr__(self, "log", tuple(self.log))
@@ -226,6 +231,8 @@ class Solution:
             return self.states[name]
         if name in self.accelerations:
             return self.accelerations[name]
+        if name in self.outputs:
+            return self.outputs[name]
         for prefix, table in (("lambda_", self.multipliers), ("control_", self.controls)):
             if name.startswith(prefix) and name[len(prefix):] in table:
                 return table[name[len(prefix):]]
@@ -290,6 +297,8 @@ class Solution:
         for n, a in self.multipliers.items():
             cols.append(Column(f"lambda_{n}", a, "multiplier",
                                f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)", unit(f"lambda_{n}")))
+        for n, a in self.outputs.items():
+            cols.append(Column(n, a, "output", self.output_descriptions.get(n) or f"output {n}", unit(n)))
         for n, a in self.controls.items():
             cols.append(Column(f"control_{n}", a, "control", f"control {n}", unit(f"control_{n}")))
         kinds = dict(zip(self.metadata.constraint_names, self.metadata.constraint_kinds))
@@ -424,7 +433,7 @@ class Solution:
         """Write a self-describing HDF5 file (atomically).
 
         Datasets ``/t``, ``/states/<name>``, ``/accelerations/<name>``,
-        ``/multipliers/<constraint>``, ``/controls/<name>``, ``/residuals/position/<c>``,
+        ``/multipliers/<constraint>``, ``/outputs/<name>`` (when the model has outputs), ``/controls/<name>``, ``/residuals/position/<c>``,
         ``/residuals/velocity/<c>``, ``/residuals/servo/<c>`` (tracking errors of servo
         constraints), each with ``units`` and ``description`` attributes (the units of
         :meth:`column_info`); ``/t`` is the dimension scale of every other dataset, so that
@@ -481,6 +490,10 @@ class Solution:
             g = f.create_group("multipliers")
             for n, a in self.multipliers.items():
                 put(g, n, f"lambda_{n}", a)
+            if self.outputs:
+                g = f.create_group("outputs")
+                for n, a in self.outputs.items():
+                    put(g, n, n, a)
             g = f.create_group("controls")
             for n, a in self.controls.items():
                 put(g, n, f"control_{n}", a)
@@ -512,7 +525,8 @@ class Solution:
                  ("states", "other states", "state")]
         if accelerations:
             kinds.append(("accelerations", "accelerations", "acceleration"))
-        kinds += [("reactions", "reactions (multipliers lambda)", "multiplier"), ("controls", "controls", "control"),
+        kinds += [("reactions", "reactions (multipliers lambda)", "multiplier"), ("outputs", "outputs", "output"),
+                  ("controls", "controls", "control"),
                   ("residuals", "|constraint residuals|", "residual")]
         out = []
         for key, label, kind in kinds:
@@ -554,7 +568,7 @@ class Solution:
         and control over the output times (NaN where a column has no values)."""
         out = []
         for c in self.column_info():
-            if c.kind not in ("multiplier", "control"):
+            if c.kind not in ("multiplier", "output", "control"):
                 continue
             a = np.asarray(c.values, float)
             if not np.any(np.isfinite(a)):

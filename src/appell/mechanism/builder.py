@@ -1,0 +1,689 @@
+"""The mechanism builder: bodies, joints, closures, loads -> an :class:`appell.System`.
+
+Kinematics by recursion along the tree of joints (each quantity built once from the
+parent's, so shared parts stay shared). For a body ``B`` on joint ``J`` with parent ``P``
+(world axes unless said; ``R`` maps body to world components)::
+
+    R_rel = R0 R_m(q)            R_B = R_P R_rel
+    s     = R_P (o_J + R0 d_m)   c = R_B c_o           (c_o: child_origin)
+    p_B   = p_P + s - c
+    omega_B (body axes) = R_rel^T omega_P + omega_rel
+    eps_B   (body axes) = R_rel^T eps_P + (R_rel^T omega_P) x omega_rel + d(omega_rel)/dt
+    v_B = v_P + w_P x s + v_r - w_B x c                  v_r = R_P R0 d(d_m)/dt
+    a_B = a_P + e_P x s + w_P x (w_P x s + v_r) + w_P x v_r + R_P R0 d2(d_m)/dt2
+          - e_B x c - w_B x (w_B x c)                    (w, e: world axes)
+
+and a point ``r`` of ``B``: ``v = v_B + w_B x R_B r``, ``a = a_B + e_B x R_B r + w_B x (w_B x R_B r)``.
+
+Joint reactions (the force and moment of the parent on the child at the joint origin
+``O``, the moved joint frame's origin): the Newton-Euler balance of the subtree ``S``
+carried by the joint::
+
+    F   = sum_S m (a_C - g) - sum (forces on S) - sum (constraint forces on S)
+    M_O = sum_S [(r_C - O) x m (a_C - g) + R (I eps + omega x I omega)]
+          - sum [(r_P - O) x f + tau]                   (over the same forces)
+
+where a constraint of a closure or contact acting at a point ``P`` of ``S`` exerts
+``(dF/dr_P)^T lambda`` there (its share of ``R = J^T lambda``, method.md §2).
+"""
+
+from __future__ import annotations
+
+import keyword
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+from appell.errors import ModelError
+from appell.mechanism.joints import KINDS, JointMotion, joint_motion
+from appell.mechanism.rotations import rpy_rotation, unit_axis
+from appell.model import (AppliedForce, AppliedTorque, Constraint, Control, Output, Parameter, Particle, RigidBody,
+                          System, holonomic, nonholonomic)
+from appell.symbols import derivative_symbol, t
+
+GROUND = "ground"
+
+
+def _matrix(value, what: str, shape=(3, 1)) -> sp.Matrix:
+    try:
+        m = sp.Matrix(value)
+        m = m.applyfunc(lambda e: sp.sympify(e, strict=True))
+    except (TypeError, ValueError, sp.SympifyError):
+        raise ModelError(f"{what} must be {shape[0]} numbers or expressions, got {value!r}") from None
+    if shape == (3, 1) and m.shape == (1, 3):
+        m = m.T
+    if m.shape != shape:
+        raise ModelError(f"{what} must have {shape[0]}{'x' + str(shape[1]) if shape[1] > 1 else ''} "
+                         f"components, got {value!r}")
+    return m
+
+
+def _cross(a, b) -> sp.Matrix:
+    return sp.Matrix(a).cross(sp.Matrix(b))
+
+
+def _dt(expr, coordinates):
+    """Total time derivative of an expression in ``t``, the ``coordinates`` and their
+    rates (every joint's speeds are its coordinates' derivatives)."""
+    out = sp.diff(expr, t) if expr.has(t) else expr * 0
+    for q in coordinates:
+        qd = derivative_symbol(q)
+        out += sp.diff(expr, q) * qd + sp.diff(expr, qd) * derivative_symbol(qd)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """A rigid body (mass, inertia about the mass centre in body axes, mass centre ``com`` in
+    the body frame) or a particle (no inertia); compared by identity."""
+
+    name: str
+    mass: sp.Expr
+    inertia: sp.Matrix
+    com: sp.Matrix
+    particle: bool = False
+
+    def __repr__(self):
+        return f"Body({self.name!r})"
+
+
+@dataclass(frozen=True, eq=False)
+class Joint:
+    """A joint between ``parent`` and ``child`` (:mod:`appell.mechanism.joints`)."""
+
+    name: str
+    kind: str
+    parent: Body
+    child: Body
+    origin: sp.Matrix
+    rotation: sp.Matrix  # R0: joint frame in the parent frame
+    child_origin: sp.Matrix
+    motion: JointMotion
+
+    @property
+    def coordinates(self) -> tuple[sp.Symbol, ...]:
+        return self.motion.coordinates
+
+    @property
+    def speeds(self) -> tuple[sp.Symbol, ...]:
+        return tuple(derivative_symbol(q) for q in self.motion.coordinates)
+
+    def __repr__(self):
+        return f"Joint({self.name!r}, {self.kind})"
+
+
+@dataclass(frozen=True)
+class Frame:
+    """Kinematics of a body frame: rotation ``R`` (body -> world), origin ``p``, angular
+    velocity and acceleration in body axes (``omega``, ``eps``) and world axes (``w``,
+    ``e``), velocity ``v`` and acceleration ``a`` of the origin (world axes)."""
+
+    R: sp.Matrix
+    p: sp.Matrix
+    omega: sp.Matrix
+    eps: sp.Matrix
+    w: sp.Matrix
+    e: sp.Matrix
+    v: sp.Matrix
+    a: sp.Matrix
+
+    def point(self, r) -> tuple[sp.Matrix, sp.Matrix, sp.Matrix]:
+        """Position, velocity and acceleration (world axes) of the body point ``r`` (body frame)."""
+        if all(x == 0 for x in r):
+            return self.p, self.v, self.a
+        d = self.R * sp.Matrix(r)
+        wd = _cross(self.w, d)
+        return self.p + d, self.v + wd, self.a + _cross(self.e, d) + _cross(self.w, wd)
+
+
+@dataclass(frozen=True)
+class _Action:
+    """A force ``f`` at the point ``position`` (world; None: a pure torque) and a torque
+    ``tau``, world axes, acting on ``body`` (for the subtree balance)."""
+
+    body: Body
+    position: sp.Matrix | None
+    force: sp.Matrix
+    torque: sp.Matrix
+
+
+@dataclass
+class _Closure:
+    """Constraints of a closure or contact (built once the kinematics is known)."""
+
+    name: str
+    build: object  # (frames) -> (constraints, actions)
+
+
+class Mechanism:
+    """A multibody mechanism: bodies joined by joints into a tree rooted at :attr:`ground`
+    (whose frame is the world frame), closures and contacts, loads; :meth:`system` gives
+    the :class:`appell.System` (docs/mechanism.md).
+
+    ``gravity`` is the gravity vector in world axes (entries may be parameter symbols) or None.
+    """
+
+    def __init__(self, name: str = "mechanism", gravity=(0, 0, -9.81), description: str = ""):
+        if not isinstance(name, str) or not name:
+            raise ModelError(f"mechanism name {name!r} must be a non-empty string")
+        self.name, self.description = name, description
+        self.gravity = None if gravity is None else _matrix(gravity, "gravity")
+        self.ground = Body(GROUND, sp.S.Zero, sp.zeros(3, 3), sp.zeros(3, 1))
+        self.bodies: list[Body] = []
+        self.joints: list[Joint] = []
+        self.parameters: list[Parameter] = []
+        self._closures: list[_Closure] = []
+        self._forces: list[tuple[str, object]] = []  # (name, builder(frames) -> (model loads, actions))
+        self._actuators: list[tuple[str, Joint, sp.Symbol, sp.Expr | None]] = []
+        self._names: dict[str, str] = {GROUND: "body"}
+
+    # ------------------------------------------------------------ naming
+    def _claim(self, name, kind: str) -> str:
+        if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
+            raise ModelError(f"{kind} name {name!r} must be an identifier (letters, digits, underscores)")
+        if name in self._names:
+            raise ModelError(f"{kind} name {name!r} is already used by a {self._names[name]}",
+                             hint="give every body, joint, closure and load its own name")
+        self._names[name] = kind
+        return name
+
+    def _body(self, body, what: str) -> Body:
+        if isinstance(body, str):
+            if body == GROUND:
+                return self.ground
+            found = next((b for b in self.bodies if b.name == body), None)
+            if found is None:
+                raise ModelError(f"{what}: unknown body {body!r}",
+                                 hint="bodies: " + ", ".join([GROUND] + [b.name for b in self.bodies]))
+            return found
+        if body is self.ground or any(body is b for b in self.bodies):
+            return body
+        raise ModelError(f"{what}: {body!r} is not a body of mechanism {self.name!r}",
+                         hint="create it with mech.body(...) or mech.particle(...) of this mechanism")
+
+    def _joint(self, joint, what: str) -> Joint:
+        name = joint.name if isinstance(joint, Joint) else joint
+        found = next((j for j in self.joints if j.name == name), None)
+        if found is None:
+            raise ModelError(f"{what}: unknown joint {name!r}", hint="joints: " + ", ".join(j.name for j in self.joints))
+        return found
+
+    # ------------------------------------------------------------ parts
+    def parameter(self, name: str, value, unit: str | None = None, description: str | None = None) -> sp.Symbol:
+        """A parameter with a default value; returns its symbol for use in masses, lengths, ..."""
+        self._claim(name, "parameter")
+        p = Parameter(sp.Symbol(name), value, unit, description)
+        self.parameters.append(p)
+        return p.symbol
+
+    def body(self, name: str, mass, inertia=(0, 0, 0), com=(0, 0, 0)) -> Body:
+        """A rigid body: ``mass``, ``inertia`` about the mass centre in body axes (3 principal
+        moments or 3x3), mass centre ``com`` in the body frame."""
+        self._claim(name, "body")
+        mass = sp.sympify(mass)
+        if mass.is_number and not mass.is_positive:
+            raise ModelError(f"body {name!r} has mass {mass}; a mass must be positive")
+        I = sp.Matrix(inertia)
+        if I.shape in ((3, 1), (1, 3)):
+            I = sp.diag(*I)
+        if I.shape != (3, 3):
+            raise ModelError(f"inertia of body {name!r} must be 3 principal moments or a 3x3 matrix")
+        if I != I.T:
+            raise ModelError(f"inertia of body {name!r} is not symmetric")
+        b = Body(name, mass, I.applyfunc(sp.sympify), _matrix(com, f"mass centre of body {name!r}"))
+        self.bodies.append(b)
+        return b
+
+    def particle(self, name: str, mass) -> Body:
+        """A point mass (a body without inertia) at its frame's origin."""
+        b = self.body(name, mass)
+        b = Body(b.name, b.mass, b.inertia, b.com, particle=True)
+        self.bodies[-1] = b
+        return b
+
+    def _add_joint(self, kind, name, parent, child, axis=None, origin=(0, 0, 0), rpy=(0, 0, 0),
+                   child_origin=(0, 0, 0), coordinate=None, rotation="xyz") -> Joint:
+        what = f"{kind} joint {name!r}"
+        parent, child = self._body(parent, what), self._body(child, what)
+        if child is self.ground:
+            raise ModelError(f"{what}: the ground cannot be a joint's child", hint="swap parent and child")
+        if child is parent:
+            raise ModelError(f"{what}: parent and child are the same body {child.name!r}")
+        old = next((j for j in self.joints if j.child is child), None)
+        if old is not None:
+            raise ModelError(f"{what}: body {child.name!r} already hangs on joint {old.name!r}; a second joint "
+                             "would close a loop of joints",
+                             hint="close loops with mech.connect(name, (body_a, point_a), (body_b, point_b))")
+        up = parent
+        while up is not self.ground:
+            j = next((j for j in self.joints if j.child is up), None)
+            if j is None:
+                break
+            if j.parent is child:
+                raise ModelError(f"{what}: joining {parent.name!r} to {child.name!r} makes a cycle of joints",
+                                 hint="the joints form a tree; close loops with mech.connect")
+            up = j.parent
+        k = unit_axis(axis, what) if axis is not None else None
+        motion = joint_motion(name, kind, k, coordinate, rotation)
+        self._claim(name, "joint")
+        for q in motion.coordinates:
+            if q.name in self._names and q.name != name:
+                raise ModelError(f"{what}: coordinate {q.name!r} is already used by a {self._names[q.name]}")
+        for q in motion.coordinates:
+            if q.name != name:
+                self._claim(q.name, "coordinate")
+        j = Joint(name, kind, parent, child, _matrix(origin, f"origin of {what}"),
+                  rpy_rotation(_matrix(rpy, f"rpy of {what}")), _matrix(child_origin, f"child_origin of {what}"),
+                  motion)
+        self.joints.append(j)
+        return j
+
+    def revolute(self, name, parent, child, axis=(0, 0, 1), origin=(0, 0, 0), rpy=(0, 0, 0),
+                 child_origin=(0, 0, 0), coordinate=None) -> Joint:
+        """A hinge about the unit ``axis`` (joint frame); coordinate ``coordinate`` (default the
+        joint's name), speed ``<coordinate>_dot``."""
+        return self._add_joint("revolute", name, parent, child, axis, origin, rpy, child_origin, coordinate)
+
+    def prismatic(self, name, parent, child, axis=(1, 0, 0), origin=(0, 0, 0), rpy=(0, 0, 0),
+                  child_origin=(0, 0, 0), coordinate=None) -> Joint:
+        """A slider along the unit ``axis`` (joint frame); coordinate default the joint's name."""
+        return self._add_joint("prismatic", name, parent, child, axis, origin, rpy, child_origin, coordinate)
+
+    def fixed(self, name, parent, child, origin=(0, 0, 0), rpy=(0, 0, 0), child_origin=(0, 0, 0)) -> Joint:
+        """A weld: no relative motion (its reaction is still reported)."""
+        return self._add_joint("fixed", name, parent, child, None, origin, rpy, child_origin)
+
+    def cylindrical(self, name, parent, child, axis=(0, 0, 1), origin=(0, 0, 0), rpy=(0, 0, 0),
+                    child_origin=(0, 0, 0), coordinates=None) -> Joint:
+        """Slide along and turn about the unit ``axis``: coordinates ``<name>_z``, ``<name>_rz``."""
+        return self._add_joint("cylindrical", name, parent, child, axis, origin, rpy, child_origin, coordinates)
+
+    def planar(self, name, parent, child, origin=(0, 0, 0), rpy=(0, 0, 0), child_origin=(0, 0, 0),
+               coordinates=None) -> Joint:
+        """Motion in the joint frame's x-y plane: ``<name>_x``, ``<name>_y`` (translation, joint
+        axes), then ``<name>_rz`` (rotation about z)."""
+        return self._add_joint("planar", name, parent, child, None, origin, rpy, child_origin, coordinates)
+
+    def spherical(self, name, parent, child, origin=(0, 0, 0), rpy=(0, 0, 0), child_origin=(0, 0, 0),
+                  rotation="xyz", coordinates=None) -> Joint:
+        """A ball joint: an intrinsic Euler sequence (``'xyz'``, ``'zyx'``, ``'zxz'``, ...;
+        coordinates ``<name>_rx``, ...) or ``'quaternion'`` (``<name>_q0..q3`` with the
+        unit-norm holonomic constraint ``<name>_unit``)."""
+        return self._add_joint("spherical", name, parent, child, None, origin, rpy, child_origin, coordinates,
+                               rotation)
+
+    def free(self, name, parent, child, origin=(0, 0, 0), rpy=(0, 0, 0), child_origin=(0, 0, 0),
+             rotation="quaternion", coordinates=None) -> Joint:
+        """Six degrees of freedom: translation ``<name>_x, _y, _z`` (joint axes) then a
+        rotation as in :meth:`spherical` (default a quaternion)."""
+        return self._add_joint("free", name, parent, child, None, origin, rpy, child_origin, coordinates, rotation)
+
+    # ------------------------------------------------------------ closures and contacts
+    def _point(self, item, what: str) -> tuple[Body, sp.Matrix]:
+        if not isinstance(item, (tuple, list)) or len(item) != 2:
+            raise ModelError(f"{what}: a point is (body, (x, y, z) in the body frame), got {item!r}")
+        return self._body(item[0], what), _matrix(item[1], f"{what}: point")
+
+    def connect(self, name, a, b, directions="xyz"):
+        """Loop closure: the point ``a = (body_a, r_a)`` coincides with ``b = (body_b, r_b)``
+        along the world ``directions`` (a subset of ``'xyz'``): holonomic constraints
+        ``<name>_<d> = e_d . (r_A - r_B) = 0``; ``lambda_<name>_<d>`` is the force of
+        ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``)."""
+        self._claim(name, "closure")
+        what = f"closure {name!r}"
+        (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
+        dirs = str(directions)
+        if not dirs or any(d not in "xyz" for d in dirs) or len(set(dirs)) != len(dirs):
+            raise ModelError(f"{what}: directions {directions!r} must be distinct letters of 'xyz'")
+
+        def build(frames):
+            pa, pb = frames[ba].point(ra)[0], frames[bb].point(rb)[0]
+            cons, acts = [], []
+            for d in dirs:
+                e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
+                c = holonomic(f"{name}_{d}", (pa - pb).dot(e))
+                lam = sp.Symbol(f"lambda_{c.name}")
+                cons.append(c)
+                acts += [_Action(ba, pa, e * lam, sp.zeros(3, 1)), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
+            return cons, acts
+
+        self._closures.append(_Closure(name, build))
+
+    def point_on_surface(self, name, point, surface):
+        """The body point ``point = (body, r)`` stays on the surface ``s(x, y, z) = 0`` (world
+        coordinates; ``surface`` an expression in the symbols ``x``, ``y``, ``z`` or a callable):
+        the holonomic constraint ``<name>``; its force on the body is ``lambda grad s``."""
+        self._claim(name, "closure")
+        what = f"contact {name!r}"
+        body, r = self._point(point, what)
+        X = sp.symbols("x y z")
+        expr = surface(*X) if callable(surface) else sp.sympify(surface)
+        if not isinstance(expr, sp.Expr) or not expr.free_symbols & set(X):
+            raise ModelError(f"{what}: the surface {surface!r} must be an expression in x, y, z")
+        grad = sp.Matrix([sp.diff(expr, x) for x in X])
+
+        def build(frames):
+            p = frames[body].point(r)[0]
+            at = dict(zip(X, p))
+            c = holonomic(name, expr.xreplace(at))
+            return [c], [_Action(body, p, grad.xreplace(at) * sp.Symbol(f"lambda_{name}"), sp.zeros(3, 1))]
+
+        self._closures.append(_Closure(name, build))
+
+    def _plane(self, normal, what):
+        n = unit_axis(normal, f"{what}: normal")
+        helper = sp.Matrix([1, 0, 0]) if abs(float(n[0])) < 0.9 else sp.Matrix([0, 1, 0])
+        t1 = n.cross(helper)
+        t1 = t1 / sp.sqrt(t1.dot(t1))
+        return n, t1, n.cross(t1)
+
+    def _rolling(self, name, body, contact, normal, height, what):
+        """Constraints of a body touching the plane ``n.x = height`` at ``contact(frame)``:
+        holonomic ``<name>_n`` (height of the contact point, ``n.x_P - height``) and no slip
+        ``<name>_t1``, ``<name>_t2`` (``t_k . v_P = 0``, v_P the velocity of the body's
+        material point at P); forces ``lambda n``, ``lambda t_k`` at P."""
+        n, t1, t2 = self._plane(normal, what)
+        height = sp.sympify(height)
+
+        def build(frames):
+            f = frames[body]
+            P = contact(f, n)  # world position of the contact point
+            d = P - f.p
+            vP = f.v + _cross(f.w, d)
+            cons = [holonomic(f"{name}_n", n.dot(P) - height), nonholonomic(f"{name}_t1", t1.dot(vP)),
+                    nonholonomic(f"{name}_t2", t2.dot(vP))]
+            acts = [_Action(body, P, v * sp.Symbol(f"lambda_{c.name}"), sp.zeros(3, 1))
+                    for v, c in zip((n, t1, t2), cons)]
+            return cons, acts
+
+        self._closures.append(_Closure(name, build))
+
+    def rolling_disc(self, name, body, radius, axis=(0, 1, 0), normal=(0, 0, 1), height=0):
+        """A thin disc (centre at the body frame's origin, symmetry ``axis`` in body axes) rolls
+        without slip on the plane ``normal . x = height``: contact P = C - r u, u the unit
+        vector of the disc's plane closest to ``normal``; constraints ``<name>_n`` (the
+        height of P), ``<name>_t1``, ``<name>_t2`` (no slip)."""
+        self._claim(name, "contact")
+        what = f"rolling disc {name!r}"
+        b = self._body(body, what)
+        k = unit_axis(axis, f"{what}: axis")
+        r = sp.sympify(radius)
+
+        def contact(f, n):
+            a = f.R * k
+            u = n - a * a.dot(n)
+            return f.p - r * u / sp.sqrt(u.dot(u))
+
+        self._rolling(name, b, contact, normal, height, what)
+
+    def rolling_sphere(self, name, body, radius, normal=(0, 0, 1), height=0):
+        """A sphere (centre at the body frame's origin) rolls without slip on the plane
+        ``normal . x = height``: contact P = C - r n; constraints as :meth:`rolling_disc`."""
+        self._claim(name, "contact")
+        what = f"rolling sphere {name!r}"
+        b = self._body(body, what)
+        r = sp.sympify(radius)
+        self._rolling(name, b, lambda f, n: f.p - r * n, normal, height, what)
+
+    def no_lateral_slip(self, name, point, direction):
+        """A knife edge or wheel: the body point ``point = (body, r)`` has no velocity along
+        the body-fixed unit ``direction`` (first-order constraint ``<name>``, force
+        ``lambda R d`` at the point)."""
+        self._claim(name, "contact")
+        what = f"no-slip contact {name!r}"
+        body, r = self._point(point, what)
+        d = unit_axis(direction, f"{what}: direction")
+
+        def build(frames):
+            f = frames[body]
+            dw = f.R * d
+            p, v, _ = f.point(r)
+            c = nonholonomic(name, dw.dot(v))
+            return [c], [_Action(body, p, dw * sp.Symbol(f"lambda_{name}"), sp.zeros(3, 1))]
+
+        self._closures.append(_Closure(name, build))
+
+    # ------------------------------------------------------------ loads
+    def force(self, name, point, vector):
+        """A force ``vector`` (world axes; expressions in t, q, speeds, parameters) at the body
+        point ``point = (body, r)``."""
+        self._claim(name, "load")
+        body, r = self._point(point, f"force {name!r}")
+        f = _matrix(vector, f"force {name!r}")
+
+        def build(frames):
+            p, v, _ = frames[body].point(r)
+            return [AppliedForce(f, position=p, velocity=v, name=name)], [_Action(body, p, f, sp.zeros(3, 1))]
+
+        self._forces.append((name, build))
+
+    def torque(self, name, body, vector):
+        """A torque ``vector`` (world axes) on ``body``."""
+        self._claim(name, "load")
+        b = self._body(body, f"torque {name!r}")
+        tau = _matrix(vector, f"torque {name!r}")
+
+        def build(frames):
+            f = frames[b]
+            return [AppliedTorque(f.R.T * tau, f.omega, name=name)], [_Action(b, None, sp.zeros(3, 1), tau)]
+
+        self._forces.append((name, build))
+
+    def spring(self, name, a, b, stiffness, rest_length=0, damping=0):
+        """A spring-damper between the points ``a = (body_a, r_a)`` and ``b``: tension
+        ``k (l - l0) + c dl/dt`` pulling them together (``l`` their distance)."""
+        self._claim(name, "load")
+        what = f"spring {name!r}"
+        (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
+        k, l0, c = (sp.sympify(v) for v in (stiffness, rest_length, damping))
+
+        def build(frames):
+            pa, va, _ = frames[ba].point(ra)
+            pb, vb, _ = frames[bb].point(rb)
+            d = pa - pb
+            length = sp.sqrt(d.dot(d))
+            tension = k * (length - l0) + c * d.dot(va - vb) / length
+            f = -tension * d / length  # on a
+            loads = [AppliedForce(f, position=pa, velocity=va, name=f"{name}_a"),
+                     AppliedForce(-f, position=pb, velocity=vb, name=f"{name}_b")]
+            return loads, [_Action(ba, pa, f, sp.zeros(3, 1)), _Action(bb, pb, -f, sp.zeros(3, 1))]
+
+        self._forces.append((name, build))
+
+    def actuator(self, name, joint, value=None, coordinate=None) -> sp.Symbol:
+        """A generalized force (force or torque) along a joint coordinate (``coordinate``; the
+        joint's only one by default): ``value`` an expression in t, q, speeds and parameters,
+        or None for a force :class:`~appell.model.Control` named ``name`` (for servo
+        constraints). Returns the control's symbol (or ``value``)."""
+        self._claim(name, "actuator")
+        j = self._joint(joint, f"actuator {name!r}")
+        if coordinate is None:
+            if len(j.coordinates) != 1:
+                raise ModelError(f"actuator {name!r}: joint {j.name!r} has {len(j.coordinates)} coordinates",
+                                 hint="name one: coordinate=" + " or ".join(repr(q.name) for q in j.coordinates))
+            q = j.coordinates[0]
+        else:
+            q = next((s for s in j.coordinates if s.name == str(coordinate)), None)
+            if q is None:
+                raise ModelError(f"actuator {name!r}: joint {j.name!r} has no coordinate {coordinate!r}",
+                                 hint="coordinates: " + ", ".join(s.name for s in j.coordinates))
+        sym = sp.Symbol(name)
+        self._actuators.append((name, j, q, None if value is None else sp.sympify(value)))
+        return sym if value is None else sp.sympify(value)
+
+    # ------------------------------------------------------------ the system
+    def _tree(self) -> list[Joint]:
+        """The joints in an order where each parent comes before its children."""
+        parent_joint = {j.child: j for j in self.joints}
+        for b in self.bodies:
+            if b not in parent_joint:
+                raise ModelError(f"body {b.name!r} is not connected to the ground",
+                                 hint=f"join it to a body of the tree (mech.revolute(..., child={b.name!r}), "
+                                      f"or mech.free(...) for a floating body)")
+        order, placed = [], {self.ground}
+        pending = list(self.joints)
+        while pending:
+            ready = [j for j in pending if j.parent in placed]
+            if not ready:  # unreachable: cycles are refused when joints are added
+                raise ModelError("the joints do not form a tree rooted at the ground: "
+                                 + ", ".join(j.name for j in pending))
+            for j in ready:
+                order.append(j)
+                placed.add(j.child)
+                pending.remove(j)
+        return order
+
+    def frames(self) -> dict[Body, Frame]:
+        """The :class:`Frame` of every body (module docstring: the recursion)."""
+        z3, I3 = sp.zeros(3, 1), sp.eye(3)
+        frames = {self.ground: Frame(I3, z3, z3, z3, z3, z3, z3, z3)}
+        for j in self._tree():
+            P, m = frames[j.parent], j.motion
+            qs = m.coordinates
+            R_rel = j.rotation * m.rotation
+            R = P.R * R_rel
+            s = P.R * (j.origin + j.rotation * m.translation)
+            c = R * j.child_origin
+            omega_P = R_rel.T * P.omega
+            omega = omega_P + m.angular_velocity
+            eps = R_rel.T * P.eps + _cross(omega_P, m.angular_velocity) + _dt(m.angular_velocity, qs)
+            w, e = R * omega, R * eps
+            RP0 = P.R * j.rotation
+            v_r = RP0 * _dt(m.translation, qs)
+            a_r = RP0 * _dt(_dt(m.translation, qs), qs)
+            ws = _cross(P.w, s)
+            wc = _cross(w, c)
+            p = P.p + s - c
+            v = P.v + ws + v_r - wc
+            a = P.a + _cross(P.e, s) + _cross(P.w, ws + v_r) + _cross(P.w, v_r) + a_r - _cross(e, c) - _cross(w, wc)
+            frames[j.child] = Frame(R, p, omega, eps, w, e, v, a)
+        return frames
+
+    def subtree(self, joint: Joint) -> list[Body]:
+        """The bodies carried by ``joint``: its child and all the child's descendants."""
+        out, stack = [], [joint.child]
+        while stack:
+            b = stack.pop()
+            out.append(b)
+            stack += [j.child for j in self.joints if j.parent is b]
+        return out
+
+    def reaction(self, joint: Joint, frames, actions) -> tuple[sp.Matrix, sp.Matrix]:
+        """``(F, M)``: force and moment (world axes) of the parent on the child of ``joint``
+        at the joint origin (module docstring: the subtree's Newton-Euler balance)."""
+        bodies = self.subtree(joint)
+        fc = frames[joint.child]
+        O = fc.p + fc.R * joint.child_origin
+        g = self.gravity if self.gravity is not None else sp.zeros(3, 1)
+        F, M = sp.zeros(3, 1), sp.zeros(3, 1)
+        for b in bodies:
+            f = frames[b]
+            rC, _, aC = f.point(b.com)
+            inertial = b.mass * (aC - g)
+            F += inertial
+            M += _cross(rC - O, inertial)
+            if not b.particle and b.inertia != sp.zeros(3, 3):
+                M += f.R * (b.inertia * f.eps + _cross(f.omega, b.inertia * f.omega))
+        inside = set(bodies)
+        for act in actions:
+            if act.body not in inside:
+                continue
+            F -= act.force
+            M -= act.torque
+            if act.position is not None and any(x != 0 for x in act.force):
+                M -= _cross(act.position - O, act.force)
+        return F, M
+
+    def system(self, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
+               constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
+               moment_unit="N*m") -> System:
+        """The :class:`appell.System` of the mechanism.
+
+        parameters : ``{name: value}`` overriding the parameters' default values.
+        initial : initial values ``{name: value}`` of coordinates and speeds; the others start
+            at zero (a quaternion at the identity, q0 = 1).
+        reactions : ``'all'`` (every joint), a list of joint names, or None: six outputs
+            ``F_<joint>_x .. F_<joint>_z``, ``M_<joint>_x .. M_<joint>_z`` each, the force and
+            moment of the parent on the child at the joint origin.
+        frame : ``{joint: body}``: give that joint's components along the body's axes (default
+            world axes).
+        constraints, controls, servo_constraints, outputs, settings, units : added as given
+            (constraints written in joint coordinates act as generalized forces at the
+            joints, not through the reactions' cuts: docs/mechanism.md).
+        """
+        frames = self.frames()
+        order = self._tree()
+        coords = [q for j in self.joints for q in j.coordinates]  # in the order the joints were added
+        bodies = []
+        V = sp.S.Zero
+        for b in self.bodies:
+            f = frames[b]
+            rC, vC, _ = f.point(b.com)
+            if b.particle:
+                bodies.append(Particle(b.name, b.mass, position=rC, velocity=vC))
+            else:
+                bodies.append(RigidBody(b.name, b.mass, position=rC, velocity=vC, inertia=b.inertia,
+                                        angular_velocity=f.omega))
+            if self.gravity is not None:
+                V -= b.mass * self.gravity.dot(rC)
+        loads, actions = [], []
+        for _, build in self._forces:
+            more, acts = build(frames)
+            loads += more
+            actions += acts
+        cons = [holonomic(n, e) for j in order for n, e in j.motion.constraints]
+        for closure in self._closures:
+            more, acts = closure.build(frames)
+            cons += more
+            actions += acts
+        speeds = [derivative_symbol(q) for q in coords]
+        Q, ctl = [sp.S.Zero] * len(speeds), []
+        for name, j, q, value in self._actuators:
+            Q[coords.index(q)] += sp.Symbol(name) if value is None else value
+            if value is None:
+                ctl.append(Control(sp.Symbol(name), "force"))
+        params = list(self.parameters)
+        if parameters:
+            known = {p.symbol.name for p in params}
+            unknown = sorted(str(k) for k in parameters if str(k) not in known)
+            if unknown:
+                raise ModelError(f"mechanism {self.name!r}: unknown parameter(s) {', '.join(unknown)}",
+                                 hint="parameters: " + ", ".join(sorted(known)))
+            values = {str(k): v for k, v in parameters.items()}
+            params = [Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description) for p in params]
+        outs = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit))
+        outs += list(outputs.values() if isinstance(outputs, dict) else outputs)
+        start = {q.name: 0.0 for q in coords}
+        start.update({w.name: 0.0 for w in speeds})
+        for j in order:
+            start.update(dict(j.motion.defaults))
+        given = {str(k): v for k, v in (initial or {}).items()}
+        start.update(given)
+        if not bodies:
+            raise ModelError(f"mechanism {self.name!r} has no bodies", hint="add one with mech.body(...)")
+        return System(coordinates=tuple(coords), parameters=tuple(params), bodies=tuple(bodies), potential_energy=V,
+                      generalized_forces=tuple(Q) if any(e != 0 for e in Q) else None, loads=tuple(loads),
+                      constraints=tuple(cons) + tuple(constraints), controls=tuple(ctl) + tuple(controls),
+                      servo_constraints=tuple(servo_constraints), initial=start, name=self.name,
+                      description=self.description, settings=settings, units=units or (), outputs=tuple(outs))
+
+    def _reaction_outputs(self, reactions, frame, frames, actions, force_unit, moment_unit):
+        if reactions is None:
+            return
+        joints = self.joints if reactions == "all" else [self._joint(n, "reactions") for n in reactions]
+        axes = {}
+        for k, v in (frame or {}).items():
+            axes[self._joint(k, "frame").name] = self._body(v, f"frame of joint {k!r}")
+        for j in joints:
+            F, M = self.reaction(j, frames, actions)
+            body = axes.get(j.name)
+            where = "world axes"
+            if body is not None and body is not self.ground:
+                R = frames[body].R
+                F, M = R.T * F, R.T * M
+                where = f"axes of body {body.name!r}"
+            for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment")):
+                for axis, e in zip("xyz", vec):
+                    yield Output(f"{sym}_{j.name}_{axis}", e, unit,
+                                 f"{what} of {j.parent.name} on {j.child.name} at joint {j.name}'s origin, "
+                                 f"{axis} ({where})")
