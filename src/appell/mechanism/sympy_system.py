@@ -43,7 +43,7 @@ from typing import Mapping, Sequence
 import sympy as sp
 
 from appell.errors import ModelError
-from appell.model import (AppliedForce, AppliedTorque, Parameter, Particle, RigidBody, System, holonomic,
+from appell.model import (AppliedForce, AppliedTorque, Output, Parameter, Particle, RigidBody, System, holonomic,
                           nonholonomic)
 from appell.symbols import derivative_symbol
 
@@ -253,8 +253,7 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
     return System(coordinates=ren.coordinates, speeds=ren.speeds, kinematics=kinematics, parameters=params,
                   bodies=tuple(bodies), loads=tuple(loads), potential_energy=potential,
                   constraints=tuple(constraints), initial=init, name=name,
-                  description="imported from a sympy.physics.mechanics System",
-                  **({"outputs": tuple(outputs)} if outputs else {}))
+                  description="imported from a sympy.physics.mechanics System", outputs=tuple(outputs))
 
 
 def _expressions(bodies, loads, constraints, outputs, potential):
@@ -306,8 +305,6 @@ def _owner(point, bodies) -> set:
 
 
 def _joint_reactions(system, reactions, ren: _Renamer, statics) -> tuple:
-    from appell.model import Output
-
     me = _mechanics()
     if len(system.holonomic_constraints) or len(system.nonholonomic_constraints):
         raise ModelError("joint reactions of a SymPy system with holonomic or nonholonomic constraints are not "

@@ -216,6 +216,21 @@ class _Reader:
                              hint='write e.g. ["x", "0", "-L*cos(phi)"]' if length == 3 else None)
         return tuple(self.expr(path + (i,), v, level) for i, v in enumerate(value))
 
+    def array_of_tables(self, doc: dict, key: str) -> list:
+        value = doc.get(key, [])
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            raise self.error((key,), f"must be an array of tables, got {_kind(value)}",
+                             hint=f"write each item as [[{key}]] followed by its keys")
+        return value
+
+    def inertia(self, path: tuple, value):
+        if isinstance(value, list) and len(value) == 3 and all(isinstance(row, list) for row in value):
+            rows = [self.vector(path + (i,), row, "state") for i, row in enumerate(value)]
+            return sp.Matrix(rows)
+        if isinstance(value, list) and len(value) == 3 and not any(isinstance(v, list) for v in value):
+            return sp.diag(*self.vector(path, value, "state"))
+        raise self.error(path, "must be 3 principal moments [I1, I2, I3] or a 3x3 array [[...], [...], [...]]")
+
     def constant(self, path: tuple, value) -> float:
         """A number, or a string holding a constant expression such as ``"sin(pi/3)"``."""
         if _is_number(value):
@@ -280,6 +295,9 @@ class _Any:
 
     def __contains__(self, key) -> bool:
         return True
+
+
+_Reader.ANY = _Any()  # for the tables of other modules (mechanism_tables)
 
 
 def _named_expressions(r: _Reader, doc: dict, table: str, level: str, what: str) -> list[tuple[str, sp.Expr]]:
@@ -355,17 +373,9 @@ def _mechanics(r: _Reader, doc: dict, n_speeds: int) -> dict:
     return out
 
 
-def _array_of_tables(r: _Reader, doc: dict, key: str) -> list:
-    value = doc.get(key, [])
-    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-        raise r.error((key,), f"must be an array of tables, got {_kind(value)}",
-                      hint=f"write each item as [[{key}]] followed by its keys")
-    return value
-
-
 def _bodies(r: _Reader, doc: dict) -> list[Particle]:
     out = []
-    for i, body in enumerate(_array_of_tables(r, doc, "bodies")):
+    for i, body in enumerate(r.array_of_tables(doc, "bodies")):
         path = ("bodies", i)
         r.table(path, body, BODY_KEYS, required=("mass",))
         name = r.string(path + ("name",), body.get("name", f"body{i + 1}"))
@@ -377,7 +387,7 @@ def _bodies(r: _Reader, doc: dict) -> list[Particle]:
             if key in body:
                 kw[key] = r.vector(path + (key,), body[key], "state")
         if "inertia" in body:
-            kw["inertia"] = _inertia(r, path + ("inertia",), body["inertia"])
+            kw["inertia"] = r.inertia(path + ("inertia",), body["inertia"])
         try:
             out.append(RigidBody(name, **kw) if "inertia" in body or "angular_velocity" in body
                        else Particle(name, **kw))
@@ -386,18 +396,9 @@ def _bodies(r: _Reader, doc: dict) -> list[Particle]:
     return out
 
 
-def _inertia(r: _Reader, path: tuple, value):
-    if isinstance(value, list) and len(value) == 3 and all(isinstance(row, list) for row in value):
-        rows = [r.vector(path + (i,), row, "state") for i, row in enumerate(value)]
-        return sp.Matrix(rows)
-    if isinstance(value, list) and len(value) == 3 and not any(isinstance(v, list) for v in value):
-        return sp.diag(*r.vector(path, value, "state"))
-    raise r.error(path, "must be 3 principal moments [I1, I2, I3] or a 3x3 array [[...], [...], [...]]")
-
-
 def _loads(r: _Reader, doc: dict) -> list:
     out = []
-    for i, force in enumerate(_array_of_tables(r, doc, "forces")):
+    for i, force in enumerate(r.array_of_tables(doc, "forces")):
         path = ("forces", i)
         r.table(path, force, FORCE_KEYS, required=("vector",))
         name = r.string(path + ("name",), force.get("name", f"force{i + 1}"))
@@ -406,7 +407,7 @@ def _loads(r: _Reader, doc: dict) -> list:
         point = "position" if "position" in force else "velocity"
         out.append(AppliedForce(r.vector(path + ("vector",), force["vector"], "forces"),
                                 name=name, **{point: r.vector(path + (point,), force[point], "forces")}))
-    for i, torque in enumerate(_array_of_tables(r, doc, "torques")):
+    for i, torque in enumerate(r.array_of_tables(doc, "torques")):
         path = ("torques", i)
         r.table(path, torque, TORQUE_KEYS, required=("vector", "angular_velocity"))
         name = r.string(path + ("name",), torque.get("name", f"torque{i + 1}"))

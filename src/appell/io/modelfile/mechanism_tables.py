@@ -81,9 +81,7 @@ def _call(r, path, fn, *args, **kwargs):
 
 
 def _items(r, doc, key):
-    from .loader import _array_of_tables
-
-    return _array_of_tables(r, doc, key)
+    return r.array_of_tables(doc, key)
 
 
 def _kind(r, path, item, kinds):
@@ -115,7 +113,7 @@ def build_mechanism(r, top: dict, base: Path):
         mech = Mechanism(name or Path(r.source).stem or "mechanism", gravity=None)
     # parameters first: masses, lengths and the gravity vector may use them
     known = {p.symbol.name: k for k, p in enumerate(mech.parameters)}
-    for key, value in r.table(("parameters",), top.get("parameters", {}), _Any()).items():
+    for key, value in r.table(("parameters",), top.get("parameters", {}), r.ANY).items():
         path = ("parameters", key)
         r.name(path, key, "parameter")
         unit = text = None
@@ -151,9 +149,7 @@ def build_mechanism(r, top: dict, base: Path):
             continue
         inertia = (0, 0, 0)
         if "inertia" in item:
-            from .loader import _inertia
-
-            inertia = _inertia(r, path + ("inertia",), item["inertia"])
+            inertia = r.inertia(path + ("inertia",), item["inertia"])
         com = _vector(r, path + ("com",), item["com"]) if "com" in item else (0, 0, 0)
         _call(r, path, mech.body, bname, mass, inertia=inertia, com=com)
 
@@ -238,10 +234,5 @@ def build_mechanism(r, top: dict, base: Path):
     frame = None
     if "frame" in section:
         frame = {k: r.string(("mechanism", "frame", k), v)
-                 for k, v in r.table(("mechanism", "frame"), section["frame"], _Any()).items()}
+                 for k, v in r.table(("mechanism", "frame"), section["frame"], r.ANY).items()}
     return mech, extra, reactions, frame
-
-
-class _Any:
-    def __contains__(self, key) -> bool:
-        return True
