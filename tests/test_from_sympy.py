@@ -136,3 +136,93 @@ def test_from_sympy_names_an_unknown_function_of_time():
     system.add_loads(me.Force(P, F * N.x))
     with pytest.raises(ModelError, match=r"depends on F\(t\)"):
         from_sympy(system, parameters={m: 1.0})
+
+
+def double_pendulum_system():
+    """Two uniform rods on SymPy PinJoints about z: rod 1 (m1, l1) from the fixed pivot O,
+    rod 2 (m2, l2) from rod 1's end; q1 the angle of rod 1 from N.x, q2 rod 2's angle
+    relative to rod 1; gravity -g N.y."""
+    q1, q2, u1, u2 = me.dynamicsymbols("q1 q2 u1 u2")
+    m1, m2, l1, l2 = sp.symbols("m1 m2 l1 l2")
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    ceiling = me.RigidBody("ceiling", O, N)
+    U, L = me.ReferenceFrame("U"), me.ReferenceFrame("L")
+    Uc, Lc = me.Point("Uc"), me.Point("Lc")
+    upper = me.RigidBody("upper", Uc, U, m1, (me.inertia(U, 0, 0, m1 * l1**2 / 12), Uc))
+    lower = me.RigidBody("lower", Lc, L, m2, (me.inertia(L, 0, 0, m2 * l2**2 / 12), Lc))
+    shoulder = me.PinJoint("shoulder", ceiling, upper, q1, u1, child_point=-l1 / 2 * U.x, joint_axis=N.z)
+    elbow = me.PinJoint("elbow", upper, lower, q2, u2, parent_point=l1 / 2 * U.x, child_point=-l2 / 2 * L.x,
+                        joint_axis=U.z)
+    system = me.System.from_newtonian(ceiling)
+    system.add_joints(shoulder, elbow)
+    system.apply_uniform_gravity(-g * N.y)
+    return system, (m1, m2, l1, l2)
+
+
+def newton_euler_double_pendulum(q, w, m1, m2, l1, l2, grav):
+    """Planar Newton-Euler of the two rods, solved here: the pins transmit no moment about z,
+    M_z = I alpha + sum (c - p) x m (a_c - g) = 0 at each pin (for the subtree it carries),
+    two linear equations for the angular accelerations; then the pin forces
+    F_elbow = m2 (a_c2 - g), F_shoulder = m1 (a_c1 - g) + F_elbow."""
+    th1, th2 = q[0], q[0] + q[1]
+    w1, w2 = w[0], w[0] + w[1]
+    e = lambda a: np.array([np.cos(a), np.sin(a), 0.0])  # noqa: E731
+    n = lambda a: np.array([-np.sin(a), np.cos(a), 0.0])  # noqa: E731
+    gv = np.array([0.0, -grav, 0.0])
+    p2 = l1 * e(th1)
+    c1, c2 = l1 / 2 * e(th1), p2 + l2 / 2 * e(th2)
+
+    def acc(al1, al2):
+        a1 = l1 / 2 * (al1 * n(th1) - w1**2 * e(th1))
+        a2 = l1 * (al1 * n(th1) - w1**2 * e(th1)) + l2 / 2 * (al2 * n(th2) - w2**2 * e(th2))
+        return a1, a2
+
+    def moments(al1, al2):
+        a1, a2 = acc(al1, al2)
+        m_elbow = m2 * l2**2 / 12 * al2 + np.cross(c2 - p2, m2 * (a2 - gv))[2]
+        m_shoulder = (m1 * l1**2 / 12 * al1 + np.cross(c1, m1 * (a1 - gv))[2]
+                      + m2 * l2**2 / 12 * al2 + np.cross(c2, m2 * (a2 - gv))[2])
+        return np.array([m_shoulder, m_elbow])
+
+    b = moments(0.0, 0.0)
+    A = np.column_stack([moments(1.0, 0.0) - b, moments(0.0, 1.0) - b])
+    al1, al2 = np.linalg.solve(A, -b)
+    a1, a2 = acc(al1, al2)
+    f_elbow = m2 * (a2 - gv)
+    return np.array([al1, al2 - al1]), m1 * (a1 - gv) + f_elbow, f_elbow
+
+
+def test_sympy_double_pendulum_pin_reactions_match_a_newton_euler_solution():
+    """PinJoint reactions reported under the joints' names (F_shoulder_*, F_elbow_*) equal
+    the planar free-body solution; the pins carry no moment about their axis."""
+    system, (m1, m2, l1, l2) = double_pendulum_system()
+    values = {m1: 1.3, m2: 0.7, l1: 1.1, l2: 0.8, g: 9.81}
+    model = from_sympy(system, parameters=values)
+    assert [s.name for s in model.coordinates] == ["q1", "q2"]
+    numeric = derive(model).numeric
+    rng = np.random.default_rng(2)
+    for q, w in zip(rng.uniform(-2, 2, (4, 2)), rng.uniform(-2, 2, (4, 2))):
+        qdd, f_shoulder, f_elbow = newton_euler_double_pendulum(q, w, *(values[s] for s in (m1, m2, l1, l2, g)))
+        sol = numeric.solve(0.0, q, w)
+        np.testing.assert_allclose(sol.accelerations, qdd, rtol=1e-10, atol=1e-10)
+        out = numeric.outputs(0.0, q, w, solution=sol)
+        for joint, force in (("shoulder", f_shoulder), ("elbow", f_elbow)):
+            np.testing.assert_allclose([out[f"F_{joint}_{x}"] for x in "xyz"], force, rtol=1e-10, atol=1e-10)
+            np.testing.assert_allclose([out[f"M_{joint}_{x}"] for x in "xyz"], 0.0, atol=1e-10)
+
+
+def test_joint_reactions_with_sympy_constraints_are_refused_unless_turned_off():
+    """A constraint written in coordinates says nothing of where it acts: no silent numbers."""
+    system, (m1, m2, l1, l2) = double_pendulum_system()
+    q1, q2 = system.q
+    system.add_coordinates(me.dynamicsymbols("q3"), independent=False)  # keep the counts consistent
+    system.add_speeds(me.dynamicsymbols("u3"), independent=False)
+    system.add_kdes(system.q[2].diff() - system.u[2])
+    system.add_holonomic_constraints(system.q[2] - q1 - q2)
+    values = {m1: 1.3, m2: 0.7, l1: 1.1, l2: 0.8, g: 9.81}
+    with pytest.raises(ModelError, match="not determined by a Newton-Euler balance"):
+        from_sympy(system, parameters=values)
+    model = from_sympy(system, parameters=values, reactions=None)
+    assert [c.name for c in model.constraints] == ["holonomic_1"] and model.outputs == ()

@@ -212,7 +212,7 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
         raise ModelError("the SymPy system has no moving bodies")
 
     loads = []
-    all_loads = tuple(system.loads) + tuple(ld for act in system.actuators for ld in act.to_loads())
+    all_loads = _moving_loads(system, ren)
     for k, load in enumerate(all_loads, 1):
         if isinstance(load, me.Force):
             what = f"force {k} at {load.point}"
@@ -254,6 +254,26 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
                   bodies=tuple(bodies), loads=tuple(loads), potential_energy=potential,
                   constraints=tuple(constraints), initial=init, name=name,
                   description="imported from a sympy.physics.mechanics System", outputs=tuple(outputs))
+
+
+def _moving_loads(system, ren: _Renamer) -> tuple:
+    """The system's loads and its actuators' loads, less those on points and frames at rest in
+    the system's frame (gravity on the ground body, an actuator's reaction on the ground):
+    they do no work and belong to no moving body."""
+    me = _mechanics()
+    N, O, out = system.frame, system.fixed_point, []
+    moving = set(ren.coordinates + ren.speeds) | {sp.Symbol("t")}
+    for load in tuple(system.loads) + tuple(ld for act in system.actuators for ld in act.to_loads()):
+        if isinstance(load, me.Force):
+            try:
+                at_rest = not ren.vector(load.point.pos_from(O), N, f"point {load.point}").free_symbols & moving
+            except ValueError:
+                at_rest = False
+        else:
+            at_rest = not ren.vector(load.frame.ang_vel_in(N), N, f"frame {load.frame}").free_symbols & moving
+        if not at_rest:
+            out.append(load)
+    return tuple(out)
 
 
 def _expressions(bodies, loads, constraints, outputs, potential):
@@ -321,7 +341,7 @@ def _joint_reactions(system, reactions, ren: _Renamer, statics) -> tuple:
     children: dict = {}
     for j in system.joints:
         children.setdefault(j.parent, []).append(j.child)
-    loads = tuple(system.loads) + tuple(ld for act in system.actuators for ld in act.to_loads())
+    loads = _moving_loads(system, ren)
     moving = [b for b in system.bodies if b not in statics]
     outputs = []
     for jname in wanted:
