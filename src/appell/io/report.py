@@ -110,6 +110,9 @@ def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
     if by_state:
         groups.append(("Each reaction in terms of the state (t, q, w), the accelerations of (1.4) put in",
                        by_state))
+    if rows["outputs"]:
+        groups.append(("Outputs (e.g. joint forces and moments) from t, q, w, the accelerations and the multipliers",
+                       [EquationRow(f.label, f.lhs, f.rhs) for f in rows["outputs"]]))
     return groups
 
 

@@ -378,19 +378,21 @@ class Mechanism:
         return n, t1, n.cross(t1)
 
     def _rolling(self, name, body, contact, normal, height, what):
-        """Constraints of a body touching the plane ``n.x = height`` at ``contact(frame)``:
-        holonomic ``<name>_n`` (height of the contact point, ``n.x_P - height``) and no slip
-        ``<name>_t1``, ``<name>_t2`` (``t_k . v_P = 0``, v_P the velocity of the body's
-        material point at P); forces ``lambda n``, ``lambda t_k`` at P."""
+        """Constraints of a body touching the plane ``n.x = height``: ``contact(frame, n)``
+        gives ``(d, z)``, the contact point P relative to the body origin (world axes) and
+        the height of P above the origin's projection along n (so that the holonomic
+        ``<name>_n`` is ``n.p + z - height``); no slip ``<name>_t1``, ``<name>_t2`` is
+        ``t_k . v_P = 0`` (v_P the velocity of the body's material point at P); forces
+        ``lambda n``, ``lambda t_k`` at P."""
         n, t1, t2 = self._plane(normal, what)
         height = sp.sympify(height)
 
         def build(frames):
             f = frames[body]
-            P = contact(f, n)  # world position of the contact point
-            d = P - f.p
+            d, z = contact(f, n)
             vP = f.v + _cross(f.w, d)
-            cons = [holonomic(f"{name}_n", n.dot(P) - height), nonholonomic(f"{name}_t1", t1.dot(vP)),
+            P = f.p + d
+            cons = [holonomic(f"{name}_n", n.dot(f.p) + z - height), nonholonomic(f"{name}_t1", t1.dot(vP)),
                     nonholonomic(f"{name}_t2", t2.dot(vP))]
             acts = [_Action(body, P, v * sp.Symbol(f"lambda_{c.name}"), sp.zeros(3, 1))
                     for v, c in zip((n, t1, t2), cons)]
@@ -400,9 +402,12 @@ class Mechanism:
 
     def rolling_disc(self, name, body, radius, axis=(0, 1, 0), normal=(0, 0, 1), height=0):
         """A thin disc (centre at the body frame's origin, symmetry ``axis`` in body axes) rolls
-        without slip on the plane ``normal . x = height``: contact P = C - r u, u the unit
-        vector of the disc's plane closest to ``normal``; constraints ``<name>_n`` (the
-        height of P), ``<name>_t1``, ``<name>_t2`` (no slip)."""
+        without slip on the plane ``normal . x = height``: with ``a`` the disc's axis in world
+        axes, ``s = n.a`` and ``u = n - a s``, the contact point is ``P = C - r u / |u|``
+        (the rim point nearest the plane; ``|u| = sqrt(1 - s^2)``) and its height
+        ``n.C - r (1 - s^2) / |u|``;
+        constraints ``<name>_n`` (the height of P), ``<name>_t1``, ``<name>_t2`` (no slip).
+        Singular where the disc lies flat (s = +-1)."""
         self._claim(name, "contact")
         what = f"rolling disc {name!r}"
         b = self._body(body, what)
@@ -411,8 +416,10 @@ class Mechanism:
 
         def contact(f, n):
             a = f.R * k
-            u = n - a * a.dot(n)
-            return f.p - r * u / sp.sqrt(u.dot(u))
+            s = n.dot(a)
+            u = n - a * s
+            root = sp.sqrt(u.dot(u))  # = sqrt(1 - s^2) where |a| = 1; a norm, real at any point
+            return -r * u / root, -r * (1 - s**2) / root
 
         self._rolling(name, b, contact, normal, height, what)
 
@@ -423,7 +430,7 @@ class Mechanism:
         what = f"rolling sphere {name!r}"
         b = self._body(body, what)
         r = sp.sympify(radius)
-        self._rolling(name, b, lambda f, n: f.p - r * n, normal, height, what)
+        self._rolling(name, b, lambda f, n: (-r * n, -r), normal, height, what)
 
     def no_lateral_slip(self, name, point, direction):
         """A knife edge or wheel: the body point ``point = (body, r)`` has no velocity along
