@@ -203,3 +203,49 @@ def test_torque_load_spins_a_wheel():
     sol, out = _outputs(derive(mech.system()), [0.5], [0.0])
     assert sol.accelerations[0] == pytest.approx(tau[2] / I, rel=1e-12)
     assert [out[f"M_axle_{a}"] for a in "xyz"] == pytest.approx([-tau[0], -tau[1], 0], abs=1e-12)
+
+
+def test_actuator_control_realises_a_servo_constraint_and_is_the_pin_moment():
+    """Closed form (computed torque): a point pendulum made to follow theta = 0.3 sin(2t)
+    by a torque control needs tau = m l^2 theta'' + m g l sin(theta); the control that
+    derive_controlled finds (2.3) equals it, and so does the pin's moment M_pin_z."""
+    from appell import derive_controlled, holonomic, simulate
+    from appell.symbols import t
+
+    m, l = 1.1, 0.7
+    mech = Mechanism("servo", gravity=(0, -G, 0))
+    bob = mech.particle("bob", m)
+    mech.revolute("pin", "ground", bob, child_origin=(0, l, 0))
+    mech.actuator("motor", "pin")
+    s = mech.system(servo_constraints=[holonomic("track", sp.Symbol("pin") - 0.3 * sp.sin(2 * t))],
+                    initial={"pin": 0.0, "pin_dot": 0.6})
+    sol = simulate(derive_controlled(s), 1.0, t_eval=np.linspace(0, 1, 6))
+    th, thdd = 0.3 * np.sin(2 * sol.t), -1.2 * np.sin(2 * sol.t)
+    tau = m * l**2 * thdd + m * G * l * np.sin(th)
+    assert sol["control_motor"] == pytest.approx(tau, abs=1e-7)
+    assert sol["M_pin_z"] == pytest.approx(tau, abs=1e-7)
+
+
+def test_knife_edge_by_no_lateral_slip_equals_the_examples_energy_model():
+    """The examples' knife_edge (T, V and the blade constraint x' sin(phi) - y' cos(phi) = 0
+    written by hand) built as a body on a planar joint with no_lateral_slip along its y
+    axis: at random states the same accelerations; the blade's constraint is written with
+    the opposite sign ((-sin phi, cos phi).v), so its multiplier is the opposite."""
+    from appell.examples.catalog import knife_edge
+
+    hand = derive(knife_edge())
+    p = {s.name: v for s, v in hand.system.parameter_values.items()}
+    mech = Mechanism("knife", gravity=(p["g"] * math.sin(p["alpha"]), 0, -p["g"] * math.cos(p["alpha"])))
+    sled = mech.body("sled", p["m"], inertia=(0.05, 0.05, p["I"]))
+    mech.planar("plane", "ground", sled)
+    mech.no_lateral_slip("blade", (sled, (0, 0, 0)), (0, 1, 0))
+    d = derive(mech.system())
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        q = rng.uniform(-1, 1, 3)
+        speed, rate = rng.uniform(-2, 2, 2)
+        w = [speed * math.cos(q[2]), speed * math.sin(q[2]), rate]  # along the blade
+        ref = hand.numeric.solve(0.0, q, w)
+        sol = d.numeric.solve(0.0, q, w)
+        assert sol.accelerations == pytest.approx(ref.accelerations, rel=1e-10, abs=1e-10)
+        assert sol.multipliers == pytest.approx(-ref.multipliers, rel=1e-10, abs=1e-10)

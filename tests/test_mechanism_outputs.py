@@ -127,3 +127,23 @@ def test_two_outputs_of_one_name_are_refused():
     x, xd = sp.symbols("x x_dot")
     with pytest.raises(ModelError, match="used twice"):
         System(coordinates=(x,), kinetic_energy=xd**2 / 2, outputs=(Output("a", x), Output("a", 2 * x)))
+
+
+def test_outputs_continue_after_a_unilateral_contact_is_released():
+    """A bob on a vertical slider resting on the floor z = 0 (point_on_surface, unilateral)
+    lifted by an upward force 2 m g t: the floor pushes with m g (1 - 2t) (closed form, static
+    balance) until t = 1/2, then releases; the outputs are recorded over the whole run and
+    the slider, which guides along z, carries no force (F_slide = 0)."""
+    from appell.symbols import t
+
+    m = 1.5
+    mech = Mechanism("lift", gravity=(0, 0, -G))
+    bob = mech.particle("bob", m)
+    mech.prismatic("slide", "ground", bob, axis=(0, 0, 1))
+    mech.point_on_surface("floor", (bob, (0, 0, 0)), sp.Symbol("z"))
+    mech.force("lift", (bob, (0, 0, 0)), (0, 0, 2 * m * G * t))
+    sol = simulate(derive(mech.system()), 0.8, t_eval=np.linspace(0, 0.8, 9), unilateral={"floor": +1})
+    before = sol.t < 0.5 - 1e-9
+    assert sol["lambda_floor"][before] == pytest.approx(m * G * (1 - 2 * sol.t[before]), rel=1e-9)
+    assert any(e.kind == "release" for e in sol.events)
+    assert np.all(np.isfinite(sol["F_slide_z"])) and np.abs(sol["F_slide_z"]).max() < 1e-9

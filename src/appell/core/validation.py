@@ -104,11 +104,12 @@ def validate(system: System) -> None:
                "an output may also use accelerations <speed>_dot, multipliers lambda_<constraint> and controls")
     known = {s.name for s in system.coordinates + system.speeds} | {c.name for c in system.constraints} | {
         c.name for c in system.controls} | {n for c in system.controls if c.kind == "kinematic"
-                                            for n in (derivative_symbol(c.symbol).name,)}
+                                            for n in (derivative_symbol(c.symbol).name,)} | {
+        o.name for o in system.outputs}
     unknown = sorted(k for k, _ in system.units if k not in known)
     if unknown:
         raise ModelError(f"units given for unknown name(s) {', '.join(unknown)}",
-                         hint="units are for coordinates, speeds, constraints (their multipliers) and controls")
+                         hint="units are for coordinates, speeds, constraints (their multipliers), controls and outputs")
     missing = {p.symbol for p in system.parameters if p.value is None}
     if missing:
         raise ModelError(f"parameter(s) without value: {', '.join(sorted(map(str, missing)))}")

@@ -647,13 +647,15 @@ def _without(system, released):
     """The numeric model of ``system`` without the released constraints (derived again).
 
     The units of the released constraints' multipliers stay declared on ``system`` (the
-    run's metadata); the reduced system, which has no such multipliers, leaves them out."""
+    run's metadata); the reduced system, which has no such multipliers, leaves them out, and
+    its outputs too: they are evaluated from the whole system's columns, where a released
+    constraint's multiplier is recorded as zero (:func:`recorded_outputs`)."""
     from appell.core.derive import derive
 
     gone = set(released)
     remaining = tuple(c for c in system.constraints if c.name not in gone)
     units = tuple((k, u) for k, u in system.units if k not in gone)
-    return derive(system.replace(constraints=remaining, units=units)).numeric
+    return derive(system.replace(constraints=remaining, units=units, outputs=())).numeric
 
 
 def _open_contacts(model, system, initial, signs, t0, p, tol: float = 1e-9) -> tuple[str, ...]:
