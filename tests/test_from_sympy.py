@@ -226,3 +226,38 @@ def test_joint_reactions_with_sympy_constraints_are_refused_unless_turned_off():
         from_sympy(system, parameters=values)
     model = from_sympy(system, parameters=values, reactions=None)
     assert [c.name for c in model.constraints] == ["holonomic_1"] and model.outputs == ()
+
+
+def test_prismatic_and_weld_joint_reactions_match_the_closed_form():
+    """A cart (m1) on a SymPy PrismaticJoint along N.x, pushed by P at its centre, with a block
+    (m2) welded (WeldJoint) at the height h above the joint point; gravity -g N.y.
+    Closed form: a = P/(m1 + m2); the weld carries F = m2 (a, g, 0) and, about the weld
+    point, M = (0, h, 0) x m2 (a, g, 0) = (0, 0, -m2 h a); the slider carries
+    F = (m1 + m2)(a, g, 0) - (P, 0, 0) = (0, (m1 + m2) g, 0) and the same moment."""
+    x, v = me.dynamicsymbols("x v")
+    m1, m2, h, P = sp.symbols("m1 m2 h P")
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    ground = me.RigidBody("ground", O, N)
+    C, B = me.ReferenceFrame("C"), me.ReferenceFrame("B")
+    Cc, Bc = me.Point("Cc"), me.Point("Bc")
+    cart = me.RigidBody("cart", Cc, C, m1, (me.inertia(C, 1, 1, 1), Cc))
+    block = me.RigidBody("block", Bc, B, m2, (me.inertia(B, 1, 1, 1), Bc))
+    rail = me.PrismaticJoint("rail", ground, cart, x, v, joint_axis=N.x)
+    weld = me.WeldJoint("weld", cart, block, child_point=-h * B.y)
+    system = me.System.from_newtonian(ground)
+    system.add_joints(rail, weld)
+    system.apply_uniform_gravity(-g * N.y)
+    system.add_loads(me.Force(cart.masscenter, P * N.x))
+    values = {m1: 3.0, m2: 1.5, h: 0.4, P: 9.0, g: 9.81}
+    model = from_sympy(system, parameters=values)
+    numeric = derive(model).numeric
+    a = 9.0 / 4.5
+    sol = numeric.solve(0.0, [0.7], [1.3])
+    assert sol.accelerations[0] == pytest.approx(a, rel=1e-12)
+    out = numeric.outputs(0.0, [0.7], [1.3], solution=sol)
+    np.testing.assert_allclose([out[f"F_weld_{k}"] for k in "xyz"], [1.5 * a, 1.5 * 9.81, 0.0], atol=1e-12)
+    np.testing.assert_allclose([out[f"M_weld_{k}"] for k in "xyz"], [0.0, 0.0, -1.5 * 0.4 * a], atol=1e-12)
+    np.testing.assert_allclose([out[f"F_rail_{k}"] for k in "xyz"], [0.0, 4.5 * 9.81, 0.0], atol=1e-12)
+    np.testing.assert_allclose([out[f"M_rail_{k}"] for k in "xyz"], [0.0, 0.0, -1.5 * 0.4 * a], atol=1e-12)

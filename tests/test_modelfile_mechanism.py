@@ -160,6 +160,8 @@ def test_urdf_file_on_the_command_line_with_set_and_reaction_columns(tmp_path):
                                                            rel=1e-8)
     derived = CliRunner().invoke(cli, ["derive", str(tmp_path / "hinge.urdf"), "--only", "outputs"])
     assert derived.exit_code == 0 and "F_shoulder_x" in derived.output
+    checked = CliRunner().invoke(cli, ["check", str(tmp_path / "hinge.urdf"), "--set", "shoulder=0.4", "--t-end", "0.5"])
+    assert checked.exit_code == 0 and "passed" in checked.output, checked.output
 
 
 def test_unknown_set_name_on_a_urdf_is_exit_code_2(tmp_path):
@@ -196,3 +198,68 @@ def test_mechanism_joint_names_an_unknown_body_with_its_line():
     with pytest.raises(ModelError, match="unknown body 'pcuk'") as err:
         loads_model(text, "circle.toml")
     assert err.value.where == "circle.toml:22"
+
+
+FLOATING = """\
+<robot name="drone">
+  <link name="world"/>
+  <joint name="base" type="floating">
+    <parent link="world"/><child link="body"/>
+  </joint>
+  <link name="body">
+    <inertial><mass value="1.2"/><inertia ixx="0.02" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.04"/></inertial>
+  </link>
+  <joint name="rotor" type="continuous">
+    <parent link="body"/><child link="prop"/><origin xyz="0 0 0.1"/><axis xyz="0 0 1"/>
+    <mimic joint="base" multiplier="2"/>
+  </joint>
+  <link name="prop">
+    <inertial><mass value="0.1"/><inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.002"/></inertial>
+  </link>
+</robot>
+"""
+
+
+def test_floating_joint_falls_freely_and_transmits_nothing():
+    """A floating (free, quaternion) body with its mass centre at the joint frame's origin:
+    Newton's law in free fall gives x'' = y'' = 0, z'' = -g and no joint reaction."""
+    from appell.mechanism.urdf import parse_urdf, urdf_system
+
+    text = FLOATING.split("  <joint name=\"rotor\"")[0] + "</robot>\n"
+    system = urdf_system(parse_urdf(text, "drone.urdf"))
+    names = [q.name for q in system.coordinates]
+    assert names == ["base_x", "base_y", "base_z", "base_q0", "base_q1", "base_q2", "base_q3"]
+    numeric = derive(system).numeric
+    q0 = np.array([0.3, -0.2, 1.0, *(np.array([0.9, 0.1, -0.3, 0.2]) / np.linalg.norm([0.9, 0.1, -0.3, 0.2]))])
+    sol = numeric.solve(0.0, q0, np.zeros(7))
+    np.testing.assert_allclose(sol.accelerations[:3], [0.0, 0.0, -9.81], atol=1e-12)
+    out = numeric.outputs(0.0, q0, np.zeros(7), solution=sol)
+    np.testing.assert_allclose([out[f"{k}_base_{x}"] for k in "FM" for x in "xyz"], 0.0, atol=1e-12)
+
+
+def test_mimic_joint_becomes_a_named_coupling_constraint():
+    from appell.mechanism.urdf import parse_urdf, urdf_mechanism
+
+    text = FLOATING.replace('type="floating"', 'type="continuous"')
+    _, constraints = urdf_mechanism(parse_urdf(text, "drone.urdf"))
+    assert [c.name for c in constraints] == ["rotor_mimic"]
+    assert str(constraints[0].expr) == "-2.0*base + rotor"
+    assert constraints[0].where == "drone.urdf:9"
+
+
+def test_planar_urdf_joint_with_another_normal_is_refused_with_its_line():
+    from appell.mechanism.urdf import parse_urdf, urdf_mechanism
+
+    text = FLOATING.replace('type="floating">', 'type="planar">\n    <axis xyz="1 0 0"/>')
+    with pytest.raises(ModelError, match="only the plane normal z") as err:
+        urdf_mechanism(parse_urdf(text, "drone.urdf"))
+    assert err.value.where == "drone.urdf:3"
+
+
+def test_massless_link_on_a_moving_joint_is_refused():
+    from appell.mechanism.urdf import parse_urdf, urdf_mechanism
+
+    text = FLOATING.replace('<link name="body">\n    <inertial><mass value="1.2"/><inertia ixx="0.02" ixy="0" ixz="0" '
+                            'iyy="0.03" iyz="0" izz="0.04"/></inertial>\n  </link>', '<link name="body"/>')
+    with pytest.raises(ModelError, match="has no <inertial> but moves on joint 'base'"):
+        urdf_mechanism(parse_urdf(text, "drone.urdf"))
