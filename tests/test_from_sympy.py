@@ -261,3 +261,24 @@ def test_prismatic_and_weld_joint_reactions_match_the_closed_form():
     np.testing.assert_allclose([out[f"M_weld_{k}"] for k in "xyz"], [0.0, 0.0, -1.5 * 0.4 * a], atol=1e-12)
     np.testing.assert_allclose([out[f"F_rail_{k}"] for k in "xyz"], [0.0, 4.5 * 9.81, 0.0], atol=1e-12)
     np.testing.assert_allclose([out[f"M_rail_{k}"] for k in "xyz"], [0.0, 0.0, -1.5 * 0.4 * a], atol=1e-12)
+
+
+def test_symbols_with_assumptions_become_the_declared_parameters():
+    """SymPy users write symbols("m l", positive=True); the pin of a rod hanging straight
+    down and turning at w carries m g + m (l/2) w^2 (its centre on a circle of radius l/2)."""
+    q, u = me.dynamicsymbols("q u")
+    mass, length, grav = sp.symbols("m l g", positive=True)
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    R, Rc = me.ReferenceFrame("R"), me.Point("Rc")
+    rod = me.RigidBody("rod", Rc, R, mass, (me.inertia(R, 0, 0, mass * length**2 / 12), Rc))
+    system = me.System.from_newtonian(me.RigidBody("ceiling", O, N))
+    system.add_joints(me.PinJoint("pin", system.bodies[0], rod, q, u, child_point=-length / 2 * R.x, joint_axis=N.z))
+    system.apply_uniform_gravity(-grav * N.y)
+    model = from_sympy(system, parameters={mass: 2.0, length: 1.0, grav: 9.81}, initial={q: -1.2, u: 0.5})
+    assert dict(model.initial) == {"q": -1.2, "u": 0.5}
+    numeric = derive(model).numeric
+    out = numeric.outputs(0.0, [-np.pi / 2], [3.0])
+    assert out["F_pin_y"] == pytest.approx(2.0 * 9.81 + 2.0 * 0.5 * 9.0, rel=1e-12)
+    assert out["F_pin_x"] == pytest.approx(0.0, abs=1e-12)

@@ -45,7 +45,7 @@ import sympy as sp
 from appell.errors import ModelError
 from appell.model import (AppliedForce, AppliedTorque, Output, Parameter, Particle, RigidBody, System, holonomic,
                           nonholonomic)
-from appell.symbols import derivative_symbol
+from appell.symbols import derivative_symbol, t
 
 __all__ = ["from_sympy"]
 
@@ -135,6 +135,11 @@ class _Renamer:
     def plain(self, expr, what: str) -> sp.Expr:
         expr = sp.sympify(expr)
         expr = expr.xreplace(self.second).xreplace(self.kinematics).xreplace(self.plain_map)
+        # symbols with assumptions (symbols("m", positive=True)) -> the plain symbols appell declares
+        assumed = {s: sp.Symbol(s.name) for s in expr.free_symbols
+                   if isinstance(s, sp.Symbol) and s != sp.Symbol(s.name)}
+        if assumed:
+            expr = expr.xreplace(assumed)
         left = expr.atoms(sp.Derivative) | {f for f in expr.atoms(sp.Function) if _is_dynamic(f)}
         if left:
             culprit = sorted(left, key=str)[0]
@@ -238,7 +243,7 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
     outputs = _joint_reactions(system, reactions, ren, statics) if system.joints and reactions is not None else ()
 
     used = set().union(*(e.free_symbols for e in _expressions(bodies, loads, constraints, outputs, potential)))
-    known = set(ren.coordinates + ren.speeds) | {derivative_symbol(w) for w in ren.speeds} | {sp.Symbol("t")}
+    known = set(ren.coordinates + ren.speeds) | {derivative_symbol(w) for w in ren.speeds} | {t}
     values = {str(k): v for k, v in (parameters or {}).items()}
     missing = sorted(s.name for s in used - known if s.name not in values)
     if missing:
@@ -262,7 +267,7 @@ def _moving_loads(system, ren: _Renamer) -> tuple:
     they do no work and belong to no moving body."""
     me = _mechanics()
     N, O, out = system.frame, system.fixed_point, []
-    moving = set(ren.coordinates + ren.speeds) | {sp.Symbol("t")}
+    moving = set(ren.coordinates + ren.speeds) | {t}
     for load in tuple(system.loads) + tuple(ld for act in system.actuators for ld in act.to_loads()):
         if isinstance(load, me.Force):
             try:
