@@ -6,8 +6,8 @@ For each page of ``docs/``, in document order and in a fresh temporary directory
 * fenced ``python`` blocks run in one namespace per page;
 * lines of ``console`` / ``bash`` blocks that start with ``appell `` (or ``$ appell ``)
   run through the command line (click's CliRunner) and must exit with 0;
-* ``toml`` blocks that hold a complete model (a ``[model]`` table and mechanics) must
-  load as model files.
+* ``toml`` blocks that hold a complete model (a ``[model]`` table and mechanics, or a
+  ``[mechanism]``) must load as model files.
 
 Then the site is built once with ``sphinx-build -W`` (warnings are errors), and the
 gallery and the API page are checked to cover every bundled example and public module.
@@ -65,7 +65,7 @@ def cli_commands(code: str):
 def is_complete_model(code: str) -> bool:
     """A TOML block with a ``[model]`` table and mechanics (not a fragment of one)."""
     return bool(re.search(r"^\[model\]", code, re.MULTILINE)) and bool(
-        re.search(r"^(kinetic_energy|acceleration_energy)\s*=|^\[\[bodies\]\]", code, re.MULTILINE))
+        re.search(r"^(kinetic_energy|acceleration_energy)\s*=|^\[\[bodies\]\]|^\[mechanism\]", code, re.MULTILINE))
 
 
 @pytest.fixture()

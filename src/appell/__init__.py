@@ -39,6 +39,7 @@ from appell.simulation.sweep import SweepResult, parameter_grid, sweep
 from appell.control.servo import ControlledDerivation, derive_controlled
 from appell.control.servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
 from appell.io.report import render_report, write_report
+from appell.mechanism.sympy_system import from_sympy
 
 __version__ = "0.1.0"
 
@@ -111,4 +112,5 @@ __all__ = [
     "ControlledDerivation", "ControlledModel", "augmented_controlled_solve", "cross_check_controlled",
     "derive_controlled",
     "render_report", "write_report",
+    "from_sympy",
 ]

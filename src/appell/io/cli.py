@@ -64,7 +64,7 @@ def resolve_model(model: str) -> Path:
     if path.suffix == "" and model in list_examples():
         return example_path(model)
     if path.exists():
-        raise ModelError(f"{model}: not a file", hint="give the path of a model file (.toml)")
+        raise ModelError(f"{model}: not a file", hint="give the path of a model file (.toml) or a robot (.urdf)")
     raise ModelError(f"{model}: no such model file",
                      hint="give the path of a model file, or a bundled example: " + ", ".join(list_examples()))
 

@@ -65,6 +65,8 @@ TABLES = {
     "first_integrals": "[first_integrals.NAME] expr, value",
     "simulation": "run settings",
     "units": "NAME = unit of a coordinate, speed, constraint's multiplier or control (recorded in result files)",
+    "mechanism": "bodies joined by joints (urdf, gravity, reactions, frame) with [[bodies]], [[joints]], "
+                 "[[closures]], [[loads]]",
 }
 
 MODEL_KEYS = ("name", "description", "coordinates", "speeds")
@@ -214,6 +216,21 @@ class _Reader:
                              hint='write e.g. ["x", "0", "-L*cos(phi)"]' if length == 3 else None)
         return tuple(self.expr(path + (i,), v, level) for i, v in enumerate(value))
 
+    def array_of_tables(self, doc: dict, key: str) -> list:
+        value = doc.get(key, [])
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            raise self.error((key,), f"must be an array of tables, got {_kind(value)}",
+                             hint=f"write each item as [[{key}]] followed by its keys")
+        return value
+
+    def inertia(self, path: tuple, value):
+        if isinstance(value, list) and len(value) == 3 and all(isinstance(row, list) for row in value):
+            rows = [self.vector(path + (i,), row, "state") for i, row in enumerate(value)]
+            return sp.Matrix(rows)
+        if isinstance(value, list) and len(value) == 3 and not any(isinstance(v, list) for v in value):
+            return sp.diag(*self.vector(path, value, "state"))
+        raise self.error(path, "must be 3 principal moments [I1, I2, I3] or a 3x3 array [[...], [...], [...]]")
+
     def constant(self, path: tuple, value) -> float:
         """A number, or a string holding a constant expression such as ``"sin(pi/3)"``."""
         if _is_number(value):
@@ -278,6 +295,9 @@ class _Any:
 
     def __contains__(self, key) -> bool:
         return True
+
+
+_Reader.ANY = _Any()  # for the tables of other modules (mechanism_tables)
 
 
 def _named_expressions(r: _Reader, doc: dict, table: str, level: str, what: str) -> list[tuple[str, sp.Expr]]:
@@ -353,17 +373,9 @@ def _mechanics(r: _Reader, doc: dict, n_speeds: int) -> dict:
     return out
 
 
-def _array_of_tables(r: _Reader, doc: dict, key: str) -> list:
-    value = doc.get(key, [])
-    if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-        raise r.error((key,), f"must be an array of tables, got {_kind(value)}",
-                      hint=f"write each item as [[{key}]] followed by its keys")
-    return value
-
-
 def _bodies(r: _Reader, doc: dict) -> list[Particle]:
     out = []
-    for i, body in enumerate(_array_of_tables(r, doc, "bodies")):
+    for i, body in enumerate(r.array_of_tables(doc, "bodies")):
         path = ("bodies", i)
         r.table(path, body, BODY_KEYS, required=("mass",))
         name = r.string(path + ("name",), body.get("name", f"body{i + 1}"))
@@ -375,7 +387,7 @@ def _bodies(r: _Reader, doc: dict) -> list[Particle]:
             if key in body:
                 kw[key] = r.vector(path + (key,), body[key], "state")
         if "inertia" in body:
-            kw["inertia"] = _inertia(r, path + ("inertia",), body["inertia"])
+            kw["inertia"] = r.inertia(path + ("inertia",), body["inertia"])
         try:
             out.append(RigidBody(name, **kw) if "inertia" in body or "angular_velocity" in body
                        else Particle(name, **kw))
@@ -384,18 +396,9 @@ def _bodies(r: _Reader, doc: dict) -> list[Particle]:
     return out
 
 
-def _inertia(r: _Reader, path: tuple, value):
-    if isinstance(value, list) and len(value) == 3 and all(isinstance(row, list) for row in value):
-        rows = [r.vector(path + (i,), row, "state") for i, row in enumerate(value)]
-        return sp.Matrix(rows)
-    if isinstance(value, list) and len(value) == 3 and not any(isinstance(v, list) for v in value):
-        return sp.diag(*r.vector(path, value, "state"))
-    raise r.error(path, "must be 3 principal moments [I1, I2, I3] or a 3x3 array [[...], [...], [...]]")
-
-
 def _loads(r: _Reader, doc: dict) -> list:
     out = []
-    for i, force in enumerate(_array_of_tables(r, doc, "forces")):
+    for i, force in enumerate(r.array_of_tables(doc, "forces")):
         path = ("forces", i)
         r.table(path, force, FORCE_KEYS, required=("vector",))
         name = r.string(path + ("name",), force.get("name", f"force{i + 1}"))
@@ -404,7 +407,7 @@ def _loads(r: _Reader, doc: dict) -> list:
         point = "position" if "position" in force else "velocity"
         out.append(AppliedForce(r.vector(path + ("vector",), force["vector"], "forces"),
                                 name=name, **{point: r.vector(path + (point,), force[point], "forces")}))
-    for i, torque in enumerate(_array_of_tables(r, doc, "torques")):
+    for i, torque in enumerate(r.array_of_tables(doc, "torques")):
         path = ("torques", i)
         r.table(path, torque, TORQUE_KEYS, required=("vector", "angular_velocity"))
         name = r.string(path + ("name",), torque.get("name", f"torque{i + 1}"))
@@ -604,7 +607,48 @@ def _units(r: _Reader, doc: dict, allowed: list[str]) -> tuple[tuple[str, str], 
     return tuple(out)
 
 
+def _build_mechanism(r: _Reader, doc: dict) -> System:
+    """A model file with a ``[mechanism]`` table (:mod:`.mechanism_tables`): the mechanism's
+    System with the file's constraints, controls, servo constraints, initial values,
+    simulation settings and units."""
+    from .mechanism_tables import MECHANISM_TABLES, build_mechanism
+
+    top = r.table((), doc, MECHANISM_TABLES)
+    source = Path(r.source)
+    mech, extra, reactions, frame = build_mechanism(r, top, source.parent if source.is_file() else Path.cwd())
+    controls = _controls(r, top)
+    constraints = _constraints(r, top, "constraints")
+    servo = _constraints(r, top, "servo_constraints")
+    try:
+        system = mech.system(reactions=reactions, frame=frame, constraints=tuple(extra) + tuple(constraints),
+                             controls=tuple(controls), servo_constraints=tuple(servo))
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or r.where(("mechanism",)), hint=exc.hint) from None
+    states = [s.name for s in system.coordinates + system.speeds]
+    kinematic = [c.name for c in system.controls if c.kind == "kinematic"]
+    allowed = states + [n for c in kinematic for n in (c, derivative_name(c, 1))]
+    initial = {**system.initial_definitions,
+               **_initial(r, top, allowed, [q.name for q in system.coordinates] + kinematic, list(system.parameters))}
+    settings = _simulation(r, top, [c.name for c in system.constraints])
+    units = {**dict(system.units), **dict(_units(r, top, allowed + [c.name for c in system.constraints + system.servo_constraints]
+                                                  + [c.name for c in system.controls]))}
+    model = top.get("model", {})
+    try:
+        system = system.replace(initial=tuple(initial.items()), settings=settings, units=tuple(units.items()),
+                                description=r.string(("model", "description"), model.get("description", system.description)))
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
+    _check_declared(r, system)
+    try:
+        validate(system)
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
+    return system
+
+
 def _build(r: _Reader, doc: dict) -> System:
+    if isinstance(doc, dict) and "mechanism" in doc:
+        return _build_mechanism(r, doc)
     top = r.table((), doc, tuple(TABLES))
     name, description, coordinates, speeds = _model(r, top)
     parameters = _parameters(r, top)
@@ -790,6 +834,10 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None) -> System
             raise ModelError(f"{path}: no such model file, nor a bundled example",
                              hint="give the path of a model file (.toml), or a bundled example: "
                                   + ", ".join(list_examples()))
+    if path.suffix.lower() == ".urdf":  # a robot description: its mechanism with every joint's reaction
+        from appell.mechanism.urdf import urdf_system
+
+        return _apply_overrides(urdf_system(path), overrides, str(path))
     try:
         raw = path.read_bytes()
     except OSError as exc:

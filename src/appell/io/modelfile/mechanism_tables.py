@@ -1,0 +1,238 @@
+"""Model files of mechanisms: ``[mechanism]``, ``[[bodies]]``, ``[[joints]]``,
+``[[closures]]``, ``[[loads]]`` (issue 12 §1, §3; docs/model-format.md, "Mechanisms").
+
+A model file with a ``[mechanism]`` table describes bodies joined by joints
+(:class:`appell.mechanism.Mechanism`) instead of coordinates and energies; it may name a
+URDF file (``urdf = "arm.urdf"``, relative to the model file) whose links and joints come
+first, and add bodies, joints, closed loops, contacts, loads, parameters, constraints in
+the joint coordinates, controls and servo constraints. Every value goes through the same
+reader as the other tables (safe expression parser, errors with file and line).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import sympy as sp
+
+from appell.errors import ModelError
+from appell.model import Parameter
+
+MECHANISM_KEYS = ("urdf", "gravity", "reactions", "frame")
+MECHANISM_TABLES = ("model", "mechanism", "parameters", "bodies", "joints", "closures", "loads", "initial",
+                    "constraints", "controls", "servo_constraints", "simulation", "units")
+BODY_KEYS = ("name", "mass", "inertia", "com", "particle")
+JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed",
+               "cylindrical": "cylindrical", "planar": "planar", "spherical": "spherical", "free": "free"}
+JOINT_KEYS = ("name", "type", "parent", "child", "axis", "origin", "rpy", "child_origin", "coordinate",
+              "coordinates", "rotation")
+CLOSURE_KEYS = {
+    "connect": ("name", "type", "body_a", "point_a", "body_b", "point_b", "directions"),
+    "point_on_surface": ("name", "type", "body", "point", "surface"),
+    "rolling_disc": ("name", "type", "body", "radius", "axis", "normal", "height"),
+    "rolling_sphere": ("name", "type", "body", "radius", "normal", "height"),
+    "no_lateral_slip": ("name", "type", "body", "point", "direction"),
+}
+LOAD_KEYS = {
+    "force": ("name", "type", "body", "point", "vector"),
+    "torque": ("name", "type", "body", "vector"),
+    "spring": ("name", "type", "body_a", "point_a", "body_b", "point_b", "stiffness", "rest_length", "damping"),
+    "actuator": ("name", "type", "joint", "value", "coordinate"),
+}
+
+
+def urdf_path(r, value, base: Path) -> Path:
+    """The URDF named by ``[mechanism] urdf``: a relative path (from the model file's
+    folder) ending in ``.urdf``; absolute paths are refused so that a model file cannot
+    point at an arbitrary file of the machine."""
+    path = ("mechanism", "urdf")
+    text = r.string(path, value)
+    p = Path(text)
+    if p.is_absolute() or text.startswith("~"):
+        raise r.error(path, f"the URDF path {text!r} is absolute",
+                      hint="give the path relative to the model file, e.g. urdf = \"arm.urdf\"")
+    if p.suffix.lower() != ".urdf":
+        raise r.error(path, f"{text!r} does not end in .urdf", hint="name the robot's .urdf file")
+    full = base / p
+    if not full.is_file():
+        raise r.error(path, f"no URDF file {text!r} next to the model file (looked for {full})",
+                      hint="paths are relative to the folder of the model file")
+    return full
+
+
+def _vector(r, path, value, level="state", length=3):
+    return sp.Matrix(r.vector(path, value, level, length))
+
+
+def _body_ref(r, path, value, mech):
+    name = r.string(path, value)
+    try:
+        return mech._body(name, path[-1])
+    except ModelError as exc:
+        raise r.error(path, exc.message, hint=exc.hint) from None
+
+
+def _call(r, path, fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` with a :class:`ModelError` located at ``path``."""
+    try:
+        return fn(*args, **kwargs)
+    except ModelError as exc:
+        raise r.error(path, exc.message, hint=exc.hint) from None
+
+
+def _items(r, doc, key):
+    return r.array_of_tables(doc, key)
+
+
+def _kind(r, path, item, kinds):
+    if "type" not in item:
+        raise r.error(path, "missing key 'type'", hint="type is one of " + ", ".join(map(repr, kinds)))
+    kind = r.string(path + ("type",), item["type"])
+    if kind not in kinds:
+        raise r.error(path + ("type",), f"unknown type {kind!r}", hint="type is one of " + ", ".join(map(repr, kinds)))
+    return kind
+
+
+def build_mechanism(r, top: dict, base: Path):
+    """``(mechanism, extra constraints from the URDF, reactions, frame)`` from the tables."""
+    from appell.mechanism import Mechanism
+    from appell.mechanism.urdf import read_urdf, urdf_mechanism
+
+    section = r.table(("mechanism",), top["mechanism"], MECHANISM_KEYS)
+    name = None
+    if "model" in top:
+        model = r.table(("model",), top["model"], ("name", "description"))
+        name = r.string(("model", "name"), model["name"]) if "name" in model else None
+    extra = ()
+    if "urdf" in section:
+        urdf = urdf_path(r, section["urdf"], base)
+        mech, extra = urdf_mechanism(read_urdf(urdf))
+        if name:
+            mech.name = name
+    else:
+        mech = Mechanism(name or Path(r.source).stem or "mechanism", gravity=None)
+    # parameters first: masses, lengths and the gravity vector may use them
+    known = {p.symbol.name: k for k, p in enumerate(mech.parameters)}
+    for key, value in r.table(("parameters",), top.get("parameters", {}), r.ANY).items():
+        path = ("parameters", key)
+        r.name(path, key, "parameter")
+        unit = text = None
+        if isinstance(value, dict):
+            r.table(path, value, ("value", "unit", "description"), required=("value",))
+            unit = r.string(path + ("unit",), value["unit"]) if "unit" in value else None
+            text = r.string(path + ("description",), value["description"]) if "description" in value else None
+            value = value["value"]
+        number = r.constant(path + ("value",) if isinstance(top["parameters"][key], dict) else path, value)
+        if key in known:  # a URDF's g: the model file sets its value
+            old = mech.parameters[known[key]]
+            mech.parameters[known[key]] = Parameter(old.symbol, number, unit or old.unit, text or old.description)
+        else:
+            _call(r, path, mech.parameter, key, number, unit, text)
+    if "gravity" in section:
+        value = section["gravity"]
+        if value == "none":
+            mech.gravity = None
+        else:
+            mech.gravity = _vector(r, ("mechanism", "gravity"), value, "forces")
+    elif "urdf" not in section:
+        mech.gravity = sp.Matrix([0, 0, sp.Float(-9.81)])
+
+    for i, item in enumerate(_items(r, top, "bodies")):
+        path = ("bodies", i)
+        r.table(path, item, BODY_KEYS, required=("name", "mass"))
+        bname = r.name(path + ("name",), item["name"], "body")
+        mass = r.expr(path + ("mass",), item["mass"], "state")
+        if item.get("particle", False) is True:
+            if "inertia" in item or "com" in item:
+                raise r.error(path, "a particle has no inertia and no mass centre offset")
+            _call(r, path, mech.particle, bname, mass)
+            continue
+        inertia = (0, 0, 0)
+        if "inertia" in item:
+            inertia = r.inertia(path + ("inertia",), item["inertia"])
+        com = _vector(r, path + ("com",), item["com"]) if "com" in item else (0, 0, 0)
+        _call(r, path, mech.body, bname, mass, inertia=inertia, com=com)
+
+    for i, item in enumerate(_items(r, top, "joints")):
+        path = ("joints", i)
+        kind = _kind(r, path, item, tuple(JOINT_TYPES))
+        r.table(path, item, JOINT_KEYS, required=("name", "type", "parent", "child"))
+        jname = r.name(path + ("name",), item["name"], "joint")
+        parent = _body_ref(r, path + ("parent",), item["parent"], mech)
+        child = _body_ref(r, path + ("child",), item["child"], mech)
+        kw = {k: _vector(r, path + (k,), item[k]) for k in ("origin", "rpy", "child_origin") if k in item}
+        if "axis" in item:
+            if JOINT_TYPES[kind] not in ("revolute", "prismatic", "cylindrical"):
+                raise r.error(path + ("axis",), f"a {kind} joint has no axis")
+            kw["axis"] = _vector(r, path + ("axis",), item["axis"])
+        if "coordinate" in item:
+            kw["coordinate"] = r.name(path + ("coordinate",), item["coordinate"], "coordinate")
+        if "coordinates" in item:
+            kw["coordinates"] = r.names(path + ("coordinates",), item["coordinates"], "coordinate")
+        if "rotation" in item:
+            kw["rotation"] = r.string(path + ("rotation",), item["rotation"])
+        method = getattr(mech, JOINT_TYPES[kind])
+        _call(r, path, method, jname, parent, child, **kw)
+
+    for i, item in enumerate(_items(r, top, "closures")):
+        path = ("closures", i)
+        kind = _kind(r, path, item, tuple(CLOSURE_KEYS))
+        r.table(path, item, CLOSURE_KEYS[kind], required=("name",) + tuple(
+            k for k in CLOSURE_KEYS[kind][2:] if k not in ("directions", "axis", "normal", "height")))
+        cname = r.name(path + ("name",), item["name"], "closure")
+        if kind == "connect":
+            a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
+            b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
+            directions = r.string(path + ("directions",), item.get("directions", "xyz"))
+            _call(r, path, mech.connect, cname, a, b, directions)
+            continue
+        body = _body_ref(r, path + ("body",), item["body"], mech)
+        if kind == "point_on_surface":
+            point = _vector(r, path + ("point",), item["point"])
+            surface = r.expr(path + ("surface",), item["surface"], None)
+            _call(r, path, mech.point_on_surface, cname, (body, point), surface)
+        elif kind == "no_lateral_slip":
+            point = _vector(r, path + ("point",), item["point"])
+            direction = _vector(r, path + ("direction",), item["direction"])
+            _call(r, path, mech.no_lateral_slip, cname, (body, point), direction)
+        else:
+            kw = {k: _vector(r, path + (k,), item[k]) for k in ("axis", "normal") if k in item}
+            if "height" in item:
+                kw["height"] = r.expr(path + ("height",), item["height"], "state")
+            radius = r.expr(path + ("radius",), item["radius"], "state")
+            _call(r, path, getattr(mech, kind), cname, body, radius, **kw)
+
+    for i, item in enumerate(_items(r, top, "loads")):
+        path = ("loads", i)
+        kind = _kind(r, path, item, tuple(LOAD_KEYS))
+        r.table(path, item, LOAD_KEYS[kind], required=("name",) + tuple(
+            k for k in LOAD_KEYS[kind][2:] if k not in ("rest_length", "damping", "value", "coordinate")))
+        lname = r.name(path + ("name",), item["name"], "load")
+        if kind == "force":
+            point = (_body_ref(r, path + ("body",), item["body"], mech), _vector(r, path + ("point",), item["point"]))
+            _call(r, path, mech.force, lname, point, _vector(r, path + ("vector",), item["vector"], "forces"))
+        elif kind == "torque":
+            _call(r, path, mech.torque, lname, _body_ref(r, path + ("body",), item["body"], mech),
+                  _vector(r, path + ("vector",), item["vector"], "forces"))
+        elif kind == "spring":
+            a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
+            b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
+            values = {k: r.expr(path + (k,), item[k], "forces") for k in ("stiffness", "rest_length", "damping")
+                      if k in item}
+            _call(r, path, mech.spring, lname, a, b, **values)
+        else:
+            joint = r.string(path + ("joint",), item["joint"])
+            value = r.expr(path + ("value",), item["value"], "forces") if "value" in item else None
+            coordinate = r.string(path + ("coordinate",), item["coordinate"]) if "coordinate" in item else None
+            _call(r, path, mech.actuator, lname, joint, value, coordinate)
+
+    reactions = section.get("reactions", "all")
+    if reactions == "none":
+        reactions = None
+    elif reactions != "all":
+        reactions = r.names(("mechanism", "reactions"), reactions, "joint")
+    frame = None
+    if "frame" in section:
+        frame = {k: r.string(("mechanism", "frame", k), v)
+                 for k, v in r.table(("mechanism", "frame"), section["frame"], r.ANY).items()}
+    return mech, extra, reactions, frame

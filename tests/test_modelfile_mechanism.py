@@ -1,0 +1,265 @@
+"""Mechanisms in model files and URDF files on the command line (issue 12 §1, §3).
+
+Closed forms (each derived in its test's docstring):
+* a body on a planar joint whose mass centre is held on the circle x^2 + y^2 = L^2
+  ([[closures]] point_on_surface) is a pendulum: theta'' = -(g/L) sin(theta), and the
+  closure's force lambda grad(s) = 2 lambda r is the rod tension T = m (g cos(theta) + L theta'^2)
+  pointing to the centre, so lambda = -T / (2 L);
+* a URDF link (mass m, mass centre at distance L below a hinge about y, inertia Ic about y
+  at its mass centre) driven by a constant actuator torque tau ([[loads]] actuator in a
+  model file naming the URDF): theta'' = (tau - m g L sin(theta)) / (Ic + m L^2); the hinge
+  transmits F = m (a_C - g) and the moment tau about its axis.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from appell import derive, load_model, loads_model
+from appell.errors import ModelError
+from appell.io.cli import cli
+
+CIRCLE = """\
+[model]
+name = "circle_pendulum"
+
+[mechanism]
+gravity = [0, "-g", 0]
+reactions = ["slide"]
+
+[parameters]
+m = 1.5
+L = 0.8
+g = 9.81
+
+[[bodies]]
+name = "puck"
+mass = "m"
+inertia = [0.01, 0.01, 0.02]
+
+[[joints]]
+name = "slide"
+type = "planar"
+parent = "ground"
+child = "puck"
+
+[[closures]]
+name = "rod"
+type = "point_on_surface"
+body = "puck"
+point = [0, 0, 0]
+surface = "x^2 + y^2 - L^2"
+
+[initial]
+slide_x = 0.48
+slide_y = -0.64
+"""
+
+HINGE_URDF = """\
+<?xml version="1.0"?>
+<robot name="hinge">
+  <link name="frame"/>
+  <joint name="shoulder" type="continuous">
+    <parent link="frame"/>
+    <child link="arm"/>
+    <origin xyz="0 0 1.0"/>
+    <axis xyz="0 1 0"/>
+  </joint>
+  <link name="arm">
+    <inertial>
+      <origin xyz="0 0 -0.5"/>
+      <mass value="2.0"/>
+      <inertia ixx="0.05" ixy="0" ixz="0" iyy="0.04" iyz="0" izz="0.01"/>
+    </inertial>
+  </link>
+</robot>
+"""
+
+DRIVEN = """\
+[model]
+name = "driven_hinge"
+
+[mechanism]
+urdf = "hinge.urdf"
+
+[parameters]
+tau = 3.0
+
+[[loads]]
+name = "motor"
+type = "actuator"
+joint = "shoulder"
+value = "tau"
+
+[initial]
+shoulder = 0.4
+"shoulder'" = 1.0
+"""
+
+
+def test_planar_body_on_a_circle_is_a_pendulum_with_the_closed_form_tension():
+    system = loads_model(CIRCLE, "circle.toml")
+    assert [q.name for q in system.coordinates] == ["slide_x", "slide_y", "slide_rz"]
+    numeric = derive(system).numeric
+    m, L, g = 1.5, 0.8, 9.81
+    for theta, rate in ((0.3, 0.0), (-1.1, 1.7), (2.0, -0.6)):
+        x, y = L * math.sin(theta), -L * math.cos(theta)
+        vx, vy = L * math.cos(theta) * rate, L * math.sin(theta) * rate
+        sol = numeric.solve(0.0, [x, y, 0.2], [vx, vy, 0.0])
+        ax, ay, arz = sol.accelerations
+        theta_dd = (ax * math.cos(theta) + ay * math.sin(theta)) / L
+        assert theta_dd == pytest.approx(-g / L * math.sin(theta), rel=1e-10, abs=1e-12)
+        assert arz == pytest.approx(0.0, abs=1e-12)
+        tension = m * (g * math.cos(theta) + L * rate**2)
+        assert sol.multipliers[0] == pytest.approx(-tension / (2 * L), rel=1e-10)
+
+
+@pytest.fixture()
+def driven(tmp_path):
+    (tmp_path / "hinge.urdf").write_text(HINGE_URDF)
+    path = tmp_path / "driven.toml"
+    path.write_text(DRIVEN)
+    return path
+
+
+def test_model_file_names_a_urdf_and_adds_an_actuator(driven):
+    system = load_model(driven)
+    assert dict(system.initial)["shoulder"] == 0.4 and dict(system.initial)["shoulder_dot"] == 1.0
+    numeric = derive(system).numeric
+    m, L, Ic, g, tau = 2.0, 0.5, 0.04, 9.81, 3.0
+    for th, w in ((0.4, 1.0), (-2.0, 0.3), (1.3, -2.2)):
+        sol = numeric.solve(0.0, [th], [w])
+        thdd = (tau - m * g * L * math.sin(th)) / (Ic + m * L**2)
+        assert sol.accelerations[0] == pytest.approx(thdd, rel=1e-10)
+        # mass centre at (-L sin, 0, 1 - L cos): a_C from theta'' and theta'
+        a_c = L * np.array([-math.cos(th) * thdd + math.sin(th) * w**2, 0.0,
+                            math.sin(th) * thdd + math.cos(th) * w**2])
+        out = numeric.outputs(0.0, [th], [w], solution=sol)
+        np.testing.assert_allclose([out[f"F_shoulder_{x}"] for x in "xyz"], m * (a_c - np.array([0, 0, -g])),
+                                   rtol=1e-10, atol=1e-10)
+        assert out["M_shoulder_y"] == pytest.approx(tau, rel=1e-10)
+
+
+def test_urdf_file_on_the_command_line_with_set_and_reaction_columns(tmp_path):
+    (tmp_path / "hinge.urdf").write_text(HINGE_URDF)
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(cli, ["simulate", str(tmp_path / "hinge.urdf"), "--set", "shoulder=0.4",
+                                      "--set", "shoulder'=1", "--t-end", "0.05", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader(out.open()))
+    assert float(rows[0]["shoulder"]) == 0.4 and float(rows[0]["shoulder_dot"]) == 1.0
+    # at the start: theta'' = -m g L sin / (Ic + m L^2), F_z = m (a_Cz + g) (no actuator)
+    m, L, Ic, g, th, w = 2.0, 0.5, 0.04, 9.81, 0.4, 1.0
+    thdd = -m * g * L * math.sin(th) / (Ic + m * L**2)
+    assert float(rows[0]["F_shoulder_z"]) == pytest.approx(m * (L * (math.sin(th) * thdd + math.cos(th) * w**2) + g),
+                                                           rel=1e-8)
+    derived = CliRunner().invoke(cli, ["derive", str(tmp_path / "hinge.urdf"), "--only", "outputs"])
+    assert derived.exit_code == 0 and "F_shoulder_x" in derived.output
+    checked = CliRunner().invoke(cli, ["check", str(tmp_path / "hinge.urdf"), "--set", "shoulder=0.4", "--t-end", "0.5"])
+    assert checked.exit_code == 0 and "passed" in checked.output, checked.output
+
+
+def test_unknown_set_name_on_a_urdf_is_exit_code_2(tmp_path):
+    (tmp_path / "hinge.urdf").write_text(HINGE_URDF)
+    result = CliRunner().invoke(cli, ["derive", str(tmp_path / "hinge.urdf"), "--set", "elbow=1"])
+    assert result.exit_code == 2 and "elbow" in result.output
+
+
+def test_hostile_urdf_on_the_command_line_is_refused_with_file_and_line(tmp_path):
+    path = tmp_path / "xxe.urdf"
+    path.write_text('<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY s SYSTEM "file:///etc/passwd">]>\n'
+                    '<robot name="r"><link name="&s;"/></robot>\n')
+    result = CliRunner().invoke(cli, ["derive", str(path)])
+    assert result.exit_code == 2 and f"{path}:2" in result.output and "root:" not in result.output
+
+
+@pytest.mark.parametrize("change, message, line", [
+    (('urdf = "hinge.urdf"', 'urdf = "/etc/hinge.urdf"'), "is absolute", 5),
+    (('urdf = "hinge.urdf"', 'urdf = "missing.urdf"'), "no URDF file 'missing.urdf'", 5),
+    (('urdf = "hinge.urdf"', 'urdf = "hinge.txt"'), "does not end in .urdf", 5),
+    (('joint = "shoulder"', 'joint = "knee"'), "unknown joint 'knee'", 10),
+    (('value = "tau"', 'value = "tau +"'), "cannot read the expression", 14),
+    (('type = "actuator"', 'type = "motor"'), "unknown type 'motor'", 12),
+])
+def test_mechanism_table_errors_name_file_and_line(driven, change, message, line):
+    driven.write_text(DRIVEN.replace(*change))
+    with pytest.raises(ModelError, match=message) as err:
+        load_model(driven)
+    assert err.value.where == f"{driven}:{line}"
+
+
+def test_mechanism_joint_names_an_unknown_body_with_its_line():
+    text = CIRCLE.replace('child = "puck"', 'child = "pcuk"')
+    with pytest.raises(ModelError, match="unknown body 'pcuk'") as err:
+        loads_model(text, "circle.toml")
+    assert err.value.where == "circle.toml:22"
+
+
+FLOATING = """\
+<robot name="drone">
+  <link name="world"/>
+  <joint name="base" type="floating">
+    <parent link="world"/><child link="body"/>
+  </joint>
+  <link name="body">
+    <inertial><mass value="1.2"/><inertia ixx="0.02" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.04"/></inertial>
+  </link>
+  <joint name="rotor" type="continuous">
+    <parent link="body"/><child link="prop"/><origin xyz="0 0 0.1"/><axis xyz="0 0 1"/>
+    <mimic joint="base" multiplier="2"/>
+  </joint>
+  <link name="prop">
+    <inertial><mass value="0.1"/><inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.002"/></inertial>
+  </link>
+</robot>
+"""
+
+
+def test_floating_joint_falls_freely_and_transmits_nothing():
+    """A floating (free, quaternion) body with its mass centre at the joint frame's origin:
+    Newton's law in free fall gives x'' = y'' = 0, z'' = -g and no joint reaction."""
+    from appell.mechanism.urdf import parse_urdf, urdf_system
+
+    text = FLOATING.split("  <joint name=\"rotor\"")[0] + "</robot>\n"
+    system = urdf_system(parse_urdf(text, "drone.urdf"))
+    names = [q.name for q in system.coordinates]
+    assert names == ["base_x", "base_y", "base_z", "base_q0", "base_q1", "base_q2", "base_q3"]
+    numeric = derive(system).numeric
+    q0 = np.array([0.3, -0.2, 1.0, *(np.array([0.9, 0.1, -0.3, 0.2]) / np.linalg.norm([0.9, 0.1, -0.3, 0.2]))])
+    sol = numeric.solve(0.0, q0, np.zeros(7))
+    np.testing.assert_allclose(sol.accelerations[:3], [0.0, 0.0, -9.81], atol=1e-12)
+    out = numeric.outputs(0.0, q0, np.zeros(7), solution=sol)
+    np.testing.assert_allclose([out[f"{k}_base_{x}"] for k in "FM" for x in "xyz"], 0.0, atol=1e-12)
+
+
+def test_mimic_joint_becomes_a_named_coupling_constraint():
+    from appell.mechanism.urdf import parse_urdf, urdf_mechanism
+
+    text = FLOATING.replace('type="floating"', 'type="continuous"')
+    _, constraints = urdf_mechanism(parse_urdf(text, "drone.urdf"))
+    assert [c.name for c in constraints] == ["rotor_mimic"]
+    assert str(constraints[0].expr) == "-2.0*base + rotor"
+    assert constraints[0].where == "drone.urdf:9"
+
+
+def test_planar_urdf_joint_with_another_normal_is_refused_with_its_line():
+    from appell.mechanism.urdf import parse_urdf, urdf_mechanism
+
+    text = FLOATING.replace('type="floating">', 'type="planar">\n    <axis xyz="1 0 0"/>')
+    with pytest.raises(ModelError, match="only the plane normal z") as err:
+        urdf_mechanism(parse_urdf(text, "drone.urdf"))
+    assert err.value.where == "drone.urdf:3"
+
+
+def test_massless_link_on_a_moving_joint_is_refused():
+    from appell.mechanism.urdf import parse_urdf, urdf_mechanism
+
+    text = FLOATING.replace('<link name="body">\n    <inertial><mass value="1.2"/><inertia ixx="0.02" ixy="0" ixz="0" '
+                            'iyy="0.03" iyz="0" izz="0.04"/></inertial>\n  </link>', '<link name="body"/>')
+    with pytest.raises(ModelError, match="has no <inertial> but moves on joint 'base'"):
+        urdf_mechanism(parse_urdf(text, "drone.urdf"))
