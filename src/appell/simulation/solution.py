@@ -184,13 +184,14 @@ class Solution:
     metadata: ModelMetadata
     tracking: Mapping[str, np.ndarray] = field(default_factory=dict)
     accelerations: Mapping[str, np.ndarray] = field(default_factory=dict)
+    friction: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         t = np.array(self.t, dtype=float)
         t.setflags(write=False)
         object.__setattr__(self, "t", t)
         for name in ("states", "multipliers", "controls", "position_residuals", "velocity_residuals", "tracking",
-                     "accelerations"):
+                     "accelerations", "friction"):
             object.__setattr__(self, name, _frozen_arrays(getattr(self, name)))
         object.__setattr__(self, "events", tuple(self.events))
         object.__setattr__(self, "log", tuple(self.log))
@@ -226,7 +227,8 @@ class Solution:
             return self.states[name]
         if name in self.accelerations:
             return self.accelerations[name]
-        for prefix, table in (("lambda_", self.multipliers), ("control_", self.controls)):
+        for prefix, table in (("lambda_", self.multipliers), ("control_", self.controls),
+                              ("friction_", self.friction)):
             if name.startswith(prefix) and name[len(prefix):] in table:
                 return table[name[len(prefix):]]
         if name.startswith("residual_") and name[9:] in self.residuals:
@@ -292,6 +294,10 @@ class Solution:
                                f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)", unit(f"lambda_{n}")))
         for n, a in self.controls.items():
             cols.append(Column(f"control_{n}", a, "control", f"control {n}", unit(f"control_{n}")))
+        for n, a in self.friction.items():
+            what = (f"state of friction {n[:-9]}: 1 slipping, 0 sticking" if n.endswith("_slipping") else
+                    f"friction force component {n} (generalized force (dv_t/dw)^T F_t)")
+            cols.append(Column(f"friction_{n}", a, "friction", what, unit(f"friction_{n}")))
         kinds = dict(zip(self.metadata.constraint_names, self.metadata.constraint_kinds))
         for n, a in self.residuals.items():
             what = {"holonomic": f"position residual F of the holonomic constraint {n}",
