@@ -43,7 +43,7 @@ from appell.numerics.dynamics import Evaluation
 from appell.numerics.numeric import NumericModel, StateSolution, _args, compile_model, lambdify_blocks, \
     program_substitutions, split_solve, usable_partition
 
-__all__ = ["FrictionEvaluation", "FrictionLaws", "FrictionModel", "friction_model", "PAINLEVE_TOLERANCE",
+__all__ = ["augmented_friction_solve", "FrictionEvaluation", "FrictionLaws", "FrictionModel", "friction_model", "PAINLEVE_TOLERANCE",
            "stick_names"]
 
 #: the determinant of ``I - A diag(sigma)`` (one contact: the coefficient of ``N``
@@ -66,12 +66,15 @@ class FrictionEvaluation(Evaluation):
     """An :class:`Evaluation` with the friction: ``friction`` the values of
     :attr:`FrictionLaws.columns` (force components, then 1 slipping / 0 sticking per
     contact), ``normals`` ``|N_k|`` per item (0 without a normal), ``forces`` ``{item:
-    F_k}``, ``slips`` ``{item: v_k}``."""
+    F_k}``, ``slips`` ``{item: v_k}``, ``signs`` ``{sliding item: sigma_k}`` and
+    ``signed_normals`` ``{sliding item: N_k}``."""
 
     friction: np.ndarray = field(default_factory=lambda: np.zeros(0))
     normals: np.ndarray = field(default_factory=lambda: np.zeros(0))
     forces: dict = field(default_factory=dict)
     slips: dict = field(default_factory=dict)
+    signs: dict = field(default_factory=dict)
+    signed_normals: dict = field(default_factory=dict)
 
 
 class FrictionLaws:
@@ -135,13 +138,14 @@ class FrictionLaws:
             self._models[key] = compile_model(d)
         return self._models[key]
 
-    def mode(self, released=(), sticking=(), directions=None) -> "FrictionModel":
+    def mode(self, released=(), sticking=(), directions=None, signs=None) -> "FrictionModel":
         """The :class:`FrictionModel` of a mode; sticking contacts whose normal is released
         slide (freely) instead."""
         released = frozenset(released)
         sticking = frozenset(i.name for i in self.items
                              if i.name in set(sticking) and i.coulomb and i.normal not in released)
-        return FrictionModel(self, self.base(released, sticking), released, sticking, dict(directions or {}))
+        return FrictionModel(self, self.base(released, sticking), released, sticking, dict(directions or {}),
+                             signs)
 
 
 class FrictionModel:
@@ -155,9 +159,10 @@ class FrictionModel:
                   "has_position", "has_velocity", "name", "coordinate_names", "speed_names", "state_names",
                   "constraint_names", "control_names", "parameter_names", "derivation")
 
-    def __init__(self, laws: FrictionLaws, base: NumericModel, released, sticking, directions):
+    def __init__(self, laws: FrictionLaws, base: NumericModel, released, sticking, directions, signs=None):
         self.laws, self.base = laws, base
         self.released, self.sticking, self.directions = frozenset(released), frozenset(sticking), directions
+        self.signs = dict(signs or {})
 
     def __getattr__(self, name):
         if name in FrictionModel._DELEGATED:
@@ -207,7 +212,7 @@ class FrictionModel:
             dep, Jh_inv, switched = (), None, False
         a, lam = split_solve(M, hQ - Qx, J, c, dep, Jh_inv)
         sliding = self.sliding()
-        directions, N = {}, {}
+        directions, N, signs = {}, {}, {}
         if sliding:
             index = {i.name: k for k, i in enumerate(laws.items)}
             rows = [self.normal_index(i) for i in sliding]
@@ -220,13 +225,14 @@ class FrictionModel:
                 responses.append(split_solve(M, -g, J, np.zeros(J.shape[0]), dep, Jh_inv))
             N0 = lam[rows]
             A = np.array([[r[1][j] for r in responses] for j in rows]).reshape(len(rows), len(rows))
-            sigma = np.where(N0 < 0.0, -1.0, 1.0)
-            B = np.eye(len(rows)) - A * sigma[None, :]
-            Nv = _painleve_checked(B, N0, sigma, sliding, t)
+            sigma = np.array([self.signs.get(i.name, -1.0 if n0 < 0.0 else 1.0) for i, n0 in zip(sliding, N0)])
+            Nv, sigma = _painleve_checked(A, N0, sigma, sliding, t)
+            signs.update({i.name: float(sg) for i, sg in zip(sliding, sigma)})
             for (ak, lk), s_k, n_k in zip(responses, sigma, Nv):
                 a = a + ak * s_k * n_k
                 lam = lam + lk * s_k * n_k
             N = {item.name: abs(float(nk)) for item, nk in zip(sliding, Nv)}
+            signed = {item.name: float(nk) for item, nk in zip(sliding, Nv)}
         forces, slips, normals, flags = {}, {}, np.zeros(len(laws.items)), np.zeros(len(laws.items))
         for k, item in enumerate(laws.items):
             vk = v[laws.slices[k]]
@@ -245,7 +251,7 @@ class FrictionModel:
         flat = np.concatenate([forces[i.name] for i in laws.items] + [flags])
         sol = StateSolution(a, lam, J.T @ lam, tuple(dep), switched)
         return sol, FrictionEvaluation(np.zeros(0), lam, np.zeros(0), tuple(dep), switched, flat, normals,
-                                       forces, slips)
+                                       forces, slips, signs, signed if sliding else {})
 
     def _direction(self, item, vk, t) -> np.ndarray:
         speed = float(np.linalg.norm(vk))
@@ -267,29 +273,75 @@ class FrictionModel:
         sol, fe = self.solve(t, q, w, pv, dependent, bias)
         dq = self.base.coordinate_rates(t, q, w, pv)
         return FrictionEvaluation(np.concatenate([dq, sol.accelerations]), sol.multipliers, np.zeros(0),
-                                  sol.dependent, sol.switched, fe.friction, fe.normals, fe.forces, fe.slips)
+                                  sol.dependent, sol.switched, fe.friction, fe.normals, fe.forces, fe.slips,
+                                  fe.signs, fe.signed_normals)
 
 
-def _painleve_checked(B, N0, sigma, sliding, t) -> np.ndarray:
-    """``N`` from ``B N = N0`` (module docstring), or :class:`PainleveError` naming the contacts
-    whose coefficient vanished or changed sign."""
-    det = float(np.linalg.det(B))
-    N = np.linalg.solve(B, N0) if det > PAINLEVE_TOLERANCE else None
-    if N is not None and np.all(sigma * N >= 0.0):
-        return N
+def _painleve_checked(A, N0, sigma, sliding, t) -> tuple[np.ndarray, np.ndarray]:
+    """``(N, sigma)`` from ``(I - A diag(sigma)) N = N0`` (module docstring) on the branch
+    ``sigma`` (the sign each normal force had, or that of ``N0``); a normal that passed
+    through zero continuously (``B(sigma)`` regular, ``sigma N < 0``) takes the other sign
+    once. :class:`PainleveError` naming the contacts where the coefficient matrix of the
+    branch is singular or the branch has no consistent solution."""
+    eye = np.eye(len(sigma))
+    for attempt in range(2):
+        B = eye - A * sigma[None, :]
+        det = float(np.linalg.det(B))
+        if det <= PAINLEVE_TOLERANCE:
+            break
+        N = np.linalg.solve(B, N0)
+        wrong = sigma * N < 0.0
+        if not wrong.any():
+            return N, sigma
+        if attempt == 0:
+            sigma = np.where(wrong, -sigma, sigma)
     if len(sliding) == 1:
         bad = [sliding[0].name]
-    elif N is not None:
-        bad = [i.name for i, s, n in zip(sliding, sigma, N) if s * n < 0.0]
     else:
         vec = np.linalg.svd(B)[2][-1]
-        bad = [i.name for i, x in zip(sliding, vec) if abs(x) > 1e-8]
+        bad = [i.name for i, x in zip(sliding, vec) if abs(x) > 1e-8] or [i.name for i in sliding]
     raise PainleveError(
         f"Painlevé paradox at sliding contact(s) {', '.join(bad)} at t = {float(t):.10g}: with the Coulomb friction "
         f"it causes, the coefficient of the normal force in its own formula (1.5) vanishes or changes sign "
         f"(det(I - A sigma) = {det:.6g}), so rigid-body mechanics gives no (or no unique) normal force",
         hint="the motion cannot go on as rigid sliding here (Painlevé): lower mu_k, model the contact as "
              "compliant, or end the run before this state")
+
+
+def augmented_friction_solve(model: FrictionModel, t, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(a, lambda)`` of the augmented system with the same friction law, an independent
+    route to :meth:`FrictionModel.solve`: Newton's method (finite-difference Jacobian) on
+
+        M a + (h - Q) - Q_f(lambda) - J^T lambda = 0,   J a + c = 0,
+        Q_f = sum_sliding G_k^T (-mu_k |lambda_normal(k)| u_k) - sum_k c_k G_k^T v_k,
+
+    for all accelerations and multipliers at once, from the frictionless solution; no
+    partition, no linear map in the normals, no sign choice."""
+    from appell.numerics.numeric import newton
+
+    base, laws = model.base, model.laws
+    pv = base.params(p)
+    q, w = base.checked_state(q, w)
+    M, hQ, J, c = base.evaluate_blocks(t, q, w, pv)
+    v, G, coef = laws.at(t, q, w, pv)
+    n, s = len(w), J.shape[0]
+    index = {i.name: k for k, i in enumerate(laws.items)}
+    fixed = np.zeros(n)
+    for k, sl in enumerate(laws.slices):
+        fixed -= coef[k, 2] * (G[sl].T @ v[sl])
+    unit = [(model.normal_index(i), -coef[index[i.name], 0]
+             * (G[laws.slices[index[i.name]]].T @ model._direction(i, v[laws.slices[index[i.name]]], t)))
+            for i in model.sliding()]
+
+    def residual(xv):
+        a, lam = xv[:n], xv[n:]
+        Qf = fixed + sum((abs(lam[j]) * g for j, g in unit), np.zeros(n))
+        return np.concatenate([M @ a + hQ - Qf - J.T @ lam, J @ a + c])
+
+    K = np.block([[M, -J.T], [J, np.zeros((s, s))]])
+    x0 = np.linalg.solve(K, np.concatenate([fixed - hQ, -c]))
+    xv, _ = newton(residual, x0, "the augmented system with friction")
+    return xv[:n], xv[n:]
 
 
 def friction_model(derivation) -> FrictionModel:

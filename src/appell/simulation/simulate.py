@@ -173,14 +173,14 @@ class _Run:
         self.models = {frozenset(): model}
         self.contact_times: dict[str, tuple[float, int]] = {}
         self.laws = getattr(model, "laws", None)  # frictions (appell.numerics.friction)
-        self.sticking, self.directions = frozenset(), {}
+        self.sticking, self.directions, self.signs = frozenset(), {}, {}
         self.rows_friction = []
 
     def model(self, released):
         """The model without the ``released`` constraints (derived once per set)."""
         key = frozenset(released)
         if self.laws is not None:  # the mode: released constraints and sticking contacts
-            return self.laws.mode(key, self.sticking, self.directions)
+            return self.laws.mode(key, self.sticking, self.directions, self.signs)
         if key not in self.models:
             self.models[key] = _without(self.system, key)
         return self.models[key]
@@ -452,6 +452,9 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         while True:
             act = run.model(run.released)
             evv = run.evaluate(act, tt, yy)
+            if run.laws is not None:  # each sliding contact keeps the side its normal force presses on
+                run.signs = dict(evv.signs)
+                act.signs.update(run.signs)
             lam = dict(zip(act.constraint_names, np.asarray(evv.multipliers, float)))
             wrong = [c for c, s in signs.items() if c in lam and s * lam[c] < 0]
             for c in wrong:
@@ -593,11 +596,12 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                         run.log.append(f"t = {ts:.10g}: constraint(s) {', '.join(imp.engaged)} engaged again")
                 elif w.action == "mode":  # stick-slip (appell.simulation.stickslip)
                     try:
-                        change = transition(run.laws, active, w.name, ts, ys, p, project)
+                        change = transition(run.laws, active, w.kind, w.name, ts, ys, p, project)
                     except AppellError as exc:
                         status, message = -1, str(exc)
                         break
                     run.sticking, run.directions, ys = change.sticking, change.directions, change.y
+                    run.signs = {}  # taken again from the normal forces where the new mode starts
                     if change.kind is not None:
                         run.event_record(active, change.kind, w.name, ts, ys, evs, change.detail)
                     when = "at the change of stick-slip mode"

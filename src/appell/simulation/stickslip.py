@@ -117,14 +117,20 @@ def stick_slip_watches(model) -> list[Watch]:
                 return float(np.dot(model.slip_velocities(t, y, p)[name], d))
 
             out.append(Watch("stick", item.name, g, -1, "mode"))
+            if item.name in model.signs:  # the normal force passes through zero: its sign is renewed
+                out.append(Watch("normal", item.name, lambda t, y, ev, p, name=item.name, sg=model.signs[item.name]:
+                                 sg * ev.signed_normals[name], -1, "mode"))
     return out
 
 
-def transition(laws, model, name, t, y, p, project) -> Transition:
+def transition(laws, model, kind, name, t, y, p, project) -> Transition:
     """The change of mode at contact ``name`` where its watch crossed zero at ``(t, y)``
-    (module docstring); ``project(model, t, y, p)`` projects a state onto a model's
+    (module docstring; ``kind`` the watch's, 'normal' where a normal force passed through
+    zero: its sign is taken again); ``project(model, t, y, p)`` projects a state onto a model's
     constraints."""
     sticking, directions = set(model.sticking), dict(model.directions)
+    if kind == "normal":
+        return Transition(frozenset(sticking), directions, np.asarray(y, float), None, "")
     if name in sticking:
         ev = model.evaluate(t, y, p)
         sticking.discard(name)
