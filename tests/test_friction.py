@@ -271,3 +271,103 @@ def test_friction_bad_input_is_refused_with_the_culprit_named():
     with pytest.raises(ModelError, match="undeclared symbol.*nu"):
         derive(block(0.3, 0.0).replace(frictions=(Friction("f", slip=(xd,), normal="floor",
                                                            mu_k=sp.Symbol("nu")),)))
+
+
+def test_cross_check_friction_route_agrees_on_the_rod_and_fails_on_a_perturbed_normal(monkeypatch):
+    """The cross-check's friction route (the augmented system with the same friction law,
+    solved by Newton's method) agrees with the split's linear system in the normals on
+    the Painlevé rod (mu = 0.5, where friction couples into N), and fails when the split's
+    normal force is perturbed by 1e-6 relative."""
+    import appell.numerics.friction as friction
+    from appell import cross_check
+
+    d = derive(rod(0.5).replace(initial={"x": 0.0, "y": 0.5 * math.sin(0.5), "theta": 0.5, "x_dot": 1.0,
+                                         "y_dot": 0.5 * math.cos(0.5) * 0.3, "theta_dot": 0.3}))
+    report = cross_check(d)
+    (route,) = [c for c in report.comparisons if c.route == "friction"]
+    assert route.states >= 4 and report.passed(1e-9)
+    original = friction._painleve_checked
+
+    def perturbed(*args):
+        N, sigma = original(*args)
+        return N * (1 + 1e-6), sigma
+
+    monkeypatch.setattr(friction, "_painleve_checked", perturbed)
+    assert not cross_check(d).passed(1e-9)
+
+
+MODEL = """
+[model]
+name = "block_on_incline"
+coordinates = ["x", "y"]
+
+[parameters]
+m = 2.0
+g = 9.81
+alpha = 0.5
+mu_k = 0.3
+mu_s = 0.5
+
+[mechanics]
+kinetic_energy = "m/2*(x'^2 + y'^2)"
+potential_energy = "m*g*(-x*sin(alpha) + y*cos(alpha))"
+
+[constraints.floor]
+kind = "holonomic"
+expr = "y"
+
+[[friction]]
+name = "slide"
+slip = "x'"
+normal = "floor"
+mu_k = "mu_k"
+mu_s = "mu_s"
+
+[initial]
+x = 0
+y = 0
+"x'" = 1
+"y'" = 0
+"""
+
+
+def test_model_file_friction_table_gives_the_incline_closed_form(tmp_path):
+    """A [[friction]] table reads into System.frictions; `appell simulate` writes the
+    friction columns, with a = g (sin alpha - mu_k cos alpha) (elementary mechanics) and
+    `appell check` passes with the friction route."""
+    from click.testing import CliRunner
+
+    from appell import loads_model
+    from appell.io.cli import cli
+
+    system = loads_model(MODEL)
+    (item,) = system.frictions
+    assert (item.name, item.normal, item.slip[0]) == ("slide", "floor", xd)
+    path = tmp_path / "incline.toml"
+    path.write_text(MODEL)
+    out = tmp_path / "out.csv"
+    result = CliRunner().invoke(cli, ["simulate", str(path), "--t-end", "1", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    import pandas as pd
+
+    table = pd.read_csv(out)
+    np.testing.assert_allclose(table["x_ddot"], G * (math.sin(0.5) - 0.3 * math.cos(0.5)), rtol=1e-12)
+    np.testing.assert_allclose(table["friction_slide_t"], -0.3 * 2 * G * math.cos(0.5), rtol=1e-12)
+    result = CliRunner().invoke(cli, ["check", str(path)])
+    assert result.exit_code == 0 and "[friction]" in result.output and "not formed" in result.output
+
+
+@pytest.mark.parametrize("change, message, line", [
+    ('normal = "floor"', 'normal = "wall"', "'wall' is not a constraint"),
+    ('slip = "x\'"', 'slip = ["x\'", "y\'", "x\'"]', "1 component"),
+    ('mu_k = "mu_k"', 'mu_k = "nu"', "undeclared symbol"),
+    ('mu_k = "mu_k"', 'mu_x = 0.3', "unknown key 'mu_x'"),
+])
+def test_model_file_friction_errors_name_file_and_line(change, message, line):
+    """Bad [[friction]] entries are refused with the model file's name and line."""
+    from appell import loads_model
+
+    text = MODEL.replace(change, message)
+    with pytest.raises(ModelError) as info:
+        loads_model(text, source="incline.toml")
+    assert line in str(info.value) and "incline.toml:" in str(info.value)
