@@ -289,7 +289,7 @@ class Friction:
     ``slip`` are the slip velocity components ``v_t(t, q, w)`` along orthonormal tangent
     directions (1 for a line contact or a joint, 2 for a contact in a plane), in the
     units of a velocity of the contact point (a translation) or of an angular velocity
-    (rolling resistance, a joint). The friction acts through the generalized force
+    (rolling resistance, a joint). The friction acts through the generalized force ::
 
         Q_f = (dv_t/dw)^T F_t,    F_t = -c v_t - mu_k |N| v_t / |v_t|   (sliding),
 

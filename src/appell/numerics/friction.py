@@ -15,7 +15,7 @@ Sliding friction makes the split implicit, since ``N`` by (1.5) depends on the
 accelerations and so on ``Q_k``. At a fixed state the split is affine in the generalized
 forces: with ``(a_0, lambda_0)`` the split (1.4)/(1.5) with the viscous forces and
 ``(a_k, lambda_k)`` the split of the unit input ``g_k = -mu_k G_k^T u_k`` alone (``h - Q
--> -g_k``, ``c -> 0``),
+-> -g_k``, ``c -> 0``) ::
 
     a = a_0 + sum_k a_k sigma_k N_k,   lambda = lambda_0 + sum_k lambda_k sigma_k N_k,
     (I - A diag(sigma)) N = N_0,       A_jk = (lambda_k)_{normal j},
@@ -310,7 +310,7 @@ def _painleve_checked(A, N0, sigma, sliding, t) -> tuple[np.ndarray, np.ndarray]
 
 def augmented_friction_solve(model: FrictionModel, t, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
     """``(a, lambda)`` of the augmented system with the same friction law, an independent
-    route to :meth:`FrictionModel.solve`: Newton's method (finite-difference Jacobian) on
+    route to :meth:`FrictionModel.solve`: Newton's method (finite-difference Jacobian) on ::
 
         M a + (h - Q) - Q_f(lambda) - J^T lambda = 0,   J a + c = 0,
         Q_f = sum_sliding G_k^T (-mu_k |lambda_normal(k)| u_k) - sum_k c_k G_k^T v_k,
