@@ -7,13 +7,14 @@ Pipeline: :class:`System` -> :func:`derive` -> :class:`Derivation` (reduced equa
 from appell.numerics.crosscheck import CrossCheckReport, augmented_solve, cross_check
 from appell.core.derive import derive
 from appell.core.equations import Derivation, ReactionFormulas, ReducedEquations
-from appell.errors import AppellError, ComputationError, InitialValueError, ModelError, ResourceError
+from appell.errors import AppellError, ComputationError, InitialValueError, ModelError, PainleveError, ResourceError
 from appell.model import (
     AppliedForce,
     AppliedTorque,
     Constraint,
     Control,
     FirstIntegral,
+    Friction,
     Parameter,
     Particle,
     Program,
@@ -98,7 +99,7 @@ _install_conveniences()
 
 __all__ = [
     "AppellError", "AppliedForce", "AppliedTorque", "ComputationError", "Constraint", "Control",
-    "CrossCheckReport", "Derivation", "FirstIntegral", "ModelError", "NumericModel", "Parameter", "Particle",
+    "CrossCheckReport", "Derivation", "FirstIntegral", "Friction", "ModelError", "PainleveError", "NumericModel", "Parameter", "Particle",
     "Program", "ReactionFormulas", "ReducedEquations", "ResourceError", "RigidBody", "StateSolution", "System",
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",

@@ -8,7 +8,10 @@ error part way leaves neither a partial file nor a changed target.
 Columns (CSV, netCDF variables, :meth:`Solution.to_dataframe`), in this order: ``t``, each
 coordinate, each speed (then any extra states of the model), each acceleration (the time
 derivative of each speed, named like the derivation's acceleration symbols: ``x_dot ->
-x_ddot``), ``lambda_<constraint>``, ``control_<control>``, ``residual_<constraint>``.
+x_ddot``), ``lambda_<constraint>``, ``control_<control>``, with frictions
+(:class:`~appell.model.Friction`) ``friction_<name>_t`` (or ``_t1``, ``_t2``: the friction
+force components) and ``friction_<name>_slipping`` (1 sliding, 0 sticking), then
+``residual_<constraint>``.
 ``residual_<c>`` is the position residual ``F`` for a holonomic constraint, the velocity
 residual ``phi`` for a first-order one, and empty (NaN) for a second-order one, which has
 neither; empty cells in the file are NaN. A controlled system's servo constraints follow
@@ -48,7 +51,8 @@ class EventRecord:
     ``kind``: ``'initial'`` (an initial value computed or changed by the completion),
     ``'release'`` (a unilateral constraint's multiplier reached zero),
     ``'impact'`` (a released contact's gap closed), ``'friction'`` (``|lambda_t|``
-    crossed ``mu lambda_n``), ``'user'``, ``'switch'`` (the partition of dependent
+    crossed ``mu lambda_n``), ``'stick'`` and ``'slip'`` (a Coulomb contact's stick-slip
+    transitions, :mod:`appell.simulation.stickslip`), ``'user'``, ``'switch'`` (the partition of dependent
     accelerations changed). ``name`` the constraint or event; ``t`` its time; ``state``
     and ``multipliers`` there (before an impact); ``detail`` in words. An impact also
     records ``impulses`` ``{constraint: Lambda}`` (the impulsive reactions, in the units
@@ -129,7 +133,7 @@ def per_second(unit: str) -> str:
 class Column:
     """One result column: ``name``, ``values``, ``kind`` (``'time'``, ``'coordinate'``,
     ``'speed'``, ``'state'``, ``'acceleration'``, ``'multiplier'``, ``'control'``,
-    ``'residual'``), ``long_name`` (what it is, in words) and ``units``."""
+    ``'friction'``, ``'residual'``), ``long_name`` (what it is, in words) and ``units``."""
 
     name: str
     values: np.ndarray
@@ -511,7 +515,8 @@ class Solution:
         """What :meth:`plot` (and the report) draws: ``(key, axis label, columns, log scale)``
         per kind of quantity: ``coordinates`` (always), then, when there is something to
         show, ``speeds``, ``states`` (extra states), ``accelerations`` (when asked for),
-        ``reactions`` (multipliers), ``controls`` and ``residuals`` (absolute values, log
+        ``reactions`` (multipliers), ``controls``, ``friction`` (the friction force components
+        of :class:`~appell.model.Friction` items) and ``residuals`` (absolute values, log
         scale; second-order constraints have none)."""
         cols = self.column_info()
         kinds = [("coordinates", "coordinates", "coordinate"), ("speeds", "speeds", "speed"),
@@ -519,10 +524,11 @@ class Solution:
         if accelerations:
             kinds.append(("accelerations", "accelerations", "acceleration"))
         kinds += [("reactions", "reactions (multipliers lambda)", "multiplier"), ("controls", "controls", "control"),
-                  ("residuals", "|constraint residuals|", "residual")]
+                  ("friction", "friction forces", "friction"), ("residuals", "|constraint residuals|", "residual")]
         out = []
         for key, label, kind in kinds:
-            series = [c for c in cols if c.kind == kind and (kind != "residual" or np.any(np.isfinite(c.values)))]
+            series = [c for c in cols if c.kind == kind and (kind != "residual" or np.any(np.isfinite(c.values)))
+                      and not c.name.endswith("_slipping")]
             if series or key == "coordinates":
                 out.append((key, label, series, kind == "residual"))
         return out
