@@ -371,3 +371,37 @@ def test_model_file_friction_errors_name_file_and_line(change, message, line):
     with pytest.raises(ModelError) as info:
         loads_model(text, source="incline.toml")
     assert line in str(info.value) and "incline.toml:" in str(info.value)
+
+
+def ladder(mu_floor, mu_wall):
+    """A uniform ladder (half-length l, I = m l^2 / 3) with its foot A = (x + l cos theta,
+    y - l sin theta) on a rough floor and its top B = (x - l cos theta, y + l sin theta)
+    against a rough wall x = 0: two unit gaps and two sliding contacts."""
+    return System(coordinates=(x, y, th), parameters={m: 10.0, g: G, l: 2.0, muk: mu_floor, mus: mu_wall},
+                  kinetic_energy=m / 2 * (xd**2 + yd**2) + m * l**2 / 6 * thd**2, potential_energy=m * g * y,
+                  constraints=(holonomic("floor", y - l * sp.sin(th)), holonomic("wall", x - l * sp.cos(th))),
+                  frictions=(Friction("foot", slip=(xd - l * sp.sin(th) * thd,), normal="floor", mu_k=muk),
+                             Friction("top", slip=(yd + l * sp.cos(th) * thd,), normal="wall", mu_k=mus)),
+                  name="ladder")
+
+
+def test_ladder_two_sliding_contacts_agree_with_the_augmented_route():
+    """Two coupled sliding contacts (the 2 x 2 system in the normals): the split agrees with
+    the augmented system with the same friction law (Newton's method on all accelerations
+    and multipliers at once) at states of the sliding ladder, and with mu = 0 both give
+    the frictionless split; the friction forces are -mu |N| sign(slip) (Coulomb's law)."""
+    for mu_floor, mu_wall in [(0.0, 0.0), (0.3, 0.2), (0.6, 0.5)]:
+        model = FrictionLaws(derive(ladder(mu_floor, mu_wall))).mode()
+        for theta, theta_dot in [(1.2, -0.4), (0.9, -1.1), (0.5, -2.0)]:
+            q = np.array([2.0 * math.cos(theta), 2.0 * math.sin(theta), theta])
+            w = np.array([-2.0 * math.sin(theta) * theta_dot, 2.0 * math.cos(theta) * theta_dot, theta_dot])
+            sol, fe = model.solve(0.0, q, w)
+            a, lam = augmented_friction_solve(model, 0.0, q, w)
+            np.testing.assert_allclose(sol.accelerations, a, rtol=1e-9, atol=1e-10)
+            np.testing.assert_allclose(sol.multipliers, lam, rtol=1e-9)
+            slips = fe.slips
+            assert fe.forces["foot"][0] == pytest.approx(-mu_floor * abs(lam[0]) * np.sign(slips["foot"][0]), abs=1e-9)
+            assert fe.forces["top"][0] == pytest.approx(-mu_wall * abs(lam[1]) * np.sign(slips["top"][0]), abs=1e-9)
+            if mu_floor == 0.0:
+                ideal = model.base.solve(0.0, q, w)
+                np.testing.assert_allclose(sol.multipliers, ideal.multipliers, rtol=1e-12)
