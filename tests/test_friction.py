@@ -405,3 +405,18 @@ def test_ladder_two_sliding_contacts_agree_with_the_augmented_route():
             if mu_floor == 0.0:
                 ideal = model.base.solve(0.0, q, w)
                 np.testing.assert_allclose(sol.multipliers, ideal.multipliers, rtol=1e-12)
+
+
+def test_servo_constraints_and_routh_reduction_refuse_frictions():
+    """The controlled derivation and Routh reduction do not carry friction: refused, not
+    silently frictionless."""
+    from appell import Control, derive_controlled, routh_reduction
+
+    u = sp.Symbol("u")
+    system = block(0.3, 1.0).replace(controls=(Control(u, "force"),),
+                                     generalized_forces=(u, 0),
+                                     servo_constraints=(holonomic("track", x - sp.Symbol("t")),))
+    with pytest.raises(ModelError, match="frictions with servo constraints"):
+        derive_controlled(system)
+    with pytest.raises(ModelError, match="Routh reduction of a system with frictions"):
+        routh_reduction(block(0.3, 1.0).replace(potential_energy=m * g * y * sp.cos(al)), ["x"])

@@ -11,12 +11,14 @@ finding on the dense output, like the release and contact events of
   slip starts opposite the force that held it; exact for a 1-D contact and for a contact
   whose tangential effective mass is isotropic). Event ``'slip'``;
 * a sliding contact watches ``g = v_k . d_k`` (``d_k`` its slip direction at the start
-  of the mode). Where ``g`` falls through zero with ``|v_k|`` small (the slip speed has
-  returned to zero) the contact is tried as sticking: the state is projected onto
+  of the mode). Where ``g`` falls through zero with ``|v_k| <= STOP_SPEED`` (the slip
+  speed has returned to zero) the contact is tried as sticking: the state is projected onto
   ``v_k = 0`` and, if ``|F_k| <= mu_s |N_k|`` there, it sticks (event ``'stick'``);
   otherwise it slides on in the direction ``-F_k / |F_k|`` (event ``'slip'``, a
   reversal). Where ``|v_k|`` is larger (a 2-D slip that turned by 90 degrees) only
-  ``d_k`` is renewed.
+  ``d_k`` is renewed;
+* a sliding contact also watches ``sigma_k N_k``: where its normal force passes through
+  zero, the side it presses on (``sigma_k``, kept along a slide) is taken again.
 
 At the start a contact with ``|v_k| <= STICK_SPEED`` is tried as sticking, together with
 the others at rest; the one whose cone is violated most slides, until every sticking
@@ -41,7 +43,7 @@ STICK_SPEED = 1e-9
 #: direction is renewed); at most this, the slip speed has returned to zero
 STOP_SPEED = 1e-7
 
-#: relative slack of the cone test |F| <= mu_s |N| (1 + CONE_SLACK) at a stick test
+#: relative slack of the cone test ``|F| <= mu_s |N| (1 + CONE_SLACK)`` at a stick test
 CONE_SLACK = 1e-9
 
 
