@@ -355,6 +355,8 @@ def test_model_file_friction_table_gives_the_incline_closed_form(tmp_path):
     np.testing.assert_allclose(table["friction_slide_t"], -0.3 * 2 * G * math.cos(0.5), rtol=1e-12)
     result = CliRunner().invoke(cli, ["check", str(path)])
     assert result.exit_code == 0 and "[friction]" in result.output and "not formed" in result.output
+    result = CliRunner().invoke(cli, ["derive", str(path)])
+    assert result.exit_code == 0 and "the friction of slide adds Q_f" in result.output
 
 
 @pytest.mark.parametrize("change, message, line", [
