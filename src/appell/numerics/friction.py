@@ -50,8 +50,8 @@ __all__ = ["augmented_friction_solve", "FrictionEvaluation", "FrictionLaws", "Fr
 #: relative to its frictionless value) at or below which a sliding contact is refused
 PAINLEVE_TOLERANCE = 1e-8
 
-#: a slip speed at or below this fraction of the largest slip-velocity scale seen at the
-#: state has no direction of its own: the mode's stored direction is used
+#: a slip speed at or below ``ZERO_SLIP * max(1, max_i |v_k,i|)`` has no direction of its
+#: own: the mode's stored direction is used (just after the onset of slip)
 ZERO_SLIP = 1e-12
 
 
