@@ -7,7 +7,7 @@ Pipeline: :class:`System` -> :func:`derive` -> :class:`Derivation` (reduced equa
 from appell.numerics.crosscheck import CrossCheckReport, augmented_solve, cross_check
 from appell.core.derive import derive
 from appell.core.equations import Derivation, ReactionFormulas, ReducedEquations
-from appell.errors import AppellError, ComputationError, InitialValueError, ModelError, ResourceError
+from appell.errors import AppellError, ComputationError, InitialValueError, ModelError, PainleveError, ResourceError
 from appell.model import (
     AppliedForce,
     AppliedTorque,
@@ -15,6 +15,7 @@ from appell.model import (
     Control,
     FirstIntegral,
     Output,
+    Friction,
     Parameter,
     Particle,
     Program,
@@ -100,7 +101,8 @@ _install_conveniences()
 
 __all__ = [
     "AppellError", "AppliedForce", "AppliedTorque", "ComputationError", "Constraint", "Control",
-    "CrossCheckReport", "Derivation", "FirstIntegral", "ModelError", "NumericModel", "Output", "Parameter", "Particle",
+    "CrossCheckReport", "Derivation", "FirstIntegral", "Friction", "ModelError", "NumericModel", "Output",
+    "PainleveError", "Parameter", "Particle",
     "Program", "ReactionFormulas", "ReducedEquations", "ResourceError", "RigidBody", "StateSolution", "System",
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",

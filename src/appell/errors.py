@@ -75,6 +75,13 @@ class SingularConfigurationError(ModelError):
     The message names the constraints involved."""
 
 
+class PainleveError(SingularConfigurationError):
+    """Coulomb friction makes the normal force of a sliding contact undetermined (the
+    Painlevé paradox): the coefficient of ``N`` in its own formula (1.5), with the
+    friction that ``N`` causes, vanishes or changes sign, so no (or no unique) normal
+    force exists for rigid bodies; exit code 2. The message names the contact."""
+
+
 class InitialValueError(ModelError):
     """Initial values that violate constraints (exit code 2).
 

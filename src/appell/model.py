@@ -37,6 +37,7 @@ __all__ = [
     "Control",
     "FirstIntegral",
     "Output",
+    "Friction",
     "System",
     "initial_value",
 ]
@@ -306,6 +307,79 @@ class Output:
         object.__setattr__(self, "description", str(self.description or ""))
 
 
+@dataclass(frozen=True)
+class Friction:
+    """A non-ideal contact law: Coulomb friction, rolling resistance or viscous friction.
+
+    ``slip`` are the slip velocity components ``v_t(t, q, w)`` along orthonormal tangent
+    directions (1 for a line contact or a joint, 2 for a contact in a plane), in the
+    units of a velocity of the contact point (a translation) or of an angular velocity
+    (rolling resistance, a joint). The friction acts through the generalized force ::
+
+        Q_f = (dv_t/dw)^T F_t,    F_t = -c v_t - mu_k |N| v_t / |v_t|   (sliding),
+
+    with ``N = lambda_<normal>`` the multiplier of the ideal constraint ``normal`` by its
+    own formula (1.5). ``N`` is the normal force in newtons only when that constraint is
+    written as a unit-normalised gap (the distance along the contact normal, gradient of
+    length 1 in the contact point's position); this is assumed, not checked. While
+    ``|v_t| = 0`` and ``|F_t| <= mu_s |N|`` (an isotropic cone) the contact sticks: it is
+    the ideal constraint ``v_t = 0`` whose multipliers are ``F_t``. ``mu_s`` defaults to
+    ``mu_k``. Rolling resistance is the same law with ``slip`` an angular velocity and
+    ``mu_k`` a length (the torque ``-mu_r |N| sign(omega)``); viscous joint friction is
+    ``viscous = c`` alone (no normal). Coefficients may be expressions in the parameters.
+    """
+
+    name: str
+    slip: sp.ImmutableMatrix
+    normal: str | None = None
+    mu_k: sp.Expr = sp.S.Zero
+    mu_s: sp.Expr | None = None
+    viscous: sp.Expr = sp.S.Zero
+    where: str | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ModelError(f"friction name {self.name!r} must be an identifier", where=self.where)
+        slip = self.slip if isinstance(self.slip, (list, tuple, sp.MatrixBase)) else [self.slip]
+        try:
+            slip = _vector(slip, f"slip velocity of friction {self.name!r}", None)
+        except (sp.SympifyError, TypeError, ValueError) as exc:
+            raise ModelError(f"friction {self.name!r}: the slip velocity is not a list of expressions",
+                             where=self.where) from exc
+        if slip.shape[0] not in (1, 2):
+            raise ModelError(f"friction {self.name!r}: the slip velocity must have 1 component (a line contact, "
+                             f"a joint) or 2 (a contact in a plane), got {slip.shape[0]}", where=self.where)
+        object.__setattr__(self, "slip", slip)
+        for attr in ("mu_k", "viscous") + (("mu_s",) if self.mu_s is not None else ()):
+            value = _expr(getattr(self, attr), f"{attr} of friction {self.name!r}")
+            if value.is_number and (value.is_real is not True or value < 0):
+                raise ModelError(f"friction {self.name!r}: {attr} = {value} must be a non-negative number",
+                                 where=self.where)
+            object.__setattr__(self, attr, value)
+        if self.mu_s is None:
+            object.__setattr__(self, "mu_s", self.mu_k)
+        coulomb = not (self.mu_k == 0 and self.mu_s == 0)
+        if coulomb and self.normal is None:
+            raise ModelError(f"friction {self.name!r}: Coulomb friction (mu_k, mu_s) needs the normal constraint "
+                             "whose multiplier is the normal force", where=self.where,
+                             hint="give normal = the name of the contact's ideal (unit-normalised gap) constraint, "
+                                  "or only viscous = c for viscous friction")
+        if self.normal is not None and not (isinstance(self.normal, str) and self.normal.isidentifier()):
+            raise ModelError(f"friction {self.name!r}: normal must be a constraint name, got {self.normal!r}",
+                             where=self.where)
+
+    @property
+    def coulomb(self) -> bool:
+        """Whether the law has a Coulomb part (a normal force, and stick–slip)."""
+        return self.normal is not None and not (self.mu_k == 0 and self.mu_s == 0)
+
+    @property
+    def components(self) -> tuple[str, ...]:
+        """Result names of the friction force components: ``<name>_t`` or ``<name>_t1``, ``<name>_t2``."""
+        m = self.slip.shape[0]
+        return (f"{self.name}_t",) if m == 1 else tuple(f"{self.name}_t{i + 1}" for i in range(m))
+
+
 def _tuple(items, kind) -> tuple:
     if items is None:
         return ()
@@ -335,6 +409,8 @@ class System:
     constraints : :class:`Constraint` items (names must be unique).
     controls, servo_constraints : method.md §4.
     first_integrals : method.md §5.
+    frictions : :class:`Friction` items (non-ideal contact laws; simulated by
+        :mod:`appell.numerics.friction`, the derivation itself stays ideal).
     initial : initial values ``{name or symbol: value}`` of coordinates, speeds and kinematic
         controls (``u``, ``u_dot``). A value may be a SymPy expression: a coordinate's (or
         control position's) in the parameters, a speed's (or control rate's) in the
@@ -365,6 +441,7 @@ class System:
     controls: tuple[Control, ...] = ()
     servo_constraints: tuple[Constraint, ...] = ()
     first_integrals: tuple[FirstIntegral, ...] = ()
+    frictions: tuple[Friction, ...] = ()
     initial: tuple[tuple[str, float], ...] = ()
     initial_expressions: tuple[tuple[str, sp.Expr], ...] = ()
     name: str = "system"
@@ -413,6 +490,8 @@ class System:
         s(self, "controls", _tuple(self.controls, lambda k, v: Control(sp.Symbol(str(k)), v)))
         s(self, "servo_constraints", tuple(self.servo_constraints))
         s(self, "first_integrals", tuple(self.first_integrals))
+        s(self, "frictions", tuple(self.frictions))
+        _check_frictions(self)
         values, expressions = _initial_values(self)
         s(self, "initial", values)
         s(self, "initial_expressions", expressions)
@@ -507,6 +586,21 @@ def _check_output_names(system: "System") -> None:
             raise ModelError(f"output name {o.name!r} clashes with a result column or a declared name",
                              hint="names lambda_*, control_*, residual_*, t and the names of states, "
                                   "accelerations, parameters, programs and controls are taken")
+def _check_frictions(system: "System") -> None:
+    """Friction items: :class:`Friction` instances, unique names that clash with no
+    constraint, normals naming a constraint of the system that is holonomic or first order."""
+    orders = {c.name: c.order for c in system.constraints}
+    seen = set()
+    for f in system.frictions:
+        if not isinstance(f, Friction):
+            raise ModelError(f"frictions must be appell.model.Friction items, got {type(f).__name__}")
+        if f.name in seen or f.name in orders:
+            raise ModelError(f"friction name {f.name!r} is used twice (frictions and constraints share names)",
+                             where=f.where)
+        seen.add(f.name)
+        if f.normal is not None and f.normal not in orders:
+            raise ModelError(f"friction {f.name!r}: normal {f.normal!r} is not a constraint of the system",
+                             where=f.where, hint="constraints: " + (", ".join(orders) or "none"))
 
 
 def initial_value(name: str, expr: sp.Expr, known: Mapping[sp.Symbol, float]) -> float:

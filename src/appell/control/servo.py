@@ -389,6 +389,10 @@ def derive_controlled(system: System, dependent: Sequence | None = None,
     if not system.servo_constraints:
         raise ModelError(f"system {system.name!r} has no servo constraints",
                          hint="use appell.derive for a system without controls")
+    if system.frictions:
+        raise ModelError(f"system {system.name!r}: frictions with servo constraints are not supported (the "
+                         "dynamic conditions (2.3) would leave the friction out)",
+                         hint="leave out the [[friction]] items, or the servo constraints")
     kin = kinematics_of(system)
     blocks = controlled_blocks(system, kin)
     check_controllability(system, blocks)

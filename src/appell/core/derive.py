@@ -81,7 +81,7 @@ def _programs_at_start(system: System, known: dict) -> dict:
     for prog in system.programs:
         sym = prog.symbol
         for order in range(3):
-            value = prog.derivative(order).xreplace({**known, t: 0})
+            value = sp.sympify(prog.derivative(order).xreplace({**known, t: 0}))  # a bare parameter gives a float
             if value.is_number and value.is_real:
                 out[sym] = float(value)
             sym = derivative_symbol(sym)

@@ -96,6 +96,18 @@ def validate(system: System) -> None:
             if c.where:
                 exc.where = c.where
             raise
+    params = {p.symbol for p in system.parameters}
+    for f in system.frictions:
+        try:
+            for e in f.slip:
+                _check(e, lv["state"], f"slip velocity of friction {f.name!r}")
+            for attr in ("mu_k", "mu_s", "viscous"):
+                _check(getattr(f, attr), params, f"{attr} of friction {f.name!r}",
+                       "a friction coefficient depends on parameters only")
+        except ModelError as exc:
+            if f.where:
+                exc.where = f.where
+            raise
     for fi in system.first_integrals:
         _check(fi.expr, lv["state"], f"first integral {fi.name!r}")
     allowed = lv["acceleration"] | {sp.Symbol(f"lambda_{c.name}") for c in system.constraints}

@@ -490,6 +490,11 @@ def derive(model, fmt, dependent, routh, assignments, only):
         click.echo((reduction.to_text() + "\n\n" if reduction is not None else "") + body)
         if linearisation is not None and (not only or "controls" in only):
             click.echo(linearisation.to_text())
+    if system.frictions:
+        click.echo("note: the equations above are those of the ideal constraints; the friction of "
+                   + ", ".join(f.name for f in system.frictions) + " adds Q_f = (dv_t/dw)^T F_t to Q (sliding: "
+                   "F_t = -mu_k |N| v_t/|v_t| - c v_t, N by its formula (1.5); sticking: v_t = 0), applied by "
+                   "simulate and check (docs/friction.md)", err=True)
     _warn_internal(linearisation, note)
 
 

@@ -24,6 +24,15 @@ At sampled states ``(t, q, w)`` the accelerations and multipliers of the split
     this checks the blocks ``M``, ``h``, ``Q``, ``J``, ``c`` themselves. Not available for
     quasi-velocities, bodies given by their velocity alone, or an acceleration energy ``S``.
 
+``friction``
+    with frictions (:class:`~appell.model.Friction`): the split with sliding friction
+    (:mod:`appell.numerics.friction`, the linear system in the normals) against the
+    augmented system with the same friction law solved by Newton's method
+    (:func:`~appell.numerics.friction.augmented_friction_solve`), every Coulomb contact
+    sliding in the direction of its slip velocity at the state; a state where a slip
+    speed vanishes or the Painlevé refusal applies is skipped. The three routes above
+    check the ideal blocks, which the friction split shares.
+
 A system without constraints has nothing to compare in the first two (the split is then
 ``M a = Q - h`` itself); without the Lagrange route it has nothing independent at all,
 and the report says so.
@@ -53,6 +62,8 @@ ROUTES = {
     "augmented": "the augmented multiplier system [M -J^T; J 0][a; lambda] = [Q - h; -c] (same blocks, solved at once)",
     "formulas": "the reaction formulas (1.5) as `derive` prints them, at the accelerations of the augmented system",
     "lagrange": "Lagrange's equations from T, the blocks M, h, Q, J, c formed again by differentiation",
+    "friction": "the augmented system with the same friction law, every Coulomb contact sliding, solved at once "
+                "by Newton's method (no partition, no linear system in the normals)",
 }
 
 
@@ -304,6 +315,8 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
         unavailable["augmented"] = "no constraints: the augmented system is the split itself (M a = Q - h)"
     if route is not None:
         comparisons.append(lag.comparison("lagrange"))
+    if getattr(derivation.system, "frictions", ()):
+        comparisons.append(_friction_comparison(derivation, states, pv, names))
     return CrossCheckReport(len(states), tuple(comparisons), unavailable, names)
 
 
@@ -324,3 +337,22 @@ def _lagrange_solve(route, t, q, w, pv):
         raise ComputationError("Lagrange's equations are singular at a sampled state",
                                hint="the kinetic energy is not positive definite there") from exc
     return a, lam
+
+
+def _friction_comparison(derivation, states, pv, names) -> Comparison:
+    """The ``friction`` route (module docstring) at ``states``."""
+    from appell.errors import AppellError
+    from appell.numerics.friction import FrictionLaws, augmented_friction_solve
+
+    model = FrictionLaws(derivation).mode()
+    lines = _Lines(names)
+    for t, q, w in states:
+        try:
+            sol, _ = model.solve(t, q, w, pv)
+            a, lam = augmented_friction_solve(model, t, q, w, pv)
+        except AppellError:
+            lines.skipped += 1
+            continue
+        M, hQ, J, c = model.evaluate_blocks(t, q, w, pv)
+        lines.add(sol.accelerations, a, sol.multipliers, lam, multiplier_scale(M, hQ, J, a, lam))
+    return lines.comparison("friction", "a slip speed vanishes there, or the Painlevé refusal applies")

@@ -289,6 +289,10 @@ def routh_reduction(system: System, cyclic: Sequence | None = None,
             )
     if not cyc:
         raise ModelError(f"system {system.name!r} has no cyclic coordinate to eliminate")
+    if system.frictions:
+        raise ModelError(f"system {system.name!r}: Routh reduction of a system with frictions is not supported "
+                         "(the reduced system would leave the friction out)",
+                         hint="simulate the full system: appell.simulate(appell.derive(system))")
     coords = system.coordinates
     ic = [coords.index(q) for q in cyc]
     ip = [i for i in range(len(coords)) if i not in ic]

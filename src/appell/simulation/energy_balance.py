@@ -128,6 +128,9 @@ def energy_form(derivation) -> tuple[str | None, str]:
     system = derivation.system
     if hasattr(derivation, "control_laws"):
         return None, "the system has controls: their power is not separated from the applied forces"
+    if getattr(system, "frictions", ()):
+        return None, ("the system has non-ideal frictions, whose work this balance does not integrate (the "
+                      "cross-check's friction route checks the split with friction)")
     reason = energy_unavailable(system)
     if reason:
         return None, reason

@@ -60,6 +60,8 @@ from appell.numerics.inertia import check_inertia
 from appell.simulation.defaults import with_model_defaults
 from appell.simulation.events import check_event_names, contact_watch, watches_for
 from appell.simulation.impact import impact
+from appell.numerics.friction import FrictionLaws
+from appell.simulation.stickslip import initial_mode, stick_slip_watches, transition
 from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, residual_jacobians
 from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
@@ -170,10 +172,15 @@ class _Run:
         self.partition_of = model
         self.models = {frozenset(): model}
         self.contact_times: dict[str, tuple[float, int]] = {}
+        self.laws = getattr(model, "laws", None)  # frictions (appell.numerics.friction)
+        self.sticking, self.directions, self.signs = frozenset(), {}, {}
+        self.rows_friction = []
 
     def model(self, released):
         """The model without the ``released`` constraints (derived once per set)."""
         key = frozenset(released)
+        if self.laws is not None:  # the mode: released constraints and sticking contacts
+            return self.laws.mode(key, self.sticking, self.directions, self.signs)
         if key not in self.models:
             self.models[key] = _without(self.system, key)
         return self.models[key]
@@ -241,6 +248,8 @@ class _Run:
         self.rows_ctl.append(np.asarray(ev.controls, float))
         self.rows_F.append(self.by_name(model, F, np.nan))
         self.rows_phi.append(self.by_name(model, phi, np.nan))
+        if self.laws is not None:
+            self.rows_friction.append(np.asarray(ev.friction, float))
         if self.tracking_names:
             self.rows_track.append(np.asarray(model.tracking_residuals(t, y, self.p), float))
         self.note_partition(model, t, ev)
@@ -280,6 +289,8 @@ class _Run:
         track = np.array(self.rows_track, float).reshape(len(self.rows_t), len(self.tracking_names))
         ctl = np.array(self.rows_ctl, float).reshape(len(self.rows_t), len(root.control_names))
         acc = np.array(self.rows_acc, float).reshape(len(self.rows_t), len(root.speed_names))
+        friction_columns = self.laws.columns if self.laws is not None else ()
+        fr = np.array(self.rows_friction, float).reshape(len(self.rows_t), len(friction_columns))
         stats = SolverStatistics(self.nfev, self.steps, self.projections, self.switches, self.restarts)
         columns = {"t": np.array(self.rows_t, float), **{n: ys[:, i] for i, n in enumerate(root.state_names)},
                    **{acceleration_name(n): acc[:, i] for i, n in enumerate(root.speed_names)},
@@ -298,6 +309,7 @@ class _Run:
             velocity_residuals={n: phi[:, i] for i, n in enumerate(self.names)},
             tracking={n: track[:, i] for i, n in enumerate(self.tracking_names)},
             outputs=outputs, output_descriptions={o.name: o.description for o in getattr(self.system, "outputs", ())},
+            friction={n: fr[:, i] for i, n in enumerate(friction_columns)},
             status=status, message=message, statistics=stats, events=tuple(self.events), log=tuple(self.log),
             metadata=_metadata(root, self.system, self.p, self.kinds,
                                {k: str(v) for k, v in self.settings.items()}),
@@ -389,6 +401,8 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         the solution holds the motion up to the failure and the reason in ``message``).
     """
     model, system = dynamics_of(model_or_derivation)
+    if system is not None and system.frictions and not hasattr(model, "laws"):
+        model = FrictionLaws(model.derivation).mode()  # every contact sliding; the modes follow
     if stabilization not in ("projection", "baumgarte", None):
         raise ModelError(f"unknown stabilization {stabilization!r}", hint="use 'projection', 'baumgarte' or None")
     if on_release not in ("continue", "stop"):
@@ -458,6 +472,9 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         while True:
             act = run.model(run.released)
             evv = run.evaluate(act, tt, yy)
+            if run.laws is not None:  # each sliding contact keeps the side its normal force presses on
+                run.signs = dict(evv.signs)
+                act.signs.update(run.signs)
             lam = dict(zip(act.constraint_names, np.asarray(evv.multipliers, float)))
             wrong = [c for c, s in signs.items() if c in lam and s * lam[c] < 0]
             for c in wrong:
@@ -476,12 +493,19 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         for c in bounced:
             offsets[c] = 0.0
         state["active"] = act
-        ws = watches_for(act, **watch_args, offsets=offsets)
+        ws = watches_for(act, **watch_args, offsets=offsets) + stick_slip_watches(act)
         gs = [0.0 if w.kind == "contact" and w.name in bounced else w.g(tt, yy, evv, p) for w in ws]
         return act, evv, ws, gs, None
 
     if opened:
         run.log.append(f"t = {t:.10g}: the gap of contact(s) {', '.join(opened)} is open at the start")
+    if run.laws is not None:
+        run.sticking, run.directions, started = initial_mode(run.laws, run.released, t, y, p)
+        for c in run.sticking:
+            run.events.append(EventRecord("stick", c, t, "at rest and inside its friction cone at the start"))
+        for c in started:
+            run.events.append(EventRecord("slip", c, t, "at rest but outside its friction cone at the start: "
+                                                        "it starts to slide"))
     active, ev, watches, g, stopped = configure(t, y)
     if stopped is not None:
         run.record(active, t, y, ev)
@@ -542,7 +566,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                 status, message = -1, f"the model could not be evaluated near t = {t_new:.10g}: {exc}"
                 break
             hits.sort(key=lambda h: h[0])
-            stop = next((h for h in hits if h[2].action in ("stop", "release", "impact")), None)
+            stop = next((h for h in hits if h[2].action in ("stop", "release", "impact", "mode")), None)
             t_cut = stop[0] if stop is not None else t_new
             for ts, i, w in hits:
                 if ts <= t_cut and w.action == "record":
@@ -563,7 +587,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                 if w.kind == "release":
                     run.event_record(active, w.kind, w.name, ts, ys, evs,
                                      f"lambda_{w.name} reaches zero: the unilateral constraint is released")
-                elif w.kind != "contact":
+                elif w.kind != "contact" and w.action != "mode":
                     run.event_record(active, w.kind, w.name, ts, ys, evs, "terminal event")
                 if w.action == "stop":
                     run.record(active, ts, ys, evs)
@@ -590,6 +614,17 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                     ys, bounced = imp.y_after, imp.bounced
                     if imp.engaged:
                         run.log.append(f"t = {ts:.10g}: constraint(s) {', '.join(imp.engaged)} engaged again")
+                elif w.action == "mode":  # stick-slip (appell.simulation.stickslip)
+                    try:
+                        change = transition(run.laws, active, w.kind, w.name, ts, ys, p, project)
+                    except AppellError as exc:
+                        status, message = -1, str(exc)
+                        break
+                    run.sticking, run.directions, ys = change.sticking, change.directions, change.y
+                    run.signs = {}  # taken again from the normal forces where the new mode starts
+                    if change.kind is not None:
+                        run.event_record(active, change.kind, w.name, ts, ys, evs, change.detail)
+                    when = "at the change of stick-slip mode"
                 else:
                     run.released.append(w.name)
                     released, when = (w.name,), "at the release"

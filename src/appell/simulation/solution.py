@@ -9,7 +9,10 @@ Columns (CSV, netCDF variables, :meth:`Solution.to_dataframe`), in this order: `
 coordinate, each speed (then any extra states of the model), each acceleration (the time
 derivative of each speed, named like the derivation's acceleration symbols: ``x_dot ->
 x_ddot``), ``lambda_<constraint>``, the outputs (:class:`appell.model.Output`, e.g. a joint's
-``F_<joint>_x``), ``control_<control>``, ``residual_<constraint>``.
+``F_<joint>_x``), ``control_<control>``, with frictions
+(:class:`~appell.model.Friction`) ``friction_<name>_t`` (or ``_t1``, ``_t2``: the friction
+force components) and ``friction_<name>_slipping`` (1 sliding, 0 sticking), then
+``residual_<constraint>``.
 ``residual_<c>`` is the position residual ``F`` for a holonomic constraint, the velocity
 residual ``phi`` for a first-order one, and empty (NaN) for a second-order one, which has
 neither; empty cells in the file are NaN. A controlled system's servo constraints follow
@@ -49,7 +52,8 @@ class EventRecord:
     ``kind``: ``'initial'`` (an initial value computed or changed by the completion),
     ``'release'`` (a unilateral constraint's multiplier reached zero),
     ``'impact'`` (a released contact's gap closed), ``'friction'`` (``|lambda_t|``
-    crossed ``mu lambda_n``), ``'user'``, ``'switch'`` (the partition of dependent
+    crossed ``mu lambda_n``), ``'stick'`` and ``'slip'`` (a Coulomb contact's stick-slip
+    transitions, :mod:`appell.simulation.stickslip`), ``'user'``, ``'switch'`` (the partition of dependent
     accelerations changed). ``name`` the constraint or event; ``t`` its time; ``state``
     and ``multipliers`` there (before an impact); ``detail`` in words. An impact also
     records ``impulses`` ``{constraint: Lambda}`` (the impulsive reactions, in the units
@@ -130,7 +134,7 @@ def per_second(unit: str) -> str:
 class Column:
     """One result column: ``name``, ``values``, ``kind`` (``'time'``, ``'coordinate'``,
     ``'speed'``, ``'state'``, ``'acceleration'``, ``'multiplier'``, ``'control'``,
-    ``'residual'``), ``long_name`` (what it is, in words) and ``units``."""
+    ``'friction'``, ``'residual'``), ``long_name`` (what it is, in words) and ``units``."""
 
     name: str
     values: np.ndarray
@@ -189,13 +193,14 @@ class Solution:
     accelerations: Mapping[str, np.ndarray] = field(default_factory=dict)
     outputs: Mapping[str, np.ndarray] = field(default_factory=dict)
     output_descriptions: Mapping[str, str] = field(default_factory=dict)
+    friction: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         t = np.array(self.t, dtype=float)
         t.setflags(write=False)
         object.__setattr__(self, "t", t)
         for name in ("states", "multipliers", "controls", "position_residuals", "velocity_residuals", "tracking",
-                     "accelerations", "outputs"):
+                     "accelerations", "outputs", "friction"):
             object.__setattr__(self, name, _frozen_arrays(getattr(self, name)))
         object.__setattr__(self, "events", tuple(self.events))
         object.__setattr__(self, "log", tuple(self.log))
@@ -233,7 +238,8 @@ class Solution:
             return self.accelerations[name]
         if name in self.outputs:
             return self.outputs[name]
-        for prefix, table in (("lambda_", self.multipliers), ("control_", self.controls)):
+        for prefix, table in (("lambda_", self.multipliers), ("control_", self.controls),
+                              ("friction_", self.friction)):
             if name.startswith(prefix) and name[len(prefix):] in table:
                 return table[name[len(prefix):]]
         if name.startswith("residual_") and name[9:] in self.residuals:
@@ -301,6 +307,10 @@ class Solution:
             cols.append(Column(n, a, "output", self.output_descriptions.get(n) or f"output {n}", unit(n)))
         for n, a in self.controls.items():
             cols.append(Column(f"control_{n}", a, "control", f"control {n}", unit(f"control_{n}")))
+        for n, a in self.friction.items():
+            what = (f"state of friction {n[:-9]}: 1 slipping, 0 sticking" if n.endswith("_slipping") else
+                    f"friction force component {n} (generalized force (dv_t/dw)^T F_t)")
+            cols.append(Column(f"friction_{n}", a, "friction", what, unit(f"friction_{n}")))
         kinds = dict(zip(self.metadata.constraint_names, self.metadata.constraint_kinds))
         for n, a in self.residuals.items():
             what = {"holonomic": f"position residual F of the holonomic constraint {n}",
@@ -518,7 +528,8 @@ class Solution:
         """What :meth:`plot` (and the report) draws: ``(key, axis label, columns, log scale)``
         per kind of quantity: ``coordinates`` (always), then, when there is something to
         show, ``speeds``, ``states`` (extra states), ``accelerations`` (when asked for),
-        ``reactions`` (multipliers), ``controls`` and ``residuals`` (absolute values, log
+        ``reactions`` (multipliers), ``outputs``, ``controls``, ``friction`` (the friction force components
+        of :class:`~appell.model.Friction` items) and ``residuals`` (absolute values, log
         scale; second-order constraints have none)."""
         cols = self.column_info()
         kinds = [("coordinates", "coordinates", "coordinate"), ("speeds", "speeds", "speed"),
@@ -526,11 +537,11 @@ class Solution:
         if accelerations:
             kinds.append(("accelerations", "accelerations", "acceleration"))
         kinds += [("reactions", "reactions (multipliers lambda)", "multiplier"), ("outputs", "outputs", "output"),
-                  ("controls", "controls", "control"),
-                  ("residuals", "|constraint residuals|", "residual")]
+                  ("controls", "controls", "control"), ("friction", "friction forces", "friction"), ("residuals", "|constraint residuals|", "residual")]
         out = []
         for key, label, kind in kinds:
-            series = [c for c in cols if c.kind == kind and (kind != "residual" or np.any(np.isfinite(c.values)))]
+            series = [c for c in cols if c.kind == kind and (kind != "residual" or np.any(np.isfinite(c.values)))
+                      and not c.name.endswith("_slipping")]
             if series or key == "coordinates":
                 out.append((key, label, series, kind == "residual"))
         return out

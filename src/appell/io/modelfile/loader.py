@@ -27,6 +27,7 @@ from appell.model import (
     Constraint,
     Control,
     FirstIntegral,
+    Friction,
     Parameter,
     Particle,
     Program,
@@ -63,6 +64,7 @@ TABLES = {
     "controls": "NAME = 'kinematic' or 'force'",
     "servo_constraints": "[servo_constraints.NAME] kind, expr",
     "first_integrals": "[first_integrals.NAME] expr, value",
+    "friction": "[[friction]] name, slip, normal, mu_k, mu_s, viscous (non-ideal contact laws)",
     "simulation": "run settings",
     "units": "NAME = unit of a coordinate, speed, constraint's multiplier or control (recorded in result files)",
     "mechanism": "bodies joined by joints (urdf, gravity, reactions, frame) with [[bodies]], [[joints]], "
@@ -77,6 +79,7 @@ FORCE_KEYS = ("name", "vector", "position", "velocity")
 TORQUE_KEYS = ("name", "vector", "angular_velocity")
 CONSTRAINT_KEYS = ("kind", "expr")
 FIRST_INTEGRAL_KEYS = ("expr", "value")
+FRICTION_KEYS = ("name", "slip", "normal", "mu_k", "mu_s", "viscous")
 
 #: constraint kinds -> order (method.md §2)
 CONSTRAINT_KINDS = {"holonomic": 0, "first-order": 1, "second-order": 2}
@@ -443,6 +446,37 @@ def _constraints(r: _Reader, doc: dict, table: str) -> list[Constraint]:
     return out
 
 
+def _frictions(r: _Reader, doc: dict, constraint_names: list[str]) -> list[Friction]:
+    """``[[friction]]`` items (:class:`~appell.model.Friction`): ``slip`` one expression or
+    an array of 1 or 2 (in t, q, speeds), ``normal`` a constraint's name, the coefficients
+    numbers or expressions in the parameters."""
+    out = []
+    for i, item in enumerate(r.array_of_tables(doc, "friction")):
+        path = ("friction", i)
+        r.table(path, item, FRICTION_KEYS, required=("name", "slip"))
+        name = r.name(path + ("name",), item["name"], "friction")
+        slip = item["slip"]
+        if isinstance(slip, list):
+            if len(slip) not in (1, 2):
+                raise r.error(path + ("slip",), f"must have 1 component (a line contact, a joint) or 2 (a contact "
+                                                f"in a plane), got {len(slip)}")
+            slip = tuple(r.expr(path + ("slip", k), v, "state") for k, v in enumerate(slip))
+        else:
+            slip = (r.expr(path + ("slip",), slip, "state"),)
+        normal = None
+        if "normal" in item:
+            normal = r.name(path + ("normal",), item["normal"], "constraint")
+            if normal not in constraint_names:
+                raise r.error(path + ("normal",), f"{normal!r} is not a constraint of the model",
+                              hint=f"constraints: {', '.join(constraint_names) or '(none)'}")
+        coefficients = {k: r.expr(path + (k,), item[k], "time") for k in ("mu_k", "mu_s", "viscous") if k in item}
+        try:
+            out.append(Friction(name, slip, normal, where=r.where(path + ("name",)), **coefficients))
+        except ModelError as exc:
+            raise r.error(path, exc.message, hint=exc.hint) from None
+    return out
+
+
 def _controls(r: _Reader, doc: dict) -> list[Control]:
     out = []
     for key, value in r.table(("controls",), doc.get("controls", {}), _Any()).items():
@@ -704,6 +738,7 @@ def _build(r: _Reader, doc: dict) -> System:
     constraints = _constraints(r, top, "constraints")
     servo = _constraints(r, top, "servo_constraints")
     first_integrals = _first_integrals(r, top)
+    frictions = _frictions(r, top, [c.name for c in constraints])
     settings = _simulation(r, top, [c.name for c in constraints])
     units = _units(r, top, allowed_initial + [c.name for c in constraints] + [c.name for c in controls])
 
@@ -732,6 +767,7 @@ def _build(r: _Reader, doc: dict) -> System:
             controls=tuple(controls),
             servo_constraints=tuple(servo),
             first_integrals=tuple(first_integrals),
+            frictions=tuple(frictions),
             initial=tuple(initial.items()),
             name=name,
             description=description,
