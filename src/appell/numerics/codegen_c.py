@@ -651,7 +651,9 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         lib.appell_constraint.restype = None
         cfun = _wrap(lib.appell_constraint, [(s,), (s, n)], with_acc=True)
     system = derivation.system
-    return CompiledNumericModel(
+    from appell.numerics.redundant import with_redundancy  # the same completion of the multipliers
+
+    return with_redundancy(CompiledNumericModel(
         derivation=derivation,
         parameters=tuple(p.symbol for p in system.parameters),
         default_parameters=np.array([p.value for p in system.parameters], dtype=float),
@@ -665,4 +667,4 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         freshly_compiled=fresh,
         _lib=lib,
         _default_dep=np.ascontiguousarray(derivation.partition.dependent, dtype=np.intc),
-    )
+    ))
