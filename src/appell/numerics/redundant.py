@@ -38,7 +38,8 @@ class RedundantModel:
         zero_a = {a: 0 for a in kin.accelerations}
         pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual])
         vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual])
-        self._full = lambdify_blocks(_args(d), [sp.Matrix(cons.jacobian).xreplace(zero_a), pos, vel,
+        self._full = lambdify_blocks(_args(d), [sp.Matrix(cons.jacobian).xreplace(zero_a), sp.Matrix(cons.bias),
+                                                pos, vel,
                                                 pos.jacobian(sp.Matrix(kin.coordinates)),
                                                 vel.jacobian(sp.Matrix(kin.speeds))],
                                      subs, what="blocks of the redundant constraints")
@@ -65,11 +66,12 @@ class RedundantModel:
         return self.redundancy.names
 
     def full_blocks(self, t, q, w, p=None):
-        """``J`` (s x n) of all constraints, their position and velocity residuals and
-        the residuals' Jacobians ``dF/dq``, ``dphi/dw``."""
+        """``J`` (s x n) and ``c`` of all constraints, their position and velocity
+        residuals and the residuals' Jacobians ``dF/dq``, ``dphi/dw``."""
         s, n, nq = self._shape
-        J, pos, vel, jq, jw = self._full(float(t), np.asarray(q, float), np.asarray(w, float), self.inner.params(p))
-        return (np.asarray(J, float).reshape(s, n), np.asarray(pos, float).reshape(s),
+        J, c, pos, vel, jq, jw = self._full(float(t), np.asarray(q, float), np.asarray(w, float),
+                                            self.inner.params(p))
+        return (np.asarray(J, float).reshape(s, n), np.asarray(c, float).reshape(s), np.asarray(pos, float).reshape(s),
                 np.asarray(vel, float).reshape(s), np.asarray(jq, float).reshape(s, nq),
                 np.asarray(jw, float).reshape(s, n))
 
@@ -103,7 +105,7 @@ class RedundantModel:
 
     def constraint_residuals(self, t, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
         """Position and velocity residuals of all constraints (NaN where no such level)."""
-        _, pos, vel, _, _ = self.full_blocks(t, q, w, p)
+        _, _, pos, vel, _, _ = self.full_blocks(t, q, w, p)
         return np.where(self.has_position, pos, np.nan), np.where(self.has_velocity, vel, np.nan)
 
     def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
@@ -112,7 +114,7 @@ class RedundantModel:
 
     def residual_jacobians(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
         q, w = self.inner.split_state(y)
-        _, _, _, jq, jw = self.full_blocks(t, q, w, p)
+        *_, jq, jw = self.full_blocks(t, q, w, p)
         return jq, jw
 
     def reaction_formulas(self, t, q, w, a, p=None) -> np.ndarray:
