@@ -195,3 +195,47 @@ def test_sliding_table_motion_keeps_the_redundant_leg_and_matches_the_incline(ba
     assert np.allclose(total, 5.0 * G * np.cos(a0) ** 2, rtol=1e-8)
     assert np.max(np.abs(sol.position_residuals["leg_3"])) < 1e-9
     assert np.max(np.abs(sol.velocity_residuals["leg_3"])) < 1e-9
+
+
+def _cli(*args):
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+
+    return CliRunner().invoke(cli, list(args), catch_exceptions=False)
+
+
+def test_cli_derive_and_check_print_the_redundancy():
+    from appell.examples import example_path
+
+    out = _cli("derive", str(example_path("door_two_hinges")))
+    assert out.exit_code == 0, out.output
+    assert "rank J = 3 of 4 constraints; dim null(J^T) = 1" in out.output
+    assert "undetermined split among: top_z, bottom_z" in out.output
+    out = _cli("check", str(example_path("table_four_legs")))
+    assert out.exit_code == 0, out.output
+    assert "satisfied automatically: leg_4" in out.output and "minimum-norm" in out.output
+
+
+def test_cli_refuses_inconsistent_legs_in_a_model_file_with_exit_2(tmp_path):
+    from appell.examples import example_path
+
+    text = example_path("table_four_legs").read_text()
+    text = text.replace('expr = "z - a*sin(theta) - b*sin(phi)*cos(theta) - L"',
+                        'expr = "z - a*sin(theta) - b*sin(phi)*cos(theta) - 0.74"')
+    path = tmp_path / "short_leg.toml"
+    path.write_text(text)
+    out = _cli("derive", str(path))
+    assert out.exit_code == 2, out.output
+    assert "inconsistent" in out.output and "leg_4" in out.output
+
+
+def test_model_file_compliance_must_be_positive(tmp_path):
+    from appell import load_model
+    from appell.examples import example_path
+
+    text = example_path("shaft_three_bearings").read_text().replace("compliance = 1e-8", "compliance = -1e-8")
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(ModelError, match="compliance.*must be positive"):
+        load_model(path)
