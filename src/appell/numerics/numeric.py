@@ -520,9 +520,7 @@ def compile_model(derivation) -> NumericModel:
     pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual]) if cons.count else sp.zeros(0, 1)
     vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if cons.count else sp.zeros(0, 1)
     residuals = lambdify_blocks(_args(derivation), [pos, vel], subs)
-    from appell.numerics.redundant import with_redundancy  # all multipliers of redundant constraints
-
-    return with_redundancy(NumericModel(
+    return NumericModel(
         derivation=derivation,
         parameters=tuple(p.symbol for p in system.parameters),
         default_parameters=np.array([p.value for p in system.parameters], dtype=float),
@@ -532,4 +530,4 @@ def compile_model(derivation) -> NumericModel:
         residuals=residuals,
         has_position=np.array([e is not None for e in cons.position_residual], dtype=bool),
         has_velocity=np.array([e is not None for e in cons.velocity_residual], dtype=bool),
-    ))
+    )
