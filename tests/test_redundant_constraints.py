@@ -239,3 +239,28 @@ def test_model_file_compliance_must_be_positive(tmp_path):
     path.write_text(text)
     with pytest.raises(ModelError, match="compliance.*must be positive"):
         load_model(path)
+
+
+def test_completing_a_start_uses_the_independent_legs_and_the_redundant_one_then_holds():
+    """A start 1 cm too high and rolled is completed on legs 1-3 (Newton); leg 4 then holds
+    too (consistent redundancy), and the plate sits at z = L, level."""
+    from appell import complete_initial
+
+    d = derive(table_four_legs())
+    state = complete_initial(d, {"z": 0.76, "phi": 0.01, "theta": 0.0, "z_dot": 0.0, "phi_dot": 0.0,
+                                 "theta_dot": 0.0})
+    assert state.values["z"] == pytest.approx(0.75, abs=1e-12)
+    assert abs(state.values["phi"]) < 1e-12 and abs(state.values["theta"]) < 1e-12
+    assert set(state.position_residuals) == {"leg_1", "leg_2", "leg_3", "leg_4"}
+    assert max(abs(v) for v in state.position_residuals.values()) < 1e-12
+
+
+def test_sliding_table_with_baumgarte_stabilization_keeps_the_redundant_leg():
+    """Baumgarte's bias of every constraint reaches the independent ones (the redundant
+    one's holds by itself): the run matches the incline's closed form as with projection."""
+    system, a0 = _sliding_table()
+    sol = simulate(derive(system), 1.0, stabilization="baumgarte", rtol=1e-10, atol=1e-12,
+                   t_eval=np.linspace(0.0, 1.0, 11))
+    t = np.asarray(sol.t)
+    assert np.allclose(sol.states["x"], 0.2 * t - 0.5 * G * np.sin(a0) * np.cos(a0) * t**2, atol=1e-8)
+    assert np.max(np.abs(sol.position_residuals["leg_3"])) < 1e-9
