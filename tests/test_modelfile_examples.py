@@ -56,7 +56,8 @@ def _assert_same_declarations(from_file, built, name):
     assert [(c.symbol, c.kind) for c in from_file.controls] == [(c.symbol, c.kind) for c in built.controls]
     for mine, theirs in ((from_file.constraints, built.constraints),
                          (from_file.servo_constraints, built.servo_constraints)):
-        assert [(c.name, c.order, c.restitution) for c in mine] == [(c.name, c.order, c.restitution) for c in theirs]
+        assert [(c.name, c.order, c.restitution, c.compliance) for c in mine] == \
+            [(c.name, c.order, c.restitution, c.compliance) for c in theirs]
         for a, b in zip(mine, theirs):
             assert _same(a.expr, b.expr), (a.name, a.expr, b.expr)
             assert a.where.startswith(str(example_path(name)))

@@ -55,10 +55,12 @@ def _install_conveniences() -> None:
 
     from appell.io import printing
     from appell.numerics import numeric as numeric_module
+    from appell.numerics.redundant import with_redundancy
 
     def numeric(self):
-        """Numeric functions of the split (:class:`appell.numerics.numeric.NumericModel`), built once."""
-        return numeric_module.compile_model(self)
+        """Numeric functions of the split (:class:`appell.numerics.numeric.NumericModel`), built once;
+        with redundant constraints wrapped in :class:`appell.numerics.redundant.RedundantModel`."""
+        return with_redundancy(numeric_module.compile_model(self))
 
     def compiled(self, backend: str = "c"):
         """Numeric functions from a chosen backend: 'c' (C compiled and cached on disk), 'auto' or

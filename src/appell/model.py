@@ -203,6 +203,12 @@ class Constraint:
     simulated as unilateral contact: when its gap closes again after a release, the
     constraint's velocity ``phi = dF/dt`` jumps from ``phi-`` to ``-e phi-``
     (:mod:`appell.simulation.impact`); 0 (the default) is a plastic impact.
+
+    ``compliance`` (optional, > 0) makes the constraint elastic for the split of its
+    reaction when the constraints are redundant (statically indeterminate supports): the
+    multipliers are then the compatible elastic ones, minimising ``sum c_i lambda_i^2``
+    under ``J^T lambda = M a + h - Q`` (:mod:`appell.core.redundancy`). It does not change
+    the motion, which stays that of the rigid constraints.
     """
 
     name: str
@@ -210,6 +216,7 @@ class Constraint:
     order: int
     where: str | None = None
     restitution: float = 0.0
+    compliance: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isidentifier():
@@ -226,21 +233,31 @@ class Constraint:
             raise ModelError(f"constraint {self.name!r}: a restitution coefficient needs a holonomic constraint "
                              f"(a contact whose gap F can close), not a {ORDERS[self.order]} one", where=self.where)
         object.__setattr__(self, "restitution", float(e))
+        c = self.compliance
+        if c is not None:
+            if isinstance(c, bool) or not isinstance(c, numbers.Real) or not float(c) > 0.0 or c != c or c == float("inf"):
+                raise ModelError(f"constraint {self.name!r}: the compliance must be a positive finite number, "
+                                 f"got {c!r}", where=self.where,
+                                 hint="the constraint's deflection per unit of its multiplier (e.g. m/N for a leg "
+                                      "written as a height)")
+            object.__setattr__(self, "compliance", float(c))
 
     @property
     def kind(self) -> str:
         return ORDERS[self.order]
 
 
-def holonomic(name: str, expr, where: str | None = None, restitution: float = 0.0) -> Constraint:
+def holonomic(name: str, expr, where: str | None = None, restitution: float = 0.0,
+              compliance: float | None = None) -> Constraint:
     """Holonomic constraint ``F(t, q) = 0``; ``restitution`` Newton's coefficient e of the
-    impact when, simulated as unilateral, its gap closes again (:class:`Constraint`)."""
-    return Constraint(name, expr, 0, where, restitution)
+    impact when, simulated as unilateral, its gap closes again; ``compliance`` its
+    elasticity for statically indeterminate supports (:class:`Constraint`)."""
+    return Constraint(name, expr, 0, where, restitution, compliance)
 
 
-def nonholonomic(name: str, expr, where: str | None = None) -> Constraint:
+def nonholonomic(name: str, expr, where: str | None = None, compliance: float | None = None) -> Constraint:
     """First-order constraint ``phi(t, q, w) = 0`` (reaction direction dphi/dw)."""
-    return Constraint(name, expr, 1, where)
+    return Constraint(name, expr, 1, where, compliance=compliance)
 
 
 def acceleration_constraint(name: str, expr, where: str | None = None) -> Constraint:

@@ -55,6 +55,22 @@ class ConstraintBlocks:
     def count(self) -> int:
         return len(self.names)
 
+    def subset(self, rows) -> "ConstraintBlocks":
+        """The blocks of the constraints ``rows`` only (in that order)."""
+        rows = list(rows)
+        n = self.jacobian.shape[1]
+        pick = lambda m, cols: sp.ImmutableMatrix(m[rows, :]) if rows else sp.ImmutableMatrix(sp.zeros(0, cols))  # noqa: E731
+        return ConstraintBlocks(
+            names=tuple(self.names[i] for i in rows),
+            orders=tuple(self.orders[i] for i in rows),
+            second_order=pick(self.second_order, 1),
+            jacobian=pick(self.jacobian, n),
+            bias=pick(self.bias, 1),
+            position_residual=tuple(self.position_residual[i] for i in rows),
+            velocity_residual=tuple(self.velocity_residual[i] for i in rows),
+            linear=self.linear,
+        )
+
 
 def _involves(expr, symbols) -> bool:
     return bool(expr.free_symbols & set(symbols))

@@ -7,6 +7,7 @@
       -> kinematics                    d/dt along the motion          (kinematics, §1)
       -> inertia blocks  M, h, Q       dS/da = M a + h                (energy, §1)
       -> constraint blocks  J, c       f = J a + c                    (constraints, §2)
+      -> redundant rows set aside      rank J < s, consistency        (redundancy, §3)
       -> partition  a_nu | a_h         condition (1.2)                (partition, §3)
       => Derivation  .reduced (1.4)  .reactions (1.5)  .numeric       (equations, numerics.numeric)
 
@@ -33,6 +34,7 @@ from appell.core.kinematics import kinematics_of
 from appell.errors import ModelError
 from appell.model import System
 from appell.core.partition import choose_partition
+from appell.core.redundancy import check_consistency, find_redundancy
 from appell.core.validation import validate
 
 
@@ -68,8 +70,12 @@ def derive(system: System, dependent: Sequence | None = None) -> Derivation:
     cons = second_order_blocks(system.constraints, kin)
     known = {**system.parameter_values, **{sp.Symbol(k): v for k, v in system.initial}}
     known.update(_programs_at_start(system, known))
+    redundancy = find_redundancy(cons, system.constraints, known)
+    if redundancy is not None:  # statically indeterminate: the motion from independent rows
+        check_consistency(redundancy, kin, known)
+        cons = cons.subset(redundancy.independent)
     partition = choose_partition(sp.Matrix(cons.jacobian), cons.names, kin.accelerations, dependent, at=known)
-    return Derivation(system, kin, inertia, cons, partition)
+    return Derivation(system, kin, inertia, cons, partition, redundancy)
 
 
 def _programs_at_start(system: System, known: dict) -> dict:

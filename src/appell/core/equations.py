@@ -161,6 +161,11 @@ class Derivation:
     inertia: InertiaBlocks
     constraints: ConstraintBlocks
     partition: Partition
+    #: redundant constraints (statically indeterminate supports,
+    #: :class:`appell.core.redundancy.Redundancy`): ``constraints`` then holds the
+    #: independent ones the motion uses, ``redundancy.constraints`` all of them; None when
+    #: the constraint Jacobian has full row rank
+    redundancy: object = None
 
     @property
     def accelerations(self) -> tuple[sp.Symbol, ...]:
@@ -182,4 +187,4 @@ class Derivation:
 
         p = choose_partition(sp.Matrix(self.constraints.jacobian), self.constraints.names,
                              self.accelerations, dependent)
-        return Derivation(self.system, self.kinematics, self.inertia, self.constraints, p)
+        return Derivation(self.system, self.kinematics, self.inertia, self.constraints, p, self.redundancy)

@@ -536,6 +536,7 @@ def simulate(model, t_end, out, plot, backend, assignments, complete, adjust, so
         export_solution(solution, out_path)
     if plot:
         solution.plot(plot)
+    _echo_redundancy(derivation)
     click.echo(solution.summary())
     click.echo(solver_line(solution))
     _warn_internal(*internal_stability(derivation, solution))
@@ -581,6 +582,14 @@ def _energy_balance(derivation, t_end=None):
     return energy_balance(derivation, opts["t_end"], t0=opts["t0"])
 
 
+def _echo_redundancy(derivation) -> None:
+    """Print which constraints are redundant and how their reactions are split
+    (:meth:`appell.core.redundancy.Redundancy.summary`), when any are."""
+    red = getattr(derivation, "redundancy", None)
+    if red is not None:
+        click.echo("\n".join(red.summary()))
+
+
 def _verdict(check_report, energy, tolerance: float, energy_tolerance: float) -> tuple[bool, str]:
     """``(passed, one line)`` over every line of the cross-check and the energy balance."""
     failed = []
@@ -609,6 +618,7 @@ def _verdict(check_report, energy, tolerance: float, energy_tolerance: float) ->
 @click.option("--t-end", type=float, default=None, metavar="T",
               help="Final time of the motion whose energy balance is checked (default: the model's "
                    "[simulation] t_end, else 10).")
+
 @_set_option
 def check(model, tolerance, energy_tolerance, t_end, assignments):
     """Check the split (1.4)/(1.5) against independent routes, and the energy balance.
@@ -630,6 +640,7 @@ def check(model, tolerance, energy_tolerance, t_end, assignments):
     system = load_system(model, parse_assignments(assignments))
     derivation = derive_model(system)
     report = _cross_check(derivation)
+    _echo_redundancy(derivation)
     click.echo(str(report))
     linearisation, note = internal_stability(derivation)
     if linearisation is not None:

@@ -146,6 +146,12 @@ def _inline_single_uses(defs, exprs):
         exprs = [sp.sympify(e).xreplace(once) for e in exprs]
 
 
+#: what the printed reaction formulas are when constraints are redundant
+REDUNDANT_FORMULAS = ("the formulas (1.5) below are those of the independent constraints with the redundant "
+                      "ones' multipliers zero (one admissible split); the numbers appell reports add to them the "
+                      "null-space component of the split stated above")
+
+
 def derivation_text(derivation, only=None) -> str:
     """Plain-text summary: system, partition, then the items of ``only`` (motion (1.4),
     reactions (1.5); all by default) as a paper prints them: shared subexpressions
@@ -174,6 +180,9 @@ def derivation_text(derivation, only=None) -> str:
         lines.append(f"  {where}")
     if not ind:
         lines.append(f"  {NO_FREE_ACCELERATION}")
+    if getattr(derivation, "redundancy", None) is not None:
+        lines += ["  " + line for line in derivation.redundancy.summary()]
+        lines.append("  " + REDUNDANT_FORMULAS)
     printed = printed_equations(derivation, only)
     titles = {"motion": "motion: accelerations (1.4) and f = 0", "reactions": "reactions (1.5)",
               "outputs": "outputs (from t, q, w, a and the multipliers)", "controls": "controls"}
@@ -245,6 +254,7 @@ def derivation_document(derivation) -> dict:
             if red.dependent_solution is not None else {}
         ),
         "multipliers": {n: tidy(e) for n, e in derivation.reactions.as_dict().items()},
+        "redundancy": None if getattr(derivation, "redundancy", None) is None else derivation.redundancy.as_dict(),
         "generalized_reactions": list(derivation.reactions.generalized),
         "outputs": {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
                     for o in derivation.system.outputs},

@@ -40,7 +40,7 @@ import numpy as np
 import sympy as sp
 
 from appell.files import atomic_path
-from appell.io.printing import ITEMS, latex, printed_equations
+from appell.io.printing import ITEMS, REDUNDANT_FORMULAS, latex, printed_equations
 
 __all__ = ["EquationRow", "equation_groups", "mathml", "render_report", "write_report", "solution_figures"]
 
@@ -298,6 +298,12 @@ def _equation_section(derivation) -> str:
              f"dependent accelerations: {', '.join(_inline(sp.Symbol(n)) for n in dep) or '—'} "
              "(condition (1.2): the block of the constraint Jacobian on the dependent accelerations is "
              "nonsingular).</p>"]
+    red = getattr(derivation, "redundancy", None)
+    if red is not None:  # statically indeterminate supports
+        lines = red.summary()
+        parts.append("<h3>Redundant constraints (statically indeterminate)</h3><p>" + _e(lines[0]) + "</p><ul>"
+                     + "".join(f"<li>{_e(line.strip())}</li>" for line in lines[1:]) + "</ul>"
+                     "<p>" + _e(REDUNDANT_FORMULAS) + ".</p>")
     if not ind:
         parts.append("<p>No acceleration is free (p = 0): the constraints"
                      + (" and the servo constraints" if _is_controlled(derivation) else "")

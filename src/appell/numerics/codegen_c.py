@@ -45,6 +45,7 @@ from sympy.printing.c import C99CodePrinter
 from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError, ModelError, ResourceError
 from appell.numerics.numeric import KEEP_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
+from appell.numerics.redundant import with_redundancy
 from appell.symbols import t
 
 #: environment variables: cache directory and C compiler
@@ -603,11 +604,14 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
     failed compilation or an unusable cache raises for 'c' and falls back (with a warning)
     for 'auto'. A cached library is verified before and after loading (:func:`build_library`,
     :func:`load_library`).
+    With redundant constraints (:mod:`appell.core.redundancy`) the C code solves the
+    independent ones and :class:`~appell.numerics.redundant.RedundantModel` completes every
+    multiplier in NumPy, the same step as for the NumPy backend.
     """
     if backend not in BACKENDS:
         raise ModelError(f"unknown numeric backend {backend!r}", hint="choose one of " + ", ".join(BACKENDS))
     if backend == "numpy":
-        return compile_model(derivation)
+        return with_redundancy(compile_model(derivation))
     compiler = find_compiler()
     if compiler is None:
         if backend == "c":
@@ -616,7 +620,7 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
                                   "compiler is found, else NumPy) or 'numpy'")
         warnings.warn(f"no C compiler found (set ${COMPILER_ENV} or $CC); using the NumPy backend",
                       RuntimeWarning, stacklevel=2)
-        return compile_model(derivation)
+        return with_redundancy(compile_model(derivation))
     source = c_source(derivation)
     try:
         path, fresh = build_library(source, compiler)
@@ -630,7 +634,7 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
                                          "'numpy'") from exc
             raise
         warnings.warn(f"{exc}; using the NumPy backend", RuntimeWarning, stacklevel=2)
-        return compile_model(derivation)
+        return with_redundancy(compile_model(derivation))
     kin, cons = derivation.kinematics, derivation.constraints
     n, s, nq = len(kin.speeds), cons.count, len(kin.coordinates)
     expr_args = [_D, _P, _P, _P, _P]
@@ -651,7 +655,7 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         lib.appell_constraint.restype = None
         cfun = _wrap(lib.appell_constraint, [(s,), (s, n)], with_acc=True)
     system = derivation.system
-    return CompiledNumericModel(
+    return with_redundancy(CompiledNumericModel(
         derivation=derivation,
         parameters=tuple(p.symbol for p in system.parameters),
         default_parameters=np.array([p.value for p in system.parameters], dtype=float),
@@ -665,4 +669,4 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         freshly_compiled=fresh,
         _lib=lib,
         _default_dep=np.ascontiguousarray(derivation.partition.dependent, dtype=np.intc),
-    )
+    ))

@@ -86,6 +86,53 @@ def solve_augmented(M, hQ, J, c, constraint_function=None):
     return x[:n], x[n:], constraint_function(x[:n])[1], its
 
 
+def solve_indeterminate(M, hQ, J, c, weights=None):
+    """``(a, lambda)`` for redundant constraints (rank J < s), by least squares on
+    whole systems: ``a`` from the augmented system with every row (consistent and
+    singular), ``lambda`` from the optimality system of ``min lambda^T W lambda`` under
+    ``J^T lambda = M a + h - Q``: ``[W -J; J^T 0][lambda; dq] = [0; M a + h - Q]``, with
+    ``W = D^{-2}`` (row-scaled minimum norm) or ``diag(weights)`` (compliances). An
+    independent route to :func:`appell.core.redundancy.multipliers_with_redundancy`
+    (particular solution plus null space)."""
+    n, s = M.shape[0], J.shape[0]
+    K = np.block([[M, -J.T], [J, np.zeros((s, s))]])
+    a = np.linalg.lstsq(K, np.concatenate([-hQ, -c]), rcond=None)[0][:n]
+    weights = np.abs(J).max(axis=1) ** 2 if weights is None else np.asarray(weights, float)
+    weights = weights / weights.max()  # the minimiser does not depend on the scale of W
+    K2 = np.block([[np.diag(weights), -J], [J.T, np.zeros((n, n))]])
+    lam = np.linalg.lstsq(K2, np.concatenate([np.zeros(s), M @ a + hQ]), rcond=None)[0][:s]
+    return a, lam
+
+
+def _cleared(a, M, hQ):
+    """``a`` with entries below 1e-13 of the unconstrained acceleration ``|M^{-1}(h - Q)|``
+    set to zero: the rounding noise of a mechanism at rest (a = 0), which least squares and
+    the split leave differently, is not compared as a relative error."""
+    a = np.array(a, float)
+    a[np.abs(a) <= 1e-13 * (1.0 + np.abs(np.linalg.solve(M, hQ)).max(initial=0.0))] = 0.0
+    return a
+
+
+def onto_constraints(model, t, q, w, p, iterations: int = 50):
+    """``(t, q, w)`` moved onto all constraints (Gauss–Newton by least squares on the
+    position residuals in q, then the velocity residuals in w), for a model with
+    redundant constraints (``full_blocks``)."""
+    q, w = np.array(q, float), np.array(w, float)
+    for level in (0, 1):
+        for _ in range(iterations):
+            _, _, pos, vel, jq, jw = model.full_blocks(t, q, w, p)
+            rows = model.has_position if level == 0 else model.has_velocity
+            r, A = (pos, jq) if level == 0 else (vel, jw)
+            if not rows.any() or np.abs(r[rows]).max() <= 1e-14:
+                break
+            step = np.linalg.lstsq(A[rows], -r[rows], rcond=None)[0]
+            if level == 0:
+                q += step
+            else:
+                w += step
+    return t, q, w
+
+
 def _model_constraint_function(model: NumericModel, t, q, w, pv):
     if model.constraint_function is None:
         return None
@@ -279,8 +326,11 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
     if states:  # a zero or negative mass is named here, not met as a singular matrix below
         t0, q0, w0 = states[0]
         check_inertia(model, t0, np.concatenate([np.asarray(q0, float), np.asarray(w0, float)]), model.params(p))
-    names = tuple(derivation.constraints.names)
+    red = getattr(derivation, "redundancy", None)
+    names = tuple(derivation.constraints.names) if red is None else red.names
     pv = model.params(p)
+    if red is not None:  # redundant rows hold together only on the constraints: sample there
+        states = [onto_constraints(model, t, q, w, pv) for t, q, w in states]
     unavailable: dict[str, str] = {}
     aug, formulas = _Lines(names), _Lines(names, with_accelerations=False)
     reason = lagrange_unavailable(derivation.system)
@@ -293,8 +343,15 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
     for t, q, w in states:
         sol = model.solve(t, q, w, pv)
         M, hQ, J, c = model.evaluate_blocks(t, q, w, pv)
-        if names:
+        if red is not None:  # statically indeterminate: the whole systems by least squares
+            J, c = model.full_blocks(t, q, w, pv)[:2]
+            a_r, lam_r = solve_indeterminate(M, hQ, J, c, model.weights)
+            ref = StateSolution(_cleared(a_r, M, hQ), lam_r, J.T @ lam_r, ())
+            sol = StateSolution(_cleared(sol.accelerations, M, hQ), sol.multipliers, sol.generalized_reactions,
+                                sol.dependent, sol.switched)
+        elif names:
             ref = augmented_solve(model, t, q, w, pv)
+        if names:
             scale = multiplier_scale(M, hQ, J, ref.accelerations, ref.multipliers)
             aug.add(sol.accelerations, ref.accelerations, sol.multipliers, ref.multipliers, scale)
             lam_f = model.reaction_formulas(t, q, w, ref.accelerations, pv) if not sol.switched else None
@@ -303,7 +360,9 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
             else:
                 formulas.add(None, None, lam_f, ref.multipliers, scale)
         if route is not None:
-            a_l, lam_l = _lagrange_solve(route, t, q, w, pv)
+            a_l, lam_l = _lagrange_solve(route, t, q, w, pv, False if red is None else model.weights)
+            if red is not None:
+                a_l = _cleared(a_l, M, hQ)
             scale = multiplier_scale(M, hQ, J, a_l, lam_l)
             lag.add(sol.accelerations, a_l, sol.multipliers, lam_l, scale)
     comparisons = []
@@ -320,7 +379,7 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
     return CrossCheckReport(len(states), tuple(comparisons), unavailable, names)
 
 
-def _lagrange_solve(route, t, q, w, pv):
+def _lagrange_solve(route, t, q, w, pv, weights=False):
     """Accelerations and multipliers of Lagrange's equations (:mod:`appell.numerics.lagrange`)."""
     q, w = np.asarray(q, float), np.asarray(w, float)
     n = len(w)
@@ -332,6 +391,8 @@ def _lagrange_solve(route, t, q, w, pv):
             f, Ja = route.constraint_function(float(t), q, w, a, pv)
             return np.asarray(f, float).reshape(-1), np.asarray(Ja, float).reshape(-1, n)
     try:
+        if weights is not False:  # redundant constraints (see solve_indeterminate)
+            return solve_indeterminate(M, hQ, J, c, weights)
         a, lam, _, _ = solve_augmented(M, hQ, J, c, fJ)
     except np.linalg.LinAlgError as exc:
         raise ComputationError("Lagrange's equations are singular at a sampled state",

@@ -407,8 +407,9 @@ def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic
     aug = None
     try:
         probe = derive(aug_sys)
-        dep = _augmented_partition(base, sp.Matrix(probe.constraints.jacobian), len(system.speeds))
-        aug = probe.with_partition(dep) if dep is not None else probe
+        if probe.redundancy is None:  # else the candidate is redundant: (1.5) gives it no multiplier
+            dep = _augmented_partition(base, sp.Matrix(probe.constraints.jacobian), len(system.speeds))
+            aug = probe.with_partition(dep) if dep is not None else probe
     except ModelError as exc:
         if "redundant" not in exc.message:
             raise

@@ -416,9 +416,12 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
     constraints = sum(_constraint_names(model), ())
     F0, phi0 = _residuals(model, t, y, p)
     completed: list[str] = []
+    independent = getattr(getattr(model, "redundancy", None), "independent", None)
 
     for level, (kind, level_names) in enumerate(zip(("position", "velocity"), _state_levels(model))):
         rows = np.flatnonzero(~np.isnan((F0, phi0)[level]))
+        if independent is not None:  # redundant constraints hold once the independent ones do
+            rows = np.array([r for r in rows if r in independent], dtype=int)
         forced = [names.index(u) for u in unknowns if u in level_names]
         residual_now = np.asarray(_residuals(model, t, y, p)[level], float)[rows]
         over = bool(rows.size) and not np.max(np.abs(residual_now)) <= CHECK_TOLERANCE

@@ -60,7 +60,7 @@ TABLES = {
     "bodies": "[[bodies]] particles and rigid bodies",
     "forces": "[[forces]] applied forces",
     "torques": "[[torques]] applied torques",
-    "constraints": "[constraints.NAME] kind, expr, restitution",
+    "constraints": "[constraints.NAME] kind, expr, restitution, compliance",
     "controls": "NAME = 'kinematic' or 'force'",
     "servo_constraints": "[servo_constraints.NAME] kind, expr",
     "first_integrals": "[first_integrals.NAME] expr, value",
@@ -425,7 +425,7 @@ def _constraints(r: _Reader, doc: dict, table: str) -> list[Constraint]:
     for key, value in r.table((table,), doc.get(table, {}), _Any()).items():
         path = (table, key)
         r.name(path, key, "constraint")
-        r.table(path, value, CONSTRAINT_KEYS + (("restitution",) if table == "constraints" else ()),
+        r.table(path, value, CONSTRAINT_KEYS + (("restitution", "compliance") if table == "constraints" else ()),
                 required=("kind", "expr"))
         kind = r.string(path + ("kind",), value["kind"])
         if kind not in CONSTRAINT_KINDS:
@@ -441,8 +441,15 @@ def _constraints(r: _Reader, doc: dict, table: str) -> list[Constraint]:
             if kind != "holonomic" and restitution:
                 raise r.error(path + ("restitution",), f"a restitution coefficient needs a holonomic constraint, "
                               f"not a {kind} one", hint="only a contact whose gap F(t, q) can close has impacts")
+        compliance = None
+        if "compliance" in value:
+            compliance = r.constant(path + ("compliance",), value["compliance"])
+            if not compliance > 0.0:
+                raise r.error(path + ("compliance",), f"must be positive, got {compliance}",
+                              hint="the constraint's deflection per unit of its multiplier, used to split the "
+                                   "reactions of redundant (statically indeterminate) constraints")
         out.append(Constraint(key, expr, CONSTRAINT_KINDS[kind], where=r.where(path + ("expr",)),
-                              restitution=restitution))
+                              restitution=restitution, compliance=compliance))
     return out
 
 

@@ -1,0 +1,338 @@
+"""Redundant constraints: statically indeterminate supports (method.md §3, "Redundant
+constraints").
+
+A table on four legs, a door on two hinges, a shaft in three bearings: the constraint
+Jacobian ``J = df/da`` (s x n) has rank ``r < s``. Then
+
+* the motion is fixed by any ``r`` independent rows: the reduced equations (1.4) use a
+  maximal independent subset (rows kept in the model's order, greedily, while the
+  row-normalised block keeps a partition of relative condition number below
+  :data:`~appell.core.partition.RANK_CONDITION`); the other ``s - r`` constraints hold
+  by themselves, provided they are **consistent** with the kept ones (checked at the
+  model's start, refused otherwise, naming them);
+* the reactions are fixed only up to the null space of ``J^T`` (dimension ``s - r``):
+  ``J^T lambda = M a + h - Q`` determines the generalized reaction ``R = J^T lambda``
+  but not its split among the constraints. Rigid-body mechanics does not fix it.
+  appell reports the **minimum-norm** multipliers in the row-scaled norm
+  ``|D^{-1} lambda|_2`` (``D`` of :func:`~appell.core.partition.row_scales`, so each
+  constraint's multiplier is measured as that of its row normalised to a largest entry
+  of one: rewriting a constraint as ``2 F = 0`` does not change the split), or, where
+  every constraint of the undetermined set has a ``compliance`` ``c_i``, the compatible
+  elastic solution that minimises the complementary energy ``sum c_i lambda_i^2``
+  (Menabrea's theorem): ``lambda = C^{-1} J dq`` with ``J^T C^{-1} J dq = R``. Both are
+  ``lambda = lambda_p + N y`` with ``N`` a basis of null(J^T) and
+  ``(N^T W N) y = -N^T W lambda_p`` (``W = D^{-2}`` or ``C``).
+
+The rank is decided at two generic states (a redundancy that holds identically, as for
+the rows of the examples), the independent rows and the null space at the model's
+initial state. A rank lost only at one configuration is a singular configuration
+(:class:`~appell.errors.SingularConfigurationError`), not a redundancy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from appell.core.constraints import ConstraintBlocks
+from appell.core.partition import (RANK_CONDITION, generic_values, numeric_jacobian, partition_condition,
+                                   pivoted_columns, row_normalised, row_scales)
+from appell.errors import ModelError
+
+#: a null-space component below this fraction of the largest counts as zero (the
+#: constraint's multiplier is determined)
+INVOLVED_TOL = 1e-8
+#: relative residual above which a redundant constraint is inconsistent with the others
+CONSISTENCY_TOL = 1e-8
+
+
+@dataclass(frozen=True, eq=False)
+class Redundancy:
+    """Which constraints are redundant and how their reactions are undetermined.
+
+    Attributes
+    ----------
+    constraints : the blocks of all ``s`` constraints, in the model's order.
+    independent : indices of the ``r`` constraints the reduced motion uses.
+    redundant : indices of the ``s - r`` others (satisfied automatically).
+    null_space : ``s x (s - r)`` basis of null(J^T) at the reference state: the
+        directions in which the multipliers are undetermined (columns of unit row-scaled
+        norm ``|D^{-1} n| = 1``).
+    involved : indices of the constraints whose multipliers are undetermined (the rows
+        where the null space does not vanish); the others are determined.
+    compliance : per constraint (None where not given); the split is elastic when every
+        involved constraint has one.
+    at_start : whether the reference state is the model's initial state (else generic).
+    """
+
+    constraints: ConstraintBlocks
+    independent: tuple[int, ...]
+    redundant: tuple[int, ...]
+    null_space: np.ndarray
+    involved: tuple[int, ...]
+    compliance: tuple[float | None, ...]
+    at_start: bool
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.constraints.names
+
+    @property
+    def rank(self) -> int:
+        return len(self.independent)
+
+    @property
+    def dimension(self) -> int:
+        """dim null(J^T) = s - r: the number of undetermined combinations of multipliers."""
+        return len(self.redundant)
+
+    @property
+    def elastic(self) -> bool:
+        """Whether the split is the compatible elastic one (compliances given)."""
+        return all(self.compliance[i] is not None for i in self.involved)
+
+    def named(self, which: str) -> tuple[str, ...]:
+        """Names of the ``independent``, ``redundant``, ``involved`` or ``determined`` constraints."""
+        if which == "determined":
+            return tuple(n for i, n in enumerate(self.names) if i not in self.involved)
+        return tuple(self.names[i] for i in getattr(self, which))
+
+    @property
+    def split(self) -> str:
+        """Which multipliers appell reports, in words."""
+        if self.elastic:
+            return ("compatible elastic solution: minimises sum c_i lambda_i^2 under J^T lambda = M a + h - Q "
+                    "(lambda = C^-1 J dq, J^T C^-1 J dq = R), with the constraints' compliances")
+        return ("minimum-norm solution of J^T lambda = M a + h - Q in the row-scaled norm |D^-1 lambda|_2 "
+                "(each row of J scaled to a largest entry of one)")
+
+    def summary(self) -> list[str]:
+        """The report as lines of text (printed by ``appell derive``, ``check``, ``report``)."""
+        s = len(self.names)
+        lines = [
+            f"redundant constraints (statically indeterminate): rank J = {self.rank} of {s} constraints; "
+            f"dim null(J^T) = {self.dimension}",
+            "  motion from: " + ", ".join(self.named("independent")),
+            "  satisfied automatically: " + ", ".join(self.named("redundant")),
+            "  undetermined split among: " + ", ".join(self.named("involved"))
+            + "; rigid-body mechanics fixes only J^T lambda, not how it is shared",
+        ]
+        if self.named("determined"):
+            lines.append("  determined: " + ", ".join(self.named("determined")))
+        where = "at the initial state" if self.at_start else "at a generic state"
+        for k in range(self.dimension):
+            terms = " ".join(f"{v:+.6g} {n}" for v, n in zip(self.null_space[:, k], self.names)
+                             if abs(v) > INVOLVED_TOL * np.abs(self.null_space[:, k]).max())
+            lines.append(f"  undetermined direction {k + 1} ({where}): lambda + mu * ({terms})")
+        lines.append("  reported multipliers: " + self.split)
+        return lines
+
+    def as_dict(self) -> dict:
+        """JSON-ready description."""
+        return {
+            "rank": self.rank, "constraints": list(self.names), "dimension": self.dimension,
+            "independent": list(self.named("independent")), "redundant": list(self.named("redundant")),
+            "undetermined": list(self.named("involved")), "determined": list(self.named("determined")),
+            "null_space": self.null_space.tolist(), "split": "elastic" if self.elastic else "minimum-norm",
+            "statement": self.split,
+        }
+
+
+def independent_rows(J: np.ndarray) -> list[int]:
+    """A maximal independent set of rows of ``J``, taken greedily in order: row ``i`` is
+    kept when the kept rows with it still have full rank (QR with pivoting of the
+    row-normalised block, :data:`~appell.core.partition.RANK_TOL`) and a partition of
+    relative condition number (:func:`~appell.core.partition.partition_condition`) below
+    :data:`~appell.core.partition.RANK_CONDITION`."""
+    keep: list[int] = []
+    for i in range(J.shape[0]):
+        trial = keep + [i]
+        sub = J[trial]
+        if not np.all(np.isfinite(sub)):
+            continue
+        piv, rank = pivoted_columns(row_normalised(sub))
+        if rank < len(trial):
+            continue
+        if partition_condition(sub, sorted(int(j) for j in piv[:len(trial)]))[0] >= RANK_CONDITION:
+            continue
+        keep.append(i)
+    return keep
+
+
+def null_space(J: np.ndarray, rank: int) -> np.ndarray:
+    """Basis of null(J^T) (s x (s - rank)) as ``D U_2`` with ``U_2`` the left singular
+    vectors of the row-normalised ``D J`` beyond ``rank``: ``J^T D U_2 = (D J)^T U_2 = 0``."""
+    D = row_scales(J)
+    U = np.linalg.svd(J * D[:, None])[0] if J.size else np.eye(J.shape[0])
+    return D[:, None] * U[:, rank:]
+
+
+def multipliers_with_redundancy(J: np.ndarray, rows, lam_rows: np.ndarray, weights: np.ndarray | None = None
+                                ) -> np.ndarray:
+    """All ``s`` multipliers from those of the independent ``rows``.
+
+    ``lambda_p`` (``lam_rows`` on ``rows``, zero elsewhere) solves ``J^T lambda = R``;
+    every solution is ``lambda_p + N y`` (``N`` of :func:`null_space`). The one returned
+    minimises ``lambda^T W lambda``: ``(N^T W N) y = -N^T W lambda_p``, with
+    ``W = D^{-2}`` (row-scaled minimum norm) when ``weights`` is None, else
+    ``W = diag(weights)`` (compliances; zero for constraints whose multiplier is determined).
+    """
+    s = J.shape[0]
+    lam = np.zeros(s)
+    lam[list(rows)] = lam_rows
+    if len(rows) == s:
+        return lam
+    N = null_space(J, len(rows))
+    if weights is None:
+        D = row_scales(J)
+        w = np.where(D > 0.0, 1.0 / np.where(D > 0.0, D, 1.0) ** 2, 0.0)
+    else:
+        w = np.asarray(weights, float)
+    NtW = N.T * w[None, :]
+    y = -np.linalg.solve(NtW @ N, NtW @ lam)
+    return lam + N @ y
+
+
+def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None, seed: int = 0) -> Redundancy | None:
+    """The :class:`Redundancy` of the constraint blocks, or None when ``J`` has full row rank.
+
+    ``constraints`` are the model's :class:`~appell.model.Constraint` objects (for their
+    compliances); ``at`` the known values (parameters, initial state, programs at t = 0).
+    """
+    J = sp.Matrix(cons.jacobian)
+    s = J.shape[0]
+    if s == 0:
+        return None
+    generic = [numeric_jacobian(J, seed), numeric_jacobian(J, seed + 1)]
+    rank = max(len(independent_rows(Jn)) for Jn in generic)
+    if rank == s:
+        return None
+    ref, at_start = _at(J, at or {}, seed), True
+    if ref is None or len(independent_rows(ref)) != rank:
+        ref, at_start = max(generic, key=lambda Jn: len(independent_rows(Jn))), False
+    rows = independent_rows(ref)
+    N = null_space(ref, rank)
+    N = N * np.where(N[np.abs(N).argmax(axis=0), np.arange(N.shape[1])] < 0, -1.0, 1.0)[None, :]
+    big = np.abs(N).max(axis=0, initial=0.0)
+    involved = tuple(i for i in range(s) if np.any(np.abs(N[i]) > INVOLVED_TOL * big))
+    compliance = tuple(getattr(c, "compliance", None) for c in constraints)
+    given = [cons.names[i] for i in involved if compliance[i] is not None]
+    missing = [cons.names[i] for i in involved if compliance[i] is None]
+    if given and missing:
+        raise ModelError(
+            "compliances split the reactions of redundant constraints only when every constraint of the "
+            f"undetermined set has one: {', '.join(given)} have a compliance, {', '.join(missing)} have none",
+            hint="give a compliance to " + ", ".join(missing) + " as well, or to none of "
+                 + ", ".join(cons.names[i] for i in involved) + " (minimum-norm split)",
+        )
+    return Redundancy(cons, tuple(rows), tuple(i for i in range(s) if i not in rows), N, involved,
+                      compliance, at_start)
+
+
+def _at(J: sp.Matrix, at: dict, seed: int) -> np.ndarray | None:
+    """``J`` at the known values (generic values for the rest), None if not finite."""
+    if not at:
+        return None
+    vals = {**generic_values(J.free_symbols - set(at), seed), **{k: v for k, v in at.items() if k in J.free_symbols}}
+    try:
+        Jn = np.array(J.xreplace(vals).evalf(), dtype=float).reshape(J.shape)
+    except (TypeError, ValueError):
+        return None
+    return Jn if np.all(np.isfinite(Jn)) else None
+
+
+def check_consistency(red: Redundancy, kin, at: dict, seed: int = 0) -> None:
+    """Refuse redundant constraints that cannot hold together with the independent ones.
+
+    From the model's start (generic values where it gives none), Gauss–Newton brings the
+    coordinates onto the independent holonomic constraints, then the speeds onto the
+    independent first-order ones; there every redundant constraint must hold, at the
+    position, velocity and (constraints linear in ``a``) acceleration level
+    (``c`` in the range of ``J``), each within :data:`CONSISTENCY_TOL` relative.
+    Raises :class:`ModelError` naming the redundant constraint and those it depends on.
+    """
+    cons = red.constraints
+    q, w = list(kin.coordinates), list(kin.speeds)
+    fixed = {k: v for k, v in at.items() if k not in set(q) | set(w)}
+    start = {**generic_values(set(q) | set(w), seed), **{k: v for k, v in at.items() if k in set(q) | set(w)}}
+    x = np.array([start[s] for s in q], float)
+    v = np.array([start[s] for s in w], float)
+    rows, others = list(red.independent), list(red.redundant)
+
+    def compiled(exprs, wrt, args):
+        m = sp.Matrix([sp.sympify(e).xreplace(fixed) for e in exprs]) if exprs else sp.zeros(0, 1)
+        jac = m.jacobian(sp.Matrix(wrt)) if exprs else sp.zeros(0, len(wrt))
+        if (m.free_symbols | jac.free_symbols) - set(args):
+            return None  # unknown symbols (time-dependent programs...): not judged here
+        return sp.lambdify(args, [m, jac], modules="numpy")
+
+    def solve_level(level_exprs, unknown, args_of, values):
+        kept = [i for i in rows if level_exprs[i] is not None]
+        fn = compiled([level_exprs[i] for i in kept], unknown, q + w)
+        if fn is None:
+            return None
+        for _ in range(30):
+            F, JF = (np.asarray(a, float) for a in fn(*args_of(values)))
+            F = F.reshape(-1)
+            if not F.size or np.max(np.abs(F)) < 1e-14 * (1 + np.max(np.abs(values))):
+                break
+            values = values - np.linalg.lstsq(JF.reshape(F.size, -1), F, rcond=None)[0]
+        return values
+
+    with np.errstate(all="ignore"):
+        try:
+            x = solve_level(cons.position_residual, q, lambda xx: list(xx) + list(v), x)
+            if x is None:
+                return
+            v = solve_level(cons.velocity_residual, w, lambda vv: list(x) + list(vv), v)
+            if v is None:
+                return
+            bad = _inconsistent(cons, others, compiled, q, w, x, v, fixed)
+        except (TypeError, ValueError, ZeroDivisionError, np.linalg.LinAlgError):
+            return
+    if bad:
+        lines = []
+        for i, level, value in bad:
+            deps = [cons.names[j] for j in red.involved if j != i] or [cons.names[j] for j in rows]
+            lines.append(f"{cons.names[i]} ({level} residual {value:.3g} where {', '.join(deps)} hold)")
+        raise ModelError(
+            "redundant constraints are inconsistent: no state satisfies all of them; " + "; ".join(lines),
+            hint="a redundant constraint must follow from the others (e.g. four table legs of lengths with "
+                 "L1 + L3 = L2 + L4 under a rigid plate); correct its expression or parameters, or remove "
+                 + ", ".join(cons.names[i] for i, _, _ in bad),
+        )
+
+
+def _inconsistent(cons, others, compiled, q, w, x, v, fixed) -> list:
+    """``(row, level, residual)`` of the redundant rows that fail at the projected state."""
+    bad = []
+    for i in others:
+        for level, expr, wrt, scale in (("position", cons.position_residual[i], q, x),
+                                        ("velocity", cons.velocity_residual[i], w, v)):
+            if expr is None:
+                continue
+            fn = compiled([expr], wrt, q + w)
+            if fn is None:
+                continue
+            F, JF = (np.asarray(a, float) for a in fn(*(list(x) + list(v))))
+            size = np.abs(JF).max(initial=0.0)
+            value = float(F.reshape(-1)[0])
+            if size > 0 and abs(value) / size > CONSISTENCY_TOL * (1 + np.max(np.abs(scale), initial=0.0)):
+                bad.append((i, level, value))
+                break
+        else:
+            if cons.orders[i] == 2 and cons.linear:
+                vals = {**fixed, **dict(zip(q, x)), **dict(zip(w, v))}
+                try:
+                    Jn = np.array(sp.Matrix(cons.jacobian).xreplace(vals).evalf(), dtype=float)
+                    c = np.array(sp.Matrix(cons.bias).xreplace(vals).evalf(), dtype=float).reshape(-1)
+                except (TypeError, ValueError):
+                    continue
+                D = row_scales(Jn)
+                A, b = Jn * D[:, None], c * D
+                res = b - A @ np.linalg.lstsq(A, b, rcond=None)[0]
+                if abs(res[i]) > CONSISTENCY_TOL * (1 + np.abs(b).max(initial=0.0)):
+                    bad.append((i, "acceleration", float(res[i] / D[i])))
+    return bad
