@@ -2,7 +2,13 @@
 
 The integrator is driven step by step through SciPy's ``OdeSolver`` interface (the
 classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``,
-``RK23``, ``Radau``, ``BDF``, ``LSODA``). After every accepted step:
+``RK23``, ``Radau``, ``BDF``, ``LSODA``). With ``method="DOP853"`` (the default) on a compiled
+model whose constraints are linear in ``a`` (``derivation.compiled('c')``, the command
+line's C backend) the compiled loop of :mod:`appell.numerics.compiled_loop` takes SciPy's
+place: the same scheme and step control in C, which runs the steps that need nothing of
+Python (no projection due, no watched events) and records their output times there, and
+hands every other step to the logic below as SciPy's class would. ``"DOP853-scipy"`` (or the
+class ``scipy.integrate.DOP853``) keeps SciPy's, the reference. After every accepted step:
 
 1. the model is evaluated at the step's end (multipliers for events, the partition of
    dependent accelerations for the switch log);
@@ -20,7 +26,9 @@ classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``
 4. the output times inside the step are filled from the dense output (projected as in 3
    with ``project_output=True``); at each the model is evaluated again, so that every
    acceleration (the speed part of ``dy/dt``), multiplier, control and residual is the
-   one of the recorded state.
+   one of the recorded state. The times of one step are interpolated at once and, for a
+   compiled model, evaluated in one C call; every recorded row passes through
+   ``_Run.add_block``.
 
 ``stabilization='baumgarte'`` instead integrates ``f + 2 alpha phi + beta^2 F = 0`` in
 place of ``f = 0`` (Baumgarte 1972); the model must accept ``bias=`` in ``evaluate``
@@ -67,9 +75,10 @@ from appell.simulation.solution import EventRecord, ModelMetadata, Solution, Sol
 
 __all__ = ["simulate", "project", "METHODS"]
 
-#: integrators by name (SciPy's OdeSolver classes)
-METHODS = {"DOP853": si.DOP853, "RK45": si.RK45, "RK23": si.RK23, "Radau": si.Radau, "BDF": si.BDF,
-           "LSODA": si.LSODA}
+#: integrators by name (SciPy's OdeSolver classes); "DOP853" on a compiled model runs the
+#: compiled loop (:mod:`appell.numerics.compiled_loop`), "DOP853-scipy" always SciPy's class
+METHODS = {"DOP853": si.DOP853, "DOP853-scipy": si.DOP853, "RK45": si.RK45, "RK23": si.RK23, "Radau": si.Radau,
+           "BDF": si.BDF, "LSODA": si.LSODA}
 
 KINDS = {0: "holonomic", 1: "first-order", 2: "second-order"}
 
@@ -388,7 +397,8 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         ``t_end`` defaults to the model's ``t_end``, else
         :data:`~appell.simulation.defaults.DEFAULT_T_END`.
     t_eval : output times (default 501 equally spaced in [t0, t_end]).
-    method : name in :data:`METHODS` or an ``OdeSolver`` subclass.
+    method : name in :data:`METHODS` or an ``OdeSolver`` subclass; ``"DOP853"`` on a compiled
+        model is the compiled loop (module docstring), ``"DOP853-scipy"`` SciPy's class.
     rtol, atol, max_step : integrator tolerances and largest step.
     stabilization : ``'projection'`` (default), ``'baumgarte'`` or None (module docstring).
     baumgarte : ``(alpha, beta)`` of ``f + 2 alpha phi + beta^2 F = 0``.
@@ -462,6 +472,8 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     run = _Run(model, system, p, names, (), settings)
     # the compiled loop integrates DOP853 where the model is compiled (SciPy's class is the reference)
     compiled = method == "DOP853"
+    if compiled and supports(model):
+        settings["method"] = "DOP853 (compiled loop)"
     opened = _open_contacts(model, system, initial, signs, t0, p) if system is not None else ()
     run.released = list(opened)
     init = _initial_state(run.model(run.released), initial, complete, adjust, t0, p)
