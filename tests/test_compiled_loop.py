@@ -225,3 +225,48 @@ def test_only_compiled_models_linear_in_a(knife):
     assert supports(knife) and not supports(d.numeric)
     with pytest.raises(ComputationError, match="compiled model"):
         CompiledLoop(d.numeric)
+
+
+def test_a_tolerance_per_state_runs_scipys_dop853(car):
+    """The C loop takes one absolute tolerance; with one per state simulate runs SciPy's
+    class, and the solver line says which ran."""
+    atol = np.full(len(car.state_names), 1e-12)
+    t_eval = np.linspace(0.0, 1.0, 11)
+    per_state = simulate(car, 1.0, t_eval=t_eval, atol=atol, complete=True, progress=False)
+    one = simulate(car, 1.0, t_eval=t_eval, atol=1e-12, complete=True, progress=False)
+    assert per_state.metadata.settings["method"] == "DOP853"
+    assert one.metadata.settings["method"] == "DOP853 (compiled loop)"
+    _agree(per_state, one, 1e-8)
+
+
+def test_fast_calls_equal_plain_ctypes_calls(chain):
+    """The compiled model's calls through the fast-call extension (inputs copied into fixed
+    arrays) give bit for bit what a plain ctypes call of the same C function gives; a state
+    of the wrong length is refused by name, never broadcast into the fixed arrays."""
+    import ctypes
+
+    from appell.errors import ModelError
+    from appell.numerics.codegen_c import caller
+
+    assert caller() is not None  # built here: the Python headers are present
+    y = chain_state(chain)
+    p = chain.default_parameters.copy()
+    nq, ny, s = len(chain.coordinate_names), len(y), len(chain.constraint_names)
+    lib = chain._lib
+    dy, lam, F, phi = np.empty(ny), np.empty(s), np.empty(s), np.empty(s)
+    assert lib.appell_evaluate(0.3, y.ctypes.data, p.ctypes.data, None, chain._default_dep.ctypes.data, 1e4,
+                               dy.ctypes.data, lam.ctypes.data) == 0
+    ev = chain.evaluate(0.3, y, p)
+    assert np.array_equal(ev.derivative, dy) and np.array_equal(ev.multipliers, lam)
+    q, w = y[:nq].copy(), y[nq:].copy()
+    lib.appell_residuals(0.3, q.ctypes.data, w.ctypes.data, None, p.ctypes.data, F.ctypes.data, phi.ctypes.data)
+    F_fast, phi_fast = chain.state_residuals(0.3, y, p)
+    assert np.array_equal(F_fast, F) and np.array_equal(phi_fast, phi)
+    rates = np.empty(nq)
+    lib.appell_rates(0.3, q.ctypes.data, w.ctypes.data, None, p.ctypes.data, rates.ctypes.data)
+    assert np.array_equal(chain.coordinate_rates(0.3, q, w, p), rates)
+    assert isinstance(ctypes.cast(lib.appell_evaluate, ctypes.c_void_p).value, int)
+    with pytest.raises(ModelError, match="coordinates"):
+        chain.evaluate(0.3, y[:1], p)
+    with pytest.raises(ModelError, match="entries, got shape"):
+        chain.evaluate(0.3, y[:, None], p)

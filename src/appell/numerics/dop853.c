@@ -118,6 +118,9 @@ void appell_loop_set_switched(appell_loop *c, int switched) { c->switched = swit
 
 static double nan0(double x) { return isnan(x) ? 0.0 : x; }
 
+/* the larger of a and b, NaN if either is (as numpy.maximum; fmax would drop the NaN) */
+static double max_nan(double a, double b) { return (isnan(a) || isnan(b)) ? NAN : (a > b ? a : b); }
+
 /* dy/dt and the multipliers at (t, y): the compiled split (with the Baumgarte bias
    2 alpha phi + beta^2 F when asked), else Python. 0, or -1 when it failed. */
 static int model(appell_loop *c, double t, const double *y, double *dy, double *lam)
@@ -227,7 +230,7 @@ static int step(appell_loop *c)
         for (int i = 0; i < ny; ++i) {
             double a5 = 0.0, a3 = 0.0;
             for (int j = 0; j <= NS; ++j) { a5 += K[j * ny + i] * E5_[j]; a3 += K[j * ny + i] * E3_[j]; }
-            scale[i] = c->atol + fmax(fabs(y[i]), fabs(y_new[i])) * c->rtol;
+            scale[i] = c->atol + max_nan(fabs(y[i]), fabs(y_new[i])) * c->rtol;
             a5 /= scale[i]; a3 /= scale[i];
             e5 += a5 * a5; e3 += a3 * a3;
         }

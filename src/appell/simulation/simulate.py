@@ -471,7 +471,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         settings["rest_speed"] = rest_speed
     run = _Run(model, system, p, names, (), settings)
     # the compiled loop integrates DOP853 where the model is compiled (SciPy's class is the reference)
-    compiled = method == "DOP853"
+    compiled = method == "DOP853" and np.ndim(atol) == 0  # the C loop takes one absolute tolerance
     if compiled and supports(model):
         settings["method"] = "DOP853 (compiled loop)"
     opened = _open_contacts(model, system, initial, signs, t0, p) if system is not None else ()
