@@ -37,6 +37,7 @@ def main():
         [py, HERE / "derivation.py"] + (["--sizes", "2,4,6,8,10", "--limit", "20"] if args.quick else ["--limit", "60"]),
         [py, HERE / "evaluation.py", "--n", "10"] + (["--explicit-limit", "30"] if args.quick else []),
         [py, HERE / "car_simulation.py"],
+        [py, HERE / "loop.py"] + (["--repeats", "5", "--chain", "4"] if args.quick else []),
         [py, HERE / "scaling.py"] + (["--sizes", "2,5,10"] if args.quick else []),
     ]
     text = [f"machine: {machine()}"]

@@ -34,8 +34,10 @@ import shlex
 import shutil
 import subprocess
 import tempfile
+import threading
 import warnings
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +45,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from appell.numerics.dynamics import Evaluation
+from appell.numerics import fastcall
 from appell.errors import ComputationError, ModelError, ResourceError
 from appell.numerics.numeric import KEEP_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
 from appell.numerics.redundant import with_redundancy
@@ -491,12 +494,46 @@ _EMPTY = np.zeros(0)
 _EMPTY.flags.writeable = False
 
 
+def caller():
+    """The fast-call extension (:mod:`appell.numerics.fastcall`), built into the cache on first
+    use, or None (ctypes is used then)."""
+    def build(source, command):
+        path, _ = build_library(source, command)
+        return load_library(path, source, command)[1]
+
+    return fastcall.caller(build, find_compiler())
+
+
 def _ptr(x: np.ndarray) -> int:
     return x.ctypes.data
 
 
 def _vec(x) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=float)
+
+
+class _Scratch(threading.local):
+    """Arrays at fixed addresses, one set per thread: the inputs of a C call copied in and its
+    outputs. Taking a NumPy array's address through ctypes costs more than the call itself
+    (about 3 us each, against 0.5 us for a copy), so the addresses are taken once."""
+
+    def __init__(self, sizes, shapes=()):
+        self.inputs = [np.empty(k) for k in sizes]
+        self.outputs = [np.empty(shape) for shape in shapes]
+        self.in_addr = tuple(a.ctypes.data for a in self.inputs)
+        self.out_addr = tuple(a.ctypes.data for a in self.outputs)
+
+
+def _fill(buffer: np.ndarray, x) -> bool:
+    """Copy ``x`` into ``buffer`` when it is a flat sequence of the buffer's length (never
+    broadcast: a wrong size is left to the checks of the slow path, which name it)."""
+    try:
+        if len(x) != buffer.shape[0]:
+            return False
+        buffer[:] = x
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 @dataclass(frozen=True)
@@ -520,12 +557,29 @@ class CompiledNumericModel(NumericModel):
         # addresses of the arrays that do not change between calls (ctypes overhead)
         self._formula["dep"] = tuple(int(i) for i in self._default_dep)
         self._formula["addr"] = (self.default_parameters.ctypes.data, self._default_dep.ctypes.data)
+        ny, s = len(self.state_names), len(self._default_dep)
+        self._formula["evaluate_scratch"] = _Scratch((ny,), ((ny,), (s,)))
+        self._formula["residual_scratch"] = _Scratch((ny,), ((s,), (s,)))
+        self._formula["no_level"] = (np.flatnonzero(~self.has_position), np.flatnonzero(~self.has_velocity))
+        lib, fast = self._lib, caller()
+        if lib is not None and hasattr(lib, "appell_evaluate"):
+            self._formula["evaluate"] = (lib.appell_evaluate if fast is None else
+                                         partial(fast.evaluate, ctypes.cast(lib.appell_evaluate, _P).value))
+        if lib is not None:
+            self._formula["residuals"] = (lib.appell_residuals if fast is None else
+                                          partial(fast.expr, ctypes.cast(lib.appell_residuals, _P).value))
 
     def _param_address(self, pv: np.ndarray) -> tuple[np.ndarray, int]:
         if pv is self.default_parameters:
             return pv, self._formula["addr"][0]
-        pv = _vec(pv)
-        return pv, _ptr(pv)
+        last = self._formula.get("last_parameters")
+        if last is not None and last[0] is pv:  # the same array again (a simulation's): its address holds
+            return last
+        given, pv = pv, _vec(pv)
+        out = (pv, _ptr(pv))
+        if pv is given:
+            self._formula["last_parameters"] = out
+        return out
 
     def solve(self, t, q, w, p=None, dependent=None, bias=None) -> StateSolution:
         """Accelerations (1.4) and every multiplier (1.5) at (t, q, w), in C; ``bias`` is
@@ -559,21 +613,41 @@ class CompiledNumericModel(NumericModel):
             sol = self.solve(t, q, w, pv, dependent, bias)
             return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
                               sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
-        y = _vec(y)
-        if y.shape != (len(self.state_names),):
+        scratch = self._formula["evaluate_scratch"]
+        if not _fill(scratch.inputs[0], y):
+            y = _vec(y)
             self.checked_state(*self.split_state(y.reshape(-1)))  # names the sizes
             raise ModelError(f"the state of {self.name!r} has {len(self.state_names)} entries, got shape {y.shape}")
         pv, paddr = self._param_address(self.params(p))
         bv = None if bias is None else _bias(bias, len(self._default_dep))
-        dy, lam = np.empty(len(y)), np.empty(len(self._default_dep))
-        status = self._lib.appell_evaluate(float(t), _ptr(y), paddr, None if bv is None else _ptr(bv),
-                                           self._formula["addr"][1], KEEP_CONDITION, _ptr(dy), _ptr(lam))
+        status = self._formula["evaluate"](float(t), scratch.in_addr[0], paddr, None if bv is None else _ptr(bv),
+                                           self._formula["addr"][1], KEEP_CONDITION, *scratch.out_addr)
         if status != 0:
-            q, w = self.split_state(y)
+            q, w = self.split_state(scratch.inputs[0].copy())
             sol = self._fallback_solve(t, q, w, pv, None, bias)
             return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
                               sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
-        return Evaluation(dy, lam, _EMPTY, self._formula["dep"], False)
+        dy, lam = scratch.outputs
+        return Evaluation(dy.copy(), lam.copy(), _EMPTY, self._formula["dep"], False)
+
+
+    def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`~appell.numerics.numeric.NumericModel.state_residuals` in one C call on the
+        state vector (``q`` and ``w`` are its two parts, read in place)."""
+        scratch = self._formula["residual_scratch"]
+        if self._lib is None or not _fill(scratch.inputs[0], y):
+            return super().state_residuals(t, y, p)
+        _, paddr = self._param_address(self.params(p))
+        y_addr = scratch.in_addr[0]
+        self._formula["residuals"](float(t), y_addr, y_addr + 8 * len(self.coordinate_names), None, paddr,
+                                   *scratch.out_addr)
+        F, phi = scratch.outputs[0].copy(), scratch.outputs[1].copy()
+        no_position, no_velocity = self._formula["no_level"]
+        if no_position.size:
+            F[no_position] = np.nan
+        if no_velocity.size:
+            phi[no_velocity] = np.nan
+        return F, phi
 
 
 def _bias(bias, s: int) -> np.ndarray:
@@ -584,9 +658,21 @@ def _bias(bias, s: int) -> np.ndarray:
     return bv
 
 
-def _wrap(fn, shapes, with_acc=False):
-    """A Python callable with the signature of the lambdified NumPy function."""
+def _wrap(fn, shapes, sizes, with_acc=False):
+    """A Python callable with the signature of the lambdified NumPy function; ``sizes`` are
+    the lengths of the inputs ``q, w, (a,) p``, copied into per-thread arrays whose addresses
+    are taken once (:class:`_Scratch`); inputs of other lengths go the slow way."""
+    scratch = _Scratch(sizes, shapes)
+
+    fast = caller()
+    run = partial(fast.expr, ctypes.cast(fn, _P).value) if fast is not None else fn
+
     def call(t, q, w, *rest):
+        work = scratch
+        if all(_fill(b, x) for b, x in zip(work.inputs, (q, w, *rest))) and len(rest) == len(sizes) - 2:
+            addr = work.in_addr
+            run(float(t), addr[0], addr[1], addr[2] if with_acc else None, addr[-1], *work.out_addr)
+            return [o.copy() for o in work.outputs]
         a, p = (rest[0], rest[1]) if with_acc else (None, rest[0])
         q, w, p = _vec(q), _vec(w), _vec(p)
         outs = [np.empty(shape) for shape in shapes]
@@ -637,6 +723,7 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         return with_redundancy(compile_model(derivation))
     kin, cons = derivation.kinematics, derivation.constraints
     n, s, nq = len(kin.speeds), cons.count, len(kin.coordinates)
+    npar = len(derivation.system.parameters)
     expr_args = [_D, _P, _P, _P, _P]
     lib.appell_blocks.argtypes = expr_args + [_P] * 4
     lib.appell_blocks.restype = None
@@ -653,16 +740,16 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
     else:
         lib.appell_constraint.argtypes = expr_args + [_P] * 2
         lib.appell_constraint.restype = None
-        cfun = _wrap(lib.appell_constraint, [(s,), (s, n)], with_acc=True)
+        cfun = _wrap(lib.appell_constraint, [(s,), (s, n)], (nq, n, n, npar), with_acc=True)
     system = derivation.system
     return with_redundancy(CompiledNumericModel(
         derivation=derivation,
         parameters=tuple(p.symbol for p in system.parameters),
         default_parameters=np.array([p.value for p in system.parameters], dtype=float),
-        blocks=_wrap(lib.appell_blocks, [(n, n), (n,), (s, n), (s,)]),
+        blocks=_wrap(lib.appell_blocks, [(n, n), (n,), (s, n), (s,)], (nq, n, npar)),
         constraint_function=cfun,
-        rates=_wrap(lib.appell_rates, [(nq,)]),
-        residuals=_wrap(lib.appell_residuals, [(s,), (s,)]),
+        rates=_wrap(lib.appell_rates, [(nq,)], (nq, n, npar)),
+        residuals=_wrap(lib.appell_residuals, [(s,), (s,)], (nq, n, npar)),
         has_position=np.array([e is not None for e in cons.position_residual], dtype=bool),
         has_velocity=np.array([e is not None for e in cons.velocity_residual], dtype=bool),
         library_path=path,

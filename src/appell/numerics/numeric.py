@@ -241,9 +241,9 @@ class NumericModel:
         """Parameter vector from None, an array or a ``{name: value}`` mapping."""
         if p is None:
             return self.default_parameters
-        names = [s.name for s in self.parameters]
-        if isinstance(p, np.ndarray) and p.dtype == float and p.shape == (len(names),):
+        if isinstance(p, np.ndarray) and p.dtype == float and p.shape == self.default_parameters.shape:
             return p  # the fast path of the integrator (checked once by simulate)
+        names = [s.name for s in self.parameters]
         if isinstance(p, Mapping):
             out = self.default_parameters.copy()
             for k, v in p.items():

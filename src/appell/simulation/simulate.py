@@ -2,7 +2,13 @@
 
 The integrator is driven step by step through SciPy's ``OdeSolver`` interface (the
 classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``,
-``RK23``, ``Radau``, ``BDF``, ``LSODA``). After every accepted step:
+``RK23``, ``Radau``, ``BDF``, ``LSODA``). With ``method="DOP853"`` (the default) on a compiled
+model whose constraints are linear in ``a`` (``derivation.compiled('c')``, the command
+line's C backend) the compiled loop of :mod:`appell.numerics.compiled_loop` takes SciPy's
+place: the same scheme and step control in C, which runs the steps that need nothing of
+Python (no projection due, no watched events) and records their output times there, and
+hands every other step to the logic below as SciPy's class would. ``"DOP853-scipy"`` (or the
+class ``scipy.integrate.DOP853``) keeps SciPy's, the reference. After every accepted step:
 
 1. the model is evaluated at the step's end (multipliers for events, the partition of
    dependent accelerations for the switch log);
@@ -20,7 +26,9 @@ classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``
 4. the output times inside the step are filled from the dense output (projected as in 3
    with ``project_output=True``); at each the model is evaluated again, so that every
    acceleration (the speed part of ``dy/dt``), multiplier, control and residual is the
-   one of the recorded state.
+   one of the recorded state. The times of one step are interpolated at once and, for a
+   compiled model, evaluated in one C call; every recorded row passes through
+   ``_Run.add_block``.
 
 ``stabilization='baumgarte'`` instead integrates ``f + 2 alpha phi + beta^2 F = 0`` in
 place of ``f = 0`` (Baumgarte 1972); the model must accept ``bias=`` in ``evaluate``
@@ -56,6 +64,7 @@ from scipy.optimize import brentq
 
 from appell.errors import AppellError, ComputationError, ModelError
 from appell.arguments import number, vector
+from appell.numerics.compiled_loop import CompiledLoop, LoopSolver, Outputs, supports
 from appell.numerics.inertia import check_inertia
 from appell.simulation.defaults import with_model_defaults
 from appell.simulation.events import check_event_names, contact_watch, watches_for
@@ -68,9 +77,10 @@ from appell.simulation.solution import EventRecord, ModelMetadata, Solution, Sol
 
 __all__ = ["simulate", "project", "METHODS"]
 
-#: integrators by name (SciPy's OdeSolver classes)
-METHODS = {"DOP853": si.DOP853, "RK45": si.RK45, "RK23": si.RK23, "Radau": si.Radau, "BDF": si.BDF,
-           "LSODA": si.LSODA}
+#: integrators by name (SciPy's OdeSolver classes); "DOP853" on a compiled model runs the
+#: compiled loop (:mod:`appell.numerics.compiled_loop`), "DOP853-scipy" always SciPy's class
+METHODS = {"DOP853": si.DOP853, "DOP853-scipy": si.DOP853, "RK45": si.RK45, "RK23": si.RK23, "Radau": si.Radau,
+           "BDF": si.BDF, "LSODA": si.LSODA}
 
 KINDS = {0: "holonomic", 1: "first-order", 2: "second-order"}
 
@@ -158,9 +168,10 @@ class _Run:
         self.root, self.system, self.p = model, system, p
         self.names, self.kinds = names, kinds
         self.settings = settings
-        self.rows_t, self.rows_y, self.rows_lam, self.rows_ctl = [], [], [], []
-        self.rows_F, self.rows_phi, self.rows_track = [], [], []
-        self.rows_acc = []
+        self.blocks: list[tuple] = []  # recorded rows, in time order (add_block)
+        self.columns: dict = {}  # per model: its constraints' columns among the run's
+        self.loops: dict = {}  # per model: its compiled-loop context (None where it has none)
+        self.outputs: dict = {}  # per model: the rows the compiled loop records into
         nq = len(model.coordinate_names)
         self.speed_part = slice(nq, nq + len(model.speed_names))
         self.tracking_names = tuple(getattr(model, "servo_names", ()))
@@ -174,7 +185,6 @@ class _Run:
         self.contact_times: dict[str, tuple[float, int]] = {}
         self.laws = getattr(model, "laws", None)  # frictions (appell.numerics.friction)
         self.sticking, self.directions, self.signs = frozenset(), {}, {}
-        self.rows_friction = []
 
     def model(self, released):
         """The model without the ``released`` constraints (derived once per set)."""
@@ -241,18 +251,75 @@ class _Run:
                 y = project(model, t, y, self.p)
                 F, phi = model.state_residuals(t, y, self.p)
         ev = self.evaluate(model, t, y) if ev is None else ev
-        self.rows_t.append(float(t))
-        self.rows_y.append(np.array(y, float))
-        self.rows_acc.append(np.asarray(ev.derivative, float)[self.speed_part])  # dw/dt: the accelerations
-        self.rows_lam.append(self.by_name(model, ev.multipliers, 0.0))
-        self.rows_ctl.append(np.asarray(ev.controls, float))
-        self.rows_F.append(self.by_name(model, F, np.nan))
-        self.rows_phi.append(self.by_name(model, phi, np.nan))
-        if self.laws is not None:
-            self.rows_friction.append(np.asarray(ev.friction, float))
-        if self.tracking_names:
-            self.rows_track.append(np.asarray(model.tracking_residuals(t, y, self.p), float))
+        track = model.tracking_residuals(t, y, self.p) if self.tracking_names else ()
+        fric = [np.asarray(ev.friction, float)] if self.laws is not None else None
+        self.add_block(model, [t], [y], [np.asarray(ev.derivative, float)[self.speed_part]], [ev.multipliers],
+                       [ev.controls], [F], [phi], [track], fric)
         self.note_partition(model, t, ev)
+
+    def record_many(self, model, ts, dense):
+        """Record the output times ``ts`` inside a step from its dense output: the states
+        interpolated at once, then, for a model of the compiled loop, the model and its
+        residuals at all of them in one C call (:meth:`CompiledLoop.evaluate_many`), else
+        one :meth:`record` per time."""
+        if len(ts) == 0:
+            return
+        ys = np.asarray(dense(np.asarray(ts, float)), float).T
+        loop = self.loop(model)
+        if loop is None or self.settings["project_output"]:
+            for tk, yk in zip(ts, ys):
+                self.record(model, tk, yk)
+            return
+        acc, lam, F, phi = loop.evaluate_many(ts, ys)
+        self.add_block(model, ts, ys, acc, lam, np.zeros((len(ts), 0)), F, phi)
+
+    def add_block(self, model, ts, ys, acc, lam, ctl, F, phi, track=None, friction=None):
+        """Append recorded rows (the one place every output row passes): times, states,
+        accelerations, the model's multipliers, controls, residuals and friction forces (one row per time);
+        multipliers and residuals go to the run's constraint columns (0 and NaN for the
+        constraints the model lacks, released ones)."""
+        m = len(ts)
+        cols = self.columns.get(id(model))
+        if cols is None:
+            own = list(model.constraint_names)
+            cols = np.array([own.index(n) if n in own else -1 for n in self.names], dtype=int)
+            self.columns[id(model)] = cols
+        have = cols >= 0
+
+        def by_name(values, fill):
+            values = np.asarray(values, float).reshape(m, -1)
+            out = np.full((m, len(self.names)), fill)
+            out[:, have] = values[:, cols[have]]
+            return out
+
+        track = np.zeros((m, len(self.tracking_names))) if track is None else track
+        width = len(self.laws.columns) if self.laws is not None else 0
+        friction = np.zeros((m, width)) if friction is None else friction
+        self.blocks.append((np.asarray(ts, float).reshape(m), np.asarray(ys, float).reshape(m, -1),
+                            np.asarray(acc, float).reshape(m, -1), by_name(lam, 0.0),
+                            np.asarray(ctl, float).reshape(m, -1), by_name(F, np.nan), by_name(phi, np.nan),
+                            np.asarray(track, float).reshape(m, len(self.tracking_names)),
+                            np.asarray(friction, float).reshape(m, width)))
+
+    def loop(self, model):
+        """The compiled-loop context of ``model`` (:class:`CompiledLoop`, evaluating through
+        :meth:`evaluate` where the compiled split refuses a state), or None for a model it
+        cannot integrate."""
+        key = id(model)
+        if key not in self.loops:
+            self.loops[key] = None
+            if supports(model):
+                self.loops[key] = CompiledLoop(model, self.p, fallback=lambda t, y: self.evaluate(model, t, y),
+                                               baumgarte=self.settings.get("baumgarte"))
+        return self.loops[key]
+
+    def loop_outputs(self, model, t_eval):
+        """The rows the compiled loop of ``model`` records into (bound once per model)."""
+        out = self.outputs.get(id(model))
+        if out is None:
+            out = self.outputs[id(model)] = Outputs(model, len(t_eval))
+            self.loop(model).bind_outputs(t_eval, out)
+        return out
 
     def note_partition(self, model, t, ev):
         dep = tuple(ev.dependent)
@@ -282,24 +349,24 @@ class _Run:
 
     def solution(self, model, status, message) -> Solution:
         root = self.root
-        ys = np.array(self.rows_y).reshape(len(self.rows_t), -1)
-        lam = np.array(self.rows_lam, float).reshape(len(self.rows_t), len(self.names))
-        F = np.array(self.rows_F, float).reshape(lam.shape)
-        phi = np.array(self.rows_phi, float).reshape(lam.shape)
-        track = np.array(self.rows_track, float).reshape(len(self.rows_t), len(self.tracking_names))
-        ctl = np.array(self.rows_ctl, float).reshape(len(self.rows_t), len(root.control_names))
-        acc = np.array(self.rows_acc, float).reshape(len(self.rows_t), len(root.speed_names))
         friction_columns = self.laws.columns if self.laws is not None else ()
-        fr = np.array(self.rows_friction, float).reshape(len(self.rows_t), len(friction_columns))
+        widths = (1, len(root.state_names), len(root.speed_names), len(self.names), len(root.control_names),
+                  len(self.names), len(self.names), len(self.tracking_names), len(friction_columns))
+        if self.blocks:
+            cols = [np.concatenate([b[i] for b in self.blocks]) for i in range(len(widths))]
+        else:
+            cols = [np.zeros((0, w)) for w in widths]
+        t, ys, acc, lam, ctl, F, phi, track, fr = cols
+        t = t.reshape(-1)
         stats = SolverStatistics(self.nfev, self.steps, self.projections, self.switches, self.restarts)
-        columns = {"t": np.array(self.rows_t, float), **{n: ys[:, i] for i, n in enumerate(root.state_names)},
+        columns = {"t": t, **{n: ys[:, i] for i, n in enumerate(root.state_names)},
                    **{acceleration_name(n): acc[:, i] for i, n in enumerate(root.speed_names)},
                    **{f"lambda_{n}": lam[:, i] for i, n in enumerate(self.names)},
                    **{f"control_{n}": ctl[:, i] for i, n in enumerate(root.control_names)},
                    **dict(zip(root.parameter_names, (float(v) for v in self.p)))}
         outputs = recorded_outputs(self.system, columns)
         return Solution(
-            t=np.array(self.rows_t),
+            t=t,
             states={n: ys[:, i] for i, n in enumerate(root.state_names)},
             coordinate_names=tuple(root.coordinate_names), speed_names=tuple(root.speed_names),
             accelerations={acceleration_name(n): acc[:, i] for i, n in enumerate(root.speed_names)},
@@ -362,7 +429,8 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         ``t_end`` defaults to the model's ``t_end``, else
         :data:`~appell.simulation.defaults.DEFAULT_T_END`.
     t_eval : output times (default 501 equally spaced in [t0, t_end]).
-    method : name in :data:`METHODS` or an ``OdeSolver`` subclass.
+    method : name in :data:`METHODS` or an ``OdeSolver`` subclass; ``"DOP853"`` on a compiled
+        model is the compiled loop (module docstring), ``"DOP853-scipy"`` SciPy's class.
     rtol, atol, max_step : integrator tolerances and largest step.
     stabilization : ``'projection'`` (default), ``'baumgarte'`` or None (module docstring).
     baumgarte : ``(alpha, beta)`` of ``f + 2 alpha phi + beta^2 F = 0``.
@@ -436,6 +504,10 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     if signs:
         settings["rest_speed"] = rest_speed
     run = _Run(model, system, p, names, (), settings)
+    # the compiled loop integrates DOP853 where the model is compiled (SciPy's class is the reference)
+    compiled = method == "DOP853" and np.ndim(atol) == 0  # the C loop takes one absolute tolerance
+    if compiled and supports(model):
+        settings["method"] = "DOP853 (compiled loop)"
     opened = _open_contacts(model, system, initial, signs, t0, p) if system is not None else ()
     run.released = list(opened)
     init = _initial_state(run.model(run.released), initial, complete, adjust, t0, p)
@@ -462,7 +534,13 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
         if first_step is not None:
             kw["first_step"] = min(first_step, t_end - tt)
-        state["solver"] = solver_cls(fun, tt, yy, t_end, **kw)
+        loop = run.loop(state["active"]) if compiled else None
+        if loop is None:
+            state["solver"] = solver_cls(fun, tt, yy, t_end, **kw)
+            return
+        loop.set_switched(run.dependent is not None and run.dependent != loop.default_dependent)
+        state["solver"] = loop.solver(tt, yy, t_end, **kw)
+        run.nfev += state["solver"].counts()[0]
 
     def configure(tt, yy, released=(), bounced=(), when="at the start"):
         """The model without the released constraints, its evaluation, watches and their
@@ -530,7 +608,22 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         while t < t_end:
             solver = state["solver"]
             try:
-                msg = solver.step()
+                if isinstance(solver, LoopSolver):
+                    # the compiled loop: without watched events, the steps that need no
+                    # projection run and record in C; the last one is handled below
+                    k0, out = k, run.loop_outputs(active, t_eval)
+                    if watches or run.settings["project_output"]:
+                        msg = solver.step()
+                    else:
+                        k, msg = solver.advance(k, projection_tol if stabilization == "projection" else np.inf)
+                    if k > k0:
+                        ys_, acc_, lam_, F_, phi_ = out.rows(k0, k)
+                        run.add_block(active, t_eval[k0:k], ys_, acc_, lam_, np.zeros((k - k0, 0)), F_, phi_)
+                    nfev, steps = solver.counts()
+                    run.nfev += nfev
+                    run.steps += steps - 1
+                else:
+                    msg = solver.step()
             except AppellError as exc:
                 status, message = -1, f"the model could not be evaluated near t = {solver.t:.10g}: {exc}"
                 break
@@ -581,9 +674,9 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                 ts, i, w = stop
                 ys = np.array(dense(ts), float)
                 evs = run.evaluate(active, ts, ys)
-                while k < t_eval.size and t_eval[k] < ts:
-                    run.record(active, t_eval[k], dense(t_eval[k]))
-                    k += 1
+                before = int(np.searchsorted(t_eval, ts, side="left"))
+                run.record_many(active, t_eval[k:before], dense)
+                k = max(k, before)
                 if w.kind == "release":
                     run.event_record(active, w.kind, w.name, ts, ys, evs,
                                      f"lambda_{w.name} reaches zero: the unilateral constraint is released")
@@ -654,12 +747,13 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                     g_new = [w.g(t_new, y_new, ev_new, p) for w in watches]
                     run.projections += 1
                     restarted = True
-            while k < t_eval.size and t_eval[k] <= t_new:
-                if t_eval[k] == t_new:
+            inside = int(np.searchsorted(t_eval, t_new, side="right"))
+            if inside > k:
+                at_end = t_eval[inside - 1] == t_new
+                run.record_many(active, t_eval[k:inside - 1 if at_end else inside], dense)
+                if at_end:
                     run.record(active, t_new, y_new, ev_new)
-                else:
-                    run.record(active, t_eval[k], dense(t_eval[k]))
-                k += 1
+                k = inside
             run.note_partition(active, t_new, ev_new)
             if bar is not None:
                 bar.update(t_new - t)
