@@ -21,7 +21,7 @@ meaning:
 Joint reactions. For each SymPy joint ``J`` (parent P, child C, joint point ``J.child_point``)
 the six outputs ``F_J_x, F_J_y, F_J_z, M_J_x, M_J_y, M_J_z`` are the force and the moment
 (about the joint point) that the parent exerts on the child, components along ``N``: the
-Newton–Euler balance of the subtree ``B`` carried by the joint (C and every body beyond it),
+Newton–Euler balance of the subtree ``B`` carried by the joint (C and every body beyond it)::
 
     F_J = sum_{b in B} m_b a_b - sum_{loads on B} F,
     M_J = sum_{b in B} (r_b x m_b a_b + I_b alpha_b + omega_b x I_b omega_b)
