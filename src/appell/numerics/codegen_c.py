@@ -173,40 +173,65 @@ static double norm1(int n, const double *A)
     return best;
 }
 
-/* 0: solved; 1: the partition's relative condition number kappa reaches cond_max, or a row of J
-   vanishes (Python switches the partition or names the singular constraints); 2: not finite */
+/* Row scales D = 1 / max_j |J_rj|, the LU factors of D J_h and the partition's relative condition
+   number kappa = |(D J_h)^{-1}|_1 |D J|_1 (numeric.partition_condition). 0: usable; 1: kappa reaches
+   cond_max or a row of J vanishes (Python switches the partition or names the singular constraints) */
+static int scaled_block(const double *J, const int *dep, double cond_max, double *D, double *Jh, int *piv)
+{
+    double inv[DIM(S * S)], nrm = 0.0;
+    for (int r = 0; r < S; ++r) {
+        double big = 0.0;
+        for (int i = 0; i < N; ++i) if (fabs(J[r * N + i]) > big) big = fabs(J[r * N + i]);
+        if (!(big > 0.0) || !isfinite(big)) return 1;
+        D[r] = 1.0 / big;
+    }
+    for (int i = 0; i < N; ++i) {
+        double s = 0.0;
+        for (int r = 0; r < S; ++r) s += fabs(J[r * N + i]) * D[r];
+        if (s > nrm) nrm = s;
+    }
+    for (int r = 0; r < S; ++r) for (int k = 0; k < S; ++k) Jh[r * S + k] = D[r] * J[r * N + dep[k]];
+    if (lu_factor(S, Jh, piv)) return 1;
+    for (int k = 0; k < S; ++k) {          /* columns of (D J_h)^{-1}, for kappa */
+        double e[DIM(S)];
+        for (int r = 0; r < S; ++r) e[r] = (r == k);
+        lu_solve(S, Jh, piv, e);
+        for (int r = 0; r < S; ++r) inv[r * S + k] = e[r];
+    }
+    return !(nrm * norm1(S, inv) < cond_max);
+}
+
+/* (1.5): lambda = D (D J_h)^{-T} E_h with E = M a + h - Q, R = J^T lambda; 2 if a or lambda is not finite */
+static int reactions(const double *E, const double *J, const int *dep, const double *D, const double *Jh,
+                     const int *piv, const double *a, double *lam, double *R)
+{
+    if (S > 0) {
+        for (int r = 0; r < S; ++r) lam[r] = E[dep[r]];
+        lu_solve_t(S, Jh, piv, lam);
+        for (int r = 0; r < S; ++r) lam[r] *= D[r];
+    }
+    for (int i = 0; i < N; ++i) {
+        double s = 0.0;
+        for (int r = 0; r < S; ++r) s += J[r * N + i] * lam[r];
+        R[i] = s;
+    }
+    for (int i = 0; i < N; ++i) if (!isfinite(a[i])) return 2;
+    for (int r = 0; r < S; ++r) if (!isfinite(lam[r])) return 2;
+    return 0;
+}
+
+/* 0: solved; 1: the partition is unusable (scaled_block); 2: not finite or C^T M C singular */
 int appell_split(const double *M, const double *hQ, const double *J, const double *c, const int *dep,
                  double cond_max, double *a, double *lam, double *R)
 {
     int isdep[N] = {0}, ind[DIM(P)], piv[DIM(S)], pivA[DIM(P)];
-    double Jh[DIM(S * S)], inv[DIM(S * S)], D[DIM(S)], X[DIM(S * P)], d[N], A[DIM(P * P)], b[DIM(P)];
+    double Jh[DIM(S * S)], D[DIM(S)], X[DIM(S * P)], d[N], A[DIM(P * P)], b[DIM(P)];
     double MC[DIM(N * P)], Md[N], E[N];
     for (int k = 0; k < S; ++k) isdep[dep[k]] = 1;
     for (int i = 0, j = 0; i < N; ++i) if (!isdep[i]) ind[j++] = i;
     for (int i = 0; i < N; ++i) d[i] = 0.0;
     if (S > 0) {
-        /* row scales D = 1 / max_j |J_rj| and kappa = |(D J_h)^{-1}|_1 |D J|_1 (numeric.partition_condition) */
-        double nrm = 0.0;
-        for (int r = 0; r < S; ++r) {
-            double big = 0.0;
-            for (int i = 0; i < N; ++i) if (fabs(J[r * N + i]) > big) big = fabs(J[r * N + i]);
-            if (!(big > 0.0) || !isfinite(big)) return 1;
-            D[r] = 1.0 / big;
-        }
-        for (int i = 0; i < N; ++i) {
-            double s = 0.0;
-            for (int r = 0; r < S; ++r) s += fabs(J[r * N + i]) * D[r];
-            if (s > nrm) nrm = s;
-        }
-        for (int r = 0; r < S; ++r) for (int k = 0; k < S; ++k) Jh[r * S + k] = D[r] * J[r * N + dep[k]];
-        if (lu_factor(S, Jh, piv)) return 1;
-        for (int k = 0; k < S; ++k) {          /* columns of (D J_h)^{-1}, for kappa */
-            double e[DIM(S)];
-            for (int r = 0; r < S; ++r) e[r] = (r == k);
-            lu_solve(S, Jh, piv, e);
-            for (int r = 0; r < S; ++r) inv[r * S + k] = e[r];
-        }
-        if (!(nrm * norm1(S, inv) < cond_max)) return 1;
+        if (scaled_block(J, dep, cond_max, D, Jh, piv)) return 1;
         for (int j = 0; j < P; ++j) {           /* X = J_h^{-1} J_nu = (D J_h)^{-1} D J_nu */
             double col[DIM(S)];
             for (int r = 0; r < S; ++r) col[r] = D[r] * J[r * N + ind[j]];
@@ -257,21 +282,13 @@ int appell_split(const double *M, const double *hQ, const double *J, const doubl
         for (int j = 0; j < N; ++j) s += M[i * N + j] * a[j];
         E[i] = s;
     }
-    if (S > 0) {                            /* lambda = D (D J_h)^{-T} E_h */
-        for (int r = 0; r < S; ++r) lam[r] = E[dep[r]];
-        lu_solve_t(S, Jh, piv, lam);
-        for (int r = 0; r < S; ++r) lam[r] *= D[r];
-    }
-    for (int i = 0; i < N; ++i) {
-        double s = 0.0;
-        for (int r = 0; r < S; ++r) s += J[r * N + i] * lam[r];
-        R[i] = s;
-    }
-    for (int i = 0; i < N; ++i) if (!isfinite(a[i])) return 2;
-    for (int r = 0; r < S; ++r) if (!isfinite(lam[r])) return 2;
-    return 0;
+    return reactions(E, J, dep, D, Jh, piv, a, lam, R);
 }
 
+"""
+
+# appell_solve / appell_evaluate on the dense blocks
+_DENSE_ENTRIES = r"""
 /* bias (may be NULL) is added to the constraints: f + bias = 0 */
 int appell_solve(double t, const double *q, const double *w, const double *p, const double *bias,
                  const int *dep, double cond_max, double *a, double *lam, double *R)
@@ -281,7 +298,9 @@ int appell_solve(double t, const double *q, const double *w, const double *p, co
     if (bias) for (int r = 0; r < S; ++r) c[r] += bias[r];
     return appell_split(M, hQ, J, c, dep, cond_max, a, lam, R);
 }
+"""
 
+_EVALUATE = r"""
 /* dy/dt = (K w + k, a) and the multipliers, in one call */
 int appell_evaluate(double t, const double *y, const double *p, const double *bias, const int *dep,
                     double cond_max, double *dy, double *lam)
@@ -291,6 +310,211 @@ int appell_evaluate(double t, const double *y, const double *p, const double *bi
     return appell_solve(t, y, y + NQ, p, bias, dep, cond_max, dy + NQ, lam, R);
 }
 """
+
+# A tree of point masses (particle_tree): node b (parents before children) moves with its
+# parent plus U_b a_own(b); TREE_PARENT, TREE_OWN and NB are written per model, and
+# appell_tree_terms fills U, the relative bias accelerations cb, the masses, Q, J and c.
+_TREE = r"""
+#define V3(x, k) ((x) + 3 * (k))
+
+/* articulated inertias, leaves to root: IA_b = m_b I + sum_children (IA_c - IU_c IU_c^T / D_c),
+   IU_b = IA_b U_b, D_b = U_b^T IA_b U_b (> 0, else 1) */
+static int tree_factor(const double *U, const double *m, double *IA, double *IU, double *Dinv)
+{
+    for (int b = 0; b < NB; ++b) {
+        double *A = IA + 9 * b;
+        for (int k = 0; k < 9; ++k) A[k] = 0.0;
+        A[0] = A[4] = A[8] = m[b];
+    }
+    for (int b = NB - 1; b >= 0; --b) {
+        double *A = IA + 9 * b, *iu = V3(IU, b);
+        const double *u = V3(U, b);
+        double Ia[9];
+        if (TREE_OWN[b] >= 0) {
+            for (int i = 0; i < 3; ++i) iu[i] = A[3 * i] * u[0] + A[3 * i + 1] * u[1] + A[3 * i + 2] * u[2];
+            double d = u[0] * iu[0] + u[1] * iu[1] + u[2] * iu[2];
+            if (!(d > 0.0)) return 1;
+            Dinv[b] = 1.0 / d;
+            for (int i = 0; i < 3; ++i) for (int j = 0; j < 3; ++j) Ia[3 * i + j] = A[3 * i + j] - iu[i] * iu[j] * Dinv[b];
+        } else {
+            for (int k = 0; k < 9; ++k) Ia[k] = A[k];
+        }
+        if (TREE_PARENT[b] >= 0) for (int k = 0; k < 9; ++k) IA[9 * TREE_PARENT[b] + k] += Ia[k];
+    }
+    return 0;
+}
+
+/* a = M^{-1} (tau - h) in O(NB): the articulated bias forces leaves to root, then the
+   accelerations root to leaves (cb == NULL: no bias accelerations, h = 0) */
+static void tree_solve(const double *U, const double *cb, const double *IA, const double *IU, const double *Dinv,
+                       const double *tau, double *a)
+{
+    double pA[3 * DIM(NB)], uu[DIM(NB)], acc[3 * DIM(NB)];
+    for (int k = 0; k < 3 * NB; ++k) pA[k] = 0.0;
+    for (int b = NB - 1; b >= 0; --b) {
+        const double *A = IA + 9 * b, *u = V3(U, b);
+        double pa[3];
+        for (int i = 0; i < 3; ++i)
+            pa[i] = V3(pA, b)[i] + (cb ? A[3 * i] * V3(cb, b)[0] + A[3 * i + 1] * V3(cb, b)[1] + A[3 * i + 2] * V3(cb, b)[2] : 0.0);
+        if (TREE_OWN[b] >= 0) {
+            uu[b] = tau[TREE_OWN[b]] - (u[0] * pa[0] + u[1] * pa[1] + u[2] * pa[2]);
+            for (int i = 0; i < 3; ++i) pa[i] += V3(IU, b)[i] * Dinv[b] * uu[b];
+        }
+        if (TREE_PARENT[b] >= 0) for (int i = 0; i < 3; ++i) V3(pA, TREE_PARENT[b])[i] += pa[i];
+    }
+    for (int b = 0; b < NB; ++b) {
+        const double zero[3] = {0.0, 0.0, 0.0}, *ap = TREE_PARENT[b] >= 0 ? V3(acc, TREE_PARENT[b]) : zero;
+        for (int i = 0; i < 3; ++i) V3(acc, b)[i] = ap[i] + (cb ? V3(cb, b)[i] : 0.0);
+        if (TREE_OWN[b] >= 0) {
+            const double *iu = V3(IU, b), *u = V3(U, b);
+            double ak = Dinv[b] * (uu[b] - (iu[0] * ap[0] + iu[1] * ap[1] + iu[2] * ap[2]));
+            a[TREE_OWN[b]] = ak;
+            for (int i = 0; i < 3; ++i) V3(acc, b)[i] += u[i] * ak;
+        }
+    }
+}
+
+/* E = M a + h - tau in O(NB): accelerations root to leaves, forces f_b = m_b acc_b + sum_children f_c
+   leaves to root, E_own(b) = U_b . f_b - tau_own(b) (cb == NULL: h = 0; tau == NULL: 0) */
+static void tree_residual(const double *U, const double *cb, const double *m, const double *tau, const double *a,
+                          double *E)
+{
+    double acc[3 * DIM(NB)], f[3 * DIM(NB)];
+    for (int b = 0; b < NB; ++b) {
+        const double zero[3] = {0.0, 0.0, 0.0}, *ap = TREE_PARENT[b] >= 0 ? V3(acc, TREE_PARENT[b]) : zero;
+        double ak = TREE_OWN[b] >= 0 ? a[TREE_OWN[b]] : 0.0;
+        for (int i = 0; i < 3; ++i) {
+            V3(acc, b)[i] = ap[i] + V3(U, b)[i] * ak + (cb ? V3(cb, b)[i] : 0.0);
+            V3(f, b)[i] = m[b] * V3(acc, b)[i];
+        }
+    }
+    for (int b = NB - 1; b >= 0; --b) {
+        const double *fb = V3(f, b), *u = V3(U, b);
+        if (TREE_OWN[b] >= 0) E[TREE_OWN[b]] = u[0] * fb[0] + u[1] * fb[1] + u[2] * fb[2] - (tau ? tau[TREE_OWN[b]] : 0.0);
+        if (TREE_PARENT[b] >= 0) for (int i = 0; i < 3; ++i) V3(f, TREE_PARENT[b])[i] += fb[i];
+    }
+}
+
+/* the blocks M, h - Q, J, c as the dense route has them (the NumPy fallback and the Python API):
+   column j of M is tree_residual at a = e_j without bias, h - Q at a = 0 */
+void appell_blocks(double t, const double *restrict q, const double *restrict w, const double *restrict a,
+                   const double *restrict p, double *restrict M, double *restrict hQ, double *restrict J,
+                   double *restrict c)
+{
+    double U[3 * DIM(NB)], cb[3 * DIM(NB)], m[DIM(NB)], tau[N], e[N], col[N];
+    appell_tree_terms(t, q, w, a, p, U, cb, m, tau, J, c);
+    for (int i = 0; i < N; ++i) e[i] = 0.0;
+    for (int j = 0; j < N; ++j) {
+        e[j] = 1.0;
+        tree_residual(U, 0, m, 0, e, col);
+        for (int i = 0; i < N; ++i) M[i * N + j] = col[i];
+        e[j] = 0.0;
+    }
+    tree_residual(U, cb, m, tau, e, hQ);
+}
+
+/* (1.4) by the tree: a = a_0 + Y x with M a_0 = Q - h, Y = M^{-1} J^T (O(NB) per column) and
+   (J Y) x = -(J a_0 + c), the solution of the reduced equations; then each reaction by (1.5)
+   from E = M a + h - Q. 0: solved; 1: partition unusable; 2: singular or not finite */
+int appell_solve(double t, const double *q, const double *w, const double *p, const double *bias,
+                 const int *dep, double cond_max, double *a, double *lam, double *R)
+{
+    double U[3 * DIM(NB)], cb[3 * DIM(NB)], m[DIM(NB)], tau[N], J[DIM(S * N)], c[DIM(S)];
+    double IA[9 * DIM(NB)], IU[3 * DIM(NB)], Dinv[DIM(NB)], D[DIM(S)], Jh[DIM(S * S)], E[N];
+    int piv[DIM(S)];
+    appell_tree_terms(t, q, w, 0, p, U, cb, m, tau, J, c);
+    if (bias) for (int r = 0; r < S; ++r) c[r] += bias[r];
+    if (S > 0 && scaled_block(J, dep, cond_max, D, Jh, piv)) return 1;
+    if (tree_factor(U, m, IA, IU, Dinv)) return 2;
+    tree_solve(U, cb, IA, IU, Dinv, tau, a);
+    if (S > 0) {
+        double Y[DIM(S * N)], G[DIM(S * S)], x[DIM(S)];
+        int pg[DIM(S)];
+        for (int r = 0; r < S; ++r) tree_solve(U, 0, IA, IU, Dinv, J + r * N, Y + r * N);
+        for (int r = 0; r < S; ++r) {
+            double s = c[r];
+            for (int i = 0; i < N; ++i) s += J[r * N + i] * a[i];
+            x[r] = -s;
+            for (int k = 0; k < S; ++k) {
+                double g = 0.0;
+                for (int i = 0; i < N; ++i) g += J[r * N + i] * Y[k * N + i];
+                G[r * S + k] = g;
+            }
+        }
+        if (lu_factor(S, G, pg)) return 2;
+        lu_solve(S, G, pg, x);
+        for (int i = 0; i < N; ++i) for (int r = 0; r < S; ++r) a[i] += Y[r * N + i] * x[r];
+    }
+    tree_residual(U, cb, m, tau, a, E);
+    return reactions(E, J, dep, D, Jh, piv, a, lam, R);
+}
+"""
+
+
+
+@dataclass(frozen=True)
+class ParticleTree:
+    """Point masses whose velocities are built by accumulation along a tree.
+
+    Node ``b`` (bodies in an order with parents first) has ``v_b = v_parent + U_b w_k`` up
+    to terms free of the speeds, with ``k = owned[b]`` a speed no other node owns (-1: none)
+    and ``parent[b]`` an earlier node (-1: the inertial frame). Then
+    ``M = sum_b m_b J_b^T J_b`` and ``h`` are never expanded: ``M^{-1}`` and ``M a + h``
+    take one pass each way along the tree (articulated inertias; the generated C). ``axis``
+    is ``U_b`` (zero without an owned speed) and ``relative_bias`` ``b_b - b_parent``, the
+    acceleration at ``a = 0`` relative to the parent.
+    """
+
+    names: tuple[str, ...]
+    parent: tuple[int, ...]
+    owned: tuple[int, ...]
+    mass: tuple[sp.Expr, ...]
+    axis: tuple[sp.ImmutableMatrix, ...]
+    relative_bias: tuple[sp.ImmutableMatrix, ...]
+
+
+def particle_tree(inertia, n: int) -> ParticleTree | None:
+    """The tree of :class:`ParticleTree` when ``inertia`` is point masses only
+    (``inertia.particles``) whose velocity Jacobians nest: each body's columns equal those of
+    a parent body on the parent's speeds, plus at most one speed of its own, and every speed
+    is owned by exactly one body. None when the structure is absent (the dense route)."""
+    particles = inertia.particles
+    if not particles:
+        return None
+    supports = [frozenset(k for k in range(n) if any(pt.jacobian[r, k] != 0 for r in range(3)))
+                for pt in particles]
+    order = sorted(range(len(particles)), key=lambda b: (len(supports[b]), b))
+    placed, parent, owned = [], [], []
+    owner: dict[int, int] = {}
+    for b in order:
+        Jb = particles[b].jacobian
+        found = -1
+        for node in sorted(range(len(placed)), key=lambda k: -len(supports[placed[k]])):
+            pb = placed[node]
+            if supports[pb] <= supports[b] and all(particles[pb].jacobian[r, k] == Jb[r, k]
+                                                   for k in supports[pb] for r in range(3)):
+                found = node
+                break
+        own = supports[b] - (supports[placed[found]] if found >= 0 else frozenset())
+        if len(own) > 1 or any(k in owner for k in own):
+            return None
+        for k in own:
+            owner[k] = b
+        placed.append(b)
+        parent.append(found)
+        owned.append(next(iter(own)) if own else -1)
+    if len(owner) != n:
+        return None
+    zero = sp.ImmutableMatrix.zeros(3, 1)
+    axis = tuple(sp.ImmutableMatrix(particles[b].jacobian[:, k]) if k >= 0 else zero for b, k in zip(placed, owned))
+    bias = tuple(sp.ImmutableMatrix(particles[b].bias - (particles[placed[pa]].bias if pa >= 0 else zero))
+                 for b, pa in zip(placed, parent))
+    return ParticleTree(tuple(particles[b].name for b in placed), tuple(parent), tuple(owned),
+                        tuple(particles[b].mass for b in placed), axis, bias)
+
+
+def _c_ints(name: str, values) -> str:
+    return f"static const int {name}[{max(len(values), 1)}] = {{{', '.join(map(str, values)) or '0'}}};"
 
 
 def c_source(derivation) -> str:
@@ -313,16 +537,24 @@ def c_source(derivation) -> str:
         J0 = J
     pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual]) if s else sp.zeros(0, 1)
     vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if s else sp.zeros(0, 1)
+    tree = particle_tree(inertia, n) if cons.linear else None
     parts = [
         f"/* appell: generated C for system {derivation.system.name!r}; n = {n}, s = {s} */",
         "#include <math.h>",
         f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}",
-        c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms),
-        c_function("appell_rates", [prepared(kin.coordinate_rates)], syms),
-        c_function("appell_residuals", [prepared(pos), prepared(vel)], syms),
     ]
+    if tree is None:
+        parts.append(c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms))
+    else:
+        parts += [f"/* point masses on a tree: {', '.join(tree.names)} */\n#define NB {len(tree.names)}",
+                  _c_ints("TREE_PARENT", tree.parent), _c_ints("TREE_OWN", tree.owned),
+                  c_function("appell_tree_terms",
+                             [prepared(sp.Matrix.vstack(*tree.axis)), prepared(sp.Matrix.vstack(*tree.relative_bias)),
+                              prepared(sp.Matrix(tree.mass)), prepared(inertia.generalized_forces), prepared(J0), prepared(c)], syms)]
+    parts += [c_function("appell_rates", [prepared(kin.coordinate_rates)], syms),
+              c_function("appell_residuals", [prepared(pos), prepared(vel)], syms)]
     if cons.linear:
-        parts.append(_SOLVER)
+        parts += [_SOLVER, _DENSE_ENTRIES if tree is None else _TREE, _EVALUATE]
     else:
         parts.append(c_function("appell_constraint", [prepared(cons.second_order), prepared(J)], syms))
     return "\n\n".join(parts) + "\n"
