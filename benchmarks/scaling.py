@@ -1,15 +1,27 @@
-"""How appell's cost grows with the number of speeds n and of constraints s: derivation
-(derive + NumPy functions), C generation + compilation, and one evaluation (NumPy and C,
-called from Python) of the n-link pendulum with s = 1 (tip on a vertical line) and s = 2
-(tip held at a point).
+"""How appell's cost grows with the number of speeds n and of constraints s, on the n-link
+pendulum with s = 1 (tip on a vertical line) and s = 2 (tip held at a point).
 
     .venv/bin/python benchmarks/scaling.py [--sizes 2,5,10,20]
+        derivation (derive + NumPy functions), C generation + compilation, one evaluation
+        (NumPy and C, called from Python)
+    .venv/bin/python benchmarks/scaling.py --c-loop --sizes 10,20,40
+        one evaluation (accelerations + the reaction) of appell's generated C from a C loop
+        against the hand-written O(n) recursion (reference/nlink_aba.c), interleaved, and the
+        arithmetic in appell's generated straight-line code
+    .venv/bin/python benchmarks/scaling.py --pipeline 50 [--pipeline 100]
+        model file -> first compiled step with an empty cache, in a fresh process: time of each
+        stage and peak memory of the process and of the compiler it ran
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
+import resource
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -18,10 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
 
 import appell  # noqa: E402
-from models import nlink_appell, nlink_state  # noqa: E402
+from models import nlink_appell, nlink_parameters, nlink_state  # noqa: E402
 
 
 def per_call(fn) -> float:
@@ -30,11 +43,115 @@ def per_call(fn) -> float:
     return min(timer.repeat(5, number)) / number
 
 
+def generated_operations(source: str) -> int:
+    """Arithmetic operators (+ - * /) and calls in the generated straight-line code (the lines
+    ``const double xN = ...`` and ``oK[i] = ...``), not in the fixed solver loops."""
+    ops = 0
+    for line in source.splitlines():
+        if re.match(r"\s+(const double x\d+|o\d+\[\d+\]) = ", line):
+            rhs = line.split("=", 1)[1]
+            ops += len(re.findall(r"[-+*/]|\b(sin|cos|tan|exp|log|sqrt|pow)\(", rhs))
+    return ops
+
+
+def model_file(n: int) -> str:
+    """The n-link pendulum with its tip on the line x = d as a model file (docs/model-format.md)."""
+    p = nlink_parameters(n)
+    th, w = nlink_state(n)
+    lines = ["[model]", f'name = "pendulum{n}"', f'coordinates = [{", ".join(f"{chr(34)}theta{i}{chr(34)}" for i in range(1, n + 1))}]',
+             "", "[parameters]"]
+    lines += [f"{k} = {v!r}" for k, v in p.items()]
+    x, y, V = [], [], []
+    for i in range(1, n + 1):
+        x.append(f"l{i}*sin(theta{i})")
+        y.append(f"- l{i}*cos(theta{i})")
+        lines += ["", "[[bodies]]", f'name = "bob{i}"', f'mass = "m{i}"',
+                  f'position = ["{" + ".join(x)}", "{" ".join(y)}", 0]']
+        V.append(f"m{i}*g*({' '.join(y)})")
+    lines += ["", "[mechanics]", f'potential_energy = "{" + ".join(V)}"', "", "[constraints.tip]",
+              'kind = "holonomic"', f'expr = "{" + ".join(x)} - d"', "", "[initial]"]
+    lines += [f"theta{i + 1} = {th[i]!r}" for i in range(n)]
+    lines += [f"\"theta{i + 1}'\" = {w[i]!r}" for i in range(n)]
+    return "\n".join(lines) + "\n"
+
+
+_PIPELINE = r"""
+import json, resource, sys, time
+t0 = time.perf_counter()
+import appell
+from appell.io.modelfile import load_model
+from appell.numerics.codegen_c import c_source
+t1 = time.perf_counter()
+system = load_model(sys.argv[1])
+t2 = time.perf_counter()
+d = appell.derive(system)
+t3 = time.perf_counter()
+cm = d.compiled("c")
+t4 = time.perf_counter()
+sol = appell.simulate(cm, 1e-3, samples=2)
+t5 = time.perf_counter()
+src = cm.library_path.with_suffix(".c").read_text()
+me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+print(json.dumps({"import": t1 - t0, "load": t2 - t1, "derive": t3 - t2, "generate+compile": t4 - t3,
+                  "first step": t5 - t4, "total": t5 - t0, "source_kB": len(src) / 1024,
+                  "compiler_cpu_s": kids.ru_utime + kids.ru_stime,
+                  "peak_process_MB": me.ru_maxrss / 1024, "peak_compiler_MB": kids.ru_maxrss / 1024}))
+"""
+
+
+def pipeline(n: int) -> dict:
+    """Model file -> derive -> C (empty cache) -> one step of simulate, in a fresh process."""
+    work = Path(tempfile.mkdtemp(prefix="appell_pipeline_"))
+    try:
+        (work / "chain.toml").write_text(model_file(n))
+        env = {**os.environ, "APPELL_CACHE_DIR": str(work / "cache")}
+        out = subprocess.run([sys.executable, "-c", _PIPELINE, str(work / "chain.toml")], env=env,
+                             capture_output=True, text=True)
+        if out.returncode != 0:
+            raise RuntimeError(out.stderr[-2000:])
+        return json.loads(out.stdout.strip().splitlines()[-1])
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def c_loop(sizes) -> None:
+    """appell_evaluate from a C loop against reference/nlink_aba.c (interleaved, best of 21)."""
+    cc = shutil.which("cc")
+    work = Path(tempfile.mkdtemp(prefix="appell_cloop_"))
+    exe = work / "bench_aba"
+    subprocess.run([cc, "-O2", "-o", str(exe), str(HERE / "reference" / "bench_aba.c"),
+                    str(HERE / "reference" / "nlink_aba.c"), "-lm", "-ldl"], check=True)
+    print(f"{'n':>3} {'gen. ops':>9} {'appell C [us]':>14} {'O(n) recursion [us]':>20} {'ratio':>6} {'rel. diff':>10}")
+    for n in sizes:
+        d = appell.derive(nlink_appell(n))
+        cm = d.compiled("c")
+        pv = np.array([p.value for p in d.system.parameters])
+        y = np.concatenate(nlink_state(n))
+        ops = generated_operations(cm.library_path.with_suffix(".c").read_text())
+        iters = max(2000, 2_000_000 // (n * n))
+        out = subprocess.run([str(exe), str(cm.library_path), str(n), str(iters), str(d.partition.dependent[0]),
+                              *map(repr, y.tolist()), *map(repr, pv.tolist())], capture_output=True, text=True,
+                             check=True)
+        r = json.loads(out.stdout)
+        print(f"{n:>3} {ops:>9} {r['appell_c_ns'] / 1e3:14.3f} {r['recursion_ns'] / 1e3:20.3f} "
+              f"{r['appell_c_ns'] / r['recursion_ns']:6.2f} {r['max_rel_diff']:10.1e}", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="2,5,10,20")
+    ap.add_argument("--c-loop", action="store_true", help="C loop against the O(n) recursion")
+    ap.add_argument("--pipeline", type=int, action="append", help="model file -> first compiled step at this n")
     args = ap.parse_args()
     os.environ["APPELL_CACHE_DIR"] = tempfile.mkdtemp(prefix="appell_scaling_")
+    if args.pipeline:
+        for n in args.pipeline:
+            r = pipeline(n)
+            print(f"n = {n}: " + ", ".join(f"{k} {v:.1f}" for k, v in r.items()), flush=True)
+        return
+    if args.c_loop:
+        c_loop(list(map(int, args.sizes.split(","))))
+        return
     print(f"{'n':>3} {'s':>2} {'derive [s]':>11} {'numpy fns [s]':>14} {'C gen+cc [s]':>13} {'C source [kB]':>14} "
           f"{'eval numpy [us]':>16} {'eval C [us]':>12}")
     for n in map(int, args.sizes.split(",")):

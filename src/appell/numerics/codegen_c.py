@@ -311,88 +311,108 @@ int appell_evaluate(double t, const double *y, const double *p, const double *bi
 }
 """
 
-# A tree of point masses (particle_tree): node b (parents before children) moves with its
-# parent plus U_b a_own(b); TREE_PARENT, TREE_OWN and NB are written per model, and
-# appell_tree_terms fills U, the relative bias accelerations cb, the masses, Q, J and c.
+def _sum(terms) -> str:
+    return " + ".join(terms) if terms else "0.0"
+
+
+def _tree_recursions(tree: ParticleTree, td: int, s: int) -> str:
+    """C for a :class:`ParticleTree`, unrolled node by node (values stay in registers):
+
+    * ``tree_solve``: ``x_k = M^{-1} (rhs_k - h_k)`` for ``k = 0..s`` (only ``k = 0`` with the
+      bias accelerations ``cb``; the rows ``k > 0`` are ``J_k`` so that ``x_k = M^{-1} J_k^T``).
+      Inward, leaves to root: articulated inertias ``A_b = m_b I + sum_c (A_c - i_c i_c^T / d_c)``
+      with ``i_b = A_b U_b``, ``d_b = U_b^T i_b`` (> 0, else 1), and bias forces
+      ``p_b = sum_c pa_c + A_b cb_b``, ``u_b = rhs_own - U_b . p_b``, ``pa_b = p_b + i_b u_b / d_b``;
+      outward: ``x_own = (u_b - i_b . acc_parent) / d_b``, ``acc_b = acc_parent + cb_b + U_b x_own``.
+    * ``tree_residual``: ``E = M a + h - tau``: accelerations outward, forces
+      ``F_b = m_b acc_b + sum_c F_c`` inward, ``E_own = U_b . F_b - tau_own``.
+
+    ``U`` and ``cb`` hold ``td`` spatial components per node, ``m`` the masses.
+    """
+    nb = len(tree.parent)
+    kids = [[c for c in range(nb) if tree.parent[c] == b] for b in range(nb)]
+    R = range(td)
+
+    def A(b, i, j):
+        return f"A{b}_{min(i, j)}{max(i, j)}"
+
+    def U(b, i):
+        return f"U[{td * b + i}]"
+
+    def cb(b, i):
+        return f"cb[{td * b + i}]"
+
+    out = ["/* M^{-1} (rhs_k - h_k), k = 0..S, along the tree (see _tree_recursions) */",
+           "static int tree_solve(const double *restrict U, const double *restrict cb, const double *restrict m,",
+           "                      const double *restrict rhs, double *restrict x)", "{"]
+    for b in reversed(range(nb)):
+        own, par = tree.owned[b], tree.parent[b]
+        for i in R:
+            for j in range(i, td):
+                out.append(f"    const double {A(b, i, j)} = {_sum(([f'm[{b}]'] if i == j else []) + [f'Ia{c}_{i}{j}' for c in kids[b]])};")
+        if own >= 0:
+            for i in R:
+                out.append(f"    const double iu{b}_{i} = {_sum([f'{A(b, i, j)} * {U(b, j)}' for j in R])};")
+            out.append(f"    const double d{b} = {_sum([f'{U(b, i)} * iu{b}_{i}' for i in R])};")
+            out.append(f"    if (!(d{b} > 0.0)) return 1;")
+            out.append(f"    const double di{b} = 1.0 / d{b};")
+        if par >= 0:
+            for i in R:
+                for j in range(i, td):
+                    red = f" - iu{b}_{i} * iu{b}_{j} * di{b}" if own >= 0 else ""
+                    out.append(f"    const double Ia{b}_{i}{j} = {A(b, i, j)}{red};")
+        for r in range(s + 1):
+            for i in R:
+                terms = [f"pa{r}_{c}_{i}" for c in kids[b]] + ([f"{A(b, i, j)} * {cb(b, j)}" for j in R] if r == 0 else [])
+                out.append(f"    const double p{r}_{b}_{i} = {_sum(terms)};")
+            if own >= 0:
+                dot = _sum([f"{U(b, i)} * p{r}_{b}_{i}" for i in R])
+                out.append(f"    const double u{r}_{b} = rhs[{r}*N + {own}] - ({dot});")
+                out.append(f"    const double s{r}_{b} = di{b} * u{r}_{b};")
+            if par >= 0:
+                for i in R:
+                    add = f" + iu{b}_{i} * s{r}_{b}" if own >= 0 else ""
+                    out.append(f"    const double pa{r}_{b}_{i} = p{r}_{b}_{i}{add};")
+    for b in range(nb):
+        own, par = tree.owned[b], tree.parent[b]
+        for r in range(s + 1):
+            if own >= 0:
+                back = f" - di{b} * ({_sum([f'iu{b}_{i} * ac{r}_{par}_{i}' for i in R])})" if par >= 0 else ""
+                out.append(f"    const double k{r}_{b} = s{r}_{b}{back};")
+                out.append(f"    x[{r}*N + {own}] = k{r}_{b};")
+            if kids[b]:
+                for i in R:
+                    terms = ([f"ac{r}_{par}_{i}"] if par >= 0 else []) + ([cb(b, i)] if r == 0 else []) + \
+                            ([f"{U(b, i)} * k{r}_{b}"] if own >= 0 else [])
+                    out.append(f"    const double ac{r}_{b}_{i} = {_sum(terms)};")
+    out += ["    return 0;", "}", "",
+            "/* E = M a + h - tau along the tree (see _tree_recursions) */",
+            "static void tree_residual(const double *restrict U, const double *restrict cb, const double *restrict m,",
+            "                          const double *restrict tau, const double *restrict a, double *restrict E)", "{"]
+    for b in range(nb):
+        own, par = tree.owned[b], tree.parent[b]
+        for i in R:
+            terms = ([f"ac_{par}_{i}"] if par >= 0 else []) + [cb(b, i)] + ([f"{U(b, i)} * a[{own}]"] if own >= 0 else [])
+            out.append(f"    const double ac_{b}_{i} = {_sum(terms)};")
+    for b in reversed(range(nb)):
+        own = tree.owned[b]
+        for i in R:
+            out.append(f"    const double F{b}_{i} = {_sum([f'm[{b}] * ac_{b}_{i}'] + [f'F{c}_{i}' for c in kids[b]])};")
+        if own >= 0:
+            out.append(f"    E[{own}] = {_sum([f'{U(b, i)} * F{b}_{i}' for i in R])} - tau[{own}];")
+    out.append("}")
+    return "\n".join(out)
+
+
+# appell_blocks and appell_solve for a ParticleTree (tree_solve, tree_residual and
+# appell_tree_terms, which fills U, the relative bias accelerations cb, the masses, Q, J and c,
+# are written per model; NB nodes, TD spatial directions in which anything moves)
 _TREE = r"""
-#define V3(x, k) ((x) + 3 * (k))
-
-/* articulated inertias, leaves to root: IA_b = m_b I + sum_children (IA_c - IU_c IU_c^T / D_c),
-   IU_b = IA_b U_b, D_b = U_b^T IA_b U_b (> 0, else 1) */
-static int tree_factor(const double *U, const double *m, double *IA, double *IU, double *Dinv)
+static double dot_n(const double *x, const double *y)
 {
-    for (int b = 0; b < NB; ++b) {
-        double *A = IA + 9 * b;
-        for (int k = 0; k < 9; ++k) A[k] = 0.0;
-        A[0] = A[4] = A[8] = m[b];
-    }
-    for (int b = NB - 1; b >= 0; --b) {
-        double *A = IA + 9 * b, *iu = V3(IU, b);
-        const double *u = V3(U, b);
-        double Ia[9];
-        if (TREE_OWN[b] >= 0) {
-            for (int i = 0; i < 3; ++i) iu[i] = A[3 * i] * u[0] + A[3 * i + 1] * u[1] + A[3 * i + 2] * u[2];
-            double d = u[0] * iu[0] + u[1] * iu[1] + u[2] * iu[2];
-            if (!(d > 0.0)) return 1;
-            Dinv[b] = 1.0 / d;
-            for (int i = 0; i < 3; ++i) for (int j = 0; j < 3; ++j) Ia[3 * i + j] = A[3 * i + j] - iu[i] * iu[j] * Dinv[b];
-        } else {
-            for (int k = 0; k < 9; ++k) Ia[k] = A[k];
-        }
-        if (TREE_PARENT[b] >= 0) for (int k = 0; k < 9; ++k) IA[9 * TREE_PARENT[b] + k] += Ia[k];
-    }
-    return 0;
-}
-
-/* a = M^{-1} (tau - h) in O(NB): the articulated bias forces leaves to root, then the
-   accelerations root to leaves (cb == NULL: no bias accelerations, h = 0) */
-static void tree_solve(const double *U, const double *cb, const double *IA, const double *IU, const double *Dinv,
-                       const double *tau, double *a)
-{
-    double pA[3 * DIM(NB)], uu[DIM(NB)], acc[3 * DIM(NB)];
-    for (int k = 0; k < 3 * NB; ++k) pA[k] = 0.0;
-    for (int b = NB - 1; b >= 0; --b) {
-        const double *A = IA + 9 * b, *u = V3(U, b);
-        double pa[3];
-        for (int i = 0; i < 3; ++i)
-            pa[i] = V3(pA, b)[i] + (cb ? A[3 * i] * V3(cb, b)[0] + A[3 * i + 1] * V3(cb, b)[1] + A[3 * i + 2] * V3(cb, b)[2] : 0.0);
-        if (TREE_OWN[b] >= 0) {
-            uu[b] = tau[TREE_OWN[b]] - (u[0] * pa[0] + u[1] * pa[1] + u[2] * pa[2]);
-            for (int i = 0; i < 3; ++i) pa[i] += V3(IU, b)[i] * Dinv[b] * uu[b];
-        }
-        if (TREE_PARENT[b] >= 0) for (int i = 0; i < 3; ++i) V3(pA, TREE_PARENT[b])[i] += pa[i];
-    }
-    for (int b = 0; b < NB; ++b) {
-        const double zero[3] = {0.0, 0.0, 0.0}, *ap = TREE_PARENT[b] >= 0 ? V3(acc, TREE_PARENT[b]) : zero;
-        for (int i = 0; i < 3; ++i) V3(acc, b)[i] = ap[i] + (cb ? V3(cb, b)[i] : 0.0);
-        if (TREE_OWN[b] >= 0) {
-            const double *iu = V3(IU, b), *u = V3(U, b);
-            double ak = Dinv[b] * (uu[b] - (iu[0] * ap[0] + iu[1] * ap[1] + iu[2] * ap[2]));
-            a[TREE_OWN[b]] = ak;
-            for (int i = 0; i < 3; ++i) V3(acc, b)[i] += u[i] * ak;
-        }
-    }
-}
-
-/* E = M a + h - tau in O(NB): accelerations root to leaves, forces f_b = m_b acc_b + sum_children f_c
-   leaves to root, E_own(b) = U_b . f_b - tau_own(b) (cb == NULL: h = 0; tau == NULL: 0) */
-static void tree_residual(const double *U, const double *cb, const double *m, const double *tau, const double *a,
-                          double *E)
-{
-    double acc[3 * DIM(NB)], f[3 * DIM(NB)];
-    for (int b = 0; b < NB; ++b) {
-        const double zero[3] = {0.0, 0.0, 0.0}, *ap = TREE_PARENT[b] >= 0 ? V3(acc, TREE_PARENT[b]) : zero;
-        double ak = TREE_OWN[b] >= 0 ? a[TREE_OWN[b]] : 0.0;
-        for (int i = 0; i < 3; ++i) {
-            V3(acc, b)[i] = ap[i] + V3(U, b)[i] * ak + (cb ? V3(cb, b)[i] : 0.0);
-            V3(f, b)[i] = m[b] * V3(acc, b)[i];
-        }
-    }
-    for (int b = NB - 1; b >= 0; --b) {
-        const double *fb = V3(f, b), *u = V3(U, b);
-        if (TREE_OWN[b] >= 0) E[TREE_OWN[b]] = u[0] * fb[0] + u[1] * fb[1] + u[2] * fb[2] - (tau ? tau[TREE_OWN[b]] : 0.0);
-        if (TREE_PARENT[b] >= 0) for (int i = 0; i < 3; ++i) V3(f, TREE_PARENT[b])[i] += fb[i];
-    }
+    double s = 0.0;
+    for (int i = 0; i < N; ++i) s += x[i] * y[i];
+    return s;
 }
 
 /* the blocks M, h - Q, J, c as the dense route has them (the NumPy fallback and the Python API):
@@ -401,12 +421,12 @@ void appell_blocks(double t, const double *restrict q, const double *restrict w,
                    const double *restrict p, double *restrict M, double *restrict hQ, double *restrict J,
                    double *restrict c)
 {
-    double U[3 * DIM(NB)], cb[3 * DIM(NB)], m[DIM(NB)], tau[N], e[N], col[N];
+    double U[TD * NB], cb[TD * NB], m[NB], tau[N], e[N], col[N], zero[TD * NB > N ? TD * NB : N] = {0.0};
     appell_tree_terms(t, q, w, a, p, U, cb, m, tau, J, c);
     for (int i = 0; i < N; ++i) e[i] = 0.0;
     for (int j = 0; j < N; ++j) {
         e[j] = 1.0;
-        tree_residual(U, 0, m, 0, e, col);
+        tree_residual(U, zero, m, zero, e, col);
         for (int i = 0; i < N; ++i) M[i * N + j] = col[i];
         e[j] = 0.0;
     }
@@ -419,33 +439,27 @@ void appell_blocks(double t, const double *restrict q, const double *restrict w,
 int appell_solve(double t, const double *q, const double *w, const double *p, const double *bias,
                  const int *dep, double cond_max, double *a, double *lam, double *R)
 {
-    double U[3 * DIM(NB)], cb[3 * DIM(NB)], m[DIM(NB)], tau[N], J[DIM(S * N)], c[DIM(S)];
-    double IA[9 * DIM(NB)], IU[3 * DIM(NB)], Dinv[DIM(NB)], D[DIM(S)], Jh[DIM(S * S)], E[N];
+    double U[TD * NB], cb[TD * NB], m[NB], rhs[(S + 1) * N], x[(S + 1) * N], D[DIM(S)], Jh[DIM(S * S)], E[N];
+    double *J = rhs + N, c[DIM(S)];
     int piv[DIM(S)];
-    appell_tree_terms(t, q, w, 0, p, U, cb, m, tau, J, c);
+    appell_tree_terms(t, q, w, 0, p, U, cb, m, rhs, J, c);
     if (bias) for (int r = 0; r < S; ++r) c[r] += bias[r];
     if (S > 0 && scaled_block(J, dep, cond_max, D, Jh, piv)) return 1;
-    if (tree_factor(U, m, IA, IU, Dinv)) return 2;
-    tree_solve(U, cb, IA, IU, Dinv, tau, a);
+    if (tree_solve(U, cb, m, rhs, x)) return 2;         /* a_0 and the columns of Y = M^{-1} J^T */
+    for (int i = 0; i < N; ++i) a[i] = x[i];
     if (S > 0) {
-        double Y[DIM(S * N)], G[DIM(S * S)], x[DIM(S)];
+        const double *Y = x + N;
+        double G[DIM(S * S)], z[DIM(S)];
         int pg[DIM(S)];
-        for (int r = 0; r < S; ++r) tree_solve(U, 0, IA, IU, Dinv, J + r * N, Y + r * N);
         for (int r = 0; r < S; ++r) {
-            double s = c[r];
-            for (int i = 0; i < N; ++i) s += J[r * N + i] * a[i];
-            x[r] = -s;
-            for (int k = 0; k < S; ++k) {
-                double g = 0.0;
-                for (int i = 0; i < N; ++i) g += J[r * N + i] * Y[k * N + i];
-                G[r * S + k] = g;
-            }
+            z[r] = -(c[r] + dot_n(J + r * N, a));
+            for (int k = 0; k < S; ++k) G[r * S + k] = dot_n(J + r * N, Y + k * N);
         }
         if (lu_factor(S, G, pg)) return 2;
-        lu_solve(S, G, pg, x);
-        for (int i = 0; i < N; ++i) for (int r = 0; r < S; ++r) a[i] += Y[r * N + i] * x[r];
+        lu_solve(S, G, pg, z);
+        for (int r = 0; r < S; ++r) for (int i = 0; i < N; ++i) a[i] += Y[r * N + i] * z[r];
     }
-    tree_residual(U, cb, m, tau, a, E);
+    tree_residual(U, cb, m, rhs, a, E);
     return reactions(E, J, dep, D, Jh, piv, a, lam, R);
 }
 """
@@ -513,10 +527,6 @@ def particle_tree(inertia, n: int) -> ParticleTree | None:
                         tuple(particles[b].mass for b in placed), axis, bias)
 
 
-def _c_ints(name: str, values) -> str:
-    return f"static const int {name}[{max(len(values), 1)}] = {{{', '.join(map(str, values)) or '0'}}};"
-
-
 def c_source(derivation) -> str:
     """The complete C source of a derivation's numeric functions (see module docstring)."""
     subs = dict(program_substitutions(derivation.system))
@@ -546,15 +556,19 @@ def c_source(derivation) -> str:
     if tree is None:
         parts.append(c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms))
     else:
-        parts += [f"/* point masses on a tree: {', '.join(tree.names)} */\n#define NB {len(tree.names)}",
-                  _c_ints("TREE_PARENT", tree.parent), _c_ints("TREE_OWN", tree.owned),
-                  c_function("appell_tree_terms",
-                             [prepared(sp.Matrix.vstack(*tree.axis)), prepared(sp.Matrix.vstack(*tree.relative_bias)),
-                              prepared(sp.Matrix(tree.mass)), prepared(inertia.generalized_forces), prepared(J0), prepared(c)], syms)]
+        # the spatial directions in which some node moves (a planar tree: 2)
+        rows = [r for r in range(3) if any(m[r] != 0 for m in tree.axis + tree.relative_bias)] or [0]
+        axis = sp.Matrix([m[r] for m in tree.axis for r in rows])
+        bias = sp.Matrix([m[r] for m in tree.relative_bias for r in rows])
+        Q = sp.Matrix(inertia.generalized_forces).applyfunc(sp.factor_terms)
+        parts += [f"/* point masses on a tree: {', '.join(tree.names)} */",
+                  f"#define NB {len(tree.names)}\n#define TD {len(rows)}",
+                  c_function("appell_tree_terms", [prepared(axis), prepared(bias), prepared(sp.Matrix(tree.mass)),
+                                                   prepared(Q), prepared(J0), prepared(c)], syms)]
     parts += [c_function("appell_rates", [prepared(kin.coordinate_rates)], syms),
               c_function("appell_residuals", [prepared(pos), prepared(vel)], syms)]
     if cons.linear:
-        parts += [_SOLVER, _DENSE_ENTRIES if tree is None else _TREE, _EVALUATE]
+        parts += [_SOLVER, _DENSE_ENTRIES if tree is None else _tree_recursions(tree, len(rows), s) + _TREE, _EVALUATE]
     else:
         parts.append(c_function("appell_constraint", [prepared(cons.second_order), prepared(J)], syms))
     return "\n\n".join(parts) + "\n"
