@@ -160,3 +160,34 @@ def test_tree_code_equals_the_hand_written_recursion(tmp_path):
         ev = cm.evaluate(0.0, y)
         close(ev.derivative, dy)
         close(ev.multipliers, lam)
+
+
+def test_long_functions_are_split_into_units_that_give_the_same_library(monkeypatch):
+    """With at most 40 statements per function the dense blocks of the 6-link chain become
+    several translation units (compiled in parallel, at -O1 when large); the library gives
+    the single-unit library's blocks, accelerations and multipliers to 1e-12."""
+    d = appell.derive(nlink_pendulum(6, 2))
+    whole = dense(d, monkeypatch)
+    monkeypatch.setattr(codegen_c, "SPLIT_STATEMENTS", 40)
+    monkeypatch.setattr(codegen_c, "O1_ABOVE", 3000)
+    monkeypatch.setattr(codegen_c, "particle_tree", lambda inertia, n: None)
+    source = c_source(d)
+    units = codegen_c.source_units(source)
+    assert len(units) >= 4 and all(codegen_c.HEADER_END in u for u in units)
+    assert {codegen_c.optimisation(u) for u in units} == {"-O1", "-O2"}
+    split = compile_c(d, "c")
+    assert split.freshly_compiled and split.library_path != whole.library_path
+    for t0, q, w in states(d):
+        for x, y in zip(split.evaluate_blocks(t0, q, w), whole.evaluate_blocks(t0, q, w)):
+            close(x, y)
+        a, b = split.solve(t0, q, w), whole.solve(t0, q, w)
+        close(a.accelerations, b.accelerations)
+        close(a.multipliers, b.multipliers)
+
+
+def test_a_failing_unit_names_the_compiler_error(monkeypatch, tmp_path):
+    """A unit the compiler rejects raises ComputationError with the compiler's message."""
+    source = "#include <math.h>\n" + codegen_c.HEADER_END + "\nint ok(void) { return 1; }\n" + \
+        codegen_c.UNIT_MARK + "\nint broken(void) { return undeclared_name; }\n"
+    with pytest.raises(appell.ComputationError, match="undeclared_name"):
+        codegen_c.build_library(source)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from appell.errors import ModelError
-from appell.core.kinematics import Kinematics
+from appell.core.kinematics import Kinematics, partial, terms_by_symbol
 from appell.model import AppliedForce, AppliedTorque, RigidBody, System
 
 
@@ -57,9 +57,13 @@ class InertiaBlocks:
 
 def linear_split(vector: sp.Matrix, unknowns) -> tuple[sp.Matrix, sp.Matrix]:
     """Split ``vector = A x + b`` for ``x = unknowns``; ``A = d vector / d x``, ``b`` at x = 0."""
-    x = sp.Matrix(unknowns)
-    A = vector.jacobian(x) if len(x) else sp.zeros(vector.shape[0], 0)
-    b = vector.xreplace({s: sp.S.Zero for s in x}) if len(x) else vector
+    x = list(unknowns)
+    vector = sp.Matrix(vector)
+    if not x:
+        return sp.zeros(vector.shape[0], 0), vector
+    rows = [terms_by_symbol(e) for e in vector]
+    A = sp.Matrix(len(rows), len(x), lambda i, j: partial(rows[i], x[j]))
+    b = vector.xreplace({s: sp.S.Zero for s in x})
     return A, b
 
 

@@ -93,9 +93,25 @@ def _symbol_map(derivation) -> dict:
     return out
 
 
-def c_function(name: str, outputs, subs: dict) -> str:
+#: a generated function longer than this many statements is split into parts, each in a
+#: translation unit of its own (compiled in parallel; gcc's time and memory grow much faster
+#: than linearly with the length of one function)
+SPLIT_STATEMENTS = 1500
+#: the line that starts a translation unit in a generated source (see :func:`source_units`)
+UNIT_MARK = "/* appell: unit */"
+#: the line after the includes and sizes that every unit repeats
+HEADER_END = "/* appell: end of header */"
+
+
+def c_function(name: str, outputs, subs: dict, split: int | None = None) -> str:
     """One C function ``void name(t, q, w, a, p, o0, o1, ...)`` filling each output matrix
-    (row-major) from expressions with shared subexpressions."""
+    (row-major) from expressions with shared subexpressions.
+
+    With more than ``split`` (default :data:`SPLIT_STATEMENTS`) statements the shared
+    subexpressions go to a thread-local array ``x[]`` and the statements to functions
+    ``name_part0, name_part1, ...`` of at most ``split`` statements, each after a
+    :data:`UNIT_MARK` (its own translation unit); ``name`` calls them in order."""
+    split = SPLIT_STATEMENTS if split is None else split
     mats = [sp.Matrix(m).xreplace(subs) for m in outputs]
     stray = set().union(*(m.free_symbols for m in mats)) - set(subs.values()) if mats else set()
     if stray:
@@ -105,16 +121,34 @@ def c_function(name: str, outputs, subs: dict) -> str:
         )
     replacements, reduced = sp.cse(mats, symbols=sp.numbered_symbols("x"))
     outs = ", ".join(f"double *restrict o{k}" for k in range(len(mats)))
-    lines = [f"void {name}(double t, const double *restrict q, const double *restrict w, "
-             f"const double *restrict a, const double *restrict p{', ' + outs if outs else ''})", "{",
-             "    (void)t; (void)q; (void)w; (void)a; (void)p;"]
-    for sym, expr in replacements:
-        lines.append(f"    const double {sym} = {_PRINTER.doprint(expr)};")
-    for k, m in enumerate(reduced):
-        for i, e in enumerate(m):
-            lines.append(f"    o{k}[{i}] = {_PRINTER.doprint(e)};")
-    lines.append("}")
-    return "\n".join(lines)
+    args = f"double t, const double *restrict q, const double *restrict w, const double *restrict a, " \
+           f"const double *restrict p{', ' + outs if outs else ''}"
+    count = len(replacements) + sum(len(m) for m in reduced)
+    if count <= split:
+        lines = [f"void {name}({args})", "{", "    (void)t; (void)q; (void)w; (void)a; (void)p;"]
+        for sym, expr in replacements:
+            lines.append(f"    const double {sym} = {_PRINTER.doprint(expr)};")
+        for k, m in enumerate(reduced):
+            for i, e in enumerate(m):
+                lines.append(f"    o{k}[{i}] = {_PRINTER.doprint(e)};")
+        lines.append("}")
+        return "\n".join(lines)
+    slot = {sym: sp.Symbol(f"x[{k}]") for k, (sym, _) in enumerate(replacements)}
+    statements = [f"    x[{k}] = {_PRINTER.doprint(expr.xreplace(slot))};" for k, (_, expr) in enumerate(replacements)]
+    statements += [f"    o{k}[{i}] = {_PRINTER.doprint(e.xreplace(slot))};"
+                   for k, m in enumerate(reduced) for i, e in enumerate(m)]
+    part_args = args.replace("const double *restrict p", "const double *restrict p, double *restrict x")
+    names = [f"{name}_part{k}" for k in range(0, (len(statements) + split - 1) // split)]
+    out_names = ", ".join(f"o{k}" for k in range(len(mats)))
+    head = [f"void {part}({part_args});" for part in names]
+    head += [f"void {name}({args})", "{", f"    static _Thread_local double x[{max(len(replacements), 1)}];"]
+    head += [f"    {part}(t, q, w, a, p, x{', ' + out_names if out_names else ''});" for part in names]
+    head.append("}")
+    units = []
+    for k, part in enumerate(names):
+        units += ["", UNIT_MARK, f"void {part}({part_args})", "{", "    (void)t; (void)q; (void)w; (void)a; (void)p; (void)x;",
+                  *statements[k * split:(k + 1) * split], "}"]
+    return "\n".join(head + units)
 
 
 # The split route for constraints linear in a; N, S, P, NQ are fixed per model.
@@ -552,6 +586,7 @@ def c_source(derivation) -> str:
         f"/* appell: generated C for system {derivation.system.name!r}; n = {n}, s = {s} */",
         "#include <math.h>",
         f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}",
+        HEADER_END,
     ]
     if tree is None:
         parts.append(c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms))
@@ -571,11 +606,27 @@ def c_source(derivation) -> str:
         parts += [_SOLVER, _DENSE_ENTRIES if tree is None else _tree_recursions(tree, len(rows), s) + _TREE, _EVALUATE]
     else:
         parts.append(c_function("appell_constraint", [prepared(cons.second_order), prepared(J)], syms))
-    return "\n\n".join(parts) + "\n"
+    main, units = [], []
+    for part in parts:          # the parts of long functions go to the end, a unit each
+        head, *rest = part.split(UNIT_MARK)
+        main.append(head.rstrip())
+        units += [u.strip() for u in rest]
+    return "\n\n".join(main) + "\n" + "".join(f"\n{UNIT_MARK}\n{u}\n" for u in units)
+
+
+def source_units(source: str) -> list[str]:
+    """The translation units of a generated source: the whole source when it has no
+    :data:`UNIT_MARK`, else the main part and each unit after its own copy of the header
+    (the text before :data:`HEADER_END`). Compiled together they make the same library."""
+    chunks = source.split(UNIT_MARK)
+    if len(chunks) == 1:
+        return [source]
+    header = source[:source.index(HEADER_END) + len(HEADER_END)] + "\n"
+    return [chunks[0]] + [header + chunk for chunk in chunks[1:]]
 
 
 #: bumped when the layout of a cached library changes (part of the cache key)
-LIBRARY_FORMAT = 2
+LIBRARY_FORMAT = 3
 #: the C symbol holding a library's cache key, checked after loading
 KEY_SYMBOL = "appell_library_key"
 
@@ -651,8 +702,46 @@ def build_library(source: str, compiler: list[str] | None = None, *, force: bool
     return lib, True
 
 
+def optimisation(unit: str) -> str:
+    """The optimisation flag of one translation unit: ``-O2``, or ``-O1`` above
+    :data:`O1_ABOVE` characters (gcc's -O2 passes cost far more time and memory on huge units
+    than they gain)."""
+    return "-O1" if len(unit) > O1_ABOVE else "-O2"
+
+
+#: units longer than this (characters of C) are compiled with -O1
+O1_ABOVE = 400_000
+
+
+def compile_workers() -> int:
+    """How many compilers run at once: the cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _run_compilers(commands: list[list[str]]) -> None:
+    """Run the compile commands, at most :func:`compile_workers` at a time; the first
+    failure raises :class:`ComputationError` with the compiler's message."""
+    pending, running, failure = list(commands), [], None
+    while (pending and failure is None) or running:
+        while pending and failure is None and len(running) < compile_workers():
+            running.append(subprocess.Popen(pending.pop(0), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+        proc = running.pop(0)
+        _, err = proc.communicate()
+        if proc.returncode != 0 and failure is None:
+            failure = err
+    if failure is not None:
+        raise ComputationError(f"C compilation failed: {failure.strip()[:2000]}",
+                               hint="use backend='numpy', or set $APPELL_CC to a working C compiler")
+
+
 def _compile(source: str, compiler: list[str], root: Path, key: str, lib: Path) -> None:
-    """Compile ``source`` plus the key symbol into ``lib`` and record its checksum."""
+    """Compile ``source`` plus the key symbol into ``lib`` and record its checksum. A source
+    with several translation units (:func:`source_units`) is compiled unit by unit in
+    parallel (:func:`compile_workers` at a time, each at :func:`optimisation`'s level) and
+    linked; a single unit in one command with :data:`CFLAGS`."""
     temporaries = []
 
     def temporary(suffix: str) -> str:
@@ -665,13 +754,24 @@ def _compile(source: str, compiler: list[str], root: Path, key: str, lib: Path) 
         src_tmp, key_tmp, lib_tmp, sum_tmp = temporary(".c"), temporary("_key.c"), temporary(".so.tmp"), temporary(".sha")
         Path(src_tmp).write_text(source)
         Path(key_tmp).write_text(f'const char {KEY_SYMBOL}[] = "{key}";\n')
-        proc = subprocess.run(compiler + list(CFLAGS) + ["-o", lib_tmp, src_tmp, key_tmp, "-lm"],
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise ComputationError(
-                f"C compilation failed ({' '.join(compiler)}): {proc.stderr.strip()[:2000]}",
-                hint="use backend='numpy', or set $APPELL_CC to a working C compiler",
-            )
+        units = source_units(source)
+        if len(units) == 1:
+            proc = subprocess.run(compiler + list(CFLAGS) + ["-o", lib_tmp, src_tmp, key_tmp, "-lm"],
+                                  capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise ComputationError(
+                    f"C compilation failed ({' '.join(compiler)}): {proc.stderr.strip()[:2000]}",
+                    hint="use backend='numpy', or set $APPELL_CC to a working C compiler",
+                )
+        else:
+            objects, commands = [], []
+            for unit in units:
+                unit_src, obj = temporary(".c"), temporary(".o")
+                Path(unit_src).write_text(unit)
+                objects.append(obj)
+                commands.append(compiler + [optimisation(unit), "-fPIC", "-c", "-o", obj, unit_src])
+            _run_compilers(commands)
+            _run_compilers([compiler + list(CFLAGS) + ["-o", lib_tmp, *objects, key_tmp, "-lm"]])
         Path(sum_tmp).write_text(_sha256_file(Path(lib_tmp)) + "\n")
         os.replace(src_tmp, root / f"appell_{key}.c")
         os.replace(lib_tmp, lib)
