@@ -8,6 +8,9 @@ pendulum with s = 1 (tip on a vertical line) and s = 2 (tip held at a point).
         one evaluation (accelerations + the reaction) of appell's generated C from a C loop
         against the hand-written O(n) recursion (reference/nlink_aba.c), interleaved, and the
         arithmetic in appell's generated straight-line code
+    .venv/bin/python benchmarks/scaling.py --compile --sizes 10,20,40,50
+        generated C of the catalog's chain: arithmetic, size, translation units, generation and
+        compile time, peak memory of the compilers (a fresh process and empty cache per n)
     .venv/bin/python benchmarks/scaling.py --pipeline 50 [--pipeline 100]
         model file -> first compiled step with an empty cache, in a fresh process: time of each
         stage and peak memory of the process and of the compiler it ran
@@ -103,8 +106,60 @@ me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource
 print(json.dumps({"import": t1 - t0, "load": t2 - t1, "derive": t3 - t2, "generate+compile": t4 - t3,
                   "first step": t5 - t4, "total": t5 - t0, "source_kB": len(src) / 1024, "tree": float("tree_solve" in src),
                   "compiler_cpu_s": kids.ru_utime + kids.ru_stime,
-                  "peak_process_MB": me.ru_maxrss / 1024, "peak_compiler_MB": kids.ru_maxrss / 1024}))
+                  "peak_process_MB": me.ru_maxrss / 1024}))
 """
+
+
+_COMPILE = r"""
+import json, resource, sys, time
+sys.path.insert(0, sys.argv[2])
+import appell
+from appell.numerics import codegen_c
+from models import nlink_appell
+from scaling import generated_operations
+d = appell.derive(nlink_appell(int(sys.argv[1])))
+t0 = time.perf_counter()
+src = codegen_c.c_source(d)
+t1 = time.perf_counter()
+codegen_c.build_library(src)
+t2 = time.perf_counter()
+units = len(codegen_c.source_units(src)) if hasattr(codegen_c, "source_units") else 1
+kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+print(json.dumps({"ops": generated_operations(src), "kB": len(src) / 1024, "units": units, "generate_s": t1 - t0,
+                  "compile_s": t2 - t1, "compiler_cpu_s": kids.ru_utime + kids.ru_stime}))
+"""
+
+
+def measuring_compiler(work: Path) -> tuple[str, Path]:
+    """A compiler command that records each compiler run's peak resident memory (kB) in a log
+    (``/usr/bin/time -f %M``; the compiler's own child processes, cc1 and as, included)."""
+    log = work / "compiler-peaks.log"
+    script = work / "cc-measured"
+    script.write_text(f'#!/bin/sh\nexec /usr/bin/time -a -o "{log}" -f %M {shutil.which("cc")} "$@"\n')
+    script.chmod(0o755)
+    return str(script), log
+
+
+def compiler_peaks(log: Path) -> list[float]:
+    """Peak memory of each compiler run [MB]."""
+    return [int(x) / 1024 for x in log.read_text().split()] if log.exists() else []
+
+
+def compile_cost(n: int) -> dict:
+    """C generation and compilation of the chain in a fresh process with an empty cache."""
+    work = Path(tempfile.mkdtemp(prefix="appell_compile_"))
+    try:
+        cc, log = measuring_compiler(work)
+        env = {**os.environ, "APPELL_CACHE_DIR": str(work / "cache"), "APPELL_CC": cc}
+        out = subprocess.run([sys.executable, "-c", _COMPILE, str(n), str(HERE)], env=env, capture_output=True,
+                             text=True)
+        if out.returncode != 0:
+            raise RuntimeError(out.stderr[-2000:])
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        r["compiler_peak_MB"] = max(compiler_peaks(log), default=0.0)
+        return r
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
 
 
 def pipeline(n: int) -> dict:
@@ -112,12 +167,19 @@ def pipeline(n: int) -> dict:
     work = Path(tempfile.mkdtemp(prefix="appell_pipeline_"))
     try:
         (work / "chain.toml").write_text(model_file(n))
-        env = {**os.environ, "APPELL_CACHE_DIR": str(work / "cache")}
+        cc, log = measuring_compiler(work)
+        env = {**os.environ, "APPELL_CACHE_DIR": str(work / "cache"), "APPELL_CC": cc}
         out = subprocess.run([sys.executable, "-c", _PIPELINE, str(work / "chain.toml")], env=env,
                              capture_output=True, text=True)
         if out.returncode != 0:
             raise RuntimeError(out.stderr[-2000:])
-        return json.loads(out.stdout.strip().splitlines()[-1])
+        r = json.loads(out.stdout.strip().splitlines()[-1])
+        peaks = compiler_peaks(log)
+        r["peak_compiler_MB"] = max(peaks, default=0.0)
+        # the process waits while its compilers run: at most min(units, cores) of them at once
+        r["peak_with_compilers_MB"] = r["peak_process_MB"] + sorted(peaks)[-1] * min(len(peaks), os.cpu_count() or 1) \
+            if peaks else r["peak_process_MB"]
+        return r
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -150,12 +212,21 @@ def main():
     ap.add_argument("--sizes", default="2,5,10,20")
     ap.add_argument("--c-loop", action="store_true", help="C loop against the O(n) recursion")
     ap.add_argument("--pipeline", type=int, action="append", help="model file -> first compiled step at this n")
+    ap.add_argument("--compile", action="store_true", help="generated C and its compilation")
     args = ap.parse_args()
     os.environ["APPELL_CACHE_DIR"] = tempfile.mkdtemp(prefix="appell_scaling_")
     if args.pipeline:
         for n in args.pipeline:
             r = pipeline(n)
             print(f"n = {n}: " + ", ".join(f"{k} {v:.1f}" for k, v in r.items()), flush=True)
+        return
+    if args.compile:
+        print(f"{'n':>3} {'gen. ops':>9} {'source [kB]':>12} {'units':>6} {'generate [s]':>13} {'compile [s]':>12} "
+              f"{'compiler CPU [s]':>17} {'compiler peak [MB]':>19}")
+        for n in map(int, args.sizes.split(",")):
+            r = compile_cost(n)
+            print(f"{n:>3} {r['ops']:>9} {r['kB']:>12.0f} {r['units']:>6} {r['generate_s']:>13.1f} "
+                  f"{r['compile_s']:>12.1f} {r['compiler_cpu_s']:>17.1f} {r['compiler_peak_MB']:>19.0f}", flush=True)
         return
     if args.c_loop:
         c_loop(list(map(int, args.sizes.split(","))))

@@ -35,6 +35,7 @@ import shutil
 import subprocess
 import tempfile
 import warnings
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -561,6 +562,22 @@ def particle_tree(inertia, n: int) -> ParticleTree | None:
                         tuple(particles[b].mass for b in placed), axis, bias)
 
 
+def common_factor(expr):
+    """``f (t_1 + t_2 + ...)`` for a sum whose terms share the (non-numeric) factors ``f``,
+    found structurally in one pass (``-g l_k sin(theta_k) (m_k + ... + m_n)`` from the expanded
+    generalized force of a chain: n - k + 3 operations instead of 4 (n - k)); else ``expr``."""
+    terms = sp.Add.make_args(expr)
+    if len(terms) < 2:
+        return expr
+    counts = [Counter(f for f in sp.Mul.make_args(term) if not f.is_Number) for term in terms]
+    common = counts[0]
+    for c in counts[1:]:
+        common &= c
+    if not common:
+        return expr
+    return sp.Mul(*common.elements()) * sp.Add(*[term / sp.Mul(*common.elements()) for term in terms])
+
+
 def c_source(derivation) -> str:
     """The complete C source of a derivation's numeric functions (see module docstring)."""
     subs = dict(program_substitutions(derivation.system))
@@ -595,7 +612,7 @@ def c_source(derivation) -> str:
         rows = [r for r in range(3) if any(m[r] != 0 for m in tree.axis + tree.relative_bias)] or [0]
         axis = sp.Matrix([m[r] for m in tree.axis for r in rows])
         bias = sp.Matrix([m[r] for m in tree.relative_bias for r in rows])
-        Q = sp.Matrix(inertia.generalized_forces).applyfunc(sp.factor_terms)
+        Q = sp.Matrix(inertia.generalized_forces).applyfunc(common_factor)
         parts += [f"/* point masses on a tree: {', '.join(tree.names)} */",
                   f"#define NB {len(tree.names)}\n#define TD {len(rows)}",
                   c_function("appell_tree_terms", [prepared(axis), prepared(bias), prepared(sp.Matrix(tree.mass)),
