@@ -14,6 +14,19 @@ constraints linear in ``a`` one C call also does the linear algebra of the split
 3. ``(C^T M C) a_nu = -C^T (M d + h - Q)``, ``a = C a_nu + d``          — (1.4);
 4. ``lambda = D (D J_h)^{-T} E_h`` with ``E = M a + h - Q``, ``R = J^T lambda`` — (1.5).
 
+When the inertia is point masses whose velocities are built by accumulation along a tree
+(:func:`particle_tree`: an n-link chain, branched pendulums) ``M`` and ``h`` are never
+expanded: the generated code holds each mass's own direction ``U_b`` and relative bias
+acceleration, and ``M^{-1}`` and ``M a + h - Q`` take one pass each way along the tree
+(articulated inertias, unrolled node by node). Step 3 then solves (1.4) as
+``a = a_0 + Y z`` with ``M a_0 = Q - h``, ``Y = M^{-1} J^T``, ``(J Y) z = -(J a_0 + c)``
+(the same accelerations), and step 4 gives each reaction by (1.5) from ``E`` as above:
+O(n s + s^3) per call instead of O(n^3), and generated code that grows like n.
+
+A generated function longer than :data:`SPLIT_STATEMENTS` statements is split into parts,
+each its own translation unit; the units are compiled in parallel (at most one per core;
+``-O1`` above :data:`O1_ABOVE` characters) and linked into one library.
+
 The library is compiled once with the system C compiler (``$APPELL_CC``, else ``$CC``,
 else ``cc``; ``-O2 -shared -fPIC``), cached on disk under ``$APPELL_CACHE_DIR`` (default
 ``~/.cache/appell``) keyed by the SHA-256 of the generated source and the compile command,
@@ -356,7 +369,7 @@ def _tree_recursions(tree: ParticleTree, td: int, s: int) -> str:
     * ``tree_solve``: ``x_k = M^{-1} (rhs_k - h_k)`` for ``k = 0..s`` (only ``k = 0`` with the
       bias accelerations ``cb``; the rows ``k > 0`` are ``J_k`` so that ``x_k = M^{-1} J_k^T``).
       Inward, leaves to root: articulated inertias ``A_b = m_b I + sum_c (A_c - i_c i_c^T / d_c)``
-      with ``i_b = A_b U_b``, ``d_b = U_b^T i_b`` (> 0, else 1), and bias forces
+      with ``i_b = A_b U_b``, ``d_b = U_b^T i_b`` (all > 0, else 1), and bias forces
       ``p_b = sum_c pa_c + A_b cb_b``, ``u_b = rhs_own - U_b . p_b``, ``pa_b = p_b + i_b u_b / d_b``;
       outward: ``x_own = (u_b - i_b . acc_parent) / d_b``, ``acc_b = acc_parent + cb_b + U_b x_own``.
     * ``tree_residual``: ``E = M a + h - tau``: accelerations outward, forces
@@ -379,7 +392,7 @@ def _tree_recursions(tree: ParticleTree, td: int, s: int) -> str:
 
     out = ["/* M^{-1} (rhs_k - h_k), k = 0..S, along the tree (see _tree_recursions) */",
            "static int tree_solve(const double *restrict U, const double *restrict cb, const double *restrict m,",
-           "                      const double *restrict rhs, double *restrict x)", "{"]
+           "                      const double *restrict rhs, double *restrict x)", "{", "    int bad = 0;"]
     for b in reversed(range(nb)):
         own, par = tree.owned[b], tree.parent[b]
         for i in R:
@@ -389,7 +402,7 @@ def _tree_recursions(tree: ParticleTree, td: int, s: int) -> str:
             for i in R:
                 out.append(f"    const double iu{b}_{i} = {_sum([f'{A(b, i, j)} * {U(b, j)}' for j in R])};")
             out.append(f"    const double d{b} = {_sum([f'{U(b, i)} * iu{b}_{i}' for i in R])};")
-            out.append(f"    if (!(d{b} > 0.0)) return 1;")
+            out.append(f"    bad |= !(d{b} > 0.0);")
             out.append(f"    const double di{b} = 1.0 / d{b};")
         if par >= 0:
             for i in R:
@@ -420,7 +433,7 @@ def _tree_recursions(tree: ParticleTree, td: int, s: int) -> str:
                     terms = ([f"ac{r}_{par}_{i}"] if par >= 0 else []) + ([cb(b, i)] if r == 0 else []) + \
                             ([f"{U(b, i)} * k{r}_{b}"] if own >= 0 else [])
                     out.append(f"    const double ac{r}_{b}_{i} = {_sum(terms)};")
-    out += ["    return 0;", "}", "",
+    out += ["    return bad;", "}", "",
             "/* E = M a + h - tau along the tree (see _tree_recursions) */",
             "static void tree_residual(const double *restrict U, const double *restrict cb, const double *restrict m,",
             "                          const double *restrict tau, const double *restrict a, double *restrict E)", "{"]
