@@ -8,8 +8,9 @@ pendulum with s = 1 (tip on a vertical line) and s = 2 (tip held at a point).
         one evaluation (accelerations + the reaction) of appell's generated C from a C loop
         against the hand-written O(n) recursion (reference/nlink_aba.c), interleaved, and the
         arithmetic in appell's generated straight-line code
-    .venv/bin/python benchmarks/scaling.py --compile --sizes 10,20,40,50
-        generated C of the catalog's chain: arithmetic, size, translation units, generation and
+    .venv/bin/python benchmarks/scaling.py --compile [--dense] --sizes 10,20,40,50
+        generated C of the catalog's chain (--dense: its expanded blocks, the route of systems
+        without a tree, split into translation units): arithmetic, size, translation units, generation and
         compile time, peak memory of the compilers (a fresh process and empty cache per n)
     .venv/bin/python benchmarks/scaling.py --pipeline 50 [--pipeline 100]
         model file -> first compiled step with an empty cache, in a fresh process: time of each
@@ -48,10 +49,10 @@ def per_call(fn) -> float:
 
 def generated_operations(source: str) -> int:
     """Arithmetic operators (+ - * /) and calls in the generated straight-line code (the lines
-    ``const double xN = ...`` and ``oK[i] = ...``), not in the fixed solver loops."""
+    ``const double xN = ...``, ``x[N] = ...`` and ``oK[i] = ...``), not in the fixed solver loops."""
     ops = 0
     for line in source.splitlines():
-        if re.match(r"\s+(const double x\d+|o\d+\[\d+\]) = ", line):
+        if re.match(r"\s+(const double x\d+|x\[\d+\]|o\d+\[\d+\]) = ", line):
             rhs = line.split("=", 1)[1]
             ops += len(re.findall(r"[-+*/]|\b(sin|cos|tan|exp|log|sqrt|pow)\(", rhs))
     return ops
@@ -118,6 +119,8 @@ from appell.numerics import codegen_c
 from models import nlink_appell
 from scaling import generated_operations
 d = appell.derive(nlink_appell(int(sys.argv[1])))
+if sys.argv[3] == "dense" and hasattr(codegen_c, "particle_tree"):   # the route of systems without a tree
+    codegen_c.particle_tree = lambda inertia, n: None
 t0 = time.perf_counter()
 src = codegen_c.c_source(d)
 t1 = time.perf_counter()
@@ -145,13 +148,14 @@ def compiler_peaks(log: Path) -> list[float]:
     return [int(x) / 1024 for x in log.read_text().split()] if log.exists() else []
 
 
-def compile_cost(n: int) -> dict:
-    """C generation and compilation of the chain in a fresh process with an empty cache."""
+def compile_cost(n: int, dense: bool = False) -> dict:
+    """C generation and compilation of the chain in a fresh process with an empty cache
+    (``dense``: the expanded blocks, as for a system without a tree)."""
     work = Path(tempfile.mkdtemp(prefix="appell_compile_"))
     try:
         cc, log = measuring_compiler(work)
         env = {**os.environ, "APPELL_CACHE_DIR": str(work / "cache"), "APPELL_CC": cc}
-        out = subprocess.run([sys.executable, "-c", _COMPILE, str(n), str(HERE)], env=env, capture_output=True,
+        out = subprocess.run([sys.executable, "-c", _COMPILE, str(n), str(HERE), "dense" if dense else "tree"], env=env, capture_output=True,
                              text=True)
         if out.returncode != 0:
             raise RuntimeError(out.stderr[-2000:])
@@ -185,26 +189,29 @@ def pipeline(n: int) -> dict:
 
 
 def c_loop(sizes) -> None:
-    """appell_evaluate from a C loop against reference/nlink_aba.c (interleaved, best of 21)."""
+    """appell_evaluate from a C loop against reference/nlink_aba.c: 41 interleaved rounds, the
+    best time of each and the median of the paired ratios."""
     cc = shutil.which("cc")
     work = Path(tempfile.mkdtemp(prefix="appell_cloop_"))
     exe = work / "bench_aba"
     subprocess.run([cc, "-O2", "-o", str(exe), str(HERE / "reference" / "bench_aba.c"),
                     str(HERE / "reference" / "nlink_aba.c"), "-lm", "-ldl"], check=True)
-    print(f"{'n':>3} {'gen. ops':>9} {'appell C [us]':>14} {'O(n) recursion [us]':>20} {'ratio':>6} {'rel. diff':>10}")
+    print(f"{'n':>3} {'gen. ops':>9} {'appell C [us]':>14} {'O(n) recursion [us]':>20} {'ratio of best':>14} "
+          f"{'median ratio':>13} {'rel. diff':>10}")
     for n in sizes:
         d = appell.derive(nlink_appell(n))
         cm = d.compiled("c")
         pv = np.array([p.value for p in d.system.parameters])
         y = np.concatenate(nlink_state(n))
         ops = generated_operations(cm.library_path.with_suffix(".c").read_text())
-        iters = max(2000, 2_000_000 // (n * n))
+        iters = max(2000, 4_000_000 // (n * n))
         out = subprocess.run([str(exe), str(cm.library_path), str(n), str(iters), str(d.partition.dependent[0]),
                               *map(repr, y.tolist()), *map(repr, pv.tolist())], capture_output=True, text=True,
                              check=True)
         r = json.loads(out.stdout)
         print(f"{n:>3} {ops:>9} {r['appell_c_ns'] / 1e3:14.3f} {r['recursion_ns'] / 1e3:20.3f} "
-              f"{r['appell_c_ns'] / r['recursion_ns']:6.2f} {r['max_rel_diff']:10.1e}", flush=True)
+              f"{r['appell_c_ns'] / r['recursion_ns']:14.2f} {r['median_ratio']:13.2f} {r['max_rel_diff']:10.1e}",
+              flush=True)
 
 
 def main():
@@ -213,6 +220,7 @@ def main():
     ap.add_argument("--c-loop", action="store_true", help="C loop against the O(n) recursion")
     ap.add_argument("--pipeline", type=int, action="append", help="model file -> first compiled step at this n")
     ap.add_argument("--compile", action="store_true", help="generated C and its compilation")
+    ap.add_argument("--dense", action="store_true", help="with --compile: the expanded blocks (no tree)")
     args = ap.parse_args()
     os.environ["APPELL_CACHE_DIR"] = tempfile.mkdtemp(prefix="appell_scaling_")
     if args.pipeline:
@@ -224,7 +232,7 @@ def main():
         print(f"{'n':>3} {'gen. ops':>9} {'source [kB]':>12} {'units':>6} {'generate [s]':>13} {'compile [s]':>12} "
               f"{'compiler CPU [s]':>17} {'compiler peak [MB]':>19}")
         for n in map(int, args.sizes.split(",")):
-            r = compile_cost(n)
+            r = compile_cost(n, args.dense)
             print(f"{n:>3} {r['ops']:>9} {r['kB']:>12.0f} {r['units']:>6} {r['generate_s']:>13.1f} "
                   f"{r['compile_s']:>12.1f} {r['compiler_cpu_s']:>17.1f} {r['compiler_peak_MB']:>19.0f}", flush=True)
         return
