@@ -7,6 +7,7 @@ hand-written O(n) recursion of benchmarks/reference/nlink_aba.c (articulated-bod
 the planar chain, written from the mechanics, sharing no code with the generator)."""
 
 import ctypes
+from dataclasses import replace
 import shutil
 import subprocess
 from pathlib import Path
@@ -110,13 +111,13 @@ def test_a_mass_shared_by_two_links_keeps_the_dense_route():
     assert particle_tree(appell.derive(system).inertia, 2) is None
 
 
-@pytest.mark.parametrize("case", ["chain10", "chain8 tip at a point", "branched"])
+@pytest.mark.parametrize("case", ["chain10", "chain8 tip at a point", "branched", "branched, unconstrained"])
 def test_tree_code_equals_the_dense_route(case, monkeypatch):
     """Blocks, accelerations (1.4), multipliers (1.5) and generalized reactions of the tree code
     agree to 1e-12 with the dense C code on the expanded M, h and with the NumPy model, at
     random states, with the derivation's partition, a chosen one and a constraint bias."""
     system = {"chain10": lambda: nlink_pendulum(10), "chain8 tip at a point": lambda: nlink_pendulum(8, 2),
-              "branched": branched}[case]()
+              "branched": branched, "branched, unconstrained": lambda: replace(branched(), constraints=())}[case]()
     d = appell.derive(system)
     assert "tree_solve" in c_source(d)
     tree, flat, nm = compile_c(d, "c"), dense(d, monkeypatch), d.numeric
