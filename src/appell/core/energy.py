@@ -21,17 +21,34 @@ from dataclasses import dataclass
 import sympy as sp
 
 from appell.errors import ModelError
-from appell.core.kinematics import Kinematics
+from appell.core.kinematics import Kinematics, partial, terms_by_symbol
 from appell.model import AppliedForce, AppliedTorque, RigidBody, System
 
 
 @dataclass(frozen=True)
+class ParticleTerm:
+    """One point mass's share of ``dS/da``: with its velocity ``v = J_v w + ...`` and its
+    acceleration ``J_v a + b_v``, it adds ``m J_v^T J_v`` to ``M`` and ``m J_v^T b_v`` to ``h``."""
+
+    name: str
+    mass: sp.Expr
+    jacobian: sp.ImmutableMatrix  # J_v, 3 x n
+    bias: sp.ImmutableMatrix  # b_v, 3 x 1 (the acceleration at a = 0)
+
+
+@dataclass(frozen=True)
 class InertiaBlocks:
-    """``dS/da = M a + h`` (method.md §3) and the generalized forces ``Q``."""
+    """``dS/da = M a + h`` (method.md §3) and the generalized forces ``Q``.
+
+    ``particles`` keeps the structure of ``M`` and ``h`` when the system's inertia is point
+    masses only: then ``M = sum m J_v^T J_v`` and ``h = sum m J_v^T b_v`` exactly, term by
+    term (the compiled code uses it to avoid the expanded sums); None otherwise.
+    """
 
     mass_matrix: sp.ImmutableMatrix
     inertial_forces: sp.ImmutableMatrix  # h(t, q, w)
     generalized_forces: sp.ImmutableMatrix  # Q(t, q, w)
+    particles: tuple[ParticleTerm, ...] | None = None
 
     def residual(self, a) -> sp.Matrix:
         """``E = M a + h - Q`` (the left side of 1.3 without multipliers)."""
@@ -40,10 +57,28 @@ class InertiaBlocks:
 
 def linear_split(vector: sp.Matrix, unknowns) -> tuple[sp.Matrix, sp.Matrix]:
     """Split ``vector = A x + b`` for ``x = unknowns``; ``A = d vector / d x``, ``b`` at x = 0."""
-    x = sp.Matrix(unknowns)
-    A = vector.jacobian(x) if len(x) else sp.zeros(vector.shape[0], 0)
-    b = vector.xreplace({s: sp.S.Zero for s in x}) if len(x) else vector  # xreplace: symbols only, far faster than subs
+    x = list(unknowns)
+    vector = sp.Matrix(vector)
+    if not x:
+        return sp.zeros(vector.shape[0], 0), vector
+    rows = [terms_by_symbol(e) for e in vector]
+    A = sp.Matrix(len(rows), len(x), lambda i, j: partial(rows[i], x[j]))
+    b = vector.xreplace({s: sp.S.Zero for s in x})  # xreplace: symbols only, far faster than subs
     return A, b
+
+
+def _gram_terms(terms: list, weight, J: sp.Matrix, other: sp.Matrix | None = None) -> None:
+    """Append the entries of ``weight J^T other`` (``other = J``: the upper triangle only) to the
+    per-entry term lists ``terms`` (summed once at the end: no re-flattening of growing sums)."""
+    rows, n = J.shape
+    nonzero = [[k for k in range(rows) if J[k, i] != 0] for i in range(n)]
+    if other is None:
+        for i in range(n):
+            for j in range(i, n):
+                terms[i][j].extend(weight * J[k, i] * J[k, j] for k in nonzero[i] if J[k, j] != 0)
+    else:
+        for i in range(n):
+            terms[i][0].extend(weight * J[k, i] * other[k, 0] for k in nonzero[i] if other[k, 0] != 0)
 
 
 def _velocity(body_position, body_velocity, kin: Kinematics) -> sp.Matrix:
@@ -85,12 +120,16 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
         M += A
         h += b
 
+    M_terms = [[[] for _ in range(n)] for _ in range(n)]
+    h_terms = [[[]] for _ in range(n)]
+    particles = []
     for body in system.bodies:
         v = _velocity(body.position, body.velocity, kin)
         Jv, _ = linear_split(v, kin.speeds)
         _, bv = linear_split(kin.diff(v), a)
-        M += body.mass * Jv.T * Jv
-        h += body.mass * Jv.T * bv
+        _gram_terms(M_terms, body.mass, Jv)
+        _gram_terms(h_terms, body.mass, Jv, bv)
+        particles.append(ParticleTerm(body.name, body.mass, sp.ImmutableMatrix(Jv), sp.ImmutableMatrix(bv)))
         if isinstance(body, RigidBody):
             omega = sp.Matrix(body.angular_velocity)
             I = sp.Matrix(body.inertia)
@@ -98,9 +137,21 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
             _, bw = linear_split(kin.diff(omega), a)
             M += Jw.T * I * Jw
             h += Jw.T * (I * bw + omega.cross(I * omega))
+    if system.bodies:
+        M, h = sp.Matrix(M), sp.Matrix(h)
+        for i in range(n):
+            h[i] += sp.Add(*h_terms[i][0])
+            for j in range(i, n):
+                entry = sp.Add(*M_terms[i][j])
+                M[i, j] += entry
+                if j != i:
+                    M[j, i] += entry
 
     Q = generalized_forces(system, kin)
-    return InertiaBlocks(sp.ImmutableMatrix(M), sp.ImmutableMatrix(h), sp.ImmutableMatrix(Q))
+    only_particles = (system.kinetic_energy is None and system.acceleration_energy is None and bool(system.bodies)
+                      and not any(isinstance(body, RigidBody) for body in system.bodies))
+    return InertiaBlocks(sp.ImmutableMatrix(M), sp.ImmutableMatrix(h), sp.ImmutableMatrix(Q),
+                         tuple(particles) if only_particles else None)
 
 
 def generalized_forces(system: System, kin: Kinematics) -> sp.Matrix:

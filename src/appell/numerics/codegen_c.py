@@ -14,6 +14,19 @@ constraints linear in ``a`` one C call also does the linear algebra of the split
 3. ``(C^T M C) a_nu = -C^T (M d + h - Q)``, ``a = C a_nu + d``          — (1.4);
 4. ``lambda = D (D J_h)^{-T} E_h`` with ``E = M a + h - Q``, ``R = J^T lambda`` — (1.5).
 
+When the inertia is point masses whose velocities are built by accumulation along a tree
+(:func:`particle_tree`: an n-link chain, branched pendulums) ``M`` and ``h`` are never
+expanded: the generated code holds each mass's own direction ``U_b`` and relative bias
+acceleration, and ``M^{-1}`` and ``M a + h - Q`` take one pass each way along the tree
+(articulated inertias, unrolled node by node). Step 3 then solves (1.4) as
+``a = a_0 + Y z`` with ``M a_0 = Q - h``, ``Y = M^{-1} J^T``, ``(J Y) z = -(J a_0 + c)``
+(the same accelerations), and step 4 gives each reaction by (1.5) from ``E`` as above:
+O(n s + s^3) per call instead of O(n^3), and generated code that grows like n.
+
+A generated function longer than :data:`SPLIT_STATEMENTS` statements is split into parts,
+each its own translation unit; the units are compiled in parallel (at most one per core;
+``-O1`` above :data:`O1_ABOVE` characters) and linked into one library.
+
 The library is compiled once with the system C compiler (``$APPELL_CC``, else ``$CC``,
 else ``cc``; ``-O2 -shared -fPIC``), cached on disk under ``$APPELL_CACHE_DIR`` (default
 ``~/.cache/appell``) keyed by the SHA-256 of the generated source and the compile command,
@@ -36,6 +49,7 @@ import subprocess
 import tempfile
 import threading
 import warnings
+from collections import Counter
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
@@ -97,9 +111,25 @@ def _symbol_map(derivation) -> dict:
     return out
 
 
-def c_function(name: str, outputs, subs: dict) -> str:
+#: a generated function longer than this many statements is split into parts, each in a
+#: translation unit of its own (compiled in parallel; gcc's time and memory grow much faster
+#: than linearly with the length of one function)
+SPLIT_STATEMENTS = 1500
+#: the line that starts a translation unit in a generated source (see :func:`source_units`)
+UNIT_MARK = "/* appell: unit */"
+#: the line after the includes and sizes that every unit repeats
+HEADER_END = "/* appell: end of header */"
+
+
+def c_function(name: str, outputs, subs: dict, split: int | None = None) -> str:
     """One C function ``void name(t, q, w, a, p, o0, o1, ...)`` filling each output matrix
-    (row-major) from expressions with shared subexpressions."""
+    (row-major) from expressions with shared subexpressions.
+
+    With more than ``split`` (default :data:`SPLIT_STATEMENTS`) statements the shared
+    subexpressions go to a thread-local array ``x[]`` and the statements to functions
+    ``name_part0, name_part1, ...`` of at most ``split`` statements, each after a
+    :data:`UNIT_MARK` (its own translation unit); ``name`` calls them in order."""
+    split = SPLIT_STATEMENTS if split is None else split
     mats = [sp.Matrix(m).xreplace(subs) for m in outputs]
     stray = set().union(*(m.free_symbols for m in mats)) - set(subs.values()) if mats else set()
     if stray:
@@ -109,16 +139,34 @@ def c_function(name: str, outputs, subs: dict) -> str:
         )
     replacements, reduced = sp.cse(mats, symbols=sp.numbered_symbols("x"))
     outs = ", ".join(f"double *restrict o{k}" for k in range(len(mats)))
-    lines = [f"void {name}(double t, const double *restrict q, const double *restrict w, "
-             f"const double *restrict a, const double *restrict p{', ' + outs if outs else ''})", "{",
-             "    (void)t; (void)q; (void)w; (void)a; (void)p;"]
-    for sym, expr in replacements:
-        lines.append(f"    const double {sym} = {_PRINTER.doprint(expr)};")
-    for k, m in enumerate(reduced):
-        for i, e in enumerate(m):
-            lines.append(f"    o{k}[{i}] = {_PRINTER.doprint(e)};")
-    lines.append("}")
-    return "\n".join(lines)
+    args = f"double t, const double *restrict q, const double *restrict w, const double *restrict a, " \
+           f"const double *restrict p{', ' + outs if outs else ''}"
+    count = len(replacements) + sum(len(m) for m in reduced)
+    if count <= split:
+        lines = [f"void {name}({args})", "{", "    (void)t; (void)q; (void)w; (void)a; (void)p;"]
+        for sym, expr in replacements:
+            lines.append(f"    const double {sym} = {_PRINTER.doprint(expr)};")
+        for k, m in enumerate(reduced):
+            for i, e in enumerate(m):
+                lines.append(f"    o{k}[{i}] = {_PRINTER.doprint(e)};")
+        lines.append("}")
+        return "\n".join(lines)
+    slot = {sym: sp.Symbol(f"x[{k}]") for k, (sym, _) in enumerate(replacements)}
+    statements = [f"    x[{k}] = {_PRINTER.doprint(expr.xreplace(slot))};" for k, (_, expr) in enumerate(replacements)]
+    statements += [f"    o{k}[{i}] = {_PRINTER.doprint(e.xreplace(slot))};"
+                   for k, m in enumerate(reduced) for i, e in enumerate(m)]
+    part_args = args.replace("const double *restrict p", "const double *restrict p, double *restrict x")
+    names = [f"{name}_part{k}" for k in range(0, (len(statements) + split - 1) // split)]
+    out_names = ", ".join(f"o{k}" for k in range(len(mats)))
+    head = [f"void {part}({part_args});" for part in names]
+    head += [f"void {name}({args})", "{", f"    static _Thread_local double x[{max(len(replacements), 1)}];"]
+    head += [f"    {part}(t, q, w, a, p, x{', ' + out_names if out_names else ''});" for part in names]
+    head.append("}")
+    units = []
+    for k, part in enumerate(names):
+        units += ["", UNIT_MARK, f"void {part}({part_args})", "{", "    (void)t; (void)q; (void)w; (void)a; (void)p; (void)x;",
+                  *statements[k * split:(k + 1) * split], "}"]
+    return "\n".join(head + units)
 
 
 # The split route for constraints linear in a; N, S, P, NQ are fixed per model.
@@ -177,40 +225,65 @@ static double norm1(int n, const double *A)
     return best;
 }
 
-/* 0: solved; 1: the partition's relative condition number kappa reaches cond_max, or a row of J
-   vanishes (Python switches the partition or names the singular constraints); 2: not finite */
+/* Row scales D = 1 / max_j |J_rj|, the LU factors of D J_h and the partition's relative condition
+   number kappa = |(D J_h)^{-1}|_1 |D J|_1 (numeric.partition_condition). 0: usable; 1: kappa reaches
+   cond_max or a row of J vanishes (Python switches the partition or names the singular constraints) */
+static int scaled_block(const double *J, const int *dep, double cond_max, double *D, double *Jh, int *piv)
+{
+    double inv[DIM(S * S)], nrm = 0.0;
+    for (int r = 0; r < S; ++r) {
+        double big = 0.0;
+        for (int i = 0; i < N; ++i) if (fabs(J[r * N + i]) > big) big = fabs(J[r * N + i]);
+        if (!(big > 0.0) || !isfinite(big)) return 1;
+        D[r] = 1.0 / big;
+    }
+    for (int i = 0; i < N; ++i) {
+        double s = 0.0;
+        for (int r = 0; r < S; ++r) s += fabs(J[r * N + i]) * D[r];
+        if (s > nrm) nrm = s;
+    }
+    for (int r = 0; r < S; ++r) for (int k = 0; k < S; ++k) Jh[r * S + k] = D[r] * J[r * N + dep[k]];
+    if (lu_factor(S, Jh, piv)) return 1;
+    for (int k = 0; k < S; ++k) {          /* columns of (D J_h)^{-1}, for kappa */
+        double e[DIM(S)];
+        for (int r = 0; r < S; ++r) e[r] = (r == k);
+        lu_solve(S, Jh, piv, e);
+        for (int r = 0; r < S; ++r) inv[r * S + k] = e[r];
+    }
+    return !(nrm * norm1(S, inv) < cond_max);
+}
+
+/* (1.5): lambda = D (D J_h)^{-T} E_h with E = M a + h - Q, R = J^T lambda; 2 if a or lambda is not finite */
+static int reactions(const double *E, const double *J, const int *dep, const double *D, const double *Jh,
+                     const int *piv, const double *a, double *lam, double *R)
+{
+    if (S > 0) {
+        for (int r = 0; r < S; ++r) lam[r] = E[dep[r]];
+        lu_solve_t(S, Jh, piv, lam);
+        for (int r = 0; r < S; ++r) lam[r] *= D[r];
+    }
+    for (int i = 0; i < N; ++i) {
+        double s = 0.0;
+        for (int r = 0; r < S; ++r) s += J[r * N + i] * lam[r];
+        R[i] = s;
+    }
+    for (int i = 0; i < N; ++i) if (!isfinite(a[i])) return 2;
+    for (int r = 0; r < S; ++r) if (!isfinite(lam[r])) return 2;
+    return 0;
+}
+
+/* 0: solved; 1: the partition is unusable (scaled_block); 2: not finite or C^T M C singular */
 int appell_split(const double *M, const double *hQ, const double *J, const double *c, const int *dep,
                  double cond_max, double *a, double *lam, double *R)
 {
     int isdep[N] = {0}, ind[DIM(P)], piv[DIM(S)], pivA[DIM(P)];
-    double Jh[DIM(S * S)], inv[DIM(S * S)], D[DIM(S)], X[DIM(S * P)], d[N], A[DIM(P * P)], b[DIM(P)];
+    double Jh[DIM(S * S)], D[DIM(S)], X[DIM(S * P)], d[N], A[DIM(P * P)], b[DIM(P)];
     double MC[DIM(N * P)], Md[N], E[N];
     for (int k = 0; k < S; ++k) isdep[dep[k]] = 1;
     for (int i = 0, j = 0; i < N; ++i) if (!isdep[i]) ind[j++] = i;
     for (int i = 0; i < N; ++i) d[i] = 0.0;
     if (S > 0) {
-        /* row scales D = 1 / max_j |J_rj| and kappa = |(D J_h)^{-1}|_1 |D J|_1 (numeric.partition_condition) */
-        double nrm = 0.0;
-        for (int r = 0; r < S; ++r) {
-            double big = 0.0;
-            for (int i = 0; i < N; ++i) if (fabs(J[r * N + i]) > big) big = fabs(J[r * N + i]);
-            if (!(big > 0.0) || !isfinite(big)) return 1;
-            D[r] = 1.0 / big;
-        }
-        for (int i = 0; i < N; ++i) {
-            double s = 0.0;
-            for (int r = 0; r < S; ++r) s += fabs(J[r * N + i]) * D[r];
-            if (s > nrm) nrm = s;
-        }
-        for (int r = 0; r < S; ++r) for (int k = 0; k < S; ++k) Jh[r * S + k] = D[r] * J[r * N + dep[k]];
-        if (lu_factor(S, Jh, piv)) return 1;
-        for (int k = 0; k < S; ++k) {          /* columns of (D J_h)^{-1}, for kappa */
-            double e[DIM(S)];
-            for (int r = 0; r < S; ++r) e[r] = (r == k);
-            lu_solve(S, Jh, piv, e);
-            for (int r = 0; r < S; ++r) inv[r * S + k] = e[r];
-        }
-        if (!(nrm * norm1(S, inv) < cond_max)) return 1;
+        if (scaled_block(J, dep, cond_max, D, Jh, piv)) return 1;
         for (int j = 0; j < P; ++j) {           /* X = J_h^{-1} J_nu = (D J_h)^{-1} D J_nu */
             double col[DIM(S)];
             for (int r = 0; r < S; ++r) col[r] = D[r] * J[r * N + ind[j]];
@@ -261,21 +334,13 @@ int appell_split(const double *M, const double *hQ, const double *J, const doubl
         for (int j = 0; j < N; ++j) s += M[i * N + j] * a[j];
         E[i] = s;
     }
-    if (S > 0) {                            /* lambda = D (D J_h)^{-T} E_h */
-        for (int r = 0; r < S; ++r) lam[r] = E[dep[r]];
-        lu_solve_t(S, Jh, piv, lam);
-        for (int r = 0; r < S; ++r) lam[r] *= D[r];
-    }
-    for (int i = 0; i < N; ++i) {
-        double s = 0.0;
-        for (int r = 0; r < S; ++r) s += J[r * N + i] * lam[r];
-        R[i] = s;
-    }
-    for (int i = 0; i < N; ++i) if (!isfinite(a[i])) return 2;
-    for (int r = 0; r < S; ++r) if (!isfinite(lam[r])) return 2;
-    return 0;
+    return reactions(E, J, dep, D, Jh, piv, a, lam, R);
 }
 
+"""
+
+# appell_solve / appell_evaluate on the dense blocks
+_DENSE_ENTRIES = r"""
 /* bias (may be NULL) is added to the constraints: f + bias = 0 */
 int appell_solve(double t, const double *q, const double *w, const double *p, const double *bias,
                  const int *dep, double cond_max, double *a, double *lam, double *R)
@@ -285,7 +350,9 @@ int appell_solve(double t, const double *q, const double *w, const double *p, co
     if (bias) for (int r = 0; r < S; ++r) c[r] += bias[r];
     return appell_split(M, hQ, J, c, dep, cond_max, a, lam, R);
 }
+"""
 
+_EVALUATE = r"""
 /* dy/dt = (K w + k, a) and the multipliers, in one call */
 int appell_evaluate(double t, const double *y, const double *p, const double *bias, const int *dep,
                     double cond_max, double *dy, double *lam)
@@ -295,6 +362,237 @@ int appell_evaluate(double t, const double *y, const double *p, const double *bi
     return appell_solve(t, y, y + NQ, p, bias, dep, cond_max, dy + NQ, lam, R);
 }
 """
+
+def _sum(terms) -> str:
+    return " + ".join(terms) if terms else "0.0"
+
+
+def _tree_recursions(tree: ParticleTree, td: int, s: int) -> str:
+    """C for a :class:`ParticleTree`, unrolled node by node (values stay in registers):
+
+    * ``tree_solve``: ``x_k = M^{-1} (rhs_k - h_k)`` for ``k = 0..s`` (only ``k = 0`` with the
+      bias accelerations ``cb``; the rows ``k > 0`` are ``J_k`` so that ``x_k = M^{-1} J_k^T``).
+      Inward, leaves to root: articulated inertias ``A_b = m_b I + sum_c (A_c - i_c i_c^T / d_c)``
+      with ``i_b = A_b U_b``, ``d_b = U_b^T i_b`` (all > 0, else 1), and bias forces
+      ``p_b = sum_c pa_c + A_b cb_b``, ``u_b = rhs_own - U_b . p_b``, ``pa_b = p_b + i_b u_b / d_b``;
+      outward: ``x_own = (u_b - i_b . acc_parent) / d_b``, ``acc_b = acc_parent + cb_b + U_b x_own``.
+    * ``tree_residual``: ``E = M a + h - tau``: accelerations outward, forces
+      ``F_b = m_b acc_b + sum_c F_c`` inward, ``E_own = U_b . F_b - tau_own``.
+
+    ``U`` and ``cb`` hold ``td`` spatial components per node, ``m`` the masses.
+    """
+    nb = len(tree.parent)
+    kids = [[c for c in range(nb) if tree.parent[c] == b] for b in range(nb)]
+    R = range(td)
+
+    def A(b, i, j):
+        return f"A{b}_{min(i, j)}{max(i, j)}"
+
+    def U(b, i):
+        return f"U[{td * b + i}]"
+
+    def cb(b, i):
+        return f"cb[{td * b + i}]"
+
+    out = ["/* M^{-1} (rhs_k - h_k), k = 0..S, along the tree (see _tree_recursions) */",
+           "static int tree_solve(const double *restrict U, const double *restrict cb, const double *restrict m,",
+           "                      const double *restrict rhs, double *restrict x)", "{", "    int bad = 0;"]
+    for b in reversed(range(nb)):
+        own, par = tree.owned[b], tree.parent[b]
+        for i in R:
+            for j in range(i, td):
+                out.append(f"    const double {A(b, i, j)} = {_sum(([f'm[{b}]'] if i == j else []) + [f'Ia{c}_{i}{j}' for c in kids[b]])};")
+        if own >= 0:
+            for i in R:
+                out.append(f"    const double iu{b}_{i} = {_sum([f'{A(b, i, j)} * {U(b, j)}' for j in R])};")
+            out.append(f"    const double d{b} = {_sum([f'{U(b, i)} * iu{b}_{i}' for i in R])};")
+            out.append(f"    bad |= !(d{b} > 0.0);")
+            out.append(f"    const double di{b} = 1.0 / d{b};")
+        if par >= 0:
+            for i in R:
+                for j in range(i, td):
+                    red = f" - iu{b}_{i} * iu{b}_{j} * di{b}" if own >= 0 else ""
+                    out.append(f"    const double Ia{b}_{i}{j} = {A(b, i, j)}{red};")
+        for r in range(s + 1):
+            for i in R:
+                terms = [f"pa{r}_{c}_{i}" for c in kids[b]] + ([f"{A(b, i, j)} * {cb(b, j)}" for j in R] if r == 0 else [])
+                out.append(f"    const double p{r}_{b}_{i} = {_sum(terms)};")
+            if own >= 0:
+                dot = _sum([f"{U(b, i)} * p{r}_{b}_{i}" for i in R])
+                out.append(f"    const double u{r}_{b} = rhs[{r}*N + {own}] - ({dot});")
+                out.append(f"    const double s{r}_{b} = di{b} * u{r}_{b};")
+            if par >= 0:
+                for i in R:
+                    add = f" + iu{b}_{i} * s{r}_{b}" if own >= 0 else ""
+                    out.append(f"    const double pa{r}_{b}_{i} = p{r}_{b}_{i}{add};")
+    for b in range(nb):
+        own, par = tree.owned[b], tree.parent[b]
+        for r in range(s + 1):
+            if own >= 0:
+                back = f" - di{b} * ({_sum([f'iu{b}_{i} * ac{r}_{par}_{i}' for i in R])})" if par >= 0 else ""
+                out.append(f"    const double k{r}_{b} = s{r}_{b}{back};")
+                out.append(f"    x[{r}*N + {own}] = k{r}_{b};")
+            if kids[b]:
+                for i in R:
+                    terms = ([f"ac{r}_{par}_{i}"] if par >= 0 else []) + ([cb(b, i)] if r == 0 else []) + \
+                            ([f"{U(b, i)} * k{r}_{b}"] if own >= 0 else [])
+                    out.append(f"    const double ac{r}_{b}_{i} = {_sum(terms)};")
+    out += ["    return bad;", "}", "",
+            "/* E = M a + h - tau along the tree (see _tree_recursions) */",
+            "static void tree_residual(const double *restrict U, const double *restrict cb, const double *restrict m,",
+            "                          const double *restrict tau, const double *restrict a, double *restrict E)", "{"]
+    for b in range(nb):
+        own, par = tree.owned[b], tree.parent[b]
+        for i in R:
+            terms = ([f"ac_{par}_{i}"] if par >= 0 else []) + [cb(b, i)] + ([f"{U(b, i)} * a[{own}]"] if own >= 0 else [])
+            out.append(f"    const double ac_{b}_{i} = {_sum(terms)};")
+    for b in reversed(range(nb)):
+        own = tree.owned[b]
+        for i in R:
+            out.append(f"    const double F{b}_{i} = {_sum([f'm[{b}] * ac_{b}_{i}'] + [f'F{c}_{i}' for c in kids[b]])};")
+        if own >= 0:
+            out.append(f"    E[{own}] = {_sum([f'{U(b, i)} * F{b}_{i}' for i in R])} - tau[{own}];")
+    out.append("}")
+    return "\n".join(out)
+
+
+# appell_blocks and appell_solve for a ParticleTree (tree_solve, tree_residual and
+# appell_tree_terms, which fills U, the relative bias accelerations cb, the masses, Q, J and c,
+# are written per model; NB nodes, TD spatial directions in which anything moves)
+_TREE = r"""
+static double dot_n(const double *x, const double *y)
+{
+    double s = 0.0;
+    for (int i = 0; i < N; ++i) s += x[i] * y[i];
+    return s;
+}
+
+/* the blocks M, h - Q, J, c as the dense route has them (the NumPy fallback and the Python API):
+   column j of M is tree_residual at a = e_j without bias, h - Q at a = 0 */
+void appell_blocks(double t, const double *restrict q, const double *restrict w, const double *restrict a,
+                   const double *restrict p, double *restrict M, double *restrict hQ, double *restrict J,
+                   double *restrict c)
+{
+    double U[TD * NB], cb[TD * NB], m[NB], tau[N], e[N], col[N], zero[TD * NB > N ? TD * NB : N] = {0.0};
+    appell_tree_terms(t, q, w, a, p, U, cb, m, tau, J, c);
+    for (int i = 0; i < N; ++i) e[i] = 0.0;
+    for (int j = 0; j < N; ++j) {
+        e[j] = 1.0;
+        tree_residual(U, zero, m, zero, e, col);
+        for (int i = 0; i < N; ++i) M[i * N + j] = col[i];
+        e[j] = 0.0;
+    }
+    tree_residual(U, cb, m, tau, e, hQ);
+}
+
+/* (1.4) by the tree: a = a_0 + Y x with M a_0 = Q - h, Y = M^{-1} J^T (O(NB) per column) and
+   (J Y) x = -(J a_0 + c), the solution of the reduced equations; then each reaction by (1.5)
+   from E = M a + h - Q. 0: solved; 1: partition unusable; 2: singular or not finite */
+int appell_solve(double t, const double *q, const double *w, const double *p, const double *bias,
+                 const int *dep, double cond_max, double *a, double *lam, double *R)
+{
+    double U[TD * NB], cb[TD * NB], m[NB], rhs[(S + 1) * N], x[(S + 1) * N], D[DIM(S)], Jh[DIM(S * S)], E[N];
+    double *J = rhs + N, c[DIM(S)];
+    int piv[DIM(S)];
+    appell_tree_terms(t, q, w, 0, p, U, cb, m, rhs, J, c);
+    if (bias) for (int r = 0; r < S; ++r) c[r] += bias[r];
+    if (S > 0 && scaled_block(J, dep, cond_max, D, Jh, piv)) return 1;
+    if (tree_solve(U, cb, m, rhs, x)) return 2;         /* a_0 and the columns of Y = M^{-1} J^T */
+    for (int i = 0; i < N; ++i) a[i] = x[i];
+    if (S > 0) {
+        const double *Y = x + N;
+        double G[DIM(S * S)], z[DIM(S)];
+        int pg[DIM(S)];
+        for (int r = 0; r < S; ++r) {
+            z[r] = -(c[r] + dot_n(J + r * N, a));
+            for (int k = 0; k < S; ++k) G[r * S + k] = dot_n(J + r * N, Y + k * N);
+        }
+        if (lu_factor(S, G, pg)) return 2;
+        lu_solve(S, G, pg, z);
+        for (int r = 0; r < S; ++r) for (int i = 0; i < N; ++i) a[i] += Y[r * N + i] * z[r];
+    }
+    tree_residual(U, cb, m, rhs, a, E);
+    return reactions(E, J, dep, D, Jh, piv, a, lam, R);
+}
+"""
+
+
+
+@dataclass(frozen=True)
+class ParticleTree:
+    """Point masses whose velocities are built by accumulation along a tree.
+
+    Node ``b`` (bodies in an order with parents first) has ``v_b = v_parent + U_b w_k`` up
+    to terms free of the speeds, with ``k = owned[b]`` a speed no other node owns (-1: none)
+    and ``parent[b]`` an earlier node (-1: the inertial frame). Then
+    ``M = sum_b m_b J_b^T J_b`` and ``h`` are never expanded: ``M^{-1}`` and ``M a + h``
+    take one pass each way along the tree (articulated inertias; the generated C). ``axis``
+    is ``U_b`` (zero without an owned speed) and ``relative_bias`` ``b_b - b_parent``, the
+    acceleration at ``a = 0`` relative to the parent.
+    """
+
+    names: tuple[str, ...]
+    parent: tuple[int, ...]
+    owned: tuple[int, ...]
+    mass: tuple[sp.Expr, ...]
+    axis: tuple[sp.ImmutableMatrix, ...]
+    relative_bias: tuple[sp.ImmutableMatrix, ...]
+
+
+def particle_tree(inertia, n: int) -> ParticleTree | None:
+    """The tree of :class:`ParticleTree` when ``inertia`` is point masses only
+    (``inertia.particles``) whose velocity Jacobians nest: each body's columns equal those of
+    a parent body on the parent's speeds, plus at most one speed of its own, and every speed
+    is owned by exactly one body. None when the structure is absent (the dense route)."""
+    particles = inertia.particles
+    if not particles:
+        return None
+    supports = [frozenset(k for k in range(n) if any(pt.jacobian[r, k] != 0 for r in range(3)))
+                for pt in particles]
+    order = sorted(range(len(particles)), key=lambda b: (len(supports[b]), b))
+    placed, parent, owned = [], [], []
+    owner: dict[int, int] = {}
+    for b in order:
+        Jb = particles[b].jacobian
+        found = -1
+        for node in sorted(range(len(placed)), key=lambda k: -len(supports[placed[k]])):
+            pb = placed[node]
+            if supports[pb] <= supports[b] and all(particles[pb].jacobian[r, k] == Jb[r, k]
+                                                   for k in supports[pb] for r in range(3)):
+                found = node
+                break
+        own = supports[b] - (supports[placed[found]] if found >= 0 else frozenset())
+        if len(own) > 1 or any(k in owner for k in own):
+            return None
+        for k in own:
+            owner[k] = b
+        placed.append(b)
+        parent.append(found)
+        owned.append(next(iter(own)) if own else -1)
+    if len(owner) != n:
+        return None
+    zero = sp.ImmutableMatrix.zeros(3, 1)
+    axis = tuple(sp.ImmutableMatrix(particles[b].jacobian[:, k]) if k >= 0 else zero for b, k in zip(placed, owned))
+    bias = tuple(sp.ImmutableMatrix(particles[b].bias - (particles[placed[pa]].bias if pa >= 0 else zero))
+                 for b, pa in zip(placed, parent))
+    return ParticleTree(tuple(particles[b].name for b in placed), tuple(parent), tuple(owned),
+                        tuple(particles[b].mass for b in placed), axis, bias)
+
+
+def common_factor(expr):
+    """``f (t_1 + t_2 + ...)`` for a sum whose terms share the (non-numeric) factors ``f``,
+    found structurally in one pass (``-g l_k sin(theta_k) (m_k + ... + m_n)`` from the expanded
+    generalized force of a chain: n - k + 3 operations instead of 4 (n - k)); else ``expr``."""
+    terms = sp.Add.make_args(expr)
+    if len(terms) < 2:
+        return expr
+    counts = [Counter(f for f in sp.Mul.make_args(term) if not f.is_Number) for term in terms]
+    common = counts[0]
+    for c in counts[1:]:
+        common &= c
+    if not common:
+        return expr
+    return sp.Mul(*common.elements()) * sp.Add(*[term / sp.Mul(*common.elements()) for term in terms])
 
 
 def c_source(derivation) -> str:
@@ -317,23 +615,52 @@ def c_source(derivation) -> str:
         J0 = J
     pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual]) if s else sp.zeros(0, 1)
     vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if s else sp.zeros(0, 1)
+    tree = particle_tree(inertia, n) if cons.linear else None
     parts = [
         f"/* appell: generated C for system {derivation.system.name!r}; n = {n}, s = {s} */",
         "#include <math.h>",
         f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}",
-        c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms),
-        c_function("appell_rates", [prepared(kin.coordinate_rates)], syms),
-        c_function("appell_residuals", [prepared(pos), prepared(vel)], syms),
+        HEADER_END,
     ]
+    if tree is None:
+        parts.append(c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms))
+    else:
+        # the spatial directions in which some node moves (a planar tree: 2)
+        rows = [r for r in range(3) if any(m[r] != 0 for m in tree.axis + tree.relative_bias)] or [0]
+        axis = sp.Matrix([m[r] for m in tree.axis for r in rows])
+        bias = sp.Matrix([m[r] for m in tree.relative_bias for r in rows])
+        Q = sp.Matrix(inertia.generalized_forces).applyfunc(common_factor)
+        parts += [f"/* point masses on a tree: {', '.join(tree.names)} */",
+                  f"#define NB {len(tree.names)}\n#define TD {len(rows)}",
+                  c_function("appell_tree_terms", [prepared(axis), prepared(bias), prepared(sp.Matrix(tree.mass)),
+                                                   prepared(Q), prepared(J0), prepared(c)], syms)]
+    parts += [c_function("appell_rates", [prepared(kin.coordinate_rates)], syms),
+              c_function("appell_residuals", [prepared(pos), prepared(vel)], syms)]
     if cons.linear:
-        parts.append(_SOLVER)
+        parts += [_SOLVER, _DENSE_ENTRIES if tree is None else _tree_recursions(tree, len(rows), s) + _TREE, _EVALUATE]
     else:
         parts.append(c_function("appell_constraint", [prepared(cons.second_order), prepared(J)], syms))
-    return "\n\n".join(parts) + "\n"
+    main, units = [], []
+    for part in parts:          # the parts of long functions go to the end, a unit each
+        head, *rest = part.split(UNIT_MARK)
+        main.append(head.rstrip())
+        units += [u.strip() for u in rest]
+    return "\n\n".join(main) + "\n" + "".join(f"\n{UNIT_MARK}\n{u}\n" for u in units)
+
+
+def source_units(source: str) -> list[str]:
+    """The translation units of a generated source: the whole source when it has no
+    :data:`UNIT_MARK`, else the main part and each unit after its own copy of the header
+    (the text before :data:`HEADER_END`). Compiled together they make the same library."""
+    chunks = source.split(UNIT_MARK)
+    if len(chunks) == 1:
+        return [source]
+    header = source[:source.index(HEADER_END) + len(HEADER_END)] + "\n"
+    return [chunks[0]] + [header + chunk for chunk in chunks[1:]]
 
 
 #: bumped when the layout of a cached library changes (part of the cache key)
-LIBRARY_FORMAT = 2
+LIBRARY_FORMAT = 3
 #: the C symbol holding a library's cache key, checked after loading
 KEY_SYMBOL = "appell_library_key"
 
@@ -409,8 +736,46 @@ def build_library(source: str, compiler: list[str] | None = None, *, force: bool
     return lib, True
 
 
+def optimisation(unit: str) -> str:
+    """The optimisation flag of one translation unit: ``-O2``, or ``-O1`` above
+    :data:`O1_ABOVE` characters (gcc's -O2 passes cost far more time and memory on huge units
+    than they gain)."""
+    return "-O1" if len(unit) > O1_ABOVE else "-O2"
+
+
+#: units longer than this (characters of C) are compiled with -O1
+O1_ABOVE = 400_000
+
+
+def compile_workers() -> int:
+    """How many compilers run at once: the cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _run_compilers(commands: list[list[str]]) -> None:
+    """Run the compile commands, at most :func:`compile_workers` at a time; the first
+    failure raises :class:`ComputationError` with the compiler's message."""
+    pending, running, failure = list(commands), [], None
+    while (pending and failure is None) or running:
+        while pending and failure is None and len(running) < compile_workers():
+            running.append(subprocess.Popen(pending.pop(0), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+        proc = running.pop(0)
+        _, err = proc.communicate()
+        if proc.returncode != 0 and failure is None:
+            failure = err
+    if failure is not None:
+        raise ComputationError(f"C compilation failed: {failure.strip()[:2000]}",
+                               hint="use backend='numpy', or set $APPELL_CC to a working C compiler")
+
+
 def _compile(source: str, compiler: list[str], root: Path, key: str, lib: Path) -> None:
-    """Compile ``source`` plus the key symbol into ``lib`` and record its checksum."""
+    """Compile ``source`` plus the key symbol into ``lib`` and record its checksum. A source
+    with several translation units (:func:`source_units`) is compiled unit by unit in
+    parallel (:func:`compile_workers` at a time, each at :func:`optimisation`'s level) and
+    linked; a single unit in one command with :data:`CFLAGS`."""
     temporaries = []
 
     def temporary(suffix: str) -> str:
@@ -423,13 +788,24 @@ def _compile(source: str, compiler: list[str], root: Path, key: str, lib: Path) 
         src_tmp, key_tmp, lib_tmp, sum_tmp = temporary(".c"), temporary("_key.c"), temporary(".so.tmp"), temporary(".sha")
         Path(src_tmp).write_text(source)
         Path(key_tmp).write_text(f'const char {KEY_SYMBOL}[] = "{key}";\n')
-        proc = subprocess.run(compiler + list(CFLAGS) + ["-o", lib_tmp, src_tmp, key_tmp, "-lm"],
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise ComputationError(
-                f"C compilation failed ({' '.join(compiler)}): {proc.stderr.strip()[:2000]}",
-                hint="use backend='numpy', or set $APPELL_CC to a working C compiler",
-            )
+        units = source_units(source)
+        if len(units) == 1:
+            proc = subprocess.run(compiler + list(CFLAGS) + ["-o", lib_tmp, src_tmp, key_tmp, "-lm"],
+                                  capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise ComputationError(
+                    f"C compilation failed ({' '.join(compiler)}): {proc.stderr.strip()[:2000]}",
+                    hint="use backend='numpy', or set $APPELL_CC to a working C compiler",
+                )
+        else:
+            objects, commands = [], []
+            for unit in units:
+                unit_src, obj = temporary(".c"), temporary(".o")
+                Path(unit_src).write_text(unit)
+                objects.append(obj)
+                commands.append(compiler + [optimisation(unit), "-fPIC", "-c", "-o", obj, unit_src])
+            _run_compilers(commands)
+            _run_compilers([compiler + list(CFLAGS) + ["-o", lib_tmp, *objects, key_tmp, "-lm"]])
         Path(sum_tmp).write_text(_sha256_file(Path(lib_tmp)) + "\n")
         os.replace(src_tmp, root / f"appell_{key}.c")
         os.replace(lib_tmp, lib)
