@@ -422,3 +422,48 @@ def test_servo_constraints_and_routh_reduction_refuse_frictions():
         derive_controlled(system)
     with pytest.raises(ModelError, match="Routh reduction of a system with frictions"):
         routh_reduction(block(0.3, 1.0).replace(potential_energy=m * g * y * sp.cos(al)), ["x"])
+
+
+def test_a_start_in_the_painleve_region_is_refused_by_simulate_and_the_cli(tmp_path):
+    """A rod starting to slide with s = -1 at tan theta = 2 with mu = 1.5 (coefficient
+    1.6 - 1.8 < 0): simulate raises the Painlevé refusal naming the contact, and
+    `appell simulate` exits with 2 (a refusal, not a crash)."""
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+
+    theta = math.atan(2.0)
+    start = {"x": 0.0, "y": 0.5 * math.sin(theta), "theta": theta, "x_dot": -1.0, "y_dot": 0.0, "theta_dot": 0.0}
+    with pytest.raises(PainleveError, match="contact\\(s\\) end"):
+        simulate(derive(rod(1.5).replace(initial=start)), 0.1)
+    path = tmp_path / "rod.toml"
+    path.write_text(f"""
+[model]
+name = "rod"
+coordinates = ["x", "y", "theta"]
+[parameters]
+m = 1.2
+g = 9.81
+l = 0.5
+mu = 1.5
+[mechanics]
+kinetic_energy = "m/2*(x'^2 + y'^2) + m*l^2/6*theta'^2"
+potential_energy = "m*g*y"
+[constraints.floor]
+kind = "holonomic"
+expr = "y - l*sin(theta)"
+[[friction]]
+name = "end"
+slip = "x' + l*sin(theta)*theta'"
+normal = "floor"
+mu_k = "mu"
+[initial]
+x = 0
+y = {start['y']!r}
+theta = {theta!r}
+"x'" = -1
+"y'" = 0
+"theta'" = 0
+""")
+    result = CliRunner().invoke(cli, ["simulate", str(path), "--t-end", "0.1"])
+    assert result.exit_code == 2 and "Painlevé" in result.output

@@ -61,6 +61,10 @@ def _assert_same_declarations(from_file, built, name):
         for a, b in zip(mine, theirs):
             assert _same(a.expr, b.expr), (a.name, a.expr, b.expr)
             assert a.where.startswith(str(example_path(name)))
+    assert [(f.name, f.normal, f.mu_k, f.mu_s, f.viscous) for f in from_file.frictions] == \
+        [(f.name, f.normal, f.mu_k, f.mu_s, f.viscous) for f in built.frictions]
+    for a, b in zip(from_file.frictions, built.frictions):
+        assert all(_same(u, v) for u, v in zip(a.slip, b.slip)), (a.name, a.slip, b.slip)
     assert [(f.name, f.value) for f in from_file.first_integrals] == \
         [(f.name, f.value) for f in built.first_integrals]
     for a, b in zip(from_file.first_integrals, built.first_integrals):

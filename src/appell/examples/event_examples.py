@@ -10,7 +10,7 @@ import math
 import sympy as sp
 
 from appell.examples.catalog import rolling_ball
-from appell.model import Parameter, System, holonomic
+from appell.model import Friction, Parameter, System, holonomic
 from appell.symbols import t
 
 
@@ -120,7 +120,36 @@ def slack_pendulum(v0: float = 2.0, restitution: float = 0.3) -> System:
 
 
 #: name -> builder
+def block_on_incline(v0: float = 1.5) -> System:
+    """A block pushed up a rough incline: it slides, stops and sticks (Coulomb friction).
+
+    x down the slope, y the gap to the surface (a unit-normalised gap: lambda_floor is the
+    normal force N = m g cos alpha). Sliding up at v0, the block decelerates at
+    g (sin alpha + mu_k cos alpha) and stops at t = v0 / (g (sin alpha + mu_k cos alpha));
+    since tan alpha < mu_s it then sticks, held by the friction m g sin alpha up the slope
+    (elementary mechanics).
+    """
+    x, y = sp.symbols("x y")
+    m, g, alpha, mu_k, mu_s = sp.symbols("m g alpha mu_k mu_s")
+    xd, yd = sp.symbols("x_dot y_dot")
+    return System(
+        name="block_on_incline",
+        description="block pushed up a rough incline: slides, stops and sticks (Coulomb friction)",
+        coordinates=(x, y),
+        parameters=(Parameter(m, 2.0, "kg", "mass"), Parameter(g, 9.81, "m/s^2", "gravity"),
+                    Parameter(alpha, 0.3, "rad", "slope"), Parameter(mu_k, 0.3, "1", "kinetic friction coefficient"),
+                    Parameter(mu_s, 0.5, "1", "static friction coefficient")),
+        kinetic_energy=m / 2 * (xd**2 + yd**2),
+        potential_energy=m * g * (y * sp.cos(alpha) - x * sp.sin(alpha)),
+        constraints=(holonomic("floor", y),),
+        frictions=(Friction("slide", slip=(xd,), normal="floor", mu_k=mu_k, mu_s=mu_s),),
+        initial={"x": 0.0, "y": 0.0, "x_dot": -v0, "y_dot": 0.0},
+        units={"x": "m", "y": "m", "floor": "N"},
+    )
+
+
 EVENT_EXAMPLES = {
+    "block_on_incline": block_on_incline,
     "particle_on_sphere": particle_on_sphere,
     "ball_on_tilting_plane": ball_on_tilting_plane,
     "bouncing_ball": bouncing_ball,

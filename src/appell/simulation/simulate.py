@@ -445,7 +445,10 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     rest_speed : a contact whose rebound speed ``e |dF/dt|`` would be at most this comes to
         rest (a plastic impact) and engages again; ends Zeno sequences of bounces.
     friction : ``{tangential constraint: (normal constraint, mu)}``; crossings of
-        ``|lambda_t| = mu lambda_n`` are recorded as events (the motion is unchanged).
+        ``|lambda_t| = mu lambda_n`` are recorded as events (a monitor: the motion is
+        unchanged). Friction that acts is declared on the system (``System.frictions``):
+        its stick-slip modes follow :mod:`appell.simulation.stickslip`, its forces are the
+        columns ``friction_<name>_...`` of the solution.
     events : :class:`~appell.simulation.events.Event` items (or bare callables ``g(t, y, multipliers)``).
     params : parameter values (``{name: value}`` or a vector).
     initial : initial state (``{name: value}``, a vector, or the
