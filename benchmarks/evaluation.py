@@ -42,7 +42,7 @@ sys.path.insert(0, str(HERE))
 
 import appell  # noqa: E402
 from appell.numerics.codegen_c import compile_c  # noqa: E402
-from harness import interleaved, markdown_table, median, optional, ratio, us  # noqa: E402
+from harness import interleaved, markdown_table, median, optional, ratio, target, us  # noqa: E402
 from models import (nlink_appell, nlink_kane, nlink_parameters, nlink_pinocchio_function,  # noqa: E402
                     nlink_state, pinocchio_state)
 
@@ -259,7 +259,18 @@ def markdown(results: list[dict]) -> str:
                      f"{max(c['max_abs_diff_appell'], c['max_abs_diff_dense']):.0e}"])
     cl = markdown_table(["n", "appell generated C", "dense hand-written C", "O(n) recursion in C",
                          "appell / O(n)", "dense / O(n)", "max abs. difference"], crow)
-    return py + "\n\nFrom a C loop (one evaluation, candidates interleaved):\n\n" + cl
+    goals = []
+    for r in results:
+        c, n = r["cloop"], r["n"]
+        if c and c["has_appell"] and n in (10, 40):
+            goals.append(target(f"C loop, n = {n}: appell / O(n) recursion", c["appell_over_recursive"],
+                                1.5 if n == 10 else 3.0))
+    for r in results:
+        if r["n"] in (10, 20, 40) and "Pinocchio" in r["ratio"] and r["base"] == "appell C":
+            goals.append(target(f"from Python, n = {r['n']}: Pinocchio / appell C (above 1: appell faster)",
+                                r["ratio"]["Pinocchio"], 1.0, below=False))
+    return (py + "\n\nFrom a C loop (one evaluation, candidates interleaved):\n\n" + cl
+            + ("\n\nTargets (issue 13):\n\n" + "\n".join(goals) if goals else ""))
 
 
 def main():

@@ -158,3 +158,12 @@ def replace_between_markers(text: str, name: str, body: str) -> str:
     if i < 0 or j < i:
         raise KeyError(f"markers {begin} ... {end} not found")
     return text[:i + len(begin)] + "\n" + body.strip() + "\n" + text[j:]
+
+
+def target(label: str, value: float | None, limit: float, unit: str = "×", below: bool = True) -> str:
+    """A bullet of the targets of issue 13: the measured value against its limit."""
+    if value is None:
+        return f"- {label}: not measured"
+    ok = value <= limit if below else value >= limit
+    sign = "≤" if below else "≥"
+    return f"- {label} (target {sign} {limit:g}{unit}): {value:.3g}{unit}, **{'met' if ok else 'not met'}**"
