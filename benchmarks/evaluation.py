@@ -252,9 +252,9 @@ def markdown(results: list[dict]) -> str:
         c = r["cloop"]
         if c is None:
             continue
-        appell_cell = f"{c['appell_ns']:.0f} ns" if c["has_appell"] else "n/a"
+        appell_cell = us(c["appell_ns"] * 1e-9) if c["has_appell"] else "n/a"
         ratio_cell = f"**{c['appell_over_recursive']:.2f}×**" if c["has_appell"] else "n/a"
-        crow.append([str(r["n"]), appell_cell, f"{c['dense_ns']:.0f} ns", f"{c['recursive_ns']:.0f} ns", ratio_cell,
+        crow.append([str(r["n"]), appell_cell, us(c["dense_ns"] * 1e-9), us(c["recursive_ns"] * 1e-9), ratio_cell,
                      f"{c['dense_over_recursive']:.2f}×",
                      f"{max(c['max_abs_diff_appell'], c['max_abs_diff_dense']):.0e}"])
     cl = markdown_table(["n", "appell generated C", "dense hand-written C", "O(n) recursion in C",

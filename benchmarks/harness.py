@@ -147,6 +147,8 @@ def us(seconds: float | None) -> str:
     if seconds is None:
         return "—"
     v = seconds * 1e6
+    if v >= 1000:
+        return f"{v / 1000:.3g} ms"
     return f"{v:.3g} µs" if v >= 1 else f"{v * 1e3:.0f} ns"
 
 

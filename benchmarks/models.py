@@ -22,16 +22,30 @@ def nlink_parameters(n: int) -> dict[str, float]:
     return {p.symbol.name: p.value for p in nlink_pendulum(n).parameters}
 
 
-def nlink_state(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """A state (theta, theta_dot) on the constraint: the last angle closes the loop."""
+def nlink_state(n: int, seed: int = 1, params: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A state (theta, theta_dot) on the constraint: the last angle closes the loop (the
+    other angles are halved until it can)."""
     rng = np.random.default_rng(seed)
-    p = nlink_parameters(n)
+    p = nlink_parameters(n) if params is None else params
     lengths = np.array([p[f"l{i}"] for i in range(1, n + 1)])
     th = rng.uniform(-0.3, 0.3, n)
-    th[-1] = np.arcsin(np.clip((p["d"] - lengths[:-1] @ np.sin(th[:-1])) / lengths[-1], -1, 1))
+    while abs(p["d"] - lengths[:-1] @ np.sin(th[:-1])) > 0.9 * lengths[-1]:
+        th[:-1] *= 0.5
+    th[-1] = np.arcsin((p["d"] - lengths[:-1] @ np.sin(th[:-1])) / lengths[-1])
     w = rng.uniform(-0.5, 0.5, n)
     w[-1] = -(lengths[:-1] * np.cos(th[:-1])) @ w[:-1] / (lengths[-1] * np.cos(th[-1]))
     return th, w
+
+
+def file_parameters(n: int) -> dict[str, float]:
+    """Parameter values of the model-file case: those of :func:`nlink_parameters` while
+    every link is longer than 0.1 m (n < 45); beyond, the catalog's lengths 1 - 0.02 i
+    reach zero at n = 50 (a massless, inertia-free last link: a singular mass matrix), so
+    the lengths become l_i = 1 - i / (2 n), between 0.5 and 1 m."""
+    p = nlink_parameters(n)
+    if min(p[f"l{i}"] for i in range(1, n + 1)) > 0.1:
+        return p
+    return p | {f"l{i}": 1.0 - i / (2.0 * n) for i in range(1, n + 1)}
 
 
 def nlink_appell(n: int, s: int = 1) -> appell.System:
@@ -188,9 +202,10 @@ def nlink_pinocchio_function(n: int):
 
 def nlink_model_file(n: int) -> str:
     """The family as an appell model file (TOML): the same system as
-    :func:`nlink_appell`, with its particles as ``[[bodies]]`` and its start on the line."""
-    p = nlink_parameters(n)
-    th, w = nlink_state(n)
+    :func:`nlink_appell` (parameter values :func:`file_parameters`), with its particles as
+    ``[[bodies]]`` and its start on the line."""
+    p = file_parameters(n)
+    th, w = nlink_state(n, params=p)
     lines = [f'[model]\nname = "pendulum{n}"', "coordinates = [" + ", ".join(f'"theta{i}"' for i in range(1, n + 1))
              + "]", "\n[parameters]"]
     lines += [f"{k} = {v!r}" for k, v in p.items()]

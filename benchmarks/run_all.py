@@ -36,7 +36,7 @@ def steps(quick: bool) -> list[tuple[str, list[str], float]]:
         ("derivation", ["derivation.py"] + (["--sizes", "2,4,6,8,10", "--limit", "20"] if quick
                                             else ["--limit", "60", "--file-sizes", "50"]), 3600),
         ("car", ["car_simulation.py"], 900),
-        ("loop", ["loop.py"] + (["--quick"] if quick else []), 1800),
+        ("loop", ["loop.py"] + (["--repeats", "3"] if quick else []), 1800),
         ("sweep", ["sweep.py"] + (["--repeats", "1"] if quick else []), 3600),
         ("scaling", ["scaling.py"] + (["--sizes", "2,5,10"] if quick else []), 1800),
     ]
@@ -79,7 +79,7 @@ def run_step(name: str, argv: list[str], limit: float, quick: bool) -> tuple[str
     if md.exists():
         body = md.read_text().strip()
     else:
-        body = f"```text\n{proc.stdout.strip()}\n```"
+        body = f"```text\n{proc.stdout.strip(chr(10)).rstrip()}\n```"
     return printed, body + f"\n\n<small>`{command}` ({wall:.0f} s)</small>"
 
 
