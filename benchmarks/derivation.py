@@ -168,11 +168,13 @@ def markdown(results: dict, sizes, methods, file_sizes) -> str:
         for n in file_sizes:
             r = results[f"appell-file:{n}"]
             ok = r["status"] == "ok"
-            if n == 50:
+            if not ok and r["status"].startswith(">"):
+                goals.append(f"- n = {n}, model file to first compiled step: {r['status']}, **not met**")
+            elif n == 50:
                 goals += [target("n = 50, model file to first compiled step: time", r["seconds"] if ok else None, 60,
                                  " s"),
                           target("n = 50: peak memory with the compiler", r["rss_mb"] if ok else None, 1000, " MB")]
-            if n == 100:
+            elif n == 100:
                 goals += [target("n = 100: time", r["seconds"] if ok else None, 600, " s"),
                           target("n = 100: peak memory", r["rss_mb"] if ok else None, 4000, " MB")]
         if goals:
