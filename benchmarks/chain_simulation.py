@@ -15,6 +15,7 @@ start on the constraint (``models.nlink_state``), compilation done before timing
   ... + reactions      the same, plus one call of the ODE function per sample for lam
   appell C + solve_ivp ``CompiledNumericModel.evaluate`` under the same plain ``solve_ivp``
 
+Times are CPU time of the process (harness.CLOCK; all candidates are single-threaded).
 The ratio column is appell simulate / PyDy (median of the per-round ratios). The table also
 gives how far the runs are apart (the chain is chaotic: differences of the order of the
 tolerance grow along the run) and each run's largest constraint residual |x_tip - d|.
@@ -37,7 +38,7 @@ sys.path.insert(0, str(HERE))
 
 import appell  # noqa: E402
 from appell.numerics.codegen_c import compile_c  # noqa: E402
-from harness import markdown_table, median, optional, target  # noqa: E402
+from harness import CLOCK, markdown_table, median, optional, target  # noqa: E402
 from models import nlink_appell, nlink_kane, nlink_parameters, nlink_state  # noqa: E402
 
 RTOL, ATOL = 1e-9, 1e-12
@@ -67,29 +68,29 @@ def run_pydy(rhs, pk, n, y0, t_end, t_eval):
         # overwritten by the next call (DOP853's dense output then corrupts its stages)
         return rhs(buf, t, pk)[:2 * n].copy()
 
-    t0 = time.perf_counter()
+    t0 = CLOCK()
     sol = solve_ivp(fun, (0.0, t_end), y0, method="DOP853", t_eval=t_eval, rtol=RTOL, atol=ATOL)
-    t1 = time.perf_counter()
+    t1 = CLOCK()
     lam = np.empty(len(sol.t))
     for k, (t, x) in enumerate(zip(sol.t, sol.y.T)):
         buf[:2 * n] = x
         lam[k] = rhs(buf, t, pk)[2 * n]
-    t2 = time.perf_counter()
+    t2 = CLOCK()
     return sol, lam, t1 - t0, t2 - t1
 
 
 def run_appell_ivp(cm, y0, t_end, t_eval):
-    t0 = time.perf_counter()
+    t0 = CLOCK()
     sol = solve_ivp(lambda t, x: cm.evaluate(t, x).derivative, (0.0, t_end), y0, method="DOP853", t_eval=t_eval,
                     rtol=RTOL, atol=ATOL)
     lam = np.array([cm.evaluate(t, x).multipliers[0] for t, x in zip(sol.t, sol.y.T)])
-    return sol, lam, time.perf_counter() - t0
+    return sol, lam, CLOCK() - t0
 
 
 def run_simulate(cm, y0, t_end, t_eval):
-    t0 = time.perf_counter()
+    t0 = CLOCK()
     sol = appell.simulate(cm, t_end, t_eval=t_eval, rtol=RTOL, atol=ATOL, initial=y0, progress=False)
-    wall = time.perf_counter() - t0
+    wall = CLOCK() - t0
     return sol, wall
 
 
@@ -159,7 +160,7 @@ def markdown(results: list[dict]) -> str:
         ])
     goals = [target(f"n = {r['n']}: simulate / PyDy + solve_ivp (states only)", r["ratio_states"], 0.5)
              for r in results if "ratio_states" in r]
-    return markdown_table(["n", "appell simulate", "PyDy + solve_ivp", "PyDy + solve_ivp + reactions",
+    return "CPU time of the process, median of the rounds:\n\n" + markdown_table(["n", "appell simulate", "PyDy + solve_ivp", "PyDy + solve_ivp + reactions",
                            "appell C + solve_ivp (+ reactions)", "simulate / PyDy (states / + reactions)",
                            "largest difference simulate vs PyDy (θ / λ)",
                            "largest constraint residual, m (simulate / PyDy / appell C + solve_ivp)"], rows) \
@@ -180,7 +181,7 @@ def main():
         r = measure(n, args)
         results.append(r)
         m = r["median_s"]
-        print(f"n = {n}: {r['samples']} samples; median wall [s]: " + ", ".join(f"{k} {v:.3f}" for k, v in m.items()))
+        print(f"n = {n}: {r['samples']} samples; median CPU time [s]: " + ", ".join(f"{k} {v:.3f}" for k, v in m.items()))
         if "ratio_states" in r:
             print(f"  simulate / PyDy: {r['ratio_states']:.2f} (states), {r['ratio_reactions']:.2f} (+ reactions); "
                   f"appell C + solve_ivp / PyDy + reactions: {r['ratio_ivp']:.2f}")

@@ -3,6 +3,7 @@
 
     python benchmarks/evaluation.py [--sizes 4,10,20,40] [--setup-limit 120] [--json F] [--markdown F]
 
+Times are CPU time of the process (harness.CLOCK; the C loop: CLOCK_PROCESS_CPUTIME_ID).
 From Python (interleaved rounds; a ratio is the median of per-round ratios peer / appell C):
   appell C            CompiledNumericModel.evaluate (one call into the generated C)
   appell NumPy        NumericModel.evaluate
@@ -234,7 +235,7 @@ ORDER = ("appell C", "appell NumPy", "Pinocchio", "SymPy Kane", "PyDy Cython", "
 
 
 def markdown(results: list[dict]) -> str:
-    head = ["implementation, called from Python"] + [f"n = {r['n']}" for r in results]
+    head = ["implementation, called from Python (CPU time per call)"] + [f"n = {r['n']}" for r in results]
     rows = []
     for name in ORDER:
         cells = []
@@ -269,7 +270,7 @@ def markdown(results: list[dict]) -> str:
         if r["n"] in (10, 20, 40) and "Pinocchio" in r["ratio"] and r["base"] == "appell C":
             goals.append(target(f"from Python, n = {r['n']}: Pinocchio / appell C (above 1: appell faster)",
                                 r["ratio"]["Pinocchio"], 1.0, below=False))
-    return (py + "\n\nFrom a C loop (one evaluation, candidates interleaved):\n\n" + cl
+    return (py + "\n\nFrom a C loop (CPU time of one evaluation, candidates interleaved):\n\n" + cl
             + ("\n\nTargets (issue 13):\n\n" + "\n".join(goals) if goals else ""))
 
 
