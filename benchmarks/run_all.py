@@ -95,7 +95,8 @@ def main():
     head = [f"- machine: {machine()}; {compiler()}",
             f"- date: {today()}; {load()} at the start",
             f"- versions: {versions()}; appell at commit {git_commit()}",
-            f"- command: `python benchmarks/run_all.py{' --quick' if args.quick else ''}`"
+            f"- command: `python benchmarks/run_all.py{' --quick' if args.quick else ''}"
+            f"{' --only ' + args.only if args.only else ''}`"
             + (" (quick: smaller sizes, fewer rounds)" if args.quick else "")]
     print("\n".join(head), flush=True)
     printed = ["\n".join(head)]
@@ -112,6 +113,13 @@ def main():
                 print(f"warning: {exc} in {DOCS}; section {name!r} not written", file=sys.stderr)
         DOCS.write_text(text)
 
+    if args.only and not args.no_docs:
+        # a partial re-run keeps the machine section of the full run and adds a line to it
+        text = DOCS.read_text()
+        begin, end = "<!-- bench:machine -->", "<!-- /bench:machine -->"
+        earlier = text[text.find(begin) + len(begin):text.find(end)].strip()
+        head = [earlier, f"- re-run of {args.only}: {today()}, {load()} at the start; {versions()}; "
+                         f"appell at commit {git_commit()}"]
     write({"machine": "\n".join(head + ["- (running)"])})
     for name, argv, limit in steps(args.quick):
         if chosen and name not in chosen:
@@ -123,7 +131,7 @@ def main():
         write({name: body})
         if args.out:
             Path(args.out).write_text("\n".join(printed))
-    head.append(f"- finished: {today()}; {load()} at the end")
+    head.append(f"- {'re-run ' if args.only else ''}finished: {today()}; {load()} at the end")
     write({"machine": "\n".join(head)})
     if args.out:
         Path(args.out).write_text("\n".join(printed))
