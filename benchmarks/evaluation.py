@@ -108,7 +108,7 @@ def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
         ev = appell.derive(nlink_appell(n)).numeric.evaluate(0.0, y)
         ref_a, ref_lam = ev.derivative[n:], float(ev.multipliers[0])
     scale = max(np.max(np.abs(ref_a)), abs(ref_lam))
-    calls, checks = {}, {}
+    calls = {}
 
     def add(name, setup, fn, result):
         """Keep ``fn`` for timing if ``result()`` = (accelerations, lam) agrees with the reference."""
