@@ -25,6 +25,7 @@ def main():
     ap.add_argument("--t-end", type=float, default=10.0)
     ap.add_argument("--rate", type=float, default=1000.0, help="output samples per second")
     ap.add_argument("--json")
+    ap.add_argument("--markdown", help="also write the table (Markdown) here")
     args = ap.parse_args()
     from appell.simulation.simulate import simulate
 
@@ -43,7 +44,7 @@ def main():
           f"({'compiled now' if getattr(models['c'], 'freshly_compiled', False) else 'from cache'})")
     print(f"{'backend':<8} {'rtol':>7} {'wall [s]':>9} {'f evals':>8} {'steps':>6} "
           f"{'max|lambda_rear|':>17} {'max|lambda_front|':>18} {'max|phi|':>9}")
-    out, ref = {}, None
+    out, ref, rows = {}, None, []
     for rtol, atol in ((1e-9, 1e-12), (1e-6, 1e-9)):
         for name, model in models.items():
             t0 = time.perf_counter()
@@ -58,8 +59,20 @@ def main():
                   f"{np.max(np.abs(lam['front'])):18.3f} {phi:9.1e}  status {sol.status}")
             if ref is None:
                 ref = lam
+            rows.append([name, f"{rtol:.0e}", f"{wall:.3f} s", str(nfev), str(steps),
+                         f"{np.max(np.abs(lam['rear'])):.1f} N / {np.max(np.abs(lam['front'])):.1f} N"])
             out[f"{name}:{rtol:g}"] = {"seconds": wall, "status": sol.status,
                                         "max_dev_from_first": max(float(np.max(np.abs(lam[k] - ref[k]))) for k in lam)}
+    if args.markdown:
+        import sys
+
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from harness import markdown_table
+
+        Path(args.markdown).write_text(
+            f"Derivation {t_derive:.2f} s, C library {t_c:.2f} s (not in the wall times).\n\n"
+            + markdown_table(["backend", "rtol", "wall time", "RHS evaluations", "steps",
+                              "max abs. reaction rear / front"], rows) + "\n")
     if args.json:
         Path(args.json).write_text(json.dumps({"derive": t_derive, "numpy_functions": t_numpy,
                                                "c_library": t_c, "runs": out}, indent=1))

@@ -1,16 +1,24 @@
-"""Cost of one numeric evaluation of the accelerations and the loop-closure reaction of
-the n-link pendulum (default n = 10), all implementations at the same state.
+"""One evaluation of the accelerations and the loop-closure reaction of the n-link pendulum
+(tip on a vertical line), appell against its peers, all at the same state.
 
-    .venv/bin/python benchmarks/evaluation.py [--n 10] [--explicit-limit 120]
+    python benchmarks/evaluation.py [--sizes 4,10,20,40] [--setup-limit 120] [--json F] [--markdown F]
 
-Rows (time per call, best of 5 repeats):
-  appell numpy        NumericModel.evaluate  (lambdify(cse) blocks + split solve in NumPy/SciPy)
-  appell C (Python)   CompiledNumericModel.evaluate  (one ctypes call: blocks + split solve in C)
-  appell C (C loop)   appell_evaluate called from a C timing loop
-  hand-written C      benchmarks/reference/nlink.c, from a C loop and through ctypes
-  sympy lambdify M,F  LagrangesMethod, lambdify(cse) of the augmented M, F + numpy.linalg.solve
-  sympy explicit      lambdify(cse) of the explicit symbolic solution M^-1 F (if derivable in time)
-  pydy                PyDy generate_ode_function (cython, else lambdify) on Kane's augmented system
+Times are CPU time of the process (harness.CLOCK; the C loop: CLOCK_PROCESS_CPUTIME_ID).
+From Python (interleaved rounds; a ratio is the median of per-round ratios peer / appell C):
+  appell C            CompiledNumericModel.evaluate (one call into the generated C)
+  appell NumPy        NumericModel.evaluate
+  Pinocchio           computeAllTerms + tip Jacobian row + drift + forwardDynamics (KKT)
+  SymPy Kane          KanesMethod + lambdify(cse=True, modules="math") of [M -J^T; J 0], [f; -c]
+                      + numpy.linalg.solve
+  PyDy Cython         generate_ode_function(generator="cython") on the same augmented system
+  dense C, O(n) C     benchmarks/reference/nlink.c and nlink_recursive.c through ctypes
+From a C loop (benchmarks/reference/bench_eval.c, candidates interleaved):
+  appell_evaluate (appell's generated code), the dense hand-written C, the O(n) recursion.
+
+Before timing, every candidate's accelerations and reaction are compared with the O(n)
+recursion (an independent derivation: rod tensions); one that differs by more than 1e-9
+relative is not timed (it would compare different physics). A peer that is not installed,
+or whose set-up exceeds --setup-limit seconds, is reported as such.
 """
 
 from __future__ import annotations
@@ -18,32 +26,30 @@ from __future__ import annotations
 import argparse
 import ctypes
 import json
+import re
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
 import time
-import timeit
 import warnings
 from pathlib import Path
 
 import numpy as np
-import sympy as sp
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import appell  # noqa: E402
 from appell.numerics.codegen_c import compile_c  # noqa: E402
-from models import nlink_kane, nlink_lagrange, nlink_parameters, nlink_state  # noqa: E402
+from harness import interleaved, markdown_table, median, optional, ratio, target, us  # noqa: E402
+from models import (nlink_appell, nlink_kane, nlink_parameters, nlink_pinocchio_function,  # noqa: E402
+                    nlink_state, pinocchio_state)
 
-
-def per_call(fn, repeat: int = 5) -> float:
-    """Best time per call [s] (timeit autorange, best of ``repeat``)."""
-    timer = timeit.Timer(fn)
-    number, _ = timer.autorange()
-    return min(timer.repeat(repeat, number)) / number
+TOLERANCE = 1e-9
+APPELL_EVALUATE = re.compile(r"int appell_evaluate\(double t, const double \*y, const double \*p, "
+                             r"const double \*bias, const int \*dep,\s*double cond_max, double \*dy, double \*lam\)")
 
 
 class Timeout(Exception):
@@ -51,7 +57,7 @@ class Timeout(Exception):
 
 
 def with_limit(seconds: float, fn):
-    """Run ``fn()``; raise Timeout after ``seconds`` (SIGALRM interrupts SymPy's Python loops)."""
+    """``fn()``, or Timeout after ``seconds`` (SIGALRM interrupts SymPy's Python loops)."""
     def handler(signum, frame):
         raise Timeout()
     old = signal.signal(signal.SIGALRM, handler)
@@ -63,154 +69,246 @@ def with_limit(seconds: float, fn):
         signal.signal(signal.SIGALRM, old)
 
 
-def build_reference(workdir: Path) -> tuple[Path | None, Path | None]:
-    """Compile the hand-written reference as a shared library and the C timing loop."""
+def build_reference(workdir: Path):
+    """The hand-written references as one shared library, and the C timing loop."""
     cc = shutil.which("cc")
     if cc is None:
         return None, None
     ref = HERE / "reference"
     so, exe = workdir / "nlink.so", workdir / "bench_eval"
-    subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(so), str(ref / "nlink.c"), "-lm"], check=True)
-    subprocess.run([cc, "-O2", "-o", str(exe), str(ref / "bench_eval.c"), str(ref / "nlink.c"), "-lm", "-ldl"],
-                   check=True)
+    sources = [str(ref / "nlink.c"), str(ref / "nlink_recursive.c")]
+    subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(so), *sources, "-lm"], check=True)
+    subprocess.run([cc, "-O2", "-o", str(exe), str(ref / "bench_eval.c"), *sources, "-lm", "-ldl"], check=True)
     return so, exe
+
+
+def c_function(lib, name: str, n: int, pv: np.ndarray):
+    fn = getattr(lib, name)
+    fn.argtypes = [ctypes.c_int] + [ctypes.c_void_p] * 4
+    dy, lam = np.empty(2 * n), np.empty(1)
+    pp = np.ascontiguousarray(pv, dtype=float)
+
+    def call(y):
+        yy = np.ascontiguousarray(y, dtype=float)
+        fn(n, yy.ctypes.data, pp.ctypes.data, dy.ctypes.data, lam.ctypes.data)
+        return dy[n:].copy(), float(lam[0])
+
+    return call
+
+
+def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
+    """Set up every candidate at size n, check it against the O(n) recursion, time them."""
+    values = nlink_parameters(n)
+    pv = np.array(list(values.values()))
+    th, w = nlink_state(n)
+    y = np.concatenate([th, w])
+    out = {"n": n, "setup": {}, "check": {}, "python": {}, "ratio": {}, "spread": {}, "status": {}, "cloop": None}
+    ref_a, ref_lam = c_function(lib, "nlink_recursive", n, pv)(y) if lib else (None, None)
+    if ref_a is None:   # no compiler: appell NumPy is the reference
+        ev = appell.derive(nlink_appell(n)).numeric.evaluate(0.0, y)
+        ref_a, ref_lam = ev.derivative[n:], float(ev.multipliers[0])
+    scale = max(np.max(np.abs(ref_a)), abs(ref_lam))
+    calls = {}
+
+    def add(name, setup, fn, result):
+        """Keep ``fn`` for timing if ``result()`` = (accelerations, lam) agrees with the reference."""
+        if isinstance(setup, str):
+            out["status"][name] = setup
+            return
+        out["setup"][name] = setup
+        a, lam = result()
+        diff = float(max(np.max(np.abs(np.asarray(a) - ref_a)), abs(lam - ref_lam)) / scale)
+        out["check"][name] = diff
+        if diff > TOLERANCE:
+            out["status"][name] = f"differs from the O(n) recursion by {diff:.1e} (not timed)"
+            return
+        calls[name] = fn
+
+    t0 = time.perf_counter()
+    d = appell.derive(nlink_appell(n))
+    t_derive = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    cm = compile_c(d, "c") if lib else None
+    t_c = time.perf_counter() - t0
+    if cm is not None:
+        add("appell C", t_derive + t_c, lambda: cm.evaluate(0.0, y),
+            lambda: (cm.evaluate(0.0, y).derivative[n:], float(cm.evaluate(0.0, y).multipliers[0])))
+    t0 = time.perf_counter()
+    nm = d.numeric
+    t_np = time.perf_counter() - t0
+    add("appell NumPy", t_derive + t_np, lambda: nm.evaluate(0.0, y),
+        lambda: (nm.evaluate(0.0, y).derivative[n:], float(nm.evaluate(0.0, y).multipliers[0])))
+
+    if optional("pinocchio") is None:
+        add("Pinocchio", "not installed (pip install pin)", None, None)
+    else:
+        t0 = time.perf_counter()
+        pin_eval = nlink_pinocchio_function(n)
+        setup = time.perf_counter() - t0
+        qp, vp = pinocchio_state(th, w)
+        # Pinocchio works in relative angles: theta'' = cumsum(ddq) (outside the timed call)
+        add("Pinocchio", setup, lambda: pin_eval(qp, vp),
+            lambda: (np.cumsum(pin_eval(qp, vp)[0]), float(pin_eval(qp, vp)[1])))
+
+    kane = None
+    try:
+        t0 = time.perf_counter()
+        kane = with_limit(args.setup_limit, lambda: nlink_kane(n))
+        t_kane = time.perf_counter() - t0
+    except Timeout:
+        add("SymPy Kane", f"KanesMethod > {args.setup_limit:g} s", None, None)
+        add("PyDy Cython", f"KanesMethod > {args.setup_limit:g} s", None, None)
+    if kane is not None:
+        import sympy as sp
+
+        KM, A, b, params, q, u = kane
+        pl = [values[s.name] for s in params]
+        try:
+            t0 = time.perf_counter()
+            entries = with_limit(args.setup_limit, lambda: sp.lambdify([*q, *u, *params], list(A) + list(b), cse=True,
+                                                                       modules="math"))
+            t_l = time.perf_counter() - t0
+            k = n + 1
+            thl, wl = th.tolist(), w.tolist()
+
+            def kane_call():
+                e = np.array(entries(*thl, *wl, *pl))
+                return np.linalg.solve(e[:k * k].reshape(k, k), e[k * k:])
+
+            add("SymPy Kane", t_kane + t_l, kane_call, lambda: (kane_call()[:n], float(kane_call()[n])))
+        except Timeout:
+            add("SymPy Kane", f"lambdify > {args.setup_limit:g} s", None, None)
+        if optional("pydy") is None or optional("Cython") is None:
+            add("PyDy Cython", "not installed (pip install pydy cython)", None, None)
+        else:
+            from pydy.codegen.ode_function_generators import generate_ode_function
+            from sympy.physics.mechanics import dynamicsymbols
+
+            lam_state = dynamicsymbols("lam_state")   # stands for lam so that A [u'; lam] = b fits PyDy
+            try:
+                t0 = time.perf_counter()
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    rhs = with_limit(args.setup_limit, lambda: generate_ode_function(
+                        b, q, list(u) + [lam_state], params, mass_matrix=A, coordinate_derivatives=sp.Matrix(u),
+                        generator="cython"))
+                t_p = time.perf_counter() - t0
+                x = np.concatenate([th, w, [0.0]])
+                pk = np.array(pl)
+                add("PyDy Cython", t_kane + t_p, lambda: rhs(x, 0.0, pk),
+                    lambda: (rhs(x, 0.0, pk)[n:2 * n], float(rhs(x, 0.0, pk)[2 * n])))
+            except Timeout:
+                add("PyDy Cython", f"Cython generation > {args.setup_limit:g} s", None, None)
+            except Exception as exc:  # noqa: BLE001 (a failing peer is reported, not fatal)
+                add("PyDy Cython", f"failed: {type(exc).__name__}: {str(exc)[:80]}", None, None)
+
+    if lib is not None:
+        dense, rec = c_function(lib, "nlink_evaluate", n, pv), c_function(lib, "nlink_recursive", n, pv)
+        add("dense C (ctypes)", 0.0, lambda: dense(y), lambda: dense(y))
+        add("O(n) C (ctypes)", 0.0, lambda: rec(y), lambda: rec(y))
+
+    times = interleaved(calls, rounds=args.rounds)
+    base = "appell C" if "appell C" in times else "appell NumPy"
+    for name, ts in times.items():
+        out["python"][name] = median(ts)
+        out["ratio"][name] = ratio(times, name, base)
+        out["spread"][name] = [min(t / b for t, b in zip(ts, times[base])), max(t / b for t, b in zip(ts, times[base]))]
+    out["base"] = base
+
+    if exe is not None and cm is not None:
+        src = Path(cm.library_path).with_suffix(".c")
+        text = src.read_text() if src.exists() else ""
+        lib_arg = str(cm.library_path) if APPELL_EVALUATE.search(text) else "-"
+        if lib_arg == "-":
+            notes.append(f"n = {n}: appell_evaluate's C signature changed: update benchmarks/reference/bench_eval.c")
+        iters = max(2000, int(2e6 / n ** 2))
+        proc = subprocess.run([str(exe), lib_arg, str(n), str(iters), str(d.partition.dependent[0]),
+                               *map(repr, y.tolist()), *map(repr, pv.tolist())], capture_output=True, text=True)
+        if proc.returncode == 0:
+            out["cloop"] = json.loads(proc.stdout)
+        else:
+            notes.append(f"n = {n}: C loop failed: {proc.stderr.strip()[:200]}")
+    return out
+
+
+ORDER = ("appell C", "appell NumPy", "Pinocchio", "SymPy Kane", "PyDy Cython", "dense C (ctypes)", "O(n) C (ctypes)")
+
+
+def markdown(results: list[dict]) -> str:
+    head = ["implementation, called from Python (CPU time per call)"] + [f"n = {r['n']}" for r in results]
+    rows = []
+    for name in ORDER:
+        cells = []
+        for r in results:
+            if name in r["python"]:
+                cells.append(f"{us(r['python'][name])} ({r['ratio'][name]:.2f}×)")
+            else:
+                cells.append(r["status"].get(name, "—"))
+        rows.append([name] + cells)
+    rows.append(["largest relative difference from the O(n) recursion"]
+                + [f"{max(r['check'].values()):.0e}" for r in results])
+    py = markdown_table(head, rows)
+    crow = []
+    for r in results:
+        c = r["cloop"]
+        if c is None:
+            continue
+        appell_cell = us(c["appell_ns"] * 1e-9) if c["has_appell"] else "n/a"
+        ratio_cell = f"**{c['appell_over_recursive']:.2f}×**" if c["has_appell"] else "n/a"
+        crow.append([str(r["n"]), appell_cell, us(c["dense_ns"] * 1e-9), us(c["recursive_ns"] * 1e-9), ratio_cell,
+                     f"{c['dense_over_recursive']:.2f}×",
+                     f"{max(c['max_abs_diff_appell'], c['max_abs_diff_dense']):.0e}"])
+    cl = markdown_table(["n", "appell generated C", "dense hand-written C", "O(n) recursion in C",
+                         "appell / O(n)", "dense / O(n)", "max abs. difference"], crow)
+    goals = []
+    for r in results:
+        c, n = r["cloop"], r["n"]
+        if c and c["has_appell"] and n in (10, 40):
+            goals.append(target(f"C loop, n = {n}: appell / O(n) recursion", c["appell_over_recursive"],
+                                1.5 if n == 10 else 3.0))
+    for r in results:
+        if r["n"] in (10, 20, 40) and "Pinocchio" in r["ratio"] and r["base"] == "appell C":
+            goals.append(target(f"from Python, n = {r['n']}: Pinocchio / appell C (above 1: appell faster)",
+                                r["ratio"]["Pinocchio"], 1.0, below=False))
+    return (py + "\n\nFrom a C loop (CPU time of one evaluation, candidates interleaved):\n\n" + cl
+            + ("\n\nTargets (issue 13):\n\n" + "\n".join(goals) if goals else ""))
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=10)
-    ap.add_argument("--explicit-limit", type=float, default=120.0,
-                    help="seconds allowed to derive SymPy's explicit solution")
+    ap.add_argument("--sizes", default="4,10,20,40")
+    ap.add_argument("--setup-limit", type=float, default=120.0, help="seconds allowed to set up one peer")
+    ap.add_argument("--rounds", type=int, default=15)
     ap.add_argument("--json", help="also write the results here")
+    ap.add_argument("--markdown", help="also write the tables (Markdown) here")
     args = ap.parse_args()
-    n = args.n
     work = Path(tempfile.mkdtemp(prefix="appell_eval_"))
-    rows, notes = {}, []
-
-    values = nlink_parameters(n)
-    d = appell.derive(__import__("models").nlink_appell(n))
-    pv = np.array([p.value for p in d.system.parameters])
-    th, w = nlink_state(n)
-    y = np.concatenate([th, w])
-    nm = d.numeric
-    cm = compile_c(d, "c")
-    ev_np, ev_c = nm.evaluate(0.0, y), cm.evaluate(0.0, y)
-    ref_out = np.concatenate([ev_np.derivative[n:], ev_np.multipliers])
-    check = {}
-
-    def record(name, seconds, out):
-        rows[name] = seconds
-        if out is not None:
-            check[name] = float(np.max(np.abs(np.asarray(out) - ref_out)) / np.max(np.abs(ref_out)))
-
-    record("appell numpy", per_call(lambda: nm.evaluate(0.0, y)), ref_out)
-    record("appell C (Python)", per_call(lambda: cm.evaluate(0.0, y)),
-           np.concatenate([ev_c.derivative[n:], ev_c.multipliers]))
-
     so, exe = build_reference(work)
-    if so is not None:
-        lib = ctypes.CDLL(str(so))
-        lib.nlink_evaluate.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
-                                       ctypes.c_void_p]
-        dy, lam = np.empty(2 * n), np.empty(1)
-
-        def ref_call():
-            yy = np.ascontiguousarray(y, dtype=float)
-            pp = np.ascontiguousarray(pv, dtype=float)
-            lib.nlink_evaluate(n, yy.ctypes.data, pp.ctypes.data, dy.ctypes.data, lam.ctypes.data)
-            return dy, lam
-
-        ref_call()
-        record("hand-written C (Python)", per_call(ref_call), np.concatenate([dy[n:], lam]))
-        dep = str(d.partition.dependent[0])
-        out = subprocess.run([str(exe), str(cm.library_path), str(n), "200000", dep,
-                              *map(repr, y.tolist()), *map(repr, pv.tolist())],
-                             capture_output=True, text=True, check=True)
-        loop = json.loads(out.stdout)
-        rows["appell C (C loop)"] = loop["appell_c_ns"] * 1e-9
-        rows["hand-written C (C loop)"] = loop["reference_ns"] * 1e-9
-        check["C loop: appell vs hand-written (abs)"] = loop["max_abs_diff"]
-    else:
-        notes.append("no C compiler: hand-written reference not built")
-
-    # SymPy LagrangesMethod: numeric solve of the lambdified augmented system
-    t0 = time.perf_counter()
-    LM, M, F, params, q, qd = nlink_lagrange(n)
-    MF = sp.lambdify([q, qd, params], [M, F], cse=True)
-    t_lag = time.perf_counter() - t0
-    pl = [values[s.name] for s in params]
-
-    def lag_call():
-        Mn, Fn = MF(th, w, pl)
-        return np.linalg.solve(Mn, Fn.ravel())
-
-    sol = lag_call()
-    # sympy's multiplier sign/scale: compare the reaction up to sign (same constraint x_tip - d)
-    record("sympy lambdify M,F + solve", per_call(lag_call), np.concatenate([sol[:n], [sol[n] * np.sign(sol[n] * ref_out[n])]]))
-    notes.append(f"LagrangesMethod derivation + lambdify: {t_lag:.1f} s")
-
-    # SymPy explicit solution
-    try:
-        t0 = time.perf_counter()
-        expl = with_limit(args.explicit_limit,
-                          lambda: sp.lambdify([q, qd, params], [M.LUsolve(F)], cse=True))
-        notes.append(f"explicit symbolic solve + lambdify: {time.perf_counter() - t0:.1f} s")
-        out = np.asarray(expl(th, w, pl)[0], float).ravel()
-        record("sympy explicit solution", per_call(lambda: expl(th, w, pl)),
-               np.concatenate([out[:n], [out[n] * np.sign(out[n] * ref_out[n])]]))
-    except Timeout:
-        rows["sympy explicit solution"] = None
-        notes.append(f"explicit symbolic solve + lambdify did not finish in {args.explicit_limit:g} s")
-
-    # PyDy
-    try:
-        from pydy.codegen.ode_function_generators import generate_ode_function
-        from sympy.physics.mechanics import dynamicsymbols
-
-        KM, A, b, kparams, kq, ku = nlink_kane(n)
-        lam_state = dynamicsymbols("lam_state")   # stands for lam so that A [u'; lam] = b fits PyDy
-        made = None
-        for gen in ("cython", "lambdify"):
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    t0 = time.perf_counter()
-                    rhs = generate_ode_function(b, kq, list(ku) + [lam_state], kparams, mass_matrix=A,
-                                                coordinate_derivatives=sp.Matrix(ku), generator=gen)
-                    made = (gen, rhs, time.perf_counter() - t0)
-                break
-            except Exception as exc:  # noqa: BLE001 (report and try the next generator)
-                notes.append(f"pydy generator {gen!r} failed: {type(exc).__name__}: {str(exc)[:100]}")
-        if made:
-            gen, rhs, t_gen = made
-            x = np.concatenate([th, w, [0.0]])
-            pk = np.array([values[s.name] for s in kparams])
-            out = rhs(x, 0.0, pk)
-            record(f"pydy ({gen})", per_call(lambda: rhs(x, 0.0, pk)),
-                   np.concatenate([out[n:2 * n], [out[2 * n] * np.sign(out[2 * n] * ref_out[n])]]))
-            notes.append(f"pydy code generation ({gen}): {t_gen:.1f} s")
-    except ImportError:
-        rows["pydy"] = None
-        notes.append("pydy is not installed (pip install pydy)")
-
-    import platform
-    print(f"one evaluation of accelerations + reaction, n = {n} ({platform.python_version()}, {platform.machine()})")
-    print(f"{'implementation':<30} {'time/call':>12} {'vs hand C (C loop)':>20} {'rel. diff vs appell':>20}")
-    base = rows.get("hand-written C (C loop)")
-    for name, sec in rows.items():
-        if sec is None:
-            print(f"{name:<30} {'n/a':>12}")
-            continue
-        ratio = f"{sec / base:.1f}x" if base else "-"
-        diff = check.get(name)
-        print(f"{name:<30} {sec * 1e6:10.2f} us {ratio:>20} {'' if diff is None else f'{diff:.1e}':>20}")
-    for k, v in check.items():
-        if k.startswith("C loop"):
-            print(f"{k}: {v:.1e}")
+    lib = ctypes.CDLL(str(so)) if so else None
+    notes = [] if so else ["no C compiler: appell C and the C references are not built"]
+    results = []
+    for n in map(int, args.sizes.split(",")):
+        r = measure(n, args, lib, exe, notes)
+        results.append(r)
+        print(f"n = {n}: time per call from Python (ratio to {r['base']}, median of paired rounds)")
+        for name in ORDER:
+            if name in r["python"]:
+                print(f"  {name:<18} {us(r['python'][name]):>10} {r['ratio'][name]:6.2f}x   "
+                      f"set-up {r['setup'][name]:6.1f} s   diff {r['check'][name]:.0e}")
+            else:
+                print(f"  {name:<18} {r['status'].get(name, '-')}")
+        if r["cloop"]:
+            c = r["cloop"]
+            print(f"  C loop: appell {c['appell_ns']:.0f} ns, dense {c['dense_ns']:.0f} ns, O(n) "
+                  f"{c['recursive_ns']:.0f} ns; appell/O(n) {c['appell_over_recursive']:.2f}, "
+                  f"dense/O(n) {c['dense_over_recursive']:.2f}")
+        sys.stdout.flush()
     for note in notes:
         print("note:", note)
     if args.json:
-        Path(args.json).write_text(json.dumps({"n": n, "seconds": rows, "check": check, "notes": notes}, indent=1))
+        Path(args.json).write_text(json.dumps({"results": results, "notes": notes}, indent=1))
+    if args.markdown:
+        Path(args.markdown).write_text(markdown(results) + "".join(f"\n\nNote: {x}" for x in notes) + "\n")
 
 
 if __name__ == "__main__":

@@ -22,16 +22,30 @@ def nlink_parameters(n: int) -> dict[str, float]:
     return {p.symbol.name: p.value for p in nlink_pendulum(n).parameters}
 
 
-def nlink_state(n: int, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """A state (theta, theta_dot) on the constraint: the last angle closes the loop."""
+def nlink_state(n: int, seed: int = 1, params: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A state (theta, theta_dot) on the constraint: the last angle closes the loop (the
+    other angles are halved until it can)."""
     rng = np.random.default_rng(seed)
-    p = nlink_parameters(n)
+    p = nlink_parameters(n) if params is None else params
     lengths = np.array([p[f"l{i}"] for i in range(1, n + 1)])
     th = rng.uniform(-0.3, 0.3, n)
-    th[-1] = np.arcsin(np.clip((p["d"] - lengths[:-1] @ np.sin(th[:-1])) / lengths[-1], -1, 1))
+    while abs(p["d"] - lengths[:-1] @ np.sin(th[:-1])) > 0.9 * lengths[-1]:
+        th[:-1] *= 0.5
+    th[-1] = np.arcsin((p["d"] - lengths[:-1] @ np.sin(th[:-1])) / lengths[-1])
     w = rng.uniform(-0.5, 0.5, n)
     w[-1] = -(lengths[:-1] * np.cos(th[:-1])) @ w[:-1] / (lengths[-1] * np.cos(th[-1]))
     return th, w
+
+
+def file_parameters(n: int) -> dict[str, float]:
+    """Parameter values of the model-file case: those of :func:`nlink_parameters` while
+    every link is longer than 0.1 m (n < 45); beyond, the catalog's lengths 1 - 0.02 i
+    reach zero at n = 50 (a massless, inertia-free last link: a singular mass matrix), so
+    the lengths become l_i = 1 - i / (2 n), between 0.5 and 1 m."""
+    p = nlink_parameters(n)
+    if min(p[f"l{i}"] for i in range(1, n + 1)) > 0.1:
+        return p
+    return p | {f"l{i}": 1.0 - i / (2.0 * n) for i in range(1, n + 1)}
 
 
 def nlink_appell(n: int, s: int = 1) -> appell.System:
@@ -106,3 +120,103 @@ def nlink_kane(n: int):
     A = M.row_join(-Fl).col_join(J.row_join(sp.zeros(1, 1)))
     b = F0.col_join(sp.Matrix([-c]))
     return KM, A, b, [*m, *l, g, d], q, u
+
+
+def nlink_kane_function(n: int):
+    """SymPy's best practice for the family: ``KanesMethod`` with the tip force (see
+    :func:`nlink_kane`) and ``lambdify(cse=True, modules="math")`` of the entries of the
+    augmented system ``[M -J^T; J 0] [u'; lam] = [f; -c]``, solved by ``numpy.linalg.solve``.
+
+    Returns ``evaluate(theta, theta_dot, params) -> (u', lam)`` with ``params`` in the order
+    of :func:`nlink_parameters`.
+    """
+    KM, A, b, params, q, u = nlink_kane(n)
+    entries = sp.lambdify([*q, *u, *params], list(A) + list(b), cse=True, modules="math")
+    k = n + 1
+
+    def evaluate(theta, theta_dot, p):
+        out = np.array(entries(*theta, *theta_dot, *p))
+        x = np.linalg.solve(out[:k * k].reshape(k, k), out[k * k:])
+        return x[:n], x[n]
+
+    return evaluate
+
+
+def nlink_pinocchio(n: int):
+    """The family as a Pinocchio model: n revolute joints about z (the plane is x-y, y up),
+    joint i+1 at the end of link i, a point mass m_i at the end of link i (exact point-mass
+    inertia: no rotational inertia about its centre), gravity (0, -g, 0), and a frame ``tip``
+    at the end of link n.
+
+    Pinocchio's coordinates are relative angles: ``q_i = theta_i - theta_{i-1}`` (see
+    :func:`pinocchio_state`). Returns (model, tip frame id).
+    """
+    import pinocchio as pin
+
+    p = nlink_parameters(n)
+    masses = [p[f"m{i}"] for i in range(1, n + 1)]
+    lengths = [p[f"l{i}"] for i in range(1, n + 1)]
+    model, parent = pin.Model(), 0
+    for i in range(n):
+        place = pin.SE3(np.eye(3), np.array([0.0, -lengths[i - 1], 0.0]) if i else np.zeros(3))
+        parent = model.addJoint(parent, pin.JointModelRZ(), place, f"joint{i + 1}")
+        bob = pin.Inertia(masses[i], np.array([0.0, -lengths[i], 0.0]), np.zeros((3, 3)))
+        model.appendBodyToJoint(parent, bob, pin.SE3.Identity())
+    tip = model.addFrame(pin.Frame("tip", parent, 0, pin.SE3(np.eye(3), np.array([0.0, -lengths[-1], 0.0])),
+                                   pin.FrameType.OP_FRAME))
+    model.gravity = pin.Motion(np.array([0.0, -p["g"], 0.0]), np.zeros(3))
+    return model, tip
+
+
+def pinocchio_state(theta, theta_dot) -> tuple[np.ndarray, np.ndarray]:
+    """Absolute angles and rates -> Pinocchio's relative joint angles and rates."""
+    return np.diff(theta, prepend=0.0), np.diff(theta_dot, prepend=0.0)
+
+
+def nlink_pinocchio_function(n: int):
+    """Pinocchio's constrained forward dynamics of the family: ``computeAllTerms`` (M, the
+    nonlinear effects, the joint Jacobians and the velocity-product accelerations), the
+    tip's x row of the frame Jacobian J and its drift gamma = (J' v) (classical acceleration
+    at zero joint acceleration), then ``forwardDynamics`` solving
+    ``[M J^T; J 0] [ddq; -lam] = [tau - b; -gamma]``.
+
+    Returns ``evaluate(q, v) -> (ddq, lam)`` in Pinocchio's relative coordinates; ``lam`` is
+    the x force on the tip.
+    """
+    import pinocchio as pin
+
+    model, tip = nlink_pinocchio(n)
+    data = model.createData()
+    tau = np.zeros(n)
+    frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+    def evaluate(q, v):
+        pin.computeAllTerms(model, data, q, v)
+        J = pin.getFrameJacobian(model, data, tip, frame)[:1]
+        gamma = pin.getFrameClassicalAcceleration(model, data, tip, frame).linear[:1]
+        ddq = pin.forwardDynamics(model, data, tau, J, gamma, 0.0)
+        return ddq, data.lambda_c[0]
+
+    return evaluate
+
+
+def nlink_model_file(n: int) -> str:
+    """The family as an appell model file (TOML): the same system as
+    :func:`nlink_appell` (parameter values :func:`file_parameters`), with its particles as
+    ``[[bodies]]`` and its start on the line."""
+    p = file_parameters(n)
+    th, w = nlink_state(n, params=p)
+    lines = [f'[model]\nname = "pendulum{n}"', "coordinates = [" + ", ".join(f'"theta{i}"' for i in range(1, n + 1))
+             + "]", "\n[parameters]"]
+    lines += [f"{k} = {v!r}" for k, v in p.items()]
+    x = y = ""
+    for i in range(1, n + 1):
+        x += f" + l{i}*sin(theta{i})"
+        y += f" - l{i}*cos(theta{i})"
+        lines += ["\n[[bodies]]", f'name = "bob{i}"', f'mass = "m{i}"', f'position = ["{x[3:]}", "{y}", 0]']
+        lines += ["\n[[forces]]", f'name = "weight{i}"', f'vector = [0, "-m{i}*g", 0]',
+                  f'position = ["{x[3:]}", "{y}", 0]']
+    lines += ["\n[constraints.tip]", 'kind = "holonomic"', f'expr = "{x[3:]} - d"', "\n[initial]"]
+    lines += [f"theta{i + 1} = {float(th[i])!r}" for i in range(n)]
+    lines += [f"\"theta{i + 1}'\" = {float(w[i])!r}" for i in range(n)]
+    return "\n".join(lines) + "\n"
