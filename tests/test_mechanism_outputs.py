@@ -147,3 +147,23 @@ def test_outputs_continue_after_a_unilateral_contact_is_released():
     assert sol["lambda_floor"][before] == pytest.approx(m * G * (1 - 2 * sol.t[before]), rel=1e-9)
     assert any(e.kind == "release" for e in sol.events)
     assert np.all(np.isfinite(sol["F_slide_z"])) and np.abs(sol["F_slide_z"]).max() < 1e-9
+
+
+def test_the_command_lines_json_carries_the_outputs_exactly():
+    """``appell derive --format json`` (io.cli.derivation_json): the outputs' exact trees
+    read back to the derived expressions, also for a controlled system."""
+    from appell import derive_controlled
+    from appell.io.cli import derivation_json
+    from appell.symbols import t
+
+    d = derive(pendulum_system())
+    back = read_json(json.loads(json.dumps(derivation_json(d))))["outputs"]
+    assert back["M_pin_z"]["expression"] == d.system.outputs[5].expr
+    mech = Mechanism("servo", gravity=(0, -G, 0))
+    bob = mech.particle("bob", M)
+    mech.revolute("pin", "ground", bob, child_origin=(0, L, 0))
+    mech.actuator("motor", "pin")
+    s = mech.system(servo_constraints=[holonomic("track", sp.Symbol("pin") - sp.sin(t))], initial={"pin_dot": 1.0})
+    dc = derive_controlled(s)
+    doc = json.loads(json.dumps(derivation_json(dc)))
+    assert read_json(doc)["outputs"]["F_pin_y"]["expression"] == s.outputs[1].expr

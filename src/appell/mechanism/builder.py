@@ -606,6 +606,8 @@ class Mechanism:
                moment_unit="N*m") -> System:
         """The :class:`appell.System` of the mechanism.
 
+        Parameters
+        ----------
         parameters : ``{name: value}`` overriding the parameters' default values.
         initial : initial values ``{name: value}`` of coordinates and speeds; the others start
             at zero (a quaternion at the identity, q0 = 1).

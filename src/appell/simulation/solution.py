@@ -197,6 +197,7 @@ class Solution:
         for name in ("states", "multipliers", "controls", "position_residuals", "velocity_residuals", "tracking",
                      "accelerations", "outputs"):
             object.__setattr__(self, name, _frozen_arrays(getattr(self, name)))
+        object.__setattr__(self, "output_descriptions", MappingProxyType(dict(self.output_descriptions)))
         object.__setattr__(self, "events", tuple(self.events))
         object.__setattr__(self, "log", tuple(self.log))
 
