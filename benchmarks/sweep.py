@@ -16,13 +16,17 @@ rtol 1e-9, output every 0.05 s, projection), over F = 600..1000 N x M = 1000..14
 
 Both sweeps also write their HDF5 dataset and JSON summary (the loop writes nothing). The
 three are interleaved in every repeat; the ratios are sweep / loop of the same repeat.
-On a machine shared with other work the ratios are noisy: report the machine's load too.
+On a machine shared with other work the wall-time ratios are noisy: the load average is
+printed, and so is the CPU time each spent (this process, plus the workers of the kept
+cluster, plus the reaped worker processes of a new cluster): a sweep's CPU time over the
+loop's is its overhead, which other work on the machine hardly changes.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import tempfile
 import time
@@ -72,28 +76,45 @@ def main():
         assert not result.failed, result.summary_text()
         return [r.wall_time for r in result.runs]
 
-    rows = []
+    def cpu(client=None) -> float:
+        """CPU seconds of this process, its reaped children, and the workers of ``client``."""
+        own = resource.getrusage(resource.RUSAGE_SELF)
+        children = resource.getrusage(resource.RUSAGE_CHILDREN)
+        total = own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+        if client is not None:
+            total += sum(client.run(time.process_time).values())
+        return total
+
+    rows, cpu_rows = [], []
     with tempfile.TemporaryDirectory() as directory, sweep_cluster(args.workers) as client:
         swept(directory, client=client)  # the kept cluster's workers build the model once
         for rep in range(args.repeats):
-            timings, per_run = {}, {}
-            for name, job in (("loop", loop), ("sweep, kept cluster", lambda: swept(directory, client=client)),
-                              ("sweep, new cluster", lambda: swept(directory, n_workers=args.workers))):
+            timings, per_run, cpus = {}, {}, {}
+            for name, job, workers in (
+                    ("loop", loop, None),
+                    ("sweep, kept cluster", lambda: swept(directory, client=client), client),
+                    ("sweep, new cluster", lambda: swept(directory, n_workers=args.workers), None)):
+                c0 = cpu(workers)
                 t0 = time.perf_counter()
                 per_run[name] = job()
                 timings[name] = time.perf_counter() - t0
+                cpus[name] = cpu(workers) - c0
             rows.append(timings)
-            print(f"repeat {rep + 1}: " + "; ".join(
-                f"{name} {t:.2f} s (mean run {1e3 * np.mean(per_run[name]):.0f} ms)" for name, t in timings.items())
+            cpu_rows.append(cpus)
+            print(f"repeat {rep + 1} (load {os.getloadavg()[0]:.1f}): " + "; ".join(
+                f"{name} {t:.2f} s, CPU {cpus[name]:.2f} s (mean run {1e3 * np.mean(per_run[name]):.0f} ms)"
+                for name, t in timings.items())
                 + "; ratios " + ", ".join(f"{name} / loop {timings[name] / timings['loop']:.2f}"
                                           for name in timings if name != "loop"), flush=True)
-    print("median over the repeats:")
+    print(f"median over the {len(rows)} repeats (wall time; CPU time):")
     for name in rows[0]:
-        line = f"  {name:<20} {statistics.median(r[name] for r in rows):7.2f} s"
+        line = f"  {name:<20} {statistics.median(r[name] for r in rows):7.2f} s; " \
+               f"{statistics.median(r[name] for r in cpu_rows):7.2f} s"
         if name != "loop":
             ratios = [r[name] / r["loop"] for r in rows]
+            cpu_ratio = statistics.median(r[name] / r["loop"] for r in cpu_rows)
             line += f"   ratio to the loop {statistics.median(ratios):.2f} " \
-                    f"(repeats: {', '.join(f'{x:.2f}' for x in ratios)})"
+                    f"(repeats: {', '.join(f'{x:.2f}' for x in ratios)}); CPU time ratio {cpu_ratio:.2f}"
         print(line)
     print(f"load average after: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
 

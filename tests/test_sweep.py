@@ -216,3 +216,42 @@ def test_sweep_refuses_a_client_together_with_a_scheduler(tmp_path):
               output=tmp_path / "s.h5", progress=False)
     with pytest.raises(appell.ModelError, match="Client"):
         sweep(CATALOG["pendulum"](), ["m=1"], 0.1, client=object(), output=tmp_path / "s.h5", progress=False)
+
+
+def test_appell_cluster_serves_sweeps_until_ctrl_c(tmp_path):
+    """'appell cluster --port 0' prints its scheduler's address; 'appell sweep --scheduler'
+    runs on it (the pendulum released at rest from 60 deg: largest rod tension 2 m g at the
+    bottom, closed form); Ctrl-C (SIGINT) stops it with exit code 0."""
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+    from processes import dask_cli, env_with_src
+
+    dask_cli()  # skipped without distributed
+    log = open(tmp_path / "cluster.log", "w")  # Dask's log: a pipe left unread could fill and stall it
+    proc = subprocess.Popen([sys.executable, "-m", "appell.io.cli", "cluster", "--workers", "1", "--port", "0"],
+                            stdout=subprocess.PIPE, stderr=log, text=True, env=env_with_src())
+    try:
+        line = proc.stdout.readline()
+        found = re.search(r"Dask scheduler at (\S+) with 1 worker", line)
+        assert found, (line, proc.poll())
+        out = tmp_path / "s.h5"
+        result = CliRunner().invoke(cli, ["sweep", "pendulum", "--param", "m=1,2", "--t-end", "1.2", "--samples", "61",
+                                          "--backend", "numpy", "--scheduler", found.group(1), "--out", str(out)])
+        assert result.exit_code == 0, result.output
+        summary = json.loads(out.with_name("s.h5.summary.json").read_text())
+        assert summary["multipliers"]["rod"]["max"] == pytest.approx(2 * 2.0 * 9.81, rel=1e-3)
+        proc.send_signal(signal.SIGINT)
+        stdout, _ = proc.communicate(timeout=60)
+        assert proc.returncode == 0, (stdout, (tmp_path / "cluster.log").read_text()[-2000:])
+        assert "stopping the cluster" in stdout
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        log.close()
