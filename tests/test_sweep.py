@@ -97,7 +97,7 @@ def _car():
     from appell.io.cli import simulation_options
 
     system = appell.load_model(example_path("car"))
-    return system, simulation_options(system, 4.0)
+    return system, simulation_options(system, 2.0)
 
 
 def _loop_run(model, t_end, params, opts):

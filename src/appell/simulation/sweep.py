@@ -201,15 +201,20 @@ class _Shipment:
         return compile_c(self.derivation, self.backend)
 
 
-def _model_on_worker(shipment: _Shipment):
-    """The Dynamics of a sweep, built once per worker process and kept by its key."""
-    model = _MODELS.pop(shipment.key, None)
-    if model is None:
-        model = shipment.build()
-    _MODELS[shipment.key] = model  # the newest last
+def _keep(key: str, model):
+    """Keep ``model`` in this process by ``key``, as the newest; the oldest beyond
+    :data:`_KEPT_MODELS` are dropped."""
+    _MODELS.pop(key, None)
+    _MODELS[key] = model
     while len(_MODELS) > _KEPT_MODELS:
         _MODELS.pop(next(iter(_MODELS)))
     return model
+
+
+def _model_on_worker(shipment: _Shipment):
+    """The Dynamics of a sweep, built once per worker process and kept by its key."""
+    model = _MODELS.get(shipment.key)
+    return _keep(shipment.key, shipment.build() if model is None else model)
 
 
 def _run_one(shipment, index, params, t_end, t_eval, options) -> dict:
@@ -594,7 +599,7 @@ def _prepare(model, backend: str) -> _Shipment:
         raise ModelError(f"the model cannot be sent to Dask workers: {type(exc).__name__}: {exc}",
                          hint="sweep a model whose parameters, programs and forces are plain SymPy expressions "
                               "(a model file always is)") from None
-    _MODELS[key] = numeric
+    _keep(key, numeric)
     return _Shipment(key, derivation, backend)
 
 
