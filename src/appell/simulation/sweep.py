@@ -510,7 +510,7 @@ def _gather(client, futures, tasks, on_result, worker_timeout: float, bar=None):
             except BaseException as exc:  # noqa: BLE001 (a lost worker, a cancelled run: record it)
                 if not isinstance(exc, Exception) and not _cancelled(exc):
                     raise
-                lost = "lost with the Dask workers (killed, or gone with its input): " \
+                lost = "lost with the Dask workers (killed, or their machine gone): " \
                     if _cancelled(exc) or type(exc).__name__ == "KilledWorker" else ""
                 results = [_failed(i, f"{lost}{type(exc).__name__}: {exc}") for i in indices]
             finally:
