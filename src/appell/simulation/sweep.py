@@ -595,10 +595,8 @@ def _prepare(model, backend: str) -> _Shipment:
     backend = ("auto" if backend == "auto" else "c") if compiled else "numpy"
     try:
         key = hashlib.sha256(pickle.dumps((backend, derivation))).hexdigest()[:32]
-    except Exception as exc:  # noqa: BLE001 (an unpicklable object in the model)
-        raise ModelError(f"the model cannot be sent to Dask workers: {type(exc).__name__}: {exc}",
-                         hint="sweep a model whose parameters, programs and forces are plain SymPy expressions "
-                              "(a model file always is)") from None
+    except Exception:  # noqa: BLE001 (Python callables in a System: threads still share the model built here)
+        key = uuid.uuid4().hex
     _keep(key, numeric)
     return _Shipment(key, derivation, backend)
 
