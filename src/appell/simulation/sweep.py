@@ -487,7 +487,9 @@ def _gather(client, futures, tasks, on_result, worker_timeout: float, bar=None):
     lists the run indices of ``futures[k]``. A task whose worker was lost is computed again
     by Dask; one lost for good (KilledWorker) or cancelled gives failed runs. A finished
     task's result is released at once, so that losing its worker later computes nothing
-    again (each task is taken once, when it finishes). When the cluster has had no
+    again (each task is taken once, when it finishes); a task whose worker dies while its
+    result is fetched is fetched again once Dask has computed it again (it never blocks the
+    sweep: the checks below still run). When the cluster has had no
     worker for ``worker_timeout`` seconds (or the scheduler is lost), the pending tasks are
     cancelled and their runs recorded as failed."""
     as_completed = _distributed().as_completed
@@ -500,21 +502,26 @@ def _gather(client, futures, tasks, on_result, worker_timeout: float, bar=None):
         if bar is not None:
             bar.update(1)
 
-    no_worker_since, last_check = None, 0.0
+    no_worker_since, last_check, regather = None, 0.0, []
     while pending:
         done = finished.next_batch(block=False) if finished.has_ready() else []
+        done += [f for f in regather if f.done()]
+        regather = [f for f in regather if f not in done]
         for fut in done:
-            indices = pending.pop(fut)
             try:
-                results = fut.result()
+                results = fut.result(timeout=10.0)
+            except TimeoutError:
+                # its worker died while its result was fetched: Dask computes it again
+                regather.append(fut)
+                continue
             except BaseException as exc:  # noqa: BLE001 (a lost worker, a cancelled run: record it)
                 if not isinstance(exc, Exception) and not _cancelled(exc):
                     raise
                 lost = "lost with the Dask workers (killed, or their machine gone): " \
                     if _cancelled(exc) or type(exc).__name__ == "KilledWorker" else ""
-                results = [_failed(i, f"{lost}{type(exc).__name__}: {exc}") for i in indices]
-            finally:
-                fut.release()
+                results = [_failed(i, f"{lost}{type(exc).__name__}: {exc}") for i in pending[fut]]
+            pending.pop(fut)
+            fut.release()
             for r in results:
                 record(r)
         if done or not pending:
