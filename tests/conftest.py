@@ -1,5 +1,6 @@
 """Shared fixtures: the documentation built once per test session (Sphinx, warnings are
-errors), used by tests/test_docs.py and tests/test_docs_offline.py."""
+errors), used by tests/test_docs.py and tests/test_docs_offline.py; a real Dask cluster of
+separate processes (tests/test_faults.py, tests/test_sweep.py)."""
 
 from __future__ import annotations
 
@@ -25,3 +26,14 @@ def docs_build(tmp_path_factory):
         [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", "-d", str(root / "doctrees"),
          str(DOCS), str(out)], capture_output=True, text=True, timeout=600, env=env)
     return done, out
+
+
+@pytest.fixture
+def dask_processes(tmp_path):
+    """A 'dask scheduler' process on a free port; ``.workers(n)`` starts 'dask worker'
+    processes. All are killed when the test ends (:class:`processes.DaskProcesses`)."""
+    from processes import DaskProcesses
+
+    procs = DaskProcesses(tmp_path)
+    yield procs
+    procs.close()

@@ -33,6 +33,7 @@ from appell.examples import example_path
 from appell.examples.catalog import CATALOG
 from appell import files
 from appell.io.cli import cli
+from processes import env_with_src
 
 SRC = str(Path(appell.__file__).resolve().parents[1])
 G = 9.81
@@ -41,15 +42,6 @@ G = 9.81
 def run(*args):
     """The command line in-process: click's Result (exit_code, stdout, stderr)."""
     return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
-
-
-def env_with_src(**extra) -> dict:
-    """The environment of a child process that imports this checkout's appell."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = SRC + os.pathsep + env.get("PYTHONPATH", "")
-    env.pop("APPELL_DEBUG", None)
-    env.update(extra)
-    return env
 
 
 def run_process(args, timeout=180, **kw):
@@ -519,57 +511,6 @@ def test_unwritable_cache_directory_falls_back_for_auto(monkeypatch, tmp_path):
 
 
 # -------------------------------------------------------------------------- Dask
-def _dask_cli() -> str:
-    pytest.importorskip("dask.distributed")
-    exe = shutil.which("dask") or str(Path(sys.executable).with_name("dask"))
-    if not os.path.exists(exe):
-        pytest.skip("the dask command line is not installed")
-    return exe
-
-
-class DaskProcesses:
-    """A real 'dask scheduler' and 'dask worker' processes (no nanny: a killed worker stays dead)."""
-
-    def __init__(self, directory: Path):
-        self.exe, self.directory = _dask_cli(), directory
-        self.file = directory / "scheduler.json"
-        self.procs = []
-        self.scheduler = self._start(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                                      "--scheduler-file", str(self.file)], "scheduler")
-        deadline = time.monotonic() + 90
-        while not self.file.exists() and time.monotonic() < deadline:
-            time.sleep(0.2)
-        time.sleep(0.3)
-        self.address = json.loads(self.file.read_text())["address"]
-
-    def _start(self, args, name):
-        log = open(self.directory / f"{name}.log", "w")
-        proc = subprocess.Popen([self.exe, *args], stdout=log, stderr=subprocess.STDOUT, env=env_with_src())
-        self.procs.append(proc)
-        return proc
-
-    def workers(self, count: int) -> list[subprocess.Popen]:
-        from dask.distributed import Client
-
-        started = [self._start(["worker", "--scheduler-file", str(self.file), "--nthreads", "1", "--no-nanny",
-                                "--no-dashboard"], f"worker{len(self.procs)}") for _ in range(count)]
-        with Client(self.address, timeout=60) as client:
-            client.wait_for_workers(count, timeout=120)
-        return started
-
-    def close(self):
-        for proc in reversed(self.procs):
-            proc.kill()
-            proc.wait(timeout=30)
-
-
-@pytest.fixture
-def dask_processes(tmp_path):
-    procs = DaskProcesses(tmp_path)
-    yield procs
-    procs.close()
-
-
 def _sweep_process(model, address, out, runs, timeout_s):
     return subprocess.Popen([sys.executable, "-m", "appell.io.cli", "sweep", str(model), "--param",
                              f"m=1:2:{runs}", "--t-end", "2", "--samples", "201", "--backend", "numpy",

@@ -2,6 +2,8 @@
 the HDF5 dataset and summary, and a failing run recorded without stopping the sweep."""
 
 import json
+import os
+import time
 
 import numpy as np
 import pytest
@@ -69,3 +71,187 @@ def test_a_sweep_leaves_no_default_dask_client_behind(tmp_path):
 
     with xr.open_dataset(tmp_path / "after.nc", engine="h5netcdf") as ds:
         assert ds["lambda_rod"].values[0] == pytest.approx(9.81 * 0.5, rel=1e-9)  # m g cos 60 deg at rest
+
+
+# ------------------------------------------------------------- tasks, shipping, real processes
+from appell.simulation.sweep import chunks, sweep_cluster  # noqa: E402
+
+
+def test_chunks_hold_every_run_once_in_order_and_end_with_single_runs():
+    """Guided self-scheduling: the tasks, concatenated, are the runs in order (nothing lost
+    or doubled); sizes never grow; the last task is one run; at least one task per slot."""
+    for runs in (0, 1, 2, 7, 64, 101, 1000):
+        todo = [(i, {"m": float(i)}) for i in range(runs)]
+        for slots in (1, 2, 3, 16):
+            tasks = chunks(todo, slots)
+            assert [r for t in tasks for r in t] == todo
+            sizes = [len(t) for t in tasks]
+            assert all(a >= b for a, b in zip(sizes, sizes[1:])) and all(sizes)
+            if runs:
+                assert sizes[-1] == 1 and len(tasks) >= min(runs, slots)
+    assert [len(t) for t in chunks(list(range(64)), 2)][:4] == [8, 7, 7, 6]  # ceil(64/8), ceil(56/8), ceil(49/8), ceil(42/8)
+
+
+def _car():
+    from appell.examples import example_path
+    from appell.io.cli import simulation_options
+
+    system = appell.load_model(example_path("car"))
+    return system, simulation_options(system, 2.0)
+
+
+def _loop_run(model, t_end, params, opts):
+    """The reference: one run of the plain loop, in this process."""
+    return appell.simulate(model, t_end, params=params, progress=False, **opts)
+
+
+def test_real_dask_processes_lose_a_busy_worker_and_every_run_is_recorded_once(dask_processes, tmp_path):
+    """A 'dask scheduler' and two 'dask worker' processes (tests/processes.py); the worker
+    with tasks assigned is killed (SIGKILL) once the first runs are in. Every run index is
+    recorded exactly once, all reach t_end, and each run's states and reactions equal those
+    of a plain loop of simulate with the same compiled model and parameters (the independent
+    route: no Dask, no shipping)."""
+    import threading
+
+    from dask.distributed import Client
+
+    system, opts = _car()
+    t_end, t_eval = opts.pop("t_end"), opts.pop("t_eval")
+    derivation = appell.derive(system)
+    procs = dask_processes.workers(2)
+    specs = ["F=600:1000:4", "M=1000:1400:4"]
+    out = tmp_path / "car.h5"
+    box = {}
+
+    def run():
+        try:
+            box["result"] = sweep(derivation, specs, t_end, t_eval=t_eval, output=out, backend="c",
+                                  scheduler=dask_processes.address, progress=False, **opts)
+        except BaseException as exc:  # noqa: BLE001 (reported by the main thread)
+            box["error"] = exc
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    partial = out.with_name("car.h5.partial")
+    with Client(dask_processes.address, timeout=60) as watcher:
+        deadline = time.monotonic() + 180
+        while not (partial.exists() and len(partial.read_text().splitlines()) > 1):
+            assert time.monotonic() < deadline and thread.is_alive(), box
+            time.sleep(0.02)
+        busy = [addr for addr, tasks in watcher.processing().items() if tasks]
+        assert busy, "no worker had a task when the first runs were in"
+        pid = watcher.run(os.getpid, workers=busy[:1])[busy[0]]
+        victim = next(p for p in procs if p.pid == pid)
+        victim.kill()
+        in_at_kill = len(partial.read_text().splitlines()) - 1
+    thread.join(timeout=300)
+    assert not thread.is_alive() and "error" not in box, box
+    res = box["result"]
+    grid = appell.parameter_grid(specs)
+    assert in_at_kill < len(grid)  # killed mid-sweep
+    assert sorted(r.index for r in res.runs) == list(range(len(grid)))
+    assert all(r.status == 0 for r in res.runs), res.summary_text()
+    assert not partial.exists()
+    import h5py
+
+    model = derivation.compiled("c")
+    with h5py.File(out) as f:
+        for i, params in enumerate(grid):
+            assert {k: f[f"parameters/{k}"][i] for k in params} == params
+            ref = _loop_run(model, t_end, params, {**opts, "t_eval": t_eval})
+            for name, values in ref.multipliers.items():
+                np.testing.assert_allclose(f[f"multipliers/{name}"][i], values, rtol=1e-10, atol=1e-9)
+            for name, values in ref.states.items():
+                np.testing.assert_allclose(f[f"states/{name}"][i], values, rtol=1e-10, atol=1e-12)
+
+
+def _built_models(client):
+    from appell.simulation import sweep as sweep_module
+
+    def keys():
+        return sorted(sweep_module._MODELS)
+
+    return client.run(keys)
+
+
+def test_a_kept_cluster_builds_each_model_once_per_worker_and_ships_numpy_models(dask_processes, tmp_path):
+    """sweep_cluster connected to a real scheduler with one 'dask worker': three sweeps on
+    the same client. The worker keeps its process (same pid) and builds the C model of the
+    derivation once (one key after two sweeps of it); the NumPy model (lambdified functions,
+    which do not pickle) is shipped by its derivation. Every run equals the plain loop's."""
+    system, opts = _car()
+    t_end, t_eval = opts.pop("t_end"), opts.pop("t_eval")
+    opts["t_eval"] = t_eval[::4]
+    derivation = appell.derive(system)
+    dask_processes.workers(1)
+    grid_specs = ["F=700,900", "M=1100,1300"]
+    with sweep_cluster(scheduler=dask_processes.address) as client:
+        pids = client.run(os.getpid)
+        first = sweep(derivation, grid_specs, t_end, output=tmp_path / "a.h5", backend="c", client=client,
+                      progress=False, **opts)
+        after_first = _built_models(client)
+        sweep(derivation, grid_specs, t_end, output=tmp_path / "b.h5", backend="c", client=client,
+              progress=False, **opts)
+        assert _built_models(client) == after_first and len(next(iter(after_first.values()))) == 1
+        numpy_model = derivation.numeric
+        third = sweep(numpy_model, grid_specs, t_end, output=tmp_path / "c.h5", client=client, progress=False,
+                      **opts)
+        assert len(next(iter(_built_models(client).values()))) == 2
+        assert client.run(os.getpid) == pids
+    assert not client.status == "running"
+    for res, model in ((first, derivation.compiled("c")), (third, numpy_model)):
+        import h5py
+
+        assert [r.status for r in res.runs] == [0] * 4
+        with h5py.File(res.path) as f:
+            for r in res.runs:
+                ref = _loop_run(model, t_end, r.parameters, opts)
+                for name, values in ref.multipliers.items():
+                    np.testing.assert_allclose(f[f"multipliers/{name}"][r.index], values, rtol=1e-10, atol=1e-9)
+
+
+def test_sweep_refuses_a_client_together_with_a_scheduler(tmp_path):
+    with pytest.raises(appell.ModelError, match="not both"):
+        sweep(CATALOG["pendulum"](), ["m=1"], 0.1, client=object(), scheduler="tcp://127.0.0.1:8786",
+              output=tmp_path / "s.h5", progress=False)
+    with pytest.raises(appell.ModelError, match="Client"):
+        sweep(CATALOG["pendulum"](), ["m=1"], 0.1, client=object(), output=tmp_path / "s.h5", progress=False)
+
+
+def test_appell_cluster_serves_sweeps_until_ctrl_c(tmp_path):
+    """'appell cluster --port 0' prints its scheduler's address; 'appell sweep --scheduler'
+    runs on it (the pendulum released at rest from 60 deg: largest rod tension 2 m g at the
+    bottom, closed form); Ctrl-C (SIGINT) stops it with exit code 0."""
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+    from processes import dask_cli, env_with_src
+
+    dask_cli()  # skipped without distributed
+    log = open(tmp_path / "cluster.log", "w")  # Dask's log: a pipe left unread could fill and stall it
+    proc = subprocess.Popen([sys.executable, "-m", "appell.io.cli", "cluster", "--workers", "1", "--port", "0"],
+                            stdout=subprocess.PIPE, stderr=log, text=True, env=env_with_src())
+    try:
+        line = proc.stdout.readline()
+        found = re.search(r"Dask scheduler at (\S+) with 1 worker", line)
+        assert found, (line, proc.poll())
+        out = tmp_path / "s.h5"
+        result = CliRunner().invoke(cli, ["sweep", "pendulum", "--param", "m=1,2", "--t-end", "1.2", "--samples", "61",
+                                          "--backend", "numpy", "--scheduler", found.group(1), "--out", str(out)])
+        assert result.exit_code == 0, result.output
+        summary = json.loads(out.with_name("s.h5.summary.json").read_text())
+        assert summary["multipliers"]["rod"]["max"] == pytest.approx(2 * 2.0 * 9.81, rel=1e-3)
+        proc.send_signal(signal.SIGINT)
+        stdout, _ = proc.communicate(timeout=60)
+        assert proc.returncode == 0, (stdout, (tmp_path / "cluster.log").read_text()[-2000:])
+        assert "stopping the cluster" in stdout
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        log.close()

@@ -36,7 +36,7 @@ from appell.reduction.cyclic import RouthReduction, cyclic_coordinates, routh_re
 from appell.reduction.first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
 from appell.symbols import derivative_symbol, t
 from appell.numerics.codegen_c import compile_c
-from appell.simulation.sweep import SweepResult, parameter_grid, sweep
+from appell.simulation.sweep import SweepResult, parameter_grid, sweep, sweep_cluster
 from appell.control.servo import ControlledDerivation, derive_controlled
 from appell.control.servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
 from appell.io.report import render_report, write_report
@@ -112,7 +112,7 @@ __all__ = [
     "EnergyBalance", "energy_balance",
     "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",
     "routh_reduction",
-    "SweepResult", "compile_c", "parameter_grid", "sweep",
+    "SweepResult", "compile_c", "parameter_grid", "sweep", "sweep_cluster",
     "ControlledDerivation", "ControlledModel", "augmented_controlled_solve", "cross_check_controlled",
     "derive_controlled",
     "render_report", "write_report",

@@ -7,6 +7,7 @@
 ``appell check MODEL``     :func:`appell.cross_check` (independent routes) and the energy balance
 ``appell report MODEL``    :func:`appell.io.report.write_report`: one self-contained HTML page
 ``appell sweep MODEL``     :func:`appell.simulation.sweep.sweep`: a parameter grid on Dask
+``appell cluster``         :func:`appell.simulation.sweep.sweep_cluster`: a local Dask cluster kept for sweeps
 ``appell examples``        the bundled model files (:mod:`appell.examples`)
 =========================  ===========================================================
 
@@ -720,7 +721,8 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
                    "FILE.h5.summary.json.")
 @_solver_options
 @click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="Dask scheduler address (tcp://host:8786) to run on many machines; default a local cluster.")
+              help="Dask scheduler address (tcp://host:8786): one kept by 'appell cluster' or 'dask scheduler', "
+                   "on this machine or many; default a local cluster started for this sweep.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Workers of the local cluster (default: one per core).")
 @click.option("--worker-timeout", type=click.FloatRange(min=0, min_open=True), default=60.0, show_default=True,
@@ -767,6 +769,37 @@ def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, 
         which = "every run" if len(result.failed) == len(result.runs) else f"{len(result.failed)} of {len(result.runs)} runs"
         raise ComputationError(f"{which} of the sweep failed (listed above); the summary uses the successful runs only",
                                hint="the dataset records every run with its status and message")
+
+
+@cli.command(context_settings=_CONTEXT)
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Worker processes, one thread each (default: one per core).")
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Interface the scheduler listens on (0.0.0.0: all, for workers and sweeps on other machines).")
+@click.option("--port", type=click.IntRange(0, 65535), default=8786, show_default=True,
+              help="Scheduler port (0: a free one).")
+def cluster(workers, host, port):
+    """Keep a local Dask cluster running for several sweeps, until Ctrl-C.
+
+    Prints the scheduler's address; give it to 'appell sweep --scheduler ADDRESS'. More
+    workers, on this machine or others, join with 'dask worker ADDRESS --nthreads 1'. The
+    workers keep each model they have built, so a later sweep of the same model starts its
+    runs at once.
+    """
+    import time
+
+    from appell.simulation.sweep import sweep_cluster
+
+    with sweep_cluster(workers, host=host, port=port) as client:
+        address = client.scheduler.address
+        click.echo(f"Dask scheduler at {address} with {len(client.scheduler_info()['workers'])} worker(s); "
+                   f"run sweeps with: appell sweep MODEL --param ... --scheduler {address}; Ctrl-C stops it")
+        sys.stdout.flush()
+        try:
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            click.echo("stopping the cluster")
 
 
 @cli.command(context_settings=_CONTEXT)

@@ -3,9 +3,12 @@
 A sweep is the Cartesian product of one value list per parameter, each given as a spec
 ``NAME=START:STOP:NUM`` (NUM equally spaced values, both ends included), ``NAME=V1,V2,...``
 or ``NAME=V``. Every grid point is one :func:`appell.simulation.simulate.simulate` run of the same
-model (any :class:`~appell.numerics.dynamics.Dynamics`, or a System / Derivation compiled once per
-worker process). The runs go to a Dask cluster: a local one by default, or the scheduler
-at ``scheduler`` (``tcp://host:8786``) to use many machines.
+model. The model is derived and compiled once, in the calling process (the C library goes to
+the shared cache); each worker process builds its numeric model once from the shipped
+derivation, loading that library (:class:`_Shipment`). The runs go to a Dask cluster in tasks
+of several grid points (:func:`chunks`): a local cluster started for the sweep by default, the
+scheduler at ``scheduler`` (``tcp://host:8786``) to use many machines, or a ``client`` kept
+across sweeps (:func:`sweep_cluster`).
 
 Output: one HDF5 file (written to a temporary name, then renamed) with
 
@@ -25,7 +28,8 @@ Faults of the environment: while the sweep runs, every finished run is appended 
 NaN written as ``NaN``), removed once the dataset is written. When the dataset cannot be
 written (a full disk), :class:`~appell.errors.ResourceError` says so and names the partial
 file with the runs it keeps; the runs are also on the exception (``.result``). Workers
-lost during the sweep are replaced by Dask (their runs are computed again elsewhere);
+lost during the sweep are replaced by Dask (the task they were running is computed again
+elsewhere; a task's runs are recorded once, when it finishes, so none is lost or doubled);
 when the cluster has had no worker at all for ``worker_timeout`` seconds the runs not yet
 done are cancelled and recorded as failed. A scheduler that cannot be reached is a
 ResourceError naming the address.
@@ -163,37 +167,63 @@ class SweepResult:
 
 
 # ------------------------------------------------------------------ worker side
+#: numeric models built on this worker process, by shipment key (the newest last)
 _MODELS: dict = {}
+#: how many models a worker keeps (a cluster kept across sweeps of several models)
+_KEPT_MODELS = 8
 
 
-def _model_on_worker(token: str, payload, backend: str):
-    """The Dynamics of a sweep, built once per worker process (derivation, compilation)."""
-    model = _MODELS.get(token)
-    if model is None:
-        from appell.numerics.dynamics import Dynamics
-        from appell.model import System
+@dataclass(frozen=True)
+class _Shipment:
+    """What a worker needs to build the sweep's numeric model, once per process.
 
-        model = payload
-        if isinstance(model, System):
-            from appell.core.derive import derive
+    For a System, a Derivation or a NumericModel: the ``derivation`` (plain symbolic data,
+    a few kB pickled, its reduced equations and reactions already formed) and the resolved
+    ``backend`` ('c', 'auto' or 'numpy'). The C library itself is not shipped: the client
+    compiled it into the shared cache (:func:`appell.numerics.codegen_c.build_library`),
+    where :func:`~appell.numerics.codegen_c.compile_c` finds it by the key of its source; a
+    worker on another machine compiles it once there (under the cache's lock). Any other
+    picklable Dynamics is shipped as it is (``dynamics``). ``key`` names the model by its
+    content, so a cluster kept across sweeps builds each model once.
+    """
 
-            model = derive(model)
-        if not isinstance(model, Dynamics):
-            from appell.numerics.codegen_c import compile_c
+    key: str
+    derivation: object = None
+    backend: str = "numpy"
+    dynamics: object = None
 
-            model = compile_c(model, backend)
-        _MODELS.clear()
-        _MODELS[token] = model
+    def build(self):
+        """The Dynamics: ``dynamics``, or the derivation compiled with ``backend``."""
+        if self.dynamics is not None:
+            return self.dynamics
+        from appell.numerics.codegen_c import compile_c
+
+        return compile_c(self.derivation, self.backend)
+
+
+def _keep(key: str, model):
+    """Keep ``model`` in this process by ``key``, as the newest; the oldest beyond
+    :data:`_KEPT_MODELS` are dropped."""
+    _MODELS.pop(key, None)
+    _MODELS[key] = model
+    while len(_MODELS) > _KEPT_MODELS:
+        _MODELS.pop(next(iter(_MODELS)))
     return model
 
 
-def _run_one(token, payload, backend, index, params, t_end, t_eval, options) -> dict:
+def _model_on_worker(shipment: _Shipment):
+    """The Dynamics of a sweep, built once per worker process and kept by its key."""
+    model = _MODELS.get(shipment.key)
+    return _keep(shipment.key, shipment.build() if model is None else model)
+
+
+def _run_one(shipment, index, params, t_end, t_eval, options) -> dict:
     """One run on a worker: its arrays, status and message (an exception is a failed run)."""
     start = time.perf_counter()
     try:
         from appell.simulation.simulate import simulate
 
-        model = _model_on_worker(token, payload, backend)
+        model = _model_on_worker(shipment)
         sol = simulate(model, t_end, t_eval=t_eval, params=params, progress=False, **options)
         return {"index": index, "status": int(sol.status), "message": str(sol.message), "t": np.asarray(sol.t),
                 "states": {k: np.asarray(v) for k, v in sol.states.items()},
@@ -203,6 +233,32 @@ def _run_one(token, payload, backend, index, params, t_end, t_eval, options) -> 
     except Exception as exc:  # noqa: BLE001 (a failed run is recorded, not fatal)
         return {"index": index, "status": RAISED, "message": f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}",
                 "wall_time": time.perf_counter() - start}
+
+
+def _run_chunk(shipment, chunk, t_end, t_eval, options) -> list[dict]:
+    """The runs of one task, ``chunk = [(index, parameters), ...]``, one after the other."""
+    return [_run_one(shipment, i, params, t_end, t_eval, options) for i, params in chunk]
+
+
+def _prepare_worker() -> int:
+    """Import the simulation layer on a worker (a kept cluster pays it once, not in a sweep)."""
+    import appell.numerics.codegen_c  # noqa: F401
+    import appell.simulation.simulate  # noqa: F401
+
+    return os.getpid()
+
+
+def chunks(todo: Sequence, slots: int, per_slot: int = 4) -> list[list]:
+    """Split the runs ``todo`` into tasks by guided self-scheduling: each task takes
+    ``ceil(remaining / (per_slot * slots))`` runs, so the first tasks are large (little
+    per-task overhead) and the last ones single runs (the workers finish together).
+    ``slots`` is the number of worker threads; every run is in exactly one task, in order."""
+    out, start, slots = [], 0, max(1, int(slots))
+    while start < len(todo):
+        size = max(1, math.ceil((len(todo) - start) / (per_slot * slots)))
+        out.append(list(todo[start:start + size]))
+        start += size
+    return out
 
 
 # ------------------------------------------------------------------ client side
@@ -413,35 +469,62 @@ def _cancelled(exc: BaseException) -> bool:
     return isinstance(exc, (asyncio.CancelledError, concurrent.futures.CancelledError))
 
 
-def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None):
-    """Collect the runs as they finish (``on_result(dict)``); a run whose worker was lost
-    for good, or that was cancelled, is a failed run. When the cluster has had no worker
-    for ``worker_timeout`` seconds (or the scheduler is lost), the pending runs are
-    cancelled and recorded as failed."""
+def _failed(index: int, message: str) -> dict:
+    return {"index": index, "status": RAISED, "message": message, "wall_time": float("nan")}
+
+
+def _worker_count(client) -> tuple[int, int]:
+    """The scheduler's workers and their threads."""
+    try:
+        workers = client.scheduler_info(n_workers=-1).get("workers", {})
+    except TypeError:  # older distributed: no n_workers argument
+        workers = client.scheduler_info().get("workers", {})
+    return len(workers), sum(int(w.get("nthreads", 1)) for w in workers.values())
+
+
+def _gather(client, futures, tasks, on_result, worker_timeout: float, bar=None):
+    """Collect the tasks' runs as they finish (``on_result(dict)`` per run). ``tasks[k]``
+    lists the run indices of ``futures[k]``. A task whose worker was lost is computed again
+    by Dask; one lost for good (KilledWorker) or cancelled gives failed runs. A finished
+    task's result is released at once, so that losing its worker later computes nothing
+    again (each task is taken once, when it finishes); a task whose worker dies while its
+    result is fetched is fetched again once Dask has computed it again (it never blocks the
+    sweep: the checks below still run). When the cluster has had no
+    worker for ``worker_timeout`` seconds (or the scheduler is lost), the pending tasks are
+    cancelled and their runs recorded as failed."""
     as_completed = _distributed().as_completed
 
-    index = {fut.key: i for fut, i in zip(futures, indices)}
-    pending = set(index)
+    pending = dict(zip(futures, tasks))
     finished = as_completed(futures, loop=client.loop)  # the sweep's client is not the default one
-    no_worker_since, last_check = None, 0.0
+
+    def record(r):
+        on_result(r)
+        if bar is not None:
+            bar.update(1)
+
+    no_worker_since, last_check, regather = None, 0.0, []
     while pending:
-        batch = finished.next_batch(block=False) if finished.has_ready() else []
-        for fut in batch:
-            i = index[fut.key]
-            pending.discard(fut.key)
+        done = finished.next_batch(block=False) if finished.has_ready() else []
+        done += [f for f in regather if f.done()]
+        regather = [f for f in regather if f not in done]
+        for fut in done:
             try:
-                result = fut.result()
+                results = fut.result(timeout=10.0)
+            except TimeoutError:
+                # its worker died while its result was fetched: Dask computes it again
+                regather.append(fut)
+                continue
             except BaseException as exc:  # noqa: BLE001 (a lost worker, a cancelled run: record it)
                 if not isinstance(exc, Exception) and not _cancelled(exc):
                     raise
-                lost = "lost with the Dask workers (killed, or gone with its input): " \
+                lost = "lost with the Dask workers (killed, or their machine gone): " \
                     if _cancelled(exc) or type(exc).__name__ == "KilledWorker" else ""
-                result = {"index": i, "status": RAISED, "message": f"{lost}{type(exc).__name__}: {exc}",
-                          "wall_time": float("nan")}
-            on_result(result)
-            if bar is not None:
-                bar.update(1)
-        if batch or not pending:
+                results = [_failed(i, f"{lost}{type(exc).__name__}: {exc}") for i in pending[fut]]
+            pending.pop(fut)
+            fut.release()
+            for r in results:
+                record(r)
+        if done or not pending:
             continue
         time.sleep(0.05)
         now = time.monotonic()
@@ -450,9 +533,7 @@ def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None
         last_check = now
         reason = None
         try:
-            workers = len(client.scheduler_info(n_workers=-1).get("workers", {}))
-        except TypeError:  # older distributed: no n_workers argument
-            workers = len(client.scheduler_info().get("workers", {}))
+            workers, _ = _worker_count(client)
         except Exception as exc:  # noqa: BLE001 (the scheduler is gone)
             workers, reason = 0, f"lost the Dask scheduler ({type(exc).__name__}: {exc})"
         if workers:
@@ -462,13 +543,12 @@ def _gather(client, futures, indices, on_result, worker_timeout: float, bar=None
         if reason is None and now - no_worker_since < worker_timeout:
             continue
         reason = reason or f"no Dask worker for {worker_timeout:g} s (all workers lost?)"
-        left = [f for f in futures if f.key in pending]
         try:
-            client.cancel(left)
+            client.cancel(list(pending))
         except Exception:  # noqa: BLE001 (the scheduler may be gone too)
             pass
-        for i in sorted(index[f.key] for f in left):
-            on_result({"index": i, "status": RAISED, "message": f"not run: {reason}", "wall_time": float("nan")})
+        for i in sorted(i for indices in pending.values() for i in indices):
+            record(_failed(i, f"not run: {reason}"))
         pending.clear()
 
 
@@ -490,49 +570,156 @@ def _resumed(path: Path, header: dict, runs: int) -> list[dict]:
     return list(kept.values())
 
 
-def _compute(model, todo, t_end, t_eval, simulate_options, on_result, *, backend, scheduler, n_workers, processes,
-             progress, worker_timeout, connect_timeout):
-    """Run the grid points ``todo`` (``[(index, parameters), ...]``) on a Dask cluster, local
-    or at ``scheduler``; every finished run goes to ``on_result``."""
-    distributed = _distributed()
-    Client, LocalCluster = distributed.Client, distributed.LocalCluster
+def _prepare(model, backend: str) -> _Shipment:
+    """Derive and compile the sweep's model once, here: a System is derived, a Derivation
+    compiled with ``backend`` (the C library goes to the shared cache), a NumericModel
+    shipped by its derivation and its own backend (the NumPy functions are lambdified
+    closures that do not pickle; a worker makes them again from the derivation). The model
+    built here is also kept in this process (workers that are threads use it as it is)."""
+    import hashlib
+    import pickle
 
-    own_cluster = None
-    if scheduler is None:
-        own_cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
-                                   dashboard_address=None)
-        client = Client(own_cluster, set_as_default=False)
+    from appell.model import System
+    from appell.numerics.codegen_c import CompiledNumericModel, compile_c
+    from appell.numerics.dynamics import Dynamics
+    from appell.numerics.numeric import NumericModel
+
+    if isinstance(model, NumericModel):
+        numeric, derivation = model, model.derivation
+    elif isinstance(model, Dynamics):
+        shipment = _Shipment(uuid.uuid4().hex, dynamics=model)
+        _model_on_worker(shipment)
+        return shipment
     else:
-        client = _connect(scheduler, connect_timeout)
+        if isinstance(model, System):
+            from appell.core.derive import derive
+
+            model = derive(model)
+        numeric, derivation = compile_c(model, backend), model
+    derivation = _symbolic(derivation)
+    compiled = isinstance(numeric, CompiledNumericModel)
+    # 'auto' stays 'auto' on the workers (a machine without a compiler falls back there too)
+    backend = ("auto" if backend == "auto" else "c") if compiled else "numpy"
+    try:
+        key = hashlib.sha256(pickle.dumps((backend, derivation))).hexdigest()[:32]
+    except Exception:  # noqa: BLE001 (Python callables in a System: threads still share the model built here)
+        key = uuid.uuid4().hex
+    _keep(key, numeric)
+    return _Shipment(key, derivation, backend)
+
+
+def _symbolic(derivation):
+    """A copy of ``derivation`` with its symbolic data only: its fields and the cached
+    reduced equations and reactions, not the numeric functions attached on first use
+    (``Derivation.numeric``: lambdified closures, which do not pickle)."""
+    import copy
+    import dataclasses
+
+    if not dataclasses.is_dataclass(derivation):
+        return derivation
+    out = copy.copy(derivation)
+    keep = {f.name for f in dataclasses.fields(derivation)} | {"reduced", "reactions"}
+    for name in [k for k in vars(out) if k not in keep]:
+        del vars(out)[name]
+    return out
+
+
+def _start_cluster(n_workers, processes, scheduler, connect_timeout, host=None, port=0):
+    """``(client, cluster)``: a new local cluster of single-threaded workers whose scheduler
+    listens on ``host:port`` (default 127.0.0.1, a free port; ``cluster`` to be closed after
+    the client), or a client of the scheduler at ``scheduler``."""
+    if scheduler is not None:
+        return _connect(scheduler, connect_timeout), None
+    distributed = _distributed()
+    try:
+        cluster = distributed.LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
+                                           dashboard_address=None, host=host, scheduler_port=port)
+    except OSError as exc:  # the port is taken, the host is not this machine's
+        raise ResourceError(f"cannot start a Dask scheduler on {host or '127.0.0.1'}:{port}: {exc.strerror or exc}",
+                            hint="choose another port (0: a free one) or host") from None
+    try:
+        return distributed.Client(cluster, set_as_default=False), cluster
+    except BaseException:
+        cluster.close()
+        raise
+
+
+@contextlib.contextmanager
+def sweep_cluster(n_workers: int | None = None, *, scheduler: str | None = None, processes: bool = True,
+                  host: str | None = None, port: int = 0, connect_timeout: float = 30.0):
+    """A Dask client kept for several sweeps: ``with sweep_cluster(2) as client:
+    sweep(..., client=client)``.
+
+    Starts a local cluster of ``n_workers`` single-threaded workers (default one per core;
+    ``processes=False``: threads of this process) whose scheduler listens on ``host:port``
+    (default 127.0.0.1 and a free port; more workers may join it with ``dask worker
+    ADDRESS``), or connects to the running scheduler at ``scheduler`` (``dask scheduler``,
+    ``appell cluster``). The scheduler's address is ``client.scheduler.address``.
+    The workers import appell's simulation layer at once, and keep the numeric model of
+    each sweep (by the content of its derivation), so that a later sweep of the same model
+    starts its runs without a cluster start, an import or a compilation. The cluster (not a
+    scheduler given by address) is closed when the block ends.
+    """
+    if n_workers is not None:
+        n_workers = count(n_workers, "n_workers", maximum=4096)
+    if scheduler is not None:
+        scheduler = check_scheduler_address(scheduler)
+    connect_timeout = number(connect_timeout, "connect_timeout", positive=True)
+    port = count(port, "port", minimum=0, maximum=65535)
+    client, cluster = _start_cluster(n_workers, processes, scheduler, connect_timeout, host, port)
+    try:
+        client.run(_prepare_worker)
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _compute(shipment, todo, t_end, t_eval, simulate_options, on_result, *, client, scheduler, n_workers,
+             processes, progress, worker_timeout, connect_timeout):
+    """Run the grid points ``todo`` (``[(index, parameters), ...]``) on Dask: on ``client``
+    (kept by the caller), else on a new local cluster or the scheduler at ``scheduler``
+    (closed afterwards). The runs go in tasks of several grid points (:func:`chunks`, from
+    the number of worker threads); every finished run goes to ``on_result``."""
+    own = client is None
+    cluster = None
+    if own:
+        client, cluster = _start_cluster(n_workers, processes, scheduler, connect_timeout)
     token = uuid.uuid4().hex
     bar = None
     try:
-        payload = client.scatter(model, broadcast=True)
-        futures = [client.submit(_run_one, token, payload, backend, i, params, t_end, t_eval, simulate_options,
-                                 key=f"appell-run-{i}-{token}", pure=False) for i, params in todo]
+        _, threads = _worker_count(client)
+        tasks = chunks(todo, threads or os.cpu_count() or 1)
+        futures = [client.submit(_run_chunk, shipment, chunk, t_end, t_eval, simulate_options,
+                                 key=f"appell-runs-{chunk[0][0]}-{chunk[-1][0]}-{token}", pure=False)
+                   for chunk in tasks]
         if progress:
             from tqdm.auto import tqdm
 
-            bar = tqdm(total=len(futures), desc="sweep", unit="run")
-        _gather(client, futures, [i for i, _ in todo], on_result, worker_timeout, bar)
+            bar = tqdm(total=len(todo), desc="sweep", unit="run")
+        _gather(client, futures, [[i for i, _ in chunk] for chunk in tasks], on_result, worker_timeout, bar)
     finally:
         if bar is not None:
             bar.close()
-        client.close()
-        if own_cluster is not None:
-            own_cluster.close()
+        if own:
+            client.close()
+            if cluster is not None:
+                cluster.close()
 
 
 def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples: int = 501,
-          scheduler: str | None = None, n_workers: int | None = None, processes: bool = True,
+          scheduler: str | None = None, n_workers: int | None = None, processes: bool = True, client=None,
           backend: str = "auto", progress: bool = True, worker_timeout: float = 60.0, connect_timeout: float = 30.0,
           resume: bool = False, **simulate_options) -> SweepResult:
     """Simulate ``model`` at every point of a parameter grid, in parallel on Dask.
 
     Parameters
     ----------
-    model : a :class:`~appell.model.System`, a :class:`~appell.core.equations.Derivation`
-        (derived/compiled once per worker with ``backend``) or a picklable
+    model : a :class:`~appell.model.System` or a :class:`~appell.core.equations.Derivation`
+        (derived and compiled with ``backend`` once, here; the workers get the derivation and
+        load the compiled library from the shared cache), a NumericModel (``d.numeric``,
+        ``d.compiled('c')``; shipped the same way) or another picklable
         :class:`~appell.numerics.dynamics.Dynamics`.
     specs : ``['NAME=START:STOP:NUM', ...]`` (see :func:`parse_spec`) or
         ``{name: values}``; names are model parameters.
@@ -542,7 +729,10 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
         (``<output>.summary.json``), and ``<output>.partial`` holds the finished runs while
         the sweep runs.
     scheduler : address of a Dask scheduler; default a local cluster with ``n_workers``
-        workers (``processes=False``: threads in this process).
+        workers (``processes=False``: threads in this process), started for this sweep.
+    client : a ``distributed.Client`` kept by the caller across sweeps (:func:`sweep_cluster`);
+        it is used as it is and left open (``scheduler``, ``n_workers`` and ``processes``
+        are then not given). The runs go in tasks of several grid points (:func:`chunks`).
     backend : numeric backend on the workers: 'numpy', 'c' or 'auto'.
     progress : show a progress bar (tqdm) while runs complete.
     worker_timeout : seconds without any worker after which the runs not yet done are
@@ -573,6 +763,12 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
         raise ModelError(f"unknown numeric backend {backend!r}", hint="choose one of " + ", ".join(BACKENDS))
     if scheduler is not None:
         scheduler = check_scheduler_address(scheduler)
+    if client is not None and (scheduler is not None or n_workers is not None):
+        raise ModelError("give a sweep either a client or a scheduler address / a number of workers, not both",
+                         hint="the client's cluster runs the sweep as it is")
+    if client is not None and not all(hasattr(client, a) for a in ("submit", "scheduler_info")):
+        raise ModelError(f"client must be a dask.distributed Client, got {type(client).__name__}",
+                         hint="use 'with appell.sweep_cluster() as client: ...'")
     grid = parameter_grid(specs)
     if not grid:
         raise ModelError("the sweep grid is empty")
@@ -590,6 +786,9 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     header = {"appell_sweep_partial": 1, "model": str(name), "specs": spec_text, "t": t_eval}
     partial_path = path.with_name(path.name + ".partial")
     earlier = _resumed(partial_path, header, len(grid)) if resume else []
+    done = {r["index"] for r in earlier}
+    todo = [(i, params) for i, params in enumerate(grid) if i not in done]
+    shipment = _prepare(model, backend) if todo else None  # derived and compiled once, before any file
     # resuming appends to the partial file: the runs kept there are never at risk
     partial = _PartialFile(partial_path, header, kept=len(earlier) if earlier else None)
     results = list(earlier)
@@ -598,11 +797,9 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
         results.append(r)
         partial.add(r)
 
-    done = {r["index"] for r in earlier}
-    todo = [(i, params) for i, params in enumerate(grid) if i not in done]
     try:
         if todo:
-            _compute(model, todo, float(t_end), t_eval, simulate_options, on_result, backend=backend,
+            _compute(shipment, todo, float(t_end), t_eval, simulate_options, on_result, client=client,
                      scheduler=scheduler, n_workers=n_workers, processes=processes, progress=progress,
                      worker_timeout=worker_timeout, connect_timeout=connect_timeout)
     except BaseException:  # interrupted, or no cluster: keep the finished runs for --resume
