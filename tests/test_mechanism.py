@@ -116,6 +116,11 @@ def test_the_four_bar_example_starts_on_its_loop(four_bar):
 
 @pytest.mark.parametrize("thA, wA", [(1.0, 2.0), (2.4, -1.0), (-0.6, 0.5)])
 def test_four_bar_pin_forces_match_a_free_body_newton_euler_solution(four_bar, thA, wA):
+    """The free-body Newton-Euler solution of the three links (below)."""
+    assert_four_bar_pin_forces_match_newton_euler(four_bar, thA, wA)
+
+
+def assert_four_bar_pin_forces_match_newton_euler(four_bar, thA, wA):
     """Independent route: the three links' free-body Newton-Euler equations (9 equations,
     8 unknown pin forces A, B, C, D), written here in plane vectors and solved by least
     squares at the state's accelerations from appell; the residual of the overdetermined

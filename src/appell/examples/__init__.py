@@ -12,13 +12,15 @@ def _builders() -> dict:
     from .benchmark_examples import BENCHMARK_EXAMPLES
     from .drive_examples import DRIVE_EXAMPLES
     from .event_examples import EVENT_EXAMPLES
+    from .mechanism_examples import four_bar, rolling_disc
     from .servo_examples import SERVO_EXAMPLES
     from .support_examples import SUPPORT_EXAMPLES
 
     cyclic = (spherical_pendulum, spherical_pendulum_rod, spherical_pendulum_cartesian, symmetric_top,
               turntable_particle)
     return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES, **BENCHMARK_EXAMPLES,
-            **DRIVE_EXAMPLES, **SUPPORT_EXAMPLES}
+            **DRIVE_EXAMPLES, **SUPPORT_EXAMPLES,
+            "four_bar": four_bar, "rolling_disc": rolling_disc}
 
 
 #: name of each bundled ``<name>.toml`` -> the Python builder of the same system

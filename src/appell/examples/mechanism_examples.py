@@ -1,14 +1,16 @@
 """Mechanisms built with :mod:`appell.mechanism`: systems whose outputs are the forces and
 moments at their joints (``F_<joint>_x`` .. ``M_<joint>_z``, docs/mechanism.md).
 
-Python builders only (no model file of their own): tests/test_mechanism.py checks the
-four-bar's pin forces against a free-body Newton-Euler solution and a double pendulum's
+The four-bar also exists as the model file ``four_bar.toml`` beside this module
+(tests/test_examples_mechanism_files.py); tests/test_mechanism.py checks the four-bar's pin forces against a free-body Newton-Euler solution and a double pendulum's
 joint forces against Pinocchio's RNEA.
 """
 
 from __future__ import annotations
 
 import math
+
+import sympy as sp
 
 from appell.mechanism import Mechanism
 from appell.model import System
@@ -72,5 +74,31 @@ def double_pendulum_joints() -> System:
                        units={"shoulder": "rad", "elbow": "rad"})
 
 
+def rolling_disc() -> System:
+    """A thin uniform disc (mass m, radius r; inertia m r^2/2 about its axis, m r^2/4 about a
+    diameter) rolling without slip on a plane inclined at alpha, written as a level plane
+    z = 0 under the tilted gravity (g sin(alpha), 0, -g cos(alpha)): x runs down the slope.
+    Free joint ``float`` with the rotation "zxy" (heading, lean, spin about the disc's axis,
+    body y); contact ``contact`` (``rolling_disc``): lambda_contact_n is the normal force,
+    -lambda_contact_t2 the friction force along x (t2 = n x t1 = -e_x). Upright and released
+    at rest: x'' = 2/3 g sin(alpha), normal m g cos(alpha), friction -1/3 m g sin(alpha)
+    (up the slope); on a level plane (alpha = 0) rolling straight at any speed: no
+    acceleration, normal m g, no friction."""
+    g, alpha = sp.symbols("g alpha")
+    mech = Mechanism("rolling_disc", gravity=(g * sp.sin(alpha), 0, -g * sp.cos(alpha)),
+                     description="thin disc rolling without slip on an inclined plane; contact forces as multipliers")
+    m = mech.parameter("m", 1.5, "kg", "mass of the disc")
+    r = mech.parameter("r", 0.25, "m", "radius of the disc")
+    mech.parameter("g", 9.81, "m/s^2", "gravity")
+    mech.parameter("alpha", 0.3, "rad", "inclination of the plane")
+    disc = mech.body("disc", m, inertia=(m * r**2 / 4, m * r**2 / 2, m * r**2 / 4))
+    mech.free("float", "ground", disc, rotation="zxy")
+    mech.rolling_disc("contact", disc, r, axis=(0, 1, 0))
+    return mech.system(initial={"float_z": 0.25}, reactions=None,
+                       units={"float_x": "m", "float_y": "m", "float_z": "m", "contact_n": "N", "contact_t1": "N",
+                              "contact_t2": "N"})
+
+
 #: name -> builder
-MECHANISM_EXAMPLES = {"four_bar": four_bar, "double_pendulum_joints": double_pendulum_joints}
+MECHANISM_EXAMPLES = {"four_bar": four_bar, "double_pendulum_joints": double_pendulum_joints,
+                      "rolling_disc": rolling_disc}

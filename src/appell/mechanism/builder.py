@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import keyword
 from dataclasses import dataclass, field
+from dataclasses import replace as dc_replace
 
 import sympy as sp
 
@@ -153,6 +154,7 @@ class _Closure:
 
     name: str
     build: object  # (frames) -> (constraints, actions)
+    where: str | None = None  # origin (file and line) given to the closure's constraints
 
 
 class Mechanism:
@@ -400,6 +402,15 @@ class Mechanism:
 
         self._closures.append(_Closure(name, build))
 
+    def locate(self, name: str, where: str) -> None:
+        """Record ``where`` (file and line) as the origin of the closure or contact ``name``:
+        its constraints carry it into error messages."""
+        for k, closure in enumerate(self._closures):
+            if closure.name == name:
+                self._closures[k] = _Closure(closure.name, closure.build, where)
+                return
+        raise ModelError(f"mechanism {self.name!r}: no closure or contact {name!r}", where=where)
+
     def rolling_disc(self, name, body, radius, axis=(0, 1, 0), normal=(0, 0, 1), height=0):
         """A thin disc (centre at the body frame's origin, symmetry ``axis`` in body axes) rolls
         without slip on the plane ``normal . x = height``: with ``a`` the disc's axis in world
@@ -643,7 +654,7 @@ class Mechanism:
         cons = [holonomic(n, e) for j in order for n, e in j.motion.constraints]
         for closure in self._closures:
             more, acts = closure.build(frames)
-            cons += more
+            cons += [dc_replace(c, where=closure.where) if closure.where and c.where is None else c for c in more]
             actions += acts
         speeds = [derivative_symbol(q) for q in coords]
         Q, ctl = [sp.S.Zero] * len(speeds), []

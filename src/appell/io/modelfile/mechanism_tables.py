@@ -185,6 +185,7 @@ def build_mechanism(r, top: dict, base: Path):
             b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
             directions = r.string(path + ("directions",), item.get("directions", "xyz"))
             _call(r, path, mech.connect, cname, a, b, directions)
+            mech.locate(cname, r.where(path + ("name",)))
             continue
         body = _body_ref(r, path + ("body",), item["body"], mech)
         if kind == "point_on_surface":
@@ -201,6 +202,7 @@ def build_mechanism(r, top: dict, base: Path):
                 kw["height"] = r.expr(path + ("height",), item["height"], "state")
             radius = r.expr(path + ("radius",), item["radius"], "state")
             _call(r, path, getattr(mech, kind), cname, body, radius, **kw)
+        mech.locate(cname, r.where(path + ("name",)))
 
     for i, item in enumerate(_items(r, top, "loads")):
         path = ("loads", i)
