@@ -185,9 +185,9 @@ def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence
 MAX_BLOCKS, MAX_BLOCK_SIZE = 64, 3
 
 
-def _at_state(J: sp.Matrix, at: dict, seed: int) -> np.ndarray | None:
+def jacobian_at(J: sp.Matrix, at: dict, seed: int) -> np.ndarray | None:
     """``J`` at the known values ``at`` (the model's parameters and initial state; generic
-    values for the rest), or None when nothing is known or ``J`` has lost rank there."""
+    values for the rest), or None when nothing is known or a value is not finite."""
     if not at:
         return None
     vals = {**generic_values(J.free_symbols - set(at), seed), **{k: v for k, v in at.items() if k in J.free_symbols}}
@@ -195,7 +195,13 @@ def _at_state(J: sp.Matrix, at: dict, seed: int) -> np.ndarray | None:
         Jn = np.array(J.xreplace(vals).evalf(), dtype=float).reshape(J.shape)
     except (TypeError, ValueError):
         return None
-    if not np.all(np.isfinite(Jn)) or pivoted_columns(row_normalised(Jn))[1] < J.shape[0]:
+    return Jn if np.all(np.isfinite(Jn)) else None
+
+
+def _at_state(J: sp.Matrix, at: dict, seed: int) -> np.ndarray | None:
+    """:func:`jacobian_at`, or None also when ``J`` has lost rank there."""
+    Jn = jacobian_at(J, at, seed)
+    if Jn is None or pivoted_columns(row_normalised(Jn))[1] < J.shape[0]:
         return None
     return Jn
 

@@ -37,7 +37,7 @@ import numpy as np
 import sympy as sp
 
 from appell.core.constraints import ConstraintBlocks
-from appell.core.partition import (RANK_CONDITION, generic_values, numeric_jacobian, partition_condition,
+from appell.core.partition import (RANK_CONDITION, generic_values, jacobian_at, numeric_jacobian, partition_condition,
                                    pivoted_columns, row_normalised, row_scales)
 from appell.errors import ModelError
 
@@ -209,7 +209,7 @@ def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None,
     rank = max(len(independent_rows(Jn)) for Jn in generic)
     if rank == s:
         return None
-    ref, at_start = _at(J, at or {}, seed), True
+    ref, at_start = jacobian_at(J, at or {}, seed), True
     if ref is None or len(independent_rows(ref)) != rank:
         ref, at_start = max(generic, key=lambda Jn: len(independent_rows(Jn))), False
     rows = independent_rows(ref)
@@ -229,18 +229,6 @@ def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None,
         )
     return Redundancy(cons, tuple(rows), tuple(i for i in range(s) if i not in rows), N, involved,
                       compliance, at_start)
-
-
-def _at(J: sp.Matrix, at: dict, seed: int) -> np.ndarray | None:
-    """``J`` at the known values (generic values for the rest), None if not finite."""
-    if not at:
-        return None
-    vals = {**generic_values(J.free_symbols - set(at), seed), **{k: v for k, v in at.items() if k in J.free_symbols}}
-    try:
-        Jn = np.array(J.xreplace(vals).evalf(), dtype=float).reshape(J.shape)
-    except (TypeError, ValueError):
-        return None
-    return Jn if np.all(np.isfinite(Jn)) else None
 
 
 def check_consistency(red: Redundancy, kin, at: dict, seed: int = 0) -> None:

@@ -679,6 +679,12 @@ def _build_mechanism(r: _Reader, doc: dict) -> System:
                                 description=r.string(("model", "description"), model.get("description", system.description)))
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
+    return _validated(r, system)
+
+
+def _validated(r: _Reader, system: System) -> System:
+    """``system`` once every name it uses is declared and it passes :func:`validate`; a
+    :class:`ModelError` carries the model file when it names no place of its own."""
     _check_declared(r, system)
     try:
         validate(system)
@@ -783,12 +789,7 @@ def _build(r: _Reader, doc: dict) -> System:
         )
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
-    _check_declared(r, system)
-    try:
-        validate(system)
-    except ModelError as exc:
-        raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
-    return system
+    return _validated(r, system)
 
 
 def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
