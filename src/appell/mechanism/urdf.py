@@ -349,20 +349,22 @@ def _walk(element: _Element):
         stack.extend(e.children)
 
 
+def _lines_by_name(items, what: str, source) -> dict[str, int]:
+    """``{name: line}`` of links or joints; a name defined twice is refused with both lines."""
+    lines: dict[str, int] = {}
+    for item in items:
+        if item.name in lines:
+            raise ModelError(f"{what} {item.name!r} is defined twice (lines {lines[item.name]} and {item.line})",
+                             where=f"{source}:{item.line}")
+        lines[item.name] = item.line
+    return lines
+
+
 def _check_tree(links, joints, source):
-    seen: dict[str, int] = {}
-    for link in links:
-        if link.name in seen:
-            raise ModelError(f"link {link.name!r} is defined twice (lines {seen[link.name]} and {link.line})",
-                             where=f"{source}:{link.line}")
-        seen[link.name] = link.line
-    names: dict[str, int] = {}
+    seen = _lines_by_name(links, "link", source)
+    _lines_by_name(joints, "joint", source)
     parent_of: dict[str, str] = {}
     for j in joints:
-        if j.name in names:
-            raise ModelError(f"joint {j.name!r} is defined twice (lines {names[j.name]} and {j.line})",
-                             where=f"{source}:{j.line}")
-        names[j.name] = j.line
         for end in (j.parent, j.child):
             if end not in seen:
                 raise ModelError(f"joint {j.name!r} names the link {end!r}, which is not defined",
