@@ -37,3 +37,65 @@ def dask_processes(tmp_path):
     procs = DaskProcesses(tmp_path)
     yield procs
     procs.close()
+
+
+# ------------------------------------------------------------------ variants (scripts/test-matrix.sh)
+#: the numerical part of the suite: closed forms, published values, independent routes.
+#: Left out: the browser, packaging, documentation, CLI-text and hostile-input tests, whose
+#: outcome does not depend on rounding (``pytest -m numerical`` selects the rest).
+NOT_NUMERICAL = {
+    "test_api_misuse.py", "test_architecture.py", "test_benchmark_references.py", "test_cli.py",
+    "test_cli_solver.py", "test_core_bad_input.py", "test_core_printing.py", "test_display.py", "test_docs.py",
+    "test_docs_offline.py", "test_faults.py", "test_json_exact.py", "test_mechanism_errors.py",
+    "test_modelfile_hostile.py", "test_packaging.py", "test_report_browser.py", "test_servo_bad_input.py",
+    "test_sweep.py", "test_urdf_hostile.py",
+}
+
+#: ``$APPELL_TEST_BACKEND=c``: ``Derivation.numeric`` is the compiled C model
+#: (:func:`appell.compile_c`) for the whole session, so that every test that reads
+#: ``derivation.numeric`` runs its numbers through the C split; the default is NumPy.
+BACKEND = os.environ.get("APPELL_TEST_BACKEND", "numpy")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "numerical: a closed-form, published-value or cross-route test "
+                                       "(selected by scripts/test-matrix.sh)")
+    config.addinivalue_line("markers", "numpy_model: the test mutates or inspects the NumPy model itself "
+                                       "(kept on NumPy under APPELL_TEST_BACKEND=c)")
+    if BACKEND not in ("numpy", "c"):
+        raise pytest.UsageError(f"APPELL_TEST_BACKEND must be 'numpy' or 'c', got {BACKEND!r}")
+    if BACKEND == "c":
+        _use_c_backend()
+
+
+def _use_c_backend():
+    from functools import cached_property
+
+    from appell import Derivation, compile_c
+
+    prop = cached_property(lambda self: compile_c(self, "c"))
+    prop.__set_name__(Derivation, "numeric")
+    Derivation.numeric = prop
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.path.name not in NOT_NUMERICAL:
+            item.add_marker(pytest.mark.numerical)
+
+
+@pytest.fixture(autouse=True)
+def _numpy_model_where_marked(request, monkeypatch):
+    """Under ``APPELL_TEST_BACKEND=c``, a test marked ``numpy_model`` gets the NumPy model
+    back (it mutates the NumPy blocks, which the C split does not call)."""
+    if BACKEND == "c" and request.node.get_closest_marker("numpy_model"):
+        from functools import cached_property
+
+        from appell import Derivation
+        from appell.numerics.numeric import compile_model
+        from appell.numerics.redundant import with_redundancy
+
+        prop = cached_property(lambda self: with_redundancy(compile_model(self)))
+        prop.__set_name__(Derivation, "numeric")
+        monkeypatch.setattr(Derivation, "numeric", prop)
+    yield

@@ -449,7 +449,10 @@ def test_sweep_records_each_run_and_the_extreme_tension(tmp_path):
     summary = json.loads((tmp_path / "sweep.h5.summary.json").read_text())
     top = summary["multipliers"]["rod"]
     assert top["argmax_parameters"] == {"m": 2.0, "L": 1.0}
-    assert top["max"] == pytest.approx(2 * 2.0 * 9.81, rel=1e-4)  # sampled near the bottom
+    # the largest of 301 samples, not the peak itself: the nearest sample lies up to 2.5 ms from
+    # the bottom, where the tension falls quadratically (2.3e-5 here; the grid is fixed, so
+    # rounding does not move it; the integration's own error is 1e-9)
+    assert top["max"] == pytest.approx(2 * 2.0 * 9.81, rel=1e-4)
     with h5py.File(out) as f:
         status = f["status"][()]
         assert list(status) == [0, -2] * 4

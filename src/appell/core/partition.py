@@ -21,9 +21,17 @@ from appell.errors import ModelError
 #: relative singular-value threshold under which a block counts as singular
 RANK_TOL = 1e-9
 #: relative condition number (:func:`partition_condition`) above which the derivation's
-#: partition is replaced by the best-conditioned one at that state (about 4 digits of the
-#: 16 may be lost before the switch)
+#: partition is replaced by the best-conditioned one at that state
 KEEP_CONDITION = 1e4
+#: relative condition number from which the numeric split is refined once. The split's
+#: rounding errors grow like kappa^2 eps in lambda (kappa in ``a_h = -J_h^{-1}(J_nu a_nu + c)``,
+#: kappa again in ``lambda = J_h^{-T} E_h``, where ``E_h`` is small beside the terms that
+#: cancel in it): 1e-8 relative at kappa = 1e4 (issue 26, the bead on a turning rod at
+#: Omega t = pi/2). One step of iterative refinement -- the same split applied to the
+#: residuals ``M a + h - Q - J^T lambda`` and ``J a + c`` -- divides that error by
+#: kappa^2 eps again, down to the rounding of the residuals themselves (about 1e-15 there;
+#: tests/test_partition_singular.py). Below this value kappa^2 eps < 3e-14 needs no refinement.
+REFINE_CONDITION = 16.0
 #: relative condition number of the best partition above which the constraint Jacobian
 #: counts as rank-deficient (a singular configuration: the reactions are undetermined)
 RANK_CONDITION = 1e12

@@ -12,7 +12,10 @@ constraints linear in ``a`` one C call also does the linear algebra of the split
    the partition (:func:`appell.numerics.numeric.usable_partition` on the compiled blocks);
 2. ``X = J_h^{-1} J_nu``, ``d_h = -J_h^{-1} c``, ``C = [I; -X]``;
 3. ``(C^T M C) a_nu = -C^T (M d + h - Q)``, ``a = C a_nu + d``          — (1.4);
-4. ``lambda = D (D J_h)^{-T} E_h`` with ``E = M a + h - Q``, ``R = J^T lambda`` — (1.5).
+4. ``lambda = D (D J_h)^{-T} E_h`` with ``E = M a + h - Q``, ``R = J^T lambda`` — (1.5);
+5. where kappa reaches :data:`appell.core.partition.REFINE_CONDITION`, steps 2–4 once more
+   on the residuals of the first pass (one step of iterative refinement, as
+   :func:`appell.numerics.numeric.split_solve`).
 
 When the inertia is point masses whose velocities are built by accumulation along a tree
 (:func:`particle_tree`: an n-link chain, branched pendulums) ``M`` and ``h`` are never
@@ -61,7 +64,7 @@ from sympy.printing.c import C99CodePrinter
 from appell.numerics.dynamics import Evaluation
 from appell.numerics import fastcall
 from appell.errors import ComputationError, ModelError, ResourceError
-from appell.numerics.numeric import KEEP_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
+from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, NumericModel, StateSolution, compile_model, program_substitutions
 from appell.numerics.redundant import with_redundancy
 from appell.symbols import t
 
@@ -226,10 +229,13 @@ static double norm1(int n, const double *A)
 }
 
 /* Row scales D = 1 / max_j |J_rj|, the LU factors of D J_h and the partition's relative condition
-   number kappa = |(D J_h)^{-1}|_1 |D J|_1 (numeric.partition_condition). 0: usable; 1: kappa reaches
-   cond_max or a row of J vanishes (Python switches the partition or names the singular constraints) */
-static int scaled_block(const double *J, const int *dep, double cond_max, double *D, double *Jh, int *piv)
+   number kappa = |(D J_h)^{-1}|_1 |D J|_1 (numeric.partition_condition), stored in *kappa. 0: usable;
+   1: kappa reaches cond_max or a row of J vanishes (Python switches the partition or names the
+   singular constraints) */
+static int scaled_block(const double *J, const int *dep, double cond_max, double *D, double *Jh, int *piv,
+                        double *kappa)
 {
+    *kappa = INFINITY;
     double inv[DIM(S * S)], nrm = 0.0;
     for (int r = 0; r < S; ++r) {
         double big = 0.0;
@@ -250,18 +256,24 @@ static int scaled_block(const double *J, const int *dep, double cond_max, double
         lu_solve(S, Jh, piv, e);
         for (int r = 0; r < S; ++r) inv[r * S + k] = e[r];
     }
-    return !(nrm * norm1(S, inv) < cond_max);
+    *kappa = nrm * norm1(S, inv);
+    return !(*kappa < cond_max);
 }
 
-/* (1.5): lambda = D (D J_h)^{-T} E_h with E = M a + h - Q, R = J^T lambda; 2 if a or lambda is not finite */
-static int reactions(const double *E, const double *J, const int *dep, const double *D, const double *Jh,
-                     const int *piv, const double *a, double *lam, double *R)
+/* (1.5): lambda = D (D J_h)^{-T} E_h with E = M a + h - Q */
+static void multipliers(const double *E, const int *dep, const double *D, const double *Jh, const int *piv,
+                        double *lam)
 {
     if (S > 0) {
         for (int r = 0; r < S; ++r) lam[r] = E[dep[r]];
         lu_solve_t(S, Jh, piv, lam);
         for (int r = 0; r < S; ++r) lam[r] *= D[r];
     }
+}
+
+/* R = J^T lambda; 2 if a or lambda is not finite */
+static int finish(const double *J, const double *a, const double *lam, double *R)
+{
     for (int i = 0; i < N; ++i) {
         double s = 0.0;
         for (int r = 0; r < S; ++r) s += J[r * N + i] * lam[r];
@@ -272,9 +284,10 @@ static int reactions(const double *E, const double *J, const int *dep, const dou
     return 0;
 }
 
-/* 0: solved; 1: the partition is unusable (scaled_block); 2: not finite or C^T M C singular */
-int appell_split(const double *M, const double *hQ, const double *J, const double *c, const int *dep,
-                 double cond_max, double *a, double *lam, double *R)
+/* One pass of the split (steps 2-4) for a and lambda; *kappa the partition's condition number.
+   0: solved; 1: the partition is unusable (scaled_block); 2: C^T M C singular */
+static int split_once(const double *M, const double *hQ, const double *J, const double *c, const int *dep,
+                      double cond_max, double *kappa, double *a, double *lam)
 {
     int isdep[N] = {0}, ind[DIM(P)], piv[DIM(S)], pivA[DIM(P)];
     double Jh[DIM(S * S)], D[DIM(S)], X[DIM(S * P)], d[N], A[DIM(P * P)], b[DIM(P)];
@@ -283,7 +296,7 @@ int appell_split(const double *M, const double *hQ, const double *J, const doubl
     for (int i = 0, j = 0; i < N; ++i) if (!isdep[i]) ind[j++] = i;
     for (int i = 0; i < N; ++i) d[i] = 0.0;
     if (S > 0) {
-        if (scaled_block(J, dep, cond_max, D, Jh, piv)) return 1;
+        if (scaled_block(J, dep, cond_max, D, Jh, piv, kappa)) return 1;
         for (int j = 0; j < P; ++j) {           /* X = J_h^{-1} J_nu = (D J_h)^{-1} D J_nu */
             double col[DIM(S)];
             for (int r = 0; r < S; ++r) col[r] = D[r] * J[r * N + ind[j]];
@@ -334,7 +347,40 @@ int appell_split(const double *M, const double *hQ, const double *J, const doubl
         for (int j = 0; j < N; ++j) s += M[i * N + j] * a[j];
         E[i] = s;
     }
-    return reactions(E, J, dep, D, Jh, piv, a, lam, R);
+    multipliers(E, dep, D, Jh, piv, lam);
+    return 0;
+}
+
+/* The split (1.4)/(1.5), refined once where the partition's condition number reaches
+   REFINE_CONDITION (numeric.split_solve): with the residuals r = M a + h - Q - J^T lambda and
+   s = J a + c of the first pass, the same split gives the corrections (da, dlambda) of
+   M da - J^T dlambda = -r, J da = -s. 0: solved; 1: the partition is unusable; 2: not finite or
+   C^T M C singular */
+int appell_split(const double *M, const double *hQ, const double *J, const double *c, const int *dep,
+                 double cond_max, double *a, double *lam, double *R)
+{
+    double kappa = 1.0;
+    int status = split_once(M, hQ, J, c, dep, cond_max, &kappa, a, lam);
+    if (status) return status;
+    if (S > 0 && kappa >= REFINE_CONDITION) {
+        double r[N], s[DIM(S)], da[N], dl[DIM(S)], k2;
+        for (int i = 0; i < N; ++i) {
+            double v = hQ[i];
+            for (int j = 0; j < N; ++j) v += M[i * N + j] * a[j];
+            for (int k = 0; k < S; ++k) v -= J[k * N + i] * lam[k];
+            r[i] = v;
+        }
+        for (int k = 0; k < S; ++k) {
+            double v = c[k];
+            for (int i = 0; i < N; ++i) v += J[k * N + i] * a[i];
+            s[k] = v;
+        }
+        status = split_once(M, r, J, s, dep, INFINITY, &k2, da, dl);
+        if (status) return status;
+        for (int i = 0; i < N; ++i) a[i] += da[i];
+        for (int k = 0; k < S; ++k) lam[k] += dl[k];
+    }
+    return finish(J, a, lam, R);
 }
 
 """
@@ -496,7 +542,8 @@ int appell_solve(double t, const double *q, const double *w, const double *p, co
     int piv[DIM(S)];
     appell_tree_terms(t, q, w, 0, p, U, cb, m, rhs, J, c);
     if (bias) for (int r = 0; r < S; ++r) c[r] += bias[r];
-    if (S > 0 && scaled_block(J, dep, cond_max, D, Jh, piv)) return 1;
+    double kappa;
+    if (S > 0 && scaled_block(J, dep, cond_max, D, Jh, piv, &kappa)) return 1;
     if (tree_solve(U, cb, m, rhs, x)) return 2;         /* a_0 and the columns of Y = M^{-1} J^T */
     for (int i = 0; i < N; ++i) a[i] = x[i];
     if (S > 0) {
@@ -512,7 +559,8 @@ int appell_solve(double t, const double *q, const double *w, const double *p, co
         for (int r = 0; r < S; ++r) for (int i = 0; i < N; ++i) a[i] += Y[r * N + i] * z[r];
     }
     tree_residual(U, cb, m, rhs, a, E);
-    return reactions(E, J, dep, D, Jh, piv, a, lam, R);
+    multipliers(E, dep, D, Jh, piv, lam);
+    return finish(J, a, lam, R);
 }
 """
 
@@ -619,7 +667,7 @@ def c_source(derivation) -> str:
     parts = [
         f"/* appell: generated C for system {derivation.system.name!r}; n = {n}, s = {s} */",
         "#include <math.h>",
-        f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}",
+        f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}\n#define REFINE_CONDITION {REFINE_CONDITION!r}",
         HEADER_END,
     ]
     if tree is None:

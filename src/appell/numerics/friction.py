@@ -41,7 +41,7 @@ import numpy as np
 from appell.errors import ComputationError, ModelError, PainleveError
 from appell.numerics.dynamics import Evaluation
 from appell.numerics.numeric import NumericModel, StateSolution, _args, compile_model, lambdify_blocks, \
-    program_substitutions, split_solve, usable_partition
+    partition_in_use, program_substitutions, split_solve
 
 __all__ = ["augmented_friction_solve", "FrictionEvaluation", "FrictionLaws", "FrictionModel", "friction_model", "PAINLEVE_TOLERANCE",
            "stick_names"]
@@ -207,10 +207,10 @@ class FrictionModel:
         names = base.constraint_names
         dep = tuple(base.derivation.partition.dependent) if dependent is None else base.checked_dependent(dependent)
         if J.shape[0]:
-            dep, Jh_inv, switched = usable_partition(J, dep, names)
+            dep, Jh_inv, switched, kappa = partition_in_use(J, dep, names)
         else:
-            dep, Jh_inv, switched = (), None, False
-        a, lam = split_solve(M, hQ - Qx, J, c, dep, Jh_inv)
+            dep, Jh_inv, switched, kappa = (), None, False, 1.0
+        a, lam = split_solve(M, hQ - Qx, J, c, dep, Jh_inv, kappa)
         sliding = self.sliding()
         directions, N, signs = {}, {}, {}
         if sliding:
@@ -222,7 +222,7 @@ class FrictionModel:
                 u = self._direction(item, v[laws.slices[k]], t)
                 directions[item.name] = u
                 g = -coef[k, 0] * (G[laws.slices[k]].T @ u)
-                responses.append(split_solve(M, -g, J, np.zeros(J.shape[0]), dep, Jh_inv))
+                responses.append(split_solve(M, -g, J, np.zeros(J.shape[0]), dep, Jh_inv, kappa))
             N0 = lam[rows]
             A = np.array([[r[1][j] for r in responses] for j in rows]).reshape(len(rows), len(rows))
             sigma = np.array([self.signs.get(i.name, -1.0 if n0 < 0.0 else 1.0) for i, n0 in zip(sliding, N0)])

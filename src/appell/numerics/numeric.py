@@ -7,7 +7,9 @@ elimination; programs replaced by their expressions in t). At a state (t, q, w):
 2. with the dependent block ``J_h`` (switched by pivoted QR if it turned singular),
    ``X = J_h^{-1} J_nu``, ``C = [I; -X]``, ``d_h = -J_h^{-1} c``;
 3. reduced equations (1.4): ``(C^T M C) a_nu = -C^T (M d + h - Q)``, ``a = C a_nu + d``;
-4. reactions (1.5): ``lambda = J_h^{-T} E_h`` with ``E = M a + h - Q``; ``R = J^T lambda``.
+4. reactions (1.5): ``lambda = J_h^{-T} E_h`` with ``E = M a + h - Q``; ``R = J^T lambda``;
+5. where the partition's condition number reaches :data:`REFINE_CONDITION`, steps 2–4 once
+   more on the residuals of the first pass (iterative refinement, :func:`split_solve`).
 
 Constraints nonlinear in ``a`` are solved by Newton's method on
 ``G(a) = [C(a)^T E(a); f(a)] = 0``.
@@ -24,7 +26,8 @@ import sympy as sp
 from appell.numerics.dynamics import Evaluation
 from appell.arguments import number, vector
 from appell.errors import ComputationError, ModelError, SingularConfigurationError
-from appell.core.partition import KEEP_CONDITION, RANK_CONDITION, partition_condition, pivoted_columns, row_scales
+from appell.core.partition import (KEEP_CONDITION, RANK_CONDITION, REFINE_CONDITION, partition_condition,
+                                   pivoted_columns, row_scales)
 from appell.symbols import derivative_symbol, t
 
 
@@ -209,12 +212,18 @@ def usable_partition(J: np.ndarray, dependent, names) -> tuple[tuple[int, ...], 
 
     Returns ``(dependent, J_h^{-1}, switched)``.
     """
+    return partition_in_use(J, dependent, names)[:3]
+
+
+def partition_in_use(J: np.ndarray, dependent, names) -> tuple[tuple[int, ...], np.ndarray, bool, float]:
+    """:func:`usable_partition` and the condition number of the partition it returns (for
+    the refinement of :func:`split_solve`)."""
     dep = tuple(dependent)
     kappa, inv = partition_condition(J, dep)
     if kappa < KEEP_CONDITION:
-        return dep, inv, False
+        return dep, inv, False, kappa
     new, inv = _best_partition(J, names)
-    return new, inv, new != dep
+    return new, inv, new != dep, partition_condition(J, new)[0]
 
 
 @dataclass(frozen=True)
@@ -314,8 +323,8 @@ class NumericModel:
         names = self.derivation.constraints.names
         dep = tuple(self.derivation.partition.dependent) if dependent is None else self.checked_dependent(dependent)
         if self.constraint_function is None:
-            dep, Jh_inv, switched = usable_partition(J, dep, names)
-            a, lam = split_solve(M, hQ, J, c, dep, Jh_inv)
+            dep, Jh_inv, switched, kappa = partition_in_use(J, dep, names)
+            a, lam = split_solve(M, hQ, J, c, dep, Jh_inv, kappa)
             return StateSolution(a, lam, J.T @ lam, dep, switched)
         return self._solve_nonlinear(t, q, w, pv, M, hQ, dep, bias)
 
@@ -487,13 +496,32 @@ class NumericModel:
         return np.asarray(fn(float(t), q, w, a, self.params(p))[0], float).reshape(-1)
 
 
-def split_solve(M, hQ, J, c, dep, Jh_inv=None):
+def split_solve(M, hQ, J, c, dep, Jh_inv=None, kappa=None):
     """Accelerations and multipliers of ``M a + hQ = J^T lambda``, ``J a + c = 0`` by the
     split (steps 2–4 of the module docstring): ``(C^T M C) a_nu = -C^T (M d + hQ)``,
-    ``lambda = J_h^{-T} E_h``. ``Jh_inv``: ``J_h^{-1}`` if already known."""
-    n = M.shape[0]
+    ``lambda = J_h^{-T} E_h``. ``Jh_inv``: ``J_h^{-1}`` and ``kappa`` its
+    :func:`partition_condition`, if already known.
+
+    Where the partition's condition number ``kappa`` reaches :data:`REFINE_CONDITION` the
+    result is refined once: with ``r = M a + hQ - J^T lambda`` and ``s = J a + c``, the
+    same split solves ``M da - J^T dlambda = -r``, ``J da = -s`` and ``(a + da, lambda +
+    dlambda)`` is returned (step 5; the rounding error kappa^2 eps of one pass falls to
+    that of the residuals).
+    """
     if J.shape[0] == 0:
         return np.linalg.solve(M, -hQ), np.zeros(0)
+    a, lam = _split_once(M, hQ, J, c, dep, Jh_inv)
+    if (partition_condition(J, dep)[0] if kappa is None else kappa) >= REFINE_CONDITION:
+        r = M @ a + hQ - J.T @ lam
+        s = J @ a + c
+        da, dlam = _split_once(M, r, J, s, dep, Jh_inv)
+        a, lam = a + da, lam + dlam
+    return a, lam
+
+
+def _split_once(M, hQ, J, c, dep, Jh_inv=None):
+    """Steps 2–4 of the module docstring, once."""
+    n = M.shape[0]
     dep = list(dep)
     ind = [i for i in range(n) if i not in dep]
     if Jh_inv is None:
