@@ -651,3 +651,76 @@ def test_bom_at_the_start_of_a_model_file_is_accepted(tmp_path):
     broken.write_bytes(b"\xef\xbb\xbf[model]\ncoordinates = [\"x\"]\n[mechanics]\nkinetic_energy = \"x'^\"\n")
     with pytest.raises(appell.ModelError, match=r"broken.toml:4"):
         appell.load_model(broken)
+
+
+def _kept_partial(tmp_path, monkeypatch, system, **kw):
+    """A sweep of ``system`` whose dataset cannot be written (ENOSPC): its partial file keeps
+    every finished run; returns the arguments to resume it."""
+    from appell.simulation import sweep as sweep_module
+
+    out = tmp_path / "s.h5"
+    base = dict(output=out, samples=41, n_workers=1, processes=False, backend="numpy", progress=False, **kw)
+    with monkeypatch.context() as patch:
+        patch.setattr(files, "write_bytes", enospc)
+        with pytest.raises(appell.ResourceError, match="No space left on device"):
+            sweep_module.sweep(system, ["m=1:2:2"], 0.8, **base)
+    assert out.with_name("s.h5.partial").exists()
+    return sweep_module, base
+
+
+@pytest.mark.parametrize("change, named", [
+    ("parameter", "the model's content"),      # --set L=1.5: another parameter value
+    ("model", "the model's content"),          # the model file edited: another potential
+    ("options", "the solver options"),         # another rtol
+    ("backend", "the numeric backend"),
+])
+def test_resume_refuses_runs_computed_from_anything_else_and_names_it(tmp_path, monkeypatch, change, named):
+    """Issue 20: a resumed sweep took the kept runs whenever the model name, grid and output
+    times matched, mixing runs of another --set value or of an edited model file silently
+    into the dataset. Every input of a run is now in the partial file's header, and a
+    mismatch is refused by name; the kept file is left as it was."""
+    import sympy as sp
+
+    pendulum = CATALOG["pendulum"]()
+    sweep_module, base = _kept_partial(tmp_path, monkeypatch, pendulum, rtol=1e-9)
+    partial = (tmp_path / "s.h5.partial").read_bytes()
+    system, kw = pendulum, dict(base)
+    if change == "parameter":
+        L = next(p for p in pendulum.parameter_values if p.name == "L")
+        system = pendulum.replace(parameters=tuple(
+            appell.Parameter(p.symbol, 1.5 if p.symbol == L else p.value) for p in pendulum.parameters))
+    elif change == "model":
+        system = pendulum.replace(potential_energy=pendulum.potential_energy * sp.Rational(101, 100))
+    elif change == "options":
+        kw["rtol"] = 1e-10
+    else:
+        kw["backend"] = "c"
+    with pytest.raises(appell.ModelError, match="holds the runs of another sweep") as info:
+        sweep_module.sweep(system, ["m=1:2:2"], 0.8, **kw, resume=True)
+    assert named in str(info.value) and str(info.value).count("differ") == 1
+    assert (tmp_path / "s.h5.partial").read_bytes() == partial
+
+
+def test_resume_of_the_same_sweep_in_a_new_process_takes_every_kept_run(tmp_path, monkeypatch):
+    """The fingerprint is the same in other processes (canonical srepr text, not a pickle that
+    depends on hash randomisation: two fresh interpreters with different PYTHONHASHSEED read
+    the same model file to the header's fingerprint), and resuming the same sweep computes
+    nothing again."""
+    from appell.simulation import sweep as sweep_module
+
+    system = appell.load_model(example_path("pendulum"))
+    _, base = _kept_partial(tmp_path, monkeypatch, system)
+    header, kept = sweep_module.read_partial(tmp_path / "s.h5.partial")
+    code = ("import sys; from appell.simulation.sweep import model_fingerprint; import appell; "
+            f"print(model_fingerprint(appell.load_model({str(example_path('pendulum'))!r})))")
+    for seed in ("1", "2"):
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                              env={**env_with_src(), "PYTHONHASHSEED": seed})
+        assert proc.stdout.strip() == header["content"], proc.stderr
+
+    def nothing_to_compute(model, todo, *a, **k):
+        raise AssertionError(f"computed again: {todo}")
+
+    monkeypatch.setattr(sweep_module, "_compute", nothing_to_compute)
+    res = sweep_module.sweep(system, ["m=1:2:2"], 0.8, **base, resume=True)
+    assert len(res.runs) == 2 and (tmp_path / "s.h5").exists()

@@ -552,16 +552,77 @@ def _gather(client, futures, tasks, on_result, worker_timeout: float, bar=None):
         pending.clear()
 
 
+#: what a kept run depends on, as the partial file's header names it (checked by --resume)
+RESUME_KEYS = (("model", "the model's name"), ("content", "the model's content (equations, parameter values, "
+               "initial values, programs, outputs)"), ("specs", "the parameter grid"), ("t", "the output times"),
+               ("options", "the solver options"), ("backend", "the numeric backend"), ("appell", "appell's version"))
+
+
+def model_fingerprint(model) -> str | None:
+    """SHA-256 of everything a run of ``model`` depends on: for a System, a Derivation or a
+    NumericModel the canonical text (``sympy.srepr``, the same in every process) of the
+    blocks ``M``, ``h``, ``Q``, ``J``, ``c``, the constraints in second-order form, the
+    coordinate rates, the residuals, the programs and the outputs, with the names and values
+    of the parameters and the initial values; for another Dynamics its pickle. None when it
+    cannot be formed (a Dynamics that does not pickle)."""
+    import hashlib
+    import pickle
+
+    import sympy as sp
+
+    from appell.model import System
+    from appell.numerics.dynamics import Dynamics
+    from appell.numerics.numeric import NumericModel
+
+    derivation = model.derivation if isinstance(model, NumericModel) else model
+    if isinstance(derivation, System):
+        from appell.core.derive import derive
+
+        derivation = derive(derivation)
+    if not hasattr(derivation, "inertia"):
+        if isinstance(model, Dynamics):
+            try:
+                return hashlib.sha256(pickle.dumps(model)).hexdigest()
+            except Exception:  # noqa: BLE001 (a Dynamics holding closures)
+                return None
+        return None
+    system, inertia, cons = derivation.system, derivation.inertia, derivation.constraints
+    text = [sp.srepr(sp.Matrix(m)) for m in (inertia.mass_matrix, inertia.inertial_forces,
+                                               inertia.generalized_forces, derivation.kinematics.coordinate_rates)]
+    if cons.count:
+        text += [sp.srepr(sp.Matrix(cons.jacobian)), sp.srepr(sp.Matrix(cons.bias)),
+                 sp.srepr(sp.Matrix(cons.second_order))]
+        text += [sp.srepr(e) for e in tuple(cons.position_residual) + tuple(cons.velocity_residual)]
+    text.append(repr(tuple(cons.names)))
+    text.append(repr([(p.symbol.name, float(p.value)) for p in system.parameters]))
+    text.append(repr(sorted((str(k), repr(v)) for k, v in system.initial_definitions.items())))
+    text += [f"{g.symbol.name}={sp.srepr(g.expr)}" for g in system.programs]
+    text += [f"{o.name}={sp.srepr(o.expr)}" for o in system.outputs]
+    return hashlib.sha256("\n".join(text).encode()).hexdigest()
+
+
 def _resumed(path: Path, header: dict, runs: int) -> list[dict]:
     """The successful runs kept in the partial file ``path`` by an earlier call of the same
-    sweep (:func:`read_partial`); none when there is no such file."""
+    sweep (:func:`read_partial`); none when there is no such file. Every entry of
+    :data:`RESUME_KEYS` must match: a run computed from another model file, another
+    ``--set`` value, other solver options, another backend or appell version is refused by
+    name (mixing it into the dataset would be a silent wrong result)."""
     if not path.exists():
         return []
     old_header, old = read_partial(path)
-    same = (old_header.get("model") == header["model"] and old_header.get("specs") == header["specs"]
-            and np.array_equal(np.asarray(old_header.get("t", []), float), np.asarray(header["t"], float)))
-    if not same:
-        raise ModelError(f"{path} holds the runs of another sweep (its model, grid or output times differ)",
+    if header.get("content") is None:
+        raise ModelError(f"cannot resume from {path}: the model's content cannot be fingerprinted (it does not "
+                         "pickle), so the kept runs cannot be shown to come from the same model",
+                         hint="run without resume (the file is then replaced), or remove it")
+    differ = []
+    for key, what in RESUME_KEYS:
+        mine, theirs = header.get(key), old_header.get(key)
+        same = (np.array_equal(np.asarray(theirs if theirs is not None else [], float), np.asarray(mine, float))
+                if key == "t" else mine == theirs)
+        if not same:
+            differ.append(what)
+    if differ:
+        raise ModelError(f"{path} holds the runs of another sweep: " + "; ".join(differ) + " differ from this one's",
                          hint="run without resume (the file is then replaced), or remove it")
     kept = {}
     for r in old:
@@ -783,7 +844,17 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     name = getattr(model, "name", None) or getattr(getattr(model, "system", None), "name", "model")
     spec_text = json.dumps(list(specs) if not isinstance(specs, Mapping) else
                            {k: list(map(float, np.asarray(v, float).reshape(-1))) for k, v in specs.items()})
-    header = {"appell_sweep_partial": 1, "model": str(name), "specs": spec_text, "t": t_eval}
+    import appell
+    from appell.model import System
+
+    if isinstance(model, System):  # derived once: for the fingerprint and for the runs
+        from appell.core.derive import derive
+
+        model = derive(model)
+    options = json.dumps({k: simulate_options[k] for k in sorted(simulate_options)}, default=repr)
+    header = {"appell_sweep_partial": 1, "model": str(name), "specs": spec_text, "t": t_eval,
+              "content": model_fingerprint(model), "options": options, "backend": backend,
+              "appell": appell.__version__}
     partial_path = path.with_name(path.name + ".partial")
     earlier = _resumed(partial_path, header, len(grid)) if resume else []
     done = {r["index"] for r in earlier}
