@@ -724,3 +724,15 @@ def test_resume_of_the_same_sweep_in_a_new_process_takes_every_kept_run(tmp_path
     monkeypatch.setattr(sweep_module, "_compute", nothing_to_compute)
     res = sweep_module.sweep(system, ["m=1:2:2"], 0.8, **base, resume=True)
     assert len(res.runs) == 2 and (tmp_path / "s.h5").exists()
+
+
+def test_a_binary_or_foreign_partial_file_is_refused_by_name(tmp_path):
+    """Issue 20: a binary FILE.h5.partial gave a UnicodeDecodeError; it is 'not the partial
+    file of an appell sweep', like any JSON that is not one."""
+    from appell.simulation.sweep import read_partial
+
+    for content in (bytes(range(256)) * 4, b"\x89HDF\r\n\x1a\n" + b"\x00" * 64, b"[1, 2, 3]\n", b""):
+        path = tmp_path / "s.h5.partial"
+        path.write_bytes(content)
+        with pytest.raises(appell.ModelError, match="is not the partial file of an appell sweep"):
+            read_partial(path)

@@ -412,15 +412,17 @@ def read_partial(path) -> tuple[dict, list[dict]]:
     """The header and the runs of a partial file (``<output>.partial``, see the module
     docstring); a last line cut short is ignored. Arrays come back as NumPy arrays."""
     header, runs = None, []
-    with open(path, encoding="utf-8") as fh:
-        for line in fh:
+    with open(path, "rb") as fh:
+        for raw in fh:
             try:
-                obj = json.loads(line)
-            except json.JSONDecodeError:
-                break  # cut short: the runs before it are complete
+                obj = json.loads(raw.decode("utf-8"))
+            except (UnicodeDecodeError, json.JSONDecodeError):
+                break  # cut short (the runs before it are complete), or not text at all
             if header is None:
                 header = obj
                 continue
+            if not isinstance(obj, dict):
+                break
             for group in ("states", "multipliers", "controls"):
                 if group in obj:
                     obj[group] = {k: np.asarray(v, float) for k, v in obj[group].items()}
