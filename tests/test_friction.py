@@ -38,6 +38,8 @@ def test_block_sliding_down_an_incline_closed_form():
     alpha, mu = 0.5, 0.3
     sol = simulate(derive(block(alpha, 1.0, mu)), 1.0, t_eval=np.linspace(0, 1, 6))
     assert sol.status == 0
+    # the split's formulas, constant along the slide: rounding only; x' is linear in t, which
+    # DOP853 integrates exactly (~1e-15 measured)
     np.testing.assert_allclose(sol["x_ddot"], G * (math.sin(alpha) - mu * math.cos(alpha)), rtol=1e-12)
     np.testing.assert_allclose(sol["lambda_floor"], 2.0 * G * math.cos(alpha), rtol=1e-12)
     np.testing.assert_allclose(sol["friction_slide_t"], -mu * 2.0 * G * math.cos(alpha), rtol=1e-12)
@@ -52,11 +54,13 @@ def test_block_at_rest_sticks_below_the_static_angle_and_slips_above():
     from t = 0 with a = g (sin alpha - mu_k cos alpha)."""
     stuck = simulate(derive(block(0.4, 0.0)), 1.0, t_eval=np.linspace(0, 1, 6))  # tan 0.4 = 0.42 < 0.5
     assert [(e.kind, e.t) for e in stuck.events] == [("stick", 0.0)]
+    # held from the start: the split's force and x'' = 0, exact but for rounding (0 measured)
     np.testing.assert_allclose(stuck["friction_slide_t"], -2.0 * G * math.sin(0.4), rtol=1e-12)
     np.testing.assert_allclose(stuck["x"], 0.0, atol=1e-12)
     assert set(stuck["friction_slide_slipping"]) == {0.0}
     slips = simulate(derive(block(0.5, 0.0)), 1.0, t_eval=np.linspace(0, 1, 6))  # tan 0.5 = 0.546 > 0.5
     assert [(e.kind, e.t) for e in slips.events] == [("slip", 0.0)]
+    # the split's formula, constant along the slide: rounding only
     np.testing.assert_allclose(slips["x_ddot"], G * (math.sin(0.5) - 0.3 * math.cos(0.5)), rtol=1e-12)
 
 
@@ -67,6 +71,8 @@ def test_block_pushed_up_the_incline_stops_and_sticks_at_the_closed_form_time():
     sol = simulate(derive(block(alpha, -v0)), 2.0, t_eval=np.linspace(0, 2, 9))
     (ev,) = sol.events
     assert ev.kind == "stick" and ev.name == "slide"
+    # x' is linear in t, integrated exactly: the stop is the event's root (~4e-12 measured), and the
+    # stick holds x' = 0 and the force to rounding after it
     assert ev.t == pytest.approx(v0 / (G * (math.sin(alpha) + 0.3 * math.cos(alpha))), abs=1e-9)
     late = sol.t > ev.t
     np.testing.assert_allclose(sol["x_dot"][late], 0.0, atol=1e-9)
@@ -81,6 +87,8 @@ def test_block_reverses_when_the_slope_is_too_steep_to_stick():
     sol = simulate(derive(block(alpha, -v0)), 1.0, t_eval=np.linspace(0, 1, 11))
     (ev,) = sol.events
     t1 = v0 / (G * (math.sin(alpha) + 0.3 * math.cos(alpha)))
+    # x' is linear in t, integrated exactly: t1 is the event's root (~5e-13 measured), and x' after
+    # it is off by a dt1 relative to a (t - t1) >= 0.05 a (~6e-12)
     assert ev.kind == "slip" and ev.t == pytest.approx(t1, abs=1e-9)
     late = sol.t > t1
     np.testing.assert_allclose(sol["x_dot"][late], G * (math.sin(alpha) - 0.3 * math.cos(alpha)) * (sol.t[late] - t1),
@@ -114,6 +122,7 @@ def test_ball_rolls_without_slipping_up_to_tan_alpha_seven_halves_mu_s():
     rolls = simulate(derive(ball(limit - 0.01, mu_s)), 1.0, t_eval=np.linspace(0, 1, 6))
     a = limit - 0.01
     assert [e.kind for e in rolls.events] == ["stick"]
+    # here and below: the split's formulas, constant along the motion: rounding only (~5e-16)
     np.testing.assert_allclose(rolls["x_ddot"], 5 / 7 * G * math.sin(a), rtol=1e-10)
     np.testing.assert_allclose(rolls["friction_contact_t"], -2 / 7 * 1.5 * G * math.sin(a), rtol=1e-10)
     a = limit + 0.01
@@ -132,6 +141,8 @@ def test_rolling_resistance_stops_a_rolling_ball_at_the_closed_form_time():
     t_stop = 7 * 0.1 * v0 / (5 * mu_r * G)
     stops = [e for e in sol.events if e.t > 0]
     assert [(e.kind, e.name) for e in stops] == [("stick", "rolling")]
+    # x' is linear in t, integrated exactly, and crosses 0 at the slope 0.014 m/s^2: its rounding
+    # moves the stop by up to ~2e-11 (measured); the forces and x'' are the split's, rounding only
     assert stops[0].t == pytest.approx(t_stop, abs=1e-8)
     moving = sol.t < t_stop
     np.testing.assert_allclose(sol["x_ddot"][moving], -5 * mu_r * G / (7 * 0.1), rtol=1e-9)
@@ -145,9 +156,10 @@ def test_viscous_friction_decays_the_speed_exponentially():
     c = sp.Symbol("c")
     system = System(coordinates=(x,), parameters={m: 2.0, c: 0.7}, kinetic_energy=m / 2 * xd**2,
                     frictions=(Friction("damper", slip=(xd,), viscous=c),), initial={"x": 0.0, "x_dot": 3.0})
-    sol = simulate(derive(system), 2.0, t_eval=np.linspace(0, 2, 11))
+    sol = simulate(derive(system), 2.0, t_eval=np.linspace(0, 2, 11), rtol=1e-11)
+    # the run at rtol 1e-11 over 2 s: ~8e-12 relative (measured; 2.3e-10 at the default rtol 1e-9)
     np.testing.assert_allclose(sol["x_dot"], 3.0 * np.exp(-0.7 * sol.t / 2.0), rtol=1e-9)
-    np.testing.assert_allclose(sol["friction_damper_t"], -0.7 * sol["x_dot"], rtol=1e-12)
+    np.testing.assert_allclose(sol["friction_damper_t"], -0.7 * sol["x_dot"], rtol=1e-12)  # same state: rounding
 
 
 def turntable(omega_rate=1.0, mu_s=0.2, r=0.981):
@@ -172,16 +184,20 @@ def test_turntable_block_slips_where_the_isotropic_cone_is_left():
     reaches mu_s m g: omega^4 = (mu_s g / r)^2 - omega'^2. With omega' = 1 rad/s^2 and
     mu_s g / r = 2 s^-2 that is t = 3^(1/4) = 1.316 s; a per-axis limit on the radial
     component alone (omega^2 r = mu_s g) would give sqrt(2) = 1.414 s."""
-    sol = simulate(derive(turntable()), 2.0, t_eval=np.linspace(0, 2, 21))
+    sol = simulate(derive(turntable()), 2.0, t_eval=np.linspace(0, 2, 21), rtol=1e-11)
     slip = [e for e in sol.events if e.kind == "slip"]
     assert [e.name for e in slip] == ["pad"]
+    # the force is m r sqrt(omega^4 + omega'^2) with r off by the run's error (rtol 1e-11: ~1e-11
+    # relative, measured; 6e-10 at the default rtol 1e-9), which moves the slip by ~1e-13
     assert slip[0].t == pytest.approx(3 ** 0.25, abs=1e-8)
     assert abs(slip[0].t - math.sqrt(2)) > 0.09
     stuck = sol.t < slip[0].t
     force = np.hypot(sol["friction_pad_t1"], sol["friction_pad_t2"])
+    # r off by the run's error, as above (~1e-11 relative)
     np.testing.assert_allclose(force[stuck], 0.5 * 0.981 * np.sqrt(sol.t[stuck] ** 4 + 1.0), rtol=1e-9)
     assert set(sol["friction_pad_slipping"][stuck]) == {0.0} and set(sol["friction_pad_slipping"][~stuck]) == {1.0}
-    np.testing.assert_allclose(force[~stuck], 0.1 * 0.5 * G, rtol=1e-9)  # kinetic friction mu_k m g once sliding
+    # kinetic friction mu_k m g once sliding: the law applied to the split's N, rounding only
+    np.testing.assert_allclose(force[~stuck], 0.1 * 0.5 * G, rtol=1e-9)
 
 
 def rod(mu):
@@ -213,8 +229,11 @@ def test_painleve_rod_normal_force_closed_form(mu, s):
         q = np.array([0.0, 0.5 * math.sin(theta), theta])
         w = np.array([xdot, 0.5 * math.cos(theta) * theta_dot, theta_dot])
         sol, fe = model.solve(0.0, q, w)
+        # the split's 1 x 1 system in N at the given state: rounding only (~3e-16 measured)
         assert sol.multipliers[0] == pytest.approx(painleve_normal(theta, theta_dot, mu, s), rel=1e-12)
         assert fe.forces["end"][0] == pytest.approx(-mu * s * sol.multipliers[0], rel=1e-12)
+        # Newton stops at steps below 1e-12 on the augmented system (condition < 14), then
+        # rounding: ~1e-15 from the split (measured)
         a, lam = augmented_friction_solve(model, 0.0, q, w)
         np.testing.assert_allclose(a, sol.accelerations, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(lam, sol.multipliers, rtol=1e-9)
@@ -232,6 +251,7 @@ def test_painleve_rod_is_refused_where_the_denominator_vanishes():
         FrictionLaws(derive(rod(1.5))).mode().solve(0.0, q, w)
     FrictionLaws(derive(rod(1.5))).mode().solve(0.0, q, -w)
     sol, _ = FrictionLaws(derive(rod(1.2))).mode().solve(0.0, q, w)
+    # rounding amplified ~20x by the cancellation 1.6 - 1.44 = 0.16 in the denominator (2.5e-15 measured)
     assert sol.multipliers[0] == pytest.approx(painleve_normal(theta, 0.0, 1.2, -1), rel=1e-12)
 
 
@@ -252,6 +272,8 @@ def test_painleve_rod_simulation_stops_at_the_paradox_instead_of_integrating_thr
     slip = sol["x_dot"] + 0.5 * np.sin(theta) * theta_dot
     sliding = np.abs(slip) > 1e-6
     expected = [painleve_normal(a, b, 1.5, np.sign(v)) for a, b, v in zip(theta, theta_dot, slip)]
+    # the closed form at the run's own states: rounding, amplified where the denominator falls
+    # towards ~0.1 (7e-15 measured)
     np.testing.assert_allclose(sol["lambda_floor"][sliding], np.array(expected)[sliding], rtol=1e-8)
     assert [e.kind for e in sol.events] == ["slip"] and slip[0] < 0 < slip[-1]
     assert 1 + 3 * math.cos(theta[-1]) ** 2 - 4.5 * math.sin(theta[-1]) * math.cos(theta[-1]) < -0.1
@@ -285,6 +307,8 @@ def test_cross_check_friction_route_agrees_on_the_rod_and_fails_on_a_perturbed_n
                                          "y_dot": 0.5 * math.cos(0.5) * 0.3, "theta_dot": 0.3}))
     report = cross_check(d)
     (route,) = [c for c in report.comparisons if c.route == "friction"]
+    # the routes agree to rounding (2e-16 relative, measured); the 1e-6 perturbation below shows
+    # as ~1e-7, 100x over the same 1e-9
     assert route.states >= 4 and report.passed(1e-9)
     original = friction._painleve_checked
 
@@ -351,6 +375,7 @@ def test_model_file_friction_table_gives_the_incline_closed_form(tmp_path):
     import pandas as pd
 
     table = pd.read_csv(out)
+    # the split's formulas, constant along the slide, written with repr: rounding only
     np.testing.assert_allclose(table["x_ddot"], G * (math.sin(0.5) - 0.3 * math.cos(0.5)), rtol=1e-12)
     np.testing.assert_allclose(table["friction_slide_t"], -0.3 * 2 * G * math.cos(0.5), rtol=1e-12)
     result = CliRunner().invoke(cli, ["check", str(path)])
@@ -399,6 +424,8 @@ def test_ladder_two_sliding_contacts_agree_with_the_augmented_route():
             w = np.array([-2.0 * math.sin(theta) * theta_dot, 2.0 * math.cos(theta) * theta_dot, theta_dot])
             sol, fe = model.solve(0.0, q, w)
             a, lam = augmented_friction_solve(model, 0.0, q, w)
+            # Newton stops at steps below 1e-12 on the augmented system (condition 140), then
+            # rounding: ~1e-14 from the split (measured); Coulomb's law on the same N: rounding
             np.testing.assert_allclose(sol.accelerations, a, rtol=1e-9, atol=1e-10)
             np.testing.assert_allclose(sol.multipliers, lam, rtol=1e-9)
             slips = fe.slips
@@ -406,6 +433,7 @@ def test_ladder_two_sliding_contacts_agree_with_the_augmented_route():
             assert fe.forces["top"][0] == pytest.approx(-mu_wall * abs(lam[1]) * np.sign(slips["top"][0]), abs=1e-9)
             if mu_floor == 0.0:
                 ideal = model.base.solve(0.0, q, w)
+                # the same split with zero friction terms: at most rounding times the condition (~140)
                 np.testing.assert_allclose(sol.multipliers, ideal.multipliers, rtol=1e-12)
 
 

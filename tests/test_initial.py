@@ -38,6 +38,8 @@ def test_car_completes_the_speeds_from_phi_dot(car):
     v = state.values
     assert set(state.completed) == {"x_dot", "y_dot"}
     assert v["phi_dot"] == 0.1 and v["phi"] == 0.3
+    # a 2 x 2 solve of condition 10 against Cramer's rule: rounding, a few eps times 10; its
+    # residual to rounding (~1e-16 measured)
     assert v["x_dot"] == pytest.approx(x_dot, rel=1e-13)
     assert v["y_dot"] == pytest.approx(y_dot, rel=1e-13)
     assert state.largest_residual < 1e-13
@@ -47,6 +49,7 @@ def test_car_completion_at_another_time_and_parameters(car):
     # theta(t) = 0.2 + 0.05 t; at t = 2: theta = 0.3; b changed to 1.0
     state = complete_initial(car, {"x": 1.0, "y": 2.0, "phi": -0.4, "phi_dot": 0.25}, t=2.0, params={"b": 1.0})
     x_dot, y_dot = car_speeds_by_hand(-0.4, 0.3, 0.25, a=1.2, b=1.0)
+    # as above (condition 7)
     assert state.values["x_dot"] == pytest.approx(x_dot, rel=1e-13)
     assert state.values["y_dot"] == pytest.approx(y_dot, rel=1e-13)
 
@@ -55,6 +58,7 @@ def test_pendulum_completes_y_from_x(pendulum):
     # rod: x^2 + y^2 = L^2 with L = 1; the catalog's y < 0 is the starting guess -> lower root
     state = complete_initial(pendulum, {"x": 0.6, "x_dot": 0.0, "y_dot": 0.0})
     assert state.completed == ("y",)
+    # Newton on x^2 + y^2 = 1 converges to rounding (0 measured here, 1 ulp from -0.7)
     assert state.values["y"] == pytest.approx(-0.8, rel=1e-14)
     # an explicit guess selects the other root
     up = complete_initial(pendulum, {"x": 0.6, "x_dot": 0.0, "y_dot": 0.0}, guess={"y": 0.5})
@@ -65,7 +69,9 @@ def test_pendulum_completes_y_dot_with_adjust(pendulum):
     # velocity level: x x_dot + y y_dot = 0  ->  y_dot = -x x_dot / y
     vals = {"x": 0.6, "y": -0.8, "x_dot": 1.0, "y_dot": 123.0}
     state = complete_initial(pendulum, vals, adjust=["y_dot"])
-    assert state.values["y_dot"] == pytest.approx(-0.6 * 1.0 / -0.8, rel=1e-14)
+    # Newton (finite-difference Jacobian) from 123 stops at steps below its tol 1e-12: 1.4e-14 off
+    # (measured)
+    assert state.values["y_dot"] == pytest.approx(-0.6 * 1.0 / -0.8, rel=1e-12)
     assert state.values["x_dot"] == 1.0
 
 
@@ -74,13 +80,15 @@ def test_cone_speed_nonlinear_in_w():
     d = appell.derive(catalog.cone_particle())
     vals = {"x": 0.0, "y": 0.0, "z": 10.0, "x_dot": 0.6, "y_dot": 0.0}
     state = complete_initial(d, vals, guess={"z_dot": -1.0})
-    assert state.values["z_dot"] == pytest.approx(-0.8, rel=1e-12)
+    assert state.values["z_dot"] == pytest.approx(-0.8, rel=1e-12)  # Newton converges to rounding (8e-16)
 
 
 def test_check_accepts_consistent_values(pendulum):
     state = check_initial(pendulum)
+    # the catalog's (sin(pi/3), -0.5) in doubles: (1 - x^2 - y^2)/2 ~ eps/4 (5.6e-17); 1e-15 = 4.5 eps
     assert state.position_residuals["rod"] == pytest.approx(0.0, abs=1e-15)
-    assert np.allclose(state.y, [math.sin(math.pi / 3), -0.5, 0.0, 0.0])
+    # the catalog's values passed through (equal here; 1e-15 allows sympy's sin(pi/3) 1 ulp off)
+    assert np.allclose(state.y, [math.sin(math.pi / 3), -0.5, 0.0, 0.0], rtol=0, atol=1e-15)
 
 
 def test_violating_values_list_each_constraint_and_residual(car):
