@@ -40,6 +40,8 @@ def test_four_bar_file_equals_the_python_builder_at_its_start(four_bar_file):
     q, w = _start(built)
     assert _start(four_bar_file) == (q, w)
     s1, s2 = four_bar_file.numeric.solve(0.0, q, w), built.numeric.solve(0.0, q, w)
+    # the file gives the builder's very expressions, solved alike: equal (measured); 1e-12 is
+    # still above eps x cond (~30) should a sum be reordered
     np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(s1.multipliers, s2.multipliers, rtol=1e-12, atol=1e-12)
     o1 = four_bar_file.numeric.outputs(0.0, q, w, solution=s1)
@@ -76,6 +78,7 @@ def test_rolling_disc_file_down_the_incline_has_the_closed_form_forces(disc):
     acc, lam = _solve(d, q, w)
     m, g, alpha = p["m"], p["g"], p["alpha"]
     assert alpha > 0
+    # rounding only (a solve of condition ~90): eps x 90 = 2e-14 relative at most
     assert acc["float_x"] == pytest.approx(2 / 3 * g * math.sin(alpha), rel=1e-12)
     assert acc["float_ry"] * p["r"] == pytest.approx(2 / 3 * g * math.sin(alpha), rel=1e-12)
     assert lam["contact_n"] == pytest.approx(m * g * math.cos(alpha), rel=1e-12)
@@ -95,8 +98,9 @@ def test_rolling_disc_file_rolling_straight_on_a_level_plane_needs_no_friction(d
     w[names.index("float_x")] = v
     w[names.index("float_ry")] = v / p["r"]
     _, phi = d.numeric.constraint_residuals(0.0, q, w)
-    assert abs(np.asarray(phi)).max() < 1e-12  # the state rolls without slip
+    assert abs(np.asarray(phi)).max() < 1e-12  # the state rolls without slip (v - r w: rounding only)
     acc, lam = _solve(d, q, w, p=np.array(values))
+    # rounding only (a solve of condition ~90): eps x 90 x m g = 2e-14 N at most; measured exact
     assert list(acc.values()) == pytest.approx([0.0] * len(acc), abs=1e-12)
     assert lam["contact_n"] == pytest.approx(p["m"] * p["g"], rel=1e-12)
     assert [lam["contact_t1"], lam["contact_t2"]] == pytest.approx([0.0, 0.0], abs=1e-12)

@@ -101,6 +101,8 @@ def test_rolling_disc_contact_force_matches_kanes_method_with_auxiliary_speeds()
         v_centre = dcm @ np.cross(u, [0.0, 0.0, VALUES[r]])  # rolling: v_D = omega x (r L.z)
         state_q = [*q, 0.3, -0.2, VALUES[r] * np.cos(q[1])]
         sol = numeric.solve(0.0, state_q, [*u, *v_centre])
+        # two routes, rounding only: appell's solve (condition ~20) and Kane's float solve
+        # (SymPy Floats, 15 digits), ~1e-14 of the scale; 1e-10 is far above
         np.testing.assert_allclose(sol.accelerations[:3], udot, rtol=1e-10, atol=1e-10)
         lam = dict(zip(("normal", "rolling_x", "rolling_y"), sol.multipliers))
         np.testing.assert_allclose([lam["rolling_x"], lam["rolling_y"], lam["normal"]], force, rtol=1e-10, atol=1e-10)
@@ -206,6 +208,7 @@ def test_sympy_double_pendulum_pin_reactions_match_a_newton_euler_solution():
     for q, w in zip(rng.uniform(-2, 2, (4, 2)), rng.uniform(-2, 2, (4, 2))):
         qdd, f_shoulder, f_elbow = newton_euler_double_pendulum(q, w, *(values[s] for s in (m1, m2, l1, l2, g)))
         sol = numeric.solve(0.0, q, w)
+        # two routes, rounding only: appell's solve (condition ~25) and the 2x2 one above, ~1e-14
         np.testing.assert_allclose(sol.accelerations, qdd, rtol=1e-10, atol=1e-10)
         out = numeric.outputs(0.0, q, w, solution=sol)
         for joint, force in (("shoulder", f_shoulder), ("elbow", f_elbow)):
@@ -255,6 +258,7 @@ def test_prismatic_and_weld_joint_reactions_match_the_closed_form():
     numeric = derive(model).numeric
     a = 9.0 / 4.5
     sol = numeric.solve(0.0, [0.7], [1.3])
+    # rounding only (a 1x1 solve): a few eps x the forces ~ 44 N, ~1e-14
     assert sol.accelerations[0] == pytest.approx(a, rel=1e-12)
     out = numeric.outputs(0.0, [0.7], [1.3], solution=sol)
     np.testing.assert_allclose([out[f"F_weld_{k}"] for k in "xyz"], [1.5 * a, 1.5 * 9.81, 0.0], atol=1e-12)
@@ -280,5 +284,6 @@ def test_symbols_with_assumptions_become_the_declared_parameters():
     assert dict(model.initial) == {"q": -1.2, "u": 0.5}
     numeric = derive(model).numeric
     out = numeric.outputs(0.0, [-np.pi / 2], [3.0])
+    # rounding only (a 1x1 solve): a few eps x 29 N; F_x is 0 up to cos(-pi/2) = 6e-17 times it
     assert out["F_pin_y"] == pytest.approx(2.0 * 9.81 + 2.0 * 0.5 * 9.0, rel=1e-12)
     assert out["F_pin_x"] == pytest.approx(0.0, abs=1e-12)

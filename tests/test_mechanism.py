@@ -32,6 +32,8 @@ def test_pendulum_pin_force_is_the_closed_form_rod_tension():
     rng = np.random.default_rng(1)
     for th, thd in rng.uniform(-2.5, 2.5, size=(5, 2)):
         sol = d.numeric.solve(0.0, [th], [thd])
+        # rounding only (a 1x1 solve): a few eps x T ~ 40 N, and x l T ~ 60 N m for the moment,
+        # which cancels to 0: ~1e-14; 1e-12 is 100x that
         assert sol.accelerations[0] == pytest.approx(-g / l * math.sin(th), rel=1e-12)
         out = d.numeric.outputs(0.0, [th], [thd])
         T = m * (g * math.cos(th) + l * thd**2)
@@ -57,6 +59,7 @@ def test_pendulum_from_a_revolute_joint_has_the_hand_written_equation():
     thdd = d.numeric.solve(0.0, [th], [thd]).accelerations[0]
     xdd = L * (math.cos(th) * thdd - math.sin(th) * thd**2)
     ydd = L * (math.sin(th) * thdd + math.cos(th) * thd**2)
+    # two derivations of one system, rounding only: a few eps (solves of condition < 3)
     assert [xdd, ydd] == pytest.approx(ref.accelerations, rel=1e-11)
     out = d.numeric.outputs(0.0, [th], [thd])
     along_rod = -(out["F_pin_x"] * x + out["F_pin_y"] * y) / L
@@ -111,6 +114,7 @@ def test_the_four_bar_example_starts_on_its_loop(four_bar):
     q = [s.initial_values[c.name] for c in s.coordinates]
     w = [s.initial_values[v.name] for v in s.speeds]
     F, phi = four_bar.numeric.constraint_residuals(0.0, q, w)
+    # the start is the loop's closed form (triangle law, Cramer's rule): rounding only, ~3e-16
     assert abs(F).max() < 1e-12 and abs(phi).max() < 1e-12 and w[0] == 2.0
 
 
@@ -170,6 +174,8 @@ def assert_four_bar_pin_forces_match_newton_euler(four_bar, thA, wA):
     equations(2, [(3, 1, rD), (2, -1, rC)])
     A, b = np.array(rows), np.array(rhs)
     x, *_ = np.linalg.lstsq(A, b, rcond=None)
+    # rounding only: the state is closed to eps (Newton), appell's solve has condition < 70,
+    # cond(A) < 10: residual and forces are off by ~1e-15 of the scale; 1e-9 is far above
     assert np.linalg.norm(A @ x - b) < 1e-9 * np.linalg.norm(b)
     scale = np.abs(x).max()
     got = [out["F_A_x"], out["F_A_y"], out["F_B_x"], out["F_B_y"], sol.multipliers[0], sol.multipliers[1],
@@ -218,11 +224,14 @@ def test_double_pendulum_reactions_match_pinocchio_rnea():
         sol = d.numeric.solve(0.0, q, w)
         out = d.numeric.outputs(0.0, q, w, solution=sol)
         tau = pin.rnea(model, data, q, w, sol.accelerations)
+        # rounding only: appell's solve (condition ~30) and RNEA, eps x 30 x the moments (~10 N m)
+        # ~1e-13; 1e-10 is 1000x that
         assert np.abs(tau).max() < 1e-10
         for jid, name in ((j1, "shoulder"), (j2, "elbow")):
             f = data.f[jid]
             F = [out[f"F_{name}_{a}"] for a in "xyz"]
             M = [out[f"M_{name}_{a}"] for a in "xyz"]
+            # rounding only, as tau: eps x 30 x the forces (~16 N), ~1e-13
             assert F == pytest.approx(f.linear, abs=1e-10)
             assert M == pytest.approx(f.angular, abs=1e-10)
 
@@ -252,6 +261,7 @@ def test_two_link_pendulum_with_a_tip_on_a_line_equals_the_examples_energy_model
         ref = hand.numeric.solve(0.0, [th1, th2], [w1, w2])
         sol = d.numeric.solve(0.0, [th1, th2 - th1], [w1, w2 - w1])
         a = sol.accelerations
+        # two derivations of one system, rounding only: eps x cond (~35) x scale, ~1e-14
         assert [a[0], a[0] + a[1]] == pytest.approx(ref.accelerations, rel=1e-10, abs=1e-10)
         assert sol.multipliers == pytest.approx(ref.multipliers, rel=1e-10)
 
@@ -301,6 +311,8 @@ def test_spherical_pendulum_on_a_quaternion_joint_moves_as_the_examples_angle_mo
                             -np.cos(s1["theta"])])
     qs = np.array([s2[n] for n in names])
     pos = np.array([_rotation(qs[:, i]) @ np.array([0, 0, -L]) for i in range(t.size)]).T
+    # two DOP853 runs at the default rtol 1e-9 over 2 s (growth ~7): ~7e-9 in position and in
+    # the tension's relative value (1e-11 gives 2e-10); 1e-6 is 100x that
     assert np.abs(pos - ref_pos).max() < 1e-6
     tension = m * L * (s1["theta_dot"] ** 2 + np.sin(s1["theta"]) ** 2 * s1["phi_dot"] ** 2) + m * g * np.cos(s1["theta"])
     F = np.array([s2[f"F_ball_{a}"] for a in "xyz"])

@@ -30,6 +30,7 @@ def test_prismatic_block_on_a_smooth_incline():
     block = mech.body("block", m, inertia=(0.1, 0.2, 0.3), com=(0, 0, h))
     mech.prismatic("slide", "ground", block, axis=(math.cos(alpha), 0, -math.sin(alpha)))
     sol, out = _outputs(derive(mech.system()), [0.3], [1.1])
+    # rounding only (a 1x1 solve): a few eps of the scale m g = 30 N, i.e. ~1e-14; 1e-12 is 100x that
     assert sol.accelerations[0] == pytest.approx(G * math.sin(alpha), rel=1e-12)
     n = np.array([math.sin(alpha), 0, math.cos(alpha)])
     assert [out[f"F_slide_{a}"] for a in "xyz"] == pytest.approx(m * G * math.cos(alpha) * n, abs=1e-12)
@@ -52,6 +53,7 @@ def test_weld_of_a_bob_on_a_compound_pendulum():
     sol, out = _outputs(d, [th], [rate])
     J = I1 + m1 * l**2 / 4 + I2 + m2 * l**2
     acc = -G * math.sin(th) * (m1 * l / 2 + m2 * l) / J
+    # rounding only (a 1x1 solve, then the weld's formulas): a few eps; rel 1e-12 is ~5000 eps
     assert sol.accelerations[0] == pytest.approx(acc, rel=1e-12)
     e = np.array([math.sin(th), -math.cos(th)])  # pin to bob
     t = np.array([math.cos(th), math.sin(th)])  # direction of increasing theta
@@ -68,6 +70,7 @@ def test_planar_joint_holds_a_body_against_gravity_out_of_its_plane():
     body = mech.body("puck", m, inertia=(0.1, 0.1, 0.2))
     mech.planar("plane", "ground", body)
     sol, out = _outputs(derive(mech.system()), [0.1, 0.2, 0.3], [0.5, -0.4, 2.0])
+    # rounding only (a solve of condition ~10): ~eps x 10 x g = 2e-14 at most; measured exact
     assert sol.accelerations == pytest.approx([0, -G, 0], abs=1e-12)
     assert [out[f"F_plane_{a}"] for a in "xyz"] == pytest.approx([0, 0, m * 3.0], abs=1e-12)
     assert [out[f"M_plane_{a}"] for a in "xyz"] == pytest.approx([0, 0, 0], abs=1e-12)
@@ -81,6 +84,7 @@ def test_cylindrical_joint_slides_along_and_turns_about_its_axis():
     body = mech.body("sleeve", m, inertia=(0.1, 0.1, 0.05))
     mech.cylindrical("guide", "ground", body, axis=(0, 0, 1))
     sol, out = _outputs(derive(mech.system()), [0.2, 0.4], [0.3, 5.0])
+    # rounding only (a solve of condition ~30): ~eps x 30 x g = 7e-14 at most; measured exact
     assert sol.accelerations == pytest.approx([-G, 0], abs=1e-12)
     assert [out[f"F_guide_{a}"] for a in "xyz"] == pytest.approx([-m * 2.0, 0, 0], abs=1e-12)
 
@@ -113,6 +117,8 @@ def test_spherical_pendulum_rod_force_for_each_rotation(rotation):
         r = tip(q) / L
         T = m * (v @ v / L + np.array([0, 0, -G]) @ r)
         F = np.array([out[f"F_ball_{a}"] for a in "xyz"])
+        # the reference v is a central difference: rounding eps |tip| / h ~ 2e-10 of v, truncation
+        # h^2 ~ 1e-12; appell's solve adds eps x cond (cond up to 7e5 for zxz near its gimbal lock)
         assert -F @ r == pytest.approx(T, rel=1e-6)
 
 
@@ -134,6 +140,7 @@ def test_sphere_rolling_down_a_tilted_gravity_on_a_free_joint():
     sol, out = _outputs(d, q, np.zeros(len(names)))
     acc = dict(zip(names, sol.accelerations))
     lam = dict(zip(d.constraints.names, sol.multipliers))
+    # rounding only (a solve of condition ~10): a few eps x the scale m g = 20 N; 1e-12 is > 40x that
     assert acc["float_x"] == pytest.approx(5 / 7 * G * math.sin(alpha), rel=1e-12)
     assert lam["contact_n"] == pytest.approx(m * G * math.cos(alpha), rel=1e-12)
     friction_x = -lam["contact_t2"]  # t2 = n x t1 = -e_x for n = e_z
@@ -157,6 +164,7 @@ def test_upright_disc_rolling_under_tilted_gravity():
     sol, _ = _outputs(d, q, np.zeros(len(names)))
     acc = dict(zip(names, sol.accelerations))
     lam = dict(zip(d.constraints.names, sol.multipliers))
+    # rounding only (a solve of condition ~90): eps x 90 = 2e-14 relative at most
     assert acc["float_x"] == pytest.approx(2 / 3 * G * math.sin(alpha), rel=1e-12)
     assert lam["contact_n"] == pytest.approx(m * G * math.cos(alpha), rel=1e-12)
     assert -lam["contact_t2"] == pytest.approx(-1 / 3 * m * G * math.sin(alpha), rel=1e-12)
@@ -171,6 +179,7 @@ def test_spring_damper_on_a_slider():
     mech.prismatic("x", "ground", body, axis=(1, 0, 0))
     mech.spring("spring", ("ground", (0, 0, 0)), (body, (0, 0, 0)), k, l0, damping=c)
     sol, out = _outputs(derive(mech.system()), [0.8], [0.4])
+    # rounding only (a 1x1 solve): a few eps; measured exact
     assert sol.accelerations[0] == pytest.approx(-(k * (0.8 - l0) + c * 0.4) / m, rel=1e-12)
     assert out["F_x_x"] == pytest.approx(0.0, abs=1e-12)  # the spring, not the guide, pulls along x
 
@@ -187,6 +196,7 @@ def test_actuator_torque_is_the_joint_moment_about_its_axis():
     mech.force("push", (bob, (0, 0, 0)), (P, 0, 0))
     th = 0.6
     sol, out = _outputs(derive(mech.system()), [th], [0.9])
+    # rounding only (a 1x1 solve): a few eps; rel 1e-12 is ~5000 eps
     assert sol.accelerations[0] == pytest.approx((tau + P * l * math.cos(th) - m * G * l * math.sin(th)) / (m * l**2),
                                                  rel=1e-12)
     assert out["M_pin_z"] == pytest.approx(tau, rel=1e-12)
@@ -201,6 +211,7 @@ def test_torque_load_spins_a_wheel():
     mech.revolute("axle", "ground", wheel)
     mech.torque("drive", wheel, tau)
     sol, out = _outputs(derive(mech.system()), [0.5], [0.0])
+    # rounding only (a 1x1 solve): a few eps; measured exact
     assert sol.accelerations[0] == pytest.approx(tau[2] / I, rel=1e-12)
     assert [out[f"M_axle_{a}"] for a in "xyz"] == pytest.approx([-tau[0], -tau[1], 0], abs=1e-12)
 
@@ -222,6 +233,8 @@ def test_actuator_control_realises_a_servo_constraint_and_is_the_pin_moment():
     sol = simulate(derive_controlled(s), 1.0, t_eval=np.linspace(0, 1, 6))
     th, thdd = 0.3 * np.sin(2 * sol.t), -1.2 * np.sin(2 * sol.t)
     tau = m * l**2 * thdd + m * G * l * np.sin(th)
+    # tau follows the run's theta: its error at the default rtol 1e-9 (~3e-10 over 1 s) times
+    # dtau/dtheta ~ m g l = 7.6, i.e. ~2e-9; 1e-7 is 50x that
     assert sol["control_motor"] == pytest.approx(tau, abs=1e-7)
     assert sol["M_pin_z"] == pytest.approx(tau, abs=1e-7)
 
@@ -247,5 +260,6 @@ def test_knife_edge_by_no_lateral_slip_equals_the_examples_energy_model():
         w = [speed * math.cos(q[2]), speed * math.sin(q[2]), rate]  # along the blade
         ref = hand.numeric.solve(0.0, q, w)
         sol = d.numeric.solve(0.0, q, w)
+        # two derivations of one system, rounding only: eps x cond (~16) x scale, ~1e-14
         assert sol.accelerations == pytest.approx(ref.accelerations, rel=1e-10, abs=1e-10)
         assert sol.multipliers == pytest.approx(-ref.multipliers, rel=1e-10, abs=1e-10)

@@ -42,6 +42,7 @@ def test_solution_records_joint_forces_after_the_multipliers_with_units(solution
     assert names.index("F_pin_x") == names.index("pin_ddot") + 1  # no multipliers: right after accelerations
     th, rate = solution["pin"], solution["pin_dot"]
     along = solution["F_pin_x"] * (-np.sin(th)) + solution["F_pin_y"] * np.cos(th)
+    # force and closed form at the same (integrated) state: rounding only, ~eps
     assert along == pytest.approx(tension(th, rate), rel=1e-9)
     units = {c.name: c.units for c in solution.column_info()}
     assert units["F_pin_x"] == "N" and units["M_pin_z"] == "N*m"
@@ -53,6 +54,7 @@ def test_output_columns_reach_csv_netcdf_and_hdf5(solution, tmp_path):
     solution.to_csv(tmp_path / "p.csv")
     with open(tmp_path / "p.csv") as fh:
         rows = list(csv.DictReader(fh))
+    # the files hold the float64 values exactly (repr in CSV): equal, approx only compares lists
     assert [float(r["F_pin_y"]) for r in rows] == pytest.approx(list(solution["F_pin_y"]))
     xr = pytest.importorskip("xarray")
     pytest.importorskip("h5netcdf")
@@ -67,6 +69,7 @@ def test_output_columns_reach_csv_netcdf_and_hdf5(solution, tmp_path):
         assert np.asarray(f["outputs/F_pin_y"]) == pytest.approx(solution["F_pin_y"])
 
 
+@pytest.mark.numpy_model  # the reference is the NumPy model: under APPELL_TEST_BACKEND=c it would be C against C
 def test_compiled_c_outputs_equal_numpy_outputs():
     """The C backend solves, then the same output function evaluates: equal to NumPy's and
     to the closed-form tension."""
@@ -78,6 +81,7 @@ def test_compiled_c_outputs_equal_numpy_outputs():
     c = d.compiled("c")
     th, rate = 0.4, -0.9
     a, b = d.numeric.outputs(0.0, [th], [rate]), c.outputs(0.0, [th], [rate])
+    # rounding only (a 1x1 solve, the same formulas in C and NumPy): a few eps of T ~ 20 N
     assert b == pytest.approx(a, rel=1e-12, abs=1e-12)
     assert -b["F_pin_x"] * math.sin(th) + b["F_pin_y"] * math.cos(th) == pytest.approx(tension(th, rate), rel=1e-12)
 
@@ -104,6 +108,7 @@ def test_output_of_a_cartesian_pendulum_uses_multipliers_and_accelerations():
                potential_energy=m * g * y, constraints=(holonomic("rod", (Lr**2 - x**2 - y**2) / (2 * Lr)),),
                outputs=(Output("twice", 2 * sp.Symbol("lambda_rod"), "N"), Output("fx", m * sp.Symbol("x_ddot"))))
     out = derive(s).numeric.outputs(0.0, [0.6, -0.8], [0.0, 0.0])
+    # rounding only (a solve of condition ~3): a few eps; approx's default rel 1e-6 is ample
     assert out["twice"] == pytest.approx(2 * 9.81 * 0.8)
     assert out["fx"] == pytest.approx(-9.81 * 0.8 * 0.6)  # -T sin(theta), T = m g cos(theta)
 
@@ -144,6 +149,8 @@ def test_outputs_continue_after_a_unilateral_contact_is_released():
     mech.force("lift", (bob, (0, 0, 0)), (0, 0, 2 * m * G * t))
     sol = simulate(derive(mech.system()), 0.8, t_eval=np.linspace(0, 0.8, 9), unilateral={"floor": +1})
     before = sol.t < 0.5 - 1e-9
+    # the bob rests on the floor (nothing to integrate): lambda is the balance at t, rounding
+    # only (~eps); F_slide_z is structurally 0 (the guide is along z): measured exactly 0
     assert sol["lambda_floor"][before] == pytest.approx(m * G * (1 - 2 * sol.t[before]), rel=1e-9)
     assert any(e.kind == "release" for e in sol.events)
     assert np.all(np.isfinite(sol["F_slide_z"])) and np.abs(sol["F_slide_z"]).max() < 1e-9

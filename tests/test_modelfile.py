@@ -43,6 +43,7 @@ def test_model_file_equals_builder(name):
     assert from_file.coordinates == built.coordinates and from_file.speeds == built.speeds
     assert [(p.symbol, p.value, p.unit) for p in from_file.parameters] == \
         [(p.symbol, p.value, p.unit) for p in built.parameters]
+    # the file's decimals and the builder's literals are the same doubles (measured equal)
     assert dict(from_file.initial) == pytest.approx(dict(built.initial), abs=1e-15)
     assert dict(from_file.units) == dict(built.units)
     assert [(c.name, c.order) for c in from_file.constraints] == [(c.name, c.order) for c in built.constraints]
@@ -58,6 +59,8 @@ def test_model_file_equals_builder(name):
         w = rng.uniform(-1, 1, n)
         s1 = d_file.numeric.solve(t, q, w)
         s2 = d_built.numeric.solve(t, q, w)
+        # the file gives the builder's very expressions: the two solves round alike (measured
+        # equal, also for the car, whose condition ~1e6 comes from its units)
         np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-10, atol=1e-10)
         np.testing.assert_allclose(s1.multipliers, s2.multipliers, rtol=1e-10, atol=1e-10)
     report = cross_check(d_file)
@@ -70,7 +73,7 @@ def test_car_simulation_settings_are_stored():
     assert settings == {"t_end": 10.0, "method": "Radau", "rtol": 1e-9, "atol": 1e-11,
                         "stabilization": "projection", "complete": True}
     assert len(t_eval) == 201 and t_eval[0] == 0.0 and t_eval[-1] == pytest.approx(10.0)
-    assert np.diff(t_eval) == pytest.approx(np.full(200, 0.05))
+    assert np.diff(t_eval) == pytest.approx(np.full(200, 0.05))  # differences of a linspace: rounding
 
 
 def test_simulation_settings_run_the_simulator():
@@ -290,6 +293,7 @@ def test_bodies_and_forces_equal_energy_form():
     d = derive(s)
     for q, w in (([0.6, -0.8], [0.3, 0.2]), ([0.0, -1.0], [1.0, 0.0])):
         s1, s2 = d.numeric.solve(0.0, q, w), ref.numeric.solve(0.0, q, w)
+        # two routes to one system, rounding only: a few eps (solves of condition < 3)
         np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(s1.multipliers, s2.multipliers, rtol=1e-12, atol=1e-12)
 
@@ -303,6 +307,7 @@ def test_torque_on_rolling_ball_spins_it_up():
     s = loads_model(text)
     d = derive(s)
     sol = d.numeric.solve(0.0, [0.0, 0.0, 0.1], [0.0, 0.5, 0.0, -5.0, 0.0, 2.0])
+    # rounding only (a solve of condition ~400, from R = 0.1): eps x 400 = 9e-14 at most
     assert sol.accelerations[5] == pytest.approx(0.01 / (0.4 * 1.0 * 0.1**2), rel=1e-12)
     assert sol.accelerations[0] == pytest.approx(5 / 7 * 9.81 * np.sin(0.3), rel=1e-12)
 
@@ -324,7 +329,7 @@ def test_rigid_body_with_full_inertia_and_position():
     body = s.bodies[0]
     assert isinstance(body, appell.RigidBody) and body.inertia[2, 2] == 3
     sol = derive(s).numeric.solve(0.0, [0.0], [1.0])
-    assert sol.accelerations == pytest.approx([0.0])
+    assert sol.accelerations == pytest.approx([0.0])  # no load: exactly 0
 
 
 def test_controls_servo_constraints_first_integrals_and_quasi_velocities():
@@ -386,7 +391,7 @@ def test_simulation_table_is_checked():
     s = loads_model(BASE + '\n[simulation]\nt_eval = [0, 0.5, "pi/2"]\nt_end = 2\nstabilization = "none"\n'
                     '[simulation.unilateral]\nrod = -1\n[simulation.friction.rod]\nnormal = "rod"\nmu = 0.3\n')
     options = simulation_options(s)
-    assert options["t_eval"] == (0.0, 0.5, pytest.approx(np.pi / 2))
+    assert options["t_eval"] == (0.0, 0.5, pytest.approx(np.pi / 2))  # "pi/2" evaluated: rounding only
     assert options["stabilization"] is None
     assert options["unilateral"] == {"rod": -1} and options["friction"] == {"rod": ("rod", 0.3)}
     hash(s)  # settings are stored hashable, so the System stays hashable

@@ -43,6 +43,7 @@ def _assert_same_declarations(from_file, built, name):
     assert from_file.speeds == built.speeds
     assert [(p.symbol, p.value, p.unit, p.description) for p in from_file.parameters] == \
         [(p.symbol, p.value, p.unit, p.description) for p in built.parameters]
+    # the file's decimals and the builder's literals are the same doubles (measured equal)
     assert dict(from_file.initial) == pytest.approx(dict(built.initial), abs=1e-15)
     assert set(dict(from_file.initial)) == set(dict(built.initial))
     mine, theirs = dict(from_file.initial_expressions), dict(built.initial_expressions)
@@ -85,6 +86,8 @@ def test_model_file_equals_builder(name):
         q = rng.uniform(-0.5, 0.5, len(built.coordinates)) + [init.get(s.name, 0.0) for s in built.coordinates]
         w = rng.uniform(-1, 1, len(built.speeds))
         s1, s2 = d_file.numeric.solve(t, q, w), d_built.numeric.solve(t, q, w)
+        # same system, rounding only: equal where the file has the builder's expressions; else
+        # eps x cond, cond < 5e4 at these states (andrews_squeezer: 1e-11; measured 4e-15)
         np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-10, atol=1e-10)
         np.testing.assert_allclose(s1.multipliers, s2.multipliers, rtol=1e-10, atol=1e-10)
 
@@ -106,6 +109,8 @@ def test_servo_model_file_equals_builder(name):
         y = base + rng.uniform(-0.2, 0.2, base.size)
         e1, e2 = m_file.evaluate(t, y), m_built.evaluate(t, y)
         assert np.all(np.isfinite(e2.derivative))
+        # same system, rounding only: the derived formulas coincide, measured equal (cart_pole's
+        # T, written in another order, included)
         np.testing.assert_allclose(e1.derivative, e2.derivative, rtol=1e-10, atol=1e-10)
         np.testing.assert_allclose(e1.multipliers, e2.multipliers, rtol=1e-10, atol=1e-10)
         np.testing.assert_allclose(e1.controls, e2.controls, rtol=1e-10, atol=1e-10)
@@ -123,6 +128,7 @@ def test_appell_ball_file_is_the_papers_problem():
     ev = model.evaluate(0.0, model.initial_state())
     xi, eta, w, R = 0.3, 0.1, 2.0, 0.1
     rates = dict(zip(model.state_names, ev.derivative))
+    # rounding only (the paper's closed forms at the start): a few eps of the values (up to 30)
     assert rates["xi"] == pytest.approx(-w * eta) and rates["eta"] == pytest.approx(w * xi)
     assert rates["u_dot"] == pytest.approx(-3.5 * w**2 * xi) and rates["v_dot"] == pytest.approx(-3.5 * w**2 * eta)
     assert rates["q"] == pytest.approx(5 * w**2 * xi / (2 * R)) and rates["p"] == pytest.approx(-5 * w**2 * eta / (2 * R))
@@ -140,7 +146,7 @@ def test_simulation_table_runs(name):
     options["t_eval"] = [t for t in options["t_eval"] if t <= t_end]
     solution = simulate(derive(system), **options)
     assert solution.status == 0, solution.message
-    assert solution.t[-1] == pytest.approx(t_end)
+    assert solution.t[-1] == pytest.approx(t_end)  # the run ends at t_end (to rounding)
 
 
 @pytest.mark.parametrize("name", sorted(list_examples()))
@@ -163,6 +169,7 @@ def test_every_bundled_example_starts_consistently(name):
     d = derive_controlled(system) if system.servo_constraints else derive(system)
     state = complete_initial(d, adjust=())
     assert all(old is None for _, old, _ in state.changes), state.changes
+    # CHECK_TOLERANCE (1e-9) is what simulate accepts; the files' values give <= 3e-16
     assert state.largest_residual <= CHECK_TOLERANCE
     model = d.numeric
     for servo in getattr(model, "servo_names", ()):

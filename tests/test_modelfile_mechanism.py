@@ -113,6 +113,7 @@ def test_planar_body_on_a_circle_is_a_pendulum_with_the_closed_form_tension():
         sol = numeric.solve(0.0, [x, y, 0.2], [vx, vy, 0.0])
         ax, ay, arz = sol.accelerations
         theta_dd = (ax * math.cos(theta) + ay * math.sin(theta)) / L
+        # rounding only (a solve of condition ~130): eps x 130 = 3e-14 relative at most
         assert theta_dd == pytest.approx(-g / L * math.sin(theta), rel=1e-10, abs=1e-12)
         assert arz == pytest.approx(0.0, abs=1e-12)
         tension = m * (g * math.cos(theta) + L * rate**2)
@@ -135,6 +136,7 @@ def test_model_file_names_a_urdf_and_adds_an_actuator(driven):
     for th, w in ((0.4, 1.0), (-2.0, 0.3), (1.3, -2.2)):
         sol = numeric.solve(0.0, [th], [w])
         thdd = (tau - m * g * L * math.sin(th)) / (Ic + m * L**2)
+        # rounding only (a 1x1 solve, then the hinge's formulas): a few eps of the scale
         assert sol.accelerations[0] == pytest.approx(thdd, rel=1e-10)
         # mass centre at (-L sin, 0, 1 - L cos): a_C from theta'' and theta'
         a_c = L * np.array([-math.cos(th) * thdd + math.sin(th) * w**2, 0.0,
@@ -156,6 +158,7 @@ def test_urdf_file_on_the_command_line_with_set_and_reaction_columns(tmp_path):
     # at the start: theta'' = -m g L sin / (Ic + m L^2), F_z = m (a_Cz + g) (no actuator)
     m, L, Ic, g, th, w = 2.0, 0.5, 0.04, 9.81, 0.4, 1.0
     thdd = -m * g * L * math.sin(th) / (Ic + m * L**2)
+    # the start row: a 1x1 solve, written by repr: rounding only (a few eps)
     assert float(rows[0]["F_shoulder_z"]) == pytest.approx(m * (L * (math.sin(th) * thdd + math.cos(th) * w**2) + g),
                                                            rel=1e-8)
     derived = CliRunner().invoke(cli, ["derive", str(tmp_path / "hinge.urdf"), "--only", "outputs"])
@@ -232,6 +235,7 @@ def test_floating_joint_falls_freely_and_transmits_nothing():
     numeric = derive(system).numeric
     q0 = np.array([0.3, -0.2, 1.0, *(np.array([0.9, 0.1, -0.3, 0.2]) / np.linalg.norm([0.9, 0.1, -0.3, 0.2]))])
     sol = numeric.solve(0.0, q0, np.zeros(7))
+    # rounding only (a solve of condition ~15): eps x 15 x g = 3e-14 at most; measured exact
     np.testing.assert_allclose(sol.accelerations[:3], [0.0, 0.0, -9.81], atol=1e-12)
     out = numeric.outputs(0.0, q0, np.zeros(7), solution=sol)
     np.testing.assert_allclose([out[f"{k}_base_{x}"] for k in "FM" for x in "xyz"], 0.0, atol=1e-12)

@@ -61,6 +61,7 @@ def test_arm_motion_matches_pinocchio_aba(arm):
     for q, w in _states(len(names)):
         a = numeric.solve(0.0, q, w).accelerations
         qp, v, a_pin = _pin_state(model, names, q, w, a)
+        # two independent solves of M a = -h, rounding only: eps x cond(M) (up to ~5e3) = 1e-12
         np.testing.assert_allclose(pin.aba(model, data, qp, v, np.zeros(model.nv)), a_pin, rtol=1e-10, atol=1e-10)
         np.testing.assert_allclose(pin.rnea(model, data, qp, v, a_pin), 0.0, atol=1e-10)
 
@@ -78,6 +79,7 @@ def test_arm_joint_reactions_match_pinocchio_rnea_transmitted_forces(arm):
             R = data.oMi[jid].rotation  # joint frame -> world
             F = np.array([out[f"F_{joint}_{x}"] for x in "xyz"])
             M = np.array([out[f"M_{joint}_{x}"] for x in "xyz"])
+            # rounding only: the accelerations' eps x cond(M) (~5e3) times the link masses, ~1e-11
             np.testing.assert_allclose(R.T @ F, data.f[jid].linear, rtol=1e-9, atol=1e-9, err_msg=joint)
             np.testing.assert_allclose(R.T @ M, data.f[jid].angular, rtol=1e-9, atol=1e-9, err_msg=joint)
 
@@ -103,5 +105,6 @@ def test_arm_fixed_joint_reaction_is_the_tool_links_newton_euler_force(arm):
         f = inertia * (af - gravity) + vf.cross(inertia * vf)
         F = np.array([out[f"F_tool_mount_{x}"] for x in "xyz"])
         M = np.array([out[f"M_tool_mount_{x}"] for x in "xyz"])
+        # rounding only: the accelerations' eps x cond(M) (~4e3) times the tool's inertia, ~1e-12
         np.testing.assert_allclose(R.T @ F, f.linear, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(R.T @ M, f.angular, rtol=1e-9, atol=1e-9)
