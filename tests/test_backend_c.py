@@ -24,6 +24,8 @@ def nlink(n):
 
 
 def close(x, y, rtol=1e-12):
+    """The same expressions in C and NumPy, the same split by the C code's LU and by LAPACK:
+    rounding only, a few eps times the solves' condition (measured at most 1.4e-14 of the scale)."""
     x, y = np.asarray(x, float), np.asarray(y, float)
     scale = max(1.0, float(np.max(np.abs(y)))) if y.size else 1.0
     assert np.max(np.abs(x - y), initial=0.0) <= rtol * scale
@@ -36,6 +38,7 @@ def states(derivation, count=4, seed=7):
         yield rng.uniform(0, 2), rng.uniform(-1, 1, nq), rng.uniform(-1, 1, n)
 
 
+@pytest.mark.numpy_model  # its reference is d.numeric: NumPy also under APPELL_TEST_BACKEND=c
 @pytest.mark.parametrize("name", sorted(CATALOG) + ["pendulum5"])
 def test_c_equals_numpy(name):
     """Blocks, accelerations (1.4), multipliers (1.5), rates and residuals agree to 1e-12."""
@@ -46,14 +49,12 @@ def test_c_equals_numpy(name):
         for x, y in zip(cm.evaluate_blocks(t, q, w), nm.evaluate_blocks(t, q, w)):
             close(x, y)
         s1, s2 = nm.solve(t, q, w), cm.solve(t, q, w)
-        # cone_particle's random states are poorly conditioned; the solves differ in rounding only
-        tol = 1e-10 if name == "cone_particle" else 1e-12
-        close(s2.accelerations, s1.accelerations, tol)
-        close(s2.multipliers, s1.multipliers, tol)
-        close(s2.generalized_reactions, s1.generalized_reactions, tol)
+        close(s2.accelerations, s1.accelerations)
+        close(s2.multipliers, s1.multipliers)
+        close(s2.generalized_reactions, s1.generalized_reactions)
         e1, e2 = nm.evaluate(t, np.r_[q, w]), cm.evaluate(t, np.r_[q, w])
-        close(e2.derivative, e1.derivative, tol)
-        close(e2.multipliers, e1.multipliers, tol)
+        close(e2.derivative, e1.derivative)
+        close(e2.multipliers, e1.multipliers)
         for x, y in zip(cm.constraint_residuals(t, q, w), nm.constraint_residuals(t, q, w)):
             np.testing.assert_array_equal(np.isnan(x), np.isnan(y))
             close(np.nan_to_num(x), np.nan_to_num(y))
@@ -92,6 +93,7 @@ def test_cache_second_load_does_not_recompile(tmp_path, monkeypatch):
     assert (tmp_path / first.library_path.name.replace(".so", ".c")).read_text() == c_source(d)
 
 
+@pytest.mark.numpy_model  # without a compiler d.numeric must be the NumPy model
 def test_fallback_without_compiler(monkeypatch):
     """Without a compiler 'auto' falls back to NumPy with a warning; 'c' is refused (ModelError)."""
     monkeypatch.setenv("APPELL_CC", "/nonexistent/cc")
@@ -113,6 +115,8 @@ def test_simulation_with_c_backend():
     s1 = simulate(d.numeric, 2.0, t_eval=t_eval, progress=False, complete=True)
     s2 = simulate(d.compiled("c"), 2.0, t_eval=t_eval, progress=False, complete=True)
     for k in s1.multipliers:
+        # the same steps and projections: rounding only (measured 1e-14 relative); an output
+        # between the paths' ends of a projected step would differ by ~1e-9 relative
         np.testing.assert_allclose(s2.multipliers[k], s1.multipliers[k], rtol=1e-8, atol=1e-8)
 
 
@@ -134,5 +138,5 @@ def test_compiled_model_refuses_wrong_sizes_before_the_c_code_reads_them(call):
     }
     with pytest.raises(appell.ModelError):
         calls[call]()
-    # and a right call still agrees with the NumPy split
-    assert np.allclose(m.solve(0.0, q, w).multipliers, d.numeric.solve(0.0, q, w).multipliers, rtol=1e-12)
+    # and a right call still agrees with the NumPy split: rounding only (measured 4e-16 relative)
+    assert np.allclose(m.solve(0.0, q, w).multipliers, d.numeric.solve(0.0, q, w).multipliers, rtol=1e-12, atol=0)

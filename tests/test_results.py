@@ -61,6 +61,7 @@ def test_recorded_accelerations_are_the_models_solve_at_the_recorded_states(pend
         q = [sol["x"][i], sol["y"][i]]
         w = [sol["x_dot"][i], sol["y_dot"][i]]
         a = pendulum.numeric.solve(sol.t[i], q, w).accelerations
+        # the same split at the same state (measured exact)
         np.testing.assert_allclose([sol["x_ddot"][i], sol["y_ddot"][i]], a, rtol=1e-12, atol=1e-12)
 
 
@@ -71,9 +72,12 @@ def test_recorded_accelerations_match_the_pendulums_closed_form(pendulum_solutio
     v2_over_L = 2 * G * (np.cos(th) - math.cos(TH0))
     ax = -G * np.sin(th) * np.cos(th) - v2_over_L * np.sin(th)
     ay = -G * np.sin(th) * np.sin(th) + v2_over_L * np.cos(th)
+    # v^2 from the energy, which the default rtol 1e-9 lets drift by 3e-8 over 2 s (measured
+    # 2e-8 m/s^2 against 1e-7 + 1e-7 |a|, assert_allclose's default rtol included)
     np.testing.assert_allclose(sol["x_ddot"], ax, atol=1e-7)
     np.testing.assert_allclose(sol["y_ddot"], ay, atol=1e-7)
-    # released at rest: the acceleration is purely tangential, g sin th0
+    # released at rest: the acceleration is purely tangential, g sin th0; the split at the
+    # start, rounding only (measured 2e-16 relative)
     assert math.hypot(sol["x_ddot"][0], sol["y_ddot"][0]) == pytest.approx(G * math.sin(TH0), rel=1e-12)
 
 
@@ -84,6 +88,8 @@ def test_controlled_accelerations_match_appells_problem():
     omega, R = 2.0, 0.1
     xi, eta = sol["xi"], sol["eta"]
     assert sol.acceleration_names == ("xi_ddot", "eta_ddot", "p_dot", "q_dot", "r_dot")
+    # the servo constraints fix these at every recorded state: rounding only (measured 2e-15
+    # and 6e-14)
     np.testing.assert_allclose(sol["xi_ddot"], -omega**2 * xi, atol=1e-8)
     np.testing.assert_allclose(sol["eta_ddot"], -omega**2 * eta, atol=1e-8)
     np.testing.assert_allclose(sol["q_dot"], 5 * omega**2 * xi / (2 * R), atol=1e-7)
@@ -166,8 +172,11 @@ def test_repr_is_a_short_summary_with_the_reaction_extremes(pendulum):
     assert "reached the final time" in text and "t from 0 s to 5 s" in text
     (name, unit, lo, t_lo, hi, t_hi), = sol.extremes()
     assert (name, unit) == ("lambda_rod", "N")
-    assert lo == pytest.approx(G * math.cos(TH0), rel=1e-9) and t_lo == 0.0  # at rest, m g cos th0
-    assert hi == pytest.approx(G * (3 - 2 * math.cos(TH0)), rel=1e-3)  # at the bottom (sampled every 0.01 s)
+    # at rest, m g cos th0: the split at the start, rounding only (measured 1.5e-15 relative)
+    assert lo == pytest.approx(G * math.cos(TH0), rel=1e-9) and t_lo == 0.0
+    # at the bottom, sampled every 0.01 s: a sample misses the peak by at most
+    # |T''| (0.005 s)^2 / 2 = 1.8e-4 relative, T'' = -3 m g^2 / L (measured 9e-6)
+    assert hi == pytest.approx(G * (3 - 2 * math.cos(TH0)), rel=1e-3)
     assert f"lambda_rod: min {lo:.6g} N (t = 0 s), max {hi:.6g} N" in text
     page = sol._repr_html_()
     assert "<table>" in page and "lambda_rod" in page and "<td>N</td>" in page
@@ -268,6 +277,8 @@ def test_simulate_accepts_what_complete_initial_returns(pendulum):
     """At rest at x = 0.6 the tension is m g cos th = 9.81 * 0.8 (y completed to -0.8)."""
     state = appell.complete_initial(pendulum, {"x": 0.6, "x_dot": 0.0, "y_dot": 0.0})
     sol = simulate(pendulum, 0.0, initial=state)
+    # Newton (tol 1e-12, quadratic) and the split at that state: rounding only (measured exact
+    # and 7e-16 relative)
     assert sol["y"][0] == pytest.approx(-0.8, abs=1e-12)
     assert sol["lambda_rod"][0] == pytest.approx(9.81 * 0.8, rel=1e-12)
 
@@ -289,11 +300,13 @@ def test_accelerations_after_a_release_are_free_flight():
     release = next(e for e in sol.events if e.kind == "release")
     after, before = sol.t > release.t, sol.t < release.t
     assert after.sum() > 10 and before.sum() > 10
+    # free flight: the accelerations are 0 and -g exactly (measured exact)
     np.testing.assert_allclose(sol["x_ddot"][after], 0.0, atol=1e-12)
     np.testing.assert_allclose(sol["y_ddot"][after], -G, atol=1e-12)
     # on the sphere, released at rest at th0 = 0.4 from the top: a = g sin th e_th + (v^2/R) (-e_r),
     # v^2 = 2 g R (cos th0 - cos th), e_r = (sin th, cos th), e_th = (cos th, -sin th)
     th = np.arctan2(sol["x"], sol["y"])[before]
     v2 = 2 * G * (math.cos(0.4) - np.cos(th))
+    # v^2 from the energy, which the file's rtol 1e-10 lets drift by 1e-9 (measured 4e-10)
     np.testing.assert_allclose(sol["x_ddot"][before], G * np.sin(th) * np.cos(th) - v2 * np.sin(th), atol=1e-7)
     np.testing.assert_allclose(sol["y_ddot"][before], -G * np.sin(th) ** 2 - v2 * np.cos(th), atol=1e-7)
