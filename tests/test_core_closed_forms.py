@@ -23,10 +23,11 @@ def test_pendulum_tension_is_centripetal_plus_gravity():
         w = [L * np.cos(th) * thd, L * np.sin(th) * thd]
         sol = model.solve(0.0, q, w)
         expected = m * L * thd**2 + m * g * np.cos(th)
+        # rounding only: a few eps times the condition of the split solve (~3)
         assert sol.multipliers[0] == pytest.approx(expected, rel=1e-12)
         # angular acceleration -g/L sin(theta) (pendulum equation)
         thdd = (sol.accelerations[0] * np.cos(th) + sol.accelerations[1] * np.sin(th)) / L
-        assert thdd == pytest.approx(-g / L * np.sin(th), rel=1e-12, abs=1e-12)
+        assert thdd == pytest.approx(-g / L * np.sin(th), rel=1e-12, abs=1e-12)  # the same solve
 
 
 def test_knife_edge_reaction_along_the_known_motion():
@@ -42,6 +43,7 @@ def test_knife_edge_reaction_along_the_known_motion():
         q = [0.0, 0.0, phi]  # the position does not enter the dynamics
         w = [v * np.cos(phi), v * np.sin(phi), Om]
         sol = model.solve(t, q, w)
+        # rounding only: a few eps times the condition of the split solve (~3)
         assert sol.multipliers[0] == pytest.approx(-2 * m * g * np.sin(al) * np.sin(Om * t), rel=1e-12)
         assert sol.accelerations[2] == pytest.approx(0.0, abs=1e-12)
 
@@ -58,6 +60,7 @@ def test_chaplygin_sleigh_lateral_force():
         e, ep = np.array([np.cos(th), np.sin(th)]), np.array([-np.sin(th), np.cos(th)])
         vg = v * e + a * om * ep  # lateral speed of the centre is a*omega
         sol = model.solve(0.0, [0.0, 0.0, th], [*vg, om])
+        # here and below, rounding only: a few eps times the condition of the split solve (~4)
         assert sol.multipliers[0] == pytest.approx(m * I * v * om / (I + m * a**2), rel=1e-12)
         # reduced motion: dv/dt = a omega^2, domega/dt = -m a v omega / (I + m a^2)
         acc = sol.accelerations
@@ -77,6 +80,7 @@ def test_velocity_nonlinear_constraint():
         vh = abs(a * zd)
         w = [vh * np.cos(ang), vh * np.sin(ang), zd]
         sol = model.solve(0.0, [0.0, 0.0, 5.0], w)
+        # rounding only: a few eps times the condition of the split solve (~3)
         assert sol.accelerations[2] == pytest.approx(-g / (1 + a**2), rel=1e-12)
         assert sol.generalized_reactions[2] == pytest.approx(m * g * a**2 / (1 + a**2), rel=1e-12)
         # horizontal part along (x', y'): 2 lambda x' with lambda = -m g / (2 z' (1 + a^2))
@@ -96,6 +100,7 @@ def test_rolling_ball_on_incline():
         w = [R * wy, -R * wx, 0.0, wx, wy, wz]  # rolling velocities
         sol = model.solve(0.0, [0.3, -0.2, R], w)
         lam = dict(zip(["contact", "roll_x", "roll_y"], sol.multipliers))
+        # rounding only: a few eps times the condition of the split solve (~4 componentwise)
         assert sol.accelerations[0] == pytest.approx(5 / 7 * g * np.sin(al), rel=1e-12)
         assert sol.accelerations[1] == pytest.approx(0.0, abs=1e-12)
         assert lam["contact"] == pytest.approx(m * g * np.cos(al), rel=1e-12)
@@ -115,6 +120,7 @@ def test_second_order_constraint_nonlinear_in_accelerations():
     xdd = float(roots[np.abs(roots.imag) < 1e-12].real[0])
     sol = model.solve(0.0, [0.0, 0.0], [0.3, -0.1])
     assert sol.newton_iterations > 0
+    # Newton stops at a relative step of 1e-12 (numerics.numeric.newton), np.roots is good to a few eps
     assert sol.accelerations[0] == pytest.approx(xdd, rel=1e-10)
     assert sol.accelerations[1] == pytest.approx(c * xdd**2, rel=1e-10)
     assert sol.multipliers[0] == pytest.approx(m * (c * xdd**2 + g), rel=1e-10)
@@ -131,7 +137,7 @@ def test_rigid_body_gyroscopic_terms_reproduce_euler_equations():
     I = np.array([1.0, 2.0, 3.0])
     expected = [(I[1] - I[2]) * w[1] * w[2] / I[0], (I[2] - I[0]) * w[2] * w[0] / I[1],
                 (I[0] - I[1]) * w[0] * w[1] / I[2]]
-    assert np.allclose(acc, expected, rtol=1e-13)
+    assert np.allclose(acc, expected, rtol=1e-13)  # diagonal inertia: rounding only, a few eps
 
 
 def test_kinetic_energy_route_polar_coordinates():
@@ -142,6 +148,7 @@ def test_kinetic_energy_route_polar_coordinates():
     d = derive(System(coordinates=(r, th), parameters={m: 2.0, k: 3.0},
                       kinetic_energy=m / 2 * (rd**2 + r**2 * thd**2), potential_energy=k * r**2 / 2))
     acc = d.numeric.solve(0.0, [1.5, 0.2], [0.4, 0.9]).accelerations
+    # diagonal mass matrix, no constraint: rounding only, a few eps
     assert acc[0] == pytest.approx(1.5 * 0.9**2 - 3.0 * 1.5 / 2.0, rel=1e-13)
     assert acc[1] == pytest.approx(-2 * 0.4 * 0.9 / 1.5, rel=1e-13)
 

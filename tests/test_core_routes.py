@@ -28,6 +28,7 @@ def test_acceleration_energy_of_a_rigid_body_equals_the_body_route():
     a2 = derive(by_body).numeric.solve(0.0, [], wv).accelerations
     In = np.diag([2.0, 3.0, 5.0])
     euler = np.linalg.solve(In, np.array(tau, dtype=float).ravel() - np.cross(wv, In @ wv))
+    # diagonal inertia, no constraint: rounding only, a few eps
     assert np.allclose(a1, euler, rtol=1e-13) and np.allclose(a2, euler, rtol=1e-13)
 
 
@@ -44,5 +45,7 @@ def test_applied_force_at_a_point_equals_the_potential():
     th = 0.4
     q, w = [np.sin(th), -np.cos(th)], [0.0, 0.0]
     la, lb = a.numeric.solve(0, q, w).multipliers, b.numeric.solve(0, q, w).multipliers
+    # a split solve of condition ~3: rounding only, a few eps; the two routes differ at most in the
+    # last bit of Q = (0, -m g), which that solve amplifies by ~3 at most
     assert la[0] == pytest.approx(1.5 * 9.81 * np.cos(th), rel=1e-13)
     assert relative_difference(la, lb) < 1e-14

@@ -75,6 +75,7 @@ def test_zero_dof_reaction_formulas_are_the_closed_forms(derivation):
         a = {k: float(v.xreplace(prog).xreplace(vals)) for k, v in acc.items()}
         lam = [float(e.xreplace(a).xreplace(prog).xreplace(vals)) for e in derivation.reactions.multipliers]
         _, _, _, rod, drive = closed_form(t)
+        # exact formulas at exact states in double precision: rounding only (values ~10 N)
         assert lam == pytest.approx([rod, drive], rel=1e-12, abs=1e-12)
 
 
@@ -89,6 +90,8 @@ def test_zero_dof_reactions_along_the_programmed_motion(derivation, backend):
     sol = appell.simulate(model, 5.0, t_eval=times, rtol=1e-10, atol=1e-12)
     assert sol.status == 0, sol.message
     th, _, _, rod, drive = closed_form(times)
+    # the run's rtol 1e-10 on x, y of size 1 over 5 s (a prescribed motion: no unstable growth);
+    # the reactions (~10 N) follow the state's error
     np.testing.assert_allclose(sol["x"], L * np.sin(th), atol=1e-8)
     np.testing.assert_allclose(sol["y"], -L * np.cos(th), atol=1e-8)
     np.testing.assert_allclose(sol["lambda_rod"], rod, rtol=1e-8)
@@ -97,6 +100,7 @@ def test_zero_dof_reactions_along_the_programmed_motion(derivation, backend):
 
 def test_zero_dof_split_agrees_with_the_augmented_system(derivation):
     report = appell.cross_check(derivation)
+    # here and below rounding only: a few eps times the condition of the solves (~3)
     assert report.passed(1e-12)
     q, w = exact_state(0.9)
     sol, aug = derivation.numeric.solve(0.9, q, w), appell.augmented_solve(derivation.numeric, 0.9, q, w)
@@ -125,6 +129,7 @@ def test_cli_on_the_zero_dof_example(tmp_path):
     run("simulate", "programmed_pendulum", "--t-end", "2", "--out", str(out))
     data = np.genfromtxt(out, delimiter=",", names=True)
     _, _, _, rod, drive = closed_form(data["t"])
+    # the example's rtol 1e-10 over 2 s, as in the run above; the CSV holds exact reprs
     np.testing.assert_allclose(data["lambda_rod"], rod, rtol=1e-8)
     np.testing.assert_allclose(data["lambda_drive"], drive, atol=1e-7)
     assert "passed" in run("check", "programmed_pendulum")

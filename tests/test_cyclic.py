@@ -39,12 +39,12 @@ def full_motion(system, times, rtol=1e-11, atol=1e-12):
     return sol.y[:n].T, sol.y[n:].T
 
 
-def compare_with_full(system, t_end, points=801):
+def compare_with_full(system, t_end, points=801, rtol=1e-12, atol=1e-13):
     """Largest differences between reduced+quadrature and full motion, and momentum drift."""
     red = routh_reduction(system)
     times = np.linspace(0.0, t_end, points)
-    tt, pos, cyc = red.simulate((0.0, t_end), t_eval=times)
-    Q, W = full_motion(system, times)
+    tt, pos, cyc = red.simulate((0.0, t_end), t_eval=times, rtol=rtol, atol=atol)
+    Q, W = full_motion(system, times, rtol=rtol, atol=atol)
     coords = system.coordinates
     ip = [coords.index(q) for q in red.positional]
     ic = [coords.index(q) for q in red.cyclic]
@@ -95,7 +95,7 @@ def test_spherical_pendulum_routhian_closed_form():
     assert sp.simplify(red.routhian - expected) == 0
     assert sp.simplify(red.cyclic_velocities[0] - h / (m * L**2 * sp.sin(th) ** 2)) == 0
     assert red.gyroscopic_forces == sp.ImmutableMatrix([0])
-    # momentum from the initial state: m L^2 sin^2(1) * 1.5 with m = L = 1
+    # momentum from the initial state: m L^2 sin^2(1) * 1.5 with m = L = 1 (a product: rounding only)
     assert red.momentum_values[0] == pytest.approx(np.sin(1.0) ** 2 * 1.5, rel=1e-14)
 
 
@@ -150,6 +150,8 @@ def test_reduced_motion_equals_full_motion(builder, t_end):
     20 s are about 10 swings of the pendulum and 7 to 9 periods of the turntable's springs;
     10 s about 13 nutations of the top."""
     red, err_q, err_w, err_c, drift = compare_with_full(builder(), t_end)
+    # two runs at rtol 1e-12 (compare_with_full) on speeds up to 12 rad/s, the phase error growing
+    # over the swings (about 20): ~2e-10; the momenta (up to 5) drift by rtol times that growth
     assert err_q < 1e-8 and err_w < 1e-8 and err_c < 1e-8, (err_q, err_w, err_c)
     assert drift < 1e-9
 
@@ -174,7 +176,7 @@ def test_gyroscopic_factor_one_not_one_half():
     xy_half = positional_motion(red.routhian + V_gyr / 2)
     err_one = np.max(np.abs(xy_one - Q[:, :2]))
     err_half = np.max(np.abs(xy_half - Q[:, :2]))
-    assert err_one < 1e-8
+    assert err_one < 1e-8  # two runs at rtol 1e-11 over 10 s of x, y under 0.5 m: ~1e-11
     assert err_half > 1e-2, err_half
 
 
@@ -190,6 +192,7 @@ def test_recover_cyclic_coordinates_from_samples_converges():
         errs.append(np.max(np.abs(red.recover(tt, pos) - cyc)))
     order = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
     assert np.all(order > 3.5), (errs, order)
+    # the spline's O(dt^4) error at dt = 0.0125 s, far above the run's rtol 1e-11 and rounding
     assert errs[-1] < 1e-5
 
 
@@ -223,6 +226,7 @@ def test_spherical_pendulum_tension_along_reduced_motion():
     lam_rod = np.array([rod_num.solve(t, [L, a], [0.0, b]).multipliers[0] for t, a, b in zip(tt, th, thd)])
 
     assert np.ptp(closed) > 1.0  # the tension really varies along this motion
+    # all three at the same states: rounding only, a few eps times the condition (~3) and 20 N
     np.testing.assert_allclose(lam_cart, closed, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(lam_rod, closed, rtol=1e-10, atol=1e-10)
 
@@ -239,7 +243,8 @@ def test_symmetric_top_nutation_limits():
     I1, I3, M, g, l = (system.parameter_values[sp.Symbol(n)] for n in ("I1", "I3", "M", "g", "l"))
     init = system.initial_values
     th0, phd0, psd0, thd0 = init["theta"], init["phi_dot"], init["psi_dot"], init["theta_dot"]
-    # energy and momenta of the initial state, computed here from the textbook formulas
+    # energy and momenta of the initial state, computed here from the textbook formulas (the same
+    # products as appell's: rounding only)
     p_psi = I3 * (psd0 + np.cos(th0) * phd0)
     p_phi = I1 * np.sin(th0) ** 2 * phd0 + p_psi * np.cos(th0)
     E = I1 / 2 * (thd0**2 + np.sin(th0) ** 2 * phd0**2) + p_psi**2 / (2 * I3) + M * g * l * np.cos(th0)
@@ -263,6 +268,8 @@ def test_symmetric_top_nutation_limits():
                     events=turning, dense_output=True)
     turns = sol.y_events[0][:, 0]
     assert len(turns) > 10
+    # the run's rtol 1e-12 over 10 s; theta is stationary at a turning point, so the event's time
+    # error hardly moves it; the cubic's simple roots to rounding
     assert turns.min() == pytest.approx(theta_min, abs=1e-9)
     assert turns.max() == pytest.approx(theta_max, abs=1e-9)
     assert theta_max - theta_min > 0.05  # a visible nutation

@@ -56,14 +56,16 @@ def test_cart_pole_linearisation_matches_the_pendulum_jacobian(upright, hanging,
         lin = internal_linearisation(derivation, t, _on_manifold(t, theta, theta_dot))
         assert lin.coordinates == ("theta", "theta_dot")
         expected = np.array([[0.0, 1.0], [sign * G / L * np.cos(theta) + _xd_ddot(t) / L * np.sin(theta), 0.0]])
+        # central differences at relative step 1e-6: error eps/h ~ 2e-10 times |F| plus h^2 ~ 1e-12
         assert np.allclose(lin.matrix, expected, rtol=1e-6, atol=1e-6 * G / L)
-        assert lin.manifold_residual < 1e-12
+        assert lin.manifold_residual < 1e-12  # an exact state on the manifold: rounding only
 
 
 def test_upright_pole_is_flagged_unstable_with_eigenvalues_plus_minus_sqrt_g_over_l(upright):
     """At theta = theta' = 0: eigenvalues +-sqrt(g/l) (Spong 1998), growth rate sqrt(g/l)."""
     lin = internal_linearisation(upright, 0.0, _on_manifold(0.0, 0.0, 0.0))
     omega = np.sqrt(G / L)
+    # the Jacobian by central differences (~1e-10 relative, above), a well-separated pair
     assert np.allclose(lin.eigenvalues, [omega, -omega], rtol=1e-7, atol=1e-7 * omega)
     assert lin.unstable and lin.growth_rate == pytest.approx(omega, rel=1e-7)
     assert "unstable" in lin.warning() and "theta" in lin.warning()
@@ -72,6 +74,7 @@ def test_upright_pole_is_flagged_unstable_with_eigenvalues_plus_minus_sqrt_g_ove
 def test_hanging_pendulum_eigenvalues_are_plus_minus_i_sqrt_g_over_l_and_not_flagged(hanging):
     lin = internal_linearisation(hanging, 0.0, _on_manifold(0.0, 0.0, 0.0))
     omega = np.sqrt(G / L)
+    # as for the upright pole: central differences, ~1e-10 relative
     assert np.allclose(sorted(lin.eigenvalues.imag), [-omega, omega], rtol=1e-7)
     assert np.max(np.abs(lin.eigenvalues.real)) < 1e-6 * omega
     assert not lin.unstable and lin.warning() is None
@@ -82,7 +85,7 @@ def test_damped_spring_masses_internal_eigenvalue_is_minus_k_over_d():
     derivation = derive_controlled(spring_masses(damping=True))
     lin = internal_linearisation(derivation)
     assert lin.eigenvalues.shape == (1,)
-    assert lin.eigenvalues[0] == pytest.approx(-4.0 / 0.5, rel=1e-7)
+    assert lin.eigenvalues[0] == pytest.approx(-4.0 / 0.5, rel=1e-7)  # central differences, ~1e-10
     assert not lin.unstable
 
 
@@ -107,6 +110,7 @@ def test_the_flagged_pole_falls_as_the_closed_form_pendulum_does(upright):
     sol = simulate(upright, 1.0, t_eval=times, rtol=1e-10, atol=1e-12)
     ref = solve_ivp(lambda t, y: [y[1], G / L * np.sin(y[0]) - _xd_ddot(t) / L * np.cos(y[0])],
                     (0.0, 1.0), [0.05, 0.0], t_eval=times, rtol=1e-11, atol=1e-13)
+    # both runs at rtol <= 1e-10, errors grow as exp(sqrt(g/l) t), about 80 over 1 s
     assert np.allclose(sol["theta"], ref.y[0], rtol=1e-6, atol=1e-8)
     assert abs(sol["theta"][-1]) > 10 * 0.05
 
@@ -124,6 +128,7 @@ def test_cli_flags_the_unstable_internal_dynamics_in_every_command(tmp_path):
     doc = json.loads(result.stdout)
     lin = doc["internal_linearisation"]
     assert lin["unstable"] and lin["coordinates"] == ["theta", "theta_dot"]
+    # central differences (~1e-10 relative, above); the JSON keeps 14 digits
     assert np.allclose(sorted(re for re, _ in lin["eigenvalues"]), [-omega, omega], rtol=1e-6)
     for args in (["simulate", "cart_pole", "--t-end", "0.2"], ["check", "cart_pole"],
                  ["report", "cart_pole", "-o", str(tmp_path / "pole.html"), "--t-end", "0.2"]):

@@ -44,6 +44,8 @@ def test_andrews_squeezer_matches_the_published_values_at_t0(andrews, backend):
     model = andrews.numeric if backend == "numpy" else andrews.compiled("c")
     q0 = [andrews.system.initial_values[s.name] for s in andrews.kinematics.coordinates]
     sol = model.solve(0.0, q0, np.zeros(7))
+    # rounding times the solve's condition (~20 componentwise) and the size of the values: at most
+    # 20 eps x 1.4e4 = 6e-11 for a and 20 eps x 100 = 4e-13 for lambda, under each atol (the zeros)
     assert np.allclose(sol.accelerations, ANDREWS_ACC, rtol=1e-12, atol=1e-9)
     assert np.allclose(-sol.multipliers, ANDREWS_LAMBDA, rtol=1e-12, atol=1e-12)
 
@@ -141,6 +143,8 @@ def test_printed_formulas_evaluate_to_the_numeric_model(name):
     scale_a = 1.0 + np.max(np.abs(sol.accelerations))
     scale_l = 1.0 + np.max(np.abs(sol.multipliers), initial=0.0)
     checked = 0
+    # SymPy re-evaluates the printed text (constants to 15 digits) against the compiled split:
+    # rounding times the condition (under 40) relative to the scale of the values
     for label, lhs, rhs in rows:
         if label.startswith("(t, q, w)"):  # lambda from the state alone
             assert abs(_evaluate(defs, rhs, base) - lam[lhs]) <= 1e-9 * scale_l, (label, lhs)
@@ -170,6 +174,7 @@ def test_appell_ball_control_law_prints_the_closed_form():
             sp.Symbol("xi"): xi, sp.Symbol("eta"): eta, sp.Symbol("xi_dot"): -omega * eta,
             sp.Symbol("eta_dot"): omega * xi}
     laws = {str(lhs): _evaluate(defs, rhs, vals) for label, lhs, rhs in rows if label == "(control)"}
+    # the printed law at an exact state: rounding only
     assert laws["u_ddot"] == pytest.approx(-3.5 * omega**2 * xi, rel=1e-12)
     assert laws["v_ddot"] == pytest.approx(-3.5 * omega**2 * eta, rel=1e-12)
 
@@ -210,4 +215,5 @@ def test_printed_control_laws_evaluate_to_the_numeric_controls(name):
     unknowns = [c.unknown.name for c in d.system.controls]
     for name_, value in zip(unknowns, sol.controls):
         printed = _evaluate(defs, laws[name_], values)
+        # the printed law against the (2.3) solve at the same state: rounding times its condition
         assert printed == pytest.approx(value, rel=1e-9, abs=1e-9 * (1 + abs(value))), name_

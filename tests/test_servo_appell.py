@@ -84,12 +84,14 @@ def test_numeric_controls_accelerations_reactions(derivation):
     assert model.state_names[-4:] == ("u", "u_dot", "v", "v_dot")
     for t, x, y, state in states():
         ev = model.evaluate(t, state)
+        # the model at the state against the closed forms: rounding only, a few eps times the
+        # condition of the solve (~6 componentwise) and the size of the values (up to 50)
         np.testing.assert_allclose(ev.controls, [-3.5 * W**2 * x, -3.5 * W**2 * y], rtol=1e-12, atol=1e-12)
         a = ev.derivative[2:7]  # xi'', eta'', p', q', r'
         np.testing.assert_allclose(a[2:], [-5 * W**2 * y / (2 * R), 5 * W**2 * x / (2 * R), 0.0], atol=1e-10)
         np.testing.assert_allclose(a[:2], [-W**2 * x, -W**2 * y], atol=1e-12)
         np.testing.assert_allclose(ev.multipliers, [-M * W**2 * x, -M * W**2 * y], atol=1e-12)
-        # kinematic controls in the state: d/dt u = u', d/dt u' = u''
+        # kinematic controls in the state: d/dt u = u', d/dt u' = u'' (copies: exact)
         np.testing.assert_allclose(ev.derivative[7:], [state[8], ev.controls[0], state[10], ev.controls[1]])
 
 
@@ -98,11 +100,12 @@ def test_independent_route_augmented_system(derivation):
     model = derivation.numeric
     for t, _, _, state in states(4, seed=5):
         s1, s2 = model.solve(t, state), augmented_controlled_solve(model, t, state)
+        # two solves of the same equations: rounding times the condition (~6), values up to 50
         np.testing.assert_allclose(s1.controls, s2.controls, rtol=1e-11, atol=1e-12)
         np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-11, atol=1e-12)
         np.testing.assert_allclose(s1.multipliers, s2.multipliers, rtol=1e-11, atol=1e-12)
-        assert np.max(np.abs(s1.servo_multipliers)) < 1e-10
-    assert cross_check_controlled(derivation).passed(1e-10)
+        assert np.max(np.abs(s1.servo_multipliers)) < 1e-10  # zero up to the same rounding
+    assert cross_check_controlled(derivation).passed(1e-10)  # the same two routes, relative
 
 
 def test_text_latex_and_json_show_the_conditions_and_control_laws(derivation):

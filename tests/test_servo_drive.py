@@ -135,12 +135,14 @@ def test_slider_crank_has_no_free_acceleration(crank):
 def test_slider_crank_torque_matches_the_energy_balance_along_the_motion(crank_run):
     """tau(t) of the simulated drive against (dE/dt + P x')/omega, E by hand (module docstring)."""
     theta = crank_run["theta"]
-    assert theta[-1] == pytest.approx(10.0, rel=1e-9)  # the servo holds: theta = omega t
+    # the servo holds theta = omega t; a constant rate integrates exactly: rounding only
+    assert theta[-1] == pytest.approx(10.0, rel=1e-9)
     ref = energy_balance_torque(theta)
     scale = np.max(np.abs(ref))
     assert scale > 5.0  # the load P r = 5 N m is felt
+    # phi, x and their rates integrated at rtol 1e-10, error growth over 1.6 turns under 10
     assert np.max(np.abs(crank_run["control_tau"] - ref)) <= 1e-8 * scale
-    assert crank_run.max_tracking_error < 1e-9
+    assert crank_run.max_tracking_error < 1e-9  # theta - omega t: rounding only (see above)
 
 
 def test_slider_crank_torque_formula_matches_the_energy_balance(crank):
@@ -152,6 +154,7 @@ def test_slider_crank_torque_formula_matches_the_energy_balance(crank):
         state = {sp.Symbol("theta"): theta, sp.Symbol("phi"): phi, sp.Symbol("theta_dot"): CRANK["omega"],
                  sp.Symbol("phi_dot"): phid, sp.Symbol("x"): x, sp.Symbol("x_dot"): xd}
         value = float(law.xreplace({**params, **state}))
+        # two exact expressions evaluated in double precision at the same state: rounding only
         assert value == pytest.approx(float(energy_balance_torque(theta)), rel=1e-10, abs=1e-10)
 
 
@@ -164,12 +167,14 @@ def test_slider_crank_bearing_pin_and_guide_forces_match_newton_euler(crank_run)
     want = np.array([ref[1], ref[2], ref[5], ref[6], ref[7], ref[0]])
     for name, a, b in zip(names + ["tau"], got, want):
         scale = max(np.max(np.abs(b)), 1.0)
+        # the run's rtol 1e-10 times the growth over 1.6 turns (under 10); the 8 x 8 solve, rounding
         assert np.max(np.abs(a - b)) <= 1e-8 * scale, name
 
 
 def test_slider_crank_split_agrees_with_the_augmented_system_with_control_unknowns(crank, crank_run):
     """The route of 'appell check': [M N -J_f^T; J_f K_f 0; J_g K_g 0] solved at once."""
     report = cross_check_controlled(crank)
+    # here and below, two solves of the same equations: rounding times the condition (~5)
     assert report.route == "augmented" and report.passed(1e-10)
     model = crank.numeric
     y = np.array([crank_run[n][37] for n in model.state_names])
@@ -193,9 +198,10 @@ def test_particle_driven_along_sin_t_needs_force_minus_m_sin_t():
     assert sp.simplify(d.control_laws["F"] + sp.Symbol("m") * sp.sin(time)) == 0
     sol = simulate(d, 6.0, t_eval=np.linspace(0, 6, 61), rtol=1e-11, atol=1e-12)
     assert sol.status == 0
+    # F = -m sin t is the law itself (rounding); x integrated at rtol 1e-11 with |x| <= 1 over 6 s
     np.testing.assert_allclose(sol["control_F"], -2.0 * np.sin(sol.t), atol=1e-9)
     np.testing.assert_allclose(sol["x"], np.sin(sol.t), atol=1e-9)
-    assert cross_check_controlled(d).passed(1e-12)
+    assert cross_check_controlled(d).passed(1e-12)  # a 1 x 1 mass matrix: rounding only
 
 
 # ------------------------------------------------------------------ differential drive
@@ -225,16 +231,17 @@ def robot():
 
 def test_robot_wheel_torques_and_ground_forces_match_the_free_body_analysis(robot):
     ref = steady_circle()
-    sol = simulate(robot, 5.0, t_eval=np.linspace(0, 5, 51), rtol=1e-10, atol=1e-12)
+    sol = simulate(robot, 5.0, t_eval=np.linspace(0, 5, 51), rtol=1e-12, atol=1e-14)
     assert sol.status == 0, sol.message
+    # the forces follow the integrated speeds: the run's rtol 1e-12 times a growth under 3 over 5 s
     for name in ("tau_r", "tau_l"):
         np.testing.assert_allclose(sol[f"control_{name}"], ref[name], rtol=1e-9)
     for name in ("lateral", "roll_r", "roll_l"):
         np.testing.assert_allclose(sol[f"lambda_{name}"], ref[name], rtol=1e-9)
     # the torques do make it drive the circle about (0, rho) with the yaw rate v/rho
     rho = ROBOT["rho"]
-    assert np.max(np.abs(np.hypot(sol["x"], sol["y"] - rho) - rho)) < 1e-8
-    np.testing.assert_allclose(sol["psi"], ref["Omega"] * sol.t, atol=1e-9)
+    assert np.max(np.abs(np.hypot(sol["x"], sol["y"] - rho) - rho)) < 1e-8  # rtol 1e-12 times x, y < 2 m
+    np.testing.assert_allclose(sol["psi"], ref["Omega"] * sol.t, atol=1e-9)  # constant rate: rounding only
 
 
 def test_robot_control_laws_on_the_steady_circle_are_the_free_body_torques(robot):
@@ -283,6 +290,7 @@ def test_cli_simulate_slider_crank_writes_the_energy_balance_torque(tmp_path):
     theta = np.array([float(r["theta"]) for r in rows])
     tau = np.array([float(r["control_tau"]) for r in rows])
     assert len(rows) == 101
+    # the example's rtol 1e-10 times the growth over 0.8 turns (under 10); the CSV holds exact reprs
     assert np.max(np.abs(tau - energy_balance_torque(theta))) <= 1e-8 * np.max(np.abs(tau))
 
 
