@@ -31,7 +31,12 @@ from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, compile_mo
 from appell.symbols import t as T
 
 BACKENDS = ("numpy", "c")
-REL = 1e-8
+#: single solves at and 1e-12 from the singular instants: there kappa > KEEP_CONDITION, so the
+#: solve has switched to a block of condition ~1; rounding only, a few eps of the value's scale
+#: (measured 0 with both backends and the Prescott, Nehalem and Haswell kernels)
+REL = 1e-13
+#: whole runs: the integration's error (each run's rtol times its growth, given there) bounds it
+RUN_REL = 1e-9
 
 
 def _model(derivation, backend):
@@ -107,9 +112,10 @@ def test_one_by_one_block_is_judged_against_the_whole_row():
     """A 1x1 block has condition number 1 by itself; against its row it does not:
     kappa = max|J_r| / |J_h| (here 1/1e-12), and row scaling leaves kappa unchanged."""
     J = np.array([[1.0, 1e-12]])
+    # one division (and the scaling by 1e-9): rounding only, an eps or two
     assert partition_condition(J, (1,))[0] == pytest.approx(1e12, rel=1e-12)
     assert partition_condition(1e-9 * J, (1,))[0] == pytest.approx(1e12, rel=1e-12)
-    assert partition_condition(J, (0,))[0] == pytest.approx(1.0)
+    assert partition_condition(J, (0,))[0] == pytest.approx(1.0, rel=1e-15)  # 1 / 1: exact
     assert partition_condition(np.array([[0.0, 0.0]]), (0,))[0] == math.inf
 
 
@@ -164,7 +170,7 @@ def _knife_states():
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("case", ["pendulum", "knife"])
 def test_reactions_keep_their_digits_where_the_partition_is_kept_ill_conditioned(pendulum, knife, backend, case):
-    """Where the derivation's partition is kept with 16 <= kappa < 1e4 (the band before the
+    """Where the derivation's partition is kept with 100 <= kappa < 1e4 (the band before the
     switch), one pass of the split loses up to kappa^2 eps in lambda (1e-8 at kappa = 1e4);
     the refined split (step 5, one step of iterative refinement) keeps it to the rounding of
     the residuals. Exact values: the pendulum's tension m v^2/L - m g y/L (Newton along the
@@ -216,7 +222,7 @@ def test_pendulum_tension_at_the_horizontal(pendulum, backend, offset):
     sol = model.solve(0.0, q, w)
     tension, acc = pendulum_exact(*q, *w)
     if offset == 0.0:
-        assert tension == pytest.approx(44.38, rel=1e-12)
+        assert tension == pytest.approx(44.38, rel=1e-12)  # 64 - 2 g L in double precision: rounding only
     assert _close(sol.multipliers, [tension])
     assert _close(sol.accelerations, acc)
 
@@ -231,8 +237,8 @@ def test_knife_edge_reaction_at_heading_pi_over_2(knife, backend, offset):
     q, w, a, lam = knife_exact(tt)
     sol = model.solve(tt, q, w)
     if offset == 0.0:
-        # -9.4063 N is the closed form rounded to five figures: half a unit of the last is 5e-6
-        assert lam == pytest.approx(-9.4063, rel=1e-5)
+        # the closed form (-9.40632...) rounded to five figures is -9.4063 N: exact, no tolerance
+        assert round(lam, 4) == -9.4063
     assert _close(sol.multipliers, [lam])
     assert _close(sol.accelerations, a)
 
@@ -260,17 +266,19 @@ def test_pendulum_loop_tension_along_the_motion_and_at_an_event(pendulum, backen
     model = _model(pendulum, backend)
     horizontal = Event("horizontal", lambda tt, yy, mult: yy[1])
     sol = simulate(model, 2.0, initial={"x": 0.0, "y": -1.0, "x_dot": 8.0, "y_dot": 0.0},
-                   events=[horizontal], t_eval=np.linspace(0, 2, 2001), rtol=1e-10, atol=1e-12)
+                   events=[horizontal], t_eval=np.linspace(0, 2, 2001), rtol=1e-12, atol=1e-14)
     assert sol.status == 0, sol.message
     st = sol.states
     tension, _ = pendulum_exact(st["x"], st["y"], st["x_dot"], st["y_dot"])
-    assert _close(sol.multipliers["rod"], tension, scale=np.max(np.abs(tension)))
+    # the closed form holds on the circle, which the run leaves by its rtol times the growth over
+    # 2 s (|x^2 + y^2 - 1| reaches 20 rtol at every rtol tried: 2e-11 here); the tension follows
+    assert _close(sol.multipliers["rod"], tension, rel=RUN_REL, scale=np.max(np.abs(tension)))
     hits = [e for e in sol.events if e.kind == "user"]
     assert len(hits) >= 4
     for e in hits:
         s = e.state
         expected, _ = pendulum_exact(s["x"], s["y"], s["x_dot"], s["y_dot"])
-        assert abs(e.multipliers["rod"] - expected) <= REL * abs(expected)
+        assert abs(e.multipliers["rod"] - expected) <= RUN_REL * abs(expected)  # as above
     assert sol.statistics.switches >= 2
     assert any("partition switched" in line for line in sol.log)
 
@@ -286,9 +294,11 @@ def test_knife_edge_reaction_along_the_motion(knife, backend):
     assert sol.status == 0, sol.message
     exact = [knife_exact(tt) for tt in sol.t]
     lam = np.array([e[3] for e in exact])
-    assert _close(sol.multipliers["blade"], lam, scale=np.max(np.abs(lam)))
+    # the run's rtol 1e-11 times the growth of the error over 4.5 s (measured 8e-12 in lambda,
+    # 4e-11 in x, of their scales)
+    assert _close(sol.multipliers["blade"], lam, rel=RUN_REL, scale=np.max(np.abs(lam)))
     x = np.array([e[0][0] for e in exact])
-    assert _close(sol.states["x"], x, rel=1e-8, scale=np.max(np.abs(x)))
+    assert _close(sol.states["x"], x, rel=RUN_REL, scale=np.max(np.abs(x)))
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -300,9 +310,11 @@ def test_circle_particle_multiplier_along_the_motion(circle, backend):
     times.sort()
     sol = simulate(model, 2.9, t0=1.0, t_eval=times, rtol=1e-12, atol=1e-14)
     assert sol.status == 0, sol.message
-    assert _close(sol.multipliers["circle"], -4 * sol.t**2, scale=4 * 2.9**2)
-    assert _close(sol.states["x"], np.sin(sol.t**2), rel=1e-8, scale=1.0)
-    assert _close(sol.states["y"], np.cos(sol.t**2), rel=1e-8, scale=1.0)
+    # the run's rtol 1e-12 times the growth of the phase error of t^2 as the particle speeds up
+    # (measured 2e-11 in x, y and lambda, of their scales)
+    assert _close(sol.multipliers["circle"], -4 * sol.t**2, rel=RUN_REL, scale=4 * 2.9**2)
+    assert _close(sol.states["x"], np.sin(sol.t**2), rel=RUN_REL, scale=1.0)
+    assert _close(sol.states["y"], np.cos(sol.t**2), rel=RUN_REL, scale=1.0)
 
 
 # ------------------------------------------------------------- no admissible partition

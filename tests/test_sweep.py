@@ -17,7 +17,7 @@ from appell.simulation.sweep import parameter_grid, parse_spec, sweep  # noqa: E
 
 
 def test_specs():
-    name, values = parse_spec("m=0.5:2:4")
+    name, values = parse_spec("m=0.5:2:4")  # values of np.linspace: exact to an ulp
     assert name == "m" and np.allclose(values, [0.5, 1.0, 1.5, 2.0])
     assert np.allclose(parse_spec("L=1,2.5")[1], [1.0, 2.5])
     assert np.allclose(parse_spec("g=9.81")[1], [9.81])
@@ -51,7 +51,9 @@ def test_tiny_sweep(tmp_path):
         assert np.all(f["status"][()][2:] == 0)
         assert json.loads(f.attrs["summary"])["multipliers"]["rod"]["argmax_parameters"]["m"] == 2.0
     top = res.summary["multipliers"]["rod"]
-    # the bottom is passed within 1.2 s (L = 1 m; quarter period about 0.55 s at g = 9.81)
+    # the bottom is passed within 1.2 s (L = 1 m; quarter period about 0.55 s at g = 9.81);
+    # the largest sample, 1.8 ms from the bottom at t = K(1/4)/sqrt(g/L) = 0.538 s, is
+    # 0.75 g/L dt^2 = 2.3e-5 below 2 m g (a fixed grid: rounding does not move it); the run's error is 1e-9
     assert top["max"] == pytest.approx(2 * 2.0 * 9.81, rel=1e-3)
     assert "rod" in res.summary_text()
 
@@ -70,7 +72,8 @@ def test_a_sweep_leaves_no_default_dask_client_behind(tmp_path):
     import xarray as xr
 
     with xr.open_dataset(tmp_path / "after.nc", engine="h5netcdf") as ds:
-        assert ds["lambda_rod"].values[0] == pytest.approx(9.81 * 0.5, rel=1e-9)  # m g cos 60 deg at rest
+        # m g cos 60 deg at rest: one split solve, rounding only
+        assert ds["lambda_rod"].values[0] == pytest.approx(9.81 * 0.5, rel=1e-9)
 
 
 # ------------------------------------------------------------- tasks, shipping, real processes
@@ -159,6 +162,7 @@ def test_real_dask_processes_lose_a_busy_worker_and_every_run_is_recorded_once(d
         for i, params in enumerate(grid):
             assert {k: f[f"parameters/{k}"][i] for k in params} == params
             ref = _loop_run(model, t_end, params, {**opts, "t_eval": t_eval})
+            # the same model and options in another process: rounding only (uses 2e-4 of these)
             for name, values in ref.multipliers.items():
                 np.testing.assert_allclose(f[f"multipliers/{name}"][i], values, rtol=1e-10, atol=1e-9)
             for name, values in ref.states.items():
@@ -206,6 +210,7 @@ def test_a_kept_cluster_builds_each_model_once_per_worker_and_ships_numpy_models
         with h5py.File(res.path) as f:
             for r in res.runs:
                 ref = _loop_run(model, t_end, r.parameters, opts)
+                # the same model and options in another process: rounding only (uses 1e-4 of these)
                 for name, values in ref.multipliers.items():
                     np.testing.assert_allclose(f[f"multipliers/{name}"][r.index], values, rtol=1e-10, atol=1e-9)
 
@@ -245,6 +250,8 @@ def test_appell_cluster_serves_sweeps_until_ctrl_c(tmp_path):
                                           "--backend", "numpy", "--scheduler", found.group(1), "--out", str(out)])
         assert result.exit_code == 0, result.output
         summary = json.loads(out.with_name("s.h5.summary.json").read_text())
+        # the largest sample, 1.8 ms from the bottom at t = K(1/4)/sqrt(g/L) = 0.538 s, is
+        # 0.75 g/L dt^2 = 2.3e-5 below 2 m g (a fixed grid: rounding does not move it); the run's error is 1e-9
         assert summary["multipliers"]["rod"]["max"] == pytest.approx(2 * 2.0 * 9.81, rel=1e-3)
         proc.send_signal(signal.SIGINT)
         stdout, _ = proc.communicate(timeout=60)
