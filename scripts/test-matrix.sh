@@ -54,14 +54,11 @@ for kernel in $kernels; do
         echo "== $name" >&2
         xml="$out/${kernel}-${backend}.xml"
         start=$(date +%s)
+        blas=(-u OPENBLAS_CORETYPE)
+        if [ "$kernel" != "unset" ]; then blas=(OPENBLAS_CORETYPE="$kernel"); fi
         set +e
-        if [ "$kernel" = "unset" ]; then
-            env -u OPENBLAS_CORETYPE APPELL_TEST_BACKEND="$backend" PYTHONPATH=tests \
-                python -m pytest -m numerical -p no:cacheprovider $margins --junitxml="$xml" "${extra[@]}" >&2
-        else
-            OPENBLAS_CORETYPE="$kernel" APPELL_TEST_BACKEND="$backend" PYTHONPATH=tests \
-                python -m pytest -m numerical -p no:cacheprovider $margins --junitxml="$xml" "${extra[@]}" >&2
-        fi
+        env "${blas[@]}" APPELL_TEST_BACKEND="$backend" PYTHONPATH=tests \
+            python -m pytest -m numerical -p no:cacheprovider $margins --junitxml="$xml" "${extra[@]}" >&2
         rc=$?
         set -e
         secs=$(( $(date +%s) - start ))

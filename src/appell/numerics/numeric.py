@@ -171,8 +171,9 @@ def choose_dependent(J: np.ndarray, names) -> tuple[int, ...]:
     return _best_partition(J, names)[0]
 
 
-def _best_partition(J: np.ndarray, names) -> tuple[tuple[int, ...], np.ndarray]:
-    """:func:`choose_dependent` and the ``J_h^{-1}`` of its columns."""
+def _best_partition(J: np.ndarray, names) -> tuple[tuple[int, ...], np.ndarray, float]:
+    """:func:`choose_dependent`, the ``J_h^{-1}`` of its columns and its
+    :func:`partition_condition`."""
     D = row_scales(J)
     zero = [names[i] for i in range(J.shape[0]) if D[i] == 0.0]
     if zero:
@@ -198,7 +199,7 @@ def _best_partition(J: np.ndarray, names) -> tuple[tuple[int, ...], np.ndarray]:
             hint="constraints " + ", ".join(bad) + " are dependent here (a singular configuration "
                  "of the mechanism); start elsewhere or stop the run before this state",
         )
-    return dep, inv
+    return dep, inv, kappa
 
 
 def usable_partition(J: np.ndarray, dependent, names) -> tuple[tuple[int, ...], np.ndarray, bool]:
@@ -222,8 +223,8 @@ def partition_in_use(J: np.ndarray, dependent, names) -> tuple[tuple[int, ...], 
     kappa, inv = partition_condition(J, dep)
     if kappa < KEEP_CONDITION:
         return dep, inv, False, kappa
-    new, inv = _best_partition(J, names)
-    return new, inv, new != dep, partition_condition(J, new)[0]
+    new, inv, kappa = _best_partition(J, names)
+    return new, inv, new != dep, kappa
 
 
 @dataclass(frozen=True)
@@ -510,8 +511,11 @@ def split_solve(M, hQ, J, c, dep, Jh_inv=None, kappa=None):
     """
     if J.shape[0] == 0:
         return np.linalg.solve(M, -hQ), np.zeros(0)
+    if kappa is None:
+        kappa, inv = partition_condition(J, dep)
+        Jh_inv = inv if Jh_inv is None else Jh_inv
     a, lam = _split_once(M, hQ, J, c, dep, Jh_inv)
-    if (partition_condition(J, dep)[0] if kappa is None else kappa) >= REFINE_CONDITION:
+    if kappa >= REFINE_CONDITION:
         r = M @ a + hQ - J.T @ lam
         s = J @ a + c
         da, dlam = _split_once(M, r, J, s, dep, Jh_inv)

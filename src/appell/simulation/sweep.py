@@ -634,7 +634,7 @@ def _resumed(path: Path, header: dict, runs: int) -> list[dict]:
 
 
 def _prepare(model, backend: str) -> _Shipment:
-    """Derive and compile the sweep's model once, here: a System is derived, a Derivation
+    """Compile the sweep's model once, here (:func:`sweep` has derived a System already): a Derivation
     compiled with ``backend`` (the C library goes to the shared cache), a NumericModel
     shipped by its derivation and its own backend (the NumPy functions are lambdified
     closures that do not pickle; a worker makes them again from the derivation). The model
@@ -642,7 +642,6 @@ def _prepare(model, backend: str) -> _Shipment:
     import hashlib
     import pickle
 
-    from appell.model import System
     from appell.numerics.codegen_c import CompiledNumericModel, compile_c
     from appell.numerics.dynamics import Dynamics
     from appell.numerics.numeric import NumericModel
@@ -654,10 +653,6 @@ def _prepare(model, backend: str) -> _Shipment:
         _model_on_worker(shipment)
         return shipment
     else:
-        if isinstance(model, System):
-            from appell.core.derive import derive
-
-            model = derive(model)
         numeric, derivation = compile_c(model, backend), model
     derivation = _symbolic(derivation)
     compiled = isinstance(numeric, CompiledNumericModel)
