@@ -239,9 +239,14 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
         opts["t_eval"] = [t0]
     solution = simulate(model, t_end, t0=t0, **opts)
     if solution.status < 0:
+        singular = [e for e in solution.events if e.kind == "singular"]
+        hint = ("try another integration method or tighter tolerances ([simulation] method, rtol, atol), "
+                "or a shorter --t-end")
+        if singular:
+            hint = (f"end the run before it (--t-end below {singular[-1].t:.6g}) or change the geometry or the "
+                    "start so that the motion avoids this position; appell does not pass singular positions yet")
         raise ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
-                               hint="try another integration method or tighter tolerances "
-                                    "([simulation] method, rtol, atol), or a shorter --t-end")
+                               hint=hint)
     return solution
 
 

@@ -72,6 +72,7 @@ from appell.simulation.impact import impact
 from appell.numerics.friction import FrictionLaws
 from appell.simulation.stickslip import initial_mode, stick_slip_watches, transition
 from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, residual_jacobians
+from appell.simulation.singular import RankWatch
 from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 
@@ -606,6 +607,8 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         from tqdm import tqdm
 
         bar = tqdm(total=t_end - t0, file=sys.stderr, unit="s", desc=f"simulating {model.name}", leave=False)
+    scales: dict = {}  # each constraint row's size at its first sight (appell.simulation.singular)
+    rank = RankWatch(active, p, t, y, scales)
     try:
         start(t, y)
         while t < t_end:
@@ -615,7 +618,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                     # the compiled loop: without watched events, the steps that need no
                     # projection run and record in C; the last one is handled below
                     k0, out = k, run.loop_outputs(active, t_eval)
-                    if watches or run.settings["project_output"]:
+                    if watches or run.settings["project_output"] or rank.active:
                         msg = solver.step()
                     else:
                         k, msg = solver.advance(k, projection_tol if stabilization == "projection" else np.inf)
@@ -638,6 +641,19 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
             dense = solver.dense_output()
             try:
                 ev_new = run.evaluate(active, t_new, y_new)
+                if rank.model is not active:
+                    rank = RankWatch(active, p, t, y, scales)
+                singular = rank.step(t_new, y_new, dense)
+                if singular is not None:
+                    before = int(np.searchsorted(t_eval, singular.t, side="left"))
+                    run.record_many(active, t_eval[k:before], dense)
+                    k = max(k, before)
+                    run.events.append(EventRecord("singular", ", ".join(singular.constraints), singular.t,
+                                                  singular.describe()))
+                    status, message = -1, singular.describe()
+                    if bar is not None:
+                        bar.update(singular.t - t)
+                    break
                 g_new = [w.g(t_new, y_new, ev_new, p) for w in watches]
                 hits = []
                 for i, w in enumerate(watches):

@@ -1,0 +1,138 @@
+"""Singular configurations met along a run: where the constraint Jacobian loses rank.
+
+At a singular configuration of the constraints (the change point of a parallelogram
+four-bar, the tip of the cusp ``y^2 = x^3``) the constraint Jacobian ``J = df/da`` loses
+rank: no partition satisfies condition (1.2), the reactions in the lost direction are
+undetermined, and beyond it the equations of motion do not say on which branch the
+motion goes on. A run that passes such a point picks a branch by its rounding errors,
+so two backends or two tolerances can leave on different branches (issue 20). The run
+therefore stops there, with the time and the constraints involved.
+
+The measure is the smallest singular value of the Jacobian with every constraint row
+scaled by its size at the start of the run (largest entry one),
+
+    g(t) = sigma_min( D_0 J(q(t), w(t)) ),   D_0 = diag(1 / max_j |J_rj(t0)|),
+
+so that a row that vanishes (the cusp: ``df/da = (3x^2, -2y)``) counts as well as rows
+that become dependent; the row-normalised condition number of the split cannot see the
+first. An integrator strides over the point where ``g`` touches zero (a V-shaped dip of
+width far below one step at loose tolerances), so step ends alone miss it: after each
+accepted step, when ``g`` at the previous step's end is a local minimum of the step ends
+(or ``g`` at this one is below the level already), ``g`` is minimised over the last two
+steps on their dense output (bounded Brent). A minimum below :data:`SINGULAR_LEVEL` is a
+singular configuration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+#: ``g`` (the smallest singular value of the start-scaled constraint Jacobian, module
+#: docstring) below which the configuration counts as singular. Passing within this of a
+#: rank loss, the reactions grow beyond 1/SINGULAR_LEVEL times their size at the start
+#: and the branch taken depends on the rounding: the run stops.
+SINGULAR_LEVEL = 1e-4
+#: a step end counts as a dip worth minimising over when its ``g`` is a local minimum
+#: below this fraction of the larger neighbour (a flat minimum of a regular motion is
+#: left alone)
+DIP = 0.9
+
+
+@dataclass(frozen=True)
+class SingularPoint:
+    """Where a run meets a singular configuration: time, state, ``g`` there, and the
+    constraints of the lost rank (those with weight in the left singular vector)."""
+
+    t: float
+    y: np.ndarray
+    g: float
+    constraints: tuple[str, ...]
+
+    def describe(self) -> str:
+        return (f"the motion reaches a singular configuration at t = {self.t:.10g}: the constraint Jacobian "
+                f"df/da loses rank (its smallest singular value falls to {self.g:.2g} of its size at the start), "
+                f"constraint(s) {', '.join(self.constraints)} become dependent there. Beyond this point the "
+                "equations do not determine on which branch the motion goes on, nor these reactions")
+
+
+class RankWatch:
+    """The measure ``g`` of one model along a run (module docstring).
+
+    ``step(t, y, dense)`` after each accepted step returns a :class:`SingularPoint` when
+    the last two steps pass a singular configuration, else None. Inactive (always None)
+    for a model without constraints or without ``evaluate_blocks``.
+    """
+
+    def __init__(self, model, p, t0: float, y0, scales: dict | None = None):
+        self.model, self.p = model, p
+        self.names = tuple(getattr(model, "constraint_names", ()))
+        self.blocks = getattr(model, "evaluate_blocks", None)
+        self.active = bool(self.names) and self.blocks is not None
+        self.points: list[tuple[float, float, object]] = []  # (t, g, dense of the step ending there)
+        if not self.active:
+            return
+        self.nq = len(model.coordinate_names)
+        self.nw = len(model.speed_names)
+        J = self.jacobian(t0, y0)
+        if J.shape[0] != len(self.names):  # a model that keeps part of its rows (redundant constraints)
+            self.active = False
+            return
+        big = np.abs(J).max(axis=1) if J.size else np.zeros(0)
+        scales = {} if scales is None else scales  # the run's scales, by constraint: fixed at first sight
+        for name, b in zip(self.names, big):
+            if name not in scales and np.isfinite(b) and b > 0.0:
+                scales[name] = 1.0 / b
+        self.scale = np.array([scales.get(n, 1.0) for n in self.names])
+        self.points.append((float(t0), self.measure_jacobian(J), None))
+
+    def jacobian(self, t, y) -> np.ndarray:
+        y = np.asarray(y, float)
+        return np.asarray(self.blocks(t, y[:self.nq], y[self.nq:self.nq + self.nw], self.p)[2], float)
+
+    def measure_jacobian(self, J) -> float:
+        Js = J * self.scale[:, None]
+        if not np.all(np.isfinite(Js)):
+            return np.inf
+        return float(np.linalg.svd(Js, compute_uv=False)[-1]) if Js.shape[0] <= Js.shape[1] else 0.0
+
+    def measure(self, t, y) -> float:
+        return self.measure_jacobian(self.jacobian(t, y))
+
+    def step(self, t, y, dense) -> SingularPoint | None:
+        if not self.active:
+            return None
+        self.points.append((float(t), self.measure(t, y), dense))
+        del self.points[:-3]
+        if len(self.points) < 3:
+            return None
+        (ta, ga, _), (tb, gb, da), (tc, gc, dc) = self.points
+        if gc >= SINGULAR_LEVEL and not (gb <= ga and gb <= gc and gb < DIP * max(ga, gc)):
+            return None
+        best = min((gb, tb, da), (gc, tc, dc), key=lambda b: b[0])
+        for lo, hi, dense_ in ((ta, tb, da), (tb, tc, dc)):
+            if hi <= lo:
+                continue
+
+            def g(s, dense_=dense_):
+                return self.measure(s, dense_(s))
+
+            res = minimize_scalar(g, bounds=(lo, hi), method="bounded",
+                                  options={"xatol": 1e-14 * max(1.0, abs(hi)) + 1e-3 * (hi - lo) * SINGULAR_LEVEL})
+            if res.fun < best[0]:
+                best = (float(res.fun), float(res.x), dense_)
+        g_min, t_min, dense_ = best
+        if g_min >= SINGULAR_LEVEL:
+            return None
+        y_min = np.asarray(dense_(t_min), float)
+        return SingularPoint(t_min, y_min, g_min, self.dependent_constraints(t_min, y_min))
+
+    def dependent_constraints(self, t, y) -> tuple[str, ...]:
+        """The constraints with weight in the left singular vector of the smallest singular
+        value (the combination of rows that vanishes)."""
+        Js = self.jacobian(t, y) * self.scale[:, None]
+        U = np.linalg.svd(Js)[0]
+        u = np.abs(U[:, -1])
+        return tuple(n for n, v in zip(self.names, u) if v > 1e-3 * u.max()) or self.names

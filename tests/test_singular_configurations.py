@@ -1,0 +1,165 @@
+"""Singular configurations reached mid-run stop the run with a reason (issue 20).
+
+Two motions that reach a rank loss of the constraint Jacobian (appell.simulation.singular):
+
+* a particle on the cusp ``y^2 = x^3``, released at rest at (1, -1) with gravity g along
+  -x. On the lower branch ``y = -x^(3/2)`` energy conservation gives the speed
+  ``sqrt(2 g (1 - x))`` and the arc length ``ds = sqrt(1 + 9x/4) dx``, so the particle
+  reaches the cusp at ``t* = int_0^1 sqrt(1 + 9x/4) / sqrt(2 g (1 - x)) dx`` (quadrature,
+  independent of appell). ``df/da = (3x^2, -2y)`` vanishes there: the reaction needs an
+  infinite force to turn the motion, and the branch beyond is not determined. Before the
+  check it passed the cusp with exit 0 and lambda peaking at 1.4e5.
+* a parallelogram four-bar (crank and rocker 0.5 m, 1 kg; coupler 1 m, 2 kg; pivots
+  1 m apart; gravity -y) started on the parallelogram branch: crank and rocker turn
+  alike (``D = A``) and the coupler translates, so the motion is the one-degree-of-freedom
+  ``J A'' = -(m_1 + m_3 + 2 m_2) g l/2 cos A`` with ``J = (m_1 + m_3) l^2/3 + m_2 l^2``
+  (l = 0.5, energies of the rigid links). At ``A = 0`` the links are collinear: the
+  change point, where the mechanism can also go on as an antiparallelogram. The time the
+  branch's ODE reaches ``A = 0`` (SciPy, its own event) is where the run must stop.
+  Before the check the C and NumPy backends left the point on different branches.
+
+Both backends and two tolerances give the same refusal at the same time.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from scipy.integrate import quad, solve_ivp
+
+import appell
+from appell.examples import example_path
+from appell.io.cli import cli
+from appell.simulation.singular import SINGULAR_LEVEL
+
+G = 9.81
+
+CUSP = """
+[model]
+name = "cusp"
+coordinates = ["x", "y"]
+[parameters]
+m = 1.0
+g = 9.81
+[mechanics]
+kinetic_energy = "m/2*(x'^2 + y'^2)"
+potential_energy = "m*g*x"
+[constraints.cusp]
+kind = "holonomic"
+expr = "y^2 - x^3"
+[initial]
+x = 1.0
+y = -1.0
+"x'" = 0.0
+"y'" = 0.0
+[simulation]
+t_end = 2.0
+"""
+
+
+def parallelogram_text() -> str:
+    """The bundled four-bar made a parallelogram (crank = rocker = 0.5 m, 1 kg each)."""
+    import re
+
+    text = example_path("four_bar").read_text()
+    crank = 'mass = 1.0\ninertia = [0, 0, 0.020833333333333332]\ncom = [0.25, 0, 0]'
+    text = text.replace('mass = 1.0\ninertia = [0, 0, 0.013333333333333336]\ncom = [0.2, 0, 0]', crank)
+    text = text.replace('mass = 1.5\ninertia = [0, 0, 0.08000000000000002]\ncom = [0.4, 0, 0]', crank)
+    text = text.replace("origin = [0.4, 0, 0]", "origin = [0.5, 0, 0]").replace("point_b = [0.8, 0, 0]",
+                                                                              "point_b = [0.5, 0, 0]")
+    start = '[initial]\nA = 1.0\nB = -1.0\nD = 1.0\n"A\'" = 2.0\n"B\'" = -2.0\n"D\'" = 2.0\n\n[simulation]'
+    text = re.sub(r"\[initial\].*?\[simulation\]", start, text, flags=re.S).replace("t_end = 3.0", "t_end = 2.0")
+    assert text.count("0.020833333333333332") == 2 and "point_b = [0.5, 0, 0]" in text
+    return text
+
+
+def cusp_time() -> float:
+    value, _ = quad(lambda x: np.sqrt(1 + 2.25 * x) / np.sqrt(2 * G * (1 - x)), 0.0, 1.0, limit=200)
+    return value
+
+
+def change_point_time() -> float:
+    m1, m2, m3, l = 1.0, 2.0, 1.0, 0.5
+    inertia = (m1 + m3) * l**2 / 3 + m2 * l**2
+    torque = (m1 + m3 + 2 * m2) * G * l / 2
+
+    def flat(t, y):
+        return y[0]
+
+    flat.terminal, flat.direction = True, -1
+    sol = solve_ivp(lambda t, y: [y[1], -torque * np.cos(y[0]) / inertia], (0, 2), [1.0, 2.0], events=flat,
+                    rtol=1e-12, atol=1e-12)
+    return float(sol.t_events[0][0])
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("singular")
+    (folder / "cusp.toml").write_text(CUSP)
+    (folder / "parallelogram.toml").write_text(parallelogram_text())
+    derivations = {name: appell.derive(appell.load_model(folder / f"{name}.toml")) for name in ("cusp", "parallelogram")}
+    return folder, derivations
+
+
+def stop(derivation, backend, rtol):
+    model = derivation if backend == "numpy" else derivation.compiled("c")
+    sol = appell.simulate(model, rtol=rtol, atol=rtol * 1e-3)
+    events = [e for e in sol.events if e.kind == "singular"]
+    return sol, events
+
+
+@pytest.mark.parametrize("name, constraints, expected, within", [
+    # the check stops where g falls below SINGULAR_LEVEL: on the cusp |df/da| ~ 2 x^(3/2) (3 at the
+    # start), at x ~ 3e-3, which the particle (speed sqrt(2 g)) passes about 6e-4 s before the tip
+    ("cusp", ("cusp",), cusp_time, 2e-3),
+    # the four-bar's g dips in a V of width ~ step/1e8 and the minimum is located by Brent on the
+    # dense output: to the integrator's accuracy
+    ("parallelogram", ("C_x",), change_point_time, 1e-6),
+])
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+@pytest.mark.parametrize("rtol", [1e-6, 1e-10])
+def test_a_singular_configuration_stops_every_backend_and_tolerance_at_the_same_time(
+        models, name, constraints, expected, within, backend, rtol):
+    sol, events = stop(models[1][name], backend, rtol)
+    assert sol.status == -1 and "singular configuration" in sol.message
+    assert len(events) == 1 and tuple(events[0].name.split(", ")) == constraints
+    t_star = expected()
+    assert t_star - within <= events[0].t <= t_star + 1e-6
+    # nothing is recorded beyond the point (the branch there is not determined)
+    assert sol.t[-1] <= events[0].t + 1e-9
+
+
+def test_the_command_line_refuses_with_the_time_and_writes_nothing(models, tmp_path):
+    folder, _ = models
+    out = tmp_path / "motion.csv"
+    result = CliRunner().invoke(cli, ["simulate", str(folder / "parallelogram.toml"), "--out", str(out)])
+    assert result.exit_code == 1
+    lines = result.stderr.strip().splitlines()
+    assert lines[0].startswith("error: the simulation of 'four_bar' failed: the motion reaches a singular "
+                               f"configuration at t = {change_point_time():.6f}")
+    assert "C_x" in lines[0] and "--t-end below" in lines[1]
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_a_run_that_ends_before_the_point_is_untouched(models):
+    """The same four-bar stopped short of the change point: no event, and the motion is the
+    branch's one-degree-of-freedom solution (D = A)."""
+    t_end = change_point_time() - 0.05
+    sol = appell.simulate(models[1]["parallelogram"], t_end, rtol=1e-10, atol=1e-13)
+    assert sol.status == 0 and not [e for e in sol.events if e.kind == "singular"]
+    A, D = sol.y[0], sol.y[2]
+    np.testing.assert_allclose(D, A, atol=1e-8)  # rtol 1e-10 over a second: states to ~1e-9
+
+
+def test_a_regular_closed_loop_never_triggers_the_check():
+    """The bundled Grashof four-bar turns its crank through whole revolutions: its constraint
+    Jacobian keeps full rank, and its smallest scaled singular value stays far above the level."""
+    derivation = appell.derive(appell.load_model("four_bar"))
+    sol = appell.simulate(derivation)
+    assert sol.status == 0 and not [e for e in sol.events if e.kind == "singular"]
+    from appell.simulation.singular import RankWatch
+
+    watch = RankWatch(derivation.numeric, derivation.numeric.params(), sol.t[0], sol.y[:, 0])
+    g = [watch.measure(t, y) for t, y in zip(sol.t[::10], sol.y[:, ::10].T)]
+    assert min(g) > 100 * SINGULAR_LEVEL
