@@ -78,6 +78,12 @@ def loop_library():
     lib.appell_loop_evaluate_many.restype = _I
     lib.appell_loop_state.argtypes = [_P, _P]
     lib.appell_loop_state.restype = None
+    lib.appell_loop_watch.argtypes = [_P, _P, _P, _D, _D]
+    lib.appell_loop_watch.restype = _I
+    lib.appell_loop_previous.argtypes = [_P, _P]
+    lib.appell_loop_previous.restype = _I
+    lib.appell_loop_dense_previous.argtypes = [_P, _L, _P, _P]
+    lib.appell_loop_dense_previous.restype = _I
     _LIBRARY.append(lib)
     return lib
 
@@ -152,6 +158,17 @@ class CompiledLoop:
         except BaseException as exc:  # noqa: BLE001 - re-raised in Python after the C call returns
             self.error = exc
             return -1
+
+    def watch(self, scale, level: float, dip: float):
+        """Switch on the rank watch of ``dop853.c`` (:mod:`appell.simulation.singular`): the loop
+        returns to Python where the start-scaled constraint Jacobian (row scales ``scale``)
+        dips, and keeps the previous step for :meth:`LoopSolver.previous_dense_output`."""
+        self.scale = np.ascontiguousarray(scale, dtype=float)
+        if self.scale.shape != (self.s,):
+            raise ValueError(f"the watch needs {self.s} row scales, got shape {self.scale.shape}")
+        if self.lib.appell_loop_watch(self.ctx, ctypes.cast(self.model._lib.appell_blocks, _P).value,
+                                      self.scale.ctypes.data, float(level), float(dip)):
+            raise MemoryError("the compiled loop could not allocate the work arrays of its rank watch")
 
     def raise_failure(self, t: float):
         """Raise the error of the Python evaluation that stopped the C code (or say that the
@@ -259,6 +276,25 @@ class LoopSolver:
         if self.t >= self.t_bound:
             self.status = "finished"
         return self._k.value, None
+
+    def previous_dense_output(self):
+        """``(t_start, t_end, f)``: the step before the last one and its interpolant (as
+        :meth:`dense_output`), kept while the rank watch is on; None when none is kept."""
+        loop = self.loop
+        span = np.empty(2)
+        if not loop.lib.appell_loop_previous(loop.ctx, span.ctypes.data):
+            return None
+
+        def dense(s):
+            ts = np.asarray(s, dtype=float)
+            flat = np.ascontiguousarray(ts.reshape(-1))
+            ys = np.empty((flat.size, loop.ny))
+            if loop.lib.appell_loop_dense_previous(loop.ctx, flat.size, flat.ctypes.data, ys.ctypes.data):
+                loop.raise_failure(self.t)
+            self._read()
+            return ys[0] if ts.ndim == 0 else ys.T
+
+        return float(span[0]), float(span[1]), dense
 
     def dense_output(self):
         """The interpolant of the last step: ``f(s)`` is the state at ``s`` (shape (ny,)), or

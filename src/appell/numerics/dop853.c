@@ -17,7 +17,14 @@
    and it is called again at the first state the compiled split accepts afterwards (so that
    Python logs the return of the partition). The loop returns to Python after a step whose
    end needs it: a projection onto the constraints is due, the final time is reached, or
-   every step when Python watches events. */
+   every step when Python watches events.
+
+   The rank watch (appell.simulation.singular): with appell_loop_watch, the loop follows
+   g~ = sqrt of the smallest pivot of the pivoted Cholesky factorisation of (D0 J)(D0 J)^T
+   at every step's end (D0 the start scaling of the constraint rows; g~ >= sigma_min(D0 J))
+   and returns to Python where g~ at the previous step's end is a local minimum with a dip,
+   or g~ falls below the level: Python then minimises the exact measure over the last two
+   steps, the previous one through appell_loop_dense_previous (its stages are kept). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -63,6 +70,8 @@ typedef void (*residuals_fn)(double t, const double *q, const double *w, const d
                              double *F, double *phi);
 /* Python's evaluation: 0 done with the derivation's partition, 1 done with another, -1 failed */
 typedef int (*fallback_fn)(double t, const double *y, double *dy, double *lam);
+typedef void (*blocks_fn)(double t, const double *q, const double *w, const double *a, const double *p,
+                          double *M, double *hQ, double *J, double *c);
 
 typedef struct {
     int nq, n, s, ny;
@@ -84,6 +93,14 @@ typedef struct {
     const double *t_eval;
     long n_eval;
     double *rec_y, *rec_acc, *rec_lam, *rec_F, *rec_phi;
+    /* the rank watch (NULL blocks: off) and the previous step (its stages, for its dense output) */
+    blocks_fn blocks;
+    const double *wscale;
+    double wlevel, wdip, g0, g1;
+    double *wmem, *wM, *whQ, *wJ, *wc, *wG;
+    int have_prev, prev_dense_ready;
+    double p_t_old, p_t, p_h;
+    double *p_y_old, *p_y, *p_f, *p_K, *p_Fd;
 } appell_loop;
 
 appell_loop *appell_loop_new(int nq, int n, int s)
@@ -103,7 +120,7 @@ appell_loop *appell_loop_new(int nq, int n, int s)
 
 void appell_loop_free(appell_loop *c)
 {
-    if (c) { free(c->mem); free(c); }
+    if (c) { free(c->mem); free(c->wmem); free(c); }
 }
 
 void appell_loop_model(appell_loop *c, evaluate_fn evaluate, residuals_fn residuals, fallback_fn fallback,
@@ -115,6 +132,65 @@ void appell_loop_model(appell_loop *c, evaluate_fn evaluate, residuals_fn residu
 }
 
 void appell_loop_set_switched(appell_loop *c, int switched) { c->switched = switched; }
+
+/* switch the rank watch on (header comment): blocks the model's appell_blocks, scale the s row
+   scales D0, level and dip as in appell.simulation.singular. 0, or -1 out of memory */
+int appell_loop_watch(appell_loop *c, blocks_fn blocks, const double *scale, double level, double dip)
+{
+    int n = c->n, s = c->s, ny = c->ny;
+    size_t size = (size_t)n * n + n + (size_t)s * n + s + (size_t)s * s + (size_t)ny * (3 + NK + NF);
+    free(c->wmem);
+    c->wmem = calloc(size, sizeof(double));
+    if (!c->wmem) { c->blocks = NULL; return -1; }
+    c->wM = c->wmem; c->whQ = c->wM + (size_t)n * n; c->wJ = c->whQ + n; c->wc = c->wJ + (size_t)s * n;
+    c->wG = c->wc + s; c->p_y_old = c->wG + (size_t)s * s; c->p_y = c->p_y_old + ny; c->p_f = c->p_y + ny;
+    c->p_K = c->p_f + ny; c->p_Fd = c->p_K + NK * ny;
+    c->blocks = blocks; c->wscale = scale; c->wlevel = level; c->wdip = dip;
+    c->have_prev = 0; c->g0 = c->g1 = NAN;
+    return 0;
+}
+
+/* g~ at (t, y): sqrt of the smallest pivot of pivoted Cholesky on G = (D0 J)(D0 J)^T */
+static double watch_measure(appell_loop *c, double t, const double *y)
+{
+    int n = c->n, s = c->s;
+    double *J = c->wJ, *G = c->wG;
+    c->blocks(t, y, y + c->nq, NULL, c->p, c->wM, c->whQ, J, c->wc);
+    for (int i = 0; i < s; ++i)
+        for (int j = 0; j <= i; ++j) {
+            double acc = 0.0;
+            for (int k = 0; k < n; ++k) acc += J[i * n + k] * J[j * n + k];
+            G[i * s + j] = G[j * s + i] = acc * c->wscale[i] * c->wscale[j];
+        }
+    double smallest = INFINITY;
+    for (int k = 0; k < s; ++k) {
+        int piv = k;
+        for (int i = k + 1; i < s; ++i) if (G[i * s + i] > G[piv * s + piv]) piv = i;
+        if (piv != k) {  /* symmetric swap of rows and columns k and piv */
+            for (int j = 0; j < s; ++j) { double v = G[k * s + j]; G[k * s + j] = G[piv * s + j]; G[piv * s + j] = v; }
+            for (int i = 0; i < s; ++i) { double v = G[i * s + k]; G[i * s + k] = G[i * s + piv]; G[i * s + piv] = v; }
+        }
+        double d = G[k * s + k];
+        if (!(d > 0.0)) return isnan(d) ? INFINITY : 0.0;  /* not finite: left to the model's own checks */
+        if (d < smallest) smallest = d;
+        for (int i = k + 1; i < s; ++i) {
+            double l = G[i * s + k] / d;
+            for (int j = k + 1; j <= i; ++j) G[i * s + j] -= l * G[j * s + k];
+        }
+        for (int i = k + 1; i < s; ++i)
+            for (int j = k + 1; j < i; ++j) G[j * s + i] = G[i * s + j];
+    }
+    return sqrt(smallest);
+}
+
+/* the watch after an accepted step: 1 when Python should look (a dip or the level), else 0 */
+static int watch_step(appell_loop *c)
+{
+    double g = watch_measure(c, c->t, c->y);
+    int look = g < c->wlevel || (c->g1 <= c->g0 && c->g1 <= g && c->g1 < c->wdip * fmax(c->g0, g));
+    c->g0 = c->g1; c->g1 = g;
+    return look;
+}
 
 static double nan0(double x) { return isnan(x) ? 0.0 : x; }
 
@@ -180,9 +256,13 @@ int appell_loop_start(appell_loop *c, double t0, const double *y0, double t_boun
                       double max_step, double first_step)
 {
     c->t = c->t_old = t0; c->t_bound = t_bound; c->rtol = rtol; c->atol = atol; c->max_step = max_step;
-    c->h_prev = NAN; c->dense_ready = 0;
+    c->h_prev = NAN; c->dense_ready = 0; c->have_prev = 0;
     memcpy(c->y, y0, sizeof(double) * c->ny);
     if (rhs(c, t0, c->y, c->f)) return -2;
+    if (c->blocks) {  /* a restart: its start may be the bottom of a dip (g0 above everything) */
+        c->g0 = INFINITY;
+        c->g1 = watch_measure(c, t0, c->y);
+    }
     memcpy(c->lam, c->lamt, sizeof(double) * (c->s > 0 ? c->s : 1));
     if (first_step > 0.0) { c->h_abs = first_step; return 0; }
     return initial_step(c, &c->h_abs) ? -2 : 0;
@@ -203,6 +283,16 @@ static int step(appell_loop *c)
     double min_step = 10.0 * fabs(nextafter(t, INFINITY) - t);
     double h_abs = c->h_abs > c->max_step ? c->max_step : (c->h_abs < min_step ? min_step : c->h_abs);
     int rejected = 0;
+    c->have_prev = 0;
+    if (c->blocks && !isnan(c->h_prev)) {  /* the step that ends here becomes the previous one */
+        c->p_t_old = c->t_old; c->p_t = c->t; c->p_h = c->h_prev; c->prev_dense_ready = c->dense_ready;
+        memcpy(c->p_y_old, c->y_old, sizeof(double) * ny);
+        memcpy(c->p_y, c->y, sizeof(double) * ny);
+        memcpy(c->p_f, c->f, sizeof(double) * ny);
+        memcpy(c->p_K, c->K, sizeof(double) * NK * ny);
+        memcpy(c->p_Fd, c->Fd, sizeof(double) * NF * ny);
+        c->have_prev = 1;
+    }
     for (;;) {
         if (h_abs < min_step) return -1;
         double t_new = t + h_abs;
@@ -252,40 +342,48 @@ static int step(appell_loop *c)
     }
 }
 
-/* the three extra stages and the coefficient vectors Fd of the interpolant of the last step */
-static int dense_prepare(appell_loop *c)
+/* the three extra stages and the coefficient vectors Fd of the interpolant of a step from
+   (t_old, y_old) of size h to y_end with f_end there, stages K */
+static int prepare(appell_loop *c, double t_old, double h, const double *y_old, const double *y_end,
+                   const double *f_end, double *K, double *Fd)
 {
-    if (c->dense_ready) return 0;
     int ny = c->ny;
-    double h = c->h_prev, *K = c->K, *yt = c->ytmp, *Fd = c->Fd;
+    double *yt = c->ytmp;
     for (int s = NS + 1; s < NK; ++s) {
         for (int i = 0; i < ny; ++i) {
             double acc = 0.0;
             for (int j = 0; j < s; ++j) acc += K[j * ny + i] * A_[s][j];
-            yt[i] = c->y_old[i] + acc * h;
+            yt[i] = y_old[i] + acc * h;
         }
-        if (rhs(c, c->t_old + C_[s] * h, yt, K + s * ny)) return -2;
+        if (rhs(c, t_old + C_[s] * h, yt, K + s * ny)) return -2;
     }
     for (int i = 0; i < ny; ++i) {
-        double dy = c->y[i] - c->y_old[i], f0 = K[i];
+        double dy = y_end[i] - y_old[i], f0 = K[i];
         Fd[i] = dy;
         Fd[ny + i] = h * f0 - dy;
-        Fd[2 * ny + i] = 2.0 * dy - h * (c->f[i] + f0);
+        Fd[2 * ny + i] = 2.0 * dy - h * (f_end[i] + f0);
         for (int r = 0; r < NF - 3; ++r) {
             double acc = 0.0;
             for (int j = 0; j < NK; ++j) acc += D_[r][j] * K[j * ny + i];
             Fd[(3 + r) * ny + i] = h * acc;
         }
     }
+    return 0;
+}
+
+/* the interpolant of the last step */
+static int dense_prepare(appell_loop *c)
+{
+    if (c->dense_ready) return 0;
+    if (prepare(c, c->t_old, c->h_prev, c->y_old, c->y, c->f, c->K, c->Fd)) return -2;
     c->dense_ready = 1;
     return 0;
 }
 
-static void interpolate(const appell_loop *c, double t, double *out)
+static void interpolate_step(int ny, const double *Fd, const double *y_old, double t_old, double t_end, double t,
+                             double *out)
 {
-    int ny = c->ny;
-    const double *Fd = c->Fd;
-    double x = (t - c->t_old) / (c->t - c->t_old), u = 1.0 - x;
+    double x = (t - t_old) / (t_end - t_old), u = 1.0 - x;
     for (int i = 0; i < ny; ++i) {
         double v = Fd[6 * ny + i] * x;
         v = (v + Fd[5 * ny + i]) * u;
@@ -294,8 +392,34 @@ static void interpolate(const appell_loop *c, double t, double *out)
         v = (v + Fd[2 * ny + i]) * x;
         v = (v + Fd[ny + i]) * u;
         v = (v + Fd[i]) * x;
-        out[i] = v + c->y_old[i];
+        out[i] = v + y_old[i];
     }
+}
+
+static void interpolate(const appell_loop *c, double t, double *out)
+{
+    interpolate_step(c->ny, c->Fd, c->y_old, c->t_old, c->t, t, out);
+}
+
+/* the previous step (the one before the last): 1 and its times in span[0..1], or 0 when
+   there is none kept (the watch is off, or the last step is the first since a start) */
+int appell_loop_previous(const appell_loop *c, double *span)
+{
+    if (!c->have_prev) return 0;
+    span[0] = c->p_t_old; span[1] = c->p_t;
+    return 1;
+}
+
+/* the states ys (m x ny) at the times ts of the previous step; 0, -1 none kept, -2 model failed */
+int appell_loop_dense_previous(appell_loop *c, long m, const double *ts, double *ys)
+{
+    if (!c->have_prev) return -1;
+    if (!c->prev_dense_ready) {
+        if (prepare(c, c->p_t_old, c->p_h, c->p_y_old, c->p_y, c->p_f, c->p_K, c->p_Fd)) return -2;
+        c->prev_dense_ready = 1;
+    }
+    for (long k = 0; k < m; ++k) interpolate_step(c->ny, c->p_Fd, c->p_y_old, c->p_t_old, c->p_t, ts[k], ys + k * c->ny);
+    return 0;
 }
 
 /* the states ys (m x ny) at the times ts of the last step (Fortran's contd8); 0 or -2 */
@@ -361,6 +485,7 @@ int appell_loop_advance(appell_loop *c, int single, double projection_tol, long 
         int r = step(c);
         if (r) return r;
         if (single || c->t >= c->t_bound) return 1;
+        if (c->blocks && c->s > 0 && watch_step(c)) return 1;
         if (projection_tol < INFINITY && c->s > 0) {
             double worst = 0.0;
             c->residuals(c->t, c->y, c->y + c->nq, NULL, c->p, c->Fr, c->phi);

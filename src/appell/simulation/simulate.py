@@ -72,7 +72,7 @@ from appell.simulation.impact import impact
 from appell.numerics.friction import FrictionLaws
 from appell.simulation.stickslip import initial_mode, stick_slip_watches, transition
 from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, residual_jacobians
-from appell.simulation.singular import RankWatch
+from appell.simulation.singular import DIP, SINGULAR_LEVEL, RankWatch
 from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 
@@ -529,16 +529,24 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
 
     t, y = t0, y0
     state = {"solver": None, "active": None}
+    rank = None  # the rank watch of the active model (appell.simulation.singular)
 
     def fun(tt, yy):
         run.nfev += 1
         return run.evaluate(state["active"], tt, yy).derivative
 
+    scales: dict = {}  # each constraint row's size at its first sight (appell.simulation.singular)
+
     def start(tt, yy, first_step=None):
+        nonlocal rank
         kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
         if first_step is not None:
             kw["first_step"] = min(first_step, t_end - tt)
+        if rank is None or rank.model is not state["active"]:
+            rank = RankWatch(state["active"], p, tt, yy, scales)
         loop = run.loop(state["active"]) if compiled else None
+        if loop is not None and rank.active and getattr(loop, "scale", None) is None:
+            loop.watch(rank.scale, 10.0 * SINGULAR_LEVEL, DIP)
         if loop is None:
             state["solver"] = solver_cls(fun, tt, yy, t_end, **kw)
             return
@@ -607,8 +615,6 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         from tqdm import tqdm
 
         bar = tqdm(total=t_end - t0, file=sys.stderr, unit="s", desc=f"simulating {model.name}", leave=False)
-    scales: dict = {}  # each constraint row's size at its first sight (appell.simulation.singular)
-    rank = RankWatch(active, p, t, y, scales)
     try:
         start(t, y)
         while t < t_end:
@@ -618,13 +624,17 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                     # the compiled loop: without watched events, the steps that need no
                     # projection run and record in C; the last one is handled below
                     k0, out = k, run.loop_outputs(active, t_eval)
-                    if watches or run.settings["project_output"] or rank.active:
+                    single = bool(watches or run.settings["project_output"])
+                    if single:
                         msg = solver.step()
                     else:
                         k, msg = solver.advance(k, projection_tol if stabilization == "projection" else np.inf)
                     if k > k0:
                         ys_, acc_, lam_, F_, phi_ = out.rows(k0, k)
                         run.add_block(active, t_eval[k0:k], ys_, acc_, lam_, np.zeros((k - k0, 0)), F_, phi_)
+                    previous = None if single else solver.previous_dense_output()
+                    if previous is not None:  # the steps before this one ran in C: their last one
+                        rank.seed(*previous)
                     nfev, steps = solver.counts()
                     run.nfev += nfev
                     run.steps += steps - 1
@@ -641,8 +651,6 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
             dense = solver.dense_output()
             try:
                 ev_new = run.evaluate(active, t_new, y_new)
-                if rank.model is not active:
-                    rank = RankWatch(active, p, t, y, scales)
                 singular = rank.step(t_new, y_new, dense)
                 if singular is not None:
                     before = int(np.searchsorted(t_eval, singular.t, side="left"))

@@ -101,6 +101,13 @@ class RankWatch:
     def measure(self, t, y) -> float:
         return self.measure_jacobian(self.jacobian(t, y))
 
+    def seed(self, t_start: float, t_end: float, dense) -> None:
+        """Take the previous step from elsewhere (the compiled loop, which ran the steps
+        before this one in C): the history becomes its start and its end."""
+        if self.active:
+            self.points = [(t_start, self.measure(t_start, dense(t_start)), None),
+                           (t_end, self.measure(t_end, dense(t_end)), dense)]
+
     def step(self, t, y, dense) -> SingularPoint | None:
         if not self.active:
             return None
