@@ -1,5 +1,8 @@
 """The URDF reader on untrusted and broken files (issue 12 §3): no entity expansion, no
-external entity, nothing else opened; every error names the file and the line."""
+external entity, nothing else opened; every error names the file and the line. Issue 20:
+non-physical inertias and masses, names appell cannot use (reserved, derived, too long,
+odd characters), broken mimics and foreign encodings are refused naming the link or
+joint, the line and what to do, on the command line as one error line with a hint."""
 
 from __future__ import annotations
 
@@ -127,3 +130,269 @@ def test_arm_description_keeps_origins_axes_and_inertias():
     upper = robot.link("upper").inertial
     assert upper.mass == 2.0 and upper.xyz == (0.02, 0.01, 0.2) and upper.rpy == (0.1, -0.2, 0.3)
     assert upper.inertia_matrix[0] == (0.030, 0.001, -0.002)
+
+
+# ----------------------------------------------------------------------------- issue 20
+# Hostile or non-physical content: refused with the link or joint, the file and the line,
+# and what to do; never a traceback, never minutes of work.
+
+def _chain(*names: str, inner: dict | None = None) -> str:
+    """A base and one link per joint: link ``l<k>`` on line ``4 + 2k``, joint ``names[k]``
+    (continuous, about y, child ``l<k>``) on line ``5 + 2k``; ``inner`` adds elements to joints."""
+    lines, parent = [LINK.format("base")], "base"
+    for k, name in enumerate(names):
+        lines += [LINK.format(f"l{k}"), f'<joint name="{name}" type="continuous"><parent link="{parent}"/>'
+                                        f'<child link="l{k}"/><axis xyz="0 1 0"/>{(inner or {}).get(name, "")}</joint>']
+        parent = f"l{k}"
+    return _robot("\n".join(lines))
+
+
+def _arm(mass: str, inertia: str) -> str:
+    """Link ``arm`` with ``<inertial>`` and ``<mass>`` on line 5 and ``<inertia>`` on line 6."""
+    return _robot(LINK.format("base") + '\n<link name="arm">\n  <inertial><mass value="' + mass + '"/>\n'
+                  f'  <inertia {inertia}/></inertial>\n</link>\n'
+                  '<joint name="j" type="continuous"><parent link="base"/><child link="arm"/></joint>')
+
+
+def _inertia(xx, yy, zz, xy=0, xz=0, yz=0) -> str:
+    return f'ixx="{xx}" ixy="{xy}" ixz="{xz}" iyy="{yy}" iyz="{yz}" izz="{zz}"'
+
+
+@pytest.mark.parametrize("mass, inertia, message, line", [
+    ("1", _inertia(1, 1, 1, xy=2), r"not positive semi-definite \(a principal moment is -1\)", 5),
+    ("1", _inertia(1, 1, 3), "principal moments 1, 1, 3 violate the triangle inequality", 5),
+    # the diagonal alone passes; the products of inertia make the principal moments 0.5, 0.5, 2
+    ("1", _inertia(1, 1, 1, 0.5, 0.5, 0.5), "principal moments 0.5, 0.5, 2 violate the triangle", 5),
+    ("-1", _inertia(1, 1, 1), "mass -1.0 must be positive", 5),
+    ("0", _inertia(1, 1, 1), "mass 0 with a non-zero inertia", 5),
+    ("inf", _inertia(1, 1, 1), "'inf' is not a finite number", 5),
+    ("1", _inertia(1, "nan", 1), "'nan' is not a finite number", 6),
+])
+def test_non_physical_mass_or_inertia_names_the_link(mass, inertia, message, line):
+    with pytest.raises(ModelError, match=message) as err:
+        parse_urdf(_arm(mass, inertia), "i.urdf")
+    assert "'arm'" in err.value.message and err.value.where == f"i.urdf:{line}"
+    assert err.value.hint
+
+
+def test_mass_zero_and_inertia_zero_is_a_massless_frame():
+    """Robot files write tool and sensor frames as mass 0, inertia 0: such a link is massless
+    (as without <inertial>) and merged into its parent when fixed to it; on a moving joint
+    with nothing beyond it, it is refused as a massless link."""
+    from appell.mechanism.urdf import urdf_system
+
+    frame = '<link name="tool"><inertial><mass value="0"/><inertia ' + _inertia(0, 0, 0) + '/></inertial></link>'
+    text = _chain("j").replace("\n</robot>", f'\n{frame}\n<joint name="tcp" type="fixed"><parent link="l0"/>'
+                                             '<child link="tool"/></joint>\n</robot>')
+    robot = parse_urdf(text, "f.urdf")
+    assert robot.link("tool").inertial is None
+    assert [q.name for q in urdf_system(robot).coordinates] == ["j"]
+    with pytest.raises(ModelError, match="link 'tool' has no <inertial>: nothing moves with joint 'tcp'"):
+        urdf_system(parse_urdf(text.replace('type="fixed"', 'type="continuous"'), "f.urdf"))
+
+
+def test_the_root_links_inertia_is_not_used_nor_checked():
+    """The root link is the ground: a placeholder inertia there (robot files write
+    ixx = ixy = ... = 1e-6) changes nothing and is not refused."""
+    text = _chain("j").replace(LINK.format("base"), LINK.format("base").replace('ixy="0"', 'ixy="3"'), 1)
+    assert parse_urdf(text, "r.urdf").root == "base"
+
+
+@pytest.mark.parametrize("name, message", [
+    ("sin", "joint name 'sin' is reserved"),
+    ("pi", "joint name 'pi' is reserved"),
+    ("E", "joint name 'E' is reserved"),
+    ("t", "joint name 't' is reserved"),
+    ("a__b", "joint name 'a__b' is not valid"),
+    ("7up", r"joint '7up' \(named '_7up' in appell\): joint name '_7up' is not valid"),
+    ("\u00e9lan", "joint name '_lan' is not valid"),
+    ("lambda_c", "names starting with lambda_, control_, residual_ are those of result columns"),
+    ("residual_c", "are those of result columns"),
+])
+def test_reserved_and_invalid_joint_names_are_refused(name, message):
+    from appell.mechanism.urdf import urdf_system
+
+    with pytest.raises(ModelError, match=message) as err:
+        urdf_system(parse_urdf(_chain("a", name), "n.urdf"))
+    assert f"joint {name!r}" in err.value.message and err.value.where == "n.urdf:7"
+    assert "rename the joint" in err.value.hint
+
+
+@pytest.mark.parametrize("first, second, message", [
+    ("x", "x_dot", "the name 'x_dot' is used twice: as a coordinate and as a speed"),
+    ("x_dot", "x", "the name 'x_dot' is used twice"),
+    ("x", "x_ddot", "'x_ddot' is reserved: it is the name of the second time derivative of the coordinate 'x'"),
+    ("a", "F_a_x", "its column 'F_a_x' is the reaction column of joint 'a'"),
+])
+def test_a_joint_named_like_another_joints_derived_names_is_refused(first, second, message):
+    from appell.mechanism.urdf import urdf_system
+
+    with pytest.raises(ModelError, match=message) as err:
+        urdf_system(parse_urdf(_chain(first, second), "d.urdf"))
+    culprit = "x_dot" if "x_dot" in (first, second) else second
+    line = 5 if culprit == first else 7
+    assert err.value.message.startswith(f"joint {culprit!r}") and err.value.where == f"d.urdf:{line}"
+
+
+def test_a_reserved_link_name_is_refused():
+    from appell.mechanism.urdf import urdf_system
+
+    with pytest.raises(ModelError, match="link 'cos': link name 'cos' is reserved") as err:
+        urdf_system(parse_urdf(_chain("a").replace('"l0"', '"cos"'), "l.urdf"))
+    assert err.value.where == "l.urdf:4"
+
+
+def test_urdf_names_follow_the_model_files_rule():
+    """The URDF reader restates the model files' name rule (the mechanism layer may not
+    import io): both accept and refuse the same names."""
+    from appell.io.modelfile.expressions import MAX_NAME, RESERVED_NAMES
+    from appell.io.modelfile.loader import _Reader
+    from appell.mechanism import urdf
+
+    assert urdf._RESERVED == RESERVED_NAMES and urdf.MAX_NAME == MAX_NAME
+    for name in sorted(RESERVED_NAMES) + ["x", "x1", "a_b", "a__b", "_a", "A9_", "x" * 64, "x" * 65, "I", "g2"]:
+        try:
+            _Reader("", "m.toml").name((), name, "joint")
+            model_file = True
+        except ModelError:
+            model_file = False
+        try:
+            urdf._appell_name(name, "joint", "j.urdf:1")
+            in_urdf = True
+        except ModelError:
+            in_urdf = False
+        assert in_urdf == model_file, name
+
+
+@pytest.mark.parametrize("place", ["joint", "link", "parent"])
+def test_a_ten_million_character_name_is_refused_at_once(place):
+    """Refused before any other work (measured: well under a second); the message shows the
+    start of the name and its length, not the name."""
+    long = "q" * 10_000_000
+    text = _chain("a")
+    text = {"joint": text.replace('name="a"', f'name="{long}"'),
+            "link": text.replace('<link name="l0">', f'<link name="{long}">'),
+            "parent": text.replace('<parent link="base"/>', f'<parent link="{long}"/>')}[place]
+    with pytest.raises(ModelError, match="a name has at most 64 characters") as err:
+        parse_urdf(text, "long.urdf")
+    assert "(10000000 characters)" in err.value.message and len(str(err.value)) < 400
+    assert err.value.where == f"long.urdf:{4 if place == 'link' else 5}"
+
+
+def test_slashes_quotes_and_spaces_in_names_become_underscores():
+    """Characters other than ASCII letters, digits and _ never reach an appell name (and
+    so no generated code or file name): each becomes _."""
+    from appell.mechanism.urdf import urdf_system
+
+    text = _chain("arm/1 x").replace('"l0"', '"fore&quot;arm/L"')
+    system = urdf_system(parse_urdf(text, "c.urdf"))
+    assert [q.name for q in system.coordinates] == ["arm_1_x"]
+    assert [b.name for b in system.bodies] == ["fore_arm_L"]
+    names = [s.name for s in system.coordinates + system.speeds] + [o.name for o in system.outputs]
+    assert all(n.isascii() and n.isidentifier() for n in names), names
+
+
+@pytest.mark.parametrize("text, message, line", [
+    (_chain("a b", "a/b"), "joint 'a/b' and joint 'a b' have the same appell name 'a_b'", 7),
+    (_chain("a").replace('"l0"', '"arm /L"'), r"link 'arm /L' \(named 'arm__L' in appell\)", 4),
+])
+def test_names_that_would_clash_or_double_an_underscore_are_refused(text, message, line):
+    from appell.mechanism.urdf import urdf_system
+
+    with pytest.raises(ModelError, match=message) as err:
+        urdf_system(parse_urdf(text, "c.urdf"))
+    assert err.value.where == f"c.urdf:{line}"
+
+
+@pytest.mark.parametrize("old, new, line", [
+    ('<joint name="a"', '<joint name="a&#1;b"', 5),     # a control character in a joint name
+    ('<link name="l0"', '<link name="l&#0;"', 4),        # NUL in a link name
+    ('<link name="l0"', '<link name="l\x00"', 4),        # a raw NUL byte
+])
+def test_control_characters_in_names_are_invalid_xml(old, new, line):
+    with pytest.raises(ModelError, match="invalid XML") as err:
+        parse_urdf(_chain("a").replace(old, new), "x.urdf")
+    assert err.value.where == f"x.urdf:{line}"
+
+
+@pytest.mark.parametrize("inner, message, line", [
+    ({"a": '<mimic joint="b"/>', "b": '<mimic joint="a"/>'}, "the mimic joints 'a' -> 'b' -> 'a' form a cycle", 5),
+    ({"b": '<mimic joint="c"/>', "c": '<mimic joint="b"/>'}, "the mimic joints 'b' -> 'c' -> 'b' form a cycle", 7),
+    ({"a": '<mimic joint="a"/>'}, "joint 'a' mimics itself", 5),
+    ({"b": '<mimic joint="zz"/>'}, "joint 'b' mimics 'zz', which is not a joint of the file", 7),
+    ({"b": '<mimic joint="a" multiplier="nan"/>'}, r"'b': <mimic multiplier='nan'>: 'nan' is not a finite", 7),
+    ({"b": '<mimic joint="a" offset="-inf"/>'}, r"'b': <mimic offset='-inf'>: '-inf' is not a finite", 7),
+])
+def test_broken_mimics_name_the_joints(inner, message, line):
+    with pytest.raises(ModelError, match=message) as err:
+        parse_urdf(_chain("a", "b", "c", inner=inner), "m.urdf")
+    assert err.value.where == f"m.urdf:{line}"
+
+
+def test_a_mimic_of_a_fixed_joint_is_refused_and_a_chain_of_mimics_is_two_constraints():
+    from appell.mechanism.urdf import urdf_mechanism
+
+    chain = _chain("a", "b", "c", inner={"b": '<mimic joint="a" multiplier="2"/>', "c": '<mimic joint="b"/>'})
+    _, constraints = urdf_mechanism(parse_urdf(chain, "m.urdf"))
+    assert [(c.name, str(c.expr)) for c in constraints] == [("b_mimic", "-2.0*a + b"), ("c_mimic", "-1.0*b + c")]
+    text = _chain("a", "b", inner={"b": '<mimic joint="a"/>'}).replace('name="a" type="continuous"',
+                                                                       'name="a" type="fixed"')
+    with pytest.raises(ModelError, match="joint 'b' mimics 'a', but 'a' is a fixed joint") as err:
+        urdf_mechanism(parse_urdf(text, "m.urdf"))
+    assert err.value.where == "m.urdf:7"
+
+
+LATIN1 = ('<?xml version="1.0" encoding="{}"?>\n<!-- Gelenk f\u00fcr den Arm -->\n<robot name="caf\u00e9">\n'
+          '<link name="bas\u00e9"/>\n' + LINK.format("arm") + '\n'
+          '<joint name="j" type="continuous"><parent link="bas\u00e9"/><child link="arm"/></joint>\n</robot>\n')
+
+
+@pytest.mark.parametrize("declared, codec", [("ISO-8859-1", "latin-1"), ("UTF-16", "utf-16"),
+                                             ("windows-1252", "cp1252"), ("UTF-8", "utf-8-sig")])
+def test_a_declared_encoding_is_honoured(tmp_path, declared, codec):
+    """The file is read as bytes and expat decodes it as its declaration (and BOM) says."""
+    path = tmp_path / "enc.urdf"
+    path.write_bytes(LATIN1.format(declared).encode(codec))
+    robot = read_urdf(path)
+    assert robot.name == "caf\u00e9" and robot.root == "bas\u00e9"
+    assert [j.name for j in robot.joints] == ["j"]
+
+
+@pytest.mark.parametrize("data, message, line", [
+    (LATIN1.format("klingon").encode("latin-1"), r"encoding that is not read \(unknown encoding: klingon\)", 1),
+    (b'<?xml version="1.0" encoding="Shift_JIS"?>\n<robot name="r"/>\n', "encoding that is not read", 1),
+    (LATIN1.format("UTF-8").encode("latin-1"), r"invalid XML: not well-formed \(invalid token\)", 2),
+    (_robot(LINK.format("a")).encode() + b"<!-- \xff\xfe -->\n", r"not well-formed \(invalid token\)", 5),
+    (LATIN1.format("UTF-16").encode("utf-8"), "encoding specified in XML declaration is incorrect", 1),
+])
+def test_an_unreadable_encoding_or_invalid_bytes_are_refused_with_the_line(tmp_path, data, message, line):
+    path = tmp_path / "bad.urdf"
+    path.write_bytes(data)
+    with pytest.raises(ModelError, match=message) as err:
+        read_urdf(path)
+    assert err.value.where == f"{path}:{line}" and "UTF-8" in err.value.hint
+
+
+@pytest.mark.parametrize("content, line", [
+    (_arm("1", _inertia(1, 1, 3)).encode(), 5),
+    (_chain("a", "sin").encode(), 7),
+    (_chain("x", "x_dot").encode(), 7),
+    (_chain("q" * 10_000_000).encode(), 5),
+    (_chain("a").replace('"l0"', '"l&#1;"').encode(), 4),
+    (_chain("a", "b", inner={"a": '<mimic joint="b"/>', "b": '<mimic joint="a"/>'}).encode(), 5),
+    (LATIN1.format("klingon").encode("latin-1"), 1),
+    (b'<?xml version="1.0"?>\n<robot name="\xff"/>\n', 2),
+])
+def test_the_command_line_prints_one_error_line_with_a_hint_and_exits_2(tmp_path, content, line):
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+
+    path = tmp_path / "hostile.urdf"
+    path.write_bytes(content)
+    result = CliRunner().invoke(cli, ["derive", str(path)])
+    lines = result.output.splitlines()
+    assert result.exit_code == 2, result.output
+    assert [k for k, text in enumerate(lines) if text.startswith("error:")] == [0], result.output
+    assert lines[0].startswith(f"error: {path}:{line}: ") and lines[1].startswith("  hint: "), result.output
+    assert len(lines) == 2 and "Traceback" not in result.output and "internal error" not in result.output

@@ -16,29 +16,69 @@ Untrusted files are safe to read: the parser is the standard library's expat wit
 document type declaration refused (so no entity can be declared: no entity expansion
 "bomb", no external entity reading another file), and nothing named in the file (meshes,
 ``package://`` URIs, included files) is opened. Every error is a
-:class:`~appell.errors.ModelError` with ``where="<file>:<line>"``.
+:class:`~appell.errors.ModelError` with ``where="<file>:<line>"`` that names the link or
+joint at fault and says what to do (issue 20):
+
+* encoding: a file is read as bytes and expat honours its XML declaration and byte-order
+  mark (UTF-8 by default; UTF-16, ISO-8859-1, US-ASCII and Python's one-byte encodings);
+  bytes invalid in that encoding, or an encoding that cannot be read, are refused with
+  the line;
+* names: every name (robot, link, joint, and the names joints refer to) has at most
+  :data:`MAX_NAME` characters, checked before anything else is done with it; the names
+  appell uses follow the model files' rule (:func:`urdf_mechanism`);
+* inertia: a mass is finite and positive, or zero with all six inertia entries zero (a
+  massless frame, as without ``<inertial>``); the inertia tensor of every link but the
+  root (the ground, whose inertia is not used) is positive semi-definite and its
+  principal moments satisfy the triangle inequality (each at most the sum of the other
+  two, to 1e-9 of the trace; MuJoCo refuses the same tensors);
+* mimic: ``<mimic>`` couples two revolute, continuous or prismatic joints by a holonomic
+  constraint (:func:`urdf_mechanism`); a mimic of an unknown or non-1-dof joint, of the
+  joint itself, or a cycle of mimics is refused.
 """
 
 from __future__ import annotations
 
 import math
+import re
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
 
 __all__ = ["UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "parse_urdf", "read_urdf", "urdf_mechanism",
            "urdf_system", "urdf_units",
-           "JOINT_TYPES", "MAX_URDF_SIZE"]
+           "JOINT_TYPES", "MAX_URDF_SIZE", "MAX_NAME"]
 
 #: joint types read; ``continuous`` is a revolute joint without limits
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
-#: the largest URDF read, in characters
+#: the largest URDF read, in characters (bytes for a file)
 MAX_URDF_SIZE = 20_000_000
+# The model files' name rule (appell.io.modelfile: ``_Reader.name`` and ``RESERVED_NAMES``),
+# restated because the mechanism layer may not import io (tests/test_architecture.py);
+# tests/test_urdf_hostile.py checks that both accept and refuse the same names.
+#: the longest name, in characters
+MAX_NAME = 64
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+_RESERVED = frozenset({"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log",
+                       "sqrt", "abs", "sign", "min", "max", "pi", "E", "t"})
 _MAX_DEPTH = 64
+#: joint types with one coordinate (the ones ``<mimic>`` can couple)
+_ONE_DOF = ("revolute", "continuous", "prismatic")
+#: prefixes of result columns (multipliers, controls, residuals): no coordinate may start so
+_RESULT_PREFIXES = ("lambda_", "control_", "residual_")
+_MIMIC_HINT = "a mimic joint follows another revolute, continuous or prismatic joint; remove or correct <mimic>"
+#: relative tolerance (of the trace) of the inertia checks
+_INERTIA_TOL = 1e-9
+
+
+def _show(text: str) -> str:
+    """``repr(text)``, shortened to its start and its length when long (a hostile name of
+    millions of characters must not fill the message)."""
+    return repr(text) if len(text) <= 80 else f"{text[:40]!r}... ({len(text)} characters)"
 
 
 @dataclass(frozen=True)
@@ -144,9 +184,11 @@ class UrdfRobot:
 
 
 # --------------------------------------------------------------------------- XML
-def _xml_tree(text: str, source: str) -> _Element:
+def _xml_tree(text: str | bytes, source: str) -> _Element:
     """The element tree of ``text``, with line numbers, read by expat with every document
-    type declaration (and hence every entity declaration) refused."""
+    type declaration (and hence every entity declaration) refused. Bytes are decoded by
+    expat as the XML declaration (or byte-order mark) says, UTF-8 by default; an encoding
+    it cannot read is refused."""
     parser = xml.parsers.expat.ParserCreate()
     root: list[_Element] = []
     stack: list[_Element] = []
@@ -178,34 +220,49 @@ def _xml_tree(text: str, source: str) -> _Element:
         parser.SetParamEntityParsing(xml.parsers.expat.XML_PARAM_ENTITY_PARSING_NEVER)
         parser.Parse(text, True)
     except xml.parsers.expat.ExpatError as exc:
-        raise ModelError(f"invalid XML: {xml.parsers.expat.ErrorString(exc.code)}",
-                         where=f"{source}:{exc.lineno}") from None
+        raise ModelError(f"invalid XML: {xml.parsers.expat.ErrorString(exc.code)}", where=f"{source}:{exc.lineno}",
+                         hint=_ENCODING_HINT if exc.code in _ENCODING_ERRORS else
+                         "correct the XML on this line (control characters, even as &#...;, are not XML)") from None
+    except (LookupError, ValueError) as exc:  # Python's codecs: an unknown or multi-byte declared encoding
+        raise ModelError(f"the XML declaration names an encoding that is not read ({exc})",
+                         where=f"{source}:{parser.CurrentLineNumber}", hint=_ENCODING_HINT) from None
     if not root:
         raise ModelError("the URDF has no elements", where=source)
     return root[0]
+
+
+_ENCODING_ERRORS = {xml.parsers.expat.errors.codes[m] for m in (
+    xml.parsers.expat.errors.XML_ERROR_INVALID_TOKEN, xml.parsers.expat.errors.XML_ERROR_INCORRECT_ENCODING,
+    xml.parsers.expat.errors.XML_ERROR_UNKNOWN_ENCODING)}
+_ENCODING_HINT = ("save the file as UTF-8 (with no encoding, or encoding=\"UTF-8\", in <?xml ...?>); "
+                  "files in another encoding must declare it, e.g. <?xml version=\"1.0\" encoding=\"ISO-8859-1\"?>")
 
 
 # ------------------------------------------------------------------ attributes
 def _numbers(element: _Element, key: str, count: int, default, source: str, *, name: str | None = None):
     text = element.attrib.get(key)
     owner = f"{name!r}: " if name else ""
-    what = f"{owner}<{element.tag} {key}=\"{text}\">"
+    what = f"{owner}<{element.tag} {key}={_show(text) if text is not None else ''}>"
     if text is None:
         if default is None:
             raise ModelError(f"{owner}<{element.tag}> has no {key}=", where=f"{source}:{element.line}",
                              hint=f"give {key}=\"...\" with {count} number(s)")
         return default
     parts = text.split()
+    hint = f"write {key}=\"...\" as {count} finite number(s) separated by spaces"
     if len(parts) != count:
-        raise ModelError(f"{what} must be {count} number(s), got {len(parts)}", where=f"{source}:{element.line}")
+        raise ModelError(f"{what} must be {count} number(s), got {len(parts)}", where=f"{source}:{element.line}",
+                         hint=hint)
     values = []
     for part in parts:
         try:
             value = float(part)
         except ValueError:
-            raise ModelError(f"{what}: {part!r} is not a number", where=f"{source}:{element.line}") from None
+            raise ModelError(f"{what}: {_show(part)} is not a number", where=f"{source}:{element.line}",
+                             hint=hint) from None
         if not math.isfinite(value):
-            raise ModelError(f"{what}: {part!r} is not a finite number", where=f"{source}:{element.line}")
+            raise ModelError(f"{what}: {_show(part)} is not a finite number", where=f"{source}:{element.line}",
+                             hint=hint)
         values.append(value)
     return tuple(values)
 
@@ -214,10 +271,20 @@ def _number(element: _Element, key: str, source: str, default=None, name: str | 
     return _numbers(element, key, 1, None if default is None else (default,), source, name=name)[0]
 
 
-def _name(element: _Element, source: str) -> str:
-    name = element.attrib.get("name")
+def _name(element: _Element, source: str, key: str = "name", owner: str = "") -> str:
+    """The name in attribute ``key`` (``name``, or the link or joint a joint refers to):
+    present, not empty, and at most :data:`MAX_NAME` characters (the model files' limit),
+    checked before anything else is done with it."""
+    name = element.attrib.get(key)
+    where = f"{source}:{element.line}"
     if not name:
-        raise ModelError(f"<{element.tag}> without a name", where=f"{source}:{element.line}")
+        raise ModelError(f"{owner}<{element.tag}> without a {key}" if key == "name"
+                         else f"{owner}<{element.tag}> without {key}=", where=where,
+                         hint=f"give <{element.tag} {key}=\"...\">")
+    if len(name) > MAX_NAME:
+        raise ModelError(f"{owner}<{element.tag} {key}={_show(name)}>: a name has at most {MAX_NAME} characters",
+                         where=where, hint=f"shorten the name to at most {MAX_NAME} characters (the limit of "
+                                           f"model files)")
     return name
 
 
@@ -231,6 +298,10 @@ def _origin(element: _Element, source: str, name: str):
 
 # ------------------------------------------------------------------------ links
 def _inertial(link: _Element, name: str, source: str) -> UrdfInertial | None:
+    """The link's ``<inertial>``, or None for a massless link: no ``<inertial>``, or mass 0
+    with all six inertia entries 0 (the way many robot files write a frame). A negative
+    mass, or mass 0 with some inertia, is refused; the tensor itself is checked by
+    :func:`_check_inertia`."""
     inertial = link.find("inertial")
     if inertial is None:
         return None
@@ -240,21 +311,39 @@ def _inertial(link: _Element, name: str, source: str) -> UrdfInertial | None:
         raise ModelError(f"link {name!r}: <inertial> has no <mass>", where=f"{source}:{inertial.line}",
                          hint='add <mass value="..."/>, or remove <inertial> for a massless link')
     m = _number(mass, "value", source, name=name)
-    if m <= 0:
+    if m < 0:
         raise ModelError(f"link {name!r}: mass {m} must be positive", where=f"{source}:{mass.line}",
-                         hint="remove <inertial> for a massless link")
+                         hint="give the link's mass in kg; for a massless link remove <inertial> (or give "
+                              "mass 0 and inertia 0)")
     tensor = inertial.find("inertia")
     if tensor is None:
         raise ModelError(f"link {name!r}: <inertial> has no <inertia>", where=f"{source}:{inertial.line}",
                          hint='add <inertia ixx=".." ixy=".." ixz=".." iyy=".." iyz=".." izz=".."/>')
     components = tuple(_number(tensor, k, source, name=name) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
-    xx, xy, xz, yy, yz, zz = components
-    if min(xx, yy, zz) < 0 or xx + yy < zz - 1e-12 * (xx + yy + zz) or yy + zz < xx - 1e-12 * (xx + yy + zz) \
-            or zz + xx < yy - 1e-12 * (xx + yy + zz):
-        raise ModelError(f"link {name!r}: the inertia ixx={xx}, iyy={yy}, izz={zz} is not that of a body "
-                         f"(moments must be non-negative and satisfy the triangle inequality)",
-                         where=f"{source}:{tensor.line}")
+    if m == 0:
+        if any(components):
+            raise ModelError(f"link {name!r}: mass 0 with a non-zero inertia", where=f"{source}:{mass.line}",
+                             hint="give the link's mass; a massless link has mass 0 and all inertia entries 0 "
+                                  "(or no <inertial>)")
+        return None
     return UrdfInertial(xyz, rpy, m, components, inertial.line)
+
+
+def _check_inertia(link: UrdfLink, source: str):
+    """A link's inertia tensor is that of a body: positive semi-definite, and each principal
+    moment (eigenvalue) at most the sum of the other two, both to 1e-9 of the trace."""
+    tensor = np.array(link.inertial.inertia_matrix)
+    moments = np.linalg.eigvalsh(tensor)  # ascending
+    tol = _INERTIA_TOL * abs(float(np.trace(tensor)))
+    if moments[0] >= -tol and moments[2] <= moments[0] + moments[1] + tol:
+        return
+    why = (f"it is not positive semi-definite (a principal moment is {moments[0]:.6g})" if moments[0] < -tol else
+           f"its principal moments {moments[0]:.6g}, {moments[1]:.6g}, {moments[2]:.6g} violate the triangle "
+           f"inequality (each must be at most the sum of the other two: A + B >= C)")
+    raise ModelError(f"link {link.name!r}: the inertia is not that of a body: {why}",
+                     where=f"{source}:{link.inertial.line}",
+                     hint="correct <inertia> (the products ixy, ixz, iyz count too); for a negligible body give "
+                          "a small diagonal inertia, for a massless frame mass 0 and inertia 0")
 
 
 # ----------------------------------------------------------------------- joints
@@ -262,14 +351,14 @@ def _joint(element: _Element, source: str) -> UrdfJoint:
     name = _name(element, source)
     kind = element.attrib.get("type")
     if kind not in JOINT_TYPES:
-        raise ModelError(f"joint {name!r} has type {kind!r}; the types read are {', '.join(JOINT_TYPES)}",
-                         where=f"{source}:{element.line}")
+        raise ModelError(f"joint {name!r} has type {_show(kind) if kind else None}; the types read are "
+                         f"{', '.join(JOINT_TYPES)}", where=f"{source}:{element.line}")
     ends = []
     for tag in ("parent", "child"):
         e = element.find(tag)
-        if e is None or not e.attrib.get("link"):
+        if e is None:
             raise ModelError(f"joint {name!r} has no <{tag} link=\"...\"/>", where=f"{source}:{element.line}")
-        ends.append(e.attrib["link"])
+        ends.append(_name(e, source, "link", f"joint {name!r}: "))
     xyz, rpy = _origin(element, source, name)
     axis_element = element.find("axis")
     axis = (1.0, 0.0, 0.0) if axis_element is None else _numbers(axis_element, "xyz", 3, None, source, name=name)
@@ -288,36 +377,39 @@ def _joint(element: _Element, source: str) -> UrdfJoint:
     mimic_element = element.find("mimic")
     mimic = None
     if mimic_element is not None:
-        other = mimic_element.attrib.get("joint")
-        if not other:
-            raise ModelError(f"joint {name!r}: <mimic> without joint=", where=f"{source}:{mimic_element.line}")
+        other = _name(mimic_element, source, "joint", f"joint {name!r}: ")
         mimic = UrdfMimic(other, _number(mimic_element, "multiplier", source, 1.0, name),
                           _number(mimic_element, "offset", source, 0.0, name))
     return UrdfJoint(name, kind, ends[0], ends[1], xyz, rpy, axis, limits, mimic, element.line)
 
 
 # ------------------------------------------------------------------------ robot
-def parse_urdf(text: str, source: str = "<urdf>") -> UrdfRobot:
-    """The robot described by URDF ``text``; ``source`` names it in error messages.
+def parse_urdf(text: str | bytes, source: str = "<urdf>") -> UrdfRobot:
+    """The robot described by URDF ``text`` (a string, or the bytes of a file, decoded as its
+    XML declaration says); ``source`` names it in error messages.
 
-    Checks: one ``<robot>``; unique link and joint names; each joint's links exist; each
-    link is the child of at most one joint; exactly one root link; no loops. Visual and
-    collision geometry, materials, transmissions and plug-in tags are ignored (never
-    opened). A ``xacro`` macro file is refused (expand it with ``xacro`` first).
+    Checks: one ``<robot>``; names of at most :data:`MAX_NAME` characters; unique link and
+    joint names; each joint's links exist; each link is the child of at most one joint;
+    exactly one root link; no loops; physical masses and inertias (module docstring);
+    mimics of other one-coordinate joints, without cycles. Visual and collision geometry,
+    materials, transmissions and plug-in tags are ignored (never opened). A ``xacro``
+    macro file is refused (expand it with ``xacro`` first).
     """
-    if not isinstance(text, str):
+    if not isinstance(text, (str, bytes)):
         raise ModelError(f"URDF text must be a string, got {type(text).__name__}", where=source)
     if len(text) > MAX_URDF_SIZE:
-        raise ModelError(f"the URDF has {len(text)} characters; at most {MAX_URDF_SIZE} are read", where=source)
+        unit = "characters" if isinstance(text, str) else "bytes"
+        raise ModelError(f"the URDF has {len(text)} {unit}; at most {MAX_URDF_SIZE} are read", where=source)
     tree = _xml_tree(text, source)
     if tree.tag != "robot":
-        raise ModelError(f"the root element is <{tree.tag}>, not <robot>", where=f"{source}:{tree.line}")
+        raise ModelError(f"the root element is <{_show(tree.tag)}>, not <robot>", where=f"{source}:{tree.line}")
     xacro = next((e for e in _walk(tree) if e.tag.startswith("xacro:")), None)
     if xacro is not None:
-        raise ModelError(f"<{xacro.tag}> is a xacro macro, not URDF", where=f"{source}:{xacro.line}",
+        raise ModelError(f"<{_show(xacro.tag)}> is a xacro macro, not URDF", where=f"{source}:{xacro.line}",
                          hint="expand the file first: xacro robot.urdf.xacro > robot.urdf")
-    links = tuple(UrdfLink(_name(e, source), _inertial(e, _name(e, source), source), e.line)
-                  for e in tree.findall("link"))
+    robot_name = _name(tree, source) if "name" in tree.attrib else "robot"
+    links = tuple(UrdfLink(name, _inertial(e, name, source), e.line)
+                  for e in tree.findall("link") for name in (_name(e, source),))
     joints = tuple(_joint(e, source) for e in tree.findall("joint"))
     _check_tree(links, joints, source)
     children = {j.child for j in joints}
@@ -327,18 +419,52 @@ def parse_urdf(text: str, source: str = "<urdf>") -> UrdfRobot:
             f"the links form {len(roots)} trees (roots: {', '.join(r.name for r in roots) or 'none'}); "
             f"a URDF robot has one root link", where=f"{source}:{roots[1].line if len(roots) > 1 else tree.line}",
             hint="join the trees by joints (a fixed joint for a rigid connection)")
-    robot = UrdfRobot(tree.attrib.get("name", "robot"), links, joints, roots[0].name, source)
-    if len(robot.joints_from_root()) != len(joints):
-        reached = {j.name for j in robot.joints_from_root()}
+    robot = UrdfRobot(robot_name, links, joints, roots[0].name, source)
+    reached = robot.joints_from_root()
+    if len(reached) != len(joints):
+        reached = {j.name for j in reached}
         loop = next(j for j in joints if j.name not in reached)
         raise ModelError(f"joint {loop.name!r} is part of a closed loop of links; URDF describes trees",
                          where=f"{source}:{loop.line}",
                          hint="close loops in a model file: [[closures]] next to [mechanism] urdf = ...")
-    for j in joints:
-        if j.mimic is not None and j.mimic.joint not in {k.name for k in joints if k.movable}:
-            raise ModelError(f"joint {j.name!r} mimics {j.mimic.joint!r}, which is not a movable joint",
-                             where=f"{source}:{j.line}")
+    for link in links:
+        if link.inertial is not None and link.name != robot.root:
+            _check_inertia(link, source)
+    _check_mimics(joints, source)
     return robot
+
+
+def _check_mimics(joints, source):
+    """``<mimic joint="b">`` on joint ``a`` (``q_a = multiplier q_b + offset``): ``b`` is
+    another joint of the file, and following the mimics from any joint never comes back to
+    it (a cycle would fix the joints, or contradict itself, instead of coupling them).
+    :func:`urdf_mechanism` checks that both have one coordinate."""
+    by_name = {j.name: j for j in joints}
+    hint = _MIMIC_HINT
+    for j in joints:
+        if j.mimic is None:
+            continue
+        where = f"{source}:{j.line}"
+        other = by_name.get(j.mimic.joint)
+        if other is None:
+            raise ModelError(f"joint {j.name!r} mimics {j.mimic.joint!r}, which is not a joint of the file",
+                             where=where, hint=hint)
+        if other is j:
+            raise ModelError(f"joint {j.name!r} mimics itself", where=where, hint=hint)
+    done: set[str] = set()
+    for j in joints:  # follow the mimics from j until a joint already followed
+        walk, k = [], j
+        while k is not None and k.name not in done:
+            done.add(k.name)
+            walk.append(k)
+            k = by_name[k.mimic.joint] if k.mimic is not None else None
+        names = [w.name for w in walk]
+        if k is not None and k.name in names:  # back on this walk: a cycle
+            cycle = walk[names.index(k.name):] + [k]
+            raise ModelError(f"the mimic joints {' -> '.join(repr(c.name) for c in cycle)} form a cycle",
+                             where=f"{source}:{k.line}",
+                             hint="a cycle of mimics fixes or contradicts its joints; let one of them move freely "
+                                  "(remove its <mimic>)")
 
 
 def _walk(element: _Element):
@@ -379,18 +505,17 @@ def _check_tree(links, joints, source):
 
 
 def read_urdf(path) -> UrdfRobot:
-    """:func:`parse_urdf` of the file ``path`` (read as UTF-8; nothing else is opened)."""
+    """:func:`parse_urdf` of the bytes of the file ``path``, decoded as its XML declaration
+    says (UTF-8 by default); nothing else is opened."""
     path = Path(path)
     try:
         size = path.stat().st_size
         if size > MAX_URDF_SIZE:
             raise ModelError(f"the URDF has {size} bytes; at most {MAX_URDF_SIZE} are read", where=str(path))
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except OSError as exc:
         raise ModelError(f"cannot read the URDF file: {exc.strerror or exc}", where=str(path)) from None
-    except UnicodeDecodeError as exc:
-        raise ModelError(f"the URDF is not UTF-8 text: {exc.reason} at byte {exc.start}", where=str(path)) from None
-    return parse_urdf(text, str(path))
+    return parse_urdf(data, str(path))
 
 
 # ------------------------------------------------------------------ mechanism
@@ -399,6 +524,56 @@ def _identifier(name: str) -> str:
     ``_``; a leading digit gets a ``_`` before it."""
     out = "".join(c if c.isalnum() and c.isascii() or c == "_" else "_" for c in name)
     return out if out and not out[0].isdigit() else f"_{out}"
+
+
+def _appell_name(name: str, what: str, where: str) -> str:
+    """The appell name of a joint or link that appell uses: :func:`_identifier` of ``name``,
+    which must then pass the model files' rule (an ASCII letter first, then letters, digits
+    or ``_``, no ``__``, at most :data:`MAX_NAME` characters, not a function, constant or
+    ``t``) and, as its columns are results, must not start with ``lambda_``, ``control_``
+    or ``residual_``."""
+    ident = _identifier(name)
+    shown = f"{what} {name!r}" + (f" (named {ident!r} in appell)" if ident != name else "")
+    if not _NAME.fullmatch(ident) or "__" in ident or len(ident) > MAX_NAME:
+        raise ModelError(f"{shown}: {what} name {ident!r} is not valid", where=where,
+                         hint=f"rename the {what} in the URDF: names start with an ASCII letter, continue with "
+                              f"letters, digits or '_', contain no '__' and have at most {MAX_NAME} characters "
+                              f"(as in model files)")
+    if ident in _RESERVED:
+        raise ModelError(f"{shown}: {what} name {ident!r} is reserved (a function, a constant or time)",
+                         where=where, hint=f"rename the {what} in the URDF")
+    if ident.startswith(_RESULT_PREFIXES):
+        raise ModelError(f"{shown}: names starting with {', '.join(_RESULT_PREFIXES)} are those of result columns",
+                         where=where, hint=f"rename the {what} in the URDF")
+    return ident
+
+
+def _check_coordinates(mech, lines: dict[str, int], src: str):
+    """No coordinate, speed or acceleration name of one joint is a name of another joint's
+    (the derivative rule of model files, :func:`appell.model.name_clash`: a joint ``x_dot``
+    next to a joint ``x`` is refused) nor a reaction column ``F_<joint>_x`` ...;
+    ``lines`` gives each mechanism joint's line in the URDF."""
+    from appell.model import declared_kinds, name_clash
+    from appell.symbols import derivative_name
+
+    coordinates = [(q.name, j.name) for j in mech.joints for q in j.coordinates]
+    kinds = declared_kinds([(q, "coordinate") for q, _ in coordinates]
+                           + [(derivative_name(q, 1), "speed") for q, _ in coordinates]
+                           + [(p.symbol.name, "parameter") for p in mech.parameters])
+    outputs = {f"{f}_{j.name}_{x}": j.name for j in mech.joints for f in "FM" for x in "xyz"}
+    for q, joint in reversed(coordinates):  # a name used twice is blamed on the later joint
+        where = f"{src}:{lines[joint]}"
+        clash = name_clash(q, "coordinate", kinds)
+        if clash:
+            raise ModelError(f"joint {joint!r}: {clash}", where=where,
+                             hint="rename the joint in the URDF: the derivative names (x_dot, x_ddot, x_d3, ...) of "
+                                  "the joints' coordinates are taken")
+        for name in (q, derivative_name(q, 1), derivative_name(q, 2)):
+            if name in outputs:
+                raise ModelError(f"joint {joint!r}: its column {name!r} is the reaction column of joint "
+                                 f"{outputs[name]!r}", where=where,
+                                 hint="rename the joint in the URDF: F_<joint>_x ... M_<joint>_z are the joints' "
+                                      "reactions")
 
 
 def _rotation(rpy):
@@ -423,12 +598,21 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
     The root link is the ground (its frame the world frame); gravity ``g`` (a parameter,
     default 9.81 m/s^2) acts along -z of the root. Every other link is a body with the
     link frame as body frame, mass centre at the inertial ``xyz`` and inertia
-    ``R(rpy) I R(rpy)^T``. Joints keep their names (characters that are not allowed in an
-    identifier become ``_``); a movable joint's coordinate is the joint's name. A link
-    whose name is taken by a joint is named ``<link>_link``. A link without ``<inertial>``
-    (massless) fixed to its parent is merged into it (its child joints re-attached); a
-    massless link on a movable joint is refused. ``floating`` joints are free joints
-    (quaternion), ``planar`` joints need the axis (plane normal) z.
+    ``R(rpy) I R(rpy)^T``. Joints keep their names (characters other than ASCII letters,
+    digits and ``_`` become ``_``); a movable joint's coordinate is the joint's name. A
+    link whose name is taken by a joint is named ``<link>_link``. The names appell uses
+    (joints, except fixed joints to massless links, and links other than the root and
+    massless links) must be names a model file accepts (an ASCII letter first, then
+    letters, digits or ``_``, no ``__``, at most :data:`MAX_NAME` characters, not a
+    function, ``pi``, ``E`` or ``t``) and not start with ``lambda_``, ``control_`` or
+    ``residual_`` (result columns); no joint's coordinate, speed or acceleration may be
+    another joint's coordinate, speed, acceleration or reaction column (``x_dot`` next to
+    ``x``, ``F_a_x`` next to ``a``). A massless link (no ``<inertial>``, or
+    mass 0 and inertia 0) fixed to its parent is merged into it (its child joints
+    re-attached); a massless link on a movable joint is refused. ``floating`` joints are
+    free joints (quaternion), ``planar`` joints need the axis (plane normal) z. A
+    ``<mimic>`` joint ``a`` of ``b`` is the holonomic constraint ``a_mimic``:
+    ``a - multiplier b - offset = 0``.
     """
     from appell.mechanism.builder import GROUND, Mechanism
     from appell.model import holonomic
@@ -436,14 +620,18 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
     src = robot.source
     mech = Mechanism(_identifier(robot.name), gravity=(0, 0, -sp.Symbol("g")))
     mech.parameter("g", gravity, unit="m/s^2", description="gravity, along -z of the root link")
-    joint_names = {j.name: _identifier(j.name) for j in robot.joints}
-    if len(set(joint_names.values())) != len(joint_names):
-        clash = next(j for j in robot.joints if list(joint_names.values()).count(joint_names[j.name]) > 1)
-        raise ModelError(f"joint {clash.name!r} and another joint have the same identifier "
-                         f"{joint_names[clash.name]!r}", where=f"{src}:{clash.line}", hint="rename one of them")
+    joint_names, first = {}, {}
+    for j in robot.joints:
+        joint_names[j.name] = ident = _identifier(j.name)
+        if ident in first:
+            raise ModelError(f"joint {j.name!r} and joint {first[ident]!r} have the same appell name {ident!r}",
+                             where=f"{src}:{j.line}", hint="rename one of them in the URDF")
+        first[ident] = j.name
     taken = set(joint_names.values()) | {"g", GROUND}
+    lines: dict[str, int] = {}  # mechanism joint -> its line
     # link -> (body, rotation, offset) of the link frame in the body frame
     place = {robot.root: (mech.ground, None, None)}
+    links = {link.name: link for link in robot.links}
     moving_name: dict[str, str] = {}
     for joint in robot.joints_from_root():
         body, R_off, p_off = place[joint.parent]
@@ -451,7 +639,7 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
         if R_off is not None:  # the parent link was merged into a body: re-express the origin
             xyz = tuple(float(v) for v in p_off + R_off * sp.Matrix(xyz))
             rpy = _rpy_of(R_off * _rotation(rpy))
-        link = robot.link(joint.child)
+        link = links[joint.child]
         where = f"{src}:{joint.line}"
         if link.inertial is None:
             if joint.type == "fixed":
@@ -461,11 +649,12 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
             if any(k.parent == link.name for k in robot.joints):
                 raise ModelError(f"link {link.name!r} has no <inertial> but moves on joint {joint.name!r}",
                                  where=f"{src}:{link.line}",
-                                 hint="give it an <inertial> with its mass and inertia (a massless link "
-                                      "between moving joints is not supported)")
+                                 hint="give it an <inertial> with its mass and inertia (a massless link, without "
+                                      "<inertial> or of mass 0, between moving joints is not supported)")
             raise ModelError(f"link {link.name!r} has no <inertial>: nothing moves with joint {joint.name!r}",
-                             where=f"{src}:{link.line}", hint="give the link an <inertial>, or remove the joint")
-        name = _identifier(link.name)
+                             where=f"{src}:{link.line}", hint="give the link an <inertial> with a positive mass "
+                                                              "(mass 0 is a massless link), or remove the joint")
+        name = _appell_name(link.name, "link", f"{src}:{link.line}")
         if name in taken:
             name = f"{name}_link"
         if name in taken:
@@ -478,7 +667,8 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
         inertia = (inertia + inertia.T) / 2  # symmetric also in floating point
         try:
             child = mech.body(name, inertial.mass, inertia=inertia, com=inertial.xyz)
-            jname = joint_names[joint.name]
+            jname = _appell_name(joint.name, "joint", where)
+            lines[jname] = joint.line
             kw = dict(origin=xyz, rpy=rpy)
             if joint.type in ("revolute", "continuous"):
                 mech.revolute(jname, body, child, axis=joint.axis, **kw)
@@ -499,11 +689,17 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
         place[link.name] = (child, None, None)
         if joint.movable:
             moving_name[joint.name] = jname
+    _check_coordinates(mech, lines, src)
     constraints = []
+    by_name = {j.name: j for j in robot.joints}
     for joint in robot.joints:
         if joint.mimic is not None:
-            if joint.name not in moving_name or joint.mimic.joint not in moving_name:
-                raise ModelError(f"joint {joint.name!r}: <mimic> needs two movable joints", where=f"{src}:{joint.line}")
+            other = by_name[joint.mimic.joint]
+            for k in (joint, other):
+                if k.type not in _ONE_DOF:
+                    raise ModelError(f"joint {joint.name!r} mimics {other.name!r}, but {k.name!r} is a {k.type} "
+                                     f"joint, not a revolute, continuous or prismatic one",
+                                     where=f"{src}:{joint.line}", hint=_MIMIC_HINT)
             q, q_m = sp.Symbol(moving_name[joint.name]), sp.Symbol(moving_name[joint.mimic.joint])
             constraints.append(holonomic(f"{moving_name[joint.name]}_mimic",
                                          q - joint.mimic.multiplier * q_m - joint.mimic.offset, where=f"{src}:{joint.line}"))
