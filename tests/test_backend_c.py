@@ -7,6 +7,7 @@ import pytest
 
 import appell
 from appell.numerics.codegen_c import CompiledNumericModel, c_source, compile_c
+from appell.examples import example_path
 from appell.examples.catalog import CATALOG, nlink_pendulum
 from appell.numerics.numeric import compile_model
 
@@ -140,3 +141,20 @@ def test_compiled_model_refuses_wrong_sizes_before_the_c_code_reads_them(call):
         calls[call]()
     # and a right call still agrees with the NumPy split: rounding only (measured 4e-16 relative)
     assert np.allclose(m.solve(0.0, q, w).multipliers, d.numeric.solve(0.0, q, w).multipliers, rtol=1e-12, atol=0)
+
+
+def test_a_hostile_model_name_never_becomes_c_code():
+    """A model file's name reaches the generated C only inside a comment, with every
+    character that could end it (``*/``), start a line or a directive replaced (issue 20):
+    before, a name holding ``*/`` put the rest of the name into the compiled library."""
+    from appell.numerics.codegen_c import c_source
+
+    text = example_path("pendulum").read_text().replace(
+        'name = "pendulum"', 'name = "p */ int injected = 1; /* \\n#include <stdio.h>"')
+    derivation = appell.derive(appell.loads_model(text))
+    first = c_source(derivation).splitlines()[0]
+    assert first == "/* appell: generated C for system p ?? int injected ? 1? ?? ??include ?stdio.h?; n = 2, s = 1 */"
+    model = derivation.compiled("c")
+    sol = appell.simulate(model, 0.5)
+    assert sol.status == 0  # it compiles and runs as the pendulum it is
+    assert "injected" not in " ".join(l for l in c_source(derivation).splitlines()[1:])

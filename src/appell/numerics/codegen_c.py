@@ -643,6 +643,15 @@ def common_factor(expr):
     return sp.Mul(*common.elements()) * sp.Add(*[term / sp.Mul(*common.elements()) for term in terms])
 
 
+
+def c_comment(text: str, limit: int = 200) -> str:
+    """``text`` made safe inside a C comment of generated code: letters, digits and ``_ .,:-+``
+    kept, every other character (``*/`` that would end the comment, a newline, a non-ASCII
+    character) replaced by ``?``, and cut at ``limit`` characters. A model's name comes
+    from an untrusted file and must never become code."""
+    safe = "".join(ch if (ch.isascii() and ch.isalnum()) or ch in "_ .,:-+" else "?" for ch in str(text))
+    return safe if len(safe) <= limit else safe[:limit] + "..."
+
 def c_source(derivation) -> str:
     """The complete C source of a derivation's numeric functions (see module docstring)."""
     subs = dict(program_substitutions(derivation.system))
@@ -665,7 +674,7 @@ def c_source(derivation) -> str:
     vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if s else sp.zeros(0, 1)
     tree = particle_tree(inertia, n) if cons.linear else None
     parts = [
-        f"/* appell: generated C for system {derivation.system.name!r}; n = {n}, s = {s} */",
+        f"/* appell: generated C for system {c_comment(derivation.system.name)}; n = {n}, s = {s} */",
         "#include <math.h>",
         f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}\n#define REFINE_CONDITION {REFINE_CONDITION!r}",
         HEADER_END,
@@ -678,7 +687,7 @@ def c_source(derivation) -> str:
         axis = sp.Matrix([m[r] for m in tree.axis for r in rows])
         bias = sp.Matrix([m[r] for m in tree.relative_bias for r in rows])
         Q = sp.Matrix(inertia.generalized_forces).applyfunc(common_factor)
-        parts += [f"/* point masses on a tree: {', '.join(tree.names)} */",
+        parts += [f"/* point masses on a tree: {c_comment(', '.join(tree.names))} */",
                   f"#define NB {len(tree.names)}\n#define TD {len(rows)}",
                   c_function("appell_tree_terms", [prepared(axis), prepared(bias), prepared(sp.Matrix(tree.mass)),
                                                    prepared(Q), prepared(J0), prepared(c)], syms)]
