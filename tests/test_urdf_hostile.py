@@ -175,6 +175,15 @@ def test_non_physical_mass_or_inertia_names_the_link(mass, inertia, message, lin
     assert err.value.hint
 
 
+def test_a_rounding_sized_product_of_inertia_is_not_refused():
+    """iCub's head (example-robot-data) has a zero diagonal beside ixy = 2.4e-35: principal
+    moments +-2.4e-35, inside MuJoCo's floor of 1e-15 kg m^2; a product of 1e-9 is not."""
+    link = parse_urdf(_arm("1", _inertia(0, 0, 0, xy=2.4e-35)), "i.urdf").link("arm")
+    assert link.inertial is not None
+    with pytest.raises(ModelError, match="not positive semi-definite"):
+        parse_urdf(_arm("1", _inertia(0, 0, 0, xy=1e-9)), "i.urdf")
+
+
 def test_mass_zero_and_inertia_zero_is_a_massless_frame():
     """Robot files write tool and sensor frames as mass 0, inertia 0: such a link is massless
     (as without <inertial>) and merged into its parent when fixed to it; on a moving joint

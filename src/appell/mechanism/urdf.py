@@ -73,6 +73,8 @@ _RESULT_PREFIXES = ("lambda_", "control_", "residual_")
 _MIMIC_HINT = "a mimic joint follows another revolute, continuous or prismatic joint; remove or correct <mimic>"
 #: relative tolerance (of the trace) of the inertia checks
 _INERTIA_TOL = 1e-9
+#: absolute tolerance of the inertia checks [kg m^2] (MuJoCo's mjMINVAL)
+_INERTIA_FLOOR = 1e-15
 
 
 def _show(text: str) -> str:
@@ -331,10 +333,12 @@ def _inertial(link: _Element, name: str, source: str) -> UrdfInertial | None:
 
 def _check_inertia(link: UrdfLink, source: str):
     """A link's inertia tensor is that of a body: positive semi-definite, and each principal
-    moment (eigenvalue) at most the sum of the other two, both to 1e-9 of the trace."""
+    moment (eigenvalue) at most the sum of the other two, both to 1e-9 of the trace and at
+    least to MuJoCo's floor 1e-15 kg m^2 (mjMINVAL), so that a rounding-sized product of
+    inertia beside a zero diagonal (iCub's head: 2.4e-35) is not refused."""
     tensor = np.array(link.inertial.inertia_matrix)
     moments = np.linalg.eigvalsh(tensor)  # ascending
-    tol = _INERTIA_TOL * abs(float(np.trace(tensor)))
+    tol = max(_INERTIA_TOL * abs(float(np.trace(tensor))), _INERTIA_FLOOR)
     if moments[0] >= -tol and moments[2] <= moments[0] + moments[1] + tol:
         return
     why = (f"it is not positive semi-definite (a principal moment is {moments[0]:.6g})" if moments[0] < -tol else
