@@ -163,3 +163,25 @@ def test_a_regular_closed_loop_never_triggers_the_check():
     watch = RankWatch(derivation.numeric, derivation.numeric.params(), sol.t[0], sol.y[:, 0])
     g = [watch.measure(t, y) for t, y in zip(sol.t[::10], sol.y[:, ::10].T)]
     assert min(g) > 100 * SINGULAR_LEVEL
+
+
+def test_a_kinetic_energy_that_degenerates_mid_run_is_named_where_the_integrator_fails():
+    """The pendulum of examples/pendulum.toml with T = m/2 (x' + y')^2: on the circle
+    (x, y) = L (sin th, -cos th) the reduced inertia is m L^2 (cos th + sin th)^2, zero at
+    th = -pi/4. Released at rest at th0 = pi/3, energy conservation gives
+    th' = sqrt(2 g L (cos th - cos th0)) / (L |cos th + sin th|), unbounded there, reached at
+    t* = int_{-pi/4}^{pi/3} L |cos th + sin th| / sqrt(2 g L (cos th - cos th0)) dth
+    (quadrature). The run fails there and says why, naming the speeds x_dot - y_dot."""
+    text = example_path("pendulum").read_text().replace('kinetic_energy = "m/2*(x\'^2 + y\'^2)"',
+                                                        'kinetic_energy = "m/2*(x\' + y\')^2"')
+    assert "(x' + y')^2" in text
+    t_star, _ = quad(lambda th: abs(np.cos(th) + np.sin(th)) / np.sqrt(2 * G * (np.cos(th) - 0.5)),
+                     -np.pi / 4, np.pi / 3, limit=200)
+    derivation = appell.derive(appell.loads_model(text))
+    for model in (derivation, derivation.compiled("c")):
+        sol = appell.simulate(model, 2.0)
+        assert sol.status == -1
+        failed_at = float(sol.message.split("failed at t = ")[1].split(":")[0])
+        assert abs(failed_at - t_star) < 1e-6  # the step size underflows within rounding of t*
+        assert "reduced mass matrix is singular" in sol.message
+        assert "along the speeds -1 x_dot + 1 y_dot" in sol.message or "1 x_dot + -1 y_dot" in sol.message

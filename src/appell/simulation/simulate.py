@@ -72,7 +72,7 @@ from appell.simulation.impact import impact
 from appell.numerics.friction import FrictionLaws
 from appell.simulation.stickslip import initial_mode, stick_slip_watches, transition
 from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, residual_jacobians
-from appell.simulation.singular import DIP, SINGULAR_LEVEL, RankWatch
+from appell.simulation.singular import DIP, SINGULAR_LEVEL, RankWatch, explain_failure
 from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 
@@ -645,6 +645,9 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                 break
             if solver.status == "failed":
                 status, message = -1, f"the integrator failed at t = {solver.t:.10g}: {msg}"
+                why = explain_failure(active, solver.t, solver.y, p)
+                if why is not None:
+                    message = message.rstrip(".") + "; " + why
                 break
             run.steps += 1
             t_new, y_new = float(solver.t), np.array(solver.y, float)

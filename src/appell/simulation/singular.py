@@ -143,3 +143,45 @@ class RankWatch:
         U = np.linalg.svd(Js)[0]
         u = np.abs(U[:, -1])
         return tuple(n for n, v in zip(self.names, u) if v > 1e-3 * u.max()) or self.names
+
+
+#: smallest eigenvalue of the reduced mass matrix, relative to the largest of M, under which
+#: a failed integration is explained by a kinetic energy that vanishes along an allowed motion
+DEGENERATE_INERTIA = 1e-8
+
+
+def explain_failure(model, t, y, p) -> str | None:
+    """Why an integrator may have failed at (t, y): the reduced mass matrix ``N^T M N`` (``N``
+    a basis of the speeds the constraints allow, ``J N = 0``) singular there, named by the
+    speeds of its null direction, or None when nothing is found (or the model has no
+    ``evaluate_blocks``)."""
+    blocks = getattr(model, "evaluate_blocks", None)
+    if blocks is None:
+        return None
+    y = np.asarray(y, float)
+    nq, names = len(model.coordinate_names), list(model.speed_names)
+    try:
+        M, _, J, _ = blocks(t, y[:nq], y[nq:nq + len(names)], p)
+    except Exception:  # noqa: BLE001 -- an explanation is optional; the failure is reported anyway
+        return None
+    M, J = np.asarray(M, float), np.asarray(J, float)
+    if not (np.all(np.isfinite(M)) and np.all(np.isfinite(J))):
+        return None
+    if J.shape[0]:
+        _, sv, Vt = np.linalg.svd(J)
+        rank = int(np.sum(sv > 1e-12 * max(sv[0], 1e-300)))
+        N = Vt[rank:].T
+    else:
+        N = np.eye(len(names))
+    if N.shape[1] == 0:
+        return None
+    ev, vec = np.linalg.eigh(N.T @ M @ N)
+    size = max(float(np.abs(np.linalg.eigvalsh(M)).max()), 1e-300)
+    if ev[0] > DEGENERATE_INERTIA * size:
+        return None
+    v = N @ vec[:, 0]
+    v = v / np.abs(v).max()
+    combination = " + ".join(f"{c:.3g} {n}" for c, n in zip(v, names) if abs(c) > 1e-6)
+    return (f"there the kinetic energy of the motions the constraints allow is degenerate: the reduced mass "
+            f"matrix is singular (smallest eigenvalue {ev[0]:.3g} beside {size:.3g} of M) along the speeds "
+            f"{combination}, so the accelerations are unbounded; check the kinetic energy and the masses")
