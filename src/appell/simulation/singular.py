@@ -9,7 +9,7 @@ so two backends or two tolerances can leave on different branches (issue 20). Th
 therefore stops there, with the time and the constraints involved.
 
 The measure is the smallest singular value of the Jacobian with every constraint row
-scaled by its size at the start of the run (largest entry one),
+scaled by its size at the start of the run (largest entry one)::
 
     g(t) = sigma_min( D_0 J(q(t), w(t)) ),   D_0 = diag(1 / max_j |J_rj(t0)|),
 
