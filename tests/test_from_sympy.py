@@ -287,3 +287,36 @@ def test_symbols_with_assumptions_become_the_declared_parameters():
     # rounding only (a 1x1 solve): a few eps x 29 N; F_x is 0 up to cos(-pi/2) = 6e-17 times it
     assert out["F_pin_y"] == pytest.approx(2.0 * 9.81 + 2.0 * 0.5 * 9.0, rel=1e-12)
     assert out["F_pin_x"] == pytest.approx(0.0, abs=1e-12)
+
+
+def _particle_on_a_line(load=None, mass=m):
+    """A particle at q N.x with speed u (q' = u), mass ``mass``, the force ``load`` N.x."""
+    q, u = me.dynamicsymbols("q u")
+    N = me.ReferenceFrame("N")
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    P = O.locatenew("P", q * N.x)
+    P.set_vel(N, u * N.x)
+    system = me.System(N, O)
+    system.add_coordinates(q)
+    system.add_speeds(u)
+    system.add_kdes(q.diff() - u)
+    system.add_bodies(me.Particle("p", P, mass))
+    if load is not None:
+        system.add_loads(me.Force(P, load(q) * N.x))
+    return system
+
+
+@pytest.mark.parametrize("load, mass, culprit", [
+    (lambda q: -sp.Function("F")(q), m, "force 1 at P uses the undefined function F(q)"),
+    (None, m * sp.Function("F")(sp.Symbol("k")), "mass of p uses the undefined function F(k)"),
+    (lambda q: -sp.Integral(g * sp.Symbol("s"), (sp.Symbol("s"), 0, q)), m,
+     "force 1 at P holds an unevaluated Integral: Integral(g*s, (s, 0, q))"),
+])
+def test_from_sympy_refuses_what_cannot_be_evaluated_naming_the_expression(load, mass, culprit):
+    """An undefined function or an unevaluated integral used to be accepted and then fail at the
+    first evaluation with a NameError or a PrintMethodNotImplementedError."""
+    with pytest.raises(ModelError) as exc:
+        from_sympy(_particle_on_a_line(load, mass), parameters={m: 1.0, g: 9.81, "k": 1.0})
+    assert culprit in exc.value.message
+    assert exc.value.hint

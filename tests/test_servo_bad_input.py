@@ -68,3 +68,43 @@ def test_servo_constraint_on_a_control_only():
 def test_no_servo_constraints():
     with pytest.raises(ModelError, match="no servo constraints"):
         derive_controlled(particle(controls=(), generalized_forces=(0, 0)))
+
+
+def test_controls_without_servo_constraints_in_a_model_file_name_the_control_and_line():
+    """[controls] kept, [servo_constraints] deleted: nothing determines the control (its symbol
+    used to reach the numeric code undefined: "internal error: NameError: name 'u' is not defined")."""
+    from appell import loads_model
+    from appell.examples import example_path
+
+    text = example_path("spring_masses").read_text(encoding="utf-8")
+    start = text.index("[servo_constraints.track]")
+    text = text[:start] + text[text.index("[initial]"):]
+    line = next(i for i, row in enumerate(text.splitlines(), 1) if row.startswith("[controls]"))
+    with pytest.raises(ModelError) as exc:
+        loads_model(text, "spring.toml")
+    assert exc.value.where == f"spring.toml:{line}"
+    assert "control u is declared but no servo constraint is given" in exc.value.message
+    assert "[servo_constraints.NAME]" in exc.value.hint
+
+
+def test_controls_without_servo_constraints_on_the_command_line(tmp_path):
+    from click.testing import CliRunner
+
+    from appell.examples import example_path
+    from appell.io.cli import cli
+
+    text = example_path("overhead_crane").read_text(encoding="utf-8")
+    kept = []
+    skipping = False
+    for row in text.splitlines():
+        if row.startswith("["):
+            skipping = row.startswith("[servo_constraints")
+        if not skipping:
+            kept.append(row)
+    path = tmp_path / "crane.toml"
+    path.write_text("\n".join(kept) + "\n", encoding="utf-8")
+    for command in ("derive", "simulate"):
+        result = CliRunner().invoke(cli, [command, str(path)], catch_exceptions=False)
+        assert result.exit_code == 2, result.output
+        assert "controls F_T, F_W are declared but no servo constraint is given" in result.stderr
+        assert "internal error" not in result.stderr and str(path) in result.stderr

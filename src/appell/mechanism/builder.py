@@ -30,6 +30,7 @@ where a constraint of a closure or contact acting at a point ``P`` of ``S`` exer
 from __future__ import annotations
 
 import keyword
+import math
 from dataclasses import dataclass, field
 from dataclasses import replace as dc_replace
 
@@ -45,12 +46,39 @@ from appell.symbols import derivative_symbol, t
 GROUND = "ground"
 
 
+def _real(expr, what: str) -> sp.Expr:
+    """``expr`` once it is real and its constant parts are finite floats (what the numeric
+    code evaluates); a :class:`ModelError` naming ``what`` for ``sqrt(-1)``, ``log(-1)``,
+    ``exp(1000)``, ``1e999`` (a complex value used to surface as ``TypeError: Cannot convert
+    complex to float`` in the first evaluation)."""
+    expr = sp.sympify(expr)
+    if expr.has(sp.I):
+        raise ModelError(f"{what} is complex: {expr}", hint="a mechanism's values are real numbers or expressions")
+    stack = [expr]
+    while stack:
+        node = stack.pop()
+        if node.free_symbols:
+            stack.extend(node.args)
+            continue
+        try:
+            finite = math.isfinite(float(node))
+        except (TypeError, ValueError, OverflowError):
+            finite = False
+        if not finite:
+            raise ModelError(f"{what}: {node} is not a finite real number",
+                             hint="give real values within the floating-point range (about 1.8e308); rescale the "
+                                  "units or the parameters where a value is that large")
+    return expr
+
+
 def _matrix(value, what: str, shape=(3, 1)) -> sp.Matrix:
     try:
         m = sp.Matrix(value)
         m = m.applyfunc(lambda e: sp.sympify(e, strict=True))
     except (TypeError, ValueError, sp.SympifyError):
         raise ModelError(f"{what} must be {shape[0]} numbers or expressions, got {value!r}") from None
+    for e in m:
+        _real(e, what)
     if shape == (3, 1) and m.shape == (1, 3):
         m = m.T
     if m.shape != shape:
@@ -222,7 +250,7 @@ class Mechanism:
         """A rigid body: ``mass``, ``inertia`` about the mass centre in body axes (3 principal
         moments or 3x3), mass centre ``com`` in the body frame."""
         self._claim(name, "body")
-        mass = sp.sympify(mass)
+        mass = _real(mass, f"mass of body {name!r}")
         if mass.is_number and not mass.is_positive:
             raise ModelError(f"body {name!r} has mass {mass}; a mass must be positive")
         I = sp.Matrix(inertia)
@@ -232,6 +260,8 @@ class Mechanism:
             raise ModelError(f"inertia of body {name!r} must be 3 principal moments or a 3x3 matrix")
         if I != I.T:
             raise ModelError(f"inertia of body {name!r} is not symmetric")
+        for e in I:
+            _real(e, f"inertia of body {name!r}")
         b = Body(name, mass, I.applyfunc(sp.sympify), _matrix(com, f"mass centre of body {name!r}"))
         self.bodies.append(b)
         return b

@@ -146,10 +146,40 @@ class _Renamer:
             raise ModelError(f"{what} depends on {culprit}, which is not a coordinate or speed of the system",
                              hint="give every function of time as a coordinate (with its speed and kinematic "
                                   "differential equation), or replace it by a symbol")
+        _check_evaluable(expr, what)
         return expr
 
     def vector(self, vec, frame, what: str) -> sp.ImmutableMatrix:
         return sp.ImmutableMatrix([self.plain(c, what) for c in vec.to_matrix(frame)])
+
+
+#: SymPy objects that stand for a computation not done (no numeric code evaluates them)
+_UNEVALUATED = (sp.Integral, sp.Sum, sp.Product, sp.Limit, sp.Subs, sp.Order)
+
+
+def _check_evaluable(expr, what: str) -> None:
+    """Refuse, at the import, what the numeric code cannot evaluate (it used to fail at the
+    first evaluation with a ``NameError`` or ``PrintMethodNotImplementedError``): an undefined
+    function ``F(q)`` (``sympy.Function('F')``), an unevaluated integral, sum, product or
+    limit, and complex or infinite constants."""
+    from sympy.core.function import AppliedUndef
+
+    undefined = sorted(expr.atoms(AppliedUndef), key=str)
+    if undefined:
+        raise ModelError(f"{what} uses the undefined function {undefined[0]} ({undefined[0].func.__name__} has no "
+                         "formula): appell cannot evaluate it",
+                         hint="replace it by its expression in the coordinates, speeds and parameters (or by a "
+                              "parameter symbol) before from_sympy")
+    pending = sorted(expr.atoms(*_UNEVALUATED), key=str)
+    if pending:
+        kind = type(pending[0]).__name__
+        raise ModelError(f"{what} holds an unevaluated {kind}: {pending[0]}",
+                         hint=f"evaluate it first (.doit(), or integrate by hand) so that {what} is a closed-form "
+                              "expression")
+    bad = next((v for v in (sp.I, sp.zoo, sp.nan, sp.oo, -sp.oo) if expr.has(v)), None)
+    if bad is not None:
+        raise ModelError(f"{what} is not a finite real expression (it contains {bad}): {expr}",
+                         hint="give real, finite values")
 
 
 def _position(point, origin, frame, ren: _Renamer, what: str):

@@ -38,6 +38,7 @@ from appell.symbols import derivative_symbol, t
 __all__ = [
     "ExpressionError",
     "FUNCTIONS",
+    "constant_problem",
     "CONSTANTS",
     "RESERVED_NAMES",
     "MAX_LENGTH",
@@ -545,6 +546,37 @@ _FLOAT_FUNCTIONS = {
     sp.exp: math.exp, sp.log: math.log, sp.Abs: abs, sp.sign: lambda x: float(x > 0) - float(x < 0),
     sp.Min: min, sp.Max: max,
 }
+
+
+def constant_problem(expr: sp.Expr, text: str | None = None) -> str | None:
+    """Why ``expr`` (read from ``text``) is not real and within the floating-point range, or
+    None when it is: an imaginary part (``sqrt(-1)``, ``log(-1)``), or a largest
+    subexpression without symbols that :func:`constant_value` cannot evaluate to a finite
+    real number (``exp(1000)``, ``asin(2)``), e.g. ``"the constant exp(1000) is not a
+    finite real number (the value overflows or divides by zero)"``."""
+    shown = f"{text!r} reads {_short(expr)}" if text is not None else f"it reads {_short(expr)}"
+    if expr.has(sp.I):
+        return f"the value is complex ({shown})"
+    constants: list[sp.Expr] = []
+
+    def has_symbols(node) -> bool:  # one pass; collects the largest constant subexpressions
+        if isinstance(node, sp.Symbol):
+            return True
+        flags = [has_symbols(a) for a in node.args]
+        if any(flags):
+            constants.extend(a for a, f in zip(node.args, flags) if not f)
+        return any(flags)
+
+    if not has_symbols(expr):
+        constants.append(expr)
+    for node in constants:
+        if isinstance(node, sp.Number) or node in (sp.pi, sp.E):
+            continue
+        try:
+            constant_value(node)
+        except ValueError as exc:
+            return f"the constant {_short(node)} is not a finite real number ({exc})"
+    return None
 
 
 def constant_value(expr: sp.Expr) -> float:

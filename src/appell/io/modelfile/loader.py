@@ -39,13 +39,19 @@ from appell.model import (
 )
 from appell.symbols import canonical_name, derivative_name, split_derivative_name
 from appell.core.validation import declared_symbols, validate
-from .expressions import FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_value, parse_expression
+from .expressions import (FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_problem, constant_value,
+                          parse_expression)
 from .locate import source_map
 
 __all__ = ["load_model", "loads_model", "simulation_options", "TABLES", "SIMULATION_KEYS", "CONSTRAINT_KINDS", "MAX_FILE_SIZE"]
 
 #: largest model file accepted, in characters
 MAX_FILE_SIZE = 1_000_000
+#: the largest finite float: a model's numbers and constants must stay within it
+_FLOAT_MAX = 1.7976931348623157e308
+#: the hint of a value that is complex or beyond the floating-point range
+VALUE_HINT = ("a model's values are real numbers within the floating-point range (about 1.8e308): check the "
+              "expression, and rescale the units or the parameters where a value is that large")
 #: the UTF-8 byte-order mark, accepted (and ignored) at the start of a model file
 BOM = "\ufeff"
 
@@ -107,6 +113,9 @@ SIMULATION_KEYS = {
 STABILIZATIONS = ("projection", "baumgarte", "none")
 RELEASES = ("continue", "stop")
 
+#: arrays of tables -> what one item is (named in messages: "closures[0] (closure 'C').point_a")
+_ITEMS = {"bodies": "body", "joints": "joint", "closures": "closure", "loads": "load", "forces": "force",
+          "torques": "torque", "friction": "friction"}
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
 _EXPRESSION_HINT = ("expressions use numbers, names, x' (derivative), + - * / ^, parentheses and "
@@ -137,6 +146,7 @@ class _Reader:
         self.source = source
         self.map = source_map(text)
         self.symbols: dict[tuple, tuple[sp.Expr, str]] = {}  # path -> (expr, level) for the symbol check
+        self.doc = None  # the parsed document, for the names of array items in messages (item_name)
 
     # ------------------------------------------------------------------ errors
     def where(self, path: tuple = (), line: int | None = None) -> str:
@@ -144,8 +154,19 @@ class _Reader:
         return f"{self.source}:{line}" if line else self.source
 
     def error(self, path: tuple, message: str, hint: str | None = None, line: int | None = None) -> ModelError:
-        return ModelError(f"{_dotted(path)}: {message}" if path else message,
+        return ModelError(f"{_dotted(path)}{self.item_name(path)}: {message}" if path else message,
                           where=self.where(path, line), hint=hint)
+
+    def item_name(self, path: tuple) -> str:
+        """`` (closure 'C')`` for a path inside a named item of an array of tables
+        (``[[closures]]``, ``[[bodies]]``, ...), so that a message names the item; else ``""``."""
+        if len(path) < 2 or not isinstance(path[1], int) or not isinstance(self.doc, dict):
+            return ""
+        items = self.doc.get(path[0])
+        if not isinstance(items, list) or not 0 <= path[1] < len(items) or not isinstance(items[path[1]], dict):
+            return ""
+        name = items[path[1]].get("name")
+        return f" ({_ITEMS.get(path[0], 'item')} {name!r})" if isinstance(name, str) and name else ""
 
     # ----------------------------------------------------------------- tables
     def table(self, path: tuple, value, allowed, required=()) -> dict:
@@ -190,9 +211,10 @@ class _Reader:
         """An expression from a string or a number; ``level`` names the declared-symbol set."""
         if _is_number(value):
             if isinstance(value, float) and not math.isfinite(value):
-                raise self.error(path, f"{value} is not a finite number")
-            if isinstance(value, int) and abs(value).bit_length() > 3322:
-                raise self.error(path, "the number is too large")
+                raise self.error(path, f"{value} is not a finite number", hint=VALUE_HINT)
+            if isinstance(value, int) and (abs(value).bit_length() > 3322 or abs(value) > _FLOAT_MAX):
+                raise self.error(path, f"the number is outside the floating-point range (at most {_FLOAT_MAX:.4g})",
+                                 hint=VALUE_HINT)
             result = sp.Integer(value) if isinstance(value, int) else sp.Float(value)
         elif isinstance(value, str):
             try:
@@ -208,6 +230,9 @@ class _Reader:
         else:
             raise self.error(path, f"must be an expression (a string such as \"m*g*y\") or a number, "
                                    f"got {_kind(value)}")
+        problem = constant_problem(result, value if isinstance(value, str) else None)
+        if problem is not None:  # sqrt(-1), log(-1), exp(1000): complex or beyond the floating range
+            raise self.error(path, problem, hint=VALUE_HINT, line=self.map.content_line(path))
         if level is not None:
             self.symbols[path] = (result, level)
         return result
@@ -237,8 +262,11 @@ class _Reader:
     def constant(self, path: tuple, value) -> float:
         """A number, or a string holding a constant expression such as ``"sin(pi/3)"``."""
         if _is_number(value):
+            if isinstance(value, int) and abs(value) > _FLOAT_MAX:
+                raise self.error(path, f"the number is outside the floating-point range (at most {_FLOAT_MAX:.4g})",
+                                 hint=VALUE_HINT)
             if not math.isfinite(float(value)):
-                raise self.error(path, f"{value} is not a finite number")
+                raise self.error(path, f"{value} is not a finite number", hint=VALUE_HINT)
             return float(value)
         if isinstance(value, str):
             expr = self.expr(path, value)
@@ -496,6 +524,19 @@ def _controls(r: _Reader, doc: dict) -> list[Control]:
     return out
 
 
+def _check_controls(r: _Reader, controls: list[Control], servo: list[Constraint]) -> None:
+    """A control is the unknown that realises a servo constraint (method.md §4): controls
+    without any ``[servo_constraints]`` leave nothing to determine them (their symbols
+    used to reach the numeric code undefined: ``NameError``)."""
+    if controls and not servo:
+        names = ", ".join(c.name for c in controls)
+        raise r.error(("controls",), f"control{'s' if len(controls) > 1 else ''} {names} "
+                                     f"{'are' if len(controls) > 1 else 'is'} declared but no servo constraint is "
+                                     f"given: nothing determines {'their values' if len(controls) > 1 else 'its value'}",
+                      hint="add the servo constraint it realises ([servo_constraints.NAME] with kind and expr), or "
+                           "remove [controls] and give the force or the motion as an expression of t and the state")
+
+
 def _first_integrals(r: _Reader, doc: dict) -> list[FirstIntegral]:
     out = []
     for key, value in r.table(("first_integrals",), doc.get("first_integrals", {}), _Any()).items():
@@ -660,6 +701,7 @@ def _build_mechanism(r: _Reader, doc: dict) -> System:
     controls = _controls(r, top)
     constraints = _constraints(r, top, "constraints")
     servo = _constraints(r, top, "servo_constraints")
+    _check_controls(r, controls, servo)
     try:
         system = mech.system(reactions=reactions, frame=frame, constraints=tuple(extra) + tuple(constraints),
                              controls=tuple(controls), servo_constraints=tuple(servo))
@@ -750,6 +792,7 @@ def _build(r: _Reader, doc: dict) -> System:
     loads = _loads(r, top)
     constraints = _constraints(r, top, "constraints")
     servo = _constraints(r, top, "servo_constraints")
+    _check_controls(r, controls, servo)
     first_integrals = _first_integrals(r, top)
     frictions = _frictions(r, top, [c.name for c in constraints])
     settings = _simulation(r, top, [c.name for c in constraints])
@@ -853,7 +896,9 @@ def loads_model(text: str, source: str = "<string>", overrides: Mapping | None =
         raise ModelError("invalid TOML: arrays or tables nested too deeply", where=source) from None
     except ValueError as exc:  # tomllib reports some invalid values (dates) this way
         raise ModelError(f"invalid TOML: {exc}", where=source) from None
-    system = _build(_Reader(text, source), doc)
+    reader = _Reader(text, source)
+    reader.doc = doc
+    system = _build(reader, doc)
     return _apply_overrides(system, overrides, source)
 
 
