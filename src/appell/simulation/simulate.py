@@ -181,6 +181,10 @@ class _Run:
         self.nfev = self.steps = self.projections = self.switches = self.restarts = 0
         self.released: list[str] = []
         self.dependent = None
+        self.tentative: list[tuple] = []  # switches logged inside the current step: (t, dependent before)
+        self.events_index: list[int] = []  # where they sit in events and log
+        self.log_index: list[int] = []
+        self.last_dependent = None
         self.partition_of = model
         self.models = {frozenset(): model}
         self.contact_times: dict[str, tuple[float, int]] = {}
@@ -233,7 +237,7 @@ class _Run:
         if model is not self.partition_of:  # a new model (a release): its partition is not a switch
             self.partition_of, self.dependent = model, tuple(ev.dependent)
         elif self.dependent is not None and tuple(ev.dependent) != self.dependent:
-            self.note_partition(model, t, ev)
+            self.note_partition(model, t, ev)  # inside a step: tentative until it is accepted
         return ev
 
     def by_name(self, model, values, fill):
@@ -325,16 +329,34 @@ class _Run:
     def note_partition(self, model, t, ev):
         dep = tuple(ev.dependent)
         if self.dependent is None:
-            self.dependent = dep
+            self.last_dependent, self.dependent = None, dep
             if ev.switched:
                 self.log_switch(model, t, dep, True)
             return
         if dep != self.dependent:
-            self.dependent = dep
+            self.last_dependent, self.dependent = self.dependent, dep
             self.log_switch(model, t, dep, ev.switched)
+
+    def accept(self, t_new: float, before=None):
+        """The step to ``t_new`` is accepted: the partition switches logged beyond it came from
+        the stages of rejected attempts and are dropped (with the partition they left), so
+        that the log holds the switches of the motion only, in time order."""
+        for t, dep_before in reversed(self.tentative):
+            if t <= t_new:
+                break
+            self.events.pop(self.events_index.pop())
+            self.log.pop(self.log_index.pop())
+            self.dependent = dep_before
+            self.switches -= 1
+        self.tentative.clear()
+        self.events_index.clear()
+        self.log_index.clear()
 
     def log_switch(self, model, t, dep, switched):
         acc = [acceleration_name(model.speed_names[i]) for i in dep]
+        self.tentative.append((float(t), self.last_dependent))
+        self.events_index.append(len(self.events))
+        self.log_index.append(len(self.log))
         self.switches += 1
         what = "partition switched (J_h ill-conditioned)" if switched else "partition restored"
         text = f"dependent accelerations now {', '.join(acc)}"
@@ -360,6 +382,9 @@ class _Run:
         t, ys, acc, lam, ctl, F, phi, track, fr = cols
         t = t.reshape(-1)
         stats = SolverStatistics(self.nfev, self.steps, self.projections, self.switches, self.restarts)
+        # in time order: a switch met at a stage of a step is logged before the step's outputs
+        events = sorted(self.events, key=lambda e: e.t)
+        log = [line for _, _, line in sorted((_log_time(line), i, line) for i, line in enumerate(self.log))]
         columns = {"t": t, **{n: ys[:, i] for i, n in enumerate(root.state_names)},
                    **{acceleration_name(n): acc[:, i] for i, n in enumerate(root.speed_names)},
                    **{f"lambda_{n}": lam[:, i] for i, n in enumerate(self.names)},
@@ -378,10 +403,20 @@ class _Run:
             tracking={n: track[:, i] for i, n in enumerate(self.tracking_names)},
             outputs=outputs, output_descriptions={o.name: o.description for o in getattr(self.system, "outputs", ())},
             friction={n: fr[:, i] for i, n in enumerate(friction_columns)},
-            status=status, message=message, statistics=stats, events=tuple(self.events), log=tuple(self.log),
+            status=status, message=message, statistics=stats, events=tuple(events), log=tuple(log),
             metadata=_metadata(root, self.system, self.p, self.kinds,
                                {k: str(v) for k, v in self.settings.items()}),
         )
+
+
+def _log_time(line: str) -> float:
+    """The time of a log line ``"t = <time>: ..."`` (-inf for another line: it keeps its place first)."""
+    if line.startswith("t = "):
+        try:
+            return float(line[4:line.index(":")])
+        except ValueError:
+            pass
+    return -np.inf
 
 
 def recorded_outputs(system, columns) -> dict:
@@ -651,6 +686,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                 break
             run.steps += 1
             t_new, y_new = float(solver.t), np.array(solver.y, float)
+            run.accept(t_new)
             dense = solver.dense_output()
             try:
                 ev_new = run.evaluate(active, t_new, y_new)
