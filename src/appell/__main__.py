@@ -1,6 +1,9 @@
-"""``python -m appell``: the command line, as the ``appell`` script (:mod:`appell.io.cli`)."""
+"""``python -m appell``: the command line, as the ``appell`` script (:mod:`appell_entry`,
+:mod:`appell.io.cli`)."""
 
-from appell.io.cli import main
+import sys
+
+from appell_entry import main
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

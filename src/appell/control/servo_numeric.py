@@ -34,7 +34,8 @@ import sympy as sp
 from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError, ModelError
 from appell.numerics.crosscheck import relative_difference
-from appell.numerics.numeric import lambdify_blocks, program_substitutions, split_basis, split_solve, usable_partition
+from appell.numerics.numeric import (check_finite, lambdify_blocks, program_substitutions, split_basis, split_solve,
+                                     usable_partition)
 from appell.symbols import derivative_symbol, t
 
 __all__ = ["ControlledCrossCheck", "ControlledModel", "ControlledSolution", "augmented_controlled_solve",
@@ -110,8 +111,23 @@ class ControlledModel:
         out = self.blocks(float(t), q, w, uc, pv)
         n, k = len(w), len(self.control_names)
         M, N, e, Jf, Kf, cf, Jg, Kg, cg = (np.asarray(x, float) for x in out)
-        return (M.reshape(n, n), N.reshape(n, k), e.reshape(n), Jf.reshape(-1, n), Kf.reshape(-1, k),
-                cf.reshape(-1), Jg.reshape(-1, n), Kg.reshape(-1, k), cg.reshape(-1))
+        blocks = (M.reshape(n, n), N.reshape(n, k), e.reshape(n), Jf.reshape(-1, n), Kf.reshape(-1, k),
+                  cf.reshape(-1), Jg.reshape(-1, n), Kg.reshape(-1, k), cg.reshape(-1))
+        if not all(np.isfinite(b).all() for b in blocks):
+            w_, c_, g_, u_ = self.speed_names, self.constraint_names, self.servo_names, self.control_names
+            check_finite(t, tuple(zip(
+                ("mass matrix M", "control matrix N (the controls' generalized forces)",
+                 "force vector h - Q (inertial minus applied generalized forces)", "constraint Jacobian df/da",
+                 "constraint Jacobian df/du in the controls", "constraint term c (of f = J a + c)",
+                 "servo-constraint Jacobian dg/da", "servo-constraint Jacobian dg/du in the controls",
+                 "servo-constraint term (of g = J a + K u + c)"),
+                blocks, (w_, w_, w_, c_, c_, c_, g_, g_, g_), (w_, u_, None, w_, u_, None, w_, u_, None))))
+        return blocks
+
+    def start_blocks(self, t, y, p=None):
+        """The blocks at ``(t, y)`` (checked as in :meth:`solve`), for the check of a start
+        (:func:`appell.simulation.initial.check_blocks_at_start`)."""
+        return self._blocks(t, y, self.params(p))
 
     # ------------------------------------------------------------ the method
     def controls(self, t, y, p=None) -> np.ndarray:
@@ -140,7 +156,18 @@ class ControlledModel:
         return z[len(ind):]
 
     def solve(self, t, y, p=None) -> ControlledSolution:
-        """Controls (2.3), accelerations of the real system under them and reactions (2.5)."""
+        """Controls (2.3), accelerations of the real system under them and reactions (2.5);
+        a singular linear system on the way is a :class:`ComputationError` naming the time."""
+        try:
+            return self._solve(t, y, p)
+        except np.linalg.LinAlgError as exc:
+            raise ComputationError(
+                f"the controlled split (2.3)-(2.5) of {self.name!r} is singular at t = {float(t):.10g} "
+                f"(NumPy: {exc})",
+                hint="the mass matrix, a dependent block of the constraints or the dynamic conditions lose rank "
+                     "there: give every motion inertia, or stop the run before this state") from exc
+
+    def _solve(self, t, y, p=None) -> ControlledSolution:
         pv = self.params(p)
         M, N, e, Jf, Kf, cf, Jg, Kg, cg = self._blocks(t, y, pv)
         s = Jf.shape[0]

@@ -106,9 +106,41 @@ def derive_model(system, dependent=None, formulas: bool = False):
             from appell.core.derive import derive
 
             derivation = derive(system, dependent=dependent)
+            check_inertia_at_start(derivation)
         if formulas:
             derivation.reduced, derivation.reactions  # noqa: B018 (computed and cached here)
     return derivation
+
+
+def check_inertia_at_start(derivation) -> None:
+    """Refuse a derivation whose inertia is not positive on every admissible motion, before
+    its formulas are formed (they would divide by zero: ``zoo`` in the printed equations, a
+    singular matrix in the first solve): :func:`appell.numerics.inertia.check_inertia` at the
+    model's initial state (its ``[simulation]`` t0), which names the motion without inertia
+    as a combination of the speeds. Where the model gives no initial coordinates, a speed
+    whose row of ``C^T M C`` vanishes identically (no inertia in any state) is named."""
+    system = derivation.system
+    values = system.initial_values
+    if all(q.name in values for q in system.coordinates):
+        from appell.numerics.inertia import check_inertia
+        from appell.simulation.initial import check_blocks_at_start
+
+        model = derivation.numeric
+        t0 = float(dict(system.settings).get("t0", 0.0))
+        y = [float(values.get(name, 0.0)) for name in model.state_names]
+        check_blocks_at_start(model, t0, y, model.default_parameters)  # entries beyond the range: named
+        check_inertia(model, t0, y, model.default_parameters)
+        return
+    reduced = derivation.reduced
+    matrix = reduced.mass_matrix
+    if matrix is None:
+        return
+    empty = [a.name for a, row in zip(reduced.independent, matrix.tolist()) if all(e == 0 for e in row)]
+    if empty:
+        raise ModelError(f"the reduced mass matrix C^T M C of {system.name!r} has a zero row for "
+                         f"{', '.join(empty)}: that motion has no inertia in any state, so its acceleration is "
+                         "not determined",
+                         hint="give it inertia (a mass or a moment of inertia in the kinetic energy), or constrain it")
 
 
 def is_controlled(derivation) -> bool:
@@ -237,6 +269,7 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
     t0, t_end = opts.pop("t0"), opts.pop("t_end")
     if t_end == t0:
         opts["t_eval"] = [t0]
+    check_output_memory(derivation, model, opts)
     solution = simulate(model, t_end, t0=t0, **opts)
     if solution.status < 0:
         singular = [e for e in solution.events if e.kind == "singular"]
@@ -248,6 +281,21 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
         raise ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
                                hint=hint)
     return solution
+
+
+def check_output_memory(derivation, model, opts) -> None:
+    """Refuse, before integrating, output times whose recorded rows would not fit in memory
+    (:func:`appell.simulation.resources.check_memory`): ``--samples 100000000`` is a
+    :class:`~appell.errors.ResourceError` at once, not a failure after minutes."""
+    times = opts.get("t_eval")
+    if times is None:
+        return
+    from appell.numerics.compiled_loop import supports
+    from appell.simulation.resources import check_run_memory
+
+    dynamics = model if hasattr(model, "state_names") else derivation.numeric
+    compiled = opts.get("method", "DOP853") == "DOP853" and supports(model) and not opts.get("project_output")
+    check_run_memory(dynamics, len(times), compiled)
 
 
 def solver_line(solution) -> str:
@@ -303,10 +351,11 @@ class _AppellGroup(click.Group):
             code = _report_error(exc.format_message(), hint, EXIT_BAD_INPUT)
         except click.exceptions.Exit as exc:
             code = exc.exit_code
-        except click.Abort as exc:  # click turns Ctrl-C into Abort
+        except Interrupted:
+            code = _interrupted()
+        except click.Abort as exc:  # click turns Ctrl-C into Abort (while it reads the arguments)
             interrupted = isinstance(exc.__context__, KeyboardInterrupt)
-            code = _report_error("interrupted" if interrupted else "aborted", None,
-                                 EXIT_INTERRUPTED if interrupted else EXIT_FAILURE)
+            code = _interrupted() if interrupted else _report_error("aborted", None, EXIT_FAILURE)
         except Terminated:
             code = _report_error("terminated (SIGTERM)", None, EXIT_TERMINATED)
         except click.ClickException as exc:
@@ -324,21 +373,49 @@ class _AppellGroup(click.Group):
                                  "the operating system refused (see the reason above); the previous output "
                                  "files are unchanged", EXIT_FAILURE)
         except MemoryError:
-            code = _report_error("out of memory", "the machine ran out of memory; try a smaller problem",
-                                 EXIT_FAILURE)
+            code = _out_of_memory()
         except KeyboardInterrupt:
-            code = _report_error("interrupted", None, EXIT_INTERRUPTED)
+            code = _interrupted()
+        except SystemError as exc:  # an extension module that failed to allocate, else a bug
+            if not isinstance(exc.__cause__ or exc.__context__, MemoryError):
+                code = _internal_error(exc)
+            else:
+                code = _out_of_memory()
         except Exception as exc:  # a bug, not the user's input: no traceback unless asked for
-            if os.environ.get("APPELL_DEBUG"):
-                raise
-            code = _report_error(f"internal error: {type(exc).__name__}: {exc}",
-                                 "this is a bug in appell; rerun with APPELL_DEBUG=1 for the traceback "
-                                 "and report it with the model file", EXIT_FAILURE)
+            code = _internal_error(exc)
         else:
             code = rv if isinstance(rv, int) else EXIT_OK
         if standalone_mode:
             sys.exit(code)
         return code
+
+
+    def invoke(self, ctx):
+        """The command; Ctrl-C inside it leaves as :class:`Interrupted`, past click's own
+        handling (which writes a blank line on stderr before its Abort)."""
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt as exc:
+            raise Interrupted() from exc
+
+
+class Interrupted(BaseException):
+    """Ctrl-C (SIGINT) inside a command (:meth:`_AppellGroup.invoke`); exit :data:`EXIT_INTERRUPTED`."""
+
+
+def _interrupted() -> int:
+    """``error: interrupted``, the one line of a command stopped by Ctrl-C (on a terminal
+    after a line break that closes the terminal's ``^C``)."""
+    if _is_terminal(sys.stderr):
+        click.echo("", err=True)
+    return _report_error("interrupted", None, EXIT_INTERRUPTED)
+
+
+def _is_terminal(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError, OSError):
+        return False
 
 
 class Terminated(BaseException):
@@ -348,6 +425,23 @@ class Terminated(BaseException):
 
 def _terminate(signum, frame):
     raise Terminated()
+
+
+def _internal_error(exc: Exception) -> int:
+    """The report of an exception appell did not raise on purpose (a bug): one line and a
+    hint, the traceback only with ``APPELL_DEBUG=1``."""
+    if os.environ.get("APPELL_DEBUG"):
+        raise exc
+    return _report_error(f"internal error: {type(exc).__name__}: {exc}",
+                         "this is a bug in appell; rerun with APPELL_DEBUG=1 for the traceback "
+                         "and report it with the model file", EXIT_FAILURE)
+
+
+def _out_of_memory() -> int:
+    """The report of a :class:`MemoryError` (an allocation refused while the command ran)."""
+    return _report_error("out of memory: the machine (or the process's limit, ulimit -v) refused an allocation",
+                         "try a smaller problem: fewer output times (--samples, --output-step), a shorter "
+                         "--t-end, fewer sweep runs", EXIT_FAILURE)
 
 
 def _report_error(message: str, hint: str | None, code: int) -> int:
@@ -850,8 +944,10 @@ def _first_line(path: Path) -> str:
     return ""
 
 
-def main(argv=None) -> int:
-    """Entry point of the ``appell`` command (``argv`` defaults to ``sys.argv[1:]``).
+def main(argv=None, standalone: bool = True) -> int:
+    """Run the ``appell`` command line (``argv`` defaults to ``sys.argv[1:]``): exits with its
+    code, or returns it with ``standalone=False``. The ``appell`` script enters through
+    :func:`appell_entry.main`, which handles Ctrl-C from before appell is imported.
 
     SIGTERM raises :class:`Terminated` in the main thread, so that a write under way removes
     its temporary file; the command then exits with :data:`EXIT_TERMINATED`.
@@ -862,11 +958,13 @@ def main(argv=None) -> int:
     except ValueError:  # not the main thread: leave the signal alone
         pass
     try:
-        return cli.main(args=argv, prog_name="appell")
+        return cli.main(args=argv, prog_name="appell", standalone_mode=standalone)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 
 
-if __name__ == "__main__":  # python -m appell.io.cli
-    main()
+if __name__ == "__main__":  # python -m appell.io.cli: the entry point's handling of Ctrl-C, after the import
+    from appell_entry import main as entry
+
+    sys.exit(entry(command=main))

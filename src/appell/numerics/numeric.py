@@ -67,7 +67,11 @@ class ScalarBlocks:
         args = [a.tolist() if isinstance(a, np.ndarray) else a for a in args]
         try:
             values = np.array(self.function(*args), dtype=float)
-        except (ValueError, ZeroDivisionError, OverflowError, TypeError) as exc:
+        except OverflowError as exc:
+            reason = exc.args[-1] if exc.args else exc
+            raise ComputationError(f"the {self.what} cannot be evaluated at this state: a value overflows the "
+                                   f"floating range ({reason})", hint=RANGE_HINT) from exc
+        except (ValueError, ZeroDivisionError, TypeError) as exc:
             raise ComputationError(
                 f"the {self.what} cannot be evaluated at this state: {exc}",
                 hint="the state left the domain of the model's expressions (a square root of a negative "
@@ -95,10 +99,49 @@ def lambdify_blocks(args, outputs, subs: Mapping | None = None, what: str = "mod
     try:
         scalar.function(*probe)
     except (NameError, AttributeError):
-        return sp.lambdify(args, mats, modules="numpy", cse=True, docstring_limit=0)
+        function = sp.lambdify(args, mats, modules="numpy", cse=True, docstring_limit=0)
+
+        def quiet(*values):
+            # an overflow gives inf or NaN, which the caller names (:func:`check_finite`),
+            # instead of a raw RuntimeWarning on the user's terminal
+            with np.errstate(all="ignore"):
+                return function(*values)
+
+        return quiet
     except (ValueError, ZeroDivisionError, OverflowError, TypeError):
         pass  # a domain error at the probe point says nothing about the code
     return scalar
+
+
+#: the hint of a block with an infinite entry
+RANGE_HINT = ("values out of floating range (beyond about 1.8e308): rescale the units or the parameters "
+              "(e.g. mm -> m, kN -> N), or check the expressions and the state for an overflow")
+#: the hint of a block with an undefined entry (NaN)
+UNDEFINED_HINT = ("the state left the domain of the model's expressions (a square root of a negative number, "
+                  "0/0, inf - inf) or a value overflowed: check the expressions, the initial values and the time "
+                  "span, and rescale the units or the parameters if values are that large")
+
+
+def check_finite(t, blocks) -> None:
+    """Raise :class:`ComputationError` naming the first block with an entry that is not a
+    finite number, its row (and column) and the time ``t``, with :data:`RANGE_HINT` (infinite)
+    or :data:`UNDEFINED_HINT` (NaN).
+
+    ``blocks``: ``(what, array, row names, column names or None)`` in the order of the
+    message. Finite blocks pass at the cost of one :func:`numpy.isfinite` per block."""
+    for what, values, rows, columns in blocks:
+        values = np.asarray(values, float)
+        if np.isfinite(values).all():
+            continue
+        values = values.reshape(values.shape[0] if values.ndim else 1, -1)
+        i, j = (int(k) for k in np.argwhere(~np.isfinite(values))[0])
+        place = f"row {rows[i] if i < len(rows) else i + 1}"
+        if columns is not None:
+            place += f", column {columns[j] if j < len(columns) else j + 1}"
+        undefined = bool(np.isnan(values[i, j]))
+        raise ComputationError(f"the {what} is not finite at t = {float(t):.10g}: {place} is "
+                               f"{'undefined (NaN)' if undefined else values[i, j]}",
+                               hint=UNDEFINED_HINT if undefined else RANGE_HINT)
 
 
 @dataclass(frozen=True)
@@ -291,12 +334,22 @@ class NumericModel:
         return dep
 
     def evaluate_blocks(self, t, q, w, p=None):
-        """``M``, ``h - Q``, ``J``, ``c`` at a state."""
+        """``M``, ``h - Q``, ``J``, ``c`` at a state; a :class:`ComputationError` naming the
+        block, its row and the time where an entry is not a finite number (an overflow, a
+        parameter of 1e308: :func:`check_finite`)."""
         q, w = self.checked_state(q, w)
-        M, hQ, J, c = self.blocks(number(t, "t"), q, w, self.params(p))
+        t = number(t, "t")
+        M, hQ, J, c = self.blocks(t, q, w, self.params(p))
         n = len(w)
-        return (np.asarray(M, float).reshape(n, n), np.asarray(hQ, float).reshape(n),
-                np.asarray(J, float).reshape(-1, n), np.asarray(c, float).reshape(-1))
+        M, hQ = np.asarray(M, float).reshape(n, n), np.asarray(hQ, float).reshape(n)
+        J, c = np.asarray(J, float).reshape(-1, n), np.asarray(c, float).reshape(-1)
+        if not (np.isfinite(M).all() and np.isfinite(hQ).all() and np.isfinite(J).all() and np.isfinite(c).all()):
+            speeds, names = self.speed_names, self.constraint_names
+            check_finite(t, (("mass matrix M", M, speeds, speeds),
+                             ("force vector h - Q (inertial minus applied generalized forces)", hQ, speeds, None),
+                             ("constraint Jacobian df/da", J, names, speeds),
+                             ("constraint term c (of f = J a + c)", c, names, None)))
+        return M, hQ, J, c
 
     def coordinate_rates(self, t, q, w, p=None) -> np.ndarray:
         """``dq/dt = K w + k``."""
@@ -323,11 +376,14 @@ class NumericModel:
             c = c + np.asarray(bias, float)
         names = self.derivation.constraints.names
         dep = tuple(self.derivation.partition.dependent) if dependent is None else self.checked_dependent(dependent)
-        if self.constraint_function is None:
-            dep, Jh_inv, switched, kappa = partition_in_use(J, dep, names)
-            a, lam = split_solve(M, hQ, J, c, dep, Jh_inv, kappa)
-            return StateSolution(a, lam, J.T @ lam, dep, switched)
-        return self._solve_nonlinear(t, q, w, pv, M, hQ, dep, bias)
+        try:
+            if self.constraint_function is None:
+                dep, Jh_inv, switched, kappa = partition_in_use(J, dep, names)
+                a, lam = split_solve(M, hQ, J, c, dep, Jh_inv, kappa)
+                return StateSolution(a, lam, J.T @ lam, dep, switched)
+            return self._solve_nonlinear(t, q, w, pv, M, hQ, dep, bias)
+        except np.linalg.LinAlgError as exc:
+            raise singular_inertia(self, t, M, J) from exc
 
     def _solve_nonlinear(self, t, q, w, pv, M, hQ, dep, bias=None) -> StateSolution:
         names = self.derivation.constraints.names
@@ -495,6 +551,34 @@ class NumericModel:
                                  program_substitutions(d.system))
             self._formula["lambda"] = fn
         return np.asarray(fn(float(t), q, w, a, self.params(p))[0], float).reshape(-1)
+
+
+def singular_inertia(model, t, M, J) -> ComputationError:
+    """The error of a split solve whose reduced mass matrix ``C^T M C`` (``M`` without
+    constraints) is singular at time ``t``: it names the motion without inertia, a
+    combination of the speeds (the null direction of ``C^T M C`` mapped back by ``C``)."""
+    names = list(model.speed_names)
+    direction = ""
+    try:
+        if J.shape[0]:
+            _, sv, vt = np.linalg.svd(J)
+            rank = int(np.sum(sv > 1e-12 * max(1.0, sv[0] if sv.size else 1.0)))
+            basis = vt[rank:].T
+        else:
+            basis = np.eye(M.shape[0])
+        if basis.shape[1]:
+            vals, vecs = np.linalg.eigh(basis.T @ (0.5 * (M + M.T)) @ basis)
+            v = basis @ vecs[:, int(np.argmin(np.abs(vals)))]
+            v = v / np.max(np.abs(v))
+            terms = [f"{c:+.3g} {n}" for c, n in zip(v, names) if abs(c) > 1e-6]
+            direction = " along " + " ".join(terms).lstrip("+")
+    except (np.linalg.LinAlgError, ValueError):
+        pass
+    return ComputationError(
+        f"the reduced mass matrix C^T M C of {model.name!r} is singular at t = {float(t):.10g}: the motion"
+        f"{direction} has no inertia there, so its acceleration is not determined",
+        hint="give every admissible motion inertia (a mass or a moment of inertia that vanishes there?), or "
+             "constrain it; stop the run before this state")
 
 
 def split_solve(M, hQ, J, c, dep, Jh_inv=None, kappa=None):

@@ -34,7 +34,7 @@ from appell.errors import ComputationError, InitialValueError, ModelError
 from appell.symbols import derivative_name, split_derivative_name
 
 __all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians",
-           "COMPLETION_HINT", "CHECK_TOLERANCE"]
+           "check_blocks_at_start", "COMPLETION_HINT", "CHECK_TOLERANCE"]
 
 #: largest admissible ``|F|`` and ``|phi|`` of a start (absolute)
 CHECK_TOLERANCE = 1e-9
@@ -276,8 +276,11 @@ def check_initial(derivation, values=None, tol: float = CHECK_TOLERANCE, *, t: f
             hint=MISSING_HINT,
         )
     pos, vel = _residual_table(model, t, y, p)
+    _finite_residuals(model, t, list(pos.items()) + list(vel.items()))
     violations = [(n, "position", r) for n, r in pos.items() if not abs(r) <= tol] + \
         [(n, "velocity", r) for n, r in vel.items() if not abs(r) <= tol]
+    if not violations:
+        check_blocks_at_start(model, t, y, p)
     if violations:
         names = ", ".join(dict.fromkeys(n for n, _, _ in violations))
         raise InitialValueError(
@@ -286,6 +289,35 @@ def check_initial(derivation, values=None, tol: float = CHECK_TOLERANCE, *, t: f
             violations=violations, hint=COMPLETION_HINT,
         )
     return InitialState(float(t), y, tuple(model.state_names), MappingProxyType(pos), MappingProxyType(vel))
+
+
+def _finite_residuals(model, t, residuals) -> None:
+    """A constraint residual that is infinite at the start (``(name, value)`` pairs) is out of
+    floating range, not a violation that completing the values could mend: ModelError."""
+    from appell.numerics.numeric import RANGE_HINT
+
+    bad = [name for name, r in residuals if np.isinf(r)]
+    if bad:
+        raise ModelError(f"model {model.name!r} cannot start: the residual of "
+                         f"{', '.join(_label(model, n) for n in dict.fromkeys(bad))} is not finite at t = {t:g}",
+                         hint=RANGE_HINT)
+
+
+def check_blocks_at_start(model, t, y, p) -> None:
+    """The model's blocks (``M``, ``h - Q``, ``J``, ``c``; a controlled model's with its
+    control blocks) evaluated at the start: a block that cannot be evaluated there or has an
+    entry that is not a finite number (a parameter of 1e308, an overflow) is the model's
+    fault, not the integrator's, so the :class:`ComputationError` naming the block and its
+    row (:func:`appell.numerics.numeric.check_finite`) becomes a :class:`ModelError`."""
+    nq, n = len(model.coordinate_names), len(model.speed_names)
+    y = np.asarray(y, float)
+    try:
+        if hasattr(model, "evaluate_blocks"):
+            model.evaluate_blocks(t, y[:nq], y[nq:nq + n], p)
+        elif hasattr(model, "start_blocks"):
+            model.start_blocks(t, y, p)
+    except ComputationError as exc:
+        raise ModelError(f"model {model.name!r} cannot start: {exc.message}", hint=exc.hint) from None
 
 
 def _newton_block(residual, jacobian, x0, what: str, tol: float, maxiter: int):
@@ -415,6 +447,7 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
     y, _ = _state_vector(model, given, start)
     constraints = sum(_constraint_names(model), ())
     F0, phi0 = _residuals(model, t, y, p)
+    _finite_residuals(model, t, zip(constraints + constraints, np.concatenate([F0, phi0])))
     completed: list[str] = []
     independent = getattr(getattr(model, "redundancy", None), "independent", None)
 

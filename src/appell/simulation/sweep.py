@@ -40,6 +40,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import json
+import logging
 import math
 import os
 import re
@@ -55,6 +56,7 @@ import numpy as np
 from appell.arguments import count, number, times
 from appell.errors import ModelError, ResourceError
 from appell.files import atomic_path, output_target, write_hdf5
+from appell.simulation.resources import check_memory
 
 #: run status for a run that raised (simulate's own codes are 0, 1 and -1)
 RAISED = -2
@@ -689,17 +691,114 @@ def _start_cluster(n_workers, processes, scheduler, connect_timeout, host=None, 
     if scheduler is not None:
         return _connect(scheduler, connect_timeout), None
     distributed = _distributed()
+    cluster = client = None
     try:
-        cluster = distributed.LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
-                                           dashboard_address=None, host=host, scheduler_port=port)
-    except OSError as exc:  # the port is taken, the host is not this machine's
-        raise ResourceError(f"cannot start a Dask scheduler on {host or '127.0.0.1'}:{port}: {exc.strerror or exc}",
-                            hint="choose another port (0: a free one) or host") from None
-    try:
-        return distributed.Client(cluster, set_as_default=False), cluster
-    except BaseException:
-        cluster.close()
+        with _interrupt_after():  # a cluster half started cannot be closed cleanly
+            # Dask's warnings (a worker restarted, a task cancelled) stay off the terminal: the
+            # sweep records every run's fate itself
+            cluster = distributed.LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
+                                               dashboard_address=None, host=host, scheduler_port=port,
+                                               silence_logs=logging.ERROR)
+            client = distributed.Client(cluster, set_as_default=False)
+        return client, cluster
+    except BaseException as exc:
+        if isinstance(exc, KeyboardInterrupt) and client is not None:
+            _silence(client)
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+        if isinstance(exc, OSError):  # the port is taken, the host is not this machine's
+            raise ResourceError(f"cannot start a Dask scheduler on {host or '127.0.0.1'}:{port}: "
+                                f"{exc.strerror or exc}", hint="choose another port (0: a free one) or host") from None
         raise
+
+
+@contextlib.contextmanager
+def _interrupt_after():
+    """Hold a Ctrl-C (SIGINT) until the block has run, then raise it (KeyboardInterrupt); a
+    second one meanwhile goes to the previous handler at once. Only in the main thread."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = []
+
+    def hold(signum, frame):
+        if held and callable(previous):
+            previous(signum, frame)
+        held.append(signum)
+
+    previous = signal.signal(signal.SIGINT, hold)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if held:
+        raise KeyboardInterrupt
+
+
+def _silence(client) -> None:
+    """Nothing more on the terminal from an interrupted sweep's cluster while it closes: Dask's
+    loggers here, and the workers' stderr (:func:`_mute_worker`)."""
+    _quiet_dask()
+    try:
+        client.run(_mute_worker, on_error="ignore")
+    except Exception:  # noqa: BLE001 (a worker gone: its messages may stay)
+        pass
+
+
+@contextlib.contextmanager
+def _workers_without_interrupts(local: bool):
+    """Worker processes of a local cluster started in the block ignore SIGINT, so that Ctrl-C in
+    the terminal (sent to the whole process group) stops this process only, which then closes
+    the cluster, instead of a traceback from every worker (``local``: a local cluster of
+    processes; else nothing is done).
+
+    A disposition ``SIG_IGN`` survives ``fork`` and ``exec`` (a handler or a blocked mask does
+    not reach a spawned worker): the workers are forked from multiprocessing's fork server
+    (Dask's ``multiprocessing-method = "forkserver"``), started here with SIGINT ignored for
+    the instant of its own start, so that every process it forks ignores SIGINT too."""
+    import multiprocessing
+    import signal
+    import threading
+
+    if not local or "forkserver" not in multiprocessing.get_all_start_methods() \
+            or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    import dask
+    from distributed.utils import get_mp_context
+    from multiprocessing import forkserver
+
+    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
+        get_mp_context()  # Dask's preload of the fork server (its imports, done once there)
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            forkserver.ensure_running()
+        finally:
+            signal.signal(signal.SIGINT, previous)
+        yield
+
+
+def _mute_worker() -> None:
+    """In a worker process of an interrupted sweep (``client.run``): nothing more on the
+    terminal's stderr while the cluster closes (Dask's warnings, a traceback of a connection
+    closed under the worker's feet)."""
+    import sys
+
+    _quiet_dask()
+    sys.stderr = open(os.devnull, "w", encoding="utf-8")  # noqa: SIM115 (kept until the process ends)
+
+
+def _quiet_dask() -> None:
+    """Silence Dask's loggers while an interrupted sweep closes its cluster (its warnings, such
+    as a worker killed after its grace period, are expected then)."""
+    for name in list(logging.root.manager.loggerDict):
+        if name.split(".")[0] in ("distributed", "tornado", "asyncio"):
+            logging.getLogger(name).disabled = True
 
 
 @contextlib.contextmanager
@@ -724,14 +823,15 @@ def sweep_cluster(n_workers: int | None = None, *, scheduler: str | None = None,
         scheduler = check_scheduler_address(scheduler)
     connect_timeout = number(connect_timeout, "connect_timeout", positive=True)
     port = count(port, "port", minimum=0, maximum=65535)
-    client, cluster = _start_cluster(n_workers, processes, scheduler, connect_timeout, host, port)
-    try:
-        client.run(_prepare_worker)
-        yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    with _workers_without_interrupts(processes and scheduler is None):
+        client, cluster = _start_cluster(n_workers, processes, scheduler, connect_timeout, host, port)
+        try:
+            client.run(_prepare_worker)
+            yield client
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
 
 
 def _compute(shipment, todo, t_end, t_eval, simulate_options, on_result, *, client, scheduler, n_workers,
@@ -740,6 +840,16 @@ def _compute(shipment, todo, t_end, t_eval, simulate_options, on_result, *, clie
     (kept by the caller), else on a new local cluster or the scheduler at ``scheduler``
     (closed afterwards). The runs go in tasks of several grid points (:func:`chunks`, from
     the number of worker threads); every finished run goes to ``on_result``."""
+    own = client is None
+    with _workers_without_interrupts(own and processes and scheduler is None):
+        _compute_on(shipment, todo, t_end, t_eval, simulate_options, on_result, client=client, scheduler=scheduler,
+                    n_workers=n_workers, processes=processes, progress=progress, worker_timeout=worker_timeout,
+                    connect_timeout=connect_timeout)
+
+
+def _compute_on(shipment, todo, t_end, t_eval, simulate_options, on_result, *, client, scheduler, n_workers,
+                processes, progress, worker_timeout, connect_timeout):
+    """:func:`_compute` (its docstring), inside its handling of Ctrl-C for the workers."""
     own = client is None
     cluster = None
     if own:
@@ -757,6 +867,10 @@ def _compute(shipment, todo, t_end, t_eval, simulate_options, on_result, *, clie
 
             bar = tqdm(total=len(todo), desc="sweep", unit="run")
         _gather(client, futures, [[i for i, _ in chunk] for chunk in tasks], on_result, worker_timeout, bar)
+    except KeyboardInterrupt:
+        if own:  # the workers ignore Ctrl-C and run on until the cluster closes below
+            _silence(client)
+        raise
     finally:
         if bar is not None:
             bar.close()
@@ -836,6 +950,10 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
         raise ModelError(f"sweep over unknown parameter(s) {', '.join(unknown)}",
                          hint="parameters of the model: " + ", ".join(pnames))
     t_eval = np.linspace(0.0, t_end, samples) if t_eval is None else times(t_eval, "t_eval", 0.0, t_end)
+    states, multipliers, controls, _ = _names(model)
+    columns = 1 + len(states or ()) + len(multipliers or ()) + len(controls or ())
+    check_memory(len(grid) * len(t_eval), columns, f"the sweep's {len(grid):,} runs at {len(t_eval):,} output times",
+                 row_by_row=False, hint="sweep fewer runs or record fewer output times (--samples, t_eval)")
     path = Path(output)
     output_target(path)  # a device, a FIFO, a directory: refused before the runs
     name = getattr(model, "name", None) or getattr(getattr(model, "system", None), "name", "model")

@@ -1,0 +1,96 @@
+"""The ``appell`` command's entry point (pyproject.toml ``[project.scripts]``): Ctrl-C from the
+first instant.
+
+Importing appell takes a second or more (SymPy, SciPy, NumPy); a Ctrl-C then used to print a
+``KeyboardInterrupt`` traceback from deep inside an import. This module needs only the
+standard library and is not part of the package (importing anything under ``appell`` runs the
+package's ``__init__`` first, with its heavy imports), so :func:`main` installs the handler of
+SIGINT before appell is imported. A Ctrl-C at any moment then ends the command with exit code
+130 and one line on stderr, ``error: interrupted``, and no traceback:
+
+* the first Ctrl-C raises :class:`KeyboardInterrupt` as Python's default handler does, so that
+  the command cleans up (a write under way removes its temporary file, a sweep keeps its
+  partial file and closes its cluster) and :mod:`appell.io.cli` reports it;
+* a second one, or one after the command has finished, ends the process at once
+  (:func:`os._exit`), printing the line unless it was printed already.
+
+Worker processes of a local Dask cluster do not receive Ctrl-C at all
+(:mod:`appell.simulation.sweep`); the command that started them stops them.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+
+__all__ = ["main", "EXIT_INTERRUPTED"]
+
+#: exit code of a command stopped by Ctrl-C: 128 + SIGINT
+EXIT_INTERRUPTED = 128 + signal.SIGINT
+_LINE = b"error: interrupted\n"
+_reported = False
+
+
+def _report() -> None:
+    """Print the line once (straight to the file descriptor: safe inside a signal handler)."""
+    global _reported
+    if not _reported:
+        _reported = True
+        try:
+            os.write(2, (b"\n" if os.isatty(2) else b"") + _LINE)  # on a terminal, after its ^C
+        except OSError:
+            pass
+
+
+def _flush() -> None:
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):
+            pass
+
+
+def _exit_now(signum, frame) -> None:
+    """A Ctrl-C while the first is handled, or after the command: exit at once."""
+    _report()
+    os._exit(EXIT_INTERRUPTED)
+
+
+def _interrupt(signum, frame) -> None:
+    """The first Ctrl-C: a :class:`KeyboardInterrupt` where the command is (module docstring)."""
+    _handle(_exit_now)
+    raise KeyboardInterrupt
+
+
+def _handle(handler) -> None:
+    try:
+        signal.signal(signal.SIGINT, handler)
+    except ValueError:  # not the main thread (an embedding program): leave its signals alone
+        pass
+
+
+def main(argv=None, command=None) -> int:
+    """Run the command line (``argv`` defaults to ``sys.argv[1:]``) and return its exit code.
+    ``command``: the function that runs it (default :func:`appell.io.cli.main`, imported here,
+    after the handler of SIGINT is installed), called as ``command(argv, standalone=False)``."""
+    global _reported
+    _handle(_interrupt)
+    try:
+        if command is None:
+            from appell.io.cli import main as command
+        code = command(argv, standalone=False)
+        _flush()
+        if code == EXIT_INTERRUPTED:
+            _reported = True  # the command line has printed the line
+        _handle(_exit_now)
+    except KeyboardInterrupt:  # during the import, or outside the command line's own handling
+        _handle(_exit_now)
+        _flush()
+        _report()
+        code = EXIT_INTERRUPTED
+    return code if isinstance(code, int) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
