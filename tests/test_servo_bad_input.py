@@ -108,3 +108,28 @@ def test_controls_without_servo_constraints_on_the_command_line(tmp_path):
         assert result.exit_code == 2, result.output
         assert "controls F_T, F_W are declared but no servo constraint is given" in result.stderr
         assert "internal error" not in result.stderr and str(path) in result.stderr
+
+
+def test_a_controlled_coordinate_without_inertia_is_named():
+    """The first mass of the spring-mass chain without kinetic energy: the reduced mass matrix
+    (2.4) has a zero row for x1_ddot (SymPy's NonInvertibleMatrixError used to escape)."""
+    from appell import loads_model
+    from appell.examples import example_path
+
+    text = example_path("spring_masses").read_text(encoding="utf-8").replace(
+        "kinetic_energy = \"m1/2*x1'^2 + m2/2*y'^2\"", "kinetic_energy = \"m2/2*y'^2\"")
+    with pytest.raises(ModelError, match=r"C\^T M C of the controlled system 'spring_masses' is singular: "
+                                         r"it has a zero row for x1_ddot"):
+        derive_controlled(loads_model(text, "spring.toml"))
+
+
+def test_a_control_law_that_divides_by_zero_at_the_start_is_bad_input():
+    """m1 = 0: the control law u = (m1 + m2) y_d'' + (m1 m2 / k) y_d'''' ... divides by m1 in
+    the dynamic conditions; refused at the start with the time, exit 2."""
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+
+    result = CliRunner().invoke(cli, ["simulate", "spring_masses", "--set", "m1=0"], catch_exceptions=False)
+    assert result.exit_code == 2, result.output
+    assert "cannot start: the control law" in result.stderr and "(t = 0)" in result.stderr

@@ -374,6 +374,24 @@ def _state_dimension(system: System, kin: Kinematics) -> int:
     return len(kin.coordinates) + len(kin.speeds) + 2 * n_kin
 
 
+def _solve_reduced(system, Mr, rhs, a_nu):
+    """``Mr a_nu = rhs`` (2.4) for the independent accelerations; a :class:`ModelError` naming
+    them when the reduced mass matrix ``C^T M C`` is singular for every state (a coordinate
+    without inertia: SymPy's ``NonInvertibleMatrixError`` used to escape as an internal error)."""
+    try:
+        sol = Mr.LUsolve(rhs)
+    except (ValueError, ZeroDivisionError):
+        sol = None
+    if sol is None or any(e.has(sp.zoo, sp.nan) for e in sol):
+        empty = [x.name for x, row in zip(a_nu, Mr.tolist()) if all(e == 0 for e in row)]
+        which = (f"it has a zero row for {', '.join(empty)}: that motion has no inertia in any state"
+                 if empty else "no combination of the independent accelerations is determined")
+        raise ModelError(f"the reduced mass matrix C^T M C of the controlled system {system.name!r} is singular: "
+                         f"{which}", hint="give every coordinate that moves under the servo constraints inertia "
+                                          "(a mass or a moment of inertia in the kinetic energy), or constrain it")
+    return sol
+
+
 def derive_controlled(system: System, dependent: Sequence | None = None,
                       max_differentiations: int = MAX_DIFFERENTIATIONS) -> ControlledDerivation:
     """Dynamic conditions (2.3), reduced equations (2.4), reactions (2.5) and control laws.
@@ -425,7 +443,7 @@ def derive_controlled(system: System, dependent: Sequence | None = None,
     # (2.4) solved for a_nu (p x p, the reduced mass matrix C^T M C)
     Mr = eqs.jacobian(a_nu) if ind else sp.zeros(0, 0)
     rhs = -eqs.xreplace({x: 0 for x in a_nu})
-    sol_nu = Mr.LUsolve(rhs) if ind else sp.zeros(0, 1)
+    sol_nu = _solve_reduced(system, Mr, rhs, a_nu) if ind else sp.zeros(0, 1)
     on_motion = {x: v for x, v in zip(a_nu, sol_nu)}
     a_motion = a_sub.xreplace(on_motion)
     reduced = ReducedEquations(

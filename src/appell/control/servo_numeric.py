@@ -125,9 +125,15 @@ class ControlledModel:
         return blocks
 
     def start_blocks(self, t, y, p=None):
-        """The blocks at ``(t, y)`` (checked as in :meth:`solve`), for the check of a start
+        """The blocks at ``(t, y)`` (checked as in :meth:`solve`) and, for an underactuated
+        system, its control law, for the check of a start
         (:func:`appell.simulation.initial.check_blocks_at_start`)."""
-        return self._blocks(t, y, self.params(p))
+        pv = self.params(p)
+        blocks = self._blocks(t, y, pv)
+        if self.underactuated:
+            q, w, uc = self.split_state(y)
+            self.conditions(float(t), q, w, uc, pv)
+        return blocks
 
     # ------------------------------------------------------------ the method
     def controls(self, t, y, p=None) -> np.ndarray:
@@ -307,7 +313,7 @@ def compile_controlled(derivation) -> ControlledModel:
     conds = sp.Matrix([c.expression for c in derivation.conditions])
     A = conds.jacobian(sp.Matrix(xi))
     b = conds.xreplace({x: 0 for x in xi})
-    conditions = lambdify_blocks(args, [A, b], subs)
+    conditions = lambdify_blocks(args, [A, b], subs, what="control law (the dynamic conditions (2.3) in the controls)")
     rates = lambdify_blocks(args, [kin.coordinate_rates], subs)
 
     def level(items, count):

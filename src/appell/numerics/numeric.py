@@ -69,19 +69,26 @@ class ScalarBlocks:
             values = np.array(self.function(*args), dtype=float)
         except OverflowError as exc:
             reason = exc.args[-1] if exc.args else exc
-            raise ComputationError(f"the {self.what} cannot be evaluated at this state: a value overflows the "
+            raise ComputationError(f"the {self.what} cannot be evaluated {_at(args)}: a value overflows the "
                                    f"floating range ({reason})", hint=RANGE_HINT) from exc
         except (ValueError, ZeroDivisionError, TypeError) as exc:
             raise ComputationError(
-                f"the {self.what} cannot be evaluated at this state: {exc}",
+                f"the {self.what} cannot be evaluated {_at(args)}: {exc}",
                 hint="the state left the domain of the model's expressions (a square root of a negative "
-                     "number, a division by zero); check the initial values and the time span",
+                     "number, a division by zero); check the parameter values, the initial values and the time span",
             ) from exc
         out, start = [], 0
         for rows, cols in self.shapes:
             out.append(values[start:start + rows * cols].reshape(rows, cols))
             start += rows * cols
         return out
+
+
+def _at(args) -> str:
+    """``"at this state (t = 0.5)"``: the time from the arguments of a compiled block (time first)."""
+    if args and isinstance(args[0], (int, float)) and not isinstance(args[0], bool):
+        return f"at this state (t = {float(args[0]):.10g})"
+    return "at this state"
 
 
 def lambdify_blocks(args, outputs, subs: Mapping | None = None, what: str = "model's blocks") -> Callable:
