@@ -124,8 +124,8 @@ def test_a_controlled_coordinate_without_inertia_is_named():
 
 
 def test_a_control_law_that_divides_by_zero_at_the_start_is_bad_input():
-    """m1 = 0: the control law u = (m1 + m2) y_d'' + (m1 m2 / k) y_d'''' ... divides by m1 in
-    the dynamic conditions; refused at the start with the time, exit 2."""
+    """m1 = 0: the dynamic conditions solved for the control divide by m1 (the force acts on the
+    first mass); refused at the start with the time, exit 2."""
     from click.testing import CliRunner
 
     from appell.io.cli import cli
