@@ -379,9 +379,12 @@ class NumericModel:
         """
         pv = self.params(p)
         M, hQ, J, c = self.evaluate_blocks(t, q, w, pv)
-        if bias is not None:
-            c = c + np.asarray(bias, float)
         names = self.derivation.constraints.names
+        if bias is not None:
+            bias = np.asarray(bias, float)
+            if not np.isfinite(bias).all():  # the residuals of a state gone far out of range
+                check_finite(t, (("Baumgarte term 2 alpha phi + beta^2 F", bias, names, None),))
+            c = c + bias
         dep = tuple(self.derivation.partition.dependent) if dependent is None else self.checked_dependent(dependent)
         try:
             if self.constraint_function is None:
