@@ -425,7 +425,8 @@ def test_failed_simulation_leaves_no_partial_file(tmp_path):
     for target in (out, kept):
         result = run("simulate", model, "--t-end", "1", "--out", target, "--plot", plot)
         assert result.exit_code == 1, result.output
-        assert "failed at t = 0.5" in result.stderr
+        # the force sqrt(0.5 - t) is not finite from t = 0.5 on: the run names the time
+        assert "failed" in result.stderr and "t = 0.5" in result.stderr
     assert not out.exists() and not plot.exists()
     assert kept.read_text() == "previous result\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fails.toml", "kept.csv"]

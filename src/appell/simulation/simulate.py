@@ -72,6 +72,7 @@ from appell.simulation.impact import impact
 from appell.numerics.friction import FrictionLaws
 from appell.simulation.stickslip import initial_mode, stick_slip_watches, transition
 from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, residual_jacobians
+from appell.simulation.resources import check_run_memory
 from appell.simulation.singular import DIP, SINGULAR_LEVEL, RankWatch, explain_failure
 from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
@@ -232,7 +233,8 @@ class _Run:
         else:
             alpha, beta = b
             F, phi = model.state_residuals(t, y, self.p)
-            bias = 2.0 * alpha * np.nan_to_num(np.asarray(phi, float)) + beta**2 * np.nan_to_num(np.asarray(F, float))
+            with np.errstate(over="ignore", invalid="ignore"):  # a non-finite bias is named by the solve
+                bias = 2.0 * alpha * np.nan_to_num(np.asarray(phi, float)) + beta**2 * np.nan_to_num(np.asarray(F, float))
             ev = model.evaluate(t, y, self.p, bias=bias)
         if model is not self.partition_of:  # a new model (a release): its partition is not a switch
             self.partition_of, self.dependent = model, tuple(ev.dependent)
@@ -545,6 +547,8 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     run = _Run(model, system, p, names, (), settings)
     # the compiled loop integrates DOP853 where the model is compiled (SciPy's class is the reference)
     compiled = method == "DOP853" and np.ndim(atol) == 0  # the C loop takes one absolute tolerance
+    # the recorded rows fit in memory (else ResourceError before integrating)
+    check_run_memory(model, t_eval.size, compiled and supports(model) and not project_output)
     if compiled and supports(model):
         settings["method"] = "DOP853 (compiled loop)"
     opened = _open_contacts(model, system, initial, signs, t0, p) if system is not None else ()
