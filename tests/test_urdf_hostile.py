@@ -252,13 +252,13 @@ def test_a_reserved_link_name_is_refused():
 
 
 def test_urdf_names_follow_the_model_files_rule():
-    """The URDF reader restates the model files' name rule (the mechanism layer may not
-    import io): both accept and refuse the same names."""
-    from appell.io.modelfile.expressions import MAX_NAME, RESERVED_NAMES
+    """URDF and model files apply the one name rule of appell.symbols: both accept and refuse
+    the same names; a model file's name with a trailing newline is refused (its pattern once
+    took "x\\n"; URDF maps the newline to '_')."""
     from appell.io.modelfile.loader import _Reader
     from appell.mechanism import urdf
+    from appell.symbols import RESERVED_NAMES
 
-    assert urdf._RESERVED == RESERVED_NAMES and urdf.MAX_NAME == MAX_NAME
     for name in sorted(RESERVED_NAMES) + ["x", "x1", "a_b", "a__b", "_a", "A9_", "x" * 64, "x" * 65, "I", "g2"]:
         try:
             _Reader("", "m.toml").name((), name, "joint")
@@ -271,6 +271,8 @@ def test_urdf_names_follow_the_model_files_rule():
         except ModelError:
             in_urdf = False
         assert in_urdf == model_file, name
+    with pytest.raises(ModelError, match="is not valid"):
+        _Reader("", "m.toml").name((), "x\n", "coordinate")
 
 
 @pytest.mark.parametrize("place", ["joint", "link", "parent"])

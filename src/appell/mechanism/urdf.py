@@ -48,6 +48,7 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
+from appell.symbols import MAX_NAME, NAME_HINT, name_problem
 
 __all__ = ["UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "parse_urdf", "read_urdf", "urdf_mechanism",
            "urdf_system", "urdf_units",
@@ -57,14 +58,7 @@ __all__ = ["UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "p
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 #: the largest URDF read, in characters (bytes for a file)
 MAX_URDF_SIZE = 20_000_000
-# The model files' name rule (appell.io.modelfile: ``_Reader.name`` and ``RESERVED_NAMES``),
-# restated because the mechanism layer may not import io (tests/test_architecture.py);
-# tests/test_urdf_hostile.py checks that both accept and refuse the same names.
-#: the longest name, in characters
-MAX_NAME = 64
-_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
-_RESERVED = frozenset({"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log",
-                       "sqrt", "abs", "sign", "min", "max", "pi", "E", "t"})
+# the name rule of model files and the API (appell.symbols): one rule for every importer
 _MAX_DEPTH = 64
 #: joint types with one coordinate (the ones ``<mimic>`` can couple)
 _ONE_DOF = ("revolute", "continuous", "prismatic")
@@ -538,14 +532,10 @@ def _appell_name(name: str, what: str, where: str) -> str:
     or ``residual_``."""
     ident = _identifier(name)
     shown = f"{what} {name!r}" + (f" (named {ident!r} in appell)" if ident != name else "")
-    if not _NAME.fullmatch(ident) or "__" in ident or len(ident) > MAX_NAME:
-        raise ModelError(f"{shown}: {what} name {ident!r} is not valid", where=where,
-                         hint=f"rename the {what} in the URDF: names start with an ASCII letter, continue with "
-                              f"letters, digits or '_', contain no '__' and have at most {MAX_NAME} characters "
-                              f"(as in model files)")
-    if ident in _RESERVED:
-        raise ModelError(f"{shown}: {what} name {ident!r} is reserved (a function, a constant or time)",
-                         where=where, hint=f"rename the {what} in the URDF")
+    problem = name_problem(ident)
+    if problem is not None:
+        hint = f"rename the {what} in the URDF" + (f": {NAME_HINT} (as in model files)" if problem == "not valid" else "")
+        raise ModelError(f"{shown}: {what} name {ident!r} is {problem}", where=where, hint=hint)
     if ident.startswith(_RESULT_PREFIXES):
         raise ModelError(f"{shown}: names starting with {', '.join(_RESULT_PREFIXES)} are those of result columns",
                          where=where, hint=f"rename the {what} in the URDF")

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from appell.symbols import derivative_symbol, t
+from appell.symbols import CONSTANT_NAMES, FUNCTION_NAMES, MAX_NAME, RESERVED_NAMES, derivative_symbol, t
 
 __all__ = [
     "ExpressionError",
@@ -63,8 +63,6 @@ MAX_NUMBER_BITS = 3322
 MAX_ROOT_BITS = 512
 #: longest numeric literal, in characters
 MAX_LITERAL = 64
-#: longest name, in characters
-MAX_NAME = 64
 
 
 def _min(*args):
@@ -99,8 +97,10 @@ FUNCTIONS: dict[str, tuple] = {
 #: named constants
 CONSTANTS: dict[str, sp.Expr] = {"pi": sp.pi, "E": sp.E}
 
-#: names a model may not declare as symbols: functions, constants and time
-RESERVED_NAMES = frozenset(FUNCTIONS) | frozenset(CONSTANTS) | {"t"}
+#: names a model may not declare as symbols: functions, constants and time (the rule of
+#: appell.symbols, which this module gives a meaning)
+if set(FUNCTIONS) != set(FUNCTION_NAMES) or set(CONSTANTS) != set(CONSTANT_NAMES):  # pragma: no cover
+    raise ImportError("appell.symbols.FUNCTION_NAMES / CONSTANT_NAMES and the expressions' tables differ")
 
 
 class ExpressionError(ValueError):

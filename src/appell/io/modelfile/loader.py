@@ -37,7 +37,7 @@ from appell.model import (
     name_clash,
     initial_value,
 )
-from appell.symbols import canonical_name, derivative_name, split_derivative_name
+from appell.symbols import MAX_NAME, NAME_HINT, canonical_name, derivative_name, name_problem, split_derivative_name
 from appell.core.validation import declared_symbols, validate
 from .expressions import (FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_problem, constant_value,
                           parse_expression)
@@ -116,7 +116,6 @@ RELEASES = ("continue", "stop")
 #: arrays of tables -> what one item is (named in messages: "closures[0] (closure 'C').point_a")
 _ITEMS = {"bodies": "body", "joints": "joint", "closures": "closure", "loads": "load", "forces": "force",
           "torques": "torque", "friction": "friction"}
-_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 _TOML_POSITION = re.compile(r"\(at line (\d+), column (\d+)\)")
 _EXPRESSION_HINT = ("expressions use numbers, names, x' (derivative), + - * / ^, parentheses and "
                     f"the functions {', '.join(FUNCTIONS)}; see docs/model-format.md")
@@ -191,13 +190,11 @@ class _Reader:
 
     def name(self, path: tuple, value, what: str) -> str:
         value = self.string(path, value)
-        if not _NAME.match(value) or "__" in value or len(value) > 64:
-            raise self.error(path, f"{what} name {value!r} is not valid",
-                             hint="names start with an ASCII letter, continue with letters, digits or '_', "
-                                  "contain no '__' and have at most 64 characters")
-        if value in RESERVED_NAMES:
-            raise self.error(path, f"{what} name {value!r} is reserved (a function, a constant or time)",
-                             hint="choose another name")
+        problem = name_problem(value)
+        if problem is not None:
+            shown = value if len(value) <= MAX_NAME else value[:MAX_NAME] + "..."
+            raise self.error(path, f"{what} name {shown!r} is {problem}",
+                             hint=NAME_HINT if problem == "not valid" else "choose another name")
         return value
 
     def names(self, path: tuple, value, what: str) -> list[str]:
