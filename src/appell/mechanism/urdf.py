@@ -39,7 +39,6 @@ joint at fault and says what to do (issue 20):
 from __future__ import annotations
 
 import math
-import re
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
