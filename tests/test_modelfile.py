@@ -397,6 +397,17 @@ def test_simulation_table_is_checked():
     hash(s)  # settings are stored hashable, so the System stays hashable
 
 
+def test_samples_in_the_simulation_table():
+    """``samples = N`` gives N equally spaced output times from t0 to t_end, as
+    ``appell simulate --help`` says the option defaults to the model's value (issue 19 §6)."""
+    options = simulation_options(loads_model(BASE + "\n[simulation]\nt0 = 1\nt_end = 2\nsamples = 11\n"))
+    np.testing.assert_array_equal(options["t_eval"], 1.0 + 0.1 * np.arange(11))  # linspace: exact at 1, 2
+    for bad, message in (("samples = 1", "integer from 2"), ("samples = 2.5", "integer from 2"),
+                         ("samples = true", "integer from 2"), ("samples = 5", "needs t_end"),
+                         ("t_end = 1\nsamples = 5\noutput_step = 0.1", "excludes t_eval and output_step")):
+        assert message in str(_error(BASE + "\n[simulation]\n" + bad + "\n"))
+
+
 def test_reference_page_examples_load():
     """Every complete ```toml block of docs/model-format.md loads; the snippets parse as TOML."""
     import re

@@ -18,6 +18,7 @@ from os import PathLike
 from pathlib import Path
 from typing import Mapping
 
+import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
@@ -96,6 +97,7 @@ SIMULATION_KEYS = {
     "t0": "number, the initial time (default 0)",
     "t_eval": "array of non-decreasing output times",
     "output_step": "positive number; equally spaced output times from t0 to t_end (stored as t_eval)",
+    "samples": "integer >= 2; that many equally spaced output times from t0 to t_end (stored as t_eval)",
     "method": "string, the integrator",
     "rtol": "positive number",
     "atol": "positive number",
@@ -582,6 +584,11 @@ def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
             out[key] = r.constant(path, value)
         elif key in ("rtol", "atol", "max_step", "projection_tol", "output_step", "rest_speed"):
             out[key] = positive(key)
+        elif key == "samples":
+            if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 10_000_000:
+                raise r.error(path, f"must be an integer from 2 to 10000000, got {value!r}",
+                              hint="samples = 501 gives 501 equally spaced output times from t0 to t_end")
+            out[key] = value
         elif key == "method":
             out[key] = r.string(path, value)
         elif key == "stabilization":
@@ -626,6 +633,11 @@ def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
     t0, t_end = out.get("t0", 0.0), out.get("t_end")
     if t_end is not None and t_end <= t0:
         raise r.error(("simulation", "t_end"), f"t_end must be after t0 ({t0})")
+    if "samples" in out:
+        count = out.pop("samples")
+        if t_end is None or "t_eval" in out or "output_step" in out:
+            raise r.error(("simulation", "samples"), "samples needs t_end and excludes t_eval and output_step")
+        out["t_eval"] = tuple(float(v) for v in np.linspace(t0, t_end, count))
     if "output_step" in out:
         step = out.pop("output_step")
         if t_end is None or "t_eval" in out:
