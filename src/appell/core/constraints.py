@@ -21,8 +21,9 @@ from dataclasses import dataclass
 import sympy as sp
 
 from appell.core.energy import linear_split
+from appell.core.kinematics import Kinematics, jacobian
+from appell.core.simplification import naming
 from appell.errors import ModelError
-from appell.core.kinematics import Kinematics
 from appell.model import Constraint
 
 
@@ -100,10 +101,11 @@ def second_order_blocks(constraints: tuple[Constraint, ...], kin: Kinematics, ex
                     where=c.where,
                     hint="a holonomic constraint F(t, q) = 0 must restrict the coordinates",
                 )
-            phi = kin.diff(e)
+            with naming(f"holonomic constraint {c.name!r}", c.where):
+                phi = kin.diff(e)
+                rows.append(kin.diff(phi))
             pos.append(e)
             vel.append(phi)
-            rows.append(kin.diff(phi))
         elif c.order == 1:
             if _involves(e, a):
                 raise ModelError(
@@ -122,7 +124,8 @@ def second_order_blocks(constraints: tuple[Constraint, ...], kin: Kinematics, ex
                 )
             pos.append(None)
             vel.append(e)
-            rows.append(kin.diff(e))
+            with naming(f"first-order constraint {c.name!r}", c.where):
+                rows.append(kin.diff(e))
         else:
             if not _involves(e, a) and not _involves(e, extra_unknowns):
                 raise ModelError(
@@ -134,7 +137,7 @@ def second_order_blocks(constraints: tuple[Constraint, ...], kin: Kinematics, ex
             vel.append(None)
             rows.append(e)
     f = sp.Matrix(rows) if rows else sp.zeros(0, 1)
-    J = f.jacobian(sp.Matrix(a)) if rows else sp.zeros(0, len(a))
+    J = jacobian(f, a) if rows else sp.zeros(0, len(a))
     linear = not any(e.has(*unknowns) for e in J) if rows else True
     if linear:
         _, c = linear_split(f, unknowns)

@@ -20,8 +20,9 @@ from dataclasses import dataclass
 
 import sympy as sp
 
+from appell.core.kinematics import NONSMOOTH, Kinematics, jacobian, partial, terms_by_symbol
+from appell.core.simplification import naming, refuse_derivative
 from appell.errors import ModelError
-from appell.core.kinematics import Kinematics, partial, terms_by_symbol
 from appell.model import AppliedForce, AppliedTorque, RigidBody, System
 
 
@@ -62,7 +63,8 @@ def linear_split(vector: sp.Matrix, unknowns) -> tuple[sp.Matrix, sp.Matrix]:
     if not x:
         return sp.zeros(vector.shape[0], 0), vector
     rows = [terms_by_symbol(e) for e in vector]
-    A = sp.Matrix(len(rows), len(x), lambda i, j: partial(rows[i], x[j]))
+    smooth = [not e.has(*NONSMOOTH) for e in vector]
+    A = sp.Matrix(len(rows), len(x), lambda i, j: partial(rows[i], x[j], smooth[i]))
     b = vector.xreplace({s: sp.S.Zero for s in x})  # xreplace: symbols only, far faster than subs
     return A, b
 
@@ -108,13 +110,17 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
                 hint="with quasi-velocities describe the mechanics by bodies or by acceleration_energy",
             )
         T = system.kinetic_energy
-        p = sp.Matrix([T]).jacobian(w).T
-        A, b = linear_split(kin.diff(p), a)
+        with naming("kinetic_energy"):
+            refuse_derivative(T, list(kin.speeds) + list(kin.coordinates), what="its derivatives in the speeds and coordinates")
+            p = jacobian([T], w).T
+            A, b = linear_split(kin.diff(p), a)
         M += A
-        h += b - sp.Matrix([T]).jacobian(sp.Matrix(kin.coordinates)).T
+        h += b - jacobian([T], kin.coordinates).T
 
     if system.acceleration_energy is not None:
-        dS = sp.Matrix([system.acceleration_energy]).jacobian(sp.Matrix(a)).T
+        with naming("acceleration_energy"):
+            refuse_derivative(system.acceleration_energy, a, what="its derivatives in the accelerations")
+        dS = jacobian([system.acceleration_energy], a).T
         A, b = linear_split(dS, a)
         _check_quadratic(A, a, "acceleration energy S")
         M += A
@@ -124,9 +130,10 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
     h_terms = [[[]] for _ in range(n)]
     particles = []
     for body in system.bodies:
-        v = _velocity(body.position, body.velocity, kin)
-        Jv, _ = linear_split(v, kin.speeds)
-        _, bv = linear_split(kin.diff(v), a)
+        with naming(f"body {body.name!r}"):
+            v = _velocity(body.position, body.velocity, kin)
+            Jv, _ = linear_split(v, kin.speeds)
+            _, bv = linear_split(kin.diff(v), a)
         _gram_terms(M_terms, body.mass, Jv)
         _gram_terms(h_terms, body.mass, Jv, bv)
         particles.append(ParticleTerm(body.name, body.mass, sp.ImmutableMatrix(Jv), sp.ImmutableMatrix(bv)))
@@ -134,7 +141,8 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
             omega = sp.Matrix(body.angular_velocity)
             I = sp.Matrix(body.inertia)
             Jw, _ = linear_split(omega, kin.speeds)
-            _, bw = linear_split(kin.diff(omega), a)
+            with naming(f"body {body.name!r}"):
+                _, bw = linear_split(kin.diff(omega), a)
             M += Jw.T * I * Jw
             h += Jw.T * (I * bw + omega.cross(I * omega))
     if system.bodies:
@@ -160,10 +168,13 @@ def generalized_forces(system: System, kin: Kinematics) -> sp.Matrix:
     Q = sp.Matrix(system.generalized_forces) if system.generalized_forces is not None else sp.zeros(n, 1)
     V = system.potential_energy
     if V != 0 and kin.coordinates:
-        Q -= (sp.Matrix([V]).jacobian(sp.Matrix(kin.coordinates)) * kin.K).T
+        with naming("potential_energy"):
+            refuse_derivative(V, kin.coordinates, what="its gradient")
+        Q -= (jacobian([V], kin.coordinates) * kin.K).T
     for load in system.loads:
         if isinstance(load, AppliedForce):
-            v = _velocity(load.position, load.velocity, kin)
+            with naming(f"load {load.name!r}"):
+                v = _velocity(load.position, load.velocity, kin)
             Jv, _ = linear_split(v, kin.speeds)
             Q += Jv.T * sp.Matrix(load.vector)
         elif isinstance(load, AppliedTorque):

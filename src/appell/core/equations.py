@@ -25,7 +25,7 @@ import sympy as sp
 
 from appell.core.constraints import ConstraintBlocks
 from appell.core.energy import InertiaBlocks
-from appell.core.simplification import tidy
+from appell.core.simplification import adjugate, determinant, tidy
 from appell.core.partition import Partition
 
 def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
@@ -35,11 +35,13 @@ def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
     dependent block of a fully driven mechanism (every acceleration dependent, e.g. the
     5 x 5 block of a differential-drive robot) the determinant comes out as ``-R**2``,
     where the Berkowitz expansion leaves 150 operations that no small ``tidy`` removes.
+    Over the bound of :mod:`appell.core.simplification` the elimination's cancellations are
+    skipped (the same inverse, uncancelled).
     """
     if Jh.shape == (1, 1):
         return sp.Matrix([[1 / Jh[0, 0]]])
-    det = tidy(Jh.det(method="bareiss"))
-    return Jh.adjugate(method="bareiss") / det
+    det = tidy(determinant(Jh, method="bareiss"))
+    return adjugate(Jh, method="bareiss") / det
 
 
 @dataclass(frozen=True)

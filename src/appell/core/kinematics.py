@@ -9,6 +9,13 @@ For an expression ``e(t, q, w, a, ...)`` the derivative along the motion is
 
 where ``g`` runs over programs (given functions of time) and kinematic controls, whose
 derivatives are new symbols ``g_dot, g_ddot, ...``.
+
+Every variable is real. SymPy's symbols are not known to be, so a derivative of ``|u|``,
+``sign(u)``, ``min``/``max`` would come out through ``re(u)``, ``im(u)`` and unevaluated
+``Derivative`` objects: :func:`derivative` differentiates such expressions in real
+variables (``|u|' = sign(u) u'``, ``max(u, v)' = H(u - v) u' + H(v - u) v'``), and takes the
+derivative of a jump (``DiracDelta``) as zero: these functions are piecewise smooth, and
+the equations hold on either side of a kink, where they are evaluated.
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
+from appell.core.simplification import refuse_derivative, refuse_result, tree_size
 from appell.errors import ModelError
 from appell.model import System
 from appell.symbols import derivative_symbol, split_derivative_name, t
@@ -58,16 +66,43 @@ class Kinematics:
             return sp.ImmutableMatrix(expr.shape[0], expr.shape[1], [self.diff(e) for e in expr])
         expr = sp.sympify(expr)
         free = expr.free_symbols
-        terms = terms_by_symbol(expr)
-        out = partial(terms, t) if t in free else sp.S.Zero
-        for q, rate in zip(self.coordinates, self.coordinate_rates):
-            if q in free:
-                out += partial(terms, q) * rate
+        rates = [(t, sp.S.One)] if t in free else []
+        rates += [(q, rate) for q, rate in zip(self.coordinates, self.coordinate_rates) if q in free]
         for s in sorted(free - set(self.coordinates) - {t}, key=str):
             nxt = self.successor(s)
             if nxt is not None:
-                out += partial(terms, s) * nxt
+                rates.append((s, nxt))
+        # a required step: refused before it runs when the derivative would swell (bound policy)
+        refuse_derivative(expr, [s for s, _ in rates], [tree_size(r) for _, r in rates])
+        terms, smooth = terms_by_symbol(expr), not expr.has(*NONSMOOTH)
+        out = sp.S.Zero
+        for s, rate in rates:
+            out += partial(terms, s, smooth) * rate
+        refuse_result(out)  # where the estimate fell short (|u| of a complex-valued u)
         return out
+
+
+#: functions whose derivative needs the variables to be real (:func:`derivative`)
+NONSMOOTH = (sp.Abs, sp.sign, sp.Min, sp.Max, sp.Heaviside, sp.arg, sp.re, sp.im, sp.conjugate)
+
+
+def derivative(expr, symbol):
+    """``d expr / d symbol`` with every variable real (module docstring): SymPy's ``diff``,
+    through real stand-ins where ``expr`` holds a function of :data:`NONSMOOTH`, and
+    ``DiracDelta`` taken as zero."""
+    expr = sp.sympify(expr)
+    if not expr.has(*NONSMOOTH):
+        return expr.diff(symbol)
+    real = {s: sp.Dummy(s.name, real=True) for s in expr.free_symbols | {symbol}
+            if isinstance(s, sp.Symbol) and not s.is_real}
+    out = expr.xreplace(real).diff(real.get(symbol, symbol)).xreplace({v: k for k, v in real.items()})
+    return out.replace(lambda e: isinstance(e, sp.DiracDelta), lambda e: sp.S.Zero) if out.has(sp.DiracDelta) else out
+
+
+def jacobian(vector, symbols) -> sp.Matrix:
+    """``d vector / d symbols`` (``Matrix.jacobian`` by :func:`derivative`)."""
+    vector, symbols = sp.Matrix(vector), list(symbols)
+    return sp.Matrix(len(vector), len(symbols), lambda i, j: derivative(vector[i], symbols[j]))
 
 
 def terms_by_symbol(expr) -> dict:
@@ -79,11 +114,14 @@ def terms_by_symbol(expr) -> dict:
     return out
 
 
-def partial(terms: dict, symbol):
+def partial(terms: dict, symbol, smooth: bool = False):
     """``d expr / d symbol`` from :func:`terms_by_symbol`: only the terms containing the
     symbol are differentiated (the same sum as ``sympy.diff(expr, symbol)``, whose other terms
-    give zeros; on a long sum of terms in few symbols each, n times less work)."""
-    return sp.Add(*[term.diff(symbol) for term in terms.get(symbol, ())])
+    give zeros; on a long sum of terms in few symbols each, n times less work). ``smooth``:
+    the caller knows that ``expr`` holds no function of :data:`NONSMOOTH` (plain ``diff``)."""
+    if smooth:
+        return sp.Add(*[term.diff(symbol) for term in terms.get(symbol, ())])
+    return sp.Add(*[derivative(term, symbol) for term in terms.get(symbol, ())])
 
 
 def kinematics_of(system: System) -> Kinematics:
@@ -102,7 +140,7 @@ def kinematics_of(system: System) -> Kinematics:
         raise ModelError(f"kinematic relation given for unknown coordinate(s) {', '.join(map(str, extra))}")
     rate_vec = sp.Matrix([rates[c] for c in q]) if q else sp.zeros(0, 1)
     wv = sp.Matrix(w)
-    K = rate_vec.jacobian(wv) if q else sp.zeros(0, len(w))
+    K = jacobian(rate_vec, wv) if q else sp.zeros(0, len(w))
     if any(e.has(*w) for e in K):
         bad = [str(c) for c, row in zip(q, K.tolist()) if any(e.has(*w) for e in row)]
         raise ModelError(

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
-from appell.core.simplification import tidy
+from appell.core.simplification import determinant, tidy
 from appell.errors import ModelError
 
 #: relative singular-value threshold under which a block counts as singular
@@ -64,8 +64,9 @@ def from_dependent(dependent: Sequence[int], n: int, J: sp.Matrix | None = None,
 
 
 def block_determinant(J: sp.Matrix, dependent) -> sp.Expr:
-    """``det J_h`` of a small dependent block, tidied for display."""
-    return tidy(J[:, list(dependent)].det(method="berkowitz"))
+    """``det J_h`` of a small dependent block, tidied for display (cancelled within the
+    bound of :mod:`appell.core.simplification`, as formed over it)."""
+    return tidy(determinant(J[:, list(dependent)], method="berkowitz"))
 
 
 def generic_values(symbols, seed: int = 0) -> dict:

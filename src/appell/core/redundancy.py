@@ -37,6 +37,7 @@ import numpy as np
 import sympy as sp
 
 from appell.core.constraints import ConstraintBlocks
+from appell.core.kinematics import jacobian
 from appell.core.partition import (RANK_CONDITION, generic_values, jacobian_at, numeric_jacobian, partition_condition,
                                    pivoted_columns, row_normalised, row_scales)
 from appell.errors import ModelError
@@ -251,7 +252,7 @@ def check_consistency(red: Redundancy, kin, at: dict, seed: int = 0) -> None:
 
     def compiled(exprs, wrt, args):
         m = sp.Matrix([sp.sympify(e).xreplace(fixed) for e in exprs]) if exprs else sp.zeros(0, 1)
-        jac = m.jacobian(sp.Matrix(wrt)) if exprs else sp.zeros(0, len(wrt))
+        jac = jacobian(m, wrt) if exprs else sp.zeros(0, len(wrt))
         if (m.free_symbols | jac.free_symbols) - set(args):
             return None  # unknown symbols (time-dependent programs...): not judged here
         return sp.lambdify(args, [m, jac], modules="numpy")

@@ -1,21 +1,322 @@
-"""Display-sized simplification shared by the derivation stages and the printers.
+"""Bounded symbolic work: the size measure and the bound policy shared by every stage that
+can swell (issue 20), and the display-sized simplification of the printers.
 
-Only small expressions are simplified, so the cost stays bounded however large the model:
-nothing here ever runs a blanket ``simplify`` on a large expression.
+Symbolic steps fall in two kinds, and one measure, :func:`measure`, decides both. It walks
+an expression once (shared subexpressions once, with an early stop at the bound) and
+estimates the size, in tree nodes, of the form a step produces:
+
+``nodes``
+    the expression as it stands (what printing, compiling and evaluating it cost);
+``expanded``
+    with every product distributed over its sums, every integer power multiplied out
+    (``(a + b + c)^n`` has ``C(n + 2, 2)`` terms) and every function of a function
+    rewritten, which doubles the argument at each level (``exp(sin(exp(x)))``) -- the
+    form that ``expand``, ``cancel``, ``together``, ``factor`` and ``simplify`` pass
+    through on their way, whatever they return;
+``derivative``
+    of its time derivative along the motion (:func:`derivative_nodes`: a product of n
+    factors differentiates into n products, a chain of functions into the product of
+    their derivatives).
+
+The policy:
+
+* **optional steps are skipped over the bound.** A step that may expand and is only there
+  to make a formula shorter -- :func:`tidy` (``simplify`` for display), the cancelling
+  Bareiss elimination of a determinant or an adjugate (:func:`determinant`,
+  :func:`adjugate`), the closed-form solve of the printed equations -- runs only while
+  the ``expanded`` size of what it would expand stays within :data:`SWELL_LIMIT`; over
+  it the expression is kept as it is. Both forms are the same function of the state, so
+  nothing the numerics compute changes, only how short a printed formula is. The
+  determinants and adjugates over the bound are formed without SymPy's intermediate
+  simplification (``dotprodsimp``, which cancels every 2 x 2 and 3 x 3 determinant by
+  default): Berkowitz's division-free products, whose size stays polynomial.
+* **required steps stop early with a ModelError over the bound.** The time derivatives
+  the method needs (kinetic energy, velocities of bodies, second-order form of the
+  constraints) cannot be skipped: before each is formed, its ``derivative`` size is
+  estimated, and beyond :data:`NODE_LIMIT` nodes the derivation stops with a
+  :class:`~appell.errors.ModelError` that names the model's expression (potential
+  energy, constraint ``'rod'``, ...) and says what to do, instead of running for hours.
+
+:data:`SWELL_LIMIT` keeps every bundled example's printed formulas as they were (the
+largest expression they tidy measures about 3000: Andrews' squeezer); a ``simplify``
+near the bound takes about two seconds, a ``cancel`` a fraction of one.
+:data:`NODE_LIMIT` is some twenty times the largest derivative of the bundled examples
+and leaves the numeric code a size it compiles in seconds.
 """
 
 from __future__ import annotations
 
+import math
+from contextlib import contextmanager
+from dataclasses import dataclass
+
 import sympy as sp
 
-#: expressions with fewer operations than this are simplified for display
+from appell.errors import ModelError
+
+#: expressions with fewer operations than this are simplified for display (and only
+#: when within :data:`SWELL_LIMIT`)
 TIDY_OPS = 80
+#: largest ``expanded`` size (:func:`measure`) an optional expanding step may work on
+SWELL_LIMIT = 4000
+#: largest size, in tree nodes, of an expression a required step may form (a module
+#: setting: a larger mechanism can be derived anyway by raising it, at its cost in time)
+NODE_LIMIT = 100_000
+
+
+@dataclass(frozen=True)
+class Size:
+    """The sizes :func:`measure` estimates; a value above the ``limit`` it was given reads
+    as ``limit + 1`` (the walk stopped there)."""
+
+    nodes: int
+    expanded: int
+
+
+class _Over(Exception):
+    """The walk passed its limit."""
+
+
+def _postorder(root, memo: dict, combine):
+    """``memo[root]``, with ``memo[e] = combine(e, [memo[a] for a in e.args])`` for every
+    subexpression ``e`` (each once), children first: without recursion, so that a deep
+    expression does not exhaust Python's stack. ``combine`` may raise :class:`_Over`."""
+    stack = [root]
+    while stack:
+        e = stack[-1]
+        if e in memo:
+            stack.pop()
+            continue
+        pending = [a for a in e.args if a not in memo]
+        if pending:
+            stack.extend(pending)
+            continue
+        stack.pop()
+        memo[e] = combine(e, [memo[a] for a in e.args])
+    return memo[root]
+
+
+def measure(expr, limit: int = SWELL_LIMIT) -> Size:
+    """Tree size and expanded size of ``expr`` (a matrix: its largest entry), each at most
+    ``limit + 1``. One walk of the expression's DAG, stopped as soon as the expanded size
+    (which is never smaller) exceeds ``limit``; then the tree size alone, stopped likewise."""
+    if isinstance(expr, sp.MatrixBase):
+        sizes = [measure(e, limit) for e in expr]
+        return Size(max((s.nodes for s in sizes), default=0), max((s.expanded for s in sizes), default=0))
+    expr = sp.sympify(expr)
+    try:
+        return Size(*_postorder(expr, {}, lambda e, parts: _expanded(e, parts, limit))[1:])
+    except _Over:
+        return Size(tree_size(expr, limit), limit + 1)
+
+
+def expanded_size(expr, limit: int = SWELL_LIMIT) -> int:
+    """The ``expanded`` size of :func:`measure` (at most ``limit + 1``)."""
+    return measure(expr, limit).expanded
+
+
+def within_bound(expr) -> bool:
+    """Whether an optional expanding step may work on ``expr`` (a scalar or a matrix)."""
+    return expanded_size(expr) <= SWELL_LIMIT
+
+
+def _expanded(e, parts, limit) -> tuple[int, int, int]:
+    """``(terms, nodes, expanded nodes)`` of ``e`` from those of its arguments ``parts``;
+    raises :class:`_Over` when the expanded size passes ``limit``."""
+    if not parts:
+        return 1, 1, 1
+    if e.is_Add:
+        terms, nodes, big = (sum(p[k] for p in parts) for k in range(3))
+        out = (terms, nodes + 1, big + 1)
+    elif e.is_Mul:  # the distributed product: terms multiply, each term holds one of each factor's
+        terms, nodes, big = 1, 1, 0
+        for t, n, x in parts:
+            nodes += n
+            big = big * t + x * terms
+            terms *= t
+            if big > limit:
+                raise _Over
+        out = (terms, nodes, big)
+    elif e.is_Pow and e.exp.is_Integer:
+        t, n, x = parts[0]
+        p = abs(int(e.exp))
+        if t == 1 or p == 1:
+            out = (1, n + 2, x + 2)
+        else:  # multinomial: C(p + t - 1, t - 1) terms of p factors each
+            terms = math.comb(p + t - 1, t - 1)
+            out = (terms if e.exp > 0 else 1, n + 2, terms * p * x // t)
+    else:  # a function (or a non-integer power): rewriting it doubles its arguments
+        out = (1, 1 + sum(p[1] for p in parts), 1 + 2 * sum(p[2] for p in parts))
+    if out[2] > limit:
+        raise _Over
+    return out
+
+
+def _node_counts(expr, limit) -> dict:
+    """Tree size of every subexpression of ``expr`` (shared ones counted at every use);
+    raises :class:`_Over` past ``limit``."""
+    def combine(e, parts):
+        n = 1 + sum(parts)
+        if n > limit:
+            raise _Over
+        return n
+
+    memo: dict = {}
+    _postorder(expr, memo, combine)
+    return memo
+
+
+def tree_size(expr, limit: int | None = None) -> int:
+    """The ``nodes`` of :func:`measure` (at most ``limit + 1``; default :data:`NODE_LIMIT`)."""
+    limit = NODE_LIMIT if limit is None else limit
+    if isinstance(expr, sp.MatrixBase):
+        return max((tree_size(e, limit) for e in expr), default=0)
+    expr = sp.sympify(expr)
+    try:
+        return _node_counts(expr, limit)[expr]
+    except _Over:
+        return limit + 1
+
+
+def derivative_nodes(expr, symbols, rates=None, limit: int | None = None) -> int:
+    """Estimated tree size of ``sum_s (d expr / d s) * rate_s`` over ``symbols`` (``rates``
+    their sizes in nodes, 1 when not given): an upper bound, at most ``limit + 1``.
+
+    Per symbol ``s``: a symbol-free part differentiates to nothing; ``d(f_1 ... f_n)`` is
+    the sum over the factors that hold ``s`` of ``f_i'`` times the other factors; ``f(a)``
+    gives ``f'(a) a'``. Only computed in full when the quick bound ``k (nodes^2 + nodes)``
+    (``k`` symbols) exceeds ``limit``: every derivative of a tree of N nodes has at most
+    ``N^2 + N``. Not a bound where SymPy writes ``|u|'`` of a ``u`` that is not real
+    (``asin(2 + x)``) through ``re(u)`` and ``im(u)``: :func:`refuse_result` checks the
+    derivative formed.
+    """
+    limit = NODE_LIMIT if limit is None else limit
+    expr = sp.sympify(expr)
+    symbols = list(symbols)
+    if not symbols:
+        return 0
+    rates = list(rates) if rates is not None else [1] * len(symbols)
+    try:
+        sizes = _node_counts(expr, limit)
+    except _Over:
+        return limit + 1
+    nodes = sizes[expr]
+    quick = len(symbols) * (nodes * nodes + nodes + max(rates) + 1)
+    if quick <= limit:
+        return quick
+    total, present = 0, expr.free_symbols
+    for s, rate in zip(symbols, rates):
+        if s not in present:
+            continue
+        try:
+            d = _postorder(expr, {}, lambda e, parts: _derivative(e, parts, s, sizes, limit - total))
+        except _Over:
+            return limit + 1
+        if d:
+            total += d + rate + 1
+        if total > limit:
+            return limit + 1
+    return total
+
+
+#: functions whose derivative is no larger than themselves (``exp(a)``, ``cos(a)``, ``1/a``)
+_PLAIN = (sp.exp, sp.sin, sp.cos, sp.sinh, sp.cosh, sp.log, sp.Abs, sp.sign)
+
+
+def _derivative(e, parts, s, sizes, limit) -> int:
+    """Tree size of ``d e / d s`` (0: it vanishes) from those of its arguments ``parts``
+    (``sizes``: tree sizes); raises :class:`_Over` past ``limit``."""
+    if not parts:
+        out = 1 if e == s else 0
+    elif not any(parts):
+        out = 0
+    elif e.is_Add:
+        out = sum(parts) + 1
+    elif e.is_Mul:  # f_1' f_2 ... f_n + ...: every other factor again in each term
+        everything = sizes[e] - 1
+        out = 1 + sum(d + everything - sizes[a] + 1 for d, a in zip(parts, e.args) if d)
+    elif isinstance(e, _PLAIN) or (e.is_Pow and e.exp.is_number):
+        out = sum(d + sizes[e] + 4 for d in parts if d)  # f'(a) the size of f(a): n b^(n-1), cos(a)
+    else:  # at most about four times f(a): 1/sqrt(1 - a^2), max(a, b)
+        out = sum(d + 4 * sizes[e] + 16 for d in parts if d) + 1
+    if out > limit:
+        raise _Over
+    return out
+
+
+class ExpressionSwell(ModelError):
+    """A required symbolic step would form an expression over :data:`NODE_LIMIT` nodes.
+    Raised with the step's words; :func:`naming` adds the model's expression it comes from."""
+
+
+def refuse_derivative(expr, symbols, rates=None, what: str = "its time derivative") -> None:
+    """Raise :class:`ExpressionSwell` when the derivative of ``expr`` along ``symbols``
+    (:func:`derivative_nodes`; ``what`` names it) would exceed :data:`NODE_LIMIT` nodes."""
+    if derivative_nodes(expr, symbols, rates) > NODE_LIMIT:
+        raise ExpressionSwell(
+            f"{what} would exceed {NODE_LIMIT:,} nodes (terms, factors and functions; the expression "
+            f"itself has {tree_size(expr):,}): the derivation stops here instead of running without bound",
+            hint=SWELL_HINT,
+        )
+
+
+#: what to do about an expression that swells (the hint of :class:`ExpressionSwell`)
+SWELL_HINT = ("write the expression in a shorter form: multiply out or factor it yourself, avoid long products "
+              "of sums and deep chains of functions, or introduce an extra coordinate for a repeated "
+              "subexpression with a holonomic constraint that defines it; a large mechanism can be derived "
+              "anyway from Python by raising appell.core.simplification.NODE_LIMIT")
+
+
+def refuse_result(expr, what: str = "its time derivative") -> None:
+    """Raise :class:`ExpressionSwell` when ``expr``, just formed by a required step, has more
+    than :data:`NODE_LIMIT` nodes (counted with an early stop)."""
+    if tree_size(expr) > NODE_LIMIT:
+        raise ExpressionSwell(f"{what} has more than {NODE_LIMIT:,} nodes (terms, factors and functions): the "
+                              "derivation stops here instead of running without bound", hint=SWELL_HINT)
+
+
+@contextmanager
+def naming(what: str, where: str | None = None):
+    """Inside the block, an :class:`ExpressionSwell` is raised again naming ``what`` (the
+    model's expression, e.g. ``potential_energy``) and its ``where`` (file:line)."""
+    try:
+        yield
+    except ExpressionSwell as exc:
+        if exc.message.startswith(what + ":"):
+            raise
+        raise ExpressionSwell(f"{what}: {exc.message}", where=where or exc.where, hint=exc.hint) from None
+
+
+@contextmanager
+def no_intermediate_simplification():
+    """SymPy's matrix operations without their intermediate ``dotprodsimp`` (a ``cancel``
+    of every 2 x 2 and 3 x 3 determinant, on by default)."""
+    from sympy.matrices.utilities import dotprodsimp
+
+    with dotprodsimp(False):
+        yield
+
+
+def determinant(M: sp.Matrix, method: str = "bareiss"):
+    """``det M``: by ``method`` (Bareiss cancels as it goes) while the determinant is within
+    the bound, else the uncancelled Berkowitz determinant (same value)."""
+    with no_intermediate_simplification():
+        raw = M.det(method="berkowitz")
+    return M.det(method=method) if within_bound(raw) else raw
+
+
+def adjugate(M: sp.Matrix, method: str = "bareiss") -> sp.Matrix:
+    """``adj M``: by ``method`` while every entry is within the bound, else uncancelled."""
+    with no_intermediate_simplification():
+        raw = M.adjugate(method="berkowitz")
+    return M.adjugate(method=method) if within_bound(raw) else raw
 
 
 def tidy(expr):
-    """Simplify small expressions only; large ones are returned as they are."""
+    """Simplify short formulas (fewer than :data:`TIDY_OPS` operations) within the bound
+    (:data:`SWELL_LIMIT`); anything else is returned as it is."""
     if isinstance(expr, sp.MatrixBase):
         return sp.ImmutableMatrix(expr.shape[0], expr.shape[1], [tidy(e) for e in expr])
-    if sp.count_ops(expr) <= TIDY_OPS:
+    if within_bound(expr) and sp.count_ops(expr) <= TIDY_OPS:  # the bound first: it stops early
         return sp.simplify(expr)
     return expr

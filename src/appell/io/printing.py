@@ -14,7 +14,7 @@ from pathlib import Path
 
 import sympy as sp
 
-from appell.core.simplification import tidy
+from appell.core.simplification import adjugate, determinant, tidy
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
 from appell.symbols import derivative_symbol, latex, t as time  # noqa: F401 (latex is re-exported)
@@ -53,7 +53,9 @@ class PrintedEquations:
 
 def _solved_independent(red):
     """``a_nu`` of (1.4) in closed form, ``adj(M_r) f_r / det(M_r)``, for a reduced mass
-    matrix of at most :data:`SOLVE_SIZE` rows; None when larger or not linear."""
+    matrix of at most :data:`SOLVE_SIZE` rows; None when larger or not linear. Adjugate
+    and determinant are cancelled only within the bound of :mod:`appell.core.simplification`
+    (the rolling disc's are formed as they are, in a second instead of minutes)."""
     if red.mass_matrix is None or not red.independent:
         return None if red.mass_matrix is None else sp.zeros(0, 1)
     Mr, fr = sp.Matrix(red.mass_matrix), sp.Matrix(red.forcing)
@@ -61,7 +63,7 @@ def _solved_independent(red):
         return None
     if Mr.shape == (1, 1):
         return sp.Matrix([fr[0] / Mr[0, 0]])
-    return Mr.adjugate() * fr / Mr.det(method="berkowitz")
+    return adjugate(Mr, method="berkowitz") * fr / determinant(Mr, method="berkowitz")
 
 
 def equation_formulas(derivation) -> list[Formula]:
