@@ -192,7 +192,11 @@ def multipliers_with_redundancy(J: np.ndarray, rows, lam_rows: np.ndarray, weigh
     else:
         w = np.asarray(weights, float)
     NtW = N.T * w[None, :]
-    y = -np.linalg.solve(NtW @ N, NtW @ lam)
+    A, b = NtW @ N, NtW @ lam
+    try:
+        y = -np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:  # a row of J vanishes here (F^2 = 0 where F = 0): no weight, no
+        y = -np.linalg.lstsq(A, b, rcond=None)[0]  # direction in N; the least-norm split of the rest
     return lam + N @ y
 
 

@@ -9,10 +9,11 @@ estimates the size, in tree nodes, of the form a step produces:
     the expression as it stands (what printing, compiling and evaluating it cost);
 ``expanded``
     with every product distributed over its sums, every integer power multiplied out
-    (``(a + b + c)^n`` has ``C(n + 2, 2)`` terms) and every function of a function
-    rewritten, which doubles the argument at each level (``exp(sin(exp(x)))``) -- the
-    form that ``expand``, ``cancel``, ``together``, ``factor`` and ``simplify`` pass
-    through on their way, whatever they return;
+    (``(a + b + c)^n`` has ``C(n + 2, 2)`` terms) and every function counting its
+    argument twice, as its rewriting in exponentials does (a chain of n functions,
+    ``exp(sin(exp(x)))``, counts 2^n) -- the form that ``expand``, ``cancel``,
+    ``together``, ``factor`` and ``simplify`` pass through on their way, whatever they
+    return;
 ``derivative``
     of its time derivative along the motion (:func:`derivative_nodes`: a product of n
     factors differentiates into n products, a chain of functions into the product of
@@ -21,27 +22,33 @@ estimates the size, in tree nodes, of the form a step produces:
 The policy:
 
 * **optional steps are skipped over the bound.** A step that may expand and is only there
-  to make a formula shorter -- :func:`tidy` (``simplify`` for display), the cancelling
-  Bareiss elimination of a determinant or an adjugate (:func:`determinant`,
-  :func:`adjugate`), the closed-form solve of the printed equations -- runs only while
-  the ``expanded`` size of what it would expand stays within :data:`SWELL_LIMIT`; over
-  it the expression is kept as it is. Both forms are the same function of the state, so
-  nothing the numerics compute changes, only how short a printed formula is. The
-  determinants and adjugates over the bound are formed without SymPy's intermediate
-  simplification (``dotprodsimp``, which cancels every 2 x 2 and 3 x 3 determinant by
-  default): Berkowitz's division-free products, whose size stays polynomial.
-* **required steps stop early with a ModelError over the bound.** The time derivatives
-  the method needs (kinetic energy, velocities of bodies, second-order form of the
-  constraints) cannot be skipped: before each is formed, its ``derivative`` size is
-  estimated, and beyond :data:`NODE_LIMIT` nodes the derivation stops with a
-  :class:`~appell.errors.ModelError` that names the model's expression (potential
-  energy, constraint ``'rod'``, ...) and says what to do, instead of running for hours.
+  to make a formula shorter -- the cancelling Bareiss elimination of a determinant or an
+  adjugate (:func:`determinant`, :func:`adjugate`), the closed-form solve of the printed
+  equations -- runs only while the ``expanded`` size of what it would expand stays within
+  :data:`SWELL_LIMIT`; ``simplify`` for display (:func:`tidy`), which tries many rewrites,
+  each of which may expand, within :data:`TIDY_LIMIT`, an eighth of it. Over the bound the
+  expression is kept as it is. Both forms are the same function of the state, so nothing
+  the numerics compute changes, only how short a printed formula is. Determinants and
+  adjugates over the bound are formed without SymPy's intermediate simplification
+  (``dotprodsimp``, which cancels every 2 x 2 and 3 x 3 determinant by default):
+  Berkowitz's division-free products, whose size stays polynomial.
+* **required steps stop early with a ModelError over the bound.** The derivatives the
+  method needs (the kinetic energy's, the potential's gradient, the velocities of bodies,
+  the second-order form of the constraints) cannot be skipped: before each is formed, its
+  ``derivative`` size is estimated (:func:`refuse_derivative`), and the one formed is
+  counted (:func:`refuse_result`); beyond :data:`NODE_LIMIT` nodes the derivation stops
+  with an :class:`ExpressionSwell` (a :class:`~appell.errors.ModelError`) that names the
+  model's expression (``potential_energy``, ``holonomic constraint 'rod'``, with its line)
+  and says what to do, instead of running for minutes.
 
-:data:`SWELL_LIMIT` keeps every bundled example's printed formulas as they were (the
-largest expression they tidy measures about 3000: Andrews' squeezer); a ``simplify``
-near the bound takes about two seconds, a ``cancel`` a fraction of one.
-:data:`NODE_LIMIT` is some twenty times the largest derivative of the bundled examples
-and leaves the numeric code a size it compiles in seconds.
+The bounds, measured (issue 20): every expression the bundled examples tidy measures at
+most 320 but one of Andrews' squeezer (3054, now left as it is); their determinants and
+adjugates at most 1521; a ``simplify`` at :data:`TIDY_LIMIT` takes up to about two
+seconds, a ``cancel`` at :data:`SWELL_LIMIT` a fraction of one (a ``simplify`` of 1800 took
+nine: the slider-crank's masses times ``(sin + cos + 1)^7``). The largest derivative of a
+bundled model file is estimated at 2600 nodes, of the URDF arm (examples/arm.urdf) at
+43000; SymPy differentiates about 20000 nodes a second, and the printers and the numeric
+code take as long again, so :data:`NODE_LIMIT` keeps a derivation within seconds.
 """
 
 from __future__ import annotations
@@ -55,10 +62,13 @@ import sympy as sp
 from appell.errors import ModelError
 
 #: expressions with fewer operations than this are simplified for display (and only
-#: when within :data:`SWELL_LIMIT`)
+#: when within :data:`TIDY_LIMIT`)
 TIDY_OPS = 80
 #: largest ``expanded`` size (:func:`measure`) an optional expanding step may work on
 SWELL_LIMIT = 4000
+#: the same bound for ``simplify`` (:func:`tidy`), which tries many rewrites, each of which
+#: may expand: an eighth
+TIDY_LIMIT = SWELL_LIMIT // 8
 #: largest size, in tree nodes, of an expression a required step may form (a module
 #: setting: a larger mechanism can be derived anyway by raising it, at its cost in time)
 NODE_LIMIT = 100_000
@@ -314,9 +324,9 @@ def adjugate(M: sp.Matrix, method: str = "bareiss") -> sp.Matrix:
 
 def tidy(expr):
     """Simplify short formulas (fewer than :data:`TIDY_OPS` operations) within the bound
-    (:data:`SWELL_LIMIT`); anything else is returned as it is."""
+    (:data:`TIDY_LIMIT`); anything else is returned as it is."""
     if isinstance(expr, sp.MatrixBase):
         return sp.ImmutableMatrix(expr.shape[0], expr.shape[1], [tidy(e) for e in expr])
-    if within_bound(expr) and sp.count_ops(expr) <= TIDY_OPS:  # the bound first: it stops early
+    if expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT and sp.count_ops(expr) <= TIDY_OPS:  # the bound first
         return sp.simplify(expr)
     return expr
