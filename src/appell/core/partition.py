@@ -75,15 +75,52 @@ def generic_values(symbols, seed: int = 0) -> dict:
     return {s: float(v) for s, v in zip(sorted(symbols, key=str), rng.uniform(0.3, 1.3, len(symbols)))}
 
 
-def numeric_jacobian(J: sp.Matrix, seed: int = 0) -> np.ndarray:
-    vals = generic_values(J.free_symbols, seed)
-    return np.array(J.subs(vals).evalf(), dtype=float).reshape(J.shape)
+#: generic states tried by :func:`numeric_jacobian` before the Jacobian counts as not real
+GENERIC_TRIES = 8
+
+
+def numeric_jacobian(J: sp.Matrix, seed: int = 0, names: Sequence[str] | None = None) -> np.ndarray:
+    """``J`` at the generic state of ``seed`` (:func:`generic_values`); where an entry is not
+    a finite real number there (a root or logarithm of a negative value), at the next one
+    (seeds ``seed + 2k``, so that seeds ``s`` and ``s + 1`` stay apart), up to
+    :data:`GENERIC_TRIES`. Raises :class:`ModelError` naming the row (``names``: the
+    constraints) when none is."""
+    for k in range(GENERIC_TRIES):
+        vals = generic_values(J.free_symbols, seed + 2 * k)
+        values = J.subs(vals).evalf()
+        try:
+            Jn = np.array(values, dtype=float).reshape(J.shape)
+        except (TypeError, ValueError):
+            continue
+        if np.all(np.isfinite(Jn)):
+            return Jn
+    bad = [i for i in range(J.shape[0]) if not all(_finite_real(e) for e in values.row(i))]
+    which = ", ".join(names[i] if names is not None else f"row {i + 1}" for i in bad) or "an entry"
+    raise ModelError(
+        f"the constraint Jacobian df/da is not a finite real matrix at {GENERIC_TRIES} generic states "
+        f"(every symbol between 0.3 and 1.3), where appell decides its rank: {which}",
+        hint="a constraint takes a root or logarithm of a negative value, divides by zero or overflows there; "
+             "write it so that it is real and finite near such values (e.g. sqrt(x^2 + 1) rather than sqrt(x - 5))")
+
+
+def _finite_real(value) -> bool:
+    try:
+        return bool(np.isfinite(float(value)))
+    except (TypeError, ValueError):
+        return False
 
 
 def pivoted_columns(Jn: np.ndarray) -> tuple[np.ndarray, int]:
-    """Column order of QR with pivoting and the numerical rank."""
+    """Column order of QR with pivoting and the numerical rank. Raises :class:`ModelError`
+    for a matrix with infinite or undefined entries (no rank to decide)."""
     if Jn.size == 0:
         return np.arange(Jn.shape[1]), 0
+    if not np.all(np.isfinite(Jn)):
+        raise ModelError(
+            "the constraint Jacobian df/da (or a block formed from it) is infinite or undefined at a generic "
+            "state, where appell decides its rank: values beyond the floating-point range",
+            hint="rescale the units or the parameters, or write the constraints so that their values stay "
+                 "moderate (F = 0 rather than F^100 = 0)")
     _, R, piv = sla.qr(Jn, pivoting=True, mode="economic")
     d = np.abs(np.diag(R))
     rank = int(np.sum(d > RANK_TOL * max(d[0], 1e-300))) if d.size else 0
@@ -152,7 +189,7 @@ def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence
     if s == 0:
         return Partition(tuple(range(n)), ())
     # two generic points guard against an accidental zero at one of them
-    J1, J2 = numeric_jacobian(J, seed), numeric_jacobian(J, seed + 1)
+    J1, J2 = numeric_jacobian(J, seed, names), numeric_jacobian(J, seed + 1, names)
     _, r1 = pivoted_columns(J1)
     _, r2 = pivoted_columns(J2)
     if max(r1, r2) < s:

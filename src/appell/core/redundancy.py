@@ -210,7 +210,7 @@ def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None,
     s = J.shape[0]
     if s == 0:
         return None
-    generic = [numeric_jacobian(J, seed), numeric_jacobian(J, seed + 1)]
+    generic = [numeric_jacobian(J, seed, cons.names), numeric_jacobian(J, seed + 1, cons.names)]
     rank = max(len(independent_rows(Jn)) for Jn in generic)
     if rank == s:
         return None
