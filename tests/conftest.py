@@ -62,6 +62,8 @@ def pytest_configure(config):
                                        "(selected by scripts/test-matrix.sh)")
     config.addinivalue_line("markers", "numpy_model: the test mutates or inspects the NumPy model itself "
                                        "(kept on NumPy under APPELL_TEST_BACKEND=c)")
+    config.addinivalue_line("markers", "slow: a long run (e.g. the full fuzz of tests/test_fuzz.py), skipped unless "
+                                       "APPELL_SLOW=1")
     if BACKEND not in ("numpy", "c"):
         raise pytest.UsageError(f"APPELL_TEST_BACKEND must be 'numpy' or 'c', got {BACKEND!r}")
     if BACKEND == "c":
@@ -82,10 +84,17 @@ def _use_c_backend():
     Derivation.numeric = prop
 
 
+#: ``$APPELL_SLOW=1``: run the tests marked ``slow`` too
+SLOW = os.environ.get("APPELL_SLOW") == "1"
+
+
 def pytest_collection_modifyitems(config, items):
+    skip_slow = pytest.mark.skip(reason="a long run: set APPELL_SLOW=1 to run it")
     for item in items:
         if item.path.name not in NOT_NUMERICAL:
             item.add_marker(pytest.mark.numerical)
+        if not SLOW and item.get_closest_marker("slow"):
+            item.add_marker(skip_slow)
 
 
 @pytest.fixture(autouse=True)

@@ -364,3 +364,37 @@ def test_ctrl_c_during_a_sweep_stops_the_workers_quietly(tmp_path, delay):
     assert_interrupted(code, err)
     assert not out.exists()
     assert {p.name for p in tmp_path.iterdir()} <= {"s.h5.partial"}
+
+
+def test_an_evaluation_budget_stops_at_its_first_projection():
+    """numerics/budget.py: a run that covers 1e-4 of its span per 1000 evaluations projects
+    1e7 evaluations and stops at the first projection; one that keeps pace with its budget
+    runs to its end."""
+    from appell.numerics.budget import PROJECT_EVERY, EvaluationBudget
+
+    slow = EvaluationBudget("the test's run", 0.0, 10.0, 50_000)
+    with pytest.raises(ComputationError) as info:
+        for k in range(1, 10**6):
+            slow(k * 1e-6)
+    assert slow.calls == PROJECT_EVERY
+    assert "the test's run would need about 1e+07 evaluations over [0, 10]" in info.value.message
+    steady = EvaluationBudget("the test's run", 0.0, 10.0, 50_000)
+    for k in range(1, 40_001):
+        steady(k * 10.0 / 40_000)
+    assert steady.projected() == pytest.approx(40_000)
+
+
+def test_the_energy_balance_of_a_motion_too_fast_for_its_span_is_refused_in_seconds():
+    """A potential (sin x + cos x + 1)^30 (forces ~1e14, the fuzzer's seed 35): the balance's
+    integration stops at its first projection of the cost with the budget named, instead of
+    integrating for minutes."""
+    from appell.simulation.energy_balance import MAX_EVALUATIONS, energy_balance
+
+    text = example_path("bouncing_ball").read_text(encoding="utf-8").replace(
+        'potential_energy = "m*g*y"', 'potential_energy = "m*g*y + (sin(x) + cos(x) + 1)^30"')
+    assert "(sin(x) + cos(x) + 1)^30" in text
+    d = derive(loads_model(text))
+    with pytest.raises(ComputationError) as info:
+        energy_balance(d, 5.0)
+    assert f"more than its budget of {MAX_EVALUATIONS} (stopped at t = " in info.value.message
+    assert "after 1000)" in info.value.message

@@ -183,21 +183,30 @@ def _expressions():
     return st.recursive(_atoms(), extend, max_leaves=25)
 
 
+#: the character edits of the mutation tests (also tests/test_fuzz.py)
+EDITS = ("delete", "insert", "replace", "duplicate")
+
+
+def edit(text: str, action: str, i: int, ch: str, j: int) -> str:
+    """``text`` with one edit of :data:`EDITS` at ``i`` (``ch`` the character inserted or
+    put in place, ``text[i:j]`` the span duplicated)."""
+    if action == "delete":
+        return text[:i] + text[i + 1:]
+    if action == "insert":
+        return text[:i] + ch + text[i:]
+    if action == "replace":
+        return text[:i] + ch + text[i + 1:]
+    return text[:i] + text[i:j] * 2 + text[j:]
+
+
 def _mutate(text: str, data) -> str:
     """Delete, insert or replace a few characters of ``text``."""
     for _ in range(data.draw(st.integers(1, 4))):
         i = data.draw(st.integers(0, len(text)))
-        action = data.draw(st.sampled_from(["delete", "insert", "replace", "duplicate"]))
+        action = data.draw(st.sampled_from(EDITS))
         ch = data.draw(st.sampled_from(EXPR_ALPHABET))
-        if action == "delete":
-            text = text[:i] + text[i + 1:]
-        elif action == "insert":
-            text = text[:i] + ch + text[i:]
-        elif action == "replace":
-            text = text[:i] + ch + text[i + 1:]
-        else:
-            j = data.draw(st.integers(i, len(text)))
-            text = text[:i] + text[i:j] * 2 + text[j:]
+        j = data.draw(st.integers(i, len(text))) if action == "duplicate" else i
+        text = edit(text, action, i, ch, j)
     return text
 
 

@@ -125,7 +125,8 @@ def power(n):
 
 def product(k):
     factors = [f"(x + {i})" for i in range(1, k + 1)]
-    return "*".join(factors), lambda x: math.prod(x + i for i in range(1, k + 1)) * sum(1 / (x + i) for i in range(1, k + 1))
+    return "*".join(factors), lambda x: math.prod(x + i for i in range(1, k + 1)) * sum(1 / (x + i)
+                                                                                        for i in range(1, k + 1))
 
 
 @pytest.mark.parametrize("potential, gradient", [
@@ -274,3 +275,17 @@ def test_naming_adds_the_expression_and_its_line():
     assert info.value.where == "model.toml:21"
     assert info.value.message.startswith("holonomic constraint 'rod': its time derivative would exceed")
     assert isinstance(info.value, ModelError)
+
+
+def test_vanishes_decides_within_the_bound_exactly_and_over_it_at_random_points():
+    """Within the bound, expand decides; over it (expanding (x + 1)^60 would take long) the
+    values at random points do: sin^2 + cos^2 - 1 times a swelling factor is zero, a
+    difference of two distinct powers is not."""
+    assert S.vanishes(sp.expand((x + y) ** 2) - x**2 - 2 * x * y - y**2)
+    assert not S.vanishes(x * y - y * x + z)
+    swelling = (x + 1) ** 60
+    assert not S.within_bound(swelling)
+    assert S.vanishes((sp.sin(x) ** 2 + sp.cos(x) ** 2 - 1) * swelling)
+    assert not S.vanishes(swelling - (x + 1) ** 59 * (x + 1.5))
+    assert not S.vanishes(sp.sqrt(-2 - x**2) * swelling)  # no real value: not shown to vanish
+    assert S.vanishes(sp.Matrix([0, (sp.sin(y) ** 2 + sp.cos(y) ** 2 - 1) * swelling]))

@@ -30,6 +30,7 @@ from appell.errors import ModelError
 from appell.core.kinematics import Kinematics
 from appell.model import System
 from appell.core.partition import generic_values, pivoted_columns
+from appell.core.simplification import within_bound
 
 __all__ = ["MAX_DIFFERENTIATIONS", "ServoCondition", "realise_conditions", "servo_manifold"]
 
@@ -150,7 +151,9 @@ def servo_manifold(system: System, kin: Kinematics) -> dict:
 
     For each holonomic servo constraint ``F(t, q) = 0`` linear in some coordinate, that
     coordinate and its speed are solved for; for a first-order one linear in some speed,
-    that speed. Constraints that cannot be solved this way are left out.
+    that speed. Constraints that cannot be solved this way, or whose expression is over the
+    bound of optional symbolic steps (:func:`~appell.core.simplification.within_bound`), are
+    left out.
     """
     subs: dict = {}
     used: set = set()
@@ -158,6 +161,8 @@ def servo_manifold(system: System, kin: Kinematics) -> dict:
     for c in system.servo_constraints:
         if c.order == 0:
             F = c.expr.xreplace(subs)
+            if not within_bound(F):
+                continue
             for q in kin.coordinates:
                 if q in used or q not in F.free_symbols or sp.diff(F, q, 2) != 0:
                     continue
@@ -173,6 +178,8 @@ def servo_manifold(system: System, kin: Kinematics) -> dict:
                         break
         elif c.order == 1:
             phi = c.expr.xreplace(subs)
+            if not within_bound(phi):
+                continue
             for w in kin.speeds:
                 if w in used or w not in phi.free_symbols or sp.diff(phi, w, 2) != 0:
                     continue

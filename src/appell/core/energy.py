@@ -111,7 +111,8 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
             )
         T = system.kinetic_energy
         with naming("kinetic_energy"):
-            refuse_derivative(T, list(kin.speeds) + list(kin.coordinates), what="its derivatives in the speeds and coordinates")
+            refuse_derivative(T, list(kin.speeds) + list(kin.coordinates),
+                              what="its derivatives in the speeds and coordinates")
             p = jacobian([T], w).T
             A, b = linear_split(kin.diff(p), a)
         M += A

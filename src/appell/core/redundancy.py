@@ -91,8 +91,9 @@ class Redundancy:
 
     @property
     def elastic(self) -> bool:
-        """Whether the split is the compatible elastic one (compliances given)."""
-        return all(self.compliance[i] is not None for i in self.involved)
+        """Whether the split is the compatible elastic one (compliances given to every
+        constraint of a nonempty undetermined set)."""
+        return bool(self.involved) and all(self.compliance[i] is not None for i in self.involved)
 
     def named(self, which: str) -> tuple[str, ...]:
         """Names of the ``independent``, ``redundant``, ``involved`` or ``determined`` constraints."""
@@ -118,7 +119,9 @@ class Redundancy:
             "  motion from: " + ", ".join(self.named("independent")),
             "  satisfied automatically: " + ", ".join(self.named("redundant")),
             "  undetermined split among: " + ", ".join(self.named("involved"))
-            + "; rigid-body mechanics fixes only J^T lambda, not how it is shared",
+            + "; rigid-body mechanics fixes only J^T lambda, not how it is shared" if self.involved else
+            "  undetermined split among: none; the redundant rows of J vanish here (the gradient of "
+            + ", ".join(self.named("redundant")) + " is zero): their multipliers exert nothing and are reported as 0",
         ]
         if self.named("determined"):
             lines.append("  determined: " + ", ".join(self.named("determined")))
@@ -126,7 +129,8 @@ class Redundancy:
         for k in range(self.dimension):
             terms = " ".join(f"{v:+.6g} {n}" for v, n in zip(self.null_space[:, k], self.names)
                              if abs(v) > INVOLVED_TOL * np.abs(self.null_space[:, k]).max())
-            lines.append(f"  undetermined direction {k + 1} ({where}): lambda + mu * ({terms})")
+            if terms:
+                lines.append(f"  undetermined direction {k + 1} ({where}): lambda + mu * ({terms})")
         lines.append("  reported multipliers: " + self.split)
         return lines
 
@@ -200,6 +204,26 @@ def multipliers_with_redundancy(J: np.ndarray, rows, lam_rows: np.ndarray, weigh
     return lam + N @ y
 
 
+#: a row of J below this fraction of J's largest entry at the initial state has vanished
+VANISHED_ROW = 1e-10
+
+
+def _refuse_vanishing_rows(J: sp.Matrix, Jn: np.ndarray, at: dict, names) -> None:
+    """A :class:`ModelError` naming the first constraint whose row of ``J`` vanishes at the
+    initial state ``Jn`` (every symbol of the row known there): its reaction is not defined
+    (``F^k = 0`` with ``k > 1`` has a zero gradient wherever it holds), and the minimum-norm
+    split would weigh it by ``1 / |row|^2``."""
+    big = float(np.abs(Jn).max(initial=0.0))
+    for i, name in enumerate(names):
+        row = J[i, :]
+        if row.free_symbols <= set(at) and float(np.abs(Jn[i]).max(initial=0.0)) <= VANISHED_ROW * big:
+            raise ModelError(
+                f"the gradient of constraint {name!r} vanishes at the initial state, where it holds: its "
+                "reaction is not defined there (a constraint written as a power F^k = 0, k > 1, has a zero "
+                "gradient wherever it holds)",
+                hint=f"write {name!r} as F = 0, or start away from the point where its gradient vanishes")
+
+
 def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None, seed: int = 0) -> Redundancy | None:
     """The :class:`Redundancy` of the constraint blocks, or None when ``J`` has full row rank.
 
@@ -215,6 +239,8 @@ def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None,
     if rank == s:
         return None
     ref, at_start = jacobian_at(J, at or {}, seed), True
+    if ref is not None:
+        _refuse_vanishing_rows(J, ref, at, cons.names)
     if ref is None or len(independent_rows(ref)) != rank:
         ref, at_start = max(generic, key=lambda Jn: len(independent_rows(Jn))), False
     rows = independent_rows(ref)

@@ -54,9 +54,11 @@ code take as long again, so :data:`NODE_LIMIT` keeps a derivation within seconds
 from __future__ import annotations
 
 import math
+import random
 from contextlib import contextmanager
 from dataclasses import dataclass
 
+import mpmath
 import sympy as sp
 
 from appell.errors import ModelError
@@ -330,3 +332,42 @@ def tidy(expr):
     if expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT and sp.count_ops(expr) <= TIDY_OPS:  # the bound first
         return sp.simplify(expr)
     return expr
+
+
+#: random points at which :func:`vanishes` evaluates an expression too large to expand
+VANISH_POINTS = 3
+#: the two precisions (digits) of that evaluation, and the factor by which a value must fall
+#: from the first to the second to count as rounding of a zero
+VANISH_DIGITS, VANISH_FALL = (30, 60), 1e-20
+
+
+def vanishes(expr) -> bool:
+    """Whether ``expr`` (a scalar or a matrix) is identically zero. Within the bound
+    (:data:`SWELL_LIMIT`) by ``expand``, exactly; over it, where expanding could run for
+    minutes (``(sin q + cos q + 1)^50``), by its values at :data:`VANISH_POINTS` random points,
+    each at 30 and at 60 digits (:data:`VANISH_DIGITS`): a zero's value is rounding, which
+    falls by 30 orders with 30 more digits; a nonzero value stays. Zero where every value
+    fell by :data:`VANISH_FALL` or more (a nonzero expression vanishes at a random point with
+    probability zero); a value that cannot be formed there, a root of a negative number,
+    counts as nonzero."""
+    if isinstance(expr, sp.MatrixBase):
+        return all(vanishes(e) for e in expr)
+    expr = sp.sympify(expr)
+    if within_bound(expr):
+        return sp.expand(expr) == 0
+    free = sorted(expr.free_symbols, key=str)
+    fn = sp.lambdify(free, expr, modules="mpmath", cse=True)
+    for seed in range(VANISH_POINTS):
+        rng = random.Random(seed)
+        point = [rng.uniform(0.3, 1.3) for _ in free]
+        values = []
+        for digits in VANISH_DIGITS:
+            with mpmath.workdps(digits):
+                try:
+                    values.append(complex(fn(*map(mpmath.mpf, point))))
+                except (TypeError, ValueError, ZeroDivisionError, OverflowError):
+                    return False
+        coarse, fine = map(abs, values)
+        if not (fine == 0.0 or fine <= VANISH_FALL * coarse):
+            return False
+    return True

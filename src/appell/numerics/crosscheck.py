@@ -98,6 +98,8 @@ def solve_indeterminate(M, hQ, J, c, weights=None):
     K = np.block([[M, -J.T], [J, np.zeros((s, s))]])
     a = np.linalg.lstsq(K, np.concatenate([-hQ, -c]), rcond=None)[0][:n]
     weights = np.abs(J).max(axis=1) ** 2 if weights is None else np.asarray(weights, float)
+    if not weights.max(initial=0.0) > 0.0:  # every row of J vanishes here: no reaction to split
+        weights = np.ones(s)
     weights = weights / weights.max()  # the minimiser does not depend on the scale of W
     K2 = np.block([[np.diag(weights), -J], [J.T, np.zeros((n, n))]])
     lam = np.linalg.lstsq(K2, np.concatenate([np.zeros(s), M @ a + hQ]), rcond=None)[0][:s]

@@ -66,6 +66,8 @@ import sympy as sp
 from appell.errors import ComputationError, ModelError
 from appell.model import Constraint, FirstIntegral, System, holonomic, nonholonomic
 from appell.core.partition import generic_values, numeric_jacobian
+from appell.core.simplification import within_bound
+from appell.numerics.budget import EvaluationBudget
 from appell.symbols import t
 from appell.core.validation import validate
 
@@ -81,6 +83,9 @@ __all__ = [
 RELATIVE_TOLERANCE = 1e-8
 #: largest expression (count_ops) on which the symbolic route is attempted
 SYMBOLIC_OPS = 3000
+#: most evaluations the drift run may take (:class:`~appell.numerics.budget.EvaluationBudget`;
+#: the bundled examples need at most 4790, spherical_pendulum)
+DRIFT_EVALUATIONS = 50_000
 #: largest numerator (count_ops) on which trigsimp is tried
 TRIGSIMP_OPS = 400
 
@@ -246,12 +251,12 @@ def _vanishes_identically(expr: sp.Expr) -> bool | None:
                 return None
             if not np.isfinite(v) or abs(v) > 1e-15:
                 return False
-    if sp.count_ops(expr) > SYMBOLIC_OPS:
+    if sp.count_ops(expr) > SYMBOLIC_OPS or not within_bound(expr):  # expanding could run for minutes
         return None
     num = sp.expand(sp.numer(sp.together(expr)))
     if num == 0:
         return True
-    if sp.count_ops(num) <= TRIGSIMP_OPS and sp.expand(sp.trigsimp(num)) == 0:
+    if sp.count_ops(num) <= TRIGSIMP_OPS and within_bound(num) and sp.expand(sp.trigsimp(num)) == 0:
         return True
     return None
 
@@ -269,8 +274,11 @@ def _integrate_motion(numeric, q0, w0, times, t0: float = 0.0, rtol: float = 1e-
     from scipy.integrate import solve_ivp
 
     nq = len(q0)
+    budget = EvaluationBudget("the first integrals' drift run", t0, float(times[-1]), DRIFT_EVALUATIONS,
+                              hint="look for forces, energies or candidate integrals that are far too large")
 
     def rhs(time, y):
+        budget(time)
         q, w = y[:nq], y[nq:]
         return np.concatenate([numeric.coordinate_rates(time, q, w), numeric.accelerations(time, q, w)])
 

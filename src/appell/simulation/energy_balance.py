@@ -28,7 +28,8 @@ in the velocities, ``-lambda^T dF/dt`` for a rheonomic holonomic ``F(t, q)``,
 ``-lambda^T b`` for ``phi = A w + b``, and in general nonzero for constraints nonlinear in
 ``w`` or of second order. The balance is not formed (:attr:`EnergyBalance.reason` says why)
 for an acceleration energy ``S`` (no ``T``), for controls (their power is not separated) and
-for quasi-velocities with terms free of ``w``.
+for quasi-velocities with terms free of ``w`` or not linear in ``w`` (``T`` not homogeneous
+of degree two in ``w``: ``w . dT/dw != 2 T``).
 
 :func:`energy_balance` integrates the motion of the numeric model (the split (1.4)/(1.5))
 together with the works ``W_applied = int Q_nc.w dt``, ``W_reactions = int R.w dt``,
@@ -51,14 +52,19 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import ComputationError, ModelError
+from appell.numerics.budget import EvaluationBudget
 
 __all__ = ["ENERGY_TOLERANCE", "EnergyBalance", "energy_balance", "energy_form"]
 
 #: largest relative balance residual accepted (the integration runs at rtol 1e-11; the
 #: bundled examples stay below 4e-11 over their spans)
 ENERGY_TOLERANCE = 1e-9
-#: most evaluations of the motion the balance's integration may take
-MAX_EVALUATIONS = 400_000
+#: most evaluations of the motion the balance's integration may take: 8 times the most a
+#: bundled example needs (spherical_pendulum, 6011 over its 10 s), a few seconds of a
+#: NumPy model (a fuzzed model at 1e5 took 14 s on this project's machine). A run whose projected
+#: cost exceeds it stops at the first projection (:class:`~appell.numerics.budget.EvaluationBudget`;
+#: the bundled examples project at most 6200 at any)
+MAX_EVALUATIONS = 50_000
 
 FORMS = {
     "jacobi": "H = (dT/dw).w - T + V (= T + V when T is quadratic in w and free of t), "
@@ -123,6 +129,7 @@ class EnergyBalance:
 
 def energy_form(derivation) -> tuple[str | None, str]:
     """``('jacobi' | 'power', '')`` or ``(None, reason)`` (module docstring)."""
+    from appell.core.simplification import vanishes
     from appell.numerics.lagrange import energy_unavailable, lagrange_unavailable, mechanical_energy
 
     system = derivation.system
@@ -139,9 +146,14 @@ def energy_form(derivation) -> tuple[str | None, str]:
     energy = mechanical_energy(system)
     w = list(system.speeds)
     zero = {s: 0 for s in w}
-    T = sp.expand(energy.kinetic)
-    if T.xreplace(zero) != 0 or any(sp.expand(e) != 0 for e in sp.Matrix([T]).jacobian(sp.Matrix(w)).xreplace(zero)):
+    T = energy.kinetic
+    if not vanishes(T.xreplace(zero)) or not vanishes(sp.Matrix([T]).jacobian(sp.Matrix(w)).xreplace(zero)):
         return None, ("the velocities of the bodies have terms free of the speeds (rheonomic quasi-velocities): "
+                      "no energy identity is formed for them")
+    # w.(M a + h) = dT/dt needs body velocities linear in w: T homogeneous of degree 2 in w,
+    # w.dT/dw = 2 T (Euler)
+    if not vanishes((sp.Matrix([T]).jacobian(sp.Matrix(w)) * sp.Matrix(w))[0] - 2 * T):
+        return None, ("the velocities of the bodies are not linear in the speeds (quasi-velocities): "
                       "no energy identity is formed for them")
     return "power", ""
 
@@ -206,15 +218,10 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
         _, _, Q, P_explicit = balance(tt, q, w, pv)
         return sol.accelerations, float(Q @ w), float(sol.generalized_reactions @ w), P_explicit
 
-    calls = [0]
+    budget = EvaluationBudget("the energy balance's integration", t0, t_end, MAX_EVALUATIONS)
 
     def rhs(tt, y):
-        calls[0] += 1
-        if calls[0] > MAX_EVALUATIONS:
-            raise ComputationError(
-                f"the energy balance's integration needs more than {MAX_EVALUATIONS} evaluations "
-                f"(stopped at t = {tt:.6g} of {t_end:g}; a stiff or fast motion)",
-                hint="check a shorter span (appell check --t-end)")
+        budget(tt)
         q, w = y[:nq], y[nq:nq + n]
         a, p_app, p_reac, p_expl = powers(tt, q, w)
         dq = model.coordinate_rates(tt, q, w, pv)

@@ -452,7 +452,8 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
              stabilization: str | None = "projection", baumgarte=(10.0, 10.0), projection_tol: float = 1e-10,
              project_output: bool = False, unilateral: Mapping[str, int] | None = None, on_release: str = "continue",
              friction: Mapping | None = None, events=(), params=None, initial=None, complete: bool = False,
-             adjust=None, progress: bool | None = None, rest_speed: float = 1e-6) -> Solution:
+             adjust=None, progress: bool | None = None, rest_speed: float = 1e-6,
+             max_evaluations: int | None = None) -> Solution:
     """Integrate the motion and record states, accelerations, multipliers, controls and residuals.
 
     Every argument left out takes the model's run settings (a model file's ``[simulation]``
@@ -502,6 +503,10 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         where a constraint is violated), a list of names, or ``()`` (none: only missing
         values are computed and a violation raises).
     progress : show a tqdm progress bar; None: only when stderr is a terminal.
+    max_evaluations : a budget of right-hand-side evaluations (None: none). A run that has
+        spent it stops after the step that passed it, with status -1 and the time reached in
+        ``message``: a bound on the cost of a motion too fast or stiff for its span, for
+        checks that run unattended.
 
     Returns
     -------
@@ -690,6 +695,11 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                 break
             run.steps += 1
             t_new, y_new = float(solver.t), np.array(solver.y, float)
+            if max_evaluations is not None and run.nfev > max_evaluations:
+                status, message = -1, (f"stopped at t = {t:.10g} of {t_end:g} after {run.nfev} evaluations, "
+                                       f"over the budget max_evaluations = {max_evaluations}: the motion is "
+                                       f"too fast or stiff for this span")
+                break
             run.accept(t_new)
             dense = solver.dense_output()
             try:
