@@ -27,6 +27,8 @@ from appell.model import (
 )
 from appell.io.modelfile import load_model, loads_model
 from appell.numerics.numeric import NumericModel, StateSolution
+from appell.numerics.linearise import LinearModel, linearise, steady_motion
+from appell.numerics.stability import StabilitySweep, stability_sweep
 from appell.simulation.events import Event
 from appell.simulation.initial import InitialState, check_initial, complete_initial
 from appell.simulation.energy_balance import EnergyBalance, energy_balance
@@ -110,6 +112,7 @@ __all__ = [
     "load_model", "loads_model", "nonholonomic", "t",
     "Event", "InitialState", "InitialValueError", "Solution", "check_initial", "complete_initial", "simulate",
     "EnergyBalance", "energy_balance",
+    "LinearModel", "StabilitySweep", "linearise", "stability_sweep", "steady_motion",
     "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",
     "routh_reduction",
     "SweepResult", "compile_c", "parameter_grid", "sweep", "sweep_cluster",

@@ -871,6 +871,81 @@ def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, 
 
 
 @cli.command(context_settings=_CONTEXT)
+@_model_argument
+@click.option("--vary", "spec", required=True, metavar="NAME=START:STOP:NUM",
+              help="The varied name: a parameter, or a coordinate or speed of the point (x' for a speed); "
+                   "NUM values from START to STOP, or NAME=V1,V2,...")
+@click.option("--free", multiple=True, metavar="NAME",
+              help="A coordinate or speed solved for a steady motion at each value (repeatable); none: the "
+                   "point is the model's initial values as they are.")
+@click.option("--ignore", multiple=True, metavar="NAME",
+              help="A coordinate left out of the linear model (repeatable; a cyclic one of a steady motion), "
+                   "or 'cyclic' for every coordinate nothing depends on.")
+@click.option("-o", "--out", "outputs", multiple=True, type=click.Path(dir_okay=False, writable=True),
+              metavar="FILE", help="Write the eigenvalues (repeatable): .json, .csv, .nc (netCDF), or a plot "
+                                   ".png, .svg, .pdf.")
+@_set_option
+def stability(model, spec, free, ignore, outputs, assignments):
+    """Eigenvalues of the linear model against a parameter or a speed, with the critical
+    values where a mode turns unstable or stable.
+
+    The point is the model's initial values (with --set), or the steady motion found there
+    at each value (--free: every acceleration zero, every coordinate not ignored at rest).
+    Modes are tracked across the values; each crossing of a real part through zero is
+    located by root finding (numerics/stability.py).
+    """
+    from appell.numerics.stability import stability_sweep
+    from appell.simulation.sweep import parse_spec
+
+    name, values = parse_spec(spec)
+    name = canonical_name(name)
+    kinds = {Path(o).suffix.lower() for o in outputs}
+    unknown = kinds - {".json", ".csv", ".nc", ".png", ".svg", ".pdf"}
+    if unknown:
+        raise click.BadParameter(f"unknown output kind {', '.join(sorted(unknown))}: use .json, .csv, .nc, .png, "
+                                 ".svg or .pdf", param_hint="'-o'")
+    for o in outputs:
+        output_target(o)
+    system = load_system(model, parse_assignments(assignments))
+    derivation = derive_model(system)
+    ignored = "cyclic" if tuple(ignore) == ("cyclic",) else tuple(canonical_name(i) for i in ignore) or None
+    result = stability_sweep(derivation, name, values, at=dict(system.initial_values),
+                             free=tuple(canonical_name(f) for f in free), ignore=ignored, progress=None)
+    click.echo(result.table())
+    for o in outputs:
+        _write_stability(result, Path(o))
+        click.echo(f"wrote {o}")
+
+
+def _write_stability(result, path: Path) -> None:
+    """The sweep as JSON, CSV, netCDF or a plot, written atomically."""
+    from appell.files import write_bytes
+
+    kind = path.suffix.lower()
+    if kind in (".png", ".svg", ".pdf"):
+        result.plot(path)
+        return
+    if kind == ".nc":
+        data = result.to_xarray().to_netcdf(engine="h5netcdf")
+    elif kind == ".json":
+        data = json.dumps({
+            "name": result.name, "values": result.values.tolist(), "states": list(result.states),
+            "modes": list(result.names), "real": result.eigenvalues.real.tolist(),
+            "imag": result.eigenvalues.imag.tolist(),
+            "crossings": [{"mode": c.mode, "value": c.value, "imag": c.imag, "kind": c.kind,
+                           "becomes": "unstable" if c.direction > 0 else "stable"} for c in result.crossings],
+        }, indent=1).encode()
+    else:
+        m = result.eigenvalues.shape[1]
+        head = ",".join([result.name] + [f"real_{j},imag_{j}" for j in range(m)])
+        rows = [",".join([repr(float(v))] + [f"{float(e.real)!r},{float(e.imag)!r}" for e in row])
+                for v, row in zip(result.values, result.eigenvalues)]
+        data = ("\n".join([head] + rows) + "\n").encode()
+    with atomic_path(path) as tmp:
+        write_bytes(tmp, data)
+
+
+@cli.command(context_settings=_CONTEXT)
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Worker processes, one thread each (default: one per core).")
 @click.option("--host", default="127.0.0.1", show_default=True,

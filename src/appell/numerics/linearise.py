@@ -1,0 +1,421 @@
+"""Linear models about an equilibrium or a steady motion, with the reactions as outputs.
+
+The motion of a derivation is ``dy/dt = G(t, y, u)`` with ``y = (q, w)``,
+
+.. math::
+    G = \\begin{bmatrix} K w + k \\\\ a \\end{bmatrix}, \\qquad
+    R = M a + (h - Q) - J^T \\lambda = 0, \\qquad S = J a + c = 0 ,
+
+where ``(a, lambda)`` are the split's (1.4)/(1.5) and ``u`` the parameters chosen as
+inputs (an applied force or torque, a program's amplitude, a speed of the sweep). By the
+implicit function theorem the sensitivities of the solved state solve the same linear
+system with other right-hand sides,
+
+.. math::
+    M \\, \\delta a - J^T \\delta\\lambda = -R_y \\, \\delta y - R_u \\, \\delta u, \\qquad
+    J \\, \\delta a = -S_y \\, \\delta y - S_u \\, \\delta u ,
+
+so each column of ``da/dy`` is an acceleration of (1.4) and each row of ``dlambda/dy`` a
+reaction of (1.5) (:func:`~appell.numerics.numeric.split_solve`): the linear sensitivity of
+every reaction by its own formula. ``R_y = dR/dy``, ``S_y``, ``R_u``, ``S_u`` are the exact
+symbolic Jacobians of ``R`` and ``S`` with ``a`` and ``lambda`` held as symbols (a vector's
+Jacobian, never the Jacobian of a matrix), compiled once with shared subexpressions. Model
+outputs ``z(t, q, w, a, lambda, u)`` (joint forces and moments) follow by the chain rule.
+
+**The chart.** The state of the linear model is ``x = (q_i, w_i)``: the independent
+coordinates of the holonomic constraints ``F(t, q) = 0`` and the independent speeds of the
+velocity constraints ``phi(t, q, w) = 0``, each chosen by pivoted QR of ``F_q`` and
+``phi_w`` at the point (or named by the caller). Its tangent map ``dy = T dx`` solves the
+dependent ones, ``dq_d = -F_{q_d}^{-1} F_{q_i} dq_i`` and
+``dw_d = -phi_{w_d}^{-1} (phi_q dq + phi_{w_i} dw_i)``; ``P`` picks ``x`` out of ``y``
+(``P T = I``). Coordinates on which nothing depends (cyclic ones, method.md §5: a steady
+motion turns them at constant rates) are left out of ``x`` (``ignore``). Then
+
+.. math::
+    A = P \\, G_y \\, T, \\quad B = P \\, G_u, \\quad
+    C = z_y \\, T, \\quad D = z_u, \\qquad \\dot{\\delta x} = A \\, \\delta x + B \\, \\delta u, \\;
+    \\delta z = C \\, \\delta x + D \\, \\delta u .
+
+A point is an equilibrium or a steady motion when ``P G = 0`` there (the ignored
+coordinates may move); :func:`linearise` checks it (:data:`STEADY_TOLERANCE`) and
+:func:`steady_motion` finds one from a guess.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+import scipy.linalg as sla
+import sympy as sp
+
+from appell.errors import ComputationError, ModelError
+from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
+from appell.symbols import t
+
+__all__ = ["LinearModel", "linearise", "steady_motion", "STEADY_TOLERANCE"]
+
+#: largest ``|P G|`` at the point, relative to ``1 + |y|``, for it to count as steady
+STEADY_TOLERANCE = 1e-8
+
+
+@dataclass(frozen=True)
+class LinearModel:
+    """``dx/dt = A x + B u``, ``z = C x + D u`` about a point (module docstring).
+
+    ``states``, ``inputs``, ``outputs``: names of the entries of ``x``, ``u``, ``z``
+    (``z`` holds the multipliers ``lambda_<c>``, then the model's outputs). ``ignored``: the
+    coordinates left out of ``x``. ``point``: ``{name: value}`` of time, coordinates, speeds
+    and parameters. ``mass``: the reduced mass matrix ``T_w^T M T_w`` in the independent
+    speeds. ``steady``: ``|P G|`` at the point.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    ignored: tuple[str, ...]
+    point: Mapping[str, float]
+    mass: np.ndarray
+    steady: float
+    coordinates: int = field(default=0)
+
+    def eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of ``A``, sorted by real part, then imaginary part."""
+        ev = np.linalg.eigvals(self.A)
+        return ev[np.lexsort((ev.imag, ev.real))]
+
+    def modes(self) -> list[tuple[complex, str]]:
+        """``(eigenvalue, the states that dominate its eigenvector)`` (each state whose
+        entry is at least a third of the largest, by magnitude)."""
+        ev, vec = np.linalg.eig(self.A)
+        order = np.lexsort((ev.imag, ev.real))
+        out = []
+        for k in order:
+            mag = np.abs(vec[:, k])
+            names = [self.states[i] for i in np.argsort(-mag) if mag[i] >= mag.max() / 3]
+            out.append((complex(ev[k]), ", ".join(names)))
+        return out
+
+    def statespace(self):
+        """The model as :class:`scipy.signal.StateSpace`."""
+        from scipy.signal import StateSpace
+
+        return StateSpace(self.A, self.B, self.C, self.D)
+
+    def control(self):
+        """The model as python-control's ``ss`` (when python-control is installed)."""
+        try:
+            import control
+        except ImportError as exc:
+            raise ModelError("python-control is not installed", hint="pip install control") from exc
+        return control.ss(self.A, self.B, self.C, self.D, states=list(self.states), inputs=list(self.inputs),
+                          outputs=list(self.outputs))
+
+    def second_order(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(M, C, K, F)`` of ``M q'' + C q' + K q = F u`` in the independent coordinates,
+        where their rates are the independent speeds (``A = [[0, I], [-M^-1 K, -M^-1 C]]``);
+        a :class:`ModelError` otherwise (quasi-velocities)."""
+        m = self.coordinates
+        if 2 * m != self.A.shape[0] or not np.allclose(self.A[:m, :m], 0.0, atol=1e-12) or not np.allclose(
+                self.A[:m, m:], np.eye(m), atol=1e-12):
+            raise ModelError("the second-order form needs the independent speeds to be the rates of the "
+                             "independent coordinates (dq_i/dt = w_i)",
+                             hint="use A, B of the first-order form")
+        M = self.mass
+        return M, -M @ self.A[m:, m:], -M @ self.A[m:, :m], M @ self.B[m:, :]
+
+    def __str__(self) -> str:
+        lines = [f"linear model about t = {self.point.get('t', 0.0):g}: states {', '.join(self.states)}"
+                 + (f" (ignored: {', '.join(self.ignored)})" if self.ignored else "")]
+        for value, names in self.modes():
+            kind = ("stable" if value.real < -1e-9 else "unstable" if value.real > 1e-9 else "marginal")
+            lines.append(f"  {value.real:+.10g} {value.imag:+.10g}i   {kind:8s}  {names}")
+        return "\n".join(lines)
+
+
+class _Sensitivities:
+    """Compiled Jacobians of ``R``, ``S``, the rates ``K w + k``, the constraint residuals
+    and the outputs in ``(q, w, u)`` (and the outputs' in ``a``, ``lambda``)."""
+
+    def __init__(self, derivation, inputs: Sequence[sp.Symbol]):
+        system, kin, inertia, cons = derivation.system, derivation.kinematics, derivation.inertia, derivation.constraints
+        if not cons.linear:
+            raise ModelError("linearise needs constraints linear in the accelerations (f = J a + c)")
+        q, w, a = list(kin.coordinates), list(kin.speeds), list(kin.accelerations)
+        lam = [sp.Symbol(f"lambda_{n}") for n in cons.names]
+        params = [p.symbol for p in system.parameters]
+        n, s = len(w), cons.count
+        J = sp.Matrix(cons.jacobian) if s else sp.zeros(0, n)
+        c = sp.Matrix(cons.bias) if s else sp.zeros(0, 1)
+        R = sp.Matrix(inertia.mass_matrix) * sp.Matrix(a) + sp.Matrix(inertia.inertial_forces) \
+            - sp.Matrix(inertia.generalized_forces) - (J.T * sp.Matrix(lam) if s else sp.zeros(n, 1))
+        S = J * sp.Matrix(a) + c if s else sp.zeros(0, 1)
+        rates = sp.Matrix(kin.coordinate_rates)
+        F = sp.Matrix([e for e in cons.position_residual if e is not None])
+        phi = sp.Matrix([e for e in cons.velocity_residual if e is not None])
+        outs = sp.Matrix([o.expr for o in system.outputs])
+        u = list(inputs)
+        y = q + w
+
+        def jac(vector, symbols):
+            return vector.jacobian(sp.Matrix(symbols)) if vector.shape[0] and symbols else \
+                sp.zeros(vector.shape[0], len(symbols))
+
+        self.shapes = (len(q), n, s, F.shape[0], phi.shape[0], outs.shape[0], len(u))
+        mats = [jac(R, y), jac(S, y), jac(rates, y), jac(R, u), jac(S, u), jac(rates, u),
+                jac(F, q), jac(phi, q), jac(phi, w), jac(outs, y), jac(outs, a), jac(outs, lam), jac(outs, u)]
+        args = [t, q, w, a, lam, params]
+        self.fn = lambdify_blocks(args, mats, program_substitutions(system), what="linearisation")
+        self.free = [set().union(*(e.free_symbols for e in m)) if m.shape[0] * m.shape[1] else set()
+                     for m in (R, S, rates, F, phi)]
+
+    def __call__(self, tt, q, w, a, lam, pv):
+        nq, n, s, nF, nphi, nz, nu = self.shapes
+        shapes = [(n, nq + n), (s, nq + n), (nq, nq + n), (n, nu), (s, nu), (nq, nu), (nF, nq), (nphi, nq),
+                  (nphi, n), (nz, nq + n), (nz, n), (nz, s), (nz, nu)]
+        values = self.fn(float(tt), q, w, a, lam, pv)
+        return [np.asarray(v, float).reshape(shape) for v, shape in zip(values, shapes)]
+
+
+#: compiled sensitivities per derivation and inputs: id -> (weak reference, {inputs: _Sensitivities})
+_COMPILED: dict = {}
+
+
+def _sensitivities(derivation, inputs: tuple) -> _Sensitivities:
+    """:class:`_Sensitivities` of ``derivation`` for ``inputs``, compiled once (a sweep
+    linearises hundreds of times)."""
+    import weakref
+
+    key = id(derivation)
+    entry = _COMPILED.get(key)
+    if entry is None or entry[0]() is not derivation:
+        for k in [k for k, (ref, _) in _COMPILED.items() if ref() is None]:
+            del _COMPILED[k]
+        entry = _COMPILED[key] = (weakref.ref(derivation), {})
+    psyms = {s.name: s for s in derivation.numeric.parameters}
+    if inputs not in entry[1]:
+        entry[1][inputs] = _Sensitivities(derivation, [psyms[u] for u in inputs])
+    return entry[1][inputs]
+
+
+def _independent(matrix: np.ndarray, candidates: list[int], named: Sequence[int] | None, what: str,
+                 names: Sequence[str]) -> tuple[list[int], list[int]]:
+    """``(independent, dependent)`` columns of ``matrix`` among ``candidates``: dependent
+    ones by pivoted QR (as many as rows), or the complement of ``named``."""
+    rows = matrix.shape[0]
+    if rows == 0:
+        return list(candidates), []
+    if named is not None:
+        dep = [i for i in candidates if i not in named]
+        if len(dep) != rows or np.linalg.matrix_rank(matrix[:, dep]) < rows:
+            raise ModelError(f"the {what} named as independent leave {len(dep)} dependent ones, which do not "
+                             f"solve the {rows} constraint rows here",
+                             hint="name others, or leave the choice to appell")
+        return [i for i in candidates if i in named], dep
+    sub = matrix[:, candidates]
+    _, r, piv = sla.qr(sub, pivoting=True, mode="economic")
+    diag = np.abs(np.diag(r))
+    if diag.size < rows or diag[rows - 1] <= 1e-10 * max(diag[0], 1e-300):
+        raise ModelError(f"the constraints lose rank at this point ({what}): no chart of independent {what}",
+                         hint="a singular configuration: linearise elsewhere")
+    dep = sorted(candidates[i] for i in piv[:rows])
+    return [i for i in candidates if i not in dep], dep
+
+
+def _state(derivation, at: Mapping[str, float] | None, p=None):
+    """``(t, q, w, pv)`` from ``at`` (``{name: value}``; time under ``t``) over the
+    system's initial values and parameter values."""
+    model = derivation.numeric
+    system = derivation.system
+    values = dict(system.initial_values)
+    params = {}
+    pnames = {s.name for s in model.parameters}
+    for k, v in dict(at or {}).items():
+        key = str(k)
+        if key in pnames:
+            params[key] = v
+        elif key == "t" or key in model.coordinate_names or key in model.speed_names:
+            values[key] = float(v)
+        else:
+            raise ModelError(f"unknown name {key!r} in the point",
+                             hint="coordinates: " + ", ".join(model.coordinate_names) + "; speeds: "
+                                  + ", ".join(model.speed_names) + "; parameters: " + ", ".join(sorted(pnames)))
+    params.update({str(k): v for k, v in dict(p or {}).items()})
+    q = np.array([values.get(n, 0.0) for n in model.coordinate_names], float)
+    w = np.array([values.get(n, 0.0) for n in model.speed_names], float)
+    return float(values.get("t", 0.0)), q, w, model.params(params)
+
+
+def _ignored(derivation, sens: _Sensitivities, ignore) -> list[int]:
+    names = list(derivation.numeric.coordinate_names)
+    coords = list(derivation.kinematics.coordinates)
+    if ignore is None:
+        return []
+    if ignore == "cyclic":
+        used = set().union(*sens.free)
+        return [i for i, q in enumerate(coords) if q not in used]
+    out = []
+    for name in ignore:
+        if name not in names:
+            raise ModelError(f"{name!r} in ignore is not a coordinate", hint="coordinates: " + ", ".join(names))
+        out.append(names.index(name))
+    return out
+
+
+def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequence[str] = (),
+              outputs: Sequence[str] | None = None, params: Mapping | None = None,
+              ignore: Sequence[str] | str | None = None,
+              coordinates: Sequence[str] | None = None, speeds: Sequence[str] | None = None,
+              check: bool = True) -> LinearModel:
+    """The linear model about the point ``at`` (module docstring).
+
+    ``at``: ``{name: value}`` of time ``t``, coordinates, speeds and parameters (the
+    system's initial and parameter values elsewhere). ``inputs``: parameter names that
+    become the inputs ``u``. ``outputs``: the rows of ``C``, ``D`` kept, by name
+    (``lambda_<constraint>`` and the model's outputs; default all). ``ignore``: coordinates left out of the state (cyclic ones of a
+    steady motion), or ``'cyclic'`` for every coordinate that no block, rate or constraint
+    depends on. ``coordinates``, ``speeds``: the independent ones to keep (default: chosen
+    by pivoted QR). ``check``: refuse a point that is neither an equilibrium nor a steady
+    motion (``|P G| > STEADY_TOLERANCE (1 + |y|)``).
+    """
+    if hasattr(derivation, "control_laws"):
+        raise ModelError("linearise works on derivations without servo constraints",
+                         hint="the internal dynamics of a servo-controlled system: appell check prints them")
+    model = derivation.numeric
+    pnames = [s.name for s in model.parameters]
+    bad = [u for u in inputs if u not in pnames]
+    if bad:
+        raise ModelError(f"inputs must be parameters: {', '.join(bad)} is not one", hint="parameters: " + ", ".join(pnames))
+    sens = _sensitivities(derivation, tuple(inputs))
+    tt, q, w, pv = _state(derivation, at, params)
+    nq, n, s, nF, nphi, nz, nu = sens.shapes
+    sol = model.solve(tt, q, w, pv)
+    a, lam = sol.accelerations, sol.multipliers
+    Ry, Sy, Ky, Ru, Su, Ku, Fq, phiq, phiw, zy, za, zl, zu = sens(tt, q, w, a, lam, pv)
+    M, hQ, J, c = model.evaluate_blocks(tt, q, w, pv)
+    try:
+        dep, Jh_inv, _, kappa = (partition_in_use(J, derivation.partition.dependent, model.constraint_names)
+                                 if s else ((), None, False, 1.0))
+        # columns of (da, dlambda) for each column of (R, S) sensitivities: (1.4), (1.5)
+        cols = [split_solve(M, Ry[:, k], J, Sy[:, k], dep, Jh_inv, kappa) for k in range(nq + n)]
+        ucols = [split_solve(M, Ru[:, k], J, Su[:, k], dep, Jh_inv, kappa) for k in range(nu)]
+    except np.linalg.LinAlgError as exc:
+        raise ComputationError("the split is singular at this point: no linear model",
+                               hint="a singular configuration or a singular partition") from exc
+    ay = np.array([col[0] for col in cols]).T.reshape(n, nq + n)
+    ly = np.array([col[1] for col in cols]).T.reshape(s, nq + n)
+    au = np.array([col[0] for col in ucols]).T.reshape(n, nu)
+    lu = np.array([col[1] for col in ucols]).T.reshape(s, nu)
+
+    cnames, snames = list(model.coordinate_names), list(model.speed_names)
+    ignored = _ignored(derivation, sens, ignore)
+    keep_q = [i for i in range(nq) if i not in ignored]
+    named_q = None if coordinates is None else [cnames.index(_known(x, cnames, "coordinate")) for x in coordinates]
+    named_w = None if speeds is None else [snames.index(_known(x, snames, "speed")) for x in speeds]
+    qi, qd = _independent(Fq, keep_q, named_q, "coordinates", cnames)
+    wi, wd = _independent(phiw, list(range(n)), named_w, "speeds", snames)
+    # tangent map dy = T dx, x = (q_i, w_i)
+    Tq = np.zeros((nq, len(qi)))
+    Tq[qi, np.arange(len(qi))] = 1.0
+    if qd:
+        Tq[qd, :] = -np.linalg.solve(Fq[:, qd], Fq[:, qi])
+    Tw = np.zeros((n, len(wi)))
+    Tw[wi, np.arange(len(wi))] = 1.0
+    Twq = np.zeros((n, len(qi)))
+    if wd:
+        inv = np.linalg.inv(phiw[:, wd])
+        Tw[wd, :] = -inv @ phiw[:, wi]
+        Twq[wd, :] = -inv @ (phiq @ Tq)
+    T = np.block([[Tq, np.zeros((nq, len(wi)))], [Twq, Tw]])
+    rows = qi + [nq + i for i in wi]
+    Gy = np.vstack([Ky, ay])
+    Gu = np.vstack([Ku, au])
+    rates = model.coordinate_rates(tt, q, w, pv)
+    G = np.concatenate([rates, a])
+    steady = float(np.abs(G[rows]).max(initial=0.0))
+    if check and steady > STEADY_TOLERANCE * (1.0 + float(np.abs(np.concatenate([q, w])).max(initial=0.0))):
+        moving = [(cnames + [f"{x}'" for x in snames])[r] for r in rows if abs(G[r]) > STEADY_TOLERANCE]
+        raise ModelError(f"the point is neither an equilibrium nor a steady motion: {', '.join(moving)} change "
+                         f"there (largest rate {steady:.3g})",
+                         hint="find one with appell.steady_motion, or leave the moving coordinates out (ignore=)")
+    A = Gy[rows, :] @ T
+    B = Gu[rows, :]
+    # outputs: the multipliers, then the model's outputs (chain rule through a and lambda)
+    zy_full = zy + za @ ay + zl @ ly
+    zu_full = zu + za @ au + zl @ lu
+    C = np.vstack([ly, zy_full]) @ T
+    D = np.vstack([lu, zu_full])
+    states = tuple([cnames[i] for i in qi] + [snames[i] for i in wi])
+    every = [f"lambda_{c}" for c in model.constraint_names] + [o.name for o in derivation.system.outputs]
+    if outputs is not None:
+        unknown = [o for o in outputs if o not in every]
+        if unknown:
+            raise ModelError(f"unknown output(s) {', '.join(unknown)}", hint="outputs: " + ", ".join(every))
+        keep = [every.index(o) for o in outputs]
+        C, D = C[keep], D[keep]
+    outputs = tuple(every if outputs is None else outputs)
+    point = {"t": tt, **dict(zip(cnames, map(float, q))), **dict(zip(snames, map(float, w))),
+             **dict(zip(pnames, map(float, pv)))}
+    return LinearModel(A, B, C, D, states, tuple(inputs), outputs, tuple(cnames[i] for i in ignored), point,
+                       Tw.T @ M @ Tw, steady, coordinates=len(qi))
+
+
+def _known(name: str, names: list[str], what: str) -> str:
+    if name not in names:
+        raise ModelError(f"{name!r} is not a {what}", hint=f"{what}s: " + ", ".join(names))
+    return name
+
+
+def steady_motion(derivation, guess: Mapping[str, float] | None = None, *, free: Sequence[str],
+                  ignore: Sequence[str] | str | None = None, params: Mapping | None = None,
+                  tol: float = 1e-10) -> dict[str, float]:
+    """An equilibrium or steady motion near ``guess``: the values of the names in ``free``
+    (coordinates, speeds) for which every acceleration vanishes, every coordinate not in
+    ``ignore`` is at rest and the constraints hold; the other state entries keep their
+    values of ``guess`` (over the initial values). Returns the whole point ``{name: value}``
+    (time, coordinates, speeds, parameters); a :class:`ComputationError` when none is found near the
+    guess (Gauss–Newton from it, :func:`scipy.optimize.least_squares`)."""
+    from scipy.optimize import least_squares
+
+    model = derivation.numeric
+    tt, q0, w0, pv = _state(derivation, guess, params)
+    cnames, snames = list(model.coordinate_names), list(model.speed_names)
+    names = cnames + snames
+    for name in free:
+        _known(name, names, "coordinate or speed")
+    if ignore == "cyclic":
+        skip = set(_ignored(derivation, _sensitivities(derivation, ()), "cyclic"))
+    else:
+        skip = {cnames.index(_known(x, cnames, "coordinate")) for x in (ignore or ())}
+    idx = [names.index(x) for x in free]
+    y0 = np.concatenate([q0, w0])
+    nq = len(q0)
+
+    def residual(x):
+        y = y0.copy()
+        y[idx] = x
+        q, w = y[:nq], y[nq:]
+        sol = model.solve(tt, q, w, pv)
+        rates = model.coordinate_rates(tt, q, w, pv)
+        F, phi = model.constraint_residuals(tt, q, w, pv)
+        keep = [i for i in range(nq) if i not in skip]
+        return np.concatenate([rates[keep], sol.accelerations, F[np.isfinite(F)], phi[np.isfinite(phi)]])
+
+    try:
+        fit = least_squares(residual, y0[idx], xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm"
+                            if len(residual(y0[idx])) >= len(idx) else "trf")
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise ComputationError(f"no steady motion found near the guess: {exc}") from exc
+    worst = float(np.abs(fit.fun).max(initial=0.0))
+    if worst > tol * (1.0 + float(np.abs(fit.x).max(initial=0.0))):
+        raise ComputationError(f"no steady motion found near the guess: the residual stays at {worst:.3g}",
+                               hint="start from another guess, or free other coordinates or speeds")
+    y = y0.copy()
+    y[idx] = fit.x
+    return {"t": tt, **dict(zip(names, map(float, y))),
+            **{s.name: float(v) for s, v in zip(model.parameters, pv)}}
