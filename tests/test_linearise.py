@@ -18,6 +18,7 @@ Sources of the closed forms:
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -150,6 +151,18 @@ def test_the_second_order_form_and_an_input_of_a_spring_chain():
     assert ss.A.shape == (4, 4) and ss.B.shape == (4, 1)
     with pytest.raises(ModelError, match="inputs must be parameters: x1"):
         linearise(d, {}, inputs=["x1"])
+
+
+def test_a_model_with_a_non_analytic_function_is_differentiated_symbolically():
+    """A force -d (|x1 + 1| - 1) on the first mass (|.| has no complex-analytic extension, so
+    the complex step does not apply): near x1 = 0 it is -d x1, a stiffness d added to K11."""
+    x1, d_ = sp.Symbol("x1"), sp.Symbol("d")
+    chain = spring_chain()
+    system = dataclasses.replace(chain, parameters=chain.parameters + (Parameter(d_, 2.0),),
+                                 generalized_forces=(-d_ * (sp.Abs(x1 + 1) - 1), chain.generalized_forces[1]))
+    lm = linearise(derive(system), {"x1": 0.0, "x2": 0.0})
+    _, _, K, _ = lm.second_order()
+    assert np.allclose(K, [[14.0, -7.0], [-7.0, 7.0]], rtol=0, atol=1e-13)
 
 
 def sleeping_top() -> System:

@@ -74,6 +74,9 @@ TIDY_LIMIT = SWELL_LIMIT // 8
 #: largest size, in tree nodes, of an expression a required step may form (a module
 #: setting: a larger mechanism can be derived anyway by raising it, at its cost in time)
 NODE_LIMIT = 100_000
+#: largest work (:func:`derivative_work`) of a required derivative whose tree estimate is
+#: over NODE_LIMIT: a quarter of it (the benchmark bicycle's largest is 3,458)
+WORK_LIMIT = NODE_LIMIT // 4
 
 
 @dataclass(frozen=True)
@@ -231,6 +234,39 @@ def derivative_nodes(expr, symbols, rates=None, limit: int | None = None) -> int
     return total
 
 
+def derivative_work(expr, symbols) -> int:
+    """Nodes SymPy creates to differentiate ``expr`` along each of ``symbols``, with every
+    shared subexpression differentiated once (its derivative is shared as it is): per
+    symbol, the sum over the distinct subexpressions that hold it of a local cost -- a sum
+    of ``n`` terms ``n + 1``, a product of ``n`` factors ``n + 1`` per factor that holds the
+    symbol (the other factors are referenced, not copied), a power or function 4, anything
+    else 16. Unlike :func:`derivative_nodes`, which counts a shared subexpression at every
+    use (an upper bound of the printed tree), it follows the expression's graph: a rotation
+    chain of a mechanism (the benchmark bicycle's front contact: 1,496 distinct nodes, 2e7
+    by :func:`derivative_nodes`) costs what it shares."""
+    expr = sp.sympify(expr)
+    total = 0
+    for sym in set(symbols) & expr.free_symbols:
+        seen: set = set()
+        stack = [expr]
+        while stack:
+            e = stack.pop()
+            if e in seen or not e.args or sym not in e.free_symbols:
+                continue
+            seen.add(e)
+            n = len(e.args)
+            if e.is_Mul:
+                total += (n + 1) * sum(1 for a in e.args if sym in a.free_symbols)
+            elif e.is_Add:
+                total += n + 1
+            elif e.is_Pow or isinstance(e, _PLAIN):
+                total += 4
+            else:
+                total += 16
+            stack.extend(e.args)
+    return total
+
+
 #: functions whose derivative is no larger than themselves (``exp(a)``, ``cos(a)``, ``1/a``)
 _PLAIN = (sp.exp, sp.sin, sp.cos, sp.sinh, sp.cosh, sp.log, sp.Abs, sp.sign)
 
@@ -263,8 +299,12 @@ class ExpressionSwell(ModelError):
 
 def refuse_derivative(expr, symbols, rates=None, what: str = "its time derivative") -> None:
     """Raise :class:`ExpressionSwell` when the derivative of ``expr`` along ``symbols``
-    (:func:`derivative_nodes`; ``what`` names it) would exceed :data:`NODE_LIMIT` nodes."""
-    if derivative_nodes(expr, symbols, rates) > NODE_LIMIT:
+    (``what`` names it) would exceed :data:`NODE_LIMIT` nodes as a tree
+    (:func:`derivative_nodes`) and its work on the expression's graph
+    (:func:`derivative_work`) exceeds :data:`WORK_LIMIT`: an expression that shares its
+    subexpressions (a mechanism's rotation chains) is differentiated at the cost of what it
+    shares, and :func:`refuse_result` counts what was formed."""
+    if derivative_nodes(expr, symbols, rates) > NODE_LIMIT and derivative_work(expr, symbols) > WORK_LIMIT:
         raise ExpressionSwell(
             f"{what} would exceed {NODE_LIMIT:,} nodes (terms, factors and functions; the expression "
             f"itself has {tree_size(expr):,}): the derivation stops here instead of running without bound",
@@ -279,10 +319,27 @@ SWELL_HINT = ("write the expression in a shorter form: multiply out or factor it
               "anyway from Python by raising appell.core.simplification.NODE_LIMIT")
 
 
+def graph_size(expr, limit: int | None = None) -> int:
+    """Distinct subexpressions of ``expr`` (what printing and compiling with common
+    subexpressions cost), at most ``limit + 1`` (default :data:`NODE_LIMIT`)."""
+    limit = NODE_LIMIT if limit is None else limit
+    seen: set = set()
+    stack = [sp.sympify(expr)]
+    while stack:
+        e = stack.pop()
+        if e in seen:
+            continue
+        seen.add(e)
+        if len(seen) > limit:
+            return limit + 1
+        stack.extend(e.args)
+    return len(seen)
+
+
 def refuse_result(expr, what: str = "its time derivative") -> None:
     """Raise :class:`ExpressionSwell` when ``expr``, just formed by a required step, has more
-    than :data:`NODE_LIMIT` nodes (counted with an early stop)."""
-    if tree_size(expr) > NODE_LIMIT:
+    than :data:`NODE_LIMIT` distinct subexpressions (:func:`graph_size`, with an early stop)."""
+    if graph_size(expr) > NODE_LIMIT:
         raise ExpressionSwell(f"{what} has more than {NODE_LIMIT:,} nodes (terms, factors and functions): the "
                               "derivation stops here instead of running without bound", hint=SWELL_HINT)
 
