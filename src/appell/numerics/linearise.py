@@ -469,7 +469,8 @@ def steady_motion(derivation, guess: Mapping[str, float] | None = None, *, free:
     if ignore == "cyclic":
         skip = set(_ignored(derivation, _sensitivities(derivation, ()), "cyclic"))
     else:
-        skip = {cnames.index(_known(x, cnames, "coordinate")) for x in (ignore or ())}
+        # speeds left out of a linear model are no concern of the steady motion
+        skip = {cnames.index(_known(x, names, "coordinate or speed")) for x in (ignore or ()) if x not in snames}
     idx = [names.index(x) for x in free]
     y0 = np.concatenate([q0, w0])
     nq = len(q0)
