@@ -242,3 +242,39 @@ def test_appell_stability_writes_each_format(tmp_path):
     assert files[3].read_bytes()[:4] == b"\x89PNG"
     bad = CliRunner().invoke(cli, ["stability", "spherical_pendulum", "--vary", "theta=1:0:3"])
     assert bad.exit_code != 0 and "increasing" in bad.output
+
+
+def test_the_internal_dynamics_of_an_ordinary_derivation_is_refused_with_a_pointer(pendulum):
+    """Issue 23: on a derivation without servo constraints the servo code said AttributeError."""
+    from appell.control.internal_dynamics import internal_linearisation
+
+    with pytest.raises(ModelError, match="servo constraints") as info:
+        internal_linearisation(pendulum)
+    assert "appell.linearise" in info.value.hint
+
+
+def test_a_hinge_axis_given_by_a_parameter():
+    """A point mass m on a massless rod of length L swinging about a hinge whose axis is
+    tilted by beta from the vertical, axis (sin beta, 0, cos beta), gravity -z: only
+    g sin(beta) acts in the plane of the swing, so small oscillations about the lowest point
+    have s^2 = -g sin(beta) / L (the axis is a parameter; its unit length is an identity).
+    A body's inertia rotated by a symbolic angle, R^T I R, is recognised as symmetric."""
+    from appell.mechanism import Mechanism
+    from appell.mechanism.rotations import axis_rotation
+
+    b = sp.Symbol("beta")
+    mech = Mechanism("tilted_pendulum", gravity=(0, 0, -9.81))
+    mech.parameter("beta", 0.4)
+    R = axis_rotation((0, 1, 0), b)
+    bob = mech.body("bob", 1.0, inertia=R.T * sp.diag(0, 0, 0) * R, com=(0, 0, 0))
+    rod = (sp.cos(b), 0, -sp.sin(b))  # perpendicular to the axis, pointing down-and-aside at rest
+    mech.revolute("hinge", "ground", bob, axis=(sp.sin(b), 0, sp.cos(b)), child_origin=tuple(-x for x in rod))
+    d = derive(mech.system(reactions=None))
+    for beta in (0.4, 1.1):
+        lm = linearise(d, {"hinge": 0.0, "beta": beta})
+        assert np.allclose(lm.eigenvalues(), [-1j * math.sqrt(G * math.sin(beta)), 1j * math.sqrt(G * math.sin(beta))],
+                           rtol=1e-12, atol=0)
+    body = mech.body("plate", 2.0, inertia=R.T * sp.Matrix([[1, 0, 0.2], [0, 2, 0], [0.2, 0, 3]]) * R)
+    assert body.inertia.shape == (3, 3)
+    with pytest.raises(ModelError, match="not of unit length"):
+        mech.revolute("bad", "ground", "plate", axis=(sp.sin(b), 0, 2 * sp.cos(b)))

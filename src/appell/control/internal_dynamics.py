@@ -35,7 +35,7 @@ import numpy as np
 import sympy as sp
 
 from appell.core.partition import pivoted_columns
-from appell.errors import ComputationError
+from appell.errors import ComputationError, ModelError
 from appell.numerics.numeric import lambdify_blocks, program_substitutions
 from appell.symbols import derivative_symbol, t
 
@@ -155,6 +155,9 @@ def internal_linearisation(derivation, time=None, state=None, p=None, step: floa
     Raises :class:`~appell.errors.ComputationError` when the controls or the motion cannot
     be evaluated near the state.
     """
+    if not hasattr(derivation, "internal_dimension"):
+        raise ModelError("internal dynamics belong to a system with servo constraints (derive_controlled)",
+                         hint="linearise an ordinary derivation with appell.linearise")
     if derivation.internal_dimension == 0:
         return None
     model = derivation.numeric

@@ -38,7 +38,7 @@ import sympy as sp
 
 from appell.errors import ModelError
 from appell.mechanism.joints import KINDS, JointMotion, joint_motion
-from appell.mechanism.rotations import rpy_rotation, unit_axis
+from appell.mechanism.rotations import identically_zero, rpy_rotation, unit_axis
 from appell.model import (AppliedForce, AppliedTorque, Constraint, Control, Output, Parameter, Particle, RigidBody,
                           System, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
@@ -258,7 +258,7 @@ class Mechanism:
             I = sp.diag(*I)
         if I.shape != (3, 3):
             raise ModelError(f"inertia of body {name!r} must be 3 principal moments or a 3x3 matrix")
-        if I != I.T:
+        if any(not identically_zero(I[i, j] - I[j, i]) for i in range(3) for j in range(i + 1, 3)):
             raise ModelError(f"inertia of body {name!r} is not symmetric")
         for e in I:
             _real(e, f"inertia of body {name!r}")

@@ -29,6 +29,22 @@ def skew(v) -> sp.Matrix:
     return sp.Matrix([[0, -z, y], [z, 0, -x], [-y, x, 0]])
 
 
+#: largest expression (operations) the builder simplifies to decide an identity
+IDENTITY_OPS = 200
+
+
+def identically_zero(expr) -> bool:
+    """Whether the small expression ``expr`` vanishes for every value of its symbols
+    (``trigsimp`` and ``expand``; False for an expression over :data:`IDENTITY_OPS`
+    operations, which is not tried)."""
+    expr = sp.sympify(expr)
+    if expr == 0:
+        return True
+    if sp.count_ops(expr) > IDENTITY_OPS:
+        return False
+    return sp.expand(sp.trigsimp(sp.expand(expr))) == 0
+
+
 def unit_axis(axis, what: str) -> sp.Matrix:
     """``axis`` as a 3x1 matrix of numbers of length 1; a :class:`ModelError` naming
     ``what`` for a symbolic, zero or non-unit axis."""
@@ -37,9 +53,16 @@ def unit_axis(axis, what: str) -> sp.Matrix:
     except (TypeError, ValueError, sp.SympifyError):
         raise ModelError(f"{what}: the axis {axis!r} is not three numbers",
                          hint="give the axis as three numbers, e.g. (0, 0, 1)") from None
-    if k.shape != (3, 1) or any(not e.is_number for e in k):
+    if k.shape != (3, 1):
         raise ModelError(f"{what}: the axis {axis!r} must be three numbers", hint="e.g. axis=(0, 0, 1)")
     norm2 = sum(e**2 for e in k)
+    if any(not e.is_number for e in k):
+        # an axis given by parameters (a head angle): of unit length for every value
+        if not all(isinstance(s, sp.Symbol) for s in norm2.free_symbols) or not identically_zero(norm2 - 1):
+            raise ModelError(f"{what}: the axis {tuple(axis)} is not of unit length for every value of "
+                             f"{', '.join(sorted(str(s) for s in norm2.free_symbols))}",
+                             hint="give three numbers, or a unit vector such as (sin(b), 0, cos(b))")
+        return k
     if norm2 == 0:
         raise ModelError(f"{what}: the axis is zero", hint="give a unit vector, e.g. axis=(0, 0, 1)")
     if abs(float(norm2) - 1.0) > 1e-9:
