@@ -367,9 +367,9 @@ def test_ctrl_c_during_a_sweep_stops_the_workers_quietly(tmp_path, delay):
 
 
 def test_an_evaluation_budget_stops_at_its_first_projection():
-    """numerics/budget.py: a run that covers 1e-4 of its span per 1000 evaluations projects
+    """numerics/budget.py: a run that covers 1e-5 of its span per 100 evaluations projects
     1e7 evaluations and stops at the first projection; one that keeps pace with its budget
-    runs to its end."""
+    runs to its end; a run past its seconds stops at the next projection."""
     from appell.numerics.budget import PROJECT_EVERY, EvaluationBudget
 
     slow = EvaluationBudget("the test's run", 0.0, 10.0, 50_000)
@@ -382,12 +382,18 @@ def test_an_evaluation_budget_stops_at_its_first_projection():
     for k in range(1, 40_001):
         steady(k * 10.0 / 40_000)
     assert steady.projected() == pytest.approx(40_000)
+    timed = EvaluationBudget("the test's run", 0.0, 10.0, 50_000, seconds=0.0)
+    with pytest.raises(ComputationError, match=r"has run 0 s, more than its budget of 0 s \(stopped at t = "):
+        for k in range(1, 1000):
+            timed(k * 10.0 / 40_000)
+    assert timed.calls == PROJECT_EVERY
 
 
 def test_the_energy_balance_of_a_motion_too_fast_for_its_span_is_refused_in_seconds():
     """A potential (sin x + cos x + 1)^30 (forces ~1e14, the fuzzer's seed 35): the balance's
     integration stops at its first projection of the cost with the budget named, instead of
     integrating for minutes."""
+    from appell.numerics.budget import PROJECT_EVERY
     from appell.simulation.energy_balance import MAX_EVALUATIONS, energy_balance
 
     text = example_path("bouncing_ball").read_text(encoding="utf-8").replace(
@@ -397,4 +403,4 @@ def test_the_energy_balance_of_a_motion_too_fast_for_its_span_is_refused_in_seco
     with pytest.raises(ComputationError) as info:
         energy_balance(d, 5.0)
     assert f"more than its budget of {MAX_EVALUATIONS} (stopped at t = " in info.value.message
-    assert "after 1000)" in info.value.message
+    assert f"after {PROJECT_EVERY})" in info.value.message

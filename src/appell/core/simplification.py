@@ -303,8 +303,11 @@ def refuse_derivative(expr, symbols, rates=None, what: str = "its time derivativ
     (:func:`derivative_nodes`) and its work on the expression's graph
     (:func:`derivative_work`) exceeds :data:`WORK_LIMIT`: an expression that shares its
     subexpressions (a mechanism's rotation chains) is differentiated at the cost of what it
-    shares, and :func:`refuse_result` counts what was formed."""
-    if derivative_nodes(expr, symbols, rates) > NODE_LIMIT and derivative_work(expr, symbols) > WORK_LIMIT:
+    shares, and :func:`refuse_result` counts what was formed. Powers of high degree and deep
+    chains of functions (:func:`_compounding`) keep the tree estimate alone: their repeated
+    derivatives (a servo condition differentiated twice or three times) compound."""
+    if derivative_nodes(expr, symbols, rates) > NODE_LIMIT and (
+            derivative_work(expr, symbols) > WORK_LIMIT or _compounding(expr)):
         raise ExpressionSwell(
             f"{what} would exceed {NODE_LIMIT:,} nodes (terms, factors and functions; the expression "
             f"itself has {tree_size(expr):,}): the derivation stops here instead of running without bound",
@@ -317,6 +320,34 @@ SWELL_HINT = ("write the expression in a shorter form: multiply out or factor it
               "of sums and deep chains of functions, or introduce an extra coordinate for a repeated "
               "subexpression with a holonomic constraint that defines it; a large mechanism can be derived "
               "anyway from Python by raising appell.core.simplification.NODE_LIMIT")
+
+
+#: integer powers from this degree, and chains of functions from this depth, compound under
+#: repeated differentiation (``(1 + q^2)^50``, ``exp(sin(exp(...)))``)
+COMPOUNDING_DEGREE, COMPOUNDING_DEPTH = 8, 5
+
+
+def _compounding(expr) -> bool:
+    """Whether ``expr`` holds an integer power of degree :data:`COMPOUNDING_DEGREE` or more,
+    or functions nested :data:`COMPOUNDING_DEPTH` deep (module docstring of
+    :func:`refuse_derivative`)."""
+    depth: dict = {}
+    stack = [(sp.sympify(expr), False)]
+    while stack:
+        e, done = stack.pop()
+        if e in depth:
+            continue
+        if not done:
+            if e.is_Pow and e.exp.is_Integer and abs(int(e.exp)) >= COMPOUNDING_DEGREE:
+                return True
+            stack.append((e, True))
+            stack.extend((a, False) for a in e.args if a not in depth)
+            continue
+        inner = max((depth.get(a, 0) for a in e.args), default=0)
+        depth[e] = inner + (1 if isinstance(e, sp.Function) else 0)
+        if depth[e] >= COMPOUNDING_DEPTH:
+            return True
+    return False
 
 
 def graph_size(expr, limit: int | None = None) -> int:

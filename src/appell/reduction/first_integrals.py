@@ -274,7 +274,7 @@ def _integrate_motion(numeric, q0, w0, times, t0: float = 0.0, rtol: float = 1e-
     from scipy.integrate import solve_ivp
 
     nq = len(q0)
-    budget = EvaluationBudget("the first integrals' drift run", t0, float(times[-1]), DRIFT_EVALUATIONS,
+    budget = EvaluationBudget("the first integrals' drift run", t0, float(times[-1]), DRIFT_EVALUATIONS, 10.0,
                               hint="look for forces, energies or candidate integrals that are far too large")
 
     def rhs(time, y):
