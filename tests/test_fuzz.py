@@ -29,8 +29,16 @@ per case for a report::
 
     python tests/test_fuzz.py START STOP results.jsonl
 
-Last full run (seeds 0-1999, 2 commands each, 4000 runs): see the numbers recorded in
-:data:`LAST_FULL_RUN`.
+Last full run, 2026-11-27 at commit 9b1fc31 (seeds 0-1999, 2 commands each, 4000 runs,
+1,887 s of runs on this project's 2-core machine, loaded by a second test run): derive exit
+0 816 times and 2 (a clear refusal) 1,184 times; check 0 615, 1 161, 2 1,222 times; no
+internal error, no traceback, no file written outside the working folder (two listings
+changed while the examples' source was edited during the run: seeds 1782 and 1789, clean
+when run again). Runs: median 0.012 s, 99th percentile 6.4 s. Two ran past the bound
+(seeds 1807 and 1931: an energy balance of slow evaluations, a Newton solve each), since
+bounded by the seconds of :class:`appell.numerics.budget.EvaluationBudget`; seed 1782's
+check failed on rounding (a motion at rest with energies of 1e-50) and passes since. The
+cases the first full run (2026-11-25) handed over are :data:`FIXED`.
 """
 
 from __future__ import annotations
@@ -57,7 +65,7 @@ from appell.io.modelfile.expressions import FUNCTIONS  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = sorted(example_path("pendulum").parent.glob("*.toml"))
 #: seeds of the default run and of the full run (APPELL_SLOW=1)
-QUICK, FULL = 40, 2000
+QUICK, FULL = 16, 2000
 #: seconds one command may run before the hang guard stops it (not a speed measurement)
 BOUND = 20.0
 COMMANDS = ("derive", "check")
@@ -67,7 +75,8 @@ COMMANDS = ("derive", "check")
 #: exit code, fragment)
 FIXED: dict[int, tuple[str, int, str]] = {
     # a potential (sin x + cos x + 1)^30: the energy balance's integration stops at its first
-    # projection of the cost (numerics/budget.py), not after minutes
+    # projection of the cost (numerics/budget.py), not after minutes (the first full run,
+    # 2026-11-25, found 68 such cases)
     35: ("check", 1, "more than its budget of 50000 (stopped at t = "),
     # angular velocity nonlinear in the speeds: the 'power' identity does not hold, and the
     # balance is not formed (it failed the check with a residual of 0.3)
@@ -87,6 +96,11 @@ FIXED: dict[int, tuple[str, int, str]] = {
     554: ("check", 0, "not judged: stopped at t = "),
     # a control law that is complex at a sampled state: named, not a TypeError
     832: ("check", 2, "is not a finite real number at t = "),
+    # the second full run (2026-11-27): a Newton solve per evaluation, 1.5 ms each, ran past
+    # the bound before the balance's seconds budget
+    1807: ("check", 1, "more than its budget of 10 s"),
+    # an energy of 1e-50 (a motion at rest): the balance failed on rounding
+    1782: ("check", 0, "the energy balance holds"),
 }
 
 # ------------------------------------------------------------------------------ mutations
