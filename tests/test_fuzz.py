@@ -19,8 +19,9 @@ Every case runs ``appell derive FILE`` and ``appell check FILE`` in-process (cli
 each (``SIGALRM``: a guard against unbounded work, not a speed measurement). Invariants
 (:func:`violations`): no internal error ("internal error", "a bug in appell"), no Python
 traceback, exit code 0, 1 or 2 with an ``error:`` line when nonzero, every run inside its
-bound, and no file written outside the working folder (the bundled examples, the
-repository root and the home folder are listed before and after; appell's compiled-code
+bound, and no file written outside the working folder (the bundled examples and, in a run
+of its own, the repository root are listed before and after; HOME is an empty folder of
+the case's that must stay empty but for the libraries' caches; appell's compiled-code
 cache is pointed into the working folder).
 
 The quick subset (:data:`QUICK` seeds) runs by default; the full :data:`FULL` cases run with
@@ -268,10 +269,18 @@ def _alarm(signum, frame):
     raise Hang(" <- ".join(reversed(ours[-4:])) + f" (innermost: {Path(stack[-1].filename).name}:{stack[-1].lineno})")
 
 
+#: the suite runs on several workers (pytest-xdist): other tests may then create entries in
+#: the repository root while a case runs, so the root is listed only in a run of its own
+PARALLEL = "PYTEST_XDIST_WORKER" in os.environ
+#: caches that the libraries appell uses keep under HOME (not appell's writes)
+LIBRARY_CACHES = (".cache/matplotlib", ".config/matplotlib", ".config/dask", ".cache/dask")
+
+
 def _listing() -> dict:
     """Names (and modification times) of the places a run must not write to (compiled code
-    goes to a cache inside the working folder, :func:`run_case`)."""
-    places = [EXAMPLES[0].parent, ROOT, Path.home()]
+    goes to a cache inside the working folder, :func:`run_case`; HOME is a folder of the
+    case's own, :func:`_home_writes`)."""
+    places = [EXAMPLES[0].parent] + ([] if PARALLEL else [ROOT])
     out = {}
     for place in places:
         if place.is_dir():
@@ -281,6 +290,12 @@ def _listing() -> dict:
                 except OSError:
                     pass
     return out
+
+
+def _home_writes(home: Path) -> list[str]:
+    """Files a run left in the case's HOME, but for the libraries' caches."""
+    return sorted(str(p.relative_to(home)) for p in home.rglob("*")
+                  if p.is_file() and not str(p.relative_to(home)).startswith(LIBRARY_CACHES))
 
 
 def run_command(command: str, path: Path, bound: float = BOUND) -> dict:
@@ -334,9 +349,12 @@ def run_case(seed: int, folder: Path) -> dict:
     case.mkdir()
     path = case / f"{name}.toml"
     path.write_text(text, encoding="utf-8")
-    cwd, cache = os.getcwd(), os.environ.get("APPELL_CACHE_DIR")
+    saved = {k: os.environ.get(k) for k in ("APPELL_CACHE_DIR", "HOME")}
+    cwd, home = os.getcwd(), case / "home"
+    home.mkdir()
     os.chdir(case)
     os.environ["APPELL_CACHE_DIR"] = str(case / "cache")
+    os.environ["HOME"] = str(home)
     try:
         record = {"seed": seed, "example": name, "mutation": what, "runs": []}
         for command in COMMANDS:
@@ -344,14 +362,16 @@ def run_case(seed: int, folder: Path) -> dict:
             run = run_command(command, path)
             after = _listing()
             changed = sorted(k for k in set(before) | set(after) if before.get(k) != after.get(k))
+            changed += [f"$HOME/{k}" for k in _home_writes(home)]
             run["violations"] = violations(run) + [f"wrote outside the working folder: {k}" for k in changed]
             record["runs"].append(run)
     finally:
         os.chdir(cwd)
-        if cache is None:
-            os.environ.pop("APPELL_CACHE_DIR", None)
-        else:
-            os.environ["APPELL_CACHE_DIR"] = cache
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
     return record
 
 
