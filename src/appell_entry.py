@@ -14,6 +14,14 @@ SIGINT before appell is imported. A Ctrl-C at any moment then ends the command w
 * a second one, or one after the command has finished, ends the process at once
   (:func:`os._exit`), printing the line unless it was printed already.
 
+CPython runs a signal's handler at the next check of its interpreter loop, which may fall inside
+a finalizer or a weak reference's callback (an import's module lock has one); what the handler
+raises there is ignored ("Exception ignored in ..."), and the command went on as if no Ctrl-C
+had come, ending with exit code 0 or sleeping on. :func:`rescue_interrupts` installs a
+``sys.unraisablehook`` that sees such a :class:`KeyboardInterrupt` and sends SIGINT to the
+process again a moment later, with the first Ctrl-C's handling restored, so that it is raised
+where the command can clean up.
+
 Worker processes of a local Dask cluster do not receive Ctrl-C at all
 (:mod:`appell.simulation.sweep`); the command that started them stops them.
 """
@@ -23,8 +31,9 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import threading
 
-__all__ = ["main", "EXIT_INTERRUPTED"]
+__all__ = ["main", "rescue_interrupts", "EXIT_INTERRUPTED"]
 
 #: exit code of a command stopped by Ctrl-C: 128 + SIGINT
 EXIT_INTERRUPTED = 128 + signal.SIGINT
@@ -70,12 +79,45 @@ def _handle(handler) -> None:
         pass
 
 
+#: seconds after a swallowed KeyboardInterrupt before SIGINT is sent again
+RESEND_AFTER = 0.02
+
+
+def _resend() -> None:
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+    except OSError:
+        pass
+
+
+def rescue_interrupts() -> None:
+    """Install the ``sys.unraisablehook`` of the module docstring (once; the hook in place
+    before it handles everything else)."""
+    previous = sys.unraisablehook
+    if getattr(previous, "appell_rescue", False):
+        return
+
+    def hook(info):
+        if isinstance(info.exc_value, KeyboardInterrupt):
+            if signal.getsignal(signal.SIGINT) is _exit_now:
+                _handle(_interrupt)  # the swallowed one was the first Ctrl-C: raise it again
+            timer = threading.Timer(RESEND_AFTER, _resend)
+            timer.daemon = True
+            timer.start()
+            return
+        previous(info)
+
+    hook.appell_rescue = True
+    sys.unraisablehook = hook
+
+
 def main(argv=None, command=None) -> int:
     """Run the command line (``argv`` defaults to ``sys.argv[1:]``) and return its exit code.
     ``command``: the function that runs it (default :func:`appell.io.cli.main`, imported here,
     after the handler of SIGINT is installed), called as ``command(argv, standalone=False)``."""
     global _reported
     _handle(_interrupt)
+    rescue_interrupts()
     try:
         if command is None:
             from appell.io.cli import main as command

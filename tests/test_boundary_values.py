@@ -404,3 +404,37 @@ def test_the_energy_balance_of_a_motion_too_fast_for_its_span_is_refused_in_seco
         energy_balance(d, 5.0)
     assert f"more than its budget of {MAX_EVALUATIONS} (stopped at t = " in info.value.message
     assert f"after {PROJECT_EVERY})" in info.value.message
+
+
+RESCUE = """
+import sys, time
+sys.argv = ["appell"]
+from appell_entry import main
+
+class Finalised:
+    def __del__(self):
+        raise KeyboardInterrupt  # what a Ctrl-C does when its handler runs inside a finalizer
+
+def command(argv, standalone=False):
+    Finalised()  # collected at once: CPython ignores what its __del__ raises
+    print("swallowed", flush=True)
+    time.sleep(30)
+    return 0
+
+sys.exit(main(command=command))
+"""
+
+
+def test_a_ctrl_c_swallowed_by_a_finalizer_still_ends_the_command_with_130(tmp_path):
+    """CPython runs a signal handler at the next check of its loop, which may be inside a
+    finalizer or an import lock's weakref callback, and ignores what it raises there: a Ctrl-C
+    so swallowed used to let a sweep finish with exit 0 (seen under load). The rescue hook
+    raises it again where the command is: exit 130 within seconds, not after the 30 s sleep."""
+    script = tmp_path / "rescue.py"
+    script.write_text(RESCUE)
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env_with_src(),
+                          timeout=60)
+    assert done.returncode == 130, done.stderr
+    assert time.perf_counter() - start < 20
+    assert "swallowed" in done.stdout and done.stderr.strip().endswith("error: interrupted"), done.stderr

@@ -1025,13 +1025,18 @@ def main(argv=None, standalone: bool = True) -> int:
     :func:`appell_entry.main`, which handles Ctrl-C from before appell is imported.
 
     SIGTERM raises :class:`Terminated` in the main thread, so that a write under way removes
-    its temporary file; the command then exits with :data:`EXIT_TERMINATED`.
+    its temporary file; the command then exits with :data:`EXIT_TERMINATED`. A Ctrl-C whose
+    KeyboardInterrupt was raised inside a finalizer, and ignored there, is raised again
+    (:func:`appell_entry.rescue_interrupts`).
     """
+    from appell_entry import rescue_interrupts
+
     previous = None
     try:
         previous = signal.signal(signal.SIGTERM, _terminate)
     except ValueError:  # not the main thread: leave the signal alone
         pass
+    rescue_interrupts()  # a Ctrl-C raised inside a finalizer is raised again (appell_entry)
     try:
         return cli.main(args=argv, prog_name="appell", standalone_mode=standalone)
     finally:
