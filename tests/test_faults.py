@@ -299,9 +299,14 @@ def test_signal_during_a_write_removes_the_temporary_and_keeps_the_old_file(tmp_
     script.write_text(SLOW_WRITE)
     target = tmp_path / "out.csv"
     target.write_text("previous\n")
+    # the script calls appell.io.cli.main, which keeps Python's SIGINT handling; Python installs
+    # its handler only where SIGINT is not ignored at start, and a suite started in the
+    # background by a shell without job control inherits SIGINT ignored: give the child the
+    # default disposition (the appell command installs its own handler, appell_entry)
     proc = subprocess.Popen([sys.executable, str(script), "simulate", "pendulum", "--t-end", "0.1", "--backend",
                              "numpy", "--out", str(target)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env_with_src())
+                            text=True, env=env_with_src(),
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert proc.stdout.readline().strip() == "writing"
         assert leftovers(tmp_path)  # the temporary file exists while writing
