@@ -65,8 +65,8 @@ def main() -> None:
                  time.perf_counter() - s))
     print(f"benchmark bicycle, {today()}, {machine()}, load {load()}; eigenvalues at 5 m/s: "
           + ", ".join(f"{z.real:.6f}{z.imag:+.6f}i" for z in lm.eigenvalues()))
-    print(f"crossings: " + ", ".join(f"{-0.3 * c.value:.11f} m/s ({c.kind})" for c in sweep.crossings))
-    print(f"| stage | time |\n|---|---|")
+    print("crossings: " + ", ".join(f"{-0.3 * c.value:.11f} m/s ({c.kind})" for c in sweep.crossings))
+    print("| stage | time |\n|---|---|")
     for name, sec in rows:
         print(f"| {name} | {sec * 1e3:.1f} ms |" if sec < 1 else f"| {name} | {sec:.1f} s |")
 

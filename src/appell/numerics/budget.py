@@ -1,7 +1,8 @@
 """A budget of evaluations for integrations that check a motion (the energy balance, the
 first integrals' drift): a motion far too fast or stiff for its span (forces of 1e15, a
 potential ``(sin q + cos q + 1)^30``) would otherwise keep an unattended check running for
-minutes. The budget is a count, not a time, so a refusal is the same on every machine.
+minutes. The budget is first a count, not a time, so that a refusal for the pace of a motion
+is the same on every machine; the seconds below bound only runs whose evaluations are slow.
 
 Every :data:`PROJECT_EVERY` evaluations the whole span's cost at the pace so far,
 

@@ -253,7 +253,7 @@ def _sensitivities(derivation, inputs: tuple) -> _Sensitivities:
 
 
 def _independent(matrix: np.ndarray, candidates: list[int], named: Sequence[int] | None, what: str,
-                 names: Sequence[str], keep: Sequence[int] = ()) -> tuple[list[int], list[int]]:
+                 keep: Sequence[int] = ()) -> tuple[list[int], list[int]]:
     """``(independent, dependent)`` columns of ``matrix`` among ``candidates``: dependent
     ones by pivoted QR (as many as rows, never one of ``keep``), or the complement of ``named``."""
     rows = matrix.shape[0]
@@ -378,10 +378,10 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     keep_q = [i for i in range(nq) if i not in ignored]
     named_q = None if coordinates is None else [cnames.index(_known(x, cnames, "coordinate")) for x in coordinates]
     named_w = None if speeds is None else [snames.index(_known(x, snames, "speed")) for x in speeds]
-    qi, qd = _independent(Fq, keep_q, named_q, "coordinates", cnames)
+    qi, qd = _independent(Fq, keep_q, named_q, "coordinates")
     if named_w is not None:
         named_w = named_w + [i for i in ignored_w if i not in named_w]
-    wi, wd = _independent(phiw, list(range(n)), named_w, "speeds", snames, keep=ignored_w)
+    wi, wd = _independent(phiw, list(range(n)), named_w, "speeds", keep=ignored_w)
     # tangent map dy = T dx, x = (q_i, w_i)
     Tq = np.zeros((nq, len(qi)))
     Tq[qi, np.arange(len(qi))] = 1.0

@@ -194,10 +194,14 @@ def _crossings(model_at, point, values, eigenvalues, xtol) -> tuple[Crossing, ..
             s0, s1 = eigenvalues[k, j], eigenvalues[k + 1, j]
             v0, v1 = values[k], values[k + 1]
 
-            def nearest(v, s0=s0, s1=s1, v0=v0, v1=v1):
+            def spectrum(v, s0=s0, s1=s1, v0=v0, v1=v1):
+                """``(the eigenvalue nearest the tracked mode's, every eigenvalue)`` at ``v``."""
                 ev = np.linalg.eigvals(model_at(v, point)[0].A)
                 guess = s0 + (s1 - s0) * (v - v0) / (v1 - v0)
-                return ev[np.argmin(np.abs(ev - guess))]
+                return ev[np.argmin(np.abs(ev - guess))], ev
+
+            def nearest(v):
+                return spectrum(v)[0]
 
             if c0 * c1 == -1:
                 v = brentq(lambda x: float(nearest(x).real), v0, v1, xtol=xtol, rtol=4 * np.finfo(float).eps)
@@ -210,8 +214,9 @@ def _crossings(model_at, point, values, eigenvalues, xtol) -> tuple[Crossing, ..
                     else:
                         hi = mid
                 v = 0.5 * (lo + hi)
-            scale = float(np.abs(np.linalg.eigvals(model_at(v, point)[0].A)).max(initial=0.0))
-            found.append(Crossing(j, float(v), float(nearest(v).imag), 1 if c1 == 1 else -1, scale))
+            mode, ev = spectrum(v)  # one linear model at the crossing for its frequency and scale
+            found.append(Crossing(j, float(v), float(mode.imag), 1 if c1 == 1 else -1,
+                                  float(np.abs(ev).max(initial=0.0))))
     # a complex pair crosses together: keep the member with the positive imaginary part
     pairs = [c for c in found if not (c.imag < 0 and any(
         o is not c and o.imag > 0 and abs(o.value - c.value) <= 1e3 * xtol * (1 + abs(c.value)) for o in found))]
