@@ -22,7 +22,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import load, machine, today  # noqa: E402
 
-from appell import derive, linearise, stability_sweep, steady_motion  # noqa: E402
+from appell import derive, linearise, load_model, stability_sweep, steady_motion  # noqa: E402
+from appell.examples import example_path  # noqa: E402
 from appell.examples.mechanism_examples import benchmark_bicycle  # noqa: E402
 
 FREE = ["rear_x_dot", "rear_y_dot", "rear_z_dot", "rear_rz_dot", "rear_rx_dot", "rear_ry_dot", "front_spin_dot",
@@ -63,9 +64,19 @@ def main() -> None:
                             free=FREE, ignore=IGNORE, coordinates=["rear_rx", "steer"])
     rows.append((f"sweep of {args.speeds} speeds 0..10 m/s, steady motion at each, crossings located",
                  time.perf_counter() - s))
+    # the bundled model file: its speeds follow the parameter v, no steady motion to solve
+    t4 = time.perf_counter()
+    df = derive(load_model(example_path("benchmark_bicycle")))
+    first = linearise(df, df.system.initial_values, ignore=IGNORE[:5])
+    first.eigenvalues()
+    rows.append(("model file to first eigenvalues (load, derive, compile, linearise)", time.perf_counter() - t4))
+    s = time.perf_counter()
+    file_sweep = stability_sweep(df, "v", np.linspace(0.0, 10.0, args.speeds), ignore=IGNORE[:5])
+    rows.append((f"sweep of {args.speeds} values of the file's v, crossings located", time.perf_counter() - s))
     print(f"benchmark bicycle, {today()}, {machine()}, load {load()}; eigenvalues at 5 m/s: "
           + ", ".join(f"{z.real:.6f}{z.imag:+.6f}i" for z in lm.eigenvalues()))
     print("crossings: " + ", ".join(f"{-0.3 * c.value:.11f} m/s ({c.kind})" for c in sweep.crossings))
+    print("crossings over the file's v: " + ", ".join(f"{c.value:.11f} m/s ({c.kind})" for c in file_sweep.crossings))
     print("| stage | time |\n|---|---|")
     for name, sec in rows:
         print(f"| {name} | {sec * 1e3:.1f} ms |" if sec < 1 else f"| {name} | {sec:.1f} s |")

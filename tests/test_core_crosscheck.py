@@ -113,3 +113,16 @@ def test_car_formulas_stay_compact():
         from appell.core.simplification import tidy
 
         assert sp.count_ops(tidy(lam)) < 40
+
+
+def test_a_state_at_rest_is_not_judged_by_its_rounding():
+    """Issue 19 §6: near rest every acceleration is at the level of rounding, and a difference
+    divided by max|a| alone read as a failure (the benchmark bicycle's upright steady
+    running: 1.0 on both routes). The pendulum (m = L = 1) at the bottom moving at 1e-9 m/s
+    has the closed-form accelerations (0, v^2/L) = (0, 1e-18): the split gives that, the
+    augmented system 0, and the line is normalised by max(max|a|, F/max|M|) = g."""
+    d = derive(catalog.pendulum())
+    state = (0.0, [0.0, -1.0], [1e-9, 0.0])
+    report = cross_check(d, [state])
+    assert report.passed(1e-12)
+    assert all(c.lines.get("accelerations", 0.0) <= 1e-15 for c in report.comparisons)

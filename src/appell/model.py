@@ -434,6 +434,10 @@ class System:
         parameters and the initial coordinates, e.g. ``{"xi_dot": -omega*eta}``; it is
         evaluated here (stored in ``initial``) and kept in ``initial_expressions``, so that
         :meth:`with_parameters` evaluates it again and the start stays consistent.
+    initial_guesses : names among ``initial`` whose values are starting guesses, not given
+        values (a mechanism's unspecified coordinates and speeds, which start at zero): where
+        the start violates a constraint, the simulation computes them from the constraints
+        (:func:`appell.simulation.initial.complete_initial`) before it changes any given value.
     settings : ``((key, value), ...)`` or a mapping — run settings such as a model file's
         ``[simulation]`` table (t_end, method, rtol, ...); stored, not interpreted here.
     units : ``{name: unit}`` for coordinates, speeds, constraints (the unit of their
@@ -461,6 +465,7 @@ class System:
     frictions: tuple[Friction, ...] = ()
     initial: tuple[tuple[str, float], ...] = ()
     initial_expressions: tuple[tuple[str, sp.Expr], ...] = ()
+    initial_guesses: tuple[str, ...] = ()
     name: str = "system"
     description: str = ""
     settings: tuple[tuple[str, object], ...] = ()
@@ -512,6 +517,13 @@ class System:
         values, expressions = _initial_values(self)
         s(self, "initial", values)
         s(self, "initial_expressions", expressions)
+        given = {n for n, _ in values}
+        guesses = tuple(dict.fromkeys(str(n) for n in self.initial_guesses))
+        stray = [n for n in guesses if n not in given]
+        if stray:
+            raise ModelError(f"initial_guesses names {', '.join(stray)}, which have no initial value",
+                             hint="a starting guess is an initial value (give it in initial=) marked as a guess")
+        s(self, "initial_guesses", guesses)
         settings = self.settings.items() if isinstance(self.settings, Mapping) else self.settings
         s(self, "settings", tuple((str(k), v) for k, v in settings))
         units = self.units.items() if isinstance(self.units, Mapping) else self.units

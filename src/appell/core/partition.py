@@ -129,7 +129,7 @@ def _compiled_jacobian(J: sp.ImmutableMatrix):
     trees of a mechanism's Jacobian by ``subs`` and ``evalf`` took 25 s for the benchmark
     bicycle."""
     symbols = sorted(J.free_symbols, key=str)
-    return symbols, sp.lambdify(symbols, J, modules="numpy", cse=True, docstring_limit=0)
+    return symbols, sp.lambdify(symbols, J, modules="numpy", cse=True, docstring_limit=0, use_imps=False)
 
 
 def pivoted_columns(Jn: np.ndarray) -> tuple[np.ndarray, int]:

@@ -444,7 +444,7 @@ def vanishes(expr) -> bool:
     if within_bound(expr):
         return sp.expand(expr) == 0
     free = sorted(expr.free_symbols, key=str)
-    fn = sp.lambdify(free, expr, modules="mpmath", cse=True)
+    fn = sp.lambdify(free, expr, modules="mpmath", cse=True, use_imps=False)
     for seed in range(VANISH_POINTS):
         rng = random.Random(seed)
         point = [rng.uniform(0.3, 1.3) for _ in free]

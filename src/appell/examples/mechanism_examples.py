@@ -115,31 +115,38 @@ def benchmark_bicycle() -> System:
     * front wheel ``front_wheel`` (radius 0.35, 3 kg, 0.1405 / 0.28) on ``front_spin``;
     * thin-disc rolling contacts ``rear_contact`` and ``front_contact`` on the plane z = 0.
 
+    The geometry is given by the parameters ``w``, ``c``, ``lam``, ``rR``, ``rF`` (so that a
+    stability sweep may vary them) and the initial speed by ``v``; the model file
+    ``benchmark_bicycle.toml`` is this builder written as tables.
+
     Nine coordinates, six constraints (the front contact's height closes the loop and fixes
     the pitch): three degrees of freedom of velocity, roll and steer of position. Upright
-    straight running at speed v (``rear_spin_dot = -v / 0.3``) linearises to
+    straight running at speed v (``rear_spin_dot = -v / rR``) linearises to
     ``M q'' + v C1 q' + (g K0 + v^2 K2) q = 0`` in q = (roll, steer) (tests/test_bicycle.py).
     """
-    lam = sp.pi / 10
-    w, c, r_rear, r_front = 1.02, 0.08, 0.3, 0.35
-    g = sp.Symbol("g")
-    mech = Mechanism("benchmark_bicycle", gravity=(0, 0, g),
+    mech = Mechanism("benchmark_bicycle", gravity=None,
                      description="Whipple-Carvallo bicycle, benchmark parameters (Meijaard et al. 2007, Table 1)")
-    mech.parameter("g", 9.81, "m/s^2", "gravity")
-    frame = mech.body("frame", 85.0, inertia=[[9.2, 0, 2.4], [0, 11, 0], [2.4, 0, 2.8]], com=(0.3, 0, -0.9 + r_rear))
+    g = mech.parameter("g", 9.81, "m/s^2", "gravity")
+    w = mech.parameter("w", 1.02, "m", "wheelbase")
+    c = mech.parameter("c", 0.08, "m", "trail")
+    lam = mech.parameter("lam", float(sp.pi / 10), "rad", "steer axis tilt from the vertical (90 deg - head angle)")
+    r_rear = mech.parameter("rR", 0.3, "m", "rear wheel radius")
+    r_front = mech.parameter("rF", 0.35, "m", "front wheel radius")
+    v = mech.parameter("v", 4.6, "m/s", "forward speed of the initial state")
+    mech.gravity = sp.Matrix([0, 0, g])
+    frame = mech.body("frame", 85.0, inertia=[[9.2, 0, 2.4], [0, 11, 0], [2.4, 0, 2.8]], com=(0.3, 0, r_rear - 0.9))
     rear = mech.body("rear_wheel", 2.0, inertia=(0.0603, 0.12, 0.0603))
     # the steer joint's origin: the steer axis at the height of the front wheel's centre
-    sx, sz = w + c - r_front * sp.tan(lam), -r_front
+    sx = w + c - r_front * sp.tan(lam)
     fork = mech.body("fork", 4.0, inertia=[[0.05892, 0, -0.00756], [0, 0.06, 0], [-0.00756, 0, 0.00708]],
-                     com=(0.9 - sx, 0, -0.7 - sz))
+                     com=(0.9 - sx, 0, r_front - 0.7))
     front = mech.body("front_wheel", 3.0, inertia=(0.1405, 0.28, 0.1405))
     mech.free("rear", "ground", frame, rotation="zxy")
     mech.revolute("rear_spin", frame, rear, axis=(0, 1, 0))
-    mech.revolute("steer", frame, fork, axis=(sp.sin(lam), 0, sp.cos(lam)), origin=(sx, 0, sz + r_rear))
-    mech.revolute("front_spin", fork, front, axis=(0, 1, 0), origin=(w - sx, 0, 0))
+    mech.revolute("steer", frame, fork, axis=(sp.sin(lam), 0, sp.cos(lam)), origin=(sx, 0, r_rear - r_front))
+    mech.revolute("front_spin", fork, front, axis=(0, 1, 0), origin=(r_front * sp.tan(lam) - c, 0, 0))
     mech.rolling_disc("rear_contact", rear, r_rear, axis=(0, 1, 0), normal=(0, 0, -1))
     mech.rolling_disc("front_contact", front, r_front, axis=(0, 1, 0), normal=(0, 0, -1))
-    v = 4.6
     return mech.system(initial={"rear_z": -r_rear, "rear_x_dot": v, "rear_spin_dot": -v / r_rear,
                                 "front_spin_dot": -v / r_front}, reactions=None)
 

@@ -775,7 +775,8 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
     plots of coordinates, reactions and controls, and the cross-check.
 
     The page needs no network (MathML, embedded PNG images, inline styles). A model with
-    neither initial values nor a [simulation] table is reported without a simulation.
+    neither initial values nor a [simulation] table is reported without a simulation; one
+    with a [stability] table gets the eigenvalues against its parameter (appell stability).
     """
     from appell.io.report import write_report
 
@@ -800,8 +801,9 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
     energy = _energy_balance(derivation, t_end)
     path = Path(output) if output else default_file_name(system.name, "-report.html")
     output_target(path)
+    sweep = None if is_controlled(derivation) else stability_analysis(derivation)  # the [stability] table
     write_report(path, derivation, solution, check_report, simulation_note=note,
-                 integrals=_first_integrals(derivation), internal=linearisation, energy=energy)
+                 integrals=_first_integrals(derivation), internal=linearisation, energy=energy, stability=sweep)
     click.echo(f"wrote {path}")
     ok, line = _verdict(check_report, energy, 1e-9, ENERGY_TOLERANCE)
     if not ok:
@@ -872,9 +874,9 @@ def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, 
 
 @cli.command(context_settings=_CONTEXT)
 @_model_argument
-@click.option("--vary", "spec", required=True, metavar="NAME=START:STOP:NUM",
+@click.option("--vary", "spec", default=None, metavar="NAME=START:STOP:NUM",
               help="The varied name: a parameter, or a coordinate or speed of the point (x' for a speed); "
-                   "NUM values from START to STOP, or NAME=V1,V2,...")
+                   "NUM values from START to STOP, or NAME=V1,V2,... (default: the model's [stability] vary).")
 @click.option("--free", multiple=True, metavar="NAME",
               help="A coordinate or speed solved for a steady motion at each value (repeatable); none: the "
                    "point is the model's initial values as they are.")
@@ -892,13 +894,9 @@ def stability(model, spec, free, ignore, outputs, assignments):
     The point is the model's initial values (with --set), or the steady motion found there
     at each value (--free: every acceleration zero, every coordinate not ignored at rest).
     Modes are tracked across the values; each crossing of a real part through zero is
-    located by root finding (numerics/stability.py).
+    located by root finding (numerics/stability.py). Without --vary, the model file's
+    [stability] table gives the sweep (and --free, --ignore where they are not given).
     """
-    from appell.numerics.stability import stability_sweep
-    from appell.simulation.sweep import parse_spec
-
-    name, values = parse_spec(spec)
-    name = canonical_name(name)
     kinds = {Path(o).suffix.lower() for o in outputs}
     unknown = kinds - {".json", ".csv", ".nc", ".png", ".svg", ".pdf"}
     if unknown:
@@ -907,14 +905,44 @@ def stability(model, spec, free, ignore, outputs, assignments):
     for o in outputs:
         output_target(o)
     system = load_system(model, parse_assignments(assignments))
+    table = dict(dict(system.settings).get("stability", ()))
+    if spec is None and not table:
+        raise click.UsageError("give --vary NAME=START:STOP:NUM, or a [stability] table in the model file "
+                               "(vary = \"NAME=START:STOP:NUM\")")
     derivation = derive_model(system)
-    ignored = "cyclic" if tuple(ignore) == ("cyclic",) else tuple(canonical_name(i) for i in ignore) or None
-    result = stability_sweep(derivation, name, values, at=dict(system.initial_values),
-                             free=tuple(canonical_name(f) for f in free), ignore=ignored, progress=None)
+    result = stability_analysis(derivation, spec, free, ignore)
     click.echo(result.table())
     for o in outputs:
         _write_stability(result, Path(o))
         click.echo(f"wrote {o}")
+
+
+def stability_analysis(derivation, spec=None, free=(), ignore=()):
+    """:func:`appell.numerics.stability.stability_sweep` as ``appell stability`` runs it:
+    ``spec`` ``NAME=START:STOP:NUM``, ``free`` and ``ignore`` names (``('cyclic',)``), each
+    defaulting to the model's [stability] table; the point is the model's initial values,
+    but for those written in a varied parameter (they follow it). None when neither
+    ``spec`` nor a table is given."""
+    import sympy as sp
+
+    from appell.numerics.stability import stability_sweep
+    from appell.simulation.sweep import parse_spec
+
+    system = derivation.system
+    table = dict(dict(system.settings).get("stability", ()))
+    spec = spec if spec is not None else table.get("vary")
+    if spec is None:
+        return None
+    free = tuple(free) or tuple(table.get("free", ()))
+    ignore = tuple(ignore) or (("cyclic",) if table.get("ignore") == "cyclic" else tuple(table.get("ignore", ())))
+    name, values = parse_spec(spec)
+    name = canonical_name(name)
+    ignored = "cyclic" if ignore == ("cyclic",) else tuple(canonical_name(i) for i in ignore) or None
+    varied = sp.Symbol(name)  # initial values written in a varied parameter follow it (stability_sweep)
+    moving = {k for k, e in system.initial_expressions if varied in e.free_symbols}
+    start = {k: v for k, v in system.initial_values.items() if k not in moving}
+    return stability_sweep(derivation, name, values, at=start, free=tuple(canonical_name(f) for f in free),
+                           ignore=ignored, progress=None)
 
 
 def _write_stability(result, path: Path) -> None:

@@ -14,6 +14,8 @@ Here an expression is a JSON array ``[head, ...]``:
   ``false``, ...;
 * ``[head, arg, ...]``: ``Add``, ``Mul``, ``Pow`` or a function of :data:`HEADS` (``sin``,
   ``Abs``, ``Piecewise``, ...) applied to the argument trees;
+* ``["Ref", k]``: the k-th shared subexpression of the document (a large derivation's
+  expressions share most of their subexpressions: each is written once, after those it uses);
 
 and the symbol table maps each name to the assumptions it was created with
 (``{"positive": true}``; a plain symbol has none). :func:`expression_from_tree` rebuilds every node
@@ -85,10 +87,16 @@ def symbol_from_table(name: str, assumptions) -> sp.Symbol:
 _WRITE_HINT = "use --format text or latex, or write the model with the functions of docs/model-format.md"
 
 
-def expression_tree(expr) -> list:
+def expression_tree(expr, refs: dict | None = None, inline: bool = False) -> list:
     """The JSON tree of ``expr`` (see the module docstring). Raises :class:`ModelError` for
-    a node outside the whitelist (an undefined function, a special function of the model)."""
+    a node outside the whitelist (an undefined function, a special function of the model).
+
+    ``refs`` ``{subexpression: k}``: each of these subexpressions is written ``["Ref", k]``,
+    the k-th entry of the document's shared list (a large derivation's subexpressions used
+    many times, written once); ``inline``: ``expr`` itself is written out even if it is one."""
     e = sp.sympify(expr)
+    if refs and not inline and e in refs:
+        return ["Ref", refs[e]]
     if e.is_Symbol:
         if isinstance(e, sp.Dummy) or type(e) is not sp.Symbol:
             raise ModelError(f"cannot write {type(e).__name__} {e} exactly: only plain symbols have a name",
@@ -107,7 +115,7 @@ def expression_tree(expr) -> list:
     if head is None:
         raise ModelError(f"cannot write {type(e).__name__} ({e.func}) exactly: not one of the heads of "
                          "appell.io.expression_tree.HEADS", hint=_WRITE_HINT)
-    return [head, *(expression_tree(a) for a in e.args)]
+    return [head, *(expression_tree(a, refs) for a in e.args)]
 
 
 def _fail(node, why: str):
@@ -124,14 +132,20 @@ def _integer(node, text):
     return int(text)
 
 
-def expression_from_tree(tree, symbols: dict, _depth: int = 0) -> sp.Basic:
+def expression_from_tree(tree, symbols: dict, _depth: int = 0, shared: list | None = None) -> sp.Basic:
     """The expression of a JSON tree over ``symbols`` (``{name: Symbol}``), rebuilt node by
-    node without evaluation; :class:`ModelError` naming the node for anything else."""
+    node without evaluation; :class:`ModelError` naming the node for anything else.
+    ``shared``: the expressions that ``["Ref", k]`` nodes name (built before, in order)."""
     if _depth > MAX_DEPTH:
         _fail(tree, f"nested deeper than {MAX_DEPTH}")
     if not isinstance(tree, list) or not tree or not isinstance(tree[0], str):
         _fail(tree, "a node must be a list [head, ...]")
     head, args = tree[0], tree[1:]
+    if head == "Ref":
+        if len(args) != 1 or not isinstance(args[0], int) or isinstance(args[0], bool) \
+                or not 0 <= args[0] < len(shared or ()):
+            _fail(tree, "a reference to no earlier shared subexpression")
+        return shared[args[0]]
     if head == "Symbol":
         if len(args) != 1 or not isinstance(args[0], str) or args[0] not in symbols:
             _fail(tree, "a symbol not in the symbol table")
@@ -167,7 +181,7 @@ def expression_from_tree(tree, symbols: dict, _depth: int = 0) -> sp.Basic:
     cls = HEADS.get(head)
     if cls is None:
         _fail(tree, f"unknown head {head!r}")
-    built = [expression_from_tree(a, symbols, _depth + 1) for a in args]
+    built = [expression_from_tree(a, symbols, _depth + 1, shared) for a in args]
     try:
         if cls is HEADS["ExprCondPair"]:
             return cls(*built)

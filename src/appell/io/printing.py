@@ -14,7 +14,7 @@ from pathlib import Path
 
 import sympy as sp
 
-from appell.core.simplification import adjugate, determinant, tidy
+from appell.core.simplification import adjugate, determinant, graph_size, tidy, tree_size
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
 from appell.symbols import derivative_symbol, latex, t as time  # noqa: F401 (latex is re-exported)
@@ -29,6 +29,15 @@ NO_FREE_ACCELERATION = ("no free acceleration (0 degrees of freedom): the constr
 ITEMS = ("motion", "reactions", "outputs", "controls")
 #: a closed-form solve of the reduced mass matrix is printed up to this size (adjugate)
 SOLVE_SIZE = 3
+#: largest closed form of the independent accelerations (distinct subexpressions,
+#: :func:`~appell.core.simplification.graph_size`) that is printed, and substituted into
+#: the reactions to print them in (t, q, w): the rolling disc's is 360, Andrews' squeezer's
+#: 444; the benchmark bicycle's 3,864 (printed as M_r a = f_r: its substitution into the
+#: reactions would not finish)
+PRINT_NODES = 1500
+#: most shared subexpressions whose definitions are tidied (``simplify`` on each short one,
+#: about 10 ms apiece): the benchmark bicycle's 1,166 are printed as formed
+TIDY_DEFINITIONS = 300
 
 
 @dataclass(frozen=True)
@@ -62,8 +71,10 @@ def _solved_independent(red):
     if Mr.shape[0] > SOLVE_SIZE:
         return None
     if Mr.shape == (1, 1):
-        return sp.Matrix([fr[0] / Mr[0, 0]])
-    return adjugate(Mr, method="berkowitz") * fr / determinant(Mr, method="berkowitz")
+        solved = sp.Matrix([fr[0] / Mr[0, 0]])
+    else:
+        solved = adjugate(Mr, method="berkowitz") * fr / determinant(Mr, method="berkowitz")
+    return solved if graph_size(solved, PRINT_NODES) <= PRINT_NODES else None
 
 
 def equation_formulas(derivation) -> list[Formula]:
@@ -116,15 +127,33 @@ def printed_equations(derivation, only=None) -> PrintedEquations:
     (:func:`appell.core.simplification.tidy`: small expressions only, so the cost is bounded)."""
     rows = [f for f in equation_formulas(derivation) if only is None or f.item in only]
     exprs = [e for f in rows for e in (f.lhs, f.rhs)]
-    taken = {s.name for e in exprs for s in sp.sympify(e).free_symbols}
-    prefix = next(p for p in ("c", "k", "z", "_c") if not any(n.startswith(p) and n[len(p):].isdigit() for n in taken))
+    taken = {s.name for s in _symbols(exprs)}
+    prefix = next(p for p in ("c", "k", "z", "_c")  # not a model's name (the bicycle's trail c)
+                  if not any(n == p or (n.startswith(p) and n[len(p):].isdigit()) for n in taken))
     defs, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(prefix, start=1), order="none")
     defs, reduced = _inline_single_uses(defs, reduced)
     renumber = {sym: sp.Symbol(f"{prefix}{k}") for k, (sym, _) in enumerate(defs, start=1)}
-    defs = tuple((renumber[sym], tidy(e.xreplace(renumber))) for sym, e in defs)
+    neat = tidy if len(defs) <= TIDY_DEFINITIONS else (lambda e: e)
+    defs = tuple((renumber[sym], neat(e.xreplace(renumber))) for sym, e in defs)
     reduced = [e.xreplace(renumber) for e in reduced]
     out = [Formula(f.label, tidy(reduced[2 * i]), tidy(reduced[2 * i + 1]), f.item) for i, f in enumerate(rows)]
     return PrintedEquations(defs, tuple(out))
+
+
+def _symbols(exprs) -> set:
+    """The symbols in ``exprs``, each shared subexpression visited once (``free_symbols``
+    walks the tree, exponential in the nesting of a large mechanism's formulas)."""
+    seen, out = set(), set()
+    stack = [sp.sympify(e) for e in exprs]
+    while stack:
+        e = stack.pop()
+        if e in seen:
+            continue
+        seen.add(e)
+        if e.is_Symbol:
+            out.add(e)
+        stack.extend(e.args)
+    return out
 
 
 def _inline_single_uses(defs, exprs):
@@ -273,16 +302,83 @@ def derivation_document(derivation) -> dict:
     }
 
 
-def _display(node):
-    """The document for reading: each expression as ``str(expr)``, each matrix as rows."""
+#: largest expression (tree nodes, every use of a shared subexpression counted) a JSON
+#: document writes out in full; past it the document's shared subexpressions are written
+#: once each (the ``shared`` list, ``["Ref", k]`` in the trees): the benchmark bicycle's
+#: reactions are about 1.5 million tree nodes over 2,000 distinct ones
+JSON_TREE_LIMIT = 20_000
+
+
+class _Shared:
+    """The subexpressions used more than once among a document's expressions (each
+    subexpression visited once: the walk is linear in the distinct nodes), in an order
+    where each comes after those it uses; their display names ``s1, s2, ...`` (a prefix no
+    model symbol has)."""
+
+    def __init__(self, exprs, taken: set):
+        uses: dict = {}
+        order: list = []  # children before parents
+        visited: set = set()
+        for root in exprs:
+            uses[root] = uses.get(root, 0) + 1
+            stack = [(root, False)]
+            while stack:
+                e, done = stack.pop()
+                if done:
+                    order.append(e)
+                    continue
+                if e in visited:
+                    continue
+                visited.add(e)
+                stack.append((e, True))
+                for a in e.args:
+                    uses[a] = uses.get(a, 0) + 1
+                    stack.append((a, False))
+        self.nodes = [e for e in dict.fromkeys(order) if e.args and uses.get(e, 0) > 1]
+        self.index = {e: k for k, e in enumerate(self.nodes)}
+        prefix = next(p for p in ("s", "_s", "__s") if not any(n == p or (n.startswith(p) and n[len(p):].isdigit())
+                                                            for n in taken))
+        self.names = {e: sp.Symbol(f"{prefix}{k + 1}") for k, e in enumerate(self.nodes)}
+        self._short: dict = {}
+
+    def short(self, e, inline: bool = False):
+        """``e`` with each shared subexpression (``e`` itself too unless ``inline``) replaced
+        by its name, built once per node."""
+        if not inline and e in self.names:
+            return self.names[e]
+        if e in self._short:
+            return self._short[e]
+        stack = [e]
+        while stack:
+            x = stack[-1]
+            pending = [a for a in x.args if a not in self.names and a not in self._short]
+            if pending:
+                stack.extend(pending)
+                continue
+            stack.pop()
+            args = [self.names.get(a, self._short.get(a)) for a in x.args]
+            if not args:
+                self._short[x] = x
+                continue
+            try:
+                self._short[x] = x.func(*args, evaluate=False)
+            except TypeError:
+                self._short[x] = x.func(*args)
+        return self._short[e]
+
+
+def _display(node, shared: _Shared | None = None):
+    """The document for reading: each expression as ``str(expr)``, each matrix as rows
+    (with ``shared``: each shared subexpression by its name)."""
+    text = str if shared is None else (lambda e: str(shared.short(e, inline=True)))
     if isinstance(node, sp.MatrixBase):
-        return [[str(e) for e in row] for row in node.tolist()]
+        return [[text(e) for e in row] for row in node.tolist()]
     if isinstance(node, sp.Basic):
-        return str(node)
+        return text(node)
     if isinstance(node, dict):
-        return {k: _display(v) for k, v in node.items()}
+        return {k: _display(v, shared) for k, v in node.items()}
     if isinstance(node, (list, tuple)):
-        return [_display(v) for v in node]
+        return [_display(v, shared) for v in node]
     return node
 
 
@@ -296,30 +392,33 @@ def _has_expressions(node) -> bool:
     return False
 
 
-def _exact(node):
+def _exact(node, refs: dict | None = None):
     """The ``exact`` part: the same keys and positions, each expression as its tree
-    (:func:`appell.io.expression_tree.expression_tree`); parts without expressions left out
-    (``None`` in a list)."""
+    (:func:`appell.io.expression_tree.expression_tree`, with ``refs`` for the shared
+    subexpressions); parts without expressions left out (``None`` in a list)."""
     if isinstance(node, sp.MatrixBase):
-        return [[expression_tree(e) for e in row] for row in node.tolist()]
+        return [[expression_tree(e, refs) for e in row] for row in node.tolist()]
     if isinstance(node, sp.Basic):
-        return expression_tree(node)
+        return expression_tree(node, refs)
     if isinstance(node, dict):
-        return {k: _exact(v) for k, v in node.items() if _has_expressions(v)}
+        return {k: _exact(v, refs) for k, v in node.items() if _has_expressions(v)}
     if isinstance(node, (list, tuple)):
-        return [_exact(v) if _has_expressions(v) else None for v in node]
+        return [_exact(v, refs) if _has_expressions(v) else None for v in node]
     return None
 
 
-def _free_symbols(node, out: set) -> set:
-    if isinstance(node, (sp.Basic, sp.MatrixBase)):
-        out |= {s for s in node.free_symbols if isinstance(s, sp.Symbol)}
+def _expressions(node, out: list) -> list:
+    """Every expression of a document, in order."""
+    if isinstance(node, sp.MatrixBase):
+        out.extend(node)
+    elif isinstance(node, sp.Basic):
+        out.append(node)
     elif isinstance(node, dict):
         for v in node.values():
-            _free_symbols(v, out)
+            _expressions(v, out)
     elif isinstance(node, (list, tuple)):
         for v in node:
-            _free_symbols(v, out)
+            _expressions(v, out)
     return out
 
 
@@ -357,20 +456,30 @@ def json_document(document: dict, derivation) -> dict:
     Every expression appears twice: as ``str(expr)`` at its key, for reading, and as an
     exact tree under ``exact`` (same keys), which :func:`read_json` turns back into the very
     same expression. ``symbols`` is the table of every symbol in the document: its role in
-    the model and its assumptions. The strings are not meant for :func:`sympy.sympify`: a
+    the model and its assumptions. A document with an expression of more than
+    :data:`JSON_TREE_LIMIT` tree nodes writes each subexpression used more than once a single
+    time: ``shared`` (``"s1 = ..."``, for reading) and ``exact_shared`` (trees), each after
+    those it uses, named ``s1, s2, ...`` in the strings and ``["Ref", k]`` in the trees. The strings are not meant for :func:`sympy.sympify`: a
     parameter named ``I``, ``E``, ``S``, ``N``, ``O`` or ``Q`` reads there as a SymPy object.
     """
     roles = symbol_roles(derivation)
-    symbols = sorted(_free_symbols(document, set()), key=lambda s: s.name)
+    exprs = [sp.sympify(e) for e in _expressions(document, [])]
+    symbols = sorted((s for s in _symbols(exprs) if isinstance(s, sp.Symbol)), key=lambda s: s.name)
     table = {}
     for s in symbols:
         if s.name in table:
             raise ModelError(f"two different symbols are named {s.name!r} (different assumptions)",
                              hint="give every symbol of the model one name and one set of assumptions")
         table[s.name] = {"role": roles.get(s, "symbol"), "assumptions": symbol_assumptions(s)}
-    out = _display(document)
+    shared = None
+    if any(tree_size(e, JSON_TREE_LIMIT) > JSON_TREE_LIMIT for e in exprs):
+        shared = _Shared(exprs, set(table))
+    out = _display(document, shared)
     out["symbols"] = table
-    out["exact"] = _exact(document)
+    if shared is not None:  # each written once, after those it uses
+        out["shared"] = [f"{shared.names[e]} = {shared.short(e, inline=True)}" for e in shared.nodes]
+        out["exact_shared"] = [expression_tree(e, shared.index, inline=True) for e in shared.nodes]
+    out["exact"] = _exact(document, None if shared is None else shared.index)
     return out
 
 
@@ -380,12 +489,12 @@ def derivation_json(derivation) -> dict:
     return json_document(derivation_document(derivation), derivation)
 
 
-def _read_exact(node, symbols):
+def _read_exact(node, symbols, shared=None):
     if isinstance(node, dict):
-        return {k: _read_exact(v, symbols) for k, v in node.items()}
+        return {k: _read_exact(v, symbols, shared) for k, v in node.items()}
     if isinstance(node, list) and not (node and isinstance(node[0], str)):
-        return [_read_exact(v, symbols) for v in node]
-    return None if node is None else expression_from_tree(node, symbols)
+        return [_read_exact(v, symbols, shared) for v in node]
+    return None if node is None else expression_from_tree(node, symbols, shared=shared)
 
 
 def read_json(source) -> dict:
@@ -414,4 +523,10 @@ def read_json(source) -> dict:
         if not isinstance(entry, dict):
             raise ModelError(f"symbol table: the entry of {name!r} must be an object")
         table[name] = symbol_from_table(name, entry.get("assumptions", {}))
-    return _read_exact(doc["exact"], table)
+    shared: list = []
+    trees = doc.get("exact_shared", [])
+    if not isinstance(trees, list):
+        raise ModelError("'exact_shared' must be a list of expression trees")
+    for tree in trees:  # each uses only those before it
+        shared.append(expression_from_tree(tree, table, shared=shared))
+    return _read_exact(doc["exact"], table, shared)

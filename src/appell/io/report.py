@@ -409,9 +409,33 @@ def _internal_section(linearisation) -> str:
             f"(Jacobian of the closed-loop motion on the servo manifold): eigenvalues {_e(values)}.</p>" + verdict)
 
 
+def _stability_section(sweep) -> str:
+    """The eigenvalues of a :class:`~appell.numerics.stability.StabilitySweep` against its
+    parameter (plot), the crossings where a mode turns unstable or stable (table) and the
+    stable range."""
+    rows = [[_e(f"{c.value:.12g}"), _e(f"{c.mode}: {sweep.names[c.mode]}"),
+             "unstable" if c.direction > 0 else "stable", _e(c.kind),
+             _e(f"{abs(c.imag):.6g}") if c.kind == "oscillatory" else ""] for c in sweep.crossings]
+    stable = sweep.stable()
+    inside = sweep.values[stable]
+    verdict = (f"Stable at {int(stable.sum())} of {stable.size} values" +
+               (f" (from {inside.min():g} to {inside.max():g})." if inside.size else ".")) if stable.any() \
+        else "Unstable at every value."
+    figure = _png_data_uri(sweep.plot())
+    return ("<h2 id='stability'>Stability</h2>"
+            f"<p>Eigenvalues of the linear model (<code>appell.linearise</code>, states "
+            f"{_e(', '.join(sweep.states))}) at {sweep.values.size} values of {_e(sweep.name)} from "
+            f"{sweep.values[0]:g} to {sweep.values[-1]:g} (the model's [stability] table), modes tracked "
+            "across the values; each crossing of a real part through zero located by root finding.</p>"
+            f"<figure><img alt='eigenvalues against {_e(sweep.name)}' src='{figure}'></figure>"
+            + (_table([f"{sweep.name}", "mode", "becomes", "kind", "frequency [rad/s]"], rows) if rows
+               else "<p>No mode changes stability over the range.</p>")
+            + f"<p>{_e(verdict)}</p>")
+
+
 def render_report(derivation, solution=None, check=None, *, title: str | None = None,
                   tolerance: float = 1e-9, simulation_note: str | None = None, integrals=None,
-                  internal=None, energy=None, energy_tolerance: float | None = None) -> str:
+                  internal=None, energy=None, energy_tolerance: float | None = None, stability=None) -> str:
     """The HTML page (a string) for ``derivation`` (a :class:`~appell.core.equations.Derivation`
     or a controlled derivation of :mod:`appell.control.servo`), with the plots of ``solution``
     (:class:`~appell.simulation.solution.Solution`) and the table of ``check``
@@ -422,7 +446,8 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
     (:func:`appell.control.internal_dynamics.internal_linearisation`), flagged when unstable;
     ``energy`` an :class:`~appell.simulation.energy_balance.EnergyBalance` shown with the
     cross-check and judged at ``energy_tolerance`` (the verdict fails when any line exceeds
-    its tolerance)."""
+    its tolerance); ``stability`` a :class:`~appell.numerics.stability.StabilitySweep`
+    (the eigenvalues against a parameter, with the critical values)."""
     from appell import __version__
 
     system = derivation.system
@@ -432,6 +457,9 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
     if internal is not None:
         sections.append(_internal_section(internal))
         nav.append("<a href='#internal'>internal dynamics</a>")
+    if stability is not None:
+        sections.append(_stability_section(stability))
+        nav.append("<a href='#stability'>stability</a>")
     if solution is not None:
         sections.append(_simulation_section(solution))
         nav.append("<a href='#simulation'>simulation</a>")

@@ -651,7 +651,9 @@ class Mechanism:
         ----------
         parameters : ``{name: value}`` overriding the parameters' default values.
         initial : initial values ``{name: value}`` of coordinates and speeds; the others start
-            at zero (a quaternion at the identity, q0 = 1).
+            at zero (a quaternion at the identity, q0 = 1) as starting guesses
+            (``System.initial_guesses``): where they violate a closure or contact, the
+            simulation computes them from the constraints, never changing a given value.
         reactions : ``'all'`` (every joint), a list of joint names, or None: six outputs
             ``F_<joint>_x .. F_<joint>_z``, ``M_<joint>_x .. M_<joint>_z`` each, the force and
             moment of the parent on the child at the joint origin.
@@ -709,12 +711,14 @@ class Mechanism:
             start.update(dict(j.motion.defaults))
         given = {str(k): v for k, v in (initial or {}).items()}
         start.update(given)
+        guesses = tuple(n for n in start if n not in given)
         if not bodies:
             raise ModelError(f"mechanism {self.name!r} has no bodies", hint="add one with mech.body(...)")
         return System(coordinates=tuple(coords), parameters=tuple(params), bodies=tuple(bodies), potential_energy=V,
                       generalized_forces=tuple(Q) if any(e != 0 for e in Q) else None, loads=tuple(loads),
                       constraints=tuple(cons) + tuple(constraints), controls=tuple(ctl) + tuple(controls),
-                      servo_constraints=tuple(servo_constraints), initial=start, name=self.name,
+                      servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
+                      name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs))
 
     def _reaction_outputs(self, reactions, frame, frames, actions, force_unit, moment_unit):

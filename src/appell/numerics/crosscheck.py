@@ -38,7 +38,10 @@ A system without constraints has nothing to compare in the first two (the split 
 and the report says so.
 
 One normalisation for every line (:data:`NORMALISATION`): an acceleration difference is
-divided by ``max|a|`` at its state; a multiplier difference by
+divided by ``max(max|a|, F / max|M|)`` at its state (the floor: the acceleration the
+largest generalized force gives the largest inertia, so that a state at rest, where every
+acceleration is zero to rounding, is not judged by its rounding errors); a multiplier
+difference by
 ``max(max_j |lambda_j|, F / max|J|)`` at its state, ``F = max(|M a|, |h - Q|)`` (the
 multiplier that balances the largest generalized force there). A line is the largest of
 these over the states; the verdict fails when any line exceeds the tolerance.
@@ -55,8 +58,9 @@ from appell.errors import ComputationError, ModelError
 from appell.numerics.inertia import check_inertia
 from appell.numerics.numeric import NumericModel, StateSolution, newton
 
-NORMALISATION = ("accelerations relative to max|a|; each multiplier relative to max(max_j |lambda_j|, F/max|J|) "
-                 "at its state, F = max(|M a|, |h - Q|) (the multiplier that balances the largest generalized force)")
+NORMALISATION = ("accelerations relative to max(max|a|, F/max|M|); each multiplier relative to "
+                 "max(max_j |lambda_j|, F/max|J|) at its state, F = max(|M a|, |h - Q|) (the acceleration the largest "
+                 "generalized force gives the largest inertia, the multiplier that balances it)")
 
 ROUTES = {
     "augmented": "the augmented multiplier system [M -J^T; J 0][a; lambda] = [Q - h; -c] (same blocks, solved at once)",
@@ -171,11 +175,21 @@ def _ratio(difference: float, scale: float) -> float:
     return difference / scale if scale > 0.0 else float("inf")
 
 
+def _force(M, hQ, a) -> float:
+    return max(float(np.max(np.abs(M @ a), initial=0.0)), float(np.max(np.abs(hQ), initial=0.0)))
+
+
 def multiplier_scale(M, hQ, J, a, lam) -> float:
     """``max(max|lambda|, F / max|J|)`` with ``F = max(|M a|, |h - Q|)`` (:data:`NORMALISATION`)."""
-    force = max(float(np.max(np.abs(M @ a), initial=0.0)), float(np.max(np.abs(hQ), initial=0.0)))
     jmax = float(np.max(np.abs(J), initial=0.0))
-    return max(float(np.max(np.abs(lam), initial=0.0)), force / jmax if jmax > 0 else 0.0)
+    return max(float(np.max(np.abs(lam), initial=0.0)), _force(M, hQ, a) / jmax if jmax > 0 else 0.0)
+
+
+def acceleration_floor(M, hQ, a) -> float:
+    """``F / max|M|`` (:data:`NORMALISATION`): the acceleration the largest generalized force
+    gives the largest inertia; 0 without inertia."""
+    mmax = float(np.max(np.abs(M), initial=0.0))
+    return _force(M, hQ, a) / mmax if mmax > 0 else 0.0
 
 
 @dataclass(frozen=True)
@@ -297,11 +311,11 @@ class _Lines:
         self.names = names
         self.states = self.skipped = 0
 
-    def add(self, a, a_ref, lam, lam_ref, lam_scale):
+    def add(self, a, a_ref, lam, lam_ref, lam_scale, a_floor=0.0):
         if "accelerations" in self.values:
             d = float(np.max(np.abs(np.asarray(a) - a_ref), initial=0.0))
-            self.values["accelerations"] = max(self.values["accelerations"],
-                                               _ratio(d, float(np.max(np.abs(a_ref), initial=0.0))))
+            scale = max(float(np.max(np.abs(a_ref), initial=0.0)), a_floor)
+            self.values["accelerations"] = max(self.values["accelerations"], _ratio(d, scale))
         for i, n in enumerate(self.names):
             d = abs(float(lam[i]) - float(lam_ref[i]))
             v = _ratio(d, lam_scale) if np.isfinite(d) else float("inf")
@@ -355,7 +369,8 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
             ref = augmented_solve(model, t, q, w, pv)
         if names:
             scale = multiplier_scale(M, hQ, J, ref.accelerations, ref.multipliers)
-            aug.add(sol.accelerations, ref.accelerations, sol.multipliers, ref.multipliers, scale)
+            aug.add(sol.accelerations, ref.accelerations, sol.multipliers, ref.multipliers, scale,
+                    acceleration_floor(M, hQ, ref.accelerations))
             lam_f = model.reaction_formulas(t, q, w, ref.accelerations, pv) if not sol.switched else None
             if lam_f is None or not np.all(np.isfinite(lam_f)):
                 formulas.skipped += 1
@@ -366,7 +381,7 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
             if red is not None:
                 a_l = _cleared(a_l, M, hQ)
             scale = multiplier_scale(M, hQ, J, a_l, lam_l)
-            lag.add(sol.accelerations, a_l, sol.multipliers, lam_l, scale)
+            lag.add(sol.accelerations, a_l, sol.multipliers, lam_l, scale, acceleration_floor(M, hQ, a_l))
     comparisons = []
     if names:
         comparisons.append(aug.comparison("augmented"))
@@ -417,5 +432,6 @@ def _friction_comparison(derivation, states, pv, names) -> Comparison:
             lines.skipped += 1
             continue
         M, hQ, J, c = model.evaluate_blocks(t, q, w, pv)
-        lines.add(sol.accelerations, a, sol.multipliers, lam, multiplier_scale(M, hQ, J, a, lam))
+        lines.add(sol.accelerations, a, sol.multipliers, lam, multiplier_scale(M, hQ, J, a, lam),
+                  acceleration_floor(M, hQ, a))
     return lines.comparison("friction", "a slip speed vanishes there, or the Painlevé refusal applies")

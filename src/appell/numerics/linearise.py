@@ -190,7 +190,8 @@ class _Sensitivities:
             # every entry gets + Z (an array of zeros) so that constant entries broadcast too
             Z = sp.Dummy("Z")
             mats = [sp.Matrix(m.shape[0], 1, [e.xreplace(subs) + Z for e in m]) if m.shape[0] else m for m in blocks]
-            self.fn = sp.lambdify([t, q, w, a, lam, params, Z], mats, modules="numpy", cse=True, docstring_limit=0)
+            self.fn = sp.lambdify([t, q, w, a, lam, params, Z], mats, modules="numpy", cse=True, docstring_limit=0,
+                                  use_imps=False)
             return
 
         def jac(vector, symbols):  # derivatives in real variables (abs, sign: core.kinematics)

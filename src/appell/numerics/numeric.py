@@ -61,7 +61,9 @@ class ScalarBlocks:
         self.shapes = [m.shape for m in matrices]
         self.what = what
         flat = [e for m in matrices for e in m]
-        self.function = sp.lambdify(args, flat, modules="math", cse=True, docstring_limit=0)
+        # use_imps=False: lambdify's search for implemented functions walks the expression
+        # as a tree, every use of a shared subexpression again (12 s of the bicycle's report)
+        self.function = sp.lambdify(args, flat, modules="math", cse=True, docstring_limit=0, use_imps=False)
 
     def __call__(self, *args):
         args = [a.tolist() if isinstance(a, np.ndarray) else a for a in args]
@@ -106,7 +108,7 @@ def lambdify_blocks(args, outputs, subs: Mapping | None = None, what: str = "mod
     try:
         scalar.function(*probe)
     except (NameError, AttributeError):
-        function = sp.lambdify(args, mats, modules="numpy", cse=True, docstring_limit=0)
+        function = sp.lambdify(args, mats, modules="numpy", cse=True, docstring_limit=0, use_imps=False)
 
         def quiet(*values):
             # an overflow gives inf or NaN, which the caller names (:func:`check_finite`),

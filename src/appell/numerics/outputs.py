@@ -86,6 +86,6 @@ def compile_outputs(system, programs: Mapping | None = None) -> OutputFunction:
     if unknown:
         raise ModelError(f"outputs use undeclared symbol(s) {', '.join(unknown)}")
     args = sorted(used, key=list(cols).index)
-    function = sp.lambdify(args, exprs, modules="numpy", cse=True, docstring_limit=0)
+    function = sp.lambdify(args, exprs, modules="numpy", cse=True, docstring_limit=0, use_imps=False)
     return OutputFunction(tuple(o.name for o in system.outputs), tuple(o.unit for o in system.outputs),
                           tuple(cols[s] for s in args), function)

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
+import sympy as sp
 
 from appell.errors import ModelError
 from appell.numerics.linearise import linearise, steady_motion
@@ -134,16 +135,24 @@ def stability_sweep(derivation, name: str, values: Sequence[float], *, at: Mappi
                     coordinates=None, speeds=None, xtol: float = 1e-12, progress: bool | None = None
                     ) -> StabilitySweep:
     """Eigenvalues of :func:`~appell.numerics.linearise.linearise` at each of ``values`` of
-    ``name`` (module docstring). ``at``: the point (over the system's initial values);
+    ``name`` (module docstring). ``at``: the point (over the system's initial values; those
+    the system writes in the parameter ``name``, such as ``rear_x' = v``, follow it);
     ``free``: names solved for a steady motion at each value (none: the point is used as it
     is); ``ignore``, ``coordinates``, ``speeds``: as for :func:`linearise`."""
     values = np.asarray(values, float)
     if values.ndim != 1 or values.size < 2 or not np.all(np.diff(values) > 0):
         raise ModelError("the values of a stability sweep must be at least two, increasing")
     point = dict(at or {})
+    system = derivation.system
+    # a parameter the initial values are written in (a bicycle's speed v): those values follow it
+    follows = () if name not in {p.symbol.name for p in system.parameters} else tuple(
+        k for k, e in system.initial_expressions if sp.Symbol(name) in e.free_symbols and k not in point)
 
     def model_at(v, start):
         here = {**start, name: float(v)}
+        if follows:
+            moved = system.with_parameters({name: float(v)}).initial_values
+            here.update({k: moved[k] for k in follows})
         if free:
             here = steady_motion(derivation, here, free=free, ignore=ignore, params=params)
         return linearise(derivation, here, params=params, ignore=ignore, coordinates=coordinates,
@@ -175,6 +184,12 @@ def stability_sweep(derivation, name: str, values: Sequence[float], *, at: Mappi
 MARGINAL = 1e-9
 
 
+def _spectrum(A):
+    """Eigenvalues of ``A`` and their eigenvectors, each of unit length."""
+    ev, vec = np.linalg.eig(A)
+    return ev, vec / np.maximum(np.linalg.norm(vec, axis=0), np.finfo(float).tiny)
+
+
 def _crossings(model_at, point, values, eigenvalues, xtol) -> tuple[Crossing, ...]:
     """Where a tracked mode turns unstable (real part above :data:`MARGINAL`) or stable: by
     Brent's method on its real part where that changes sign, by bisection on ``real >
@@ -191,14 +206,24 @@ def _crossings(model_at, point, values, eigenvalues, xtol) -> tuple[Crossing, ..
             c0, c1 = cls[k, j], cls[k + 1, j]
             if c0 == c1 or 1 not in (c0, c1):
                 continue
-            s0, s1 = eigenvalues[k, j], eigenvalues[k + 1, j]
+            e0, e1 = eigenvalues[k], eigenvalues[k + 1]
             v0, v1 = values[k], values[k + 1]
+            ev0, vec0 = _spectrum(model_at(v0, point)[0].A)
+            u = vec0[:, np.argmin(np.abs(ev0 - e0[j]))]
+            spread = max(abs(e1[j] - e0[j]), MARGINAL)
 
-            def spectrum(v, s0=s0, s1=s1, v0=v0, v1=v1):
-                """``(the eigenvalue nearest the tracked mode's, every eigenvalue)`` at ``v``."""
-                ev = np.linalg.eigvals(model_at(v, point)[0].A)
-                guess = s0 + (s1 - s0) * (v - v0) / (v1 - v0)
-                return ev[np.argmin(np.abs(ev - guess))], ev
+            def spectrum(v, e0=e0, e1=e1, v0=v0, v1=v1, j=j, u=u, spread=spread):
+                """``(the tracked mode's eigenvalue, every eigenvalue)`` at ``v``: the one
+                nearest the mode's eigenvalue interpolated from the bracket, with its
+                eigenvector's departure from the mode's at the bracket's start as a tie
+                breaker (weight: the mode's change over the bracket), so that a mode
+                crossing zero is not taken for another that stays there (a conserved
+                speed's zero eigenvalue: at equal distance, nearest-eigenvalue alone may
+                pick it and end the root search on its exact zero)."""
+                ev, vec = _spectrum(model_at(v, point)[0].A)
+                guess = e0[j] + (e1[j] - e0[j]) * (v - v0) / (v1 - v0)
+                cost = np.abs(ev - guess) + spread * (1.0 - np.abs(u.conj() @ vec))
+                return ev[np.argmin(cost)], ev
 
             def nearest(v):
                 return spectrum(v)[0]

@@ -349,7 +349,8 @@ def routh_reduction(system: System, cyclic: Sequence | None = None,
         constraints=system.constraints,
         initial={k: v for k, v in init.items() if k in keep},
     )
-    rate = sp.lambdify([list(pos), list(wp), [p.symbol for p in params]], [cyc_vel], modules="numpy", cse=True)
+    rate = sp.lambdify([list(pos), list(wp), [p.symbol for p in params]], [cyc_vel], modules="numpy", cse=True,
+                       use_imps=False)
     return RouthReduction(
         full=system,
         system=reduced,

@@ -37,6 +37,7 @@ def settings_options(system) -> dict:
     dictionaries again, ``t_eval`` stays an array-like tuple.
     """
     options = dict(system.settings)
+    options.pop("stability", None)  # the [stability] table: appell stability's, not the simulation's
     for key in ("unilateral", "friction"):
         if key in options:
             options[key] = dict(options[key])

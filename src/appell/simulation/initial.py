@@ -321,7 +321,8 @@ def check_blocks_at_start(model, t, y, p) -> None:
 
 
 def _newton_block(residual, jacobian, x0, what: str, tol: float, maxiter: int):
-    """Newton's method on a square system ``residual(x) = 0`` with analytic Jacobian."""
+    """Newton's method on ``residual(x) = 0`` with analytic Jacobian (Gauss-Newton, the
+    least-squares step, when there are more equations than unknowns)."""
     x = np.array(x0, float)
     r = residual(x)
     for it in range(maxiter):
@@ -329,7 +330,7 @@ def _newton_block(residual, jacobian, x0, what: str, tol: float, maxiter: int):
             return x, it
         J = jacobian(x)
         try:
-            dx = np.linalg.solve(J, -r)
+            dx = np.linalg.solve(J, -r) if J.shape[0] == J.shape[1] else np.linalg.lstsq(J, -r, rcond=None)[0]
         except np.linalg.LinAlgError as exc:
             raise ModelError(
                 f"cannot complete {what}: the Jacobian of the constraints with respect to them is singular",
@@ -389,6 +390,20 @@ def _choose_unknowns(J: np.ndarray, forced: Sequence[int], candidates: Sequence[
     return list(forced) + [candidates[i] for i in piv[:need]]
 
 
+def _solve_level(model, t, y, p, level: int, idx: list[int], rows, what: str, tol: float, maxiter: int) -> None:
+    """Set ``y[idx]`` so that the ``rows`` of the level's residuals vanish (Newton's method,
+    :func:`_newton_block`); raises as it does."""
+    def residual(x):
+        y[idx] = x
+        return np.asarray(_residuals(model, t, y, p)[level], float)[rows]
+
+    def jacobian(x):
+        y[idx] = x
+        return _level_jacobian(model, t, y, p, level, idx, rows)
+
+    y[idx], _ = _newton_block(residual, jacobian, y[idx].copy(), what, tol, maxiter)
+
+
 def complete_initial(derivation, values=None, adjust: Sequence[str] | None = None, *, t: float = 0.0,
                      params=None, guess: Mapping | None = None, tol: float = 1e-12,
                      maxiter: int = 50) -> InitialState:
@@ -410,7 +425,9 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
        coordinates; one step is exact when ``phi`` is linear in the speeds.
 
     Starting guesses: ``guess``, else the given value, else the system's default initial
-    value, else 0.
+    value, else 0. The system's ``initial_guesses`` (a mechanism's unspecified values) are
+    computed first where a level is violated, before any given value (also with
+    ``adjust=()``); those not needed keep their guess.
 
     Returns
     -------
@@ -431,6 +448,10 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
     model, system = dynamics_of(derivation)
     p = model.params(params)
     defaults = _default_values(model, system, p)
+    guesses = [n for n in getattr(system, "initial_guesses", ()) if n in defaults]
+    if values is not None:  # a guess not given here keeps its place as a guess
+        guesses = [n for n in guesses if n not in values]
+        values = {**{n: defaults[n] for n in guesses}, **_names_values(values)}
     values = _names_values(defaults if values is None else values)
     names = tuple(model.state_names)
     automatic = adjust is None
@@ -456,8 +477,30 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
         if independent is not None:  # redundant constraints hold once the independent ones do
             rows = np.array([r for r in rows if r in independent], dtype=int)
         forced = [names.index(u) for u in unknowns if u in level_names]
+        soft = [names.index(n) for n in level_names if n in guesses and names.index(n) not in forced]
         residual_now = np.asarray(_residuals(model, t, y, p)[level], float)[rows]
         over = bool(rows.size) and not np.max(np.abs(residual_now)) <= CHECK_TOLERANCE
+        if len(forced) < len(rows) and (forced or over) and soft and len(forced) + len(soft) < len(rows):
+            # fewer guesses than constraints: they may still satisfy them (given values consistent
+            # among themselves), by least squares; else the given values are refused below
+            idx = forced + soft
+            saved = y[idx].copy()
+            try:
+                _solve_level(model, t, y, p, level, idx, rows, f"the {kind}-level values", tol, maxiter)
+                completed += [names[i] for i in idx]
+                continue
+            except (ComputationError, ModelError):
+                y[idx] = saved
+        if len(forced) < len(rows) and (forced or over) and len(forced) + len(soft) >= len(rows):
+            # starting guesses first (System.initial_guesses): a given value changes only where they cannot
+            J = _level_jacobian(model, t, y, p, level, forced + soft, rows)
+            try:
+                cols = _choose_unknowns(J, list(range(len(forced))), list(range(len(forced), J.shape[1])), len(rows),
+                                        names, [constraints[r] for r in rows], kind)
+                forced = [(forced + soft)[c] for c in cols]
+            except ModelError:
+                if not automatic:
+                    raise
         if len(forced) > len(rows) or (forced and len(forced) < len(rows) and not automatic):
             cons = ", ".join(constraints[r] for r in rows) or "none"
             raise ModelError(
@@ -474,22 +517,13 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
             forced = [(forced + candidates)[c] for c in cols]
         if not forced:
             continue
-
-        def residual(x, idx=forced, lv=level, rows=rows):
-            y[idx] = x
-            return np.asarray(_residuals(model, t, y, p)[lv], float)[rows]
-
-        def jacobian(x, idx=forced, lv=level, rows=rows):
-            y[idx] = x
-            return _level_jacobian(model, t, y, p, lv, idx, rows)
-
         what = f"the {kind}-level values {', '.join(names[i] for i in forced)}"
-        x, _ = _newton_block(residual, jacobian, y[forced], what, tol, maxiter)
-        y[forced] = x
+        _solve_level(model, t, y, p, level, forced, rows, what, tol, maxiter)
         completed += [names[i] for i in forced]
 
     state = check_initial(model, dict(zip(names, y)), max(tol, CHECK_TOLERANCE), t=t, params=p)
     new = state.values
-    changes = tuple((n, values.get(n), new[n]) for n in completed if n not in values or new[n] != values[n])
+    changes = tuple((n, None if n in guesses else values.get(n), new[n]) for n in completed
+                    if n not in values or new[n] != values[n])
     return InitialState(state.t, state.y, state.names, state.position_residuals, state.velocity_residuals,
                         tuple(completed), changes)

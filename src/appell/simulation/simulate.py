@@ -151,6 +151,9 @@ def _initial_state(model, initial, complete, adjust, t0, p):
         initial = {k: number(v, f"initial value of {k}") for k, v in initial.items()}
     if complete:
         return complete_initial(model, initial, adjust, t=t0, params=p)
+    _, system = dynamics_of(model)
+    if getattr(system, "initial_guesses", ()):  # starting guesses are computed, given values only checked
+        return complete_initial(model, initial, (), t=t0, params=p)
     return check_initial(model, initial, t=t0, params=p)
 
 

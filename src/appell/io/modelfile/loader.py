@@ -73,6 +73,8 @@ TABLES = {
     "first_integrals": "[first_integrals.NAME] expr, value",
     "friction": "[[friction]] name, slip, normal, mu_k, mu_s, viscous (non-ideal contact laws)",
     "simulation": "run settings",
+    "stability": "vary = \"NAME=START:STOP:NUM\", free = [...], ignore = [...]: the stability sweep of "
+                 "'appell stability' and of the report",
     "units": "NAME = unit of a coordinate, speed, constraint's multiplier or control (recorded in result files)",
     "mechanism": "bodies joined by joints (urdf, gravity, reactions, frame) with [[bodies]], [[joints]], "
                  "[[closures]], [[loads]]",
@@ -551,6 +553,54 @@ def _first_integrals(r: _Reader, doc: dict) -> list[FirstIntegral]:
     return out
 
 
+#: keys of the [stability] table
+STABILITY_KEYS = {
+    "vary": "NAME=START:STOP:NUM (or NAME=V1,V2,...): the parameter, coordinate or speed swept",
+    "free": "array of coordinates and speeds solved for a steady motion at each value",
+    "ignore": "array of coordinates (and speeds) left out of the linear model, or \"cyclic\"",
+}
+
+
+def _stability(r: _Reader, doc: dict, system: System) -> tuple:
+    """The [stability] table as the setting ``("stability", ((key, value), ...))`` (none
+    without the table): the defaults of ``appell stability`` and the report's sweep."""
+    from appell.simulation.sweep import parse_spec
+
+    if "stability" not in doc:
+        return ()
+    section = r.table(("stability",), doc["stability"], tuple(STABILITY_KEYS), required=("vary",))
+    states = [s.name for s in system.coordinates + system.speeds]
+    parameters = [p.symbol.name for p in system.parameters]
+
+    def known(path, value, allowed, what):
+        name = canonical_name(r.string(path, value))
+        if name not in allowed:
+            raise r.error(path, f"{value!r} is not {what} of the model", hint=f"{what}s: {', '.join(allowed)}")
+        return name
+
+    spec = r.string(("stability", "vary"), section["vary"])
+    try:
+        name, values = parse_spec(spec)
+    except ModelError as exc:
+        raise r.error(("stability", "vary"), exc.message, hint=exc.hint) from None
+    known(("stability", "vary"), name, states + parameters, "a parameter, coordinate or speed")
+    if len(values) < 2 or not np.all(np.diff(values) > 0):
+        raise r.error(("stability", "vary"), "the values must be at least two, increasing")
+    out = [("vary", spec)]
+    for key in ("free", "ignore"):
+        if key not in section:
+            continue
+        path = ("stability", key)
+        value = section[key]
+        if key == "ignore" and value == "cyclic":
+            out.append((key, "cyclic"))
+            continue
+        if not isinstance(value, list):
+            raise r.error(path, f"must be an array of names, got {_kind(value)}", hint=f'{key} = ["x", "y"]')
+        out.append((key, tuple(known(path + (i,), v, states, "a coordinate or speed") for i, v in enumerate(value))))
+    return (("stability", tuple(out)),)
+
+
 def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
     """The [simulation] table as ``((key, value), ...)`` in document order (hashable values)."""
     if "simulation" not in doc:
@@ -719,14 +769,16 @@ def _build_mechanism(r: _Reader, doc: dict) -> System:
     states = [s.name for s in system.coordinates + system.speeds]
     kinematic = [c.name for c in system.controls if c.kind == "kinematic"]
     allowed = states + [n for c in kinematic for n in (c, derivative_name(c, 1))]
-    initial = {**system.initial_definitions,
-               **_initial(r, top, allowed, [q.name for q in system.coordinates] + kinematic, list(system.parameters))}
-    settings = _simulation(r, top, [c.name for c in system.constraints])
+    given = _initial(r, top, allowed, [q.name for q in system.coordinates] + kinematic, list(system.parameters))
+    initial = {**system.initial_definitions, **given}
+    guesses = tuple(n for n in system.initial_guesses if n not in given)
+    settings = _simulation(r, top, [c.name for c in system.constraints]) + _stability(r, top, system)
     units = {**dict(system.units), **dict(_units(r, top, allowed + [c.name for c in system.constraints + system.servo_constraints]
                                                   + [c.name for c in system.controls]))}
     model = top.get("model", {})
     try:
-        system = system.replace(initial=tuple(initial.items()), settings=settings, units=tuple(units.items()),
+        system = system.replace(initial=tuple(initial.items()), initial_guesses=guesses, settings=settings,
+                                units=tuple(units.items()),
                                 description=r.string(("model", "description"), model.get("description", system.description)))
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
@@ -841,6 +893,9 @@ def _build(r: _Reader, doc: dict) -> System:
         )
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
+    stability = _stability(r, top, system)
+    if stability:
+        system = system.replace(settings=settings + stability)
     return _validated(r, system)
 
 
@@ -854,8 +909,10 @@ def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
         n for c in system.controls if c.kind == "kinematic" for n in (c.name, derivative_name(c.name, 1))]
     new_parameters: dict[str, float] = {}
     initial = system.initial_definitions  # initial expressions are evaluated again below
+    overrides_named = set()
     for key, value in overrides.items():
         name = canonical_name(str(key))
+        overrides_named.add(name)
         try:
             number = float(value)
         except (TypeError, ValueError):
@@ -871,8 +928,9 @@ def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
                 f"override {key!r}: not a parameter, coordinate or speed of {system.name!r}", where=source,
                 hint=f"parameters: {', '.join(sorted(parameters)) or '(none)'}; "
                      f"initial values: {', '.join(state)}")
-    try:
-        system = system.replace(initial=tuple(initial.items()))
+    try:  # a value set here is given, no longer a starting guess
+        system = system.replace(initial=tuple(initial.items()),
+                                initial_guesses=tuple(n for n in system.initial_guesses if n not in overrides_named))
         return system.with_parameters(new_parameters) if new_parameters else system
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or source, hint=exc.hint) from None
