@@ -87,8 +87,23 @@ def _use_c_backend():
 #: ``$APPELL_SLOW=1``: run the tests marked ``slow`` too
 SLOW = os.environ.get("APPELL_SLOW") == "1"
 
+#: modules whose tests time child processes, signals or alarms: scripts/test.sh runs them
+#: in a pass of their own after the rest has run on two workers, so that the other worker's
+#: load cannot stretch a Ctrl-C's or a timeout's timing (a SIGINT test's child outlived its
+#: 60 s under pytest-xdist on a loaded machine)
+SERIAL = {"test_boundary_values.py", "test_faults.py", "test_fuzz.py", "test_sweep.py", "test_symbolic_bounds.py"}
+#: ``$APPELL_TEST_PART``: ``parallel`` (every module but :data:`SERIAL`), ``serial`` (those
+#: only), or unset (all)
+PART = os.environ.get("APPELL_TEST_PART", "")
+
 
 def pytest_collection_modifyitems(config, items):
+    if PART not in ("", "parallel", "serial"):
+        raise pytest.UsageError(f"APPELL_TEST_PART must be 'parallel' or 'serial', got {PART!r}")
+    if PART:
+        keep = [i for i in items if (i.path.name in SERIAL) == (PART == "serial")]
+        config.hook.pytest_deselected(items=[i for i in items if i not in keep])
+        items[:] = keep
     skip_slow = pytest.mark.skip(reason="a long run: set APPELL_SLOW=1 to run it")
     for item in items:
         if item.path.name not in NOT_NUMERICAL:
