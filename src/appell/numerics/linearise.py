@@ -363,16 +363,14 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     try:
         dep, Jh_inv, _, kappa = (partition_in_use(J, derivation.partition.dependent, model.constraint_names)
                                  if s else ((), None, False, 1.0))
-        # columns of (da, dlambda) for each column of (R, S) sensitivities: (1.4), (1.5)
-        cols = [split_solve(M, Ry[:, k], J, Sy[:, k], dep, Jh_inv, kappa) for k in range(nq + n)]
-        ucols = [split_solve(M, Ru[:, k], J, Su[:, k], dep, Jh_inv, kappa) for k in range(nu)]
+        # (da, dlambda) for every column of the (R, S) sensitivities at once: (1.4), (1.5)
+        ay, ly = split_solve(M, Ry.reshape(n, nq + n), J, Sy.reshape(s, nq + n), dep, Jh_inv, kappa)
+        au, lu = split_solve(M, Ru.reshape(n, nu), J, Su.reshape(s, nu), dep, Jh_inv, kappa)
     except np.linalg.LinAlgError as exc:
         raise ComputationError("the split is singular at this point: no linear model",
                                hint="a singular configuration or a singular partition") from exc
-    ay = np.array([col[0] for col in cols]).T.reshape(n, nq + n)
-    ly = np.array([col[1] for col in cols]).T.reshape(s, nq + n)
-    au = np.array([col[0] for col in ucols]).T.reshape(n, nu)
-    lu = np.array([col[1] for col in ucols]).T.reshape(s, nu)
+    ay, ly = ay.reshape(n, nq + n), ly.reshape(s, nq + n)
+    au, lu = au.reshape(n, nu), lu.reshape(s, nu)
 
     cnames, snames = list(model.coordinate_names), list(model.speed_names)
     ignored, ignored_w = _ignored(derivation, sens, ignore)

@@ -597,7 +597,9 @@ def split_solve(M, hQ, J, c, dep, Jh_inv=None, kappa=None):
     """Accelerations and multipliers of ``M a + hQ = J^T lambda``, ``J a + c = 0`` by the
     split (steps 2–4 of the module docstring): ``(C^T M C) a_nu = -C^T (M d + hQ)``,
     ``lambda = J_h^{-T} E_h``. ``Jh_inv``: ``J_h^{-1}`` and ``kappa`` its
-    :func:`partition_condition`, if already known.
+    :func:`partition_condition`, if already known. ``hQ`` and ``c`` may be matrices with
+    one right-hand side per column (the linear model's sensitivities): ``a`` and ``lambda``
+    then have a column each.
 
     Where the partition's condition number ``kappa`` reaches :data:`REFINE_CONDITION` the
     result is refined once: with ``r = M a + hQ - J^T lambda`` and ``s = J a + c``, the
@@ -606,7 +608,7 @@ def split_solve(M, hQ, J, c, dep, Jh_inv=None, kappa=None):
     that of the residuals).
     """
     if J.shape[0] == 0:
-        return np.linalg.solve(M, -hQ), np.zeros(0)
+        return np.linalg.solve(M, -hQ), np.zeros((0,) + np.shape(hQ)[1:])
     if kappa is None:
         kappa, inv = partition_condition(J, dep)
         Jh_inv = inv if Jh_inv is None else Jh_inv
@@ -629,7 +631,7 @@ def _split_once(M, hQ, J, c, dep, Jh_inv=None):
     C = np.zeros((n, len(ind)))
     C[ind, np.arange(len(ind))] = 1.0
     C[dep, :] = -Jh_inv @ J[:, ind]
-    d = np.zeros(n)
+    d = np.zeros((n,) + np.shape(c)[1:])  # a matrix of right-hand sides gives one column each
     d[dep] = -Jh_inv @ c
     a = C @ np.linalg.solve(C.T @ M @ C, -C.T @ (M @ d + hQ)) + d if ind else d
     lam = Jh_inv.T @ (M @ a + hQ)[dep]

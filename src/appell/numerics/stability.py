@@ -145,14 +145,22 @@ def stability_sweep(derivation, name: str, values: Sequence[float], *, at: Mappi
     point = dict(at or {})
     system = derivation.system
     # a parameter the initial values are written in (a bicycle's speed v): those values follow it
-    follows = () if name not in {p.symbol.name for p in system.parameters} else tuple(
-        k for k, e in system.initial_expressions if sp.Symbol(name) in e.free_symbols and k not in point)
+    expressions = dict(system.initial_expressions)
+    positions = {q.name for q in system.coordinates}
+    follows = {} if name not in {p.symbol.name for p in system.parameters} else {
+        k: (sorted(expressions[k].free_symbols, key=str),
+            sp.lambdify(sorted(expressions[k].free_symbols, key=str), expressions[k], modules="math"))
+        for k in sorted((k for k, e in expressions.items() if sp.Symbol(name) in e.free_symbols and k not in point),
+                        key=lambda k: k not in positions)}
+    fixed = {p.symbol: float((params or {}).get(p.symbol.name, p.value)) for p in system.parameters}
 
     def model_at(v, start):
         here = {**start, name: float(v)}
-        if follows:
-            moved = system.with_parameters({name: float(v)}).initial_values
-            here.update({k: moved[k] for k in follows})
+        if follows:  # positions first: a speed's value may use the initial coordinates
+            known = {**fixed, **{sp.Symbol(n): x for n, x in here.items() if n not in follows}}
+            for k, (symbols, fn) in follows.items():
+                here[k] = float(fn(*(known[x] for x in symbols)))
+                known[sp.Symbol(k)] = here[k]
         if free:
             here = steady_motion(derivation, here, free=free, ignore=ignore, params=params)
         return linearise(derivation, here, params=params, ignore=ignore, coordinates=coordinates,
