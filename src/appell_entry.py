@@ -33,12 +33,13 @@ import signal
 import sys
 import threading
 
-__all__ = ["main", "rescue_interrupts", "EXIT_INTERRUPTED"]
+__all__ = ["main", "rescue_interrupts", "interrupt_received", "EXIT_INTERRUPTED"]
 
 #: exit code of a command stopped by Ctrl-C: 128 + SIGINT
 EXIT_INTERRUPTED = 128 + signal.SIGINT
 _LINE = b"error: interrupted\n"
 _reported = False
+_received = False
 
 
 def _report() -> None:
@@ -68,8 +69,18 @@ def _exit_now(signum, frame) -> None:
 
 def _interrupt(signum, frame) -> None:
     """The first Ctrl-C: a :class:`KeyboardInterrupt` where the command is (module docstring)."""
+    global _received
+    _received = True
     _handle(_exit_now)
     raise KeyboardInterrupt
+
+
+def interrupt_received() -> bool:
+    """Whether the first Ctrl-C has come. A :class:`KeyboardInterrupt` raised inside the
+    initialisation of a C extension (NumPy importing ``datetime``) reaches the command as an
+    :class:`ImportError` instead; an error that ends the command after a Ctrl-C is its
+    consequence, and the command ends as interrupted (exit 130), not with a traceback."""
+    return _received
 
 
 def _handle(handler) -> None:
@@ -120,7 +131,12 @@ def main(argv=None, command=None) -> int:
     rescue_interrupts()
     try:
         if command is None:
-            from appell.io.cli import main as command
+            try:
+                from appell.io.cli import main as command
+            except Exception:  # a Ctrl-C inside a C extension's import arrives as an ImportError
+                if _received:
+                    raise KeyboardInterrupt from None
+                raise
         code = command(argv, standalone=False)
         _flush()
         if code == EXIT_INTERRUPTED:

@@ -337,6 +337,36 @@ def assert_interrupted(code, err):
     assert err == "error: interrupted\n", err
 
 
+#: a Ctrl-C that lands inside a C extension's initialisation, as NumPy's import of datetime
+#: reports it: the KeyboardInterrupt becomes an ImportError (seen at delay 0.05 on a quiet CI
+#: machine: exit 1 and NumPy's "PyCapsule_Import could not import module datetime" traceback)
+IMPORT_INTERRUPTED = """
+import builtins, os, signal, sys, time
+import appell_entry
+
+real = builtins.__import__
+
+def importing(name, *args, **kwargs):
+    if name == "appell.io.cli":
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+        except KeyboardInterrupt as exc:
+            raise ImportError('PyCapsule_Import could not import module "datetime"') from exc
+    return real(name, *args, **kwargs)
+
+builtins.__import__ = importing
+sys.exit(appell_entry.main(["--version"]))
+"""
+
+
+def test_ctrl_c_inside_an_extensions_import_ends_as_interrupted():
+    proc = subprocess.run([sys.executable, "-c", IMPORT_INTERRUPTED], capture_output=True, text=True,
+                          env=env_with_src(), timeout=120, preexec_fn=lambda: signal.signal(signal.SIGINT,
+                                                                                            signal.SIG_DFL))
+    assert_interrupted(proc.returncode, proc.stderr)
+
+
 @pytest.mark.parametrize("delay", [0.05, 0.3, 1.0, 3.0])
 def test_ctrl_c_while_simulating_from_the_import_on(tmp_path, delay):
     """From the import of appell (the first second) through the derivation to the run."""

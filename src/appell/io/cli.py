@@ -35,6 +35,8 @@ from pathlib import Path
 
 import click
 
+from appell_entry import interrupt_received
+
 from appell.errors import AppellError, ComputationError, ModelError
 from appell.files import atomic_path, default_file_name, output_target
 from appell.symbols import canonical_name
@@ -377,12 +379,16 @@ class _AppellGroup(click.Group):
         except KeyboardInterrupt:
             code = _interrupted()
         except SystemError as exc:  # an extension module that failed to allocate, else a bug
-            if not isinstance(exc.__cause__ or exc.__context__, MemoryError):
+            if interrupt_received():
+                code = _interrupted()
+            elif not isinstance(exc.__cause__ or exc.__context__, MemoryError):
                 code = _internal_error(exc)
             else:
                 code = _out_of_memory()
         except Exception as exc:  # a bug, not the user's input: no traceback unless asked for
-            code = _internal_error(exc)
+            # unless a Ctrl-C came first (raised inside a C extension's import, it arrives as an
+            # ImportError: appell_entry.interrupt_received)
+            code = _interrupted() if interrupt_received() else _internal_error(exc)
         else:
             code = rv if isinstance(rv, int) else EXIT_OK
         if standalone_mode:
