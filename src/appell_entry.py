@@ -8,7 +8,10 @@ package's ``__init__`` first, with its heavy imports), so :func:`main` installs 
 SIGINT before appell is imported. A Ctrl-C at any moment then ends the command with exit code
 130 and one line on stderr, ``error: interrupted``, and no traceback:
 
-* the first Ctrl-C raises :class:`KeyboardInterrupt` as Python's default handler does, so that
+* while appell is imported, a Ctrl-C ends the process at once (nothing to clean up yet; a
+  KeyboardInterrupt raised inside a C extension's import becomes an ImportError that an
+  optional import may swallow);
+* once the command runs, the first Ctrl-C raises :class:`KeyboardInterrupt` as Python's default handler does, so that
   the command cleans up (a write under way removes its temporary file, a sweep keeps its
   partial file and closes its cluster) and :mod:`appell.io.cli` reports it;
 * a second one, or one after the command has finished, ends the process at once
@@ -127,16 +130,21 @@ def main(argv=None, command=None) -> int:
     ``command``: the function that runs it (default :func:`appell.io.cli.main`, imported here,
     after the handler of SIGINT is installed), called as ``command(argv, standalone=False)``."""
     global _reported
-    _handle(_interrupt)
     rescue_interrupts()
     try:
         if command is None:
+            # while appell is imported there is nothing to clean up, and a KeyboardInterrupt
+            # raised there can be lost: a C extension's initialisation reports it as an
+            # ImportError, which a library's optional import then swallows (the command ran
+            # on after a Ctrl-C 0.3 s after its start). A Ctrl-C here ends the process at once.
+            _handle(_exit_now)
             try:
                 from appell.io.cli import main as command
-            except Exception:  # a Ctrl-C inside a C extension's import arrives as an ImportError
+            except Exception:
                 if _received:
                     raise KeyboardInterrupt from None
                 raise
+        _handle(_interrupt)
         code = command(argv, standalone=False)
         _flush()
         if code == EXIT_INTERRUPTED:
