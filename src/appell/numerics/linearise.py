@@ -209,8 +209,9 @@ class _Sensitivities:
                       (nphi, n), (nz, nq + n), (nz, n), (nz, s), (nz, nu)]
             values = self.fn(float(tt), q, w, a, lam, pv)
             return [np.asarray(v, float).reshape(shape) for v, shape in zip(values, shapes)]
-        # directions: q (nq), w (n), a (n), lambda (s), inputs (nu); one column each
-        sizes = (nq, n, n, s, nu)
+        # directions: q (nq), w (n), a (n), lambda (s), inputs (nu); one column each (those of
+        # a and lambda only for the outputs: R and S are used along q, w and the inputs)
+        sizes = (nq, n, n, s, nu) if nz else (nq, n, 0, 0, nu)
         k = sum(sizes)
         base = [np.asarray(x, float) for x in (q, w, a, lam)]
         args, start = [], 0
@@ -228,8 +229,9 @@ class _Sensitivities:
         y, acc, mul, inp = (slice(cols[0], cols[2]), slice(cols[2], cols[3]), slice(cols[3], cols[4]),
                             slice(cols[4], cols[5]))
         qs, ws = slice(cols[0], cols[1]), slice(cols[1], cols[2])
+        za, zl = (z[:, acc], z[:, mul]) if nz else (np.zeros((0, n)), np.zeros((0, s)))
         return [R[:, y], S[:, y], rates[:, y], R[:, inp], S[:, inp], rates[:, inp], F[:, qs], phi[:, qs], phi[:, ws],
-                z[:, y], z[:, acc], z[:, mul], z[:, inp]]
+                z[:, y], za, zl, z[:, inp]]
 
 
 #: compiled sensitivities per derivation and inputs: id -> (weak reference, {inputs: _Sensitivities})
