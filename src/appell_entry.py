@@ -11,8 +11,8 @@ SIGINT before appell is imported. A Ctrl-C at any moment then ends the command w
 * while appell is imported, a Ctrl-C ends the process at once (nothing to clean up yet; a
   KeyboardInterrupt raised inside a C extension's import becomes an ImportError that an
   optional import may swallow);
-* once the command runs, the first Ctrl-C raises :class:`KeyboardInterrupt` as Python's default handler does, so that
-  the command cleans up (a write under way removes its temporary file, a sweep keeps its
+* once the command runs, the first Ctrl-C raises :class:`KeyboardInterrupt` as Python's
+  default handler does, so that the command cleans up (a write under way removes its temporary file, a sweep keeps its
   partial file and closes its cluster) and :mod:`appell.io.cli` reports it;
 * a second one, or one after the command has finished, ends the process at once
   (:func:`os._exit`), printing the line unless it was printed already.
@@ -80,8 +80,8 @@ def _interrupt(signum, frame) -> None:
 
 def interrupt_received() -> bool:
     """Whether the first Ctrl-C has come. A :class:`KeyboardInterrupt` raised inside the
-    initialisation of a C extension (NumPy importing ``datetime``) reaches the command as an
-    :class:`ImportError` instead; an error that ends the command after a Ctrl-C is its
+    initialisation of a C extension that the command imports as it runs (as NumPy's import of
+    ``datetime`` does) reaches the command as an :class:`ImportError` instead; an error that ends the command after a Ctrl-C is its
     consequence, and the command ends as interrupted (exit 130), not with a traceback."""
     return _received
 
@@ -138,12 +138,7 @@ def main(argv=None, command=None) -> int:
             # ImportError, which a library's optional import then swallows (the command ran
             # on after a Ctrl-C 0.3 s after its start). A Ctrl-C here ends the process at once.
             _handle(_exit_now)
-            try:
-                from appell.io.cli import main as command
-            except Exception:
-                if _received:
-                    raise KeyboardInterrupt from None
-                raise
+            from appell.io.cli import main as command
         _handle(_interrupt)
         code = command(argv, standalone=False)
         _flush()

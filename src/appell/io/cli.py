@@ -911,8 +911,7 @@ def stability(model, spec, free, ignore, outputs, assignments):
     for o in outputs:
         output_target(o)
     system = load_system(model, parse_assignments(assignments))
-    table = dict(dict(system.settings).get("stability", ()))
-    if spec is None and not table:
+    if spec is None and not _stability_table(system):
         raise click.UsageError("give --vary NAME=START:STOP:NUM, or a [stability] table in the model file "
                                "(vary = \"NAME=START:STOP:NUM\")")
     derivation = derive_model(system)
@@ -923,19 +922,21 @@ def stability(model, spec, free, ignore, outputs, assignments):
         click.echo(f"wrote {o}")
 
 
+def _stability_table(system) -> dict:
+    """The model file's [stability] table (``{}`` without one)."""
+    return dict(dict(system.settings).get("stability", ()))
+
+
 def stability_analysis(derivation, spec=None, free=(), ignore=()):
     """:func:`appell.numerics.stability.stability_sweep` as ``appell stability`` runs it:
     ``spec`` ``NAME=START:STOP:NUM``, ``free`` and ``ignore`` names (``('cyclic',)``), each
-    defaulting to the model's [stability] table; the point is the model's initial values,
-    but for those written in a varied parameter (they follow it). None when neither
-    ``spec`` nor a table is given."""
-    import sympy as sp
-
+    defaulting to the model's [stability] table; the point is the model's initial values
+    (those written in a varied parameter follow it). None when neither ``spec`` nor a
+    table is given."""
     from appell.numerics.stability import stability_sweep
     from appell.simulation.sweep import parse_spec
 
-    system = derivation.system
-    table = dict(dict(system.settings).get("stability", ()))
+    table = _stability_table(derivation.system)
     spec = spec if spec is not None else table.get("vary")
     if spec is None:
         return None
@@ -944,10 +945,7 @@ def stability_analysis(derivation, spec=None, free=(), ignore=()):
     name, values = parse_spec(spec)
     name = canonical_name(name)
     ignored = "cyclic" if ignore == ("cyclic",) else tuple(canonical_name(i) for i in ignore) or None
-    varied = sp.Symbol(name)  # initial values written in a varied parameter follow it (stability_sweep)
-    moving = {k for k, e in system.initial_expressions if varied in e.free_symbols}
-    start = {k: v for k, v in system.initial_values.items() if k not in moving}
-    return stability_sweep(derivation, name, values, at=start, free=tuple(canonical_name(f) for f in free),
+    return stability_sweep(derivation, name, values, free=tuple(canonical_name(f) for f in free),
                            ignore=ignored, progress=None)
 
 

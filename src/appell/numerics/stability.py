@@ -147,11 +147,12 @@ def stability_sweep(derivation, name: str, values: Sequence[float], *, at: Mappi
     # a parameter the initial values are written in (a bicycle's speed v): those values follow it
     expressions = dict(system.initial_expressions)
     positions = {q.name for q in system.coordinates}
-    follows = {} if name not in {p.symbol.name for p in system.parameters} else {
-        k: (sorted(expressions[k].free_symbols, key=str),
-            sp.lambdify(sorted(expressions[k].free_symbols, key=str), expressions[k], modules="math"))
-        for k in sorted((k for k, e in expressions.items() if sp.Symbol(name) in e.free_symbols and k not in point),
-                        key=lambda k: k not in positions)}
+    follows = {}  # name -> (its symbols, its value compiled), positions first
+    if name in {p.symbol.name for p in system.parameters}:
+        moving = [k for k, e in expressions.items() if sp.Symbol(name) in e.free_symbols and k not in point]
+        for k in sorted(moving, key=lambda k: k not in positions):
+            symbols = sorted(expressions[k].free_symbols, key=str)
+            follows[k] = (symbols, sp.lambdify(symbols, expressions[k], modules="math"))
     fixed = {p.symbol: float((params or {}).get(p.symbol.name, p.value)) for p in system.parameters}
 
     def model_at(v, start):

@@ -449,10 +449,11 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
     p = model.params(params)
     defaults = _default_values(model, system, p)
     guesses = [n for n in getattr(system, "initial_guesses", ()) if n in defaults]
-    if values is not None:  # a guess not given here keeps its place as a guess
-        guesses = [n for n in guesses if n not in values]
-        values = {**{n: defaults[n] for n in guesses}, **_names_values(values)}
+    passed = values is not None
     values = _names_values(defaults if values is None else values)
+    if passed:  # a guess not given here keeps its place as a guess
+        guesses = [n for n in guesses if n not in values]
+        values = {**{n: defaults[n] for n in guesses}, **values}
     names = tuple(model.state_names)
     automatic = adjust is None
     chosen = [] if adjust is None else [str(a) for a in ([adjust] if isinstance(adjust, str) else adjust)]
