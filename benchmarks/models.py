@@ -220,3 +220,44 @@ def nlink_model_file(n: int) -> str:
     lines += [f"theta{i + 1} = {float(th[i])!r}" for i in range(n)]
     lines += [f"\"theta{i + 1}'\" = {float(w[i])!r}" for i in range(n)]
     return "\n".join(lines) + "\n"
+
+
+def rolling_disc_sympy_linear():
+    """The peer of :func:`appell.linearise`: SymPy's ``KanesMethod.linearize`` (the
+    ``Linearizer``, A and B solved) of a thin disc (m r^2/4 about a diameter, m r^2/2 about
+    its axis) rolling on a level plane, about upright rolling at spin rate ``Omega``.
+
+    Coordinates yaw ``q1``, lean ``q2``, spin ``q3``; speeds ``u1, u2, u3`` the angular
+    velocity in the lean frame (SymPy's rolling-disc example, the contact point at rest).
+    Returns ``(timings, A)``: the seconds to form Kane's equations, to linearise them and
+    to compile ``A(Omega, r, m, g)`` with ``lambdify(cse=True, modules='math')``, and that
+    compiled function (a 6x6 list of lists, state ``(q1, q2, q3, u1, u2, u3)``).
+    """
+    import time
+
+    from sympy.physics.mechanics import KanesMethod, Point, ReferenceFrame, RigidBody, dot, dynamicsymbols, inertia
+
+    t0 = time.perf_counter()
+    q1, q2, q3 = dynamicsymbols("q1 q2 q3")
+    u1, u2, u3 = dynamicsymbols("u1 u2 u3")
+    r, m, g, spin = sp.symbols("r m g Omega")
+    N = ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [q1, N.z])
+    L = Y.orientnew("L", "Axis", [q2, Y.x])
+    R = L.orientnew("R", "Axis", [q3, L.y])
+    from_rates = R.ang_vel_in(N)
+    R.set_ang_vel(N, u1 * L.x + u2 * L.y + u3 * L.z)
+    contact = Point("C")
+    contact.set_vel(N, 0)
+    centre = contact.locatenew("D", r * L.z)
+    centre.v2pt_theory(contact, N, R)
+    disc = RigidBody("disc", centre, R, m, (inertia(L, m * r**2 / 4, m * r**2 / 2, m * r**2 / 4), centre))
+    kane = KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3],
+                       kd_eqs=[dot(R.ang_vel_in(N) - from_rates, e) for e in L])
+    kane.kanes_equations([disc], [(centre, -m * g * Y.z)])
+    t1 = time.perf_counter()
+    A, _, _ = kane.linearize(op_point={q2: 0, u1: 0, u2: spin, u3: 0}, A_and_B=True)
+    t2 = time.perf_counter()
+    fn = sp.lambdify([spin, r, m, g], A.tolist(), cse=True, modules="math")
+    t3 = time.perf_counter()
+    return {"equations": t1 - t0, "linearise": t2 - t1, "compile": t3 - t2}, fn

@@ -128,3 +128,27 @@ def test_markers_replace_only_their_section():
     assert out == "a\n<!-- bench:x -->\nnew table\n<!-- /bench:x -->\nb\n<!-- bench:y -->\nkeep\n<!-- /bench:y -->\n"
     with pytest.raises(KeyError):
         replace_between_markers(text, "z", "t")
+
+
+def test_sympy_linearizer_of_the_rolling_disc_has_appells_eigenvalues():
+    """The peer of ``benchmarks/linearise_peers.py``: SymPy's Linearizer (KanesMethod, the
+    contact point at rest, speeds in the lean frame) and appell's linear model of the bundled
+    disc (free joint, rolling contact, steady motion solved) about upright rolling give the
+    same lean-yaw eigenvalues on both sides of the critical spin rate sqrt(g / (3 r))
+    (the closed form of ``tests/test_linearise.py``)."""
+    from models import rolling_disc_sympy_linear
+
+    from appell.examples.mechanism_examples import rolling_disc
+
+    _, sympy_A = rolling_disc_sympy_linear()
+    d = appell.derive(rolling_disc())
+    r, m, g = 0.25, 1.5, 9.81
+    for spin in (2.0, 3.6, 3.7, 6.0):
+        point = appell.steady_motion(d, {"alpha": 0.0, "float_z": r, "float_ry_dot": spin, "float_x_dot": -r * spin},
+                                     free=["float_x_dot", "float_y_dot", "float_z_dot", "float_z"],
+                                     ignore=["float_x", "float_y", "float_rz", "float_ry"])
+        mine = appell.linearise(d, point, ignore=["float_x", "float_y", "float_rz", "float_ry"]).eigenvalues()
+        theirs = np.linalg.eigvals(np.array(sympy_A(spin, r, m, g), float))
+        nonzero = lambda ev: sorted(ev[np.abs(ev) > 1e-9], key=lambda z: (z.real, z.imag))  # noqa: E731
+        assert np.allclose(nonzero(mine), nonzero(theirs), rtol=1e-10, atol=1e-12)
+        assert (np.max(theirs.real) > 1e-9) == (spin ** 2 < g / (3 * r))

@@ -24,7 +24,7 @@ from scipy.integrate import solve_ivp
 
 from appell import derive_controlled, simulate
 from appell.control.internal_dynamics import internal_linearisation
-from appell.examples.servo_examples import cart_pole, spring_masses
+from appell.examples.servo_examples import appell_ball, cart_pole, spring_masses
 from appell.io.cli import cli
 
 G, L = 9.81, 0.5  # the builder's g and l
@@ -56,8 +56,8 @@ def test_cart_pole_linearisation_matches_the_pendulum_jacobian(upright, hanging,
         lin = internal_linearisation(derivation, t, _on_manifold(t, theta, theta_dot))
         assert lin.coordinates == ("theta", "theta_dot")
         expected = np.array([[0.0, 1.0], [sign * G / L * np.cos(theta) + _xd_ddot(t) / L * np.sin(theta), 0.0]])
-        # central differences at relative step 1e-6: error eps/h ~ 2e-10 times |F| plus h^2 ~ 1e-12
-        assert np.allclose(lin.matrix, expected, rtol=1e-6, atol=1e-6 * G / L)
+        # exact differentiation (complex step on the compiled blocks): rounding only
+        assert np.allclose(lin.matrix, expected, rtol=1e-12, atol=1e-12 * G / L)
         assert lin.manifold_residual < 1e-12  # an exact state on the manifold: rounding only
 
 
@@ -65,18 +65,18 @@ def test_upright_pole_is_flagged_unstable_with_eigenvalues_plus_minus_sqrt_g_ove
     """At theta = theta' = 0: eigenvalues +-sqrt(g/l) (Spong 1998), growth rate sqrt(g/l)."""
     lin = internal_linearisation(upright, 0.0, _on_manifold(0.0, 0.0, 0.0))
     omega = np.sqrt(G / L)
-    # the Jacobian by central differences (~1e-10 relative, above), a well-separated pair
-    assert np.allclose(lin.eigenvalues, [omega, -omega], rtol=1e-7, atol=1e-7 * omega)
-    assert lin.unstable and lin.growth_rate == pytest.approx(omega, rel=1e-7)
+    # the exact Jacobian (above), a well-separated pair
+    assert np.allclose(lin.eigenvalues, [omega, -omega], rtol=1e-13, atol=1e-13 * omega)
+    assert lin.unstable and lin.growth_rate == pytest.approx(omega, rel=1e-13)
     assert "unstable" in lin.warning() and "theta" in lin.warning()
 
 
 def test_hanging_pendulum_eigenvalues_are_plus_minus_i_sqrt_g_over_l_and_not_flagged(hanging):
     lin = internal_linearisation(hanging, 0.0, _on_manifold(0.0, 0.0, 0.0))
     omega = np.sqrt(G / L)
-    # as for the upright pole: central differences, ~1e-10 relative
-    assert np.allclose(sorted(lin.eigenvalues.imag), [-omega, omega], rtol=1e-7)
-    assert np.max(np.abs(lin.eigenvalues.real)) < 1e-6 * omega
+    # as for the upright pole: exact Jacobian
+    assert np.allclose(sorted(lin.eigenvalues.imag), [-omega, omega], rtol=1e-13)
+    assert np.max(np.abs(lin.eigenvalues.real)) < 1e-13 * omega
     assert not lin.unstable and lin.warning() is None
 
 
@@ -85,7 +85,7 @@ def test_damped_spring_masses_internal_eigenvalue_is_minus_k_over_d():
     derivation = derive_controlled(spring_masses(damping=True))
     lin = internal_linearisation(derivation)
     assert lin.eigenvalues.shape == (1,)
-    assert lin.eigenvalues[0] == pytest.approx(-4.0 / 0.5, rel=1e-7)  # central differences, ~1e-10
+    assert lin.eigenvalues[0] == pytest.approx(-4.0 / 0.5, rel=1e-13)  # exact Jacobian: rounding only
     assert not lin.unstable
 
 
@@ -128,8 +128,8 @@ def test_cli_flags_the_unstable_internal_dynamics_in_every_command(tmp_path):
     doc = json.loads(result.stdout)
     lin = doc["internal_linearisation"]
     assert lin["unstable"] and lin["coordinates"] == ["theta", "theta_dot"]
-    # central differences (~1e-10 relative, above); the JSON keeps 14 digits
-    assert np.allclose(sorted(re for re, _ in lin["eigenvalues"]), [-omega, omega], rtol=1e-6)
+    # exact Jacobian (above); the JSON keeps 14 digits
+    assert np.allclose(sorted(re for re, _ in lin["eigenvalues"]), [-omega, omega], rtol=1e-12)
     for args in (["simulate", "cart_pole", "--t-end", "0.2"], ["check", "cart_pole"],
                  ["report", "cart_pole", "-o", str(tmp_path / "pole.html"), "--t-end", "0.2"]):
         result = runner.invoke(cli, args)
@@ -139,3 +139,46 @@ def test_cli_flags_the_unstable_internal_dynamics_in_every_command(tmp_path):
     assert "<h2 id='internal'>Internal dynamics</h2>" in page and "Unstable" in page
     quiet = runner.invoke(cli, ["derive", "spring_masses"])
     assert quiet.exit_code == 0 and "warning" not in quiet.stderr
+
+
+def _central_internal_matrix(derivation, time, state, eta):
+    """The independent route: central differences (relative step 1e-6) of the whole
+    closed-loop solve ``F(t, y)`` and of the manifold residuals ``G``, on the chart ``eta``."""
+    from appell.control.internal_dynamics import manifold_function
+
+    model = derivation.numeric
+    pv, y0 = model.params(), np.asarray(state, float)
+    steps = 1e-6 * np.maximum(1.0, np.abs(y0))
+
+    def jac(fun):
+        return np.column_stack([(fun(y0 + e) - fun(y0 - e)) / (2 * h) for h, e in zip(steps, np.diag(steps))])
+
+    manifold = manifold_function(derivation)
+    F = jac(lambda y: model.evaluate(time, y, pv).derivative)
+    Gy = jac(lambda y: manifold(time, y, pv))
+    dep = [j for j in range(y0.size) if j not in eta]
+    Z = np.zeros((y0.size, len(eta)))
+    Z[eta] = np.eye(len(eta))
+    if dep:
+        Z[dep] = -np.linalg.lstsq(Gy[:, dep], Gy[:, eta], rcond=None)[0]
+    return F[eta] @ Z
+
+
+@pytest.mark.parametrize("builder", [appell_ball, lambda: spring_masses(damping=True), cart_pole],
+                         ids=["appell_ball", "spring_masses_damped", "cart_pole"])
+def test_exact_internal_jacobian_agrees_with_central_differences_of_the_closed_loop_solve(builder):
+    """A_eta by the exact route (implicit function theorem on E(y, a, xi, lambda) = 0, complex
+    step on the compiled blocks) against central differences of the whole numeric solve:
+    Appell's ball (two real constraints, two kinematic controls), the damped spring masses
+    (underactuated, first-order internal dynamics) and the cart-pole at a moving state.
+    Central differences at step 1e-6 carry ~1e-10 relative error (eps/h + h^2)."""
+    derivation = derive_controlled(builder())
+    model = derivation.numeric
+    state = model.initial_state()
+    if derivation.system.name == "cart_pole":
+        state = np.array(_on_manifold(1.3, 0.7, -0.4))
+    lin = internal_linearisation(derivation, 1.3, state)
+    eta = [model.state_names.index(c) for c in lin.coordinates]
+    reference = _central_internal_matrix(derivation, 1.3, state, eta)
+    scale = max(1.0, np.abs(reference).max())
+    assert np.abs(lin.matrix - reference).max() < 1e-7 * scale

@@ -55,7 +55,7 @@ from appell.errors import ComputationError, ModelError
 from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
 from appell.symbols import t
 
-__all__ = ["LinearModel", "linearise", "steady_motion", "STEADY_TOLERANCE"]
+__all__ = ["ExactJacobians", "LinearModel", "linearise", "steady_motion", "STEADY_TOLERANCE"]
 
 #: largest ``|P G|`` at the point, relative to ``1 + |y|``, for it to count as steady
 STEADY_TOLERANCE = 1e-8
@@ -148,19 +148,65 @@ NON_ANALYTIC = (sp.Abs, sp.sign, sp.Heaviside, sp.Max, sp.Min, sp.floor, sp.ceil
 STEP = 1e-100
 
 
+class ExactJacobians:
+    """Jacobians of compiled vectors ``v_k(t, x_1, ..., x_m)`` along chosen entries of the
+    argument groups ``x_g``, exact to rounding.
+
+    ``groups``: the symbols of each argument group; ``vectors``: column matrices in them;
+    ``directions``: for each group the indices of its entries to differentiate along. A call
+    with the value of each group returns, for each vector, its Jacobian with one column per
+    direction (in the order of ``directions``; :attr:`columns` slices them per group).
+
+    Forward-mode differentiation by the complex step (:data:`STEP`): one vectorised call
+    evaluates every vector at ``x + i h e_k`` for every direction ``k`` at once. Vectors
+    that use a function without a complex-analytic extension (:data:`NON_ANALYTIC`) are
+    differentiated symbolically instead (each vector's Jacobian, compiled once). The complex
+    step keeps compilation to the size of the vectors themselves: the benchmark bicycle's
+    symbolic Jacobians took five minutes to form and compile, its blocks seconds.
+    """
+
+    def __init__(self, groups: Sequence[Sequence[sp.Symbol]], vectors: Sequence[sp.Matrix],
+                 directions: Sequence[Sequence[int]], subs: Mapping, what: str):
+        self.rows = [m.shape[0] for m in vectors]
+        self.directions = [list(d) for d in directions]
+        cuts = np.cumsum([0] + [len(d) for d in self.directions])
+        self.columns = [slice(int(cuts[g]), int(cuts[g + 1])) for g in range(len(self.directions))]
+        self.count = int(cuts[-1])
+        groups = [list(g) for g in groups]
+        self.complex_step = not any(e.has(*NON_ANALYTIC) for m in vectors for e in m)
+        if self.complex_step:
+            # every entry gets + Z (an array of zeros) so that constant entries broadcast too
+            Z = sp.Dummy("Z")
+            mats = [sp.Matrix(m.shape[0], 1, [e.xreplace(subs) + Z for e in m]) if m.shape[0] else m for m in vectors]
+            self.fn = sp.lambdify([t, *groups, Z], mats, modules="numpy", cse=True, docstring_limit=0,
+                                  use_imps=False)
+            return
+        along = [groups[g][i] for g, d in enumerate(self.directions) for i in d]
+
+        def jac(vector):  # derivatives in real variables (abs, sign: core.kinematics)
+            return jacobian(vector, along) if vector.shape[0] and along else sp.zeros(vector.shape[0], len(along))
+
+        self.fn = lambdify_blocks([t, *groups], [jac(m) for m in vectors], subs, what=what)
+
+    def __call__(self, tt, *values) -> list[np.ndarray]:
+        k = self.count
+        if not self.complex_step:
+            out = self.fn(float(tt), *values)
+            return [np.asarray(v, float).reshape(r, k) for v, r in zip(out, self.rows)]
+        args = []
+        for x, d, cols in zip(values, self.directions, self.columns):
+            arr = np.repeat(np.asarray(x, float).reshape(-1)[:, None], k, axis=1).astype(complex)
+            arr[d, np.arange(cols.start, cols.stop)] += 1j * STEP
+            args.append(list(arr))
+        with np.errstate(all="ignore"):
+            out = self.fn(complex(tt), *args, np.zeros(k, complex))
+        return [np.asarray(v, complex).reshape(r, k).imag / STEP for v, r in zip(out, self.rows)]
+
+
 class _Sensitivities:
     """The Jacobians of ``R``, ``S``, the rates ``K w + k``, the constraint residuals
     ``F``, ``phi`` and the outputs ``z`` in ``(q, w, u)`` (the outputs' also in ``a``,
-    ``lambda``), exact to rounding.
-
-    Forward-mode differentiation of the compiled blocks by the complex step (module
-    docstring of :data:`STEP`): one vectorised call evaluates every block at ``v + i h e_k``
-    for each variable ``k`` at once. Models that use a function without a complex-analytic
-    extension (:data:`NON_ANALYTIC`) are differentiated symbolically instead (the Jacobian
-    of each vector, compiled once). The complex step keeps compilation to the size of the
-    blocks themselves: the benchmark bicycle's symbolic Jacobians took five minutes to form
-    and compile, its blocks seconds.
-    """
+    ``lambda``), exact to rounding (:class:`ExactJacobians`)."""
 
     def __init__(self, derivation, inputs: Sequence[sp.Symbol]):
         system, kin, inertia, cons = derivation.system, derivation.kinematics, derivation.inertia, derivation.constraints
@@ -180,58 +226,25 @@ class _Sensitivities:
         phi = sp.Matrix([e for e in cons.velocity_residual if e is not None])
         outs = sp.Matrix([o.expr for o in system.outputs])
         self.inputs = [params.index(u) for u in inputs]
-        self.shapes = (len(q), n, s, F.shape[0], phi.shape[0], outs.shape[0], len(inputs))
-        blocks = [R, S, rates, F, phi, outs]
-        subs = program_substitutions(system)
+        nz = outs.shape[0]
+        self.shapes = (len(q), n, s, F.shape[0], phi.shape[0], nz, len(inputs))
         self.free = [set().union(*(e.free_symbols for e in m)) if m.shape[0] * m.shape[1] else set()
                      for m in (R, S, rates, F, phi)]
-        self.complex_step = not any(e.has(*NON_ANALYTIC) for m in blocks for e in m)
-        if self.complex_step:
-            # every entry gets + Z (an array of zeros) so that constant entries broadcast too
-            Z = sp.Dummy("Z")
-            mats = [sp.Matrix(m.shape[0], 1, [e.xreplace(subs) + Z for e in m]) if m.shape[0] else m for m in blocks]
-            self.fn = sp.lambdify([t, q, w, a, lam, params, Z], mats, modules="numpy", cse=True, docstring_limit=0,
-                                  use_imps=False)
-            return
-
-        def jac(vector, symbols):  # derivatives in real variables (abs, sign: core.kinematics)
-            return jacobian(vector, symbols) if vector.shape[0] and symbols else sp.zeros(vector.shape[0], len(symbols))
-
-        y, u = q + w, list(inputs)
-        mats = [jac(R, y), jac(S, y), jac(rates, y), jac(R, u), jac(S, u), jac(rates, u),
-                jac(F, q), jac(phi, q), jac(phi, w), jac(outs, y), jac(outs, a), jac(outs, lam), jac(outs, u)]
-        self.fn = lambdify_blocks([t, q, w, a, lam, params], mats, subs, what="linearisation")
+        # along q, w and the inputs; along a and lambda for the outputs alone (R and S are
+        # linear in them: M and -J^T, evaluated by the split)
+        directions = [range(len(q)), range(n), range(n) if nz else (), range(s) if nz else (), self.inputs]
+        self.jacobians = ExactJacobians([q, w, a, lam, params], [R, S, rates, F, phi, outs], directions,
+                                        program_substitutions(system), "linearisation")
+        self.complex_step = self.jacobians.complex_step
 
     def __call__(self, tt, q, w, a, lam, pv):
         nq, n, s, nF, nphi, nz, nu = self.shapes
-        if not self.complex_step:
-            shapes = [(n, nq + n), (s, nq + n), (nq, nq + n), (n, nu), (s, nu), (nq, nu), (nF, nq), (nphi, nq),
-                      (nphi, n), (nz, nq + n), (nz, n), (nz, s), (nz, nu)]
-            values = self.fn(float(tt), q, w, a, lam, pv)
-            return [np.asarray(v, float).reshape(shape) for v, shape in zip(values, shapes)]
-        # directions: q (nq), w (n), a (n), lambda (s), inputs (nu); one column each (those of
-        # a and lambda only for the outputs: R and S are used along q, w and the inputs)
-        sizes = (nq, n, n, s, nu) if nz else (nq, n, 0, 0, nu)
-        k = sum(sizes)
-        base = [np.asarray(x, float) for x in (q, w, a, lam)]
-        args, start = [], 0
-        for x, size in zip(base, sizes):
-            arr = np.repeat(x[:, None], k, axis=1).astype(complex)
-            arr[np.arange(size), start + np.arange(size)] += 1j * STEP
-            args.append(list(arr))
-            start += size
-        p = np.repeat(np.asarray(pv, float)[:, None], k, axis=1).astype(complex)
-        p[self.inputs, start + np.arange(nu)] += 1j * STEP
-        with np.errstate(all="ignore"):
-            values = self.fn(complex(tt), *args, list(p), np.zeros(k, complex))
-        R, S, rates, F, phi, z = (np.asarray(v, complex).reshape(-1, k).imag / STEP for v in values)
-        cols = np.cumsum((0,) + sizes)
-        y, acc, mul, inp = (slice(cols[0], cols[2]), slice(cols[2], cols[3]), slice(cols[3], cols[4]),
-                            slice(cols[4], cols[5]))
-        qs, ws = slice(cols[0], cols[1]), slice(cols[1], cols[2])
-        za, zl = (z[:, acc], z[:, mul]) if nz else (np.zeros((0, n)), np.zeros((0, s)))
-        return [R[:, y], S[:, y], rates[:, y], R[:, inp], S[:, inp], rates[:, inp], F[:, qs], phi[:, qs], phi[:, ws],
-                z[:, y], za, zl, z[:, inp]]
+        R, S, rates, F, phi, z = self.jacobians(tt, q, w, a, lam, pv)
+        cq, cw, ca, cl, cu = self.jacobians.columns
+        y = slice(cq.start, cw.stop)
+        za, zl = (z[:, ca], z[:, cl]) if nz else (np.zeros((0, n)), np.zeros((0, s)))
+        return [R[:, y], S[:, y], rates[:, y], R[:, cu], S[:, cu], rates[:, cu], F[:, cq], phi[:, cq], phi[:, cw],
+                z[:, y], za, zl, z[:, cu]]
 
 
 #: compiled sensitivities per derivation and inputs: id -> (weak reference, {inputs: _Sensitivities})
