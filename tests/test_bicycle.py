@@ -146,3 +146,32 @@ def test_a_sweep_over_the_files_speed_parameter_keeps_the_conserved_speed(bicycl
     speeds = sorted(c.value for c in sweep.crossings)
     assert len(speeds) == 2
     assert abs(speeds[0] - WEAVE) <= 1e-10 and abs(speeds[1] - CAPSIZE) <= 1e-10
+
+
+def test_cyclic_finds_the_wheel_angles_and_the_heading(bicycle):
+    """``ignore='cyclic'`` finds the five coordinates the published model leaves out: x, y
+    (nothing contains them), the wheels' angles (their sines and cosines cancel in the
+    contacts without the expressions showing it) and the heading (it drives only the rates
+    of x and y); the steady motion at 5 m/s is found with the same 'cyclic', and the
+    eigenvalues are the published ones (1e-10)."""
+    v = 5.0
+    point = steady_motion(bicycle, {"rear_z": -R_REAR, "rear_x_dot": v, "rear_spin_dot": -v / R_REAR,
+                                    "front_spin_dot": -v / R_FRONT}, free=FREE, ignore="cyclic")
+    lm = linearise(bicycle, point, ignore="cyclic")
+    assert set(lm.ignored) == set(IGNORE[:5])
+    # the forward speed stays a state here (its zero eigenvalue is the sixth)
+    got = np.sort_complex(lm.eigenvalues())
+    zero = np.argmin(np.abs(got))
+    assert abs(got[zero]) < 1e-9
+    assert np.abs(np.delete(got, zero) - published_eigenvalues(v)).max() <= 1e-10
+
+
+def test_a_coordinate_that_matters_cannot_be_left_out(bicycle):
+    """Leaving out the roll angle, which the other states depend on (gravity's moment), is
+    refused with the coupling named, instead of a silently wrong linear model."""
+    from appell.errors import ModelError
+
+    point = steady_motion(bicycle, {"rear_z": -R_REAR, "rear_x_dot": 5.0, "rear_spin_dot": -5.0 / R_REAR,
+                                    "front_spin_dot": -5.0 / R_FRONT}, free=FREE, ignore=IGNORE[:5])
+    with pytest.raises(ModelError, match="rear_rx cannot be left out"):
+        linearise(bicycle, point, ignore=IGNORE[:5] + ["rear_rx"])

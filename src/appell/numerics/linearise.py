@@ -317,8 +317,15 @@ def _state(derivation, at: Mapping[str, float] | None, p=None):
     return float(values.get("t", 0.0)), q, w, model.params(params)
 
 
+#: a coordinate is cyclic at a point where its column of the linear model vanishes below
+#: this, relative to the model's largest entry (or 1), in the rows of the states kept
+CYCLIC_TOLERANCE = 1e-12
+
+
 def _ignored(derivation, sens: _Sensitivities, ignore) -> tuple[list[int], list[int]]:
-    """``(coordinates, speeds)`` left out of the state, by index (module docstring)."""
+    """``(coordinates, speeds)`` left out of the state, by index (module docstring);
+    ``'cyclic'``: those that no block, rate or constraint contains (:func:`_cyclic_states`
+    adds those the expressions hide)."""
     names = list(derivation.numeric.coordinate_names)
     speeds = list(derivation.numeric.speed_names)
     coords = list(derivation.kinematics.coordinates)
@@ -339,8 +346,30 @@ def _ignored(derivation, sens: _Sensitivities, ignore) -> tuple[list[int], list[
     return out, out_w
 
 
-#: largest entry, relative to A's, of the column of an ignored speed in the kept rows
+#: largest entry, relative to A's, of the column of an ignored coordinate or speed in the kept rows
 DECOUPLED = 1e-9
+
+
+def _cyclic_states(full: np.ndarray, qi: list[int], found: Sequence[int]) -> list[int]:
+    """The independent coordinates (indices into ``q``) cyclic at the point: those already
+    ``found`` and each whose column of the linear model ``full`` (rows and columns: ``qi``,
+    then the independent speeds) vanishes (:data:`CYCLIC_TOLERANCE`) in the rows of every
+    state not left out, repeated until none is added (the bicycle's heading drives only the
+    rates of x and y, which go first). A wheel's angle whose sines and cosines cancel in the
+    contact's expressions without the expressions showing it is found here."""
+    found = set(found)
+    bound = CYCLIC_TOLERANCE * max(1.0, float(np.abs(full).max(initial=0.0)))
+    added = True
+    while added:
+        added = False
+        for k, i in enumerate(qi):
+            if i in found:
+                continue
+            rows = [r for r in range(full.shape[0]) if r != k and not (r < len(qi) and qi[r] in found)]
+            if np.abs(full[rows, k]).max(initial=0.0) <= bound:
+                found.add(i)
+                added = True
+    return sorted(found)
 
 
 def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequence[str] = (),
@@ -389,10 +418,11 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
 
     cnames, snames = list(model.coordinate_names), list(model.speed_names)
     ignored, ignored_w = _ignored(derivation, sens, ignore)
-    keep_q = [i for i in range(nq) if i not in ignored]
     named_q = None if coordinates is None else [cnames.index(_known(x, cnames, "coordinate")) for x in coordinates]
     named_w = None if speeds is None else [snames.index(_known(x, snames, "speed")) for x in speeds]
-    qi, qd = _independent(Fq, keep_q, named_q, "coordinates")
+    if named_q is not None:
+        named_q = named_q + [i for i in ignored if i not in named_q]
+    qi, qd = _independent(Fq, list(range(nq)), named_q, "coordinates", keep=ignored)
     if named_w is not None:
         named_w = named_w + [i for i in ignored_w if i not in named_w]
     wi, wd = _independent(phiw, list(range(n)), named_w, "speeds", keep=ignored_w)
@@ -412,30 +442,36 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     rows = qi + [nq + i for i in wi]
     Gy = np.vstack([Ky, ay])
     Gu = np.vstack([Ku, au])
+    full = Gy[rows, :] @ T
+    if ignore == "cyclic":
+        ignored = _cyclic_states(full, qi, ignored)
+    # coordinates and speeds left out (cyclic coordinates, a steady speed decoupled from the
+    # rest): their columns and rows go, once the columns are shown to vanish in the rows kept
+    drop = [qi.index(i) for i in ignored] + [len(qi) + wi.index(i) for i in ignored_w]
+    keep = [k for k in range(len(rows)) if k not in drop]
     rates = model.coordinate_rates(tt, q, w, pv)
     G = np.concatenate([rates, a])
-    steady = float(np.abs(G[rows]).max(initial=0.0))
+    steady = float(np.abs(G[[rows[k] for k in keep]]).max(initial=0.0))
     if check and steady > STEADY_TOLERANCE * (1.0 + float(np.abs(np.concatenate([q, w])).max(initial=0.0))):
-        moving = [(cnames + [f"{x}'" for x in snames])[r] for r in rows if abs(G[r]) > STEADY_TOLERANCE]
+        moving = [(cnames + [f"{x}'" for x in snames])[rows[k]] for k in keep if abs(G[rows[k]]) > STEADY_TOLERANCE]
         raise ModelError(f"the point is neither an equilibrium nor a steady motion: {', '.join(moving)} change "
                          f"there (largest rate {steady:.3g})",
                          hint="find one with appell.steady_motion, or leave the moving coordinates out (ignore=)")
-    # speeds left out (a steady speed decoupled from the rest to first order): their columns
-    # and rows go, once the columns are shown to vanish in the rows kept
-    drop = [len(qi) + wi.index(i) for i in ignored_w]
-    keep = [k for k in range(len(rows)) if k not in drop]
-    full = Gy[rows, :] @ T
     if drop:
-        coupling = np.abs(full[np.ix_(keep, drop)]).max(initial=0.0)
-        if coupling > DECOUPLED * max(1.0, np.abs(full[np.ix_(keep, keep)]).max(initial=0.0)):
-            raise ModelError(f"the speeds {', '.join(snames[i] for i in ignored_w)} cannot be left out here: the "
-                             f"other states depend on them to first order (coupling {coupling:.3g})",
-                             hint="keep them in the linear model")
+        coupling = np.abs(full[np.ix_(keep, drop)]).max(axis=0, initial=0.0)
+        worst = int(np.argmax(coupling))
+        if coupling[worst] > DECOUPLED * max(1.0, np.abs(full[np.ix_(keep, keep)]).max(initial=0.0)):
+            name = ([cnames[i] for i in ignored] + [snames[i] for i in ignored_w])[worst]
+            raise ModelError(f"{name} cannot be left out here: the other states depend on it to first order "
+                             f"(coupling {coupling[worst]:.3g})",
+                             hint="keep it in the linear model (ignore only coordinates nothing depends on, "
+                                  "or 'cyclic')")
     A = full[np.ix_(keep, keep)]
     B = Gu[rows, :][keep]
     T, rows = T[:, keep], [rows[k] for k in keep]
-    wi = [i for i in wi if i not in ignored_w]
     Tw = Tw[:, [k for k in range(Tw.shape[1]) if len(qi) + k not in drop]]
+    qi = [i for i in qi if i not in ignored]
+    wi = [i for i in wi if i not in ignored_w]
     # outputs: the multipliers, then the model's outputs (chain rule through a and lambda)
     zy_full = zy + za @ ay + zl @ ly
     zu_full = zu + za @ au + zl @ lu
@@ -481,7 +517,12 @@ def steady_motion(derivation, guess: Mapping[str, float] | None = None, *, free:
     for name in free:
         _known(name, names, "coordinate or speed")
     if ignore == "cyclic":
-        skip = set(_ignored(derivation, _sensitivities(derivation, ()), "cyclic"))
+        # the cyclic coordinates at the guess: a symmetry holds at every point
+        try:
+            found = linearise(derivation, guess, params=params, ignore="cyclic", check=False).ignored
+        except (ModelError, ComputationError):
+            found = [cnames[i] for i in _ignored(derivation, _sensitivities(derivation, ()), "cyclic")[0]]
+        skip = {cnames.index(x) for x in found if x in cnames}
     else:
         # speeds left out of a linear model are no concern of the steady motion
         skip = {cnames.index(_known(x, names, "coordinate or speed")) for x in (ignore or ()) if x not in snames}
