@@ -55,7 +55,7 @@ from appell.errors import ComputationError, ModelError
 from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
 from appell.symbols import t
 
-__all__ = ["ExactJacobians", "LinearModel", "linearise", "steady_motion", "STEADY_TOLERANCE"]
+__all__ = ["ExactJacobians", "LinearModel", "linearise", "motion_jacobian", "steady_motion", "STEADY_TOLERANCE"]
 
 #: largest ``|P G|`` at the point, relative to ``1 + |y|``, for it to count as steady
 STEADY_TOLERANCE = 1e-8
@@ -262,10 +262,52 @@ def _sensitivities(derivation, inputs: tuple) -> _Sensitivities:
         for k in [k for k, (ref, _) in _COMPILED.items() if ref() is None]:
             del _COMPILED[k]
         entry = _COMPILED[key] = (weakref.ref(derivation), {})
-    psyms = {s.name: s for s in derivation.numeric.parameters}
     if inputs not in entry[1]:
+        psyms = {p.symbol.name: p.symbol for p in derivation.system.parameters}
         entry[1][inputs] = _Sensitivities(derivation, [psyms[u] for u in inputs])
     return entry[1][inputs]
+
+
+def _solved_sensitivities(model, sens: _Sensitivities, tt, q, w, pv):
+    """At ``(t, q, w)``: the split's solution, the exact Jacobians of :class:`_Sensitivities`,
+    the blocks ``(M, h - Q, J, c)`` and ``(da/dy, dlambda/dy, da/du, dlambda/du)`` by
+    (1.4)/(1.5) with the sensitivities as right-hand sides (module docstring)."""
+    nq, n, s, _, _, _, nu = sens.shapes
+    sol = model.solve(tt, q, w, pv)
+    jacobians = sens(tt, q, w, sol.accelerations, sol.multipliers, pv)
+    Ry, Sy, _, Ru, Su = jacobians[:5]
+    blocks = M, _, J, _ = model.evaluate_blocks(tt, q, w, pv)
+    try:
+        dep, Jh_inv, _, kappa = (partition_in_use(J, model.derivation.partition.dependent, model.constraint_names)
+                                 if s else ((), None, False, 1.0))
+        # (da, dlambda) for every column of the (R, S) sensitivities at once: (1.4), (1.5)
+        ay, ly = split_solve(M, Ry.reshape(n, nq + n), J, Sy.reshape(s, nq + n), dep, Jh_inv, kappa)
+        au, lu = split_solve(M, Ru.reshape(n, nu), J, Su.reshape(s, nu), dep, Jh_inv, kappa)
+    except np.linalg.LinAlgError as exc:
+        raise ComputationError(f"the split is singular at t = {float(tt):.10g}: no linear model",
+                               hint="a singular configuration or a singular partition") from exc
+    split = (ay.reshape(n, nq + n), ly.reshape(s, nq + n), au.reshape(n, nu), lu.reshape(s, nu))
+    return sol, jacobians, blocks, split
+
+
+def motion_jacobian(model):
+    """``jac(t, y, p) = dG/dy`` of the motion ``dy/dt = G = (K w + k, a)`` of a numeric
+    model (NumPy or compiled), exact to rounding: ``[K_y; da/dy]`` with ``da/dy`` by the
+    split (module docstring). The Jacobian that Radau, BDF and LSODA use in their Newton
+    iterations, in place of finite differences of the whole solve. None for constraints
+    nonlinear in the accelerations."""
+    derivation = model.derivation
+    if not derivation.constraints.linear:
+        return None
+    sens = _sensitivities(derivation, ())
+    nq = sens.shapes[0]
+
+    def jac(tt, y, p):
+        y = np.asarray(y, float)
+        _, jacobians, _, (ay, _, _, _) = _solved_sensitivities(model, sens, tt, y[:nq], y[nq:], p)
+        return np.vstack([jacobians[2], ay])
+
+    return jac
 
 
 def _independent(matrix: np.ndarray, candidates: list[int], named: Sequence[int] | None, what: str,
@@ -400,21 +442,9 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     sens = _sensitivities(derivation, tuple(inputs))
     tt, q, w, pv = _state(derivation, at, params)
     nq, n, s, nF, nphi, nz, nu = sens.shapes
-    sol = model.solve(tt, q, w, pv)
-    a, lam = sol.accelerations, sol.multipliers
-    Ry, Sy, Ky, Ru, Su, Ku, Fq, phiq, phiw, zy, za, zl, zu = sens(tt, q, w, a, lam, pv)
-    M, hQ, J, c = model.evaluate_blocks(tt, q, w, pv)
-    try:
-        dep, Jh_inv, _, kappa = (partition_in_use(J, derivation.partition.dependent, model.constraint_names)
-                                 if s else ((), None, False, 1.0))
-        # (da, dlambda) for every column of the (R, S) sensitivities at once: (1.4), (1.5)
-        ay, ly = split_solve(M, Ry.reshape(n, nq + n), J, Sy.reshape(s, nq + n), dep, Jh_inv, kappa)
-        au, lu = split_solve(M, Ru.reshape(n, nu), J, Su.reshape(s, nu), dep, Jh_inv, kappa)
-    except np.linalg.LinAlgError as exc:
-        raise ComputationError("the split is singular at this point: no linear model",
-                               hint="a singular configuration or a singular partition") from exc
-    ay, ly = ay.reshape(n, nq + n), ly.reshape(s, nq + n)
-    au, lu = au.reshape(n, nu), lu.reshape(s, nu)
+    sol, jacobians, (M, _, _, _), (ay, ly, au, lu) = _solved_sensitivities(model, sens, tt, q, w, pv)
+    a = sol.accelerations
+    Ry, Sy, Ky, Ru, Su, Ku, Fq, phiq, phiw, zy, za, zl, zu = jacobians
 
     cnames, snames = list(model.coordinate_names), list(model.speed_names)
     ignored, ignored_w = _ignored(derivation, sens, ignore)

@@ -114,6 +114,12 @@ def _frozen_arrays(mapping) -> Mapping[str, np.ndarray]:
 #: the unit recorded for a column whose unit the model does not declare
 UNSPECIFIED = "unspecified"
 
+#: the groups of a grouped result file (HDF5, a sweep), in file order; "" is the root (t)
+GROUPS = ("", "states", "accelerations", "multipliers", "outputs", "controls", "friction", "residuals/position",
+          "residuals/velocity", "residuals/servo")
+#: groups written even when empty (readers of earlier files expect them)
+ALWAYS = ("states", "accelerations", "multipliers", "controls", "residuals/position", "residuals/velocity")
+
 #: at most this many events are listed by :meth:`Solution.summary`
 SUMMARY_EVENTS = 10
 
@@ -133,14 +139,18 @@ def per_second(unit: str) -> str:
 @dataclass(frozen=True)
 class Column:
     """One result column: ``name``, ``values``, ``kind`` (``'time'``, ``'coordinate'``,
-    ``'speed'``, ``'state'``, ``'acceleration'``, ``'multiplier'``, ``'control'``,
-    ``'friction'``, ``'residual'``), ``long_name`` (what it is, in words) and ``units``."""
+    ``'speed'``, ``'state'``, ``'acceleration'``, ``'multiplier'``, ``'output'``,
+    ``'control'``, ``'friction'``, ``'residual'``), ``long_name`` (what it is, in words),
+    ``units``, and ``group``/``key``: its place in a grouped file (:data:`GROUPS`)."""
 
     name: str
     values: np.ndarray
     kind: str
     long_name: str
     units: str
+    #: where the column lives in a grouped file (HDF5, a sweep): the group and the name in it
+    group: str = ""
+    key: str = ""
 
 
 @dataclass(frozen=True, repr=False)
@@ -294,34 +304,52 @@ class Solution:
                 return per_second(table[speed_of[name]])
             return UNSPECIFIED
 
-        cols = [Column("t", self.t, "time", "time", unit("t"))]
+        cols = [Column("t", self.t, "time", "time", unit("t"), "", "t")]
         for n, a in self.states.items():
             kind = "coordinate" if n in self.coordinate_names else "speed" if n in self.speed_names else "state"
-            cols.append(Column(n, a, kind, f"{kind} {n}", unit(n)))
+            cols.append(Column(n, a, kind, f"{kind} {n}", unit(n), "states", n))
         for n, a in self.accelerations.items():
             of = f" (time derivative of the speed {speed_of[n]})" if n in speed_of else ""
-            cols.append(Column(n, a, "acceleration", f"acceleration {n}{of}", unit(n)))
+            cols.append(Column(n, a, "acceleration", f"acceleration {n}{of}", unit(n), "accelerations", n))
         for n, a in self.multipliers.items():
             cols.append(Column(f"lambda_{n}", a, "multiplier",
-                               f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)", unit(f"lambda_{n}")))
+                               f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)", unit(f"lambda_{n}"),
+                               "multipliers", n))
         for n, a in self.outputs.items():
-            cols.append(Column(n, a, "output", self.output_descriptions.get(n) or f"output {n}", unit(n)))
+            cols.append(Column(n, a, "output", self.output_descriptions.get(n) or f"output {n}", unit(n), "outputs", n))
         for n, a in self.controls.items():
-            cols.append(Column(f"control_{n}", a, "control", f"control {n}", unit(f"control_{n}")))
+            cols.append(Column(f"control_{n}", a, "control", f"control {n}", unit(f"control_{n}"), "controls", n))
         for n, a in self.friction.items():
             what = (f"state of friction {n[:-9]}: 1 slipping, 0 sticking" if n.endswith("_slipping") else
                     f"friction force component {n} (generalized force (dv_t/dw)^T F_t)")
-            cols.append(Column(f"friction_{n}", a, "friction", what, unit(f"friction_{n}")))
+            cols.append(Column(f"friction_{n}", a, "friction", what, unit(f"friction_{n}"), "friction", n))
         kinds = dict(zip(self.metadata.constraint_names, self.metadata.constraint_kinds))
         for n, a in self.residuals.items():
             what = {"holonomic": f"position residual F of the holonomic constraint {n}",
                     "first-order": f"velocity residual phi of the first-order constraint {n}"}.get(
                 kinds.get(n), f"second-order constraint {n}: no position or velocity residual (NaN)")
-            cols.append(Column(f"residual_{n}", a, "residual", what, unit(f"residual_{n}")))
+            group = "residuals/velocity" if kinds.get(n) == "first-order" else "residuals/position"
+            cols.append(Column(f"residual_{n}", a, "residual", what, unit(f"residual_{n}"), group, n))
         for n, a in self.tracking.items():
             cols.append(Column(f"residual_{n}", a, "residual", f"tracking error of the servo constraint {n} "
-                               "at its own level", unit(f"residual_{n}")))
+                               "at its own level", unit(f"residual_{n}"), "residuals/servo", n))
         return cols
+
+    def grouped(self, units: Mapping[str, str] | None = None) -> list[Column]:
+        """Every column of :meth:`column_info` in its group, plus the residual of each
+        constraint at the level it does not own (``residuals/position`` and
+        ``residuals/velocity`` hold every constraint, NaN where it has no such level): the
+        layout of :meth:`to_hdf5` and of a sweep's file (:data:`GROUPS`)."""
+        cols = self.column_info(units)
+        placed = {(c.group, c.key) for c in cols}
+        for group, table, level in (("residuals/position", self.position_residuals, "position residual F"),
+                                    ("residuals/velocity", self.velocity_residuals, "velocity residual phi")):
+            for n, a in table.items():
+                if (group, n) not in placed:
+                    units_of = next((c.units for c in cols if c.name == f"residual_{n}"), UNSPECIFIED)
+                    cols.append(Column(f"residual_{n}", a, "residual",
+                                       f"{level} of constraint {n} (NaN: no such level)", units_of, group, n))
+        return sorted(cols, key=lambda c: GROUPS.index(c.group))
 
     def columns(self) -> list[tuple[str, np.ndarray]]:
         """The CSV columns in file order (see the module docstring)."""
@@ -443,11 +471,13 @@ class Solution:
     def to_hdf5(self, path, units: Mapping[str, str] | None = None) -> Path:
         """Write a self-describing HDF5 file (atomically).
 
-        Datasets ``/t``, ``/states/<name>``, ``/accelerations/<name>``,
-        ``/multipliers/<constraint>``, ``/outputs/<name>`` (when the model has outputs), ``/controls/<name>``, ``/residuals/position/<c>``,
-        ``/residuals/velocity/<c>``, ``/residuals/servo/<c>`` (tracking errors of servo
-        constraints), each with ``units`` and ``description`` attributes (the units of
-        :meth:`column_info`); ``/t`` is the dimension scale of every other dataset, so that
+        Every column of :meth:`column_info` in its group (:meth:`grouped`, :data:`GROUPS`):
+        datasets ``/t``, ``/states/<name>``, ``/accelerations/<name>``,
+        ``/multipliers/<constraint>``, ``/outputs/<name>``, ``/controls/<name>``,
+        ``/friction/<name>`` (the last three when the model has them),
+        ``/residuals/position/<c>``, ``/residuals/velocity/<c>``, ``/residuals/servo/<c>``
+        (tracking errors of servo constraints), each with ``units`` and ``description``
+        attributes (those of :meth:`column_info`); ``/t`` is the dimension scale of every other dataset, so that
         ``xarray.open_datatree(path, engine="h5netcdf")`` reads each group on ``t``. Root
         attributes: model name, status, message, appell version, constraint names and
         kinds, solver statistics, settings; group ``/parameters`` with one attribute per
@@ -457,7 +487,6 @@ class Solution:
         import h5py
 
         md = self.metadata
-        info = {c.name: c for c in self.column_info(units)}
         path = Path(path)
 
         def fill(f):
@@ -483,41 +512,17 @@ class Solution:
                 pg.attrs[f"{name}.unit"] = unit or UNSPECIFIED
                 pg.attrs[f"{name}.description"] = desc or ""
 
-            def put(group, key, column, data, description=None):
-                ds = group.create_dataset(key, data=np.asarray(data, float))
-                ds.attrs["units"] = info[column].units
-                ds.attrs["description"] = description or info[column].long_name
-                if key != "t" or group.name != "/":
+            first, *rest = self.grouped(units)  # t, then every other column
+            for c in [first] + rest:
+                ds = f.require_group(c.group or "/").create_dataset(c.key, data=np.asarray(c.values, float))
+                ds.attrs["units"] = c.units
+                ds.attrs["description"] = c.long_name
+                if c is first:
+                    ds.make_scale("t")
+                    for group in ALWAYS:
+                        f.require_group(group)
+                else:
                     ds.dims[0].attach_scale(f["t"])
-                return ds
-
-            put(f, "t", "t", self.t).make_scale("t")
-            g = f.create_group("states")
-            for n, a in self.states.items():
-                put(g, n, n, a)
-            g = f.create_group("accelerations")
-            for n, a in self.accelerations.items():
-                put(g, n, n, a)
-            g = f.create_group("multipliers")
-            for n, a in self.multipliers.items():
-                put(g, n, f"lambda_{n}", a)
-            if self.outputs:
-                g = f.create_group("outputs")
-                for n, a in self.outputs.items():
-                    put(g, n, n, a)
-            g = f.create_group("controls")
-            for n, a in self.controls.items():
-                put(g, n, f"control_{n}", a)
-            g = f.create_group("residuals")
-            gp, gv = g.create_group("position"), g.create_group("velocity")
-            for n, a in self.position_residuals.items():
-                put(gp, n, f"residual_{n}", a, f"position residual F of constraint {n} (NaN: no such level)")
-            for n, a in self.velocity_residuals.items():
-                put(gv, n, f"residual_{n}", a, f"velocity residual phi of constraint {n} (NaN: no such level)")
-            if self.tracking:
-                gt = g.create_group("servo")
-                for n, a in self.tracking.items():
-                    put(gt, n, f"residual_{n}", a)
             for key, lines in (("events", [str(e) for e in self.events]), ("log", list(self.log))):
                 f.create_dataset(key, data=np.array(lines, dtype=h5py.string_dtype())).make_scale(key)
 

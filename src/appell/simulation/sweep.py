@@ -14,8 +14,11 @@ Output: one HDF5 file (written to a temporary name, then renamed) with
 
 * ``t`` (T) — the common output times;
 * ``parameters/<name>`` (R) — the parameter values of each run;
-* ``states/<name>``, ``multipliers/<name>``, ``controls/<name>`` (R x T) — NaN where a run
-  failed or ended early;
+* every column of a run's result in the groups of its own HDF5 file
+  (:meth:`~appell.simulation.solution.Solution.grouped`): ``states/<name>``,
+  ``accelerations/<name>``, ``multipliers/<name>``, ``outputs/<name>`` (joint forces and
+  moments, contact forces), ``controls/<name>``, ``friction/<name>``,
+  ``residuals/position|velocity|servo/<name>`` (R x T) — NaN where a run failed or ended early;
 * ``status`` (R; 0 reached t_end, 1 terminal event, -1 integration failed, -2 raised),
   ``message`` (R), ``wall_time`` (R);
 
@@ -184,7 +187,8 @@ class _Shipment:
     ``backend`` ('c', 'auto' or 'numpy'). The C library itself is not shipped: the client
     compiled it into the shared cache (:func:`appell.numerics.codegen_c.build_library`),
     where :func:`~appell.numerics.codegen_c.compile_c` finds it by the key of its source; a
-    worker on another machine compiles it once there (under the cache's lock). Any other
+    worker on another machine compiles it once there (under the cache's lock). A derivation
+    with servo constraints has ``backend`` 'own': each worker makes its NumPy model. Any other
     picklable Dynamics is shipped as it is (``dynamics``). ``key`` names the model by its
     content, so a cluster kept across sweeps builds each model once.
     """
@@ -198,6 +202,8 @@ class _Shipment:
         """The Dynamics: ``dynamics``, or the derivation compiled with ``backend``."""
         if self.dynamics is not None:
             return self.dynamics
+        if self.backend == "own":  # a derivation with its own numeric model (servo constraints)
+            return self.derivation.numeric
         from appell.numerics.codegen_c import compile_c
 
         return compile_c(self.derivation, self.backend)
@@ -227,11 +233,11 @@ def _run_one(shipment, index, params, t_end, t_eval, options) -> dict:
 
         model = _model_on_worker(shipment)
         sol = simulate(model, t_end, t_eval=t_eval, params=params, progress=False, **options)
+        groups: dict = {}
+        for c in sol.grouped()[1:]:  # every column of the result, as the run's own HDF5 file has it
+            groups.setdefault(c.group, {})[c.key] = np.asarray(c.values)
         return {"index": index, "status": int(sol.status), "message": str(sol.message), "t": np.asarray(sol.t),
-                "states": {k: np.asarray(v) for k, v in sol.states.items()},
-                "multipliers": {k: np.asarray(v) for k, v in sol.multipliers.items()},
-                "controls": {k: np.asarray(v) for k, v in sol.controls.items()},
-                "wall_time": time.perf_counter() - start}
+                "groups": groups, "wall_time": time.perf_counter() - start}
     except Exception as exc:  # noqa: BLE001 (a failed run is recorded, not fatal)
         return {"index": index, "status": RAISED, "message": f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}",
                 "wall_time": time.perf_counter() - start}
@@ -278,23 +284,39 @@ def _names(payload):
         tuple(p.symbol.name for p in system.parameters)
 
 
+#: the groups of a partial file written before every column was kept (resumed as they are)
+_EARLIER_GROUPS = ("states", "multipliers", "controls")
+
+
+def _groups_of(result: dict) -> dict:
+    """``{group: {name: array}}`` of one run's result (also one from an earlier partial file)."""
+    if "groups" in result:
+        return result["groups"]
+    return {g: result[g] for g in _EARLIER_GROUPS if g in result}
+
+
 def _assemble(results, runs_params, t_eval):
+    """``{group: {name: (R, T) array}}`` over the runs, every column any run has
+    (:meth:`~appell.simulation.solution.Solution.grouped`), NaN where a run has none."""
+    from appell.simulation.solution import GROUPS
+
     R, T = len(results), len(t_eval)
-    groups = {"states": {}, "multipliers": {}, "controls": {}}
+    groups: dict = {"states": {}, "multipliers": {}, "controls": {}}
     for r in results:
-        for g in groups:
-            for k in r.get(g, {}):
-                groups[g].setdefault(k, np.full((R, T), np.nan))
+        for g, items in _groups_of(r).items():
+            for k in items:
+                groups.setdefault(g, {}).setdefault(k, np.full((R, T), np.nan))
     for r in results:
         if "t" not in r:
             continue
         # a run that ended early has fewer output times: match them to t_eval
         idx = np.searchsorted(t_eval, r["t"])
         ok = (idx < T) & np.isclose(t_eval[np.minimum(idx, T - 1)], r["t"], rtol=0, atol=1e-12 * max(1.0, abs(t_eval[-1])))
-        for g in groups:
-            for k, v in r.get(g, {}).items():
+        for g, items in _groups_of(r).items():
+            for k, v in items.items():
                 groups[g][k][r["index"], idx[ok]] = np.asarray(v)[ok]
-    return groups
+    order = {g: i for i, g in enumerate(GROUPS)}
+    return dict(sorted(groups.items(), key=lambda item: order.get(item[0], len(order))))
 
 
 def _summary(groups, runs) -> dict:
@@ -425,9 +447,12 @@ def read_partial(path) -> tuple[dict, list[dict]]:
                 continue
             if not isinstance(obj, dict):
                 break
-            for group in ("states", "multipliers", "controls"):
+            for group in _EARLIER_GROUPS:
                 if group in obj:
                     obj[group] = {k: np.asarray(v, float) for k, v in obj[group].items()}
+            if isinstance(obj.get("groups"), dict):
+                obj["groups"] = {g: {k: np.asarray(v, float) for k, v in items.items()}
+                                 for g, items in obj["groups"].items()}
             if "t" in obj:
                 obj["t"] = np.asarray(obj["t"], float)
             runs.append(obj)
@@ -654,12 +679,16 @@ def _prepare(model, backend: str) -> _Shipment:
         shipment = _Shipment(uuid.uuid4().hex, dynamics=model)
         _model_on_worker(shipment)
         return shipment
+    elif hasattr(model, "control_laws"):
+        # servo constraints: the derivation's own NumPy model, made again on each worker
+        numeric, derivation, backend = model.numeric, model, "own"
     else:
         numeric, derivation = compile_c(model, backend), model
     derivation = _symbolic(derivation)
     compiled = isinstance(numeric, CompiledNumericModel)
     # 'auto' stays 'auto' on the workers (a machine without a compiler falls back there too)
-    backend = ("auto" if backend == "auto" else "c") if compiled else "numpy"
+    if backend != "own":
+        backend = ("auto" if backend == "auto" else "c") if compiled else "numpy"
     try:
         key = hashlib.sha256(pickle.dumps((backend, derivation))).hexdigest()[:32]
     except Exception:  # noqa: BLE001 (Python callables in a System: threads still share the model built here)
@@ -951,7 +980,11 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
                          hint="parameters of the model: " + ", ".join(pnames))
     t_eval = np.linspace(0.0, t_end, samples) if t_eval is None else times(t_eval, "t_eval", 0.0, t_end)
     states, multipliers, controls, _ = _names(model)
-    columns = 1 + len(states or ()) + len(multipliers or ()) + len(controls or ())
+    # every column kept: states and their accelerations, per constraint its multiplier and two
+    # residuals, the controls and the outputs
+    system = getattr(model, "system", None) or getattr(getattr(model, "derivation", None), "system", None)
+    outputs = len(getattr(system, "outputs", ()) or ())
+    columns = 1 + 2 * len(states or ()) + 3 * len(multipliers or ()) + len(controls or ()) + outputs
     check_memory(len(grid) * len(t_eval), columns, f"the sweep's {len(grid):,} runs at {len(t_eval):,} output times",
                  row_by_row=False, hint="sweep fewer runs or record fewer output times (--samples, t_eval)")
     path = Path(output)
