@@ -280,8 +280,10 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
         if singular:
             hint = (f"end the run before it (--t-end below {singular[-1].t:.6g}) or change the geometry or the "
                     "start so that the motion avoids this position; appell does not pass singular positions yet")
-        raise ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
-                               hint=hint)
+        error = ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
+                                 hint=hint)
+        error.solution = solution  # the motion up to the failure, for the output files
+        raise error
     return solution
 
 
@@ -622,7 +624,9 @@ def simulate(model, t_end, out, plot, backend, assignments, complete, adjust, so
     """Simulate the motion with its reactions, controls and constraint residuals.
 
     CSV columns: t, each coordinate, each speed, lambda_<constraint>, control_<control>,
-    residual_<constraint>. Nothing is written when the simulation fails. Initial values
+    residual_<constraint>. When the integration fails, the motion up to the failure is
+    written (HDF5 and netCDF mark it with status -1 and the message) and the exit code is 1.
+    Initial values
     the model does not give are computed; a start that violates a constraint is refused
     (exit 2) unless --complete (or --adjust) is given, which prints each changed value.
     """
@@ -637,7 +641,10 @@ def simulate(model, t_end, out, plot, backend, assignments, complete, adjust, so
             output_target(target)  # a device, a FIFO, a directory: refused before the simulation
     system = load_system(model, parse_assignments(assignments))
     derivation = derive_model(system)
-    solution = run_simulation(derivation, t_end, backend, solver, **_completion(complete, adjust))
+    try:
+        solution = run_simulation(derivation, t_end, backend, solver, **_completion(complete, adjust))
+    except ComputationError as exc:
+        raise _keep_failed_motion(exc, out_path, plot) from exc
     if out_path is not None:
         export_solution(solution, out_path)
     if plot:
@@ -649,6 +656,27 @@ def simulate(model, t_end, out, plot, backend, assignments, complete, adjust, so
     for path in (out_path, plot):
         if path:
             click.echo(f"wrote {path}")
+
+
+def _keep_failed_motion(exc, out_path: Path | None, plot) -> Exception:
+    """A failed integration keeps what it computed (as SciPy's result does): the motion up
+    to the failure is written to ``--out`` (HDF5 and netCDF files carry the status -1 and the
+    message as attributes) and ``--plot``, and the error says where and up to when. Returns
+    the error to raise (``exc`` itself when there was nothing to write)."""
+    solution = getattr(exc, "solution", None)
+    if solution is None or solution.t.size == 0 or (out_path is None and not plot):
+        return exc
+    written = []
+    if out_path is not None:
+        written.append(str(export_solution(solution, out_path)))
+    if plot:
+        solution.plot(plot)
+        written.append(str(plot))
+    kept = (f"the motion up to t = {solution.t[-1]:.10g}, where it failed, is written to {' and '.join(written)}"
+            + (" (status -1 and the message in its attributes)" if out_path is not None
+               and OUTPUT_FORMATS[out_path.suffix.lower()] != "csv" else ""))
+    return ComputationError(exc.message, where=exc.where,
+                            hint="; ".join(h for h in (exc.hint, kept) if h))
 
 
 def _first_integrals(derivation):

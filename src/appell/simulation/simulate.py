@@ -345,6 +345,19 @@ class _Run:
                             np.asarray(track, float).reshape(m, len(self.tracking_names)),
                             np.asarray(friction, float).reshape(m, width)))
 
+    def forget_after(self, t: float) -> None:
+        """Drop the recorded rows after ``t``: a singular point is recognised one step late
+        (the dip of the scaled singular value shows in the next step), and the rows of the
+        step past it are not on a determined branch."""
+        kept = []
+        for block in self.blocks:
+            keep = block[0] <= t
+            if keep.all():
+                kept.append(block)
+            elif keep.any():
+                kept.append(tuple(x[keep] for x in block))
+        self.blocks = kept
+
     def loop(self, model):
         """The compiled-loop context of ``model`` (:class:`CompiledLoop`, evaluating through
         :meth:`evaluate` where the compiled split refuses a state), or None for a model it
@@ -749,6 +762,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                 if singular is not None:
                     before = int(np.searchsorted(t_eval, singular.t, side="left"))
                     run.record_many(active, t_eval[k:before], dense)
+                    run.forget_after(singular.t)
                     k = max(k, before)
                     run.events.append(EventRecord("singular", ", ".join(singular.constraints), singular.t,
                                                   singular.describe()))
