@@ -84,11 +84,12 @@ def parse_assignments(items) -> dict[str, str]:
     return out
 
 
-def load_system(model: str, overrides=None):
-    """Load a model file (or bundled example) with parameter / initial-value ``overrides``."""
+def load_system(model: str, overrides=None, floating_base: bool = False):
+    """Load a model file (or bundled example) with parameter / initial-value ``overrides``;
+    ``floating_base`` puts a ``.urdf`` robot's root link on a free joint."""
     from appell.io.modelfile import load_model
 
-    return load_model(resolve_model(model), overrides=overrides or None)
+    return load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base)
 
 
 def derive_model(system, dependent=None, formulas: bool = False):
@@ -467,6 +468,16 @@ _backend_option = click.option("--backend", type=click.Choice(["auto", "c", "num
                                     "is found, else NumPy), or NumPy.")
 _set_option = click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
                            help="Override a parameter or an initial value (repeatable), e.g. --set M=1500 --set \"phi'=0.2\".")
+_floating_option = click.option("--floating-base", "floating_base", is_flag=True,
+                                help="A .urdf robot's root link moves on a free joint 'root_joint' (a quadruped, "
+                                     "a humanoid): translations and a quaternion, as Pinocchio's free flyer.")
+
+
+def _model_options(command):
+    """``--set`` and ``--floating-base``, the options of every command that loads a model."""
+    return _set_option(_floating_option(command))
+
+
 _complete_option = click.option("--complete", is_flag=True,
                                 help="Change given initial values that violate a constraint (servo constraints "
                                      "included) so that it holds, and print each change; without it such a start "
@@ -567,14 +578,14 @@ def cli():
               help="Print only these items (repeatable): motion (the accelerations of (1.4) and f = 0), "
                    "reactions ((1.5), also solved in t, q, w), outputs (e.g. joint forces and moments, "
                    "in t, q, w, a and the multipliers) or controls (control laws and (2.3)).")
-@_set_option
-def derive(model, fmt, dependent, routh, assignments, only):
+@_model_options
+def derive(model, fmt, dependent, routh, assignments, floating_base, only):
     """Print the reduced equations (1.4) and one reaction formula per constraint (1.5).
 
     For a model with servo constraints: the dynamic conditions (2.3), the reduced
     equations (2.4), the reactions (2.5) and the control laws.
     """
-    system = load_system(model, parse_assignments(assignments))
+    system = load_system(model, parse_assignments(assignments), floating_base)
     reduction = None
     if routh:
         from appell.reduction.cyclic import routh_reduction
@@ -617,10 +628,10 @@ def derive(model, fmt, dependent, routh, assignments, only):
               help="Plot coordinates, reactions, controls and residuals to FILE (e.g. .png, .pdf, .svg).")
 @_solver_options
 @_backend_option
-@_set_option
+@_model_options
 @_complete_option
 @_adjust_option
-def simulate(model, t_end, out, plot, backend, assignments, complete, adjust, solver):
+def simulate(model, t_end, out, plot, backend, assignments, floating_base, complete, adjust, solver):
     """Simulate the motion with its reactions, controls and constraint residuals.
 
     CSV columns: t, each coordinate, each speed, lambda_<constraint>, control_<control>,
@@ -639,7 +650,7 @@ def simulate(model, t_end, out, plot, backend, assignments, complete, adjust, so
             raise click.BadParameter(f"directory {str(target.parent)!r} does not exist", param_hint="'--out/--plot'")
         if target is not None:
             output_target(target)  # a device, a FIFO, a directory: refused before the simulation
-    system = load_system(model, parse_assignments(assignments))
+    system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
     try:
         solution = run_simulation(derivation, t_end, backend, solver, **_completion(complete, adjust))
@@ -753,8 +764,8 @@ def _verdict(check_report, energy, tolerance: float, energy_tolerance: float) ->
               help="Final time of the motion whose energy balance is checked (default: the model's "
                    "[simulation] t_end, else 10).")
 
-@_set_option
-def check(model, tolerance, energy_tolerance, t_end, assignments):
+@_model_options
+def check(model, tolerance, energy_tolerance, t_end, assignments, floating_base):
     """Check the split (1.4)/(1.5) against independent routes, and the energy balance.
 
     Prints, per route, the largest normalised difference of the accelerations and of each
@@ -771,7 +782,7 @@ def check(model, tolerance, energy_tolerance, t_end, assignments):
     for name, value in (("--tolerance", tolerance), ("--energy-tolerance", energy_tolerance)):
         if not value > 0:
             raise click.BadParameter("must be positive", param_hint=f"'{name}'")
-    system = load_system(model, parse_assignments(assignments))
+    system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
     report = _cross_check(derivation)
     _echo_redundancy(derivation)
@@ -801,10 +812,10 @@ def check(model, tolerance, energy_tolerance, t_end, assignments):
 @click.option("--no-simulation", is_flag=True, help="Leave out the simulation and its plots.")
 @_solver_options
 @_backend_option
-@_set_option
+@_model_options
 @_complete_option
 @_adjust_option
-def report(model, output, t_end, no_simulation, backend, assignments, complete, adjust, solver):
+def report(model, output, t_end, no_simulation, backend, assignments, floating_base, complete, adjust, solver):
     """Write one self-contained HTML page: the model, its equations as mathematics,
     plots of coordinates, reactions and controls, and the cross-check.
 
@@ -818,7 +829,7 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
         raise click.BadParameter(f"directory {str(Path(output).parent)!r} does not exist", param_hint="'-o'")
     if output is not None:
         output_target(output)
-    system = load_system(model, parse_assignments(assignments))
+    system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
     check_report = _cross_check(derivation)
     solution, note = None, None
@@ -866,8 +877,8 @@ def report(model, output, t_end, no_simulation, backend, assignments, complete, 
               help="Take the runs kept in FILE.h5.partial by an earlier, interrupted sweep (same model, grid "
                    "and times) and compute only the others.")
 @_backend_option
-@_set_option
-def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, backend, assignments, solver):
+@_model_options
+def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, backend, assignments, floating_base, solver):
     """Simulate MODEL over a grid of parameter values, in parallel on Dask.
 
     Writes one HDF5 dataset with every run (states, reactions, controls, status) and a
@@ -879,7 +890,7 @@ def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, 
     from appell.simulation.sweep import parameter_grid
     from appell.simulation.sweep import sweep as run_sweep
 
-    system = load_system(model, parse_assignments(assignments))
+    system = load_system(model, parse_assignments(assignments), floating_base)
     if system.servo_constraints:
         raise ModelError("sweeps of models with servo constraints are not supported yet",
                          hint="sweep the plain constrained system, or loop over appell simulate --set")
@@ -920,8 +931,8 @@ def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, 
 @click.option("-o", "--out", "outputs", multiple=True, type=click.Path(dir_okay=False, writable=True),
               metavar="FILE", help="Write the eigenvalues (repeatable): .json, .csv, .nc (netCDF), or a plot "
                                    ".png, .svg, .pdf.")
-@_set_option
-def stability(model, spec, free, ignore, outputs, assignments):
+@_model_options
+def stability(model, spec, free, ignore, outputs, assignments, floating_base):
     """Eigenvalues of the linear model against a parameter or a speed, with the critical
     values where a mode turns unstable or stable.
 
@@ -938,7 +949,7 @@ def stability(model, spec, free, ignore, outputs, assignments):
                                  ".svg or .pdf", param_hint="'-o'")
     for o in outputs:
         output_target(o)
-    system = load_system(model, parse_assignments(assignments))
+    system = load_system(model, parse_assignments(assignments), floating_base)
     if spec is None and not _stability_table(system):
         raise click.UsageError("give --vary NAME=START:STOP:NUM, or a [stability] table in the model file "
                                "(vary = \"NAME=START:STOP:NUM\")")

@@ -584,7 +584,49 @@ def _rpy_of(R) -> tuple[float, float, float]:
     return math.atan2(R[2][1], R[2][2]), pitch, math.atan2(R[1][0], R[0][0])
 
 
-def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
+#: the name of the free joint that ``floating_base`` puts under the root link (Pinocchio's)
+ROOT_JOINT = "root_joint"
+#: its rotation: yaw, pitch, roll (``R = Rz Ry Rx``, coordinates ``root_joint_rz, _ry, _rx``);
+#: a quaternion derives 30 times slower today (issue 22), and pitch +-90 deg, where these
+#: angles are singular, is refused by the mass matrix check, never passed silently
+FLOATING_ROTATION = "zyx"
+
+
+def _root_cluster(robot: UrdfRobot) -> dict[str, tuple[sp.Matrix, sp.Matrix]]:
+    """The root link and every link joined to it by fixed joints only, each with the
+    rotation and origin ``(R, p)`` of its frame in the root link's frame."""
+    out = {robot.root: (sp.eye(3), sp.zeros(3, 1))}
+    for joint in robot.joints_from_root():
+        if joint.type == "fixed" and joint.parent in out:
+            R, p = out[joint.parent]
+            out[joint.child] = (R * _rotation(joint.rpy), p + R * sp.Matrix(joint.xyz))
+    return out
+
+
+def _composite_inertial(robot: UrdfRobot, cluster) -> tuple[float, tuple, sp.Matrix]:
+    """Mass, mass centre and inertia about it, in the root link's frame, of the links in
+    ``cluster`` (:func:`_root_cluster`): the one rigid body a floating base is."""
+    links = {link.name: link for link in robot.links}
+    parts = []
+    for name, (R, p) in cluster.items():
+        inertial = links[name].inertial
+        if inertial is None or inertial.mass == 0.0:
+            continue
+        Ri = R * _rotation(inertial.rpy)
+        parts.append((inertial.mass, p + R * sp.Matrix(inertial.xyz), Ri * sp.Matrix(inertial.inertia_matrix) * Ri.T))
+    mass = sum(m for m, _, _ in parts)
+    if mass == 0.0:
+        return 0.0, (0.0, 0.0, 0.0), sp.zeros(3, 3)
+    com = sum((m * c for m, c, _ in parts), sp.zeros(3, 1)) / mass
+    inertia = sp.zeros(3, 3)
+    for m, c, I_c in parts:  # parallel axes: I_c + m (|d|^2 E - d d^T), d from the composite centre
+        d = c - com
+        inertia += I_c + m * ((d.T * d)[0] * sp.eye(3) - d * d.T)
+    inertia = (inertia + inertia.T) / 2
+    return float(mass), tuple(float(v) for v in com), inertia.applyfunc(lambda v: sp.Float(float(v)))
+
+
+def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool = False):
     """The :class:`~appell.mechanism.Mechanism` of ``robot`` and the extra constraints of its
     mimic joints: ``(mechanism, constraints)``.
 
@@ -606,6 +648,13 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
     free joints (quaternion), ``planar`` joints need the axis (plane normal) z. A
     ``<mimic>`` joint ``a`` of ``b`` is the holonomic constraint ``a_mimic``:
     ``a - multiplier b - offset = 0``.
+
+    ``floating_base``: the root link moves on a free joint ``root_joint`` from the world
+    (a quadruped, a humanoid): translations ``root_joint_x, _y, _z`` along the world axes
+    and yaw, pitch, roll ``root_joint_rz, _ry, _rx`` of the root link's frame
+    (:data:`FLOATING_ROTATION`), the motion of Pinocchio's free flyer. The root and the links fixed to it
+    (recursively) are one body with their combined mass and inertia (an ``<inertial>`` on
+    a frame-only link fixed to the root, as ANYmal's ``base_inertia``, counts).
     """
     from appell.mechanism.builder import GROUND, Mechanism
     from appell.model import holonomic
@@ -626,7 +675,28 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81):
     place = {robot.root: (mech.ground, None, None)}
     links = {link.name: link for link in robot.links}
     moving_name: dict[str, str] = {}
+    merged: set[str] = set()
+    if floating_base:
+        cluster = _root_cluster(robot)
+        mass, com, inertia = _composite_inertial(robot, cluster)
+        root_line = links[robot.root].line
+        if mass == 0.0:
+            raise ModelError(f"floating base: the root link {robot.root!r} and the links fixed to it have no mass",
+                             where=f"{src}:{root_line}", hint="give the base an <inertial> with its mass")
+        name = _appell_name(robot.root, "link", f"{src}:{root_line}")
+        if name in taken or ROOT_JOINT in taken:
+            raise ModelError(f"floating base: the name {name if name in taken else ROOT_JOINT!r} is taken",
+                             where=f"{src}:{root_line}", hint="rename the link or joint of that name")
+        taken |= {name, ROOT_JOINT}
+        base = mech.body(name, mass, inertia=inertia, com=com)
+        mech.free(ROOT_JOINT, mech.ground, base, rotation=FLOATING_ROTATION)
+        lines[ROOT_JOINT] = root_line
+        for link_name, (R, p) in cluster.items():
+            place[link_name] = (base, None, None) if link_name == robot.root else (base, R, p)
+        merged = set(cluster) - {robot.root}
     for joint in robot.joints_from_root():
+        if joint.child in merged:  # a fixed joint inside the floating base's one body
+            continue
         body, R_off, p_off = place[joint.parent]
         xyz, rpy = joint.xyz, joint.rpy
         if R_off is not None:  # the parent link was merged into a body: re-express the origin
@@ -711,14 +781,16 @@ def urdf_units(robot: UrdfRobot) -> dict[str, str]:
     return units
 
 
-def urdf_system(source, *, gravity: float = 9.81, reactions="all", initial=None, **system_options):
+def urdf_system(source, *, gravity: float = 9.81, reactions="all", initial=None, floating_base: bool = False,
+                **system_options):
     """The :class:`appell.System` of a URDF file (path) or :class:`UrdfRobot`: the
     :func:`urdf_mechanism` with every joint's reaction as outputs (``reactions``, as in
     :meth:`Mechanism.system <appell.mechanism.Mechanism.system>`); ``initial`` values by
-    joint name (``{"shoulder": 0.4, "shoulder_dot": 1.0}``); other keywords go to
+    joint name (``{"shoulder": 0.4, "shoulder_dot": 1.0}``); ``floating_base`` puts the
+    root link on a free joint (:func:`urdf_mechanism`); other keywords go to
     :meth:`Mechanism.system`."""
     robot = source if isinstance(source, UrdfRobot) else read_urdf(source)
-    mech, constraints = urdf_mechanism(robot, gravity)
+    mech, constraints = urdf_mechanism(robot, gravity, floating_base=floating_base)
     units = {**urdf_units(robot), **dict(system_options.pop("units", None) or {})}
     try:
         return mech.system(initial=initial, reactions=reactions, units=units,

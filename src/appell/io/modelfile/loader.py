@@ -969,11 +969,14 @@ def loads_model(text: str, source: str = "<string>", overrides: Mapping | None =
     return _apply_overrides(system, overrides, source)
 
 
-def load_model(path: str | PathLike, overrides: Mapping | None = None) -> System:
+def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floating_base: bool = False) -> System:
     """Read a model file (TOML, docs/model-format.md) into a :class:`System`.
 
     ``overrides`` ``{name: value}`` replaces parameter values or initial values (as
     ``appell simulate --set NAME=VALUE`` does); unknown names raise :class:`ModelError`.
+    ``floating_base``: a ``.urdf`` robot's root link on a free joint
+    (:func:`~appell.mechanism.urdf.urdf_mechanism`; in a model file ``[mechanism]
+    floating_base = true``).
     ``path`` may also be the name of a bundled example (``load_model("pendulum")``, as
     listed by ``appell examples``) when no file of that name exists.
     Every error is a :class:`ModelError` with ``where="<file>:<line>"``.
@@ -993,7 +996,10 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None) -> System
     if path.suffix.lower() == ".urdf":  # a robot description: its mechanism with every joint's reaction
         from appell.mechanism.urdf import urdf_system
 
-        return _apply_overrides(urdf_system(path), overrides, str(path))
+        return _apply_overrides(urdf_system(path, floating_base=floating_base), overrides, str(path))
+    if floating_base:
+        raise ModelError("--floating-base (floating_base=True) applies to a .urdf robot", where=str(path),
+                         hint="in a model file that reads a URDF, write floating_base = true in [mechanism]")
     try:
         raw = path.read_bytes()
     except OSError as exc:

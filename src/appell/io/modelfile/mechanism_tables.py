@@ -18,7 +18,7 @@ import sympy as sp
 from appell.errors import ModelError
 from appell.model import Parameter
 
-MECHANISM_KEYS = ("urdf", "gravity", "reactions", "frame")
+MECHANISM_KEYS = ("urdf", "floating_base", "gravity", "reactions", "frame")
 MECHANISM_TABLES = ("model", "mechanism", "parameters", "bodies", "joints", "closures", "loads", "initial",
                     "constraints", "controls", "servo_constraints", "simulation", "stability", "units")
 BODY_KEYS = ("name", "mass", "inertia", "com", "particle")
@@ -104,9 +104,16 @@ def build_mechanism(r, top: dict, base: Path):
         model = r.table(("model",), top["model"], ("name", "description"))
         name = r.string(("model", "name"), model["name"]) if "name" in model else None
     extra = ()
+    floating = section.get("floating_base", False)
+    if not isinstance(floating, bool):
+        raise r.error(("mechanism", "floating_base"), "must be true or false",
+                      hint="floating_base = true puts the URDF's root link on a free joint")
+    if floating and "urdf" not in section:
+        raise r.error(("mechanism", "floating_base"), "floating_base applies to a robot read from urdf = ...",
+                      hint="without a URDF, join the base to the ground by a [[joints]] entry of type 'free'")
     if "urdf" in section:
         urdf = urdf_path(r, section["urdf"], base)
-        mech, extra = urdf_mechanism(read_urdf(urdf))
+        mech, extra = urdf_mechanism(read_urdf(urdf), floating_base=floating)
         if name:
             mech.name = name
     else:
