@@ -29,6 +29,7 @@ from appell.model import (
     Control,
     FirstIntegral,
     Friction,
+    Output,
     Parameter,
     Particle,
     Program,
@@ -76,6 +77,8 @@ TABLES = {
     "stability": "vary = \"NAME=START:STOP:NUM\", free = [...], ignore = [...]: the stability sweep of "
                  "'appell stability' and of the report",
     "units": "NAME = unit of a coordinate, speed, constraint's multiplier or control (recorded in result files)",
+    "outputs": "NAME = expression (or {expr, unit, description}) in t, coordinates, speeds, accelerations, "
+               "lambda_<constraint>, controls and parameters: a column of every result (an energy, a point)",
     "mechanism": "bodies joined by joints (urdf, gravity, reactions, frame) with [[bodies]], [[joints]], "
                  "[[closures]], [[loads]]",
 }
@@ -89,6 +92,9 @@ TORQUE_KEYS = ("name", "vector", "angular_velocity")
 CONSTRAINT_KEYS = ("kind", "expr")
 FIRST_INTEGRAL_KEYS = ("expr", "value")
 FRICTION_KEYS = ("name", "slip", "normal", "mu_k", "mu_s", "viscous")
+OUTPUT_KEYS = ("expr", "unit", "description")
+#: prefixes of result columns an output name may not take
+RESERVED_PREFIXES = ("lambda_", "control_", "residual_", "friction_")
 
 #: constraint kinds -> order (method.md §2)
 CONSTRAINT_KINDS = {"holonomic": 0, "first-order": 1, "second-order": 2}
@@ -553,6 +559,40 @@ def _first_integrals(r: _Reader, doc: dict) -> list[FirstIntegral]:
     return out
 
 
+def _outputs(r: _Reader, doc: dict, system: System) -> System:
+    """``[outputs]``: ``NAME = expression`` or ``NAME = {expr, unit, description}``, added
+    to the system's outputs (a column of every result, after the multipliers). An output's
+    name is a new column: not a coordinate, speed, acceleration, parameter or another
+    output, and not a result prefix (``lambda_``, ``control_``, ``residual_``, ``friction_``)."""
+    if "outputs" not in doc:
+        return system
+    taken = {s.name for s in (*system.coordinates, *system.speeds, *system.accelerations)} | {
+        p.symbol.name for p in system.parameters} | {o.name for o in system.outputs} | {"t"}
+    out = []
+    for key, value in r.table(("outputs",), doc["outputs"], _Any()).items():
+        path = ("outputs", key)
+        r.name(path, key, "output")
+        if key in taken or key.startswith(RESERVED_PREFIXES):
+            raise r.error(path, f"output name {key!r} is taken by "
+                                + ("a result column's prefix" if key.startswith(RESERVED_PREFIXES)
+                                   else "a coordinate, speed, acceleration, parameter or output"),
+                          hint="choose another name")
+        taken.add(key)
+        unit = description = None
+        if isinstance(value, dict):
+            r.table(path, value, OUTPUT_KEYS, required=("expr",))
+            expr = r.expr(path + ("expr",), value["expr"], "outputs")
+            unit = r.string(path + ("unit",), value["unit"]) if "unit" in value else None
+            description = r.string(path + ("description",), value["description"]) if "description" in value else ""
+        else:
+            expr = r.expr(path, value, "outputs")
+        out.append(Output(key, expr, unit, description or ""))
+    try:
+        return system.replace(outputs=tuple(system.outputs) + tuple(out))
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or r.where(("outputs",)), hint=exc.hint) from None
+
+
 #: keys of the [stability] table
 STABILITY_KEYS = {
     "vary": "NAME=START:STOP:NUM (or NAME=V1,V2,...): the parameter, coordinate or speed swept",
@@ -717,6 +757,7 @@ def simulation_options(system: System) -> dict:
 def _check_declared(r: _Reader, system: System):
     """Every symbol of every expression is declared at its level (as in validation.validate)."""
     levels = declared_symbols(system)
+    levels["outputs"] = levels["acceleration"] | {sp.Symbol(f"lambda_{c.name}") for c in system.constraints}
     for path, (expr, level) in r.symbols.items():
         bad = sorted((s for s in expr.free_symbols if s not in levels[level]), key=str)
         if bad:
@@ -726,6 +767,9 @@ def _check_declared(r: _Reader, system: System):
                 hint = "a program depends on t and parameters only"
             elif level == "state" and any(split_derivative_name(s.name)[1] >= 1 for s in bad):
                 hint += "; accelerations may appear only in the acceleration energy and constraints"
+            elif level == "outputs":
+                hint = ("an output uses t, coordinates, speeds, accelerations (x''), lambda_<constraint>, controls, "
+                        "parameters and programs")
             raise r.error(path, f"undeclared symbol(s) {names}", hint=hint,
                           line=r.map.content_line(path))
 
@@ -782,7 +826,7 @@ def _build_mechanism(r: _Reader, doc: dict) -> System:
                                 description=r.string(("model", "description"), model.get("description", system.description)))
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
-    return _validated(r, system)
+    return _validated(r, _outputs(r, top, system))
 
 
 def _validated(r: _Reader, system: System) -> System:
@@ -896,7 +940,7 @@ def _build(r: _Reader, doc: dict) -> System:
     stability = _stability(r, top, system)
     if stability:
         system = system.replace(settings=settings + stability)
-    return _validated(r, system)
+    return _validated(r, _outputs(r, top, system))
 
 
 def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:

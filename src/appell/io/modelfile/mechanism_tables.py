@@ -20,7 +20,7 @@ from appell.model import Parameter
 
 MECHANISM_KEYS = ("urdf", "floating_base", "gravity", "reactions", "frame")
 MECHANISM_TABLES = ("model", "mechanism", "parameters", "bodies", "joints", "closures", "loads", "initial",
-                    "constraints", "controls", "servo_constraints", "simulation", "stability", "units")
+                    "constraints", "controls", "servo_constraints", "simulation", "stability", "units", "outputs")
 BODY_KEYS = ("name", "mass", "inertia", "com", "particle")
 JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed",
                "cylindrical": "cylindrical", "planar": "planar", "spherical": "spherical", "free": "free"}
