@@ -417,7 +417,10 @@ def test_failing_computation_exits_1_without_output(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["no_solution.toml"]
 
 
-def test_failed_simulation_leaves_no_partial_file(tmp_path):
+def test_failed_simulation_keeps_its_motion_beside_the_target(tmp_path):
+    """A failed run never writes or replaces the file asked for (no partial result under its
+    name); what it computed goes to NAME.failed.SUFFIX beside it (issue 19 §5), up to the
+    failure, and the error names that file."""
     model = tmp_path / "fails.toml"
     model.write_text(FAILS_MIDWAY)
     out, plot, kept = tmp_path / "new.csv", tmp_path / "new.png", tmp_path / "kept.csv"
@@ -427,9 +430,13 @@ def test_failed_simulation_leaves_no_partial_file(tmp_path):
         assert result.exit_code == 1, result.output
         # the force sqrt(0.5 - t) is not finite from t = 0.5 on: the run names the time
         assert "failed" in result.stderr and "t = 0.5" in result.stderr
+        assert f"is in {tmp_path / (target.stem + '.failed.csv')}" in result.stderr
     assert not out.exists() and not plot.exists()
     assert kept.read_text() == "previous result\n"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fails.toml", "kept.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fails.toml", "kept.csv", "kept.failed.csv",
+                                                         "new.failed.csv", "new.failed.png"]
+    times = np.atleast_1d(np.loadtxt(tmp_path / "new.failed.csv", delimiter=",", skiprows=1, usecols=0))
+    assert times[0] == 0.0 and times[-1] <= 0.5
 
 
 def test_installed_entry_point_exit_codes(tmp_path):

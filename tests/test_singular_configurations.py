@@ -132,8 +132,9 @@ def test_a_singular_configuration_stops_every_backend_and_tolerance_at_the_same_
 
 def test_the_command_line_refuses_with_the_time_and_keeps_the_motion_up_to_it(models, tmp_path):
     """Exit 1 with the time and the constraints; the motion computed up to the point is
-    written (issue 19 §5: a failed run keeps what it computed), the HDF5 file marked with
-    status -1 and the message, and nothing beyond the point."""
+    written beside the target as NAME.failed.SUFFIX (issue 19 §5: a failed run keeps what
+    it computed, never under the name of a result), the HDF5 file marked with status -1 and
+    the message, and nothing beyond the point."""
     import h5py
 
     folder, _ = models
@@ -144,14 +145,15 @@ def test_the_command_line_refuses_with_the_time_and_keeps_the_motion_up_to_it(mo
         lines = result.stderr.strip().splitlines()
         assert lines[0].startswith("error: the simulation of 'four_bar' failed: the motion reaches a singular "
                                    f"configuration at t = {t_star:.6f}")
-        assert "C_x" in lines[0] and "--t-end below" in lines[1] and f"is written to {out}" in lines[1]
-        assert out.exists()
-    times = np.loadtxt(tmp_path / "motion.csv", delimiter=",", skiprows=1, usecols=0)
+        assert "C_x" in lines[0] and "--t-end below" in lines[1]
+        assert f"is in {tmp_path / (out.stem + '.failed' + out.suffix)}" in lines[1]
+        assert not out.exists()
+    times = np.loadtxt(tmp_path / "motion.failed.csv", delimiter=",", skiprows=1, usecols=0)
     assert times[0] == 0.0 and t_star - 0.05 < times[-1] <= t_star + 1e-6
-    with h5py.File(tmp_path / "motion.h5", "r") as f:
+    with h5py.File(tmp_path / "motion.failed.h5", "r") as f:
         assert f.attrs["status"] == -1 and "singular configuration" in f.attrs["message"]
         assert f["t"][-1] <= t_star + 1e-6
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["motion.csv", "motion.h5"]  # no temporary left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["motion.failed.csv", "motion.failed.h5"]
 
 
 def test_a_run_that_ends_before_the_point_is_untouched(models):

@@ -636,7 +636,9 @@ def simulate(model, t_end, out, plot, backend, assignments, floating_base, compl
 
     CSV columns: t, each coordinate, each speed, lambda_<constraint>, control_<control>,
     residual_<constraint>. When the integration fails, the motion up to the failure is
-    written (HDF5 and netCDF mark it with status -1 and the message) and the exit code is 1.
+    written beside --out and --plot as NAME.failed.SUFFIX (HDF5 and netCDF also mark it
+    with status -1 and the message), the files asked for are left as they were, and the
+    exit code is 1.
     Initial values
     the model does not give are computed; a start that violates a constraint is refused
     (exit 2) unless --complete (or --adjust) is given, which prints each changed value.
@@ -669,21 +671,29 @@ def simulate(model, t_end, out, plot, backend, assignments, floating_base, compl
             click.echo(f"wrote {path}")
 
 
+def failed_path(path: Path) -> Path:
+    """Where a failed run's motion goes instead of ``path``: ``<stem>.failed<suffix>``
+    beside it, so that a failed run never replaces a result and its name says it failed."""
+    return path.with_name(f"{path.stem}.failed{path.suffix}")
+
+
 def _keep_failed_motion(exc, out_path: Path | None, plot) -> Exception:
     """A failed integration keeps what it computed (as SciPy's result does): the motion up
-    to the failure is written to ``--out`` (HDF5 and netCDF files carry the status -1 and the
-    message as attributes) and ``--plot``, and the error says where and up to when. Returns
-    the error to raise (``exc`` itself when there was nothing to write)."""
+    to the failure is written beside ``--out`` and ``--plot`` (:func:`failed_path`; HDF5
+    and netCDF files also carry the status -1 and the message as attributes), the files
+    asked for are not touched, and the error says where and up to when. Returns the error
+    to raise (``exc`` itself when there was nothing to write)."""
     solution = getattr(exc, "solution", None)
     if solution is None or solution.t.size == 0 or (out_path is None and not plot):
         return exc
     written = []
     if out_path is not None:
-        written.append(str(export_solution(solution, out_path)))
+        written.append(str(export_solution(solution, failed_path(out_path))))
     if plot:
-        solution.plot(plot)
-        written.append(str(plot))
-    kept = (f"the motion up to t = {solution.t[-1]:.10g}, where it failed, is written to {' and '.join(written)}"
+        target = failed_path(Path(plot))
+        solution.plot(target)
+        written.append(str(target))
+    kept = (f"the motion up to t = {solution.t[-1]:.10g}, where it failed, is in {' and '.join(written)}"
             + (" (status -1 and the message in its attributes)" if out_path is not None
                and OUTPUT_FORMATS[out_path.suffix.lower()] != "csv" else ""))
     return ComputationError(exc.message, where=exc.where,
