@@ -140,6 +140,7 @@ def floating_arm():
     return derive(system).numeric, [q.name for q in system.coordinates], model, model.createData()
 
 
+@pytest.mark.slow  # the floating arm derives in ~40 s; the composite base below runs in every suite
 def test_a_floating_base_moves_as_pinocchios_free_flyer(floating_arm):
     """appell's root_joint (world translations; yaw, pitch, roll of the root frame and their
     rates) against Pinocchio's JointModelFreeFlyer on the same file (position and quaternion;
@@ -233,6 +234,15 @@ def test_a_floating_base_is_the_root_with_every_link_fixed_to_it(tmp_path):
         v = np.concatenate([v_lin, omega, w[6:]])
         expected = np.concatenate([R.T @ a[:3] - np.cross(omega, v_lin), omega_dot, a[6:]])
         np.testing.assert_allclose(pin.aba(model, data, qp, v, np.zeros(model.nv)), expected, rtol=1e-9, atol=1e-9)
+        # the hip's force and moment (world axes) against Pinocchio's data.f in the joint frame
+        pin.rnea(model, data, qp, v, expected)
+        pin.forwardKinematics(model, data, qp)
+        out = numeric.outputs(0.0, q, w)
+        hip = model.getJointId("hip")
+        Rj = data.oMi[hip].rotation
+        for kind, f in (("F", data.f[hip].linear), ("M", data.f[hip].angular)):
+            np.testing.assert_allclose(Rj.T @ np.array([out[f"{kind}_hip_{x}"] for x in "xyz"]), f, rtol=1e-8,
+                                       atol=1e-8)
 
 
 def test_floating_base_from_a_model_file_and_the_command_line(tmp_path):
