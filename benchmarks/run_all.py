@@ -39,6 +39,8 @@ def steps(quick: bool) -> list[tuple[str, list[str], float]]:
         ("loop", ["loop.py"] + (["--repeats", "3"] if quick else []), 1800),
         ("sweep", ["sweep.py"] + (["--repeats", "1"] if quick else []), 3600),
         ("scaling", ["scaling.py"] + (["--sizes", "2,5,10"] if quick else []), 1800),
+        ("linearise", ["linearise.py", "--speeds", "101" if quick else "1001"], 900),
+        ("linearise_peers", ["linearise_peers.py", "--spins", "101" if quick else "1001"], 600),
     ]
 
 
@@ -88,7 +90,7 @@ def main():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--no-docs", action="store_true", help="print only; leave docs/performance.md alone")
     ap.add_argument("--only", help="comma-separated sections (evaluation, chain, derivation, car, loop, sweep, "
-                                   "scaling)")
+                                   "scaling, linearise, linearise_peers)")
     ap.add_argument("--out", help="also write everything printed to this file")
     args = ap.parse_args()
     chosen = set(args.only.split(",")) if args.only else None

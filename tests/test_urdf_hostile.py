@@ -407,3 +407,43 @@ def test_the_command_line_prints_one_error_line_with_a_hint_and_exits_2(tmp_path
     assert [k for k, text in enumerate(lines) if text.startswith("error:")] == [0], result.output
     assert lines[0].startswith(f"error: {path}:{line}: ") and lines[1].startswith("  hint: "), result.output
     assert len(lines) == 2 and "Traceback" not in result.output and "internal error" not in result.output
+
+
+def test_what_a_urdf_holds_beyond_the_mechanism_is_noted_not_refused(tmp_path):
+    """Transmissions, simulator tags and joint damping change a robot's motion elsewhere;
+    appell does not apply them, so it says so: an AppellNote in Python, a 'note:' line on
+    the command line, exit 0 (issue 22 §3). Materials and a zero <dynamics> stay silent."""
+    import warnings
+
+    from click.testing import CliRunner
+
+    from appell.errors import AppellNote
+    from appell.io.cli import cli
+    from appell.mechanism.urdf import urdf_system
+
+    text = _chain("j").replace("\n</robot>", """
+<transmission name="t1"><type>transmission_interface/SimpleTransmission</type></transmission>
+<transmission name="t2"><type>transmission_interface/SimpleTransmission</type></transmission>
+<gazebo reference="l0"><mu1>0.2</mu1></gazebo>
+<material name="blue"><color rgba="0 0 1 1"/></material>
+</robot>""").replace("</joint>", '<dynamics damping="0.3" friction="0"/></joint>', 1)
+    path = tmp_path / "noted.urdf"
+    path.write_text(text)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        urdf_system(path)
+    notes = [str(w.message) for w in caught if issubclass(w.category, AppellNote)]
+    assert notes == [f"{path}: 1 joint <dynamics> (damping, friction) not applied: add them as [[loads]] or "
+                     "actuator torques in a model file",
+                     f"{path}: 2 <transmission> elements not read (actuator models; apply joint torques with "
+                     "actuators instead)",
+                     f"{path}: 1 <gazebo> element not read (simulator plug-ins and surface properties)"]
+    result = CliRunner().invoke(cli, ["derive", str(path)])
+    assert result.exit_code == 0, result.output
+    assert result.stderr.count("note: ") == 3 and "2 <transmission> elements" in result.stderr
+    quiet = tmp_path / "quiet.urdf"
+    quiet.write_text(_chain("j"))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        urdf_system(quiet)
+    assert not [w for w in caught if issubclass(w.category, AppellNote)]

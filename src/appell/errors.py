@@ -57,6 +57,12 @@ def import_optional(module: str, *, extra: str, feature: str):
             hint=f"install it with: pip install 'appell[{extra}]'") from None
 
 
+class AppellNote(UserWarning):
+    """Something of the input that appell reads past without using it (a URDF's
+    transmissions, a joint's damping): a warning in Python, a ``note:`` line on the command
+    line. Never an error: the model is what appell says it is."""
+
+
 class ModelError(AppellError):
     """The model (or a value given with it) is invalid; exit code 2."""
 

@@ -87,9 +87,20 @@ def parse_assignments(items) -> dict[str, str]:
 def load_system(model: str, overrides=None, floating_base: bool = False):
     """Load a model file (or bundled example) with parameter / initial-value ``overrides``;
     ``floating_base`` puts a ``.urdf`` robot's root link on a free joint."""
+    import warnings
+
+    from appell.errors import AppellNote
     from appell.io.modelfile import load_model
 
-    return load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", AppellNote)
+        system = load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base)
+    for w in caught:  # what the model's files hold that appell does not apply: one line each
+        if issubclass(w.category, AppellNote):
+            click.echo(f"note: {w.message}", err=True)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return system
 
 
 def derive_model(system, dependent=None, formulas: bool = False):

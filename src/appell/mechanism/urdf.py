@@ -39,6 +39,7 @@ joint at fault and says what to do (issue 20):
 from __future__ import annotations
 
 import math
+import re
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -159,6 +160,8 @@ class UrdfRobot:
     joints: tuple[UrdfJoint, ...]
     root: str
     source: str
+    #: what the file holds that appell does not apply, in words (:func:`_not_read`)
+    not_read: tuple[str, ...] = ()
 
     def link(self, name: str) -> UrdfLink:
         return next(link for link in self.links if link.name == name)
@@ -416,7 +419,7 @@ def parse_urdf(text: str | bytes, source: str = "<urdf>") -> UrdfRobot:
             f"the links form {len(roots)} trees (roots: {', '.join(r.name for r in roots) or 'none'}); "
             f"a URDF robot has one root link", where=f"{source}:{roots[1].line if len(roots) > 1 else tree.line}",
             hint="join the trees by joints (a fixed joint for a rigid connection)")
-    robot = UrdfRobot(robot_name, links, joints, roots[0].name, source)
+    robot = UrdfRobot(robot_name, links, joints, roots[0].name, source, _not_read(tree))
     reached = robot.joints_from_root()
     if len(reached) != len(joints):
         reached = {j.name for j in reached}
@@ -429,6 +432,41 @@ def parse_urdf(text: str | bytes, source: str = "<urdf>") -> UrdfRobot:
             _check_inertia(link, source)
     _check_mimics(joints, source)
     return robot
+
+
+#: elements of <robot> read past without a note: appearance only
+_SILENT = {"link", "joint", "material"}
+
+
+def _not_read(tree: _Element) -> tuple[str, ...]:
+    """What the robot's file holds beyond links, inertias and joint kinematics that changes
+    its motion elsewhere and that appell does not apply: the joints' ``<dynamics>`` (damping,
+    friction), ``<transmission>`` (actuators), simulator and controller tags (``<gazebo>``,
+    ``<ros2_control>``, any other top-level element); one sentence per kind, with the count."""
+    counts: dict[str, int] = {}
+    for element in tree.children:
+        if element.tag not in _SILENT:
+            counts[element.tag] = counts.get(element.tag, 0) + 1
+    damped = [j for j in tree.findall("joint") for d in j.findall("dynamics")
+              if any(float_or_zero(d.attrib.get(k)) != 0.0 for k in ("damping", "friction"))]
+    out = []
+    if damped:
+        out.append(f"{len(damped)} joint <dynamics> (damping, friction) not applied: add them as [[loads]] "
+                   f"or actuator torques in a model file")
+    for tag, n in counts.items():
+        what = {"transmission": "actuator models; apply joint torques with actuators instead",
+                "gazebo": "simulator plug-ins and surface properties"}.get(tag, "not part of the mechanism")
+        name = tag if re.fullmatch(r"[A-Za-z_][\w:.-]{0,40}", tag) else _show(tag)
+        out.append(f"{n} <{name}> element{'s' if n > 1 else ''} not read ({what})")
+    return tuple(out)
+
+
+def float_or_zero(text) -> float:
+    """A number attribute, 0 where it is absent or not a number (only whether it is zero counts)."""
+    try:
+        return float(text) if text is not None else 0.0
+    except ValueError:
+        return 0.0
 
 
 def _check_mimics(joints, source):
@@ -656,10 +694,15 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
     (recursively) are one body with their combined mass and inertia (an ``<inertial>`` on
     a frame-only link fixed to the root, as ANYmal's ``base_inertia``, counts).
     """
+    import warnings
+
+    from appell.errors import AppellNote
     from appell.mechanism.builder import GROUND, Mechanism
     from appell.model import holonomic
 
     src = robot.source
+    for sentence in robot.not_read:
+        warnings.warn(AppellNote(f"{src}: {sentence}"), stacklevel=2)
     mech = Mechanism(_identifier(robot.name), gravity=(0, 0, -sp.Symbol("g")))
     mech.parameter("g", gravity, unit="m/s^2", description="gravity, along -z of the root link")
     joint_names, first = {}, {}
