@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import numbers
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import sympy as sp
 
@@ -748,12 +748,3 @@ def name_clash(name: str, kind: str, declared: Mapping[str, Sequence[str]]) -> s
 
 
 _ORDINAL = {1: "first", 2: "second", 3: "third"}
-
-
-def symbols_of(items: Iterable[sp.Basic]) -> set[sp.Symbol]:
-    """Free symbols of several expressions or matrices."""
-    out: set[sp.Symbol] = set()
-    for item in items:
-        if item is not None:
-            out |= item.free_symbols
-    return out

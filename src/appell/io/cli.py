@@ -645,8 +645,9 @@ def derive(model, fmt, dependent, routh, assignments, floating_base, only):
 def simulate(model, t_end, out, plot, backend, assignments, floating_base, complete, adjust, solver):
     """Simulate the motion with its reactions, controls and constraint residuals.
 
-    CSV columns: t, each coordinate, each speed, lambda_<constraint>, control_<control>,
-    residual_<constraint>. When the integration fails, the motion up to the failure is
+    Columns (CSV, HDF5, netCDF): t, each coordinate, each speed, each acceleration,
+    lambda_<constraint>, the model's outputs (joint forces and moments, [outputs]),
+    control_<control>, friction_<contact>, residual_<constraint>. When the integration fails, the motion up to the failure is
     written beside --out and --plot as NAME.failed.SUFFIX (HDF5 and netCDF also mark it
     with status -1 and the message), the files asked for are left as they were, and the
     exit code is 1.
