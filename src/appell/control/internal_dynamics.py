@@ -243,6 +243,9 @@ def internal_linearisation(derivation, time=None, state=None, p=None,
                                f"at t = {time:g}: the closed-loop motion is not finite at the state")
     values = np.linalg.eigvals(A_eta)
     values = values[np.lexsort((-values.imag, -values.real))]
-    residual = float(np.max(np.abs(manifold_function(derivation)(time, y0, pv)), initial=0.0))
+    # |G| from the model's compiled residuals: the real constraints', the servo constraints'
+    # and the state relations' (the rows of G)
+    residual = float(np.nanmax(np.abs(np.concatenate([*model.state_residuals(time, y0, pv),
+                                                      *model.start_residuals(time, y0, pv), [0.0]]))))
     return InternalLinearisation(derivation.system.name, float(time), y0, tuple(model.state_names[j] for j in eta),
                                  A_eta, values, tolerance, residual)

@@ -481,7 +481,7 @@ _set_option = click.option("--set", "assignments", multiple=True, metavar="NAME=
                            help="Override a parameter or an initial value (repeatable), e.g. --set M=1500 --set \"phi'=0.2\".")
 _floating_option = click.option("--floating-base", "floating_base", is_flag=True,
                                 help="A .urdf robot's root link moves on a free joint 'root_joint' (a quadruped, "
-                                     "a humanoid): translations and a quaternion, as Pinocchio's free flyer.")
+                                     "a humanoid): world translations and yaw, pitch, roll, the motion of Pinocchio's free flyer.")
 
 
 def _model_options(command):

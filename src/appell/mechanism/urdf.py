@@ -448,7 +448,7 @@ def _not_read(tree: _Element) -> tuple[str, ...]:
         if element.tag not in _SILENT:
             counts[element.tag] = counts.get(element.tag, 0) + 1
     damped = [j for j in tree.findall("joint") for d in j.findall("dynamics")
-              if any(float_or_zero(d.attrib.get(k)) != 0.0 for k in ("damping", "friction"))]
+              if any(_float_or_zero(d.attrib.get(k)) != 0.0 for k in ("damping", "friction"))]
     out = []
     if damped:
         out.append(f"{len(damped)} joint <dynamics> (damping, friction) not applied: add them as [[loads]] "
@@ -461,7 +461,7 @@ def _not_read(tree: _Element) -> tuple[str, ...]:
     return tuple(out)
 
 
-def float_or_zero(text) -> float:
+def _float_or_zero(text) -> float:
     """A number attribute, 0 where it is absent or not a number (only whether it is zero counts)."""
     try:
         return float(text) if text is not None else 0.0

@@ -225,17 +225,16 @@ class _Sensitivities:
         F = sp.Matrix([e for e in cons.position_residual if e is not None])
         phi = sp.Matrix([e for e in cons.velocity_residual if e is not None])
         outs = sp.Matrix([o.expr for o in system.outputs])
-        self.inputs = [params.index(u) for u in inputs]
         nz = outs.shape[0]
         self.shapes = (len(q), n, s, F.shape[0], phi.shape[0], nz, len(inputs))
         self.free = [set().union(*(e.free_symbols for e in m)) if m.shape[0] * m.shape[1] else set()
                      for m in (R, S, rates, F, phi)]
         # along q, w and the inputs; along a and lambda for the outputs alone (R and S are
         # linear in them: M and -J^T, evaluated by the split)
-        directions = [range(len(q)), range(n), range(n) if nz else (), range(s) if nz else (), self.inputs]
+        directions = [range(len(q)), range(n), range(n) if nz else (), range(s) if nz else (),
+                      [params.index(u) for u in inputs]]
         self.jacobians = ExactJacobians([q, w, a, lam, params], [R, S, rates, F, phi, outs], directions,
                                         program_substitutions(system), "linearisation")
-        self.complex_step = self.jacobians.complex_step
 
     def __call__(self, tt, q, w, a, lam, pv):
         nq, n, s, nF, nphi, nz, nu = self.shapes

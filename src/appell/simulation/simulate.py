@@ -81,8 +81,6 @@ from appell.simulation.solution import EventRecord, ModelMetadata, Solution, Sol
 
 __all__ = ["simulate", "project", "METHODS"]
 
-#: integrators by name (SciPy's OdeSolver classes); "DOP853" on a compiled model runs the
-#: compiled loop (:mod:`appell.numerics.compiled_loop`), "DOP853-scipy" always SciPy's class
 #: methods that solve implicit stages with Newton's method and so take the Jacobian dG/dy
 IMPLICIT = (si.Radau, si.BDF, si.LSODA)
 
@@ -115,6 +113,8 @@ def _exact_jacobian(model, solver_cls, cache: dict):
     return cache[id(model)][1]
 
 
+#: integrators by name (SciPy's OdeSolver classes); "DOP853" on a compiled model runs the
+#: compiled loop (:mod:`appell.numerics.compiled_loop`), "DOP853-scipy" always SciPy's class
 METHODS = {"DOP853": si.DOP853, "DOP853-scipy": si.DOP853, "RK45": si.RK45, "RK23": si.RK23, "Radau": si.Radau,
            "BDF": si.BDF, "LSODA": si.LSODA}
 

@@ -512,17 +512,18 @@ class Solution:
                 pg.attrs[f"{name}.unit"] = unit or UNSPECIFIED
                 pg.attrs[f"{name}.description"] = desc or ""
 
-            first, *rest = self.grouped(units)  # t, then every other column
-            for c in [first] + rest:
+            def put(c):
                 ds = f.require_group(c.group or "/").create_dataset(c.key, data=np.asarray(c.values, float))
                 ds.attrs["units"] = c.units
                 ds.attrs["description"] = c.long_name
-                if c is first:
-                    ds.make_scale("t")
-                    for group in ALWAYS:
-                        f.require_group(group)
-                else:
-                    ds.dims[0].attach_scale(f["t"])
+                return ds
+
+            times, *others = self.grouped(units)
+            put(times).make_scale("t")
+            for group in ALWAYS:
+                f.require_group(group)
+            for c in others:
+                put(c).dims[0].attach_scale(f["t"])
             for key, lines in (("events", [str(e) for e in self.events]), ("log", list(self.log))):
                 f.create_dataset(key, data=np.array(lines, dtype=h5py.string_dtype())).make_scale(key)
 
