@@ -18,7 +18,9 @@ Two motions that reach a rank loss of the constraint Jacobian (appell.simulation
   branch's ODE reaches ``A = 0`` (SciPy, its own event) is where the run must stop.
   Before the check the C and NumPy backends left the point on different branches.
 
-Both backends and two tolerances give the same refusal at the same time.
+Both backends and two tolerances give the same refusal at the cusp's tip at the same time,
+and pass the four-bar's change point on the parallelogram branch
+(appell.simulation.passage; the IFToMM A02 chains in tests/test_iftomm.py).
 """
 
 from __future__ import annotations
@@ -79,18 +81,28 @@ def cusp_time() -> float:
     return value
 
 
-def change_point_time() -> float:
+def _branch(t_eval=None):
     m1, m2, m3, l = 1.0, 2.0, 1.0, 0.5
     inertia = (m1 + m3) * l**2 / 3 + m2 * l**2
     torque = (m1 + m3 + 2 * m2) * G * l / 2
 
     def flat(t, y):
-        return y[0]
+        return np.sin(y[0])
 
-    flat.terminal, flat.direction = True, -1
-    sol = solve_ivp(lambda t, y: [y[1], -torque * np.cos(y[0]) / inertia], (0, 2), [1.0, 2.0], events=flat,
-                    rtol=1e-12, atol=1e-12)
-    return float(sol.t_events[0][0])
+    return solve_ivp(lambda t, y: [y[1], -torque * np.cos(y[0]) / inertia], (0, 2), [1.0, 2.0], events=flat,
+                     t_eval=t_eval, rtol=1e-13, atol=1e-13, method="DOP853")
+
+
+def change_point_time() -> float:
+    return float(_branch().t_events[0][0])
+
+
+def change_point_times():
+    return _branch().t_events[0]
+
+
+def branch_angle(t):
+    return _branch(t).y[0]
 
 
 @pytest.fixture(scope="module")
@@ -109,43 +121,63 @@ def stop(derivation, backend, rtol):
     return sol, events
 
 
-@pytest.mark.parametrize("name, constraints, expected, within", [
-    # the check stops where g falls below SINGULAR_LEVEL: on the cusp |df/da| ~ 2 x^(3/2) (3 at the
-    # start), at x ~ 3e-3, which the particle (speed sqrt(2 g)) passes about 6e-4 s before the tip
-    ("cusp", ("cusp",), cusp_time, 2e-3),
-    # the four-bar's g dips in a V of width ~ step/1e8 and the minimum is located by Brent on the
-    # dense output: to the integrator's accuracy
-    ("parallelogram", ("C_x",), change_point_time, 1e-6),
-])
 @pytest.mark.parametrize("backend", ["numpy", "c"])
 @pytest.mark.parametrize("rtol", [1e-6, 1e-10])
-def test_a_singular_configuration_stops_every_backend_and_tolerance_at_the_same_time(
-        models, name, constraints, expected, within, backend, rtol):
-    sol, events = stop(models[1][name], backend, rtol)
-    assert sol.status == -1 and "singular configuration" in sol.message
-    assert len(events) == 1 and tuple(events[0].name.split(", ")) == constraints
-    t_star = expected()
-    assert t_star - within <= events[0].t <= t_star + 1e-6
+def test_the_cusp_stops_every_backend_and_tolerance_at_the_same_time(models, backend, rtol):
+    """No branch continues the motion through the tip with continuous velocity (it must turn
+    back with an infinite reaction): the passage is refused and the run stops where g falls
+    below SINGULAR_LEVEL: on the cusp |df/da| ~ 2 x^(3/2) (3 at the start), at x ~ 3e-3, which
+    the particle (speed sqrt(2 g)) passes about 6e-4 s before the tip."""
+    sol, events = stop(models[1]["cusp"], backend, rtol)
+    assert sol.status == -1 and "singular configuration" in sol.message and "cannot be passed" in sol.message
+    assert len(events) == 1 and events[0].name == "cusp"
+    t_star = cusp_time()
+    assert t_star - 2e-3 <= events[0].t <= t_star + 1e-6
     # nothing is recorded beyond the point (the branch there is not determined)
     assert sol.t[-1] <= events[0].t + 1e-9
 
 
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+@pytest.mark.parametrize("rtol", [1e-6, 1e-10])
+def test_the_parallelogram_passes_its_change_point_on_its_branch(models, backend, rtol):
+    """Every backend and tolerance passes the change point on the parallelogram branch (the
+    C and NumPy backends left it on different branches before issue 20, and stopped there
+    since): one event at the branch ODE's time (Brent on the dense output before, to the
+    integrator's accuracy), another at A = -pi and a third 1e-5 s before the run's end (found
+    in the last step, where no rise of g follows it), and D = A and B = -A (the coupler translates), the
+    branch ODE's angle to the tolerance's accuracy."""
+    sol, events = stop(models[1]["parallelogram"], backend, rtol)
+    assert sol.status == 0, sol.message
+    expected = change_point_times()
+    assert len(events) == len(expected) == 3  # the last 1e-5 s before the run's end
+    assert sol.t[-1] == 2.0
+    for event, t_star in zip(events, expected):
+        assert event.name == "C_x" and "passed" in event.detail
+        assert abs(event.t - t_star) <= (1e-6 if rtol < 1e-8 else 1e-3)
+    A, B, D = sol.y[0], sol.y[1], sol.y[2]
+    scale = 1e-7 if rtol < 1e-8 else 1e-3
+    np.testing.assert_allclose(D, A, atol=scale)
+    np.testing.assert_allclose(B, -A, atol=scale)
+    reference = branch_angle(sol.t)
+    assert np.abs(A - reference).max() < (1e-7 if rtol < 1e-8 else 1e-3)
+
+
 def test_the_command_line_refuses_with_the_time_and_keeps_the_motion_up_to_it(models, tmp_path):
-    """Exit 1 with the time and the constraints; the motion computed up to the point is
-    written beside the target as NAME.failed.SUFFIX (issue 19 §5: a failed run keeps what
+    """The cusp: exit 1 with the time and the constraint; the motion computed up to the point
+    is written beside the target as NAME.failed.SUFFIX (issue 19 §5: a failed run keeps what
     it computed, never under the name of a result), the HDF5 file marked with status -1 and
     the message, and nothing beyond the point."""
     import h5py
 
     folder, _ = models
-    t_star = change_point_time()
+    t_star = cusp_time()
     for out in (tmp_path / "motion.csv", tmp_path / "motion.h5"):
-        result = CliRunner().invoke(cli, ["simulate", str(folder / "parallelogram.toml"), "--out", str(out)])
+        result = CliRunner().invoke(cli, ["simulate", str(folder / "cusp.toml"), "--out", str(out)])
         assert result.exit_code == 1
         lines = result.stderr.strip().splitlines()
-        assert lines[0].startswith("error: the simulation of 'four_bar' failed: the motion reaches a singular "
-                                   f"configuration at t = {t_star:.6f}")
-        assert "C_x" in lines[0] and "--t-end below" in lines[1]
+        assert lines[0].startswith("error: the simulation of 'cusp' failed: the motion reaches a singular "
+                                   "configuration at t = ")
+        assert "cusp" in lines[0] and "cannot be passed" in lines[0] and "--t-end below" in lines[1]
         assert f"is in {tmp_path / (out.stem + '.failed' + out.suffix)}" in lines[1]
         assert not out.exists()
     times = np.loadtxt(tmp_path / "motion.failed.csv", delimiter=",", skiprows=1, usecols=0)

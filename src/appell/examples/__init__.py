@@ -12,6 +12,7 @@ def _builders() -> dict:
     from .benchmark_examples import BENCHMARK_EXAMPLES
     from .drive_examples import DRIVE_EXAMPLES
     from .event_examples import EVENT_EXAMPLES
+    from .iftomm_examples import IFTOMM_EXAMPLES
     from .mechanism_examples import benchmark_bicycle, four_bar, rolling_disc
     from .servo_examples import SERVO_EXAMPLES
     from .support_examples import SUPPORT_EXAMPLES
@@ -19,7 +20,7 @@ def _builders() -> dict:
     cyclic = (spherical_pendulum, spherical_pendulum_rod, spherical_pendulum_cartesian, symmetric_top,
               turntable_particle)
     return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES, **BENCHMARK_EXAMPLES,
-            **DRIVE_EXAMPLES, **SUPPORT_EXAMPLES,
+            **DRIVE_EXAMPLES, **SUPPORT_EXAMPLES, **IFTOMM_EXAMPLES,
             "four_bar": four_bar, "rolling_disc": rolling_disc, "benchmark_bicycle": benchmark_bicycle}
 
 

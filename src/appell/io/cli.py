@@ -291,7 +291,8 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
                 "or a shorter --t-end")
         if singular:
             hint = (f"end the run before it (--t-end below {singular[-1].t:.6g}) or change the geometry or the "
-                    "start so that the motion avoids this position; appell does not pass singular positions yet")
+                    "start so that the motion avoids this position: appell passes a singular position only where "
+                    "one branch continues the motion with continuous positions and velocities")
         error = ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
                                  hint=hint)
         error.solution = solution  # the motion up to the failure, for the output files

@@ -75,7 +75,8 @@ from appell.numerics.friction import FrictionLaws
 from appell.simulation.stickslip import initial_mode, stick_slip_watches, transition
 from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, residual_jacobians
 from appell.simulation.resources import check_run_memory
-from appell.simulation.singular import DIP, SINGULAR_LEVEL, RankWatch, explain_failure
+from appell.simulation.passage import PassageRefused, pass_through
+from appell.simulation.singular import DIP, SINGULAR_LEVEL, TRUST, RankWatch, explain_failure
 from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 
@@ -189,6 +190,32 @@ def _initial_state(model, initial, complete, adjust, t0, p):
     if getattr(system, "initial_guesses", ()):  # starting guesses are computed, given values only checked
         return complete_initial(model, initial, (), t=t0, params=p)
     return check_initial(model, initial, t=t0, params=p)
+
+
+def _record_passage(run, model, passed, t_eval, p) -> int:
+    """Record a singular configuration passed (:mod:`appell.simulation.passage`): the rows
+    after its trusted start replaced by those of its approach, the gap's rows with the
+    minimum-norm reactions, the event; returns the index of the next output time."""
+    from types import SimpleNamespace
+
+    run.forget_after(passed.t_restart)
+    run.events = [e for e in run.events if e.t <= passed.t_restart]
+    run.log = [line for line in run.log if _log_time(line) <= passed.t_restart]
+    run.tentative.clear()
+    run.events_index.clear()
+    run.log_index.clear()
+    k = int(np.searchsorted(t_eval, passed.t_restart, side="right"))
+    inside = int(np.searchsorted(t_eval, passed.t_before, side="right"))
+    run.record_many(model, t_eval[k:inside], passed.approach)
+    after = int(np.searchsorted(t_eval, passed.t_after, side="left"))
+    nc = len(model.control_names)
+    for tk in t_eval[inside:after]:
+        yk, a, lam = passed.gap(tk)
+        F, phi = model.state_residuals(tk, yk, p)
+        run.add_block(model, [tk], [yk], [a], [lam], np.zeros((1, nc)), [F], [phi])
+    run.event_record(model, "singular", ", ".join(passed.constraints), passed.t_singular, passed.y_singular,
+                     SimpleNamespace(multipliers=passed.multipliers_singular), passed.describe())
+    return after
 
 
 def _show_progress(progress) -> bool:
@@ -641,7 +668,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
             rank = RankWatch(state["active"], p, tt, yy, scales)
         loop = run.loop(state["active"]) if compiled else None
         if loop is not None and rank.active and getattr(loop, "scale", None) is None:
-            loop.watch(rank.scale, 10.0 * SINGULAR_LEVEL, DIP)
+            loop.watch(rank.scale, max(10.0 * SINGULAR_LEVEL, 2.0 * TRUST * rank.band), DIP)
         if loop is None:
             jac = _exact_jacobian(state["active"], solver_cls, jacobians)
             if jac is not None:
@@ -651,6 +678,15 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         loop.set_switched(run.dependent is not None and run.dependent != loop.default_dependent)
         state["solver"] = loop.solver(tt, yy, t_end, **kw)
         run.nfev += state["solver"].counts()[0]
+
+    def sub_solver(tt, yy, t_bound):
+        """An integrator of the run's method and tolerances from (tt, yy) to t_bound (the
+        approach to a singular configuration, appell.simulation.passage)."""
+        kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
+        jac = _exact_jacobian(state["active"], solver_cls, jacobians)
+        if jac is not None:
+            kw["jac"] = lambda t_, y_: jac(t_, y_, p)
+        return solver_cls(fun, tt, yy, t_bound, **kw)
 
     def configure(tt, yy, released=(), bounced=(), when="at the start"):
         """The model without the released constraints, its evaluation, watches and their
@@ -758,15 +794,38 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
             dense = solver.dense_output()
             try:
                 ev_new = run.evaluate(active, t_new, y_new)
-                singular = rank.step(t_new, y_new, dense)
+                singular = rank.step(t_new, y_new, dense, last=t_new >= t_end)
                 if singular is not None:
+                    passed, refusal = None, None
+                    if watches or run.tracking_names or len(active.control_names):
+                        refusal = ("appell passes singular configurations only in runs without watched events "
+                                   "and controls")
+                    else:
+                        try:
+                            passed = pass_through(rank, singular, lambda t_, y_: run.evaluate(active, t_, y_), sub_solver, project, p)
+                        except PassageRefused as exc:
+                            refusal = str(exc)
+                    if passed is not None:
+                        k = _record_passage(run, active, passed, t_eval, p)
+                        if bar is not None:
+                            bar.update(passed.t_after - t)
+                        t, y = passed.t_after, passed.y_after
+                        if t >= t_end:  # the run ends inside the band: its rows are the gap's
+                            break
+                        ev = run.evaluate(active, t, y)
+                        g = []
+                        rank.points = [(t, rank.measure(t, y), None)]
+                        start(t, y)
+                        run.restarts += 1
+                        continue
                     before = int(np.searchsorted(t_eval, singular.t, side="left"))
                     run.record_many(active, t_eval[k:before], dense)
                     run.forget_after(singular.t)
                     k = max(k, before)
+                    why = f"; it cannot be passed: {refusal}" if refusal else ""
                     run.events.append(EventRecord("singular", ", ".join(singular.constraints), singular.t,
-                                                  singular.describe()))
-                    status, message = -1, singular.describe()
+                                                  singular.describe() + why))
+                    status, message = -1, singular.describe() + why
                     if bar is not None:
                         bar.update(singular.t - t)
                     break

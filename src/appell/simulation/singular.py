@@ -6,7 +6,9 @@ rank: no partition satisfies condition (1.2), the reactions in the lost directio
 undetermined, and beyond it the equations of motion do not say on which branch the
 motion goes on. A run that passes such a point picks a branch by its rounding errors,
 so two backends or two tolerances can leave on different branches (issue 20). The run
-therefore stops there, with the time and the constraints involved.
+therefore never integrates through it: :mod:`appell.simulation.passage` crosses it on the
+branch that continuity of positions and velocities selects, or, where no branch continues
+the motion, the run stops there, with the time and the constraints involved.
 
 The measure is the smallest singular value of the Jacobian with every constraint row
 scaled by its size at the start of the run (largest entry one)::
@@ -39,6 +41,19 @@ SINGULAR_LEVEL = 1e-4
 #: below this fraction of the larger neighbour (a flat minimum of a regular motion is
 #: left alone)
 DIP = 0.9
+#: ``g`` at which a passage through a singular configuration leaves the reduced equations
+#: (appell.simulation.passage), relative to ``g`` at the start (at most 1): inside the band
+#: rounding of ``eps`` and a position residual ``r`` reach the dependent speeds as ``eps / g``
+#: and ``r / g^2``
+PASS_LEVEL = 1e-2
+#: the least band (a chain of many links starts with a small ``g``): at 1e-3 the dependent
+#: speeds keep about 13 digits
+LEAST_LEVEL = 1e-3
+#: a passage starts from a step end with ``g`` at least this many times the band, about as
+#: many band widths before the point (``g`` grows about linearly away from it)
+TRUST = 4.0
+#: step ends the watch keeps: the last three locate a dip
+KEPT = 3
 
 
 @dataclass(frozen=True)
@@ -72,6 +87,8 @@ class RankWatch:
         self.blocks = getattr(model, "evaluate_blocks", None)
         self.active = bool(self.names) and self.blocks is not None
         self.points: list[tuple[float, float, object]] = []  # (t, g, dense of the step ending there)
+        self.trusted: list[tuple[float, np.ndarray]] = []  # the last step ends with g >= TRUST * band
+        self.band = LEAST_LEVEL
         if not self.active:
             return
         self.nq = len(model.coordinate_names)
@@ -86,7 +103,17 @@ class RankWatch:
             if name not in scales and np.isfinite(b) and b > 0.0:
                 scales[name] = 1.0 / b
         self.scale = np.array([scales.get(n, 1.0) for n in self.names])
-        self.points.append((float(t0), self.measure_jacobian(J), None))
+        g0 = self.measure_jacobian(J)
+        self.band = max(PASS_LEVEL * min(1.0, g0), LEAST_LEVEL)  # appell.simulation.passage
+        self.points.append((float(t0), g0, None))
+        self.trust(t0, y0, g0)
+
+    def trust(self, t, y, g) -> None:
+        """Keep the state at a step end far enough from any singular point for a passage
+        to start from (the last three)."""
+        if np.isfinite(g) and g >= TRUST * self.band:
+            self.trusted.append((float(t), np.array(y, float)))
+            del self.trusted[:-3]
 
     def jacobian(self, t, y) -> np.ndarray:
         y = np.asarray(y, float)
@@ -103,20 +130,34 @@ class RankWatch:
 
     def seed(self, t_start: float, t_end: float, dense) -> None:
         """Take the previous step from elsewhere (the compiled loop, which ran the steps
-        before this one in C): the history becomes its start and its end."""
-        if self.active:
-            self.points = [(t_start, self.measure(t_start, dense(t_start)), None),
-                           (t_end, self.measure(t_end, dense(t_end)), dense)]
+        before this one in C): its start and its end join the history when the history
+        ends at its start (the loop returned after each step), else replace it."""
+        if not self.active:
+            return
+        kept = [pt for pt in self.points if pt[0] < t_start]
+        if not (self.points and self.points[-1][0] == t_start):
+            kept = []  # the C loop ran steps unseen since the last one kept: a new history
+        g_start, g_end = self.measure(t_start, dense(t_start)), self.measure(t_end, dense(t_end))
+        kept.append((t_start, g_start, None))
+        self.points = kept + [(t_end, g_end, dense)]
+        self.trust(t_start, dense(t_start), g_start)
+        self.trust(t_end, dense(t_end), g_end)
 
-    def step(self, t, y, dense) -> SingularPoint | None:
+    def step(self, t, y, dense, last: bool = False) -> SingularPoint | None:
+        """After the step to ``t``: the singular point the last two steps passed, or None.
+        The ``last`` step of a run is also searched when ``g`` is near the band at either end
+        (a point passed within it shows no rise after it)."""
         if not self.active:
             return None
         self.points.append((float(t), self.measure(t, y), dense))
-        del self.points[:-3]
-        if len(self.points) < 3:
+        self.trust(t, y, self.points[-1][1])
+        del self.points[:-KEPT]
+        if len(self.points) < (2 if last else 3):
             return None
-        (ta, ga, _), (tb, gb, da), (tc, gc, dc) = self.points
-        if gc >= SINGULAR_LEVEL and not (gb <= ga and gb <= gc and gb < DIP * max(ga, gc)):
+        points = self.points[-3:] if len(self.points) >= 3 else [self.points[0]] + self.points
+        (ta, ga, _), (tb, gb, da), (tc, gc, dc) = points
+        near_end = last and min(gb, gc) < TRUST * self.band
+        if not near_end and gc >= SINGULAR_LEVEL and not (gb <= ga and gb <= gc and gb < DIP * max(ga, gc)):
             return None
         best = min((gb, tb, da), (gc, tc, dc), key=lambda b: b[0])
         for lo, hi, dense_ in ((ta, tb, da), (tb, tc, dc)):

@@ -1,0 +1,188 @@
+"""The IFToMM benchmark problems of group A (issue 19), against references built here
+without appell.
+
+Source of the definitions: González, Dopico, Lugrís, Cuadrado, "A benchmarking system for
+MBS simulation software", Multibody System Dynamics 16 (2006) 179-190, and the library's
+problem pages; appell.examples.iftomm_examples states each problem.
+
+**A02, the N four-bar mechanism**, on its parallelogram branch: every rocker turns by the
+same angle ``phi`` and every coupler translates, so ``I phi'' = -K cos(phi)`` with
+``I = (N+1)/3 + N`` and ``K = ((N+1)/2 + N) g`` (energies of the rods), solved by SciPy at
+rtol 1e-13. The pin forces come from a free-body solution of the same kinematics: each
+coupler translates with the rockers' tip acceleration, each rocker turns about its pivot
+(Newton-Euler, a small linear system per instant, solved by least squares). The flat
+passages ``phi = k pi`` are the singular configurations where the degrees of freedom jump
+from 1 to N + 1: appell must pass each on the same branch and say so.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import appell
+from appell.examples import example_path
+from appell.examples.iftomm_examples import A02_SIZES, a02_reference, n_four_bar_text
+
+G = 9.81
+
+
+def branch(n: int, t_end: float, t_eval=None):
+    """phi, phi' on the parallelogram branch at ``t_eval`` and the times of the flat
+    passages (phi a multiple of pi), by SciPy."""
+    inertia, torque = a02_reference(n)
+
+    def flat(t, y):
+        return math.sin(y[0])
+
+    sol = solve_ivp(lambda t, y: [y[1], -torque * math.cos(y[0]) / inertia], (0.0, t_end), [math.pi / 2, -1.0],
+                    t_eval=t_eval, events=flat, rtol=1e-13, atol=1e-13, method="DOP853")
+    return sol.y, sol.t_events[0]
+
+
+def energy(n: int, phi, rate):
+    inertia, torque = a02_reference(n)
+    return 0.5 * inertia * rate**2 + torque * np.sin(phi)
+
+
+def pin_forces(n: int, phi: float, rate: float):
+    """Free-body Newton-Euler on the branch: ``L[j]``, the force of rocker j+1 on coupler j
+    (appell's lambda_L<j>), and ``P[j]``, the force of rocker j on coupler j (hinge C<j>)."""
+    inertia, torque = a02_reference(n)
+    accel = -torque * math.cos(phi) / inertia
+    c, s = math.cos(phi), math.sin(phi)
+    tip = np.array([-s * accel - c * rate**2, c * accel - s * rate**2])
+    rows, rhs = [], []
+    width = 4 * n  # unknowns: P_j (x, y), L_j (x, y)
+    for j in range(n):  # coupler j: P + L - m g y = m a_tip; moments about its middle
+        for axis in range(2):
+            row = np.zeros(width)
+            row[4 * j + axis] = row[4 * j + 2 + axis] = 1.0
+            rows.append(row)
+            rhs.append(tip[axis] + (G if axis == 1 else 0.0))
+        row = np.zeros(width)
+        row[4 * j + 1], row[4 * j + 3] = -0.5, 0.5
+        rows.append(row)
+        rhs.append(0.0)
+    for i in range(n + 1):  # rocker i about its pivot: I_p phi'' = -m g c/2 + tip x (forces on it)
+        row = np.zeros(width)
+        if i < n:  # -P_i at its tip
+            row[4 * i], row[4 * i + 1] = s, -c
+        if i >= 1:  # -L_{i-1} at its tip
+            row[4 * (i - 1) + 2], row[4 * (i - 1) + 3] = s, -c
+        rows.append(row)
+        rhs.append(accel / 3 + 0.5 * G * c)
+    x, *_ = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)
+    assert np.abs(np.array(rows) @ x - rhs).max() < 1e-9  # the branch's motion is consistent
+    return x.reshape(n, 4)[:, 2:], x.reshape(n, 4)[:, :2]
+
+
+@pytest.mark.parametrize("n", A02_SIZES)
+def test_a02_files_are_written_by_their_generator(n):
+    assert example_path(f"iftomm_a02_n{n}").read_text() == n_four_bar_text(n)
+
+
+def run_a02(n: int, **options):
+    derivation = appell.derive(appell.load_model(example_path(f"iftomm_a02_n{n}")))
+    sol = appell.simulate(derivation.compiled("c"), **options)
+    return derivation, sol
+
+
+def check_a02(n, sol, t_end, angle_tol=1e-6):
+    t = sol["t"]
+    (phi, rate), flats = branch(n, t_end, t)
+    assert sol.status == 0, sol.message
+    # every rocker on the branch's angle, every coupler level
+    for i in range(n + 1):
+        assert np.abs(sol[f"R{i}"] - phi).max() < angle_tol
+    for j in range(n):
+        assert np.abs(sol[f"R{j}"] + sol[f"C{j}"]).max() < angle_tol
+    e = energy(n, sol["R0"], sol["R0_dot"])
+    assert np.abs(e - e[0]).max() <= 1e-6 * abs(e[0])
+    # each flat passage is an event, at the branch's time, naming the N rows that lose rank
+    passed = [ev for ev in sol.events if ev.kind == "singular"]
+    assert len(passed) == len(flats)
+    for ev, t_flat in zip(passed, flats):
+        assert abs(ev.t - t_flat) < 1e-6
+        assert "singular configuration passed" in ev.detail
+        assert ev.name.split(", ") == [f"L{j}_x" for j in range(n)]
+    return t, phi, rate, passed
+
+
+def bands(sol, passed):
+    """Output rows inside the bands each passage crossed by prediction (from its event)."""
+    t = sol["t"]
+    inside = np.zeros(t.size, bool)
+    for ev in passed:
+        start, end = (float(x) for x in ev.detail.split("from t = ")[1].split(" the acc")[0].split(" to "))
+        assert start < ev.t < end
+        inside |= (t >= start) & (t <= end)
+    return inside
+
+
+def check_pin_forces(n, sol, passed, within=1e-6, per_instant=1e-5):
+    """lambda_L<j> against the free-body solution at the run's own state (R0, R0'): the
+    trajectory is checked apart. Near a flat passage the rods' axial forces of a chain with
+    N >= 2 grow as 1/(t - t*) (hundreds of newtons 1e-4 s away): they are compared both to
+    the run's largest force and to their own size."""
+    lam = np.stack([np.stack([sol[f"lambda_L{j}_x"], sol[f"lambda_L{j}_y"]], axis=1) for j in range(n)], axis=1)
+    ref = np.array([pin_forces(n, f, r)[0] for f, r in zip(sol["R0"], sol["R0_dot"])])
+    inside = bands(sol, passed)
+    outside = ~inside
+    scale = np.abs(ref[outside]).max()
+    assert np.abs(lam[outside] - ref[outside]).max() <= within * scale
+    own = np.abs(lam - ref).max(axis=(1, 2)) / np.abs(ref).max(axis=(1, 2))
+    assert own.max() <= per_instant, (own.max(), sol["t"][np.argmax(own)])
+    return inside
+
+
+@pytest.mark.parametrize("n", [1, 4, 10])
+def test_a02_follows_the_parallelogram_branch_through_every_flat_passage(n):
+    """The library's 20 s at the model file's settings (rtol 1e-10): every rocker within
+    1e-6 rad of the branch, energy within 1e-6, each flat passage listed at its time with
+    the N rows that lose rank; pin forces of the free-body solution at every output time,
+    inside the bands too (interpolated there across the pole)."""
+    _, sol = run_a02(n)
+    _, _, _, passed = check_a02(n, sol, 20.0)
+    inside = check_pin_forces(n, sol, passed)
+    assert inside.any()  # rows inside bands were checked
+
+
+def test_a02_pin_forces_close_to_the_flat_instant():
+    """Output every 50 microseconds across the first two flat passages of N = 4: the axial
+    forces that grow as 1/(t - t*) (the free-body solution reaches 700 N 1e-4 s from the
+    instant) match it to 1e-6 of their size; the event at the instant gives the
+    minimum-norm multipliers, bounded, and names the rank lost."""
+    n, t_end = 4, 1.3
+    derivation = appell.derive(appell.load_model(example_path(f"iftomm_a02_n{n}")))
+    sol = appell.simulate(derivation.compiled("c"), t_end, t_eval=np.linspace(0.0, t_end, 26001))
+    _, _, _, passed = check_a02(n, sol, t_end)
+    inside = check_pin_forces(n, sol, passed, per_instant=3e-6)
+    assert inside.sum() > 100
+    ref = np.array([pin_forces(n, f, r)[0] for f, r in zip(sol["R0"], sol["R0_dot"])])
+    assert np.abs(ref[inside]).max() > 10 * np.abs(ref[~inside]).max()  # the pole was sampled
+    for ev in passed:
+        assert "loses rank 4" in ev.detail
+        lam = np.array([[ev.multipliers[f"L{j}_x"], ev.multipliers[f"L{j}_y"]] for j in range(n)])
+        assert np.abs(lam).max() < np.abs(ref[~inside]).max()
+
+
+@pytest.mark.slow
+def test_a02_forty_four_bars():
+    """The library's case, N = 40 (81 rods, 80 constraints, rank loss 40 at each flat
+    passage), 20 s."""
+    _, sol = run_a02(40)
+    _, _, _, passed = check_a02(40, sol, 20.0)
+    check_pin_forces(40, sol, passed)
+
+
+def test_a02_every_method_and_the_numpy_backend_pass_on_the_branch():
+    """N = 1 for 3 s (two flat passages) with SciPy's DOP853, RK45 and Radau on the NumPy
+    backend: each passes on the branch."""
+    derivation = appell.derive(appell.load_model(example_path("iftomm_a02_n1")))
+    for method in ("DOP853", "RK45", "Radau"):
+        sol = appell.simulate(derivation, 3.0, method=method, rtol=1e-10, atol=1e-12)
+        check_a02(1, sol, 3.0, angle_tol=1e-6)
