@@ -34,7 +34,7 @@ from appell.core.kinematics import kinematics_of
 from appell.errors import ModelError
 from appell.model import System
 from appell.core.partition import choose_partition
-from appell.core.redundancy import check_consistency, find_redundancy
+from appell.core.redundancy import check_consistency, find_redundancy, split_outputs
 from appell.core.validation import validate
 
 
@@ -70,9 +70,10 @@ def derive(system: System, dependent: Sequence | None = None) -> Derivation:
     cons = second_order_blocks(system.constraints, kin)
     known = {**system.parameter_values, **{sp.Symbol(k): v for k, v in system.initial}}
     known.update(_programs_at_start(system, known))
-    redundancy = find_redundancy(cons, system.constraints, known)
+    redundancy = find_redundancy(cons, system.constraints, known, coordinates=kin.coordinates)
     if redundancy is not None:  # statically indeterminate: the motion from independent rows
         check_consistency(redundancy, kin, known)
+        redundancy = split_outputs(redundancy, system.outputs, known)
         cons = cons.subset(redundancy.independent)
     partition = choose_partition(sp.Matrix(cons.jacobian), cons.names, kin.accelerations, dependent, at=known)
     return Derivation(system, kin, inertia, cons, partition, redundancy)

@@ -66,6 +66,12 @@ class Redundancy:
     compliance : per constraint (None where not given); the split is elastic when every
         involved constraint has one.
     at_start : whether the reference state is the model's initial state (else generic).
+    on_manifold : whether the rank is lost only on the constraint manifold (Bricard's
+        mechanism: ``J`` has full rank at generic states, rank ``r`` wherever the
+        constraints hold), rather than identically.
+    outputs_undetermined, outputs_determined : the model's outputs (joint forces and
+        moments...) that change, or not, along the undetermined directions of the
+        multipliers at the reference state (:func:`split_outputs`).
     """
 
     constraints: ConstraintBlocks
@@ -75,6 +81,9 @@ class Redundancy:
     involved: tuple[int, ...]
     compliance: tuple[float | None, ...]
     at_start: bool
+    on_manifold: bool = False
+    outputs_undetermined: tuple[str, ...] = ()
+    outputs_determined: tuple[str, ...] = ()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -115,7 +124,9 @@ class Redundancy:
         s = len(self.names)
         lines = [
             f"redundant constraints (statically indeterminate): rank J = {self.rank} of {s} constraints; "
-            f"dim null(J^T) = {self.dimension}",
+            f"dim null(J^T) = {self.dimension}"
+            + (" wherever the constraints hold (an overconstrained loop: J has full rank off them)"
+               if self.on_manifold else ""),
             "  motion from: " + ", ".join(self.named("independent")),
             "  satisfied automatically: " + ", ".join(self.named("redundant")),
             "  undetermined split among: " + ", ".join(self.named("involved"))
@@ -125,6 +136,9 @@ class Redundancy:
         ]
         if self.named("determined"):
             lines.append("  determined: " + ", ".join(self.named("determined")))
+        if self.outputs_undetermined:
+            lines.append("  outputs undetermined with them: " + ", ".join(self.outputs_undetermined))
+            lines.append("  outputs determined: " + (", ".join(self.outputs_determined) or "none"))
         where = "at the initial state" if self.at_start else "at a generic state"
         for k in range(self.dimension):
             terms = " ".join(f"{v:+.6g} {n}" for v, n in zip(self.null_space[:, k], self.names)
@@ -141,7 +155,9 @@ class Redundancy:
             "independent": list(self.named("independent")), "redundant": list(self.named("redundant")),
             "undetermined": list(self.named("involved")), "determined": list(self.named("determined")),
             "null_space": self.null_space.tolist(), "split": "elastic" if self.elastic else "minimum-norm",
-            "statement": self.split,
+            "statement": self.split, "on_manifold": self.on_manifold,
+            "outputs_undetermined": list(self.outputs_undetermined),
+            "outputs_determined": list(self.outputs_determined),
         }
 
 
@@ -224,11 +240,14 @@ def _refuse_vanishing_rows(J: sp.Matrix, Jn: np.ndarray, at: dict, names) -> Non
                 hint=f"write {name!r} as F = 0, or start away from the point where its gradient vanishes")
 
 
-def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None, seed: int = 0) -> Redundancy | None:
+def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None, seed: int = 0,
+                    coordinates=()) -> Redundancy | None:
     """The :class:`Redundancy` of the constraint blocks, or None when ``J`` has full row rank.
 
     ``constraints`` are the model's :class:`~appell.model.Constraint` objects (for their
-    compliances); ``at`` the known values (parameters, initial state, programs at t = 0).
+    compliances); ``at`` the known values (parameters, initial state, programs at t = 0);
+    ``coordinates`` the model's coordinates, for a rank lost only where the constraints
+    hold (:func:`rank_on_manifold`).
     """
     J = sp.Matrix(cons.jacobian)
     s = J.shape[0]
@@ -236,8 +255,12 @@ def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None,
         return None
     generic = [numeric_jacobian(J, seed, cons.names), numeric_jacobian(J, seed + 1, cons.names)]
     rank = max(len(independent_rows(Jn)) for Jn in generic)
+    on_manifold = False
     if rank == s:
-        return None
+        rank = rank_on_manifold(cons, J, coordinates, at or {}, seed)
+        if rank is None:
+            return None
+        on_manifold = True
     ref, at_start = jacobian_at(J, at or {}, seed), True
     if ref is not None:
         _refuse_vanishing_rows(J, ref, at, cons.names)
@@ -259,7 +282,103 @@ def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None,
                  + ", ".join(cons.names[i] for i in involved) + " (minimum-norm split)",
         )
     return Redundancy(cons, tuple(rows), tuple(i for i in range(s) if i not in rows), N, involved,
-                      compliance, at_start)
+                      compliance, at_start, on_manifold)
+
+
+def split_outputs(red: Redundancy, outputs, at: dict, seed: int = 0) -> Redundancy:
+    """``red`` with the model's ``outputs`` split into those that the undetermined
+    multipliers move and those they do not.
+
+    An output linear in the multipliers (a joint's force or moment) changes along an
+    undetermined direction ``n`` (a column of the null space) by ``(d out / d lambda) . n``;
+    at the reference state (the initial values, generic values for the rest) an output is
+    undetermined where that is above 1e-8 of ``|d out / d lambda| |n|`` for some ``n``.
+    """
+    import dataclasses
+
+    if not outputs or not red.involved:
+        return red
+    lam = [sp.Symbol(f"lambda_{n}") for n in red.names]
+    grads = sp.Matrix([[sp.diff(o.expr, x) for x in lam] for o in outputs])
+    values = {**generic_values(grads.free_symbols - set(at), seed), **at}
+    try:
+        G = np.array(grads.xreplace({k: v for k, v in values.items() if k in grads.free_symbols}).evalf(),
+                     dtype=float).reshape(len(outputs), len(lam))
+    except (TypeError, ValueError):
+        return red
+    if not np.all(np.isfinite(G)):
+        return red
+    moved = np.abs(G @ red.null_space)
+    size = np.linalg.norm(G, axis=1)[:, None] * np.linalg.norm(red.null_space, axis=0)[None, :]
+    loose = np.any(moved > 1e-8 * np.where(size > 0.0, size, 1.0), axis=1)
+    return dataclasses.replace(red, outputs_undetermined=tuple(o.name for o, u in zip(outputs, loose) if u),
+                               outputs_determined=tuple(o.name for o, u in zip(outputs, loose) if not u))
+
+
+#: configurations of the motion, away from the start, where a rank lost at the start must be
+#: lost too for the loss to count as an overconstraint (else it is a singular configuration)
+MANIFOLD_POINTS = 3
+
+
+def rank_on_manifold(cons: ConstraintBlocks, J: sp.Matrix, coordinates, at: dict, seed: int = 0) -> int | None:
+    """The rank of ``J`` on the constraint manifold when it is lower there than at generic
+    states, else None.
+
+    Bricard's mechanism has five hinge-loop constraints in five angles and moves with one
+    degree of freedom: ``J`` has full rank off the constraint manifold (so the generic
+    test of :func:`find_redundancy` sees no redundancy) and rank 4 wherever the constraints
+    hold. A rank lost at the initial state is such an overconstraint when it is lost as well
+    at :data:`MANIFOLD_POINTS` other configurations of the mechanism: from the start, a step
+    of 0.1 to 0.4 (times the coordinates' size) along a random direction of the null space
+    of ``dF/dq``, then Gauss-Newton onto ``F = 0`` (minimum-norm corrections). Where the
+    rank comes back at any of them, the start is a singular configuration (None). Only
+    holonomic constraints in known parameters are judged.
+    """
+    q = [c for c in coordinates]
+    if not q or not at or any(c not in at for c in q) or any(e is None for e in cons.position_residual):
+        return None
+    start = jacobian_at(J, at, seed)
+    if start is None:
+        return None
+    rank = len(independent_rows(start))
+    if rank == J.shape[0]:
+        return None
+    fixed = {k: v for k, v in at.items() if k not in set(q)}
+    F = sp.Matrix([sp.sympify(e).xreplace(fixed) for e in cons.position_residual])
+    if F.free_symbols - set(q):
+        return None
+    fn = sp.lambdify([q], [F, F.jacobian(sp.Matrix(q))], modules="numpy")
+
+    def residual(x):
+        f, dF = fn(x)
+        return np.asarray(f, float).reshape(-1), np.asarray(dF, float).reshape(len(F), len(q))
+
+    x0 = np.array([float(at[c]) for c in q])
+    f0, dF0 = residual(x0)
+    size = 1.0 + float(np.abs(x0).max())
+    if not np.all(np.isfinite(f0)) or np.abs(f0).max() > 1e-8 * size:
+        return None
+    _, sv, Vt = np.linalg.svd(dF0)
+    free = Vt[int(np.sum(sv > 1e-9 * sv[0])):] if sv.size and sv[0] > 0 else Vt
+    if not len(free):
+        return None
+    rng = np.random.default_rng(seed)
+    for k in range(MANIFOLD_POINTS):
+        direction = rng.standard_normal(len(free)) @ free
+        x = x0 + (0.1 + 0.15 * k) * size * direction / np.abs(direction).max()
+        for _ in range(50):
+            f, dF = residual(x)
+            if not np.all(np.isfinite(f)):
+                return None
+            if np.abs(f).max() <= 1e-13 * size:
+                break
+            x = x - np.linalg.lstsq(dF, f, rcond=None)[0]
+        else:
+            return None
+        Jn = jacobian_at(J, {**at, **dict(zip(q, (float(v) for v in x)))}, seed)
+        if Jn is None or len(independent_rows(Jn)) != rank:
+            return None
+    return rank
 
 
 def check_consistency(red: Redundancy, kin, at: dict, seed: int = 0) -> None:

@@ -19,6 +19,17 @@ of their centres). Whenever the rockers lie flat (``phi = k pi``), every rod is 
 x axis: the constraint Jacobian loses rank ``N`` (the degrees of freedom jump from 1 to
 ``N + 1``) and the motion must pass on the same branch (appell.simulation.passage).
 
+**A04, Bricard's mechanism**: five rods of 1 m and 1 kg (square section 0.1 m side) and the
+ground joined in a loop by six hinges, each rod perpendicular to both hinge axes at its ends
+and consecutive axes perpendicular (the orthogonal 6R Bricard linkage). Grübler's count
+gives no degree of freedom, yet it moves with one: one of the loop's constraints is redundant
+wherever the loop is closed, though not at other configurations. Here the loop starts on the
+edges of the unit cube, ``(0,0,0) (1,0,0) (1,1,0) (1,1,1) (0,1,1) (0,0,1)`` (the last rod is the
+ground), and is released at rest under gravity along -y. The library's own start and reference
+data were not available offline: the tests check this motion against independent routes
+(energy, the augmented system of method.md §3 integrated by SciPy, ideal hinges that carry no
+moment about their axes), not against the library's numbers.
+
 Written here with :class:`~appell.mechanism.Mechanism`: rocker ``i`` on hinge ``R<i>``
 (absolute angle), coupler ``j`` on hinge ``C<j>`` at the tip of rocker ``j`` (angle relative to
 it), and the loop closed at the tip of rocker ``j + 1`` by ``connect`` ``L<j>`` in x and y:
@@ -111,4 +122,44 @@ def a02_reference(n: int):
     return (n + 1) / 3 + n, ((n + 1) / 2 + n) * G
 
 
-IFTOMM_EXAMPLES = {_a02_name(n): (lambda n=n: n_four_bar(n)) for n in A02_SIZES}
+#: the cube-edge loop of Bricard's mechanism: hinge points, rod directions, hinge axes (world)
+BRICARD_POINTS = ((0, 0, 0), (1, 0, 0), (1, 1, 0), (1, 1, 1), (0, 1, 1), (0, 0, 1))
+BRICARD_AXES = ((0, 1, 0), (0, 0, 1), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 0))
+
+
+def bricard() -> System:
+    """Bricard's mechanism (module docstring): rods ``rod1..rod5`` on hinges ``H1..H5`` (each
+    frame parallel to the world's at the start, so every hinge axis and point is written in
+    world axes), the loop closed at the sixth hinge by ``connect`` ``H6`` (the rod's end on the
+    ground point, x, y, z) and ``H6_axis`` (a second point of the hinge axis, y and z): five
+    constraints, one of them redundant on the loop's motion. Each hinge's force and moment
+    are given in its rod's axes, where the hinge axis is fixed: ``M_H1_y``, ``M_H2_z``,
+    ``M_H3_x``, ``M_H4_y``, ``M_H5_z`` are the moments about the hinge axes."""
+    mech = Mechanism("bricard", gravity=(0, -G, 0), description=_bricard_description())
+    side = 0.1
+    transverse, axial = (1.0 + side**2) / 12, 2 * side**2 / 12
+    directions = [tuple(b - a for a, b in zip(BRICARD_POINTS[k], BRICARD_POINTS[k + 1])) for k in range(5)]
+    rods = [mech.body(f"rod{k + 1}", 1.0, inertia=tuple(axial if d else transverse for d in direction),
+                      com=tuple(0.5 * d for d in direction)) for k, direction in enumerate(directions)]
+    parent, origin = "ground", (0, 0, 0)
+    for k in range(5):
+        mech.revolute(f"H{k + 1}", parent, rods[k], axis=BRICARD_AXES[k], origin=origin)
+        parent, origin = rods[k], directions[k]
+    end = directions[4]
+    mech.connect("H6", (rods[4], end), ("ground", BRICARD_POINTS[5]), directions="xyz")
+    along = tuple(e + a for e, a in zip(end, BRICARD_AXES[5]))
+    mech.connect("H6_axis", (rods[4], along), ("ground", tuple(p + a for p, a in zip(BRICARD_POINTS[5], BRICARD_AXES[5]))),
+                 directions="yz")
+    units = {f"H{k}": "rad" for k in range(1, 6)}
+    units.update({name: "N" for name in ("H6_x", "H6_y", "H6_z", "H6_axis_y", "H6_axis_z")})
+    # each hinge's force and moment in the axes of its rod, where the hinge axis stays put
+    return mech.system(initial={f"H{k}": 0.0 for k in range(1, 6)}, units=units,
+                       frame={f"H{k}": f"rod{k}" for k in range(1, 6)})
+
+
+def _bricard_description() -> str:
+    return ("Bricard's mechanism (IFToMM A04 geometry): an overconstrained loop of five rods and six hinges "
+            "with one degree of freedom")
+
+
+IFTOMM_EXAMPLES = {**{_a02_name(n): (lambda n=n: n_four_bar(n)) for n in A02_SIZES}, "bricard": bricard}

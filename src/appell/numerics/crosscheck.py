@@ -54,6 +54,7 @@ from typing import Mapping
 
 import numpy as np
 
+from appell.core.partition import row_scales
 from appell.errors import ComputationError, ModelError
 from appell.numerics.inertia import check_inertia
 from appell.numerics.numeric import NumericModel, StateSolution, newton
@@ -90,15 +91,26 @@ def solve_augmented(M, hQ, J, c, constraint_function=None):
     return x[:n], x[n:], constraint_function(x[:n])[1], its
 
 
-def solve_indeterminate(M, hQ, J, c, weights=None):
+def solve_indeterminate(M, hQ, J, c, weights=None, rank=None):
     """``(a, lambda)`` for redundant constraints (rank J < s), by least squares on
     whole systems: ``a`` from the augmented system with every row (consistent and
     singular), ``lambda`` from the optimality system of ``min lambda^T W lambda`` under
     ``J^T lambda = M a + h - Q``: ``[W -J; J^T 0][lambda; dq] = [0; M a + h - Q]``, with
     ``W = D^{-2}`` (row-scaled minimum norm) or ``diag(weights)`` (compliances). An
     independent route to :func:`appell.core.redundancy.multipliers_with_redundancy`
-    (particular solution plus null space)."""
+    (particular solution plus null space).
+
+    ``rank``: the rank the constraints keep where they hold. A loop redundant only on its
+    manifold (Bricard's) has at a state a hair off it a smallest singular value of rounding
+    size, not zero; least squares would divide by it. With ``rank`` given, ``J`` and ``c``
+    are first cut to it (row-scaled SVD, ``c`` projected on the range kept)."""
     n, s = M.shape[0], J.shape[0]
+    if rank is not None and rank < min(s, n):
+        D = row_scales(J)
+        U, sv, Vt = np.linalg.svd(J * D[:, None])
+        Ur = U[:, :rank]
+        J = (Ur * sv[:rank]) @ Vt[:rank] / np.where(D > 0.0, D, 1.0)[:, None]
+        c = (Ur @ (Ur.T @ (D * c))) / np.where(D > 0.0, D, 1.0)
     K = np.block([[M, -J.T], [J, np.zeros((s, s))]])
     a = np.linalg.lstsq(K, np.concatenate([-hQ, -c]), rcond=None)[0][:n]
     weights = np.abs(J).max(axis=1) ** 2 if weights is None else np.asarray(weights, float)
@@ -121,8 +133,8 @@ def _cleared(a, M, hQ):
 
 def onto_constraints(model, t, q, w, p, iterations: int = 50):
     """``(t, q, w)`` moved onto all constraints (Gauss–Newton by least squares on the
-    position residuals in q, then the velocity residuals in w), for a model with
-    redundant constraints (``full_blocks``)."""
+    position residuals in q, then the velocity residuals in w, steps of at most 0.5), for a
+    model with redundant constraints (``full_blocks``)."""
     q, w = np.array(q, float), np.array(w, float)
     for level in (0, 1):
         for _ in range(iterations):
@@ -131,12 +143,25 @@ def onto_constraints(model, t, q, w, p, iterations: int = 50):
             r, A = (pos, jq) if level == 0 else (vel, jw)
             if not rows.any() or np.abs(r[rows]).max() <= 1e-14:
                 break
-            step = np.linalg.lstsq(A[rows], -r[rows], rcond=None)[0]
+            step = np.linalg.lstsq(A[rows], -r[rows], rcond=1e-9)[0]  # rank lost on the manifold: cut
+            big = float(np.abs(step).max(initial=0.0))
+            if big > 0.5:  # damped: a far start is walked onto the nearest part of the constraints
+                step *= 0.5 / big
             if level == 0:
                 q += step
             else:
                 w += step
     return t, q, w
+
+
+def on_constraints(model, t, q, w, p, tol: float = 1e-10) -> bool:
+    """Whether every constraint holds at ``(t, q, w)`` within ``tol`` (relative to 1 + |q|,
+    1 + |w|): a sampled start that :func:`onto_constraints` could not bring onto them (a
+    local minimum of the residual) is left out of the comparison."""
+    _, _, pos, vel, _, _ = model.full_blocks(t, q, w, p)
+    pos = np.abs(pos[model.has_position]).max(initial=0.0) / (1.0 + np.abs(q).max(initial=0.0))
+    vel = np.abs(vel[model.has_velocity]).max(initial=0.0) / (1.0 + np.abs(w).max(initial=0.0))
+    return bool(pos <= tol and vel <= tol)
 
 
 def _model_constraint_function(model: NumericModel, t, q, w, pv):
@@ -347,6 +372,7 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
     pv = model.params(p)
     if red is not None:  # redundant rows hold together only on the constraints: sample there
         states = [onto_constraints(model, t, q, w, pv) for t, q, w in states]
+        states = [state for state in states if on_constraints(model, *state, pv)]
     unavailable: dict[str, str] = {}
     aug, formulas = _Lines(names), _Lines(names, with_accelerations=False)
     reason = lagrange_unavailable(derivation.system)
@@ -361,7 +387,7 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
         M, hQ, J, c = model.evaluate_blocks(t, q, w, pv)
         if red is not None:  # statically indeterminate: the whole systems by least squares
             J, c = model.full_blocks(t, q, w, pv)[:2]
-            a_r, lam_r = solve_indeterminate(M, hQ, J, c, model.weights)
+            a_r, lam_r = solve_indeterminate(M, hQ, J, c, model.weights, red.rank)
             ref = StateSolution(_cleared(a_r, M, hQ), lam_r, J.T @ lam_r, ())
             sol = StateSolution(_cleared(sol.accelerations, M, hQ), sol.multipliers, sol.generalized_reactions,
                                 sol.dependent, sol.switched)
@@ -377,7 +403,8 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
             else:
                 formulas.add(None, None, lam_f, ref.multipliers, scale)
         if route is not None:
-            a_l, lam_l = _lagrange_solve(route, t, q, w, pv, False if red is None else model.weights)
+            a_l, lam_l = _lagrange_solve(route, t, q, w, pv, False if red is None else model.weights,
+                                         None if red is None else red.rank)
             if red is not None:
                 a_l = _cleared(a_l, M, hQ)
             scale = multiplier_scale(M, hQ, J, a_l, lam_l)
@@ -396,7 +423,7 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
     return CrossCheckReport(len(states), tuple(comparisons), unavailable, names)
 
 
-def _lagrange_solve(route, t, q, w, pv, weights=False):
+def _lagrange_solve(route, t, q, w, pv, weights=False, rank=None):
     """Accelerations and multipliers of Lagrange's equations (:mod:`appell.numerics.lagrange`)."""
     q, w = np.asarray(q, float), np.asarray(w, float)
     n = len(w)
@@ -409,7 +436,7 @@ def _lagrange_solve(route, t, q, w, pv, weights=False):
             return np.asarray(f, float).reshape(-1), np.asarray(Ja, float).reshape(-1, n)
     try:
         if weights is not False:  # redundant constraints (see solve_indeterminate)
-            return solve_indeterminate(M, hQ, J, c, weights)
+            return solve_indeterminate(M, hQ, J, c, weights, rank)
         a, lam, _, _ = solve_augmented(M, hQ, J, c, fJ)
     except np.linalg.LinAlgError as exc:
         raise ComputationError("Lagrange's equations are singular at a sampled state",

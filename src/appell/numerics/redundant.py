@@ -15,9 +15,16 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
+from appell.core.partition import row_scales
 from appell.core.redundancy import multipliers_with_redundancy
+from appell.errors import SingularConfigurationError
 from appell.numerics.dynamics import Evaluation
 from appell.numerics.numeric import StateSolution, _args, lambdify_blocks, program_substitutions
+
+
+#: smallest singular value of the kept rows (row-normalised), relative to the largest, under
+#: which a model redundant on its constraint manifold takes its motion from all rows
+KEPT_CONDITION = 1e-3
 
 
 class RedundantModel:
@@ -88,9 +95,17 @@ class RedundantModel:
         return bias[list(self.redundancy.independent)] if bias.shape == (self._shape[0],) else bias
 
     def solve(self, t, q, w, p=None, dependent=None, bias=None) -> StateSolution:
-        """The wrapped model's solve, with every constraint's multiplier."""
+        """The wrapped model's solve, with every constraint's multiplier; from all rows
+        where the kept ones degenerate (:meth:`all_rows`)."""
         pv = self.inner.params(p)
-        sol = self.inner.solve(t, q, w, pv, dependent, self._bias(bias))
+        if self._needs_all_rows(t, q, w, pv):
+            return self.all_rows(t, q, w, pv, bias)
+        try:
+            sol = self.inner.solve(t, q, w, pv, dependent, self._bias(bias))
+        except SingularConfigurationError:
+            if not self._may_use_all_rows():
+                raise
+            return self.all_rows(t, q, w, pv, bias)
         lam = self.all_multipliers(t, q, w, sol.multipliers, pv)
         return StateSolution(sol.accelerations, lam, sol.generalized_reactions, sol.dependent, sol.switched,
                              sol.newton_iterations)
@@ -98,10 +113,64 @@ class RedundantModel:
     def evaluate(self, t, y, p=None, dependent=None, bias=None) -> Evaluation:
         """:class:`~appell.numerics.dynamics.Dynamics` evaluation with every multiplier."""
         pv = self.inner.params(p)
-        ev = self.inner.evaluate(t, y, pv, dependent, self._bias(bias))
         q, w = self.inner.split_state(y)
+        if self._needs_all_rows(t, q, w, pv):
+            sol = self.all_rows(t, q, w, pv, bias)
+            return Evaluation(np.concatenate([self.inner.coordinate_rates(t, q, w, pv), sol.accelerations]),
+                              sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
+        try:
+            ev = self.inner.evaluate(t, y, pv, dependent, self._bias(bias))
+        except SingularConfigurationError:
+            if not self._may_use_all_rows():
+                raise
+            sol = self.all_rows(t, q, w, pv, bias)
+            return Evaluation(np.concatenate([self.inner.coordinate_rates(t, q, w, pv), sol.accelerations]),
+                              sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
         lam = self.all_multipliers(t, q, w, ev.multipliers, pv)
         return Evaluation(ev.derivative, lam, ev.controls, ev.dependent, ev.switched)
+
+    # ------------------------------------------------------------ overconstrained loops
+    def _may_use_all_rows(self) -> bool:
+        return bool(self.redundancy.on_manifold) and self.weights is None and self.inner.constraint_function is None
+
+    def _needs_all_rows(self, t, q, w, pv) -> bool:
+        """Whether the kept rows have (nearly) lost rank here although all rows keep rank
+        ``r``: a loop redundant on its manifold (Bricard's mechanism) has no row that is
+        redundant everywhere along its motion, so the rows derived at the start degenerate
+        elsewhere (:data:`KEPT_CONDITION`)."""
+        if not self._may_use_all_rows():
+            return False
+        J = self.full_blocks(t, q, w, pv)[0]
+        kept = J[list(self.redundancy.independent)]
+        sv = np.linalg.svd(kept * row_scales(kept)[:, None], compute_uv=False)
+        return bool(sv.size) and sv[-1] < KEPT_CONDITION * sv[0]
+
+    def all_rows(self, t, q, w, p=None, bias=None) -> StateSolution:
+        """Accelerations and minimum-norm multipliers from every constraint row, with the
+        rank ``r`` the constraints keep on their manifold: in the row-scaled ``D J = U S V^T``
+        (``D`` of :func:`~appell.core.partition.row_scales`), the constraints ``J a + c = 0``
+        are ``V_r^T a = -S_r^-1 U_r^T D c`` (the other ``s - r`` rows hold by themselves),
+        so ``a = a_p + Z z`` with ``a_p = -V_r S_r^-1 U_r^T D c``, ``Z`` the rest of ``V``, and
+        ``(Z^T M Z) z = -Z^T (M a_p + h - Q)`` (Gauss's principle on the allowed accelerations);
+        then ``lambda = D U_r S_r^-1 V_r^T (M a + h - Q)``, the solution of
+        ``J^T lambda = M a + h - Q`` of least ``|D^-1 lambda|``, the split of
+        :func:`~appell.core.redundancy.multipliers_with_redundancy`."""
+        pv = self.inner.params(p)
+        M, hQ, _, _ = self.inner.evaluate_blocks(t, q, w, pv)
+        J, c = self.full_blocks(t, q, w, pv)[:2]
+        if bias is not None:
+            c = c + np.asarray(bias, float)
+        r = self.redundancy.rank
+        D = row_scales(J)
+        U, sv, Vt = np.linalg.svd(J * D[:, None])
+        Ur, Sr, Vr, Z = U[:, :r], sv[:r], Vt[:r].T, Vt[r:].T
+        a = -Vr @ ((Ur.T @ (D * c)) / Sr)
+        if Z.shape[1]:
+            a = a + Z @ np.linalg.solve(Z.T @ M @ Z, -Z.T @ (M @ a + hQ))
+        R = M @ a + hQ
+        lam = D * (Ur @ ((Vr.T @ R) / Sr))
+        dependent = tuple(self.inner.derivation.partition.dependent)
+        return StateSolution(a, lam, J.T @ lam, dependent, False, 0)
 
     def constraint_residuals(self, t, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
         """Position and velocity residuals of all constraints (NaN where no such level)."""

@@ -122,6 +122,10 @@ METHODS = {"DOP853": si.DOP853, "DOP853-scipy": si.DOP853, "RK45": si.RK45, "RK2
 KINDS = {0: "holonomic", 1: "first-order", 2: "second-order"}
 
 
+#: relative cut-off of the least-squares steps of :func:`project`
+PROJECTION_RCOND = 1e-9
+
+
 def project(model, t, y, p, tol: float = 1e-13, maxiter: int = 20) -> np.ndarray:
     """Project the state onto the constraint manifold (see the module docstring, step 3).
 
@@ -138,7 +142,10 @@ def project(model, t, y, p, tol: float = 1e-13, maxiter: int = 20) -> np.ndarray
             if not rows.any() or np.max(np.abs(r[rows])) <= tol:
                 break
             J = residual_jacobians(model, t, y, p)[level][rows]
-            dx = np.linalg.lstsq(J, -r[rows], rcond=None)[0]
+            # singular values under PROJECTION_RCOND of the largest are rank lost on the
+            # manifold (a loop redundant there, Bricard's): a residual along them is rounding,
+            # and dividing by them moved the state by O(1) and the energy with it
+            dx = np.linalg.lstsq(J, -r[rows], rcond=PROJECTION_RCOND)[0]
             y[sl] += dx
             if np.max(np.abs(dx)) <= 1e-15 * (1.0 + np.max(np.abs(y[sl]))):
                 break
