@@ -20,7 +20,7 @@ import sympy as sp
 from click.testing import CliRunner
 
 from appell.io.cli import cli
-from appell.examples import example_path, list_examples
+from appell.examples import example_path, list_benchmarks, list_examples
 
 BAD_TOML = """\
 [model]
@@ -161,9 +161,13 @@ def test_help_everywhere(command):
 def test_examples_lists_every_bundled_model_with_a_description():
     result = run("examples")
     assert result.exit_code == 0
-    lines = result.output.strip().splitlines()
+    examples, benchmarks = result.output.strip().split("\n\nbenchmarks (published benchmark problems, larger):\n")
+    lines = examples.splitlines()
     assert [line.split()[0] for line in lines] == list_examples()
     assert all(len(line.split(maxsplit=1)) == 2 for line in lines), "each example has a one-line description"
+    group = benchmarks.splitlines()  # the benchmarks group (issue 19), after the examples
+    assert [line.split()[0] for line in group] == list_benchmarks()
+    assert all(len(line.split(maxsplit=1)) == 2 for line in group)
 
 
 def test_examples_copy_out(tmp_path):

@@ -85,6 +85,28 @@ def test_a02_files_are_written_by_their_generator(n):
     assert example_path(f"iftomm_a02_n{n}").read_text() == n_four_bar_text(n)
 
 
+@pytest.mark.parametrize("name", ["iftomm_a02_n1", "iftomm_a02_n4", "bricard"])
+def test_benchmark_files_are_their_builders(name):
+    """The files of the benchmarks group against their Python builders
+    (appell.examples.iftomm_examples): same names, and the same accelerations and
+    multipliers at random states (rounding only)."""
+    from appell.examples.iftomm_examples import IFTOMM_EXAMPLES
+
+    from_file, built = appell.load_model(example_path(name)), IFTOMM_EXAMPLES[name]()
+    assert from_file.name == built.name and from_file.description == built.description
+    assert [c.name for c in from_file.constraints] == [c.name for c in built.constraints]
+    assert dict(from_file.initial) == pytest.approx(dict(built.initial), abs=1e-15)
+    a, b = appell.derive(from_file).numeric, appell.derive(built).numeric
+    assert a.state_names == b.state_names and [o.name for o in from_file.outputs] == [o.name for o in built.outputs]
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        q = rng.uniform(-1, 1, len(a.coordinate_names))
+        w = rng.uniform(-1, 1, len(a.speed_names))
+        s1, s2 = a.solve(0.0, q, w), b.solve(0.0, q, w)
+        np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(s1.multipliers, s2.multipliers, rtol=1e-10, atol=1e-10)
+
+
 def run_a02(n: int, **options):
     derivation = appell.derive(appell.load_model(example_path(f"iftomm_a02_n{n}")))
     sol = appell.simulate(derivation.compiled("c"), **options)

@@ -73,9 +73,8 @@ def _assert_same_declarations(from_file, built, name):
 
 
 #: files whose equality with the builder is shown otherwise in the default run (the benchmark
-#: bicycle: both give the published matrices to 1e-12, tests/test_bicycle.py; the 40-bar chain: its file is
-#: the generator's text, tests/test_iftomm.py, whose smaller chains are compared here), here in a slow run
-HEAVY = {"benchmark_bicycle", "iftomm_a02_n40"}
+#: bicycle: both give the published matrices to 1e-12, tests/test_bicycle.py), here in a slow run
+HEAVY = {"benchmark_bicycle"}
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in HEAVY else n for n in PLAIN])

@@ -69,6 +69,12 @@ class ModelError(AppellError):
     exit_code = 2
 
 
+class FormulaUnavailable(ModelError):
+    """A closed form is not formed: the dependent block ``J_h`` is larger than
+    :data:`appell.core.equations.INVERSE_LIMIT` (its symbolic inverse would swell past use).
+    The numbers come from the numeric split all the same."""
+
+
 class ComputationError(AppellError):
     """A numeric or symbolic computation failed on a valid model; exit code 1."""
 

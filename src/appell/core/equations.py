@@ -28,6 +28,22 @@ from appell.core.energy import InertiaBlocks
 from appell.core.simplification import adjugate, determinant, tidy
 from appell.core.partition import Partition
 
+#: the largest dependent block ``J_h`` (s x s) whose inverse is formed symbolically; over it the
+#: closed forms (1.4)/(1.5) are not formed (:func:`formulas_unavailable`): the adjugate of a
+#: 20 x 20 block (IFToMM A02 with 10 four-bars) ran for hours
+INVERSE_LIMIT = 8
+
+
+def formulas_unavailable(partition) -> str | None:
+    """Why the closed forms (1.4)/(1.5) of this partition are not formed, or None."""
+    s = len(partition.dependent)
+    if s <= INVERSE_LIMIT:
+        return None
+    return (f"the closed forms (1.4) and (1.5) are not formed: the dependent block J_h is {s} x {s} (more than "
+            f"{INVERSE_LIMIT}), whose symbolic inverse would swell past use; the motion, the reactions and the "
+            "outputs come from the numeric split of the blocks M, h - Q, J, c at each state")
+
+
 def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
     """``J_h^{-1}`` of the small dependent block, as adjugate over determinant.
 
@@ -40,6 +56,12 @@ def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
     """
     if Jh.shape == (1, 1):
         return sp.Matrix([[1 / Jh[0, 0]]])
+    if Jh.shape[0] > INVERSE_LIMIT:
+        from appell.errors import FormulaUnavailable
+
+        raise FormulaUnavailable(f"the dependent block J_h is {Jh.shape[0]} x {Jh.shape[0]}: its inverse is not "
+                                 f"formed symbolically (more than {INVERSE_LIMIT} rows)",
+                                 hint="the numbers come from the numeric split (appell simulate, check)")
     det = tidy(determinant(Jh, method="bareiss"))
     return adjugate(Jh, method="bareiss") / det
 

@@ -12,7 +12,6 @@ def _builders() -> dict:
     from .benchmark_examples import BENCHMARK_EXAMPLES
     from .drive_examples import DRIVE_EXAMPLES
     from .event_examples import EVENT_EXAMPLES
-    from .iftomm_examples import IFTOMM_EXAMPLES
     from .mechanism_examples import benchmark_bicycle, four_bar, rolling_disc
     from .servo_examples import SERVO_EXAMPLES
     from .support_examples import SUPPORT_EXAMPLES
@@ -20,7 +19,7 @@ def _builders() -> dict:
     cyclic = (spherical_pendulum, spherical_pendulum_rod, spherical_pendulum_cartesian, symmetric_top,
               turntable_particle)
     return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES, **BENCHMARK_EXAMPLES,
-            **DRIVE_EXAMPLES, **SUPPORT_EXAMPLES, **IFTOMM_EXAMPLES,
+            **DRIVE_EXAMPLES, **SUPPORT_EXAMPLES,
             "four_bar": four_bar, "rolling_disc": rolling_disc, "benchmark_bicycle": benchmark_bicycle}
 
 
@@ -33,15 +32,28 @@ def list_examples() -> list[str]:
     return sorted(p.stem for p in _Path(__file__).parent.glob("*.toml"))
 
 
+#: the benchmarks group: published benchmark problems (the IFToMM library's), larger than
+#: the examples, in the folder ``benchmarks/`` (:mod:`.iftomm_examples`)
+BENCHMARKS = _Path(__file__).parent / "benchmarks"
+
+
+def list_benchmarks() -> list[str]:
+    """Names of the bundled benchmark model files (``benchmarks/<name>.toml``), sorted."""
+    return sorted(p.stem for p in BENCHMARKS.glob("*.toml"))
+
+
 def example_path(name: str) -> _Path:
-    """Path of the bundled model file ``<name>.toml``; :class:`~appell.errors.ModelError` if none."""
-    path = _Path(__file__).parent / f"{name}.toml"
-    if not path.is_file():
-        from appell.errors import ModelError
+    """Path of the bundled model file ``<name>.toml``, an example or a benchmark;
+    :class:`~appell.errors.ModelError` if none."""
+    for folder in (_Path(__file__).parent, BENCHMARKS):
+        path = folder / f"{name}.toml"
+        if path.is_file():
+            return path
+    from appell.errors import ModelError
 
-        raise ModelError(f"no bundled example {name!r}", hint="examples: " + ", ".join(list_examples()))
-    return path
+    raise ModelError(f"no bundled example {name!r}",
+                     hint="examples: " + ", ".join(list_examples()) + "; benchmarks: " + ", ".join(list_benchmarks()))
 
 
-__all__ = ["BUILDERS", "CATALOG", "car", "chaplygin_sleigh", "cone_particle", "cubic_acceleration", "example_path",
-           "knife_edge", "list_examples", "pendulum", "rolling_ball"]
+__all__ = ["BENCHMARKS", "BUILDERS", "CATALOG", "car", "chaplygin_sleigh", "cone_particle", "cubic_acceleration",
+           "example_path", "knife_edge", "list_benchmarks", "list_examples", "pendulum", "rolling_ball"]

@@ -37,6 +37,7 @@ import click
 
 from appell_entry import interrupt_received
 
+from appell.core.equations import formulas_unavailable
 from appell.errors import AppellError, ComputationError, ModelError
 from appell.files import atomic_path, default_file_name, output_target
 from appell.symbols import canonical_name
@@ -121,7 +122,7 @@ def derive_model(system, dependent=None, formulas: bool = False):
 
             derivation = derive(system, dependent=dependent)
             check_inertia_at_start(derivation)
-        if formulas:
+        if formulas and (is_controlled(derivation) or formulas_unavailable(derivation.partition) is None):
             derivation.reduced, derivation.reactions  # noqa: B018 (computed and cached here)
     return derivation
 
@@ -145,6 +146,8 @@ def check_inertia_at_start(derivation) -> None:
         check_blocks_at_start(model, t0, y, model.default_parameters)  # entries beyond the range: named
         check_inertia(model, t0, y, model.default_parameters)
         return
+    if formulas_unavailable(derivation.partition) is not None:
+        return  # no closed form: the inertia is checked where the numbers are computed
     reduced = derivation.reduced
     matrix = reduced.mass_matrix
     if matrix is None:
@@ -1076,12 +1079,15 @@ def cluster(workers, host, port):
               help="Copy the example's model file into DIR.")
 def examples(name, to):
     """List the bundled examples, show one model file, or copy it out with --to."""
-    from appell.examples import example_path, list_examples
+    from appell.examples import example_path, list_benchmarks, list_examples
 
     if name is None:
         if to is not None:
             raise click.UsageError("--to needs the NAME of an example")
         for item in list_examples():
+            click.echo(f"{item:<20s} {_first_line(example_path(item))}")
+        click.echo("\nbenchmarks (published benchmark problems, larger):")
+        for item in list_benchmarks():
             click.echo(f"{item:<20s} {_first_line(example_path(item))}")
         return
     source = example_path(name)

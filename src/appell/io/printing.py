@@ -14,6 +14,7 @@ from pathlib import Path
 
 import sympy as sp
 
+from appell.core.equations import formulas_unavailable
 from appell.core.simplification import adjugate, determinant, graph_size, tidy, tree_size
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
@@ -88,8 +89,12 @@ def equation_formulas(derivation) -> list[Formula]:
     ``t, q, w, a`` and the multipliers. controls (servo constraints): the control laws and
     the dynamic conditions (2.3).
     """
-    red, rows = derivation.reduced, []
     controlled = hasattr(derivation, "control_laws")
+    if not controlled and formulas_unavailable(derivation.partition) is not None:
+        rows = [Formula(f"(f_{n} = 0)", f, sp.S.Zero, "motion")
+                for n, f in zip(derivation.constraints.names, derivation.constraints.second_order)]
+        return rows + [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
+    red, rows = derivation.reduced, []
     tag = "(2.4)" if controlled else "(1.4)"
     solved = None if controlled else _solved_independent(red)
     if solved is not None:
@@ -236,6 +241,10 @@ def singular_where(derivation) -> str | None:
     part = derivation.partition
     if not part.dependent:
         return None
+    if not hasattr(derivation, "control_laws"):
+        reason = formulas_unavailable(part)
+        if reason is not None:
+            return reason
     det = part.determinant
     if det is None:
         return "formulas singular where det J_h = 0 (the block is too large to print its determinant)"
@@ -265,8 +274,10 @@ def derivation_document(derivation) -> dict:
     :func:`json_document`): names, partition, blocks, reduced equations, multipliers."""
     kin = derivation.kinematics
     ind, dep = derivation.partition.names(kin.accelerations)
-    red = derivation.reduced
     cons = derivation.constraints
+    unavailable = formulas_unavailable(derivation.partition)
+    red = derivation.reduced if unavailable is None else None
+    lam = derivation.reactions if unavailable is None else None
     return {
         "name": derivation.system.name,
         "coordinates": [s.name for s in kin.coordinates],
@@ -277,16 +288,17 @@ def derivation_document(derivation) -> dict:
         "programs": {p.symbol.name: p.expr for p in derivation.system.programs},
         "independent": ind,
         "dependent": dep,
-        "reduced_equations": [tidy(e) for e in red.equations],
-        "reduced_mass_matrix": red.mass_matrix,
-        "reduced_forcing": list(red.forcing) if red.forcing is not None else None,
+        "reduced_equations": [tidy(e) for e in red.equations] if red is not None else None,
+        "reduced_mass_matrix": red.mass_matrix if red is not None else None,
+        "reduced_forcing": list(red.forcing) if red is not None and red.forcing is not None else None,
         "dependent_accelerations": (
             {a.name: tidy(e) for a, e in zip(red.dependent, red.dependent_solution)}
-            if red.dependent_solution is not None else {}
+            if red is not None and red.dependent_solution is not None else {}
         ),
-        "multipliers": {n: tidy(e) for n, e in derivation.reactions.as_dict().items()},
+        "multipliers": {n: tidy(e) for n, e in lam.as_dict().items()} if lam is not None else None,
+        "formulas_unavailable": unavailable,
         "redundancy": None if getattr(derivation, "redundancy", None) is None else derivation.redundancy.as_dict(),
-        "generalized_reactions": list(derivation.reactions.generalized),
+        "generalized_reactions": list(lam.generalized) if lam is not None else None,
         "outputs": {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
                     for o in derivation.system.outputs},
         "blocks": {

@@ -55,7 +55,7 @@ from typing import Mapping
 import numpy as np
 
 from appell.core.partition import row_scales
-from appell.errors import ComputationError, ModelError
+from appell.errors import ComputationError, FormulaUnavailable, ModelError
 from appell.numerics.inertia import check_inertia
 from appell.numerics.numeric import NumericModel, StateSolution, newton
 
@@ -397,7 +397,12 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
             scale = multiplier_scale(M, hQ, J, ref.accelerations, ref.multipliers)
             aug.add(sol.accelerations, ref.accelerations, sol.multipliers, ref.multipliers, scale,
                     acceleration_floor(M, hQ, ref.accelerations))
-            lam_f = model.reaction_formulas(t, q, w, ref.accelerations, pv) if not sol.switched else None
+            lam_f = None
+            if not sol.switched and "formulas" not in unavailable:
+                try:
+                    lam_f = model.reaction_formulas(t, q, w, ref.accelerations, pv)
+                except FormulaUnavailable as exc:
+                    unavailable["formulas"] = exc.message
             if lam_f is None or not np.all(np.isfinite(lam_f)):
                 formulas.skipped += 1
             else:

@@ -25,7 +25,8 @@ import sympy as sp
 
 from appell.numerics.dynamics import Evaluation
 from appell.arguments import number, vector
-from appell.errors import ComputationError, ModelError, SingularConfigurationError
+from appell.core.equations import formulas_unavailable
+from appell.errors import ComputationError, FormulaUnavailable, ModelError, SingularConfigurationError
 from appell.core.partition import (KEEP_CONDITION, RANK_CONDITION, REFINE_CONDITION, partition_condition,
                                    pivoted_columns, row_scales)
 from appell.symbols import derivative_symbol, t
@@ -559,6 +560,9 @@ class NumericModel:
         fn = self._formula.get("lambda")
         if fn is None:
             d = self.derivation
+            reason = formulas_unavailable(d.partition)
+            if reason is not None:
+                raise FormulaUnavailable(reason)
             fn = lambdify_blocks(_args(d, with_acc=True), [d.reactions.multipliers],
                                  program_substitutions(d.system))
             self._formula["lambda"] = fn

@@ -100,6 +100,8 @@ class EnergyBalance:
     scale: float = float("nan")
     relative: float = float("nan")
     where: float = float("nan")
+    #: why the span ends before the time asked for ('' when it does not)
+    cut: str = ""
 
     @property
     def formed(self) -> bool:
@@ -127,7 +129,7 @@ class EnergyBalance:
             f"+ residual",
             f"  largest residual |H(t) - H(t0) - W(t)| {self.residual:.3e} at t = {self.where:g}, relative to "
             f"{self.scale:.3e} (max kinetic part + max |V - V(t0)| + integral of |power|): {self.relative:.3e}",
-        ])
+        ] + ([f"  {self.cut}"] if self.cut else []))
 
 
 def energy_form(derivation) -> tuple[str | None, str]:
@@ -235,7 +237,19 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     start = np.concatenate([y0, np.zeros(4)])
     scale0 = max(1.0, abs(kin0) + abs(V0))
     tolerances = np.concatenate([np.full(nq + n, atol), np.full(4, atol * scale0)])
-    run = solve_ivp(rhs, (t0, t_end), start, method="DOP853", t_eval=times, rtol=rtol, atol=tolerances)
+    events = _before_singular(model, pv, t0, y0, nq + n)
+    run = solve_ivp(rhs, (t0, t_end), start, method="DOP853", t_eval=times, rtol=rtol, atol=tolerances,
+                    events=events)
+    cut = ""
+    if run.status == 1 and run.t_events[0].size:  # stopped before a singular configuration
+        stop = float(run.t_events[0][0])
+        cut = (f"the balance ends at t = {stop:.6g}, near a singular configuration of the constraints (their "
+               "Jacobian loses rank), which its plain integration cannot pass; simulate passes it")
+        keep = run.t < stop  # the samples before it, and the state where it stopped
+        run.t = np.append(run.t[keep], stop)
+        run.y = np.column_stack([run.y[:, keep], run.y_events[0][0]])
+        if run.t.size < 2:
+            return EnergyBalance(None, "the motion starts at a singular configuration of the constraints")
     if not run.success:
         raise ComputationError(f"the energy balance's integration failed: {run.message}",
                                hint="try a shorter span (--t-end)")
@@ -252,6 +266,23 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     floor = atol * scale0
     excess = max(float(r[worst]) - floor, 0.0)
     relative = 0.0 if excess == 0.0 else (excess / scale if scale > 0 else float("inf"))
-    return EnergyBalance(form, "", t0, t_end, int(run.t.size), float(H[-1] - H[0]), float(W_app[-1]),
-                         float(W_reac[-1]), float(W_expl[-1]), float(r[worst]), scale, relative,
-                         float(run.t[worst]))
+    return EnergyBalance(form, "", t0, float(run.t[-1]) if cut else t_end, int(run.t.size), float(H[-1] - H[0]),
+                         float(W_app[-1]), float(W_reac[-1]), float(W_expl[-1]), float(r[worst]), scale, relative,
+                         float(run.t[worst]), cut)
+
+
+def _before_singular(model, p, t0, y0, width):
+    """A terminal event of :func:`energy_balance`'s integration where the motion comes within
+    the band of a singular configuration (:mod:`appell.simulation.singular`: ``g`` falls to
+    ``TRUST`` band widths), or None for a model without the rank watch."""
+    from appell.simulation.singular import TRUST, RankWatch
+
+    watch = RankWatch(model, p, t0, y0)
+    if not watch.active:
+        return None
+
+    def near(t, y):
+        return watch.measure(t, y[:width]) - TRUST * watch.band
+
+    near.terminal, near.direction = True, -1
+    return near
