@@ -155,9 +155,9 @@ def onto_constraints(model, t, q, w, p, iterations: int = 50):
 
 
 def on_constraints(model, t, q, w, p, tol: float = 1e-10) -> bool:
-    """Whether every constraint holds at ``(t, q, w)`` within ``tol`` (relative to 1 + |q|,
-    1 + |w|): a sampled start that :func:`onto_constraints` could not bring onto them (a
-    local minimum of the residual) is left out of the comparison."""
+    """Whether every constraint holds at ``(t, q, w)`` within ``tol`` (relative to
+    ``1 + max|q|`` and ``1 + max|w|``): a sampled start that :func:`onto_constraints` could not
+    bring onto them (a local minimum of the residual) is left out of the comparison."""
     _, _, pos, vel, _, _ = model.full_blocks(t, q, w, p)
     pos = np.abs(pos[model.has_position]).max(initial=0.0) / (1.0 + np.abs(q).max(initial=0.0))
     vel = np.abs(vel[model.has_velocity]).max(initial=0.0) / (1.0 + np.abs(w).max(initial=0.0))
