@@ -22,7 +22,9 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import ROOT, load, machine, today  # noqa: E402
+from harness import load, machine, today  # noqa: E402
+
+from appell.examples import example_path  # noqa: E402
 
 #: (model file, commands) in the order run
 CASES = [
@@ -34,7 +36,7 @@ CASES = [
 
 def run(command: str, model: str, folder: Path) -> tuple[float, float, int, str]:
     """(wall seconds, peak MB of the process, exit code, last line) of one command."""
-    path = ROOT / "src" / "appell" / "examples" / f"{model}.toml"
+    path = example_path(model)
     argv = [sys.executable, "-m", "appell", command, str(path)]
     if command == "simulate":
         argv += ["--out", str(folder / f"{model}.h5")]

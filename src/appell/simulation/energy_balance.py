@@ -223,7 +223,9 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
         _, _, Q, P_explicit = balance(tt, q, w, pv)
         return sol.accelerations, float(Q @ w), float(sol.generalized_reactions @ w), P_explicit
 
-    budget = EvaluationBudget("the energy balance's integration", t0, t_end, MAX_EVALUATIONS, MAX_SECONDS)
+    # the count of evaluations is a hard budget (a motion too fast or stiff for the span); the
+    # seconds end the span where they run out, with a note (evaluations slow here)
+    budget = EvaluationBudget("the energy balance's integration", t0, t_end, MAX_EVALUATIONS, None)
 
     def rhs(tt, y):
         budget(tt)
@@ -237,17 +239,25 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     start = np.concatenate([y0, np.zeros(4)])
     scale0 = max(1.0, abs(kin0) + abs(V0))
     tolerances = np.concatenate([np.full(nq + n, atol), np.full(4, atol * scale0)])
-    events = _before_singular(model, pv, t0, y0, nq + n)
+    clock = _Deadline(MAX_SECONDS)
+    singular = _before_singular(model, pv, t0, y0, nq + n)
+    events = [clock] + ([singular] if singular is not None else [])
     run = solve_ivp(rhs, (t0, t_end), start, method="DOP853", t_eval=times, rtol=rtol, atol=tolerances,
                     events=events)
     cut = ""
-    if run.status == 1 and run.t_events[0].size:  # stopped before a singular configuration
-        stop = float(run.t_events[0][0])
-        cut = (f"the balance ends at t = {stop:.6g}, near a singular configuration of the constraints (their "
-               "Jacobian loses rank), which its plain integration cannot pass; simulate passes it")
+    ended = [k for k in range(len(events)) if run.t_events[k].size]
+    if run.status == 1 and ended:
+        k = ended[0]
+        stop = float(run.t_events[k][0])
+        if k == 0:
+            cut = (f"the balance ends at t = {stop:.6g}, where its integration had run {MAX_SECONDS:g} s (each "
+                   "evaluation is slow here); the span before it is compared")
+        else:
+            cut = (f"the balance ends at t = {stop:.6g}, near a singular configuration of the constraints (their "
+                   "Jacobian loses rank), which its plain integration cannot pass; simulate passes it")
         keep = run.t < stop  # the samples before it, and the state where it stopped
         run.t = np.append(run.t[keep], stop)
-        run.y = np.column_stack([run.y[:, keep], run.y_events[0][0]])
+        run.y = np.column_stack([run.y[:, keep], run.y_events[k][0]])
         if run.t.size < 2:
             return EnergyBalance(None, "the motion starts at a singular configuration of the constraints")
     if not run.success:
@@ -269,6 +279,28 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     return EnergyBalance(form, "", t0, float(run.t[-1]) if cut else t_end, int(run.t.size), float(H[-1] - H[0]),
                          float(W_app[-1]), float(W_reac[-1]), float(W_expl[-1]), float(r[worst]), scale, relative,
                          float(run.t[worst]), cut)
+
+
+class _Deadline:
+    """A terminal event of :func:`energy_balance`'s integration at the step where ``seconds``
+    of wall time have passed: positive before, then ``t_cut - t`` with ``t_cut`` the time the
+    integration had reached (a root at that step's end)."""
+
+    terminal, direction = True, -1
+
+    def __init__(self, seconds: float):
+        import time
+
+        self.clock = time.perf_counter
+        self.deadline = self.clock() + seconds
+        self.t_cut = None
+
+    def __call__(self, t, y) -> float:
+        if self.t_cut is None:
+            if self.clock() < self.deadline:
+                return 1.0
+            self.t_cut = float(t)
+        return self.t_cut - float(t)
 
 
 def _before_singular(model, p, t0, y0, width):

@@ -1021,22 +1021,22 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floati
     ``floating_base``: a ``.urdf`` robot's root link on a free joint
     (:func:`~appell.mechanism.urdf.urdf_mechanism`; in a model file ``[mechanism]
     floating_base = true``).
-    ``path`` may also be the name of a bundled example (``load_model("pendulum")``, as
-    listed by ``appell examples``) when no file of that name exists.
+    ``path`` may also be the name of a bundled example or benchmark (``load_model("pendulum")``,
+    as listed by ``appell examples``) when no file of that name exists.
     Every error is a :class:`ModelError` with ``where="<file>:<line>"``.
     """
     if not isinstance(path, (str, PathLike)):
         raise ModelError(f"the path of a model file must be a string or a path, got {type(path).__name__}")
     path = Path(path)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
-        from appell.examples import example_path, list_examples
+        from appell.examples import example_path, list_benchmarks, list_examples
 
-        if path.name in list_examples():
+        if path.name in list_examples() or path.name in list_benchmarks():
             path = example_path(path.name)
         else:
             raise ModelError(f"{path}: no such model file, nor a bundled example",
                              hint="give the path of a model file (.toml), or a bundled example: "
-                                  + ", ".join(list_examples()))
+                                  + ", ".join(list_examples()) + "; or a benchmark: " + ", ".join(list_benchmarks()))
     if path.suffix.lower() == ".urdf":  # a robot description: its mechanism with every joint's reaction
         from appell.mechanism.urdf import urdf_system
 
