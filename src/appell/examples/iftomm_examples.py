@@ -110,7 +110,7 @@ def n_four_bar_text(n: int) -> str:
     for name, value in _a02_initial(n).items():
         key = f'"{name[:-4]}\'"' if name.endswith("_dot") else name
         out.append(f"{key} = {value!r}")
-    out += ["", "[simulation]", "t_end = 20.0", "rtol = 1e-10", "atol = 1e-12", "output_step = 0.01", "",
+    out += ["", "[simulation]", "t_end = 20.0", "rtol = 1e-12", "atol = 1e-14", "output_step = 0.01", "",
             "[units]"]
     out += [f'R{i} = "rad"' for i in range(n + 1)] + [f'C{j} = "rad"' for j in range(n)]
     out += [f'L{j}_{a} = "N"' for j in range(n) for a in "xy"]

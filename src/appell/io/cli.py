@@ -59,18 +59,21 @@ SOLVER_OPTIONS = ("method", "rtol", "atol", "max_step", "t0", "samples", "output
 
 # ---------------------------------------------------------------- the API the commands use
 def resolve_model(model: str) -> Path:
-    """The model file named by ``model``: an existing path, or a bundled example's name."""
+    """The model file named by ``model``: an existing path, or a bundled example's or
+    benchmark's name."""
     path = Path(model)
     if path.is_file():
         return path
-    from appell.examples import example_path, list_examples
+    from appell.examples import example_path, list_benchmarks, list_examples
 
-    if path.suffix == "" and model in list_examples():
+    if path.suffix == "" and (model in list_examples() or model in list_benchmarks()):
         return example_path(model)
     if path.exists():
-        raise ModelError(f"{model}: not a file", hint="give the path of a model file (.toml) or a robot (.urdf)")
+        raise ModelError(f"{model}: not a file",
+                         hint="give the path of a model file (.toml), a robot (.urdf) or a MuJoCo model (.xml)")
     raise ModelError(f"{model}: no such model file",
-                     hint="give the path of a model file, or a bundled example: " + ", ".join(list_examples()))
+                     hint="give the path of a model file, or a bundled example: " + ", ".join(list_examples())
+                     + "; or a benchmark: " + ", ".join(list_benchmarks()))
 
 
 def parse_assignments(items) -> dict[str, str]:

@@ -1041,6 +1041,13 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floati
         from appell.mechanism.urdf import urdf_system
 
         return _apply_overrides(urdf_system(path, floating_base=floating_base), overrides, str(path))
+    if path.suffix.lower() in (".xml", ".mjcf"):  # a MuJoCo model, read by mujoco's own compiler
+        from appell.mechanism.mjcf import mjcf_system
+
+        if floating_base:
+            raise ModelError("--floating-base (floating_base=True) applies to a .urdf robot; a MuJoCo model "
+                             "gives its free joints itself", where=str(path))
+        return _apply_overrides(mjcf_system(path), overrides, str(path))
     if floating_base:
         raise ModelError("--floating-base (floating_base=True) applies to a .urdf robot", where=str(path),
                          hint="in a model file that reads a URDF, write floating_base = true in [mechanism]")

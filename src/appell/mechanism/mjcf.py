@@ -1,0 +1,226 @@
+"""MuJoCo models (MJCF) as mechanisms, read through the ``mujoco`` package's own compiler.
+
+``mujoco.MjModel`` parses and compiles the file (no XML parser here: includes, defaults,
+``childclass``, inertias computed from geoms, frames and orientations in every notation are
+MuJoCo's own). Its compiled model is mapped to a :class:`~appell.mechanism.Mechanism`:
+
+* every body but the world is a body with ``body_mass``, the mass centre ``body_ipos`` and the
+  inertia ``R(body_iquat) diag(body_inertia) R^T`` in the body frame;
+* a body's joint moves it relative to its parent: ``hinge`` → revolute, ``slide`` →
+  prismatic, ``ball`` → spherical and ``free`` → free (unit quaternions, as MuJoCo's), a body
+  without a joint is welded to its parent. The joint frame sits at the joint's position
+  ``jnt_pos`` in the body, with the body's orientation ``body_quat`` relative to the parent,
+  so that a hinge's angle and a slide's displacement are MuJoCo's ``qpos - qpos0``;
+* gravity is ``opt.gravity``;
+* an active ``connect`` equality is a loop closure at the two anchors (``eq_data``), its
+  multipliers the force of the second body on the first (the rows along which the anchors
+  never part, the normal of a planar loop, are left out with a note); a ``joint`` equality
+  ``q1 - q1_0 = c0 + c1 (q2 - q2_0) + ... + c4 (q2 - q2_0)^4`` is a holonomic constraint.
+
+Names are MuJoCo's (unnamed joints ``<body>_joint``, welds ``<body>_weld``). What MuJoCo
+applies and appell does not — contacts between geoms, joint damping, armature, friction loss
+and limits, tendons, actuators, soft equality parameters — is named in an
+:class:`~appell.errors.AppellNote` warning; ``weld``, ``tendon`` and flex equalities and bodies
+with several joints are refused with the body or equality named.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+
+from appell.errors import AppellNote, ModelError
+
+
+def _mujoco():
+    try:
+        import mujoco
+    except ImportError as exc:  # pragma: no cover - the test environment has it
+        raise ModelError("reading a MuJoCo model (MJCF) needs the mujoco package",
+                         hint="pip install mujoco (or appell[mjcf])") from exc
+    return mujoco
+
+
+def load_mjcf(source) -> object:
+    """The compiled ``mujoco.MjModel`` of a file path or an XML string; MuJoCo's own error
+    message (file and line where it gives them) as a :class:`ModelError`."""
+    mujoco = _mujoco()
+    text = str(source)
+    try:
+        if text.lstrip().startswith("<"):
+            return mujoco.MjModel.from_xml_string(text)
+        path = Path(source)
+        if not path.is_file():
+            raise ModelError(f"{path}: no such MuJoCo model file")
+        return mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as exc:
+        raise ModelError(f"MuJoCo could not read the model: {str(exc).strip()}",
+                         where=None if text.lstrip().startswith("<") else str(source),
+                         hint="check the file with MuJoCo's own tools (python -m mujoco.viewer)") from exc
+
+
+def _rotation(quat) -> np.ndarray:
+    w, x, y, z = (float(v) for v in quat)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _rpy(R: np.ndarray) -> tuple[float, float, float]:
+    """Roll, pitch, yaw of ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (the builder's convention)."""
+    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
+    if math.hypot(R[0, 0], R[1, 0]) > 1e-12:
+        return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
+    return math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0
+
+
+def _names(model, kind, count) -> list[str | None]:
+    mujoco = _mujoco()
+    return [mujoco.mj_id2name(model, kind, i) for i in range(count)]
+
+
+def _notes(model, source: str) -> list[str]:
+    """What MuJoCo applies to this model and appell does not."""
+    notes = []
+    if model.ngeom and np.any((model.geom_contype != 0) | (model.geom_conaffinity != 0)):
+        notes.append("contacts between geoms are not modelled (appell's contacts are constraints written in the "
+                     "model)")
+    for what, values in (("damping", model.dof_damping), ("armature", model.dof_armature),
+                         ("frictionloss", model.dof_frictionloss)):
+        if np.any(np.asarray(values) != 0):
+            notes.append(f"joint {what} is not applied")
+    if np.any(np.asarray(model.jnt_limited) != 0):
+        notes.append("joint limits are not applied")
+    if model.ntendon:
+        notes.append(f"{model.ntendon} tendon(s) are not applied")
+    if model.nu:
+        notes.append(f"{model.nu} actuator(s) are not applied (no controls are made from them)")
+    return [f"{source}: {n}" for n in notes]
+
+
+def _open_directions(model, b1, anchor1, b2, anchor2) -> str:
+    """The world axes along which the two anchors of a connect part at some configuration
+    (MuJoCo's own kinematics at the reference pose moved at random, three times): a
+    planar loop's connect holds by itself along the normal, and that row is left out (it
+    would be a constraint without a coordinate)."""
+    mujoco = _mujoco()
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(0)
+    apart = np.zeros(3)
+    for _ in range(3):
+        qpos = model.qpos0 + rng.uniform(-1.0, 1.0, model.nq)
+        mujoco.mj_normalizeQuat(model, qpos)
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        p1 = data.xpos[b1] + data.xmat[b1].reshape(3, 3) @ anchor1
+        p2 = data.xpos[b2] + data.xmat[b2].reshape(3, 3) @ anchor2
+        apart = np.maximum(apart, np.abs(p1 - p2))
+    return "".join(a for a, d in zip("xyz", apart) if d > 1e-9)
+
+
+def mjcf_mechanism(model, source: str = "<mjcf>"):
+    """The :class:`~appell.mechanism.Mechanism` of a compiled ``mujoco.MjModel`` and the
+    holonomic constraints of its joint equalities: ``(mechanism, constraints)``
+    (module docstring)."""
+    mujoco = _mujoco()
+    from appell.mechanism.builder import Mechanism
+    from appell.model import holonomic
+
+    for note in _notes(model, source):
+        warnings.warn(AppellNote(note), stacklevel=3)
+    bodies = _names(model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
+    joints = _names(model, mujoco.mjtObj.mjOBJ_JOINT, model.njnt)
+    title = bytes(model.names).split(b"\x00")[0].decode(errors="replace")  # the <mujoco model="..."> name
+    title = re.sub(r"[^A-Za-z0-9_]", "_", title).strip("_") or "mjcf"
+    mech = Mechanism(title if title[0].isalpha() else f"m_{title}",
+                     gravity=tuple(float(g) for g in model.opt.gravity))
+    made = {0: mech.ground}
+    coordinate = {}  # joint id -> its appell coordinate symbol
+    for b in range(1, model.nbody):
+        bname = bodies[b] or f"body{b}"
+        where = f"{source}: body {bname!r}"
+        mass = float(model.body_mass[b])
+        if not mass > 0.0:
+            raise ModelError(f"{where} has mass {mass:g}", hint="give it a mass (an <inertial> or geoms with mass); "
+                             "appell's bodies have positive mass")
+        R_i = _rotation(model.body_iquat[b])
+        inertia = sp.Matrix(R_i @ np.diag(model.body_inertia[b]) @ R_i.T).applyfunc(lambda v: sp.Float(float(v)))
+        body = mech.body(bname, mass, inertia=inertia, com=tuple(float(v) for v in model.body_ipos[b]))
+        made[b] = body
+        parent = made[int(model.body_parentid[b])]
+        R_b = _rotation(model.body_quat[b])
+        pos = np.asarray(model.body_pos[b], float)
+        ids = [j for j in range(model.njnt) if int(model.jnt_bodyid[j]) == b]
+        if len(ids) > 1:
+            raise ModelError(f"{where} has {len(ids)} joints; appell maps one joint per body",
+                             hint="nest a massive body for each joint, or combine them as a ball or free joint")
+        if not ids:
+            mech.fixed(f"{bname}_weld", parent, body, origin=tuple(pos), rpy=_rpy(R_b))
+            continue
+        j = ids[0]
+        jname = joints[j] or f"{bname}_joint"
+        kind = int(model.jnt_type[j])
+        anchor = np.asarray(model.jnt_pos[j], float)
+        origin = tuple(float(v) for v in pos + R_b @ anchor)
+        child_origin = tuple(float(v) for v in anchor)
+        axis = tuple(float(v) for v in model.jnt_axis[j])
+        if kind == mujoco.mjtJoint.mjJNT_HINGE:
+            made_joint = mech.revolute(jname, parent, body, axis=axis, origin=origin, rpy=_rpy(R_b),
+                                       child_origin=child_origin)
+        elif kind == mujoco.mjtJoint.mjJNT_SLIDE:
+            made_joint = mech.prismatic(jname, parent, body, axis=axis, origin=origin, rpy=_rpy(R_b),
+                                        child_origin=child_origin)
+        elif kind == mujoco.mjtJoint.mjJNT_BALL:
+            made_joint = mech.spherical(jname, parent, body, origin=origin, rpy=_rpy(R_b), child_origin=child_origin,
+                                        rotation="quaternion")
+        else:  # free: MuJoCo's frame is the world's
+            made_joint = mech.free(jname, parent, body, origin=origin, rpy=_rpy(R_b), child_origin=child_origin,
+                                   rotation="quaternion")
+        coordinate[j] = made_joint.coordinates
+    constraints = []
+    equalities = _names(model, mujoco.mjtObj.mjOBJ_EQUALITY, model.neq)
+    for e in range(model.neq):
+        ename = equalities[e] or f"equality{e}"
+        kind = int(model.eq_type[e])
+        if not bool(model.eq_active0[e]):
+            warnings.warn(AppellNote(f"{source}: equality {ename!r} is inactive at the start and left out"),
+                          stacklevel=2)
+            continue
+        data = np.asarray(model.eq_data[e], float)
+        if kind == mujoco.mjtEq.mjEQ_CONNECT:
+            b1, b2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+            directions = _open_directions(model, b1, data[0:3], b2, data[3:6])
+            if directions != "xyz":
+                warnings.warn(AppellNote(
+                    f"{source}: connect {ename!r} holds by itself along "
+                    f"{', '.join(a for a in 'xyz' if a not in directions)} (a planar loop): that row is left out"),
+                    stacklevel=2)
+            if directions:
+                mech.connect(ename, (made[b1], tuple(data[0:3])), (made[b2], tuple(data[3:6])), directions=directions)
+        elif kind == mujoco.mjtEq.mjEQ_JOINT:
+            j1, j2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+            if j1 not in coordinate or len(coordinate[j1]) != 1 or (j2 >= 0 and len(coordinate.get(j2, ())) != 1):
+                raise ModelError(f"{source}: joint equality {ename!r} couples joints appell cannot map",
+                                 hint="joint equalities of hinge and slide joints are mapped")
+            q1 = coordinate[j1][0]
+            x = coordinate[j2][0] if j2 >= 0 else sp.S.Zero
+            poly = sum(float(c) * x**k for k, c in enumerate(data[:5]))
+            constraints.append(holonomic(ename, q1 - poly))
+        else:
+            raise ModelError(f"{source}: equality {ename!r} is of a kind appell does not map "
+                             f"({mujoco.mjtEq(kind).name})",
+                             hint="connect and joint equalities are mapped; write a weld as connects or a fixed body")
+    return mech, constraints
+
+
+def mjcf_system(source, **options):
+    """The :class:`~appell.model.System` of a MuJoCo model file (or XML string), every joint's
+    force and moment as outputs (``options`` go to :meth:`Mechanism.system`)."""
+    model = load_mjcf(source)
+    mech, constraints = mjcf_mechanism(model, str(source) if not str(source).lstrip().startswith("<") else "<mjcf>")
+    return mech.system(constraints=tuple(constraints), **options)

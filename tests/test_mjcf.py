@@ -1,0 +1,202 @@
+"""MuJoCo models (MJCF) read through the mujoco package's compiler (issue 24 §3), against
+MuJoCo itself and against appell's own models of the same mechanisms.
+
+* An open chain with a hinge, a slide and a ball joint, bodies placed and turned in
+  several notations, inertias from geoms: at 20 random states, the accelerations of
+  MuJoCo's ``mj_forward`` (contacts off; the ball's angular acceleration from appell's
+  quaternion: ``eps = 2 vec(q* q'')``) and the force and moment of every joint from
+  ``cfrc_int`` after ``mj_rnePostConstraint`` (a spatial force at the subtree's centre of
+  mass, world axes, moved to the joint's anchor ``xanchor``; for the slide, to the joint
+  frame's origin carried by the slider, where appell takes a prismatic joint's moment,
+  ``xanchor + q axis``), to 1e-9 relative. MuJoCo's
+  equality constraints are soft (solref/solimp) and its joint forces for closed chains carry
+  that softness, so the closed chain is compared with appell's own model instead:
+* the bundled four-bar written with a ``connect`` equality, assembled at its initial
+  angles: accelerations and the loop-closure force at random states on the loop equal those
+  of appell's ``four_bar`` to 1e-9.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import appell
+from appell.errors import AppellNote, ModelError
+
+mujoco = pytest.importorskip("mujoco")
+from appell.mechanism.mjcf import load_mjcf, mjcf_system  # noqa: E402
+
+CHAIN = """
+<mujoco model="arm3">
+  <option gravity="0 0 -9.81"/>
+  <default><geom contype="0" conaffinity="0"/></default>
+  <worldbody>
+    <body name="base" pos="0.1 0 0.5" quat="0.9238795 0 0 0.3826834">
+      <joint name="yaw" type="hinge" axis="0 0 1" pos="0 0 0.05"/>
+      <geom type="box" size="0.1 0.05 0.05" mass="2"/>
+      <body name="upper" pos="0.2 0 0" euler="0 30 10">
+        <joint name="shoulder" type="hinge" axis="0 1 0" pos="-0.05 0 0"/>
+        <geom type="capsule" fromto="0 0 0 0.4 0 0.1" size="0.04" mass="1.5"/>
+        <body name="slider" pos="0.4 0 0.1">
+          <joint name="extend" type="slide" axis="1 0 0"/>
+          <geom type="box" size="0.1 0.03 0.02" pos="0.05 0.01 0" mass="0.7"/>
+          <body name="tip" pos="0.1 0 0">
+            <joint name="wrist" type="ball"/>
+            <geom type="ellipsoid" size="0.05 0.03 0.08" pos="0.02 0.01 0.03" mass="0.4"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def quaternion_product(a, b):
+    a0, av, b0, bv = a[0], np.asarray(a[1:]), b[0], np.asarray(b[1:])
+    return np.concatenate([[a0 * b0 - av @ bv], a0 * bv + b0 * av + np.cross(av, bv)])
+
+
+@pytest.fixture(scope="module")
+def chain():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing left unmapped: no note
+        system = mjcf_system(CHAIN)
+    return appell.derive(system).numeric, load_mjcf(CHAIN)
+
+
+def test_an_open_chain_matches_mujoco_forward_dynamics_and_joint_forces(chain):
+    model, mj = chain
+    data = mujoco.MjData(mj)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        quat = rng.normal(size=4)
+        quat /= np.linalg.norm(quat)
+        qpos = np.concatenate([rng.uniform(-1.5, 1.5, 2), rng.uniform(-0.2, 0.2, 1), quat])
+        qvel = rng.uniform(-2, 2, mj.nv)
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        mujoco.mj_forward(mj, data)
+        mujoco.mj_rnePostConstraint(mj, data)
+        quat_rate = 0.5 * quaternion_product(quat, np.concatenate([[0.0], qvel[3:6]]))
+        values = {"yaw": qpos[0], "shoulder": qpos[1], "extend": qpos[2], "yaw_dot": qvel[0],
+                  "shoulder_dot": qvel[1], "extend_dot": qvel[2]}
+        values.update({f"wrist_q{k}": quat[k] for k in range(4)})
+        values.update({f"wrist_q{k}_dot": quat_rate[k] for k in range(4)})
+        q = np.array([values[n] for n in model.coordinate_names])
+        w = np.array([values[n] for n in model.speed_names])
+        sol = model.solve(0.0, q, w)
+        acc = dict(zip(model.speed_names, sol.accelerations))
+        quat_acc = np.array([acc[f"wrist_q{k}_dot"] for k in range(4)])
+        eps = 2.0 * quaternion_product(quat * [1, -1, -1, -1], quat_acc)[1:]
+        mine = np.array([acc["yaw_dot"], acc["shoulder_dot"], acc["extend_dot"], *eps])
+        assert np.abs(mine - data.qacc).max() <= 1e-9 * np.abs(data.qacc).max()
+        # every joint's force and moment of the parent on the child at the joint's anchor
+        outputs = model.outputs(0.0, q, w, solution=sol)
+        for j, name in enumerate(("yaw", "shoulder", "extend", "wrist")):
+            b = mj.jnt_bodyid[j]
+            torque, force = data.cfrc_int[b][:3], data.cfrc_int[b][3:]
+            centre = data.subtree_com[mj.body_rootid[b]]
+            point = data.xanchor[j].copy()
+            if mj.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:  # appell: about the point the slider carries
+                point += data.xaxis[j] * qpos[mj.jnt_qposadr[j]]
+            moment = torque + np.cross(centre - point, force)
+            F = np.array([outputs[f"F_{name}_{a}"] for a in "xyz"])
+            M = np.array([outputs[f"M_{name}_{a}"] for a in "xyz"])
+            scale = max(np.abs(force).max(), np.abs(moment).max())
+            assert np.abs(F - force).max() <= 1e-9 * scale, name
+            assert np.abs(M - moment).max() <= 1e-9 * scale, name
+
+
+def four_bar_xml() -> str:
+    """The bundled four_bar (crank 0.4 m 1 kg, coupler 1 m 2 kg, rocker 0.8 m 1.5 kg, pivots
+    1 m apart, gravity -y) assembled at its initial angles: MuJoCo's joint angles are zero
+    there, and its connect equality finds the rocker's tip on the coupler's at that pose."""
+    from appell.examples import example_path
+    import tomllib
+
+    start = tomllib.loads(example_path("four_bar").read_text())["initial"]
+    A, B, D = start["A"], start["B"], start["D"]
+
+    def inertial(m, l):
+        return f'<inertial pos="{l / 2} 0 0" mass="{m}" diaginertia="1e-6 {m * l * l / 12} {m * l * l / 12}"/>'
+
+    return f"""
+<mujoco model="four_bar_mjcf">
+  <option gravity="0 -9.81 0"/>
+  <worldbody>
+    <body name="crank" euler="0 0 {A}">
+      <joint name="A" type="hinge" axis="0 0 1"/>
+      {inertial(1.0, 0.4)}
+      <body name="coupler" pos="0.4 0 0" euler="0 0 {B}">
+        <joint name="B" type="hinge" axis="0 0 1"/>
+        {inertial(2.0, 1.0)}
+      </body>
+    </body>
+    <body name="rocker" pos="1 0 0" euler="0 0 {D}">
+      <joint name="D" type="hinge" axis="0 0 1"/>
+      {inertial(1.5, 0.8)}
+    </body>
+  </worldbody>
+  <equality><connect name="C" body1="coupler" body2="rocker" anchor="1 0 0"/></equality>
+  <compiler angle="radian"/>
+</mujoco>""", (A, B, D)
+
+
+def test_a_four_bar_with_a_connect_equality_matches_appells_own_four_bar():
+    xml, start = four_bar_xml()
+    with pytest.warns(AppellNote, match="holds by itself along z"):
+        mine = appell.derive(mjcf_system(xml)).numeric
+    theirs = appell.derive(appell.load_model("four_bar")).numeric
+    assert mine.constraint_names == ("C_x", "C_y")
+    from appell.examples.mechanism_examples import _four_bar_start
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        theta, rate = rng.uniform(0, 2 * math.pi), rng.uniform(-3, 3)
+        B, D, B_dot, D_dot = _four_bar_start(theta, rate, 0.4, 1.0, 0.8, 1.0)
+        q = np.array([theta, B, D])
+        w = np.array([rate, B_dot, D_dot])
+        ref = theirs.solve(0.0, q, w)
+        got = mine.solve(0.0, q - np.array(start), w)
+        assert np.abs(got.accelerations - ref.accelerations).max() <= 1e-9 * np.abs(ref.accelerations).max()
+        lam = dict(zip(mine.constraint_names, got.multipliers))
+        ref_lam = dict(zip(theirs.constraint_names, ref.multipliers))
+        scale = max(abs(v) for v in ref_lam.values())
+        assert abs(lam["C_x"] - ref_lam["C_x"]) <= 1e-9 * scale and abs(lam["C_y"] - ref_lam["C_y"]) <= 1e-9 * scale
+
+
+def test_what_appell_does_not_apply_is_named_and_what_it_cannot_map_is_refused(tmp_path):
+    soft = CHAIN.replace('<default><geom contype="0" conaffinity="0"/></default>',
+                         '<default><joint damping="0.1"/></default>')
+    with pytest.warns(AppellNote) as notes:
+        mjcf_system(soft)
+    text = " ".join(str(n.message) for n in notes)
+    assert "contacts between geoms" in text and "damping" in text
+    weld = CHAIN.replace("</worldbody>", '</worldbody><equality><weld body1="tip" body2="world"/></equality>')
+    with pytest.raises(ModelError, match="equality 'equality0' is of a kind appell does not map"):
+        mjcf_system(weld)
+    two = CHAIN.replace('<joint name="extend" type="slide" axis="1 0 0"/>',
+                        '<joint name="extend" type="slide" axis="1 0 0"/><joint name="roll" axis="1 0 0"/>')
+    with pytest.raises(ModelError, match="body 'slider' has 2 joints"):
+        mjcf_system(two)
+    bad = tmp_path / "broken.xml"
+    bad.write_text("<mujoco><worldbody><body><joint type='hinge'/></body></worldbody>")
+    with pytest.raises(ModelError, match="MuJoCo could not read the model"):
+        appell.load_model(bad)
+
+
+def test_the_command_line_simulates_a_mujoco_file(tmp_path):
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+
+    path = tmp_path / "arm3.xml"
+    path.write_text(CHAIN)
+    out = tmp_path / "arm3.csv"
+    result = CliRunner().invoke(cli, ["simulate", str(path), "--t-end", "0.5", "--out", str(out)])
+    assert result.exit_code == 0, result.output + result.stderr
+    header = out.read_text().splitlines()[0].split(",")
+    assert "F_shoulder_x" in header and "M_wrist_z" in header
