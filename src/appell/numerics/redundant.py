@@ -98,7 +98,8 @@ class RedundantModel:
         """The wrapped model's solve, with every constraint's multiplier; from all rows
         where the kept ones degenerate (:meth:`all_rows`)."""
         pv = self.inner.params(p)
-        if self._needs_all_rows(t, q, w, pv):
+        J = self.full_blocks(t, q, w, pv)[0]
+        if self._kept_degenerate(J):
             return self.all_rows(t, q, w, pv, bias)
         try:
             sol = self.inner.solve(t, q, w, pv, dependent, self._bias(bias))
@@ -106,7 +107,7 @@ class RedundantModel:
             if not self._may_use_all_rows():
                 raise
             return self.all_rows(t, q, w, pv, bias)
-        lam = self.all_multipliers(t, q, w, sol.multipliers, pv)
+        lam = multipliers_with_redundancy(J, self.redundancy.independent, sol.multipliers, self.weights)
         return StateSolution(sol.accelerations, lam, sol.generalized_reactions, sol.dependent, sol.switched,
                              sol.newton_iterations)
 
@@ -114,18 +115,11 @@ class RedundantModel:
         """:class:`~appell.numerics.dynamics.Dynamics` evaluation with every multiplier."""
         pv = self.inner.params(p)
         q, w = self.inner.split_state(y)
-        if self._needs_all_rows(t, q, w, pv):
-            sol = self.all_rows(t, q, w, pv, bias)
+        if self._may_use_all_rows():  # a loop redundant on its manifold: solve picks the route
+            sol = self.solve(t, q, w, pv, dependent, bias)
             return Evaluation(np.concatenate([self.inner.coordinate_rates(t, q, w, pv), sol.accelerations]),
                               sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
-        try:
-            ev = self.inner.evaluate(t, y, pv, dependent, self._bias(bias))
-        except SingularConfigurationError:
-            if not self._may_use_all_rows():
-                raise
-            sol = self.all_rows(t, q, w, pv, bias)
-            return Evaluation(np.concatenate([self.inner.coordinate_rates(t, q, w, pv), sol.accelerations]),
-                              sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
+        ev = self.inner.evaluate(t, y, pv, dependent, self._bias(bias))
         lam = self.all_multipliers(t, q, w, ev.multipliers, pv)
         return Evaluation(ev.derivative, lam, ev.controls, ev.dependent, ev.switched)
 
@@ -133,14 +127,13 @@ class RedundantModel:
     def _may_use_all_rows(self) -> bool:
         return bool(self.redundancy.on_manifold) and self.weights is None and self.inner.constraint_function is None
 
-    def _needs_all_rows(self, t, q, w, pv) -> bool:
-        """Whether the kept rows have (nearly) lost rank here although all rows keep rank
-        ``r``: a loop redundant on its manifold (Bricard's mechanism) has no row that is
-        redundant everywhere along its motion, so the rows derived at the start degenerate
-        elsewhere (:data:`KEPT_CONDITION`)."""
+    def _kept_degenerate(self, J) -> bool:
+        """Whether the kept rows of ``J`` (all rows at a state) have (nearly) lost rank although
+        all rows keep rank ``r``: a loop redundant on its manifold (Bricard's mechanism) has no
+        row that is redundant everywhere along its motion, so the rows derived at the start
+        degenerate elsewhere (:data:`KEPT_CONDITION`)."""
         if not self._may_use_all_rows():
             return False
-        J = self.full_blocks(t, q, w, pv)[0]
         kept = J[list(self.redundancy.independent)]
         sv = np.linalg.svd(kept * row_scales(kept)[:, None], compute_uv=False)
         return bool(sv.size) and sv[-1] < KEPT_CONDITION * sv[0]

@@ -37,12 +37,14 @@ The passage therefore never integrates the reduced equations inside the band ``g
    (the tip of the cusp ``y^2 = x^3``, where the motion must turn back with an infinite
    reaction).
 4. **The gap.** Output times inside ``(t_a, t_b)`` take their states from the Hermite
-   interpolant through ``t_a - s``, ``t_a`` and ``t_b``; their accelerations from its
-   derivative; their reactions are the minimum-norm solution of ``J^T lambda = M a + h - Q``
-   with the rank-deficient directions (singular values under ``level`` of the
-   start-scaled ``J``) left out: bounded, never the ``1/g`` spike. At ``t*`` itself the
-   combinations of multipliers along the lost rows are undetermined by rigid-body
-   mechanics; the event names their constraints.
+   interpolant through ``t_a - s``, ``t_a``, ``t_b`` and ``t_b + s``; their accelerations are
+   interpolated between the four nodes before and three after (``t_b + k s``, k = 0..2), and
+   their multipliers as ``q(t) + c/(t - t*)``: a reaction that the branch needs without bound
+   (the axial forces of a chain of parallelograms) has a simple pole at ``t*``, and the residue
+   ``c`` of ``(t - t*) lambda`` is zero where it is rounding. At ``t*`` itself the combinations
+   of multipliers along the lost rows are undetermined by rigid-body mechanics: the event
+   names their constraints and gives the minimum-norm multipliers
+   (:func:`minimum_norm_reactions`).
 
 Why the node states are projected to rounding: near the point, a position residual ``r``
 moves the dependent speeds by about ``r / g`` and bends the motion along ``phi = r`` by
@@ -78,9 +80,12 @@ class PassageRefused(ComputationError):
 @dataclass(frozen=True)
 class Passage:
     """A singular configuration passed: ``t_singular`` (the instant), ``t_before`` and
-    ``t_after`` (the gap integrated by prediction), the state after, the interpolant of
-    the gap (``gap(t) -> (y, dy/dt)``), the constraints whose multipliers combine to the
-    undetermined reactions, the rank lost and the relative corrections of the projection."""
+    ``t_after`` (the band crossed by prediction), the state after, the gap's rows
+    (``gap(t) -> (state, accelerations, multipliers)``), the constraints whose multipliers
+    combine to the undetermined reactions, the rank lost and the relative corrections of
+    the projection; ``t_restart`` the trusted state the approach started from and
+    ``approach(ts)`` its states (columns) at the times ``ts`` in ``[t_restart, t_before]``;
+    the state at the instant and the minimum-norm multipliers there."""
 
     t_singular: float
     t_before: float
@@ -90,11 +95,10 @@ class Passage:
     constraints: tuple[str, ...]
     rank_loss: int
     correction: tuple[float, float]
-    t_restart: float = 0.0
-    approach: object = None
-    y_singular: np.ndarray | None = None
-    multipliers_singular: np.ndarray | None = None
-    residue: np.ndarray | None = None
+    t_restart: float
+    approach: object
+    y_singular: np.ndarray
+    multipliers_singular: np.ndarray
 
     def describe(self) -> str:
         return (f"singular configuration passed at t = {self.t_singular:.10g}: df/da loses rank {self.rank_loss} "
@@ -174,9 +178,6 @@ def _integrate(start, t_r, y_r, t_bound, stop=None):
 
 
 def _pass(rank, model, t_star, evaluate, start, project, p, level):
-    def fun(t, y):
-        return np.asarray(evaluate(t, y).derivative, float)
-
     nq = rank.nq
     trusted = [(t, y) for t, y in rank.trusted if t < t_star]
     if not trusted:
@@ -211,7 +212,8 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
     g_a = rank.measure(t_a, y_a)
     if not 0.25 * level <= g_a <= 4.0 * level:
         raise PassageRefused(f"the approach did not reach the singular band as predicted (g = {g_a:.2g})")
-    fs = [np.asarray(fun(tk, yk), float) for tk, yk in zip(nodes, ys)]
+    evaluations = [evaluate(tk, yk) for tk, yk in zip(nodes, ys)]
+    fs = [np.asarray(ev.derivative, float) for ev in evaluations]
     predict = _hermite(nodes, ys, fs, t_a, s)
 
     def approach_at(t):
@@ -257,7 +259,8 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
     g_b = rank.measure(t_b, y_b)
     if g_b < 0.25 * level:
         raise PassageRefused(f"beyond the point the constraint Jacobian stays nearly singular (g = {g_b:.2g})")
-    f_b = np.asarray(fun(t_b, y_b), float)
+    evaluations.append(evaluate(t_b, y_b))
+    f_b = np.asarray(evaluations[-1].derivative, float)
     if not np.all(np.isfinite(f_b)):
         raise PassageRefused("the equations cannot be evaluated beyond the point")
 
@@ -271,20 +274,15 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
         t_from = t_b + k * s
         y_from = project(model, t_from, y_from, p, tol=PROJECT_TOL)
         right.append((t_from, y_from))
-    f_right = [f_b] + [np.asarray(fun(tk, yk), float) for tk, yk in right[1:]]
+        evaluations.append(evaluate(t_from, y_from))
     states = _hermite([t_a - s, t_a, t_b, t_b + s], [ys[-2], y_a, y_b, right[1][1]],
-                      [fs[-2], fs[-1], f_b, f_right[1]], t_a, s)
+                      [fs[-2], fs[-1], f_b, np.asarray(evaluations[5].derivative, float)], t_a, s)
     times = np.array(nodes + [tk for tk, _ in right])
-    acc, lam = [], []
-    for tk, yk in zip(times, ys + [yk for _, yk in right]):
-        ev = evaluate(tk, yk)
-        acc.append(np.asarray(ev.derivative, float)[nq:])
-        lam.append(np.asarray(ev.multipliers, float))
     tau = (times - t_a) / s
-    accelerations = KroghInterpolator(tau, np.array(acc))
+    accelerations = KroghInterpolator(tau, np.array([np.asarray(ev.derivative, float)[nq:] for ev in evaluations]))
     # lambda = c / (t - t*) + q(t), q smooth: the residue c from the interpolant of (t - t*) lambda
     # at t* (zero where it is rounding: a reaction bounded through the point), then q interpolated
-    lam = np.array(lam)
+    lam = np.array([np.asarray(ev.multipliers, float) for ev in evaluations])
     moment = (times - t_star)[:, None] * lam
     residue = KroghInterpolator(tau, moment)((t_star - t_a) / s)
     residue[np.abs(residue) <= POLE_TOL * np.abs(moment).max(initial=0.0)] = 0.0
@@ -296,7 +294,7 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
     lost = max(int(np.sum(sv < 0.5 * level)), 1)
     weight = np.abs(U[:, len(sv) - lost:]).max(axis=1)
     names = tuple(n for n, v in zip(rank.names, weight) if v > 1e-3 * weight.max()) or rank.names
-    _, lam_star = minimum_norm_reactions(model, rank.scale, t_star, y_star, rates_star, p, level)
+    lam_star = minimum_norm_reactions(model, rank.scale, t_star, y_star, rates_star[nq:], p, level)
     at_instant = 1e-12 * max(1.0, abs(t_star))
 
     def gap(t):
@@ -307,22 +305,20 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
         return y, a, regular((t - t_a) / s) + residue / (t - t_star)
 
     return Passage(t_star, float(t_a), float(t_b), y_b, gap, names, lost, (dq, dw), float(t_r), approach,
-                   y_star, lam_star, residue)
+                   y_star, lam_star)
 
 
-def minimum_norm_reactions(model, scale, t, y, rates, p, level: float):
-    """Accelerations (the speed part of ``rates``) and the minimum-norm multipliers of
-    ``J^T lambda = M a + h - Q`` at a state near a singular configuration: the solution in
-    the row-scaled variables with the singular values under ``level`` (of the start-scaled
-    ``J``) left out."""
+def minimum_norm_reactions(model, scale, t, y, a, p, level: float) -> np.ndarray:
+    """The minimum-norm multipliers of ``J^T lambda = M a + h - Q`` at a state near a singular
+    configuration, accelerations ``a`` given: the solution in the row-scaled variables with
+    the singular values under ``level`` (of the start-scaled ``J``) left out."""
     nq, n = len(model.coordinate_names), len(model.speed_names)
     y = np.asarray(y, float)
-    a = np.asarray(rates, float)[nq:nq + n]
     M, hQ, J, _ = model.evaluate_blocks(t, y[:nq], y[nq:nq + n], p)
     Js = np.asarray(J, float) * scale[:, None]
     U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
     keep = sv >= level
-    rhs = np.asarray(M, float) @ a + np.asarray(hQ, float)
+    rhs = np.asarray(M, float) @ np.asarray(a, float) + np.asarray(hQ, float)
     # J^T lambda = rhs with lambda = D mu, (D J)^T mu = rhs: mu = U S^-1 V^T rhs on the kept values
     mu = U[:, keep] @ ((Vt[keep] @ rhs) / sv[keep])
-    return a, scale * mu
+    return scale * mu

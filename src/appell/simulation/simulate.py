@@ -201,8 +201,9 @@ def _initial_state(model, initial, complete, adjust, t0, p):
 
 def _record_passage(run, model, passed, t_eval, p) -> int:
     """Record a singular configuration passed (:mod:`appell.simulation.passage`): the rows
-    after its trusted start replaced by those of its approach, the gap's rows with the
-    minimum-norm reactions, the event; returns the index of the next output time."""
+    after its trusted start replaced by those of its approach, the gap's rows (states,
+    accelerations and multipliers interpolated across the point), the event with the
+    minimum-norm multipliers at the instant; returns the index of the next output time."""
     from types import SimpleNamespace
 
     run.forget_after(passed.t_restart)
@@ -666,6 +667,14 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     scales: dict = {}  # each constraint row's size at its first sight (appell.simulation.singular)
     jacobians: dict = {}  # the exact Jacobian of each model the implicit methods have used
 
+    def scipy_options() -> dict:
+        """Tolerances of the run and, for the implicit methods, the exact Jacobian."""
+        kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
+        jac = _exact_jacobian(state["active"], solver_cls, jacobians)
+        if jac is not None:
+            kw["jac"] = lambda t_, y_: jac(t_, y_, p)
+        return kw
+
     def start(tt, yy, first_step=None):
         nonlocal rank
         kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
@@ -677,10 +686,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         if loop is not None and rank.active and getattr(loop, "scale", None) is None:
             loop.watch(rank.scale, max(10.0 * SINGULAR_LEVEL, 2.0 * TRUST * rank.band), DIP)
         if loop is None:
-            jac = _exact_jacobian(state["active"], solver_cls, jacobians)
-            if jac is not None:
-                kw["jac"] = lambda t_, y_: jac(t_, y_, p)
-            state["solver"] = solver_cls(fun, tt, yy, t_end, **kw)
+            state["solver"] = solver_cls(fun, tt, yy, t_end, **{**scipy_options(), **kw})
             return
         loop.set_switched(run.dependent is not None and run.dependent != loop.default_dependent)
         state["solver"] = loop.solver(tt, yy, t_end, **kw)
@@ -689,11 +695,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     def sub_solver(tt, yy, t_bound):
         """An integrator of the run's method and tolerances from (tt, yy) to t_bound (the
         approach to a singular configuration, appell.simulation.passage)."""
-        kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
-        jac = _exact_jacobian(state["active"], solver_cls, jacobians)
-        if jac is not None:
-            kw["jac"] = lambda t_, y_: jac(t_, y_, p)
-        return solver_cls(fun, tt, yy, t_bound, **kw)
+        return solver_cls(fun, tt, yy, t_bound, **scipy_options())
 
     def configure(tt, yy, released=(), bounced=(), when="at the start"):
         """The model without the released constraints, its evaluation, watches and their
@@ -809,7 +811,8 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                                    "and controls")
                     else:
                         try:
-                            passed = pass_through(rank, singular, lambda t_, y_: run.evaluate(active, t_, y_), sub_solver, project, p)
+                            passed = pass_through(rank, singular, lambda t_, y_: run.evaluate(active, t_, y_),
+                                                  sub_solver, project, p)
                         except PassageRefused as exc:
                             refusal = str(exc)
                     if passed is not None:

@@ -130,18 +130,15 @@ class RankWatch:
 
     def seed(self, t_start: float, t_end: float, dense) -> None:
         """Take the previous step from elsewhere (the compiled loop, which ran the steps
-        before this one in C): its start and its end join the history when the history
-        ends at its start (the loop returned after each step), else replace it."""
+        before this one in C): the history becomes its start and its end (both kept as
+        trusted states where far enough from a singular point)."""
         if not self.active:
             return
-        kept = [pt for pt in self.points if pt[0] < t_start]
-        if not (self.points and self.points[-1][0] == t_start):
-            kept = []  # the C loop ran steps unseen since the last one kept: a new history
-        g_start, g_end = self.measure(t_start, dense(t_start)), self.measure(t_end, dense(t_end))
-        kept.append((t_start, g_start, None))
-        self.points = kept + [(t_end, g_end, dense)]
-        self.trust(t_start, dense(t_start), g_start)
-        self.trust(t_end, dense(t_end), g_end)
+        y_start, y_end = dense(t_start), dense(t_end)
+        g_start, g_end = self.measure(t_start, y_start), self.measure(t_end, y_end)
+        self.points = [(t_start, g_start, None), (t_end, g_end, dense)]
+        self.trust(t_start, y_start, g_start)
+        self.trust(t_end, y_end, g_end)
 
     def step(self, t, y, dense, last: bool = False) -> SingularPoint | None:
         """After the step to ``t``: the singular point the last two steps passed, or None.
@@ -154,7 +151,7 @@ class RankWatch:
         del self.points[:-KEPT]
         if len(self.points) < (2 if last else 3):
             return None
-        points = self.points[-3:] if len(self.points) >= 3 else [self.points[0]] + self.points
+        points = self.points if len(self.points) == KEPT else [self.points[0]] + self.points
         (ta, ga, _), (tb, gb, da), (tc, gc, dc) = points
         near_end = last and min(gb, gc) < TRUST * self.band
         if not near_end and gc >= SINGULAR_LEVEL and not (gb <= ga and gb <= gc and gb < DIP * max(ga, gc)):
