@@ -26,6 +26,7 @@ LAYERS = {
     "simulation": 5,
     "control": 6, "reduction": 6,
     "io": 7,
+    "view": 1,
 }
 
 

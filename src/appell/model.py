@@ -445,6 +445,9 @@ class System:
     outputs : :class:`Output` items (or ``{name: expr}``), quantities evaluated after the
         solve from ``t, q, w, a``, the multipliers ``lambda_<constraint>`` and the controls;
         recorded as columns after the multipliers.
+    view : a :class:`appell.view.View`, what the picture of a motion draws (a mechanism
+        makes one; a model file's ``[view]`` table); None: :mod:`appell.io.viewer` draws a
+        default.
     """
 
     coordinates: tuple[sp.Symbol, ...]
@@ -471,6 +474,7 @@ class System:
     settings: tuple[tuple[str, object], ...] = ()
     units: tuple[tuple[str, str], ...] = ()
     outputs: tuple[Output, ...] = ()
+    view: object | None = None
 
     def __post_init__(self):
         s = object.__setattr__

@@ -34,6 +34,7 @@ import math
 from dataclasses import dataclass, field
 from dataclasses import replace as dc_replace
 
+import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
@@ -42,6 +43,7 @@ from appell.mechanism.rotations import identically_zero, rpy_rotation, unit_axis
 from appell.model import (AppliedForce, AppliedTorque, Constraint, Control, Output, Parameter, Particle, RigidBody,
                           System, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
+from appell.view import SHAPES, Shape, View, ViewArrow, ViewBody, equivalent_box
 
 GROUND = "ground"
 
@@ -89,6 +91,17 @@ def _matrix(value, what: str, shape=(3, 1)) -> sp.Matrix:
 
 def _cross(a, b) -> sp.Matrix:
     return sp.Matrix(a).cross(sp.Matrix(b))
+
+
+def _z_onto(k) -> sp.Matrix:
+    """A rotation taking the z axis onto the unit vector ``k`` (the axis of a cylinder)."""
+    z = sp.Matrix([0, 0, 1])
+    v = z.cross(k)
+    c = z.dot(k)
+    if v == sp.zeros(3, 1):
+        return sp.eye(3) if c > 0 else sp.diag(1, -1, -1)
+    V = sp.Matrix([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return sp.eye(3) + V + V * V / (1 + c)
 
 
 def _dt(expr, coordinates):
@@ -206,6 +219,8 @@ class Mechanism:
         self._forces: list[tuple[str, object]] = []  # (name, builder(frames) -> (model loads, actions))
         self._actuators: list[tuple[str, Joint, sp.Symbol, sp.Expr | None]] = []
         self._names: dict[str, str] = {GROUND: "body"}
+        self._shapes: list[tuple[Body, str, tuple, sp.Matrix, sp.Matrix, str | None]] = []  # for the view
+        self._marks: list[tuple[Body, sp.Matrix]] = []  # body points of closures and loads (the view's bars)
 
     # ------------------------------------------------------------ naming
     def _claim(self, name, kind: str) -> str:
@@ -272,6 +287,21 @@ class Mechanism:
         b = Body(b.name, b.mass, b.inertia, b.com, particle=True)
         self.bodies[-1] = b
         return b
+
+    def shape(self, body, kind: str, size, origin=(0, 0, 0), rpy=(0, 0, 0), colour: str | None = None) -> None:
+        """Geometry of ``body`` for the picture of the motion (:class:`appell.view.Shape`: a
+        ``'box'`` of edges ``size``, a ``'sphere'`` of radius ``size``, a ``'cylinder'`` or
+        ``'capsule'`` of ``(radius, length)`` along its z axis), placed at ``origin`` turned by
+        the roll-pitch-yaw angles ``rpy`` in the body frame; sizes may be parameters. It does
+        not change the dynamics."""
+        b = self._body(body, f"shape of {body!r}")
+        if kind not in SHAPES:
+            raise ModelError(f"shape of body {b.name!r}: {kind!r} is not a shape", hint="shapes: " + ", ".join(SHAPES))
+        size = tuple(sp.sympify(v) for v in (size if isinstance(size, (tuple, list)) else (size,)))
+        if len(size) != SHAPES[kind]:
+            raise ModelError(f"shape of body {b.name!r}: a {kind} takes {SHAPES[kind]} size(s), got {len(size)}")
+        rot = rpy_rotation(_matrix(rpy, f"shape of body {b.name!r}: rpy"))
+        self._shapes.append((b, kind, size, _matrix(origin, f"shape of body {b.name!r}: origin"), rot, colour))
 
     def _add_joint(self, kind, name, parent, child, axis=None, origin=(0, 0, 0), rpy=(0, 0, 0),
                    child_origin=(0, 0, 0), coordinate=None, rotation="xyz") -> Joint:
@@ -364,6 +394,7 @@ class Mechanism:
         self._claim(name, "closure")
         what = f"closure {name!r}"
         (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
+        self._marks += [(ba, ra), (bb, rb)]
         dirs = str(directions)
         if not dirs or any(d not in "xyz" for d in dirs) or len(set(dirs)) != len(dirs):
             raise ModelError(f"{what}: directions {directions!r} must be distinct letters of 'xyz'")
@@ -388,6 +419,7 @@ class Mechanism:
         self._claim(name, "closure")
         what = f"contact {name!r}"
         body, r = self._point(point, what)
+        self._marks.append((body, r))
         X = sp.symbols("x y z")
         expr = surface(*X) if callable(surface) else sp.sympify(surface)
         if not isinstance(expr, sp.Expr) or not expr.free_symbols & set(X):
@@ -454,6 +486,7 @@ class Mechanism:
         b = self._body(body, what)
         k = unit_axis(axis, f"{what}: axis")
         r = sp.sympify(radius)
+        self._shapes.append((b, "cylinder", (r, r / 10), sp.zeros(3, 1), _z_onto(k), None))
 
         def contact(f, n):
             a = f.R * k
@@ -471,6 +504,7 @@ class Mechanism:
         what = f"rolling sphere {name!r}"
         b = self._body(body, what)
         r = sp.sympify(radius)
+        self._shapes.append((b, "sphere", (r,), sp.zeros(3, 1), sp.eye(3), None))
         self._rolling(name, b, lambda f, n: (-r * n, -r), normal, height, what)
 
     def no_lateral_slip(self, name, point, direction):
@@ -480,6 +514,7 @@ class Mechanism:
         self._claim(name, "contact")
         what = f"no-slip contact {name!r}"
         body, r = self._point(point, what)
+        self._marks.append((body, r))
         d = unit_axis(direction, f"{what}: direction")
 
         def build(frames):
@@ -497,6 +532,7 @@ class Mechanism:
         point ``point = (body, r)``."""
         self._claim(name, "load")
         body, r = self._point(point, f"force {name!r}")
+        self._marks.append((body, r))
         f = _matrix(vector, f"force {name!r}")
 
         def build(frames):
@@ -523,6 +559,7 @@ class Mechanism:
         self._claim(name, "load")
         what = f"spring {name!r}"
         (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
+        self._marks += [(ba, ra), (bb, rb)]
         k, l0, c = (sp.sympify(v) for v in (stiffness, rest_length, damping))
 
         def build(frames):
@@ -684,10 +721,13 @@ class Mechanism:
             loads += more
             actions += acts
         cons = [holonomic(n, e) for j in order for n, e in j.motion.constraints]
+        contact_forces = []
         for closure in self._closures:
             more, acts = closure.build(frames)
             cons += [dc_replace(c, where=closure.where) if closure.where and c.where is None else c for c in more]
             actions += acts
+            if acts:
+                contact_forces.append((closure.name, acts))
         speeds = [derivative_symbol(q) for q in coords]
         Q, ctl = [sp.S.Zero] * len(speeds), []
         for name, j, q, value in self._actuators:
@@ -703,7 +743,8 @@ class Mechanism:
                                  hint="parameters: " + ", ".join(sorted(known)))
             values = {str(k): v for k, v in parameters.items()}
             params = [Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description) for p in params]
-        outs = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit))
+        reaction_outputs = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit))
+        outs = list(reaction_outputs)
         outs += list(outputs.values() if isinstance(outputs, dict) else outputs)
         start = {q.name: 0.0 for q in coords}
         start.update({w.name: 0.0 for w in speeds})
@@ -719,7 +760,71 @@ class Mechanism:
                       constraints=tuple(cons) + tuple(constraints), controls=tuple(ctl) + tuple(controls),
                       servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
                       name=self.name,
-                      description=self.description, settings=settings, units=units or (), outputs=tuple(outs))
+                      description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
+                      view=self._view(frames, contact_forces, {o.name for o in reaction_outputs}, frame, params))
+
+    def _view(self, frames, contact_forces, reaction_names, frame, params) -> View:
+        """The :class:`appell.view.View` of the mechanism: each body at its frame's pose with
+        its shapes (or bars to the joints it carries and the points of its closures and loads,
+        and the equivalent box of a full inertia); the force and moment of every joint whose
+        reaction outputs exist, and the force of every closure and contact on its first body."""
+        values = {p.symbol: p.value for p in params}
+
+        def numbers(v):
+            try:
+                return tuple(float(sp.sympify(x).xreplace(values)) for x in v)
+            except (TypeError, ValueError):
+                return None
+
+        axes = {self._joint(k, "frame").name: self._body(v, "frame") for k, v in (frame or {}).items()}
+        bodies = []
+        for b in self.bodies:
+            f = frames[b]
+            shapes = []
+            for body, kind, size, origin, rot, colour in self._shapes:
+                dims = numbers(size) if body is b else None
+                if dims is not None and all(d > 0 for d in dims):
+                    shapes.append(Shape(kind, dims, numbers(origin), numbers(rot), colour))
+            own = next(j for j in self.joints if j.child is b)
+            links = [own.child_origin] + [j.origin for j in self.joints if j.parent is b]
+            links += [r for body, r in self._marks if body is b]
+            links = [p for p in (numbers(x) for x in links) if p is not None]
+            com = numbers(b.com) or (0.0, 0.0, 0.0)
+            mass = numbers([b.mass])
+            inertia = numbers(b.inertia)
+            if not shapes and not b.particle and mass and inertia is not None:
+                moments, axes_ = np.linalg.eigh(np.array(inertia).reshape(3, 3))
+                if np.linalg.det(axes_) < 0:
+                    axes_[:, 2] *= -1
+                box = equivalent_box(mass[0], moments)
+                if box is not None:
+                    shapes.append(Shape("box", box, com, tuple(axes_.ravel()), solid=False))
+            bodies.append(ViewBody(b.name, tuple(f.p), None if b.particle else tuple(f.R), tuple(shapes),
+                                   tuple(links), com, b.particle))
+        arrows = []
+        for j in self.joints:
+            fc = frames[j.child]
+            O = fc.p + fc.R * j.child_origin
+            for sym, kind in (("F", "force"), ("M", "moment")):
+                names = [f"{sym}_{j.name}_{a}" for a in "xyz"]
+                if not set(names) <= reaction_names:
+                    continue
+                vec = sp.Matrix([sp.Symbol(n) for n in names])
+                body = axes.get(j.name)
+                if body is not None and body is not self.ground:
+                    vec = frames[body].R * vec
+                arrows.append(ViewArrow(f"{sym}_{j.name}", tuple(O), tuple(vec), kind))
+        for name, acts in contact_forces:
+            first = [a for a in acts if a.body is acts[0].body and a.position is not None]
+            if first:
+                total = sum((a.force for a in first), sp.zeros(3, 1))
+                arrows.append(ViewArrow(name, tuple(first[0].position), tuple(total), "force"))
+        up = (0.0, 0.0, 1.0)
+        if self.gravity is not None:
+            g = numbers(self.gravity)
+            if g is not None and any(g):
+                up = tuple(-x for x in g)
+        return View(tuple(bodies), tuple(arrows), up=up)
 
     def _reaction_outputs(self, reactions, frame, frames, actions, force_unit, moment_unit):
         if reactions is None:

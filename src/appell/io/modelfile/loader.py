@@ -44,6 +44,7 @@ from appell.core.validation import declared_symbols, validate
 from .expressions import (FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_problem, constant_value,
                           parse_expression)
 from .locate import source_map
+from .view_table import read_view
 
 __all__ = ["load_model", "loads_model", "simulation_options", "TABLES", "SIMULATION_KEYS", "CONSTRAINT_KINDS", "MAX_FILE_SIZE"]
 
@@ -79,6 +80,8 @@ TABLES = {
     "units": "NAME = unit of a coordinate, speed, constraint's multiplier or control (recorded in result files)",
     "outputs": "NAME = expression (or {expr, unit, description}) in t, coordinates, speeds, accelerations, "
                "lambda_<constraint>, controls and parameters: a column of every result (an energy, a point)",
+    "view": "what the picture of the motion draws: [[view.bodies]] (position, angle or rotation, shapes, links), "
+            "[[view.arrows]] (at, vector, kind), [[view.trails]] (point), up, ground",
     "mechanism": "bodies joined by joints (urdf, gravity, reactions, frame) with [[bodies]], [[joints]], "
                  "[[closures]], [[loads]]",
 }
@@ -758,6 +761,7 @@ def _check_declared(r: _Reader, system: System):
     """Every symbol of every expression is declared at its level (as in validation.validate)."""
     levels = declared_symbols(system)
     levels["outputs"] = levels["acceleration"] | {sp.Symbol(f"lambda_{c.name}") for c in system.constraints}
+    levels["view"] = levels["outputs"] | {sp.Symbol(o.name) for o in system.outputs}
     for path, (expr, level) in r.symbols.items():
         bad = sorted((s for s in expr.free_symbols if s not in levels[level]), key=str)
         if bad:
@@ -767,6 +771,9 @@ def _check_declared(r: _Reader, system: System):
                 hint = "a program depends on t and parameters only"
             elif level == "state" and any(split_derivative_name(s.name)[1] >= 1 for s in bad):
                 hint += "; accelerations may appear only in the acceleration energy and constraints"
+            elif level == "view":
+                hint = ("a view uses t, coordinates, speeds, accelerations (x''), lambda_<constraint>, controls, "
+                        "outputs, parameters and programs")
             elif level == "outputs":
                 hint = ("an output uses t, coordinates, speeds, accelerations (x''), lambda_<constraint>, controls, "
                         "parameters and programs")
@@ -940,7 +947,7 @@ def _build(r: _Reader, doc: dict) -> System:
     stability = _stability(r, top, system)
     if stability:
         system = system.replace(settings=settings + stability)
-    return _validated(r, _outputs(r, top, system))
+    return _validated(r, read_view(r, top, _outputs(r, top, system)))
 
 
 def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
