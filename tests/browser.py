@@ -18,6 +18,16 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-
          "--disable-extensions", "--disable-default-apps", "--mute-audio", "--hide-scrollbars"]
 
 
+#: XML namespace names (``document.createElementNS``) in three.js: identifiers, never fetched
+_NAMESPACES = re.compile(r"http://www\.w3\.org/(1999/xhtml|2000/svg|1998/Math/MathML)")
+
+
+def without_namespaces(page: str) -> str:
+    """``page`` without the XML namespace names, which look like addresses but are never
+    fetched; what remains must name no address."""
+    return _NAMESPACES.sub("", page)
+
+
 def chromium(args, tmp_path, timeout=90) -> subprocess.CompletedProcess:
     profile = tmp_path / "profile"
     cmd = [CHROMIUM, *FLAGS, f"--user-data-dir={profile}", *args]

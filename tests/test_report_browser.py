@@ -17,7 +17,7 @@ import pytest
 from click.testing import CliRunner
 
 from appell.io.cli import cli
-from browser import CHROMIUM, SKIP_REASON, body_attributes, chromium, references
+from browser import CHROMIUM, SKIP_REASON, body_attributes, chromium, references, without_namespaces
 
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)
 
@@ -32,12 +32,20 @@ def car_report(tmp_path_factory) -> Path:
 
 
 def test_report_references_nothing_outside_the_page(car_report):
-    page = car_report.read_text(encoding="utf-8")
+    """Nothing is fetched: no address, no stylesheet link; the one link is the motion's
+    data file, written beside the page."""
+    page = without_namespaces(car_report.read_text(encoding="utf-8"))
     assert "http://" not in page and "https://" not in page
-    assert not re.search(r"<link\b|@import|url\(", page, re.IGNORECASE)
+    assert not re.search(r"<link\b", page, re.IGNORECASE)
+    styles = " ".join(re.findall(r"<style>(.*?)</style>", page, re.S)) + " ".join(re.findall(r'style="([^"]*)"', page))
+    assert not re.search(r"@import|url\(", styles, re.IGNORECASE)  # CSS fetches nothing
     found = references(page)
     for tag, attr, value in found:
+        if (tag, attr, value) == ("a", "href", "car-report.csv"):
+            assert (car_report.parent / value).is_file()
+            continue
         assert value.startswith(("#", "data:image/png;base64,")), (tag, attr, value[:60])
+    assert ("a", "href", "car-report.csv") in found
     assert any(attr == "src" for _, attr, _ in found), "the plots are embedded images"
 
 
@@ -46,7 +54,8 @@ def test_mathematics_and_plots_render_in_chromium(car_report, tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     attrs = body_attributes(done.stdout)
     assert attrs.get("data-render-check") == "done", "the report's load-time check did not run"
-    counts = {k: int(v) for k, v in attrs.items() if k != "data-render-check"}
+    assert attrs.get("data-viewers") == "ready", "the 3-D view of the motion did not start"
+    counts = {k: int(v) for k, v in attrs.items() if k not in ("data-render-check", "data-viewers")}
     # the car: 3 reduced/dependent equations, 2 reactions, constraints, parameters, ...
     assert counts["data-math-total"] >= 10
     assert counts["data-math-rendered"] == counts["data-math-total"]

@@ -42,6 +42,7 @@ from appell.simulation.sweep import SweepResult, parameter_grid, sweep, sweep_cl
 from appell.control.servo import ControlledDerivation, derive_controlled
 from appell.control.servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
 from appell.io.report import render_report, write_report
+from appell.io.viewer import MotionView, view_motion
 from appell.mechanism.sympy_system import from_sympy
 
 __version__ = "0.1.0"
@@ -118,6 +119,6 @@ __all__ = [
     "SweepResult", "compile_c", "parameter_grid", "sweep", "sweep_cluster",
     "ControlledDerivation", "ControlledModel", "augmented_controlled_solve", "cross_check_controlled",
     "derive_controlled",
-    "render_report", "write_report",
+    "render_report", "write_report", "MotionView", "view_motion",
     "from_sympy",
 ]

@@ -24,7 +24,7 @@ import sympy as sp
 
 from appell.errors import ModelError
 
-__all__ = ["Shape", "ViewBody", "ViewArrow", "View", "SHAPES", "equivalent_box"]
+__all__ = ["Shape", "ViewBody", "ViewArrow", "ViewJoint", "View", "SHAPES", "equivalent_box"]
 
 #: shape kinds and the sizes each takes (metres): box (x, y, z edge lengths), sphere (radius),
 #: cylinder and capsule (radius, length along the shape's z axis)
@@ -80,6 +80,8 @@ class ViewBody:
     links: tuple[tuple[float, float, float], ...] = ()
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
     particle: bool = False
+    mass: str | None = None
+    inertia: str | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "position", _vector(self.position, f"view of body {self.name!r}: position"))
@@ -111,19 +113,37 @@ class ViewArrow:
 
 
 @dataclass(frozen=True)
+class ViewJoint:
+    """A joint as the report's table shows it: ``kind``, ``parent`` and ``child`` bodies,
+    ``origin`` (in the parent frame), ``axis`` (in the joint frame; one-coordinate joints)
+    and ``coordinates``, as text (parameters stay symbols)."""
+
+    name: str
+    kind: str
+    parent: str
+    child: str
+    origin: str
+    axis: str = ""
+    coordinates: str = ""
+
+
+@dataclass(frozen=True)
 class View:
     """The parts of the picture: ``bodies``, ``arrows``, ``trails`` (``(name, point)``: a
     point's path), ``up`` (the world's up direction, against gravity) and ``ground``
-    (draw the plane through the origin normal to ``up``)."""
+    (draw the plane through the origin normal to ``up``); ``joints`` for the report's
+    table of a mechanism."""
 
     bodies: tuple[ViewBody, ...] = ()
     arrows: tuple[ViewArrow, ...] = ()
     trails: tuple[tuple[str, tuple[sp.Expr, ...]], ...] = ()
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
     ground: bool = True
+    joints: tuple[ViewJoint, ...] = ()
 
     def __post_init__(self):
         object.__setattr__(self, "bodies", tuple(self.bodies))
+        object.__setattr__(self, "joints", tuple(self.joints))
         object.__setattr__(self, "arrows", tuple(self.arrows))
         object.__setattr__(self, "trails", tuple((n, _vector(p, f"trail {n!r}")) for n, p in self.trails))
         up = tuple(float(u) for u in self.up)

@@ -690,6 +690,72 @@ def simulate(model, t_end, out, plot, backend, assignments, floating_base, compl
             click.echo(f"wrote {path}")
 
 
+@cli.command(context_settings=_CONTEXT)
+@_model_argument
+@click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE",
+              help="FILE.html (the interactive 3-D view, self-contained), FILE.gif or FILE.mp4 (a movie; "
+                   "MP4 needs ffmpeg). Default: <model name>-motion.html.")
+@click.option("--t-end", type=float, default=None, metavar="T",
+              help="Final time (default: the model's [simulation] t_end, else 10).")
+@click.option("--fps", type=click.IntRange(1, 120), default=25, show_default=True,
+              help="Frames per second of a movie.")
+@click.option("--frames", type=click.IntRange(2, 5000), default=300, show_default=True,
+              help="Most frames of a movie (spread evenly over the motion).")
+@_solver_options
+@_backend_option
+@_model_options
+@_complete_option
+@_adjust_option
+def animate(model, out, t_end, fps, frames, backend, assignments, floating_base, complete, adjust, solver):
+    """Simulate the motion and save it as a picture that moves: the mechanism with the force
+    and moment at each joint and contact (arrows scaled to the largest), paths, a time
+    slider and play/pause in the page; the same drawing as a GIF or MP4.
+
+    Mechanisms (bodies and joints, URDF, MJCF) are drawn from their geometry, else from
+    their joints and inertia; a model written by its energies from its [view] table, else
+    its bodies as spheres, else the point of its first coordinates (said in a note).
+    """
+    from appell.errors import MissingDependencyError
+    from appell.io.viewer import MOVIE_SUFFIXES, view_motion
+
+    path = Path(out) if out else None
+    if path is not None and path.suffix.lower() not in (".html", ".htm") + MOVIE_SUFFIXES:
+        raise click.BadParameter(f"cannot tell what to write from {path.suffix or '(no suffix)'!r}; name the "
+                                 "file .html, .gif or .mp4", param_hint="'--out'")
+    if path is not None and not path.parent.is_dir():
+        raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint="'--out'")
+    if path is not None:
+        output_target(path)
+    if path is not None and path.suffix.lower() == ".mp4":
+        from matplotlib import animation
+
+        if not animation.writers.is_available("ffmpeg"):  # before the simulation, not after it
+            raise MissingDependencyError("writing an MP4 video needs ffmpeg, which is not installed",
+                                         hint="install ffmpeg (Debian: apt-get install ffmpeg), or write a .gif "
+                                              "or .html")
+    system = load_system(model, parse_assignments(assignments), floating_base)
+    derivation = derive_model(system)
+    solution = run_simulation(derivation, t_end, backend, solver, **_completion(complete, adjust))
+    click.echo(solution.summary().splitlines()[0])
+    motion = view_motion(derivation, solution)
+    if motion.scene.get("note"):
+        click.echo(f"note: {motion.scene['note']}", err=True)
+    path = path if path is not None else default_file_name(system.name, "-motion.html")
+    output_target(path)
+    if path.suffix.lower() in MOVIE_SUFFIXES:
+        from tqdm import tqdm
+
+        from appell.io.progress import is_terminal
+
+        count = min(len(motion.scene["t"]), frames)
+        with tqdm(total=count, desc="appell: frames", unit="frame", disable=not is_terminal(sys.stderr),
+                  leave=False) as bar:
+            motion.save(path, fps=fps, max_frames=frames, progress=bar.update)
+    else:
+        motion.save(path)
+    click.echo(f"wrote {path}")
+
+
 def failed_path(path: Path) -> Path:
     """Where a failed run's motion goes instead of ``path``: ``<stem>.failed<suffix>``
     beside it, so that a failed run never replaces a result and its name says it failed."""
@@ -839,16 +905,19 @@ def check(model, tolerance, energy_tolerance, t_end, assignments, floating_base)
 @click.option("--t-end", type=float, default=None, metavar="T",
               help="Final time of the simulation shown (default: the model's [simulation] t_end, else 10).")
 @click.option("--no-simulation", is_flag=True, help="Leave out the simulation and its plots.")
+@click.option("--data/--no-data", "data", default=True, show_default=True,
+              help="Write the motion's columns beside the page (FILE.csv) and link them from it.")
 @_solver_options
 @_backend_option
 @_model_options
 @_complete_option
 @_adjust_option
-def report(model, output, t_end, no_simulation, backend, assignments, floating_base, complete, adjust, solver):
-    """Write one self-contained HTML page: the model, its equations as mathematics,
-    plots of coordinates, reactions and controls, and the cross-check.
+def report(model, output, t_end, no_simulation, data, backend, assignments, floating_base, complete, adjust, solver):
+    """Write one self-contained HTML page: the model, its equations as mathematics, the
+    motion in 3-D with its forces, plots of coordinates, reactions and controls (with a
+    shared time cursor), and the cross-check; the motion's data beside it (FILE.csv).
 
-    The page needs no network (MathML, embedded PNG images, inline styles). A model with
+    The page needs no network (MathML, embedded PNG images, three.js inline). A model with
     neither initial values nor a [simulation] table is reported without a simulation; one
     with a [stability] table gets the eigenvalues against its parameter (appell stability).
     """
@@ -876,8 +945,15 @@ def report(model, output, t_end, no_simulation, backend, assignments, floating_b
     path = Path(output) if output else default_file_name(system.name, "-report.html")
     output_target(path)
     sweep = None if is_controlled(derivation) else stability_analysis(derivation)  # the [stability] table
+    data_path = path.with_suffix(".csv") if data and solution is not None else None
+    if data_path is not None:
+        output_target(data_path)
+        solution.to_csv(data_path)
     write_report(path, derivation, solution, check_report, simulation_note=note,
-                 integrals=_first_integrals(derivation), internal=linearisation, energy=energy, stability=sweep)
+                 integrals=_first_integrals(derivation), internal=linearisation, energy=energy, stability=sweep,
+                 data_file=data_path.name if data_path is not None else None)
+    if data_path is not None:
+        click.echo(f"wrote {data_path}")
     click.echo(f"wrote {path}")
     ok, line = _verdict(check_report, energy, 1e-9, ENERGY_TOLERANCE)
     if not ok:

@@ -42,7 +42,8 @@ import sympy as sp
 from appell.files import atomic_path
 from appell.io.printing import ITEMS, REDUNDANT_FORMULAS, latex, printed_equations
 
-__all__ = ["EquationRow", "equation_groups", "mathml", "render_report", "write_report", "solution_figures"]
+__all__ = ["EquationRow", "equation_groups", "mathml", "render_report", "write_report", "solution_figures",
+           "solution_plots"]
 
 
 @dataclass(frozen=True)
@@ -164,12 +165,19 @@ def _png_data_uri(fig) -> str:
 
 
 def solution_figures(solution, panels=None) -> list[tuple[str, str]]:
+    """``(caption, data URI)`` of :func:`solution_plots`."""
+    return [(key, uri) for key, uri, _ in solution_plots(solution, panels)]
+
+
+def solution_plots(solution, panels=None) -> list[tuple[str, str, tuple[float, float, float, float]]]:
     """``(caption, data URI)`` of PNG plots of a :class:`~appell.simulation.solution.Solution`,
     one per panel of :meth:`~appell.simulation.solution.Solution.panels` (coordinates,
     speeds, reactions, controls, constraint residuals; panels with nothing to show are
     left out; ``panels`` keeps only the named ones, ``('reactions', 'controls')`` say), drawn
     as :meth:`~appell.simulation.solution.Solution.plot` draws them. The
-    figures are made without :mod:`matplotlib.pyplot`: the user's backend is left alone."""
+    figures are made without :mod:`matplotlib.pyplot`: the user's backend is left alone.
+    With each, the time axis ``(t0, t1, x0, x1)``: the times at its ends and their places
+    as fractions of the image's width (the page's time cursor)."""
     from matplotlib.figure import Figure
 
     from appell.simulation.solution import draw_panel
@@ -182,7 +190,10 @@ def solution_figures(solution, panels=None) -> list[tuple[str, str]]:
         ax = fig.subplots()
         draw_panel(ax, solution.t, label, series, log, getattr(solution, "events", ()))
         ax.set_xlabel("t [s]")
-        out.append((key, _png_data_uri(fig)))
+        uri = _png_data_uri(fig)  # drawn: the layout is final
+        box = ax.get_position()
+        t0, t1 = ax.get_xlim()
+        out.append((key, uri, (t0, t1, box.x0, box.x1)))
     return out
 
 
@@ -257,6 +268,17 @@ def _model_section(system, kinematics) -> str:
         rows = [(_inline(p.symbol), _e(f"{p.value:g}"), _e(p.unit or "—"), _e(p.description or ""))
                 for p in system.parameters]
         parts.append("<h3>Parameters</h3>" + _table(("parameter", "value", "unit", "description"), rows))
+    view = getattr(system, "view", None)
+    if view is not None and any(b.mass is not None for b in view.bodies):
+        rows = [(_e(b.name), _e("particle" if b.particle else "rigid body"), _e(b.mass or "—"),
+                 _e(f"[{', '.join(f'{x:g}' for x in b.com)}]"), _e(b.inertia or "—")) for b in view.bodies]
+        parts.append("<h3>Bodies</h3>" + _table(("body", "kind", "mass", "mass centre (body frame)",
+                                                  "inertia about the mass centre (body axes)"), rows))
+    if view is not None and view.joints:
+        rows = [(_e(j.name), _e(j.kind), _e(f"{j.parent} → {j.child}"), _e(j.origin), _e(j.axis or "—"),
+                 _e(j.coordinates or "—")) for j in view.joints]
+        parts.append("<h3>Joints</h3>" + _table(("joint", "type", "parent → child", "origin (parent frame)",
+                                                  "axis (joint frame)", "coordinates"), rows))
     q = list(kinematics.coordinates)
     w = list(kinematics.speeds)
     rows = [("coordinates q", ", ".join(_inline(s) for s in q)), ("speeds w", ", ".join(_inline(s) for s in w))]
@@ -320,14 +342,34 @@ def _equation_section(derivation) -> str:
     return "\n".join(parts)
 
 
-def _simulation_section(solution) -> str:
+def _simulation_section(solution, system=None, data_file: str | None = None) -> str:
     parts = ["<h2 id='simulation'>Simulation</h2>", f"<pre>{_e(solution.summary())}</pre>"]
+    if data_file:
+        parts.append(f"<p>Every column of the motion (states, accelerations, reactions, controls, residuals): "
+                     f"<a href=\"{_e(data_file)}\" download>{_e(data_file)}</a></p>")
     if solution.log:
         parts.append("<details><summary>log</summary><pre>" + _e("\n".join(solution.log)) + "</pre></details>")
-    for key, uri in solution_figures(solution):
-        parts.append(f"<figure><img src=\"{uri}\" alt=\"plot of the {_e(key)} over time\">"
-                     f"<figcaption>{_e(key)}</figcaption></figure>")
+    parts.append(_motion_view(system, solution))
+    for key, uri, (t0, t1, x0, x1) in solution_plots(solution):
+        parts.append(f"<figure><div class='appell-plot' data-t0='{t0:.9g}' data-t1='{t1:.9g}' data-x0='{x0:.6f}' "
+                     f"data-x1='{x1:.6f}'><img src=\"{uri}\" alt=\"plot of the {_e(key)} over time\">"
+                     f"<div class='appell-cursor'></div></div><figcaption>{_e(key)}</figcaption></figure>")
     return "\n".join(parts)
+
+
+def _motion_view(system, solution) -> str:
+    """The 3-D view of the motion (:mod:`appell.io.viewer`), or a note saying why not."""
+    if system is None or solution.t.size == 0:
+        return ""
+    from appell.errors import AppellError
+    from appell.io.viewer import scene_data, viewer_fragment
+
+    try:
+        scene = scene_data(system, solution)
+    except (AppellError, ValueError, TypeError, ZeroDivisionError) as exc:
+        return f"<p class='muted'>The motion cannot be drawn: {_e(exc)}</p>"
+    return ("<h3 id='motion'>The motion</h3><p class='muted'>Drag to turn, scroll to zoom; the cursor on every "
+            "plot follows the time, and a click on a plot shows that time.</p>" + viewer_fragment(scene))
 
 
 def _check_section(check, tolerance: float, energy=None, energy_tolerance: float | None = None) -> str:
@@ -435,7 +477,8 @@ def _stability_section(sweep) -> str:
 
 def render_report(derivation, solution=None, check=None, *, title: str | None = None,
                   tolerance: float = 1e-9, simulation_note: str | None = None, integrals=None,
-                  internal=None, energy=None, energy_tolerance: float | None = None, stability=None) -> str:
+                  internal=None, energy=None, energy_tolerance: float | None = None, stability=None,
+                  data_file: str | None = None) -> str:
     """The HTML page (a string) for ``derivation`` (a :class:`~appell.core.equations.Derivation`
     or a controlled derivation of :mod:`appell.control.servo`), with the plots of ``solution``
     (:class:`~appell.simulation.solution.Solution`) and the table of ``check``
@@ -447,7 +490,10 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
     ``energy`` an :class:`~appell.simulation.energy_balance.EnergyBalance` shown with the
     cross-check and judged at ``energy_tolerance`` (the verdict fails when any line exceeds
     its tolerance); ``stability`` a :class:`~appell.numerics.stability.StabilitySweep`
-    (the eigenvalues against a parameter, with the critical values)."""
+    (the eigenvalues against a parameter, with the critical values); ``data_file`` the
+    motion's data file, linked by its name relative to the page.
+    The simulation section shows the motion in 3-D (:mod:`appell.io.viewer`) beside its plots,
+    which share a time cursor with it."""
     from appell import __version__
 
     system = derivation.system
@@ -461,7 +507,7 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
         sections.append(_stability_section(stability))
         nav.append("<a href='#stability'>stability</a>")
     if solution is not None:
-        sections.append(_simulation_section(solution))
+        sections.append(_simulation_section(solution, system, data_file))
         nav.append("<a href='#simulation'>simulation</a>")
     elif simulation_note:
         sections.append(f"<h2 id='simulation'>Simulation</h2><p class='muted'>{_e(simulation_note)}</p>")

@@ -43,7 +43,7 @@ from appell.mechanism.rotations import identically_zero, rpy_rotation, unit_axis
 from appell.model import (AppliedForce, AppliedTorque, Constraint, Control, Output, Parameter, Particle, RigidBody,
                           System, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
-from appell.view import SHAPES, Shape, View, ViewArrow, ViewBody, equivalent_box
+from appell.view import SHAPES, Shape, View, ViewArrow, ViewBody, ViewJoint, equivalent_box
 
 GROUND = "ground"
 
@@ -91,6 +91,20 @@ def _matrix(value, what: str, shape=(3, 1)) -> sp.Matrix:
 
 def _cross(a, b) -> sp.Matrix:
     return sp.Matrix(a).cross(sp.Matrix(b))
+
+
+def _text(value) -> str:
+    """A scalar, vector or matrix as short text: ``[0.4, 0, 0]``, ``diag(1, 2, 3)``."""
+    if isinstance(value, sp.MatrixBase):
+        if value.shape == (3, 3) and value.is_diagonal():
+            return "diag(" + ", ".join(_text(x) for x in value.diagonal()) + ")"
+        if value.shape == (3, 3):
+            return "[" + ", ".join(_text(value[i, :].T) for i in range(3)) + "]"
+        return "[" + ", ".join(_text(x) for x in value) + "]"
+    value = sp.sympify(value)
+    if value.is_Float and float(value).is_integer():
+        return str(int(value))
+    return f"{float(value):.6g}" if value.is_Float else str(value)
 
 
 def _z_onto(k) -> sp.Matrix:
@@ -800,7 +814,8 @@ class Mechanism:
                 if box is not None:
                     shapes.append(Shape("box", box, com, tuple(axes_.ravel()), solid=False))
             bodies.append(ViewBody(b.name, tuple(f.p), None if b.particle else tuple(f.R), tuple(shapes),
-                                   tuple(links), com, b.particle))
+                                   tuple(links), com, b.particle, _text(b.mass),
+                                   None if b.particle else _text(b.inertia)))
         arrows = []
         for j in self.joints:
             fc = frames[j.child]
@@ -819,12 +834,21 @@ class Mechanism:
             if first:
                 total = sum((a.force for a in first), sp.zeros(3, 1))
                 arrows.append(ViewArrow(name, tuple(first[0].position), tuple(total), "force"))
+        joints = []
+        for j in self.joints:
+            m, axis = j.motion, ""
+            if len(m.coordinates) == 1:
+                q = m.coordinates[0]
+                k = m.angular_velocity.diff(derivative_symbol(q)) if j.kind == "revolute" else m.translation.diff(q)
+                axis = _text(k)
+            joints.append(ViewJoint(j.name, j.kind, j.parent.name, j.child.name, _text(j.origin), axis,
+                                    ", ".join(q.name for q in m.coordinates)))
         up = (0.0, 0.0, 1.0)
         if self.gravity is not None:
             g = numbers(self.gravity)
             if g is not None and any(g):
                 up = tuple(-x for x in g)
-        return View(tuple(bodies), tuple(arrows), up=up)
+        return View(tuple(bodies), tuple(arrows), up=up, joints=tuple(joints))
 
     def _reaction_outputs(self, reactions, frame, frames, actions, force_unit, moment_unit):
         if reactions is None:

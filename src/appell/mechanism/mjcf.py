@@ -123,6 +123,29 @@ def _open_directions(model, b1, anchor1, b2, anchor2) -> str:
     return "".join(a for a, d in zip("xyz", apart) if d > 1e-9)
 
 
+def _geoms(mujoco, model, mech, made) -> None:
+    """The bodies' geoms as shapes of the view (no effect on the motion): spheres, capsules,
+    cylinders and boxes in MuJoCo's half sizes; planes (the floor), ellipsoids, height
+    fields and meshes are left to the view's default drawing."""
+    kinds = {int(mujoco.mjtGeom.mjGEOM_SPHERE): ("sphere", lambda s: (s[0],)),
+             int(mujoco.mjtGeom.mjGEOM_CAPSULE): ("capsule", lambda s: (s[0], 2 * s[1])),
+             int(mujoco.mjtGeom.mjGEOM_CYLINDER): ("cylinder", lambda s: (s[0], 2 * s[1])),
+             int(mujoco.mjtGeom.mjGEOM_BOX): ("box", lambda s: (2 * s[0], 2 * s[1], 2 * s[2]))}
+    for g in range(model.ngeom):
+        b, kind = int(model.geom_bodyid[g]), int(model.geom_type[g])
+        if b == 0 or kind not in kinds:
+            continue
+        name, size = kinds[kind]
+        rgba = np.asarray(model.geom_rgba[g], float)
+        if rgba[3] <= 0:  # an invisible geom
+            continue
+        colour = None if np.allclose(rgba, (0.5, 0.5, 0.5, 1.0)) else \
+            "#" + "".join(f"{round(255 * min(max(x, 0.0), 1.0)):02x}" for x in rgba[:3])  # MuJoCo's grey: the body's
+        mech.shape(made[b], name, tuple(float(v) for v in size(np.asarray(model.geom_size[g], float))),
+                   origin=tuple(float(v) for v in model.geom_pos[g]), rpy=_rpy(_rotation(model.geom_quat[g])),
+                   colour=colour)
+
+
 def mjcf_mechanism(model, source: str = "<mjcf>"):
     """The :class:`~appell.mechanism.Mechanism` of a compiled ``mujoco.MjModel`` and the
     holonomic constraints of its joint equalities: ``(mechanism, constraints)``
@@ -182,6 +205,7 @@ def mjcf_mechanism(model, source: str = "<mjcf>"):
             made_joint = mech.free(jname, parent, body, origin=origin, rpy=_rpy(R_b), child_origin=child_origin,
                                    rotation="quaternion")
         coordinate[j] = made_joint.coordinates
+    _geoms(mujoco, model, mech, made)
     constraints = []
     equalities = _names(model, mujoco.mjtObj.mjOBJ_EQUALITY, model.neq)
     for e in range(model.neq):

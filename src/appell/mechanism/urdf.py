@@ -50,9 +50,9 @@ import sympy as sp
 from appell.errors import ModelError
 from appell.symbols import MAX_NAME, NAME_HINT, name_problem
 
-__all__ = ["UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "parse_urdf", "read_urdf", "urdf_mechanism",
-           "urdf_system", "urdf_units",
-           "JOINT_TYPES", "MAX_URDF_SIZE", "MAX_NAME"]
+__all__ = [
+    "UrdfVisual", "UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "parse_urdf",
+    "read_urdf", "urdf_mechanism", "urdf_system", "urdf_units", "JOINT_TYPES", "MAX_URDF_SIZE", "MAX_NAME"]
 
 #: joint types read; ``continuous`` is a revolute joint without limits
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -111,12 +111,27 @@ class UrdfInertial:
 
 
 @dataclass(frozen=True)
+class UrdfVisual:
+    """A ``<visual>`` primitive of a link: ``kind`` (``box``, ``cylinder``, ``sphere``),
+    ``size`` (as :class:`appell.view.Shape`), its origin ``xyz``, ``rpy`` in the link frame,
+    and its material's ``colour`` (CSS) or None. Drawn by the viewer; no effect on the motion."""
+
+    kind: str
+    size: tuple[float, ...]
+    xyz: tuple[float, float, float]
+    rpy: tuple[float, float, float]
+    colour: str | None = None
+
+
+@dataclass(frozen=True)
 class UrdfLink:
-    """A ``<link>``; ``inertial`` is None for a massless link (e.g. a base or a tool frame)."""
+    """A ``<link>``; ``inertial`` is None for a massless link (e.g. a base or a tool frame);
+    ``visuals`` its primitive ``<visual>`` shapes (meshes are never opened)."""
 
     name: str
     inertial: UrdfInertial | None
     line: int
+    visuals: tuple[UrdfVisual, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -327,6 +342,58 @@ def _inertial(link: _Element, name: str, source: str) -> UrdfInertial | None:
     return UrdfInertial(xyz, rpy, m, components, inertial.line)
 
 
+def _colour(material: _Element | None, materials: dict[str, str]) -> str | None:
+    """``#rrggbb`` of a ``<material>`` (its ``<color rgba=..>``, or the robot's material of
+    that name), or None."""
+    if material is None:
+        return None
+    colour = material.find("color")
+    if colour is None:
+        return materials.get(material.attrib.get("name", ""))
+    try:
+        rgba = [float(x) for x in colour.attrib.get("rgba", "").split()]
+    except ValueError:
+        return None
+    if len(rgba) < 3 or not all(0 <= x <= 1 for x in rgba[:3]):
+        return None
+    return "#" + "".join(f"{round(255 * x):02x}" for x in rgba[:3])
+
+
+def _materials(tree: _Element) -> dict[str, str]:
+    """The robot's named top-level ``<material>`` colours."""
+    out = {}
+    for m in tree.findall("material"):
+        colour = _colour(m, {})
+        if colour is not None and "name" in m.attrib:
+            out[m.attrib["name"]] = colour
+    return out
+
+
+def _visuals(link: _Element, name: str, source: str, materials: dict[str, str]) -> tuple[UrdfVisual, ...]:
+    """The link's ``<visual>`` boxes, cylinders and spheres. Meshes (files, never opened)
+    and visuals that cannot be read are left out: the view draws such a link from its joints."""
+    out = []
+    for visual in link.findall("visual"):
+        geometry = visual.find("geometry")
+        shape = next((c for c in geometry.children if c.tag in ("box", "cylinder", "sphere")), None) \
+            if geometry is not None else None
+        if shape is None:
+            continue
+        try:
+            xyz, rpy = _origin(visual, source, name)
+            if shape.tag == "box":
+                size = _numbers(shape, "size", 3, None, source, name=name)
+            elif shape.tag == "sphere":
+                size = (_number(shape, "radius", source, name=name),)
+            else:
+                size = (_number(shape, "radius", source, name=name), _number(shape, "length", source, name=name))
+        except ModelError:
+            continue
+        if all(x > 0 for x in size):
+            out.append(UrdfVisual(shape.tag, tuple(size), xyz, rpy, _colour(visual.find("material"), materials)))
+    return tuple(out)
+
+
 def _check_inertia(link: UrdfLink, source: str):
     """A link's inertia tensor is that of a body: positive semi-definite, and each principal
     moment (eigenvalue) at most the sum of the other two, both to 1e-9 of the trace and at
@@ -408,7 +475,8 @@ def parse_urdf(text: str | bytes, source: str = "<urdf>") -> UrdfRobot:
         raise ModelError(f"<{_show(xacro.tag)}> is a xacro macro, not URDF", where=f"{source}:{xacro.line}",
                          hint="expand the file first: xacro robot.urdf.xacro > robot.urdf")
     robot_name = _name(tree, source) if "name" in tree.attrib else "robot"
-    links = tuple(UrdfLink(name, _inertial(e, name, source), e.line)
+    materials = _materials(tree)
+    links = tuple(UrdfLink(name, _inertial(e, name, source), e.line, _visuals(e, name, source, materials))
                   for e in tree.findall("link") for name in (_name(e, source),))
     joints = tuple(_joint(e, source) for e in tree.findall("joint"))
     _check_tree(links, joints, source)
@@ -796,6 +864,16 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
         if joint.movable:
             moving_name[joint.name] = jname
     _check_coordinates(mech, lines, src)
+    for link in robot.links:  # the view draws the visual primitives where their link went
+        body, R_off, p_off = place.get(link.name, (None, None, None))
+        if body is None or body is mech.ground:
+            continue
+        for v in link.visuals:
+            xyz, rpy = v.xyz, v.rpy
+            if R_off is not None:
+                xyz = tuple(float(x) for x in p_off + R_off * sp.Matrix(xyz))
+                rpy = _rpy_of(R_off * _rotation(rpy))
+            mech.shape(body, v.kind, v.size, origin=xyz, rpy=rpy, colour=v.colour)
     constraints = []
     by_name = {j.name: j for j in robot.joints}
     for joint in robot.joints:
