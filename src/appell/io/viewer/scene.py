@@ -12,6 +12,7 @@ shared subexpressions once) at up to ``max_frames`` output times of a
   magnitude of its kind (forces, moments) for the common scale; an arrow of size zero
   (a released contact) is not drawn;
 * per trail: the point's path;
+* ``detail``, a typical body's length (the thickness of bars and pins scales with it);
 * ``extent`` (the mechanism's largest size at one time) and, where its path is over
   :data:`FOLLOW` times that (a bicycle riding away), ``follow`` with the ``centre`` of the
   mechanism at each frame, which the camera follows;
@@ -199,13 +200,20 @@ def scene_data(system, solution, view: View | None = None, max_frames: int = MAX
     else:
         extent, centres = size, np.zeros((n, 3))
     plane = _plane(points, size)
+    # a typical body's length (bars from its joint to the others, to its mass centre, its
+    # shapes): the thickness of bars and pins, so that a long path keeps them slim
+    lengths = [max([float(np.linalg.norm(np.subtract(x, b.links[0] if b.links else (0, 0, 0))))
+                    for x in (b.links or ()) + (b.com,)] + [max(sh.size) for sh in b.shapes] + [0.0])
+               for b in view.bodies if not b.particle]
+    lengths = [x for x in lengths if x > 1e-9 * size]
+    detail = float(np.median(lengths)) if lengths else 0.1 * extent
     follow = size > FOLLOW * extent
     scale = {k: max([a["largest"] for a in arrows if a["kind"] == k], default=0.0) for k in ("force", "moment")}
     if scale["moment"] <= ROUNDING * (scale["force"] * size + scale["moment"]):
         scale["moment"] = 0.0  # moments of rounding size (a planar hinge's): not drawn
     return {"t": _flat(solution.t[rows], 7), "bodies": bodies, "arrows": arrows, "trails": trails,
             "up": list(view.up), "ground": view.ground, "plane": plane,
-            "bounds": [lo.tolist(), hi.tolist()], "size": size, "extent": extent, "follow": follow,
+            "bounds": [lo.tolist(), hi.tolist()], "size": size, "extent": extent, "detail": min(detail, extent), "follow": follow,
             "centre": _flat(centres) if follow else None, "scale": scale, "note": note,
             "name": solution.metadata.name}
 

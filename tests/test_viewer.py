@@ -1,0 +1,300 @@
+"""The picture of a motion (issue 24 §1, §2): appell.view, appell.io.viewer, appell animate.
+
+* The frames the viewer plays are checked against closed forms computed here from the
+  solution's own coordinates, not from the view's expressions: the four-bar's coupler hangs
+  at the crank's tip A + 0.4 (cos A, sin A); the car's body sits at (x, y) turned by phi;
+  orientations against SciPy's ``Rotation`` (an independent quaternion routine); joint and
+  closure arrows against the F_<joint> and lambda_<closure> columns.
+* The page renders in headless Chromium (Debian's chromium, SwiftShader's WebGL): for the
+  car, the four-bar, the URDF arm and the bicycle, screenshots at two times whose coloured
+  pixels (the bodies, the arrows; the grid and page are grey and white) are many and differ.
+* ``appell animate`` writes the page, a GIF whose frames differ, and refuses an MP4
+  without ffmpeg before simulating; a model file's [view] is read with file and line errors.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from scipy.spatial.transform import Rotation
+
+import appell
+from appell.errors import ModelError
+from appell.examples import example_path
+from appell.io.cli import cli
+from appell.io.modelfile import load_model, loads_model
+from appell.io.viewer import scene_data, view_motion
+from appell.io.viewer.scene import quaternions
+from appell.view import equivalent_box
+
+from browser import CHROMIUM, SKIP_REASON, chromium
+
+
+@pytest.fixture(scope="module")
+def four_bar():
+    system = load_model(example_path("four_bar"))
+    solution = appell.simulate(appell.derive(system), t_end=1.5)
+    return system, solution
+
+
+@pytest.fixture(scope="module")
+def car():
+    system = load_model(example_path("car"))
+    return system, appell.simulate(appell.derive(system))
+
+
+# ------------------------------------------------------------------ the frames
+def test_quaternions_match_scipy():
+    R = Rotation.random(200, random_state=7)
+    ours = quaternions(R.as_matrix())
+    theirs = R.as_quat()[:, [3, 0, 1, 2]]  # SciPy: (x, y, z, w)
+    sign = np.sign(np.sum(ours * theirs, axis=1))
+    assert np.max(np.abs(ours - sign[:, None] * theirs)) < 1e-14
+    # the four branches of Shepperd's method: half-turns about each axis and the identity
+    for M in (np.eye(3), np.diag([1.0, -1, -1]), np.diag([-1.0, 1, -1]), np.diag([-1.0, -1, 1])):
+        q = quaternions(M[None])[0]
+        assert np.allclose(Rotation.from_quat(q[[1, 2, 3, 0]]).as_matrix(), M, atol=1e-15)
+
+
+def test_four_bar_frames_follow_the_closed_form(four_bar):
+    system, solution = four_bar
+    scene = scene_data(system, solution)
+    assert len(scene["t"]) == solution.t.size and scene["plane"] == [0.0, 0.0, 1.0]
+    bodies = {b["name"]: b for b in scene["bodies"]}
+    A = solution["A"]
+    # the coupler's frame sits at the crank's tip B = 0.4 (cos A, sin A), its angle A + B
+    p = np.array(bodies["coupler"]["p"]).reshape(-1, 3)
+    assert np.max(np.abs(p[:, 0] - 0.4 * np.cos(A))) < 1e-4 and np.max(np.abs(p[:, 1] - 0.4 * np.sin(A))) < 1e-4
+    q = np.array(bodies["coupler"]["q"]).reshape(-1, 4)
+    angle = 2 * np.arctan2(q[:, 3], q[:, 0])  # a turn about z: (cos a/2, 0, 0, sin a/2)
+    assert np.max(np.abs(np.angle(np.exp(1j * (angle - A - solution["B"]))))) < 1e-5
+    # bars from each joint to the next: crank A -> B (0.4 m), coupler B -> C (1 m), rocker D -> C (0.8 m)
+    assert bodies["crank"]["links"] == [[0.0, 0.0, 0.0], [0.4, 0.0, 0.0]]
+    assert bodies["coupler"]["links"] == [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+    arrows = {a["name"]: a for a in scene["arrows"]}
+    F = np.array(arrows["F_B"]["v"]).reshape(-1, 3)
+    assert np.allclose(F[:, 0], solution["F_B_x"], rtol=1e-4, atol=1e-4 * np.max(np.abs(solution["F_B_x"])))
+    C = np.array(arrows["C"]["v"]).reshape(-1, 3)  # the rocker's force on the coupler at C
+    assert np.allclose(C[:, :2], np.stack([solution["lambda_C_x"], solution["lambda_C_y"]], 1), rtol=1e-4,
+                       atol=1e-3)
+    at = np.array(arrows["C"]["at"]).reshape(-1, 3)  # C = B + (cos(A+B), sin(A+B))
+    AB = A + solution["B"]
+    assert np.max(np.abs(at[:, 0] - 0.4 * np.cos(A) - np.cos(AB))) < 1e-4
+    # a planar hinge's moments are rounding: no moment arrows
+    assert scene["scale"]["moment"] == 0.0 and scene["scale"]["force"] > 10
+
+
+def test_car_frames_and_axle_forces(car):
+    system, solution = car
+    scene = scene_data(system, solution)
+    body = next(b for b in scene["bodies"] if b["name"] == "body")
+    p = np.array(body["p"]).reshape(-1, 3)
+    rows = np.arange(solution.t.size)
+    assert np.allclose(p[:, 0], solution["x"][rows], atol=1e-3) and np.allclose(p[:, 2], 0.45)
+    q = np.array(body["q"]).reshape(-1, 4)
+    heading = 2 * np.arctan2(q[:, 3], q[:, 0])
+    assert np.max(np.abs(np.angle(np.exp(1j * (heading - solution["phi"]))))) < 1e-5
+    rear = np.array(next(a for a in scene["arrows"] if a["name"] == "rear")["v"]).reshape(-1, 3)
+    # the lateral force lambda (sin phi, -cos phi): its size is |lambda_rear|, normal to the heading
+    assert np.allclose(np.linalg.norm(rear, axis=1), np.abs(solution["lambda_rear"]), rtol=1e-4, atol=1e-2)
+    largest = np.max(np.abs(solution["lambda_rear"]))  # the frames keep 5 significant digits
+    assert np.max(np.abs(rear[:, 0] * np.cos(solution["phi"]) + rear[:, 1] * np.sin(solution["phi"]))) < 1e-4 * largest
+    assert scene["plane"] == [0.0, 0.0, 1.0] and scene["trails"][0]["name"] == "centre of mass"
+
+
+def test_equivalent_box_has_the_inertia():
+    a, b, c = 0.3, 0.5, 1.1
+    m = 2.0
+    moments = (m * (b * b + c * c) / 12, m * (a * a + c * c) / 12, m * (a * a + b * b) / 12)
+    assert np.allclose(equivalent_box(m, moments), (a, b, c), rtol=1e-14)
+    assert equivalent_box(1.0, (0, 0, 0.1)) is None  # a planar idealisation: bars instead
+
+
+def test_a_model_without_geometry_says_what_it_draws():
+    system = load_model(example_path("pendulum"))
+    solution = appell.simulate(appell.derive(system), t_end=0.5)
+    scene = scene_data(system, solution)
+    assert scene["note"] and "configuration space" in scene["note"]
+    assert scene["bodies"] and scene["trails"], "never a blank canvas"
+
+
+# ------------------------------------------------------------------ [view] in model files
+_PLANE = """
+[model]
+name = "slider"
+coordinates = ["x"]
+[parameters]
+m = 1.0
+[mechanics]
+kinetic_energy = "m/2*x'^2"
+[initial]
+"x'" = 1.0
+"""
+
+
+def test_view_table_errors_name_file_and_line():
+    bad_symbol = _PLANE + '[view]\n[[view.bodies]]\nname = "b"\nposition = ["x", "y", 0]\n'
+    with pytest.raises(ModelError) as err:
+        loads_model(bad_symbol, "slider.toml")
+    assert "undeclared symbol(s) y" in err.value.message and err.value.where.startswith("slider.toml:")
+    bad_shape = _PLANE + '[view]\n[[view.bodies]]\nname = "b"\nposition = ["x", 0, 0]\n' \
+                         'shapes = [{ type = "cone", size = [1] }]\n'
+    with pytest.raises(ModelError) as err:
+        loads_model(bad_shape, "slider.toml")
+    assert "'cone' is not a shape" in err.value.message
+    unknown = _PLANE + '[view]\ncolour = "red"\n[[view.bodies]]\nname = "b"\nposition = ["x", 0, 0]\n'
+    with pytest.raises(ModelError) as err:
+        loads_model(unknown, "slider.toml")
+    assert "unknown key 'colour'" in err.value.message and err.value.where == "slider.toml:12"
+    good = loads_model(_PLANE + '[view]\n[[view.bodies]]\nname = "b"\nposition = ["x", 0, 0]\n'
+                                'shapes = [{ type = "box", size = [0.2, 0.1, 0.1] }]\n', "slider.toml")
+    assert good.view.bodies[0].shapes[0].size == (0.2, 0.1, 0.1)
+
+
+# ------------------------------------------------------------------ URDF and MJCF geometry
+_URDF = """<robot name="r">
+  <material name="blue"><color rgba="0 0 1 1"/></material>
+  <link name="base"/>
+  <link name="arm">
+    <inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.01"/></inertial>
+    <visual><origin xyz="0 0 0.25"/><geometry><cylinder radius="0.05" length="0.5"/></geometry>
+      <material name="blue"/></visual>
+    <visual><geometry><mesh filename="package://r/arm.stl"/></geometry></visual>
+  </link>
+  <link name="tool"><visual><origin xyz="0 0 0.5" rpy="0 1.5707963267948966 0"/>
+    <geometry><box size="0.1 0.2 0.3"/></geometry><material name="red"><color rgba="1 0 0 1"/></material></visual></link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="tool_joint" type="fixed"><parent link="arm"/><child link="tool"/><origin xyz="0 0 0.1"/></joint>
+</robot>"""
+
+
+def test_urdf_visuals_are_drawn_where_their_link_went(tmp_path):
+    from appell.mechanism.urdf import urdf_system
+
+    path = tmp_path / "r.urdf"
+    path.write_text(_URDF)
+    system = urdf_system(path)
+    (arm,) = system.view.bodies
+    kinds = [(s.kind, s.size, s.colour) for s in arm.shapes]
+    assert ("cylinder", (0.05, 0.5), "#0000ff") in kinds
+    box = next(s for s in arm.shapes if s.kind == "box")  # the massless tool merged into the arm
+    assert box.colour == "#ff0000" and np.allclose(box.origin, (0, 0, 0.6))
+    assert np.allclose(np.array(box.rotation).reshape(3, 3), Rotation.from_euler("y", np.pi / 2).as_matrix(),
+                       atol=1e-12)
+    assert len(arm.shapes) == 2, "the mesh is never opened"
+
+
+def test_mjcf_geoms_become_shapes():
+    pytest.importorskip("mujoco")
+    from appell.mechanism.mjcf import mjcf_system
+
+    xml = """<mujoco model="m"><worldbody><geom type="plane" size="1 1 0.1"/>
+      <body name="b" pos="0 0 1"><joint name="h" type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0 0 -0.5" size="0.05" rgba="0 1 0 1" mass="1"/>
+        <geom type="sphere" pos="0 0 -0.5" size="0.1" mass="2"/></body></worldbody></mujoco>"""
+    with pytest.warns(appell.errors.AppellNote, match="contacts between geoms"):
+        system = mjcf_system(xml)
+    (b,) = system.view.bodies
+    shapes = {s.kind: s for s in b.shapes}
+    assert shapes["capsule"].size == pytest.approx((0.05, 0.5)) and shapes["capsule"].colour == "#00ff00"
+    assert shapes["capsule"].origin == pytest.approx((0, 0, -0.25))
+    assert shapes["sphere"].size == pytest.approx((0.1,)) and shapes["sphere"].colour is None  # MuJoCo's grey
+
+
+# ------------------------------------------------------------------ the command
+def test_animate_writes_a_page_and_a_gif(tmp_path):
+    page = tmp_path / "fb.html"
+    result = CliRunner().invoke(cli, ["animate", "four_bar", "--t-end", "1", "--out", str(page)])
+    assert result.exit_code == 0, result.output
+    text = page.read_text()
+    assert "class='appell-viewer'" in text and "THREE" in text
+    data = json.loads(re.search(r"id='appell-view-data'>(.*?)</script>", text, re.S).group(1).replace("<\\/", "</"))
+    assert len(data["bodies"]) == 3 and data["t"][-1] == pytest.approx(1.0)
+    gif = tmp_path / "fb.gif"
+    result = CliRunner().invoke(cli, ["animate", "four_bar", "--t-end", "1", "--out", str(gif), "--frames", "12"])
+    assert result.exit_code == 0, result.output
+    from PIL import Image
+
+    with Image.open(gif) as im:
+        assert im.n_frames == 12
+        first = np.asarray(im.convert("RGB"), float)
+        im.seek(11)
+        last = np.asarray(im.convert("RGB"), float)
+    assert np.mean(np.any(np.abs(first - last) > 30, axis=-1)) > 0.002, "the frames show a motion"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fb.gif", "fb.html"]  # no temporary left
+
+
+def test_animate_refuses_what_it_cannot_write_before_simulating(tmp_path):
+    result = CliRunner().invoke(cli, ["animate", "four_bar", "--out", str(tmp_path / "x.avi")])
+    assert result.exit_code == 2 and ".html, .gif or .mp4" in result.output
+    if shutil.which("ffmpeg") is None:
+        result = CliRunner().invoke(cli, ["animate", "four_bar", "--out", str(tmp_path / "x.mp4")])
+        assert result.exit_code == 1 and "ffmpeg" in result.output and "simulation of" not in result.output
+    assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------ Chromium
+def _mechanism_pixels(png) -> np.ndarray:
+    """Pixels of the canvas that are coloured (bodies, arrows): the page, the grid, the
+    ground and the pins are white or grey."""
+    import matplotlib.image
+
+    rgb = matplotlib.image.imread(str(png))[..., :3]
+    return (rgb.max(axis=-1) - rgb.min(axis=-1)) > 0.15
+
+
+def _two_screenshots(motion, times, tmp_path):
+    page = tmp_path / "view.html"
+    page.write_text(motion.page())
+    shots = []
+    for k, t in enumerate(times):
+        shot = tmp_path / f"shot{k}.png"
+        done = chromium(["--window-size=1000,760", "--virtual-time-budget=5000", f"--screenshot={shot}",
+                         f"{page.as_uri()}#t={t}"], tmp_path)
+        assert done.returncode == 0 and shot.exists(), done.stderr[-2000:]
+        shots.append(_mechanism_pixels(shot)[60:620])  # the canvas, below the title
+    return shots
+
+
+def _bicycle():
+    system = load_model(example_path("benchmark_bicycle"))
+    given = {k: v for k, v in system.initial if k not in system.initial_guesses}
+    solution = appell.simulate(appell.derive(system), t_end=3.0, initial={**given, "rear_rx_dot": 0.5},
+                               complete=True)  # a roll rate: the bicycle weaves
+    return system, solution
+
+
+def _arm():
+    system = load_model(example_path("four_bar").parent / "arm.urdf")
+    return system, appell.simulate(appell.derive(system), t_end=1.0)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)
+@pytest.mark.parametrize("model", ["car", "four_bar", "arm", "bicycle"])
+def test_the_mechanism_moves_on_screen(model, four_bar, car, tmp_path):
+    system, solution = {"car": lambda: car, "four_bar": lambda: four_bar, "arm": _arm, "bicycle": _bicycle}[model]()
+    motion = view_motion(system, solution)
+    t_end = float(solution.t[-1])
+    first, second = _two_screenshots(motion, (0.1 * t_end, 0.9 * t_end), tmp_path)
+    for shot in (first, second):
+        assert shot.sum() > 800, f"{model}: only {shot.sum()} coloured pixels: is the mechanism drawn?"
+    moved = np.logical_xor(first, second).sum() / np.logical_or(first, second).sum()
+    assert moved > 0.1, f"{model}: the mechanism's pixels barely change between two times ({moved:.1%})"
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)
+def test_the_page_reports_the_viewer_ready(four_bar, tmp_path):
+    page = tmp_path / "view.html"
+    page.write_text(view_motion(*four_bar).page())
+    done = chromium(["--virtual-time-budget=5000", "--dump-dom", page.as_uri() + "#t=0.5"], tmp_path)
+    root = re.search(r"<div class=\"appell-viewer\"[^>]*>", done.stdout).group(0)
+    attrs = dict(re.findall(r'(data-viewer[a-z-]*)="([^"]*)"', root))
+    assert attrs["data-viewer"] == "ready", attrs
+    assert int(attrs["data-viewer-meshes"]) >= 10 and int(attrs["data-viewer-frames"]) == four_bar[1].t.size
+    assert int(attrs["data-viewer-frame"]) == int(np.searchsorted(four_bar[1].t, 0.5 + 1e-9)) - 1
