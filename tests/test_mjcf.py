@@ -200,3 +200,19 @@ def test_the_command_line_simulates_a_mujoco_file(tmp_path):
     assert result.exit_code == 0, result.output + result.stderr
     header = out.read_text().splitlines()[0].split(",")
     assert "F_shoulder_x" in header and "M_wrist_z" in header
+
+
+def test_a_turned_inertial_frame_is_read_as_a_symmetric_tensor():
+    """MuJoCo's diagonal inertia turned by an inertial ``quat`` is symmetric only to rounding
+    (7e-18 for this quat): found on example-robot-data's double pendulum converted by MuJoCo
+    (tests/test_mjcf_robots.py), which appell refused as "not symmetric"."""
+    xml = """<mujoco model="turned"><worldbody><body name="b"><joint name="h" axis="0 1 0"/>
+      <inertial pos="0 0 -0.3" quat="0.3 0.5 -0.2 0.7" mass="1" diaginertia="0.1 0.2 0.3"/>
+      </body></worldbody></mujoco>"""
+    system = mjcf_system(xml)
+    model, mj = appell.derive(system).numeric, load_mjcf(xml)
+    data = mujoco.MjData(mj)
+    data.qpos[:], data.qvel[:] = [0.4], [1.3]
+    mujoco.mj_forward(mj, data)
+    sol = model.solve(0.0, np.array([0.4]), np.array([1.3]))
+    assert abs(sol.accelerations[0] - data.qacc[0]) <= 1e-12 * abs(data.qacc[0])

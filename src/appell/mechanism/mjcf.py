@@ -172,7 +172,9 @@ def mjcf_mechanism(model, source: str = "<mjcf>"):
             raise ModelError(f"{where} has mass {mass:g}", hint="give it a mass (an <inertial> or geoms with mass); "
                              "appell's bodies have positive mass")
         R_i = _rotation(model.body_iquat[b])
-        inertia = sp.Matrix(R_i @ np.diag(model.body_inertia[b]) @ R_i.T).applyfunc(lambda v: sp.Float(float(v)))
+        tensor = R_i @ np.diag(model.body_inertia[b]) @ R_i.T
+        tensor = (tensor + tensor.T) / 2  # symmetric also in floating point (a turned inertial frame)
+        inertia = sp.Matrix(tensor).applyfunc(lambda v: sp.Float(float(v)))
         body = mech.body(bname, mass, inertia=inertia, com=tuple(float(v) for v in model.body_ipos[b]))
         made[b] = body
         parent = made[int(model.body_parentid[b])]
