@@ -175,9 +175,12 @@ def test_what_appell_does_not_apply_is_named_and_what_it_cannot_map_is_refused(t
         mjcf_system(soft)
     text = " ".join(str(n.message) for n in notes)
     assert "contacts between geoms" in text and "damping" in text
-    weld = CHAIN.replace("</worldbody>", '</worldbody><equality><weld body1="tip" body2="world"/></equality>')
+    tendon = CHAIN.replace("</worldbody>", '</worldbody><tendon><fixed name="t"><joint joint="yaw" coef="1"/>'
+                                           '</fixed></tendon><equality><tendon tendon1="t"/></equality>')
     with pytest.raises(ModelError, match="equality 'equality0' is of a kind appell does not map"):
-        mjcf_system(weld)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", AppellNote)  # the tendon itself is named in a note
+            mjcf_system(tendon)
     two = CHAIN.replace('<joint name="extend" type="slide" axis="1 0 0"/>',
                         '<joint name="extend" type="slide" axis="1 0 0"/><joint name="roll" axis="1 0 0"/>')
     with pytest.raises(ModelError, match="body 'slider' has 2 joints"):
@@ -216,3 +219,50 @@ def test_a_turned_inertial_frame_is_read_as_a_symmetric_tensor():
     mujoco.mj_forward(mj, data)
     sol = model.solve(0.0, np.array([0.4]), np.array([1.3]))
     assert abs(sol.accelerations[0] - data.qacc[0]) <= 1e-12 * abs(data.qacc[0])
+
+
+WELDED = """<mujoco model="welded"><option gravity="0 0 -9.81"/><worldbody>
+  <body name="a" pos="0 0 1"><joint name="h" axis="0 1 0"/>
+    <geom type="capsule" fromto="0 0 0 0.1 0 -0.6" size="0.03" mass="1.5"/>
+    %s
+  </body>
+  %s
+</worldbody>%s</mujoco>"""
+BOB = '<geom type="box" size="0.1 0.05 0.08" pos="0.05 0.02 0" euler="0.3 0.2 0.1" mass="2"/>'
+
+
+def test_a_weld_equality_holds_like_a_fixed_body():
+    """A body on a free joint welded to a pendulum (MuJoCo's ``weld``, anchor off the body's
+    origin) moves as the same body fixed in the pendulum (a body without a joint: appell's
+    fixed joint): the pendulum angle over 2 s within 1e-9 rad, and the weld's force equals
+    minus the fixed joint's force (the force of the bob on the pendulum) within 1e-8 of
+    its size, its moment about the anchor the fixed joint's moment moved there."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)  # contacts between geoms: named, not modelled
+        fixed = mjcf_system(WELDED % (f'<body name="b" pos="0 0 -1">{BOB}</body>', "", ""))
+        welded = mjcf_system(WELDED % ("", f'<body name="b" pos="0 0 0"><freejoint name="f"/>{BOB}</body>',
+                                       '<equality><weld name="w" body1="a" body2="b" anchor="0.02 -0.01 0.03"/>'
+                                       '</equality>'))
+    assert {"w_x", "w_y", "w_z", "w_rx", "w_ry", "w_rz"} <= {c.name for c in welded.constraints}
+    start = {"h": 0.4, "h_dot": -0.6}
+    one = appell.simulate(appell.derive(fixed), 2.0, initial=start, rtol=1e-11, atol=1e-12)
+    two = appell.simulate(appell.derive(welded), 2.0, initial=start, complete=True, rtol=1e-11, atol=1e-12)
+    assert np.max(np.abs(one["h"] - two["h"])) < 1e-9  # measured 1.9e-11
+    F = np.stack([one[f"F_b_weld_{a}"] for a in "xyz"], axis=1)  # a on b, at b's origin
+    M = np.stack([one[f"M_b_weld_{a}"] for a in "xyz"], axis=1)
+    lam = np.stack([two[f"lambda_w_{a}"] for a in "xyz"], axis=1)  # b on a
+    scale = np.max(np.abs(F))
+    assert np.max(np.abs(lam + F)) < 1e-8 * scale  # measured 1.9e-11
+    # b's origin O and the anchor P are points of a, P - O = the anchor (b is not turned in a);
+    # in world axes R_y(h) (O - P)
+    c, s_ = np.cos(one["h"]), np.sin(one["h"])
+    R = np.stack([np.stack([c, 0 * c, s_], 1), np.stack([0 * c, 0 * c + 1, 0 * c], 1),
+                  np.stack([-s_, 0 * c, c], 1)], 1)
+    O_minus_P = np.einsum("nij,j->ni", R, -np.array([0.02, -0.01, 0.03]))
+    # wrench of b on a about P: (-F, -M_O - (O - P) x F)
+    expected = -M - np.cross(O_minus_P, F)
+    from appell.io.viewer import scene_data
+
+    arrow = next(a for a in scene_data(welded, two)["arrows"] if a["name"] == "w_moment")  # the view's arrow
+    got = np.array(arrow["v"]).reshape(-1, 3)
+    assert np.max(np.abs(got - expected)) < 1e-4 * np.max(np.abs(expected))  # 5 digits in the frames

@@ -426,6 +426,46 @@ class Mechanism:
 
         self._closures.append(_Closure(name, build))
 
+    def weld(self, name, a, b, rotation=None):
+        """Loop closure that holds two bodies together: the point ``a = (body_a, r_a)``
+        coincides with ``b = (body_b, r_b)`` (holonomic ``<name>_x``, ``_y``, ``_z`` as
+        :meth:`connect`) and ``body_b`` keeps the orientation ``R_b = R_a R_ab`` (``rotation``:
+        ``R_ab``, 3 x 3, body_b's axes in body_a's; default the identity). With
+        ``A = R_a R_ab`` and ``B = R_b``, the three orientation rows are
+        ``<name>_rx = (A e_y).(B e_z)``, ``<name>_ry = (A e_z).(B e_x)``,
+        ``<name>_rz = (A e_x).(B e_y)``, zero where the orientations agree (independent
+        there); ``lambda_<name>_r<i>`` acts as the moment ``lambda (A e_j) x (B e_k)`` on
+        ``body_a`` and its opposite on ``body_b`` (the virtual work of a rotation ``dtheta``:
+        ``d((A e_j).(B e_k)) = dtheta_a . (A e_j x B e_k)``)."""
+        self._claim(name, "closure")
+        what = f"weld {name!r}"
+        (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
+        if ba is bb:
+            raise ModelError(f"{what}: both points are on body {ba.name!r}", hint="weld two different bodies")
+        self._marks += [(ba, ra), (bb, rb)]
+        R_ab = sp.eye(3) if rotation is None else _matrix(rotation, f"{what}: rotation", shape=(3, 3))
+
+        def build(frames):
+            fa, fb = frames[ba], frames[bb]
+            pa, pb = fa.point(ra)[0], fb.point(rb)[0]
+            A, B = fa.R * R_ab, fb.R
+            cons, acts = [], []
+            for d in "xyz":
+                e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
+                c = holonomic(f"{name}_{d}", (pa - pb).dot(e))
+                lam = sp.Symbol(f"lambda_{c.name}")
+                cons.append(c)
+                acts += [_Action(ba, pa, e * lam, sp.zeros(3, 1)), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
+            for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1))):
+                c = holonomic(f"{name}_r{d}", A[:, j].dot(B[:, k]))
+                lam = sp.Symbol(f"lambda_{c.name}")
+                cons.append(c)
+                moment = _cross(A[:, j], B[:, k]) * lam
+                acts += [_Action(ba, pa, sp.zeros(3, 1), moment), _Action(bb, pb, sp.zeros(3, 1), -moment)]
+            return cons, acts
+
+        self._closures.append(_Closure(name, build))
+
     def point_on_surface(self, name, point, surface):
         """The body point ``point = (body, r)`` stays on the surface ``s(x, y, z) = 0`` (world
         coordinates; ``surface`` an expression in the symbols ``x``, ``y``, ``z`` or a callable):
@@ -834,6 +874,9 @@ class Mechanism:
             if first:
                 total = sum((a.force for a in first), sp.zeros(3, 1))
                 arrows.append(ViewArrow(name, tuple(first[0].position), tuple(total), "force"))
+                moment = sum((a.torque for a in first), sp.zeros(3, 1))
+                if moment != sp.zeros(3, 1):  # a weld's
+                    arrows.append(ViewArrow(f"{name}_moment", tuple(first[0].position), tuple(moment), "moment"))
         joints = []
         for j in self.joints:
             m, axis = j.motion, ""

@@ -15,12 +15,18 @@ MuJoCo's own). Its compiled model is mapped to a :class:`~appell.mechanism.Mecha
 * an active ``connect`` equality is a loop closure at the two anchors (``eq_data``), its
   multipliers the force of the second body on the first (the rows along which the anchors
   never part, the normal of a planar loop, are left out with a note); a ``joint`` equality
-  ``q1 - q1_0 = c0 + c1 (q2 - q2_0) + ... + c4 (q2 - q2_0)^4`` is a holonomic constraint.
+  ``q1 - q1_0 = c0 + c1 (q2 - q2_0) + ... + c4 (q2 - q2_0)^4`` is a holonomic constraint; a
+  ``weld`` equality is :meth:`Mechanism.weld <appell.mechanism.Mechanism.weld>`: the anchor on
+  the second body held at its place in the first (``eq_data``: anchor, then its position
+  and the second body's orientation in the first, as MuJoCo's compiler computes them at
+  ``qpos0``), rigid (MuJoCo's ``torquescale`` and soft parameters are not applied);
+* the geoms (spheres, capsules, cylinders, boxes; not planes, ellipsoids, height fields,
+  meshes) are drawn in the picture of the motion (:mod:`appell.view`).
 
 Names are MuJoCo's (unnamed joints ``<body>_joint``, welds ``<body>_weld``). What MuJoCo
 applies and appell does not — contacts between geoms, joint damping, armature, friction loss
 and limits, tendons, actuators, soft equality parameters — is named in an
-:class:`~appell.errors.AppellNote` warning; ``weld``, ``tendon`` and flex equalities and bodies
+:class:`~appell.errors.AppellNote` warning; ``tendon`` and flex equalities and bodies
 with several joints are refused with the body or equality named.
 """
 
@@ -237,10 +243,15 @@ def mjcf_mechanism(model, source: str = "<mjcf>"):
             x = coordinate[j2][0] if j2 >= 0 else sp.S.Zero
             poly = sum(float(c) * x**k for k, c in enumerate(data[:5]))
             constraints.append(holonomic(ename, q1 - poly))
+        elif kind == mujoco.mjtEq.mjEQ_WELD:  # anchor on body2, pose (pos, quat) of the anchor and body2 in body1
+            b1, b2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+            mech.weld(ename, (made[b1], tuple(data[3:6])), (made[b2], tuple(data[0:3])),
+                      rotation=_rotation(data[6:10]).tolist())
         else:
             raise ModelError(f"{source}: equality {ename!r} is of a kind appell does not map "
                              f"({mujoco.mjtEq(kind).name})",
-                             hint="connect and joint equalities are mapped; write a weld as connects or a fixed body")
+                             hint="connect, weld and joint equalities are mapped (tendon and flex equalities "
+                                  "are not)")
     return mech, constraints
 
 
