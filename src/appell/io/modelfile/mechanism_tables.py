@@ -28,6 +28,7 @@ JOINT_KEYS = ("name", "type", "parent", "child", "axis", "origin", "rpy", "child
               "coordinates", "rotation")
 CLOSURE_KEYS = {
     "connect": ("name", "type", "body_a", "point_a", "body_b", "point_b", "directions"),
+    "weld": ("name", "type", "body_a", "point_a", "body_b", "point_b", "rpy"),
     "point_on_surface": ("name", "type", "body", "point", "surface"),
     "rolling_disc": ("name", "type", "body", "radius", "axis", "normal", "height"),
     "rolling_sphere": ("name", "type", "body", "radius", "normal", "height"),
@@ -185,13 +186,19 @@ def build_mechanism(r, top: dict, base: Path):
         path = ("closures", i)
         kind = _kind(r, path, item, tuple(CLOSURE_KEYS))
         r.table(path, item, CLOSURE_KEYS[kind], required=("name",) + tuple(
-            k for k in CLOSURE_KEYS[kind][2:] if k not in ("directions", "axis", "normal", "height")))
+            k for k in CLOSURE_KEYS[kind][2:] if k not in ("directions", "axis", "normal", "height", "rpy")))
         cname = r.name(path + ("name",), item["name"], "closure")
-        if kind == "connect":
+        if kind in ("connect", "weld"):
             a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
             b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
-            directions = r.string(path + ("directions",), item.get("directions", "xyz"))
-            _call(r, path, mech.connect, cname, a, b, directions)
+            if kind == "weld":  # body_b turned by rpy (roll, pitch, yaw) in body_a's axes
+                from appell.mechanism.rotations import rpy_rotation
+
+                rpy = _vector(r, path + ("rpy",), item["rpy"]) if "rpy" in item else (0, 0, 0)
+                _call(r, path, mech.weld, cname, a, b, rpy_rotation(sp.Matrix(rpy)))
+            else:
+                directions = r.string(path + ("directions",), item.get("directions", "xyz"))
+                _call(r, path, mech.connect, cname, a, b, directions)
             mech.locate(cname, r.where(path + ("name",)))
             continue
         body = _body_ref(r, path + ("body",), item["body"], mech)
