@@ -267,3 +267,67 @@ def test_massless_link_on_a_moving_joint_is_refused():
                             'iyy="0.03" iyz="0" izz="0.04"/></inertial>\n  </link>', '<link name="body"/>')
     with pytest.raises(ModelError, match="has no <inertial> but moves on joint 'base'"):
         urdf_mechanism(parse_urdf(text, "drone.urdf"))
+
+
+_WELD_BASE = """
+[model]
+name = "bob"
+[mechanism]
+gravity = [0, 0, -9.81]
+[[bodies]]
+name = "a"
+mass = 1.0
+inertia = [0.01, 0.01, 0.01]
+com = [0, 0, -0.3]
+[[bodies]]
+name = "b"
+mass = 2.0
+inertia = [0.02, 0.03, 0.04]
+com = [0.05, 0, 0]
+[[joints]]
+name = "h"
+type = "revolute"
+parent = "ground"
+child = "a"
+axis = [0, 1, 0]
+"""
+
+
+def test_a_weld_closure_holds_like_a_fixed_joint():
+    """[[closures]] type = "weld": a body on a free joint welded to a pendulum, turned by rpy,
+    moves as the same body on a fixed joint with that rpy (the pendulum angle over 1 s within
+    1e-9 rad); the weld's force is minus the fixed joint's force (b on a, not a on b)."""
+    import appell
+    from appell.io.modelfile import loads_model
+
+    fixed = loads_model(_WELD_BASE + """[[joints]]
+name = "j"
+type = "fixed"
+parent = "a"
+child = "b"
+origin = [0, 0, -0.6]
+rpy = [0.1, 0.2, 0.3]
+""", "fixed.toml")
+    welded = loads_model(_WELD_BASE + """[[joints]]
+name = "j"
+type = "free"
+parent = "ground"
+child = "b"
+rotation = "quaternion"
+origin = [0, 0, -0.6]
+[[closures]]
+name = "w"
+type = "weld"
+body_a = "a"
+point_a = [0, 0, -0.6]
+body_b = "b"
+point_b = [0, 0, 0]
+rpy = [0.1, 0.2, 0.3]
+""", "welded.toml")
+    start = {"h": 0.3, "h_dot": 0.7}
+    one = appell.simulate(appell.derive(fixed), 1.0, initial=start, rtol=1e-11, atol=1e-12)
+    two = appell.simulate(appell.derive(welded), 1.0, initial=start, complete=True, rtol=1e-11, atol=1e-12)
+    assert np.max(np.abs(one["h"] - two["h"])) < 1e-9
+    F = np.stack([one[f"F_j_{a}"] for a in "xyz"], axis=1)
+    lam = np.stack([two[f"lambda_w_{a}"] for a in "xyz"], axis=1)
+    assert np.max(np.abs(lam + F)) < 1e-8 * np.max(np.abs(F))
