@@ -207,6 +207,25 @@ def test_mjcf_geoms_become_shapes():
     assert shapes["sphere"].size == pytest.approx((0.1,)) and shapes["sphere"].colour is None  # MuJoCo's grey
 
 
+def test_mjcf_meshes_are_drawn_from_the_triangles_mujoco_read():
+    pytest.importorskip("mujoco")
+    from appell.mechanism.mjcf import mjcf_system
+
+    xml = """<mujoco model="m"><asset><mesh name="tet" vertex="0 0 0  0.2 0 0  0 0.2 0  0 0 0.2"/></asset>
+      <worldbody><body name="b" pos="0 0 1"><joint name="h" type="hinge" axis="0 1 0"/>
+      <geom type="mesh" mesh="tet" pos="0 0 -0.5" rgba="1 0 0 1" mass="1"/></body></worldbody></mujoco>"""
+    with pytest.warns(appell.errors.AppellNote):
+        system = mjcf_system(xml)
+    (shape,) = system.view.bodies[0].shapes
+    vertices = np.array(shape.mesh[0]).reshape(-1, 3)
+    assert shape.kind == "mesh" and vertices.shape == (4, 3) and len(shape.mesh[1]) == 12
+    # MuJoCo moves a mesh to its centroid frame: the tetrahedron's centroid (0.05, 0.05, 0.05)
+    # lies at the geom's position plus that offset
+    assert np.allclose(shape.origin, (0.05, 0.05, -0.45), atol=1e-6)
+    edges = sorted(np.linalg.norm(vertices[i] - vertices[j]) for i in range(4) for j in range(i + 1, 4))
+    assert np.allclose(edges, [0.2] * 3 + [0.2 * np.sqrt(2)] * 3, atol=1e-6)
+
+
 # ------------------------------------------------------------------ the command
 def test_animate_writes_a_page_and_a_gif(tmp_path):
     page = tmp_path / "fb.html"

@@ -27,8 +27,8 @@ from appell.errors import ModelError
 __all__ = ["Shape", "ViewBody", "ViewArrow", "ViewJoint", "View", "SHAPES", "equivalent_box"]
 
 #: shape kinds and the sizes each takes (metres): box (x, y, z edge lengths), sphere (radius),
-#: cylinder and capsule (radius, length along the shape's z axis)
-SHAPES = {"box": 3, "sphere": 1, "cylinder": 2, "capsule": 2}
+#: cylinder and capsule (radius, length along the shape's z axis); a mesh has its triangles
+SHAPES = {"box": 3, "sphere": 1, "cylinder": 2, "capsule": 2, "mesh": 0}
 
 
 def _vector(value, what: str, n: int = 3) -> tuple[sp.Expr, ...]:
@@ -46,7 +46,9 @@ class Shape:
     """A primitive in body axes: ``kind`` in :data:`SHAPES`, ``size`` (floats), placed at
     ``origin`` with ``rotation`` (3 x 3, shape axes -> body axes; cylinders and capsules run
     along the shape's z axis), ``colour`` a CSS colour or None (the body's); ``solid`` False
-    for a stand-in (the box of a body's inertia, drawn translucent beside its bars)."""
+    for a stand-in (the box of a body's inertia, drawn translucent beside its bars); a
+    ``'mesh'`` gives ``mesh = (vertices, faces)``, flat lists of coordinates (shape axes) and
+    of vertex indices, three per triangle."""
 
     kind: str
     size: tuple[float, ...]
@@ -54,6 +56,7 @@ class Shape:
     rotation: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
     colour: str | None = None
     solid: bool = True
+    mesh: tuple[tuple[float, ...], tuple[int, ...]] | None = None
 
     def __post_init__(self):
         if self.kind not in SHAPES:
@@ -61,6 +64,13 @@ class Shape:
         size = tuple(float(s) for s in self.size)
         if len(size) != SHAPES[self.kind] or not all(s > 0 for s in size):
             raise ModelError(f"a {self.kind} takes {SHAPES[self.kind]} positive size(s), got {list(self.size)}")
+        if (self.kind == "mesh") != (self.mesh is not None):
+            raise ModelError("a mesh shape, and only a mesh, gives its triangles (vertices, faces)")
+        if self.mesh is not None:
+            vertices, faces = (tuple(float(v) for v in self.mesh[0]), tuple(int(f) for f in self.mesh[1]))
+            if len(vertices) % 3 or len(faces) % 3 or (faces and not 0 <= min(faces) <= max(faces) < len(vertices) // 3):
+                raise ModelError("a mesh is 3 coordinates per vertex and 3 vertex indices per triangle")
+            object.__setattr__(self, "mesh", (vertices, faces))
         object.__setattr__(self, "size", size)
         object.__setattr__(self, "origin", tuple(float(v) for v in self.origin))
         object.__setattr__(self, "rotation", tuple(float(v) for v in self.rotation))
@@ -71,7 +81,8 @@ class ViewBody:
     """A body frame at ``position`` (3 expressions, world) with ``rotation`` (9 expressions,
     row-major, body -> world; None for a particle or a body that does not turn), drawn as
     ``shapes``, or as bars from the frame origin to each of ``links`` (body-frame points)
-    and a sphere at the mass centre ``com`` when it has none."""
+    and a sphere at the mass centre ``com`` when it has none; ``joint`` the origin of the
+    joint it hangs on (body frame), where its axes are drawn as the joint's frame."""
 
     name: str
     position: tuple[sp.Expr, ...]
@@ -82,6 +93,7 @@ class ViewBody:
     particle: bool = False
     mass: str | None = None
     inertia: str | None = None
+    joint: tuple[float, float, float] | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "position", _vector(self.position, f"view of body {self.name!r}: position"))

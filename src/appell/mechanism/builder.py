@@ -233,7 +233,7 @@ class Mechanism:
         self._forces: list[tuple[str, object]] = []  # (name, builder(frames) -> (model loads, actions))
         self._actuators: list[tuple[str, Joint, sp.Symbol, sp.Expr | None]] = []
         self._names: dict[str, str] = {GROUND: "body"}
-        self._shapes: list[tuple[Body, str, tuple, sp.Matrix, sp.Matrix, str | None]] = []  # for the view
+        self._shapes: list[tuple] = []  # (body, kind, sizes, origin, rotation, colour, mesh): the view
         self._marks: list[tuple[Body, sp.Matrix]] = []  # body points of closures and loads (the view's bars)
 
     # ------------------------------------------------------------ naming
@@ -302,12 +302,14 @@ class Mechanism:
         self.bodies[-1] = b
         return b
 
-    def shape(self, body, kind: str, size, origin=(0, 0, 0), rpy=(0, 0, 0), colour: str | None = None) -> None:
+    def shape(self, body, kind: str, size, origin=(0, 0, 0), rpy=(0, 0, 0), colour: str | None = None,
+              mesh=None) -> None:
         """Geometry of ``body`` for the picture of the motion (:class:`appell.view.Shape`: a
         ``'box'`` of edges ``size``, a ``'sphere'`` of radius ``size``, a ``'cylinder'`` or
         ``'capsule'`` of ``(radius, length)`` along its z axis), placed at ``origin`` turned by
-        the roll-pitch-yaw angles ``rpy`` in the body frame; sizes may be parameters. It does
-        not change the dynamics."""
+        the roll-pitch-yaw angles ``rpy`` in the body frame; sizes may be parameters; a
+        ``'mesh'`` takes ``mesh = (vertices, faces)`` and no sizes. It does not change the
+        dynamics."""
         b = self._body(body, f"shape of {body!r}")
         if kind not in SHAPES:
             raise ModelError(f"shape of body {b.name!r}: {kind!r} is not a shape", hint="shapes: " + ", ".join(SHAPES))
@@ -315,7 +317,7 @@ class Mechanism:
         if len(size) != SHAPES[kind]:
             raise ModelError(f"shape of body {b.name!r}: a {kind} takes {SHAPES[kind]} size(s), got {len(size)}")
         rot = rpy_rotation(_matrix(rpy, f"shape of body {b.name!r}: rpy"))
-        self._shapes.append((b, kind, size, _matrix(origin, f"shape of body {b.name!r}: origin"), rot, colour))
+        self._shapes.append((b, kind, size, _matrix(origin, f"shape of body {b.name!r}: origin"), rot, colour, mesh))
 
     def _add_joint(self, kind, name, parent, child, axis=None, origin=(0, 0, 0), rpy=(0, 0, 0),
                    child_origin=(0, 0, 0), coordinate=None, rotation="xyz") -> Joint:
@@ -540,7 +542,7 @@ class Mechanism:
         b = self._body(body, what)
         k = unit_axis(axis, f"{what}: axis")
         r = sp.sympify(radius)
-        self._shapes.append((b, "cylinder", (r, r / 10), sp.zeros(3, 1), _z_onto(k), None))
+        self._shapes.append((b, "cylinder", (r, r / 10), sp.zeros(3, 1), _z_onto(k), None, None))
 
         def contact(f, n):
             a = f.R * k
@@ -558,7 +560,7 @@ class Mechanism:
         what = f"rolling sphere {name!r}"
         b = self._body(body, what)
         r = sp.sympify(radius)
-        self._shapes.append((b, "sphere", (r,), sp.zeros(3, 1), sp.eye(3), None))
+        self._shapes.append((b, "sphere", (r,), sp.zeros(3, 1), sp.eye(3), None, None))
         self._rolling(name, b, lambda f, n: (-r * n, -r), normal, height, what)
 
     def no_lateral_slip(self, name, point, direction):
@@ -835,10 +837,10 @@ class Mechanism:
         for b in self.bodies:
             f = frames[b]
             shapes = []
-            for body, kind, size, origin, rot, colour in self._shapes:
+            for body, kind, size, origin, rot, colour, mesh in self._shapes:
                 dims = numbers(size) if body is b else None
                 if dims is not None and all(d > 0 for d in dims):
-                    shapes.append(Shape(kind, dims, numbers(origin), numbers(rot), colour))
+                    shapes.append(Shape(kind, dims, numbers(origin), numbers(rot), colour, mesh=mesh))
             own = next(j for j in self.joints if j.child is b)
             links = [own.child_origin] + [j.origin for j in self.joints if j.parent is b]
             links += [r for body, r in self._marks if body is b]
@@ -855,7 +857,7 @@ class Mechanism:
                     shapes.append(Shape("box", box, com, tuple(axes_.ravel()), solid=False))
             bodies.append(ViewBody(b.name, tuple(f.p), None if b.particle else tuple(f.R), tuple(shapes),
                                    tuple(links), com, b.particle, _text(b.mass),
-                                   None if b.particle else _text(b.inertia)))
+                                   None if b.particle else _text(b.inertia), links[0] if links else None))
         arrows = []
         for j in self.joints:
             fc = frames[j.child]

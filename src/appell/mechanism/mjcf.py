@@ -20,8 +20,8 @@ MuJoCo's own). Its compiled model is mapped to a :class:`~appell.mechanism.Mecha
   the second body held at its place in the first (``eq_data``: anchor, then its position
   and the second body's orientation in the first, as MuJoCo's compiler computes them at
   ``qpos0``), rigid (MuJoCo's ``torquescale`` and soft parameters are not applied);
-* the geoms (spheres, capsules, cylinders, boxes; not planes, ellipsoids, height fields,
-  meshes) are drawn in the picture of the motion (:mod:`appell.view`).
+* the geoms (spheres, capsules, cylinders, boxes, meshes; not planes, ellipsoids, height
+  fields) are drawn in the picture of the motion (:mod:`appell.view`).
 
 Names are MuJoCo's (unnamed joints ``<body>_joint``, welds ``<body>_weld``). What MuJoCo
 applies and appell does not — contacts between geoms, joint damping, armature, friction loss
@@ -129,27 +129,50 @@ def _open_directions(model, b1, anchor1, b2, anchor2) -> str:
     return "".join(a for a, d in zip("xyz", apart) if d > 1e-9)
 
 
+#: triangles of meshes a view carries (its page's size); past them a mesh is drawn as its box
+MAX_MESH_FACES = 20000
+
+
 def _geoms(mujoco, model, mech, made) -> None:
     """The bodies' geoms as shapes of the view (no effect on the motion): spheres, capsules,
-    cylinders and boxes in MuJoCo's half sizes; planes (the floor), ellipsoids, height
-    fields and meshes are left to the view's default drawing."""
+    cylinders and boxes in MuJoCo's half sizes, meshes as the triangles MuJoCo's compiler
+    read (up to :data:`MAX_MESH_FACES` in all, then the box around each); planes (the
+    floor), ellipsoids and height fields are left to the view's default drawing."""
     kinds = {int(mujoco.mjtGeom.mjGEOM_SPHERE): ("sphere", lambda s: (s[0],)),
              int(mujoco.mjtGeom.mjGEOM_CAPSULE): ("capsule", lambda s: (s[0], 2 * s[1])),
              int(mujoco.mjtGeom.mjGEOM_CYLINDER): ("cylinder", lambda s: (s[0], 2 * s[1])),
              int(mujoco.mjtGeom.mjGEOM_BOX): ("box", lambda s: (2 * s[0], 2 * s[1], 2 * s[2]))}
+    faces_left = MAX_MESH_FACES
     for g in range(model.ngeom):
         b, kind = int(model.geom_bodyid[g]), int(model.geom_type[g])
-        if b == 0 or kind not in kinds:
+        mesh = kind == int(mujoco.mjtGeom.mjGEOM_MESH) and int(model.geom_dataid[g]) >= 0
+        if b == 0 or not (kind in kinds or mesh):
             continue
-        name, size = kinds[kind]
         rgba = np.asarray(model.geom_rgba[g], float)
         if rgba[3] <= 0:  # an invisible geom
             continue
         colour = None if np.allclose(rgba, (0.5, 0.5, 0.5, 1.0)) else \
             "#" + "".join(f"{round(255 * min(max(x, 0.0), 1.0)):02x}" for x in rgba[:3])  # MuJoCo's grey: the body's
-        mech.shape(made[b], name, tuple(float(v) for v in size(np.asarray(model.geom_size[g], float))),
-                   origin=tuple(float(v) for v in model.geom_pos[g]), rpy=_rpy(_rotation(model.geom_quat[g])),
-                   colour=colour)
+        place = dict(origin=tuple(float(v) for v in model.geom_pos[g]), rpy=_rpy(_rotation(model.geom_quat[g])),
+                     colour=colour)
+        if mesh:  # the triangles MuJoCo's compiler read, in the mesh's frame (the geom's)
+            m = int(model.geom_dataid[g])
+            v0, nv = int(model.mesh_vertadr[m]), int(model.mesh_vertnum[m])
+            f0, nf = int(model.mesh_faceadr[m]), int(model.mesh_facenum[m])
+            vertices = np.asarray(model.mesh_vert[v0:v0 + nv], float)
+            if nf <= faces_left:
+                faces_left -= nf
+                mech.shape(made[b], "mesh", (), mesh=(vertices.ravel().tolist(),
+                                                      np.asarray(model.mesh_face[f0:f0 + nf]).ravel().tolist()),
+                           **place)
+            else:  # past the page's budget: the box around it
+                lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+                centre = np.asarray(model.geom_pos[g]) + _rotation(model.geom_quat[g]) @ ((lo + hi) / 2)
+                mech.shape(made[b], "box", tuple(float(x) for x in np.maximum(hi - lo, 1e-6)),
+                           **{**place, "origin": tuple(float(x) for x in centre)})
+            continue
+        name, size = kinds[kind]
+        mech.shape(made[b], name, tuple(float(v) for v in size(np.asarray(model.geom_size[g], float))), **place)
 
 
 def mjcf_mechanism(model, source: str = "<mjcf>"):

@@ -57,7 +57,9 @@ def _rotation(q) -> np.ndarray:
 def _surface(shape) -> np.ndarray:
     """Points on the surface of a shape, in body axes."""
     kind, size = shape["kind"], shape["size"]
-    if kind == "box":
+    if kind == "mesh":
+        pts = np.array(shape["vertices"]).reshape(-1, 3)
+    elif kind == "box":
         pts = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).T.reshape(-1, 3) * np.array(size) / 2
     else:
         r = size[0]

@@ -132,10 +132,34 @@ def _evaluate(system, view: View, solution, rows: np.ndarray) -> list[np.ndarray
     return [np.broadcast_to(np.asarray(r, float), (n,)).copy() for r in results]
 
 
+def _reach(shape) -> float:
+    """The largest size of a shape (a mesh's: the largest edge of its box)."""
+    if shape.kind == "mesh":
+        v = np.array(shape.mesh[0]).reshape(-1, 3)
+        return float(np.max(v.max(axis=0) - v.min(axis=0))) if v.size else 0.0
+    return max(shape.size)
+
+
+def _shape(s) -> dict:
+    out = {"kind": s.kind, "size": list(s.size), "origin": list(s.origin), "rotation": list(s.rotation),
+           "colour": s.colour, "solid": s.solid}
+    if s.mesh is not None:
+        out["vertices"] = _flat(np.array(s.mesh[0]))
+        out["faces"] = list(s.mesh[1])
+    return out
+
+
 def _corners(shapes) -> tuple:
     """The corners (body axes) of the boxes around ``shapes``: what the view must show."""
     out = []
     for s in shapes:
+        if s.kind == "mesh":
+            v = np.array(s.mesh[0]).reshape(-1, 3)
+            lo, hi = v.min(axis=0), v.max(axis=0)
+            R = np.array(s.rotation).reshape(3, 3)
+            for signs in np.array(np.meshgrid([0, 1], [0, 1], [0, 1])).T.reshape(-1, 3):
+                out.append(tuple(np.array(s.origin) + R @ np.where(signs, hi, lo)))
+            continue
         half = {"box": [x / 2 for x in s.size], "sphere": [s.size[0]] * 3}.get(
             s.kind, [s.size[0], s.size[0], s.size[1] / 2 + (s.size[0] if s.kind == "capsule" else 0)])
         R = np.array(s.rotation).reshape(3, 3)
@@ -174,9 +198,9 @@ def scene_data(system, solution, view: View | None = None, max_frames: int = MAX
             points.append(p + np.einsum("nij,j->ni", R, np.array(r)))
         bodies.append({
             "name": b.name, "particle": b.particle, "p": _flat(p), "q": _flat(q, 6),
-            "shapes": [{"kind": s.kind, "size": list(s.size), "origin": list(s.origin), "rotation": list(s.rotation),
-                        "colour": s.colour, "solid": s.solid} for s in b.shapes],
-            "links": [list(x) for x in b.links], "com": list(b.com)})
+            "shapes": [_shape(s) for s in b.shapes],
+            "links": [list(x) for x in b.links], "com": list(b.com),
+            "joint": list(b.joint) if b.joint is not None and not b.particle else None})
     arrows = []
     for a in view.arrows:
         at, v = _finite(take(3)), _finite(take(3))
@@ -203,7 +227,7 @@ def scene_data(system, solution, view: View | None = None, max_frames: int = MAX
     # a typical body's length (bars from its joint to the others, to its mass centre, its
     # shapes): the thickness of bars and pins, so that a long path keeps them slim
     lengths = [max([float(np.linalg.norm(np.subtract(x, b.links[0] if b.links else (0, 0, 0))))
-                    for x in (b.links or ()) + (b.com,)] + [max(sh.size) for sh in b.shapes] + [0.0])
+                    for x in (b.links or ()) + (b.com,)] + [_reach(sh) for sh in b.shapes] + [0.0])
                for b in view.bodies if not b.particle]
     lengths = [x for x in lengths if x > 1e-9 * size]
     detail = float(np.median(lengths)) if lengths else 0.1 * extent

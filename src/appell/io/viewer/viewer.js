@@ -83,7 +83,13 @@
     if (s.kind === "box") g = new THREE.BoxGeometry(s.size[0], s.size[1], s.size[2]);
     else if (s.kind === "sphere") g = new THREE.SphereGeometry(s.size[0], 24, 16);
     else if (s.kind === "cylinder") g = new THREE.CylinderGeometry(s.size[0], s.size[0], s.size[1], 32);
-    else g = new THREE.CapsuleGeometry(s.size[0], s.size[1], 8, 16);
+    else if (s.kind === "capsule") g = new THREE.CapsuleGeometry(s.size[0], s.size[1], 8, 16);
+    else {  // a mesh: its triangles
+      g = new THREE.BufferGeometry();
+      g.setAttribute("position", new THREE.Float32BufferAttribute(s.vertices, 3));
+      g.setIndex(s.faces);
+      g.computeVertexNormals();
+    }
     var inner = new THREE.Mesh(g, s.colour && s.solid ? new THREE.MeshStandardMaterial({ color: s.colour }) : material);
     if (s.kind === "cylinder" || s.kind === "capsule") inner.rotation.x = Math.PI / 2;  // three's y axis -> z
     var outer = new THREE.Group(), r = s.rotation, o = s.origin;
@@ -95,7 +101,7 @@
 
   function Viewer(root, data) {
     this.root = root; this.data = data; this.frame = 0; this.playing = false; this.speed = 1;
-    this.show = { force: true, moment: true, trails: true };
+    this.show = { force: true, moment: true, trails: true, frames: true };
     var size = data.follow ? data.extent : data.size;  // the scale of pins, arrows and the grid
     this.size = size;
     this.times = data.t;
@@ -178,6 +184,11 @@
           dot.position.fromArray(b.com); group.add(dot); meshes++;
         }
       }
+      if (b.joint) {  // the joint's frame: the child's axes at the joint (x red, y green, z blue)
+        var axes = new THREE.AxesHelper(Math.max(6 * thick, 0.15 * (data.detail || size)));
+        axes.position.fromArray(b.joint); axes.material.depthTest = false; axes.renderOrder = 5;
+        axes.name = "frame"; group.add(axes);
+      }
       scene.add(group);
       return { data: b, group: group };
     });
@@ -221,6 +232,7 @@
     this.camera.lookAt(centre);
     this.controls = new THREE.OrbitControls(this.camera, this.renderer.domElement);
     this.controls.target.copy(centre);
+    this.controls.update();  // the constructor turned the camera to its default target, the origin
     if (data.plane) this.controls.enableRotate = false;
     var self = this;
     this.controls.addEventListener("change", function () { self.dirty = true; });
@@ -250,8 +262,10 @@
     bar.append(this.button, this.slider, this.label, speed);
     var kinds = {};
     this.data.arrows.forEach(function (a) { if (self.data.scale[a.kind] > 0) kinds[a.kind] = true; });
-    var names = { force: "forces", moment: "moments", trails: "paths" };
-    Object.keys(kinds).concat(this.data.trails.length ? ["trails"] : []).forEach(function (k) {
+    var names = { force: "forces", moment: "moments", trails: "paths", frames: "joint frames" };
+    var extra = (this.data.trails.length ? ["trails"] : []).concat(
+      this.data.bodies.some(function (b) { return b.joint; }) ? ["frames"] : []);
+    Object.keys(kinds).concat(extra).forEach(function (k) {
       var box = document.createElement("label"), check = document.createElement("input");
       check.type = "checkbox"; check.checked = true;
       check.onchange = function () { self.show[k] = check.checked; self.setFrame(self.frame); };
@@ -302,7 +316,7 @@
     });
     if (this.data.follow && this.controls) {
       var c = vec(this.data.centre, k), shift = c.clone().sub(this.controls.target);
-      this.camera.position.add(shift); this.controls.target.copy(c);
+      this.camera.position.add(shift); this.controls.target.copy(c); this.controls.update();
       if (this.grid) {
         var n = this.normal, st = this.step, m = c.clone().sub(n.clone().multiplyScalar(c.dot(n)));
         m.set(Math.round(m.x / st) * st, Math.round(m.y / st) * st, Math.round(m.z / st) * st);
@@ -313,6 +327,7 @@
       }
     }
     this.trails.forEach(function (line) { line.visible = self.show.trails; line.geometry.setDrawRange(0, k + 1); });
+    this.bodies.forEach(function (b) { var f = b.group.getObjectByName("frame"); if (f) f.visible = self.show.frames; });
     this.slider.value = k;
     this.label.textContent = "t = " + this.times[k].toFixed(3) + " s";
     this.dirty = true;
