@@ -107,6 +107,25 @@ def test_car_frames_and_axle_forces(car):
     assert scene["plane"] == [0.0, 0.0, 1.0] and scene["trails"][0]["name"] == "centre of mass"
 
 
+def test_friction_states_and_forces_on_the_incline():
+    """The block pushed up a rough incline (examples/block_on_incline.toml) slides, stops and
+    sticks: the frames say which, and while it sticks the friction arrow holds it up the slope
+    with m g sin(alpha) and the floor pushes with m g cos(alpha) (statics, closed form)."""
+    system = load_model(example_path("block_on_incline"))
+    solution = appell.simulate(appell.derive(system))
+    scene = scene_data(system, solution)
+    (state,) = scene["states"]
+    assert state["name"] == "slide" and set(state["values"]) == {0, 1}
+    assert state["values"][0] == 1 and state["values"][-1] == 0  # slips first, sticks at the end
+    m, g, alpha = 2.0, 9.81, 0.3
+    arrows = {a["name"]: np.array(a["v"]).reshape(-1, 3) for a in scene["arrows"]}
+    sticking = np.array(state["values"]) == 0
+    down_slope = np.array([np.cos(alpha), -np.sin(alpha), 0.0])
+    friction = arrows["friction"][sticking]
+    assert np.allclose(friction @ down_slope, -m * g * np.sin(alpha), rtol=1e-4)
+    assert np.allclose(np.linalg.norm(arrows["normal"][sticking], axis=1), m * g * np.cos(alpha), rtol=1e-4)
+
+
 def test_equivalent_box_has_the_inertia():
     a, b, c = 0.3, 0.5, 1.1
     m = 2.0
@@ -305,6 +324,18 @@ def test_the_mechanism_moves_on_screen(model, four_bar, car, tmp_path):
         assert shot.sum() > 800, f"{model}: only {shot.sum()} coloured pixels: is the mechanism drawn?"
     moved = np.logical_xor(first, second).sum() / np.logical_or(first, second).sum()
     assert moved > 0.1, f"{model}: the mechanism's pixels barely change between two times ({moved:.1%})"
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)
+def test_the_status_line_says_when_the_block_sticks(tmp_path):
+    system = load_model(example_path("block_on_incline"))
+    page = tmp_path / "block.html"
+    view_motion(system, appell.simulate(appell.derive(system))).save(page)
+    said = {}
+    for t in (0.05, 0.9):
+        done = chromium(["--virtual-time-budget=5000", "--dump-dom", f"{page.as_uri()}#t={t}"], tmp_path)
+        said[t] = re.search(r'data-viewer-states="([^"]*)"', done.stdout).group(1)
+    assert said == {0.05: "slide: slips", 0.9: "slide: sticks"}
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)

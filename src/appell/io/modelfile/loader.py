@@ -761,7 +761,9 @@ def _check_declared(r: _Reader, system: System):
     """Every symbol of every expression is declared at its level (as in validation.validate)."""
     levels = declared_symbols(system)
     levels["outputs"] = levels["acceleration"] | {sp.Symbol(f"lambda_{c.name}") for c in system.constraints}
-    levels["view"] = levels["outputs"] | {sp.Symbol(o.name) for o in system.outputs}
+    levels["view"] = levels["outputs"] | {sp.Symbol(o.name) for o in system.outputs} | {
+        s for path, (expr, level) in r.symbols.items() if level == "view" for s in expr.free_symbols
+        if any(s.name.startswith(f"friction_{f.name}_") for f in system.frictions)}  # friction forces
     for path, (expr, level) in r.symbols.items():
         bad = sorted((s for s in expr.free_symbols if s not in levels[level]), key=str)
         if bad:
@@ -773,7 +775,7 @@ def _check_declared(r: _Reader, system: System):
                 hint += "; accelerations may appear only in the acceleration energy and constraints"
             elif level == "view":
                 hint = ("a view uses t, coordinates, speeds, accelerations (x''), lambda_<constraint>, controls, "
-                        "outputs, parameters and programs")
+                        "outputs, friction_<law>_<column>, parameters and programs")
             elif level == "outputs":
                 hint = ("an output uses t, coordinates, speeds, accelerations (x''), lambda_<constraint>, controls, "
                         "parameters and programs")

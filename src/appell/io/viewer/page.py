@@ -23,6 +23,7 @@ VIEWER_STYLE = """
     border-top: 1px solid #eee; font-size: .9rem; }
 .appell-viewer-bar input[type=range] { flex: 1; min-width: 10rem; }
 .appell-viewer-time { font-variant-numeric: tabular-nums; min-width: 7rem; }
+.appell-viewer-states { font-size: .85rem; color: #8a4b00; }
 .appell-viewer-legend { font-size: .8rem; color: #555; padding: 0 .5rem .4rem; }
 .appell-plot { position: relative; display: inline-block; max-width: 100%; }
 .appell-plot img { display: block; max-width: 100%; cursor: crosshair; }

@@ -12,6 +12,8 @@ shared subexpressions once) at up to ``max_frames`` output times of a
   magnitude of its kind (forces, moments) for the common scale; an arrow of size zero
   (a released contact) is not drawn;
 * per trail: the point's path;
+* ``states``: per friction law whether it slips or sticks, per released constraint whether
+  it touches, at each frame (the viewer's status line);
 * ``detail``, a typical body's length (the thickness of bars and pins scales with it);
 * ``extent`` (the mechanism's largest size at one time) and, where its path is over
   :data:`FOLLOW` times that (a bicycle riding away), ``follow`` with the ``centre`` of the
@@ -236,10 +238,27 @@ def scene_data(system, solution, view: View | None = None, max_frames: int = MAX
     if scale["moment"] <= ROUNDING * (scale["force"] * size + scale["moment"]):
         scale["moment"] = 0.0  # moments of rounding size (a planar hinge's): not drawn
     return {"t": _flat(solution.t[rows], 7), "bodies": bodies, "arrows": arrows, "trails": trails,
+            "states": _contact_states(solution, rows),
             "up": list(view.up), "ground": view.ground, "plane": plane,
             "bounds": [lo.tolist(), hi.tolist()], "size": size, "extent": extent, "detail": min(detail, extent), "follow": follow,
             "centre": _flat(centres) if follow else None, "scale": scale, "note": note,
             "name": solution.metadata.name}
+
+
+def _contact_states(solution, rows) -> list[dict]:
+    """What each contact does at each frame, for the viewer's status line: a friction law
+    slips or sticks (``friction_<name>_slipping``), a constraint released by the simulation
+    (its residual recorded as NaN) touches or is released."""
+    out = []
+    for name, values in solution.friction.items():
+        if name.endswith("_slipping"):
+            out.append({"name": name[:-9], "labels": ["sticks", "slips"],
+                        "values": [int(v > 0.5) for v in np.nan_to_num(values[rows])]})
+    for name, values in solution.position_residuals.items():
+        gone = np.isnan(values[rows])
+        if gone.any() and not gone.all():
+            out.append({"name": name, "labels": ["in contact", "released"], "values": [int(v) for v in gone]})
+    return out
 
 
 def _plane(points: list[np.ndarray], size: float) -> list | None:

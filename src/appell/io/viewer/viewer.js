@@ -260,6 +260,8 @@
     speed.onchange = function () { self.speed = +speed.value; };
     speed.setAttribute("aria-label", "playback speed");
     bar.append(this.button, this.slider, this.label, speed);
+    this.status = document.createElement("span"); this.status.className = "appell-viewer-states";
+    if (this.data.states && this.data.states.length) bar.appendChild(this.status);
     var kinds = {};
     this.data.arrows.forEach(function (a) { if (self.data.scale[a.kind] > 0) kinds[a.kind] = true; });
     var names = { force: "forces", moment: "moments", trails: "paths", frames: "joint frames" };
@@ -328,6 +330,12 @@
     }
     this.trails.forEach(function (line) { line.visible = self.show.trails; line.geometry.setDrawRange(0, k + 1); });
     this.bodies.forEach(function (b) { var f = b.group.getObjectByName("frame"); if (f) f.visible = self.show.frames; });
+    if (this.data.states && this.data.states.length) {  // contacts: slipping or sticking, touching or released
+      this.status.textContent = this.data.states.map(function (st) {
+        return st.name + ": " + st.labels[st.values[k]];
+      }).join(" · ");
+      this.root.setAttribute("data-viewer-states", this.status.textContent);
+    }
     this.slider.value = k;
     this.label.textContent = "t = " + this.times[k].toFixed(3) + " s";
     this.dirty = true;
