@@ -33,6 +33,7 @@ from appell.simulation.events import Event
 from appell.simulation.initial import InitialState, check_initial, complete_initial
 from appell.simulation.energy_balance import EnergyBalance, energy_balance
 from appell.simulation.simulate import simulate
+from appell.simulation.inverse import InverseDynamics, inverse_dynamics
 from appell.simulation.solution import Solution
 from appell.reduction.cyclic import RouthReduction, cyclic_coordinates, routh_reduction
 from appell.reduction.first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
@@ -112,6 +113,7 @@ __all__ = [
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",
     "Event", "InitialState", "InitialValueError", "Solution", "check_initial", "complete_initial", "simulate",
+    "InverseDynamics", "inverse_dynamics",
     "EnergyBalance", "energy_balance",
     "LinearModel", "StabilitySweep", "linearise", "stability_sweep", "steady_motion",
     "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",

@@ -756,6 +756,90 @@ def animate(model, out, t_end, fps, frames, backend, assignments, floating_base,
     click.echo(f"wrote {path}")
 
 
+@cli.command(context_settings=_CONTEXT)
+@_model_argument
+@click.option("--trajectory", "trajectory", type=click.Path(exists=True, dir_okay=False), required=True,
+              metavar="FILE.csv", help="The motion: a column t and one per coordinate (by name); speeds "
+                                       "(<q>_dot) and accelerations (<q>_ddot) where known, else derived by a "
+                                       "cubic spline.")
+@click.option("--drive", "drives", multiple=True, metavar="SPEED",
+              help="A driven speed (repeat); default every speed of a model without constraints.")
+@click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE.csv",
+              help="Where to write t, the motion, drive_<speed>, lambda_<constraint> and the joint forces and "
+                   "moments (default: <model name>-inverse.csv).")
+@_model_options
+def inverse(model, trajectory, drives, out, assignments, floating_base):
+    """Inverse dynamics: the drive forces (torques) along the driven speeds, every reaction
+    and every joint's force and moment along a given motion (what RNEA gives for a robot).
+
+    A closed loop names its drives with --drive (as many as the loop leaves degrees of
+    freedom); the drives and the reactions must then be determined by the motion.
+    """
+    import numpy as np
+
+    from appell.simulation.inverse import inverse_dynamics
+
+    table = _read_trajectory(Path(trajectory))
+    path = Path(out) if out else None
+    if path is not None and not path.parent.is_dir():
+        raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint="'--out'")
+    system = load_system(model, parse_assignments(assignments), floating_base)
+    derivation = derive_model(system)
+    numeric = derivation.numeric
+    missing = [n for n in ("t",) + tuple(numeric.coordinate_names) if n not in table]
+    if missing:
+        raise ModelError(f"{trajectory}: no column {', '.join(missing)}",
+                         hint="columns: t and the coordinates " + ", ".join(numeric.coordinate_names))
+    q = np.stack([table[n] for n in numeric.coordinate_names], axis=1)
+    from appell.simulation.simulate import acceleration_name
+
+    given = lambda names: np.stack([table[n] for n in names], 1) if all(n in table for n in names) else None  # noqa
+    w = given(numeric.speed_names)
+    a = given([acceleration_name(n) for n in numeric.speed_names]) if w is not None else None
+    result = inverse_dynamics(derivation, table["t"], q, w, a, drives=list(drives) or None)
+    path = path if path is not None else default_file_name(system.name, "-inverse.csv")
+    output_target(path)
+    result.to_csv(path)
+    for name, values in result.drives.items():
+        k = int(np.argmax(np.abs(values)))
+        click.echo(f"drive_{name}: largest |value| {abs(values[k]):.6g} at t = {result.t[k]:.6g}")
+    if result.multipliers:
+        click.echo(f"largest velocity-level residual of the given motion: {result.residual:.3e}")
+    click.echo(f"{'derived' if w is None else 'given'} speeds and accelerations; {result.t.size} rows")
+    click.echo(f"wrote {path}")
+
+
+def _read_trajectory(path: Path) -> dict[str, np.ndarray]:
+    """The columns of a CSV file of numbers with a header row, by name."""
+    import csv
+
+    import numpy as np
+
+    try:
+        with open(path, newline="") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelError(f"cannot read the trajectory: {exc}", where=str(path)) from None
+    if len(rows) < 2:
+        raise ModelError("the trajectory needs a header row and at least one row of numbers", where=str(path))
+    header = [h.strip() for h in rows[0]]
+    columns: dict[str, list[float]] = {h: [] for h in header}
+    for line, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        if len(row) != len(header):
+            raise ModelError(f"{len(row)} values for {len(header)} columns", where=f"{path}:{line}")
+        for h, cell in zip(header, row):
+            try:
+                value = float(cell)
+            except ValueError:
+                raise ModelError(f"column {h!r}: {cell!r} is not a number", where=f"{path}:{line}") from None
+            if not np.isfinite(value):
+                raise ModelError(f"column {h!r}: {cell!r} is not a finite number", where=f"{path}:{line}")
+            columns[h].append(value)
+    return {h: np.array(v) for h, v in columns.items()}
+
+
 def failed_path(path: Path) -> Path:
     """Where a failed run's motion goes instead of ``path``: ``<stem>.failed<suffix>``
     beside it, so that a failed run never replaces a result and its name says it failed."""
