@@ -83,7 +83,7 @@ def test_a_closed_loop_matches_the_servo_constraint_route():
     from appell.examples.drive_examples import slider_crank_drive
 
     system = slider_crank_drive()
-    servo = appell.simulate(derive_controlled(system), 0.6, rtol=1e-11, atol=1e-12)
+    servo = appell.simulate(derive_controlled(system), 0.3, rtol=1e-11, atol=1e-12)
     free = system.replace(generalized_forces=None, controls=(), servo_constraints=(),
                           units=tuple((k, v) for k, v in system.units if k != "tau"))
     d = appell.derive(free)

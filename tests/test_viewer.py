@@ -310,7 +310,7 @@ def _bicycle():
 
 def _arm():
     system = load_model(example_path("four_bar").parent / "arm.urdf")
-    return system, appell.simulate(appell.derive(system), t_end=1.0)
+    return system, appell.simulate(appell.derive(system), t_end=0.5)
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)

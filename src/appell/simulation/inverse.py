@@ -111,7 +111,7 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
     B = np.zeros((n, len(drives)))
     for k, d in enumerate(drives):
         B[speeds.index(d), k] = 1.0
-    tau, lam, reactions = np.zeros((t.size, len(drives))), np.zeros((t.size, s)), np.zeros((t.size, n))
+    tau, lam = np.zeros((t.size, len(drives))), np.zeros((t.size, s))
     residual = 0.0
     pv = model.params(p)
     for k in range(t.size):
@@ -123,21 +123,16 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
                                    hint="drive other speeds")
         x = np.linalg.solve(A, M @ a[k] + hQ)
         tau[k], lam[k] = x[:len(drives)], x[len(drives):]
-        reactions[k] = J.T @ lam[k] if s else 0.0
         if s:
             residual = max(residual, float(np.nanmax(np.abs(model.constraint_residuals(t[k], q[k], w[k], pv)[1]),
                                                      initial=0.0)))
-    from appell.numerics.numeric import StateSolution
-
-    outputs: dict[str, list] = {}
-    for k in range(t.size):
-        sol = StateSolution(a[k], lam[k], reactions[k], ())
-        for key, value in model.outputs(t[k], q[k], w[k], pv, solution=sol).items():
-            outputs.setdefault(key, []).append(value)
-    from appell.simulation.simulate import acceleration_name
+    from appell.simulation.simulate import acceleration_name, recorded_outputs
 
     motion = {**{nm: q[:, i] for i, nm in enumerate(names)}, **{nm: w[:, i] for i, nm in enumerate(speeds)},
               **{acceleration_name(nm): a[:, i] for i, nm in enumerate(speeds)}}
+    columns = {"t": t, **motion, **{f"lambda_{c}": lam[:, k] for k, c in enumerate(cons)},
+               **dict(zip(model.parameter_names, (float(v) for v in pv)))}
+    outputs = recorded_outputs(derivation.system, columns)  # every row at once
     return InverseDynamics(t, motion, {d: tau[:, k] for k, d in enumerate(drives)},
                            {c: lam[:, k] for k, c in enumerate(cons)},
-                           {k: np.array(v) for k, v in outputs.items()}, residual)
+                           dict(outputs), residual)
