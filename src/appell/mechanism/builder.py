@@ -543,6 +543,8 @@ class Mechanism:
         k = unit_axis(axis, f"{what}: axis")
         r = sp.sympify(radius)
         self._shapes.append((b, "cylinder", (r, r / 10), sp.zeros(3, 1), _z_onto(k), None, None))
+        for spoke in ((1.8 * r, r / 12, r / 8), (r / 12, 1.8 * r, r / 8)):  # two spokes: the spin shows
+            self._shapes.append((b, "box", spoke, sp.zeros(3, 1), _z_onto(k), "#444444", None))
 
         def contact(f, n):
             a = f.R * k
