@@ -635,6 +635,16 @@ def derive(model, fmt, dependent, routh, assignments, floating_base, only):
     _warn_internal(linearisation, note)
 
 
+def output_file(path: Path, option: str) -> Path:
+    """``path`` checked before any work is done: its folder exists (else a bad ``option``)
+    and it is a file a write may replace (:func:`appell.files.output_target`: a device, a
+    FIFO or a directory is refused)."""
+    if not path.parent.is_dir():
+        raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint=option)
+    output_target(path)
+    return path
+
+
 @cli.command(context_settings=_CONTEXT)
 @_model_argument
 @click.option("--t-end", type=float, default=None, metavar="T",
@@ -667,10 +677,8 @@ def simulate(model, t_end, out, plot, backend, assignments, floating_base, compl
         raise click.BadParameter(f"unknown output format {out_path.suffix or '(no suffix)'!r}; "
                                  f"use one of {', '.join(OUTPUT_FORMATS)}", param_hint="'--out'")
     for target in (out_path, Path(plot) if plot else None):
-        if target is not None and not target.parent.is_dir():
-            raise click.BadParameter(f"directory {str(target.parent)!r} does not exist", param_hint="'--out/--plot'")
         if target is not None:
-            output_target(target)  # a device, a FIFO, a directory: refused before the simulation
+            output_file(target, "'--out/--plot'")
     system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
     try:
@@ -722,10 +730,8 @@ def animate(model, out, t_end, fps, frames, backend, assignments, floating_base,
     if path is not None and path.suffix.lower() not in (".html", ".htm") + MOVIE_SUFFIXES:
         raise click.BadParameter(f"cannot tell what to write from {path.suffix or '(no suffix)'!r}; name the "
                                  "file .html, .gif or .mp4", param_hint="'--out'")
-    if path is not None and not path.parent.is_dir():
-        raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint="'--out'")
     if path is not None:
-        output_target(path)
+        output_file(path, "'--out'")
     if path is not None and path.suffix.lower() == ".mp4":
         from matplotlib import animation
 
@@ -780,9 +786,7 @@ def inverse(model, trajectory, drives, out, assignments, floating_base):
     from appell.simulation.inverse import inverse_dynamics
 
     table = _read_trajectory(Path(trajectory))
-    path = Path(out) if out else None
-    if path is not None and not path.parent.is_dir():
-        raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint="'--out'")
+    path = output_file(Path(out), "'--out'") if out else None
     system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
     numeric = derivation.numeric
@@ -809,8 +813,8 @@ def inverse(model, trajectory, drives, out, assignments, floating_base):
     click.echo(f"wrote {path}")
 
 
-def _read_trajectory(path: Path) -> dict[str, np.ndarray]:
-    """The columns of a CSV file of numbers with a header row, by name."""
+def _read_trajectory(path: Path) -> dict:
+    """The columns (NumPy arrays) of a CSV file of numbers with a header row, by name."""
     import csv
 
     import numpy as np
@@ -1007,10 +1011,8 @@ def report(model, output, t_end, no_simulation, data, backend, assignments, floa
     """
     from appell.io.report import write_report
 
-    if output is not None and not Path(output).parent.is_dir():
-        raise click.BadParameter(f"directory {str(Path(output).parent)!r} does not exist", param_hint="'-o'")
     if output is not None:
-        output_target(output)
+        output_file(Path(output), "'-o'")
     system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
     check_report = _cross_check(derivation)
@@ -1093,9 +1095,7 @@ def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, 
     if opts.get("complete"):  # missing values are computed; a run whose given values violate a constraint fails
         opts["adjust"] = ()  # (its changes could not be reported), instead of being changed silently
     path = Path(out) if out else default_file_name(system.name, "-sweep.h5")
-    if not path.parent.is_dir():
-        raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint="'--out'")
-    output_target(path)
+    output_file(path, "'--out'")
     result = run_sweep(system, list(specs), final, output=path, t_eval=times, scheduler=scheduler,
                        n_workers=workers, backend=backend, progress=sys.stderr.isatty(),
                        worker_timeout=worker_timeout, resume=resume, **opts)

@@ -39,7 +39,7 @@ import sympy as sp
 
 from appell.errors import ModelError
 from appell.mechanism.joints import KINDS, JointMotion, joint_motion
-from appell.mechanism.rotations import identically_zero, rpy_rotation, unit_axis
+from appell.mechanism.rotations import identically_zero, rpy_rotation, skew, unit_axis
 from appell.model import (AppliedForce, AppliedTorque, Constraint, Control, Output, Parameter, Particle, RigidBody,
                           System, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
@@ -114,7 +114,7 @@ def _z_onto(k) -> sp.Matrix:
     c = z.dot(k)
     if v == sp.zeros(3, 1):
         return sp.eye(3) if c > 0 else sp.diag(1, -1, -1)
-    V = sp.Matrix([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    V = skew(v)
     return sp.eye(3) + V + V * V / (1 + c)
 
 

@@ -23,6 +23,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from appell.errors import ComputationError, ModelError
+from appell.symbols import derivative_name
 
 __all__ = ["InverseDynamics", "inverse_dynamics"]
 
@@ -87,7 +88,7 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
     if (w is None or a is None) and t.size < 4:
         raise ModelError("deriving speeds and accelerations from the coordinates needs at least 4 times",
                          hint="give the speeds and accelerations, or more rows")
-    if list(names) != [s[:-4] if s.endswith("_dot") else s for s in speeds] and (w is None or a is None):
+    if list(speeds) != [derivative_name(nm, 1) for nm in names] and (w is None or a is None):
         raise ModelError("the model's speeds are not its coordinates' derivatives: give its speeds and "
                          "accelerations", hint="columns " + ", ".join(speeds))
     w = _spline(t, q, 1) if w is None else np.asarray(w, float).reshape(t.size, -1)

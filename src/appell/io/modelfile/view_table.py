@@ -33,6 +33,7 @@ from __future__ import annotations
 import sympy as sp
 
 from appell.errors import ModelError
+from appell.mechanism.rotations import axis_rotation, rpy_rotation
 from appell.view import SHAPES, Shape, View, ViewArrow, ViewBody
 
 VIEW_KEYS = ("up", "ground", "bodies", "arrows", "trails")
@@ -66,10 +67,7 @@ def _rotation(r, path, body) -> tuple | None:
     norm = sp.sqrt(k.dot(k))
     if norm == 0:
         raise r.error(path + ("axis",), "the axis is zero")
-    k = k / norm
-    K = sp.Matrix([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    R = sp.eye(3) + sp.sin(angle) * K + (1 - sp.cos(angle)) * K * K
-    return tuple(R)
+    return tuple(axis_rotation(k / norm, angle))
 
 
 def _shape(r, path, value) -> Shape:
@@ -82,8 +80,6 @@ def _shape(r, path, value) -> Shape:
     origin = _numbers(r, path + ("origin",), value["origin"]) if "origin" in value else (0.0, 0.0, 0.0)
     rot = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
     if "rpy" in value:
-        from appell.mechanism.rotations import rpy_rotation
-
         rot = tuple(float(x) for x in rpy_rotation(sp.Matrix(_numbers(r, path + ("rpy",), value["rpy"]))))
     colour = r.string(path + ("colour",), value["colour"]) if "colour" in value else None
     try:
