@@ -7,7 +7,8 @@ and the integration all counted), and its peak memory.
 
 Targets of the issue: A02 with N = 40 four-bars simulated over the library's 20 s within
 60 s; ``derive`` and ``report`` of A02 (N = 10) and of Bricard's mechanism (A04) within 60 s
-each. ``--quick`` leaves out N = 40.
+each; the stiff flyball governor (A05) over its 10 s with every ``--method``. ``--quick``
+leaves out N = 40.
 """
 
 from __future__ import annotations
@@ -25,21 +26,24 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import load, machine, today  # noqa: E402
 
 from appell.examples import example_path  # noqa: E402
+from appell.simulation.simulate import METHODS  # noqa: E402
 
 #: (model file, commands) in the order run
 CASES = [
     ("iftomm_a02_n10", ("derive", "check", "simulate", "report")),
     ("bricard", ("derive", "check", "simulate", "report")),
     ("iftomm_a02_n40", ("simulate",)),
+    ("iftomm_a05_governor", ("derive", "check", "report") + tuple(f"simulate --method {m}" for m in METHODS)),
 ]
 
 
 def run(command: str, model: str, folder: Path) -> tuple[float, float, int, str]:
     """(wall seconds, peak MB of the process, exit code, last line) of one command."""
     path = example_path(model)
-    argv = [sys.executable, "-m", "appell", command, str(path)]
+    command, *options = command.split()
+    argv = [sys.executable, "-m", "appell", command, str(path), *options]
     if command == "simulate":
-        argv += ["--out", str(folder / f"{model}.h5")]
+        argv += ["--out", str(folder / f"{model}{''.join(options)}.h5")]
     elif command == "report":
         argv += ["-o", str(folder / f"{model}.html")]
     env = {**os.environ, "APPELL_CACHE_DIR": str(folder / f"cache-{model}-{command}")}
@@ -56,6 +60,7 @@ def run(command: str, model: str, folder: Path) -> tuple[float, float, int, str]
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="leave out A02 with N = 40")
+    ap.add_argument("--model", action="append", help="run only this model file (repeatable)")
     ap.add_argument("--markdown", help="also write the table as Markdown to this file")
     args = ap.parse_args()
     head = f"machine: {machine()}; date: {today()}; {load()} at the start"
@@ -64,12 +69,12 @@ def main():
     with tempfile.TemporaryDirectory(prefix="appell_iftomm_") as tmp:
         folder = Path(tmp)
         for model, commands in CASES:
-            if args.quick and model == "iftomm_a02_n40":
+            if (args.quick and model == "iftomm_a02_n40") or (args.model and model not in args.model):
                 continue
             for command in commands:
                 wall, peak, code, last = run(command, model, folder)
                 rows.append((model, command, wall, peak, code, last))
-                print(f"{model:16s} {command:9s} {wall:7.1f} s  peak <= {peak:6.0f} MB  exit {code}  {last}",
+                print(f"{model:16s} {command:30s} {wall:7.1f} s  peak <= {peak:6.0f} MB  exit {code}  {last}",
                       flush=True)
     if args.markdown:
         out = [head, "", "| model file | command | wall time | peak memory (largest so far) | exit |",

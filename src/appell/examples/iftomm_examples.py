@@ -30,6 +30,20 @@ data were not available offline: the tests check this motion against independent
 (energy, the augmented system of method.md §3 integrated by SciPy, ideal hinges that carry no
 moment about their axes), not against the library's numbers.
 
+**A05, the stiff flyball governor**: a vertical shaft of 1 m on a hinge about z at the ground
+(gravity 9.81 m/s^2 along -z), a slider (a cube of 0.1 m) sliding on it and turning with it,
+and two rods of 1 m hinged at A and B, 0.1 m apart at the shaft's top, each with a point mass
+of 5 kg at its far end. The coupler rods of Watt's governor are spring-dampers (k = 8e5 N/m,
+c = 4e4 N s/m, rest length 0.5 m) from the slider's sides to the rods' midpoints. Shaft, rods
+and slider are prismatic bodies of density 3000 kg/m^3 (shaft and rods 1 x 0.01 x 0.01 m). At
+the start the rods are 30 degrees below the horizontal, the slider's centre at s = 0.5 m (the
+springs at rest length), and everything turns at 2 pi rad/s; the library integrates 10 s and
+reports s. The data are those of the library's A05 page as its ports list them (the
+MBSbenchmarksInOpenSim documentation; Exudyn's TestModels/stiffFlyballGovernor.py, whose
+printed initial angular velocities are 2 pi rad/s). The shaft turns freely, so the angular
+momentum about z is conserved; the damping takes energy out, and stiffness and damping give
+the eigenvalues that make the problem stiff.
+
 Written here with :class:`~appell.mechanism.Mechanism`: rocker ``i`` on hinge ``R<i>``
 (absolute angle), coupler ``j`` on hinge ``C<j>`` at the tip of rocker ``j`` (angle relative to
 it), and the loop closed at the tip of rocker ``j + 1`` by ``connect`` ``L<j>`` in x and y:
@@ -40,6 +54,8 @@ files ``iftomm_a02_n<N>.toml`` are written by :func:`n_four_bar_text`.
 from __future__ import annotations
 
 import math
+
+import sympy as sp
 
 from appell.mechanism import Mechanism
 from appell.model import System
@@ -82,7 +98,9 @@ def n_four_bar(n: int) -> System:
 
 
 def n_four_bar_text(n: int) -> str:
-    """The model file of :func:`n_four_bar` (``iftomm_a02_n<n>.toml``)."""
+    """The model file of :func:`n_four_bar` (``iftomm_a02_n<n>.toml``), each kind of body,
+    joint, closure and value written once for all ``i`` (docs/model-format.md, Repeated
+    entries): the files differ in ``N`` only."""
     out = [f"# {_a02_description(n)}: the model file of",
            f"# appell.examples.iftomm_examples.n_four_bar({n}), written by n_four_bar_text({n}).",
            "# Rockers rocker0..rocker{N} hinged to the ground at x = 0..N (joints R<i>, absolute angles),",
@@ -92,28 +110,23 @@ def n_four_bar_text(n: int) -> str:
            "# along +x. tests/test_iftomm.py checks the motion against the one-degree-of-freedom",
            "# parallelogram branch and the pin forces against a free-body solution.",
            "", "[model]", f'name = "{_a02_name(n)}"', f'description = "{_a02_description(n)}"', "",
+           "[counts]", f"N = {n}                      # the number of four-bars", "",
            "[mechanism]", f"gravity = [0, -{G}, 0]", ""]
-    for kind, count in (("rocker", n + 1), ("coupler", n)):
-        for i in range(count):
-            out += ["[[bodies]]", f'name = "{kind}{i}"', "mass = 1.0", f"inertia = [0, 0, {1 / 12!r}]",
-                    "com = [0.5, 0, 0]", ""]
-    for i in range(n + 1):
-        out += ["[[joints]]", f'name = "R{i}"', 'type = "revolute"', 'parent = "ground"', f'child = "rocker{i}"',
-                f"origin = [{float(i)!r}, 0, 0]", "axis = [0, 0, 1]", ""]
-    for j in range(n):
-        out += ["[[joints]]", f'name = "C{j}"', 'type = "revolute"', f'parent = "rocker{j}"', f'child = "coupler{j}"',
-                "origin = [1.0, 0, 0]", "axis = [0, 0, 1]", ""]
-    for j in range(n):
-        out += ["[[closures]]", f'name = "L{j}"', 'type = "connect"', f'body_a = "coupler{j}"', "point_a = [1.0, 0, 0]",
-                f'body_b = "rocker{j + 1}"', "point_b = [1.0, 0, 0]", 'directions = "xy"', ""]
-    out.append("[initial]")
-    for name, value in _a02_initial(n).items():
-        key = f'"{name[:-4]}\'"' if name.endswith("_dot") else name
-        out.append(f"{key} = {value!r}")
+    for kind, last in (("rocker", "N"), ("coupler", "N-1")):
+        out += ["[[bodies]]", f'for = "i in 0..{last}"', f'name = "{kind}{{i}}"', "mass = 1.0",
+                f"inertia = [0, 0, {1 / 12!r}]", "com = [0.5, 0, 0]", ""]
+    out += ["[[joints]]", 'for = "i in 0..N"', 'name = "R{i}"', 'type = "revolute"', 'parent = "ground"',
+            'child = "rocker{i}"', 'origin = ["{i}", 0, 0]', "axis = [0, 0, 1]", ""]
+    out += ["[[joints]]", 'for = "j in 0..N-1"', 'name = "C{j}"', 'type = "revolute"', 'parent = "rocker{j}"',
+            'child = "coupler{j}"', "origin = [1.0, 0, 0]", "axis = [0, 0, 1]", ""]
+    out += ["[[closures]]", 'for = "j in 0..N-1"', 'name = "L{j}"', 'type = "connect"', 'body_a = "coupler{j}"',
+            "point_a = [1.0, 0, 0]", 'body_b = "rocker{j+1}"', "point_b = [1.0, 0, 0]", 'directions = "xy"', ""]
+    start = _a02_initial(1)
+    out += ["[initial]", f'"R{{i in 0..N}}" = {start["R0"]!r}', f'"R{{i in 0..N}}\'" = {start["R0_dot"]!r}',
+            f'"C{{j in 0..N-1}}" = {start["C0"]!r}', f'"C{{j in 0..N-1}}\'" = {start["C0_dot"]!r}']
     out += ["", "[simulation]", "t_end = 20.0", "rtol = 1e-12", "atol = 1e-14", "output_step = 0.01", "",
-            "[units]"]
-    out += [f'R{i} = "rad"' for i in range(n + 1)] + [f'C{j} = "rad"' for j in range(n)]
-    out += [f'L{j}_{a} = "N"' for j in range(n) for a in "xy"]
+            "[units]", '"R{i in 0..N}" = "rad"', '"C{j in 0..N-1}" = "rad"', '"L{j in 0..N-1}_x" = "N"',
+            '"L{j in 0..N-1}_y" = "N"']
     return "\n".join(out) + "\n"
 
 
@@ -162,4 +175,44 @@ def _bricard_description() -> str:
             "with one degree of freedom")
 
 
-IFTOMM_EXAMPLES = {**{_a02_name(n): (lambda n=n: n_four_bar(n)) for n in A02_SIZES}, "bricard": bricard}
+def flyball_governor() -> System:
+    """IFToMM A05, the stiff flyball governor (module docstring): the shaft's angle ``phi``
+    (continuous, about z), the slider's height ``s`` on it, the rods' angles ``beta1``,
+    ``beta2`` below the horizontal (rod 2 hinged in a frame turned half a turn about z), the
+    balls fixed at the rods' ends; spring-dampers ``spring1``, ``spring2``."""
+    mech = Mechanism("iftomm_a05_governor", gravity=(0, 0, -sp.Symbol("g")),
+                     description="IFToMM benchmark A05: the stiff flyball governor (Gonzalez et al. 2006)")
+    p = {name: mech.parameter(name, value, unit, description) for name, value, unit, description in (
+        ("L", 1.0, "m", "length of the shaft and of each rod"),
+        ("w", 0.01, "m", "side of the shaft's and the rods' square section"),
+        ("a", 0.1, "m", "side of the slider"),
+        ("d", 0.1, "m", "distance between the hinges A and B"),
+        ("rho", 3000.0, "kg/m^3", "density of shaft, rods and slider"),
+        ("m_ball", 5.0, "kg", "point mass at each rod's end"),
+        ("k", 8e5, "N/m", "spring stiffness"),
+        ("c", 4e4, "N*s/m", "spring damping"),
+        ("l0", 0.5, "m", "spring rest length"),
+        ("g", G, "m/s^2", None))}
+    L, w, a, d, rho = (p[n] for n in ("L", "w", "a", "d", "rho"))
+    bar = rho * L * w**2  # the mass of the shaft and of each rod
+    transverse, axial = bar * (L**2 + w**2) / 12, bar * w**2 / 6
+    shaft = mech.body("shaft", bar, inertia=(transverse, transverse, axial), com=(0, 0, L / 2))
+    slider = mech.body("slider", rho * a**3, inertia=(rho * a**5 / 6,) * 3)
+    rods = [mech.body(f"rod{i}", bar, inertia=(axial, transverse, transverse), com=(L / 2, 0, 0)) for i in (1, 2)]
+    balls = [mech.particle(f"ball{i}", p["m_ball"]) for i in (1, 2)]
+    mech.revolute("phi", "ground", shaft, axis=(0, 0, 1))
+    mech.prismatic("s", shaft, slider, axis=(0, 0, 1))
+    mech.revolute("beta1", shaft, rods[0], axis=(0, 1, 0), origin=(d / 2, 0, L))
+    mech.revolute("beta2", shaft, rods[1], axis=(0, 1, 0), origin=(-d / 2, 0, L), rpy=(0, 0, sp.pi))
+    for i, (rod, ball) in enumerate(zip(rods, balls), start=1):
+        mech.fixed(f"ball{i}_on_rod{i}", rod, ball, origin=(L, 0, 0))
+    for i, (rod, side) in enumerate(zip(rods, (a / 2, -a / 2)), start=1):
+        mech.spring(f"spring{i}", (slider, (side, 0, 0)), (rod, (L / 2, 0, 0)), p["k"], p["l0"], p["c"])
+    initial = {"phi": 0.0, "phi_dot": 2 * math.pi, "s": 0.5, "s_dot": 0.0,
+               "beta1": math.pi / 6, "beta1_dot": 0.0, "beta2": math.pi / 6, "beta2_dot": 0.0}
+    units = {"phi": "rad", "s": "m", "beta1": "rad", "beta2": "rad"}
+    return mech.system(initial=initial, units=units)
+
+
+IFTOMM_EXAMPLES = {**{_a02_name(n): (lambda n=n: n_four_bar(n)) for n in A02_SIZES}, "bricard": bricard,
+                   "iftomm_a05_governor": flyball_governor}

@@ -44,6 +44,7 @@ from appell.core.validation import declared_symbols, validate
 from .expressions import (FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_problem, constant_value,
                           parse_expression)
 from .locate import source_map
+from .repeat import expand as expand_repeats
 from .view_table import read_view
 
 __all__ = ["load_model", "loads_model", "simulation_options", "TABLES", "SIMULATION_KEYS", "CONSTRAINT_KINDS", "MAX_FILE_SIZE"]
@@ -1017,6 +1018,7 @@ def loads_model(text: str, source: str = "<string>", overrides: Mapping | None =
     except ValueError as exc:  # tomllib reports some invalid values (dates) this way
         raise ModelError(f"invalid TOML: {exc}", where=source) from None
     reader = _Reader(text, source)
+    doc, reader.map.aliases = expand_repeats(doc, reader.where)
     reader.doc = doc
     system = _build(reader, doc)
     return _apply_overrides(system, overrides, source)

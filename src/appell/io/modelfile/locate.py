@@ -218,14 +218,22 @@ class SourceMap:
     def __init__(self, lines: dict[tuple, int], content: dict[tuple, int]):
         self.lines = lines
         self.content = content
+        #: ``{first two steps of a path: those of the written entry}`` for the copies of a
+        #: repeated entry or key (:mod:`.repeat`), which have no lines of their own
+        self.aliases: dict[tuple, tuple] = {}
+
+    def _written(self, path) -> tuple:
+        path = tuple(path)
+        head = self.aliases.get(path[:2])
+        return head + path[2:] if head is not None else path
 
     def line(self, path) -> int | None:
         """Line of ``path`` or of its longest recorded prefix."""
-        return line_of(self.lines, path)
+        return line_of(self.lines, self._written(path))
 
     def content_line(self, path) -> int | None:
         """Line where the text of the string at ``path`` begins (else :meth:`line`)."""
-        return self.content.get(tuple(path)) or self.line(path)
+        return self.content.get(self._written(path)) or self.line(path)
 
 
 def line_of(lines: dict[tuple, int], path: tuple) -> int | None:
