@@ -331,3 +331,93 @@ rpy = [0.1, 0.2, 0.3]
     F = np.stack([one[f"F_j_{a}"] for a in "xyz"], axis=1)
     lam = np.stack([two[f"lambda_w_{a}"] for a in "xyz"], axis=1)
     assert np.max(np.abs(lam + F)) < 1e-8 * np.max(np.abs(F))
+
+
+_DOOR = """[model]
+name = "door"
+[mechanism]
+gravity = [0, 0, -9.81]
+[[bodies]]
+name = "door"
+mass = 2.0
+inertia = [0.3, 0.05, 0.25]
+com = [0.2, 0.5, 0.1]
+"""
+
+
+def test_a_revolute_closure_holds_like_a_revolute_joint():
+    """[[closures]] type = "revolute": a door on a ball joint whose axis is held along x by a
+    hinge closure at the same point moves as the door on a revolute joint about x (the angle
+    over 1 s within 1e-9 rad). Its reactions by two routes: the ball joint's force (a cut
+    through the tree) equals the revolute joint's, and the closure's moment multipliers,
+    lambda_r1 a x b1 + lambda_r2 a x b2 on the ground, equal minus the revolute joint's moment
+    normal to the axis (method.md §3's multipliers against the Newton-Euler cut). The point
+    rows, which vanish at every configuration, are left out with a note."""
+    import warnings
+
+    import appell
+    from appell.errors import AppellNote
+    from appell.io.modelfile import loads_model
+
+    joint = loads_model(_DOOR + """[[joints]]
+name = "j"
+type = "revolute"
+parent = "ground"
+child = "door"
+axis = [1, 0, 0]
+""", "joint.toml")
+    with warnings.catch_warnings(record=True) as notes:
+        warnings.simplefilter("always")
+        closed = loads_model(_DOOR + """[[joints]]
+name = "ball"
+type = "spherical"
+parent = "ground"
+child = "door"
+rotation = "xyz"
+[[closures]]
+name = "hinge"
+type = "revolute"
+body_a = "ground"
+point_a = [0, 0, 0]
+body_b = "door"
+point_b = [0, 0, 0]
+axis = [1, 0, 0]
+""", "closed.toml")
+    assert [c.name for c in closed.constraints] == ["hinge_r1", "hinge_r2"]
+    assert any(isinstance(n.message, AppellNote) and "hinge_x, hinge_y, hinge_z hold at every configuration"
+               in str(n.message) for n in notes)
+    one = appell.simulate(appell.derive(joint), 1.0, initial={"j": 0.3, "j_dot": 0.7}, rtol=1e-11, atol=1e-12)
+    two = appell.simulate(appell.derive(closed), 1.0, initial={"ball_rx": 0.3, "ball_rx_dot": 0.7}, complete=True,
+                          rtol=1e-11, atol=1e-12)
+    assert np.max(np.abs(one["j"] - two["ball_rx"])) < 1e-9
+    assert np.max(np.abs(two["ball_ry"])) < 1e-9 and np.max(np.abs(two["ball_rz"])) < 1e-9
+    for a in "xyz":
+        np.testing.assert_allclose(two[f"F_ball_{a}"], one[f"F_j_{a}"], atol=1e-8 * np.max(np.abs(one["F_j_z"])))
+    # the closure's moment on the ground (body_a): lambda_rk (a x b_k), a = e_x; the door's
+    # normals to its axis (Mechanism.hinge): b1 = e_x x e_y = e_z (e_y the first of the axes least
+    # aligned with e_x), b2 = e_x x b1 = -e_y, both turned by the door's angle about x
+    angle = two["ball_rx"]
+    b1 = np.stack([0 * angle, -np.sin(angle), np.cos(angle)], axis=1)
+    b2 = np.stack([0 * angle, -np.cos(angle), -np.sin(angle)], axis=1)
+    lam1, lam2 = two["lambda_hinge_r1"], two["lambda_hinge_r2"]
+    moment = lam1[:, None] * np.cross([1, 0, 0], b1) + lam2[:, None] * np.cross([1, 0, 0], b2)
+    joint_moment = np.stack([one[f"M_j_{a}"] for a in "xyz"], axis=1)
+    scale = np.max(np.abs(joint_moment))
+    assert scale > 1.0  # the door's offset mass centre loads the hinge with a real moment
+    np.testing.assert_allclose(moment, -joint_moment, atol=1e-8 * scale)
+
+
+def test_a_planar_loop_closed_by_a_revolute_closure_is_the_connect_in_xy():
+    """The bundled IFToMM A02 (N = 1) closed by revolute closures: the rows out of the plane
+    hold identically and are left out, leaving the same constraints as 'connect' in x and y."""
+    import appell
+    from appell.examples import example_path
+    from appell.io.modelfile import loads_model
+
+    text = example_path("iftomm_a02_n1").read_text()
+    hinged = text.replace('type = "connect"', 'type = "revolute"').replace('directions = "xy"', "axis = [0, 0, 1]")
+    assert hinged != text
+    with pytest.warns(appell.errors.AppellNote, match="L0_z, L0_r1, L0_r2 hold at every configuration"):
+        system = loads_model(hinged, "hinged.toml")
+    plain = appell.load_model("iftomm_a02_n1")
+    assert [(c.name, c.expr) for c in system.constraints] == [(c.name, c.expr) for c in plain.constraints]

@@ -907,7 +907,9 @@ def _energy_balance(derivation, t_end=None):
     opts = simulation_options(system, t_end)
     if not opts["t_end"] > opts["t0"]:
         return EnergyBalance(None, "the simulation span is empty (t_end = t0)")
-    return energy_balance(derivation, opts["t_end"], t0=opts["t0"])
+    # a model that declares an implicit method is stiff: its balance integrates implicitly too
+    stiff = opts.get("method") in ("Radau", "BDF", "LSODA")
+    return energy_balance(derivation, opts["t_end"], t0=opts["t0"], method="Radau" if stiff else "DOP853")
 
 
 def _echo_redundancy(derivation) -> None:

@@ -31,13 +31,14 @@ from __future__ import annotations
 
 import keyword
 import math
+import warnings
 from dataclasses import dataclass, field
 from dataclasses import replace as dc_replace
 
 import numpy as np
 import sympy as sp
 
-from appell.errors import ModelError
+from appell.errors import AppellNote, ModelError
 from appell.mechanism.joints import KINDS, JointMotion, joint_motion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew, unit_axis
 from appell.model import (AppliedForce, AppliedTorque, Constraint, Control, Output, Parameter, Particle, RigidBody,
@@ -464,6 +465,64 @@ class Mechanism:
                 cons.append(c)
                 moment = _cross(A[:, j], B[:, k]) * lam
                 acts += [_Action(ba, pa, sp.zeros(3, 1), moment), _Action(bb, pb, sp.zeros(3, 1), -moment)]
+            return cons, acts
+
+        self._closures.append(_Closure(name, build))
+
+    def hinge(self, name, a, b, axis, axis_b=None):
+        """Loop closure by a revolute joint: the point ``a = (body_a, r_a)`` coincides with
+        ``b = (body_b, r_b)`` (``<name>_x``, ``_y``, ``_z`` as :meth:`connect`) and the hinge
+        axis ``axis`` fixed in body_a stays along ``axis_b`` fixed in body_b (default the
+        same components: the two frames parallel where the loop closes). With ``a`` the
+        axis in the world, ``b1``, ``b2`` two unit vectors of body_b normal to ``axis_b``
+        (``b1`` normal to the body axis least aligned with it, ``b2 = axis_b x b1``), the rows
+        ``<name>_r1 = a . b1`` and ``<name>_r2 = a . b2``; ``lambda_<name>_r<k>`` acts as the
+        moment ``lambda a x b_k`` on body_a (normal to the axis: an ideal hinge carries no
+        moment about it) and its opposite on body_b. Rows that hold identically — the
+        out-of-plane point row and both axis rows of a planar loop — are left out with a
+        note, so that a planar loop is closed by the joint it has without redundant rows."""
+        self._claim(name, "closure")
+        what = f"hinge {name!r}"
+        (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
+        if ba is bb:
+            raise ModelError(f"{what}: both points are on body {ba.name!r}", hint="join two different bodies")
+        self._marks += [(ba, ra), (bb, rb)]
+        u = unit_axis(axis, f"{what}: axis")
+        v = u if axis_b is None else unit_axis(axis_b, f"{what}: axis_b")
+        numbers = [abs(float(x)) if not x.free_symbols else 0.0 for x in v]
+        least = sp.Matrix([1 if k == numbers.index(min(numbers)) else 0 for k in range(3)])
+        b1 = _cross(v, least)
+        b1 = b1 / sp.sqrt(b1.dot(b1))
+        b2 = _cross(v, b1)
+
+        def build(frames):
+            fa, fb = frames[ba], frames[bb]
+            pa, pb = fa.point(ra)[0], fb.point(rb)[0]
+            along = fa.R * u
+            cons, acts, idle = [], [], []
+            for d in "xyz":
+                e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
+                row = (pa - pb).dot(e)
+                if identically_zero(row):
+                    idle.append(f"{name}_{d}")
+                    continue
+                c = holonomic(f"{name}_{d}", row)
+                lam = sp.Symbol(f"lambda_{c.name}")
+                cons.append(c)
+                acts += [_Action(ba, pa, e * lam, sp.zeros(3, 1)), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
+            for k, normal in (("1", fb.R * b1), ("2", fb.R * b2)):
+                row = along.dot(normal)
+                if identically_zero(row):
+                    idle.append(f"{name}_r{k}")
+                    continue
+                c = holonomic(f"{name}_r{k}", row)
+                lam = sp.Symbol(f"lambda_{c.name}")
+                cons.append(c)
+                moment = _cross(along, normal) * lam
+                acts += [_Action(ba, pa, sp.zeros(3, 1), moment), _Action(bb, pb, sp.zeros(3, 1), -moment)]
+            if idle:
+                warnings.warn(AppellNote(f"{what}: {', '.join(idle)} hold at every configuration (a planar loop) "
+                                         "and are left out"), stacklevel=2)
             return cons, acts
 
         self._closures.append(_Closure(name, build))

@@ -41,15 +41,18 @@ class EvaluationBudget:
 
     def __init__(self, what: str, t0: float, t_end: float, limit: int, seconds: float | None = None,
                  hint: str = "check a shorter span (appell check --t-end T), or look for forces or potentials "
-                             "that are far too large"):
+                             "that are far too large", first: int = PROJECT_EVERY):
         self.what, self.t0, self.t_end, self.limit, self.hint = what, float(t0), float(t_end), int(limit), hint
+        #: evaluations before the first projection: an implicit method's start on a stiff motion
+        #: takes steps far shorter than its later ones, and a projection there says nothing
+        self.first = int(first)
         self.calls, self.reached = 0, float(t0)
         self.seconds, self.start = seconds, time.perf_counter()
 
     def __call__(self, t: float) -> None:
         self.calls += 1
         self.reached = max(self.reached, float(t))
-        if self.calls % PROJECT_EVERY == 0 or self.calls > self.limit:
+        if (self.calls >= self.first and self.calls % PROJECT_EVERY == 0) or self.calls > self.limit:
             projected = self.projected()
             if self.calls > self.limit or projected > self.limit:
                 pace = f"about {projected:.2g}" if math.isfinite(projected) else "an unbounded number of"

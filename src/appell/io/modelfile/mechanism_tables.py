@@ -29,6 +29,7 @@ JOINT_KEYS = ("name", "type", "parent", "child", "axis", "origin", "rpy", "child
 CLOSURE_KEYS = {
     "connect": ("name", "type", "body_a", "point_a", "body_b", "point_b", "directions"),
     "weld": ("name", "type", "body_a", "point_a", "body_b", "point_b", "rpy"),
+    "revolute": ("name", "type", "body_a", "point_a", "body_b", "point_b", "axis", "axis_b"),
     "point_on_surface": ("name", "type", "body", "point", "surface"),
     "rolling_disc": ("name", "type", "body", "radius", "axis", "normal", "height"),
     "rolling_sphere": ("name", "type", "body", "radius", "normal", "height"),
@@ -186,9 +187,9 @@ def build_mechanism(r, top: dict, base: Path):
         path = ("closures", i)
         kind = _kind(r, path, item, tuple(CLOSURE_KEYS))
         r.table(path, item, CLOSURE_KEYS[kind], required=("name",) + tuple(
-            k for k in CLOSURE_KEYS[kind][2:] if k not in ("directions", "axis", "normal", "height", "rpy")))
+            k for k in CLOSURE_KEYS[kind][2:] if k not in ("directions", "axis", "axis_b", "normal", "height", "rpy")))
         cname = r.name(path + ("name",), item["name"], "closure")
-        if kind in ("connect", "weld"):
+        if kind in ("connect", "weld", "revolute"):
             a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
             b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
             if kind == "weld":  # body_b turned by rpy (roll, pitch, yaw) in body_a's axes
@@ -196,6 +197,12 @@ def build_mechanism(r, top: dict, base: Path):
 
                 rpy = _vector(r, path + ("rpy",), item["rpy"]) if "rpy" in item else (0, 0, 0)
                 _call(r, path, mech.weld, cname, a, b, rpy_rotation(sp.Matrix(rpy)))
+            elif kind == "revolute":  # a hinge: the points together, the axis of body_a along axis_b of body_b
+                if "axis" not in item:
+                    raise r.error(path, "missing key 'axis'", hint="give the hinge axis in body_a's axes, e.g. axis = [0, 0, 1]")
+                axis = _vector(r, path + ("axis",), item["axis"])
+                axis_b = _vector(r, path + ("axis_b",), item["axis_b"]) if "axis_b" in item else None
+                _call(r, path, mech.hinge, cname, a, b, axis, axis_b)
             else:
                 directions = r.string(path + ("directions",), item.get("directions", "xyz"))
                 _call(r, path, mech.connect, cname, a, b, directions)
