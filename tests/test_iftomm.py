@@ -342,13 +342,14 @@ def test_a01_pendulum_against_the_closed_form():
 
 # ------------------------------------------------------------------ A05, the stiff flyball governor
 def governor_lagrangian():
-    """``(rates, momentum, accelerations)`` of the A05 governor written here from scratch:
+    """``(rates, momentum, accelerations, energy)`` of the A05 governor written here from scratch:
     the shaft's angle phi, the slider's height s and the rods' angles b1, b2 below the
     horizontal; the kinetic energy of each rod and ball from the points ``(x, 0, z)`` of the
     plane that turns with the shaft, ``|v|^2 = x'^2 + z'^2 + phi'^2 x^2``, a rod's rotational
     energy from ``omega = phi' e_z + b' e_y`` (equal transverse moments), the springs'
     energy ``k (l - l0)^2 / 2`` and damping force ``-c l' dl/dq``; Lagrange's equations
-    by SymPy's differentiation. ``momentum`` is dT/dphi', the angular momentum about z."""
+    by SymPy's differentiation. ``momentum`` is dT/dphi', the angular momentum about z;
+    ``energy`` T + V."""
     L, w, a, d, rho, mb, k, c, l0, g = 1.0, 0.01, 0.1, 0.1, 3000.0, 5.0, 8e5, 4e4, 0.5, G
     bar, slider = rho * L * w**2, rho * a**3
     transverse, axial, cube = bar * (L**2 + w**2) / 12, bar * w**2 / 6, slider * a**2 / 6
@@ -370,12 +371,13 @@ def governor_lagrangian():
         Q += -c * (grad.T * sp.Matrix(u))[0] * grad
     p = sp.Matrix([sp.diff(T, v) for v in u])
     rhs = sp.Matrix([sp.diff(T - V, v) for v in q]) - p.jacobian(q) * sp.Matrix(u) + Q
-    mass, force, momentum = (sp.lambdify([q, u], e, "numpy", cse=True) for e in (p.jacobian(u), rhs, p[0]))
+    mass, force, momentum, energy = (sp.lambdify([q, u], e, "numpy", cse=True) for e in (p.jacobian(u), rhs, p[0], T + V))
 
     def accelerations(y):
         return np.linalg.solve(mass(y[:4], y[4:]), np.ravel(force(y[:4], y[4:])))
 
-    return (lambda _, y: np.concatenate([y[4:], accelerations(y)])), (lambda y: momentum(y[:4], y[4:])), accelerations
+    return ((lambda _, y: np.concatenate([y[4:], accelerations(y)])), (lambda y: momentum(y[:4], y[4:])), accelerations,
+            (lambda y: energy(y[:4], y[4:])))
 
 
 GOVERNOR_STATE = ("phi", "s", "beta1", "beta2", "phi_dot", "s_dot", "beta1_dot", "beta2_dot")
@@ -385,12 +387,12 @@ GOVERNOR_STATE = ("phi", "s", "beta1", "beta2", "phi_dot", "s_dot", "beta1_dot",
 def governor():
     """The derivation of the bundled file and the Lagrangian's motion over the library's 10 s
     (SciPy's Radau at rtol 1e-12, dense)."""
-    rates, momentum, accelerations = governor_lagrangian()
+    rates, momentum, accelerations, energy = governor_lagrangian()
     y0 = [0.0, 0.5, math.pi / 6, math.pi / 6, 2 * math.pi, 0.0, 0.0, 0.0]
     with np.errstate(over="ignore"):  # SciPy's finite-difference Jacobian tries huge steps in phi
         ref = solve_ivp(rates, (0.0, 10.0), y0, method="Radau", rtol=1e-12, atol=1e-14, dense_output=True)
     assert ref.success
-    return appell.derive(appell.load_model("iftomm_a05_governor")), ref, momentum, accelerations
+    return appell.derive(appell.load_model("iftomm_a05_governor")), ref, momentum, accelerations, energy
 
 
 def test_a05_governor_against_an_independent_lagrangian(governor):
@@ -400,7 +402,7 @@ def test_a05_governor_against_an_independent_lagrangian(governor):
     momentum about z kept to 1e-9 of its size, and the ground hinge's vertical force equal to
     the whole governor's weight plus the rate of its vertical momentum, sum m_i (z_i'' + g)
     (Newton's law for the whole; the Lagrangian's accelerations)."""
-    derivation, ref, momentum, accelerations = governor
+    derivation, ref, momentum, accelerations, energy = governor
     sol = appell.simulate(derivation)
     assert sol.status == 0 and sol["t"][-1] == pytest.approx(10.0)
     mine = np.array([sol[name] for name in GOVERNOR_STATE])
@@ -410,6 +412,13 @@ def test_a05_governor_against_an_independent_lagrangian(governor):
     assert np.abs(sol["beta1"] - sol["beta2"]).max() < 1e-9
     h = np.array([momentum(y) for y in mine.T])
     assert np.abs(h - h[0]).max() < 1e-9 * abs(h[0])
+    # the file's outputs: its energy (gravity and springs) and the balls' positions
+    e = np.array([energy(y) for y in mine.T])  # without the shaft's constant m g L/2
+    np.testing.assert_allclose(sol["energy"] - e, 0.3 * G * 0.5, atol=1e-9 * np.abs(e).max())
+    assert sol["energy"][-1] < sol["energy"][0] - 1e-3  # the dampers take energy out
+    radius = 0.05 + np.cos(sol["beta1"])  # the ball 1 m along rod 1 from A at x = d/2
+    np.testing.assert_allclose(np.hypot(sol["ball1_x"], sol["ball1_y"]), radius, rtol=1e-12)
+    np.testing.assert_allclose(sol["ball2_z"], 1.0 - np.sin(sol["beta2"]), atol=1e-12)
     bar, slider, ball = 0.3, 3.0, 5.0
     rows = range(0, sol["t"].size, 50)
     weight = []
@@ -430,7 +439,7 @@ def test_a05_every_method_completes(governor, method):
     -8000 1/s) makes the explicit ones take thousands of steps: the slider's height within
     1e-6 m of the Lagrangian's at 1 s (RK23 at rtol 1e-6, the others 1e-9). The library's
     whole 10 s with each method is timed in benchmarks/iftomm.py."""
-    derivation, ref, _, _ = governor
+    derivation, ref, _, _, _ = governor
     rtol = 1e-6 if method == "RK23" else 1e-9
     sol = appell.simulate(derivation, 1.0, method=method, rtol=rtol, atol=rtol * 1e-2)
     assert sol.status == 0, sol.message

@@ -421,3 +421,19 @@ def test_a_planar_loop_closed_by_a_revolute_closure_is_the_connect_in_xy():
         system = loads_model(hinged, "hinged.toml")
     plain = appell.load_model("iftomm_a02_n1")
     assert [(c.name, c.expr) for c in system.constraints] == [(c.name, c.expr) for c in plain.constraints]
+
+
+@pytest.mark.parametrize("extra, says", [
+    ('[mechanism.points]\ntip = { body = "lid", point = [0, 1, 0] }', "unknown body 'lid'"),
+    ('[mechanism.points]\ntip = { body = "door", spot = [0, 1, 0] }', "unknown key 'spot'"),
+    ("[mechanism]\nenergy = 1", "must be true or false"),
+])
+def test_points_and_energy_mistakes_name_the_line(extra, says):
+    table, _, rest = extra.partition("\n")
+    text = _DOOR.replace("[mechanism]\n", "[mechanism]\n" + rest + "\n") if table == "[mechanism]" else \
+        _DOOR + '[[joints]]\nname = "j"\ntype = "revolute"\nparent = "ground"\nchild = "door"\n' + extra + "\n"
+    with pytest.raises(ModelError) as info:
+        loads_model(text, "door.toml")
+    assert says in info.value.message
+    line = next(i for i, row in enumerate(text.splitlines(), start=1) if rest.split(" =")[0] in row)
+    assert info.value.where == f"door.toml:{line}"

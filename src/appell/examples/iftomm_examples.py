@@ -179,7 +179,8 @@ def flyball_governor() -> System:
     """IFToMM A05, the stiff flyball governor (module docstring): the shaft's angle ``phi``
     (continuous, about z), the slider's height ``s`` on it, the rods' angles ``beta1``,
     ``beta2`` below the horizontal (rod 2 hinged in a frame turned half a turn about z), the
-    balls fixed at the rods' ends; spring-dampers ``spring1``, ``spring2``."""
+    balls fixed at the rods' ends; spring-dampers ``spring1``, ``spring2``; the energies and
+    the balls' positions ``ball1_x`` .. ``ball2_z`` as outputs."""
     mech = Mechanism("iftomm_a05_governor", gravity=(0, 0, -sp.Symbol("g")),
                      description="IFToMM benchmark A05: the stiff flyball governor (Gonzalez et al. 2006)")
     p = {name: mech.parameter(name, value, unit, description) for name, value, unit, description in (
@@ -208,10 +209,12 @@ def flyball_governor() -> System:
         mech.fixed(f"ball{i}_on_rod{i}", rod, ball, origin=(L, 0, 0))
     for i, (rod, side) in enumerate(zip(rods, (a / 2, -a / 2)), start=1):
         mech.spring(f"spring{i}", (slider, (side, 0, 0)), (rod, (L / 2, 0, 0)), p["k"], p["l0"], p["c"])
+    for i, rod in enumerate(rods, start=1):
+        mech.watch_point(f"ball{i}", (rod, (L, 0, 0)))
     initial = {"phi": 0.0, "phi_dot": 2 * math.pi, "s": 0.5, "s_dot": 0.0,
                "beta1": math.pi / 6, "beta1_dot": 0.0, "beta2": math.pi / 6, "beta2_dot": 0.0}
     units = {"phi": "rad", "s": "m", "beta1": "rad", "beta2": "rad"}
-    return mech.system(initial=initial, units=units)
+    return mech.system(initial=initial, units=units, energy=True)
 
 
 IFTOMM_EXAMPLES = {**{_a02_name(n): (lambda n=n: n_four_bar(n)) for n in A02_SIZES}, "bricard": bricard,

@@ -231,6 +231,8 @@ class Mechanism:
         self.joints: list[Joint] = []
         self.parameters: list[Parameter] = []
         self._closures: list[_Closure] = []
+        self._springs: list[tuple] = []  # (body_a, r_a, body_b, r_b, k, l0): their energy (system(energy=True))
+        self._points: list[tuple] = []  # (name, body, r): world positions as outputs (watch_point)
         self._forces: list[tuple[str, object]] = []  # (name, builder(frames) -> (model loads, actions))
         self._actuators: list[tuple[str, Joint, sp.Symbol, sp.Expr | None]] = []
         self._names: dict[str, str] = {GROUND: "body"}
@@ -469,6 +471,17 @@ class Mechanism:
 
         self._closures.append(_Closure(name, build))
 
+    def watch_point(self, name, point):
+        """Outputs ``<name>_x``, ``_y``, ``_z``: the world position of the body point
+        ``point = (body, r)`` (``r`` in the body frame), in every result."""
+        what = f"point {name!r}"
+        if not isinstance(name, str) or not name.isidentifier():
+            raise ModelError(f"{what}: a point's name is a letter or _ followed by letters, digits or _")
+        if any(p[0] == name for p in self._points):
+            raise ModelError(f"{what} is given twice", hint="give each watched point its own name")
+        body, r = self._point(point, what)
+        self._points.append((name, body, r))
+
     def hinge(self, name, a, b, axis, axis_b=None):
         """Loop closure by a revolute joint: the point ``a = (body_a, r_a)`` coincides with
         ``b = (body_b, r_b)`` (``<name>_x``, ``_y``, ``_z`` as :meth:`connect`) and the hinge
@@ -678,6 +691,7 @@ class Mechanism:
         (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
         self._marks += [(ba, ra), (bb, rb)]
         k, l0, c = (sp.sympify(v) for v in (stiffness, rest_length, damping))
+        self._springs.append((ba, ra, bb, rb, k, l0))
 
         def build(frames):
             pa, va, _ = frames[ba].point(ra)
@@ -798,7 +812,7 @@ class Mechanism:
 
     def system(self, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
                constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
-               moment_unit="N*m") -> System:
+               moment_unit="N*m", energy: bool = False) -> System:
         """The :class:`appell.System` of the mechanism.
 
         Parameters
@@ -816,6 +830,10 @@ class Mechanism:
         constraints, controls, servo_constraints, outputs, settings, units : added as given
             (constraints written in joint coordinates act as generalized forces at the
             joints, not through the reactions' cuts: docs/mechanism.md).
+        energy : add the outputs ``energy_kinetic`` (``sum m v.v/2 + w.I w/2``),
+            ``energy_potential`` (gravity and the springs' ``k (l - l0)^2 / 2``) and ``energy``
+            (their sum; constant where no damper, actuator or time-dependent load acts).
+        The points of :meth:`watch_point` are outputs too.
         """
         frames = self.frames()
         order = self._tree()
@@ -862,6 +880,23 @@ class Mechanism:
             params = [Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description) for p in params]
         reaction_outputs = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit))
         outs = list(reaction_outputs)
+        for pname, body, r in self._points:
+            position = frames[body].point(r)[0]
+            outs += [Output(f"{pname}_{a}", position[i], "m", f"world {a} of point {pname!r} of body {body.name!r}")
+                     for i, a in enumerate("xyz")]
+        if energy:
+            kinetic = sp.S.Zero
+            for b in bodies:
+                kinetic += b.mass * b.velocity.dot(b.velocity) / 2
+                if isinstance(b, RigidBody):
+                    kinetic += (b.angular_velocity.T * b.inertia * b.angular_velocity)[0] / 2
+            potential = V
+            for ba, ra, bb, rb, k, l0 in self._springs:
+                d = frames[ba].point(ra)[0] - frames[bb].point(rb)[0]
+                potential += k * (sp.sqrt(d.dot(d)) - l0) ** 2 / 2
+            outs += [Output("energy_kinetic", kinetic, "J", "kinetic energy of the bodies"),
+                     Output("energy_potential", potential, "J", "potential energy of gravity and the springs"),
+                     Output("energy", kinetic + potential, "J", "kinetic + potential energy")]
         outs += list(outputs.values() if isinstance(outputs, dict) else outputs)
         start = {q.name: 0.0 for q in coords}
         start.update({w.name: 0.0 for w in speeds})

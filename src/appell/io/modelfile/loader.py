@@ -810,13 +810,13 @@ def _build_mechanism(r: _Reader, doc: dict) -> System:
 
     top = r.table((), doc, MECHANISM_TABLES)
     source = Path(r.source)
-    mech, extra, reactions, frame = build_mechanism(r, top, source.parent if source.is_file() else Path.cwd())
+    mech, extra, reactions, frame, energy = build_mechanism(r, top, source.parent if source.is_file() else Path.cwd())
     controls = _controls(r, top)
     constraints = _constraints(r, top, "constraints")
     servo = _constraints(r, top, "servo_constraints")
     _check_controls(r, controls, servo)
     try:
-        system = mech.system(reactions=reactions, frame=frame, constraints=tuple(extra) + tuple(constraints),
+        system = mech.system(reactions=reactions, frame=frame, energy=energy, constraints=tuple(extra) + tuple(constraints),
                              controls=tuple(controls), servo_constraints=tuple(servo))
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.where(("mechanism",)), hint=exc.hint) from None

@@ -18,7 +18,7 @@ import sympy as sp
 from appell.errors import ModelError
 from appell.model import Parameter
 
-MECHANISM_KEYS = ("urdf", "floating_base", "gravity", "reactions", "frame")
+MECHANISM_KEYS = ("urdf", "floating_base", "gravity", "reactions", "frame", "points", "energy")
 MECHANISM_TABLES = ("model", "mechanism", "parameters", "bodies", "joints", "closures", "loads", "initial",
                     "constraints", "controls", "servo_constraints", "simulation", "stability", "units", "outputs")
 BODY_KEYS = ("name", "mass", "inertia", "com", "particle")
@@ -258,4 +258,14 @@ def build_mechanism(r, top: dict, base: Path):
     if "frame" in section:
         frame = {k: r.string(("mechanism", "frame", k), v)
                  for k, v in r.table(("mechanism", "frame"), section["frame"], r.ANY).items()}
-    return mech, extra, reactions, frame
+    for key, value in r.table(("mechanism", "points"), section.get("points", {}), r.ANY).items():
+        path = ("mechanism", "points", key)
+        r.name(path, key, "point")
+        r.table(path, value, ("body", "point"), required=("body", "point"))
+        body = _body_ref(r, path + ("body",), value["body"], mech)
+        _call(r, path, mech.watch_point, key, (body, _vector(r, path + ("point",), value["point"])))
+    energy = section.get("energy", False)
+    if not isinstance(energy, bool):
+        raise r.error(("mechanism", "energy"), "must be true or false",
+                      hint="energy = true adds the outputs energy_kinetic, energy_potential and energy")
+    return mech, extra, reactions, frame, energy
