@@ -714,7 +714,7 @@ def test_resume_refuses_runs_computed_from_anything_else_and_names_it(tmp_path, 
 
 
 def test_resume_of_the_same_sweep_in_a_new_process_takes_every_kept_run(tmp_path, monkeypatch):
-    """The fingerprint is the same in other processes (canonical srepr text, not a pickle that
+    """The fingerprint is the same in other processes (canonical text of the expression graph, not a pickle that
     depends on hash randomisation: two fresh interpreters with different PYTHONHASHSEED read
     the same model file to the header's fingerprint), and resuming the same sweep computes
     nothing again."""

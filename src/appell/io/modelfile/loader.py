@@ -41,7 +41,7 @@ from appell.model import (
 )
 from appell.symbols import MAX_NAME, NAME_HINT, canonical_name, derivative_name, name_problem, split_derivative_name
 from appell.core.validation import declared_symbols, validate
-from .expressions import (FUNCTIONS, RESERVED_NAMES, ExpressionError, caret_line, constant_problem, constant_value,
+from .expressions import (FUNCTIONS, ExpressionError, caret_line, constant_problem, constant_value,
                           parse_expression)
 from .locate import source_map
 from .repeat import expand as expand_repeats
