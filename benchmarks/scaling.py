@@ -23,7 +23,6 @@ import argparse
 import json
 import os
 import re
-import resource
 import shutil
 import subprocess
 import sys
@@ -254,7 +253,7 @@ def main():
             t3 = time.perf_counter()
             th, w = nlink_state(n)
             y = np.concatenate([th, w])
-            e_np, e_c = per_call(lambda: nm.evaluate(0.0, y)), per_call(lambda: cm.evaluate(0.0, y))
+            e_np, e_c = per_call(lambda: nm.evaluate(0.0, y)), per_call(lambda: cm.evaluate(0.0, y))  # noqa: B023
             src = cm.library_path.with_suffix(".c").stat().st_size / 1024
             print(f"{n:>3} {s:>2} {t1 - t0:11.2f} {t2 - t1:14.2f} {t3 - t2:13.2f} {src:14.0f} "
                   f"{e_np * 1e6:16.1f} {e_c * 1e6:12.2f}", flush=True)

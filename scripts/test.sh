@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Run the test suite in the local environment (created on first use, with the extra [test]):
-# first every module but the few that time signals, child processes and alarms, on two
+# the linter (ruff), then every module but the few that time signals, child processes and alarms, on two
 # workers (pytest-xdist, which the extra brings; one module per worker at a time), then
 # those on their own (tests/conftest.py: SERIAL), so that the other worker's load cannot
 # stretch their timing. Any pytest arguments pass through to both passes; a pass that the
@@ -11,6 +11,8 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 workers="${APPELL_TEST_WORKERS:-2}"
 parallel=(-n "$workers" --dist loadfile)
 [ "$workers" = 1 ] && parallel=()
+# the linter first (pyproject.toml, [tool.ruff]): a finding fails the run before the tests start
+python -m ruff check --quiet src tests benchmarks scripts docs/_ext
 status=0
 APPELL_TEST_PART=parallel python -m pytest "${parallel[@]}" "$@" || status=$?
 [ "$status" = 5 ] && status=0  # no test selected in this pass

@@ -25,7 +25,6 @@ import sys
 import time
 import warnings
 
-import numpy as np
 import pytest
 from click.testing import CliRunner
 

@@ -143,7 +143,6 @@ def assert_four_bar_pin_forces_match_newton_euler(four_bar, thA, wA):
     rB = A_ * _e(th[0])
     rC = rB + B_ * _e(th[1])
     centres = [A_ / 2 * _e(th[0]), rB + B_ / 2 * _e(th[1]), rD + C_ / 2 * _e(th[2])]
-    bases = [rA, rB, rD]
     lengths = (A_, B_, C_)
     a_c = []
     for i in range(3):  # a_C = a_base + (L/2)(alpha n - omega^2 e)

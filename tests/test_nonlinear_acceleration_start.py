@@ -9,7 +9,6 @@ parallel to ``Q = (F, -m g)``; the root reached from the unconstrained accelerat
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest

@@ -28,7 +28,6 @@ from appell.examples import catalog
 from appell.io.printing import singular_where
 from appell.model import Parameter, System, holonomic
 from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, compile_model, partition_condition
-from appell.symbols import t as T
 
 BACKENDS = ("numpy", "c")
 #: single solves at and 1e-12 from the singular instants: there kappa > KEEP_CONDITION, so the
@@ -202,7 +201,7 @@ def test_without_the_refinement_the_kept_band_loses_digits(pendulum, monkeypatch
     monkeypatch.setattr(numeric_module, "REFINE_CONDITION", math.inf)
     model = compile_model(pendulum)
     worst = 0.0
-    for tt, q, w, kappa in _kept_band(model, _pendulum_states()):
+    for tt, q, w, _ in _kept_band(model, _pendulum_states()):
         lam, _ = pendulum_exact(*q, *w)
         worst = max(worst, abs(model.solve(tt, q, w).multipliers[0] - lam) / 44.38)
     assert worst > 1e-11

@@ -13,7 +13,6 @@ sign convention, method.md §2, gives the opposite sign).
 
 from __future__ import annotations
 
-import math
 import re
 
 import numpy as np

@@ -78,7 +78,7 @@ def newton_euler_forces(theta):
     phi, _, phidd, _, _, xdd, _, a1x, a1y, a2x, a2y = KINEMATICS(float(theta))
     e = np.array([np.cos(theta), np.sin(theta)])
     u = np.array([np.cos(phi), np.sin(phi)])
-    I1, I2 = mc * r**2 / 12, mr * l**2 / 12
+    I2 = mr * l**2 / 12
 
     def moment(arm):
         """Coefficients of (F_x, F_y) in the moment arm x F = arm_x F_y - arm_y F_x."""

@@ -224,7 +224,7 @@ def derivative_nodes(expr, symbols, rates=None, limit: int | None = None) -> int
         if s not in present:
             continue
         try:
-            d = _postorder(expr, {}, lambda e, parts: _derivative(e, parts, s, sizes, limit - total))
+            d = _postorder(expr, {}, lambda e, parts: _derivative(e, parts, s, sizes, limit - total))  # noqa: B023 (used here)
         except _Over:
             return limit + 1
         if d:

@@ -32,16 +32,16 @@ from __future__ import annotations
 import keyword
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from dataclasses import replace as dc_replace
 
 import numpy as np
 import sympy as sp
 
 from appell.errors import AppellNote, ModelError
-from appell.mechanism.joints import KINDS, JointMotion, joint_motion
+from appell.mechanism.joints import JointMotion, joint_motion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew, unit_axis
-from appell.model import (AppliedForce, AppliedTorque, Constraint, Control, Output, Parameter, Particle, RigidBody,
+from appell.model import (AppliedForce, AppliedTorque, Control, Output, Parameter, Particle, RigidBody,
                           System, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
 from appell.view import SHAPES, Shape, View, ViewArrow, ViewBody, ViewJoint, equivalent_box
@@ -865,7 +865,7 @@ class Mechanism:
                 contact_forces.append((closure.name, acts))
         speeds = [derivative_symbol(q) for q in coords]
         Q, ctl = [sp.S.Zero] * len(speeds), []
-        for name, j, q, value in self._actuators:
+        for name, _, q, value in self._actuators:
             Q[coords.index(q)] += sp.Symbol(name) if value is None else value
             if value is None:
                 ctl.append(Control(sp.Symbol(name), "force"))

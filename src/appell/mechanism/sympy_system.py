@@ -192,7 +192,7 @@ def _position(point, origin, frame, ren: _Renamer, what: str):
         return None, ren.vector(point.vel(frame), frame, what)
     except ValueError:
         raise ModelError(f"{what}: the point {point} has neither a position from the fixed point {origin} nor a "
-                         f"velocity in {frame}", hint="locate it with set_pos or give its velocity with set_vel")
+                         f"velocity in {frame}", hint="locate it with set_pos or give its velocity with set_vel") from None
 
 
 def _body_name(body) -> str:
@@ -239,7 +239,7 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
             # entries of a 3x3 tensor re-expressed in the body frame: small, so trigsimp
             # removes the cos^2 + sin^2 of a tensor given in another frame
             inertia = sp.ImmutableMatrix(body.central_inertia.to_matrix(body.frame)).applyfunc(
-                lambda e: sp.trigsimp(ren.plain(e, f"inertia of {body.name}")))
+                lambda e: sp.trigsimp(ren.plain(e, f"inertia of {body.name}")))  # noqa: B023 (applied here)
             bodies.append(RigidBody(_body_name(body), mass, position, velocity, inertia, omega))
         else:
             bodies.append(Particle(_body_name(body), mass, position, velocity))
@@ -372,7 +372,7 @@ def _joint_reactions(system, reactions, ren: _Renamer, statics) -> tuple:
     unknown = [n for n in wanted if n not in joints]
     if unknown:
         raise ModelError(f"no joint named {unknown[0]!r}; the joints are {', '.join(joints)}")
-    N, t = system.frame, ren.t
+    N = system.frame
     children: dict = {}
     for j in system.joints:
         children.setdefault(j.parent, []).append(j.child)
@@ -402,7 +402,7 @@ def _joint_reactions(system, reactions, ren: _Renamer, statics) -> tuple:
                 alpha = w.dt(N)
                 inertia = b.central_inertia
                 moment += inertia.dot(alpha) + w.cross(inertia.dot(w))
-        for k, load in enumerate(loads, 1):
+        for load in loads:
             if isinstance(load, me.Force):
                 owners = _owner(load.point, moving)
                 inside = {o in subtree for o in owners}

@@ -811,7 +811,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                                    "and controls")
                     else:
                         try:
-                            passed = pass_through(rank, singular, lambda t_, y_: run.evaluate(active, t_, y_),
+                            passed = pass_through(rank, singular, lambda t_, y_, active=active: run.evaluate(active, t_, y_),
                                                   sub_solver, project, p)
                         except PassageRefused as exc:
                             refusal = str(exc)
@@ -842,7 +842,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
                 g_new = [w.g(t_new, y_new, ev_new, p) for w in watches]
                 hits = []
                 for i, w in enumerate(watches):
-                    def gi(s, w=w):
+                    def gi(s, w=w, dense=dense, active=active):
                         ys = dense(s)
                         return w.g(s, ys, None if w.kind == "contact" else run.evaluate(active, s, ys), p)
 

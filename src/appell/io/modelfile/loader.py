@@ -284,7 +284,7 @@ class _Reader:
             try:
                 return constant_value(expr)
             except ValueError as exc:
-                raise self.error(path, f"{exc}", hint="give a number or a constant expression such as \"pi/3\"")
+                raise self.error(path, f"{exc}", hint="give a number or a constant expression such as \"pi/3\"") from None
         raise self.error(path, f"must be a number, got {_kind(value)}")
 
 

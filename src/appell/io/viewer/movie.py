@@ -126,7 +126,7 @@ class _Frames:
             colour = PALETTE[i % len(PALETTE)]
             p = np.array(b["p"][3 * k:3 * k + 3])
             R = _rotation(b["q"][4 * k:4 * k + 4])
-            world = lambda x: p + np.asarray(x) @ R.T  # noqa: E731
+            world = lambda x: p + np.asarray(x) @ R.T  # noqa: E731, B023 (used in this iteration)
             solid = [s for s in b["shapes"] if s.get("solid", True)]
             for s in b["shapes"]:
                 pts = world(_surface(s))
