@@ -69,8 +69,9 @@ def resolve_model(model: str) -> Path:
     if path.suffix == "" and (model in list_examples() or model in list_benchmarks()):
         return example_path(model)
     if path.exists():
-        raise ModelError(f"{model}: not a file",
-                         hint="give the path of a model file (.toml), a robot (.urdf) or a MuJoCo model (.xml)")
+        from appell.mechanism.formats import described
+
+        raise ModelError(f"{model}: not a file", hint=f"give the path of {described()}")
     raise ModelError(f"{model}: no such model file",
                      hint="give the path of a model file, or a bundled example: " + ", ".join(list_examples())
                      + "; or a benchmark: " + ", ".join(list_benchmarks()))

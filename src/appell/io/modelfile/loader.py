@@ -1048,17 +1048,14 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floati
             raise ModelError(f"{path}: no such model file, nor a bundled example",
                              hint="give the path of a model file (.toml), or a bundled example: "
                                   + ", ".join(list_examples()) + "; or a benchmark: " + ", ".join(list_benchmarks()))
-    if path.suffix.lower() == ".urdf":  # a robot description: its mechanism with every joint's reaction
-        from appell.mechanism.urdf import urdf_system
+    from appell.mechanism.formats import importer_for
 
-        return _apply_overrides(urdf_system(path, floating_base=floating_base), overrides, str(path))
-    if path.suffix.lower() in (".xml", ".mjcf"):  # a MuJoCo model, read by mujoco's own compiler
-        from appell.mechanism.mjcf import mjcf_system
-
-        if floating_base:
-            raise ModelError("--floating-base (floating_base=True) applies to a .urdf robot; a MuJoCo model "
-                             "gives its free joints itself", where=str(path))
-        return _apply_overrides(mjcf_system(path), overrides, str(path))
+    importer = importer_for(path)  # a robot description, a MuJoCo model: appell.mechanism.formats
+    if importer is not None:
+        if floating_base and not importer.floating_base:
+            raise ModelError(f"--floating-base (floating_base=True) does not apply to {importer.what} "
+                             f"({importer.name}), which gives its free joints itself", where=str(path))
+        return _apply_overrides(importer.system(path, floating_base), overrides, str(path))
     if floating_base:
         raise ModelError("--floating-base (floating_base=True) applies to a .urdf robot", where=str(path),
                          hint="in a model file that reads a URDF, write floating_base = true in [mechanism]")

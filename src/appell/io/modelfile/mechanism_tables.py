@@ -53,7 +53,10 @@ def urdf_path(r, value, base: Path) -> Path:
     if p.is_absolute() or text.startswith("~"):
         raise r.error(path, f"the URDF path {text!r} is absolute",
                       hint="give the path relative to the model file, e.g. urdf = \"arm.urdf\"")
-    if p.suffix.lower() != ".urdf":
+    from appell.mechanism.formats import importer_for
+
+    importer = importer_for(p)
+    if importer is None or importer.key != "urdf":
         raise r.error(path, f"{text!r} does not end in .urdf", hint="name the robot's .urdf file")
     full = base / p
     if not full.is_file():
@@ -98,7 +101,7 @@ def _kind(r, path, item, kinds):
 def build_mechanism(r, top: dict, base: Path):
     """``(mechanism, extra constraints from the URDF, reactions, frame)`` from the tables."""
     from appell.mechanism import Mechanism
-    from appell.mechanism.urdf import read_urdf, urdf_mechanism
+    from appell.mechanism.formats import importer_for
 
     section = r.table(("mechanism",), top["mechanism"], MECHANISM_KEYS)
     name = None
@@ -115,7 +118,7 @@ def build_mechanism(r, top: dict, base: Path):
                       hint="without a URDF, join the base to the ground by a [[joints]] entry of type 'free'")
     if "urdf" in section:
         urdf = urdf_path(r, section["urdf"], base)
-        mech, extra = urdf_mechanism(read_urdf(urdf), floating_base=floating)
+        mech, extra = importer_for(urdf).mechanism(urdf, floating)
         if name:
             mech.name = name
     else:
