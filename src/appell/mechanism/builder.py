@@ -830,10 +830,10 @@ class Mechanism:
         constraints, controls, servo_constraints, outputs, settings, units : added as given
             (constraints written in joint coordinates act as generalized forces at the
             joints, not through the reactions' cuts: docs/mechanism.md).
-        energy : add the outputs ``energy_kinetic`` (``sum m v.v/2 + w.I w/2``),
-            ``energy_potential`` (gravity and the springs' ``k (l - l0)^2 / 2``) and ``energy``
-            (their sum; constant where no damper, actuator or time-dependent load acts).
-        The points of :meth:`watch_point` are outputs too.
+        energy : add the outputs ``energy_kinetic`` (the bodies' ``m v.v/2 + w.I w/2``),
+            ``energy_potential`` (gravity and the springs' ``k (l - l0)^2/2``) and ``energy``,
+            their sum, constant where no damper, actuator or time-dependent load acts. The
+            points of :meth:`watch_point` are outputs too.
         """
         frames = self.frames()
         order = self._tree()
