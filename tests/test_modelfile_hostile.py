@@ -245,8 +245,8 @@ def test_well_formed_expressions_parse(text):
         parse_expression(text)
     except ExpressionError as exc:
         # only the value limits may refuse a well-formed expression
-        assert any(word in exc.message for word in ("exponent", "bits", "infinite", "floating-point", "root")), \
-            exc.message
+        assert any(word in exc.message for word in ("exponent", "bits", "infinite", "floating-point", "root",
+                                                    "not a real number")), exc.message
 
 
 @settings(max_examples=200, **COMMON)
@@ -369,3 +369,12 @@ def test_document_writer_round_trips_the_examples():
         assert [(c.name, c.expr, c.order) for c in again.constraints] == \
             [(c.name, c.expr, c.order) for c in original.constraints]
         assert again == original.replace(constraints=again.constraints)  # only the recorded lines differ
+
+
+@pytest.mark.parametrize("text, bad", [("max(x, acos(2))", "acos(2)"), ("min(2, sqrt(-1))", "I")])
+def test_max_of_a_number_that_is_not_real_says_so(text, bad):
+    """Found by the fuzzer above: SymPy's Max refuses a complex argument with 'not
+    comparable'; the parser names the argument and the rule instead."""
+    with pytest.raises(ExpressionError) as info:
+        parse_expression(text)
+    assert f"its argument {bad} is not a real number" in info.value.message

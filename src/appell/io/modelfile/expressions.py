@@ -65,12 +65,26 @@ MAX_ROOT_BITS = 512
 MAX_LITERAL = 64
 
 
+class _NotReal(ValueError):
+    """A function of real arguments given a number that is not real (its message says which)."""
+
+
+def _extremum(kind, args):
+    try:
+        return (sp.Min if kind == "min" else sp.Max)(*args)
+    except ValueError:  # SymPy compares only real arguments: max(x, acos(2)) has a complex one
+        bad = next((a for a in args if a.is_number and a.is_extended_real is False), None)
+        if bad is None:
+            raise
+        raise _NotReal(f"{kind}() compares real numbers; its argument {bad} is not a real number") from None
+
+
 def _min(*args):
-    return sp.Min(*args)
+    return _extremum("min", args)
 
 
 def _max(*args):
-    return sp.Max(*args)
+    return _extremum("max", args)
 
 
 #: whitelisted functions: name -> (SymPy constructor, smallest and largest argument count)
@@ -531,8 +545,9 @@ def parse_expression(text: str, *, allow_equation: bool = False) -> sp.Expr:
         raise ExpressionError(f"the expression is nested too deeply (limit {MAX_DEPTH})", text, 1) from None
     except Exception as exc:  # SymPy refused to build a node (e.g. max() of a complex number)
         tok = parser.tokens[min(parser.pos, len(parser.tokens) - 1)]
-        raise ExpressionError(f"SymPy cannot build this expression: {type(exc).__name__}: {exc}",
-                              text, tok.column, tok.text) from None
+        message = str(exc) if isinstance(exc, _NotReal) else \
+            f"SymPy cannot build this expression: {type(exc).__name__}: {exc}"
+        raise ExpressionError(message, text, tok.column, tok.text) from None
     if expr.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
         raise ExpressionError(
             f"the expression is infinite or undefined ({_short(expr)}); check for a division by zero",
