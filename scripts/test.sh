@@ -5,7 +5,12 @@
 # those on their own (tests/conftest.py: SERIAL), so that the other worker's load cannot
 # stretch their timing. Any pytest arguments pass through to both passes; a pass that the
 # arguments leave empty is skipped. APPELL_TEST_WORKERS=1 runs the first pass in one process.
+# --quick (first argument): the everyday subset, about a minute (tests/conftest.py: HEAVY).
 set -euo pipefail
+if [ "${1:-}" = "--quick" ]; then
+    shift
+    export APPELL_QUICK=1
+fi
 source "$(dirname "${BASH_SOURCE[0]}")/env.sh" test
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 workers="${APPELL_TEST_WORKERS:-2}"

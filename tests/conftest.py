@@ -16,16 +16,32 @@ DOCS = Path(__file__).resolve().parent.parent / "docs"
 
 @pytest.fixture(scope="session")
 def docs_build(tmp_path_factory):
-    """``(CompletedProcess, html folder)`` of ``sphinx-build -W --keep-going -b html docs``."""
+    """``(CompletedProcess, html folder)`` of ``sphinx-build -W --keep-going -b html docs``,
+    built once for the whole run: the pytest-xdist workers share it through a folder beside
+    their own temporary folders, the first to ask building it under a lock (fcntl) while the
+    other waits (the build runs every bundled example for the gallery's figures: 45 s)."""
+    import fcntl
+    import json
+
     pytest.importorskip("sphinx", reason="sphinx is not installed (pip install -e '.[docs]')")
     pytest.importorskip("myst_parser", reason="myst-parser is not installed (pip install -e '.[docs]')")
-    root = tmp_path_factory.mktemp("docs")
-    out = root / "html"
-    env = {**os.environ, "MPLBACKEND": "Agg"}
-    done = subprocess.run(
-        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", "-d", str(root / "doctrees"),
-         str(DOCS), str(out)], capture_output=True, text=True, timeout=600, env=env)
-    return done, out
+    base = tmp_path_factory.getbasetemp()  # a worker's is <run's folder>/popen-gwN
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "docs-shared"
+    root.mkdir(exist_ok=True)
+    out, record = root / "html", root / "result.json"
+    with open(root / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if not record.exists():
+                env = {**os.environ, "MPLBACKEND": "Agg"}
+                done = subprocess.run(
+                    [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", "-d",
+                     str(root / "doctrees"), str(DOCS), str(out)], capture_output=True, text=True, timeout=600, env=env)
+                record.write_text(json.dumps([done.args, done.returncode, done.stdout, done.stderr]))
+            args, code, stdout, stderr = json.loads(record.read_text())
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+    return subprocess.CompletedProcess(args, code, stdout, stderr), out
 
 
 @pytest.fixture
@@ -95,6 +111,16 @@ SERIAL = {"test_boundary_values.py", "test_faults.py", "test_fuzz.py", "test_swe
 #: ``$APPELL_TEST_PART``: ``parallel`` (every module but :data:`SERIAL`), ``serial`` (those
 #: only), or unset (all)
 PART = os.environ.get("APPELL_TEST_PART", "")
+#: ``$APPELL_QUICK=1`` (``bash scripts/test.sh --quick``): the everyday subset, about a minute
+#: on two cores: every module but :data:`SERIAL` and these, which derive the large models
+#: (the bicycle, the URDF arm, the IFToMM chains), run every bundled example, build the
+#: documentation or drive a browser or subprocesses (9 s to 140 s each on two cores)
+HEAVY = {"test_docs.py", "test_docs_offline.py", "test_cli.py", "test_iftomm.py", "test_modelfile_examples.py",
+         "test_printed_equations.py", "test_servo_drive.py", "test_json_exact.py", "test_viewer_browser.py",
+         "test_bicycle.py", "test_matrix_script.py", "test_inverse.py", "test_evidence.py", "test_result_schema.py",
+         "test_mjcf.py", "test_implicit_jacobian.py", "test_urdf_pinocchio.py", "test_report_browser.py",
+         "test_cli_solver.py"}
+QUICK = os.environ.get("APPELL_QUICK") == "1"
 
 
 def pytest_collection_modifyitems(config, items):
@@ -102,6 +128,10 @@ def pytest_collection_modifyitems(config, items):
         raise pytest.UsageError(f"APPELL_TEST_PART must be 'parallel' or 'serial', got {PART!r}")
     if PART:
         keep = [i for i in items if (i.path.name in SERIAL) == (PART == "serial")]
+        config.hook.pytest_deselected(items=[i for i in items if i not in keep])
+        items[:] = keep
+    if QUICK:
+        keep = [i for i in items if i.path.name not in HEAVY | SERIAL]
         config.hook.pytest_deselected(items=[i for i in items if i not in keep])
         items[:] = keep
     skip_slow = pytest.mark.skip(reason="a long run: set APPELL_SLOW=1 to run it")
