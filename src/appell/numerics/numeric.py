@@ -171,21 +171,34 @@ class StateSolution:
     newton_iterations: int = 0
 
 
+def difference_jacobian(fun: Callable, x, columns=None, nan_to_zero: bool = False) -> np.ndarray:
+    """Central differences ``(f(x + h e_j) - f(x - h e_j)) / 2h``, ``h = 1e-7 max(1, |x_j|)``,
+    of the vector function ``fun`` in the entries ``columns`` of ``x`` (default all); NaN
+    entries of the result become zero where ``nan_to_zero``. The one finite-difference
+    Jacobian of the package (Newton's method here, the residual Jacobians of a model without
+    compiled ones in :mod:`appell.simulation.initial`)."""
+    x = np.asarray(x, float)
+    columns = range(x.size) if columns is None else list(columns)
+    out = []
+    for j in columns:
+        h = 1e-7 * max(1.0, abs(x[j]))
+        xp, xm = x.copy(), x.copy()
+        xp[j] += h
+        xm[j] -= h
+        out.append((np.asarray(fun(xp), float) - np.asarray(fun(xm), float)) / (2 * h))
+    J = np.array(out).T if out else np.zeros((np.asarray(fun(x)).size, 0))
+    return np.nan_to_num(J) if nan_to_zero else J
+
+
 def newton(fun: Callable, x0: np.ndarray, what: str, tol: float = 1e-12, maxiter: int = 50) -> tuple[np.ndarray, int]:
-    """Newton's method with a finite-difference Jacobian; raises ComputationError."""
+    """Newton's method with a finite-difference Jacobian (:func:`difference_jacobian`);
+    raises ComputationError."""
     x = np.array(x0, dtype=float)
     for it in range(1, maxiter + 1):
         g = fun(x)
         if not np.all(np.isfinite(g)):
             raise ComputationError(f"Newton's method for {what} met a non-finite residual at iteration {it}")
-        J = np.empty((g.size, x.size))
-        for j in range(x.size):
-            step = 1e-7 * max(1.0, abs(x[j]))
-            xp = x.copy()
-            xp[j] += step
-            xm = x.copy()
-            xm[j] -= step
-            J[:, j] = (fun(xp) - fun(xm)) / (2 * step)
+        J = difference_jacobian(fun, x).reshape(g.size, x.size)
         try:
             dx = np.linalg.solve(J, -g)
         except np.linalg.LinAlgError as exc:

@@ -117,23 +117,11 @@ def residual_jacobians(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
         return fn(t, y, p)
     nq, n = len(model.coordinate_names), len(model.speed_names)
     s = len(model.constraint_names)
-    jq = _difference_jacobian(lambda yy: model.state_residuals(t, yy, p)[0], y, range(nq), s)
-    jw = _difference_jacobian(lambda yy: model.state_residuals(t, yy, p)[1], y, range(nq, nq + n), s)
-    return jq, jw
+    from appell.numerics.numeric import difference_jacobian
 
-
-def _difference_jacobian(residual, y, columns, rows: int) -> np.ndarray:
-    """Central differences of ``residual(y)`` in the entries ``columns`` of ``y`` (NaN -> 0)."""
-    y = np.asarray(y, float)
-    columns = list(columns)
-    out = np.zeros((rows, len(columns)))
-    for k, j in enumerate(columns):
-        h = 1e-7 * max(1.0, abs(y[j]))
-        yp, ym = y.copy(), y.copy()
-        yp[j] += h
-        ym[j] -= h
-        out[:, k] = np.nan_to_num((np.asarray(residual(yp), float) - np.asarray(residual(ym), float)) / (2 * h))
-    return out
+    jq = difference_jacobian(lambda yy: model.state_residuals(t, yy, p)[0], y, range(nq), nan_to_zero=True)
+    jw = difference_jacobian(lambda yy: model.state_residuals(t, yy, p)[1], y, range(nq, nq + n), nan_to_zero=True)
+    return jq.reshape(s, nq), jw.reshape(s, n)
 
 
 # ------------------------------------------------------------ the constraints of a start
@@ -361,8 +349,10 @@ def _level_jacobian(model, t, y, p, level: int, columns: Sequence[int], rows: np
         J = np.asarray(model.residual_jacobians(t, y, p)[level], float)
         return J[np.ix_(rows, [c - first for c in columns])]
     total = len(sum(_constraint_names(model), ()))
-    J = _difference_jacobian(lambda yy: _residuals(model, t, yy, p)[level], y, columns, total)
-    return J[rows]
+    from appell.numerics.numeric import difference_jacobian
+
+    J = difference_jacobian(lambda yy: _residuals(model, t, yy, p)[level], y, columns, nan_to_zero=True)
+    return J.reshape(total, len(columns))[rows]
 
 
 def _choose_unknowns(J: np.ndarray, forced: Sequence[int], candidates: Sequence[int], count: int,
