@@ -56,6 +56,14 @@ class ConstraintBlocks:
     def count(self) -> int:
         return len(self.names)
 
+    def residual_matrices(self) -> tuple[sp.Matrix, sp.Matrix]:
+        """``(F, phi)``: the position- and velocity-level residuals as column matrices, zero
+        where a constraint has no such level (what the numeric models compile)."""
+        if not self.count:
+            return sp.zeros(0, 1), sp.zeros(0, 1)
+        return (sp.Matrix([e if e is not None else 0 for e in self.position_residual]),
+                sp.Matrix([e if e is not None else 0 for e in self.velocity_residual]))
+
     def subset(self, rows) -> "ConstraintBlocks":
         """The blocks of the constraints ``rows`` only (in that order)."""
         rows = list(rows)

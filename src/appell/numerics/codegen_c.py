@@ -670,8 +670,7 @@ def c_source(derivation) -> str:
         J0 = J.xreplace({a: 0 for a in kin.accelerations})
     else:
         J0 = J
-    pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual]) if s else sp.zeros(0, 1)
-    vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if s else sp.zeros(0, 1)
+    pos, vel = cons.residual_matrices()
     tree = particle_tree(inertia, n) if cons.linear else None
     parts = [
         f"/* appell: generated C for system {c_comment(derivation.system.name)}; n = {n}, s = {s} */",

@@ -532,8 +532,7 @@ class NumericModel:
             d = self.derivation
             cons, kin = d.constraints, d.kinematics
             nq, n = len(kin.coordinates), len(kin.speeds)
-            pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual]) if cons.count else sp.zeros(0, 1)
-            vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if cons.count else sp.zeros(0, 1)
+            pos, vel = cons.residual_matrices()
             jq = pos.jacobian(sp.Matrix(kin.coordinates)) if cons.count else sp.zeros(0, nq)
             jw = vel.jacobian(sp.Matrix(kin.speeds)) if cons.count else sp.zeros(0, n)
             fn = lambdify_blocks(_args(d), [jq, jw], program_substitutions(d.system))
@@ -685,8 +684,7 @@ def compile_model(derivation) -> NumericModel:
         blocks = lambdify_blocks(_args(derivation), [inertia.mass_matrix, hQ, J.xreplace(zero_a), c], subs)
         cfun = lambdify_blocks(_args(derivation, with_acc=True), [cons.second_order, J], subs)
     rates = lambdify_blocks(_args(derivation), [derivation.kinematics.coordinate_rates], subs)
-    pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual]) if cons.count else sp.zeros(0, 1)
-    vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual]) if cons.count else sp.zeros(0, 1)
+    pos, vel = cons.residual_matrices()
     residuals = lambdify_blocks(_args(derivation), [pos, vel], subs)
     return NumericModel(
         derivation=derivation,

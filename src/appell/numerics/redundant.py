@@ -43,8 +43,7 @@ class RedundantModel:
         subs = program_substitutions(d.system)
         n, s = len(kin.speeds), cons.count
         zero_a = {a: 0 for a in kin.accelerations}
-        pos = sp.Matrix([e if e is not None else 0 for e in cons.position_residual])
-        vel = sp.Matrix([e if e is not None else 0 for e in cons.velocity_residual])
+        pos, vel = cons.residual_matrices()
         self._full = lambdify_blocks(_args(d), [sp.Matrix(cons.jacobian).xreplace(zero_a), sp.Matrix(cons.bias),
                                                 pos, vel,
                                                 pos.jacobian(sp.Matrix(kin.coordinates)),
