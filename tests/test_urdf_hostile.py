@@ -447,3 +447,42 @@ def test_what_a_urdf_holds_beyond_the_mechanism_is_noted_not_refused(tmp_path):
         warnings.simplefilter("always")
         urdf_system(quiet)
     assert not [w for w in caught if issubclass(w.category, AppellNote)]
+
+
+def test_a_frame_composed_near_a_pitch_of_90_degrees_keeps_every_digit(tmp_path):
+    """A massless link fixed by roll, pitch and yaw with the pitch 1e-7 rad short of 90 degrees,
+    then a hinge: the arm's mass centre at zero angle equals the product of the two origins'
+    transforms (NumPy, as Pinocchio composes them) to 1e-14 m (issue 22: "roll-pitch-yaw angles
+    near right angles lose digits"). The merged link's rotation now reaches the builder as the
+    matrix itself; the earlier round trip through angles read back from it was measured exact
+    to rounding too (2.8e-17 at 1e-12 rad from 90 degrees), as near gimbal lock only the sum of
+    roll and yaw is ill-conditioned and the matrix depends on nothing else."""
+    import numpy as np
+
+    from appell.mechanism.urdf import urdf_system
+
+    pitch = np.pi / 2 - 1e-7
+    (tmp_path / "tilt.urdf").write_text(f"""<robot name="tilt">
+  <link name="base"/>
+  <link name="mount"/>
+  <link name="arm"><inertial><origin xyz="1 0 0"/><mass value="1"/>
+    <inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="tilt" type="fixed"><parent link="base"/><child link="mount"/>
+    <origin xyz="0 0 0" rpy="0.2 {pitch!r} 0.3"/></joint>
+  <joint name="hinge" type="revolute"><parent link="mount"/><child link="arm"/>
+    <origin xyz="0.1 0.2 0.3" rpy="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+</robot>""")
+    system = urdf_system(tmp_path / "tilt.urdf")
+
+    def rpy(r, p, y):
+        cx, sx, cy, sy, cz, sz = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+        Rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+        Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+        Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        return Rz @ Ry @ Rx
+
+    expected = rpy(0.2, pitch, 0.3) @ (np.array([0.1, 0.2, 0.3]) + np.array([1.0, 0, 0]))
+    arm = next(b for b in system.bodies if b.name == "arm")
+    got = np.array(arm.position.subs({q: 0 for q in system.coordinates}).evalf(), float).ravel()
+    assert np.abs(got - expected).max() < 1e-14

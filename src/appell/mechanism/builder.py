@@ -90,6 +90,22 @@ def _matrix(value, what: str, shape=(3, 1)) -> sp.Matrix:
     return m
 
 
+def _orientation(value, what: str) -> sp.Matrix:
+    """The rotation of ``value``: roll, pitch, yaw (URDF's ``Rz Ry Rx``), or the 3x3 rotation
+    matrix itself (so that a frame composed from others keeps every digit: read back as
+    angles near a pitch of 90 degrees, roll and yaw would lose them)."""
+    if isinstance(value, sp.MatrixBase) and value.shape == (3, 3) or (
+            isinstance(value, (list, tuple)) and len(value) == 3 and all(isinstance(r, (list, tuple)) for r in value)):
+        R = _matrix(value, what, shape=(3, 3))
+        if not R.free_symbols:
+            error = np.abs(np.array(R.T * R - sp.eye(3), dtype=float)).max()
+            if error > 1e-9 or float(R.det()) < 0:
+                raise ModelError(f"{what}: the 3x3 matrix is not a rotation (R^T R - I up to {error:.2g}, "
+                                 f"det {float(R.det()):.6g})", hint="give roll, pitch, yaw or a proper rotation matrix")
+        return R
+    return rpy_rotation(_matrix(value, what))
+
+
 def _cross(a, b) -> sp.Matrix:
     return sp.Matrix(a).cross(sp.Matrix(b))
 
@@ -319,7 +335,7 @@ class Mechanism:
         size = tuple(sp.sympify(v) for v in (size if isinstance(size, (tuple, list)) else (size,)))
         if len(size) != SHAPES[kind]:
             raise ModelError(f"shape of body {b.name!r}: a {kind} takes {SHAPES[kind]} size(s), got {len(size)}")
-        rot = rpy_rotation(_matrix(rpy, f"shape of body {b.name!r}: rpy"))
+        rot = _orientation(rpy, f"shape of body {b.name!r}: rpy")
         self._shapes.append((b, kind, size, _matrix(origin, f"shape of body {b.name!r}: origin"), rot, colour, mesh))
 
     def _add_joint(self, kind, name, parent, child, axis=None, origin=(0, 0, 0), rpy=(0, 0, 0),
@@ -354,7 +370,7 @@ class Mechanism:
             if q.name != name:
                 self._claim(q.name, "coordinate")
         j = Joint(name, kind, parent, child, _matrix(origin, f"origin of {what}"),
-                  rpy_rotation(_matrix(rpy, f"rpy of {what}")), _matrix(child_origin, f"child_origin of {what}"),
+                  _orientation(rpy, f"rpy of {what}"), _matrix(child_origin, f"child_origin of {what}"),
                   motion)
         self.joints.append(j)
         return j

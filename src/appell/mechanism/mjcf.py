@@ -32,7 +32,6 @@ with several joints are refused with the body or equality named.
 
 from __future__ import annotations
 
-import math
 import re
 import warnings
 from pathlib import Path
@@ -77,12 +76,11 @@ def _rotation(quat) -> np.ndarray:
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def _rpy(R: np.ndarray) -> tuple[float, float, float]:
-    """Roll, pitch, yaw of ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (the builder's convention)."""
-    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    if math.hypot(R[0, 0], R[1, 0]) > 1e-12:
-        return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
-    return math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0
+def _rpy(R: np.ndarray) -> list[list[float]]:
+    """The frame's rotation for the builder, as the matrix itself (the builder takes roll,
+    pitch, yaw or a 3x3 rotation; angles read back from ``R`` near a pitch of 90 degrees would
+    lose digits)."""
+    return np.asarray(R, float).tolist()
 
 
 def _names(model, kind, count) -> list[str | None]:

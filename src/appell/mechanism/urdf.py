@@ -681,15 +681,6 @@ def _rotation(rpy):
     return rpy_rotation([float(v) for v in rpy])
 
 
-def _rpy_of(R) -> tuple[float, float, float]:
-    """``(roll, pitch, yaw)`` with ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (numeric ``R``)."""
-    R = [[float(R[i, j]) for j in range(3)] for i in range(3)]
-    pitch = math.atan2(-R[2][0], math.hypot(R[0][0], R[1][0]))
-    if math.hypot(R[0][0], R[1][0]) < 1e-12:  # gimbal lock: roll and yaw share one angle
-        return math.atan2(-R[1][2], R[1][1]), pitch, 0.0
-    return math.atan2(R[2][1], R[2][2]), pitch, math.atan2(R[1][0], R[0][0])
-
-
 #: the name of the free joint that ``floating_base`` puts under the root link (Pinocchio's)
 ROOT_JOINT = "root_joint"
 #: its rotation: yaw, pitch, roll (``R = Rz Ry Rx``, coordinates ``root_joint_rz, _ry, _rx``);
@@ -812,12 +803,12 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
         xyz, rpy = joint.xyz, joint.rpy
         if R_off is not None:  # the parent link was merged into a body: re-express the origin
             xyz = tuple(float(v) for v in p_off + R_off * sp.Matrix(xyz))
-            rpy = _rpy_of(R_off * _rotation(rpy))
+            rpy = R_off * _rotation(rpy)  # the matrix itself: angles near a pitch of 90 degrees lose digits
         link = links[joint.child]
         where = f"{src}:{joint.line}"
         if link.inertial is None:
             if joint.type == "fixed":
-                R = _rotation(rpy)
+                R = rpy if isinstance(rpy, sp.MatrixBase) else _rotation(rpy)
                 place[link.name] = (body, R, sp.Matrix(xyz))
                 continue
             if any(k.parent == link.name for k in robot.joints):
@@ -872,7 +863,7 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
             xyz, rpy = v.xyz, v.rpy
             if R_off is not None:
                 xyz = tuple(float(x) for x in p_off + R_off * sp.Matrix(xyz))
-                rpy = _rpy_of(R_off * _rotation(rpy))
+                rpy = R_off * _rotation(rpy)  # the matrix itself: angles near a pitch of 90 degrees lose digits
             mech.shape(body, v.kind, v.size, origin=xyz, rpy=rpy, colour=v.colour)
     constraints = []
     by_name = {j.name: j for j in robot.joints}
