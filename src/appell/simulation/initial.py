@@ -46,8 +46,8 @@ COMPLETION_HINT = (
 )
 
 MISSING_HINT = (
-    "give them, or compute them from the constraints: simulate(..., complete=True) or "
-    "appell.complete_initial(derivation, values) ('appell simulate' computes missing values itself)"
+    "give them, or compute them from the constraints: appell.complete_initial(derivation, values) "
+    "(simulate and 'appell simulate' compute missing values themselves)"
 )
 
 
@@ -223,6 +223,15 @@ def describe_residuals(model, pos: Mapping[str, float], vel: Mapping[str, float]
         bad = abs(pos.get(name, 0.0)) > tol or abs(vel.get(name, 0.0)) > tol
         lines.append(f"  {_label(model, name)}: " + "; ".join(parts) + ("   <-- over tolerance" if bad else ""))
     return "\n".join(lines)
+
+
+def missing_values(derivation, values=None, params=None) -> list[str]:
+    """The names of the state that ``values`` (default the system's initial values) leave
+    without a value: what :func:`check_initial` refuses and :func:`complete_initial` computes."""
+    model, system = dynamics_of(derivation)
+    p = model.params(params)
+    values = _names_values(_default_values(model, system, p) if values is None else values)
+    return list(_state_vector(model, values)[1])
 
 
 def check_initial(derivation, values=None, tol: float = CHECK_TOLERANCE, *, t: float = 0.0,

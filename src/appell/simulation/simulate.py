@@ -73,7 +73,8 @@ from appell.simulation.events import check_event_names, contact_watch, watches_f
 from appell.simulation.impact import impact
 from appell.numerics.friction import FrictionLaws
 from appell.simulation.stickslip import initial_mode, stick_slip_watches, transition
-from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, residual_jacobians
+from appell.simulation.initial import (InitialState, check_initial, complete_initial, dynamics_of, missing_values,
+                                       residual_jacobians)
 from appell.simulation.resources import check_run_memory
 from appell.simulation.passage import PassageRefused, pass_through
 from appell.simulation.singular import DIP, SINGULAR_LEVEL, TRUST, RankWatch, explain_failure
@@ -194,7 +195,9 @@ def _initial_state(model, initial, complete, adjust, t0, p):
     if complete:
         return complete_initial(model, initial, adjust, t=t0, params=p)
     _, system = dynamics_of(model)
-    if getattr(system, "initial_guesses", ()):  # starting guesses are computed, given values only checked
+    # starting guesses and values not given are computed from the constraints, given values
+    # only checked: as `appell simulate` does (issue 21: the API and the command line agree)
+    if getattr(system, "initial_guesses", ()) or missing_values(model, initial, p):
         return complete_initial(model, initial, (), t=t0, params=p)
     return check_initial(model, initial, t=t0, params=p)
 
@@ -580,9 +583,10 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         or :func:`~appell.simulation.initial.complete_initial`); default the system's.
     complete : complete the initial values (:func:`~appell.simulation.initial.complete_initial`: the
         missing ones computed, given ones that violate a constraint changed) instead of
-        only checking them (:func:`~appell.simulation.initial.check_initial`, which raises
-        :class:`~appell.errors.InitialValueError` for a start off a constraint, servo
-        constraints included). Each computed or changed value is recorded as an event of
+        only checking the given ones (:func:`~appell.simulation.initial.check_initial`, which
+        raises :class:`~appell.errors.InitialValueError` for a start off a constraint, servo
+        constraints included). Values not given are computed either way, as ``appell
+        simulate`` does. Each computed or changed value is recorded as an event of
         kind ``'initial'``; each changed given value also as a line of the log.
     adjust : with ``complete``, which given values may change: None (chosen automatically
         where a constraint is violated), a list of names, or ``()`` (none: only missing
