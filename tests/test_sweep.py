@@ -262,3 +262,41 @@ def test_appell_cluster_serves_sweeps_until_ctrl_c(tmp_path):
             proc.kill()
             proc.communicate()
         log.close()
+
+
+def test_a_derivation_pickles_after_numeric_use_and_runs_on_a_real_dask_worker(dask_processes):
+    """A Derivation keeps only its symbolic data in a pickle (issue 21: after its first
+    numeric use it no longer pickled, and the sweep deleted instance entries to ship it):
+    the car, used here first, is sent to a 'dask worker' process, which builds its NumPy
+    model again and returns the reactions at a state, equal to the ones here; a controlled
+    derivation (the cart-pole) likewise."""
+    import pickle
+
+    from dask.distributed import Client
+
+    from appell.io.cli import derive_model, load_system
+
+    car = appell.derive(load_system("car"))
+    cart_pole = derive_model(load_system("cart_pole"))
+    q, w = [0.0, 0.0, 0.3], [1.2, 0.5, 0.1]
+    here = car.numeric.solve(0.0, q, w).multipliers
+    y = np.zeros(len(cart_pole.numeric.state_names))
+    y[:2] = [0.1, 0.2]
+    here_controlled = cart_pole.numeric.evaluate(0.0, y, cart_pole.numeric.params()).controls
+    assert "numeric" in vars(car) and "numeric" in vars(cart_pole)
+    for d in (car, cart_pole):
+        copy = pickle.loads(pickle.dumps(d))
+        assert "numeric" not in vars(copy) and copy.system == d.system
+
+    def reactions(derivation):
+        return derivation.numeric.solve(0.0, q, w).multipliers
+
+    def controls(derivation):
+        return derivation.numeric.evaluate(0.0, y, derivation.numeric.params()).controls
+
+    dask_processes.workers(1)
+    with Client(dask_processes.address, timeout=60) as client:
+        there = client.submit(reactions, car).result(timeout=120)
+        there_controlled = client.submit(controls, cart_pole).result(timeout=120)
+    np.testing.assert_allclose(there, here, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(there_controlled, here_controlled, rtol=1e-13, atol=1e-13)

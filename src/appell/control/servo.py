@@ -31,6 +31,7 @@ does not appear, :mod:`appell.control.underactuated` differentiates the conditio
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import Sequence
@@ -265,6 +266,15 @@ class ControlledDerivation:
     def underactuated(self) -> bool:
         """Whether some dynamic condition had to be differentiated."""
         return any(c.differentiations for c in self.conditions)
+
+    def __getstate__(self) -> dict:
+        """The fields only, not the numeric model built on first use (closures): a controlled
+        derivation pickles before and after numeric use (a sweep ships it to workers)."""
+        names = {f.name for f in dataclasses.fields(self)}
+        return {k: v for k, v in vars(self).items() if k in names}
+
+    def __setstate__(self, state: dict) -> None:
+        vars(self).update(state)
 
     @cached_property
     def numeric(self):

@@ -18,6 +18,7 @@ large expressions (:func:`tidy` touches small ones only).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -204,6 +205,17 @@ class Derivation:
     def reactions(self) -> ReactionFormulas:
         """Multiplier formulas, eq. (1.5)."""
         return reaction_formulas(self.inertia, self.constraints, self.partition, self.accelerations)
+
+    def __getstate__(self) -> dict:
+        """What a pickle keeps: the fields and the symbolic equations computed so far, not the
+        numeric functions attached on first use (``numeric``: lambdified closures, built
+        again where the copy is used), so that a derivation pickles before and after numeric
+        use (a sweep ships it to Dask workers)."""
+        keep = {f.name for f in dataclasses.fields(self)} | {"reduced", "reactions"}
+        return {k: v for k, v in vars(self).items() if k in keep}
+
+    def __setstate__(self, state: dict) -> None:
+        vars(self).update(state)  # frozen: the fields are restored as they were pickled
 
     def with_partition(self, dependent) -> "Derivation":
         """The same derivation with another choice of dependent accelerations (checked)."""

@@ -735,7 +735,6 @@ def _prepare(model, backend: str) -> _Shipment:
         numeric, derivation, backend = model.numeric, model, "own"
     else:
         numeric, derivation = compile_c(model, backend), model
-    derivation = _symbolic(derivation)
     compiled = isinstance(numeric, CompiledNumericModel)
     # 'auto' stays 'auto' on the workers (a machine without a compiler falls back there too)
     if backend != "own":
@@ -746,22 +745,6 @@ def _prepare(model, backend: str) -> _Shipment:
         key = uuid.uuid4().hex
     _keep(key, numeric)
     return _Shipment(key, derivation, backend)
-
-
-def _symbolic(derivation):
-    """A copy of ``derivation`` with its symbolic data only: its fields and the cached
-    reduced equations and reactions, not the numeric functions attached on first use
-    (``Derivation.numeric``: lambdified closures, which do not pickle)."""
-    import copy
-    import dataclasses
-
-    if not dataclasses.is_dataclass(derivation):
-        return derivation
-    out = copy.copy(derivation)
-    keep = {f.name for f in dataclasses.fields(derivation)} | {"reduced", "reactions"}
-    for name in [k for k in vars(out) if k not in keep]:
-        del vars(out)[name]
-    return out
 
 
 def _start_cluster(n_workers, processes, scheduler, connect_timeout, host=None, port=0):
