@@ -109,3 +109,21 @@ def test_no_import_circle_inside_a_layer():
     for node in sorted(graph):
         visit(node)
     assert not circles, "import circles:\n" + "\n".join(" -> ".join(c) for c in circles)
+
+
+def test_controlled_derivations_are_told_apart_by_their_type():
+    """Plain and controlled derivations share the base appell.core.equations.Derived, whose
+    ``controlled`` every layer reads (issue 21: 'is it controlled?' was a hasattr test in five
+    places): no module probes for the attributes of a controlled derivation."""
+    import appell
+    from appell.core.equations import Derived, is_controlled
+    from appell.io.cli import derive_model, load_system
+
+    plain, controlled = appell.derive(appell.load_model("pendulum")), derive_model(load_system("cart_pole"))
+    assert isinstance(plain, Derived) and isinstance(controlled, Derived)
+    assert (is_controlled(plain), is_controlled(controlled), is_controlled(plain.numeric)) == (False, True, False)
+    probes = [f"{path.relative_to(PACKAGE)}:{node.lineno}" for path in PACKAGE.rglob("*.py")
+              for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+              if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "hasattr" and len(node.args) == 2
+              and isinstance(node.args[1], ast.Constant) and node.args[1].value in ("control_laws", "dynamic_conditions")]
+    assert not probes, probes

@@ -41,7 +41,7 @@ import sympy as sp
 
 from appell.core.constraints import ConstraintBlocks, second_order_blocks
 from appell.core.energy import InertiaBlocks, inertia_blocks, linear_split
-from appell.core.equations import ReactionFormulas, ReducedEquations, admissible_basis, column
+from appell.core.equations import Derived, ReactionFormulas, ReducedEquations, admissible_basis, column
 from appell.core.simplification import tidy
 from appell.errors import ModelError
 from appell.core.kinematics import Kinematics, kinematics_of
@@ -205,7 +205,7 @@ def check_controllability(system: System, blocks: ControlledBlocks) -> None:
 
 
 @dataclass(frozen=True)
-class ControlledDerivation:
+class ControlledDerivation(Derived):
     """The equations of a controlled system (method.md §4), block by block.
 
     Attributes
@@ -230,6 +230,8 @@ class ControlledDerivation:
     internal_dimension : state dimension minus the relations fixed by real constraints and
         the sum of relative degrees (0: the controlled motion is fixed by the programs).
     """
+
+    controlled = True  # a class attribute, not a field (Derived)
 
     system: System
     kinematics: Kinematics

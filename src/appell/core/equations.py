@@ -169,8 +169,24 @@ def reaction_formulas(inertia: InertiaBlocks, cons: ConstraintBlocks, partition:
     return ReactionFormulas(cons.names, sp.ImmutableMatrix(lam), sp.ImmutableMatrix(J.T * lam))
 
 
+class Derived:
+    """What :func:`appell.derive` and :func:`appell.derive_controlled` return: the base of
+    :class:`Derivation` and of :class:`appell.control.servo.ControlledDerivation`, so that
+    every layer asks ``derivation.controlled`` (servo constraints, method.md §4) instead of
+    probing for attributes."""
+
+    #: whether the derivation carries servo constraints and their controls
+    controlled: bool = False
+
+
+def is_controlled(derivation) -> bool:
+    """Whether ``derivation`` is a controlled derivation (a :class:`Derived` with
+    ``controlled``); False for anything else (a numeric model, a Dynamics)."""
+    return isinstance(derivation, Derived) and derivation.controlled
+
+
 @dataclass(frozen=True)
-class Derivation:
+class Derivation(Derived):
     """Everything derived from a :class:`~appell.model.System`, block by block.
 
     Built by :func:`appell.derive`. The closed-form equations are computed on first

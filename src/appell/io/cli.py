@@ -35,6 +35,7 @@ from pathlib import Path
 
 import click
 
+from appell.core.equations import is_controlled as is_controlled_derivation
 from appell_entry import interrupt_received
 
 from appell.core.equations import formulas_unavailable
@@ -166,7 +167,7 @@ def check_inertia_at_start(derivation) -> None:
 
 def is_controlled(derivation) -> bool:
     """Whether ``derivation`` is a controlled derivation (servo constraints, method.md §4)."""
-    return hasattr(derivation, "control_laws") and hasattr(derivation, "dynamic_conditions")
+    return is_controlled_derivation(derivation)
 
 
 def internal_stability(derivation, solution=None):

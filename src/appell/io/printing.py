@@ -14,6 +14,7 @@ from pathlib import Path
 
 import sympy as sp
 
+from appell.core.equations import is_controlled
 from appell.core.equations import formulas_unavailable
 from appell.core.simplification import adjugate, determinant, graph_size, tidy, tree_size
 from appell.errors import ModelError
@@ -89,7 +90,7 @@ def equation_formulas(derivation) -> list[Formula]:
     ``t, q, w, a`` and the multipliers. controls (servo constraints): the control laws and
     the dynamic conditions (2.3).
     """
-    controlled = hasattr(derivation, "control_laws")
+    controlled = is_controlled(derivation)
     if not controlled and formulas_unavailable(derivation.partition) is not None:
         rows = [Formula(f"(f_{n} = 0)", f, sp.S.Zero, "motion")
                 for n, f in zip(derivation.constraints.names, derivation.constraints.second_order)]
@@ -241,7 +242,7 @@ def singular_where(derivation) -> str | None:
     part = derivation.partition
     if not part.dependent:
         return None
-    if not hasattr(derivation, "control_laws"):
+    if not is_controlled(derivation):
         reason = formulas_unavailable(part)
         if reason is not None:
             return reason

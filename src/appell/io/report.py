@@ -39,6 +39,7 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
+from appell.core.equations import is_controlled
 from appell.files import atomic_path
 from appell.io.printing import ITEMS, REDUNDANT_FORMULAS, latex, printed_equations
 
@@ -66,7 +67,7 @@ class EquationRow:
 
 
 def _is_controlled(derivation) -> bool:
-    return hasattr(derivation, "control_laws") and hasattr(derivation, "dynamic_conditions")
+    return is_controlled(derivation)
 
 
 def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:

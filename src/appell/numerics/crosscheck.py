@@ -54,6 +54,7 @@ from typing import Mapping
 
 import numpy as np
 
+from appell.core.equations import is_controlled
 from appell.core.partition import row_scales
 from appell.errors import ComputationError, FormulaUnavailable, ModelError
 from appell.numerics.inertia import check_inertia
@@ -357,7 +358,7 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
     (default ``derivation.numeric``)."""
     from appell.numerics.lagrange import lagrange_route, lagrange_unavailable
 
-    if hasattr(derivation, "control_laws"):
+    if is_controlled(derivation):
         raise ModelError(
             f"{derivation.system.name!r} is a controlled derivation: its check needs the controls as unknowns",
             hint="use appell.cross_check_controlled(derivation) (the augmented system with the controls)",

@@ -50,6 +50,7 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
+from appell.core.equations import is_controlled
 from appell.core.kinematics import jacobian
 from appell.errors import ComputationError, ModelError
 from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
@@ -430,7 +431,7 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     by pivoted QR). ``check``: refuse a point that is neither an equilibrium nor a steady
     motion (``|P G| > STEADY_TOLERANCE (1 + |y|)``).
     """
-    if hasattr(derivation, "control_laws"):
+    if is_controlled(derivation):
         raise ModelError("linearise works on derivations without servo constraints",
                          hint="the internal dynamics of a servo-controlled system: appell check prints them")
     model = derivation.numeric

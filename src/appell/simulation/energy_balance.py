@@ -52,6 +52,7 @@ from typing import Mapping
 import numpy as np
 import sympy as sp
 
+from appell.core.equations import is_controlled
 from appell.errors import ComputationError, ModelError
 from appell.numerics.budget import EvaluationBudget
 
@@ -144,7 +145,7 @@ def energy_form(derivation) -> tuple[str | None, str]:
     from appell.numerics.lagrange import energy_unavailable, lagrange_unavailable, mechanical_energy
 
     system = derivation.system
-    if hasattr(derivation, "control_laws"):
+    if is_controlled(derivation):
         return None, "the system has controls: their power is not separated from the applied forces"
     if getattr(system, "frictions", ()):
         return None, ("the system has non-ideal frictions, whose work this balance does not integrate (the "

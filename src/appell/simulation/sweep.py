@@ -56,6 +56,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from appell.core.equations import is_controlled
 from appell.arguments import count, number, times
 from appell.errors import ModelError, ResourceError
 from appell.files import atomic_path, output_target, write_hdf5
@@ -730,7 +731,7 @@ def _prepare(model, backend: str) -> _Shipment:
         shipment = _Shipment(uuid.uuid4().hex, dynamics=model)
         _model_on_worker(shipment)
         return shipment
-    elif hasattr(model, "control_laws"):
+    elif is_controlled(model):
         # servo constraints: the derivation's own NumPy model, made again on each worker
         numeric, derivation, backend = model.numeric, model, "own"
     else:
