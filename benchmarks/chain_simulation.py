@@ -36,7 +36,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import appell  # noqa: E402
-from appell.numerics.codegen_c import compile_c  # noqa: E402
+from appell.numerics.codegen import compile_c  # noqa: E402
 from harness import CLOCK, markdown_table, median, optional, target  # noqa: E402
 from models import nlink_appell, nlink_kane, nlink_parameters, nlink_state  # noqa: E402
 

@@ -55,7 +55,7 @@ def run_case(method: str, n: int) -> dict:
         path = Path(tempfile.mkdtemp(prefix="appell_file_")) / f"pendulum{n}.toml"
         path.write_text(nlink_model_file(n))
         from appell.io.modelfile.loader import load_model
-        from appell.numerics.codegen_c import compile_c
+        from appell.numerics.codegen import compile_c
 
         th, w = nlink_state(n, params=file_parameters(n))
         t0 = time.perf_counter()
@@ -71,7 +71,7 @@ def run_case(method: str, n: int) -> dict:
         if method == "appell":
             d.numeric  # noqa: B018 (made on first access: the time measured)
         else:
-            from appell.numerics.codegen_c import compile_c
+            from appell.numerics.codegen import compile_c
 
             compile_c(d, "c")
     elif method == "lagrange":

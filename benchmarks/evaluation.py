@@ -42,7 +42,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import appell  # noqa: E402
-from appell.numerics.codegen_c import compile_c  # noqa: E402
+from appell.numerics.codegen import compile_c  # noqa: E402
 from harness import interleaved, markdown_table, median, optional, ratio, target, us  # noqa: E402
 from models import (nlink_appell, nlink_kane, nlink_parameters, nlink_pinocchio_function,  # noqa: E402
                     nlink_state, pinocchio_state)

@@ -36,7 +36,7 @@ import scipy.integrate as si
 
 import appell
 from appell.examples.catalog import car, nlink_pendulum
-from appell.numerics.codegen_c import build_library, find_compiler, load_library
+from appell.numerics.codegen import build_library, find_compiler, load_library
 from appell.numerics.numeric import KEEP_CONDITION
 from appell.simulation.simulate import simulate
 

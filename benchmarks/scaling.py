@@ -91,7 +91,7 @@ import json, resource, sys, time
 t0 = time.perf_counter()
 import appell
 from appell.io.modelfile import load_model
-from appell.numerics.codegen_c import c_source
+from appell.numerics.codegen import c_source
 t1 = time.perf_counter()
 system = load_model(sys.argv[1])
 t2 = time.perf_counter()
@@ -114,12 +114,13 @@ _COMPILE = r"""
 import json, resource, sys, time
 sys.path.insert(0, sys.argv[2])
 import appell
-from appell.numerics import codegen_c
+from appell.numerics import codegen as codegen_c
 from models import nlink_appell
 from scaling import generated_operations
 d = appell.derive(nlink_appell(int(sys.argv[1])))
 if sys.argv[3] == "dense" and hasattr(codegen_c, "particle_tree"):   # the route of systems without a tree
-    codegen_c.particle_tree = lambda inertia, n: None
+    import appell.numerics.codegen.source as codegen_source
+    codegen_source.particle_tree = lambda inertia, n: None
 t0 = time.perf_counter()
 src = codegen_c.c_source(d)
 t1 = time.perf_counter()

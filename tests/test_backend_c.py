@@ -1,4 +1,4 @@
-"""The C backend (appell.numerics.codegen_c) against the NumPy functions: identical blocks,
+"""The C backend (appell.numerics.codegen) against the NumPy functions: identical blocks,
 accelerations and multipliers on every catalog example and on an n-link pendulum with a
 loop closure; the disk cache; the fallback without a compiler."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import appell
-from appell.numerics.codegen_c import CompiledNumericModel, c_source, compile_c
+from appell.numerics.codegen import CompiledNumericModel, c_source, compile_c
 from appell.examples import example_path
 from appell.examples.catalog import CATALOG, nlink_pendulum
 from appell.numerics.numeric import compile_model
@@ -147,7 +147,7 @@ def test_a_hostile_model_name_never_becomes_c_code():
     """A model file's name reaches the generated C only inside a comment, with every
     character that could end it (``*/``), start a line or a directive replaced (issue 20):
     before, a name holding ``*/`` put the rest of the name into the compiled library."""
-    from appell.numerics.codegen_c import c_source
+    from appell.numerics.codegen import c_source
 
     text = example_path("pendulum").read_text().replace(
         'name = "pendulum"', 'name = "p */ int injected = 1; /* \\n#include <stdio.h>"')

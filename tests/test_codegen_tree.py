@@ -1,4 +1,4 @@
-"""Structure-aware C for point masses on a tree (appell.numerics.codegen_c.particle_tree):
+"""Structure-aware C for point masses on a tree (appell.numerics.codegen.particle_tree):
 M^{-1} and M a + h by one pass each way along the tree instead of the expanded blocks.
 
 Each result is checked against an independent route: the dense route on the fully expanded
@@ -19,8 +19,9 @@ import sympy as sp
 import appell
 from appell.examples.catalog import CATALOG, nlink_pendulum
 from appell.model import Parameter, Particle, System, holonomic
-from appell.numerics import codegen_c
-from appell.numerics.codegen_c import c_source, compile_c, particle_tree
+from appell.numerics import codegen as codegen_c
+from appell.numerics.codegen import build as codegen_build, printer as codegen_printer, source as codegen_source
+from appell.numerics.codegen import c_source, compile_c, particle_tree
 from appell.symbols import t
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
@@ -74,7 +75,7 @@ def states(d, count=4, seed=3):
 def dense(d, monkeypatch):
     """The same derivation compiled by the dense route (the tree switched off)."""
     with monkeypatch.context() as mp:
-        mp.setattr(codegen_c, "particle_tree", lambda inertia, n: None)
+        mp.setattr(codegen_source, "particle_tree", lambda inertia, n: None)
         assert "tree_solve" not in codegen_c.c_source(d)
         return compile_c(d, "c")
 
@@ -176,9 +177,9 @@ def test_long_functions_are_split_into_units_that_give_the_same_library(monkeypa
     the single-unit library's blocks, accelerations and multipliers to 1e-12."""
     d = appell.derive(nlink_pendulum(6, 2))
     whole = dense(d, monkeypatch)
-    monkeypatch.setattr(codegen_c, "SPLIT_STATEMENTS", 40)
-    monkeypatch.setattr(codegen_c, "O1_ABOVE", 3000)
-    monkeypatch.setattr(codegen_c, "particle_tree", lambda inertia, n: None)
+    monkeypatch.setattr(codegen_printer, "SPLIT_STATEMENTS", 40)
+    monkeypatch.setattr(codegen_build, "O1_ABOVE", 3000)
+    monkeypatch.setattr(codegen_source, "particle_tree", lambda inertia, n: None)
     source = c_source(d)
     units = codegen_c.source_units(source)
     assert len(units) >= 4 and all(codegen_c.HEADER_END in u for u in units)

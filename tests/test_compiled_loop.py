@@ -272,7 +272,7 @@ def test_fast_calls_equal_plain_ctypes_calls(chain):
     import ctypes
 
     from appell.errors import ModelError
-    from appell.numerics.codegen_c import caller
+    from appell.numerics.codegen import caller
 
     assert caller() is not None  # built here: the Python headers are present
     y = chain_state(chain)

@@ -378,7 +378,7 @@ import sys, warnings
 warnings.simplefilter("ignore")
 import appell
 from appell.examples.catalog import CATALOG
-from appell.numerics.codegen_c import compile_c
+from appell.numerics.codegen import compile_c
 m = compile_c(appell.derive(CATALOG["pendulum"]()), "c")
 print(m.freshly_compiled, float(m.solve(0.0, [0.6, -0.8], [0.0, 0.0]).multipliers[0]))
 """
@@ -390,7 +390,7 @@ from pathlib import Path
 warnings.simplefilter("ignore")
 import appell
 from appell.examples.catalog import CATALOG
-from appell.numerics.codegen_c import compile_c
+from appell.numerics.codegen import compile_c
 
 foreign = sys.argv[1]
 d = appell.derive(CATALOG["pendulum"]())
@@ -441,7 +441,7 @@ def test_corrupt_cache_is_detected_and_rebuilt(tmp_path):
 @needs_cc
 def test_a_library_not_matching_its_checksum_is_compiled_again_with_a_warning(tmp_path, monkeypatch):
     monkeypatch.setenv("APPELL_CACHE_DIR", str(tmp_path))
-    from appell.numerics.codegen_c import build_library, c_source
+    from appell.numerics.codegen import build_library, c_source
 
     source = c_source(appell.derive(CATALOG["knife_edge"]()))
     lib, fresh = build_library(source)
@@ -509,7 +509,7 @@ def test_unwritable_cache_directory_falls_back_for_auto(monkeypatch, tmp_path):
     blocker.write_text("")
     monkeypatch.setenv("APPELL_CACHE_DIR", str(blocker / "cache"))
     d = appell.derive(CATALOG["pendulum"]())
-    from appell.numerics.codegen_c import CompiledNumericModel, compile_c
+    from appell.numerics.codegen import CompiledNumericModel, compile_c
 
     with pytest.raises(appell.ResourceError, match="compiled-code cache"):
         compile_c(d, "c")

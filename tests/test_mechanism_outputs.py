@@ -73,7 +73,7 @@ def test_output_columns_reach_csv_netcdf_and_hdf5(solution, tmp_path):
 def test_compiled_c_outputs_equal_numpy_outputs():
     """The C backend solves, then the same output function evaluates: equal to NumPy's and
     to the closed-form tension."""
-    from appell.numerics.codegen_c import find_compiler
+    from appell.numerics.codegen import find_compiler
 
     if find_compiler() is None:
         pytest.skip("no C compiler")

@@ -38,7 +38,7 @@ from appell.simulation.solution import Solution
 from appell.reduction.cyclic import RouthReduction, cyclic_coordinates, routh_reduction
 from appell.reduction.first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
 from appell.symbols import derivative_symbol, t
-from appell.numerics.codegen_c import compile_c
+from appell.numerics.codegen import compile_c
 from appell.simulation.sweep import SweepResult, parameter_grid, sweep, sweep_cluster
 from appell.control.servo import ControlledDerivation, derive_controlled
 from appell.control.servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
@@ -68,7 +68,7 @@ def _install_conveniences() -> None:
 
     def compiled(self, backend: str = "c"):
         """Numeric functions from a chosen backend: 'c' (C compiled and cached on disk), 'auto' or
-        'numpy' (:func:`appell.numerics.codegen_c.compile_c`); not cached here."""
+        'numpy' (:func:`appell.numerics.codegen.compile_c`); not cached here."""
         return compile_c(self, backend)
 
     def to_text(self, only=None) -> str:

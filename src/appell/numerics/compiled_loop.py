@@ -1,6 +1,6 @@
 """The compiled integration loop: DOP853 in C over a compiled model (``dop853.c`` beside this module).
 
-The loop integrates ``dy/dt`` of a :class:`~appell.numerics.codegen_c.CompiledNumericModel`
+The loop integrates ``dy/dt`` of a :class:`~appell.numerics.codegen.CompiledNumericModel`
 (constraints linear in ``a``) with the Dormand–Prince pair of orders 8(5,3) and the step
 control and dense output of order 7 of Hairer, Nørsett & Wanner (*Solving Ordinary
 Differential Equations I*, 2nd ed., 1993, §II.10; the same scheme as SciPy's
@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from appell.errors import ComputationError
-from appell.numerics.codegen_c import CompiledNumericModel, build_library, find_compiler, load_library
+from appell.numerics.codegen import CompiledNumericModel, build_library, find_compiler, load_library
 from appell.numerics.numeric import KEEP_CONDITION
 
 __all__ = ["CompiledLoop", "LoopSolver", "supports", "loop_library"]
@@ -51,7 +51,7 @@ _LIBRARY: list = []
 
 
 def loop_library():
-    """The loop's shared library, compiled once into the cache (:func:`~appell.numerics.codegen_c.build_library`)."""
+    """The loop's shared library, compiled once into the cache (:func:`~appell.numerics.codegen.build_library`)."""
     if _LIBRARY:
         return _LIBRARY[0]
     source = SOURCE.read_text()
@@ -194,7 +194,7 @@ class CompiledLoop:
     def evaluate_many(self, ts, ys):
         """The model at the states ``ys`` (m x ny) at times ``ts`` (m) in one C call:
         ``(accelerations, multipliers, F, phi)``, one row per state (as one
-        :meth:`~appell.numerics.codegen_c.CompiledNumericModel.evaluate` and
+        :meth:`~appell.numerics.codegen.CompiledNumericModel.evaluate` and
         :meth:`~appell.numerics.numeric.NumericModel.state_residuals` per state)."""
         ts = np.ascontiguousarray(ts, dtype=float).reshape(-1)
         ys = np.ascontiguousarray(ys, dtype=float).reshape(ts.size, self.ny)

@@ -8,7 +8,7 @@
    atol + rtol max(|y|, |y_new|), step factor 0.9 err^(-1/8) clipped to [0.2, 10] (not above
    1 after a rejection), the initial step of Hairer-Norsett-Wanner II.4.
 
-   It integrates a model compiled by appell.numerics.codegen_c through the model library's
+   It integrates a model compiled by appell.numerics.codegen through the model library's
    entry points (function pointers appell_evaluate and appell_residuals), and records the
    output times inside each accepted step: the state from the dense output, the model
    evaluated there (accelerations, multipliers) and the constraint residuals. Where the

@@ -3,7 +3,7 @@
 ctypes converts each argument of a foreign call through its ``argtypes`` (about 0.3 us
 each, 3 us for the eight of ``appell_evaluate``). ``fastcall.c`` is a small CPython
 extension, compiled once into the cache like the models
-(:func:`~appell.numerics.codegen_c.build_library`, with the interpreter's headers), whose
+(:func:`~appell.numerics.codegen.build_library`, with the interpreter's headers), whose
 two functions take the C function's address and the arrays' addresses as plain integers.
 Where it cannot be built (no Python headers) :func:`caller` returns None and the callers keep
 ctypes.

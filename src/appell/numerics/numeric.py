@@ -667,7 +667,7 @@ def _args(derivation, with_acc=False):
 def compile_model(derivation) -> NumericModel:
     """Generate the NumPy/``math`` numeric functions of a derivation (once; CSE shared per
     function). The compiled C backend and the choice between backends are
-    :func:`appell.numerics.codegen_c.compile_c`.
+    :func:`appell.numerics.codegen.compile_c`.
     """
     system = derivation.system
     subs = program_substitutions(system)

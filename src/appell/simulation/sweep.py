@@ -186,8 +186,8 @@ class _Shipment:
     For a System, a Derivation or a NumericModel: the ``derivation`` (plain symbolic data,
     a few kB pickled, its reduced equations and reactions already formed) and the resolved
     ``backend`` ('c', 'auto' or 'numpy'). The C library itself is not shipped: the client
-    compiled it into the shared cache (:func:`appell.numerics.codegen_c.build_library`),
-    where :func:`~appell.numerics.codegen_c.compile_c` finds it by the key of its source; a
+    compiled it into the shared cache (:func:`appell.numerics.codegen.build_library`),
+    where :func:`~appell.numerics.codegen.compile_c` finds it by the key of its source; a
     worker on another machine compiles it once there (under the cache's lock). A derivation
     with servo constraints has ``backend`` 'own': each worker makes its NumPy model. Any other
     picklable Dynamics is shipped as it is (``dynamics``). ``key`` names the model by its
@@ -205,7 +205,7 @@ class _Shipment:
             return self.dynamics
         if self.backend == "own":  # a derivation with its own numeric model (servo constraints)
             return self.derivation.numeric
-        from appell.numerics.codegen_c import compile_c
+        from appell.numerics.codegen import compile_c
 
         return compile_c(self.derivation, self.backend)
 
@@ -251,7 +251,7 @@ def _run_chunk(shipment, chunk, t_end, t_eval, options) -> list[dict]:
 
 def _prepare_worker() -> int:
     """Import the simulation layer on a worker (a kept cluster pays it once, not in a sweep)."""
-    import appell.numerics.codegen_c  # noqa: F401
+    import appell.numerics.codegen  # noqa: F401
     import appell.simulation.simulate  # noqa: F401
 
     return os.getpid()
@@ -721,7 +721,7 @@ def _prepare(model, backend: str) -> _Shipment:
     import hashlib
     import pickle
 
-    from appell.numerics.codegen_c import CompiledNumericModel, compile_c
+    from appell.numerics.codegen import CompiledNumericModel, compile_c
     from appell.numerics.dynamics import Dynamics
     from appell.numerics.numeric import NumericModel
 
@@ -987,7 +987,7 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     ModelError : bad arguments (before any run); ResourceError : the scheduler cannot be
         reached, or the dataset cannot be written (the runs are on ``exc.result``).
     """
-    from appell.numerics.codegen_c import BACKENDS
+    from appell.numerics.codegen import BACKENDS
 
     t_end = number(t_end, "t_end", positive=True, hint="sweeps run from t = 0 to a finite t_end > 0")
     samples = count(samples, "samples", maximum=MAX_SAMPLES)

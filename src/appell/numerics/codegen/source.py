@@ -1,0 +1,83 @@
+"""The complete C source of a derivation: its blocks (:mod:`.printer`), the split solve
+(``solver.c``), the dense entries (``dense_entries.c``) or the tree recursions (:mod:`.tree`,
+``tree.c``), and the evaluation entry point (``evaluate.c``)."""
+
+from __future__ import annotations
+
+from importlib import resources
+
+import sympy as sp
+
+from appell.numerics.numeric import REFINE_CONDITION, program_substitutions
+from appell.numerics.codegen.printer import HEADER_END, UNIT_MARK, _symbol_map, c_comment, c_function, common_factor
+from appell.numerics.codegen.tree import _tree_recursions, particle_tree
+
+
+def _c_file(name: str) -> str:
+    """The C source file ``name`` of this package (written as it is into every library)."""
+    return resources.files(__package__).joinpath(name).read_text(encoding="utf-8")
+
+
+def c_source(derivation) -> str:
+    """The complete C source of a derivation's numeric functions (see module docstring)."""
+    subs = dict(program_substitutions(derivation.system))
+    cons, inertia = derivation.constraints, derivation.inertia
+    kin = derivation.kinematics
+    n, s, nq = len(kin.speeds), cons.count, len(kin.coordinates)
+    syms = _symbol_map(derivation)
+
+    def prepared(m):
+        return sp.Matrix(m).xreplace(subs) if subs else sp.Matrix(m)
+
+    hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
+    J = sp.Matrix(cons.jacobian) if s else sp.zeros(0, n)
+    c = sp.Matrix(cons.bias) if s else sp.zeros(0, 1)
+    if not cons.linear:
+        J0 = J.xreplace({a: 0 for a in kin.accelerations})
+    else:
+        J0 = J
+    pos, vel = cons.residual_matrices()
+    tree = particle_tree(inertia, n) if cons.linear else None
+    parts = [
+        f"/* appell: generated C for system {c_comment(derivation.system.name)}; n = {n}, s = {s} */",
+        "#include <math.h>",
+        f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}\n#define REFINE_CONDITION {REFINE_CONDITION!r}",
+        HEADER_END,
+    ]
+    if tree is None:
+        parts.append(c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms))
+    else:
+        # the spatial directions in which some node moves (a planar tree: 2)
+        rows = [r for r in range(3) if any(m[r] != 0 for m in tree.axis + tree.relative_bias)] or [0]
+        axis = sp.Matrix([m[r] for m in tree.axis for r in rows])
+        bias = sp.Matrix([m[r] for m in tree.relative_bias for r in rows])
+        Q = sp.Matrix(inertia.generalized_forces).applyfunc(common_factor)
+        parts += [f"/* point masses on a tree: {c_comment(', '.join(tree.names))} */",
+                  f"#define NB {len(tree.names)}\n#define TD {len(rows)}",
+                  c_function("appell_tree_terms", [prepared(axis), prepared(bias), prepared(sp.Matrix(tree.mass)),
+                                                   prepared(Q), prepared(J0), prepared(c)], syms)]
+    parts += [c_function("appell_rates", [prepared(kin.coordinate_rates)], syms),
+              c_function("appell_residuals", [prepared(pos), prepared(vel)], syms)]
+    if cons.linear:
+        parts += [_c_file("solver.c"), _c_file("dense_entries.c") if tree is None else _tree_recursions(tree, len(rows), s) + _c_file("tree.c"), _c_file("evaluate.c")]
+    else:
+        parts.append(c_function("appell_constraint", [prepared(cons.second_order), prepared(J)], syms))
+    main, units = [], []
+    for part in parts:          # the parts of long functions go to the end, a unit each
+        head, *rest = part.split(UNIT_MARK)
+        main.append(head.rstrip())
+        units += [u.strip() for u in rest]
+    return "\n\n".join(main) + "\n" + "".join(f"\n{UNIT_MARK}\n{u}\n" for u in units)
+
+
+def source_units(source: str) -> list[str]:
+    """The translation units of a generated source: the whole source when it has no
+    :data:`UNIT_MARK`, else the main part and each unit after its own copy of the header
+    (the text before :data:`HEADER_END`). Compiled together they make the same library."""
+    chunks = source.split(UNIT_MARK)
+    if len(chunks) == 1:
+        return [source]
+    header = source[:source.index(HEADER_END) + len(HEADER_END)] + "\n"
+    return [chunks[0]] + [header + chunk for chunk in chunks[1:]]
+
+
