@@ -42,7 +42,8 @@ def formulas_unavailable(partition) -> str | None:
         return None
     return (f"the closed forms (1.4) and (1.5) are not formed: the dependent block J_h is {s} x {s} (more than "
             f"{INVERSE_LIMIT}), whose symbolic inverse would swell past use; the motion, the reactions and the "
-            "outputs come from the numeric split of the blocks M, h - Q, J, c at each state")
+            "outputs come from the numeric split of the blocks M, h - Q, J, c at each state (printed: the "
+            "equations (1.3) M a + h = Q + J^T lambda and f = J a + c = 0 that it solves)")
 
 
 def block_inverse(Jh: sp.Matrix) -> sp.Matrix:

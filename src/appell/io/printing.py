@@ -84,7 +84,10 @@ def equation_formulas(derivation) -> list[Formula]:
 
     motion: the accelerations of (1.4) solved (``a_nu = M_r^{-1} f_r`` for small ``M_r``,
     else the reduced equations ``M_r a_nu = f_r``), then ``a_h`` from ``f = 0``; for
-    constraints nonlinear in ``a``: ``C^T E = 0`` and ``f = 0``. reactions: each
+    constraints nonlinear in ``a``: ``C^T E = 0`` and ``f = 0``; where the dependent block is
+    too large for closed forms (:func:`~appell.core.equations.formulas_unavailable`), the
+    equations (1.3) ``M a + h = Q + J^T lambda`` row by row and ``f = 0``, which the numeric
+    split solves. reactions: each
     ``lambda`` by (1.5) in ``(t, q, w, a)`` and, where the accelerations are solved, in
     ``(t, q, w)``. outputs: each output (e.g. a joint's reaction force) in terms of
     ``t, q, w, a`` and the multipliers. controls (servo constraints): the control laws and
@@ -92,8 +95,16 @@ def equation_formulas(derivation) -> list[Formula]:
     """
     controlled = is_controlled(derivation)
     if not controlled and formulas_unavailable(derivation.partition) is not None:
-        rows = [Formula(f"(f_{n} = 0)", f, sp.S.Zero, "motion")
-                for n, f in zip(derivation.constraints.names, derivation.constraints.second_order)]
+        # the equations the numeric split solves, by named blocks: (1.3) M a + h = Q + J^T lambda
+        # row by row, and f = J a + c = 0 (never the symbolic inverse of the large J_h)
+        inertia, cons = derivation.inertia, derivation.constraints
+        a = sp.Matrix(derivation.accelerations)
+        lam = sp.Matrix([sp.Symbol(f"lambda_{n}") for n in cons.names])
+        lhs = sp.Matrix(inertia.mass_matrix) * a + sp.Matrix(inertia.inertial_forces)
+        rhs = sp.Matrix(inertia.generalized_forces) + sp.Matrix(cons.jacobian).T * lam
+        rows = [Formula(f"(1.3) [{w}]", lhs[i], rhs[i], "motion")
+                for i, w in enumerate(derivation.kinematics.speeds)]
+        rows += [Formula(f"(f_{n} = 0)", f, sp.S.Zero, "motion") for n, f in zip(cons.names, cons.second_order)]
         return rows + [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
     red, rows = derivation.reduced, []
     tag = "(2.4)" if controlled else "(1.4)"
@@ -221,7 +232,10 @@ def derivation_text(derivation, only=None) -> str:
         lines += ["  " + line for line in derivation.redundancy.summary()]
         lines.append("  " + REDUNDANT_FORMULAS)
     printed = printed_equations(derivation, only)
-    titles = {"motion": "motion: accelerations (1.4) and f = 0", "reactions": "reactions (1.5)",
+    motion = ("motion: the equations (1.3) with the multipliers and f = 0, solved at each state by the numeric "
+              "split" if not is_controlled(derivation) and formulas_unavailable(derivation.partition) is not None
+              else "motion: accelerations (1.4) and f = 0")
+    titles = {"motion": motion, "reactions": "reactions (1.5)",
               "outputs": "outputs (from t, q, w, a and the multipliers)", "controls": "controls"}
     if printed.definitions:
         lines += ["", "where"]
