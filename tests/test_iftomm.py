@@ -17,6 +17,7 @@ from 1 to N + 1: appell must pass each on the same branch and say so.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -137,8 +138,14 @@ def test_benchmark_files_are_their_builders(name):
                 _equal_at_random_points(u, v, rng, f"{x.name}.{field}")
 
 
+@functools.lru_cache(maxsize=None)
+def a02_derivation(n: int):
+    """The derivation of the bundled A02 file with n four-bars, once per module."""
+    return appell.derive(appell.load_model(example_path(f"iftomm_a02_n{n}")))
+
+
 def run_a02(n: int, **options):
-    derivation = appell.derive(appell.load_model(example_path(f"iftomm_a02_n{n}")))
+    derivation = a02_derivation(n)
     sol = appell.simulate(derivation.compiled("c"), **options)
     return derivation, sol
 
@@ -209,7 +216,7 @@ def test_a02_pin_forces_close_to_the_flat_instant():
     instant) match it to 1e-6 of their size; the event at the instant gives the
     minimum-norm multipliers, bounded, and names the rank lost."""
     n, t_end = 4, 1.3
-    derivation = appell.derive(appell.load_model(example_path(f"iftomm_a02_n{n}")))
+    derivation = a02_derivation(n)
     sol = appell.simulate(derivation.compiled("c"), t_end, t_eval=np.linspace(0.0, t_end, 26001))
     _, _, _, passed = check_a02(n, sol, t_end)
     inside = check_pin_forces(n, sol, passed, per_instant=3e-6)
@@ -315,6 +322,29 @@ def test_bricard_against_the_augmented_system_integrated_by_scipy(bricard):
     ref = solve_ivp(rates, (0.0, 3.0), sol.y[:, 0], t_eval=times, rtol=1e-12, atol=1e-13, method="DOP853")
     assert ref.success
     assert np.abs(ref.y[:5] - sol.y[:5, :times.size]).max() < 1e-8
+
+
+def test_a_model_too_large_for_closed_forms_prints_the_equations_it_solves():
+    """The IFToMM chain of ten four-bars (a 20 x 20 dependent block: no closed forms, issue 22
+    §2): derive prints (1.3), M a + h = Q + J^T lambda row by row, and f = 0 through shared
+    subexpressions; read back from the text, every row holds at the numeric split's
+    accelerations and multipliers at a state on the loop (relative 1e-9)."""
+    from test_printed_equations import _evaluate, _names, _values, read_printed
+
+    d = a02_derivation(10)
+    text = d.to_text()
+    assert "motion: the equations (1.3) with the multipliers and f = 0" in text
+    defs, rows = read_printed(text, _names(d))
+    assert sum(label.startswith("(1.3)") for label, _, _ in rows) == len(d.kinematics.speeds)
+    q = np.array([d.system.initial_values[s.name] for s in d.kinematics.coordinates]) + 0.3 * np.array(
+        [1.0 if s.name.startswith("R") else -1.0 for s in d.kinematics.coordinates])  # still a parallelogram
+    w = np.array([0.7 if s.name.startswith("R") else -0.7 for s in d.kinematics.coordinates])
+    sol = d.numeric.solve(0.2, q, w)
+    values = {**_values(d, 0.2, q, w), **dict(zip(d.kinematics.accelerations, sol.accelerations)),
+              **{sp.Symbol(f"lambda_{n}"): v for n, v in zip(d.constraints.names, sol.multipliers)}}
+    scale = 1.0 + np.max(np.abs(sol.multipliers)) + np.max(np.abs(sol.accelerations))
+    for label, lhs, rhs in rows:
+        assert abs(_evaluate(defs, lhs - rhs, values)) <= 1e-9 * scale, label
 
 
 # ------------------------------------------------------------------ A01, the simple pendulum

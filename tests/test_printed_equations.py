@@ -217,25 +217,3 @@ def test_printed_control_laws_evaluate_to_the_numeric_controls(name):
         # the printed law against the (2.3) solve at the same state: rounding times its condition
         assert printed == pytest.approx(value, rel=1e-9, abs=1e-9 * (1 + abs(value))), name_
 
-
-def test_a_model_too_large_for_closed_forms_prints_the_equations_it_solves():
-    """The IFToMM chain of ten four-bars (a 20 x 20 dependent block: no closed forms, issue 22
-    §2): derive prints (1.3), M a + h = Q + J^T lambda row by row, and f = 0 through shared
-    subexpressions; read back from the text, every row holds at the numeric split's
-    accelerations and multipliers at a state on the loop (relative 1e-9)."""
-    import appell
-
-    d = derive(appell.load_model("iftomm_a02_n10"))
-    text = d.to_text()
-    assert "motion: the equations (1.3) with the multipliers and f = 0" in text
-    defs, rows = read_printed(text, _names(d))
-    assert sum(label.startswith("(1.3)") for label, _, _ in rows) == len(d.kinematics.speeds)
-    q = np.array([d.system.initial_values[s.name] for s in d.kinematics.coordinates]) + 0.3 * np.array(
-        [1.0 if s.name.startswith("R") else -1.0 for s in d.kinematics.coordinates])  # still a parallelogram
-    w = np.array([0.7 if s.name.startswith("R") else -0.7 for s in d.kinematics.coordinates])
-    sol = d.numeric.solve(0.2, q, w)
-    values = {**_values(d, 0.2, q, w), **dict(zip(d.kinematics.accelerations, sol.accelerations)),
-              **{sp.Symbol(f"lambda_{n}"): v for n, v in zip(d.constraints.names, sol.multipliers)}}
-    scale = 1.0 + np.max(np.abs(sol.multipliers)) + np.max(np.abs(sol.accelerations))
-    for label, lhs, rhs in rows:
-        assert abs(_evaluate(defs, lhs - rhs, values)) <= 1e-9 * scale, label
