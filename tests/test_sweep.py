@@ -182,7 +182,9 @@ def test_a_kept_cluster_builds_each_model_once_per_worker_and_ships_numpy_models
     """sweep_cluster connected to a real scheduler with one 'dask worker': three sweeps on
     the same client. The worker keeps its process (same pid) and builds the C model of the
     derivation once (one key after two sweeps of it); the NumPy model (lambdified functions,
-    which do not pickle) is shipped by its derivation. Every run equals the plain loop's."""
+    which do not pickle) is shipped by its derivation. Every run equals the plain loop's. The
+    derivation, its numeric model used, and a controlled one pickle and run on the worker
+    (:func:`_derivations_pickle_after_numeric_use_and_run_on_the_worker`)."""
     system, opts = _car()
     t_end, t_eval = opts.pop("t_end"), opts.pop("t_eval")
     opts["t_eval"] = t_eval[::4]
@@ -202,6 +204,7 @@ def test_a_kept_cluster_builds_each_model_once_per_worker_and_ships_numpy_models
                       **opts)
         assert len(next(iter(_built_models(client).values()))) == 2
         assert client.run(os.getpid) == pids
+        _derivations_pickle_after_numeric_use_and_run_on_the_worker(client, derivation)
     assert not client.status == "running"
     for res, model in ((first, derivation.compiled("c")), (third, numpy_model)):
         import h5py
@@ -264,19 +267,17 @@ def test_appell_cluster_serves_sweeps_until_ctrl_c(tmp_path):
         log.close()
 
 
-def test_a_derivation_pickles_after_numeric_use_and_runs_on_a_real_dask_worker(dask_processes):
+
+def _derivations_pickle_after_numeric_use_and_run_on_the_worker(client, car):
     """A Derivation keeps only its symbolic data in a pickle (issue 21: after its first
     numeric use it no longer pickled, and the sweep deleted instance entries to ship it):
-    the car, used here first, is sent to a 'dask worker' process, which builds its NumPy
-    model again and returns the reactions at a state, equal to the ones here; a controlled
-    derivation (the cart-pole) likewise."""
+    the car, whose NumPy model was used here, is sent to the 'dask worker' process, which
+    builds its model again and returns the reactions at a state, equal to the ones here; a
+    controlled derivation (the cart-pole) likewise with its controls."""
     import pickle
-
-    from dask.distributed import Client
 
     from appell.io.cli import derive_model, load_system
 
-    car = appell.derive(load_system("car"))
     cart_pole = derive_model(load_system("cart_pole"))
     q, w = [0.0, 0.0, 0.3], [1.2, 0.5, 0.1]
     here = car.numeric.solve(0.0, q, w).multipliers
@@ -294,9 +295,7 @@ def test_a_derivation_pickles_after_numeric_use_and_runs_on_a_real_dask_worker(d
     def controls(derivation):
         return derivation.numeric.evaluate(0.0, y, derivation.numeric.params()).controls
 
-    dask_processes.workers(1)
-    with Client(dask_processes.address, timeout=60) as client:
-        there = client.submit(reactions, car).result(timeout=120)
-        there_controlled = client.submit(controls, cart_pole).result(timeout=120)
+    there = client.submit(reactions, car).result(timeout=120)
+    there_controlled = client.submit(controls, cart_pole).result(timeout=120)
     np.testing.assert_allclose(there, here, rtol=1e-13, atol=1e-13)
     np.testing.assert_allclose(there_controlled, here_controlled, rtol=1e-13, atol=1e-13)

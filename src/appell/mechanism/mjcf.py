@@ -76,7 +76,7 @@ def _rotation(quat) -> np.ndarray:
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def _rpy(R: np.ndarray) -> list[list[float]]:
+def _orientation(R: np.ndarray) -> list[list[float]]:
     """The frame's rotation for the builder, as the matrix itself (the builder takes roll,
     pitch, yaw or a 3x3 rotation; angles read back from ``R`` near a pitch of 90 degrees would
     lose digits)."""
@@ -151,7 +151,7 @@ def _geoms(mujoco, model, mech, made) -> None:
             continue
         colour = None if np.allclose(rgba, (0.5, 0.5, 0.5, 1.0)) else \
             "#" + "".join(f"{round(255 * min(max(x, 0.0), 1.0)):02x}" for x in rgba[:3])  # MuJoCo's grey: the body's
-        place = dict(origin=tuple(float(v) for v in model.geom_pos[g]), rpy=_rpy(_rotation(model.geom_quat[g])),
+        place = dict(origin=tuple(float(v) for v in model.geom_pos[g]), rpy=_orientation(_rotation(model.geom_quat[g])),
                      colour=colour)
         if mesh:  # the triangles MuJoCo's compiler read, in the mesh's frame (the geom's)
             m = int(model.geom_dataid[g])
@@ -212,7 +212,7 @@ def mjcf_mechanism(model, source: str = "<mjcf>"):
             raise ModelError(f"{where} has {len(ids)} joints; appell maps one joint per body",
                              hint="nest a massive body for each joint, or combine them as a ball or free joint")
         if not ids:
-            mech.fixed(f"{bname}_weld", parent, body, origin=tuple(pos), rpy=_rpy(R_b))
+            mech.fixed(f"{bname}_weld", parent, body, origin=tuple(pos), rpy=_orientation(R_b))
             continue
         j = ids[0]
         jname = joints[j] or f"{bname}_joint"
@@ -222,16 +222,16 @@ def mjcf_mechanism(model, source: str = "<mjcf>"):
         child_origin = tuple(float(v) for v in anchor)
         axis = tuple(float(v) for v in model.jnt_axis[j])
         if kind == mujoco.mjtJoint.mjJNT_HINGE:
-            made_joint = mech.revolute(jname, parent, body, axis=axis, origin=origin, rpy=_rpy(R_b),
+            made_joint = mech.revolute(jname, parent, body, axis=axis, origin=origin, rpy=_orientation(R_b),
                                        child_origin=child_origin)
         elif kind == mujoco.mjtJoint.mjJNT_SLIDE:
-            made_joint = mech.prismatic(jname, parent, body, axis=axis, origin=origin, rpy=_rpy(R_b),
+            made_joint = mech.prismatic(jname, parent, body, axis=axis, origin=origin, rpy=_orientation(R_b),
                                         child_origin=child_origin)
         elif kind == mujoco.mjtJoint.mjJNT_BALL:
-            made_joint = mech.spherical(jname, parent, body, origin=origin, rpy=_rpy(R_b), child_origin=child_origin,
+            made_joint = mech.spherical(jname, parent, body, origin=origin, rpy=_orientation(R_b), child_origin=child_origin,
                                         rotation="quaternion")
         else:  # free: MuJoCo's frame is the world's
-            made_joint = mech.free(jname, parent, body, origin=origin, rpy=_rpy(R_b), child_origin=child_origin,
+            made_joint = mech.free(jname, parent, body, origin=origin, rpy=_orientation(R_b), child_origin=child_origin,
                                    rotation="quaternion")
         coordinate[j] = made_joint.coordinates
     _geoms(mujoco, model, mech, made)
