@@ -35,7 +35,7 @@ from pathlib import Path
 
 import click
 
-from appell.core.equations import is_controlled as is_controlled_derivation
+from appell.core.equations import is_controlled
 from appell_entry import interrupt_received
 
 from appell.core.equations import formulas_unavailable
@@ -163,11 +163,6 @@ def check_inertia_at_start(derivation) -> None:
                          f"{', '.join(empty)}: that motion has no inertia in any state, so its acceleration is "
                          "not determined",
                          hint="give it inertia (a mass or a moment of inertia in the kinetic energy), or constrain it")
-
-
-def is_controlled(derivation) -> bool:
-    """Whether ``derivation`` is a controlled derivation (servo constraints, method.md §4)."""
-    return is_controlled_derivation(derivation)
 
 
 def internal_stability(derivation, solution=None):

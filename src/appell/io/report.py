@@ -66,10 +66,6 @@ class EquationRow:
         return f"{latex(self.lhs)} = {latex(self.rhs)}"
 
 
-def _is_controlled(derivation) -> bool:
-    return is_controlled(derivation)
-
-
 def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
     """The equations shown in the report, grouped under titles, as ``appell derive`` prints
     them (:func:`appell.io.printing.printed_equations`): the shared subexpressions defined
@@ -88,7 +84,7 @@ def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
     if printed.definitions:
         groups.append(("Shared subexpressions (each defined once, used below)",
                        [EquationRow("", sym, e) for sym, e in printed.definitions]))
-    if _is_controlled(derivation):
+    if is_controlled(derivation):
         controls = rows["controls"]
         groups.append(("Dynamic conditions (2.3) — the equations of the controls",
                        [EquationRow(f.label, f.lhs, f.rhs) for f in controls if f.label.startswith("(2.3)")]))
@@ -329,9 +325,9 @@ def _equation_section(derivation) -> str:
                      "<p>" + _e(REDUNDANT_FORMULAS) + ".</p>")
     if not ind:
         parts.append("<p>No acceleration is free (p = 0): the constraints"
-                     + (" and the servo constraints" if _is_controlled(derivation) else "")
+                     + (" and the servo constraints" if is_controlled(derivation) else "")
                      + " prescribe the motion; the formulas below give "
-                     + ("the controls and " if _is_controlled(derivation) else "")
+                     + ("the controls and " if is_controlled(derivation) else "")
                      + "every reaction along it.</p>")
     for title, rows in equation_groups(derivation):
         parts.append(f"<h3>{_e(title)}</h3>")

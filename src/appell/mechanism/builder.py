@@ -220,6 +220,43 @@ class _Action:
     torque: sp.Matrix
 
 
+def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None) -> tuple[list, list]:
+    """The rows ``<name>_<d> = e_d . (p_a - p_b)`` holding two body points together along the
+    world ``directions``, and their actions: ``lambda e_d`` on body_a at ``p_a``, its opposite
+    on body_b. With a list ``idle``, a row that holds at every configuration is left out and
+    its name appended there."""
+    cons, acts = [], []
+    for d in directions:
+        e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
+        row = (pa - pb).dot(e)
+        if idle is not None and identically_zero(row):
+            idle.append(f"{name}_{d}")
+            continue
+        c = holonomic(f"{name}_{d}", row)
+        lam = sp.Symbol(f"lambda_{c.name}")
+        cons.append(c)
+        acts += [_Action(ba, pa, e * lam, sp.zeros(3, 1)), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
+    return cons, acts
+
+
+def _alignment_rows(rows, ba, pa, bb, pb, idle=None) -> tuple[list, list]:
+    """Orientation rows ``(name, u, v)``: ``u . v = 0`` for ``u`` fixed in body_a and ``v``
+    fixed in body_b (world components); ``lambda`` acts as the moment ``lambda u x v`` on
+    body_a and its opposite on body_b (the virtual work of a rotation ``dtheta_a``:
+    ``d(u . v) = dtheta_a . (u x v)``). ``idle`` as in :func:`_point_rows`."""
+    cons, acts = [], []
+    for name, u, v in rows:
+        row = u.dot(v)
+        if idle is not None and identically_zero(row):
+            idle.append(name)
+            continue
+        c = holonomic(name, row)
+        moment = _cross(u, v) * sp.Symbol(f"lambda_{c.name}")
+        cons.append(c)
+        acts += [_Action(ba, pa, sp.zeros(3, 1), moment), _Action(bb, pb, sp.zeros(3, 1), -moment)]
+    return cons, acts
+
+
 @dataclass
 class _Closure:
     """Constraints of a closure or contact (built once the kinematics is known)."""
@@ -435,15 +472,7 @@ class Mechanism:
             raise ModelError(f"{what}: directions {directions!r} must be distinct letters of 'xyz'")
 
         def build(frames):
-            pa, pb = frames[ba].point(ra)[0], frames[bb].point(rb)[0]
-            cons, acts = [], []
-            for d in dirs:
-                e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
-                c = holonomic(f"{name}_{d}", (pa - pb).dot(e))
-                lam = sp.Symbol(f"lambda_{c.name}")
-                cons.append(c)
-                acts += [_Action(ba, pa, e * lam, sp.zeros(3, 1)), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
-            return cons, acts
+            return _point_rows(name, ba, frames[ba].point(ra)[0], bb, frames[bb].point(rb)[0], dirs)
 
         self._closures.append(_Closure(name, build))
 
@@ -470,20 +499,10 @@ class Mechanism:
             fa, fb = frames[ba], frames[bb]
             pa, pb = fa.point(ra)[0], fb.point(rb)[0]
             A, B = fa.R * R_ab, fb.R
-            cons, acts = [], []
-            for d in "xyz":
-                e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
-                c = holonomic(f"{name}_{d}", (pa - pb).dot(e))
-                lam = sp.Symbol(f"lambda_{c.name}")
-                cons.append(c)
-                acts += [_Action(ba, pa, e * lam, sp.zeros(3, 1)), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
-            for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1))):
-                c = holonomic(f"{name}_r{d}", A[:, j].dot(B[:, k]))
-                lam = sp.Symbol(f"lambda_{c.name}")
-                cons.append(c)
-                moment = _cross(A[:, j], B[:, k]) * lam
-                acts += [_Action(ba, pa, sp.zeros(3, 1), moment), _Action(bb, pb, sp.zeros(3, 1), -moment)]
-            return cons, acts
+            cons, acts = _point_rows(name, ba, pa, bb, pb)
+            more, turn = _alignment_rows([(f"{name}_r{d}", A[:, j], B[:, k])
+                                          for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1)))], ba, pa, bb, pb)
+            return cons + more, acts + turn
 
         self._closures.append(_Closure(name, build))
 
@@ -527,28 +546,11 @@ class Mechanism:
         def build(frames):
             fa, fb = frames[ba], frames[bb]
             pa, pb = fa.point(ra)[0], fb.point(rb)[0]
-            along = fa.R * u
-            cons, acts, idle = [], [], []
-            for d in "xyz":
-                e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
-                row = (pa - pb).dot(e)
-                if identically_zero(row):
-                    idle.append(f"{name}_{d}")
-                    continue
-                c = holonomic(f"{name}_{d}", row)
-                lam = sp.Symbol(f"lambda_{c.name}")
-                cons.append(c)
-                acts += [_Action(ba, pa, e * lam, sp.zeros(3, 1)), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
-            for k, normal in (("1", fb.R * b1), ("2", fb.R * b2)):
-                row = along.dot(normal)
-                if identically_zero(row):
-                    idle.append(f"{name}_r{k}")
-                    continue
-                c = holonomic(f"{name}_r{k}", row)
-                lam = sp.Symbol(f"lambda_{c.name}")
-                cons.append(c)
-                moment = _cross(along, normal) * lam
-                acts += [_Action(ba, pa, sp.zeros(3, 1), moment), _Action(bb, pb, sp.zeros(3, 1), -moment)]
+            along, idle = fa.R * u, []
+            cons, acts = _point_rows(name, ba, pa, bb, pb, idle=idle)
+            more, turn = _alignment_rows([(f"{name}_r1", along, fb.R * b1), (f"{name}_r2", along, fb.R * b2)],
+                                         ba, pa, bb, pb, idle=idle)
+            cons, acts = cons + more, acts + turn
             if idle:
                 warnings.warn(AppellNote(f"{what}: {', '.join(idle)} hold at every configuration (a planar loop) "
                                          "and are left out"), stacklevel=2)
