@@ -448,6 +448,10 @@ class System:
     view : a :class:`appell.view.View`, what the picture of a motion draws (a mechanism
         makes one; a model file's ``[view]`` table); None: :mod:`appell.io.viewer` draws a
         default.
+    tree : a :class:`appell.rigid_tree.RigidTree` when the bodies hang on a joint tree (a
+        mechanism records it): the inertia is then computed by recursions along the tree
+        (:mod:`appell.numerics.rigid_tree`), never expanded. Only read where it describes
+        exactly these bodies and coordinates (:func:`appell.core.energy.usable_tree`).
     """
 
     coordinates: tuple[sp.Symbol, ...]
@@ -475,6 +479,7 @@ class System:
     units: tuple[tuple[str, str], ...] = ()
     outputs: tuple[Output, ...] = ()
     view: object | None = None
+    tree: object | None = None
 
     def __post_init__(self):
         s = object.__setattr__

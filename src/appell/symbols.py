@@ -121,3 +121,27 @@ def latex(expr) -> str:
     expr = sp.sympify(expr)
     names = {s: latex_name(s.name) for s in expr.free_symbols if isinstance(s, sp.Symbol)}
     return sp.latex(expr, symbol_names=names)
+
+
+def free_symbols(expr) -> set:
+    """``expr.free_symbols``, visiting each distinct subexpression once.
+
+    SymPy's property walks the expression as a tree: an expression built by a recursion
+    (a joint's reaction, whose subtrees share their parents' kinematics) repeats its shared
+    parts along every path, and the walk grows with the number of paths, not of nodes (the
+    Panda's 60 reaction outputs: 125 s). Nodes whose class binds symbols (derivatives,
+    lambdas, integrals) answer for themselves."""
+    out, seen, stack = set(), set(), [expr]
+    base = sp.Basic.free_symbols
+    while stack:
+        node = stack.pop()
+        if node in seen:
+            continue
+        seen.add(node)
+        if node.is_Symbol:
+            out.add(node)
+        elif type(node).free_symbols is not base:
+            out |= node.free_symbols
+        else:
+            stack.extend(node.args)
+    return out

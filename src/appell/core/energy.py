@@ -55,6 +55,113 @@ class InertiaBlocks:
         """``E = M a + h - Q`` (the left side of 1.3 without multipliers)."""
         return self.mass_matrix * sp.Matrix(a) + self.inertial_forces - self.generalized_forces
 
+    #: the bodies' joint tree when ``M`` and ``h`` are computed by recursions along it
+    tree = None
+
+
+class TreeInertiaBlocks(InertiaBlocks):
+    """``dS/da = M a + h`` of bodies on a joint tree (:class:`appell.rigid_tree.RigidTree`):
+    the numeric code computes ``M`` and ``h`` by recursions along ``tree`` (O(n) per column,
+    :mod:`appell.numerics.rigid_tree`), so they are never expanded to reach a number. The
+    expanded matrices are built only where a formula asks for them (printing the equations,
+    the cross-check's symbolic route), on first access, as :func:`inertia_blocks` does.
+
+    Where ``gravity`` is true, the system's potential energy is the tree's gravity
+    potential: the recursions apply it as the base's acceleration ``-g`` and ``h`` holds
+    its gradient, ``h = h_bodies + (dV/dq K)^T``, while ``Q`` holds the loads alone (the
+    same ``M a + h - Q``, without differentiating ``V`` to reach a number)."""
+
+    def __init__(self, generalized_forces, tree, gravity: bool, system, kinematics):
+        set_ = object.__setattr__
+        set_(self, "generalized_forces", generalized_forces)
+        set_(self, "particles", None)
+        set_(self, "tree", tree)
+        set_(self, "gravity", gravity)
+        set_(self, "_source", (system, kinematics))
+
+    def _expanded(self):
+        if "_blocks" not in self.__dict__:
+            system, kin = self._source
+            M, h, _ = _expanded_blocks(system, kin)
+            if self.gravity:
+                h = h + _potential_force(system.potential_energy, kin)
+            object.__setattr__(self, "_blocks", (sp.ImmutableMatrix(M), sp.ImmutableMatrix(h)))
+        return self.__dict__["_blocks"]
+
+    @property
+    def mass_matrix(self):
+        return self._expanded()[0]
+
+    @property
+    def inertial_forces(self):
+        return self._expanded()[1]
+
+    def __repr__(self):
+        return f"TreeInertiaBlocks({self.tree!r}, n = {len(self.generalized_forces)})"
+
+    def __eq__(self, other):
+        return self is other
+
+    __hash__ = object.__hash__
+
+
+def usable_tree(system: System, kin: Kinematics):
+    """``system.tree`` when it describes exactly the system's bodies and coordinates: no
+    energy given beside the bodies, speeds that are the coordinates' derivatives, each speed
+    moved by one joint, the same bodies with the same masses and inertias, and the same
+    mass-centre positions at a sample configuration (a tree left behind by an edited
+    system is never used). None otherwise: the expanded route."""
+    tree = system.tree
+    if tree is None or system.kinetic_energy is not None or system.acceleration_energy is not None:
+        return None
+    if tuple(kin.coordinate_rates) != tuple(kin.speeds) or not system.bodies:
+        return None
+    owned = sorted(k for node in tree.nodes for k in node.speeds)
+    if owned != list(range(len(kin.speeds))):
+        return None
+    by_name = {node.body: node for node in tree.nodes}
+    if sorted(by_name) != sorted(b.name for b in system.bodies) or len(by_name) != len(tree.nodes):
+        return None
+    for body in system.bodies:
+        node = by_name[body.name]
+        inertia = sp.Matrix(body.inertia) if isinstance(body, RigidBody) else sp.zeros(3, 3)
+        if node.mass != body.mass or sp.Matrix(node.inertia) != inertia:
+            return None
+    return tree if _same_positions(system, kin, tree) else None
+
+
+def _same_positions(system, kin, tree) -> bool:
+    """The tree's mass centres (forward kinematics, numbers) equal the bodies' positions at
+    a fixed irregular configuration, to 1e-9 relative."""
+    import math
+
+    values = dict(system.parameter_values)
+    values.update({q: 0.3 + 0.17 * k for k, q in enumerate(kin.coordinates)})
+    R_of, p_of = [], []
+    for node in tree.nodes:
+        try:
+            Rr = sp.Matrix(node.rotation).xreplace(values).evalf()
+            r = sp.Matrix(node.translation).xreplace(values).evalf()
+            Rp = R_of[node.parent] if node.parent >= 0 else sp.eye(3)
+            pp = p_of[node.parent] if node.parent >= 0 else sp.zeros(3, 1)
+            R_of.append(Rp * Rr)
+            p_of.append(pp + Rp * r)
+        except (TypeError, ValueError):
+            return False
+    index = {node.body: k for k, node in enumerate(tree.nodes)}
+    for body in system.bodies:
+        k = index[body.name]
+        mine = p_of[k] + R_of[k] * sp.Matrix(tree.nodes[k].com)
+        theirs = sp.Matrix(body.position).xreplace(values).evalf()
+        for x, y in zip(mine, theirs):
+            try:
+                x, y = float(x), float(y)
+            except (TypeError, ValueError):
+                return False
+            if not math.isclose(x, y, rel_tol=1e-9, abs_tol=1e-9):
+                return False
+    return True
+
 
 def linear_split(vector: sp.Matrix, unknowns) -> tuple[sp.Matrix, sp.Matrix]:
     """Split ``vector = A x + b`` for ``x = unknowns``; ``A = d vector / d x``, ``b`` at x = 0."""
@@ -96,7 +203,20 @@ def _check_quadratic(M: sp.Matrix, a, what: str):
 
 
 def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
-    """Mass matrix, inertial forces and generalized forces of ``system``."""
+    """Mass matrix, inertial forces and generalized forces of ``system``; for bodies on a
+    joint tree (:func:`usable_tree`), ``M`` and ``h`` are left to the recursions
+    (:class:`TreeInertiaBlocks`)."""
+    tree = usable_tree(system, kin)
+    if tree is not None:
+        gravity = system.potential_energy == tree.potential
+        Q = generalized_forces(system, kin, potential=not gravity)
+        return TreeInertiaBlocks(sp.ImmutableMatrix(Q), tree, gravity, system, kin)
+    M, h, particles = _expanded_blocks(system, kin)
+    return InertiaBlocks(M, h, sp.ImmutableMatrix(generalized_forces(system, kin)), particles)
+
+
+def _expanded_blocks(system: System, kin: Kinematics):
+    """``(M, h, particles)`` expanded from the energies and the bodies (module docstring)."""
     n = len(kin.speeds)
     w = sp.Matrix(kin.speeds)
     a = list(kin.accelerations)
@@ -156,22 +276,27 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
                 if j != i:
                     M[j, i] += entry
 
-    Q = generalized_forces(system, kin)
     only_particles = (system.kinetic_energy is None and system.acceleration_energy is None and bool(system.bodies)
                       and not any(isinstance(body, RigidBody) for body in system.bodies))
-    return InertiaBlocks(sp.ImmutableMatrix(M), sp.ImmutableMatrix(h), sp.ImmutableMatrix(Q),
-                         tuple(particles) if only_particles else None)
+    return sp.ImmutableMatrix(M), sp.ImmutableMatrix(h), tuple(particles) if only_particles else None
 
 
-def generalized_forces(system: System, kin: Kinematics) -> sp.Matrix:
-    """``Q = Q_given - (dV/dq) K + sum (dv_P/dw)^T F + sum (d omega/dw)^T tau``."""
+def _potential_force(V, kin: Kinematics) -> sp.Matrix:
+    """``(dV/dq K)^T``, the potential's share of ``-Q``."""
+    if V == 0 or not kin.coordinates:
+        return sp.zeros(len(kin.speeds), 1)
+    with naming("potential_energy"):
+        refuse_derivative(V, kin.coordinates, what="its gradient")
+    return (jacobian([V], kin.coordinates) * kin.K).T
+
+
+def generalized_forces(system: System, kin: Kinematics, potential: bool = True) -> sp.Matrix:
+    """``Q = Q_given - (dV/dq) K + sum (dv_P/dw)^T F + sum (d omega/dw)^T tau`` (without the
+    potential's share where ``potential`` is false)."""
     n = len(kin.speeds)
     Q = sp.Matrix(system.generalized_forces) if system.generalized_forces is not None else sp.zeros(n, 1)
-    V = system.potential_energy
-    if V != 0 and kin.coordinates:
-        with naming("potential_energy"):
-            refuse_derivative(V, kin.coordinates, what="its gradient")
-        Q -= (jacobian([V], kin.coordinates) * kin.K).T
+    if potential:
+        Q -= _potential_force(system.potential_energy, kin)
     for load in system.loads:
         if isinstance(load, AppliedForce):
             with naming(f"load {load.name!r}"):

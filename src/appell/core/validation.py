@@ -11,7 +11,7 @@ import sympy as sp
 
 from appell.errors import ModelError
 from appell.model import AppliedForce, AppliedTorque, RigidBody, System
-from appell.symbols import derivative_symbol, t
+from appell.symbols import derivative_symbol, free_symbols, t
 
 
 def _chain(symbol: sp.Symbol, orders: int) -> set[sp.Symbol]:
@@ -44,7 +44,7 @@ def declared_symbols(system: System) -> dict[str, set[sp.Symbol]]:
 def _check(expr, allowed: set, where: str, extra_hint: str = ""):
     if expr is None:
         return
-    free = expr.free_symbols if isinstance(expr, sp.Basic) else set()
+    free = free_symbols(expr) if isinstance(expr, sp.Basic) else set()
     bad = sorted((s for s in free if s not in allowed), key=str)
     if bad:
         names = ", ".join(s.name for s in bad)

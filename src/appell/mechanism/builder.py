@@ -41,6 +41,7 @@ import sympy as sp
 from appell.errors import AppellNote, ModelError
 from appell.mechanism.joints import JointMotion, joint_motion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew, unit_axis
+from appell.rigid_tree import RigidTree, TreeNode
 from appell.model import (AppliedForce, AppliedTorque, Control, Output, Parameter, Particle, RigidBody,
                           System, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
@@ -793,6 +794,47 @@ class Mechanism:
             frames[j.child] = Frame(R, p, omega, eps, w, e, v, a)
         return frames
 
+    def rigid_tree(self, coordinates, potential=sp.S.Zero) -> RigidTree | None:
+        """The :class:`~appell.rigid_tree.RigidTree` of the bodies (``coordinates``: the
+        system's, in order; its speeds are their derivatives; ``potential``: the gravity
+        potential the system states), for the recursive route; None
+        where a joint's motion depends on time or on another joint's coordinates.
+
+        For a joint ``J`` (``R0``, ``o_J``, ``c_o``) with motion ``R_m``, ``d_m``, ``omega_rel``::
+
+            rotation = R0 R_m        translation = o_J + R0 d_m - R0 R_m c_o
+            [omega; v] = [omega_rel; R_m^T d(d_m)/dt - omega_rel x c_o] = S w_J
+            bias = d(S w_J)/dq_J w_J
+        """
+        index = {q: k for k, q in enumerate(coordinates)}
+        params = {p.symbol for p in self.parameters}
+        nodes, place = [], {self.ground: -1}
+        for j in self._tree():
+            m, qs = j.motion, j.coordinates
+            ws = [derivative_symbol(q) for q in qs]
+            allowed = set(qs) | set(ws) | params
+            rotation = j.rotation * m.rotation
+            translation = j.origin + j.rotation * m.translation - rotation * j.child_origin
+            d_rate = m.translation.jacobian(list(qs)) * sp.Matrix(ws) if qs else sp.zeros(3, 1)
+            v_rel = m.rotation.T * d_rate - _cross(m.angular_velocity, j.child_origin)
+            relative = sp.Matrix.vstack(sp.Matrix(m.angular_velocity), v_rel)
+            S = relative.jacobian(ws) if ws else sp.zeros(6, 0)
+            bias = relative.jacobian(list(qs)) * sp.Matrix(ws) if qs else sp.zeros(6, 1)
+            body = j.child
+            quantities = [rotation, translation, S, bias, sp.Matrix([body.mass]), body.com, body.inertia]
+            if any(not (e.free_symbols <= allowed) for mat in quantities for e in mat):
+                return None
+            if any(q not in index for q in qs):
+                return None
+            place[body] = len(nodes)
+            nodes.append(TreeNode(body.name, j.name, place[j.parent], tuple(index[q] for q in qs),
+                                  sp.ImmutableMatrix(rotation), sp.ImmutableMatrix(translation),
+                                  sp.ImmutableMatrix(S), sp.ImmutableMatrix(bias), body.mass,
+                                  sp.ImmutableMatrix(body.com), sp.ImmutableMatrix(body.inertia),
+                                  sp.ImmutableMatrix(j.child_origin)))
+        g = self.gravity if self.gravity is not None else sp.zeros(3, 1)
+        return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential)
+
     def subtree(self, joint: Joint) -> list[Body]:
         """The bodies carried by ``joint``: its child and all the child's descendants."""
         out, stack = [], [joint.child]
@@ -931,7 +973,8 @@ class Mechanism:
                       servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
-                      view=self._view(frames, contact_forces, {o.name for o in reaction_outputs}, frame, params))
+                      view=self._view(frames, contact_forces, {o.name for o in reaction_outputs}, frame, params),
+                      tree=self.rigid_tree(coords, V))
 
     def _view(self, frames, contact_forces, reaction_names, frame, params) -> View:
         """The :class:`appell.view.View` of the mechanism: each body at its frame's pose with

@@ -24,6 +24,7 @@ import numpy as np
 import sympy as sp
 
 from appell.numerics.dynamics import Evaluation
+from appell.numerics.rigid_tree import TreeBlocks, tree_matrices
 from appell.arguments import number, vector
 from appell.core.equations import formulas_unavailable
 from appell.errors import ComputationError, FormulaUnavailable, ModelError, SingularConfigurationError
@@ -673,16 +674,18 @@ def compile_model(derivation) -> NumericModel:
     subs = program_substitutions(system)
     inertia, cons = derivation.inertia, derivation.constraints
     n = len(derivation.kinematics.speeds)
-    hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
     J = sp.Matrix(cons.jacobian) if cons.count else sp.zeros(0, n)
     c = sp.Matrix(cons.bias) if cons.count else sp.zeros(0, 1)
-    if cons.linear:
-        blocks = lambdify_blocks(_args(derivation), [inertia.mass_matrix, hQ, J, c], subs)
-        cfun = None
+    J0 = J if cons.linear else J.xreplace({a: 0 for a in derivation.accelerations})
+    if inertia.tree is not None:  # bodies on a joint tree: M and h by recursions, never expanded
+        blocks = TreeBlocks(inertia.tree, n,
+                            lambdify_blocks(_args(derivation), tree_matrices(inertia.tree, n, inertia.gravity), subs,
+                                            "joints' terms"),
+                            lambdify_blocks(_args(derivation), [inertia.generalized_forces, J0, c], subs))
     else:
-        zero_a = {a: 0 for a in derivation.accelerations}
-        blocks = lambdify_blocks(_args(derivation), [inertia.mass_matrix, hQ, J.xreplace(zero_a), c], subs)
-        cfun = lambdify_blocks(_args(derivation, with_acc=True), [cons.second_order, J], subs)
+        hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
+        blocks = lambdify_blocks(_args(derivation), [inertia.mass_matrix, hQ, J0, c], subs)
+    cfun = None if cons.linear else lambdify_blocks(_args(derivation, with_acc=True), [cons.second_order, J], subs)
     rates = lambdify_blocks(_args(derivation), [derivation.kinematics.coordinate_rates], subs)
     pos, vel = cons.residual_matrices()
     residuals = lambdify_blocks(_args(derivation), [pos, vel], subs)

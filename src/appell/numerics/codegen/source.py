@@ -1,6 +1,7 @@
-"""The complete C source of a derivation: its blocks (:mod:`.printer`), the split solve
-(``solver.c``), the dense entries (``dense_entries.c``) or the tree recursions (:mod:`.tree`,
-``tree.c``), and the evaluation entry point (``evaluate.c``)."""
+"""The complete C source of a derivation: its blocks (:mod:`.printer`; for rigid bodies on a
+joint tree the joints' terms and the recursions of ``rigid.c``), the split solve
+(``solver.c``), the dense entries (``dense_entries.c``) or the point-mass tree recursions
+(:mod:`.tree`, ``tree.c``), and the evaluation entry point (``evaluate.c``)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import sympy as sp
 from appell.numerics.numeric import REFINE_CONDITION, program_substitutions
 from appell.numerics.codegen.printer import HEADER_END, UNIT_MARK, _symbol_map, c_comment, c_function, common_factor
 from appell.numerics.codegen.tree import _tree_recursions, particle_tree
+from appell.numerics.rigid_tree import tree_layout, tree_matrices
 
 
 def _c_file(name: str) -> str:
@@ -29,7 +31,6 @@ def c_source(derivation) -> str:
     def prepared(m):
         return sp.Matrix(m).xreplace(subs) if subs else sp.Matrix(m)
 
-    hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
     J = sp.Matrix(cons.jacobian) if s else sp.zeros(0, n)
     c = sp.Matrix(cons.bias) if s else sp.zeros(0, 1)
     if not cons.linear:
@@ -37,14 +38,26 @@ def c_source(derivation) -> str:
     else:
         J0 = J
     pos, vel = cons.residual_matrices()
-    tree = particle_tree(inertia, n) if cons.linear else None
+    tree = particle_tree(inertia, n) if cons.linear and inertia.tree is None else None
     parts = [
         f"/* appell: generated C for system {c_comment(derivation.system.name)}; n = {n}, s = {s} */",
         "#include <math.h>",
         f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}\n#define REFINE_CONDITION {REFINE_CONDITION!r}",
         HEADER_END,
     ]
-    if tree is None:
+    rigid = inertia.tree
+    if rigid is not None:  # rigid bodies on a joint tree: the joints' terms and the recursions of rigid.c
+        tree = None
+        parent, node_of = tree_layout(rigid, n)
+        parts += [f"/* rigid bodies on a joint tree: {c_comment(', '.join(rigid.bodies))} */",
+                  f"#define NB {len(rigid.nodes)}",
+                  "static const int PARENT[NB] = {" + ", ".join(map(str, parent)) + "};",
+                  "static const int NODE_OF[N] = {" + ", ".join(map(str, node_of)) + "};",
+                  c_function("appell_rigid_terms", [prepared(m) for m in tree_matrices(rigid, n, inertia.gravity)]
+                             + [prepared(inertia.generalized_forces), prepared(J0), prepared(c)], syms),
+                  _c_file("rigid.c")]
+    elif tree is None:
+        hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
         parts.append(c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms))
     else:
         # the spatial directions in which some node moves (a planar tree: 2)

@@ -1,0 +1,72 @@
+"""A rigid-body tree as the joint tree knows it: what the recursive route needs.
+
+A mechanism (bodies on joints, a URDF) records its tree: for each body ``i``, its parent
+``p(i)`` (``-1``: the ground, an inertial frame), the speeds its joint owns, and, as small
+expressions in that joint's own coordinates only,
+
+* ``rotation``     ``E_i^T = R_rel(q_i)``: body ``i`` axes -> parent axes,
+* ``translation``  ``r_i(q_i)``: the body's origin relative to the parent's origin (parent axes),
+* ``motion``       ``S_i`` (6 x k): the relative spatial velocity ``[omega; v] = S_i w_i`` of the
+  body frame (body axes, ``v`` the velocity of its origin),
+* ``bias``         ``c_i = (dS_i/dt) w_i`` at fixed speeds (body axes),
+* the inertia: ``mass``, ``com`` (body frame) and ``inertia`` (about the centre, body axes).
+
+With these, spatial velocities and accelerations pass outward,
+
+    v_i = X_i v_p + S_i w_i,    a_i = X_i a_p + S_i a_(i) + c_i + v_i x (S_i w_i),
+
+and forces inward, ``f_i = I_i a_i + v_i x* I_i v_i``, ``tau_i = S_i^T f_i``,
+``f_p += X_i^T f_i`` (Featherstone, *Rigid Body Dynamics Algorithms*, 2008, ch. 5–6): the
+mass matrix and ``h`` of :mod:`appell.core.energy` in O(n) operations per column, never
+expanded. ``X_i`` maps parent to body coordinates: ``omega_i = E_i omega_p``,
+``v_i = E_i (v_p + omega_p x r_i)``.
+
+Only the data lives here (model layer); :mod:`appell.mechanism` builds it, the numeric
+recursions are :mod:`appell.numerics.rigid_tree` and the generated C.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+__all__ = ["RigidTree", "TreeNode"]
+
+
+@dataclass(frozen=True)
+class TreeNode:
+    """One body on its joint (module docstring for the quantities)."""
+
+    body: str
+    joint: str
+    parent: int
+    speeds: tuple[int, ...]  # indices into the system's speeds, in the order of S's columns
+    rotation: sp.ImmutableMatrix  # 3 x 3, body axes -> parent axes
+    translation: sp.ImmutableMatrix  # 3 x 1, parent axes
+    motion: sp.ImmutableMatrix  # 6 x k, body axes
+    bias: sp.ImmutableMatrix  # 6 x 1, body axes
+    mass: sp.Expr
+    com: sp.ImmutableMatrix  # 3 x 1, body frame
+    inertia: sp.ImmutableMatrix  # 3 x 3 about the centre of mass, body axes
+    joint_origin: sp.ImmutableMatrix  # 3 x 1: the joint's point (where its reaction acts), body frame
+
+
+@dataclass(frozen=True)
+class RigidTree:
+    """Bodies in an order where each parent comes first (:class:`TreeNode`), the gravity
+    vector ``g`` (world axes) and ``potential``, the bodies' potential energy in it as the
+    system states it (``-sum m g.r_C``): where the system's potential energy is exactly this,
+    the recursions apply gravity as the base's acceleration ``-g`` instead of expanding
+    ``dV/dq``."""
+
+    nodes: tuple[TreeNode, ...]
+    gravity: sp.ImmutableMatrix
+    potential: sp.Expr = sp.S.Zero
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return tuple(node.body for node in self.nodes)
+
+    def __repr__(self):
+        return f"RigidTree({len(self.nodes)} bodies)"
