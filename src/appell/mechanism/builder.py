@@ -844,31 +844,39 @@ class Mechanism:
             stack += [j.child for j in self.joints if j.parent is b]
         return out
 
-    def reaction(self, joint: Joint, frames, actions) -> tuple[sp.Matrix, sp.Matrix]:
-        """``(F, M)``: force and moment (world axes) of the parent on the child of ``joint``
-        at the joint origin (module docstring: the subtree's Newton-Euler balance)."""
-        bodies = self.subtree(joint)
-        fc = frames[joint.child]
-        O = fc.p + fc.R * joint.child_origin
+    def reactions(self, frames, actions) -> dict[Joint, tuple[sp.Matrix, sp.Matrix]]:
+        """``{joint: (F, M)}``: force and moment (world axes) of the parent on the child of each
+        joint at the joint origin ``O`` (module docstring: the subtree's Newton-Euler balance),
+        built leaves first: a joint's balance is its child's own terms plus its child joints'
+        ``F_k`` and ``M_k + (O_k - O) x F_k``, so each body's terms are formed once (O(n)
+        products instead of one sum over every subtree)."""
         g = self.gravity if self.gravity is not None else sp.zeros(3, 1)
-        F, M = sp.zeros(3, 1), sp.zeros(3, 1)
-        for b in bodies:
-            f = frames[b]
+        acting: dict[Body, list] = {}
+        for act in actions:
+            acting.setdefault(act.body, []).append(act)
+        out: dict[Joint, tuple[sp.Matrix, sp.Matrix]] = {}
+        points: dict[Joint, sp.Matrix] = {}
+        for joint in reversed(self._tree()):
+            b, f = joint.child, frames[joint.child]
+            O = f.p + f.R * joint.child_origin
+            points[joint] = O
             rC, _, aC = f.point(b.com)
             inertial = b.mass * (aC - g)
-            F += inertial
-            M += _cross(rC - O, inertial)
+            F, M = sp.Matrix(inertial), _cross(rC - O, inertial)
             if not b.particle and b.inertia != sp.zeros(3, 3):
                 M += f.R * (b.inertia * f.eps + _cross(f.omega, b.inertia * f.omega))
-        inside = set(bodies)
-        for act in actions:
-            if act.body not in inside:
-                continue
-            F -= act.force
-            M -= act.torque
-            if act.position is not None and any(x != 0 for x in act.force):
-                M -= _cross(act.position - O, act.force)
-        return F, M
+            for act in acting.get(b, ()):
+                F -= act.force
+                M -= act.torque
+                if act.position is not None and any(x != 0 for x in act.force):
+                    M -= _cross(act.position - O, act.force)
+            for k in self.joints:
+                if k.parent is b:
+                    Fk, Mk = out[k]
+                    F += Fk
+                    M += Mk + _cross(points[k] - O, Fk)
+            out[joint] = (F, M)
+        return out
 
     def system(self, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
                constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
@@ -1059,8 +1067,9 @@ class Mechanism:
         axes = {}
         for k, v in (frame or {}).items():
             axes[self._joint(k, "frame").name] = self._body(v, f"frame of joint {k!r}")
+        balance = self.reactions(frames, actions)
         for j in joints:
-            F, M = self.reaction(j, frames, actions)
+            F, M = balance[j]
             body = axes.get(j.name)
             where = "world axes"
             if body is not None and body is not self.ground:
