@@ -353,6 +353,20 @@ def test_a_mimic_of_a_fixed_joint_is_refused_and_a_chain_of_mimics_is_two_constr
     assert err.value.where == "m.urdf:7"
 
 
+def test_a_mimic_on_a_fixed_joint_is_not_applied_with_a_note():
+    """Talos' gripper files put <mimic> on fixed joints: the joint does not move, so nothing is
+    coupled; said, not refused (issue 22)."""
+    from appell.errors import AppellNote
+    from appell.mechanism.urdf import urdf_mechanism
+
+    text = _chain("a", "b", inner={"b": '<mimic joint="a"/>'}).replace('name="b" type="continuous"',
+                                                                       'name="b" type="fixed"')
+    assert 'name="b" type="fixed"' in text
+    with pytest.warns(AppellNote, match=r"<mimic> on 1 fixed joint \(b\) not applied"):
+        mech, constraints = urdf_mechanism(parse_urdf(text, "m.urdf"))
+    assert constraints == () and [j.name for j in mech.joints if j.kind != "fixed"] == ["a"]
+
+
 LATIN1 = ('<?xml version="1.0" encoding="{}"?>\n<!-- Gelenk f\u00fcr den Arm -->\n<robot name="caf\u00e9">\n'
           '<link name="bas\u00e9"/>\n' + LINK.format("arm") + '\n'
           '<joint name="j" type="continuous"><parent link="bas\u00e9"/><child link="arm"/></joint>\n</robot>\n')

@@ -32,8 +32,9 @@ joint at fault and says what to do (issue 20):
   principal moments satisfy the triangle inequality (each at most the sum of the other
   two, to 1e-9 of the trace; MuJoCo refuses the same tensors);
 * mimic: ``<mimic>`` couples two revolute, continuous or prismatic joints by a holonomic
-  constraint (:func:`urdf_mechanism`); a mimic of an unknown or non-1-dof joint, of the
-  joint itself, or a cycle of mimics is refused.
+  constraint (:func:`urdf_mechanism`); on a fixed joint it is not applied (with a note: the
+  joint does not move); a mimic of an unknown or multi-coordinate joint, of the joint
+  itself, or a cycle of mimics is refused.
 """
 
 from __future__ import annotations
@@ -867,8 +868,13 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
             mech.shape(body, v.kind, v.size, origin=xyz, rpy=rpy, colour=v.colour)
     constraints = []
     by_name = {j.name: j for j in robot.joints}
+    idle = [j.name for j in robot.joints if j.mimic is not None and j.type == "fixed"]
+    if idle:  # a fixed joint does not move: nothing to couple (Talos' gripper files have them)
+        warnings.warn(AppellNote(f"{src}: <mimic> on {len(idle)} fixed joint{'s' if len(idle) > 1 else ''} "
+                                 f"({', '.join(idle[:3])}{', ...' if len(idle) > 3 else ''}) not applied: "
+                                 "a fixed joint does not move"), stacklevel=2)
     for joint in robot.joints:
-        if joint.mimic is not None:
+        if joint.mimic is not None and joint.type != "fixed":
             other = by_name[joint.mimic.joint]
             for k in (joint, other):
                 if k.type not in _ONE_DOF:
