@@ -123,19 +123,19 @@ def latex(expr) -> str:
     return sp.latex(expr, symbol_names=names)
 
 
-def free_symbols(expr) -> set:
-    """``expr.free_symbols``, visiting each distinct subexpression once.
+def free_symbols(*exprs) -> set:
+    """The free symbols of ``exprs`` together, visiting each distinct subexpression once.
 
-    SymPy's property walks the expression as a tree: an expression built by a recursion
-    (a joint's reaction, whose subtrees share their parents' kinematics) repeats its shared
-    parts along every path, and the walk grows with the number of paths, not of nodes (the
-    Panda's 60 reaction outputs: 125 s). Nodes whose class binds symbols (derivatives,
-    lambdas, integrals) answer for themselves."""
-    out, seen, stack = set(), set(), [expr]
+    SymPy's ``expr.free_symbols`` walks the expression as a tree: an expression built by a
+    recursion (a joint's reaction, whose subtrees share their parents' kinematics) repeats
+    its shared parts along every path, and the walk grows with the number of paths, not of
+    nodes (the Panda's 60 reaction outputs: 125 s). Nodes whose class binds symbols
+    (derivatives, lambdas, integrals) answer for themselves."""
+    out, seen, stack = set(), set(), list(exprs)
     base = sp.Basic.free_symbols
     while stack:
         node = stack.pop()
-        if node in seen:
+        if node in seen or not isinstance(node, sp.Basic):
             continue
         seen.add(node)
         if node.is_Symbol:
@@ -145,3 +145,50 @@ def free_symbols(expr) -> set:
         else:
             stack.extend(node.args)
     return out
+
+
+def graph_cse(exprs, symbols=None):
+    """``(replacements, reduced)`` as :func:`sympy.cse` gives them, found on the expression
+    graph: every compound subexpression reached from more than one place becomes one
+    replacement, children first. Linear in the number of distinct nodes; SymPy's ``cse``
+    also sorts sums as trees and searches common subsets of arguments (35 s for the
+    Panda's 60 reaction outputs, 1 s here). ``lambdify(..., cse=graph_cse)`` takes it."""
+    symbols = iter(symbols) if symbols is not None else sp.numbered_symbols("x")
+    exprs = list(exprs)
+
+    def compound(e):
+        return isinstance(e, sp.Basic) and bool(e.args) and not e.is_Atom
+
+    uses: dict = {}  # references from distinct parents (and from the list itself)
+    for e in exprs:
+        uses[e] = uses.get(e, 0) + 1
+    visited, unique = set(), []  # unique: compound nodes, children before parents
+    stack = [(e, False) for e in reversed(exprs)]
+    while stack:
+        node, ready = stack.pop()
+        if not compound(node):
+            continue
+        if ready:
+            unique.append(node)
+            continue
+        if node in visited:
+            continue
+        visited.add(node)
+        stack.append((node, True))
+        for a in reversed(node.args):
+            uses[a] = uses.get(a, 0) + 1
+            if compound(a) and a not in visited:
+                stack.append((a, False))
+    new: dict = {}
+    replacements = []
+    for node in unique:
+        args = [new.get(a, a) for a in node.args]
+        value = node.func(*args) if any(x is not y for x, y in zip(args, node.args)) else node
+        if uses.get(node, 0) > 1 and not (value.is_Mul and len(value.args) == 2 and value.args[0] == -1
+                                           and value.args[1].is_Atom):
+            sym = next(symbols)
+            replacements.append((sym, value))
+            new[node] = sym
+        else:
+            new[node] = value
+    return replacements, [new.get(e, e) if isinstance(e, sp.Basic) else e for e in exprs]

@@ -44,7 +44,7 @@ def declared_symbols(system: System) -> dict[str, set[sp.Symbol]]:
 def _check(expr, allowed: set, where: str, extra_hint: str = ""):
     if expr is None:
         return
-    free = free_symbols(expr) if isinstance(expr, sp.Basic) else set()
+    free = free_symbols(expr)
     bad = sorted((s for s in free if s not in allowed), key=str)
     if bad:
         names = ", ".join(s.name for s in bad)
@@ -70,16 +70,38 @@ def validate(system: System) -> None:
     _check(system.potential_energy, lv["state"], "potential energy")
     for i, e in enumerate(system.generalized_forces or ()):
         _check(e, lv["forces"], f"generalized force {i + 1} (conjugate to {system.speeds[i]})")
+    _check_bodies(system, lv)
+    _check_loads(system, lv)
+    _check_constraints(system, lv)
+    _check_frictions(system, lv)
+    _check_rest(system, lv)
+
+
+def _check_all(items, allowed: set) -> None:
+    """``_check`` of every ``(expr, where)`` against ``allowed``: the symbols of all at once
+    (shared subexpressions visited once), then one by one only to name a culprit."""
+    items = [(e, w) for e, w in items if e is not None]
+    if free_symbols(*(e for e, _ in items)) <= allowed:
+        return
+    for e, w in items:
+        _check(e, allowed, w)
+
+
+def _check_bodies(system, lv) -> None:
+    items = []
     for b in system.bodies:
-        _check(b.mass, lv["state"], f"mass of body {b.name!r}")
+        items.append((b.mass, f"mass of body {b.name!r}"))
         for attr in ("position", "velocity"):
             v = getattr(b, attr)
             if v is not None:
-                for e in v:
-                    _check(e, lv["state"], f"{attr} of body {b.name!r}")
+                items += [(e, f"{attr} of body {b.name!r}") for e in v]
         if isinstance(b, RigidBody):
-            for e in list(b.inertia) + list(b.angular_velocity):
-                _check(e, lv["state"], f"inertia or angular velocity of body {b.name!r}")
+            items += [(e, f"inertia or angular velocity of body {b.name!r}")
+                      for e in list(b.inertia) + list(b.angular_velocity)]
+    _check_all(items, lv["state"])
+
+
+def _check_loads(system, lv) -> None:
     for load in system.loads:
         items = list(load.vector)
         if isinstance(load, AppliedForce):
@@ -88,6 +110,9 @@ def validate(system: System) -> None:
             items += list(load.angular_velocity)
         for e in items:
             _check(e, lv["forces"], f"load {load.name!r}")
+
+
+def _check_constraints(system, lv) -> None:
     for c in system.constraints + system.servo_constraints:
         where = f"{c.kind} constraint {c.name!r}"
         try:
@@ -96,6 +121,9 @@ def validate(system: System) -> None:
             if c.where:
                 exc.where = c.where
             raise
+
+
+def _check_frictions(system, lv) -> None:
     params = {p.symbol for p in system.parameters}
     for f in system.frictions:
         try:
@@ -108,12 +136,16 @@ def validate(system: System) -> None:
             if f.where:
                 exc.where = f.where
             raise
+
+
+def _check_rest(system, lv) -> None:
     for fi in system.first_integrals:
         _check(fi.expr, lv["state"], f"first integral {fi.name!r}")
     allowed = lv["acceleration"] | {sp.Symbol(f"lambda_{c.name}") for c in system.constraints}
-    for o in system.outputs:
-        _check(o.expr, allowed, f"output {o.name!r}",
-               "an output may also use accelerations <speed>_dot, multipliers lambda_<constraint> and controls")
+    if not free_symbols(*(o.expr for o in system.outputs)) <= allowed:  # then name the first culprit
+        for o in system.outputs:
+            _check(o.expr, allowed, f"output {o.name!r}",
+                   "an output may also use accelerations <speed>_dot, multipliers lambda_<constraint> and controls")
     known = {s.name for s in system.coordinates + system.speeds} | {c.name for c in system.constraints} | {
         c.name for c in system.controls} | {n for c in system.controls if c.kind == "kinematic"
                                             for n in (derivative_symbol(c.symbol).name,)} | {

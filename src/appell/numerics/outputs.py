@@ -18,7 +18,7 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import ComputationError, ModelError
-from appell.symbols import derivative_symbol, free_symbols, t
+from appell.symbols import derivative_symbol, free_symbols, graph_cse, t
 
 
 @dataclass(frozen=True)
@@ -73,13 +73,6 @@ def _columns(system) -> dict[sp.Symbol, str]:
     return cols
 
 
-def _shared(exprs):
-    """Common subexpressions in the order found (SymPy's canonical order sorts every sum by
-    walking it as a tree: 35 s for the Panda's 60 reaction outputs, whose joints share their
-    parents' kinematics)."""
-    return sp.cse(exprs, order="none")
-
-
 def compile_outputs(system, programs: Mapping | None = None) -> OutputFunction:
     """The outputs of ``system`` compiled into one vectorised NumPy function of the columns
     they use; ``programs`` replaces the programs by their expressions in t
@@ -88,11 +81,11 @@ def compile_outputs(system, programs: Mapping | None = None) -> OutputFunction:
         return OutputFunction((), (), (), None)
     exprs = [o.expr.xreplace(programs or {}) for o in system.outputs]
     cols = _columns(system)
-    used = set().union(*(free_symbols(e) for e in exprs))
+    used = free_symbols(*exprs)
     unknown = sorted(s.name for s in used if s not in cols)
     if unknown:
         raise ModelError(f"outputs use undeclared symbol(s) {', '.join(unknown)}")
     args = sorted(used, key=list(cols).index)
-    function = sp.lambdify(args, exprs, modules="numpy", cse=_shared, docstring_limit=0, use_imps=False)
+    function = sp.lambdify(args, exprs, modules="numpy", cse=graph_cse, docstring_limit=0, use_imps=False)
     return OutputFunction(tuple(o.name for o in system.outputs), tuple(o.unit for o in system.outputs),
                           tuple(cols[s] for s in args), function)
