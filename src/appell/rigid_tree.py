@@ -50,6 +50,7 @@ class TreeNode:
     com: sp.ImmutableMatrix  # 3 x 1, body frame
     inertia: sp.ImmutableMatrix  # 3 x 3 about the centre of mass, body axes
     joint_origin: sp.ImmutableMatrix  # 3 x 1: the joint's point (where its reaction acts), body frame
+    position: sp.ImmutableMatrix | None = None  # the mass centre (world) as the system's body states it
 
 
 @dataclass(frozen=True)

@@ -108,9 +108,9 @@ class TreeInertiaBlocks(InertiaBlocks):
 def usable_tree(system: System, kin: Kinematics):
     """``system.tree`` when it describes exactly the system's bodies and coordinates: no
     energy given beside the bodies, speeds that are the coordinates' derivatives, each speed
-    moved by one joint, the same bodies with the same masses and inertias, and the same
-    mass-centre positions at a sample configuration (a tree left behind by an edited
-    system is never used). None otherwise: the expanded route."""
+    moved by one joint, the same bodies with the same masses, inertias and mass-centre
+    positions (a tree left behind by an edited system is never used). None otherwise: the
+    expanded route."""
     tree = system.tree
     if tree is None or system.kinetic_energy is not None or system.acceleration_energy is not None:
         return None
@@ -131,35 +131,13 @@ def usable_tree(system: System, kin: Kinematics):
 
 
 def _same_positions(system, kin, tree) -> bool:
-    """The tree's mass centres (forward kinematics, numbers) equal the bodies' positions at
-    a fixed irregular configuration, to 1e-9 relative."""
-    import math
-
-    values = dict(system.parameter_values)
-    values.update({q: 0.3 + 0.17 * k for k, q in enumerate(kin.coordinates)})
-    R_of, p_of = [], []
-    for node in tree.nodes:
-        try:
-            Rr = sp.Matrix(node.rotation).xreplace(values).evalf()
-            r = sp.Matrix(node.translation).xreplace(values).evalf()
-            Rp = R_of[node.parent] if node.parent >= 0 else sp.eye(3)
-            pp = p_of[node.parent] if node.parent >= 0 else sp.zeros(3, 1)
-            R_of.append(Rp * Rr)
-            p_of.append(pp + Rp * r)
-        except (TypeError, ValueError):
-            return False
-    index = {node.body: k for k, node in enumerate(tree.nodes)}
+    """Each body's position is the one its tree node was built with (the same expression: a
+    body replaced after the tree was recorded makes the tree unusable)."""
+    by_name = {node.body: node for node in tree.nodes}
     for body in system.bodies:
-        k = index[body.name]
-        mine = p_of[k] + R_of[k] * sp.Matrix(tree.nodes[k].com)
-        theirs = sp.Matrix(body.position).xreplace(values).evalf()
-        for x, y in zip(mine, theirs):
-            try:
-                x, y = float(x), float(y)
-            except (TypeError, ValueError):
-                return False
-            if not math.isclose(x, y, rel_tol=1e-9, abs_tol=1e-9):
-                return False
+        mine = by_name[body.name].position
+        if mine is None or body.position is None or sp.ImmutableMatrix(body.position) != mine:
+            return False
     return True
 
 

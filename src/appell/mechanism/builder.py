@@ -794,10 +794,11 @@ class Mechanism:
             frames[j.child] = Frame(R, p, omega, eps, w, e, v, a)
         return frames
 
-    def rigid_tree(self, coordinates, potential=sp.S.Zero) -> RigidTree | None:
+    def rigid_tree(self, coordinates, potential=sp.S.Zero, positions=None) -> RigidTree | None:
         """The :class:`~appell.rigid_tree.RigidTree` of the bodies (``coordinates``: the
         system's, in order; its speeds are their derivatives; ``potential``: the gravity
-        potential the system states), for the recursive route; None
+        potential the system states; ``positions``: ``{body: its mass centre's position}`` as
+        the system states them), for the recursive route; None
         where a joint's motion depends on time or on another joint's coordinates.
 
         For a joint ``J`` (``R0``, ``o_J``, ``c_o``) with motion ``R_m``, ``d_m``, ``omega_rel``::
@@ -807,6 +808,7 @@ class Mechanism:
             bias = d(S w_J)/dq_J w_J
         """
         index = {q: k for k, q in enumerate(coordinates)}
+        positions = positions or {}
         params = {p.symbol for p in self.parameters}
         nodes, place = [], {self.ground: -1}
         for j in self._tree():
@@ -831,7 +833,7 @@ class Mechanism:
                                   sp.ImmutableMatrix(rotation), sp.ImmutableMatrix(translation),
                                   sp.ImmutableMatrix(S), sp.ImmutableMatrix(bias), body.mass,
                                   sp.ImmutableMatrix(body.com), sp.ImmutableMatrix(body.inertia),
-                                  sp.ImmutableMatrix(j.child_origin)))
+                                  sp.ImmutableMatrix(j.child_origin), positions.get(body)))
         g = self.gravity if self.gravity is not None else sp.zeros(3, 1)
         return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential)
 
@@ -908,9 +910,11 @@ class Mechanism:
         coords = [q for j in self.joints for q in j.coordinates]  # in the order the joints were added
         bodies = []
         V = sp.S.Zero
+        positions = {}
         for b in self.bodies:
             f = frames[b]
             rC, vC, _ = f.point(b.com)
+            positions[b] = sp.ImmutableMatrix(rC)
             if b.particle:
                 bodies.append(Particle(b.name, b.mass, position=rC, velocity=vC))
             else:
@@ -982,7 +986,7 @@ class Mechanism:
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
                       view=self._view(frames, contact_forces, {o.name for o in reaction_outputs}, frame, params),
-                      tree=self.rigid_tree(coords, V))
+                      tree=self.rigid_tree(coords, V, positions))
 
     def _view(self, frames, contact_forces, reaction_names, frame, params) -> View:
         """The :class:`appell.view.View` of the mechanism: each body at its frame's pose with
