@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-__all__ = ["RigidTree", "TreeNode"]
+__all__ = ["RigidTree", "TreeNode", "Wrench"]
 
 
 @dataclass(frozen=True)
@@ -54,6 +54,21 @@ class TreeNode:
 
 
 @dataclass(frozen=True)
+class Wrench:
+    """Six outputs that are a joint's reaction ``F_x, F_y, F_z, M_x, M_y, M_z``: the force and
+    moment of the parent on the subtree of ``body`` at its joint's point, along the world
+    axes (``axes`` None) or a body's axes; ``exprs`` are the outputs' expressions as the
+    mechanism wrote them (the subtree's Newton-Euler balance). Recorded only where no load or
+    constraint force acts on the subtree, so that the recursion's inward force is the whole
+    reaction and the outputs may be evaluated by it."""
+
+    body: str
+    axes: str | None
+    names: tuple[str, ...]
+    exprs: tuple[sp.Expr, ...]
+
+
+@dataclass(frozen=True)
 class RigidTree:
     """Bodies in an order where each parent comes first (:class:`TreeNode`), the gravity
     vector ``g`` (world axes) and ``potential``, the bodies' potential energy in it as the
@@ -64,6 +79,7 @@ class RigidTree:
     nodes: tuple[TreeNode, ...]
     gravity: sp.ImmutableMatrix
     potential: sp.Expr = sp.S.Zero
+    wrenches: tuple[Wrench, ...] = ()
 
     @property
     def bodies(self) -> tuple[str, ...]:

@@ -41,7 +41,7 @@ import sympy as sp
 from appell.errors import AppellNote, ModelError
 from appell.mechanism.joints import JointMotion, joint_motion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew, unit_axis
-from appell.rigid_tree import RigidTree, TreeNode
+from appell.rigid_tree import RigidTree, TreeNode, Wrench
 from appell.model import (AppliedForce, AppliedTorque, Control, Output, Parameter, Particle, RigidBody,
                           System, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
@@ -794,11 +794,12 @@ class Mechanism:
             frames[j.child] = Frame(R, p, omega, eps, w, e, v, a)
         return frames
 
-    def rigid_tree(self, coordinates, potential=sp.S.Zero, positions=None) -> RigidTree | None:
+    def rigid_tree(self, coordinates, potential=sp.S.Zero, positions=None, wrenches=()) -> RigidTree | None:
         """The :class:`~appell.rigid_tree.RigidTree` of the bodies (``coordinates``: the
         system's, in order; its speeds are their derivatives; ``potential``: the gravity
         potential the system states; ``positions``: ``{body: its mass centre's position}`` as
-        the system states them), for the recursive route; None
+        the system states them; ``wrenches``: the reaction outputs the recursion may evaluate,
+        :class:`~appell.rigid_tree.Wrench`), for the recursive route; None
         where a joint's motion depends on time or on another joint's coordinates.
 
         For a joint ``J`` (``R0``, ``o_J``, ``c_o``) with motion ``R_m``, ``d_m``, ``omega_rel``::
@@ -835,7 +836,7 @@ class Mechanism:
                                   sp.ImmutableMatrix(body.com), sp.ImmutableMatrix(body.inertia),
                                   sp.ImmutableMatrix(j.child_origin), positions.get(body)))
         g = self.gravity if self.gravity is not None else sp.zeros(3, 1)
-        return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential)
+        return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential, tuple(wrenches))
 
     def subtree(self, joint: Joint) -> list[Body]:
         """The bodies carried by ``joint``: its child and all the child's descendants."""
@@ -950,7 +951,12 @@ class Mechanism:
                                  hint="parameters: " + ", ".join(sorted(known)))
             values = {str(k): v for k, v in parameters.items()}
             params = [Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description) for p in params]
-        reaction_outputs = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit))
+        reaction_groups = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit))
+        reaction_outputs = [o for _, _, outs in reaction_groups for o in outs]
+        acted = {act.body for act in actions}
+        wrenches = tuple(Wrench(j.child.name, None if body is None else body.name, tuple(o.name for o in outs),
+                                tuple(o.expr for o in outs))
+                         for j, body, outs in reaction_groups if not any(b in acted for b in self.subtree(j)))
         outs = list(reaction_outputs)
         for pname, body, r in self._points:
             position = frames[body].point(r)[0]
@@ -986,7 +992,7 @@ class Mechanism:
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
                       view=self._view(frames, contact_forces, {o.name for o in reaction_outputs}, frame, params),
-                      tree=self.rigid_tree(coords, V, positions))
+                      tree=self.rigid_tree(coords, V, positions, wrenches))
 
     def _view(self, frames, contact_forces, reaction_names, frame, params) -> View:
         """The :class:`appell.view.View` of the mechanism: each body at its frame's pose with
@@ -1080,8 +1086,8 @@ class Mechanism:
                 R = frames[body].R
                 F, M = R.T * F, R.T * M
                 where = f"axes of body {body.name!r}"
-            for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment")):
-                for axis, e in zip("xyz", vec):
-                    yield Output(f"{sym}_{j.name}_{axis}", e, unit,
-                                 f"{what} of {j.parent.name} on {j.child.name} at joint {j.name}'s origin, "
-                                 f"{axis} ({where})")
+            yield j, (body if body is not self.ground else None), [
+                Output(f"{sym}_{j.name}_{axis}", e, unit,
+                       f"{what} of {j.parent.name} on {j.child.name} at joint {j.name}'s origin, {axis} ({where})")
+                for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment"))
+                for axis, e in zip("xyz", vec)]

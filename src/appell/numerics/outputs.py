@@ -79,13 +79,63 @@ def compile_outputs(system, programs: Mapping | None = None) -> OutputFunction:
     (:func:`appell.numerics.numeric.program_substitutions`)."""
     if not system.outputs:
         return OutputFunction((), (), (), None)
-    exprs = [o.expr.xreplace(programs or {}) for o in system.outputs]
     cols = _columns(system)
+    tree = _tree_wrenches(system)
+    by_tree = set(tree.names) if tree is not None else set()
+    rest = [o for o in system.outputs if o.name not in by_tree]
+    exprs = [o.expr.xreplace(programs or {}) for o in rest]
     used = free_symbols(*exprs)
     unknown = sorted(s.name for s in used if s not in cols)
     if unknown:
         raise ModelError(f"outputs use undeclared symbol(s) {', '.join(unknown)}")
     args = sorted(used, key=list(cols).index)
     function = sp.lambdify(args, exprs, modules="numpy", cse=graph_cse, docstring_limit=0, use_imps=False)
-    return OutputFunction(tuple(o.name for o in system.outputs), tuple(o.unit for o in system.outputs),
-                          tuple(cols[s] for s in args), function)
+    names = tuple(o.name for o in system.outputs)
+    units = tuple(o.unit for o in system.outputs)
+    if tree is None:
+        return OutputFunction(names, units, tuple(cols[s] for s in args), function)
+    return OutputFunction(names, units, *_with_tree(system, cols, args, rest, function, tree))
+
+
+def _tree_wrenches(system):
+    """The joint reactions among the outputs that the tree's recursions evaluate
+    (:class:`appell.numerics.rigid_tree.TreeWrenches`), or None: the outputs are the ones the
+    mechanism recorded (same expressions) and the tree describes the system."""
+    tree = getattr(system, "tree", None)
+    if tree is None or not tree.wrenches:
+        return None
+    from appell.core.energy import usable_tree
+    from appell.core.kinematics import kinematics_of
+    from appell.numerics.rigid_tree import TreeWrenches
+
+    if usable_tree(system, kinematics_of(system)) is None:
+        return None
+    exprs = {o.name: o.expr for o in system.outputs}
+    if not all(name in exprs and exprs[name] == e for wr in tree.wrenches for name, e in zip(wr.names, wr.exprs)):
+        return None
+    arguments = [t, list(system.coordinates), list(system.speeds), [p.symbol for p in system.parameters]]
+    return TreeWrenches(tree, len(system.speeds), arguments)
+
+
+def _with_tree(system, cols, args, rest, function, tree):
+    """``(arguments, function)`` of all outputs: the lambdified ``rest`` and the tree's joint
+    reactions (the per-joint terms row by row, the recursions over all rows at once)."""
+    states = [t, *system.coordinates, *system.speeds, *system.accelerations, *(p.symbol for p in system.parameters)]
+    arguments = list(dict.fromkeys([cols[s] for s in args] + [cols[s] for s in states]))
+    at = {name: k for k, name in enumerate(arguments)}
+    own = [at[cols[s]] for s in args]
+    nq, n = len(system.coordinates), len(system.speeds)
+    order = [o.name for o in system.outputs]
+    rest_names = [o.name for o in rest]
+
+    def evaluate(*values):
+        values = np.broadcast_arrays(*(np.asarray(v, float) for v in values))
+        shape = values[0].shape
+        out = dict(zip(rest_names, function(*(values[k] for k in own)) if rest_names else ()))
+        rows = np.stack([values[at[cols[s]]].ravel() for s in states], axis=1)
+        found = tree.rows(rows[:, 0], rows[:, 1:1 + nq], rows[:, 1 + nq:1 + nq + n],
+                          rows[:, 1 + nq + n:1 + nq + 2 * n], rows[:, 1 + nq + 2 * n:])
+        out.update({name: v.reshape(shape) for name, v in found.items()})
+        return [out[name] for name in order]
+
+    return tuple(arguments), evaluate

@@ -11,6 +11,10 @@ axes (Featherstone, *Rigid Body Dynamics Algorithms*, 2008, tables 5.1 and 6.2):
 * **CRBA** (``M``): composite inertias ``I^c_p += X_i^T I^c_i X_i`` inward, then
   ``M_kl = S_k^T X^T ... I^c_i S_l`` along each body's path to the root.
 
+With the base accelerating at ``-g`` and the accelerations of a solution, the inward force
+``f_i`` is the parent's force and moment on the subtree of body ``i``: its joint's reaction
+(:func:`wrenches`), the same Newton-Euler balance the mechanism writes as outputs.
+
 The same recursions are written in C (``codegen/rigid.c``) for the compiled backend; these NumPy
 ones serve the NumPy backend and check the C.
 """
@@ -20,7 +24,8 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-__all__ = ["tree_layout", "tree_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba"]
+__all__ = ["tree_layout", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
+           "TreeWrenches"]
 
 
 def tree_layout(tree, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -53,21 +58,25 @@ def tree_matrices(tree, n: int, gravity: bool = False) -> list[sp.Matrix]:
 
 
 class TreeArrays:
-    """The evaluated per-joint quantities of one state, shaped for the recursions."""
+    """The evaluated per-joint quantities of ``T`` states (a leading axis; ``T = 1`` for one
+    state), shaped for the recursions: ``R`` (T, nb, 3, 3), ``r`` (T, nb, 3), ``S`` (T, n, 6),
+    ``c`` (T, nb, 6), ``m`` (T, nb), ``com`` (T, nb, 3), ``Ic`` (T, nb, 3, 3)."""
 
     __slots__ = ("R", "r", "S", "c", "m", "com", "Ic")
 
     def __init__(self, rot, trans, S, bias, inert):
-        nb = len(np.ravel(trans)) // 3
-        self.R = np.reshape(rot, (nb, 3, 3))
-        self.r = np.reshape(trans, (nb, 3))
-        self.S = np.reshape(S, (-1, 6))
-        self.c = np.reshape(bias, (nb, 6))
-        inert = np.reshape(inert, (nb, 10))
-        self.m = inert[:, 0]
-        self.com = inert[:, 1:4]
-        xx, yy, zz, xy, xz, yz = inert[:, 4:].T
-        self.Ic = np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], 1)
+        trans = np.asarray(trans, float)
+        rows = trans.shape[0] if trans.ndim == 2 and trans.shape[1] != 1 else 1
+        nb = trans.size // (3 * rows)
+        self.R = np.reshape(rot, (rows, nb, 3, 3))
+        self.r = np.reshape(trans, (rows, nb, 3))
+        self.S = np.reshape(S, (rows, -1, 6))
+        self.c = np.reshape(bias, (rows, nb, 6))
+        inert = np.reshape(inert, (rows, nb, 10))
+        self.m = inert[..., 0]
+        self.com = inert[..., 1:4]
+        xx, yy, zz, xy, xz, yz = np.moveaxis(inert[..., 4:], -1, 0)
+        self.Ic = np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], -2)
 
 
 def _spatial_inertia(m, c, Ic) -> np.ndarray:
@@ -92,65 +101,171 @@ def _transform(R, r) -> np.ndarray:
     return X
 
 
+# spatial algebra on a leading axis of states: vectors (T, 3) and (T, 6), rotations (T, 3, 3)
+def _cross(a, b):
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], -1)
+
+
+def _to_body(R, r, m):
+    """``X m``: ``omega' = R^T omega``, ``v' = R^T (v + omega x r)``."""
+    w = m[:, :3]
+    return np.concatenate([np.einsum("tji,tj->ti", R, w), np.einsum("tji,tj->ti", R, m[:, 3:] + _cross(w, r))], -1)
+
+
+def _to_parent(R, r, f):
+    """``X^T f``: moment ``R n + r x R f``, force ``R f``."""
+    n, fl = np.einsum("tij,tj->ti", R, f[:, :3]), np.einsum("tij,tj->ti", R, f[:, 3:])
+    return np.concatenate([n + _cross(r, fl), fl], -1)
+
+
+def _inertia_times(m, c, Ic, v):
+    """``I v`` about the body origin: ``n = Ic w + m c x u``, ``f = m u``, ``u = v + w x c``."""
+    w = v[:, :3]
+    u = v[:, 3:] + _cross(w, c)
+    return np.concatenate([np.einsum("tij,tj->ti", Ic, w) + m[:, None] * _cross(c, u), m[:, None] * u], -1)
+
+
 def _crm(v, m):
-    return np.concatenate([np.cross(v[:3], m[:3]), np.cross(v[:3], m[3:]) + np.cross(v[3:], m[:3])])
+    return np.concatenate([_cross(v[:, :3], m[:, :3]), _cross(v[:, :3], m[:, 3:]) + _cross(v[:, 3:], m[:, :3])], -1)
 
 
 def _crf(v, f):
-    return np.concatenate([np.cross(v[:3], f[:3]) + np.cross(v[3:], f[3:]), np.cross(v[:3], f[3:])])
+    return np.concatenate([_cross(v[:, :3], f[:, :3]) + _cross(v[:, 3:], f[:, 3:]), _cross(v[:, :3], f[:, 3:])], -1)
 
 
 def _passes(arrays: TreeArrays, parent, node_of, w, a, base):
-    """Outward velocities and accelerations, then the bodies' inward forces ``f`` (6 each)."""
-    nb = len(parent)
-    speeds_of = [np.flatnonzero(node_of == b) for b in range(nb)]
-    v = np.zeros((nb, 6))
-    acc = np.zeros((nb, 6))
-    f = np.zeros((nb, 6))
+    """Outward velocities and accelerations, then the bodies' inward forces ``f`` (T, nb, 6);
+    ``w``, ``a`` (T, n), ``base`` (T, 6)."""
+    rows, nb = arrays.r.shape[:2]
+    v = np.zeros((rows, nb, 6))
+    acc = np.zeros((rows, nb, 6))
+    f = np.zeros((rows, nb, 6))
     for b in range(nb):
-        X = _transform(arrays.R[b], arrays.r[b])
-        ks = speeds_of[b]
-        vJ = arrays.S[ks].T @ w[ks] if len(ks) else np.zeros(6)
-        p = parent[b]
-        vp, ap = (v[p], acc[p]) if p >= 0 else (np.zeros(6), base)
-        v[b] = X @ vp + vJ
-        acc[b] = X @ ap + (arrays.S[ks].T @ a[ks] if len(ks) else 0.0) + arrays.c[b] + _crm(v[b], vJ)
-        I = _spatial_inertia(arrays.m[b], arrays.com[b], arrays.Ic[b])
-        f[b] = I @ acc[b] + _crf(v[b], I @ v[b])
-    for b in reversed(range(nb)):
+        ks = np.flatnonzero(node_of == b)
+        R, r = arrays.R[:, b], arrays.r[:, b]
+        vJ = np.einsum("tki,tk->ti", arrays.S[:, ks], w[:, ks])
         p = parent[b]
         if p >= 0:
-            f[p] += _transform(arrays.R[b], arrays.r[b]).T @ f[b]
+            v[:, b] = _to_body(R, r, v[:, p]) + vJ
+            acc[:, b] = _to_body(R, r, acc[:, p])
+        else:
+            v[:, b] = vJ
+            acc[:, b] = _to_body(R, r, base)
+        acc[:, b] += np.einsum("tki,tk->ti", arrays.S[:, ks], a[:, ks]) + arrays.c[:, b] + _crm(v[:, b], vJ)
+        m, c, Ic = arrays.m[:, b], arrays.com[:, b], arrays.Ic[:, b]
+        f[:, b] = _inertia_times(m, c, Ic, acc[:, b]) + _crf(v[:, b], _inertia_times(m, c, Ic, v[:, b]))
+    for b in reversed(range(nb)):
+        if parent[b] >= 0:
+            f[:, parent[b]] += _to_parent(arrays.R[:, b], arrays.r[:, b], f[:, b])
     return f
 
 
 def rnea(arrays: TreeArrays, parent, node_of, w, a, base=None) -> np.ndarray:
-    """``M a + h`` (with ``base``, the base's spatial acceleration, zero by default)."""
+    """``M a + h`` of one state (with ``base``, the base's spatial acceleration, zero by default)."""
     base = np.zeros(6) if base is None else base
-    f = _passes(arrays, parent, node_of, np.asarray(w, float), np.asarray(a, float), base)
-    return np.einsum("ki,ki->k", arrays.S, f[node_of])
+    f = _passes(arrays, parent, node_of, np.reshape(w, (1, -1)).astype(float), np.reshape(a, (1, -1)).astype(float),
+                np.reshape(base, (1, 6)))[0]
+    return np.einsum("ki,ki->k", arrays.S[0], f[node_of])
 
 
 def crba(arrays: TreeArrays, parent, node_of) -> np.ndarray:
     """The mass matrix by composite inertias (module docstring)."""
     nb, n = len(parent), len(node_of)
-    X = [_transform(arrays.R[b], arrays.r[b]) for b in range(nb)]
-    Ic = [_spatial_inertia(arrays.m[b], arrays.com[b], arrays.Ic[b]) for b in range(nb)]
+    X = [_transform(arrays.R[0, b], arrays.r[0, b]) for b in range(nb)]
+    Ic = [_spatial_inertia(arrays.m[0, b], arrays.com[0, b], arrays.Ic[0, b]) for b in range(nb)]
     for b in reversed(range(nb)):
         if parent[b] >= 0:
             Ic[parent[b]] = Ic[parent[b]] + X[b].T @ Ic[b] @ X[b]
     M = np.zeros((n, n))
     for k in range(n):
         b = node_of[k]
-        F = Ic[b] @ arrays.S[k]
+        F = Ic[b] @ arrays.S[0, k]
         j = b
         while j >= 0:
             for l in np.flatnonzero(node_of == j):
-                M[k, l] = M[l, k] = arrays.S[l] @ F
+                M[k, l] = M[l, k] = arrays.S[0, l] @ F
             if parent[j] >= 0:
                 F = X[j].T @ F
             j = parent[j]
     return M
+
+
+def point_matrices(tree) -> list[sp.Matrix]:
+    """Gravity (3, world axes) and each node's joint point in its body frame (3 per node)."""
+    return [sp.Matrix(tree.gravity), sp.Matrix([x for node in tree.nodes for x in node.joint_origin])]
+
+
+def wrenches(arrays: TreeArrays, parent, node_of, w, a, gravity, points) -> tuple[np.ndarray, np.ndarray]:
+    """Each node's joint reaction ``(F, M)`` at ``T`` states, (T, nb, 6) (world axes, the moment
+    about the joint's point), and the bodies' rotations to world axes (T, nb, 3, 3): the
+    inward force of :func:`rnea`'s passes with the base accelerating at ``-g``, ``F = R f``,
+    ``M = R (n - o x f)`` with ``R`` the body's rotation to world axes and ``o`` its joint
+    point. ``w``, ``a`` (T, n), ``gravity`` (T, 3), ``points`` (T, 3 nb)."""
+    rows, nb = arrays.r.shape[:2]
+    base = np.concatenate([np.zeros((rows, 3)), -np.reshape(gravity, (rows, 3))], -1)
+    f = _passes(arrays, parent, node_of, np.reshape(w, (rows, -1)), np.reshape(a, (rows, -1)), base)
+    points = np.reshape(points, (rows, nb, 3))
+    out = np.empty((rows, nb, 6))
+    rotation = np.empty((rows, nb, 3, 3))
+    for b in range(nb):
+        rotation[:, b] = rotation[:, parent[b]] @ arrays.R[:, b] if parent[b] >= 0 else arrays.R[:, b]
+        out[:, b, :3] = np.einsum("tij,tj->ti", rotation[:, b], f[:, b, 3:])
+        out[:, b, 3:] = np.einsum("tij,tj->ti", rotation[:, b], f[:, b, :3] - _cross(points[:, b], f[:, b, 3:]))
+    return out, rotation
+
+
+def _compiled(arguments, matrices):
+    """The matrices as one function of the arguments returning flat arrays (the ``math``
+    module, shared subexpressions: the per-joint terms are small)."""
+    sizes = [len(m) for m in matrices]
+    function = sp.lambdify(arguments, [e for m in matrices for e in m], modules="math", cse=True,
+                           docstring_limit=0)
+
+    def evaluate(*args):
+        flat = np.array(function(*(a.tolist() if isinstance(a, np.ndarray) else a for a in args)), float)
+        return np.split(flat, np.cumsum(sizes)[:-1])
+
+    return evaluate
+
+
+class TreeWrenches:
+    """The reaction outputs of a tree (:class:`appell.rigid_tree.Wrench`) evaluated by the
+    recursions, row by row, from the columns of a solution: ``{output name: values}``.
+    ``arguments`` are the symbols ``[t, q, w, p]`` of the per-joint expressions
+    (:func:`tree_matrices`, :func:`point_matrices`), compiled here once."""
+
+    def __init__(self, tree, n: int, arguments):
+        self.parent, self.node_of = tree_layout(tree, n)
+        self.terms = _compiled(arguments, tree_matrices(tree, n))
+        self.points = _compiled(arguments, point_matrices(tree))
+        index = {node.body: b for b, node in enumerate(tree.nodes)}
+        self.records = [(index[wr.body], None if wr.axes is None else index.get(wr.axes), wr.names)
+                        for wr in tree.wrenches]
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(name for _, _, names in self.records for name in names)
+
+    def rows(self, t, q, w, a, p) -> dict[str, np.ndarray]:
+        """``{output name: values}`` at the states of the rows of ``q, w, a, p`` (T, ...)."""
+        terms, g, points = [], [], []
+        for k in range(len(t)):
+            *tm, _ = self.terms(t[k], q[k], w[k], p[k])
+            terms.append([np.ravel(x) for x in tm])
+            gk, pk = self.points(t[k], q[k], w[k], p[k])
+            g.append(np.ravel(gk))
+            points.append(np.ravel(pk))
+        arrays = TreeArrays(*(np.array([row[i] for row in terms]) for i in range(5)))
+        W, rotation = wrenches(arrays, self.parent, self.node_of, w, a, np.array(g), np.array(points))
+        out = {}
+        for b, axes, names in self.records:
+            F, M = W[:, b, :3], W[:, b, 3:]
+            if axes is not None:
+                F = np.einsum("tji,tj->ti", rotation[:, axes], F)
+                M = np.einsum("tji,tj->ti", rotation[:, axes], M)
+            out.update(zip(names, np.concatenate([F, M], -1).T))
+        return out
 
 
 class TreeBlocks:
@@ -164,7 +279,7 @@ class TreeBlocks:
 
     def __call__(self, t, q, w, p):
         *terms, base = self.terms(t, q, w, p)
-        arrays = TreeArrays(*terms)
+        arrays = TreeArrays(*(np.ravel(x) for x in terms))
         Q, J, c = self.others(t, q, w, p)
         h = rnea(arrays, self.parent, self.node_of, np.asarray(w, float), np.zeros(self.n), np.ravel(base))
         M = crba(arrays, self.parent, self.node_of)
