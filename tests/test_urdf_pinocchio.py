@@ -140,7 +140,6 @@ def floating_arm():
     return derive(system).numeric, [q.name for q in system.coordinates], model, model.createData()
 
 
-@pytest.mark.slow  # the floating arm derives in ~40 s; the composite base below runs in every suite
 def test_a_floating_base_moves_as_pinocchios_free_flyer(floating_arm):
     """appell's root_joint (world translations; yaw, pitch, roll of the root frame and their
     rates) against Pinocchio's JointModelFreeFlyer on the same file (position and quaternion;
