@@ -42,6 +42,7 @@ def steps(quick: bool) -> list[tuple[str, list[str], float]]:
         ("linearise", ["linearise.py", "--speeds", "101" if quick else "1001"], 900),
         ("linearise_peers", ["linearise_peers.py", "--spins", "101" if quick else "1001"], 600),
         ("iftomm", ["iftomm.py"] + (["--quick"] if quick else []), 900),
+        ("robots", ["robots.py"] + (["--robot", "panda", "--robot", "solo12"] if quick else ["--runs", "3"]), 1800),
         ("viewer", ["viewer.py"] + (["--quick"] if quick else []), 900),
     ]
 
@@ -92,7 +93,7 @@ def main():
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--no-docs", action="store_true", help="print only; leave docs/performance.md alone")
     ap.add_argument("--only", help="comma-separated sections (evaluation, chain, derivation, car, loop, sweep, "
-                                   "scaling, linearise, linearise_peers, iftomm, viewer)")
+                                   "scaling, linearise, linearise_peers, iftomm, robots, viewer)")
     ap.add_argument("--out", help="also write everything printed to this file")
     args = ap.parse_args()
     chosen = set(args.only.split(",")) if args.only else None

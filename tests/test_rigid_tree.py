@@ -30,13 +30,28 @@ from appell import derive
 from appell.core.energy import TreeInertiaBlocks
 from appell.mechanism.urdf import urdf_system
 from appell.numerics.outputs import compile_outputs
+from appell.rigid_tree import RECURSIVE_FROM
 
 ARM = Path(__file__).resolve().parent.parent / "src" / "appell" / "examples" / "arm.urdf"
 
 
+def recursive(system):
+    """The system with its tree's route forced (the arm's 4 speeds are below RECURSIVE_FROM)."""
+    return dataclasses.replace(system, tree=dataclasses.replace(system.tree, route="recursive"))
+
+
+def test_small_models_keep_the_expanded_route_unless_asked():
+    system = urdf_system(ARM, reactions=None)
+    assert len(system.speeds) < RECURSIVE_FROM
+    assert not isinstance(derive(system).inertia, TreeInertiaBlocks)
+    assert isinstance(derive(recursive(system)).inertia, TreeInertiaBlocks)
+    expanded = dataclasses.replace(system, tree=dataclasses.replace(system.tree, route="expanded"))
+    assert not isinstance(derive(expanded).inertia, TreeInertiaBlocks)
+
+
 @pytest.fixture(scope="module")
 def arm():
-    system = urdf_system(ARM, reactions=None)
+    system = recursive(urdf_system(ARM, reactions=None))
     return system, derive(system), derive(dataclasses.replace(system, tree=None))
 
 
@@ -65,6 +80,7 @@ def test_recursions_equal_the_expanded_blocks(arm):
 
 def test_floating_base_recursions_in_numpy_and_c_agree():
     derivation = derive(urdf_system(ARM, floating_base=True, reactions=None))
+    assert isinstance(derivation.inertia, TreeInertiaBlocks)  # 10 speeds
     numeric, compiled = derivation.numeric, derivation.compiled("c")
     p = numeric.default_parameters
     for q, w in _states(10, 10, seed=8):
@@ -92,7 +108,7 @@ def test_expanded_blocks_on_demand_hold_gravity_in_h(arm):
 def test_joint_reactions_by_the_recursions_equal_the_newton_euler_outputs():
     """Every joint's force and moment, world axes and (for two joints) a body's axes, with
     arbitrary accelerations: the recursions' inward forces against the subtree balances."""
-    system = urdf_system(ARM, frame={"elbow": "upper", "wrist": "fore"})
+    system = recursive(urdf_system(ARM, frame={"elbow": "upper", "wrist": "fore"}))
     by_tree = compile_outputs(system)
     by_formula = compile_outputs(dataclasses.replace(system, tree=None))
     assert len(system.tree.wrenches) == 5 and {w.axes for w in system.tree.wrenches} == {None, "upper", "fore"}
@@ -106,7 +122,7 @@ def test_joint_reactions_by_the_recursions_equal_the_newton_euler_outputs():
 
 
 def test_a_tree_left_by_an_edited_system_is_not_used():
-    system = urdf_system(ARM, reactions=None)
+    system = recursive(urdf_system(ARM, reactions=None))
     heavier = dataclasses.replace(system.bodies[0], mass=system.bodies[0].mass * 2)
     edited = dataclasses.replace(system, bodies=(heavier,) + system.bodies[1:])
     assert isinstance(derive(system).inertia, TreeInertiaBlocks)
@@ -117,7 +133,7 @@ def test_a_tree_left_by_an_edited_system_is_not_used():
 
 
 def test_a_derivation_on_the_route_pickles_after_numeric_use():
-    derivation = derive(urdf_system(ARM))
+    derivation = derive(recursive(urdf_system(ARM)))
     numeric = derivation.numeric
     q, w = np.full(4, 0.3), np.full(4, -0.2)
     before = numeric.solve(0.0, q, w).accelerations

@@ -122,6 +122,9 @@ def test_motion_and_every_joint_wrench_equal_pinocchio(fixed_robot):
                                        rtol=1e-9, atol=1e-9, err_msg=name)
             np.testing.assert_allclose(tau, 0.0, atol=1e-9, err_msg=name)
         out = derivation.numeric.outputs(0.0, q, w, solution=sol)
+        # the same reactions in one C call (node order), as the benchmark times them
+        wrench = compiled.joint_wrenches(0.0, q, w, a)
+        node = {nd.joint: b for b, nd in enumerate(derivation.inertia.tree.nodes)}
         pin.forwardKinematics(model, data, qp)
         for jid in range(1, model.njoints):
             joint = model.names[jid]
@@ -130,6 +133,7 @@ def test_motion_and_every_joint_wrench_equal_pinocchio(fixed_robot):
             M = np.array([out[f"M_{joint}_{x}"] for x in "xyz"])
             np.testing.assert_allclose(R.T @ F, data.f[jid].linear, rtol=1e-9, atol=1e-9, err_msg=f"{name} {joint}")
             np.testing.assert_allclose(R.T @ M, data.f[jid].angular, rtol=1e-9, atol=1e-9, err_msg=f"{name} {joint}")
+            np.testing.assert_allclose(wrench[node[joint]], np.concatenate([F, M]), rtol=1e-12, atol=1e-12)
 
 
 def test_solo12_floating_base_against_the_free_flyer():

@@ -31,7 +31,11 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-__all__ = ["RigidTree", "TreeNode", "Wrench"]
+__all__ = ["RigidTree", "TreeNode", "Wrench", "RECURSIVE_FROM", "ROUTES"]
+
+#: the number of speeds from which ``route='auto'`` takes the recursions (a 6-joint arm)
+RECURSIVE_FROM = 6
+ROUTES = ("auto", "recursive", "expanded")
 
 
 @dataclass(frozen=True)
@@ -74,12 +78,21 @@ class RigidTree:
     vector ``g`` (world axes) and ``potential``, the bodies' potential energy in it as the
     system states it (``-sum m g.r_C``): where the system's potential energy is exactly this,
     the recursions apply gravity as the base's acceleration ``-g`` instead of expanding
-    ``dV/dq``."""
+    ``dV/dq``.
+
+    ``route``: ``'auto'`` (the recursions from :data:`RECURSIVE_FROM` speeds on; a smaller
+    model keeps the expanded blocks, whose closed forms are small and whose NumPy code is
+    faster than recursions in Python), ``'recursive'`` or ``'expanded'``."""
 
     nodes: tuple[TreeNode, ...]
     gravity: sp.ImmutableMatrix
     potential: sp.Expr = sp.S.Zero
     wrenches: tuple[Wrench, ...] = ()
+    route: str = "auto"
+
+    def __post_init__(self):
+        if self.route not in ROUTES:
+            raise ValueError(f"route must be one of {', '.join(ROUTES)}, got {self.route!r}")
 
     @property
     def bodies(self) -> tuple[str, ...]:

@@ -109,10 +109,14 @@ def usable_tree(system: System, kin: Kinematics):
     """``system.tree`` when it describes exactly the system's bodies and coordinates: no
     energy given beside the bodies, speeds that are the coordinates' derivatives, each speed
     moved by one joint, the same bodies with the same masses, inertias and mass-centre
-    positions (a tree left behind by an edited system is never used). None otherwise: the
-    expanded route."""
+    positions (a tree left behind by an edited system is never used), and a route that asks
+    for the recursions (``tree.route``). None otherwise: the expanded route."""
+    from appell.rigid_tree import RECURSIVE_FROM
+
     tree = system.tree
     if tree is None or system.kinetic_energy is not None or system.acceleration_energy is not None:
+        return None
+    if tree.route == "expanded" or tree.route == "auto" and len(kin.speeds) < RECURSIVE_FROM:
         return None
     if tuple(kin.coordinate_rates) != tuple(kin.speeds) or not system.bodies:
         return None

@@ -88,6 +88,18 @@ class CompiledNumericModel(NumericModel):
     backend: str = "c"
     _lib: object = field(default=None, repr=False, compare=False)
     _default_dep: np.ndarray = field(default=None, repr=False, compare=False)
+    _wrenches: object = field(default=None, repr=False, compare=False)
+
+    def joint_wrenches(self, t, q, w, a, p=None) -> np.ndarray:
+        """Every joint's reaction of a rigid-body tree at a state and accelerations, one row
+        ``(F_x, F_y, F_z, M_x, M_y, M_z)`` per body in the tree's order
+        (``derivation.inertia.tree.nodes``): world axes, the moment about the joint's point,
+        the parent's action on the subtree (RNEA's inward force, ``rigid.c``); the loads and
+        constraint forces acting on the subtree are not in it. One C call."""
+        if self._wrenches is None:
+            raise ModelError("joint_wrenches needs bodies on a joint tree (a mechanism or a URDF robot)",
+                             hint="use the outputs F_<joint>_x ... of Mechanism.system(reactions=...)")
+        return self._wrenches(t, q, w, a, self.default_parameters if p is None else p)[0]
 
     def __post_init__(self):
         # addresses of the arrays that do not change between calls (ctypes overhead)
@@ -277,6 +289,12 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         lib.appell_constraint.argtypes = expr_args + [_P] * 2
         lib.appell_constraint.restype = None
         cfun = _wrap(lib.appell_constraint, [(s,), (s, n)], (nq, n, n, npar), with_acc=True)
+    wrenches = None
+    if derivation.inertia.tree is not None:
+        lib.appell_wrenches.argtypes = expr_args + [_P]
+        lib.appell_wrenches.restype = None
+        wrenches = _wrap(lib.appell_wrenches, [(len(derivation.inertia.tree.nodes), 6)], (nq, n, n, npar),
+                         with_acc=True)
     system = derivation.system
     return with_redundancy(CompiledNumericModel(
         derivation=derivation,
@@ -292,4 +310,5 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         freshly_compiled=fresh,
         _lib=lib,
         _default_dep=np.ascontiguousarray(derivation.partition.dependent, dtype=np.intc),
+        _wrenches=wrenches,
     ))

@@ -200,3 +200,34 @@ void appell_blocks(double t, const double *restrict q, const double *restrict w,
     for (int i = 0; i < N * N; ++i) M[i] = 0.0;
     rigid_mass(R, r, Sc, in, M);
 }
+
+/* every node's joint reaction (F, M), world axes, the moment about the joint's point: the inward
+   forces with the base accelerating at -g and the accelerations a (out: 6 NB) */
+void appell_wrenches(double t, const double *restrict q, const double *restrict w, const double *restrict a,
+                     const double *restrict p, double *restrict out)
+{
+    double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N], f[6 * NB];
+    double J[S * N > 0 ? S * N : 1], c[S > 0 ? S : 1], g[3], o[3 * NB], Rw[9 * NB];
+    appell_rigid_terms(t, q, w, a, p, R, r, Sc, cb, in, base, Q, J, c);
+    appell_rigid_points(t, q, w, a, p, g, o);
+    const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]};
+    rigid_forces(R, r, Sc, cb, in, w, a, fall, f);
+    for (int b = 0; b < NB; ++b) {
+        double *Rb = Rw + 9 * b, m[3], tmp[3];
+        const double *fb = f + 6 * b, *Rr = R + 9 * b;
+        if (PARENT[b] >= 0) {
+            const double *Rp = Rw + 9 * PARENT[b];
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j)
+                    Rb[3 * i + j] = Rp[3 * i] * Rr[j] + Rp[3 * i + 1] * Rr[3 + j] + Rp[3 * i + 2] * Rr[6 + j];
+        } else {
+            for (int i = 0; i < 9; ++i) Rb[i] = Rr[i];
+        }
+        cross3(o + 3 * b, fb + 3, tmp);
+        for (int i = 0; i < 3; ++i) m[i] = fb[i] - tmp[i];
+        for (int i = 0; i < 3; ++i) {
+            out[6 * b + i] = Rb[3 * i] * fb[3] + Rb[3 * i + 1] * fb[4] + Rb[3 * i + 2] * fb[5];
+            out[6 * b + 3 + i] = Rb[3 * i] * m[0] + Rb[3 * i + 1] * m[1] + Rb[3 * i + 2] * m[2];
+        }
+    }
+}

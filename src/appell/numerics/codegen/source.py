@@ -12,7 +12,7 @@ import sympy as sp
 from appell.numerics.numeric import REFINE_CONDITION, program_substitutions
 from appell.numerics.codegen.printer import HEADER_END, UNIT_MARK, _symbol_map, c_comment, c_function, common_factor
 from appell.numerics.codegen.tree import _tree_recursions, particle_tree
-from appell.numerics.rigid_tree import tree_layout, tree_matrices
+from appell.numerics.rigid_tree import point_matrices, tree_layout, tree_matrices
 
 
 def _c_file(name: str) -> str:
@@ -55,6 +55,7 @@ def c_source(derivation) -> str:
                   "static const int NODE_OF[N] = {" + ", ".join(map(str, node_of)) + "};",
                   c_function("appell_rigid_terms", [prepared(m) for m in tree_matrices(rigid, n, inertia.gravity)]
                              + [prepared(inertia.generalized_forces), prepared(J0), prepared(c)], syms),
+                  c_function("appell_rigid_points", [prepared(m) for m in point_matrices(rigid)], syms),
                   _c_file("rigid.c")]
     elif tree is None:
         hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
