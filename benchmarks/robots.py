@@ -13,10 +13,10 @@ Columns:
   plus that of its largest child (the C compiler);
 * **Pinocchio load** — ``pin.buildModelFromUrdf`` in the same kind of fresh process (after
   its import);
-* **eval from Python** — one state: appell's ``compiled.solve`` (accelerations, the split
-  solve in C) plus ``compiled.joint_wrenches`` (every joint's reaction, one C call) against
-  Pinocchio's ``aba`` plus ``rnea`` (whose ``data.f`` are the joint wrenches), interleaved
-  (benchmarks/harness.py), CPU time per pair of calls, and their ratio.
+* **eval from Python** — one state: appell's ``compiled.forward`` (the accelerations by the
+  split solve, the multipliers and every joint's reaction, one C call) against Pinocchio's
+  ``aba`` plus ``rnea`` (whose ``data.f`` are the joint wrenches), interleaved
+  (benchmarks/harness.py), CPU time per call (pair of calls), and their ratio.
 
 Targets (issue 22): first number 7-DOF arm ≤ 10 s, 18-DOF quadruped ≤ 15 s, Baxter or a
 30-DOF humanoid ≤ 30 s, peak memory ≤ 500 MB; eval ≤ 1.0× Pinocchio.
@@ -119,8 +119,7 @@ def evaluation(path: Path, floating: bool, rounds: int) -> tuple[float, float, f
     zero = np.zeros(pmodel.nv)
 
     def ours():
-        sol = model.solve(0.0, q, w)
-        model.joint_wrenches(0.0, q, w, sol.accelerations)
+        model.forward(0.0, q, w)
 
     def theirs():
         a = pin.aba(pmodel, data, qp, vp, zero)
@@ -155,7 +154,7 @@ def main():
     print()
     print(f"machine: {harness.machine()}; {harness.today()}; commit {harness.git_commit()}")
     print(harness.markdown_table(["robot", "speeds", "bodies", "outputs", "first number", "peak memory",
-                                  "Pinocchio load", "appell solve + wrenches", "Pinocchio aba + rnea", "ratio"], rows))
+                                  "Pinocchio load", "appell forward", "Pinocchio aba + rnea", "ratio"], rows))
 
 
 if __name__ == "__main__":

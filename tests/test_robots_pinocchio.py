@@ -122,8 +122,12 @@ def test_motion_and_every_joint_wrench_equal_pinocchio(fixed_robot):
                                        rtol=1e-9, atol=1e-9, err_msg=name)
             np.testing.assert_allclose(tau, 0.0, atol=1e-9, err_msg=name)
         out = derivation.numeric.outputs(0.0, q, w, solution=sol)
-        # the same reactions in one C call (node order), as the benchmark times them
+        # the same reactions in one C call (node order), and with the accelerations in one call
         wrench = compiled.joint_wrenches(0.0, q, w, a)
+        a_fw, lam_fw, wrench_fw = compiled.forward(0.0, q, w)
+        np.testing.assert_allclose(a_fw, a, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(lam_fw, sol.multipliers, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(wrench_fw, wrench, rtol=1e-12, atol=1e-12)
         node = {nd.joint: b for b, nd in enumerate(derivation.inertia.tree.nodes)}
         pin.forwardKinematics(model, data, qp)
         for jid in range(1, model.njoints):

@@ -89,6 +89,21 @@ class CompiledNumericModel(NumericModel):
     _lib: object = field(default=None, repr=False, compare=False)
     _default_dep: np.ndarray = field(default=None, repr=False, compare=False)
     _wrenches: object = field(default=None, repr=False, compare=False)
+    _forward: object = field(default=None, repr=False, compare=False)
+
+    def forward(self, t, q, w, p=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(a, lambda, wrenches)`` of a rigid-body tree at a state in one C call: the
+        accelerations and multipliers of :meth:`solve` (default partition) and the joint
+        reactions of :meth:`joint_wrenches` at them, as Pinocchio's ``aba`` and ``rnea`` give
+        them; where that split fails, :meth:`solve` (which may switch the partition) and
+        :meth:`joint_wrenches`."""
+        pv = self.default_parameters if p is None else p
+        if self._forward is not None:
+            a, lam, wrench = self._forward(t, q, w, pv)
+            if np.isfinite(a[0]) if len(a) else True:
+                return a, lam, wrench
+        sol = self.solve(t, q, w, p)
+        return sol.accelerations, sol.multipliers, self.joint_wrenches(t, q, w, sol.accelerations, p)
 
     def joint_wrenches(self, t, q, w, a, p=None) -> np.ndarray:
         """Every joint's reaction of a rigid-body tree at a state and accelerations, one row
@@ -289,12 +304,16 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         lib.appell_constraint.argtypes = expr_args + [_P] * 2
         lib.appell_constraint.restype = None
         cfun = _wrap(lib.appell_constraint, [(s,), (s, n)], (nq, n, n, npar), with_acc=True)
-    wrenches = None
+    wrenches = forward = None
     if derivation.inertia.tree is not None:
         lib.appell_wrenches.argtypes = expr_args + [_P]
         lib.appell_wrenches.restype = None
-        wrenches = _wrap(lib.appell_wrenches, [(len(derivation.inertia.tree.nodes), 6)], (nq, n, n, npar),
-                         with_acc=True)
+        nb = len(derivation.inertia.tree.nodes)
+        wrenches = _wrap(lib.appell_wrenches, [(nb, 6)], (nq, n, n, npar), with_acc=True)
+        if cons.linear:
+            lib.appell_forward.argtypes = expr_args + [_P] * 3
+            lib.appell_forward.restype = None
+            forward = _wrap(lib.appell_forward, [(n,), (s,), (nb, 6)], (nq, n, npar))
     system = derivation.system
     return with_redundancy(CompiledNumericModel(
         derivation=derivation,
@@ -311,4 +330,5 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         _lib=lib,
         _default_dep=np.ascontiguousarray(derivation.partition.dependent, dtype=np.intc),
         _wrenches=wrenches,
+        _forward=forward,
     ))

@@ -186,14 +186,12 @@ static void rigid_mass(const double *R, const double *r, const double *Sc, const
     }
 }
 
-/* the blocks M, h - Q, J, c of the dense route from the tree's recursions */
-void appell_blocks(double t, const double *restrict q, const double *restrict w, const double *restrict a,
-                   const double *restrict p, double *restrict M, double *restrict hQ, double *restrict J,
-                   double *restrict c)
+/* M and h - Q from the joints' terms */
+static void rigid_blocks(const double *R, const double *r, const double *Sc, const double *cb, const double *in,
+                         const double *base, const double *Q, const double *w, double *M, double *hQ)
 {
-    double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N], f[6 * NB];
+    double f[6 * NB];
     const double zero[N] = {0.0};
-    appell_rigid_terms(t, q, w, a, p, R, r, Sc, cb, in, base, Q, J, c);
     rigid_forces(R, r, Sc, cb, in, w, zero, base, f);
     rigid_project(Sc, f, hQ);
     for (int k = 0; k < N; ++k) hQ[k] -= Q[k];
@@ -201,15 +199,22 @@ void appell_blocks(double t, const double *restrict q, const double *restrict w,
     rigid_mass(R, r, Sc, in, M);
 }
 
-/* every node's joint reaction (F, M), world axes, the moment about the joint's point: the inward
-   forces with the base accelerating at -g and the accelerations a (out: 6 NB) */
-void appell_wrenches(double t, const double *restrict q, const double *restrict w, const double *restrict a,
-                     const double *restrict p, double *restrict out)
+/* the blocks M, h - Q, J, c of the dense route from the tree's recursions */
+void appell_blocks(double t, const double *restrict q, const double *restrict w, const double *restrict a,
+                   const double *restrict p, double *restrict M, double *restrict hQ, double *restrict J,
+                   double *restrict c)
 {
-    double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N], f[6 * NB];
-    double J[S * N > 0 ? S * N : 1], c[S > 0 ? S : 1], g[3], o[3 * NB], Rw[9 * NB];
+    double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N];
     appell_rigid_terms(t, q, w, a, p, R, r, Sc, cb, in, base, Q, J, c);
-    appell_rigid_points(t, q, w, a, p, g, o);
+    rigid_blocks(R, r, Sc, cb, in, base, Q, w, M, hQ);
+}
+
+/* each node's reaction (F, M) in world axes about its joint point, from the joints' terms,
+   gravity g, the joints' points o and the accelerations a */
+static void rigid_wrenches(const double *R, const double *r, const double *Sc, const double *cb, const double *in,
+                           const double *g, const double *o, const double *w, const double *a, double *out)
+{
+    double f[6 * NB], Rw[9 * NB];
     const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]};
     rigid_forces(R, r, Sc, cb, in, w, a, fall, f);
     for (int b = 0; b < NB; ++b) {
@@ -230,4 +235,16 @@ void appell_wrenches(double t, const double *restrict q, const double *restrict 
             out[6 * b + 3 + i] = Rb[3 * i] * m[0] + Rb[3 * i + 1] * m[1] + Rb[3 * i + 2] * m[2];
         }
     }
+}
+
+/* every node's joint reaction (F, M), world axes, the moment about the joint's point: the inward
+   forces with the base accelerating at -g and the accelerations a (out: 6 NB) */
+void appell_wrenches(double t, const double *restrict q, const double *restrict w, const double *restrict a,
+                     const double *restrict p, double *restrict out)
+{
+    double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N];
+    double J[S * N > 0 ? S * N : 1], c[S > 0 ? S : 1], g[3], o[3 * NB];
+    appell_rigid_terms(t, q, w, a, p, R, r, Sc, cb, in, base, Q, J, c);
+    appell_rigid_points(t, q, w, a, p, g, o);
+    rigid_wrenches(R, r, Sc, cb, in, g, o, w, a, out);
 }

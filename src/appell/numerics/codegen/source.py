@@ -9,7 +9,7 @@ from importlib import resources
 
 import sympy as sp
 
-from appell.numerics.numeric import REFINE_CONDITION, program_substitutions
+from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, program_substitutions
 from appell.numerics.codegen.printer import HEADER_END, UNIT_MARK, _symbol_map, c_comment, c_function, common_factor
 from appell.numerics.codegen.tree import _tree_recursions, particle_tree
 from appell.numerics.rigid_tree import point_matrices, tree_layout, tree_matrices
@@ -74,6 +74,10 @@ def c_source(derivation) -> str:
               c_function("appell_residuals", [prepared(pos), prepared(vel)], syms)]
     if cons.linear:
         parts += [_c_file("solver.c"), _c_file("dense_entries.c") if tree is None else _tree_recursions(tree, len(rows), s) + _c_file("tree.c"), _c_file("evaluate.c")]
+        if rigid is not None:
+            dep = ", ".join(str(int(i)) for i in derivation.partition.dependent) or "0"
+            parts += [f"#define KEEP_CONDITION {KEEP_CONDITION!r}\nstatic const int DEP0[DIM(S)] = {{{dep}}};",
+                      _c_file("rigid_forward.c")]
     else:
         parts.append(c_function("appell_constraint", [prepared(cons.second_order), prepared(J)], syms))
     main, units = [], []
