@@ -127,7 +127,8 @@ def derive_model(system, dependent=None, formulas: bool = False):
 
             derivation = derive(system, dependent=dependent)
             check_inertia_at_start(derivation)
-        if formulas and (is_controlled(derivation) or formulas_unavailable(derivation.partition) is None):
+        if formulas and (is_controlled(derivation) or formulas_unavailable(derivation.partition) is None
+                         and derivation.inertia.tree is None):
             derivation.reduced, derivation.reactions  # noqa: B018 (computed and cached here)
     return derivation
 
@@ -151,8 +152,8 @@ def check_inertia_at_start(derivation) -> None:
         check_blocks_at_start(model, t0, y, model.default_parameters)  # entries beyond the range: named
         check_inertia(model, t0, y, model.default_parameters)
         return
-    if formulas_unavailable(derivation.partition) is not None:
-        return  # no closed form: the inertia is checked where the numbers are computed
+    if formulas_unavailable(derivation.partition) is not None or derivation.inertia.tree is not None:
+        return  # no closed form (or the recursive route): the inertia is checked where the numbers are computed
     reduced = derivation.reduced
     matrix = reduced.mass_matrix
     if matrix is None:

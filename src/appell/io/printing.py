@@ -79,6 +79,123 @@ def _solved_independent(red):
     return solved if graph_size(solved, PRINT_NODES) <= PRINT_NODES else None
 
 
+def _names(prefix: str, body: str, parts) -> sp.Matrix:
+    return sp.Matrix([sp.Symbol(f"{prefix}_{body}_{p}") for p in parts])
+
+
+SPATIAL = ("wx", "wy", "wz", "x", "y", "z")  # [omega; v] and [n; f]
+
+
+def _skew_cross(a, b) -> sp.Matrix:
+    return sp.Matrix(a).cross(sp.Matrix(b))
+
+
+def tree_formulas(derivation) -> list[Formula]:
+    """The printed items of a derivation on the recursive route (bodies on a joint tree,
+    :class:`appell.rigid_tree.RigidTree`), at full size through named quantities, never the
+    expanded mass matrix: for each body ``B`` on its joint, its rotation ``R_B`` (body to
+    parent axes) and origin ``r_B`` in its joint's coordinates, then the passes over spatial
+    vectors ``[omega; v]`` (body axes) and forces ``[n; f]`` (Featherstone's RNEA)::
+
+        v_B = X_B v_P + S_B w_B                 X m = [R^T m_w; R^T (m_v + m_w x r)]
+        a_B = X_B a_P + S_B a_B + c_B + v_B x S_B w_B      (the ground: a = [0; -g])
+        f_B = I_B a_B + v_B x* I_B v_B + sum over children C of X_C^T f_C
+
+    then (1.3) row by row, ``S_k . f_B(k) = Q_k + (J^T lambda)_k``, and ``f = 0``; the joint
+    reactions among the outputs are ``f_B`` in world axes at the joint's point
+    (``W_B = W_P R_B``), the others as written."""
+    tree = derivation.inertia.tree
+    kin, cons = derivation.kinematics, derivation.constraints
+    w, a = list(kin.speeds), list(kin.accelerations)
+    rows: list[Formula] = []
+    gravity = sp.Matrix(tree.gravity) if derivation.inertia.gravity else sp.zeros(3, 1)
+    named: dict = {}
+    children: dict[int, list[int]] = {}
+    for b, node in enumerate(tree.nodes):
+        children.setdefault(node.parent, []).append(b)
+    for b, node in enumerate(tree.nodes):
+        B = node.body
+        R = sp.Matrix(3, 3, [sp.Symbol(f"R_{B}_{i}{j}") for i in "xyz" for j in "xyz"])
+        r = _names("r", B, "xyz")
+        rows += [Formula(f"(joint {node.joint})", R[k], node.rotation[k], "motion") for k in range(9)]
+        rows += [Formula(f"(joint {node.joint})", r[k], node.translation[k], "motion") for k in range(3)]
+        own_w = sp.Matrix([w[k] for k in node.speeds])
+        own_a = sp.Matrix([a[k] for k in node.speeds])
+        S = sp.Matrix(node.motion)
+        vJ = S * own_w if node.speeds else sp.zeros(6, 1)
+        if node.parent >= 0:
+            vP, aP = named[node.parent]
+        else:
+            vP, aP = sp.zeros(6, 1), sp.Matrix([0, 0, 0, *(-gravity)])
+
+        def to_body(m, R=R, r=r):
+            return sp.Matrix.vstack(R.T * m[:3, :], R.T * (m[3:, :] + _skew_cross(m[:3, :], r)))
+
+        v, acc = _names("v", B, SPATIAL), _names("a", B, SPATIAL)
+        v_expr = to_body(vP) + vJ
+        cross = sp.Matrix.vstack(_skew_cross(v[:3, :], vJ[:3, :]),
+                                 _skew_cross(v[:3, :], vJ[3:, :]) + _skew_cross(v[3:, :], vJ[:3, :]))
+        a_expr = to_body(aP) + (S * own_a if node.speeds else sp.zeros(6, 1)) + sp.Matrix(node.bias) + cross
+        rows += [Formula("(RNEA)", v[k], v_expr[k], "motion") for k in range(6)]
+        rows += [Formula("(RNEA)", acc[k], a_expr[k], "motion") for k in range(6)]
+        named[b] = (v, acc)
+    forces = {}
+    for b in reversed(range(len(tree.nodes))):
+        node = tree.nodes[b]
+        B = node.body
+        v, acc = named[b]
+        m, c, Ic = node.mass, sp.Matrix(node.com), sp.Matrix(node.inertia)
+
+        def inertia(x, m=m, c=c, Ic=Ic):
+            u = x[3:, :] + _skew_cross(x[:3, :], c)
+            return sp.Matrix.vstack(Ic * x[:3, :] + m * _skew_cross(c, u), m * u)
+
+        Iv = inertia(v)
+        f_expr = inertia(acc) + sp.Matrix.vstack(_skew_cross(v[:3, :], Iv[:3, :]) + _skew_cross(v[3:, :], Iv[3:, :]),
+                                                 _skew_cross(v[:3, :], Iv[3:, :]))
+        for ch in children.get(b, []):
+            C = tree.nodes[ch].body
+            Rc = sp.Matrix(3, 3, [sp.Symbol(f"R_{C}_{i}{j}") for i in "xyz" for j in "xyz"])
+            rc, fc = _names("r", C, "xyz"), forces[ch]
+            lin = Rc * fc[3:, :]
+            f_expr += sp.Matrix.vstack(Rc * fc[:3, :] + _skew_cross(rc, lin), lin)
+        f = _names("f", B, ("nx", "ny", "nz", "x", "y", "z"))
+        rows += [Formula("(RNEA)", f[k], f_expr[k], "motion") for k in range(6)]
+        forces[b] = f
+    lam = sp.Matrix([sp.Symbol(f"lambda_{n}") for n in cons.names])
+    JT = sp.Matrix(cons.jacobian).T * lam if cons.count else sp.zeros(len(w), 1)
+    Q = sp.Matrix(derivation.inertia.generalized_forces)
+    for b, node in enumerate(tree.nodes):
+        for col, k in enumerate(node.speeds):
+            lhs = (sp.Matrix(node.motion[:, col]).T * forces[b])[0]
+            rows.append(Formula(f"(1.3) [{w[k]}]", lhs, Q[k] + JT[k], "motion"))
+    rows += [Formula(f"(f_{n} = 0)", e, sp.S.Zero, "motion") for n, e in zip(cons.names, cons.second_order)]
+    by_tree = {}
+    world = {}
+    for b, node in enumerate(tree.nodes):
+        if not tree.wrenches:
+            break
+        R = sp.Matrix(3, 3, [sp.Symbol(f"R_{node.body}_{i}{j}") for i in "xyz" for j in "xyz"])
+        W = sp.Matrix(3, 3, [sp.Symbol(f"W_{node.body}_{i}{j}") for i in "xyz" for j in "xyz"])
+        product = R if node.parent < 0 else world[node.parent] * R
+        rows += [Formula("(world axes)", W[k], product[k], "outputs") for k in range(9)]
+        world[b] = W
+    index = {node.body: b for b, node in enumerate(tree.nodes)}
+    wanted = {wr.names: wr for wr in tree.wrenches}
+    for wr in wanted.values():
+        b = index[wr.body]
+        f = forces[b]
+        o = sp.Matrix(tree.nodes[b].joint_origin)
+        F, M = world[b] * f[3:, :], world[b] * (f[:3, :] - _skew_cross(o, f[3:, :]))
+        if wr.axes is not None:
+            Ra = world[index[wr.axes]]
+            F, M = Ra.T * F, Ra.T * M
+        by_tree.update(zip(wr.names, list(F) + list(M)))
+    rows += [Formula("(output)", sp.Symbol(o.name), by_tree.get(o.name, o.expr), "outputs")
+             for o in derivation.system.outputs]
+    return rows
+
+
 def equation_formulas(derivation) -> list[Formula]:
     """The printed items of a derivation, unsimplified.
 
@@ -94,6 +211,8 @@ def equation_formulas(derivation) -> list[Formula]:
     the dynamic conditions (2.3).
     """
     controlled = is_controlled(derivation)
+    if not controlled and derivation.inertia.tree is not None:
+        return tree_formulas(derivation)
     if not controlled and formulas_unavailable(derivation.partition) is not None:
         # the equations the numeric split solves, by named blocks: (1.3) M a + h = Q + J^T lambda
         # row by row, and f = J a + c = 0 (never the symbolic inverse of the large J_h)
@@ -232,9 +351,13 @@ def derivation_text(derivation, only=None) -> str:
         lines += ["  " + line for line in derivation.redundancy.summary()]
         lines.append("  " + REDUNDANT_FORMULAS)
     printed = printed_equations(derivation, only)
-    motion = ("motion: the equations (1.3) with the multipliers and f = 0, solved at each state by the numeric "
-              "split" if not is_controlled(derivation) and formulas_unavailable(derivation.partition) is not None
-              else "motion: accelerations (1.4) and f = 0")
+    if not is_controlled(derivation) and derivation.inertia.tree is not None:
+        motion = ("motion: the joints' terms, the recursive Newton-Euler passes over spatial vectors (body axes), "
+                  "the equations (1.3) with the multipliers and f = 0, solved at each state by the numeric split")
+    elif not is_controlled(derivation) and formulas_unavailable(derivation.partition) is not None:
+        motion = "motion: the equations (1.3) with the multipliers and f = 0, solved at each state by the numeric split"
+    else:
+        motion = "motion: accelerations (1.4) and f = 0"
     titles = {"motion": motion, "reactions": "reactions (1.5)",
               "outputs": "outputs (from t, q, w, a and the multipliers)", "controls": "controls"}
     if printed.definitions:
@@ -291,6 +414,10 @@ def derivation_document(derivation) -> dict:
     ind, dep = derivation.partition.names(kin.accelerations)
     cons = derivation.constraints
     unavailable = formulas_unavailable(derivation.partition)
+    tree = derivation.inertia.tree
+    if unavailable is None and tree is not None:
+        unavailable = ("the recursive route (bodies on a joint tree): M and h are computed by the recursions, "
+                       "never expanded; the printed equations give the passes and (1.3) row by row")
     red = derivation.reduced if unavailable is None else None
     lam = derivation.reactions if unavailable is None else None
     return {
@@ -317,8 +444,9 @@ def derivation_document(derivation) -> dict:
         "outputs": {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
                     for o in derivation.system.outputs},
         "blocks": {
-            "mass_matrix": derivation.inertia.mass_matrix,
-            "inertial_forces": list(derivation.inertia.inertial_forces),
+            "mass_matrix": derivation.inertia.mass_matrix if tree is None else None,
+            "inertial_forces": list(derivation.inertia.inertial_forces) if tree is None else None,
+            "recursive_tree": None if tree is None else [node.body for node in tree.nodes],
             "generalized_forces": list(derivation.inertia.generalized_forces),
             "constraint_jacobian": cons.jacobian,
             "constraint_bias": list(cons.bias),
