@@ -40,6 +40,15 @@ def recursive(system):
     return dataclasses.replace(system, tree=dataclasses.replace(system.tree, route="recursive"))
 
 
+def test_the_bicycle_keeps_its_closed_forms():
+    """9 speeds on chains of 3 moving joints: the expanded route, whose reactions (1.5) print."""
+    from appell.io.modelfile import load_model
+
+    system = load_model("benchmark_bicycle")
+    assert system.tree is not None and system.tree.depth == 3 and len(system.speeds) >= RECURSIVE_FROM
+    assert not isinstance(derive(system).inertia, TreeInertiaBlocks)
+
+
 def test_small_models_keep_the_expanded_route_unless_asked():
     system = urdf_system(ARM, reactions=None)
     assert len(system.speeds) < RECURSIVE_FROM
@@ -173,3 +182,18 @@ def test_printed_recursion_holds_at_the_numeric_solution():
         else:
             values[f.lhs] = rhs
     assert checked == {"(1.3)": 4, "(output)": 30}
+
+
+def test_a_sweeps_fingerprint_reads_the_joints_terms_not_the_expanded_blocks():
+    """A sweep names a model by a fingerprint of its equations: on the recursive route it is
+    taken from the joints' terms (the expansion would cost minutes for a real robot), and it
+    changes with a parameter of the tree."""
+    from appell.simulation.sweep import model_fingerprint
+
+    system = recursive(urdf_system(ARM, reactions=None))
+    derivation = derive(system)
+    first = model_fingerprint(derivation)
+    assert "_blocks" not in derivation.inertia.__dict__  # never expanded
+    assert model_fingerprint(derive(recursive(urdf_system(ARM, reactions=None)))) == first
+    heavier = derive(recursive(urdf_system(ARM, reactions=None).with_parameters({"g": 3.7})))
+    assert model_fingerprint(heavier) != first

@@ -31,10 +31,14 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-__all__ = ["RigidTree", "TreeNode", "Wrench", "RECURSIVE_FROM", "ROUTES"]
+__all__ = ["RigidTree", "TreeNode", "Wrench", "RECURSIVE_DEPTH", "RECURSIVE_FROM", "ROUTES"]
 
-#: the number of speeds from which ``route='auto'`` takes the recursions (a 6-joint arm)
+#: ``route='auto'`` takes the recursions from this many speeds (a 6-joint arm) on chains of
+#: at least :data:`RECURSIVE_DEPTH` moving joints: below, the expanded blocks stay small
+#: enough for closed forms (the benchmark bicycle, 9 speeds on chains of 3 joints, keeps its
+#: printed reactions (1.5))
 RECURSIVE_FROM = 6
+RECURSIVE_DEPTH = 4
 ROUTES = ("auto", "recursive", "expanded")
 
 
@@ -80,9 +84,18 @@ class RigidTree:
     the recursions apply gravity as the base's acceleration ``-g`` instead of expanding
     ``dV/dq``.
 
-    ``route``: ``'auto'`` (the recursions from :data:`RECURSIVE_FROM` speeds on; a smaller
-    model keeps the expanded blocks, whose closed forms are small and whose NumPy code is
-    faster than recursions in Python), ``'recursive'`` or ``'expanded'``."""
+    ``route``: ``'auto'`` (the recursions from :data:`RECURSIVE_FROM` speeds on chains of
+    :data:`RECURSIVE_DEPTH` moving joints or more; a smaller model keeps the expanded blocks,
+    whose closed forms are small and whose NumPy code is faster than recursions in Python),
+    ``'recursive'`` or ``'expanded'``."""
+
+    @property
+    def depth(self) -> int:
+        """The most joints with speeds on a path from the ground to a body."""
+        depth: list[int] = []
+        for node in self.nodes:
+            depth.append((depth[node.parent] if node.parent >= 0 else 0) + (1 if node.speeds else 0))
+        return max(depth, default=0)
 
     nodes: tuple[TreeNode, ...]
     gravity: sp.ImmutableMatrix

@@ -111,12 +111,13 @@ def usable_tree(system: System, kin: Kinematics):
     moved by one joint, the same bodies with the same masses, inertias and mass-centre
     positions (a tree left behind by an edited system is never used), and a route that asks
     for the recursions (``tree.route``). None otherwise: the expanded route."""
-    from appell.rigid_tree import RECURSIVE_FROM
+    from appell.rigid_tree import RECURSIVE_DEPTH, RECURSIVE_FROM
 
     tree = system.tree
     if tree is None or system.kinetic_energy is not None or system.acceleration_energy is not None:
         return None
-    if tree.route == "expanded" or tree.route == "auto" and len(kin.speeds) < RECURSIVE_FROM:
+    if tree.route == "expanded" or tree.route == "auto" and (len(kin.speeds) < RECURSIVE_FROM
+                                                             or tree.depth < RECURSIVE_DEPTH):
         return None
     if tuple(kin.coordinate_rates) != tuple(kin.speeds) or not system.bodies:
         return None

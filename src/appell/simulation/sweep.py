@@ -618,8 +618,16 @@ def model_fingerprint(model) -> str | None:
         return None
     system, inertia, cons = derivation.system, derivation.inertia, derivation.constraints
     graph = _ExpressionGraph()
-    text = [graph.text(sp.Matrix(m)) for m in (inertia.mass_matrix, inertia.inertial_forces,
-                                                 inertia.generalized_forces, derivation.kinematics.coordinate_rates)]
+    if inertia.tree is not None:  # the recursive route: the joints' terms, never the expanded M and h
+        from appell.numerics.rigid_tree import point_matrices, tree_matrices
+
+        n = len(derivation.kinematics.speeds)
+        blocks = tree_matrices(inertia.tree, n, inertia.gravity) + point_matrices(inertia.tree)
+        blocks.append(sp.Matrix([[node.parent] for node in inertia.tree.nodes]))
+    else:
+        blocks = [inertia.mass_matrix, inertia.inertial_forces]
+    text = [graph.text(sp.Matrix(m)) for m in (*blocks, inertia.generalized_forces,
+                                                 derivation.kinematics.coordinate_rates)]
     if cons.count:
         text += [graph.text(sp.Matrix(cons.jacobian)), graph.text(sp.Matrix(cons.bias)),
                  graph.text(sp.Matrix(cons.second_order))]
