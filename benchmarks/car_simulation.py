@@ -18,6 +18,7 @@ import numpy as np
 
 import appell
 from appell.examples.catalog import car
+from appell import numeric_model
 
 
 def main():
@@ -33,10 +34,10 @@ def main():
     d = appell.derive(car())
     t_derive = time.perf_counter() - t0
     t0 = time.perf_counter()
-    models = {"numpy": d.numeric}
+    models = {"numpy": numeric_model(d)}
     t_numpy = time.perf_counter() - t0
     t0 = time.perf_counter()
-    models["c"] = d.compiled("c")
+    models["c"] = numeric_model(d, "c")
     t_c = time.perf_counter() - t0
     t_eval = np.linspace(0.0, args.t_end, int(round(args.t_end * args.rate)) + 1)
     print(f"car manoeuvre, {args.t_end:g} s, reactions at {len(t_eval)} times")

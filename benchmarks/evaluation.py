@@ -37,6 +37,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from appell import numeric_model
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -105,7 +106,7 @@ def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
     out = {"n": n, "setup": {}, "check": {}, "python": {}, "ratio": {}, "spread": {}, "status": {}, "cloop": None}
     ref_a, ref_lam = c_function(lib, "nlink_recursive", n, pv)(y) if lib else (None, None)
     if ref_a is None:   # no compiler: appell NumPy is the reference
-        ev = appell.derive(nlink_appell(n)).numeric.evaluate(0.0, y)
+        ev = numeric_model(appell.derive(nlink_appell(n))).evaluate(0.0, y)
         ref_a, ref_lam = ev.derivative[n:], float(ev.multipliers[0])
     scale = max(np.max(np.abs(ref_a)), abs(ref_lam))
     calls = {}
@@ -134,7 +135,7 @@ def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
         add("appell C", t_derive + t_c, lambda: cm.evaluate(0.0, y),
             lambda: (cm.evaluate(0.0, y).derivative[n:], float(cm.evaluate(0.0, y).multipliers[0])))
     t0 = time.perf_counter()
-    nm = d.numeric
+    nm = numeric_model(d)
     t_np = time.perf_counter() - t0
     add("appell NumPy", t_derive + t_np, lambda: nm.evaluate(0.0, y),
         lambda: (nm.evaluate(0.0, y).derivative[n:], float(nm.evaluate(0.0, y).multipliers[0])))

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from appell import numeric_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import load, machine, today  # noqa: E402
@@ -41,7 +42,7 @@ def main() -> None:
     d = derive(system)
     rows.append(("derive (9 coordinates, 6 constraints)", time.perf_counter() - t0))
     t1 = time.perf_counter()
-    d.numeric  # noqa: B018 (made on first access: the time measured)
+    numeric_model(d)  # noqa: B018 (made on first access: the time measured)
     rows.append(("numeric model (NumPy)", time.perf_counter() - t1))
     t2 = time.perf_counter()
     point = steady_motion(d, {"rear_z": -0.3, "rear_x_dot": 5.0, "rear_spin_dot": -5.0 / 0.3,

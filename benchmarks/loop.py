@@ -39,6 +39,7 @@ from appell.examples.catalog import car, nlink_pendulum
 from appell.numerics.codegen import build_library, find_compiler, load_library
 from appell.numerics.numeric import KEEP_CONDITION
 from appell.simulation.simulate import simulate
+from appell import numeric_model
 
 HERE = Path(__file__).resolve().parent
 
@@ -120,13 +121,13 @@ def main():
     args = ap.parse_args()
     lib = rk4_library()
     print(f"Python {sys.version.split()[0]}, {args.repeats} interleaved repeats")
-    out = {"car": compare("car", appell.derive(car()).compiled("c"), None, 10.0, 1000.0, args.repeats, lib)}
+    out = {"car": compare("car", numeric_model(appell.derive(car()), "c"), None, 10.0, 1000.0, args.repeats, lib)}
     sys.path.insert(0, str(HERE))
     from models import nlink_state
 
     for n in args.chain:
         th, w = nlink_state(n)
-        out[f"chain{n}"] = compare(f"{n}-link chain, tip on a line", appell.derive(nlink_pendulum(n)).compiled("c"),
+        out[f"chain{n}"] = compare(f"{n}-link chain, tip on a line", numeric_model(appell.derive(nlink_pendulum(n)), "c"),
                                    np.concatenate([th, w]), 10.0, 1000.0, max(3, args.repeats // 3), lib)
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))

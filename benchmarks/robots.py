@@ -33,6 +33,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from appell import numeric_model
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -66,7 +67,7 @@ from appell.mechanism.urdf import urdf_system
 warnings.simplefilter("ignore")
 system = urdf_system(sys.argv[1], floating_base=sys.argv[2] == "1")
 derivation = appell.derive(system)
-model = derivation.compiled("c")
+model = numeric_model(derivation, "c")
 q = np.full(len(system.coordinates), 0.3)
 w = np.full(len(system.speeds), 0.2)
 sol = model.solve(0.0, q, w)
@@ -108,7 +109,7 @@ def evaluation(path: Path, floating: bool, rounds: int) -> tuple[float, float, f
 
     warnings.simplefilter("ignore")
     system = urdf_system(path, floating_base=floating, reactions=None)
-    model = appell.derive(system).compiled("c")
+    model = numeric_model(appell.derive(system), "c")
     pmodel = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer()) if floating else pin.buildModelFromUrdf(str(path))
     data = pmodel.createData()
     rng = np.random.default_rng(0)

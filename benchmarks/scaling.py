@@ -32,6 +32,7 @@ import timeit
 from pathlib import Path
 
 import numpy as np
+from appell import numeric_model
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -97,7 +98,7 @@ system = load_model(sys.argv[1])
 t2 = time.perf_counter()
 d = appell.derive(system)
 t3 = time.perf_counter()
-cm = d.compiled("c")
+cm = numeric_model(d, "c")
 t4 = time.perf_counter()
 sol = appell.simulate(cm, 1e-3, t_eval=[0.0, 1e-3])
 t5 = time.perf_counter()
@@ -200,7 +201,7 @@ def c_loop(sizes) -> None:
           f"{'median ratio':>13} {'rel. diff':>10}")
     for n in sizes:
         d = appell.derive(nlink_appell(n))
-        cm = d.compiled("c")
+        cm = numeric_model(d, "c")
         pv = np.array([p.value for p in d.system.parameters])
         y = np.concatenate(nlink_state(n))
         ops = generated_operations(cm.library_path.with_suffix(".c").read_text())
@@ -248,9 +249,9 @@ def main():
             t0 = time.perf_counter()
             d = appell.derive(nlink_appell(n, s))
             t1 = time.perf_counter()
-            nm = d.numeric
+            nm = numeric_model(d)
             t2 = time.perf_counter()
-            cm = d.compiled("c")
+            cm = numeric_model(d, "c")
             t3 = time.perf_counter()
             th, w = nlink_state(n)
             y = np.concatenate([th, w])

@@ -33,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from appell import numeric_model
 
 
 def main():
@@ -52,7 +53,7 @@ def main():
 
     system = appell.load_model(example_path("car"))
     derivation = appell.derive(system)
-    model = derivation.compiled("c")
+    model = numeric_model(derivation, "c")
     opts = simulation_options(system, args.t_end)
     t_end, t_eval = opts.pop("t_end"), opts.pop("t_eval")
     specs = _specs(args.grid)

@@ -67,9 +67,9 @@ NOT_NUMERICAL = {
     "test_sweep.py", "test_urdf_hostile.py",
 }
 
-#: ``$APPELL_TEST_BACKEND=c``: ``Derivation.numeric`` is the compiled C model
+#: ``$APPELL_TEST_BACKEND=c``: ``numeric_model(derivation)`` is the compiled C model
 #: (:func:`appell.compile_c`) for the whole session, so that every test that reads
-#: ``derivation.numeric`` runs its numbers through the C split; the default is NumPy.
+#: ``numeric_model(derivation)`` runs its numbers through the C split; the default is NumPy.
 BACKEND = os.environ.get("APPELL_TEST_BACKEND", "numpy")
 
 
@@ -86,18 +86,11 @@ def pytest_configure(config):
         _use_c_backend()
 
 
-_NUMPY_PROPERTY = {}
-
-
 def _use_c_backend():
-    from functools import cached_property
+    """Every ``numeric_model(derivation)`` without a backend gives the compiled C model."""
+    from appell.numerics import boundary
 
-    from appell import Derivation, compile_c
-
-    _NUMPY_PROPERTY["numeric"] = Derivation.__dict__["numeric"]
-    prop = cached_property(lambda self: compile_c(self, "c"))
-    prop.__set_name__(Derivation, "numeric")
-    Derivation.numeric = prop
+    boundary.DEFAULT_BACKEND = "c"
 
 
 #: ``$APPELL_SLOW=1``: run the tests marked ``slow`` too
@@ -147,9 +140,7 @@ def _numpy_model_where_marked(request, monkeypatch):
     """Under ``APPELL_TEST_BACKEND=c``, a test marked ``numpy_model`` gets the NumPy model
     back (it mutates the NumPy blocks, which the C split does not call)."""
     if BACKEND == "c" and request.node.get_closest_marker("numpy_model"):
-        from appell import Derivation
+        from appell.numerics import boundary
 
-        # the package's own property (it looks up compile_model when called, so a test may
-        # patch that too)
-        monkeypatch.setattr(Derivation, "numeric", _NUMPY_PROPERTY["numeric"])
+        monkeypatch.setattr(boundary, "DEFAULT_BACKEND", "numpy")
     yield

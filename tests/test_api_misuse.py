@@ -24,6 +24,7 @@ from appell.examples.catalog import CATALOG
 from appell.io.cli import cli
 from appell.simulation.events import Event
 from appell.simulation.simulate import simulate
+from appell import numeric_model
 
 G = 9.81
 
@@ -106,7 +107,7 @@ def test_simulate_still_takes_the_documented_forms(pendulum):
 
 
 def test_derive_solve_sweep_load_model_misuse(pendulum, tmp_path):
-    nm = pendulum.numeric
+    nm = numeric_model(pendulum)
     cases = [
         (lambda: appell.derive("pendulum"), "expected an appell.System"),
         (lambda: appell.derive(CATALOG["pendulum"](), dependent=3), "dependent"),

@@ -11,7 +11,10 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 import appell
+from appell import numeric_model
 
 PACKAGE = Path(appell.__file__).parent
 
@@ -121,9 +124,70 @@ def test_controlled_derivations_are_told_apart_by_their_type():
 
     plain, controlled = appell.derive(appell.load_model("pendulum")), derive_model(load_system("cart_pole"))
     assert isinstance(plain, Derived) and isinstance(controlled, Derived)
-    assert (is_controlled(plain), is_controlled(controlled), is_controlled(plain.numeric)) == (False, True, False)
+    assert (is_controlled(plain), is_controlled(controlled), is_controlled(numeric_model(plain))) == (False, True, False)
     probes = [f"{path.relative_to(PACKAGE)}:{node.lineno}" for path in PACKAGE.rglob("*.py")
               for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
               if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "hasattr" and len(node.args) == 2
               and isinstance(node.args[1], ast.Constant) and node.args[1].value in ("control_laws", "dynamic_conditions")]
     assert not probes, probes
+
+
+def _layer_of(module: str) -> float:
+    unit = _unit(module)
+    return LAYERS.get(unit, 99) if unit is not None else 99
+
+
+def test_no_class_carries_code_of_a_higher_layer():
+    """After ``import appell`` (which imports every layer), each class of the package holds only
+    functions written in its own layer or below (issue 21: the package's ``__init__`` patched
+    ``numeric``, ``compiled`` and the printed forms onto the frozen ``Derivation``, a dependency
+    on the layers above that the import test could not see). The numeric model comes from
+    :func:`appell.numerics.boundary.numeric_model`, the printed forms from
+    :mod:`appell.io.printing`."""
+    import importlib
+    import inspect
+    from functools import cached_property
+
+    bad = []
+    for _, module in _modules():
+        if _unit(module) in (None, "__main__"):
+            continue
+        mod = importlib.import_module(module)
+        for name, cls in vars(mod).items():
+            if not inspect.isclass(cls) or cls.__module__ != module:
+                continue
+            for attr, value in vars(cls).items():
+                fn = value.func if isinstance(value, cached_property) else getattr(value, "fget", value)
+                fn = getattr(fn, "__func__", fn)
+                where = getattr(fn, "__module__", None)
+                if callable(fn) and where and where.startswith("appell.") and _layer_of(where) > _layer_of(module):
+                    bad.append(f"{module}.{name}.{attr} comes from {where}")
+    assert not bad, "attributes from higher layers:\n" + "\n".join(bad)
+
+
+def test_the_numeric_model_is_kept_outside_the_derivation():
+    """``numeric_model`` builds a derivation's numeric functions once and keeps them in
+    :mod:`appell.numerics.boundary`, not on the derivation: the same object on the second call,
+    the derivation's instance dictionary unchanged, a pickled copy equal in its numbers."""
+    import pickle
+
+    import numpy as np
+
+    import appell
+    from appell.numerics import boundary
+
+    d = appell.derive(appell.load_model("pendulum"))
+    before = set(vars(d))
+    model = numeric_model(d)
+    assert numeric_model(d) is model and numeric_model(d, "numpy") is model
+    assert set(vars(d)) == before
+    copy = pickle.loads(pickle.dumps(d))
+    q, w = [0.6, -0.8], [0.3, 0.4]
+    assert np.allclose(numeric_model(copy).solve(0.0, q, w).multipliers, model.solve(0.0, q, w).multipliers,
+                       rtol=1e-14, atol=0)
+    boundary.forget(d)
+    assert numeric_model(d) is not model
+    with pytest.raises(appell.ModelError, match="unknown numeric backend"):
+        numeric_model(d, "fortran")
+    with pytest.raises(appell.ModelError, match="needs a derivation"):
+        numeric_model(d.system)

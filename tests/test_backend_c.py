@@ -10,6 +10,7 @@ from appell.numerics.codegen import CompiledNumericModel, c_source, compile_c
 from appell.examples import example_path
 from appell.examples.catalog import CATALOG, nlink_pendulum
 from appell.numerics.numeric import compile_model
+from appell import numeric_model
 
 pytestmark = pytest.mark.skipif(__import__("shutil").which("cc") is None, reason="no C compiler")
 
@@ -39,12 +40,12 @@ def states(derivation, count=4, seed=7):
         yield rng.uniform(0, 2), rng.uniform(-1, 1, nq), rng.uniform(-1, 1, n)
 
 
-@pytest.mark.numpy_model  # its reference is d.numeric: NumPy also under APPELL_TEST_BACKEND=c
+@pytest.mark.numpy_model  # its reference is numeric_model(d): NumPy also under APPELL_TEST_BACKEND=c
 @pytest.mark.parametrize("name", sorted(CATALOG) + ["pendulum5"])
 def test_c_equals_numpy(name):
     """Blocks, accelerations (1.4), multipliers (1.5), rates and residuals agree to 1e-12."""
     d = appell.derive(nlink(5) if name == "pendulum5" else CATALOG[name]())
-    nm, cm = d.numeric, d.compiled("c")
+    nm, cm = numeric_model(d), numeric_model(d, "c")
     assert isinstance(cm, CompiledNumericModel)
     for t, q, w in states(d):
         for x, y in zip(cm.evaluate_blocks(t, q, w), nm.evaluate_blocks(t, q, w)):
@@ -66,7 +67,7 @@ def test_c_matches_numpy_with_a_chosen_partition_and_a_baumgarte_bias():
     bias (Baumgarte): the C code gives the NumPy route's accelerations, multipliers and rates.
     (No partition switch happens here: that is tested in test_events.py and test_core_crosscheck.py.)"""
     d = appell.derive(CATALOG["car"]())
-    nm, cm = d.numeric, compile_c(d, "c")
+    nm, cm = numeric_model(d), compile_c(d, "c")
     q, w = np.array([0.1, 0.2, 0.3]), np.array([1.0, 0.5, 0.2])
     s1 = nm.solve(0.0, q, w, dependent=(0, 1))
     s2 = cm.solve(0.0, q, w, dependent=(0, 1))
@@ -94,7 +95,7 @@ def test_cache_second_load_does_not_recompile(tmp_path, monkeypatch):
     assert (tmp_path / first.library_path.name.replace(".so", ".c")).read_text() == c_source(d)
 
 
-@pytest.mark.numpy_model  # without a compiler d.numeric must be the NumPy model
+@pytest.mark.numpy_model  # without a compiler numeric_model(d) must be the NumPy model
 def test_fallback_without_compiler(monkeypatch):
     """Without a compiler 'auto' falls back to NumPy with a warning; 'c' is refused (ModelError)."""
     monkeypatch.setenv("APPELL_CC", "/nonexistent/cc")
@@ -102,7 +103,7 @@ def test_fallback_without_compiler(monkeypatch):
     with pytest.warns(RuntimeWarning, match="no C compiler"):
         m = compile_c(d, "auto")
     assert not isinstance(m, CompiledNumericModel)
-    close(m.solve(0, [0.6, -0.8], [0.1, 0.2]).multipliers, d.numeric.solve(0, [0.6, -0.8], [0.1, 0.2]).multipliers)
+    close(m.solve(0, [0.6, -0.8], [0.1, 0.2]).multipliers, numeric_model(d).solve(0, [0.6, -0.8], [0.1, 0.2]).multipliers)
     with pytest.raises(appell.ModelError, match="needs a C compiler"):
         compile_c(d, "c")
     assert not isinstance(compile_model(d), CompiledNumericModel)
@@ -113,8 +114,8 @@ def test_simulation_with_c_backend():
     simulate = pytest.importorskip("appell.simulation.simulate").simulate
     d = appell.derive(CATALOG["car"]())
     t_eval = np.linspace(0, 2, 21)
-    s1 = simulate(d.numeric, 2.0, t_eval=t_eval, progress=False, complete=True)
-    s2 = simulate(d.compiled("c"), 2.0, t_eval=t_eval, progress=False, complete=True)
+    s1 = simulate(numeric_model(d), 2.0, t_eval=t_eval, progress=False, complete=True)
+    s2 = simulate(numeric_model(d, "c"), 2.0, t_eval=t_eval, progress=False, complete=True)
     for k in s1.multipliers:
         # the same steps and projections: rounding only (measured 1e-14 relative); an output
         # between the paths' ends of a projected step would differ by ~1e-9 relative
@@ -127,7 +128,7 @@ def test_compiled_model_refuses_wrong_sizes_before_the_c_code_reads_them(call):
     """The C functions read exactly n_q, n, s entries: a wrong length or an index outside
     0..n-1 would be read out of bounds. Each is a ModelError naming the sizes instead."""
     d = appell.derive(CATALOG["car"]())
-    m = d.compiled("c")
+    m = numeric_model(d, "c")
     q, w = [0.0, 0.0, 0.3], [1.0, 0.2, 0.1]
     calls = {
         "short q": lambda: m.solve(0.0, q[:2], w),
@@ -140,7 +141,7 @@ def test_compiled_model_refuses_wrong_sizes_before_the_c_code_reads_them(call):
     with pytest.raises(appell.ModelError):
         calls[call]()
     # and a right call still agrees with the NumPy split: rounding only (measured 4e-16 relative)
-    assert np.allclose(m.solve(0.0, q, w).multipliers, d.numeric.solve(0.0, q, w).multipliers, rtol=1e-12, atol=0)
+    assert np.allclose(m.solve(0.0, q, w).multipliers, numeric_model(d).solve(0.0, q, w).multipliers, rtol=1e-12, atol=0)
 
 
 def test_a_hostile_model_name_never_becomes_c_code():
@@ -154,7 +155,7 @@ def test_a_hostile_model_name_never_becomes_c_code():
     derivation = appell.derive(appell.loads_model(text))
     first = c_source(derivation).splitlines()[0]
     assert first == "/* appell: generated C for system p ?? int injected ? 1? ?? ??include ?stdio.h?; n = 2, s = 1 */"
-    model = derivation.compiled("c")
+    model = numeric_model(derivation, "c")
     sol = appell.simulate(model, 0.5)
     assert sol.status == 0  # it compiles and runs as the pendulum it is
     assert "injected" not in " ".join(l for l in c_source(derivation).splitlines()[1:])

@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 
 import appell
+from appell import numeric_model
 
 BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
 sys.path.insert(0, str(BENCH))
@@ -47,7 +48,7 @@ def references(tmp_path_factory):
 
 def appell_solution(n: int):
     th, w = nlink_state(n)
-    ev = appell.derive(nlink_appell(n)).numeric.evaluate(0.0, np.concatenate([th, w]))
+    ev = numeric_model(appell.derive(nlink_appell(n))).evaluate(0.0, np.concatenate([th, w]))
     return th, w, ev.derivative[n:], float(ev.multipliers[0])
 
 
@@ -114,7 +115,7 @@ def test_chain_model_file_is_the_same_system(tmp_path):
     path = tmp_path / "pendulum4.toml"
     path.write_text(nlink_model_file(n))
     th, w, acc, lam = appell_solution(n)
-    ev = appell.derive(load_model(path)).numeric.evaluate(0.0, np.concatenate([th, w]))
+    ev = numeric_model(appell.derive(load_model(path))).evaluate(0.0, np.concatenate([th, w]))
     # the same system from its file: the same formulas up to SymPy's ordering, rounding only
     np.testing.assert_allclose(ev.derivative[n:], acc, rtol=1e-12, atol=1e-12)
     assert float(ev.multipliers[0]) == pytest.approx(lam, rel=1e-12)

@@ -33,6 +33,7 @@ from appell.errors import ComputationError, ModelError, ResourceError
 from appell.examples import example_path
 from appell.io.cli import cli
 from processes import env_with_src
+from appell import numeric_model
 
 PENDULUM = example_path("pendulum").read_text(encoding="utf-8")
 FOUR_BAR = example_path("four_bar").read_text(encoding="utf-8")
@@ -79,9 +80,9 @@ def test_a_block_that_is_not_finite_names_the_block_row_and_time():
     start check (simulate) a ModelError."""
     d = derive(loads_model(HUGE, "huge.toml"))
     with pytest.raises(ComputationError, match=r"force vector h - Q .* not finite at t = 0\.25: row y_dot is inf"):
-        d.numeric.evaluate_blocks(0.25, [0.6, -0.8], [0.0, 0.0])
+        numeric_model(d).evaluate_blocks(0.25, [0.6, -0.8], [0.0, 0.0])
     with pytest.raises(ComputationError, match="row y_dot"):
-        d.numeric.solve(0.25, [0.6, -0.8], [0.0, 0.0])
+        numeric_model(d).solve(0.25, [0.6, -0.8], [0.0, 0.0])
     from appell import simulate
 
     with warnings.catch_warnings():
@@ -255,7 +256,7 @@ def test_a_singular_reduced_mass_matrix_in_a_solve_names_the_motion_and_time():
     """The numeric solve (no LinAlgError escapes): ComputationError with t and the motion."""
     d = derive(loads_model(FREE, "free.toml"))
     with pytest.raises(ComputationError, match=r"singular at t = 0\.5: the motion along -?1 x_dot [+-]1 y_dot"):
-        d.numeric.solve(0.5, [0.0, 0.0], [0.0, 0.0])
+        numeric_model(d).solve(0.5, [0.0, 0.0], [0.0, 0.0])
 
 
 # ------------------------------------------------------------------ 6. memory

@@ -23,6 +23,7 @@ from appell.numerics import codegen as codegen_c
 from appell.numerics.codegen import build as codegen_build, printer as codegen_printer, source as codegen_source
 from appell.numerics.codegen import c_source, compile_c, particle_tree
 from appell.symbols import t
+from appell import numeric_model
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 REFERENCE = Path(__file__).resolve().parents[1] / "benchmarks" / "reference" / "nlink_aba.c"
@@ -112,7 +113,7 @@ def test_a_mass_shared_by_two_links_keeps_the_dense_route():
     assert particle_tree(appell.derive(system).inertia, 2) is None
 
 
-@pytest.mark.numpy_model  # its reference is d.numeric: NumPy also under APPELL_TEST_BACKEND=c
+@pytest.mark.numpy_model  # its reference is numeric_model(d): NumPy also under APPELL_TEST_BACKEND=c
 @pytest.mark.parametrize("case", ["chain10", "chain8 tip at a point", "branched", "branched, unconstrained"])
 def test_tree_code_equals_the_dense_route(case, monkeypatch):
     """Blocks, accelerations (1.4), multipliers (1.5) and generalized reactions of the tree code
@@ -122,7 +123,7 @@ def test_tree_code_equals_the_dense_route(case, monkeypatch):
               "branched": branched, "branched, unconstrained": lambda: replace(branched(), constraints=())}[case]()
     d = appell.derive(system)
     assert "tree_solve" in c_source(d)
-    tree, flat, nm = compile_c(d, "c"), dense(d, monkeypatch), d.numeric
+    tree, flat, nm = compile_c(d, "c"), dense(d, monkeypatch), numeric_model(d)
     s = d.constraints.count
     other = tuple(range(len(d.kinematics.speeds)))[:s]
     for t0, q, w in states(d):

@@ -28,21 +28,22 @@ from appell.errors import ComputationError
 from appell.examples import catalog
 from appell.numerics.compiled_loop import CompiledLoop, LoopSolver, supports
 from appell.simulation.initial import complete_initial
+from appell import numeric_model
 
 
 @pytest.fixture(scope="module")
 def car():
-    return derive(catalog.car()).compiled("c")
+    return numeric_model(derive(catalog.car()), "c")
 
 
 @pytest.fixture(scope="module")
 def chain():
-    return derive(catalog.nlink_pendulum(4)).compiled("c")
+    return numeric_model(derive(catalog.nlink_pendulum(4)), "c")
 
 
 @pytest.fixture(scope="module")
 def knife():
-    return derive(catalog.knife_edge()).compiled("c")
+    return numeric_model(derive(catalog.knife_edge()), "c")
 
 
 def chain_state(model):
@@ -190,7 +191,7 @@ def test_events_with_compiled_loop_same_as_reference_path():
     The two paths' states differ by about rtol (rounding amplified by the step control and
     the event restarts); rtol 1e-12 keeps both runs below the projection tolerance (at rtol
     1e-10 one path projected once more and the residuals differed by 2.8e-10)."""
-    model = derive(catalog.pendulum()).compiled("c")
+    model = numeric_model(derive(catalog.pendulum()), "c")
     horizontal = Event("horizontal", lambda tt, yy, mult: yy[1])
     kw = dict(initial={"x": 0.0, "y": -1.0, "x_dot": 8.0, "y_dot": 0.0}, events=[horizontal],
               t_eval=np.linspace(0, 2, 401), rtol=1e-12, atol=1e-14, progress=False)
@@ -247,9 +248,9 @@ def test_only_compiled_models_linear_in_a(knife):
     """The loop integrates compiled models whose constraints are linear in a; others (NumPy
     backend) are refused by name and simulate uses SciPy's DOP853 for them."""
     d = derive(catalog.knife_edge())
-    assert supports(knife) and not supports(d.numeric)
+    assert supports(knife) and not supports(numeric_model(d))
     with pytest.raises(ComputationError, match="compiled model"):
-        CompiledLoop(d.numeric)
+        CompiledLoop(numeric_model(d))
 
 
 def test_a_tolerance_per_state_runs_scipys_dop853(car):

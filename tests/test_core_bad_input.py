@@ -6,6 +6,7 @@ import sympy as sp
 
 from appell import ComputationError, ModelError, System, acceleration_constraint, derive, holonomic, nonholonomic
 from appell.examples import catalog
+from appell import numeric_model
 
 x, y, phi = sp.symbols("x y phi")
 xd, yd, phid = sp.symbols("x_dot y_dot phi_dot")
@@ -90,14 +91,14 @@ def test_newton_failure_is_a_clear_computation_error():
     xdd = sp.Symbol("x_ddot")
     d = derive(_particle((acceleration_constraint("impossible", xdd**2 - xdd + 1),)))
     with pytest.raises(ComputationError, match="did not converge"):
-        d.numeric.solve(0.0, [0.0, 0.0], [0.0, 0.0])
+        numeric_model(d).solve(0.0, [0.0, 0.0], [0.0, 0.0])
 
 
 def test_unknown_parameter_override():
     d = derive(catalog.pendulum())
     with pytest.raises(ModelError, match="unknown parameter"):
-        d.numeric.solve(0.0, [0.5, -0.8], [0.0, 0.0], p={"mass": 2.0})
-    sol = d.numeric.solve(0.0, [0.6, -0.8], [0.0, 0.0], p={"m": 2.0})
+        numeric_model(d).solve(0.0, [0.5, -0.8], [0.0, 0.0], p={"mass": 2.0})
+    sol = numeric_model(d).solve(0.0, [0.6, -0.8], [0.0, 0.0], p={"m": 2.0})
     assert np.isfinite(sol.multipliers).all()
 
 
@@ -118,9 +119,9 @@ def test_state_outside_the_models_domain_is_a_computation_error():
     k = sp.Symbol("k")
     sysm = System(coordinates=(x,), parameters={k: 1.0}, kinetic_energy=sp.sqrt(x) * xd**2 / 2 + k * xd**2)
     d = derive(sysm)
-    assert np.isfinite(d.numeric.solve(0.0, [0.5], [1.0]).accelerations).all()
+    assert np.isfinite(numeric_model(d).solve(0.0, [0.5], [1.0]).accelerations).all()
     with pytest.raises(ComputationError, match="cannot be evaluated at this state") as err:
-        d.numeric.solve(0.0, [-0.5], [1.0])
+        numeric_model(d).solve(0.0, [-0.5], [1.0])
     assert "domain" in str(err.value)
 
 

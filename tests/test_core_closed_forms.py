@@ -6,6 +6,7 @@ import sympy as sp
 
 from appell import RigidBody, System, derive
 from appell.examples import catalog
+from appell import numeric_model
 
 
 def _pv(system):
@@ -15,7 +16,7 @@ def _pv(system):
 def test_pendulum_tension_is_centripetal_plus_gravity():
     """Rod tension T = m v^2/L + m g cos(theta) (theta from the downward vertical)."""
     sysm = catalog.pendulum()
-    model = derive(sysm).numeric
+    model = numeric_model(derive(sysm))
     P = _pv(sysm)
     m, L, g = P["m"], P["L"], P["g"]
     for th, thd in [(0.3, 0.0), (1.0, -2.0), (-0.7, 1.3), (2.5, 0.4)]:
@@ -34,7 +35,7 @@ def test_knife_edge_reaction_along_the_known_motion():
     """Neimark & Fufaev: for phi = Omega t from rest at the origin,
     v = (g sin(alpha)/Omega) sin(Omega t) along the blade and lambda = -2 m g sin(alpha) sin(Omega t)."""
     sysm = catalog.knife_edge()
-    model = derive(sysm).numeric
+    model = numeric_model(derive(sysm))
     P = _pv(sysm)
     m, g, al, Om = P["m"], P["g"], P["alpha"], P["Omega"]
     for t in [0.1, 0.7, 1.9, 3.3]:
@@ -51,7 +52,7 @@ def test_knife_edge_reaction_along_the_known_motion():
 def test_chaplygin_sleigh_lateral_force():
     """Lateral contact force m I v omega / (I + m a^2) (Bloch, Nonholonomic Mechanics and Control, 1.7)."""
     sysm = catalog.chaplygin_sleigh()
-    model = derive(sysm).numeric
+    model = numeric_model(derive(sysm))
     P = _pv(sysm)
     m, I, a = P["m"], P["I"], P["a"]
     rng = np.random.default_rng(3)
@@ -73,7 +74,7 @@ def test_velocity_nonlinear_constraint():
     """x'^2 + y'^2 = a^2 z'^2: z'' = -g/(1+a^2), vertical reaction m g a^2/(1+a^2) (hand derivation
     in the docstring of catalog.cone_particle, reaction direction by Chetaev's rule)."""
     sysm = catalog.cone_particle()
-    model = derive(sysm).numeric
+    model = numeric_model(derive(sysm))
     P = _pv(sysm)
     m, g, a = P["m"], P["g"], P["a"]
     for zd, ang in [(-0.8, 0.0), (1.5, 2.0), (-3.0, -1.0)]:
@@ -91,7 +92,7 @@ def test_rolling_ball_on_incline():
     """Sphere rolling on an incline: centre acceleration 5/7 g sin(alpha), friction -2/7 m g sin(alpha),
     normal force m g cos(alpha) (Routh, Advanced Rigid Dynamics)."""
     sysm = catalog.rolling_ball()
-    model = derive(sysm).numeric
+    model = numeric_model(derive(sysm))
     P = _pv(sysm)
     m, R, g, al = P["m"], P["R"], P["g"], P["alpha"]
     rng = np.random.default_rng(5)
@@ -113,7 +114,7 @@ def test_second_order_constraint_nonlinear_in_accelerations():
     """y'' = c x''^2: eliminating lambda by hand gives the cubic 2 m c^2 x''^3 + m (1 + 2 c g) x'' - F = 0
     and lambda = m (c x''^2 + g)."""
     sysm = catalog.cubic_acceleration()
-    model = derive(sysm).numeric
+    model = numeric_model(derive(sysm))
     P = _pv(sysm)
     m, g, c, F = P["m"], P["g"], P["c"], P["F"]
     roots = np.roots([2 * m * c**2, 0.0, m * (1 + 2 * c * g), -F])
@@ -133,7 +134,7 @@ def test_rigid_body_gyroscopic_terms_reproduce_euler_equations():
     body = RigidBody("body", 1, velocity=(0, 0, 0), inertia=(1, 2, 3), angular_velocity=(w1, w2, w3))
     d = derive(System(coordinates=(), speeds=(w1, w2, w3), kinematics={}, bodies=(body,)))
     w = np.array([0.3, -1.1, 0.7])
-    acc = d.numeric.solve(0.0, [], w).accelerations
+    acc = numeric_model(d).solve(0.0, [], w).accelerations
     I = np.array([1.0, 2.0, 3.0])
     expected = [(I[1] - I[2]) * w[1] * w[2] / I[0], (I[2] - I[0]) * w[2] * w[0] / I[1],
                 (I[0] - I[1]) * w[0] * w[1] / I[2]]
@@ -147,7 +148,7 @@ def test_kinetic_energy_route_polar_coordinates():
     rd, thd = sp.symbols("r_dot theta_dot")
     d = derive(System(coordinates=(r, th), parameters={m: 2.0, k: 3.0},
                       kinetic_energy=m / 2 * (rd**2 + r**2 * thd**2), potential_energy=k * r**2 / 2))
-    acc = d.numeric.solve(0.0, [1.5, 0.2], [0.4, 0.9]).accelerations
+    acc = numeric_model(d).solve(0.0, [1.5, 0.2], [0.4, 0.9]).accelerations
     # diagonal mass matrix, no constraint: rounding only, a few eps
     assert acc[0] == pytest.approx(1.5 * 0.9**2 - 3.0 * 1.5 / 2.0, rel=1e-13)
     assert acc[1] == pytest.approx(-2 * 0.4 * 0.9 / 1.5, rel=1e-13)

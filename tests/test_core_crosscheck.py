@@ -12,6 +12,7 @@ from appell import augmented_solve, cross_check, derive
 from appell.numerics.crosscheck import relative_difference, sample_states
 from appell.errors import ModelError
 from appell.examples import CATALOG, catalog
+from appell import numeric_model
 
 NAMES = sorted(CATALOG)
 
@@ -38,7 +39,7 @@ def test_reactions_do_not_depend_on_the_partition(derivations, name):
     multipliers (numerically, at sampled states)."""
     d = derivations[name]
     s, n = d.constraints.count, len(d.accelerations)
-    model = d.numeric
+    model = numeric_model(d)
     states = sample_states(d, count=3, seed=4)
     reference = [augmented_solve(model, *st) for st in states]
     used = 0
@@ -63,10 +64,10 @@ def test_compiled_code_matches_the_symbolic_reaction_formulas(derivations, name)
     d = derivations[name]
     checked = 0
     for t, q, w in sample_states(d, count=4, seed=2):
-        sol = d.numeric.solve(t, q, w)
+        sol = numeric_model(d).solve(t, q, w)
         if sol.switched:  # the derivation's own partition is singular here; its formulas are too
             continue
-        lam = d.numeric.reaction_formulas(t, q, w, sol.accelerations)
+        lam = numeric_model(d).reaction_formulas(t, q, w, sol.accelerations)
         # the same formulas, compiled and solved: rounding times the condition (under 40)
         assert relative_difference(lam, sol.multipliers) < 1e-9
         checked += 1
@@ -80,9 +81,9 @@ def test_symbolic_reactions_are_the_same_for_two_partitions():
     d2 = d1.with_partition(["y_ddot", "phi_ddot"])
     assert d1.partition != d2.partition
     for t, q, w in sample_states(d1, count=3, seed=9):
-        a = d1.numeric.solve(t, q, w).accelerations
-        l1 = d1.numeric.reaction_formulas(t, q, w, a)
-        l2 = d2.numeric.reaction_formulas(t, q, w, a)
+        a = numeric_model(d1).solve(t, q, w).accelerations
+        l1 = numeric_model(d1).reaction_formulas(t, q, w, a)
+        l2 = numeric_model(d2).reaction_formulas(t, q, w, a)
         # two closed forms at the same accelerations: rounding times 1/sin(theta)^2 (theta >= 0.2: 25)
         assert relative_difference(l1, l2) < 1e-10
 
@@ -98,9 +99,9 @@ def test_car_reaction_formulas_have_sin_theta_denominator_and_the_solve_switches
     straight = catalog.car().replace(programs={theta: 0.02 * sp.Symbol("t")})
     ds = derive(straight, dependent=["x_ddot", "y_ddot"])
     q, w = [0.0, 0.0, 0.3], [np.cos(0.3) * 2.0, np.sin(0.3) * 2.0, 0.0]
-    sol = ds.numeric.solve(0.0, q, w)
+    sol = numeric_model(ds).solve(0.0, q, w)
     assert sol.switched and sol.dependent != (0, 1)
-    ref = augmented_solve(ds.numeric, 0.0, q, w)
+    ref = augmented_solve(numeric_model(ds), 0.0, q, w)
     # rounding times the condition of the two solves (under 40)
     assert relative_difference(sol.multipliers, ref.multipliers) < 1e-9
     assert relative_difference(sol.accelerations, ref.accelerations) < 1e-9

@@ -8,6 +8,7 @@ import sympy as sp
 
 from appell import AppliedForce, AppliedTorque, Particle, RigidBody, System, derive, holonomic
 from appell.numerics.crosscheck import relative_difference
+from appell import numeric_model
 
 
 def test_acceleration_energy_of_a_rigid_body_equals_the_body_route():
@@ -24,8 +25,8 @@ def test_acceleration_energy_of_a_rigid_body_equals_the_body_route():
     by_body = System(coordinates=(), speeds=w, kinematics={}, bodies=(body,),
                      loads=(AppliedTorque(tau, angular_velocity=w),))
     wv = np.array([0.4, -0.3, 1.2])
-    a1 = derive(by_S).numeric.solve(0.0, [], wv).accelerations
-    a2 = derive(by_body).numeric.solve(0.0, [], wv).accelerations
+    a1 = numeric_model(derive(by_S)).solve(0.0, [], wv).accelerations
+    a2 = numeric_model(derive(by_body)).solve(0.0, [], wv).accelerations
     In = np.diag([2.0, 3.0, 5.0])
     euler = np.linalg.solve(In, np.array(tau, dtype=float).ravel() - np.cross(wv, In @ wv))
     # diagonal inertia, no constraint: rounding only, a few eps
@@ -44,7 +45,7 @@ def test_applied_force_at_a_point_equals_the_potential():
     b = derive(System(**common, kinetic_energy=m / 2 * (xd**2 + yd**2), potential_energy=m * g * y))
     th = 0.4
     q, w = [np.sin(th), -np.cos(th)], [0.0, 0.0]
-    la, lb = a.numeric.solve(0, q, w).multipliers, b.numeric.solve(0, q, w).multipliers
+    la, lb = numeric_model(a).solve(0, q, w).multipliers, numeric_model(b).solve(0, q, w).multipliers
     # a split solve of condition ~3: rounding only, a few eps; the two routes differ at most in the
     # last bit of Q = (0, -m g), which that solve amplifies by ~3 at most
     assert la[0] == pytest.approx(1.5 * 9.81 * np.cos(th), rel=1e-13)

@@ -1,6 +1,8 @@
 """Rich display (Jupyter) and the report's building blocks, in Python.
 
-Jupyter shows ``_repr_latex_`` / ``_repr_html_``; they must carry the equations and the
+Jupyter shows a derivation through IPython's ``text/latex`` formatter (registered by
+``import appell`` with :func:`appell.io.printing.display_latex`) and a solution through
+``_repr_html_``; they must carry the equations and the
 diagnostics a reader needs: the reduced equations and multipliers of a derivation, the
 dynamic conditions and control laws of a controlled derivation (Appell's problem,
 method.md §6 Example 2), the status and final values of a simulation.
@@ -30,13 +32,34 @@ def ball_derivation():
 
 
 def test_derivation_repr_latex(pendulum_derivation):
-    text = pendulum_derivation._repr_latex_()
+    text = appell.display_latex(pendulum_derivation)
     assert text.startswith("$") and text.endswith("$")
     assert r"\lambda_{rod}" in text and "(1.4)" in text and "(1.5)" in text
 
 
+def test_import_in_a_notebook_registers_the_display(monkeypatch, pendulum_derivation, ball_derivation):
+    """With IPython running, ``import appell`` registers :func:`appell.display_latex` for both
+    kinds of derivation in the shell's ``text/latex`` formatter (IPython's own registry; the
+    classes get no attribute). A stand-in shell records what is registered."""
+    import sys
+    import types
+
+    registered = {}
+
+    class Formatter:
+        def for_type(self, kind, function):
+            registered[kind] = function
+
+    shell = types.SimpleNamespace(display_formatter=types.SimpleNamespace(formatters={"text/latex": Formatter()}))
+    monkeypatch.setitem(sys.modules, "IPython", types.SimpleNamespace(get_ipython=lambda: shell))
+    appell._register_display()
+    assert set(registered) == {appell.Derivation, appell.ControlledDerivation}
+    assert registered[appell.Derivation](pendulum_derivation) == appell.display_latex(pendulum_derivation)
+    assert "_repr_latex_" not in vars(appell.Derivation) and "_repr_latex_" not in vars(appell.ControlledDerivation)
+
+
 def test_controlled_derivation_repr_latex(ball_derivation):
-    text = ball_derivation._repr_latex_()
+    text = appell.display_latex(ball_derivation)
     assert text.startswith("$\\displaystyle") and text.endswith("$")
     assert "{aligned}" in text and "align*" not in text
     assert "(2.3)" in text and r"\ddot{u}" in text and r"\ddot{v}" in text

@@ -11,6 +11,7 @@ from scipy.integrate import quad
 import appell
 from appell import Event, ModelError, simulate
 from appell.examples import catalog, event_examples
+from appell import numeric_model
 
 THETA0 = 0.4
 G, R = 9.81, 1.0
@@ -172,7 +173,7 @@ def test_partition_switches_on_the_way_and_back_against_the_augmented_route():
     sol = simulate(d, 2.0, t_eval=t, rtol=1e-10, atol=1e-12, complete=True)
     assert sol.statistics.switches == 2
     assert sol.log[0].startswith("t = 1:") and "switched" in sol.log[0] and "restored" in sol.log[1]
-    model = d.numeric
+    model = numeric_model(d)
     y0 = appell.complete_initial(d).y
     ref = solve_ivp(lambda tt, y: np.concatenate([y[3:], augmented_solve(model, tt, y[:3], y[3:]).accelerations]),
                     (0.0, 2.0), y0, method="DOP853", t_eval=t, rtol=1e-11, atol=1e-12)
@@ -192,7 +193,7 @@ def test_the_event_log_is_in_time_order(backend):
     backwards (2.1212, 2.0883, 2.1212, ...; issue 19 section 6). Switches beyond the accepted
     step's end are dropped, and the events and the log come in time order."""
     derivation = appell.derive(appell.load_model("four_bar"))
-    model = derivation if backend == "numpy" else derivation.compiled("c")
+    model = derivation if backend == "numpy" else numeric_model(derivation, "c")
     sol = appell.simulate(model, 3.0, rtol=1e-6, atol=1e-9, progress=False)
     times = [e.t for e in sol.events]
     assert sol.statistics.switches >= 2 and len(times) >= 2

@@ -36,6 +36,7 @@ from appell.io.report import _check_section as report_verdict_section
 from appell.numerics.crosscheck import Comparison, CrossCheckReport, multiplier_scale, sample_states
 from appell.numerics.numeric import NumericModel
 from appell.simulation.energy_balance import ENERGY_TOLERANCE
+from appell import numeric_model
 
 EPS = 1e-6  # the size of every mutation
 
@@ -155,7 +156,7 @@ def test_check_without_constraints_compares_with_lagrange_not_with_itself():
     assert [c.route for c in report.comparisons] == ["lagrange"]
     assert "augmented" in report.unavailable and "itself" in report.unavailable["augmented"]
     assert report.checked and report.passed(1e-12)  # M a = Q - h both ways: rounding only (measured 0)
-    mutant = cross_check(d, model=perturbed_mass_matrix(d.numeric, 1, 1))
+    mutant = cross_check(d, model=perturbed_mass_matrix(numeric_model(d), 1, 1))
     assert not mutant.passed(1e-9) and mutant.accelerations > 1e-8
 
 
@@ -189,9 +190,9 @@ def test_per_multiplier_lines_use_the_stated_normalisation():
     report = cross_check(d, states)
     expected = {"rear": 0.0, "front": 0.0}
     for t, q, w in states:
-        sol = d.numeric.solve(t, q, w)
-        ref = augmented_solve(d.numeric, t, q, w)
-        M, hQ, J, _ = d.numeric.evaluate_blocks(t, q, w)
+        sol = numeric_model(d).solve(t, q, w)
+        ref = augmented_solve(numeric_model(d), t, q, w)
+        M, hQ, J, _ = numeric_model(d).evaluate_blocks(t, q, w)
         F = max(np.max(np.abs(M @ ref.accelerations)), np.max(np.abs(hQ)))
         scale = max(np.max(np.abs(ref.multipliers)), F / np.max(np.abs(J)))
         # the same formula from the same numbers: equal up to the order of the products (an eps)
@@ -284,7 +285,7 @@ def test_energy_balance_of_a_bead_on_a_rotating_rod_matches_the_closed_form():
     r, rd = r0 * math.cosh(omega * span), r0 * omega * math.sinh(omega * span)
     c, s = math.cos(omega * span), math.sin(omega * span)
     w = [rd * c - r * omega * s, rd * s + r * omega * c]
-    lam = d.numeric.solve(span, [r * c, r * s], w).multipliers[0]
+    lam = numeric_model(d).solve(span, [r * c, r * s], w).multipliers[0]
     assert lam == pytest.approx(2 * omega**2 * r0 * math.sinh(omega * span), rel=1e-12)
 
 
@@ -347,7 +348,7 @@ def test_a_mass_matrix_entry_perturbed_by_1e_6_fails_every_check(name):
     independently) disagrees, the energy balance along the perturbed motion fails and the
     report's verdict section (the page's cross-check, io.report) says failed."""
     d = derive(getattr(catalog, name)())
-    mutant = perturbed_mass_matrix(d.numeric)
+    mutant = perturbed_mass_matrix(numeric_model(d))
     report = cross_check(d, model=mutant)
     assert not report.passed(1e-9)
     assert any(r == "lagrange" for r, _, _ in report.failures(1e-9))
@@ -367,7 +368,7 @@ def test_a_mass_matrix_entry_perturbed_with_quasi_velocities_fails_every_check()
     """Rolling ball (quasi-velocities: no Lagrange route): the mutation of M[0, 0] is caught by
     the printed formulas (1.5), which keep the unperturbed M, and by the energy balance."""
     d = derive(catalog.rolling_ball())
-    mutant = perturbed_mass_matrix(d.numeric)
+    mutant = perturbed_mass_matrix(numeric_model(d))
     report = cross_check(d, model=mutant)
     assert not report.passed(1e-9) and {r for r, _, _ in report.failures(1e-9)} == {"formulas"}
     assert not energy_balance(d, 2.0, model=mutant).passed()
@@ -380,7 +381,7 @@ def test_a_reaction_perturbed_by_1e_6_fails_every_check(build, span):
     the reaction does work (a second-order constraint; a rod turning at a given rate) the
     energy balance fails with the augmented route and the report's verdict."""
     d = derive(build())
-    mutant = perturbed_reaction(d.numeric)
+    mutant = perturbed_reaction(numeric_model(d))
     report = cross_check(d, model=mutant)
     assert ("augmented", f"lambda_{d.constraints.names[0]}") in {(r, k) for r, k, _ in report.failures(1e-9)}
     eb = energy_balance(d, span, model=mutant)

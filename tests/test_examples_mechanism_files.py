@@ -22,6 +22,7 @@ from appell import derive, load_model
 from appell.examples import example_path
 from appell.examples.mechanism_examples import four_bar
 from test_mechanism import assert_four_bar_pin_forces_match_newton_euler
+from appell import numeric_model
 
 
 @pytest.fixture(scope="module")
@@ -39,13 +40,13 @@ def test_four_bar_file_equals_the_python_builder_at_its_start(four_bar_file):
     built = derive(four_bar())
     q, w = _start(built)
     assert _start(four_bar_file) == (q, w)
-    s1, s2 = four_bar_file.numeric.solve(0.0, q, w), built.numeric.solve(0.0, q, w)
+    s1, s2 = numeric_model(four_bar_file).solve(0.0, q, w), numeric_model(built).solve(0.0, q, w)
     # the file gives the builder's very expressions, solved alike: equal (measured); 1e-12 is
     # still above eps x cond (~30) should a sum be reordered
     np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(s1.multipliers, s2.multipliers, rtol=1e-12, atol=1e-12)
-    o1 = four_bar_file.numeric.outputs(0.0, q, w, solution=s1)
-    o2 = built.numeric.outputs(0.0, q, w, solution=s2)
+    o1 = numeric_model(four_bar_file).outputs(0.0, q, w, solution=s1)
+    o2 = numeric_model(built).outputs(0.0, q, w, solution=s2)
     assert set(o1) == set(o2) >= {f"{k}_{j}_{a}" for k in "FM" for j in "ABD" for a in "xyz"}
     for key in o2:
         assert o1[key] == pytest.approx(o2[key], rel=1e-12, abs=1e-12), key
@@ -66,7 +67,7 @@ def disc():
 
 def _solve(d, q, w, p=None):
     names = [c.name for c in d.system.coordinates]
-    sol = d.numeric.solve(0.0, np.array(q, float), np.array(w, float), p=p)
+    sol = numeric_model(d).solve(0.0, np.array(q, float), np.array(w, float), p=p)
     return dict(zip(names, sol.accelerations)), dict(zip(d.constraints.names, sol.multipliers))
 
 
@@ -97,7 +98,7 @@ def test_rolling_disc_file_rolling_straight_on_a_level_plane_needs_no_friction(d
     w = np.array(w, float)
     w[names.index("float_x")] = v
     w[names.index("float_ry")] = v / p["r"]
-    _, phi = d.numeric.constraint_residuals(0.0, q, w)
+    _, phi = numeric_model(d).constraint_residuals(0.0, q, w)
     assert abs(np.asarray(phi)).max() < 1e-12  # the state rolls without slip (v - r w: rounding only)
     acc, lam = _solve(d, q, w, p=np.array(values))
     # rounding only (a solve of condition ~90): eps x 90 x m g = 2e-14 N at most; measured exact

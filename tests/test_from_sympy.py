@@ -15,6 +15,7 @@ from sympy.physics import mechanics as me
 
 from appell import derive, from_sympy
 from appell.errors import ModelError
+from appell import numeric_model
 
 m, r, g = sp.symbols("m r g")
 VALUES = {m: 2.0, r: 0.5, g: 9.81}
@@ -92,7 +93,7 @@ def test_rolling_disc_contact_force_matches_kanes_method_with_auxiliary_speeds()
     model = from_sympy(rolling_disc_system(), parameters=VALUES, constraint_names=("normal", "rolling_x", "rolling_y"))
     assert [s.name for s in model.coordinates] == ["q1", "q2", "q3", "x", "y", "z"]
     assert [s.name for s in model.speeds] == ["u1", "u2", "u3", "u4", "u5", "u6"]
-    numeric = derive(model).numeric
+    numeric = numeric_model(derive(model))
     rng = np.random.default_rng(7)
     for _ in range(4):
         q = np.array([rng.uniform(-1, 1), rng.uniform(0.2, 1.2), rng.uniform(-1, 1)])
@@ -203,7 +204,7 @@ def test_sympy_double_pendulum_pin_reactions_match_a_newton_euler_solution():
     values = {m1: 1.3, m2: 0.7, l1: 1.1, l2: 0.8, g: 9.81}
     model = from_sympy(system, parameters=values)
     assert [s.name for s in model.coordinates] == ["q1", "q2"]
-    numeric = derive(model).numeric
+    numeric = numeric_model(derive(model))
     rng = np.random.default_rng(2)
     for q, w in zip(rng.uniform(-2, 2, (4, 2)), rng.uniform(-2, 2, (4, 2))):
         qdd, f_shoulder, f_elbow = newton_euler_double_pendulum(q, w, *(values[s] for s in (m1, m2, l1, l2, g)))
@@ -255,7 +256,7 @@ def test_prismatic_and_weld_joint_reactions_match_the_closed_form():
     system.add_loads(me.Force(cart.masscenter, P * N.x))
     values = {m1: 3.0, m2: 1.5, h: 0.4, P: 9.0, g: 9.81}
     model = from_sympy(system, parameters=values)
-    numeric = derive(model).numeric
+    numeric = numeric_model(derive(model))
     a = 9.0 / 4.5
     sol = numeric.solve(0.0, [0.7], [1.3])
     # rounding only (a 1x1 solve): a few eps x the forces ~ 44 N, ~1e-14
@@ -282,7 +283,7 @@ def test_symbols_with_assumptions_become_the_declared_parameters():
     system.apply_uniform_gravity(-grav * N.y)
     model = from_sympy(system, parameters={mass: 2.0, length: 1.0, grav: 9.81}, initial={q: -1.2, u: 0.5})
     assert dict(model.initial) == {"q": -1.2, "u": 0.5}
-    numeric = derive(model).numeric
+    numeric = numeric_model(derive(model))
     out = numeric.outputs(0.0, [-np.pi / 2], [3.0])
     # rounding only (a 1x1 solve): a few eps x 29 N; F_x is 0 up to cos(-pi/2) = 6e-17 times it
     assert out["F_pin_y"] == pytest.approx(2.0 * 9.81 + 2.0 * 0.5 * 9.0, rel=1e-12)

@@ -29,6 +29,7 @@ import appell
 from appell.simulation.simulate import METHODS
 from appell.examples import example_path
 from appell.examples.iftomm_examples import A02_SIZES, a02_reference, n_four_bar_text
+from appell import numeric_model
 
 G = 9.81
 
@@ -146,7 +147,7 @@ def a02_derivation(n: int):
 
 def run_a02(n: int, **options):
     derivation = a02_derivation(n)
-    sol = appell.simulate(derivation.compiled("c"), **options)
+    sol = appell.simulate(numeric_model(derivation, "c"), **options)
     return derivation, sol
 
 
@@ -217,7 +218,7 @@ def test_a02_pin_forces_close_to_the_flat_instant():
     minimum-norm multipliers, bounded, and names the rank lost."""
     n, t_end = 4, 1.3
     derivation = a02_derivation(n)
-    sol = appell.simulate(derivation.compiled("c"), t_end, t_eval=np.linspace(0.0, t_end, 26001))
+    sol = appell.simulate(numeric_model(derivation, "c"), t_end, t_eval=np.linspace(0.0, t_end, 26001))
     _, _, _, passed = check_a02(n, sol, t_end)
     inside = check_pin_forces(n, sol, passed, per_instant=3e-6)
     assert inside.sum() > 100
@@ -273,7 +274,7 @@ def test_bricard_redundancy_is_found_on_the_loop_and_named(bricard):
 def bricard_energy(derivation, sol):
     import sympy as sp
 
-    system, model = derivation.system, derivation.numeric
+    system, model = derivation.system, numeric_model(derivation)
     potential = sp.lambdify(list(system.coordinates), system.potential_energy)
     out = []
     for t, y in zip(sol.t, sol.y.T):
@@ -289,7 +290,7 @@ def test_bricard_moves_on_its_loop_with_its_energy(bricard):
     cannot carry, stay zero: the determined reactions match that closed form."""
     derivation, sol = bricard
     assert sol.status == 0, sol.message
-    model = derivation.numeric
+    model = numeric_model(derivation)
     worst = max(np.abs(model.constraint_residuals(t, y[:5], y[5:])[0]).max() for t, y in zip(sol.t, sol.y.T))
     assert worst < 1e-8
     energy = bricard_energy(derivation, sol)
@@ -309,7 +310,7 @@ def test_bricard_against_the_augmented_system_integrated_by_scipy(bricard):
     from appell.numerics.crosscheck import solve_indeterminate
 
     derivation, sol = bricard
-    model = derivation.numeric
+    model = numeric_model(derivation)
 
     def rates(t, y):
         q, w = y[:5], y[5:]
@@ -332,14 +333,14 @@ def test_a_model_too_large_for_closed_forms_prints_the_equations_it_solves():
     from test_printed_equations import _evaluate, _names, _values, read_printed
 
     d = a02_derivation(10)
-    text = d.to_text()
+    text = appell.to_text(d)
     assert "motion: the equations (1.3) with the multipliers and f = 0" in text
     defs, rows = read_printed(text, _names(d))
     assert sum(label.startswith("(1.3)") for label, _, _ in rows) == len(d.kinematics.speeds)
     q = np.array([d.system.initial_values[s.name] for s in d.kinematics.coordinates]) + 0.3 * np.array(
         [1.0 if s.name.startswith("R") else -1.0 for s in d.kinematics.coordinates])  # still a parallelogram
     w = np.array([0.7 if s.name.startswith("R") else -0.7 for s in d.kinematics.coordinates])
-    sol = d.numeric.solve(0.2, q, w)
+    sol = numeric_model(d).solve(0.2, q, w)
     values = {**_values(d, 0.2, q, w), **dict(zip(d.kinematics.accelerations, sol.accelerations)),
               **{sp.Symbol(f"lambda_{n}"): v for n, v in zip(d.constraints.names, sol.multipliers)}}
     scale = 1.0 + np.max(np.abs(sol.multipliers)) + np.max(np.abs(sol.accelerations))

@@ -24,6 +24,7 @@ from appell import derive, load_model, simulate
 from appell.examples import example_path
 from appell.model import Parameter, System, holonomic
 from appell.numerics.linearise import motion_jacobian
+from appell import numeric_model
 
 
 @pytest.mark.parametrize("name", ["pendulum", "four_bar", "knife_edge", "rolling_disc", "car"])
@@ -31,7 +32,7 @@ def test_the_motion_jacobian_is_that_of_the_numeric_solve(name):
     """Central differences (relative step 1e-6, ~1e-9 relative error) of the model's own
     ``evaluate`` at a state moved off the start (speeds on the constraints)."""
     d = derive(load_model(example_path(name)))
-    model = d.numeric
+    model = numeric_model(d)
     p = model.params()
     start = d.system.initial_values
     y = np.array([start.get(n, 0.0) for n in model.state_names], float)

@@ -15,6 +15,7 @@ Closed forms (sources):
   with eigenvalue ``-k/d`` (the second mass's equation, builder docstring).
 """
 
+import appell
 import json
 
 import numpy as np
@@ -26,6 +27,7 @@ from appell import derive_controlled, simulate
 from appell.control.internal_dynamics import internal_linearisation
 from appell.examples.servo_examples import appell_ball, cart_pole, spring_masses
 from appell.io.cli import cli
+from appell import numeric_model
 
 G, L = 9.81, 0.5  # the builder's g and l
 
@@ -94,7 +96,7 @@ def test_flat_chain_has_no_internal_dynamics_and_derive_prints_no_empty_section(
     says so instead of printing an empty 'internal dynamics:' header."""
     derivation = derive_controlled(spring_masses())
     assert internal_linearisation(derivation) is None
-    text = derivation.to_text()
+    text = appell.to_text(derivation)
     assert "internal dynamics: none" in text
     lines = text.splitlines()
     for i, line in enumerate(lines):  # no header left without an indented entry below it
@@ -146,7 +148,7 @@ def _central_internal_matrix(derivation, time, state, eta):
     closed-loop solve ``F(t, y)`` and of the manifold residuals ``G``, on the chart ``eta``."""
     from appell.control.internal_dynamics import manifold_function
 
-    model = derivation.numeric
+    model = numeric_model(derivation)
     pv, y0 = model.params(), np.asarray(state, float)
     steps = 1e-6 * np.maximum(1.0, np.abs(y0))
 
@@ -173,7 +175,7 @@ def test_exact_internal_jacobian_agrees_with_central_differences_of_the_closed_l
     (underactuated, first-order internal dynamics) and the cart-pole at a moving state.
     Central differences at step 1e-6 carry ~1e-10 relative error (eps/h + h^2)."""
     derivation = derive_controlled(builder())
-    model = derivation.numeric
+    model = numeric_model(derivation)
     state = model.initial_state()
     if derivation.system.name == "cart_pole":
         state = np.array(_on_manifold(1.3, 0.7, -0.4))

@@ -28,6 +28,7 @@ import appell
 from appell.errors import ModelError
 from appell.io.cli import cli
 from appell.simulation.inverse import inverse_dynamics
+from appell import numeric_model
 
 ARM = Path(__file__).resolve().parent.parent / "src" / "appell" / "examples" / "arm.urdf"
 
@@ -50,7 +51,7 @@ def test_the_arm_matches_pinocchio_rnea(arm):
     pin = pytest.importorskip("pinocchio")
     model = pin.buildModelFromUrdf(str(ARM))
     data = model.createData()
-    names = list(arm.numeric.coordinate_names)
+    names = list(numeric_model(arm).coordinate_names)
     t = np.linspace(0.0, 1.0, 41)
     q, w, a = _motion(len(names), t)
     result = inverse_dynamics(arm, t, q, w, a)
@@ -70,7 +71,7 @@ def test_the_arm_matches_pinocchio_rnea(arm):
 
 def test_speeds_from_the_coordinates_alone(arm):
     t = np.linspace(0.0, 1.0, 401)
-    q, w, a = _motion(len(arm.numeric.coordinate_names), t)
+    q, w, a = _motion(len(numeric_model(arm).coordinate_names), t)
     exact, derived = inverse_dynamics(arm, t, q, w, a), inverse_dynamics(arm, t, q)
     inner = slice(20, -20)  # a spline's end conditions are not the motion's
     for name, values in exact.drives.items():
@@ -87,7 +88,7 @@ def test_a_closed_loop_matches_the_servo_constraint_route():
     free = system.replace(generalized_forces=None, controls=(), servo_constraints=(),
                           units=tuple((k, v) for k, v in system.units if k != "tau"))
     d = appell.derive(free)
-    names, speeds = d.numeric.coordinate_names, d.numeric.speed_names
+    names, speeds = numeric_model(d).coordinate_names, numeric_model(d).speed_names
     q = np.stack([servo[n] for n in names], 1)
     w = np.stack([servo[n] for n in speeds], 1)
     a = np.stack([servo[n.replace("_dot", "_ddot")] for n in speeds], 1)
@@ -111,7 +112,7 @@ def test_the_command_line(tmp_path):
     from appell.io.modelfile import load_model
 
     derivation = appell.derive(load_model(example_path("spherical_pendulum")))
-    names = list(derivation.numeric.coordinate_names)
+    names = list(numeric_model(derivation).coordinate_names)
     t = np.linspace(0.0, 1.0, 51)
     q, w, a = _motion(len(names), t)
     motion = tmp_path / "motion.csv"

@@ -33,6 +33,7 @@ from appell.examples.mechanism_examples import double_pendulum_joints, rolling_d
 from appell.io.cli import cli, load_system
 from appell.numerics.linearise import linearise, steady_motion
 from appell.numerics.stability import stability_sweep
+from appell import numeric_model
 
 G, L = 9.81, 1.0
 
@@ -91,7 +92,7 @@ def test_linearised_reactions_and_outputs_match_central_differences_of_the_split
     sensitivities) against central differences of the nonlinear split (h = 1e-6: truncation
     h^2 |z'''| ~ 1e-11, rounding eps |z| / h ~ 2e-9 of forces of 20 N, so 1e-7 absolute)."""
     d = derive(double_pendulum_joints())
-    model = d.numeric
+    model = numeric_model(d)
     point = {"shoulder": 0.0, "elbow": 0.0, "shoulder_dot": 0.0, "elbow_dot": 0.0}
     lm = linearise(d, point)
     assert lm.states == ("shoulder", "elbow", "shoulder_dot", "elbow_dot")
@@ -144,8 +145,8 @@ def test_the_second_order_form_and_an_input_of_a_spring_chain():
     assert np.allclose(C, [[0, 0], [0, 0.4]], rtol=0, atol=1e-14)
     assert np.allclose(K, [[12.0, -7.0], [-7.0, 7.0]], rtol=0, atol=1e-13)
     assert np.allclose(Fu, [[0.0], [1.0]], rtol=0, atol=1e-14)
-    fd = (d.numeric.solve(0.0, [0, 0], [0, 0], {"F": 1e-3}).accelerations
-          - d.numeric.solve(0.0, [0, 0], [0, 0], {"F": -1e-3}).accelerations) / 2e-3
+    fd = (numeric_model(d).solve(0.0, [0, 0], [0, 0], {"F": 1e-3}).accelerations
+          - numeric_model(d).solve(0.0, [0, 0], [0, 0], {"F": -1e-3}).accelerations) / 2e-3
     assert np.allclose(lm.B[2:, 0], fd, rtol=1e-12, atol=0)
     ss = lm.statespace()
     assert ss.A.shape == (4, 4) and ss.B.shape == (4, 1)

@@ -15,6 +15,7 @@ from appell import derive
 from appell.examples.catalog import nlink_pendulum
 from appell.examples.cyclic_examples import spherical_pendulum
 from appell.mechanism import Mechanism
+from appell import numeric_model
 
 
 def pendulum_mechanism(m=2.0, l=1.5, g=9.81):
@@ -31,11 +32,11 @@ def test_pendulum_pin_force_is_the_closed_form_rod_tension():
     d = derive(pendulum_mechanism(m, l, g).system())
     rng = np.random.default_rng(1)
     for th, thd in rng.uniform(-2.5, 2.5, size=(5, 2)):
-        sol = d.numeric.solve(0.0, [th], [thd])
+        sol = numeric_model(d).solve(0.0, [th], [thd])
         # rounding only (a 1x1 solve): a few eps x T ~ 40 N, and x l T ~ 60 N m for the moment,
         # which cancels to 0: ~1e-14; 1e-12 is 100x that
         assert sol.accelerations[0] == pytest.approx(-g / l * math.sin(th), rel=1e-12)
-        out = d.numeric.outputs(0.0, [th], [thd])
+        out = numeric_model(d).outputs(0.0, [th], [thd])
         T = m * (g * math.cos(th) + l * thd**2)
         towards_pin = np.array([-math.sin(th), math.cos(th)])  # bob at l (sin, -cos)
         assert [out["F_pin_x"], out["F_pin_y"]] == pytest.approx(T * towards_pin, rel=1e-12, abs=1e-12)
@@ -55,13 +56,13 @@ def test_pendulum_from_a_revolute_joint_has_the_hand_written_equation():
     th, thd = 0.7, -1.3
     x, y = L * math.sin(th), -L * math.cos(th)
     xd, yd = L * math.cos(th) * thd, L * math.sin(th) * thd
-    ref = hand.numeric.solve(0.0, [x, y], [xd, yd])
-    thdd = d.numeric.solve(0.0, [th], [thd]).accelerations[0]
+    ref = numeric_model(hand).solve(0.0, [x, y], [xd, yd])
+    thdd = numeric_model(d).solve(0.0, [th], [thd]).accelerations[0]
     xdd = L * (math.cos(th) * thdd - math.sin(th) * thd**2)
     ydd = L * (math.sin(th) * thdd + math.cos(th) * thd**2)
     # two derivations of one system, rounding only: a few eps (solves of condition < 3)
     assert [xdd, ydd] == pytest.approx(ref.accelerations, rel=1e-11)
-    out = d.numeric.outputs(0.0, [th], [thd])
+    out = numeric_model(d).outputs(0.0, [th], [thd])
     along_rod = -(out["F_pin_x"] * x + out["F_pin_y"] * y) / L
     assert along_rod == pytest.approx(ref.multipliers[0], rel=1e-11)
 
@@ -84,7 +85,7 @@ def _four_bar_state(d, thA, wA):
         J = np.column_stack([(closure(x + h) - closure(x - h)) / 2e-7 for h in np.eye(2) * 1e-7])
         x = x - np.linalg.solve(J, closure(x))
     q = np.array([thA, *x])
-    _, _, Jc, _ = d.numeric.evaluate_blocks(0.0, q, np.zeros(3))
+    _, _, Jc, _ = numeric_model(d).evaluate_blocks(0.0, q, np.zeros(3))
     w = np.array([wA, *np.linalg.solve(Jc[:, 1:], -Jc[:, 0] * wA)])
     return q, w
 
@@ -113,7 +114,7 @@ def test_the_four_bar_example_starts_on_its_loop(four_bar):
     s = four_bar.system
     q = [s.initial_values[c.name] for c in s.coordinates]
     w = [s.initial_values[v.name] for v in s.speeds]
-    F, phi = four_bar.numeric.constraint_residuals(0.0, q, w)
+    F, phi = numeric_model(four_bar).constraint_residuals(0.0, q, w)
     # the start is the loop's closed form (triangle law, Cramer's rule): rounding only, ~3e-16
     assert abs(F).max() < 1e-12 and abs(phi).max() < 1e-12 and w[0] == 2.0
 
@@ -132,8 +133,8 @@ def assert_four_bar_pin_forces_match_newton_euler(four_bar, thA, wA):
     appell's F_A, F_B, F_D outputs and the closure multipliers lambda_C_x, lambda_C_y."""
     d = four_bar
     q, w = _four_bar_state(d, thA, wA)
-    sol = d.numeric.solve(0.0, q, w)
-    out = d.numeric.outputs(0.0, q, w, solution=sol)
+    sol = numeric_model(d).solve(0.0, q, w)
+    out = numeric_model(d).outputs(0.0, q, w, solution=sol)
     acc = sol.accelerations
     th = [q[0], q[0] + q[1], q[2]]  # absolute angles of crank, coupler, rocker
     om = [w[0], w[0] + w[1], w[2]]
@@ -220,8 +221,8 @@ def test_double_pendulum_reactions_match_pinocchio_rnea():
     data = model.createData()
     rng = np.random.default_rng(7)
     for q, w in rng.uniform(-2.0, 2.0, size=(4, 2, 2)):
-        sol = d.numeric.solve(0.0, q, w)
-        out = d.numeric.outputs(0.0, q, w, solution=sol)
+        sol = numeric_model(d).solve(0.0, q, w)
+        out = numeric_model(d).outputs(0.0, q, w, solution=sol)
         tau = pin.rnea(model, data, q, w, sol.accelerations)
         # rounding only: appell's solve (condition ~30) and RNEA, eps x 30 x the moments (~10 N m)
         # ~1e-13; 1e-10 is 1000x that
@@ -257,8 +258,8 @@ def test_two_link_pendulum_with_a_tip_on_a_line_equals_the_examples_energy_model
         th2 = math.asin((p["d"] - p["l1"] * math.sin(th1)) / p["l2"])
         w1 = rng.uniform(-2, 2)
         w2 = -p["l1"] * math.cos(th1) * w1 / (p["l2"] * math.cos(th2))
-        ref = hand.numeric.solve(0.0, [th1, th2], [w1, w2])
-        sol = d.numeric.solve(0.0, [th1, th2 - th1], [w1, w2 - w1])
+        ref = numeric_model(hand).solve(0.0, [th1, th2], [w1, w2])
+        sol = numeric_model(d).solve(0.0, [th1, th2 - th1], [w1, w2 - w1])
         a = sol.accelerations
         # two derivations of one system, rounding only: eps x cond (~35) x scale, ~1e-14
         assert [a[0], a[0] + a[1]] == pytest.approx(ref.accelerations, rel=1e-10, abs=1e-10)

@@ -12,13 +12,14 @@ import sympy as sp
 from appell import derive
 from appell.mechanism import Mechanism
 from appell.mechanism.rotations import euler_rotation, quaternion_rotation
+from appell import numeric_model
 
 G = 9.81
 
 
 def _outputs(d, q, w):
-    sol = d.numeric.solve(0.0, q, w)
-    return sol, d.numeric.outputs(0.0, q, w, solution=sol)
+    sol = numeric_model(d).solve(0.0, q, w)
+    return sol, numeric_model(d).outputs(0.0, q, w, solution=sol)
 
 
 def test_prismatic_block_on_a_smooth_incline():
@@ -258,8 +259,8 @@ def test_knife_edge_by_no_lateral_slip_equals_the_examples_energy_model():
         q = rng.uniform(-1, 1, 3)
         speed, rate = rng.uniform(-2, 2, 2)
         w = [speed * math.cos(q[2]), speed * math.sin(q[2]), rate]  # along the blade
-        ref = hand.numeric.solve(0.0, q, w)
-        sol = d.numeric.solve(0.0, q, w)
+        ref = numeric_model(hand).solve(0.0, q, w)
+        sol = numeric_model(d).solve(0.0, q, w)
         # two derivations of one system, rounding only: eps x cond (~16) x scale, ~1e-14
         assert sol.accelerations == pytest.approx(ref.accelerations, rel=1e-10, abs=1e-10)
         assert sol.multipliers == pytest.approx(-ref.multipliers, rel=1e-10, abs=1e-10)

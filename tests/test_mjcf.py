@@ -26,6 +26,7 @@ import pytest
 
 import appell
 from appell.errors import AppellNote, ModelError
+from appell import numeric_model
 
 mujoco = pytest.importorskip("mujoco")
 from appell.mechanism.mjcf import load_mjcf, mjcf_system  # noqa: E402
@@ -65,7 +66,7 @@ def chain():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # nothing left unmapped: no note
         system = mjcf_system(CHAIN)
-    return appell.derive(system).numeric, load_mjcf(CHAIN)
+    return numeric_model(appell.derive(system)), load_mjcf(CHAIN)
 
 
 def test_an_open_chain_matches_mujoco_forward_dynamics_and_joint_forces(chain):
@@ -148,8 +149,8 @@ def four_bar_xml() -> str:
 def test_a_four_bar_with_a_connect_equality_matches_appells_own_four_bar():
     xml, start = four_bar_xml()
     with pytest.warns(AppellNote, match="holds by itself along z"):
-        mine = appell.derive(mjcf_system(xml)).numeric
-    theirs = appell.derive(appell.load_model("four_bar")).numeric
+        mine = numeric_model(appell.derive(mjcf_system(xml)))
+    theirs = numeric_model(appell.derive(appell.load_model("four_bar")))
     assert mine.constraint_names == ("C_x", "C_y")
     from appell.examples.mechanism_examples import _four_bar_start
 
@@ -213,7 +214,7 @@ def test_a_turned_inertial_frame_is_read_as_a_symmetric_tensor():
       <inertial pos="0 0 -0.3" quat="0.3 0.5 -0.2 0.7" mass="1" diaginertia="0.1 0.2 0.3"/>
       </body></worldbody></mujoco>"""
     system = mjcf_system(xml)
-    model, mj = appell.derive(system).numeric, load_mjcf(xml)
+    model, mj = numeric_model(appell.derive(system)), load_mjcf(xml)
     data = mujoco.MjData(mj)
     data.qpos[:], data.qvel[:] = [0.4], [1.3]
     mujoco.mj_forward(mj, data)

@@ -25,6 +25,7 @@ import pytest
 
 import appell
 from appell.errors import AppellNote
+from appell import numeric_model
 
 mujoco = pytest.importorskip("mujoco")
 from appell.mechanism.mjcf import load_mjcf, mjcf_system  # noqa: E402
@@ -65,7 +66,7 @@ def test_a_shipped_robot_as_mjcf_matches_mujoco(name, relative, tmp_path):
     path = shipped_as_mjcf(ROBOTS / relative, tmp_path / f"{name}.xml")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AppellNote)  # joint limits and actuator ranges: named, not applied
-        model = appell.derive(mjcf_system(path)).numeric
+        model = numeric_model(appell.derive(mjcf_system(path)))
     mj = load_mjcf(path)
     mj.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
     mj.dof_damping[:] = 0.0

@@ -16,6 +16,7 @@ import appell
 from appell import ModelError, cross_check, derive, load_model, loads_model
 from appell.examples import CATALOG, example_path, list_examples
 from appell.io.modelfile import ExpressionError, parse_expression, simulation_options
+from appell import numeric_model
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -57,8 +58,8 @@ def test_model_file_equals_builder(name):
         t = float(rng.uniform(0, 3))
         q = rng.uniform(-1, 1, n_q) + np.array([built.initial_values.get(s.name, 0.0) for s in built.coordinates])
         w = rng.uniform(-1, 1, n)
-        s1 = d_file.numeric.solve(t, q, w)
-        s2 = d_built.numeric.solve(t, q, w)
+        s1 = numeric_model(d_file).solve(t, q, w)
+        s2 = numeric_model(d_built).solve(t, q, w)
         # the file gives the builder's very expressions: the two solves round alike (measured
         # equal, also for the car, whose condition ~1e6 comes from its units)
         np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-10, atol=1e-10)
@@ -292,7 +293,7 @@ def test_bodies_and_forces_equal_energy_form():
     ref = derive(CATALOG["pendulum"]())
     d = derive(s)
     for q, w in (([0.6, -0.8], [0.3, 0.2]), ([0.0, -1.0], [1.0, 0.0])):
-        s1, s2 = d.numeric.solve(0.0, q, w), ref.numeric.solve(0.0, q, w)
+        s1, s2 = numeric_model(d).solve(0.0, q, w), numeric_model(ref).solve(0.0, q, w)
         # two routes to one system, rounding only: a few eps (solves of condition < 3)
         np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(s1.multipliers, s2.multipliers, rtol=1e-12, atol=1e-12)
@@ -306,7 +307,7 @@ def test_torque_on_rolling_ball_spins_it_up():
     text += '\n[[torques]]\nname = "motor"\nvector = [0, 0, "tau"]\nangular_velocity = ["wx", "wy", "wz"]\n'
     s = loads_model(text)
     d = derive(s)
-    sol = d.numeric.solve(0.0, [0.0, 0.0, 0.1], [0.0, 0.5, 0.0, -5.0, 0.0, 2.0])
+    sol = numeric_model(d).solve(0.0, [0.0, 0.0, 0.1], [0.0, 0.5, 0.0, -5.0, 0.0, 2.0])
     # rounding only (a solve of condition ~400, from R = 0.1): eps x 400 = 9e-14 at most
     assert sol.accelerations[5] == pytest.approx(0.01 / (0.4 * 1.0 * 0.1**2), rel=1e-12)
     assert sol.accelerations[0] == pytest.approx(5 / 7 * 9.81 * np.sin(0.3), rel=1e-12)
@@ -328,7 +329,7 @@ def test_rigid_body_with_full_inertia_and_position():
     assert s.name == "disk"
     body = s.bodies[0]
     assert isinstance(body, appell.RigidBody) and body.inertia[2, 2] == 3
-    sol = derive(s).numeric.solve(0.0, [0.0], [1.0])
+    sol = numeric_model(derive(s)).solve(0.0, [0.0], [1.0])
     assert sol.accelerations == pytest.approx([0.0])  # no load: exactly 0
 
 

@@ -18,6 +18,7 @@ from appell.examples.catalog import CATALOG
 from appell.examples.servo_examples import SERVO_EXAMPLES
 from appell.io.modelfile import simulation_options
 from appell.simulation.simulate import simulate
+from appell import numeric_model
 
 #: the files this test module adds beside the catalog's (which tests/test_modelfile.py checks)
 NEW = sorted(set(BUILDERS) - set(CATALOG))
@@ -90,7 +91,7 @@ def test_model_file_equals_builder(name):
         t = float(rng.uniform(0, 3))
         q = rng.uniform(-0.5, 0.5, len(built.coordinates)) + [init.get(s.name, 0.0) for s in built.coordinates]
         w = rng.uniform(-1, 1, len(built.speeds))
-        s1, s2 = d_file.numeric.solve(t, q, w), d_built.numeric.solve(t, q, w)
+        s1, s2 = numeric_model(d_file).solve(t, q, w), numeric_model(d_built).solve(t, q, w)
         # same system, rounding only: equal where the file has the builder's expressions; else
         # eps x cond, cond < 5e4 at these states (andrews_squeezer: 1e-11; measured 4e-15)
         np.testing.assert_allclose(s1.accelerations, s2.accelerations, rtol=1e-10, atol=1e-10)
@@ -103,7 +104,7 @@ def test_servo_model_file_equals_builder(name):
     built = BUILDERS[name]()
     _assert_same_declarations(from_file, built, name)
 
-    m_file, m_built = derive_controlled(from_file).numeric, derive_controlled(built).numeric
+    m_file, m_built = numeric_model(derive_controlled(from_file)), numeric_model(derive_controlled(built))
     assert m_file.state_names == m_built.state_names
     assert m_file.control_names == m_built.control_names
     init = dict(built.initial)
@@ -129,7 +130,7 @@ def test_appell_ball_file_is_the_papers_problem():
     assert [(c.symbol.name, c.kind) for c in system.controls] == [("u", "kinematic"), ("v", "kinematic")]
     assert [c.name for c in system.constraints] == ["roll_x", "roll_y"]
     assert {p.symbol.name: p.value for p in system.parameters} == {"M": 1.0, "R": 0.1, "omega": 2.0}
-    model = derive_controlled(system).numeric
+    model = numeric_model(derive_controlled(system))
     ev = model.evaluate(0.0, model.initial_state())
     xi, eta, w, R = 0.3, 0.1, 2.0, 0.1
     rates = dict(zip(model.state_names, ev.derivative))
@@ -176,6 +177,6 @@ def test_every_bundled_example_starts_consistently(name):
     assert all(old is None for _, old, _ in state.changes), state.changes
     # CHECK_TOLERANCE (1e-9) is what simulate accepts; the files' values give <= 3e-16
     assert state.largest_residual <= CHECK_TOLERANCE
-    model = d.numeric
+    model = numeric_model(d)
     for servo in getattr(model, "servo_names", ()):
         assert servo in state.position_residuals or servo in state.velocity_residuals

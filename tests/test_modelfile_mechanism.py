@@ -23,6 +23,7 @@ from click.testing import CliRunner
 from appell import derive, load_model, loads_model
 from appell.errors import ModelError
 from appell.io.cli import cli
+from appell import numeric_model
 
 CIRCLE = """\
 [model]
@@ -105,7 +106,7 @@ shoulder = 0.4
 def test_planar_body_on_a_circle_is_a_pendulum_with_the_closed_form_tension():
     system = loads_model(CIRCLE, "circle.toml")
     assert [q.name for q in system.coordinates] == ["slide_x", "slide_y", "slide_rz"]
-    numeric = derive(system).numeric
+    numeric = numeric_model(derive(system))
     m, L, g = 1.5, 0.8, 9.81
     for theta, rate in ((0.3, 0.0), (-1.1, 1.7), (2.0, -0.6)):
         x, y = L * math.sin(theta), -L * math.cos(theta)
@@ -131,7 +132,7 @@ def driven(tmp_path):
 def test_model_file_names_a_urdf_and_adds_an_actuator(driven):
     system = load_model(driven)
     assert dict(system.initial)["shoulder"] == 0.4 and dict(system.initial)["shoulder_dot"] == 1.0
-    numeric = derive(system).numeric
+    numeric = numeric_model(derive(system))
     m, L, Ic, g, tau = 2.0, 0.5, 0.04, 9.81, 3.0
     for th, w in ((0.4, 1.0), (-2.0, 0.3), (1.3, -2.2)):
         sol = numeric.solve(0.0, [th], [w])
@@ -232,7 +233,7 @@ def test_floating_joint_falls_freely_and_transmits_nothing():
     system = urdf_system(parse_urdf(text, "drone.urdf"))
     names = [q.name for q in system.coordinates]
     assert names == ["base_x", "base_y", "base_z", "base_q0", "base_q1", "base_q2", "base_q3"]
-    numeric = derive(system).numeric
+    numeric = numeric_model(derive(system))
     q0 = np.array([0.3, -0.2, 1.0, *(np.array([0.9, 0.1, -0.3, 0.2]) / np.linalg.norm([0.9, 0.1, -0.3, 0.2]))])
     sol = numeric.solve(0.0, q0, np.zeros(7))
     # rounding only (a solve of condition ~15): eps x 15 x g = 3e-14 at most; measured exact

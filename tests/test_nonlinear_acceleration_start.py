@@ -17,6 +17,7 @@ import sympy as sp
 from appell import derive
 from appell.errors import SingularConfigurationError
 from appell.model import Parameter, System, acceleration_constraint
+from appell import numeric_model
 
 M, G, F, A0 = 2.0, 9.81, 3.0, 4.0
 
@@ -40,7 +41,7 @@ def prescribed_magnitude(a0: float = A0) -> System:
 def test_acceleration_of_prescribed_magnitude_along_the_force(backend):
     """Hand elimination (module docstring): a = a0 Q/|Q|, lambda = (m a0 - |Q|)/(2 a0)."""
     d = derive(prescribed_magnitude())
-    model = d.numeric if backend == "numpy" else d.compiled("c")
+    model = numeric_model(d) if backend == "numpy" else numeric_model(d, "c")
     sol = model.solve(0.0, [0.0, 0.0], [0.3, -0.1])
     Q = np.array([F, -M * G])
     # Newton stops at a relative step of 1e-12 (numerics.numeric.newton), converging fast: its error
@@ -54,6 +55,6 @@ def test_no_real_solution_is_reported_with_the_residual():
     the multiplier is undetermined; the error names the constraint instead of a number."""
     d = derive(prescribed_magnitude(0.0))
     with pytest.raises(SingularConfigurationError) as info:
-        d.numeric.solve(0.0, [0.0, 0.0], [0.0, 0.0])
+        numeric_model(d).solve(0.0, [0.0, 0.0], [0.0, 0.0])
     assert isinstance(info.value, SingularConfigurationError) and info.value.exit_code == 2
     assert "magnitude" in str(info.value)

@@ -13,6 +13,7 @@ sign convention, method.md §2, gives the opposite sign).
 
 from __future__ import annotations
 
+import appell
 import re
 
 import numpy as np
@@ -27,6 +28,7 @@ from appell.io.cli import cli, derive_model, is_controlled
 from appell.io.printing import derivation_text
 from appell.numerics.numeric import program_substitutions
 from appell.symbols import t as T
+from appell import numeric_model
 
 ANDREWS_ACC = [14222.4439199541138705911625887, -10666.8329399655854029433719415, 0, 0, 0, 0, 0]
 ANDREWS_LAMBDA = [98.5668703962410896057654982170, -6.12268834425566265503114393122, 0, 0, 0, 0]
@@ -40,7 +42,7 @@ def andrews():
 @pytest.mark.parametrize("backend", ["numpy", "c"])
 def test_andrews_squeezer_matches_the_published_values_at_t0(andrews, backend):
     """Mazzia & Magherini test set, problem 'andrews', t = 0 (module docstring)."""
-    model = andrews.numeric if backend == "numpy" else andrews.compiled("c")
+    model = numeric_model(andrews) if backend == "numpy" else numeric_model(andrews, "c")
     q0 = [andrews.system.initial_values[s.name] for s in andrews.kinematics.coordinates]
     sol = model.solve(0.0, q0, np.zeros(7))
     # rounding times the solve's condition (~20 componentwise) and the size of the values: at most
@@ -52,7 +54,7 @@ def test_andrews_squeezer_matches_the_published_values_at_t0(andrews, backend):
 def test_andrews_squeezer_prints_under_40_kB_and_the_augmented_route_agrees(andrews):
     """The issue's target: under 40 kB of text; and the independent augmented system
     (method.md §3) gives the same accelerations and multipliers."""
-    text = andrews.to_text()
+    text = appell.to_text(andrews)
     assert len(text.encode()) < 40_000
     report = cross_check(andrews)
     assert report.passed
@@ -141,7 +143,7 @@ def test_printed_formulas_evaluate_to_the_numeric_model(name):
     lambda by (1.5) and solved in (t, q, w), read from the text, equal the numeric split at
     a random state (rel. 1e-9)."""
     d = derive(BUILDERS[name]())
-    text = d.to_text()
+    text = appell.to_text(d)
     defs, rows = read_printed(text, _names(d))
     defs = list(defs) + [(lhs, rhs) for label, lhs, rhs in rows if label.startswith(NAMING)]
     rows = [(label, lhs, rhs) for label, lhs, rhs in rows if not label.startswith(NAMING)]
@@ -152,7 +154,7 @@ def test_printed_formulas_evaluate_to_the_numeric_model(name):
     tt = 0.3
     # redundant constraints: the printed (1.5) are the independent constraints' multipliers
     # (the redundant ones' zero), which the wrapped model of those constraints computes
-    sol = getattr(d.numeric, "inner", d.numeric).solve(tt, q, w)
+    sol = getattr(numeric_model(d), "inner", numeric_model(d)).solve(tt, q, w)
     base = _values(d, tt, q, w)
     acc = dict(zip(d.kinematics.accelerations, sol.accelerations))
     lam = {sp.Symbol(f"lambda_{n}"): v for n, v in zip(d.constraints.names, sol.multipliers)}
@@ -218,8 +220,8 @@ def test_printed_control_laws_evaluate_to_the_numeric_controls(name):
     (dynamic conditions (2.3) solved at the state) at the model's initial state."""
     d = derive_model(BUILDERS[name]())
     defs, rows = read_printed(derivation_text(d, ["controls"]), _names(d) + [
-        s for s in d.numeric.state_names])
-    model = d.numeric
+        s for s in numeric_model(d).state_names])
+    model = numeric_model(d)
     y = model.initial_state()
     t0 = 0.0
     sol = model.solve(t0, y)

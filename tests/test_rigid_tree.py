@@ -31,6 +31,7 @@ from appell.core.energy import TreeInertiaBlocks
 from appell.mechanism.urdf import urdf_system
 from appell.numerics.outputs import compile_outputs
 from appell.rigid_tree import RECURSIVE_FROM
+from appell import numeric_model
 
 ARM = Path(__file__).resolve().parent.parent / "src" / "appell" / "examples" / "arm.urdf"
 
@@ -84,8 +85,8 @@ def test_recursions_equal_the_expanded_blocks(arm):
     system, tree, expanded = arm
     assert isinstance(tree.inertia, TreeInertiaBlocks) and tree.inertia.gravity
     assert not isinstance(expanded.inertia, TreeInertiaBlocks)
-    routes = [tree.numeric, tree.compiled("c")]
-    reference = expanded.numeric
+    routes = [numeric_model(tree), numeric_model(tree, "c")]
+    reference = numeric_model(expanded)
     p = reference.default_parameters
     n, nq = len(system.speeds), len(system.coordinates)
     for q, w in _states(n, nq):
@@ -100,7 +101,7 @@ def test_recursions_equal_the_expanded_blocks(arm):
 def test_floating_base_recursions_in_numpy_and_c_agree():
     derivation = derive(urdf_system(ARM, floating_base=True, reactions=None))
     assert isinstance(derivation.inertia, TreeInertiaBlocks)  # 10 speeds
-    numeric, compiled = derivation.numeric, derivation.compiled("c")
+    numeric, compiled = numeric_model(derivation), numeric_model(derivation, "c")
     p = numeric.default_parameters
     for q, w in _states(10, 10, seed=8):
         for x, y in zip(numeric.evaluate_blocks(0.0, q, w, p)[:2], compiled.evaluate_blocks(0.0, q, w, p)[:2]):
@@ -152,12 +153,12 @@ def test_a_tree_left_by_an_edited_system_is_not_used():
 
 def test_a_derivation_on_the_route_pickles_after_numeric_use():
     derivation = derive(recursive(urdf_system(ARM)))
-    numeric = derivation.numeric
+    numeric = numeric_model(derivation)
     q, w = np.full(4, 0.3), np.full(4, -0.2)
     before = numeric.solve(0.0, q, w).accelerations
     again = pickle.loads(pickle.dumps(derivation))
     assert isinstance(again.inertia, TreeInertiaBlocks)
-    np.testing.assert_array_equal(again.numeric.solve(0.0, q, w).accelerations, before)
+    np.testing.assert_array_equal(numeric_model(again).solve(0.0, q, w).accelerations, before)
 
 
 def test_printed_recursion_holds_at_the_numeric_solution():
@@ -171,7 +172,7 @@ def test_printed_recursion_holds_at_the_numeric_solution():
     derivation = derive(system)
     rows = equation_formulas(derivation)
     assert not any(str(f.lhs).startswith("lambda_") for f in rows)
-    numeric = derivation.numeric
+    numeric = numeric_model(derivation)
     rng = np.random.default_rng(12)
     q, w = rng.uniform(-1, 1, 4), rng.uniform(-1, 1, 4)
     sol = numeric.solve(0.0, q, w)

@@ -26,6 +26,7 @@ import pytest
 
 from appell import derive
 from appell.mechanism.urdf import urdf_system
+from appell import numeric_model
 
 pin = pytest.importorskip("pinocchio", reason="Pinocchio is not installed (pip install pin, in appell[test])")
 
@@ -68,7 +69,7 @@ def fixed_robot(request):
     system = urdf_system(path)
     model = pin.buildModelFromUrdf(str(path))
     derivation = derive(system)
-    return request.param, derivation, derivation.compiled("c"), model, model.createData()
+    return request.param, derivation, numeric_model(derivation, "c"), model, model.createData()
 
 
 def test_real_robots_take_the_recursive_route(fixed_robot):
@@ -81,7 +82,7 @@ def test_real_robots_take_the_recursive_route(fixed_robot):
 
 def test_mass_matrix_and_bias_equal_pinocchios_crba_and_rnea(fixed_robot):
     name, derivation, compiled, model, data = fixed_robot
-    numeric = derivation.numeric
+    numeric = numeric_model(derivation)
     names = [q.name for q in derivation.kinematics.coordinates]
     rng = np.random.default_rng(3)
     for _ in range(3):
@@ -121,7 +122,7 @@ def test_motion_and_every_joint_wrench_equal_pinocchio(fixed_robot):
             np.testing.assert_allclose(pin.aba(model, data, qp, w[order], np.zeros(model.nv)), a[order],
                                        rtol=1e-9, atol=1e-9, err_msg=name)
             np.testing.assert_allclose(tau, 0.0, atol=1e-9, err_msg=name)
-        out = derivation.numeric.outputs(0.0, q, w, solution=sol)
+        out = numeric_model(derivation).outputs(0.0, q, w, solution=sol)
         # the same reactions in one C call (node order), and with the accelerations in one call
         wrench = compiled.joint_wrenches(0.0, q, w, a)
         a_fw, lam_fw, wrench_fw = compiled.forward(0.0, q, w)
@@ -148,7 +149,7 @@ def test_solo12_floating_base_against_the_free_flyer():
     system = urdf_system(path, floating_base=True)
     derivation = derive(system)
     assert derivation.inertia.tree is not None
-    compiled = derivation.compiled("c")
+    compiled = numeric_model(derivation, "c")
     model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
     data = model.createData()
     names = [q.name for q in derivation.kinematics.coordinates]
@@ -176,7 +177,7 @@ def test_solo12_floating_base_against_the_free_flyer():
         a_pin = pin.aba(model, data, qp, v, np.zeros(model.nv))
         np.testing.assert_allclose(a_pin[6:], a[6:][order], rtol=1e-9, atol=1e-9)
         # every leg joint's transmitted force (Pinocchio at its own accelerations)
-        out = derivation.numeric.outputs(0.0, q, w, solution=sol)
+        out = numeric_model(derivation).outputs(0.0, q, w, solution=sol)
         pin.forwardKinematics(model, data, qp)
         pin.rnea(model, data, qp, v, a_pin)
         for jid in range(2, model.njoints):

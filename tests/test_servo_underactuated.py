@@ -20,6 +20,7 @@ from appell.examples.servo_examples import overhead_crane, spring_masses
 from appell.control.servo import derive_controlled
 from appell.control.servo_numeric import cross_check_controlled
 from appell.symbols import t
+from appell import numeric_model
 
 m1, m2, k, d = sp.symbols("m1 m2 k d")
 x1, y, x1d, yd = sp.symbols("x1 y x1_dot y_dot")
@@ -65,7 +66,7 @@ def test_spring_relative_degree_and_law(flat):
 def test_spring_numeric_law_on_manifold(flat):
     """At states on the manifold (y = y_d, x1 = y_d + m2 y_d''/k, ...) the ControlledModel's
     control equals the closed form."""
-    model = flat.numeric
+    model = numeric_model(flat)
     mm1, mm2, kk = PARS["m1"], PARS["m2"], PARS["k"]
     for tv in (0.0, 0.4, 1.3, 2.9):
         der = [float(sp.diff(YD, t, j).subs(t, tv)) for j in range(5)]
@@ -94,7 +95,7 @@ def test_damper_closed_loop_tracks(damped):
     controls of the ControlledModel and check y = y_d to the integration tolerance."""
     from scipy.integrate import solve_ivp
 
-    model = damped.numeric
+    model = numeric_model(damped)
     sol = solve_ivp(lambda tt, s: model.evaluate(tt, s).derivative, (0, 4), model.initial_state(),
                     method="DOP853", rtol=1e-10, atol=1e-12, dense_output=True)
     assert sol.success
@@ -135,7 +136,7 @@ def test_crane_relative_degrees(crane):
 
 
 def test_crane_controls_against_closed_forms(crane):
-    model = crane.numeric
+    model = numeric_model(crane)
     for tv in (0.0, 0.7, 1.9, 3.3, 5.0):
         state, FT, FW, (ax, az), th = crane_state(tv)
         ev = model.evaluate(tv, state)

@@ -34,6 +34,7 @@ import appell
 from appell.examples import example_path
 from appell.io.cli import cli
 from appell.simulation.singular import SINGULAR_LEVEL
+from appell import numeric_model
 
 G = 9.81
 
@@ -115,7 +116,7 @@ def models(tmp_path_factory):
 
 
 def stop(derivation, backend, rtol):
-    model = derivation if backend == "numpy" else derivation.compiled("c")
+    model = derivation if backend == "numpy" else numeric_model(derivation, "c")
     sol = appell.simulate(model, rtol=rtol, atol=rtol * 1e-3)
     events = [e for e in sol.events if e.kind == "singular"]
     return sol, events
@@ -206,7 +207,7 @@ def test_a_regular_closed_loop_never_triggers_the_check():
     assert sol.status == 0 and not [e for e in sol.events if e.kind == "singular"]
     from appell.simulation.singular import RankWatch
 
-    watch = RankWatch(derivation.numeric, derivation.numeric.params(), sol.t[0], sol.y[:, 0])
+    watch = RankWatch(numeric_model(derivation), numeric_model(derivation).params(), sol.t[0], sol.y[:, 0])
     g = [watch.measure(t, y) for t, y in zip(sol.t[::10], sol.y[:, ::10].T)]
     assert min(g) > 100 * SINGULAR_LEVEL
 
@@ -224,7 +225,7 @@ def test_a_kinetic_energy_that_degenerates_mid_run_is_named_where_the_integrator
     t_star, _ = quad(lambda th: abs(np.cos(th) + np.sin(th)) / np.sqrt(2 * G * (np.cos(th) - 0.5)),
                      -np.pi / 4, np.pi / 3, limit=200)
     derivation = appell.derive(appell.loads_model(text))
-    for model in (derivation, derivation.compiled("c")):
+    for model in (derivation, numeric_model(derivation, "c")):
         sol = appell.simulate(model, 2.0)
         assert sol.status == -1
         failed_at = float(sol.message.split("failed at t = ")[1].split(":")[0])

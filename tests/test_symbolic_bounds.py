@@ -38,6 +38,7 @@ from appell.core.kinematics import derivative
 from appell.examples import example_path
 from appell.io.cli import cli
 from appell.io.printing import read_json
+from appell import numeric_model
 
 #: seconds a command may run before the guard stops the test (a hang guard, not a benchmark)
 GUARD = 60
@@ -170,7 +171,7 @@ def test_a_swelling_constraint_keeps_the_motion_and_divides_the_reaction(tmp_pat
     lam = value(doc["multipliers"]["rod"], **state)
     assert lam * phi(x, y) == pytest.approx(g * math.cos(theta), rel=1e-9)
     system = loads_model(text)
-    sol = derive(system).numeric.solve(0.0, [x, y], [0.0, 0.0])
+    sol = numeric_model(derive(system)).solve(0.0, [x, y], [0.0, 0.0])
     assert np.allclose(sol.accelerations, [ax, ay], rtol=1e-9, atol=1e-12)
 
 

@@ -20,6 +20,7 @@ import pytest
 
 from appell import derive
 from appell.mechanism.urdf import read_urdf, urdf_system
+from appell import numeric_model
 
 pin = pytest.importorskip("pinocchio", reason="Pinocchio is not installed (pip install pin, in appell[test])")
 
@@ -30,7 +31,7 @@ ARM = Path(__file__).resolve().parent.parent / "src" / "appell" / "examples" / "
 def arm():
     system = urdf_system(ARM)
     model = pin.buildModelFromUrdf(str(ARM))
-    return derive(system).numeric, [q.name for q in system.coordinates], model, model.createData()
+    return numeric_model(derive(system)), [q.name for q in system.coordinates], model, model.createData()
 
 
 def _pin_state(model, names, q, w, a):
@@ -137,7 +138,7 @@ def _euler_zyx():
 def floating_arm():
     system = urdf_system(ARM, floating_base=True)
     model = pin.buildModelFromUrdf(str(ARM), pin.JointModelFreeFlyer())
-    return derive(system).numeric, [q.name for q in system.coordinates], model, model.createData()
+    return numeric_model(derive(system)), [q.name for q in system.coordinates], model, model.createData()
 
 
 def test_a_floating_base_moves_as_pinocchios_free_flyer(floating_arm):
@@ -217,7 +218,7 @@ def test_a_floating_base_is_the_root_with_every_link_fixed_to_it(tmp_path):
     system = urdf_system(path, floating_base=True)
     names = [q.name for q in system.coordinates]
     assert names == [f"root_joint_{k}" for k in ("x", "y", "z", "rz", "ry", "rx")] + ["hip"]
-    numeric = derive(system).numeric
+    numeric = numeric_model(derive(system))
     model = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())
     data = model.createData()
     assert sum(i.mass for i in model.inertias) == pytest.approx(7.3)

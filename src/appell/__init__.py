@@ -1,9 +1,14 @@
 """appell — reactions and controls of constrained mechanical systems by Do Shan's method.
 
 Pipeline: :class:`System` -> :func:`derive` -> :class:`Derivation` (reduced equations
-(1.4), reaction formulas (1.5), numeric functions) -> :func:`cross_check`.
+(1.4), reaction formulas (1.5): symbolic data) -> :func:`numeric_model` (the numeric
+functions and the split solve, NumPy or C) -> :func:`simulate`, :func:`cross_check`;
+:func:`to_text`, :func:`to_latex`, :func:`to_json` print a derivation.
 """
 
+import sys
+
+from appell.numerics.boundary import numeric_model
 from appell.numerics.crosscheck import CrossCheckReport, augmented_solve, cross_check
 from appell.core.derive import derive
 from appell.core.equations import Derivation, ReactionFormulas, ReducedEquations
@@ -42,6 +47,7 @@ from appell.numerics.codegen import compile_c
 from appell.simulation.sweep import SweepResult, parameter_grid, sweep, sweep_cluster
 from appell.control.servo import ControlledDerivation, derive_controlled
 from appell.control.servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
+from appell.io.printing import display_latex, read_json, to_json, to_latex, to_text
 from appell.io.report import render_report, write_report
 from appell.io.viewer import MotionView, view_motion
 from appell.mechanism.sympy_system import from_sympy
@@ -49,61 +55,20 @@ from appell.mechanism.sympy_system import from_sympy
 __version__ = "0.1.0"
 
 
-def _install_conveniences() -> None:
-    """Attach the conveniences of the layers above to the plain data of the lower ones:
-    ``Derivation.numeric`` (NumPy functions, built once), ``Derivation.compiled(backend)``
-    (:func:`compile_c`), and the printed forms ``to_text``, ``to_latex``, ``to_json`` and
-    ``_repr_latex_`` of :mod:`appell.io.printing`; ``ControlledDerivation.to_json``.
-    The lower layers import none of these (tests/test_architecture.py)."""
-    from functools import cached_property
-
-    from appell.io import printing
-    from appell.numerics import numeric as numeric_module
-    from appell.numerics.redundant import with_redundancy
-
-    def numeric(self):
-        """Numeric functions of the split (:class:`appell.numerics.numeric.NumericModel`), built once;
-        with redundant constraints wrapped in :class:`appell.numerics.redundant.RedundantModel`."""
-        return with_redundancy(numeric_module.compile_model(self))
-
-    def compiled(self, backend: str = "c"):
-        """Numeric functions from a chosen backend: 'c' (C compiled and cached on disk), 'auto' or
-        'numpy' (:func:`appell.numerics.codegen.compile_c`); not cached here."""
-        return compile_c(self, backend)
-
-    def to_text(self, only=None) -> str:
-        """:func:`appell.io.printing.derivation_text`."""
-        return printing.derivation_text(self, only)
-
-    def to_latex(self, only=None) -> str:
-        """:func:`appell.io.printing.derivation_latex`."""
-        return printing.derivation_latex(self, only)
-
-    def to_json(self) -> dict:
-        """:func:`appell.io.printing.derivation_json`."""
-        return printing.derivation_json(self)
-
-    def _repr_latex_(self) -> str:
-        return "$\\displaystyle " + self.to_latex().replace("\n", " ") + "$"
-
-    def controlled_json(self) -> dict:
-        """JSON-ready dict: each expression as a string for reading and as an exact tree under
-        ``exact`` over the ``symbols`` table (:func:`appell.io.printing.read_json`)."""
-        import json
-
-        out = printing.json_document(self.json_expressions(), self)
-        json.dumps(out)
-        return out
-
-    prop = cached_property(numeric)
-    prop.__set_name__(Derivation, "numeric")
-    Derivation.numeric = prop
-    for fn in (compiled, to_text, to_latex, to_json, _repr_latex_):
-        setattr(Derivation, fn.__name__, fn)
-    ControlledDerivation.to_json = controlled_json
+def _register_display() -> None:
+    """In Jupyter (IPython already running), show derivations as their equations: the
+    ``text/latex`` formatter of IPython's registry gets :func:`appell.io.printing.display_latex`
+    for both kinds of derivation. Nothing is attached to the classes themselves."""
+    ipython = sys.modules.get("IPython")
+    shell = getattr(ipython, "get_ipython", lambda: None)() if ipython is not None else None
+    if shell is None or not hasattr(shell, "display_formatter"):
+        return
+    formatter = shell.display_formatter.formatters["text/latex"]
+    for kind in (Derivation, ControlledDerivation):
+        formatter.for_type(kind, display_latex)
 
 
-_install_conveniences()
+_register_display()
 
 __all__ = [
     "AppellError", "AppliedForce", "AppliedTorque", "ComputationError", "Constraint", "Control",
@@ -123,4 +88,5 @@ __all__ = [
     "derive_controlled",
     "render_report", "write_report", "MotionView", "view_motion",
     "from_sympy",
+    "numeric_model", "read_json", "to_json", "to_latex", "to_text",
 ]

@@ -51,6 +51,7 @@ from appell.errors import ComputationError, ModelError
 from appell.numerics.linearise import ExactJacobians
 from appell.numerics.numeric import lambdify_blocks, program_substitutions
 from appell.symbols import derivative_symbol, t
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["InternalLinearisation", "internal_linearisation", "manifold_function"]
 
@@ -203,7 +204,7 @@ def internal_linearisation(derivation, time=None, state=None, p=None,
                          hint="linearise an ordinary derivation with appell.linearise")
     if derivation.internal_dimension == 0:
         return None
-    model = derivation.numeric
+    model = numeric_model(derivation)
     pv = model.params(p)
     if time is None:
         time = float(dict(derivation.system.settings).get("t0", 0.0))

@@ -31,9 +31,7 @@ does not appear, :mod:`appell.control.underactuated` differentiates the conditio
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, replace
-from functools import cached_property
 from typing import Sequence
 
 import numpy as np
@@ -47,9 +45,9 @@ from appell.errors import ModelError
 from appell.core.kinematics import Kinematics, kinematics_of
 from appell.model import System
 from appell.core.partition import Partition, choose_partition, generic_values, pivoted_columns, redundant_rows
-from appell.symbols import latex_name
 from appell.control.underactuated import MAX_DIFFERENTIATIONS, ServoCondition, realise_conditions, servo_manifold
 from appell.core.validation import validate
+from appell.numerics.boundary import cached, numeric_model
 
 __all__ = ["ControlledBlocks", "ControlledDerivation", "controlled_blocks", "derive_controlled"]
 
@@ -269,117 +267,6 @@ class ControlledDerivation(Derived):
         """Whether some dynamic condition had to be differentiated."""
         return any(c.differentiations for c in self.conditions)
 
-    def __getstate__(self) -> dict:
-        """The fields only, not the numeric model built on first use (closures): a controlled
-        derivation pickles before and after numeric use (a sweep ships it to workers)."""
-        names = {f.name for f in dataclasses.fields(self)}
-        return {k: v for k, v in vars(self).items() if k in names}
-
-    def __setstate__(self, state: dict) -> None:
-        vars(self).update(state)
-
-    @cached_property
-    def numeric(self):
-        """Compiled :class:`appell.control.servo_numeric.ControlledModel` (built on first access)."""
-        from appell.control.servo_numeric import compile_controlled
-
-        return compile_controlled(self)
-
-    # ------------------------------------------------------------ display
-    def _sections(self):
-        a_nu, a_h = self.partition.names(self.accelerations)
-        yield "partition", (a_nu, a_h)
-        yield "(2.3) dynamic conditions", self.dynamic_conditions
-        yield "(2.4) reduced equations", {f"[{nm}]": e for nm, e in zip(a_nu, self.reduced.equations)}
-        yield "(2.5) reactions", {f"lambda_{k}": v for k, v in self.reactions.as_dict().items()}
-        yield "controls", self.control_laws
-        yield "internal dynamics", self.internal_dynamics
-
-    def to_text(self) -> str:
-        """Plain-text report of (2.3), (2.4), (2.5), the control laws and relative degrees."""
-        lines = [f"controlled system {self.system.name!r}: controls "
-                 + ", ".join(f"{c.name} ({c.kind}, unknown {c.unknown})" for c in self.system.controls),
-                 "  real constraints: " + (", ".join(self.blocks.real.names) or "none"),
-                 "  servo constraints: " + ", ".join(self.blocks.servo.names)]
-        for title, body in self._sections():
-            if title == "partition":
-                lines.append(f"  independent accelerations: {', '.join(body[0]) or 'none'}; "
-                             f"dependent: {', '.join(body[1])}")
-                continue
-            if title == "internal dynamics":
-                continue
-            if not body and title.startswith("(2.4)"):
-                lines.append(f"{title}:")
-                lines.append("  none: no free acceleration (p = 0); the real and servo constraints prescribe "
-                             "the motion, the controls realise it (inverse dynamics)")
-                continue
-            lines.append(f"{title}:" + ("" if body else " none"))
-            for k, v in body.items():
-                lines.append(f"  {k}: {v} {'= 0' if not title.startswith(('(2.5)', 'controls')) else ''}".rstrip())
-        lines.append("relative degree: " + ", ".join(
-            f"{c.name} {c.relative_degree} ({c.differentiations} differentiation(s) of (2.3))" for c in self.conditions))
-        lines.append(f"internal dimension: {self.internal_dimension}")
-        lines += self._internal_lines()
-        return "\n".join(lines)
-
-    def _internal_lines(self) -> list[str]:
-        """What is left of the motion once the controls realise the servo constraints."""
-        if self.internal_dimension == 0:
-            return ["internal dynamics: none (the servo and real constraints fix the motion)"]
-        lines = [f"internal dynamics: the motion (2.4) on the servo manifold, dimension {self.internal_dimension}"
-                 + (", with the state relations" if self.internal_dynamics else "")]
-        lines += [f"  {k}: {v} = 0" for k, v in self.internal_dynamics.items()]
-        return lines
-
-    def to_latex(self) -> str:
-        """LaTeX (``align*``) of (2.3), (2.4), (2.5) and the control laws."""
-
-        def tex(e):
-            return sp.latex(e, symbol_names={s: latex_name(s.name) for s in e.free_symbols if s.is_Symbol})
-
-        rows = []
-        for title, body in self._sections():
-            if title == "partition" or not body:
-                continue
-            rows.append(rf"&\text{{{title}}}")
-            for k, v in body.items():
-                if title.startswith("(2.5)"):
-                    rows.append(rf"\lambda_{{\mathrm{{{k[7:]}}}}} &= {tex(v)}")
-                elif title == "controls":
-                    c = next(c for c in self.system.controls if c.name == k)
-                    rows.append(rf"{latex_name(c.unknown.name)} &= {tex(v)}")
-                else:
-                    label = k.replace("_", r"\_")
-                    rows.append(rf"{tex(v)} &= 0 \quad \text{{({label})}}")
-        return "\\begin{align*}\n" + " \\\\\n".join(rows) + "\n\\end{align*}"
-
-    def json_expressions(self) -> dict:
-        """The JSON document with SymPy expressions still in it (see :meth:`to_json`)."""
-        a_nu, a_h = self.partition.names(self.accelerations)
-        kin, system = self.kinematics, self.system
-        out = {"system": system.name, "name": system.name, "independent": a_nu, "dependent": a_h,
-               "coordinates": [s.name for s in kin.coordinates], "speeds": [s.name for s in kin.speeds],
-               "accelerations": [s.name for s in kin.accelerations]}
-        for title, body in self._sections():
-            if title != "partition":
-                key = title.split(") ")[-1].replace(" ", "_")
-                out[key] = dict(body)
-        out["reduced_equations"] = [tidy(e) for e in self.reduced.equations]
-        out["multipliers"] = self.reactions.as_dict()
-        out["controls"] = dict(self.control_laws)
-        out["constraints"] = {c.name: {"kind": c.kind, "expression": c.expr} for c in system.constraints}
-        out["servo_constraints"] = {c.name: {"kind": c.kind, "expression": c.expr} for c in system.servo_constraints}
-        out["control_unknowns"] = {c.name: c.unknown.name for c in system.controls}
-        out["relative_degree"] = self.relative_degree
-        out["differentiations"] = self.differentiations
-        out["internal_dimension"] = self.internal_dimension
-        return out
-
-    def _repr_latex_(self) -> str:
-        """Jupyter display: :meth:`to_latex` as one ``aligned`` block."""
-        body = self.to_latex().replace("{align*}", "{aligned}").replace("\n", " ")
-        return "$\\displaystyle " + body + "$"
-
 
 def _state_dimension(system: System, kin: Kinematics) -> int:
     n_kin = sum(1 for c in system.controls if c.kind == "kinematic")
@@ -495,3 +382,16 @@ def derive_controlled(system: System, dependent: Sequence | None = None,
         conditions=conds, control_laws=control_laws, internal_dynamics=internal,
         internal_dimension=max(internal_dim, 0),
     )
+
+
+@numeric_model.register
+def _controlled_model(derivation: ControlledDerivation, backend: str | None = None):
+    """:func:`appell.numerics.boundary.numeric_model` of a controlled derivation: its
+    :class:`appell.control.servo_numeric.ControlledModel` (NumPy only: the C backend compiles
+    plain derivations)."""
+    if backend not in (None, "numpy", "auto"):
+        raise ModelError(f"the backend {backend!r} compiles plain derivations; a controlled system "
+                         f"({derivation.system.name!r}) runs on NumPy", hint="choose the backend 'numpy' or 'auto'")
+    from appell.control.servo_numeric import compile_controlled
+
+    return cached(derivation, "numpy", lambda: compile_controlled(derivation))

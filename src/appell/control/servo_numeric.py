@@ -37,6 +37,7 @@ from appell.numerics.crosscheck import relative_difference
 from appell.numerics.numeric import (check_finite, lambdify_blocks, program_substitutions, split_basis, split_solve,
                                      usable_partition)
 from appell.symbols import derivative_symbol, t
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["ControlledCrossCheck", "ControlledModel", "ControlledSolution", "augmented_controlled_solve",
            "compile_controlled", "cross_check_controlled", "sample_controlled_states"]
@@ -414,7 +415,7 @@ def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCh
     :class:`ControlledCrossCheck`)."""
     from appell.symbols import t as time
 
-    model = derivation.numeric
+    model = numeric_model(derivation)
     states = states if states is not None else sample_controlled_states(model)
     pv = model.params(p)
     dc = da = dl = ds = 0.0

@@ -9,11 +9,11 @@
       -> constraint blocks  J, c       f = J a + c                    (constraints, §2)
       -> redundant rows set aside      rank J < s, consistency        (redundancy, §3)
       -> partition  a_nu | a_h         condition (1.2)                (partition, §3)
-      => Derivation  .reduced (1.4)  .reactions (1.5)  .numeric       (equations, numerics.numeric)
+      => Derivation  .reduced (1.4)  .reactions (1.5)                 (equations)
 
 and after it, in their own folders::
 
-    Derivation.numeric / .compiled("c")    blocks and split solve at a state     (numerics/)
+    numeric_model(derivation, backend)    blocks and split solve at a state     (numerics/)
     cross_check(derivation)                 the augmented system, independent    (numerics/crosscheck)
     simulate(derivation, t_end)             drift control, events, Solution     (simulation/)
     derive_controlled(system)               servo constraints (2.3)-(2.5)       (control/, §4)

@@ -18,7 +18,6 @@ large expressions (:func:`tidy` touches small ones only).
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -191,11 +190,11 @@ class Derivation(Derived):
     """Everything derived from a :class:`~appell.model.System`, block by block.
 
     Built by :func:`appell.derive`. The closed-form equations are computed on first
-    access: ``reduced`` (1.4) and ``reactions`` (1.5). Plain data of the symbolic layer:
-    its numeric functions and its printed forms come from the layers above
-    (:func:`appell.numerics.numeric.compile_model`, :mod:`appell.io.printing`); the package's
-    ``__init__`` attaches them as the conveniences ``numeric``, ``compiled(backend)``,
-    ``to_text``, ``to_latex``, ``to_json`` and the Jupyter display.
+    access: ``reduced`` (1.4) and ``reactions`` (1.5). Plain data of the symbolic layer,
+    picklable at any time: its numeric functions come from
+    :func:`appell.numerics.boundary.numeric_model` and its printed forms from
+    :mod:`appell.io.printing` (``appell.to_text``, ``to_latex``, ``to_json``), which keep
+    nothing on it.
     """
 
     system: object
@@ -222,17 +221,6 @@ class Derivation(Derived):
     def reactions(self) -> ReactionFormulas:
         """Multiplier formulas, eq. (1.5)."""
         return reaction_formulas(self.inertia, self.constraints, self.partition, self.accelerations)
-
-    def __getstate__(self) -> dict:
-        """What a pickle keeps: the fields and the symbolic equations computed so far, not the
-        numeric functions attached on first use (``numeric``: lambdified closures, built
-        again where the copy is used), so that a derivation pickles before and after numeric
-        use (a sweep ships it to Dask workers)."""
-        keep = {f.name for f in dataclasses.fields(self)} | {"reduced", "reactions"}
-        return {k: v for k, v in vars(self).items() if k in keep}
-
-    def __setstate__(self, state: dict) -> None:
-        vars(self).update(state)  # frozen: the fields are restored as they were pickled
 
     def with_partition(self, dependent) -> "Derivation":
         """The same derivation with another choice of dependent accelerations (checked)."""

@@ -42,6 +42,7 @@ from appell.core.equations import formulas_unavailable
 from appell.errors import AppellError, ComputationError, ModelError
 from appell.files import atomic_path, default_file_name, output_target
 from appell.symbols import canonical_name
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
            "run_simulation", "export_solution", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
@@ -146,7 +147,7 @@ def check_inertia_at_start(derivation) -> None:
         from appell.numerics.inertia import check_inertia
         from appell.simulation.initial import check_blocks_at_start
 
-        model = derivation.numeric
+        model = numeric_model(derivation)
         t0 = float(dict(system.settings).get("t0", 0.0))
         y = [float(values.get(name, 0.0)) for name in model.state_names]
         check_blocks_at_start(model, t0, y, model.default_parameters)  # entries beyond the range: named
@@ -177,7 +178,7 @@ def internal_stability(derivation, solution=None):
 
     time = state = None
     if solution is not None and solution.t.size:
-        model = derivation.numeric
+        model = numeric_model(derivation)
         time, state = float(solution.t[0]), [float(solution.states[n][0]) for n in model.state_names]
     try:
         return internal_linearisation(derivation, time, state), None
@@ -204,10 +205,10 @@ def derivation_json(derivation, reduction=None) -> dict:
     (:func:`appell.io.printing.read_json`). ``outputs``: output name -> ``expression``,
     ``unit``, ``description``.
     """
-    from appell.io.printing import derivation_document, json_document
+    from appell.io.printing import document_expressions, json_document
 
     system = derivation.system
-    out = derivation.json_expressions() if is_controlled(derivation) else derivation_document(derivation)
+    out = document_expressions(derivation)
     out.setdefault("outputs", {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
                                for o in system.outputs})
     linearisation, _ = internal_stability(derivation)
@@ -279,9 +280,9 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
     with status(f"compiling the numeric code of {derivation.system.name} ({backend})"):
         if backend == "numpy" or is_controlled(derivation):
             model = derivation
-            derivation.numeric  # noqa: B018 (built and cached here, under the status line)
+            numeric_model(derivation)  # built and kept here, under the status line
         else:
-            model = derivation.compiled(backend)
+            model = numeric_model(derivation, backend)
     table = simulation_options(derivation.system, t_end, **(solver or {}))
     opts = {"complete": True, "adjust": None if table.get("complete") else (), **table, **options}
     t0, t_end = opts.pop("t0"), opts.pop("t_end")
@@ -314,7 +315,7 @@ def check_output_memory(derivation, model, opts) -> None:
     from appell.numerics.compiled_loop import supports
     from appell.simulation.resources import check_run_memory
 
-    dynamics = model if hasattr(model, "state_names") else derivation.numeric
+    dynamics = model if hasattr(model, "state_names") else numeric_model(derivation)
     compiled = opts.get("method", "DOP853") == "DOP853" and supports(model) and not opts.get("project_output")
     check_run_memory(dynamics, len(times), compiled)
 
@@ -614,14 +615,14 @@ def derive(model, fmt, dependent, routh, assignments, floating_base, only):
         out = derivation_json(derivation, reduction)
         click.echo(json.dumps(out, indent=2))
     elif fmt == "latex":
-        from appell.io.printing import derivation_latex
+        from appell.io.printing import derivation_latex, to_latex
 
-        body = derivation_latex(derivation, only) if only else derivation.to_latex()
+        body = derivation_latex(derivation, only) if only else to_latex(derivation)
         click.echo((reduction.to_latex() + "\n\n" if reduction is not None else "") + body)
     else:
-        from appell.io.printing import derivation_text
+        from appell.io.printing import derivation_text, to_text
 
-        body = derivation_text(derivation, only) if only else derivation.to_text()
+        body = derivation_text(derivation, only) if only else to_text(derivation)
         click.echo((reduction.to_text() + "\n\n" if reduction is not None else "") + body)
         if linearisation is not None and (not only or "controls" in only):
             click.echo(linearisation.to_text())
@@ -787,7 +788,7 @@ def inverse(model, trajectory, drives, out, assignments, floating_base):
     path = output_file(Path(out), "'--out'") if out else None
     system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
-    numeric = derivation.numeric
+    numeric = numeric_model(derivation)
     missing = [n for n in ("t",) + tuple(numeric.coordinate_names) if n not in table]
     if missing:
         raise ModelError(f"{trajectory}: no column {', '.join(missing)}",

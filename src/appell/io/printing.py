@@ -644,6 +644,52 @@ def derivation_json(derivation) -> dict:
     return json_document(derivation_document(derivation), derivation)
 
 
+def document_expressions(derivation) -> dict:
+    """The JSON document of a plain or controlled derivation with SymPy expressions still in
+    it (:func:`derivation_document`, :func:`appell.io.controlled_printing.controlled_expressions`)."""
+    if is_controlled(derivation):
+        from appell.io.controlled_printing import controlled_expressions
+
+        return controlled_expressions(derivation)
+    return derivation_document(derivation)
+
+
+def to_text(derivation, only=None) -> str:
+    """The derivation as plain text: the reduced equations (1.4) and each reaction (1.5) through
+    shared subexpressions (:func:`derivation_text`; ``only`` selects items), or for a controlled
+    derivation (2.3)-(2.5) and the control laws (:mod:`appell.io.controlled_printing`)."""
+    if is_controlled(derivation):
+        from appell.io.controlled_printing import controlled_text
+
+        return controlled_text(derivation)
+    return derivation_text(derivation, only)
+
+
+def to_latex(derivation, only=None) -> str:
+    """The derivation as LaTeX, as :func:`to_text` (:func:`derivation_latex`)."""
+    if is_controlled(derivation):
+        from appell.io.controlled_printing import controlled_latex
+
+        return controlled_latex(derivation)
+    return derivation_latex(derivation, only)
+
+
+def to_json(derivation) -> dict:
+    """JSON-ready dict of a plain or controlled derivation (:func:`document_expressions` through
+    :func:`json_document`): each expression as a string and as an exact tree over the
+    ``symbols`` table (:func:`read_json` reads it back)."""
+    out = json_document(document_expressions(derivation), derivation)
+    json.dumps(out)
+    return out
+
+
+def display_latex(derivation) -> str:
+    """What Jupyter shows for a derivation (``text/latex``): :func:`to_latex` as one
+    ``aligned`` block in display math."""
+    body = to_latex(derivation).replace("{align*}", "{aligned}").replace("\n", " ")
+    return "$\\displaystyle " + body + "$"
+
+
 def _read_exact(node, symbols, shared=None):
     if isinstance(node, dict):
         return {k: _read_exact(v, symbols, shared) for k, v in node.items()}

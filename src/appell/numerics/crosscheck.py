@@ -59,6 +59,7 @@ from appell.core.partition import row_scales
 from appell.errors import ComputationError, FormulaUnavailable, ModelError
 from appell.numerics.inertia import check_inertia
 from appell.numerics.numeric import NumericModel, StateSolution, newton
+from appell.numerics.boundary import numeric_model
 
 NORMALISATION = ("accelerations relative to max(max|a|, F/max|M|); each multiplier relative to "
                  "max(max_j |lambda_j|, F/max|J|) at its state, F = max(|M a|, |h - Q|) (the acceleration the largest "
@@ -355,7 +356,7 @@ class _Lines:
 def cross_check(derivation, states=None, p=None, model: NumericModel | None = None) -> CrossCheckReport:
     """Compare the split (1.4)/(1.5) with the independent routes of the module docstring at
     ``states`` (default :func:`sample_states`). ``model``: the numeric model to check
-    (default ``derivation.numeric``)."""
+    (default ``numeric_model(derivation)``)."""
     from appell.numerics.lagrange import lagrange_route, lagrange_unavailable
 
     if is_controlled(derivation):
@@ -363,7 +364,7 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
             f"{derivation.system.name!r} is a controlled derivation: its check needs the controls as unknowns",
             hint="use appell.cross_check_controlled(derivation) (the augmented system with the controls)",
         )
-    model = derivation.numeric if model is None else model
+    model = numeric_model(derivation) if model is None else model
     states = states if states is not None else sample_states(derivation)
     if states:  # a zero or negative mass is named here, not met as a singular matrix below
         t0, q0, w0 = states[0]

@@ -42,6 +42,7 @@ from appell.errors import ComputationError, ModelError, PainleveError
 from appell.numerics.dynamics import Evaluation
 from appell.numerics.numeric import NumericModel, StateSolution, _args, compile_model, lambdify_blocks, \
     partition_in_use, program_substitutions, split_solve
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["augmented_friction_solve", "FrictionEvaluation", "FrictionLaws", "FrictionModel", "friction_model", "PAINLEVE_TOLERANCE",
            "stick_names"]
@@ -124,7 +125,7 @@ class FrictionLaws:
         ``v_k = 0`` for every contact in ``sticking`` (derived once per mode)."""
         key = (frozenset(released), frozenset(sticking))
         if not key[0] and not key[1]:
-            return self.derivation.numeric if hasattr(self.derivation, "numeric") else compile_model(self.derivation)
+            return numeric_model(self.derivation)
         if key not in self._models:
             from appell.core.derive import derive
             from appell.model import nonholonomic

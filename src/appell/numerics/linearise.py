@@ -55,6 +55,7 @@ from appell.core.kinematics import jacobian
 from appell.errors import ComputationError, ModelError
 from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
 from appell.symbols import t
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["ExactJacobians", "LinearModel", "linearise", "motion_jacobian", "steady_motion", "STEADY_TOLERANCE"]
 
@@ -338,7 +339,7 @@ def _independent(matrix: np.ndarray, candidates: list[int], named: Sequence[int]
 def _state(derivation, at: Mapping[str, float] | None, p=None):
     """``(t, q, w, pv)`` from ``at`` (``{name: value}``; time under ``t``) over the
     system's initial values and parameter values."""
-    model = derivation.numeric
+    model = numeric_model(derivation)
     system = derivation.system
     values = dict(system.initial_values)
     params = {}
@@ -368,8 +369,8 @@ def _ignored(derivation, sens: _Sensitivities, ignore) -> tuple[list[int], list[
     """``(coordinates, speeds)`` left out of the state, by index (module docstring);
     ``'cyclic'``: those that no block, rate or constraint contains (:func:`_cyclic_states`
     adds those the expressions hide)."""
-    names = list(derivation.numeric.coordinate_names)
-    speeds = list(derivation.numeric.speed_names)
+    names = list(numeric_model(derivation).coordinate_names)
+    speeds = list(numeric_model(derivation).speed_names)
     coords = list(derivation.kinematics.coordinates)
     if ignore is None:
         return [], []
@@ -434,7 +435,7 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     if is_controlled(derivation):
         raise ModelError("linearise works on derivations without servo constraints",
                          hint="the internal dynamics of a servo-controlled system: appell check prints them")
-    model = derivation.numeric
+    model = numeric_model(derivation)
     pnames = [s.name for s in model.parameters]
     bad = [u for u in inputs if u not in pnames]
     if bad:
@@ -540,7 +541,7 @@ def steady_motion(derivation, guess: Mapping[str, float] | None = None, *, free:
     guess (Gauss–Newton from it, :func:`scipy.optimize.least_squares`)."""
     from scipy.optimize import least_squares
 
-    model = derivation.numeric
+    model = numeric_model(derivation)
     tt, q0, w0, pv = _state(derivation, guess, params)
     cnames, snames = list(model.coordinate_names), list(model.speed_names)
     names = cnames + snames

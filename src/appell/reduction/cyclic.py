@@ -66,6 +66,7 @@ from appell.core.kinematics import kinematics_of
 from appell.model import Parameter, System
 from appell.symbols import derivative_symbol, t
 from appell.core.validation import validate
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["RouthReduction", "cyclic_coordinates", "routh_reduction"]
 
@@ -219,7 +220,7 @@ class RouthReduction:
         """Integrate the reduced system together with the quadrature (3.4).
 
         Returns ``(times, positional_states, cyclic_coordinates)``; the positional state
-        is ``[q_i, q_dot_i]``, the accelerations come from ``derive(self.system).numeric``.
+        is ``[q_i, q_dot_i]``, the accelerations come from ``numeric_model(derive(self.system))``.
         ``initial`` = (q_i, q_dot_i, q_alpha) at ``t_span[0]``; default from the full
         system's initial values.
         """
@@ -227,7 +228,7 @@ class RouthReduction:
 
         from appell.core.derive import derive
 
-        num = derive(self.system).numeric
+        num = numeric_model(derive(self.system))
         m, k = len(self.positional), len(self.cyclic)
         init = self.full.initial_values
         if initial is None:

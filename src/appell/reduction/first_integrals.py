@@ -70,6 +70,7 @@ from appell.core.simplification import within_bound
 from appell.numerics.budget import EvaluationBudget
 from appell.symbols import t
 from appell.core.validation import validate
+from appell.numerics.boundary import numeric_model
 
 __all__ = [
     "FirstIntegralCheck",
@@ -302,7 +303,7 @@ def consistent_states(derivation, count: int, *, seed: int = 0, t_span: float = 
     """
     from appell.simulation.simulate import project
 
-    model = derivation.numeric
+    model = numeric_model(derivation)
     q0, w0 = _initial_state(derivation.system)
     nq = len(q0)
     rng = np.random.default_rng(seed)
@@ -359,7 +360,7 @@ def check_first_integrals(system: System, integrals: Sequence[FirstIntegral] | N
                          hint="give first_integrals=(FirstIntegral(name, expr), ...)")
     validate(system.replace(first_integrals=cands))
     base = derive(system.replace(first_integrals=()))
-    num = base.numeric
+    num = numeric_model(base)
     q0, w0 = _initial_state(system)
     times = np.linspace(0.0, t_final, trajectory_points)
     _, Qs, Ws = _integrate_motion(num, q0, w0, times)
@@ -407,7 +408,7 @@ def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic
     con = aug_sys.constraints[-1]
     g = sp.sympify(fi.expr)
     rate = _Rate(system, g)
-    pv = base.numeric.default_parameters
+    pv = numeric_model(base).default_parameters
     gv = np.array([rate.value(tt, q, w, pv) for tt, q, w in trajectory])
     drift = float(np.max(np.abs(gv - gv[0])))
     common = dict(name=fi.name, expression=g, constraint=con, drift=drift)
@@ -439,7 +440,7 @@ def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic
     worst_state = None
     for tt, q, w in states:
         try:
-            r, size = rate.rate(base.numeric, tt, q, w, pv)
+            r, size = rate.rate(numeric_model(base), tt, q, w, pv)
         except (ComputationError, np.linalg.LinAlgError):
             skipped += 1
             continue
@@ -454,7 +455,7 @@ def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic
     mu_value = float("nan")
     if aug is not None:
         try:
-            mu_value = abs(float(aug.numeric.solve(*worst_state).multipliers[-1]))
+            mu_value = abs(float(numeric_model(aug).solve(*worst_state).multipliers[-1]))
         except (ComputationError, np.linalg.LinAlgError):
             mu_value = float("nan")
     ok = worst_rel <= tolerance

@@ -55,6 +55,7 @@ import sympy as sp
 from appell.core.equations import is_controlled
 from appell.errors import ComputationError, ModelError
 from appell.numerics.budget import EvaluationBudget
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["ENERGY_TOLERANCE", "EnergyBalance", "energy_balance", "energy_form"]
 
@@ -205,7 +206,7 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     system's initial values, dependent ones completed by
     :func:`~appell.simulation.initial.complete_initial`) over ``[t0, t_end]``, compared at
     ``samples`` equally spaced times (module docstring). ``model``: the numeric model whose
-    motion is checked (default ``derivation.numeric``). ``method``: ``'DOP853'``, or
+    motion is checked (default ``numeric_model(derivation)``). ``method``: ``'DOP853'``, or
     ``'Radau'`` for a stiff motion (the command line's choice where the model's own
     ``[simulation]`` method is implicit: the stiff flyball governor's springs would take an
     explicit method 2e5 evaluations over its 10 s).
@@ -222,7 +223,7 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     form, reason = energy_form(derivation)
     if form is None:
         return EnergyBalance(None, reason)
-    model = derivation.numeric if model is None else model
+    model = numeric_model(derivation) if model is None else model
     t0, t_end = float(t0), float(t_end)
     if not t_end > t0:
         raise ModelError(f"the energy balance needs t_end > t0 (got t0 = {t0:g}, t_end = {t_end:g})")

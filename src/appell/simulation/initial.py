@@ -32,6 +32,8 @@ import numpy as np
 from appell.arguments import number
 from appell.errors import ComputationError, InitialValueError, ModelError
 from appell.symbols import derivative_name, split_derivative_name
+from appell.core.equations import Derived
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians",
            "check_blocks_at_start", "COMPLETION_HINT", "CHECK_TOLERANCE"]
@@ -89,11 +91,9 @@ class InitialState:
 
 
 def dynamics_of(model_or_derivation):
-    """The :class:`~appell.numerics.dynamics.Dynamics` of a derivation (its ``numeric``) or the
+    """The :class:`~appell.numerics.dynamics.Dynamics` of a derivation (:func:`~appell.numerics.boundary.numeric_model`) or the
     object itself, and the :class:`~appell.model.System` behind it (or None)."""
-    model = getattr(model_or_derivation, "numeric", None) if hasattr(model_or_derivation, "partition") else None
-    if model is None:
-        model = model_or_derivation
+    model = numeric_model(model_or_derivation) if isinstance(model_or_derivation, Derived) else model_or_derivation
     for attr in ("state_names", "coordinate_names", "speed_names", "evaluate", "state_residuals"):
         if not hasattr(model, attr):
             raise ModelError(

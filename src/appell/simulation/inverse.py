@@ -24,6 +24,7 @@ import numpy as np
 
 from appell.errors import ComputationError, ModelError
 from appell.symbols import derivative_name
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["InverseDynamics", "inverse_dynamics"]
 
@@ -77,7 +78,7 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
     accelerations ``a`` (same shapes; derived from ``q`` by a cubic spline when not given);
     ``drives`` the names of the driven speeds (default: every speed of a system without
     constraints). Module docstring: the equations."""
-    model = derivation.numeric
+    model = numeric_model(derivation)
     names, speeds = model.coordinate_names, model.speed_names
     t = np.asarray(t, float).reshape(-1)
     q = np.asarray(q, float).reshape(t.size, -1)

@@ -3,7 +3,7 @@
 The integrator is driven step by step through SciPy's ``OdeSolver`` interface (the
 classes behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``,
 ``RK23``, ``Radau``, ``BDF``, ``LSODA``). With ``method="DOP853"`` (the default) on a compiled
-model whose constraints are linear in ``a`` (``derivation.compiled('c')``, the command
+model whose constraints are linear in ``a`` (``numeric_model(derivation, 'c')``, the command
 line's C backend) the compiled loop of :mod:`appell.numerics.compiled_loop` takes SciPy's
 place: the same scheme and step control in C, which runs the steps that need nothing of
 Python (no projection due, no watched events) and records their output times there, and
@@ -80,6 +80,7 @@ from appell.simulation.passage import PassageRefused, pass_through
 from appell.simulation.singular import DIP, SINGULAR_LEVEL, TRUST, RankWatch, explain_failure
 from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
+from appell.numerics.boundary import numeric_model
 
 __all__ = ["simulate", "project", "METHODS"]
 
@@ -284,7 +285,7 @@ class _Run:
         if "impact" not in self.models:
             from appell.core.derive import derive
 
-            self.models["impact"] = derive(self.system).numeric
+            self.models["impact"] = numeric_model(derive(self.system))
         return self.models["impact"]
 
     def chatter(self, contacts, t, limit: int = 10):
@@ -992,7 +993,7 @@ def _without(system, released):
     gone = set(released)
     remaining = tuple(c for c in system.constraints if c.name not in gone)
     units = tuple((k, u) for k, u in system.units if k not in gone)
-    return derive(system.replace(constraints=remaining, units=units, outputs=())).numeric
+    return numeric_model(derive(system.replace(constraints=remaining, units=units, outputs=())))
 
 
 def _open_contacts(model, system, initial, signs, t0, p, tol: float = 1e-9) -> tuple[str, ...]:

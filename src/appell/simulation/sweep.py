@@ -61,6 +61,7 @@ from appell.arguments import count, number, times
 from appell.errors import ModelError, ResourceError
 from appell.files import atomic_path, output_target, write_hdf5
 from appell.simulation.resources import check_memory
+from appell.numerics.boundary import numeric_model
 
 #: run status for a run that raised (simulate's own codes are 0, 1 and -1)
 RAISED = -2
@@ -203,11 +204,8 @@ class _Shipment:
         """The Dynamics: ``dynamics``, or the derivation compiled with ``backend``."""
         if self.dynamics is not None:
             return self.dynamics
-        if self.backend == "own":  # a derivation with its own numeric model (servo constraints)
-            return self.derivation.numeric
-        from appell.numerics.codegen import compile_c
-
-        return compile_c(self.derivation, self.backend)
+        # 'own': a controlled derivation's own NumPy model (servo constraints)
+        return numeric_model(self.derivation, None if self.backend == "own" else self.backend)
 
 
 def _keep(key: str, model):
@@ -729,7 +727,7 @@ def _prepare(model, backend: str) -> _Shipment:
     import hashlib
     import pickle
 
-    from appell.numerics.codegen import CompiledNumericModel, compile_c
+    from appell.numerics.codegen import CompiledNumericModel
     from appell.numerics.dynamics import Dynamics
     from appell.numerics.numeric import NumericModel
 
@@ -741,9 +739,9 @@ def _prepare(model, backend: str) -> _Shipment:
         return shipment
     elif is_controlled(model):
         # servo constraints: the derivation's own NumPy model, made again on each worker
-        numeric, derivation, backend = model.numeric, model, "own"
+        numeric, derivation, backend = numeric_model(model), model, "own"
     else:
-        numeric, derivation = compile_c(model, backend), model
+        numeric, derivation = numeric_model(model, backend), model
     compiled = isinstance(numeric, CompiledNumericModel)
     # 'auto' stays 'auto' on the workers (a machine without a compiler falls back there too)
     if backend != "own":
@@ -962,8 +960,8 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     ----------
     model : a :class:`~appell.model.System` or a :class:`~appell.core.equations.Derivation`
         (derived and compiled with ``backend`` once, here; the workers get the derivation and
-        load the compiled library from the shared cache), a NumericModel (``d.numeric``,
-        ``d.compiled('c')``; shipped the same way) or another picklable
+        load the compiled library from the shared cache), a NumericModel (``numeric_model(d)``,
+        ``numeric_model(d, 'c')``; shipped the same way) or another picklable
         :class:`~appell.numerics.dynamics.Dynamics`.
     specs : ``['NAME=START:STOP:NUM', ...]`` (see :func:`parse_spec`) or
         ``{name: values}``; names are model parameters.

@@ -1,0 +1,106 @@
+"""The boundary between the symbolic and the numeric halves: :func:`numeric_model`.
+
+A derivation (:class:`appell.core.equations.Derivation`, or a controlled one from
+:mod:`appell.control.servo`) is plain symbolic data; it knows nothing of numbers. Every
+layer above that wants numbers asks here, once::
+
+    model = numeric_model(derivation)              # NumPy/math functions, the split solve
+    model = numeric_model(derivation, "c")         # the same interface in compiled C
+
+What comes back implements :class:`appell.numerics.dynamics.Dynamics` (and, for a plain
+derivation, the :class:`~appell.numerics.numeric.NumericModel` interface); with redundant
+constraints it is wrapped in :class:`~appell.numerics.redundant.RedundantModel`.
+
+Building numeric functions costs seconds on a large model, so a model is kept for the
+:data:`KEEP` most recently used derivations, in this module, never on the (frozen,
+picklable) derivation itself: a derivation pickles the same before and after numeric use.
+Other kinds of derivation register their builder with ``numeric_model.register(kind)``
+(:func:`functools.singledispatch`); the controlled derivation does so where it is defined.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from functools import singledispatch
+
+from appell.core.equations import Derivation
+from appell.errors import ModelError
+
+#: how many derivations keep their numeric models here (least recently used dropped first)
+KEEP = 32
+
+#: the backends a plain derivation takes: 'numpy', 'c' (compiled, refused without a compiler),
+#: 'auto' (C when a compiler is found, else NumPy with a warning)
+BACKENDS = ("numpy", "c", "auto")
+
+#: the backend of ``numeric_model(derivation)`` without one (the test suite's backend matrix
+#: sets it to 'c' to run every test on the compiled code)
+DEFAULT_BACKEND = "numpy"
+
+_models: OrderedDict[int, tuple[object, dict]] = OrderedDict()
+_lock = threading.RLock()
+
+
+def cached(derivation, backend: str, build):
+    """``build()`` for ``(derivation, backend)``, kept for the :data:`KEEP` most recently used
+    derivations. The entry holds the derivation itself, so its ``id`` cannot be reused while
+    the entry lives."""
+    key = id(derivation)
+    with _lock:
+        entry = _models.get(key)
+        if entry is not None and entry[0] is derivation and backend in entry[1]:
+            _models.move_to_end(key)
+            return entry[1][backend]
+    model = build()
+    with _lock:
+        entry = _models.get(key)
+        if entry is None or entry[0] is not derivation:
+            entry = (derivation, {})
+            _models[key] = entry
+        model = entry[1].setdefault(backend, model)
+        _models.move_to_end(key)
+        while len(_models) > KEEP:
+            _models.popitem(last=False)
+    return model
+
+
+def forget(derivation=None) -> None:
+    """Drop the numeric models kept for ``derivation`` (all of them when None)."""
+    with _lock:
+        if derivation is None:
+            _models.clear()
+        else:
+            entry = _models.get(id(derivation))
+            if entry is not None and entry[0] is derivation:
+                del _models[id(derivation)]
+
+
+@singledispatch
+def numeric_model(derivation, backend: str | None = None):
+    """The numeric model of ``derivation`` for ``backend`` ('numpy', 'c', 'auto'; None:
+    :data:`DEFAULT_BACKEND`), built once and kept (see the module's docstring)."""
+    raise ModelError(f"numeric_model needs a derivation (from appell.derive or appell.derive_controlled), "
+                     f"not {type(derivation).__name__}",
+                     hint="derive the system first: numeric_model(appell.derive(system))")
+
+
+@numeric_model.register
+def _plain(derivation: Derivation, backend: str | None = None):
+    backend = DEFAULT_BACKEND if backend is None else backend
+    if backend not in BACKENDS:
+        raise ModelError(f"unknown numeric backend {backend!r}", hint="choose one of " + ", ".join(BACKENDS))
+
+    def build():
+        if backend == "numpy":
+            from appell.numerics.numeric import compile_model
+            from appell.numerics.redundant import with_redundancy
+
+            return with_redundancy(compile_model(derivation))
+        from appell.numerics.codegen.model import compile_c
+
+        return compile_c(derivation, backend)
+
+    if backend == "auto":  # not kept under 'auto': the choice may fall back, and 'c' may be asked later
+        return build()
+    return cached(derivation, backend, build)
