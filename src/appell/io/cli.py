@@ -313,9 +313,10 @@ def check_output_memory(derivation, model, opts) -> None:
     if times is None:
         return
     from appell.numerics.compiled_loop import supports
+    from appell.numerics.dynamics import Dynamics
     from appell.simulation.resources import check_run_memory
 
-    dynamics = model if hasattr(model, "state_names") else numeric_model(derivation)
+    dynamics = model if isinstance(model, Dynamics) else numeric_model(derivation)
     compiled = opts.get("method", "DOP853") == "DOP853" and supports(model) and not opts.get("project_output")
     check_run_memory(dynamics, len(times), compiled)
 

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from appell.errors import ComputationError, ModelError, PainleveError
-from appell.numerics.dynamics import Evaluation
+from appell.numerics.dynamics import Evaluation, delegating
 from appell.numerics.numeric import NumericModel, StateSolution, _args, compile_model, lambdify_blocks, \
     partition_in_use, program_substitutions, split_solve
 from appell.numerics.boundary import numeric_model
@@ -149,26 +149,26 @@ class FrictionLaws:
                              signs)
 
 
+#: what a friction mode takes from its ideal model
+_DELEGATED = ("evaluate_blocks", "residual_jacobians", "state_residuals", "split_state", "params",
+              "checked_state", "coordinate_rates", "constraint_residuals", "parameters", "default_parameters",
+              "has_position", "has_velocity", "name", "coordinate_names", "speed_names", "state_names",
+              "constraint_names", "control_names", "parameter_names", "derivation")
+
+
+@delegating("base", _DELEGATED)
 class FrictionModel:
     """The :class:`~appell.numerics.dynamics.Dynamics` of a system with friction in one
-    mode (module docstring). ``base`` the ideal model of the mode, ``sticking`` the
-    contacts that stick, ``directions`` ``{contact: unit slip direction}`` used where a
-    sliding contact's slip speed vanishes."""
-
-    _DELEGATED = ("evaluate_blocks", "residual_jacobians", "state_residuals", "split_state", "params",
-                  "checked_state", "coordinate_rates", "constraint_residuals", "parameters", "default_parameters",
-                  "has_position", "has_velocity", "name", "coordinate_names", "speed_names", "state_names",
-                  "constraint_names", "control_names", "parameter_names", "derivation")
+    mode (module docstring), with the capabilities :class:`~appell.numerics.dynamics.FrictionModes`,
+    :class:`~appell.numerics.dynamics.SplitBlocks` and
+    :class:`~appell.numerics.dynamics.ResidualJacobians`. ``base`` the ideal model of the mode,
+    ``sticking`` the contacts that stick, ``directions`` ``{contact: unit slip direction}`` used
+    where a sliding contact's slip speed vanishes."""
 
     def __init__(self, laws: FrictionLaws, base: NumericModel, released, sticking, directions, signs=None):
         self.laws, self.base = laws, base
         self.released, self.sticking, self.directions = frozenset(released), frozenset(sticking), directions
         self.signs = dict(signs or {})
-
-    def __getattr__(self, name):
-        if name in FrictionModel._DELEGATED:
-            return getattr(self.base, name)
-        raise AttributeError(name)
 
     @property
     def frictions(self):

@@ -18,7 +18,7 @@ import sympy as sp
 from appell.core.partition import row_scales
 from appell.core.redundancy import multipliers_with_redundancy
 from appell.errors import SingularConfigurationError
-from appell.numerics.dynamics import Evaluation
+from appell.numerics.dynamics import DYNAMICS_MEMBERS, Evaluation, delegating
 from appell.numerics.numeric import StateSolution, _args, lambdify_blocks, program_substitutions
 
 
@@ -27,12 +27,17 @@ from appell.numerics.numeric import StateSolution, _args, lambdify_blocks, progr
 KEPT_CONDITION = 1e-3
 
 
+@delegating("inner", DYNAMICS_MEMBERS + ("derivation", "evaluate_blocks", "split_state"))
 class RedundantModel:
     """A numeric model (:class:`~appell.numerics.numeric.NumericModel` or its compiled C
     subclass) of the independent constraints, reporting all constraints.
 
-    Everything not defined here is the wrapped model's (``model.inner``): blocks, rates,
-    the partition; ``evaluate_blocks`` gives the independent rows' ``J`` and ``c``.
+    It implements :class:`~appell.numerics.dynamics.Dynamics`,
+    :class:`~appell.numerics.dynamics.FromDerivation`,
+    :class:`~appell.numerics.dynamics.SplitBlocks` (the independent rows' ``J`` and ``c``)
+    and :class:`~appell.numerics.dynamics.ResidualJacobians` (all rows) by its own members;
+    the rest of the :class:`~appell.numerics.numeric.NumericModel` interface (rates, outputs,
+    the partition) is the wrapped model's (``model.inner``).
     """
 
     def __init__(self, inner, redundancy):

@@ -148,7 +148,7 @@ def energy_form(derivation) -> tuple[str | None, str]:
     system = derivation.system
     if is_controlled(derivation):
         return None, "the system has controls: their power is not separated from the applied forces"
-    if getattr(system, "frictions", ()):
+    if system.frictions:
         return None, ("the system has non-ideal frictions, whose work this balance does not integrate (the "
                       "cross-check's friction route checks the split with friction)")
     reason = energy_unavailable(system)

@@ -34,6 +34,9 @@ from appell.errors import ComputationError, InitialValueError, ModelError
 from appell.symbols import derivative_name, split_derivative_name
 from appell.core.equations import Derived
 from appell.numerics.boundary import numeric_model
+from appell.numerics.dynamics import (DYNAMICS_MEMBERS, Dynamics, ResidualJacobians, ServoTracking, SplitBlocks,
+                                      system_of)
+from appell.numerics.redundant import RedundantModel
 
 __all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians",
            "check_blocks_at_start", "COMPLETION_HINT", "CHECK_TOLERANCE"]
@@ -94,15 +97,13 @@ def dynamics_of(model_or_derivation):
     """The :class:`~appell.numerics.dynamics.Dynamics` of a derivation (:func:`~appell.numerics.boundary.numeric_model`) or the
     object itself, and the :class:`~appell.model.System` behind it (or None)."""
     model = numeric_model(model_or_derivation) if isinstance(model_or_derivation, Derived) else model_or_derivation
-    for attr in ("state_names", "coordinate_names", "speed_names", "evaluate", "state_residuals"):
-        if not hasattr(model, attr):
-            raise ModelError(
-                f"{type(model_or_derivation).__name__} is neither a Derivation nor a Dynamics model (no {attr!r})",
-                hint="pass appell.derive(system) or a model implementing appell.numerics.dynamics.Dynamics",
-            )
-    derivation = getattr(model, "derivation", None)
-    system = getattr(derivation, "system", None)
-    return model, system
+    if not isinstance(model, Dynamics):
+        missing = next(m for m in DYNAMICS_MEMBERS if not hasattr(model, m))  # for the message only
+        raise ModelError(
+            f"{type(model_or_derivation).__name__} is neither a Derivation nor a Dynamics model (no {missing!r})",
+            hint="pass appell.derive(system) or a model implementing appell.numerics.dynamics.Dynamics",
+        )
+    return model, system_of(model)
 
 
 def residual_jacobians(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
@@ -112,9 +113,8 @@ def residual_jacobians(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
     :class:`~appell.numerics.numeric.NumericModel`); otherwise central finite differences of
     ``state_residuals`` (NaN entries are replaced by zero).
     """
-    fn = getattr(model, "residual_jacobians", None)
-    if fn is not None:
-        return fn(t, y, p)
+    if isinstance(model, ResidualJacobians):
+        return model.residual_jacobians(t, y, p)
     nq, n = len(model.coordinate_names), len(model.speed_names)
     s = len(model.constraint_names)
     from appell.numerics.numeric import difference_jacobian
@@ -128,7 +128,7 @@ def residual_jacobians(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
 def _constraint_names(model) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """The real constraints, then what a controlled model's start must satisfy besides
     (its servo constraints and their state relations, ``start_conditions``)."""
-    return tuple(model.constraint_names), tuple(getattr(model, "start_conditions", ()))
+    return tuple(model.constraint_names), tuple(model.start_conditions) if isinstance(model, ServoTracking) else ()
 
 
 def _residuals(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
@@ -143,10 +143,12 @@ def _residuals(model, t, y, p) -> tuple[np.ndarray, np.ndarray]:
 
 def _label(model, name: str) -> str:
     """A constraint's name as the messages show it (servo constraints and their relations marked)."""
-    servo_names = tuple(getattr(model, "servo_names", ()))
+    if not isinstance(model, ServoTracking):
+        return name
+    servo_names = tuple(model.servo_names)
     if name in servo_names:
         return f"{name} (servo constraint)"
-    for (servo, k), full in zip(getattr(model, "relation_of", ()), _constraint_names(model)[1][len(servo_names):]):
+    for (servo, k), full in zip(model.relation_of, _constraint_names(model)[1][len(servo_names):]):
         if full == name:
             return f"{name} (time derivative {k} of servo constraint {servo}, its dynamic condition (2.3))"
     return name
@@ -309,9 +311,9 @@ def check_blocks_at_start(model, t, y, p) -> None:
     nq, n = len(model.coordinate_names), len(model.speed_names)
     y = np.asarray(y, float)
     try:
-        if hasattr(model, "evaluate_blocks"):
+        if isinstance(model, SplitBlocks):
             model.evaluate_blocks(t, y[:nq], y[nq:nq + n], p)
-        elif hasattr(model, "start_blocks"):
+        elif isinstance(model, ServoTracking):
             model.start_blocks(t, y, p)
     except ComputationError as exc:
         raise ModelError(f"model {model.name!r} cannot start: {exc.message}", hint=exc.hint) from None
@@ -353,7 +355,7 @@ def _level_jacobian(model, t, y, p, level: int, columns: Sequence[int], rows: np
     the model's compiled Jacobian when it covers them, else central differences."""
     nq, n = len(model.coordinate_names), len(model.speed_names)
     first, stop = (0, nq) if level == 0 else (nq, nq + n)
-    if hasattr(model, "residual_jacobians") and not _constraint_names(model)[1] \
+    if isinstance(model, ResidualJacobians) and not _constraint_names(model)[1] \
             and all(first <= c < stop for c in columns):
         J = np.asarray(model.residual_jacobians(t, y, p)[level], float)
         return J[np.ix_(rows, [c - first for c in columns])]
@@ -447,7 +449,7 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
     model, system = dynamics_of(derivation)
     p = model.params(params)
     defaults = _default_values(model, system, p)
-    guesses = [n for n in getattr(system, "initial_guesses", ()) if n in defaults]
+    guesses = [n for n in (system.initial_guesses if system is not None else ()) if n in defaults]
     passed = values is not None
     values = _names_values(defaults if values is None else values)
     if passed:  # a guess not given here keeps its place as a guess
@@ -470,7 +472,7 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
     F0, phi0 = _residuals(model, t, y, p)
     _finite_residuals(model, t, zip(constraints + constraints, np.concatenate([F0, phi0])))
     completed: list[str] = []
-    independent = getattr(getattr(model, "redundancy", None), "independent", None)
+    independent = model.redundancy.independent if isinstance(model, RedundantModel) else None
 
     for level, (kind, level_names) in enumerate(zip(("position", "velocity"), _state_levels(model))):
         rows = np.flatnonzero(~np.isnan((F0, phi0)[level]))

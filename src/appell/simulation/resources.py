@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 
 from appell.errors import ResourceError
+from appell.numerics.dynamics import ServoTracking, system_of
 
 __all__ = ["available_memory", "check_memory", "check_run_memory", "row_bytes", "COPIES", "ROW_OVERHEAD"]
 
@@ -107,10 +108,11 @@ def check_run_memory(model, rows: int, compiled: bool = False) -> int:
     accelerations, per constraint the multiplier and two residuals, the controls, the tracked
     servo constraints and the system's outputs. ``compiled``: the compiled loop records the
     rows (no per-row overhead)."""
-    derivation = getattr(model, "derivation", None)
-    outputs = len(getattr(getattr(derivation, "system", None), "outputs", ()) or ())
+    system = system_of(model)
+    outputs = len(system.outputs) if system is not None else 0
+    servo = len(model.servo_names) if isinstance(model, ServoTracking) else 0
     columns = (1 + len(model.state_names) + len(model.speed_names) + 3 * len(model.constraint_names)
-               + len(model.control_names) + len(getattr(model, "servo_names", ())) + outputs)
+               + len(model.control_names) + servo + outputs)
     return check_memory(rows, columns, f"recording {model.name!r} at {int(rows):,} output times",
                         row_by_row=not compiled)
 

@@ -81,6 +81,8 @@ from appell.simulation.singular import DIP, SINGULAR_LEVEL, TRUST, RankWatch, ex
 from appell.simulation.options import check_arguments
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 from appell.numerics.boundary import numeric_model
+from appell.numerics.dynamics import FrictionModes, FromDerivation, ResidualJacobians, ServoTracking, SplitBlocks
+from appell.core.equations import Derivation
 
 __all__ = ["simulate", "project", "METHODS"]
 
@@ -162,8 +164,8 @@ def project(model, t, y, p, tol: float = 1e-13, maxiter: int = 20) -> np.ndarray
 
 
 def _kinds(model, y0, t0, p) -> tuple[str, ...]:
-    derivation = getattr(model, "derivation", None)
-    orders = getattr(getattr(derivation, "constraints", None), "orders", None)
+    derivation = model.derivation if isinstance(model, FromDerivation) else None
+    orders = derivation.constraints.orders if isinstance(derivation, Derivation) else None
     if orders is not None and len(orders) == len(model.constraint_names):
         return tuple(KINDS[o] for o in orders)
     F, phi = model.state_residuals(t0, y0, p)
@@ -198,7 +200,7 @@ def _initial_state(model, initial, complete, adjust, t0, p):
     _, system = dynamics_of(model)
     # starting guesses and values not given are computed from the constraints, given values
     # only checked: as `appell simulate` does (issue 21: the API and the command line agree)
-    if getattr(system, "initial_guesses", ()) or missing_values(model, initial, p):
+    if (system is not None and system.initial_guesses) or missing_values(model, initial, p):
         return complete_initial(model, initial, (), t=t0, params=p)
     return check_initial(model, initial, t=t0, params=p)
 
@@ -252,7 +254,7 @@ class _Run:
         self.outputs: dict = {}  # per model: the rows the compiled loop records into
         nq = len(model.coordinate_names)
         self.speed_part = slice(nq, nq + len(model.speed_names))
-        self.tracking_names = tuple(getattr(model, "servo_names", ()))
+        self.tracking_names = tuple(model.servo_names) if isinstance(model, ServoTracking) else ()
         self.events: list[EventRecord] = []
         self.log: list[str] = []
         self.nfev = self.steps = self.projections = self.switches = self.restarts = 0
@@ -265,7 +267,7 @@ class _Run:
         self.partition_of = model
         self.models = {frozenset(): model}
         self.contact_times: dict[str, tuple[float, int]] = {}
-        self.laws = getattr(model, "laws", None)  # frictions (appell.numerics.friction)
+        self.laws = model.laws if isinstance(model, FrictionModes) else None  # frictions (appell.numerics.friction)
         self.sticking, self.directions, self.signs = frozenset(), {}, {}
 
     def model(self, released):
@@ -280,7 +282,7 @@ class _Run:
     def impact_model(self):
         """A model with every constraint and the blocks of the impact law
         (:func:`appell.simulation.impact.impact`): the run's own, or derived from the system."""
-        if hasattr(self.root, "evaluate_blocks") and hasattr(self.root, "residual_jacobians"):
+        if isinstance(self.root, SplitBlocks) and isinstance(self.root, ResidualJacobians):
             return self.root
         if "impact" not in self.models:
             from appell.core.derive import derive
@@ -492,7 +494,7 @@ class _Run:
             position_residuals={n: F[:, i] for i, n in enumerate(self.names)},
             velocity_residuals={n: phi[:, i] for i, n in enumerate(self.names)},
             tracking={n: track[:, i] for i, n in enumerate(self.tracking_names)},
-            outputs=outputs, output_descriptions={o.name: o.description for o in getattr(self.system, "outputs", ())},
+            outputs=outputs, output_descriptions={o.name: o.description for o in (self.system.outputs if self.system else ())},
             friction={n: fr[:, i] for i, n in enumerate(friction_columns)},
             status=status, message=message, statistics=stats, events=tuple(events), log=tuple(log),
             metadata=_metadata(root, self.system, self.p, self.kinds,
@@ -515,7 +517,7 @@ def recorded_outputs(system, columns) -> dict:
     ``columns`` (``{name: array}``: t, states, accelerations, ``lambda_<c>``,
     ``control_<c>``, parameters), vectorised over the output times
     (:func:`appell.numerics.outputs.compile_outputs`); empty without outputs."""
-    if system is None or not getattr(system, "outputs", ()):
+    if system is None or not system.outputs:
         return {}
     from appell.numerics.numeric import program_substitutions
     from appell.numerics.outputs import compile_outputs
@@ -605,7 +607,7 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         the solution holds the motion up to the failure and the reason in ``message``).
     """
     model, system = dynamics_of(model_or_derivation)
-    if system is not None and system.frictions and not hasattr(model, "laws"):
+    if system is not None and system.frictions and not isinstance(model, FrictionModes):
         model = FrictionLaws(model.derivation).mode()  # every contact sliding; the modes follow
     if stabilization not in ("projection", "baumgarte", None):
         raise ModelError(f"unknown stabilization {stabilization!r}", hint="use 'projection', 'baumgarte' or None")

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize_scalar
 
+from appell.numerics.dynamics import SplitBlocks
+
 #: ``g`` (the smallest singular value of the start-scaled constraint Jacobian, module
 #: docstring) below which the configuration counts as singular. Passing within this of a
 #: rank loss, the reactions grow beyond 1/SINGULAR_LEVEL times their size at the start
@@ -83,8 +85,8 @@ class RankWatch:
 
     def __init__(self, model, p, t0: float, y0, scales: dict | None = None):
         self.model, self.p = model, p
-        self.names = tuple(getattr(model, "constraint_names", ()))
-        self.blocks = getattr(model, "evaluate_blocks", None)
+        self.names = tuple(model.constraint_names)
+        self.blocks = model.evaluate_blocks if isinstance(model, SplitBlocks) else None
         self.active = bool(self.names) and self.blocks is not None
         self.points: list[tuple[float, float, object]] = []  # (t, g, dense of the step ending there)
         self.trusted: list[tuple[float, np.ndarray]] = []  # the last step ends with g >= TRUST * band
@@ -193,9 +195,9 @@ def explain_failure(model, t, y, p) -> str | None:
     a basis of the speeds the constraints allow, ``J N = 0``) singular there, named by the
     speeds of its null direction, or None when nothing is found (or the model has no
     ``evaluate_blocks``)."""
-    blocks = getattr(model, "evaluate_blocks", None)
-    if blocks is None:
+    if not isinstance(model, SplitBlocks):
         return None
+    blocks = model.evaluate_blocks
     y = np.asarray(y, float)
     nq, names = len(model.coordinate_names), list(model.speed_names)
     try:

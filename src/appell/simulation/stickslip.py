@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from appell.simulation.events import Watch
+from appell.numerics.dynamics import FrictionModes
 
 __all__ = ["STICK_SPEED", "Transition", "initial_mode", "stick_slip_watches", "transition"]
 
@@ -106,7 +107,7 @@ def initial_mode(laws, released, t, y, p, directions=None) -> tuple[frozenset, d
 def stick_slip_watches(model) -> list[Watch]:
     """The cone watch of every sticking contact and the slip watch of every sliding one."""
     out = []
-    for k, item in enumerate(getattr(model, "frictions", ())):
+    for k, item in enumerate(model.frictions if isinstance(model, FrictionModes) else ()):
         if item.name in model.sticking:
             def g(t, y, ev, p, k=k, name=item.name):
                 return _mu_s(model, t, y, p, name) * float(ev.normals[k]) - float(np.linalg.norm(ev.forces[name]))

@@ -61,7 +61,9 @@ from appell.arguments import count, number, times
 from appell.errors import ModelError, ResourceError
 from appell.files import atomic_path, output_target, write_hdf5
 from appell.simulation.resources import check_memory
+from appell.model import System
 from appell.numerics.boundary import numeric_model
+from appell.numerics.dynamics import system_of
 
 #: run status for a run that raised (simulate's own codes are 0, 1 and -1)
 RAISED = -2
@@ -272,7 +274,6 @@ def chunks(todo: Sequence, slots: int, per_slot: int = 4) -> list[list]:
 def _names(payload):
     """State, multiplier and control names and parameter names of the sweep's model."""
     from appell.numerics.dynamics import Dynamics
-    from appell.model import System
 
     if isinstance(payload, Dynamics):
         return (tuple(payload.state_names), tuple(payload.constraint_names), tuple(payload.control_names),
@@ -598,7 +599,6 @@ def model_fingerprint(model) -> str | None:
 
     import sympy as sp
 
-    from appell.model import System
     from appell.numerics.dynamics import Dynamics
     from appell.numerics.numeric import NumericModel
 
@@ -1023,8 +1023,8 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     states, multipliers, controls, _ = _names(model)
     # every column kept: states and their accelerations, per constraint its multiplier and two
     # residuals, the controls and the outputs
-    system = getattr(model, "system", None) or getattr(getattr(model, "derivation", None), "system", None)
-    outputs = len(getattr(system, "outputs", ()) or ())
+    system = model if isinstance(model, System) else getattr(model, "system", None) or system_of(model)
+    outputs = len(system.outputs) if isinstance(system, System) else 0
     columns = 1 + 2 * len(states or ()) + 3 * len(multipliers or ()) + len(controls or ()) + outputs
     check_memory(len(grid) * len(t_eval), columns, f"the sweep's {len(grid):,} runs at {len(t_eval):,} output times",
                  row_by_row=False, hint="sweep fewer runs or record fewer output times (--samples, t_eval)")
@@ -1034,7 +1034,6 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     spec_text = json.dumps(list(specs) if not isinstance(specs, Mapping) else
                            {k: list(map(float, np.asarray(v, float).reshape(-1))) for k, v in specs.items()})
     import appell
-    from appell.model import System
 
     if isinstance(model, System):  # derived once: for the fingerprint and for the runs
         from appell.core.derive import derive
