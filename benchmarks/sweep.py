@@ -47,15 +47,16 @@ def main():
 
     import appell
     from appell.examples import example_path
-    from appell.io.cli import simulation_options
+    from appell.io.cli import command_options
     from appell.simulation.simulate import simulate
     from appell.simulation.sweep import parameter_grid, sweep, sweep_cluster
 
     system = appell.load_model(example_path("car"))
     derivation = appell.derive(system)
     model = numeric_model(derivation, "c")
-    opts = simulation_options(system, args.t_end)
-    t_end, t_eval = opts.pop("t_end"), opts.pop("t_eval")
+    options = command_options(system, args.t_end)
+    t_end, t_eval = options.t_end, options.output_times()
+    opts = {"method": options.method, "rtol": options.rtol, **options.changes(but=("t_end", "t_eval"))}
     specs = _specs(args.grid)
     grid = parameter_grid(specs)
     print(f"car, {len(grid)} runs of {t_end:g} s ({opts['method']}, rtol {opts['rtol']:g}, {len(t_eval)} output "

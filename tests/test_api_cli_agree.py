@@ -54,3 +54,42 @@ def test_a_missing_initial_speed_is_computed_by_both():
     assert api["y_dot"][0] == pytest.approx(0.6, abs=1e-12)
     assert [str(e) for e in api.events if e.kind == "initial"] == ["t = 0: initial y_dot — (not given) -> 0.6 (computed)"]
     _same(api, cli)
+
+
+def test_one_frozen_options_type_in_three_layers():
+    """The settings of a run live in one frozen SimulationOptions (issue 21 item 4): the
+    defaults, then the model's [simulation] table, then what the caller gives; the model
+    file's keys are its fields; the command line's options are the API's."""
+    import dataclasses
+
+    from appell.io.cli import command_options
+    from appell.io.modelfile.loader import SIMULATION_KEYS
+    from appell.simulation.options import DEFAULT_T_END, SimulationOptions
+
+    assert SimulationOptions().t_end == DEFAULT_T_END
+    system = appell.loads_model(MISSING_SPEED.replace("t_end = 0.5", 't_end = 0.5\nrtol = 1e-7\nmethod = "Radau"'))
+    table = SimulationOptions.from_model(system)
+    assert (table.t_end, table.rtol, table.method, table.atol) == (0.5, 1e-7, "Radau", 1e-12)
+    given = table.given(rtol=1e-10, t_end=2.0)
+    assert (given.t_end, given.rtol, given.method, table.rtol) == (2.0, 1e-10, "Radau", 1e-7)  # a copy
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        table.rtol = 1.0
+    with pytest.raises(TypeError, match="unknown simulation option.*rtoll"):
+        table.given(rtoll=1e-6)
+    assert command_options(system, 2.0, rtol=1e-10, method=None) == given
+    assert set(SIMULATION_KEYS) - {"samples", "output_step"} <= set(SimulationOptions.names())
+    # the API takes the same object: simulate(options=...) equals simulate(**keywords)
+    derivation = appell.derive(system)
+    _same(appell.simulate(derivation, options=given), appell.simulate(derivation, 2.0, rtol=1e-10))
+
+
+def test_a_new_span_regenerates_equally_spaced_output_times():
+    """output_step = 0.1 over [0, 0.5] (6 times); a final time of 1.0 given by the caller
+    keeps the step (11 times), a span cut to 0.25 keeps the times inside it."""
+    from appell.simulation.options import SimulationOptions
+
+    system = appell.loads_model(MISSING_SPEED.replace("t_end = 0.5", "t_end = 0.5\noutput_step = 0.1"))
+    table = SimulationOptions.from_model(system)
+    np.testing.assert_allclose(table.t_eval, np.linspace(0.0, 0.5, 6), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(table.given(t_end=1.0).t_eval, np.linspace(0.0, 1.0, 11), rtol=0, atol=1e-15)
+    assert table.given(t_end=0.25).t_eval[-1] == 0.25

@@ -21,7 +21,7 @@ import appell
 from appell import Event, ModelError, simulate
 from appell.examples import event_examples, example_path
 from appell.io.cli import cli
-from appell.io.modelfile import load_model, loads_model, simulation_options
+from appell.io.modelfile import load_model, loads_model
 from appell.model import Constraint, Parameter, System, holonomic
 from appell import numeric_model
 
@@ -67,9 +67,8 @@ def test_pendulum_file_with_a_rod_unit_goes_slack_and_snaps_taut_instead_of_flyi
     beyond L (before the fix: "units given for unknown name(s) rod", and without
     re-engagement it flew to 2.64 L)."""
     system = load_model(example_path("pendulum"), overrides={"x": 0.0, "y": -1.0, "x'": 5.0, "y'": 0.0})
-    options = simulation_options(system)
-    options.update(t_end=1.5, t_eval=np.linspace(0.0, 1.5, 301), rtol=1e-11, atol=1e-12)
-    sol = simulate(appell.derive(system), unilateral={"rod": +1}, **options)
+    sol = simulate(appell.derive(system), 1.5, unilateral={"rod": +1}, t_eval=np.linspace(0.0, 1.5, 301),
+                   rtol=1e-11, atol=1e-12)
     assert sol.status == 0, sol.message
     assert sol.metadata.units["lambda_rod"] == "N"
     v0, L = 5.0, 1.0
@@ -213,8 +212,7 @@ def test_bouncing_ball_rebound_speeds_apex_heights_and_rest():
     e, h0, m, vx = 0.8, 1.0, 1.0, 0.5
     v0, t1 = math.sqrt(2 * G * h0), math.sqrt(2 * h0 / G)
     t_inf = t1 + 2 * e * v0 / (G * (1 - e))
-    options = simulation_options(system)
-    sol = simulate(appell.derive(system), events=[Event("apex", sp.Symbol("y_dot"), direction=-1)], **options)
+    sol = simulate(appell.derive(system), events=[Event("apex", sp.Symbol("y_dot"), direction=-1)])
     assert sol.status == 0, sol.message
     impacts = sol.impacts
     times = [t1]

@@ -15,7 +15,8 @@ import sympy as sp
 import appell
 from appell import ModelError, cross_check, derive, load_model, loads_model
 from appell.examples import CATALOG, example_path, list_examples
-from appell.io.modelfile import ExpressionError, parse_expression, simulation_options
+from appell.io.modelfile import ExpressionError, parse_expression
+from appell.simulation.options import SimulationOptions
 from appell import numeric_model
 
 REPO = Path(__file__).resolve().parents[1]
@@ -69,20 +70,25 @@ def test_model_file_equals_builder(name):
 
 
 def test_car_simulation_settings_are_stored():
-    settings = simulation_options(load_model(example_path("car")))
+    settings = SimulationOptions.from_model(load_model(example_path("car"))).changes()
     t_eval = settings.pop("t_eval")
-    assert settings == {"t_end": 10.0, "method": "Radau", "rtol": 1e-9, "atol": 1e-11,
-                        "stabilization": "projection", "complete": True}
+    assert settings == {"method": "Radau", "atol": 1e-11, "complete": True}  # t_end 10, rtol: the defaults
     assert len(t_eval) == 201 and t_eval[0] == 0.0 and t_eval[-1] == pytest.approx(10.0)
     assert np.diff(t_eval) == pytest.approx(np.full(200, 0.05))  # differences of a linspace: rounding
 
 
 def test_simulation_settings_run_the_simulator():
-    """The [simulation] keys are simulate()'s keywords: the pendulum file runs as written."""
+    """The [simulation] keys are simulate()'s keywords: the pendulum file runs as written,
+    its table read by simulate itself or passed as options."""
     from appell.simulation.simulate import simulate
 
     system = load_model(example_path("pendulum"))
-    solution = simulate(derive(system), **simulation_options(system))
+    options = SimulationOptions.from_model(system)
+    solution = simulate(derive(system), options=options)
+    assert solution.status == 0, solution.message
+    again = simulate(derive(system), **options.changes())
+    np.testing.assert_array_equal(solution.t, again.t)
+    np.testing.assert_array_equal(solution["lambda_rod"], again["lambda_rod"])
     assert solution.status == 0, solution.message
 
 
@@ -391,18 +397,18 @@ def test_simulation_table_is_checked():
     assert "needs t_end" in str(err)
     s = loads_model(BASE + '\n[simulation]\nt_eval = [0, 0.5, "pi/2"]\nt_end = 2\nstabilization = "none"\n'
                     '[simulation.unilateral]\nrod = -1\n[simulation.friction.rod]\nnormal = "rod"\nmu = 0.3\n')
-    options = simulation_options(s)
-    assert options["t_eval"] == (0.0, 0.5, pytest.approx(np.pi / 2))  # "pi/2" evaluated: rounding only
-    assert options["stabilization"] is None
-    assert options["unilateral"] == {"rod": -1} and options["friction"] == {"rod": ("rod", 0.3)}
+    options = SimulationOptions.from_model(s)
+    assert options.t_eval == (0.0, 0.5, pytest.approx(np.pi / 2))  # "pi/2" evaluated: rounding only
+    assert options.stabilization is None
+    assert options.unilateral == {"rod": -1} and options.friction == {"rod": ("rod", 0.3)}
     hash(s)  # settings are stored hashable, so the System stays hashable
 
 
 def test_samples_in_the_simulation_table():
     """``samples = N`` gives N equally spaced output times from t0 to t_end, as
     ``appell simulate --help`` says the option defaults to the model's value (issue 19 §6)."""
-    options = simulation_options(loads_model(BASE + "\n[simulation]\nt0 = 1\nt_end = 2\nsamples = 11\n"))
-    np.testing.assert_array_equal(options["t_eval"], 1.0 + 0.1 * np.arange(11))  # linspace: exact at 1, 2
+    options = SimulationOptions.from_model(loads_model(BASE + "\n[simulation]\nt0 = 1\nt_end = 2\nsamples = 11\n"))
+    np.testing.assert_array_equal(options.t_eval, 1.0 + 0.1 * np.arange(11))  # linspace: exact at 1, 2
     for bad, message in (("samples = 1", "integer from 2"), ("samples = 2.5", "integer from 2"),
                          ("samples = true", "integer from 2"), ("samples = 5", "needs t_end"),
                          ("t_end = 1\nsamples = 5\noutput_step = 0.1", "excludes t_eval and output_step")):

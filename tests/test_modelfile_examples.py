@@ -16,7 +16,7 @@ from appell import derive, derive_controlled, load_model
 from appell.examples import BUILDERS, example_path, list_examples
 from appell.examples.catalog import CATALOG
 from appell.examples.servo_examples import SERVO_EXAMPLES
-from appell.io.modelfile import simulation_options
+from appell.simulation.options import SimulationOptions
 from appell.simulation.simulate import simulate
 from appell import numeric_model
 
@@ -145,12 +145,10 @@ def test_appell_ball_file_is_the_papers_problem():
 def test_simulation_table_runs(name):
     """Each non-servo file's [simulation] settings run the simulator (cut to a short t_end)."""
     system = load_model(example_path(name))
-    options = simulation_options(system)
-    assert "t_end" in options
-    t_end = min(options["t_end"], 0.2)
-    options["t_end"] = t_end
-    options["t_eval"] = [t for t in options["t_eval"] if t <= t_end]
-    solution = simulate(derive(system), **options)
+    options = SimulationOptions.from_model(system)
+    assert dict(system.settings)["t_end"] == options.t_end
+    t_end = min(options.t_end, 0.2)
+    solution = simulate(derive(system), t_end, options=options)  # its output times cut to the span
     assert solution.status == 0, solution.message
     assert solution.t[-1] == pytest.approx(t_end)  # the run ends at t_end (to rounding)
 
@@ -163,7 +161,7 @@ def test_every_bundled_example_starts_consistently(name):
     from appell.simulation.initial import CHECK_TOLERANCE, complete_initial
 
     system = load_model(example_path(name))
-    unilateral = simulation_options(system).get("unilateral", {})
+    unilateral = SimulationOptions.from_model(system).unilateral or {}
     # a unilateral contact open at the start (the bouncing ball above its floor) starts released
     values = system.initial_values
     opened = {c.name for c in system.constraints if c.name in unilateral and c.kind == "holonomic"

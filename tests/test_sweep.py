@@ -98,10 +98,11 @@ def test_chunks_hold_every_run_once_in_order_and_end_with_single_runs():
 
 def _car():
     from appell.examples import example_path
-    from appell.io.cli import simulation_options
+    from appell.io.cli import command_options
 
     system = appell.load_model(example_path("car"))
-    return system, simulation_options(system, 2.0)
+    opts = command_options(system, 2.0)
+    return system, {"t_end": opts.t_end, "t_eval": opts.t_eval, **opts.changes(but=("t_end", "t_eval"))}
 
 
 def _loop_run(model, t_end, params, opts):

@@ -26,21 +26,21 @@ PAGE, SPAN, SAMPLES = "gallery", 5.0, 301
 def example_figure(name: str) -> tuple[str, list[str]]:
     """``(caption, PNG data URIs)`` of the bundled example ``name`` (no image when it has no
     initial values)."""
-    from appell.io.cli import derive_model, load_system, run_simulation, simulation_options
+    from appell.io.cli import command_options, derive_model, load_system, run_simulation
     from appell.io.report import solution_figures
 
     system = load_system(name)
     if not system.initial and not system.settings:
         return f"{name}: the model gives no initial values, so there is no motion to draw.", []
     derivation = derive_model(system)
-    options = simulation_options(system)
-    t_end = min(options["t_end"], options["t0"] + SPAN)
+    options = command_options(system)
+    t_end = min(options.t_end, options.t0 + SPAN)
     solution = run_simulation(derivation, t_end, "numpy", {"samples": SAMPLES}, progress=False)
     figures = dict(solution_figures(solution, panels=("reactions", "controls", "coordinates")))
     shown = [k for k in ("reactions", "controls") if k in figures] or ["coordinates"]
     what = {"reactions": "reactions (multipliers lambda)", "controls": "controls",
             "coordinates": "coordinates (the model has no constraint reactions)"}
-    caption = (f"{name}: {' and '.join(what[k] for k in shown)} from t = {options['t0']:g} to {t_end:g}, "
+    caption = (f"{name}: {' and '.join(what[k] for k in shown)} from t = {options.t0:g} to {t_end:g}, "
                f"simulated with the model file's settings ({solution.message}).")
     return caption, [figures[k] for k in shown]
 

@@ -44,7 +44,7 @@ from appell.files import atomic_path, default_file_name, output_target
 from appell.symbols import canonical_name
 from appell.numerics.boundary import numeric_model
 
-__all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "simulation_options",
+__all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "command_options",
            "run_simulation", "export_solution", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
@@ -55,7 +55,7 @@ EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
 OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"}
 
 #: the integrator's command-line options (``--max-step`` is ``max_step``); each defaults to the
-#: model's ``[simulation]`` value (:func:`simulation_options`)
+#: model's ``[simulation]`` value (:func:`command_options`)
 SOLVER_OPTIONS = ("method", "rtol", "atol", "max_step", "t0", "samples", "output_step", "stabilization")
 
 
@@ -226,22 +226,16 @@ def derivation_json(derivation, reduction=None) -> dict:
     return json_document(out, derivation)
 
 
-def simulation_options(system, t_end: float | None = None, **solver) -> dict:
-    """Keyword arguments of :func:`appell.simulation.simulate.simulate` from the model's ``[simulation]``
-    table (:func:`appell.simulation.defaults.model_options`, the same defaults the API
-    applies), with ``t_end`` overriding the
-    table's final time (default :data:`appell.simulation.defaults.DEFAULT_T_END`) and the command line's solver
-    options (:data:`SOLVER_OPTIONS`) overriding the table's values: ``t0``, ``method``,
+def command_options(system, t_end: float | None = None, **solver):
+    """The :class:`~appell.simulation.options.SimulationOptions` of a command: the model's
+    run settings (:meth:`~appell.simulation.options.SimulationOptions.from_model`), then
+    ``t_end`` and the command line's solver options (:data:`SOLVER_OPTIONS`; a value of None
+    is not given) through :meth:`~appell.simulation.options.SimulationOptions.given`, the
+    same two steps as :func:`appell.simulation.simulate.simulate`: ``t0``, ``method``,
     ``rtol``, ``atol``, ``max_step``, ``stabilization`` (``'none'`` for None), and the output
-    times as ``samples`` (that many equally spaced times from t0 to t_end) or
-    ``output_step`` (t0, t0 + step, ... and t_end). A value of None keeps the table's.
-
-    When ``t_end`` or ``t0`` changes the span, equally spaced output times of the table are
-    regenerated with their step over the new span, and other output times are cut to it.
-    """
-    from appell.simulation.defaults import model_options
-
+    times as ``samples`` or ``output_step``."""
     from appell.arguments import number
+    from appell.simulation.options import SimulationOptions
 
     solver = {k: v for k, v in solver.items() if v is not None}
     unknown = sorted(set(solver) - set(SOLVER_OPTIONS))
@@ -249,17 +243,15 @@ def simulation_options(system, t_end: float | None = None, **solver) -> dict:
         raise TypeError(f"unknown solver option(s) {', '.join(unknown)}")
     if "samples" in solver and "output_step" in solver:
         raise click.UsageError("give --samples or --output-step, not both")
-    opts = model_options(system, t_end, solver.pop("t0", None), samples=solver.pop("samples", None),
-                         output_step=solver.pop("output_step", None))
-    opts["t_end"] = number(opts["t_end"], "t_end (--t-end)", hint="give a finite final time")
     if "stabilization" in solver:
         solver["stabilization"] = None if solver["stabilization"] == "none" else solver["stabilization"]
-    opts.update(solver)
-    return opts
+    if t_end is not None:
+        t_end = number(t_end, "t_end (--t-end)", hint="give a finite final time")
+    return SimulationOptions.from_model(system).given(t_end=t_end, **solver)
 
 
 def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy", solver=None, **options):
-    """Simulate ``derivation`` with the model's settings (:func:`simulation_options`), the
+    """Simulate ``derivation`` with the model's settings (:func:`command_options`), the
     command line's ``solver`` options (``{name: value or None}``, :data:`SOLVER_OPTIONS`)
     overriding them.
 
@@ -283,13 +275,13 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
             numeric_model(derivation)  # built and kept here, under the status line
         else:
             model = numeric_model(derivation, backend)
-    table = simulation_options(derivation.system, t_end, **(solver or {}))
-    opts = {"complete": True, "adjust": None if table.get("complete") else (), **table, **options}
-    t0, t_end = opts.pop("t0"), opts.pop("t_end")
-    if t_end == t0:
-        opts["t_eval"] = [t0]
+    opts = command_options(derivation.system, t_end, **(solver or {}))
+    # the command completes missing values; given ones change only where the model says so
+    opts = opts.given(complete=True, adjust=None if opts.complete else ()).given(**options)
+    if opts.t_end == opts.t0:
+        opts = opts.given(t_eval=[opts.t0])
     check_output_memory(derivation, model, opts)
-    solution = simulate(model, t_end, t0=t0, **opts)
+    solution = simulate(model, options=opts)
     if solution.status < 0:
         singular = [e for e in solution.events if e.kind == "singular"]
         hint = ("try another integration method or tighter tolerances ([simulation] method, rtol, atol), "
@@ -309,16 +301,15 @@ def check_output_memory(derivation, model, opts) -> None:
     """Refuse, before integrating, output times whose recorded rows would not fit in memory
     (:func:`appell.simulation.resources.check_memory`): ``--samples 100000000`` is a
     :class:`~appell.errors.ResourceError` at once, not a failure after minutes."""
-    times = opts.get("t_eval")
-    if times is None:
+    if opts.t_eval is None:
         return
     from appell.numerics.compiled_loop import supports
     from appell.numerics.dynamics import Dynamics
     from appell.simulation.resources import check_run_memory
 
     dynamics = model if isinstance(model, Dynamics) else numeric_model(derivation)
-    compiled = opts.get("method", "DOP853") == "DOP853" and supports(model) and not opts.get("project_output")
-    check_run_memory(dynamics, len(times), compiled)
+    compiled = opts.method == "DOP853" and supports(model) and not opts.project_output
+    check_run_memory(dynamics, len(opts.t_eval), compiled)
 
 
 def solver_line(solution) -> str:
@@ -537,7 +528,7 @@ class _Positive(click.ParamType):
 def _solver_options(command):
     """The integrator's options (:data:`SOLVER_OPTIONS`), each defaulting to the model's
     ``[simulation]`` value, collected into the command's ``solver`` argument
-    (``{name: value, or None where not given}``) for :func:`simulation_options`."""
+    (``{name: value, or None where not given}``) for :func:`command_options`."""
     from appell.simulation.simulate import METHODS
 
     positive = _Positive()
@@ -904,12 +895,12 @@ def _energy_balance(derivation, t_end=None):
     system = derivation.system
     if not system.initial:
         return EnergyBalance(None, "the model gives no initial values ([initial]) to start a motion from")
-    opts = simulation_options(system, t_end)
-    if not opts["t_end"] > opts["t0"]:
+    opts = command_options(system, t_end)
+    if not opts.t_end > opts.t0:
         return EnergyBalance(None, "the simulation span is empty (t_end = t0)")
     # a model that declares an implicit method is stiff: its balance integrates implicitly too
-    stiff = opts.get("method") in ("Radau", "BDF", "LSODA")
-    return energy_balance(derivation, opts["t_end"], t0=opts["t0"], method="Radau" if stiff else "DOP853")
+    stiff = opts.method in ("Radau", "BDF", "LSODA")
+    return energy_balance(derivation, opts.t_end, t0=opts.t0, method="Radau" if stiff else "DOP853")
 
 
 def _echo_redundancy(derivation) -> None:
@@ -1088,19 +1079,15 @@ def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, 
         raise ModelError("sweeps of models with servo constraints are not supported yet",
                          hint="sweep the plain constrained system, or loop over appell simulate --set")
     parameter_grid(specs)  # bad specs are bad input, before a cluster starts
-    opts = simulation_options(system, t_end, **solver)
-    final, times = opts.pop("t_end"), opts.pop("t_eval", None)
-    if times is None:  # neither the command line nor the model gives output times
-        import numpy as np
-
-        times = np.linspace(opts["t0"], final, 501) if final > opts["t0"] else np.array([opts["t0"]])
-    if opts.get("complete"):  # missing values are computed; a run whose given values violate a constraint fails
-        opts["adjust"] = ()  # (its changes could not be reported), instead of being changed silently
+    opts = command_options(system, t_end, **solver)
+    if opts.complete:  # missing values are computed; a run whose given values violate a constraint fails
+        opts = opts.given(adjust=())  # (its changes could not be reported), instead of being changed silently
+    final, times = opts.t_end, opts.output_times()
     path = Path(out) if out else default_file_name(system.name, "-sweep.h5")
     output_file(path, "'--out'")
     result = run_sweep(system, list(specs), final, output=path, t_eval=times, scheduler=scheduler,
                        n_workers=workers, backend=backend, progress=sys.stderr.isatty(),
-                       worker_timeout=worker_timeout, resume=resume, **opts)
+                       worker_timeout=worker_timeout, resume=resume, **opts.changes(but=("t_end", "t_eval")))
     click.echo(result.summary_text())
     if result.failed:
         which = "every run" if len(result.failed) == len(result.runs) else f"{len(result.failed)} of {len(result.runs)} runs"

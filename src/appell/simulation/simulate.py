@@ -68,7 +68,6 @@ from appell.numerics.compiled_loop import CompiledLoop, LoopSolver, Outputs, sup
 from appell.numerics.inertia import check_inertia
 from appell.numerics.linearise import motion_jacobian
 from appell.numerics.numeric import NumericModel
-from appell.simulation.defaults import with_model_defaults
 from appell.simulation.events import check_event_names, contact_watch, watches_for
 from appell.simulation.impact import impact
 from appell.numerics.friction import FrictionLaws
@@ -78,7 +77,7 @@ from appell.simulation.initial import (InitialState, check_initial, complete_ini
 from appell.simulation.resources import check_run_memory
 from appell.simulation.passage import PassageRefused, pass_through
 from appell.simulation.singular import DIP, SINGULAR_LEVEL, TRUST, RankWatch, explain_failure
-from appell.simulation.options import check_arguments
+from appell.simulation.options import SimulationOptions, check_events
 from appell.simulation.solution import EventRecord, ModelMetadata, Solution, SolverStatistics
 from appell.numerics.boundary import numeric_model
 from appell.numerics.dynamics import FrictionModes, FromDerivation, ResidualJacobians, ServoTracking, SplitBlocks
@@ -537,27 +536,34 @@ def _next(base_order):
     return base, order + 1
 
 
-@with_model_defaults
-def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0, t_eval=None, method="DOP853",
-             rtol: float = 1e-9, atol: float = 1e-12, max_step: float = np.inf,
-             stabilization: str | None = "projection", baumgarte=(10.0, 10.0), projection_tol: float = 1e-10,
-             project_output: bool = False, unilateral: Mapping[str, int] | None = None, on_release: str = "continue",
-             friction: Mapping | None = None, events=(), params=None, initial=None, complete: bool = False,
-             adjust=None, progress: bool | None = None, rest_speed: float = 1e-6,
-             max_evaluations: int | None = None) -> Solution:
+def simulate(model_or_derivation, t_end: float | None = None, *, options: SimulationOptions | None = None,
+             events=(), params=None, initial=None, **settings) -> Solution:
     """Integrate the motion and record states, accelerations, multipliers, controls and residuals.
 
-    Every argument left out takes the model's run settings (a model file's ``[simulation]``
-    table, ``System.settings``) when it makes one, else the default below
-    (:mod:`appell.simulation.defaults`): the API and ``appell simulate`` read a model alike.
+    The settings of the run are one :class:`~appell.simulation.options.SimulationOptions`:
+    ``options`` when given, else the model's run settings (a model file's ``[simulation]``
+    table, ``System.settings``) over the defaults below; each setting given here as a keyword
+    argument (``rtol=1e-6``) overrides it (:mod:`appell.simulation.options`). ``appell
+    simulate`` builds its options the same way from its flags, so both read a model alike.
 
     Parameters
     ----------
     model_or_derivation : a :class:`~appell.core.equations.Derivation` or any
         :class:`~appell.numerics.dynamics.Dynamics`.
-    t_end, t0 : final and initial time; ``t_end == t0`` records the initial state only.
-        ``t_end`` defaults to the model's ``t_end``, else
-        :data:`~appell.simulation.defaults.DEFAULT_T_END`.
+    t_end : final time (default the options' ``t_end``: the model's, else
+        :data:`~appell.simulation.options.DEFAULT_T_END`); ``t_end == t0`` records the initial
+        state only.
+    options : a :class:`~appell.simulation.options.SimulationOptions` (default: the model's).
+    events : :class:`~appell.simulation.events.Event` items (or bare callables ``g(t, y, multipliers)``).
+    params : parameter values (``{name: value}`` or a vector).
+    initial : initial state (``{name: value}``, a vector, or the
+        :class:`~appell.simulation.initial.InitialState` of :func:`~appell.simulation.initial.check_initial`
+        or :func:`~appell.simulation.initial.complete_initial`); default the system's.
+
+    Other Parameters
+    ----------------
+    t0 : initial time (default 0). This and the settings below are keyword arguments, the
+        fields of :class:`~appell.simulation.options.SimulationOptions`.
     t_eval : output times (default 501 equally spaced in [t0, t_end]).
     method : name in :data:`METHODS` or an ``OdeSolver`` subclass; ``"DOP853"`` on a compiled
         model is the compiled loop (module docstring), ``"DOP853-scipy"`` SciPy's class.
@@ -579,11 +585,6 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
         unchanged). Friction that acts is declared on the system (``System.frictions``):
         its stick-slip modes follow :mod:`appell.simulation.stickslip`, its forces are the
         columns ``friction_<name>_...`` of the solution.
-    events : :class:`~appell.simulation.events.Event` items (or bare callables ``g(t, y, multipliers)``).
-    params : parameter values (``{name: value}`` or a vector).
-    initial : initial state (``{name: value}``, a vector, or the
-        :class:`~appell.simulation.initial.InitialState` of :func:`~appell.simulation.initial.check_initial`
-        or :func:`~appell.simulation.initial.complete_initial`); default the system's.
     complete : complete the initial values (:func:`~appell.simulation.initial.complete_initial`: the
         missing ones computed, given ones that violate a constraint changed) instead of
         only checking the given ones (:func:`~appell.simulation.initial.check_initial`, which
@@ -609,24 +610,21 @@ def simulate(model_or_derivation, t_end: float | None = None, *, t0: float = 0.0
     model, system = dynamics_of(model_or_derivation)
     if system is not None and system.frictions and not isinstance(model, FrictionModes):
         model = FrictionLaws(model.derivation).mode()  # every contact sliding; the modes follow
-    if stabilization not in ("projection", "baumgarte", None):
-        raise ModelError(f"unknown stabilization {stabilization!r}", hint="use 'projection', 'baumgarte' or None")
-    if on_release not in ("continue", "stop"):
-        raise ModelError(f"on_release must be 'continue' or 'stop', not {on_release!r}")
+    opts = (SimulationOptions.from_model(system) if options is None else options).given(t_end=t_end, **settings)
+    opts = opts.checked(model)
+    method, stabilization, on_release = opts.method, opts.stabilization, opts.on_release
     solver_cls = METHODS.get(method, method) if isinstance(method, str) else method
     if not (isinstance(solver_cls, type) and issubclass(solver_cls, si.OdeSolver)):
         raise ModelError(f"unknown integration method {method!r}", hint="methods: " + ", ".join(METHODS))
     if stabilization == "baumgarte" and "bias" not in inspect.signature(model.evaluate).parameters:
         raise ModelError(f"model {model.name!r} does not accept a constraint bias: Baumgarte stabilization "
                          "is not available for it", hint="use stabilization='projection'")
-    args = check_arguments(model, t0=t0, t_end=t_end, t_eval=t_eval, rtol=rtol, atol=atol, max_step=max_step,
-                           projection_tol=projection_tol, baumgarte=baumgarte, stabilization=stabilization,
-                           unilateral=unilateral, friction=friction, events=events,
-                           flags={"complete": complete, "project_output": project_output})
-    t0, t_end, t_eval, rtol, atol, max_step = args.t0, args.t_end, args.t_eval, args.rtol, args.atol, args.max_step
-    projection_tol, baumgarte = args.projection_tol, args.baumgarte
+    t0, t_end, t_eval, rtol, atol, max_step = opts.t0, opts.t_end, opts.t_eval, opts.rtol, opts.atol, opts.max_step
+    projection_tol, baumgarte, project_output = opts.projection_tol, opts.baumgarte, opts.project_output
+    unilateral, friction, rest_speed = opts.unilateral, opts.friction, opts.rest_speed
+    complete, adjust, progress, max_evaluations = opts.complete, opts.adjust, opts.progress, opts.max_evaluations
+    events = check_events(events)
     check_event_names(model, unilateral, friction)
-    rest_speed = number(rest_speed, "rest_speed", positive=True)
     if unilateral and on_release == "continue" and system is None:
         raise ModelError("releasing a unilateral constraint needs the system to derive again",
                          hint="pass a Derivation, or on_release='stop'")

@@ -7,6 +7,6 @@ from a whitelisted grammar without ``eval``.
 """
 
 from .expressions import ExpressionError, parse_expression
-from .loader import load_model, loads_model, simulation_options
+from .loader import load_model, loads_model
 
-__all__ = ["ExpressionError", "load_model", "loads_model", "parse_expression", "simulation_options"]
+__all__ = ["ExpressionError", "load_model", "loads_model", "parse_expression"]

@@ -41,13 +41,14 @@ from appell.model import (
 )
 from appell.symbols import MAX_NAME, NAME_HINT, canonical_name, derivative_name, name_problem, split_derivative_name
 from appell.core.validation import declared_symbols, validate
+from appell.simulation.options import SimulationOptions
 from .expressions import (FUNCTIONS, ExpressionError, caret_line, constant_problem, constant_value,
                           parse_expression)
 from .locate import source_map
 from .repeat import expand as expand_repeats
 from .view_table import read_view
 
-__all__ = ["load_model", "loads_model", "simulation_options", "TABLES", "SIMULATION_KEYS", "CONSTRAINT_KINDS", "MAX_FILE_SIZE"]
+__all__ = ["load_model", "loads_model", "TABLES", "SIMULATION_KEYS", "CONSTRAINT_KINDS", "MAX_FILE_SIZE"]
 
 #: largest model file accepted, in characters
 MAX_FILE_SIZE = 1_000_000
@@ -103,27 +104,8 @@ RESERVED_PREFIXES = ("lambda_", "control_", "residual_", "friction_")
 #: constraint kinds -> order (method.md §2)
 CONSTRAINT_KINDS = {"holonomic": 0, "first-order": 1, "second-order": 2}
 
-#: [simulation] keys (the keyword arguments of appell.simulation.simulate.simulate) -> what they hold
-SIMULATION_KEYS = {
-    "t_end": "number, the final time",
-    "t0": "number, the initial time (default 0)",
-    "t_eval": "array of non-decreasing output times",
-    "output_step": "positive number; equally spaced output times from t0 to t_end (stored as t_eval)",
-    "samples": "integer >= 2; that many equally spaced output times from t0 to t_end (stored as t_eval)",
-    "method": "string, the integrator",
-    "rtol": "positive number",
-    "atol": "positive number",
-    "max_step": "positive number",
-    "stabilization": "'projection', 'baumgarte' or 'none'",
-    "baumgarte": "array [alpha, beta] of non-negative numbers",
-    "projection_tol": "positive number",
-    "unilateral": "table: constraint name = 1 or -1 (the sign its multiplier keeps)",
-    "on_release": "'continue' or 'stop'",
-    "friction": "table: tangential constraint = { normal = constraint name, mu = number }",
-    "rest_speed": "positive number: a contact whose rebound speed would be at most this engages again",
-    "complete": "boolean: complete the dependent initial values",
-    "project_output": "boolean: also project output states taken from inside a step",
-}
+#: [simulation] keys (the settings of appell.simulation.options.SimulationOptions) -> what they hold
+SIMULATION_KEYS = SimulationOptions.table_keys()
 STABILIZATIONS = ("projection", "baumgarte", "none")
 RELEASES = ("continue", "stop")
 
@@ -744,17 +726,6 @@ def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
             times.append(t_end)
         out["t_eval"] = tuple(times)
     return tuple(out.items())
-
-
-def simulation_options(system: System) -> dict:
-    """``system.settings`` as keyword arguments of :func:`appell.simulation.simulate.simulate`.
-
-    The settings are stored hashable (pairs); ``unilateral`` and ``friction`` become
-    dictionaries again, ``t_eval`` an array-like tuple.
-    """
-    from appell.simulation.defaults import settings_options
-
-    return settings_options(system)
 
 
 # ------------------------------------------------------------------ the load
