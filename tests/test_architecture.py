@@ -191,3 +191,35 @@ def test_the_numeric_model_is_kept_outside_the_derivation():
         numeric_model(d, "fortran")
     with pytest.raises(appell.ModelError, match="needs a derivation"):
         numeric_model(d.system)
+
+
+def test_the_driver_reads_like_the_method():
+    """``simulate`` is a table of contents of a run (issue 21 item 5: it was one function of 364
+    lines beside a 221-line bookkeeping class): its code (docstring aside) stays under 90 lines;
+    the integrator, the event location, the projection and the record of the run are modules
+    of their own; each kind of event that changes a run has one handler; the mode of a run is
+    one frozen record, and no module updates a friction model's signs in place."""
+    import dataclasses
+    import inspect
+
+    from appell.simulation import simulate as driver
+    from appell.simulation.events import locate  # noqa: F401 (event location in one place)
+    from appell.simulation.integration import Integration  # noqa: F401
+    from appell.simulation.projection import project  # noqa: F401
+    from appell.simulation.recording import Mode
+
+    lines = inspect.getsource(driver.simulate).splitlines()
+    body = ast.parse(inspect.getsource(driver.simulate)).body[0].body
+    docstring = body[0].end_lineno - body[0].lineno + 1 if isinstance(body[0], ast.Expr) else 0
+    assert len(lines) - docstring <= 90, f"simulate has {len(lines) - docstring} lines of code"
+    handlers = {"stop": "_stop", "impact": "_impact", "mode": "_mode_change", "release": "_release"}
+    assert all(callable(getattr(driver._Motion, h)) for h in handlers.values())
+    assert hasattr(driver._Motion, "on_singular") and dataclasses.is_dataclass(Mode)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        Mode().released = ("x",)
+    mutations = [f"{path.relative_to(PACKAGE)}:{node.lineno}" for path in PACKAGE.rglob("*.py")
+                 for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+                 if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                 and node.func.attr == "update" and isinstance(node.func.value, ast.Attribute)
+                 and node.func.value.attr == "signs"]
+    assert not mutations, mutations

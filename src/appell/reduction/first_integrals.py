@@ -301,7 +301,7 @@ def consistent_states(derivation, count: int, *, seed: int = 0, t_span: float = 
     steps on ``F = 0``, then on ``phi = 0``). Draws that cannot be projected are retried, at
     most ``attempts * count`` draws in all. Returns ``(states, failed draws)``.
     """
-    from appell.simulation.simulate import project
+    from appell.simulation.projection import project
 
     model = numeric_model(derivation)
     q0, w0 = _initial_state(derivation.system)

@@ -29,10 +29,11 @@ from typing import Callable
 
 import numpy as np
 import sympy as sp
+from scipy.optimize import brentq
 
 from appell.errors import ModelError
 
-__all__ = ["Event", "Watch", "watches_for", "contact_watch", "gap_constraints"]
+__all__ = ["Event", "Watch", "watches_for", "contact_watch", "gap_constraints", "locate", "ENDING"]
 
 
 @dataclass(frozen=True)
@@ -181,3 +182,52 @@ def check_event_names(model, unilateral=None, friction=None):
             f"unknown constraint(s) {', '.join(sorted(set(bad)))} in unilateral/friction",
             hint="constraints: " + ", ".join(names),
         )
+
+
+#: the actions of a watch that end a step where it fires (the run changes there)
+ENDING = ("stop", "release", "impact", "mode")
+
+
+def locate(watches, g, g_new, t: float, t_new: float, dense, evaluate, p) -> list[tuple[float, int, Watch]]:
+    """Every crossing of a watched quantity within the step from ``t`` to ``t_new``, in time
+    order, as ``(time, index, watch)``: the one place where events are located.
+
+    ``g``, ``g_new`` are the watches' values at the step's ends, ``dense`` its dense output,
+    ``evaluate(s, y)`` the model's evaluation at an inner time (a contact's gap needs none).
+    A crossing is located by Brent's method to 1e-13 in time; where the interpolant loses the
+    sign change, at the step's end. A contact that bounced at ``t`` (its gap zero and opening
+    there) and is closed again at ``t_new`` is searched for an opening inside the step first,
+    then located from there; where none is found it closes at ``t`` itself."""
+    hits = []
+    for i, w in enumerate(watches):
+        def gi(s, w=w):
+            ys = dense(s)
+            return w.g(s, ys, None if w.kind == "contact" else evaluate(s, ys), p)
+
+        lo = t if w.crossed(g[i], g_new[i]) else None
+        if lo is None and w.kind == "contact" and g[i] == 0.0 and g_new[i] < 0.0:
+            lo = _opening(gi, t, t_new)  # a bounce at t: the gap opens and closes again within this step
+            if lo is None:
+                hits.append((t, i, w))
+                continue
+        if lo is not None:
+            try:
+                ts = brentq(gi, lo, t_new, xtol=1e-13, rtol=4 * np.finfo(float).eps, maxiter=200)
+            except ValueError:  # the interpolant lost the sign change: take the step's end
+                ts = t_new
+            hits.append((ts, i, w))
+    hits.sort(key=lambda h: h[0])
+    return hits
+
+
+def _opening(g, a: float, b: float):
+    """A time in (a, b] where ``g > 0``, searched at ``a + (b - a) / 2^k`` (k = 1..60):
+    after a bounce at ``a`` the gap grows at the rebound speed, so it is positive just
+    after ``a``; None when no such time is found."""
+    for k in range(1, 61):
+        s = a + (b - a) * 0.5**k
+        if s <= a:
+            break
+        if g(s) > 0.0:
+            return s
+    return None

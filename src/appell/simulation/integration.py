@@ -1,0 +1,165 @@
+"""The integrator of a run: one :class:`Integration` object, restarted where the state jumps.
+
+The integrator is driven step by step through SciPy's ``OdeSolver`` interface (the classes
+behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``, ``RK23``, ``Radau``,
+``BDF``, ``LSODA``). With ``method="DOP853"`` on a compiled model whose constraints are linear in
+``a`` the compiled loop of :mod:`appell.numerics.compiled_loop` takes SciPy's place: the same
+scheme and step control in C, which runs the steps that need nothing of Python (no projection
+due, no watched events) and records their output times there. The implicit methods get the
+exact Jacobian of the motion (:func:`~appell.numerics.linearise.motion_jacobian`) where the
+model is a plain split. Each start also sets the rank watch of the active model
+(:mod:`appell.simulation.singular`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.integrate as si
+
+from appell.errors import AppellError, ModelError
+from appell.numerics.compiled_loop import LoopSolver
+from appell.numerics.linearise import motion_jacobian
+from appell.numerics.numeric import NumericModel
+from appell.simulation.singular import DIP, SINGULAR_LEVEL, TRUST, RankWatch, explain_failure
+
+__all__ = ["IMPLICIT", "METHODS", "Integration", "Step", "solver_class"]
+
+#: methods that solve implicit stages with Newton's method and so take the Jacobian dG/dy
+IMPLICIT = (si.Radau, si.BDF, si.LSODA)
+
+#: integrators by name (SciPy's OdeSolver classes); "DOP853" on a compiled model runs the
+#: compiled loop (:mod:`appell.numerics.compiled_loop`), "DOP853-scipy" always SciPy's class
+METHODS = {"DOP853": si.DOP853, "DOP853-scipy": si.DOP853, "RK45": si.RK45, "RK23": si.RK23, "Radau": si.Radau,
+           "BDF": si.BDF, "LSODA": si.LSODA}
+
+
+def solver_class(method):
+    """The ``OdeSolver`` class of ``method`` (a name in :data:`METHODS` or the class)."""
+    solver_cls = METHODS.get(method, method) if isinstance(method, str) else method
+    if not (isinstance(solver_cls, type) and issubclass(solver_cls, si.OdeSolver)):
+        raise ModelError(f"unknown integration method {method!r}", hint="methods: " + ", ".join(METHODS))
+    return solver_cls
+
+
+def exact_jacobian(model, solver_cls, cache: dict):
+    """The exact Jacobian ``jac(t, y, p)`` of the motion of ``model`` for an implicit method,
+    made once per model (``cache``); None for an explicit method and for models whose motion
+    holds more than the split (friction modes, redundant supports, servo constraints: SciPy's
+    finite differences there)."""
+    if not (isinstance(solver_cls, type) and issubclass(solver_cls, IMPLICIT)):
+        return None
+    if not isinstance(model, NumericModel):
+        return None
+    if id(model) not in cache:
+        cache[id(model)] = (model, motion_jacobian(model))
+    return cache[id(model)][1]
+
+
+@dataclass(frozen=True)
+class Step:
+    """One accepted step: its end ``(t, y)``, its dense output, and ``k`` the index of the next
+    output time not yet recorded (the compiled loop records those it passes); or a failure
+    with its ``message``."""
+
+    t: float = 0.0
+    y: np.ndarray | None = None
+    dense: object = None
+    k: int = 0
+    failure: str | None = None
+
+
+class Integration:
+    """The integrator of a run from ``(t, y)`` of the ``active`` model to ``t_end``
+    (module docstring); ``run`` (:class:`appell.simulation.recording.Run`) evaluates the model
+    and counts evaluations and steps."""
+
+    def __init__(self, run, solver_cls, options, compiled: bool):
+        self.run, self.solver_cls, self.options, self.compiled = run, solver_cls, options, compiled
+        self.p = run.p
+        self.active = None
+        self.solver = None
+        self.rank: RankWatch | None = None
+        self.scales: dict = {}  # each constraint row's size at its first sight (appell.simulation.singular)
+        self.jacobians: dict = {}  # the exact Jacobian of each model the implicit methods have used
+
+    def fun(self, t, y):
+        self.run.nfev += 1
+        return self.run.evaluate(self.active, t, y).derivative
+
+    def _tolerances(self) -> dict:
+        return {"rtol": self.options.rtol, "atol": self.options.atol, "max_step": self.options.max_step}
+
+    def _scipy_options(self) -> dict:
+        """Tolerances of the run and, for the implicit methods, the exact Jacobian."""
+        kw = self._tolerances()
+        jac = exact_jacobian(self.active, self.solver_cls, self.jacobians)
+        if jac is not None:
+            kw["jac"] = lambda t_, y_: jac(t_, y_, self.p)
+        return kw
+
+    def start(self, active, t, y, first_step=None) -> None:
+        """A fresh integrator of ``active`` from ``(t, y)`` (``first_step``: the step size to
+        keep across a restart)."""
+        self.active = active
+        kw = self._tolerances()
+        if first_step is not None:
+            kw["first_step"] = min(first_step, self.options.t_end - t)
+        if self.rank is None or self.rank.model is not active:
+            self.rank = RankWatch(active, self.p, t, y, self.scales)
+        loop = self.run.loop(active) if self.compiled else None
+        if loop is not None and self.rank.active and getattr(loop, "scale", None) is None:
+            loop.watch(self.rank.scale, max(10.0 * SINGULAR_LEVEL, 2.0 * TRUST * self.rank.band), DIP)
+        if loop is None:
+            self.solver = self.solver_cls(self.fun, t, y, self.options.t_end, **{**self._scipy_options(), **kw})
+            return
+        loop.set_switched(self.run.dependent is not None and self.run.dependent != loop.default_dependent)
+        self.solver = loop.solver(t, y, self.options.t_end, **kw)
+        self.run.nfev += self.solver.counts()[0]
+
+    def restart(self, active, t, y, keep_step: bool = False) -> None:
+        """:meth:`start` again after a jump of the state, keeping the step size (``keep_step``:
+        also where the solver reports none but its current one)."""
+        h = getattr(self.solver, "h_abs", None)
+        if keep_step:
+            h = h or self.solver.step_size
+        self.start(active, t, y, h)
+        self.run.restarts += 1
+
+    def sub_solver(self, t, y, t_bound):
+        """An integrator of the run's method and tolerances from (t, y) to t_bound (the
+        approach to a singular configuration, :mod:`appell.simulation.passage`)."""
+        return self.solver_cls(self.fun, t, y, t_bound, **self._scipy_options())
+
+    def step(self, k: int, t_eval, single: bool) -> Step:
+        """One accepted step (the compiled loop: as many as need nothing of Python, recording
+        the output times they pass from ``k`` on, unless ``single``)."""
+        solver, run = self.solver, self.run
+        try:
+            if isinstance(solver, LoopSolver):
+                k0, out = k, run.loop_outputs(self.active, t_eval)
+                if single:
+                    msg = solver.step()
+                else:
+                    tol = self.options.projection_tol if self.options.stabilization == "projection" else np.inf
+                    k, msg = solver.advance(k, tol)
+                if k > k0:
+                    ys, acc, lam, F, phi = out.rows(k0, k)
+                    run.add_block(self.active, t_eval[k0:k], ys, acc, lam, np.zeros((k - k0, 0)), F, phi)
+                previous = None if single else solver.previous_dense_output()
+                if previous is not None:  # the steps before this one ran in C: their last one
+                    self.rank.seed(*previous)
+                nfev, steps = solver.counts()
+                run.nfev += nfev
+                run.steps += steps - 1
+            else:
+                msg = solver.step()
+        except AppellError as exc:
+            return Step(failure=f"the model could not be evaluated near t = {solver.t:.10g}: {exc}")
+        if solver.status == "failed":
+            message = f"the integrator failed at t = {solver.t:.10g}: {msg}"
+            why = explain_failure(self.active, solver.t, solver.y, self.p)
+            return Step(failure=message if why is None else message.rstrip(".") + "; " + why)
+        run.steps += 1
+        return Step(float(solver.t), np.array(solver.y, float), solver.dense_output(), k)
