@@ -27,7 +27,7 @@ KEEP_CONDITION = 1e4
 #: relative condition number from which the numeric split is refined once. The split's
 #: rounding errors grow like kappa^2 eps in lambda (kappa in ``a_h = -J_h^{-1}(J_nu a_nu + c)``,
 #: kappa again in ``lambda = J_h^{-T} E_h``, where ``E_h`` is small beside the terms that
-#: cancel in it): 1e-8 relative at kappa = 1e4 (issue 26, the bead on a turning rod at
+#: cancel in it): 1e-8 relative at kappa = 1e4 (the bead on a turning rod at
 #: Omega t = pi/2). One step of iterative refinement -- the same split applied to the
 #: residuals ``M a + h - Q - J^T lambda`` and ``J a + c`` -- divides that error by
 #: kappa^2 eps again, down to the rounding of the residuals themselves (about 1e-15 there;

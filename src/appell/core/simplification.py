@@ -1,5 +1,5 @@
 """Bounded symbolic work: the size measure and the bound policy shared by every stage that
-can swell (issue 20), and the display-sized simplification of the printers.
+can swell, and the display-sized simplification of the printers.
 
 Symbolic steps fall in two kinds, and one measure, :func:`measure`, decides both. It walks
 an expression once (shared subexpressions once, with an early stop at the bound) and
@@ -41,7 +41,7 @@ The policy:
   model's expression (``potential_energy``, ``holonomic constraint 'rod'``, with its line)
   and says what to do, instead of running for minutes.
 
-The bounds, measured (issue 20): every expression the bundled examples tidy measures at
+The bounds, measured: every expression the bundled examples tidy measures at
 most 320 but one of Andrews' squeezer (3054, now left as it is); their determinants and
 adjugates at most 1521; a ``simplify`` at :data:`TIDY_LIMIT` takes up to about two
 seconds, a ``cancel`` at :data:`SWELL_LIMIT` a fraction of one (a ``simplify`` of 1800 took

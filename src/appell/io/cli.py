@@ -529,27 +529,28 @@ def _solver_options(command):
     """The integrator's options (:data:`SOLVER_OPTIONS`), each defaulting to the model's
     ``[simulation]`` value, collected into the command's ``solver`` argument
     (``{name: value, or None where not given}``) for :func:`command_options`."""
+    from appell.simulation.options import DEFAULT_SAMPLES, SimulationOptions
     from appell.simulation.simulate import METHODS
 
-    positive = _Positive()
+    positive, default = _Positive(), SimulationOptions()
     table = " (default: the model's [simulation] value, else {})."
     options = [
         click.option("--method", type=click.Choice(list(METHODS)), default=None,
-                     help="Integration method" + table.format("DOP853")),
+                     help="Integration method" + table.format(default.method)),
         click.option("--rtol", type=positive, default=None, metavar="R",
-                     help="Relative tolerance of the integrator" + table.format("1e-9")),
+                     help="Relative tolerance of the integrator" + table.format(f"{default.rtol:g}".replace("e-0", "e-"))),
         click.option("--atol", type=positive, default=None, metavar="A",
-                     help="Absolute tolerance of the integrator" + table.format("1e-12")),
+                     help="Absolute tolerance of the integrator" + table.format(f"{default.atol:g}".replace("e-0", "e-"))),
         click.option("--max-step", "max_step", type=_Positive(infinite=True), default=None, metavar="H",
                      help="Largest integration step" + table.format("unbounded")),
         click.option("--t0", "t0", type=float, default=None, metavar="T",
-                     help="Start time; the initial values hold at t0" + table.format("0")),
+                     help="Start time; the initial values hold at t0" + table.format(f"{default.t0:g}")),
         click.option("--samples", type=click.IntRange(min=2), default=None, metavar="N",
-                     help="N equally spaced output times from t0 to t_end" + table.format("501")),
+                     help="N equally spaced output times from t0 to t_end" + table.format(DEFAULT_SAMPLES)),
         click.option("--output-step", "output_step", type=positive, default=None, metavar="H",
                      help="Output times t0, t0 + H, ... and t_end (excludes --samples)."),
         click.option("--stabilization", type=click.Choice(["projection", "baumgarte", "none"]), default=None,
-                     help="Constraint drift control" + table.format("projection")),
+                     help="Constraint drift control" + table.format(default.stabilization)),
     ]
 
     @functools.wraps(command)

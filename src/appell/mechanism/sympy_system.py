@@ -1,5 +1,4 @@
-"""A :class:`sympy.physics.mechanics.System` as an appell :class:`~appell.model.System`
-(issue 12 §3).
+"""A :class:`sympy.physics.mechanics.System` as an appell :class:`~appell.model.System`.
 
 :func:`from_sympy` reads what the SymPy system holds and hands it to appell unchanged in
 meaning:

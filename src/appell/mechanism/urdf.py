@@ -1,4 +1,4 @@
-"""Reading a URDF robot description, safely (issue 12 §3).
+"""Reading a URDF robot description, safely.
 
 :func:`parse_urdf` turns URDF text into a :class:`UrdfRobot`, a frozen description of the
 links (inertial origin ``xyz``/``rpy``, mass, inertia about the mass centre in the inertial
@@ -17,7 +17,7 @@ document type declaration refused (so no entity can be declared: no entity expan
 "bomb", no external entity reading another file), and nothing named in the file (meshes,
 ``package://`` URIs, included files) is opened. Every error is a
 :class:`~appell.errors.ModelError` with ``where="<file>:<line>"`` that names the link or
-joint at fault and says what to do (issue 20):
+joint at fault and says what to do:
 
 * encoding: a file is read as bytes and expat honours its XML declaration and byte-order
   mark (UTF-8 by default; UTF-16, ISO-8859-1, US-ASCII and Python's one-byte encodings);
@@ -685,7 +685,7 @@ def _rotation(rpy):
 #: the name of the free joint that ``floating_base`` puts under the root link (Pinocchio's)
 ROOT_JOINT = "root_joint"
 #: its rotation: yaw, pitch, roll (``R = Rz Ry Rx``, coordinates ``root_joint_rz, _ry, _rx``);
-#: a quaternion derives 30 times slower today (issue 22), and pitch +-90 deg, where these
+#: a quaternion derives 30 times slower today, and pitch +-90 deg, where these
 #: angles are singular, is refused by the mass matrix check, never passed silently
 FLOATING_ROTATION = "zyx"
 

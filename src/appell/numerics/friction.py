@@ -1,4 +1,4 @@
-"""Non-ideal contacts: Coulomb friction, rolling resistance, viscous friction (issue 12 §4).
+"""Non-ideal contacts: Coulomb friction, rolling resistance, viscous friction.
 
 A :class:`~appell.model.Friction` item ``k`` has slip velocity components
 ``v_k(t, q, w)`` (1 or 2), ``G_k = dv_k/dw``, the normal multiplier ``N_k =

@@ -1,5 +1,5 @@
 """Eigenvalues of the linear model against a parameter: modes tracked across the sweep and
-the critical values where a real part crosses zero (issue 23).
+the critical values where a real part crosses zero.
 
 At each value ``v_k`` of the varied name (a parameter, or a coordinate or speed of the
 point: the forward speed of a vehicle), the point is the given one, or the steady motion

@@ -1,4 +1,4 @@
-"""Passing a singular configuration on the branch that continuity selects (issue 19 §1).
+"""Passing a singular configuration on the branch that continuity selects.
 
 Where the constraint Jacobian ``J = df/da`` loses rank along the motion
 (:mod:`appell.simulation.singular`: the change point of a parallelogram four-bar, the flat

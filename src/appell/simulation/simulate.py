@@ -547,7 +547,7 @@ def _initial_state(model, initial, complete, adjust, t0, p):
         return complete_initial(model, initial, adjust, t=t0, params=p)
     _, system = dynamics_of(model)
     # starting guesses and values not given are computed from the constraints, given values
-    # only checked: as `appell simulate` does (issue 21: the API and the command line agree)
+    # only checked: as `appell simulate` does (the API and the command line agree)
     if (system is not None and system.initial_guesses) or missing_values(model, initial, p):
         return complete_initial(model, initial, (), t=t0, params=p)
     return check_initial(model, initial, t=t0, params=p)

@@ -5,7 +5,7 @@ four-bar, the tip of the cusp ``y^2 = x^3``) the constraint Jacobian ``J = df/da
 rank: no partition satisfies condition (1.2), the reactions in the lost direction are
 undetermined, and beyond it the equations of motion do not say on which branch the
 motion goes on. A run that passes such a point picks a branch by its rounding errors,
-so two backends or two tolerances can leave on different branches (issue 20). The run
+so two backends or two tolerances can leave on different branches. The run
 therefore never integrates through it: :mod:`appell.simulation.passage` crosses it on the
 branch that continuity of positions and velocities selects, or, where no branch continues
 the motion, the run stops there, with the time and the constraints involved.

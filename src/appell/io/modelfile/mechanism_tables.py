@@ -1,5 +1,5 @@
 """Model files of mechanisms: ``[mechanism]``, ``[[bodies]]``, ``[[joints]]``,
-``[[closures]]``, ``[[loads]]`` (issue 12 §1, §3; docs/model-format.md, "Mechanisms").
+``[[closures]]``, ``[[loads]]`` (docs/model-format.md, "Mechanisms").
 
 A model file with a ``[mechanism]`` table describes bodies joined by joints
 (:class:`appell.mechanism.Mechanism`) instead of coordinates and energies; it may name a
