@@ -192,3 +192,95 @@ def graph_cse(exprs, symbols=None):
         else:
             new[node] = value
     return replacements, [new.get(e, e) if isinstance(e, sp.Basic) else e for e in exprs]
+
+
+class GraphDerivative:
+    """``d expr / d x`` over the expression graph, each distinct subexpression differentiated
+    once per variable (:meth:`__call__`), for expressions that SymPy's ``diff`` would walk as
+    trees: ``diff`` asks every node for its free symbols, a walk along every path, so a
+    derivative of a recursively built expression (a bicycle's constraint, a chain's kinematics)
+    costs as many walks as the graph has paths. The rules are SymPy's own, node by node: a sum
+    term by term, a product by the product rule, ``b^e`` as ``b^e (e' log b + b' e / b)``, an
+    applied function by its ``fdiff`` along each argument; any other node (a derivative, an
+    integral, a piecewise or non-smooth function) is handed to SymPy's ``diff`` whole. Which
+    nodes hold the variable is found once for the graph of each expression."""
+
+    def __init__(self, limit: int = 500_000):
+        self._free: dict = {}  # node -> frozenset of the symbols it holds
+        self._memo: dict = {}  # (node, x) -> derivative
+        self.limit = limit  # entries kept before both tables start afresh (bounded memory)
+
+    def symbols(self, expr) -> frozenset:
+        """The free symbols of ``expr``, each distinct subexpression visited once."""
+        free = self._free
+        if expr in free:
+            return free[expr]
+        stack = [(expr, False)]
+        while stack:
+            node, ready = stack.pop()
+            if node in free:
+                continue
+            if node.is_Symbol:
+                free[node] = frozenset((node,))
+            elif not node.args or type(node).free_symbols is not sp.Basic.free_symbols:
+                free[node] = frozenset(node.free_symbols)
+            elif ready:
+                free[node] = frozenset().union(*(free[a] for a in node.args))
+            else:
+                stack.append((node, True))
+                stack.extend((a, False) for a in node.args if a not in free)
+        return free[expr]
+
+    def __call__(self, expr, x):
+        expr = sp.sympify(expr)
+        if not getattr(x, "is_Symbol", False):  # a function of t, a derivative: SymPy's own
+            return expr.diff(x)
+        if len(self._memo) + len(self._free) > self.limit:
+            self._memo.clear()
+            self._free.clear()
+        memo, zero = self._memo, sp.S.Zero
+        order = []  # the nodes holding x, children before parents
+        stack = [(expr, False)]
+        while stack:
+            node, ready = stack.pop()
+            if (node, x) in memo:
+                continue
+            if x not in self.symbols(node):
+                memo[(node, x)] = zero
+            elif ready or node == x or not _by_rules(node):
+                order.append(node)
+                memo[(node, x)] = None  # claimed; computed below in order
+            else:
+                stack.append((node, True))
+                stack.extend((a, False) for a in node.args)
+        for node in order:
+            memo[(node, x)] = self._rule(node, x)
+        return memo[(expr, x)]
+
+    def _rule(self, node, x):
+        memo = self._memo
+        if node == x:
+            return sp.S.One
+        if not _by_rules(node):
+            return node.diff(x)
+        d = [memo[(a, x)] for a in node.args]
+        if node.is_Add:
+            return sp.Add(*d)
+        if node.is_Mul:
+            args = node.args
+            return sp.Add(*[sp.Mul(*(args[:i] + (da,) + args[i + 1:])) for i, da in enumerate(d) if da != 0])
+        if node.is_Pow:
+            base, exp = node.args
+            dbase, dexp = d
+            return node * (dexp * sp.log(base) + dbase * exp / base)
+        return sp.Add(*[node.fdiff(i + 1) * da for i, da in enumerate(d) if da != 0])
+
+
+#: applied functions differentiated by their ``fdiff`` in :class:`GraphDerivative`
+_SMOOTH_FUNCTIONS = (sp.sin, sp.cos, sp.tan, sp.cot, sp.exp, sp.log, sp.sinh, sp.cosh, sp.tanh, sp.asin, sp.acos,
+                     sp.atan, sp.atan2, sp.asinh, sp.acosh, sp.atanh, sp.sec, sp.csc)
+
+
+def _by_rules(node) -> bool:
+    """Whether :class:`GraphDerivative` differentiates ``node`` by its own rules."""
+    return node.is_Add or node.is_Mul or (node.is_Pow and len(node.args) == 2) or isinstance(node, _SMOOTH_FUNCTIONS)

@@ -27,7 +27,7 @@ import sympy as sp
 from appell.core.simplification import refuse_derivative, refuse_result, tree_size
 from appell.errors import ModelError
 from appell.model import System
-from appell.symbols import derivative_symbol, split_derivative_name, t
+from appell.symbols import GraphDerivative, derivative_symbol, split_derivative_name, t
 
 
 @dataclass(frozen=True)
@@ -82,6 +82,10 @@ class Kinematics:
         return out
 
 
+#: the derivatives of smooth expressions, over their graphs (:class:`appell.symbols.GraphDerivative`:
+#: SymPy's rules, each shared subexpression differentiated once)
+GRAPH_DERIVATIVE = GraphDerivative()
+
 #: functions whose derivative needs the variables to be real (:func:`derivative`)
 NONSMOOTH = (sp.Abs, sp.sign, sp.Min, sp.Max, sp.Heaviside, sp.arg, sp.re, sp.im, sp.conjugate)
 
@@ -92,7 +96,7 @@ def derivative(expr, symbol):
     ``DiracDelta`` taken as zero."""
     expr = sp.sympify(expr)
     if not expr.has(*NONSMOOTH):
-        return expr.diff(symbol)
+        return GRAPH_DERIVATIVE(expr, symbol)
     real = {s: sp.Dummy(s.name, real=True) for s in expr.free_symbols | {symbol}
             if isinstance(s, sp.Symbol) and not s.is_real}
     out = expr.xreplace(real).diff(real.get(symbol, symbol)).xreplace({v: k for k, v in real.items()})
@@ -120,7 +124,7 @@ def partial(terms: dict, symbol, smooth: bool = False):
     give zeros; on a long sum of terms in few symbols each, n times less work). ``smooth``:
     the caller knows that ``expr`` holds no function of :data:`NONSMOOTH` (plain ``diff``)."""
     if smooth:
-        return sp.Add(*[term.diff(symbol) for term in terms.get(symbol, ())])
+        return sp.Add(*[GRAPH_DERIVATIVE(term, symbol) for term in terms.get(symbol, ())])
     return sp.Add(*[derivative(term, symbol) for term in terms.get(symbol, ())])
 
 
