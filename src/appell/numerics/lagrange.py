@@ -6,7 +6,8 @@ The split (1.4)/(1.5) and the augmented multiplier system of
 the same mechanics again from the system's description, by another road and without any
 stage of :mod:`appell.core` (kinematics operator, acceleration energy, constraint blocks):
 programs are first replaced by their functions of ``t``, then everything is plain partial
-differentiation.
+differentiation (over the expression graph, :class:`appell.symbols.GraphDerivative`, whose
+results are SymPy's ``diff``'s; the route is independent in its mechanics, not in SymPy).
 
 Kinetic and potential energy (:func:`mechanical_energy`)
     ``T(t, q, w) = T_given + sum_bodies (m/2 v.v + 1/2 omega^T I omega)``, with
@@ -39,7 +40,7 @@ import sympy as sp
 
 from appell.model import AppliedForce, AppliedTorque, RigidBody
 from appell.numerics.numeric import lambdify_blocks, program_substitutions
-from appell.symbols import derivative_symbol, t
+from appell.symbols import GraphDerivative, derivative_symbol, t
 
 __all__ = ["MechanicalEnergy", "LagrangeRoute", "mechanical_energy", "energy_unavailable",
            "lagrange_unavailable", "lagrange_route"]
@@ -84,23 +85,30 @@ def lagrange_unavailable(system) -> str | None:
     return None
 
 
-def _velocity(position, velocity, rates, q, subs) -> sp.Matrix:
+def _jacobian(vector, variables, d: GraphDerivative) -> sp.Matrix:
+    """``d vector / d variables`` (a column ``vector``; ``Matrix.jacobian`` by ``d``)."""
+    vector, variables = sp.Matrix(vector), list(variables)
+    return sp.Matrix(vector.shape[0], len(variables), lambda i, j: d(vector[i], variables[j]))
+
+
+def _velocity(position, velocity, rates, q, subs, d: GraphDerivative) -> sp.Matrix:
     """``v = dr/dq (K w + k) + dr/dt`` of a position (programs replaced), or the velocity given."""
     if velocity is not None:
         return sp.Matrix(velocity).xreplace(subs)
     r = sp.Matrix(position).xreplace(subs)
-    return r.jacobian(sp.Matrix(q)) * rates + sp.diff(r, t)
+    return _jacobian(r, q, d) * rates + _jacobian(r, [t], d)
 
 
-def mechanical_energy(system) -> MechanicalEnergy:
+def mechanical_energy(system, d: GraphDerivative | None = None) -> MechanicalEnergy:
     """``T``, ``V``, ``Q_nc`` and ``dq/dt`` of ``system`` (module docstring); call
-    :func:`energy_unavailable` first."""
+    :func:`energy_unavailable` first. ``d``: the differentiation (a fresh one by default)."""
+    d = GraphDerivative() if d is None else d
     subs = program_substitutions(system)
     q, w = list(system.coordinates), sp.Matrix(system.speeds)
     rates = sp.Matrix([e for _, e in system.kinematics]).xreplace(subs)
     T = sp.sympify(system.kinetic_energy).xreplace(subs) if system.kinetic_energy is not None else sp.S.Zero
     for body in system.bodies:
-        v = _velocity(body.position, body.velocity, rates, q, subs)
+        v = _velocity(body.position, body.velocity, rates, q, subs, d)
         T += body.mass * (v.T * v)[0] / 2
         if isinstance(body, RigidBody):
             om = sp.Matrix(body.angular_velocity).xreplace(subs)
@@ -110,11 +118,11 @@ def mechanical_energy(system) -> MechanicalEnergy:
         else sp.zeros(n, 1)
     for load in system.loads:
         if isinstance(load, AppliedForce):
-            v = _velocity(load.position, load.velocity, rates, q, subs)
-            Q += v.jacobian(w).T * sp.Matrix(load.vector).xreplace(subs)
+            v = _velocity(load.position, load.velocity, rates, q, subs, d)
+            Q += _jacobian(v, w, d).T * sp.Matrix(load.vector).xreplace(subs)
         elif isinstance(load, AppliedTorque):
             om = sp.Matrix(load.angular_velocity).xreplace(subs)
-            Q += om.jacobian(w).T * sp.Matrix(load.vector).xreplace(subs)
+            Q += _jacobian(om, w, d).T * sp.Matrix(load.vector).xreplace(subs)
     return MechanicalEnergy(sp.sympify(T), sp.sympify(system.potential_energy).xreplace(subs),
                             sp.ImmutableMatrix(Q), sp.ImmutableMatrix(rates),
                             tuple(b.name for b in system.bodies if b.position is None))
@@ -133,13 +141,13 @@ class LagrangeRoute:
     constraint_function: Callable | None
 
 
-def _constraint_rows(system, subs):
+def _constraint_rows(system, subs, d: GraphDerivative):
     """``f`` in second-order form, from each constraint by plain differentiation."""
-    q, qd = sp.Matrix(system.coordinates), sp.Matrix(system.speeds)
-    qdd = sp.Matrix(system.accelerations)
+    q, qd, qdd = list(system.coordinates), list(system.speeds), list(system.accelerations)
 
     def along(e):  # d/dt of an expression in (t, q, qdot), free of qddot
-        return (sp.Matrix([e]).jacobian(q) * qd)[0] + sp.diff(e, t) + (sp.Matrix([e]).jacobian(qd) * qdd)[0]
+        return (sp.Add(*[d(e, x) * r for x, r in zip(q, qd)]) + d(e, t)
+                + sp.Add(*[d(e, x) * r for x, r in zip(qd, qdd)]))
 
     rows = []
     for c in system.constraints:
@@ -157,16 +165,17 @@ def lagrange_route(derivation) -> LagrangeRoute:
     :func:`lagrange_unavailable` first)."""
     system = derivation.system
     subs = program_substitutions(system)
-    energy = mechanical_energy(system)
+    d = GraphDerivative()
+    energy = mechanical_energy(system, d)
     q, qd, qdd = sp.Matrix(system.coordinates), sp.Matrix(system.speeds), sp.Matrix(system.accelerations)
     T = energy.kinetic
-    p = sp.Matrix([T]).jacobian(qd).T
-    M = p.jacobian(qd)
-    h = p.jacobian(q) * qd + sp.diff(p, t) - sp.Matrix([T]).jacobian(q).T
-    Q = energy.applied - sp.Matrix([energy.potential]).jacobian(q).T
-    f = _constraint_rows(system, subs)
+    p = _jacobian([T], qd, d).T
+    M = _jacobian(p, qd, d)
+    h = _jacobian(p, q, d) * qd + _jacobian(p, [t], d) - _jacobian([T], q, d).T
+    Q = energy.applied - _jacobian([energy.potential], q, d).T
+    f = _constraint_rows(system, subs, d)
     n = len(qd)
-    J = f.jacobian(qdd) if f.shape[0] else sp.zeros(0, n)
+    J = _jacobian(f, qdd, d) if f.shape[0] else sp.zeros(0, n)
     zero = {a: 0 for a in qdd}
     params = [prm.symbol for prm in system.parameters]
     args = [t, list(q), list(qd), params]
