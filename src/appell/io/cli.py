@@ -608,14 +608,14 @@ def derive(model, fmt, dependent, routh, assignments, floating_base, only):
         out = derivation_json(derivation, reduction)
         click.echo(json.dumps(out, indent=2))
     elif fmt == "latex":
-        from appell.io.printing import derivation_latex, to_latex
+        from appell.io.printing import to_latex
 
-        body = derivation_latex(derivation, only) if only else to_latex(derivation)
+        body = to_latex(derivation, only or None)
         click.echo((reduction.to_latex() + "\n\n" if reduction is not None else "") + body)
     else:
-        from appell.io.printing import derivation_text, to_text
+        from appell.io.printing import to_text
 
-        body = derivation_text(derivation, only) if only else to_text(derivation)
+        body = to_text(derivation, only or None)
         click.echo((reduction.to_text() + "\n\n" if reduction is not None else "") + body)
         if linearisation is not None and (not only or "controls" in only):
             click.echo(linearisation.to_text())
@@ -787,7 +787,7 @@ def inverse(model, trajectory, drives, out, assignments, floating_base):
         raise ModelError(f"{trajectory}: no column {', '.join(missing)}",
                          hint="columns: t and the coordinates " + ", ".join(numeric.coordinate_names))
     q = np.stack([table[n] for n in numeric.coordinate_names], axis=1)
-    from appell.simulation.simulate import acceleration_name
+    from appell.simulation.recording import acceleration_name
 
     given = lambda names: np.stack([table[n] for n in names], 1) if all(n in table for n in names) else None  # noqa
     w = given(numeric.speed_names)

@@ -657,8 +657,9 @@ def document_expressions(derivation) -> dict:
 def to_text(derivation, only=None) -> str:
     """The derivation as plain text: the reduced equations (1.4) and each reaction (1.5) through
     shared subexpressions (:func:`derivation_text`; ``only`` selects items), or for a controlled
-    derivation (2.3)-(2.5) and the control laws (:mod:`appell.io.controlled_printing`)."""
-    if is_controlled(derivation):
+    derivation (2.3)-(2.5) and the control laws (:mod:`appell.io.controlled_printing`; with
+    ``only``, the selected items of :func:`derivation_text`)."""
+    if is_controlled(derivation) and not only:
         from appell.io.controlled_printing import controlled_text
 
         return controlled_text(derivation)
@@ -667,7 +668,7 @@ def to_text(derivation, only=None) -> str:
 
 def to_latex(derivation, only=None) -> str:
     """The derivation as LaTeX, as :func:`to_text` (:func:`derivation_latex`)."""
-    if is_controlled(derivation):
+    if is_controlled(derivation) and not only:
         from appell.io.controlled_printing import controlled_latex
 
         return controlled_latex(derivation)

@@ -128,7 +128,7 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
         if s:
             residual = max(residual, float(np.nanmax(np.abs(model.constraint_residuals(t[k], q[k], w[k], pv)[1]),
                                                      initial=0.0)))
-    from appell.simulation.simulate import acceleration_name, recorded_outputs
+    from appell.simulation.recording import acceleration_name, recorded_outputs
 
     motion = {**{nm: q[:, i] for i, nm in enumerate(names)}, **{nm: w[:, i] for i, nm in enumerate(speeds)},
               **{acceleration_name(nm): a[:, i] for i, nm in enumerate(speeds)}}

@@ -170,14 +170,8 @@ class SimulationOptions:
         """``{name: value}`` of the settings that differ from the defaults (those in ``but``
         left out): the keyword arguments that give these options to ``simulate``."""
         default = SimulationOptions()
-        out = {}
-        for name in self.names():
-            mine, theirs = getattr(self, name), getattr(default, name)
-            same = (mine is theirs or (np.ndim(mine) == np.ndim(theirs) and np.array_equal(mine, theirs))
-                    if isinstance(mine, (np.ndarray, tuple, float, int)) or mine is None else mine == theirs)
-            if name not in but and not same:
-                out[name] = mine
-        return out
+        return {name: getattr(self, name) for name in self.names()
+                if name not in but and not _same(getattr(self, name), getattr(default, name))}
 
     # ------------------------------------------------------------ checking
     def output_times(self) -> np.ndarray:
@@ -227,6 +221,13 @@ class SimulationOptions:
         rest_speed = number(self.rest_speed, "rest_speed", positive=True)
         return dataclasses.replace(self, t0=t0, t_end=t_end, t_eval=t_eval, rtol=rtol, atol=atol, max_step=max_step,
                                    projection_tol=projection_tol, baumgarte=gains, rest_speed=rest_speed)
+
+
+def _same(a, b) -> bool:
+    """Whether two settings are equal (arrays and tuples entry by entry)."""
+    if isinstance(a, (np.ndarray, tuple)) or isinstance(b, (np.ndarray, tuple)):
+        return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b))
+    return a == b
 
 
 def check_events(events) -> tuple:

@@ -83,12 +83,12 @@ from appell.simulation.integration import METHODS, Integration, solver_class
 from appell.simulation.options import SimulationOptions, check_events
 from appell.simulation.passage import PassageRefused, pass_through
 from appell.simulation.projection import project, projected_in_place
-from appell.simulation.recording import Mode, Run, acceleration_name, record_passage, recorded_outputs
+from appell.simulation.recording import Mode, Run, record_passage
 from appell.simulation.resources import check_run_memory
 from appell.simulation.solution import EventRecord, Solution
 from appell.simulation.stickslip import initial_mode, stick_slip_watches, transition
 
-__all__ = ["simulate", "project", "METHODS", "acceleration_name", "recorded_outputs"]
+__all__ = ["simulate", "project", "METHODS"]
 
 KINDS = {0: "holonomic", 1: "first-order", 2: "second-order"}
 
