@@ -30,6 +30,7 @@ from appell import derive
 from appell.core.energy import TreeInertiaBlocks
 from appell.mechanism.urdf import urdf_system
 from appell.numerics.outputs import compile_outputs
+from appell.numerics.rigid_tree import rigid_subtrees
 from appell.rigid_tree import RECURSIVE_FROM
 from appell import numeric_model
 
@@ -85,6 +86,9 @@ def test_recursions_equal_the_expanded_blocks(arm):
     system, tree, expanded = arm
     assert isinstance(tree.inertia, TreeInertiaBlocks) and tree.inertia.gravity
     assert not isinstance(expanded.inertia, TreeInertiaBlocks)
+    # the tool on its fixed joint (offset, rpy) is merged into the hand for M and h in C
+    fixed = rigid_subtrees(tree.inertia.tree, {p.symbol for p in system.parameters})
+    assert [node.body for node, f in zip(tree.inertia.tree.nodes, fixed) if f] == ["tool"]
     routes = [numeric_model(tree), numeric_model(tree, "c")]
     reference = numeric_model(expanded)
     p = reference.default_parameters

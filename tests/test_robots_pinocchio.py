@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 
 from appell import derive
+from appell.errors import ModelError
 from appell.mechanism.urdf import urdf_system
 from appell import numeric_model
 
@@ -129,6 +130,13 @@ def test_motion_and_every_joint_wrench_equal_pinocchio(fixed_robot):
         np.testing.assert_allclose(a_fw, a, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(lam_fw, sol.multipliers, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(wrench_fw, wrench, rtol=1e-12, atol=1e-12)
+        # lists, a strided view and parameters as a list take the converting path to the same numbers
+        wide = np.repeat(w, 2)[::2]
+        for args in ((list(q), list(w)), (q, wide), (q, w, list(compiled.default_parameters))):
+            for x, y in zip(compiled.forward(0.0, *args), (a_fw, lam_fw, wrench_fw)):
+                np.testing.assert_array_equal(x, y)
+        with pytest.raises(ModelError, match="speeds"):
+            compiled.forward(0.0, q, w[:-1])
         node = {nd.joint: b for b, nd in enumerate(derivation.inertia.tree.nodes)}
         pin.forwardKinematics(model, data, qp)
         for jid in range(1, model.njoints):

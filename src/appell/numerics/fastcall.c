@@ -3,6 +3,8 @@
    integer address (None for NULL); the functions are METH_FASTCALL. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
 
 typedef void (*expr1)(double, const double *, const double *, const double *, const double *, double *);
 typedef void (*expr2)(double, const double *, const double *, const double *, const double *, double *, double *);
@@ -54,13 +56,67 @@ static PyObject *evaluate(PyObject *self, PyObject *const *args, Py_ssize_t narg
     return PyLong_FromLong(((evaluate_fn)fn)(t, y, p, bias, dep, cond_max, dy, lam));
 }
 
+typedef void (*forward_fn)(double, const double *, const double *, const double *, const double *, double *,
+                           double *, double *);
+
+/* the data of x when it is an aligned C-contiguous float64 array of `count` entries, else NULL */
+static const double *doubles(PyObject *x, npy_intp count)
+{
+    if (!PyArray_Check(x)) return NULL;
+    PyArrayObject *arr = (PyArrayObject *)x;
+    if (PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) || !PyArray_ISALIGNED(arr) ||
+        PyArray_SIZE(arr) != count)
+        return NULL;
+    return (const double *)PyArray_DATA(arr);
+}
+
+/* forward(fn, t, q, w, p, nq, n, np, s, nb) -> (acc, lam, wrench) of appell_forward, new arrays;
+   1 where q, w or p is not a contiguous float64 array of its length (the caller converts it or
+   names it), 2 where the split failed (NaN accelerations: the caller takes the general route) */
+static PyObject *forward(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    (void)self;
+    if (nargs != 10) {
+        PyErr_SetString(PyExc_TypeError, "forward(fn, t, q, w, p, nq, n, np, s, nb)");
+        return NULL;
+    }
+    void *fn = address(args[0]);
+    double t = PyFloat_AsDouble(args[1]);
+    npy_intp size[5];
+    for (int i = 0; i < 5; ++i) size[i] = PyLong_AsSsize_t(args[5 + i]);
+    if (PyErr_Occurred()) return NULL;
+    const double *q = doubles(args[2], size[0]), *w = doubles(args[3], size[1]), *p = doubles(args[4], size[2]);
+    if (!q || !w || !p) return PyLong_FromLong(1);
+    npy_intp shape[2] = {size[4], 6};
+    PyObject *acc = PyArray_SimpleNew(1, &size[1], NPY_DOUBLE), *lam = PyArray_SimpleNew(1, &size[3], NPY_DOUBLE);
+    PyObject *wrench = PyArray_SimpleNew(2, shape, NPY_DOUBLE);
+    if (!acc || !lam || !wrench) {
+        Py_XDECREF(acc); Py_XDECREF(lam); Py_XDECREF(wrench);
+        return NULL;
+    }
+    double *a = PyArray_DATA((PyArrayObject *)acc);
+    ((forward_fn)fn)(t, q, w, NULL, p, a, PyArray_DATA((PyArrayObject *)lam), PyArray_DATA((PyArrayObject *)wrench));
+    if (size[1] > 0 && a[0] != a[0]) {
+        Py_DECREF(acc); Py_DECREF(lam); Py_DECREF(wrench);
+        return PyLong_FromLong(2);
+    }
+    PyObject *out = PyTuple_Pack(3, acc, lam, wrench);
+    Py_DECREF(acc); Py_DECREF(lam); Py_DECREF(wrench);
+    return out;
+}
+
 static PyMethodDef methods[] = {
     {"expr", (PyCFunction)(void (*)(void))expr, METH_FASTCALL, "call a block function of the model"},
     {"evaluate", (PyCFunction)(void (*)(void))evaluate, METH_FASTCALL, "call appell_evaluate"},
+    {"forward", (PyCFunction)(void (*)(void))forward, METH_FASTCALL, "call appell_forward on arrays"},
     {NULL, NULL, 0, NULL},
 };
 
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_appell_fastcall", NULL, -1, methods,
                                     NULL, NULL, NULL, NULL};
 
-PyMODINIT_FUNC PyInit__appell_fastcall(void) { return PyModule_Create(&module); }
+PyMODINIT_FUNC PyInit__appell_fastcall(void)
+{
+    import_array();
+    return PyModule_Create(&module);
+}

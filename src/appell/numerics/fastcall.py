@@ -4,7 +4,8 @@ ctypes converts each argument of a foreign call through its ``argtypes`` (about 
 each, 3 us for the eight of ``appell_evaluate``). ``fastcall.c`` is a small CPython
 extension, compiled once into the cache like the models
 (:func:`~appell.numerics.codegen.build_library`, with the interpreter's headers), whose
-two functions take the C function's address and the arrays' addresses as plain integers.
+functions take the C function's address and the arrays' addresses as plain integers, or
+(``forward``) the NumPy arrays themselves, read and allocated through NumPy's C API.
 Where it cannot be built (no Python headers) :func:`caller` returns None and the callers keep
 ctypes.
 """
@@ -17,6 +18,8 @@ import sysconfig
 import warnings
 from pathlib import Path
 
+import numpy
+
 from appell.errors import ComputationError
 
 __all__ = ["caller"]
@@ -26,7 +29,7 @@ _MODULE: list = []
 
 
 def caller(build, compiler):
-    """The extension module (functions ``expr`` and ``evaluate``), or None where it cannot
+    """The extension module (functions ``expr``, ``evaluate`` and ``forward``), or None where it cannot
     be built or loaded here (ctypes is used then). ``build(source, command)`` compiles a
     source into the cache and returns the verified library's path; ``compiler`` is the C
     compiler command (None: none found)."""
@@ -36,7 +39,10 @@ def caller(build, compiler):
     include = sysconfig.get_paths().get("include")
     if compiler is not None and include and (Path(include) / "Python.h").exists():
         try:
-            path = build(SOURCE.read_text(), list(compiler) + ["-I", include])
+            path = build(SOURCE.read_text(), list(compiler) + ["-I", include, "-I", numpy.get_include(),
+                                                        # the cache is keyed by the command: a NumPy of another
+                                                        # version builds its own extension
+                                                        f"-DAPPELL_NUMPY={numpy.__version__}"])
             loader = importlib.machinery.ExtensionFileLoader("_appell_fastcall", str(path))
             spec = importlib.util.spec_from_file_location("_appell_fastcall", str(path), loader=loader)
             module = importlib.util.module_from_spec(spec)

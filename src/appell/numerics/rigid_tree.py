@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-__all__ = ["tree_layout", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
+__all__ = ["tree_layout", "rigid_subtrees", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
            "TreeWrenches"]
 
 
@@ -35,6 +35,25 @@ def tree_layout(tree, n: int) -> tuple[np.ndarray, np.ndarray]:
     for b, node in enumerate(tree.nodes):
         node_of[list(node.speeds)] = b
     return parent, node_of
+
+
+def rigid_subtrees(tree, constants) -> list[bool]:
+    """Per node: whether it and its whole subtree are rigidly fixed to its parent, so that its
+    inertia may be merged into the parent's for ``M`` and ``h``: no speeds, a zero bias and a
+    rotation and translation of constants alone (``constants``: the parameters' symbols; no
+    coordinate, no time). Nodes come after their parents (:class:`~appell.rigid_tree.RigidTree`)."""
+    nodes = tree.nodes
+    own = [not node.speeds and all(e == 0 for e in node.bias)
+           and (sp.Matrix(node.rotation).free_symbols | sp.Matrix(node.translation).free_symbols) <= set(constants)
+           for node in nodes]
+    fixed = list(own)
+    for b in range(len(nodes) - 1, -1, -1):
+        parent = nodes[b].parent
+        if parent >= b:
+            raise ValueError(f"node {b} comes before its parent {parent}")
+        if parent >= 0 and not fixed[b]:
+            fixed[parent] = False
+    return fixed
 
 
 def tree_matrices(tree, n: int, gravity: bool = False) -> list[sp.Matrix]:

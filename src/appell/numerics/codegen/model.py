@@ -97,11 +97,10 @@ class CompiledNumericModel(NumericModel):
         reactions of :meth:`joint_wrenches` at them, as Pinocchio's ``aba`` and ``rnea`` give
         them; where that split fails, :meth:`solve` (which may switch the partition) and
         :meth:`joint_wrenches`."""
-        pv = self.default_parameters if p is None else p
         if self._forward is not None:
-            a, lam, wrench = self._forward(t, q, w, pv)
-            if np.isfinite(a[0]) if len(a) else True:
-                return a, lam, wrench
+            out = self._forward(t, q, w, self.default_parameters if p is None else p)
+            if out is not None:
+                return out
         sol = self.solve(t, q, w, p)
         return sol.accelerations, sol.multipliers, self.joint_wrenches(t, q, w, sol.accelerations, p)
 
@@ -245,6 +244,34 @@ def _wrap(fn, shapes, sizes, with_acc=False):
     return call
 
 
+def _forward_call(fn, sizes, outputs):
+    """``(t, q, w, p) -> (a, lambda, wrenches)`` or None where the split fails, by
+    ``appell_forward``: through the fast-call extension on the arrays themselves (no copies in
+    or out), else by ctypes (:func:`_wrap`). Inputs that are not float64 arrays of their
+    lengths are converted, and wrong lengths left to the caller's checks (None)."""
+    n, (s, nb) = sizes[1], outputs
+    fast = caller()
+    if fast is None:
+        call = _wrap(fn, [(n,), (s,), (nb, 6)], sizes)
+
+        def slow(t, q, w, p):
+            a, lam, wrench = call(t, q, w, p)
+            return (a, lam, wrench) if not len(a) or np.isfinite(a[0]) else None
+        return slow
+    address, run = ctypes.cast(fn, _P).value, fast.forward
+    counts = (*sizes, s, nb)
+
+    def forward(t, q, w, p):
+        out = run(address, t, q, w, p, *counts)
+        if out == 1:  # not float64 arrays of their lengths: converted, or the caller names them
+            try:
+                out = run(address, t, _vec(q).reshape(-1), _vec(w).reshape(-1), _vec(p).reshape(-1), *counts)
+            except (TypeError, ValueError):
+                return None
+        return out if type(out) is tuple else None
+    return forward
+
+
 def compile_c(derivation, backend: str = "c") -> NumericModel:
     """Compiled numeric functions of a derivation (``backend`` 'c' or 'auto').
 
@@ -313,7 +340,7 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         if cons.linear:
             lib.appell_forward.argtypes = expr_args + [_P] * 3
             lib.appell_forward.restype = None
-            forward = _wrap(lib.appell_forward, [(n,), (s,), (nb, 6)], (nq, n, npar))
+            forward = _forward_call(lib.appell_forward, (nq, n, npar), (s, nb))
     system = derivation.system
     return with_redundancy(CompiledNumericModel(
         derivation=derivation,

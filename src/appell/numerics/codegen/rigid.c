@@ -4,7 +4,10 @@
    belongs to node NODE_OF[k]. appell_rigid_terms fills, per node, R (body -> parent, 9),
    r (3), c (6) and the inertia (m, com, Ixx Iyy Izz Ixy Ixz Iyz about the centre), per speed
    its column of S (6), the base's acceleration (6: -g where the tree carries gravity), and Q,
-   J, c of the constraints. */
+   J, c of the constraints. SPEEDS lists the speeds node by node, node b's from FIRST[b] to
+   FIRST[b + 1]; RIGID[b] marks a subtree fixed rigidly to its parent (numerics.rigid_tree.
+   rigid_subtrees), merged into it for M and h. Inertias are kept about the body origin as
+   (m, h = m c, I_o) and moved by 3x3 algebra (Featherstone 2008, section 2.13). */
 
 static void cross3(const double *a, const double *b, double *out)
 {
@@ -36,26 +39,63 @@ static void add_to_parent(const double *R, const double *r, const double *f, dou
     for (int i = 0; i < 3; ++i) { fp[i] += n[i] + t[i]; fp[3 + i] += fv[i]; }
 }
 
-/* h = I v about the body origin: n = Ic w + m c x (v + w x c), f = m (v + w x c) */
-static void inertia_times(const double *in, const double *v, double *h)
+/* a body's inertia about its origin, body axes, as Y = (m, h = m c, I_o: xx yy zz xy xz yz) from
+   (m, c, I about the centre): I_o = Ic + m (|c|^2 1 - c c^T) */
+static void origin_inertia(const double *in, double *Y)
 {
-    const double m = in[0], *c = in + 1;
-    double wc[3], u[3], cu[3];
-    cross3(v, c, wc);
-    for (int i = 0; i < 3; ++i) u[i] = v[3 + i] + wc[i];
-    cross3(c, u, cu);
-    h[0] = in[4] * v[0] + in[7] * v[1] + in[8] * v[2] + m * cu[0];
-    h[1] = in[7] * v[0] + in[5] * v[1] + in[9] * v[2] + m * cu[1];
-    h[2] = in[8] * v[0] + in[9] * v[1] + in[6] * v[2] + m * cu[2];
-    for (int i = 0; i < 3; ++i) h[3 + i] = m * u[i];
+    const double m = in[0], cx = in[1], cy = in[2], cz = in[3];
+    Y[0] = m; Y[1] = m * cx; Y[2] = m * cy; Y[3] = m * cz;
+    Y[4] = in[4] + m * (cy * cy + cz * cz);
+    Y[5] = in[5] + m * (cx * cx + cz * cz);
+    Y[6] = in[6] + m * (cx * cx + cy * cy);
+    Y[7] = in[7] - m * cx * cy;
+    Y[8] = in[8] - m * cx * cz;
+    Y[9] = in[9] - m * cy * cz;
 }
 
-/* the bodies' forces f (6 NB) for speeds w, accelerations a and the base's acceleration base */
-static void rigid_forces(const double *R, const double *r, const double *Sc, const double *cb, const double *in,
-                         const double *w, const double *a, const double *base, double *f)
+/* Y_p += X^T Y X: the inertia moved to the parent's origin and axes (Featherstone 2008, 2.66):
+   h' = R h + m r, I' = R I R^T + (2 (R h).r + m |r|^2) 1 - ((R h) r^T + r (R h)^T + m r r^T) */
+static void add_inertia_to_parent(const double *R, const double *r, const double *Y, double *Yp)
+{
+    const double m = Y[0];
+    const double I[9] = {Y[4], Y[7], Y[8], Y[7], Y[5], Y[9], Y[8], Y[9], Y[6]};
+    double h[3], A[9];
+    for (int i = 0; i < 3; ++i) {
+        h[i] = R[3 * i] * Y[1] + R[3 * i + 1] * Y[2] + R[3 * i + 2] * Y[3];
+        for (int j = 0; j < 3; ++j) A[3 * i + j] = R[3 * i] * I[j] + R[3 * i + 1] * I[3 + j] + R[3 * i + 2] * I[6 + j];
+    }
+    static const int row[6] = {0, 1, 2, 0, 0, 1}, col[6] = {0, 1, 2, 1, 2, 2};
+    const double d = 2.0 * (h[0] * r[0] + h[1] * r[1] + h[2] * r[2]) + m * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+    Yp[0] += m;
+    for (int i = 0; i < 3; ++i) Yp[1 + i] += h[i] + m * r[i];
+    for (int e = 0; e < 6; ++e) {
+        const int i = row[e], j = col[e];
+        const double rot = A[3 * i] * R[3 * j] + A[3 * i + 1] * R[3 * j + 1] + A[3 * i + 2] * R[3 * j + 2];
+        Yp[4 + e] += rot + (i == j ? d : 0.0) - (h[i] * r[j] + r[i] * h[j] + m * r[i] * r[j]);
+    }
+}
+
+/* F = Y v about the body origin: n = I_o w + h x v, f = m v - h x w */
+static void inertia_times(const double *Y, const double *v, double *F)
+{
+    const double m = Y[0], *h = Y + 1;
+    double hv[3], hw[3];
+    cross3(h, v + 3, hv);
+    cross3(h, v, hw);
+    F[0] = Y[4] * v[0] + Y[7] * v[1] + Y[8] * v[2] + hv[0];
+    F[1] = Y[7] * v[0] + Y[5] * v[1] + Y[9] * v[2] + hv[1];
+    F[2] = Y[8] * v[0] + Y[9] * v[1] + Y[6] * v[2] + hv[2];
+    for (int i = 0; i < 3; ++i) F[3 + i] = m * v[3 + i] - hw[i];
+}
+
+/* the bodies' forces f (6 NB) for speeds w, accelerations a and the base's acceleration base,
+   with the inertias Y (origin_inertia); nodes with skip[b] (NULL: none) are left out */
+static void rigid_forces(const double *R, const double *r, const double *Sc, const double *cb, const double *Y,
+                         const double *w, const double *a, const double *base, const unsigned char *skip, double *f)
 {
     double v[6 * NB], acc[6 * NB];
     for (int b = 0; b < NB; ++b) {
+        if (skip && skip[b]) continue;
         double *vb = v + 6 * b, *ab = acc + 6 * b, vJ[6] = {0.0}, x[6];
         const int p = PARENT[b];
         if (p >= 0) {
@@ -65,8 +105,8 @@ static void rigid_forces(const double *R, const double *r, const double *Sc, con
             for (int i = 0; i < 6; ++i) vb[i] = 0.0;
             to_body(R + 9 * b, r + 3 * b, base, ab);
         }
-        for (int k = 0; k < N; ++k) {
-            if (NODE_OF[k] != b) continue;
+        for (int e = FIRST[b]; e < FIRST[b + 1]; ++e) {
+            const int k = SPEEDS[e];
             for (int i = 0; i < 6; ++i) { vJ[i] += Sc[6 * k + i] * w[k]; ab[i] += Sc[6 * k + i] * a[k]; }
         }
         for (int i = 0; i < 6; ++i) { vb[i] += vJ[i]; ab[i] += cb[6 * b + i]; }
@@ -77,15 +117,15 @@ static void rigid_forces(const double *R, const double *r, const double *Sc, con
         cross3(vb + 3, vJ, t2);
         for (int i = 0; i < 3; ++i) ab[3 + i] += t1[i] + t2[i];
         double h[6], *fb = f + 6 * b;                         /* f = I a + v x* I v */
-        inertia_times(in + 10 * b, ab, fb);
-        inertia_times(in + 10 * b, vb, h);
+        inertia_times(Y + 10 * b, ab, fb);
+        inertia_times(Y + 10 * b, vb, h);
         cross3(vb, h, t1);
         cross3(vb + 3, h + 3, t2);
         cross3(vb, h + 3, x);
         for (int i = 0; i < 3; ++i) { fb[i] += t1[i] + t2[i]; fb[3 + i] += x[i]; }
     }
     for (int b = NB - 1; b >= 0; --b)
-        if (PARENT[b] >= 0) add_to_parent(R + 9 * b, r + 3 * b, f + 6 * b, f + 6 * PARENT[b]);
+        if (PARENT[b] >= 0 && !(skip && skip[b])) add_to_parent(R + 9 * b, r + 3 * b, f + 6 * b, f + 6 * PARENT[b]);
 }
 
 /* tau = S^T f, the generalized forces of the bodies' forces */
@@ -99,86 +139,40 @@ static void rigid_project(const double *Sc, const double *f, double *tau)
     }
 }
 
-/* 6x6 spatial inertia about the body origin: [[Ic + m cx cx^T, m cx], [m cx^T, m 1]] */
-static void spatial_inertia(const double *in, double *I)
+/* the inertias about the body origins (Y, 10 NB) and, in Ym, the same with each subtree that is
+   rigidly fixed to its parent (RIGID[b]: no speeds, no motion in it) merged into the nearest
+   moving body, so that the recursions for M and h skip it (Pinocchio merges fixed joints alike) */
+static void rigid_inertias(const double *R, const double *r, const double *in, double *Y, double *Ym)
 {
-    const double m = in[0], cx = in[1], cy = in[2], cz = in[3];
-    const double C[9] = {0.0, -cz, cy, cz, 0.0, -cx, -cy, cx, 0.0};
-    const double Ic[9] = {in[4], in[7], in[8], in[7], in[5], in[9], in[8], in[9], in[6]};
-    for (int i = 0; i < 36; ++i) I[i] = 0.0;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) {
-            double s = 0.0;
-            for (int k = 0; k < 3; ++k) s += C[3 * i + k] * C[3 * j + k];
-            I[6 * i + j] = Ic[3 * i + j] + m * s;
-            I[6 * i + 3 + j] = m * C[3 * i + j];
-            I[6 * (3 + i) + j] = m * C[3 * j + i];
-        }
-    for (int i = 0; i < 3; ++i) I[6 * (3 + i) + 3 + i] = m;
+    for (int b = 0; b < NB; ++b) origin_inertia(in + 10 * b, Y + 10 * b);
+    for (int i = 0; i < 10 * NB; ++i) Ym[i] = Y[i];
+    for (int b = NB - 1; b >= 0; --b)
+        if (RIGID[b] && PARENT[b] >= 0) add_inertia_to_parent(R + 9 * b, r + 3 * b, Ym + 10 * b, Ym + 10 * PARENT[b]);
 }
 
-/* X (6x6, parent -> body) = [[E, 0], [-E rx, E]], E = R^T */
-static void transform(const double *R, const double *r, double *X)
+/* M by composite inertias (CRBA): Y^c_p += X^T Y^c X inward, then M_kl = S_l . (X^T ... Y^c S_k)
+   along the path to the root; Ym from rigid_inertias */
+static void rigid_mass(const double *R, const double *r, const double *Sc, const double *Ym, double *M)
 {
-    const double rx[9] = {0.0, -r[2], r[1], r[2], 0.0, -r[0], -r[1], r[0], 0.0};
-    for (int i = 0; i < 36; ++i) X[i] = 0.0;
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) {
-            X[6 * i + j] = X[6 * (3 + i) + 3 + j] = R[3 * j + i];
-            double s = 0.0;
-            for (int k = 0; k < 3; ++k) s += R[3 * k + i] * rx[3 * k + j];
-            X[6 * (3 + i) + j] = -s;
-        }
-}
-
-/* M by composite inertias: I^c_p += X^T I^c X, then M_kl = S_l . (X^T ... I^c S_k) up the path */
-static void rigid_mass(const double *R, const double *r, const double *Sc, const double *in, double *M)
-{
-    double Ic[36 * NB], X[36 * NB];
-    for (int b = 0; b < NB; ++b) {
-        spatial_inertia(in + 10 * b, Ic + 36 * b);
-        transform(R + 9 * b, r + 3 * b, X + 36 * b);
-    }
-    for (int b = NB - 1; b >= 0; --b) {
-        const int p = PARENT[b];
-        if (p < 0) continue;
-        const double *Xb = X + 36 * b, *I = Ic + 36 * b;
-        double T[36];
-        for (int i = 0; i < 6; ++i)
-            for (int j = 0; j < 6; ++j) {
-                double s = 0.0;
-                for (int k = 0; k < 6; ++k) s += I[6 * i + k] * Xb[6 * k + j];
-                T[6 * i + j] = s;
-            }
-        for (int i = 0; i < 6; ++i)
-            for (int j = 0; j < 6; ++j) {
-                double s = 0.0;
-                for (int k = 0; k < 6; ++k) s += Xb[6 * k + i] * T[6 * k + j];
-                Ic[36 * p + 6 * i + j] += s;
-            }
-    }
-    for (int k = 0; k < N; ++k) {
+    double Yc[10 * NB];
+    for (int i = 0; i < 10 * NB; ++i) Yc[i] = Ym[i];
+    for (int b = NB - 1; b >= 0; --b)
+        if (!RIGID[b] && PARENT[b] >= 0) add_inertia_to_parent(R + 9 * b, r + 3 * b, Yc + 10 * b, Yc + 10 * PARENT[b]);
+    for (int e = 0; e < N; ++e) {
+        const int k = SPEEDS[e];
         int j = NODE_OF[k];
-        double F[6], G[6];
-        for (int i = 0; i < 6; ++i) {
-            double s = 0.0;
-            for (int l = 0; l < 6; ++l) s += Ic[36 * j + 6 * i + l] * Sc[6 * k + l];
-            F[i] = s;
-        }
+        double F[6];
+        inertia_times(Yc + 10 * j, Sc + 6 * k, F);
         while (j >= 0) {
-            for (int l = 0; l < N; ++l) {
-                if (NODE_OF[l] != j) continue;
+            for (int g = FIRST[j]; g < FIRST[j + 1]; ++g) {
+                const int l = SPEEDS[g];
                 double s = 0.0;
                 for (int i = 0; i < 6; ++i) s += Sc[6 * l + i] * F[i];
                 M[k * N + l] = M[l * N + k] = s;
             }
             if (PARENT[j] >= 0) {
-                const double *Xj = X + 36 * j;
-                for (int i = 0; i < 6; ++i) {
-                    double s = 0.0;
-                    for (int l = 0; l < 6; ++l) s += Xj[6 * l + i] * F[l];
-                    G[i] = s;
-                }
+                double G[6] = {0.0};
+                add_to_parent(R + 9 * j, r + 3 * j, F, G);
                 for (int i = 0; i < 6; ++i) F[i] = G[i];
             }
             j = PARENT[j];
@@ -187,16 +181,16 @@ static void rigid_mass(const double *R, const double *r, const double *Sc, const
 }
 
 /* M and h - Q from the joints' terms */
-static void rigid_blocks(const double *R, const double *r, const double *Sc, const double *cb, const double *in,
+static void rigid_blocks(const double *R, const double *r, const double *Sc, const double *cb, const double *Ym,
                          const double *base, const double *Q, const double *w, double *M, double *hQ)
 {
     double f[6 * NB];
     const double zero[N] = {0.0};
-    rigid_forces(R, r, Sc, cb, in, w, zero, base, f);
+    rigid_forces(R, r, Sc, cb, Ym, w, zero, base, RIGID, f);
     rigid_project(Sc, f, hQ);
     for (int k = 0; k < N; ++k) hQ[k] -= Q[k];
     for (int i = 0; i < N * N; ++i) M[i] = 0.0;
-    rigid_mass(R, r, Sc, in, M);
+    rigid_mass(R, r, Sc, Ym, M);
 }
 
 /* the blocks M, h - Q, J, c of the dense route from the tree's recursions */
@@ -204,19 +198,20 @@ void appell_blocks(double t, const double *restrict q, const double *restrict w,
                    const double *restrict p, double *restrict M, double *restrict hQ, double *restrict J,
                    double *restrict c)
 {
-    double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N];
+    double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N], Y[10 * NB], Ym[10 * NB];
     appell_rigid_terms(t, q, w, a, p, R, r, Sc, cb, in, base, Q, J, c);
-    rigid_blocks(R, r, Sc, cb, in, base, Q, w, M, hQ);
+    rigid_inertias(R, r, in, Y, Ym);
+    rigid_blocks(R, r, Sc, cb, Ym, base, Q, w, M, hQ);
 }
 
 /* each node's reaction (F, M) in world axes about its joint point, from the joints' terms,
    gravity g, the joints' points o and the accelerations a */
-static void rigid_wrenches(const double *R, const double *r, const double *Sc, const double *cb, const double *in,
+static void rigid_wrenches(const double *R, const double *r, const double *Sc, const double *cb, const double *Y,
                            const double *g, const double *o, const double *w, const double *a, double *out)
 {
     double f[6 * NB], Rw[9 * NB];
     const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]};
-    rigid_forces(R, r, Sc, cb, in, w, a, fall, f);
+    rigid_forces(R, r, Sc, cb, Y, w, a, fall, 0, f);
     for (int b = 0; b < NB; ++b) {
         double *Rb = Rw + 9 * b, m[3], tmp[3];
         const double *fb = f + 6 * b, *Rr = R + 9 * b;
@@ -243,8 +238,9 @@ void appell_wrenches(double t, const double *restrict q, const double *restrict 
                      const double *restrict p, double *restrict out)
 {
     double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N];
-    double J[S * N > 0 ? S * N : 1], c[S > 0 ? S : 1], g[3], o[3 * NB];
+    double J[S * N > 0 ? S * N : 1], c[S > 0 ? S : 1], g[3], o[3 * NB], Y[10 * NB];
     appell_rigid_terms(t, q, w, a, p, R, r, Sc, cb, in, base, Q, J, c);
     appell_rigid_points(t, q, w, a, p, g, o);
-    rigid_wrenches(R, r, Sc, cb, in, g, o, w, a, out);
+    for (int b = 0; b < NB; ++b) origin_inertia(in + 10 * b, Y + 10 * b);
+    rigid_wrenches(R, r, Sc, cb, Y, g, o, w, a, out);
 }

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 from importlib import resources
 
+import numpy as np
 import sympy as sp
 
 from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, program_substitutions
 from appell.numerics.codegen.printer import HEADER_END, UNIT_MARK, _symbol_map, c_comment, c_function, common_factor
 from appell.numerics.codegen.tree import _tree_recursions, particle_tree
-from appell.numerics.rigid_tree import point_matrices, tree_layout, tree_matrices
+from appell.numerics.rigid_tree import point_matrices, rigid_subtrees, tree_layout, tree_matrices
 
 
 def _c_file(name: str) -> str:
@@ -49,10 +50,16 @@ def c_source(derivation) -> str:
     if rigid is not None:  # rigid bodies on a joint tree: the joints' terms and the recursions of rigid.c
         tree = None
         parent, node_of = tree_layout(rigid, n)
+        speeds = [k for node in rigid.nodes for k in node.speeds]
+        first = np.cumsum([0] + [len(node.speeds) for node in rigid.nodes])
+        fixed = rigid_subtrees(rigid, {p.symbol for p in derivation.system.parameters})
         parts += [f"/* rigid bodies on a joint tree: {c_comment(', '.join(rigid.bodies))} */",
                   f"#define NB {len(rigid.nodes)}",
                   "static const int PARENT[NB] = {" + ", ".join(map(str, parent)) + "};",
                   "static const int NODE_OF[N] = {" + ", ".join(map(str, node_of)) + "};",
+                  "static const int SPEEDS[N] = {" + (", ".join(map(str, speeds)) or "0") + "};",
+                  "static const int FIRST[NB + 1] = {" + ", ".join(map(str, first)) + "};",
+                  "static const unsigned char RIGID[NB] = {" + ", ".join(str(int(f)) for f in fixed) + "};",
                   c_function("appell_rigid_terms", [prepared(m) for m in tree_matrices(rigid, n, inertia.gravity)]
                              + [prepared(inertia.generalized_forces), prepared(J0), prepared(c)], syms),
                   c_function("appell_rigid_points", [prepared(m) for m in point_matrices(rigid)], syms),
