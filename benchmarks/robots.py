@@ -67,7 +67,7 @@ from appell.mechanism.urdf import urdf_system
 warnings.simplefilter("ignore")
 system = urdf_system(sys.argv[1], floating_base=sys.argv[2] == "1")
 derivation = appell.derive(system)
-model = numeric_model(derivation, "c")
+model = appell.numeric_model(derivation, "c")
 q = np.full(len(system.coordinates), 0.3)
 w = np.full(len(system.speeds), 0.2)
 sol = model.solve(0.0, q, w)

@@ -102,6 +102,22 @@ def test_recursions_equal_the_expanded_blocks(arm):
             np.testing.assert_allclose(np.ravel(hQ), np.ravel(hQ0), rtol=1e-12, atol=1e-12)
 
 
+def test_forward_in_one_call_equals_the_solve_and_the_full_wrench_pass(arm):
+    """``forward`` (the tree's L^T D L factors of M, the wrenches from the pass at a = 0 by
+    linearity, the tool on its fixed joint moving with the hand as one rigid subtree) against
+    the dense split of ``solve`` and one RNEA pass over every body at its accelerations."""
+    system, tree, _ = arm
+    compiled = numeric_model(tree, "c")
+    n, nq = len(system.speeds), len(system.coordinates)
+    for q, w in _states(n, nq, seed=5):
+        sol = compiled.solve(0.0, q, w)
+        a, lam, wrench = compiled.forward(0.0, q, w)
+        np.testing.assert_allclose(a, sol.accelerations, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(wrench, compiled.joint_wrenches(0.0, q, w, sol.accelerations), rtol=1e-12,
+                                   atol=1e-12)
+        assert np.abs(wrench[-1]).max() > 0.1  # the tool's joint carries its weight
+
+
 def test_floating_base_recursions_in_numpy_and_c_agree():
     derivation = derive(urdf_system(ARM, floating_base=True, reactions=None))
     assert isinstance(derivation.inertia, TreeInertiaBlocks)  # 10 speeds
@@ -110,6 +126,12 @@ def test_floating_base_recursions_in_numpy_and_c_agree():
     for q, w in _states(10, 10, seed=8):
         for x, y in zip(numeric.evaluate_blocks(0.0, q, w, p)[:2], compiled.evaluate_blocks(0.0, q, w, p)[:2]):
             np.testing.assert_allclose(np.ravel(x), np.ravel(y), rtol=1e-12, atol=1e-12)
+        # forward: the six speeds of the free joint on one node of the L^T D L factors
+        sol = numeric.solve(0.0, q, w, p)
+        a, _, wrench = compiled.forward(0.0, q, w)
+        np.testing.assert_allclose(a, sol.accelerations, rtol=1e-11, atol=1e-11)
+        np.testing.assert_allclose(wrench, compiled.joint_wrenches(0.0, q, w, sol.accelerations), rtol=1e-11,
+                                   atol=1e-11)
 
 
 def test_expanded_blocks_on_demand_hold_gravity_in_h(arm):

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-__all__ = ["tree_layout", "rigid_subtrees", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
+__all__ = ["tree_layout", "rigid_subtrees", "speed_parents", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
            "TreeWrenches"]
 
 
@@ -54,6 +54,23 @@ def rigid_subtrees(tree, constants) -> list[bool]:
         if parent >= 0 and not fixed[b]:
             fixed[parent] = False
     return fixed
+
+
+def speed_parents(tree) -> list[int]:
+    """The speeds listed node by node (each node's own in order, nodes after their parents),
+    and for each its parent in that list: the speed before it on its node, else the last speed
+    of the nearest ancestor that has speeds (-1: none). ``M``'s entries vanish between speeds
+    neither of which is the other's ancestor, the sparsity that the factorization
+    ``M = L^T D L`` keeps (Featherstone 2008, section 6.5)."""
+    last: list[int] = []  # per node: the last listed speed on it or above it (-1: none)
+    parents: list[int] = []
+    for node in tree.nodes:
+        above = last[node.parent] if node.parent >= 0 else -1
+        for _ in node.speeds:
+            parents.append(above)
+            above = len(parents) - 1
+        last.append(above)
+    return parents
 
 
 def tree_matrices(tree, n: int, gravity: bool = False) -> list[sp.Matrix]:

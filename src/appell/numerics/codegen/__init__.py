@@ -35,10 +35,11 @@ O(n s + s^3) per call instead of O(n^3), and generated code that grows like n.
 
 A generated function longer than :data:`SPLIT_STATEMENTS` statements is split into parts,
 each its own translation unit; the units are compiled in parallel (at most one per core;
-``-O1`` above :data:`O1_ABOVE` characters) and linked into one library.
+``-O3`` up to :data:`O3_UP_TO` characters, ``-O1`` above :data:`O1_ABOVE`, else ``-O2``) and
+linked into one library.
 
 The library is compiled once with the system C compiler (``$APPELL_CC``, else ``$CC``,
-else ``cc``; ``-O2 -shared -fPIC``), cached on disk under ``$APPELL_CACHE_DIR`` (default
+else ``cc``; ``-shared -fPIC`` at :func:`optimisation`'s level), cached on disk under ``$APPELL_CACHE_DIR`` (default
 ``~/.cache/appell``) keyed by the SHA-256 of the generated source and the compile command,
 written atomically (temporary file, then rename) under a per-entry lock, with the SHA-256
 of the library recorded beside it (checked before loading) and the key compiled into it
@@ -48,6 +49,7 @@ functions instead, with a warning, and ``backend='c'`` is refused.
 """
 
 from appell.numerics.codegen.build import (CACHE_ENV, CFLAGS, COMPILER_ENV, KEY_SYMBOL, LIBRARY_FORMAT, O1_ABOVE,
+                                           O3_UP_TO,
                                            build_library, cache_dir, compile_workers, find_compiler, load_library,
                                            optimisation)
 from appell.numerics.codegen.model import BACKENDS, CompiledNumericModel, caller, compile_c
@@ -56,6 +58,7 @@ from appell.numerics.codegen.source import c_source, source_units
 from appell.numerics.codegen.tree import ParticleTree, particle_tree
 
 __all__ = ["BACKENDS", "CACHE_ENV", "CFLAGS", "COMPILER_ENV", "HEADER_END", "KEY_SYMBOL", "LIBRARY_FORMAT", "O1_ABOVE",
+           "O3_UP_TO",
            "SPLIT_STATEMENTS", "UNIT_MARK", "CompiledNumericModel", "ParticleTree", "build_library", "c_comment",
            "c_function", "c_source", "cache_dir", "caller", "common_factor", "compile_c", "compile_workers",
            "find_compiler", "load_library", "optimisation", "particle_tree", "source_units"]

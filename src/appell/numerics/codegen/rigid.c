@@ -88,12 +88,13 @@ static void inertia_times(const double *Y, const double *v, double *F)
     for (int i = 0; i < 3; ++i) F[3 + i] = m * v[3 + i] - hw[i];
 }
 
-/* the bodies' forces f (6 NB) for speeds w, accelerations a and the base's acceleration base,
-   with the inertias Y (origin_inertia); nodes with skip[b] (NULL: none) are left out */
+/* the bodies' forces f (6 NB), velocities v and accelerations acc for speeds w, accelerations a
+   and the base's acceleration base, with the inertias Y (origin_inertia); nodes with skip[b]
+   (0: none) are left out */
 static void rigid_forces(const double *R, const double *r, const double *Sc, const double *cb, const double *Y,
-                         const double *w, const double *a, const double *base, const unsigned char *skip, double *f)
+                         const double *w, const double *a, const double *base, const unsigned char *skip, double *v,
+                         double *acc, double *f)
 {
-    double v[6 * NB], acc[6 * NB];
     for (int b = 0; b < NB; ++b) {
         if (skip && skip[b]) continue;
         double *vb = v + 6 * b, *ab = acc + 6 * b, vJ[6] = {0.0}, x[6];
@@ -180,13 +181,13 @@ static void rigid_mass(const double *R, const double *r, const double *Sc, const
     }
 }
 
-/* M and h - Q from the joints' terms */
+/* M and h - Q from the joints' terms; v, acc and f of the nodes that are not RIGID at a = 0 */
 static void rigid_blocks(const double *R, const double *r, const double *Sc, const double *cb, const double *Ym,
-                         const double *base, const double *Q, const double *w, double *M, double *hQ)
+                         const double *base, const double *Q, const double *w, double *M, double *hQ, double *v,
+                         double *acc, double *f)
 {
-    double f[6 * NB];
     const double zero[N] = {0.0};
-    rigid_forces(R, r, Sc, cb, Ym, w, zero, base, RIGID, f);
+    rigid_forces(R, r, Sc, cb, Ym, w, zero, base, RIGID, v, acc, f);
     rigid_project(Sc, f, hQ);
     for (int k = 0; k < N; ++k) hQ[k] -= Q[k];
     for (int i = 0; i < N * N; ++i) M[i] = 0.0;
@@ -199,19 +200,17 @@ void appell_blocks(double t, const double *restrict q, const double *restrict w,
                    double *restrict c)
 {
     double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N], Y[10 * NB], Ym[10 * NB];
+    double v[6 * NB], acc[6 * NB], f[6 * NB];
     appell_rigid_terms(t, q, w, a, p, R, r, Sc, cb, in, base, Q, J, c);
     rigid_inertias(R, r, in, Y, Ym);
-    rigid_blocks(R, r, Sc, cb, Ym, base, Q, w, M, hQ);
+    rigid_blocks(R, r, Sc, cb, Ym, base, Q, w, M, hQ, v, acc, f);
 }
 
-/* each node's reaction (F, M) in world axes about its joint point, from the joints' terms,
-   gravity g, the joints' points o and the accelerations a */
-static void rigid_wrenches(const double *R, const double *r, const double *Sc, const double *cb, const double *Y,
-                           const double *g, const double *o, const double *w, const double *a, double *out)
+/* each node's reaction (F, M) in world axes about its joint point (o) from its inward force f
+   (body axes, about the body origin) */
+static void world_wrenches(const double *R, const double *o, const double *f, double *out)
 {
-    double f[6 * NB], Rw[9 * NB];
-    const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]};
-    rigid_forces(R, r, Sc, cb, Y, w, a, fall, 0, f);
+    double Rw[9 * NB];
     for (int b = 0; b < NB; ++b) {
         double *Rb = Rw + 9 * b, m[3], tmp[3];
         const double *fb = f + 6 * b, *Rr = R + 9 * b;
@@ -230,6 +229,58 @@ static void rigid_wrenches(const double *R, const double *r, const double *Sc, c
             out[6 * b + 3 + i] = Rb[3 * i] * m[0] + Rb[3 * i + 1] * m[1] + Rb[3 * i + 2] * m[2];
         }
     }
+}
+
+/* each node's reaction from the joints' terms, gravity g, the joints' points o and the
+   accelerations a: one RNEA pass over every node with its own inertia Y */
+static void rigid_wrenches(const double *R, const double *r, const double *Sc, const double *cb, const double *Y,
+                           const double *g, const double *o, const double *w, const double *a, double *out)
+{
+    double f[6 * NB], v[6 * NB], acc[6 * NB];
+    const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]};
+    rigid_forces(R, r, Sc, cb, Y, w, a, fall, 0, v, acc, f);
+    world_wrenches(R, o, f, out);
+}
+
+/* the same reactions from the pass of rigid_blocks at a = 0 (v, acc, f on the moving nodes,
+   with the base at base and the merged inertias Ym), by linearity in a and in the base's
+   acceleration: a second, shorter pass adds the part of the accelerations a and of the base's
+   change to -g (no velocity terms), and each RIGID node's force is that of its rigid subtree,
+   f = Ym a + v x* Ym v, moving with it */
+static void rigid_wrenches_after(const double *R, const double *r, const double *Sc, const double *Ym,
+                                 const double *g, const double *o, const double *base, const double *a, double *v,
+                                 double *acc, double *f, double *out)
+{
+    double da[6 * NB], df[6 * NB], rest[6];
+    for (int i = 0; i < 3; ++i) { rest[i] = -base[i]; rest[3 + i] = -g[i] - base[3 + i]; }
+    for (int b = 0; b < NB; ++b) {
+        double *ab = da + 6 * b;
+        if (RIGID[b]) continue;
+        to_body(R + 9 * b, r + 3 * b, PARENT[b] >= 0 ? da + 6 * PARENT[b] : rest, ab);
+        for (int e = FIRST[b]; e < FIRST[b + 1]; ++e)
+            for (int i = 0; i < 6; ++i) ab[i] += Sc[6 * SPEEDS[e] + i] * a[SPEEDS[e]];
+        inertia_times(Ym + 10 * b, ab, df + 6 * b);
+    }
+    for (int b = NB - 1; b >= 0; --b) {
+        if (RIGID[b]) continue;
+        if (PARENT[b] >= 0) add_to_parent(R + 9 * b, r + 3 * b, df + 6 * b, df + 6 * PARENT[b]);
+        for (int i = 0; i < 6; ++i) { f[6 * b + i] += df[6 * b + i]; acc[6 * b + i] += da[6 * b + i]; }
+    }
+    for (int b = 0; b < NB; ++b) {
+        if (!RIGID[b]) continue;
+        double *vb = v + 6 * b, *ab = acc + 6 * b, *fb = f + 6 * b, h[6], t1[3], t2[3], x[3];
+        const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]}, still[6] = {0.0};
+        const int p = PARENT[b];
+        to_body(R + 9 * b, r + 3 * b, p >= 0 ? v + 6 * p : still, vb);
+        to_body(R + 9 * b, r + 3 * b, p >= 0 ? acc + 6 * p : fall, ab);
+        inertia_times(Ym + 10 * b, ab, fb);
+        inertia_times(Ym + 10 * b, vb, h);
+        cross3(vb, h, t1);
+        cross3(vb + 3, h + 3, t2);
+        cross3(vb, h + 3, x);
+        for (int i = 0; i < 3; ++i) { fb[i] += t1[i] + t2[i]; fb[3 + i] += x[i]; }
+    }
+    world_wrenches(R, o, f, out);
 }
 
 /* every node's joint reaction (F, M), world axes, the moment about the joint's point: the inward

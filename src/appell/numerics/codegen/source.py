@@ -13,7 +13,7 @@ import sympy as sp
 from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, program_substitutions
 from appell.numerics.codegen.printer import HEADER_END, UNIT_MARK, _symbol_map, c_comment, c_function, common_factor
 from appell.numerics.codegen.tree import _tree_recursions, particle_tree
-from appell.numerics.rigid_tree import point_matrices, rigid_subtrees, tree_layout, tree_matrices
+from appell.numerics.rigid_tree import point_matrices, rigid_subtrees, speed_parents, tree_layout, tree_matrices
 
 
 def _c_file(name: str) -> str:
@@ -59,6 +59,7 @@ def c_source(derivation) -> str:
                   "static const int NODE_OF[N] = {" + ", ".join(map(str, node_of)) + "};",
                   "static const int SPEEDS[N] = {" + (", ".join(map(str, speeds)) or "0") + "};",
                   "static const int FIRST[NB + 1] = {" + ", ".join(map(str, first)) + "};",
+                  "static const int LAMBDA[N] = {" + (", ".join(map(str, speed_parents(rigid))) or "0") + "};",
                   "static const unsigned char RIGID[NB] = {" + ", ".join(str(int(f)) for f in fixed) + "};",
                   c_function("appell_rigid_terms", [prepared(m) for m in tree_matrices(rigid, n, inertia.gravity)]
                              + [prepared(inertia.generalized_forces), prepared(J0), prepared(c)], syms),
