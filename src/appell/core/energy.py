@@ -105,6 +105,54 @@ class TreeInertiaBlocks(InertiaBlocks):
     __hash__ = object.__hash__
 
 
+class ParticleInertiaBlocks(InertiaBlocks):
+    """``dS/da = M a + h`` of point masses only, kept as their :class:`ParticleTerm`: the
+    compiled code's recursions along the particles' tree (``numerics/codegen/tree.py``) need
+    only ``J_v`` and ``b_v`` of each, so ``M = sum m J_v^T J_v`` and ``h = sum m J_v^T b_v``
+    (n^3 terms for a chain of n) are summed only where a formula or the NumPy backend asks
+    for them, on first access, the same sums :func:`inertia_blocks` forms for other systems."""
+
+    def __init__(self, generalized_forces, particles: tuple[ParticleTerm, ...], n: int):
+        set_ = object.__setattr__
+        set_(self, "generalized_forces", generalized_forces)
+        set_(self, "particles", particles)
+        set_(self, "_n", n)
+
+    def _expanded(self):
+        if "_blocks" not in self.__dict__:
+            n = self._n
+            M_terms = [[[] for _ in range(n)] for _ in range(n)]
+            h_terms = [[[]] for _ in range(n)]
+            for pt in self.particles:
+                _gram_terms(M_terms, pt.mass, pt.jacobian)
+                _gram_terms(h_terms, pt.mass, pt.jacobian, pt.bias)
+            M, h = sp.zeros(n, n), sp.zeros(n, 1)
+            for i in range(n):
+                h[i] = sp.Add(*h_terms[i][0])
+                for j in range(i, n):
+                    M[i, j] = M[j, i] = sp.Add(*M_terms[i][j])
+            object.__setattr__(self, "_blocks", (sp.ImmutableMatrix(M), sp.ImmutableMatrix(h)))
+        return self.__dict__["_blocks"]
+
+    @property
+    def mass_matrix(self):
+        return self._expanded()[0]
+
+    @property
+    def inertial_forces(self):
+        return self._expanded()[1]
+
+    def __repr__(self):
+        return f"ParticleInertiaBlocks({len(self.particles)} particles, n = {self._n})"
+
+    def __eq__(self, other):
+        return (isinstance(other, ParticleInertiaBlocks) and self.particles == other.particles
+                and self.generalized_forces == other.generalized_forces)
+
+    def __hash__(self):
+        return hash((self.particles, self.generalized_forces))
+
+
 def usable_tree(system: System, kin: Kinematics):
     """``system.tree`` when it describes exactly the system's bodies and coordinates: no
     energy given beside the bodies, speeds that are the coordinates' derivatives, each speed
@@ -194,8 +242,24 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
         gravity = system.potential_energy == tree.potential
         Q = generalized_forces(system, kin, potential=not gravity)
         return TreeInertiaBlocks(sp.ImmutableMatrix(Q), tree, gravity, system, kin)
+    if (system.kinetic_energy is None and system.acceleration_energy is None and system.bodies
+            and not any(isinstance(body, RigidBody) for body in system.bodies)):
+        particles = tuple(_particle_term(body, kin) for body in system.bodies)
+        known = {sp.ImmutableMatrix(body.position): pt.jacobian for body, pt in zip(system.bodies, particles)
+                 if body.velocity is None}
+        return ParticleInertiaBlocks(sp.ImmutableMatrix(generalized_forces(system, kin, jacobians=known)),
+                                     particles, len(kin.speeds))
     M, h, particles = _expanded_blocks(system, kin)
     return InertiaBlocks(M, h, sp.ImmutableMatrix(generalized_forces(system, kin)), particles)
+
+
+def _particle_term(body, kin: Kinematics) -> ParticleTerm:
+    """A body's point-mass share: ``J_v`` and ``b_v`` of its velocity and acceleration."""
+    with naming(f"body {body.name!r}"):
+        v = _velocity(body.position, body.velocity, kin)
+        Jv, _ = linear_split(v, kin.speeds)
+        _, bv = linear_split(kin.diff(v), list(kin.accelerations))
+    return ParticleTerm(body.name, body.mass, sp.ImmutableMatrix(Jv), sp.ImmutableMatrix(bv))
 
 
 def _expanded_blocks(system: System, kin: Kinematics):
@@ -234,13 +298,10 @@ def _expanded_blocks(system: System, kin: Kinematics):
     h_terms = [[[]] for _ in range(n)]
     particles = []
     for body in system.bodies:
-        with naming(f"body {body.name!r}"):
-            v = _velocity(body.position, body.velocity, kin)
-            Jv, _ = linear_split(v, kin.speeds)
-            _, bv = linear_split(kin.diff(v), a)
-        _gram_terms(M_terms, body.mass, Jv)
-        _gram_terms(h_terms, body.mass, Jv, bv)
-        particles.append(ParticleTerm(body.name, body.mass, sp.ImmutableMatrix(Jv), sp.ImmutableMatrix(bv)))
+        particle = _particle_term(body, kin)
+        _gram_terms(M_terms, body.mass, particle.jacobian)
+        _gram_terms(h_terms, body.mass, particle.jacobian, particle.bias)
+        particles.append(particle)
         if isinstance(body, RigidBody):
             omega = sp.Matrix(body.angular_velocity)
             I = sp.Matrix(body.inertia)
@@ -273,22 +334,27 @@ def _potential_force(V, kin: Kinematics) -> sp.Matrix:
     return (jacobian([V], kin.coordinates) * kin.K).T
 
 
-def generalized_forces(system: System, kin: Kinematics, potential: bool = True) -> sp.Matrix:
+def generalized_forces(system: System, kin: Kinematics, potential: bool = True, jacobians=None) -> sp.Matrix:
     """``Q = Q_given - (dV/dq) K + sum (dv_P/dw)^T F + sum (d omega/dw)^T tau`` (without the
-    potential's share where ``potential`` is false)."""
+    potential's share where ``potential`` is false); ``jacobians`` maps points (positions, an
+    ImmutableMatrix) to their ``dv_P/dw`` where they are known already (the bodies')."""
     n = len(kin.speeds)
     Q = sp.Matrix(system.generalized_forces) if system.generalized_forces is not None else sp.zeros(n, 1)
     if potential:
         Q -= _potential_force(system.potential_energy, kin)
+    terms: list[list] = [[Q[i]] for i in range(n)]  # summed once at the end
     for load in system.loads:
         if isinstance(load, AppliedForce):
-            with naming(f"load {load.name!r}"):
-                v = _velocity(load.position, load.velocity, kin)
-            Jv, _ = linear_split(v, kin.speeds)
-            Q += Jv.T * sp.Matrix(load.vector)
+            J = (jacobians or {}).get(sp.ImmutableMatrix(load.position)) if load.velocity is None else None
+            if J is None:
+                with naming(f"load {load.name!r}"):
+                    v = _velocity(load.position, load.velocity, kin)
+                J, _ = linear_split(v, kin.speeds)
         elif isinstance(load, AppliedTorque):
-            Jw, _ = linear_split(sp.Matrix(load.angular_velocity), kin.speeds)
-            Q += Jw.T * sp.Matrix(load.vector)
+            J, _ = linear_split(sp.Matrix(load.angular_velocity), kin.speeds)
         else:
             raise ModelError(f"unknown load {load!r}; use AppliedForce or AppliedTorque")
-    return Q
+        vector = sp.Matrix(load.vector)
+        for i in range(n):
+            terms[i].extend(J[k, i] * vector[k] for k in range(J.shape[0]) if J[k, i] != 0 and vector[k] != 0)
+    return sp.Matrix(n, 1, [sp.Add(*t) for t in terms])

@@ -20,6 +20,7 @@ the equations hold on either side of a kink, where they are evaluated.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import sympy as sp
@@ -53,12 +54,19 @@ class Kinematics:
     def successor(self, symbol: sp.Symbol) -> sp.Symbol | None:
         """The time derivative of a symbol on a derivative chain (speeds, programs,
         kinematic controls and their derivatives), or None for anything else."""
-        base, _ = split_derivative_name(symbol.name)
+        base, order = split_derivative_name(symbol.name)
+        lowest = self._chain_roots.get(base)
+        return derivative_symbol(symbol) if lowest is not None and order >= lowest else None
+
+    @functools.cached_property
+    def _chain_roots(self) -> dict[str, int]:
+        """Per base name of a chain's root (the speeds, programs, kinematic controls): the
+        lowest derivative order among them (:meth:`successor`)."""
+        roots: dict[str, int] = {}
         for root in self.speeds + self.chains:
             rbase, rorder = split_derivative_name(root.name)
-            if base == rbase and split_derivative_name(symbol.name)[1] >= rorder:
-                return derivative_symbol(symbol)
-        return None
+            roots[rbase] = min(rorder, roots.get(rbase, rorder))
+        return roots
 
     def diff(self, expr):
         """Total time derivative of ``expr`` (scalar or matrix) along the motion."""
@@ -75,9 +83,8 @@ class Kinematics:
         # a required step: refused before it runs when the derivative would swell (bound policy)
         refuse_derivative(expr, [s for s, _ in rates], [tree_size(r) for _, r in rates])
         terms, smooth = terms_by_symbol(expr), not expr.has(*NONSMOOTH)
-        out = sp.S.Zero
-        for s, rate in rates:
-            out += partial(terms, s, smooth) * rate
+        # one sum of every term (adding term by term flattens and sorts the growing sum again)
+        out = sp.Add(*[partial(terms, s, smooth) * rate for s, rate in rates])
         refuse_result(out)  # where the estimate fell short (|u| of a complex-valued u)
         return out
 

@@ -111,6 +111,39 @@ def _postorder(root, memo: dict, combine):
     return memo[root]
 
 
+def symbols_below(root) -> dict:
+    """Each subexpression's free symbols (a frozenset), every distinct subexpression once: what
+    SymPy's ``free_symbols`` walks again at every call."""
+    def combine(e, parts):
+        return frozenset(e.free_symbols) if not e.args else frozenset().union(*parts)
+    memo: dict = {}
+    _postorder(root, memo, combine)
+    return memo
+
+
+def _postorder_along(root, symbol, below: dict, combine):
+    """:func:`_postorder` where only the subexpressions that hold ``symbol`` (``below``:
+    :func:`symbols_below`) are combined; the others count 0 and are not entered."""
+    memo: dict = {}
+    stack = [root]
+    while stack:
+        e = stack[-1]
+        if e in memo:
+            stack.pop()
+            continue
+        if symbol not in below[e]:
+            memo[e] = 0
+            stack.pop()
+            continue
+        pending = [a for a in e.args if a not in memo]
+        if pending:
+            stack.extend(pending)
+            continue
+        stack.pop()
+        memo[e] = combine(e, [memo[a] for a in e.args])
+    return memo[root]
+
+
 def measure(expr, limit: int = SWELL_LIMIT) -> Size:
     """Tree size and expanded size of ``expr`` (a matrix: its largest entry), each at most
     ``limit + 1``. One walk of the expression's DAG, stopped as soon as the expanded size
@@ -219,12 +252,14 @@ def derivative_nodes(expr, symbols, rates=None, limit: int | None = None) -> int
     quick = len(symbols) * (nodes * nodes + nodes + max(rates) + 1)
     if quick <= limit:
         return quick
-    total, present = 0, expr.free_symbols
+    below = symbols_below(expr)
+    total, present = 0, below[expr]
     for s, rate in zip(symbols, rates):
         if s not in present:
             continue
         try:
-            d = _postorder(expr, {}, lambda e, parts: _derivative(e, parts, s, sizes, limit - total))  # noqa: B023 (used here)
+            d = _postorder_along(expr, s, below,
+                                 lambda e, parts: _derivative(e, parts, s, sizes, limit - total))  # noqa: B023 (used here)
         except _Over:
             return limit + 1
         if d:
@@ -245,13 +280,14 @@ def derivative_work(expr, symbols) -> int:
     chain of a mechanism (the benchmark bicycle's front contact: 1,496 distinct nodes, 2e7
     by :func:`derivative_nodes`) costs what it shares."""
     expr = sp.sympify(expr)
+    below = symbols_below(expr)
     total = 0
-    for sym in set(symbols) & expr.free_symbols:
+    for sym in set(symbols) & below[expr]:
         seen: set = set()
         stack = [expr]
         while stack:
             e = stack.pop()
-            if e in seen or not e.args or sym not in e.free_symbols:
+            if e in seen or not e.args or sym not in below[e]:
                 continue
             seen.add(e)
             n = len(e.args)

@@ -569,8 +569,8 @@ def constant_problem(expr: sp.Expr, text: str | None = None) -> str | None:
     subexpression without symbols that :func:`constant_value` cannot evaluate to a finite
     real number (``exp(1000)``, ``asin(2)``), e.g. ``"the constant exp(1000) is not a
     finite real number (the value overflows or divides by zero)"``."""
-    shown = f"{text!r} reads {_short(expr)}" if text is not None else f"it reads {_short(expr)}"
-    if expr.has(sp.I):
+    if expr.has(sp.I):  # printed only here: printing a long expression costs more than the checks
+        shown = f"{text!r} reads {_short(expr)}" if text is not None else f"it reads {_short(expr)}"
         return f"the value is complex ({shown})"
     constants: list[sp.Expr] = []
 
