@@ -3,6 +3,7 @@ for rigid-body trees, against Pinocchio (issue 22 §1 targets).
 
     python benchmarks/robots.py                       # the default robots, a table
     python benchmarks/robots.py --robot panda --runs 3
+    python benchmarks/robots.py --c-loop              # from C: appell_forward against Pinocchio's C++
 
 Columns:
 
@@ -14,7 +15,7 @@ Columns:
 * **Pinocchio load** — ``pin.buildModelFromUrdf`` in the same kind of fresh process (after
   its import);
 * **eval from Python** — one state: appell's ``compiled.forward`` (the accelerations by the
-  split solve, the multipliers and every joint's reaction, one C call) against Pinocchio's
+  tree's factors of M, the multipliers and every joint's reaction, one C call) against Pinocchio's
   ``aba`` plus ``rnea`` (whose ``data.f`` are the joint wrenches), interleaved
   (benchmarks/harness.py), CPU time per call (pair of calls), and their ratio.
 
@@ -130,12 +131,85 @@ def evaluation(path: Path, floating: bool, rounds: int) -> tuple[float, float, f
     return harness.median(times["appell"]), harness.median(times["pinocchio"]), harness.ratio(times, "appell", "pinocchio")
 
 
+#: what the C++ driver needs beside Pinocchio's headers (in the pin wheel): Eigen and urdfdom's
+#: headers (Debian: libeigen3-dev, liburdfdom-headers-dev), and the configuration Pinocchio's
+#: own build passes to its users
+CXX_FLAGS = ["-O3", "-DNDEBUG", "-std=c++17", "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS",
+             "-DBOOST_MPL_LIMIT_LIST_SIZE=30", "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30", "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
+             "-DBOOST_FUSION_INVOKE_FUNCTION_OBJECT_MAX_ARITY=12", "-DBOOST_FUSION_INVOKE_PROCEDURE_MAX_ARITY=12",
+             "-DPINOCCHIO_WITH_URDFDOM"]
+
+
+def c_loop_driver() -> Path:
+    """reference/bench_robot.cpp compiled against the installed Pinocchio (about 2.5 minutes the
+    first time; kept in ~/.cache/appell-bench by the source's hash)."""
+    import hashlib
+    import shutil
+
+    source = HERE / "reference" / "bench_robot.cpp"
+    prefix = robots_folder().parents[2]  # cmeel.prefix
+    eigen = Path("/usr/include/eigen3")
+    if not (eigen / "Eigen").is_dir() or not Path("/usr/include/urdf_model/model.h").exists():
+        sys.exit("the C loop needs Eigen's and urdfdom's headers (apt-get install libeigen3-dev "
+                 "liburdfdom-headers-dev)")
+    key = hashlib.sha256(source.read_bytes() + " ".join(CXX_FLAGS).encode()).hexdigest()[:16]
+    exe = Path.home() / ".cache" / "appell-bench" / f"bench_robot-{key}"
+    if not exe.exists():
+        exe.parent.mkdir(parents=True, exist_ok=True)
+        print("compiling the Pinocchio driver (a few minutes) ...", flush=True)
+        tmp = exe.with_suffix(".tmp")
+        subprocess.run([shutil.which("c++") or "g++", *CXX_FLAGS, f"-I{prefix / 'include'}", f"-I{eigen}",
+                        str(source), "-o", str(tmp), f"-L{prefix / 'lib'}", "-lpinocchio_default",
+                        "-lpinocchio_parsers", "-ldl", f"-Wl,-rpath,{prefix / 'lib'}"], check=True)
+        tmp.replace(exe)
+    return exe
+
+
+def c_loop(names) -> None:
+    """appell_forward from a C++ loop against Pinocchio's C++ aba + rnea, interleaved (41
+    rounds; best time of each and the median of the paired ratios)."""
+    import warnings
+
+    import appell
+    from appell.mechanism.urdf import urdf_system
+
+    warnings.simplefilter("ignore")
+    exe, folder, rows = c_loop_driver(), robots_folder(), []
+    for name in names:
+        rel, floating = ROBOTS[name]
+        system = urdf_system(folder / rel, floating_base=floating, reactions=None)
+        derivation = appell.derive(system)
+        model = appell.numeric_model(derivation, "c")
+        rng = np.random.default_rng(0)
+        q = rng.uniform(-0.5, 0.5, len(system.coordinates))
+        w = rng.uniform(-0.5, 0.5, len(system.speeds))
+        p = model.default_parameters
+        sizes = [len(q), len(w), len(p), len(derivation.inertia.tree.nodes), derivation.constraints.count]
+        out = subprocess.run([str(exe), str(model.library_path), str(folder / rel), "1" if floating else "0", "20000",
+                              *map(str, sizes), *(repr(float(x)) for x in [*q, *w, *p])],
+                             capture_output=True, text=True, check=True)
+        r = json.loads(out.stdout)
+        rows.append([name + (" (floating)" if floating else ""), str(r["nv"]), f"{r['appell_ns'] / 1e3:.2f} µs",
+                     f"{r['pinocchio_ns'] / 1e3:.2f} µs", f"{r['median_ratio']:.2f}×"])
+        print(" | ".join(rows[-1]), flush=True)
+    print()
+    print(f"machine: {harness.machine()}; {harness.today()}; commit {harness.git_commit()}; "
+          f"both at {' '.join(CXX_FLAGS[:2])} (appell's library at its own -O3)")
+    print(harness.markdown_table(["robot", "speeds", "appell_forward (C)", "Pinocchio aba + rnea (C++)",
+                                  "median ratio"], rows))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robot", action="append", choices=sorted(ROBOTS), help="robots (default: all)")
     parser.add_argument("--runs", type=int, default=1, help="fresh processes per robot for the first number")
     parser.add_argument("--rounds", type=int, default=15, help="interleaved rounds of the evaluation timing")
+    parser.add_argument("--c-loop", action="store_true",
+                        help="appell_forward from a C++ loop against Pinocchio's own C++ aba + rnea")
     args = parser.parse_args()
+    if args.c_loop:
+        c_loop(args.robot or list(ROBOTS))
+        return
     folder = robots_folder()
     rows = []
     for name in args.robot or list(ROBOTS):

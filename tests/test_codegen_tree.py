@@ -184,7 +184,6 @@ def test_long_functions_are_split_into_units_that_give_the_same_library(monkeypa
     source = c_source(d)
     units = codegen_c.source_units(source)
     assert len(units) >= 4 and all(codegen_c.HEADER_END in u for u in units)
-    monkeypatch.setattr(codegen_build, "O3_UP_TO", 0)  # the whole library was compiled at -O3
     assert {codegen_c.optimisation(u) for u in units} == {"-O1", "-O2"}
     split = compile_c(d, "c")
     assert split.freshly_compiled and split.library_path != whole.library_path
@@ -203,3 +202,26 @@ def test_a_failing_unit_names_the_compiler_error(monkeypatch, tmp_path):
         codegen_c.UNIT_MARK + "\nint broken(void) { return undeclared_name; }\n"
     with pytest.raises(appell.ComputationError, match="undeclared_name"):
         codegen_c.build_library(source)
+
+
+def test_point_masses_sum_m_and_h_only_where_a_formula_asks():
+    """A chain of point masses keeps each particle's J_v and b_v (ParticleInertiaBlocks): its
+    compiled model's evaluations never form the expanded M (n^3 terms), and M, when
+    asked for, is the closed form of the n-link pendulum, M_ij = l_i l_j cos(theta_i - theta_j)
+    sum_{k >= max(i, j)} m_k (Lagrange's equations of the chain, e.g. Goldstein, Classical
+    Mechanics, 3rd ed., 1.6)."""
+    from appell.core.energy import ParticleInertiaBlocks
+
+    n = 4
+    d = appell.derive(nlink_pendulum(n))
+    assert isinstance(d.inertia, ParticleInertiaBlocks)
+    model = numeric_model(d, "c")
+    model.evaluate(0.0, np.full(2 * n, 0.3))
+    model.solve(0.0, np.full(n, 0.2), np.full(n, -0.1))
+    assert "_blocks" not in d.inertia.__dict__  # the recursions along the tree needed no M
+    th, m, ell = sp.symbols(f"theta1:{n + 1}"), sp.symbols(f"m1:{n + 1}"), sp.symbols(f"l1:{n + 1}")
+    expected = sp.Matrix(n, n, lambda i, j: ell[i] * ell[j] * sp.cos(th[i] - th[j]) * sum(m[max(i, j):]))
+    values = {s: v for s, v in zip(th + m + ell, np.random.default_rng(3).uniform(0.2, 1.5, 3 * n))}
+    np.testing.assert_allclose(np.array(d.inertia.mass_matrix.xreplace(values), dtype=float),
+                               np.array(expected.xreplace(values), dtype=float), rtol=1e-13)
+    assert d.inertia == appell.derive(nlink_pendulum(n)).inertia

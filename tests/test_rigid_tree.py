@@ -106,7 +106,10 @@ def test_forward_in_one_call_equals_the_solve_and_the_full_wrench_pass(arm):
     """``forward`` (the tree's L^T D L factors of M, the wrenches from the pass at a = 0 by
     linearity, the tool on its fixed joint moving with the hand as one rigid subtree) against
     the dense split of ``solve`` and one RNEA pass over every body at its accelerations."""
+    from appell.numerics.codegen import c_source, optimisation
+
     system, tree, _ = arm
+    assert optimisation(c_source(tree)) == "-O3"  # the recursions' loops, unrolled
     compiled = numeric_model(tree, "c")
     n, nq = len(system.speeds), len(system.coordinates)
     for q, w in _states(n, nq, seed=5):

@@ -35,8 +35,8 @@ O(n s + s^3) per call instead of O(n^3), and generated code that grows like n.
 
 A generated function longer than :data:`SPLIT_STATEMENTS` statements is split into parts,
 each its own translation unit; the units are compiled in parallel (at most one per core;
-``-O3`` up to :data:`O3_UP_TO` characters, ``-O1`` above :data:`O1_ABOVE`, else ``-O2``) and
-linked into one library.
+``-O3`` for the rigid-body recursions, ``-O1`` above :data:`O1_ABOVE` characters, else
+``-O2``) and linked into one library.
 
 The library is compiled once with the system C compiler (``$APPELL_CC``, else ``$CC``,
 else ``cc``; ``-shared -fPIC`` at :func:`optimisation`'s level), cached on disk under ``$APPELL_CACHE_DIR`` (default

@@ -119,16 +119,21 @@ def build_library(source: str, compiler: list[str] | None = None, *, force: bool
 
 
 def optimisation(unit: str) -> str:
-    """The optimisation flag of one translation unit: ``-O3`` up to :data:`O3_UP_TO` characters
-    (the recursions' small fixed-size loops over 3- and 6-vectors are unrolled and vectorized:
-    Baxter's forward dynamics and joint wrenches 20 us -> 13 us, at the same compile time),
-    ``-O2`` above, ``-O1`` above :data:`O1_ABOVE` (gcc's -O2 passes cost far more time and
-    memory on huge units than they gain). None of them reorders floating-point arithmetic."""
+    """The optimisation flag of one translation unit: ``-O3`` for the rigid-body recursions
+    (:data:`LOOPS_MARK`; their small fixed-size loops over 3- and 6-vectors are unrolled and
+    vectorized: Baxter's forward dynamics and joint wrenches 20 us -> 13 us), else ``-O2``, or
+    ``-O1`` above :data:`O1_ABOVE` characters (gcc's -O2 passes cost far more time and memory
+    on huge units than they gain). None of them reorders floating-point arithmetic."""
     size = len(unit)
-    return "-O1" if size > O1_ABOVE else "-O2" if size > O3_UP_TO else "-O3"
+    if LOOPS_MARK in unit and size <= O3_UP_TO:
+        return "-O3"
+    return "-O1" if size > O1_ABOVE else "-O2"
 
 
-#: units up to this many characters of C are compiled with -O3
+#: units that hold this comment (the rigid-body recursions, ``rigid.c``) and at most
+#: :data:`O3_UP_TO` characters are compiled with -O3; generated straight-line code gains nothing
+#: from it and takes longer to compile
+LOOPS_MARK = "/* appell: loops over 3- and 6-vectors */"
 O3_UP_TO = 200_000
 #: units longer than this (characters of C) are compiled with -O1
 O1_ABOVE = 400_000

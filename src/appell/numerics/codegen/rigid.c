@@ -1,4 +1,5 @@
 
+/* appell: loops over 3- and 6-vectors */
 /* Rigid bodies on a joint tree (appell.numerics.rigid_tree has the same recursions in NumPy):
    spatial vectors [omega; v] in body axes; node b has parent PARENT[b] (-1: ground), speed k
    belongs to node NODE_OF[k]. appell_rigid_terms fills, per node, R (body -> parent, 9),
