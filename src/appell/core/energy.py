@@ -59,7 +59,25 @@ class InertiaBlocks:
     tree = None
 
 
-class TreeInertiaBlocks(InertiaBlocks):
+class _BlocksOnDemand(InertiaBlocks):
+    """``M`` and ``h`` formed by :meth:`_expand` on first access, then kept."""
+
+    def _expanded(self):
+        if "_blocks" not in self.__dict__:
+            M, h = self._expand()
+            object.__setattr__(self, "_blocks", (sp.ImmutableMatrix(M), sp.ImmutableMatrix(h)))
+        return self.__dict__["_blocks"]
+
+    @property
+    def mass_matrix(self):
+        return self._expanded()[0]
+
+    @property
+    def inertial_forces(self):
+        return self._expanded()[1]
+
+
+class TreeInertiaBlocks(_BlocksOnDemand):
     """``dS/da = M a + h`` of bodies on a joint tree (:class:`appell.rigid_tree.RigidTree`):
     the numeric code computes ``M`` and ``h`` by recursions along ``tree`` (O(n) per column,
     :mod:`appell.numerics.rigid_tree`), so they are never expanded to reach a number. The
@@ -79,22 +97,10 @@ class TreeInertiaBlocks(InertiaBlocks):
         set_(self, "gravity", gravity)
         set_(self, "_source", (system, kinematics))
 
-    def _expanded(self):
-        if "_blocks" not in self.__dict__:
-            system, kin = self._source
-            M, h, _ = _expanded_blocks(system, kin)
-            if self.gravity:
-                h = h + _potential_force(system.potential_energy, kin)
-            object.__setattr__(self, "_blocks", (sp.ImmutableMatrix(M), sp.ImmutableMatrix(h)))
-        return self.__dict__["_blocks"]
-
-    @property
-    def mass_matrix(self):
-        return self._expanded()[0]
-
-    @property
-    def inertial_forces(self):
-        return self._expanded()[1]
+    def _expand(self):
+        system, kin = self._source
+        M, h = _expanded_blocks(system, kin)
+        return M, (h + _potential_force(system.potential_energy, kin) if self.gravity else h)
 
     def __repr__(self):
         return f"TreeInertiaBlocks({self.tree!r}, n = {len(self.generalized_forces)})"
@@ -105,7 +111,7 @@ class TreeInertiaBlocks(InertiaBlocks):
     __hash__ = object.__hash__
 
 
-class ParticleInertiaBlocks(InertiaBlocks):
+class ParticleInertiaBlocks(_BlocksOnDemand):
     """``dS/da = M a + h`` of point masses only, kept as their :class:`ParticleTerm`: the
     compiled code's recursions along the particles' tree (``numerics/codegen/tree.py``) need
     only ``J_v`` and ``b_v`` of each, so ``M = sum m J_v^T J_v`` and ``h = sum m J_v^T b_v``
@@ -118,29 +124,8 @@ class ParticleInertiaBlocks(InertiaBlocks):
         set_(self, "particles", particles)
         set_(self, "_n", n)
 
-    def _expanded(self):
-        if "_blocks" not in self.__dict__:
-            n = self._n
-            M_terms = [[[] for _ in range(n)] for _ in range(n)]
-            h_terms = [[[]] for _ in range(n)]
-            for pt in self.particles:
-                _gram_terms(M_terms, pt.mass, pt.jacobian)
-                _gram_terms(h_terms, pt.mass, pt.jacobian, pt.bias)
-            M, h = sp.zeros(n, n), sp.zeros(n, 1)
-            for i in range(n):
-                h[i] = sp.Add(*h_terms[i][0])
-                for j in range(i, n):
-                    M[i, j] = M[j, i] = sp.Add(*M_terms[i][j])
-            object.__setattr__(self, "_blocks", (sp.ImmutableMatrix(M), sp.ImmutableMatrix(h)))
-        return self.__dict__["_blocks"]
-
-    @property
-    def mass_matrix(self):
-        return self._expanded()[0]
-
-    @property
-    def inertial_forces(self):
-        return self._expanded()[1]
+    def _expand(self):
+        return _particle_sums(self.particles, self._n)
 
     def __repr__(self):
         return f"ParticleInertiaBlocks({len(self.particles)} particles, n = {self._n})"
@@ -221,6 +206,21 @@ def _gram_terms(terms: list, weight, J: sp.Matrix, other: sp.Matrix | None = Non
             terms[i][0].extend(weight * J[k, i] * other[k, 0] for k in nonzero[i] if other[k, 0] != 0)
 
 
+def _particle_sums(particles, n: int) -> tuple[sp.Matrix, sp.Matrix]:
+    """``(sum m J_v^T J_v, sum m J_v^T b_v)`` of :class:`ParticleTerm` s, each entry one sum."""
+    M_terms = [[[] for _ in range(n)] for _ in range(n)]
+    h_terms = [[[]] for _ in range(n)]
+    for pt in particles:
+        _gram_terms(M_terms, pt.mass, pt.jacobian)
+        _gram_terms(h_terms, pt.mass, pt.jacobian, pt.bias)
+    M, h = sp.zeros(n, n), sp.zeros(n, 1)
+    for i in range(n):
+        h[i] = sp.Add(*h_terms[i][0])
+        for j in range(i, n):
+            M[i, j] = M[j, i] = sp.Add(*M_terms[i][j])
+    return M, h
+
+
 def _velocity(body_position, body_velocity, kin: Kinematics) -> sp.Matrix:
     return sp.Matrix(body_velocity) if body_velocity is not None else kin.diff(sp.Matrix(body_position))
 
@@ -249,8 +249,8 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
                  if body.velocity is None}
         return ParticleInertiaBlocks(sp.ImmutableMatrix(generalized_forces(system, kin, jacobians=known)),
                                      particles, len(kin.speeds))
-    M, h, particles = _expanded_blocks(system, kin)
-    return InertiaBlocks(M, h, sp.ImmutableMatrix(generalized_forces(system, kin)), particles)
+    M, h = _expanded_blocks(system, kin)
+    return InertiaBlocks(M, h, sp.ImmutableMatrix(generalized_forces(system, kin)))
 
 
 def _particle_term(body, kin: Kinematics) -> ParticleTerm:
@@ -263,7 +263,8 @@ def _particle_term(body, kin: Kinematics) -> ParticleTerm:
 
 
 def _expanded_blocks(system: System, kin: Kinematics):
-    """``(M, h, particles)`` expanded from the energies and the bodies (module docstring)."""
+    """``(M, h)`` expanded from the energies and the bodies (module docstring); systems of
+    point masses alone keep their particles instead (:class:`ParticleInertiaBlocks`)."""
     n = len(kin.speeds)
     w = sp.Matrix(kin.speeds)
     a = list(kin.accelerations)
@@ -294,14 +295,9 @@ def _expanded_blocks(system: System, kin: Kinematics):
         M += A
         h += b
 
-    M_terms = [[[] for _ in range(n)] for _ in range(n)]
-    h_terms = [[[]] for _ in range(n)]
     particles = []
     for body in system.bodies:
-        particle = _particle_term(body, kin)
-        _gram_terms(M_terms, body.mass, particle.jacobian)
-        _gram_terms(h_terms, body.mass, particle.jacobian, particle.bias)
-        particles.append(particle)
+        particles.append(_particle_term(body, kin))
         if isinstance(body, RigidBody):
             omega = sp.Matrix(body.angular_velocity)
             I = sp.Matrix(body.inertia)
@@ -311,18 +307,9 @@ def _expanded_blocks(system: System, kin: Kinematics):
             M += Jw.T * I * Jw
             h += Jw.T * (I * bw + omega.cross(I * omega))
     if system.bodies:
-        M, h = sp.Matrix(M), sp.Matrix(h)
-        for i in range(n):
-            h[i] += sp.Add(*h_terms[i][0])
-            for j in range(i, n):
-                entry = sp.Add(*M_terms[i][j])
-                M[i, j] += entry
-                if j != i:
-                    M[j, i] += entry
-
-    only_particles = (system.kinetic_energy is None and system.acceleration_energy is None and bool(system.bodies)
-                      and not any(isinstance(body, RigidBody) for body in system.bodies))
-    return sp.ImmutableMatrix(M), sp.ImmutableMatrix(h), tuple(particles) if only_particles else None
+        M_bodies, h_bodies = _particle_sums(particles, n)
+        M, h = M + M_bodies, h + h_bodies
+    return sp.ImmutableMatrix(M), sp.ImmutableMatrix(h)
 
 
 def _potential_force(V, kin: Kinematics) -> sp.Matrix:

@@ -92,14 +92,19 @@ class _Over(Exception):
     """The walk passed its limit."""
 
 
-def _postorder(root, memo: dict, combine):
+def _postorder(root, memo: dict, combine, skip=None):
     """``memo[root]``, with ``memo[e] = combine(e, [memo[a] for a in e.args])`` for every
     subexpression ``e`` (each once), children first: without recursion, so that a deep
-    expression does not exhaust Python's stack. ``combine`` may raise :class:`_Over`."""
+    expression does not exhaust Python's stack. ``combine`` may raise :class:`_Over`. Where
+    ``skip(e)`` holds, ``memo[e] = 0`` and ``e`` is not entered."""
     stack = [root]
     while stack:
         e = stack[-1]
         if e in memo:
+            stack.pop()
+            continue
+        if skip is not None and skip(e):
+            memo[e] = 0
             stack.pop()
             continue
         pending = [a for a in e.args if a not in memo]
@@ -119,29 +124,6 @@ def symbols_below(root) -> dict:
     memo: dict = {}
     _postorder(root, memo, combine)
     return memo
-
-
-def _postorder_along(root, symbol, below: dict, combine):
-    """:func:`_postorder` where only the subexpressions that hold ``symbol`` (``below``:
-    :func:`symbols_below`) are combined; the others count 0 and are not entered."""
-    memo: dict = {}
-    stack = [root]
-    while stack:
-        e = stack[-1]
-        if e in memo:
-            stack.pop()
-            continue
-        if symbol not in below[e]:
-            memo[e] = 0
-            stack.pop()
-            continue
-        pending = [a for a in e.args if a not in memo]
-        if pending:
-            stack.extend(pending)
-            continue
-        stack.pop()
-        memo[e] = combine(e, [memo[a] for a in e.args])
-    return memo[root]
 
 
 def measure(expr, limit: int = SWELL_LIMIT) -> Size:
@@ -258,8 +240,8 @@ def derivative_nodes(expr, symbols, rates=None, limit: int | None = None) -> int
         if s not in present:
             continue
         try:
-            d = _postorder_along(expr, s, below,
-                                 lambda e, parts: _derivative(e, parts, s, sizes, limit - total))  # noqa: B023 (used here)
+            d = _postorder(expr, {}, lambda e, parts: _derivative(e, parts, s, sizes, limit - total),  # noqa: B023
+                           skip=lambda e: s not in below[e])  # noqa: B023 (both used here, at once)
         except _Over:
             return limit + 1
         if d:

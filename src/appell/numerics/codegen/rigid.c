@@ -89,6 +89,18 @@ static void inertia_times(const double *Y, const double *v, double *F)
     for (int i = 0; i < 3; ++i) F[3 + i] = m * v[3 + i] - hw[i];
 }
 
+/* f = Y a + v x* (Y v): the force of a body of inertia Y moving with v and accelerating at a */
+static void body_force(const double *Y, const double *v, const double *a, double *f)
+{
+    double h[6], t1[3], t2[3], x[3];
+    inertia_times(Y, a, f);
+    inertia_times(Y, v, h);
+    cross3(v, h, t1);
+    cross3(v + 3, h + 3, t2);
+    cross3(v, h + 3, x);
+    for (int i = 0; i < 3; ++i) { f[i] += t1[i] + t2[i]; f[3 + i] += x[i]; }
+}
+
 /* the bodies' forces f (6 NB), velocities v and accelerations acc for speeds w, accelerations a
    and the base's acceleration base, with the inertias Y (origin_inertia); nodes with skip[b]
    (0: none) are left out */
@@ -98,7 +110,7 @@ static void rigid_forces(const double *R, const double *r, const double *Sc, con
 {
     for (int b = 0; b < NB; ++b) {
         if (skip && skip[b]) continue;
-        double *vb = v + 6 * b, *ab = acc + 6 * b, vJ[6] = {0.0}, x[6];
+        double *vb = v + 6 * b, *ab = acc + 6 * b, vJ[6] = {0.0};
         const int p = PARENT[b];
         if (p >= 0) {
             to_body(R + 9 * b, r + 3 * b, v + 6 * p, vb);
@@ -118,13 +130,7 @@ static void rigid_forces(const double *R, const double *r, const double *Sc, con
         cross3(vb, vJ + 3, t1);
         cross3(vb + 3, vJ, t2);
         for (int i = 0; i < 3; ++i) ab[3 + i] += t1[i] + t2[i];
-        double h[6], *fb = f + 6 * b;                         /* f = I a + v x* I v */
-        inertia_times(Y + 10 * b, ab, fb);
-        inertia_times(Y + 10 * b, vb, h);
-        cross3(vb, h, t1);
-        cross3(vb + 3, h + 3, t2);
-        cross3(vb, h + 3, x);
-        for (int i = 0; i < 3; ++i) { fb[i] += t1[i] + t2[i]; fb[3 + i] += x[i]; }
+        body_force(Y + 10 * b, vb, ab, f + 6 * b);
     }
     for (int b = NB - 1; b >= 0; --b)
         if (PARENT[b] >= 0 && !(skip && skip[b])) add_to_parent(R + 9 * b, r + 3 * b, f + 6 * b, f + 6 * PARENT[b]);
@@ -253,7 +259,8 @@ static void rigid_wrenches_after(const double *R, const double *r, const double 
                                  double *acc, double *f, double *out)
 {
     double da[6 * NB], df[6 * NB], rest[6];
-    for (int i = 0; i < 3; ++i) { rest[i] = -base[i]; rest[3 + i] = -g[i] - base[3 + i]; }
+    const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]}, still[6] = {0.0};
+    for (int i = 0; i < 6; ++i) rest[i] = fall[i] - base[i];
     for (int b = 0; b < NB; ++b) {
         double *ab = da + 6 * b;
         if (RIGID[b]) continue;
@@ -269,17 +276,11 @@ static void rigid_wrenches_after(const double *R, const double *r, const double 
     }
     for (int b = 0; b < NB; ++b) {
         if (!RIGID[b]) continue;
-        double *vb = v + 6 * b, *ab = acc + 6 * b, *fb = f + 6 * b, h[6], t1[3], t2[3], x[3];
-        const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]}, still[6] = {0.0};
+        double *vb = v + 6 * b, *ab = acc + 6 * b;
         const int p = PARENT[b];
         to_body(R + 9 * b, r + 3 * b, p >= 0 ? v + 6 * p : still, vb);
         to_body(R + 9 * b, r + 3 * b, p >= 0 ? acc + 6 * p : fall, ab);
-        inertia_times(Ym + 10 * b, ab, fb);
-        inertia_times(Ym + 10 * b, vb, h);
-        cross3(vb, h, t1);
-        cross3(vb + 3, h + 3, t2);
-        cross3(vb, h + 3, x);
-        for (int i = 0; i < 3; ++i) { fb[i] += t1[i] + t2[i]; fb[3 + i] += x[i]; }
+        body_force(Ym + 10 * b, vb, ab, f + 6 * b);
     }
     world_wrenches(R, o, f, out);
 }
