@@ -99,7 +99,7 @@ class TreeInertiaBlocks(_BlocksOnDemand):
 
     def _expand(self):
         system, kin = self._source
-        M, h = _expanded_blocks(system, kin)
+        M, h, _ = _expanded_blocks(system, kin)
         return M, (h + _potential_force(system.potential_energy, kin) if self.gravity else h)
 
     def __repr__(self):
@@ -242,15 +242,17 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
         gravity = system.potential_energy == tree.potential
         Q = generalized_forces(system, kin, potential=not gravity)
         return TreeInertiaBlocks(sp.ImmutableMatrix(Q), tree, gravity, system, kin)
-    if (system.kinetic_energy is None and system.acceleration_energy is None and system.bodies
-            and not any(isinstance(body, RigidBody) for body in system.bodies)):
+    only_particles = (system.kinetic_energy is None and system.acceleration_energy is None and system.bodies
+                      and not any(isinstance(body, RigidBody) for body in system.bodies))
+    if only_particles:
         particles = tuple(_particle_term(body, kin) for body in system.bodies)
-        known = {sp.ImmutableMatrix(body.position): pt.jacobian for body, pt in zip(system.bodies, particles)
-                 if body.velocity is None}
-        return ParticleInertiaBlocks(sp.ImmutableMatrix(generalized_forces(system, kin, jacobians=known)),
-                                     particles, len(kin.speeds))
-    M, h = _expanded_blocks(system, kin)
-    return InertiaBlocks(M, h, sp.ImmutableMatrix(generalized_forces(system, kin)))
+    else:
+        M, h, particles = _expanded_blocks(system, kin)
+    # a load at a body's position moves with the body's J_v, known already
+    known = {sp.ImmutableMatrix(body.position): pt.jacobian for body, pt in zip(system.bodies, particles)
+             if body.velocity is None}
+    Q = sp.ImmutableMatrix(generalized_forces(system, kin, jacobians=known))
+    return ParticleInertiaBlocks(Q, particles, len(kin.speeds)) if only_particles else InertiaBlocks(M, h, Q)
 
 
 def _particle_term(body, kin: Kinematics) -> ParticleTerm:
@@ -263,8 +265,9 @@ def _particle_term(body, kin: Kinematics) -> ParticleTerm:
 
 
 def _expanded_blocks(system: System, kin: Kinematics):
-    """``(M, h)`` expanded from the energies and the bodies (module docstring); systems of
-    point masses alone keep their particles instead (:class:`ParticleInertiaBlocks`)."""
+    """``(M, h, particles)`` expanded from the energies and the bodies (module docstring), with
+    each body's :class:`ParticleTerm`; systems of point masses alone keep their particles
+    without the sums (:class:`ParticleInertiaBlocks`)."""
     n = len(kin.speeds)
     w = sp.Matrix(kin.speeds)
     a = list(kin.accelerations)
@@ -309,7 +312,7 @@ def _expanded_blocks(system: System, kin: Kinematics):
     if system.bodies:
         M_bodies, h_bodies = _particle_sums(particles, n)
         M, h = M + M_bodies, h + h_bodies
-    return sp.ImmutableMatrix(M), sp.ImmutableMatrix(h)
+    return sp.ImmutableMatrix(M), sp.ImmutableMatrix(h), tuple(particles)
 
 
 def _potential_force(V, kin: Kinematics) -> sp.Matrix:
