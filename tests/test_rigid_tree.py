@@ -30,7 +30,7 @@ from appell import derive
 from appell.core.energy import TreeInertiaBlocks
 from appell.mechanism.urdf import urdf_system
 from appell.numerics.outputs import compile_outputs
-from appell.numerics.rigid_tree import rigid_subtrees
+from appell.numerics.rigid_tree import folded_nodes, rigid_subtrees
 from appell.rigid_tree import RECURSIVE_FROM
 from appell import numeric_model
 
@@ -119,6 +119,88 @@ def test_forward_in_one_call_equals_the_solve_and_the_full_wrench_pass(arm):
         np.testing.assert_allclose(wrench, compiled.joint_wrenches(0.0, q, w, sol.accelerations), rtol=1e-12,
                                    atol=1e-12)
         assert np.abs(wrench[-1]).max() > 0.1  # the tool's joint carries its weight
+
+
+def _link(name, mass, com, rpy="0 0 0"):
+    return (f'<link name="{name}"><inertial><origin xyz="{com}" rpy="{rpy}"/><mass value="{mass}"/>'
+            '<inertia ixx="0.01" ixy="0.001" ixz="-0.002" iyy="0.02" iyz="0.0005" izz="0.015"/></inertial></link>')
+
+
+def _joint(name, kind, parent, child, xyz, rpy="0 0 0", axis="0 0 1"):
+    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+            f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="{axis}"/></joint>')
+
+
+#: two mounts in a row between the shoulder and the elbow (each on a fixed joint, the elbow's
+#: arm moving below them), a sensor on the first mount and a tool on the forearm
+MOUNTS = "\n".join([
+    '<robot name="mounts">', '<link name="base"/>',
+    _link("upper", 2.0, "0.02 0.01 0.2", "0.1 -0.2 0.3"), _link("mount", 0.5, "0.01 0 0.03"),
+    _link("flange", 0.3, "0 0.02 0.01", "0.3 0 0"), _link("sensor", 0.2, "0.03 0 0"),
+    _link("fore", 1.2, "0.15 0 0.01"), _link("tool", 0.4, "0 0 0.05"),
+    _joint("shoulder", "continuous", "base", "upper", "0 0 0.1"),
+    _joint("mount_joint", "fixed", "upper", "mount", "0 0.05 0.4", "1.2 0.1 0.2"),
+    _joint("flange_joint", "fixed", "mount", "flange", "0.02 0 0.05", "0 0.4 -0.3"),
+    _joint("sensor_joint", "fixed", "mount", "sensor", "0.1 0 0", "0 0 0.5"),
+    _joint("elbow", "continuous", "flange", "fore", "0 0 0.06", "0.2 0 0", "0 1 0"),
+    _joint("tool_joint", "fixed", "fore", "tool", "0.3 0 0", "0 0.3 0"),
+    "</robot>"])
+
+
+def test_mounts_between_joints_fold_into_the_body_above(tmp_path):
+    """Fixed joints between two moving ones (a chain of two mounts) are folded into the body
+    above for M, h and the passes of the compiled forward dynamics (the elbow's arm hangs from
+    the upper arm through the composed transform), and their own joint's reaction is formed
+    afterwards: ``forward`` against the dense solve, the full pass over every body, and the
+    mechanism's Newton-Euler outputs of the expanded route."""
+    path = tmp_path / "mounts.urdf"
+    path.write_text(MOUNTS)
+    system = recursive(urdf_system(path))
+    derivation = derive(system)
+    tree = derivation.inertia.tree
+    constants = {p.symbol for p in system.parameters}
+    assert [nd.body for nd, f in zip(tree.nodes, folded_nodes(tree, constants)) if f] == ["mount", "flange"]
+    assert [nd.body for nd, f in zip(tree.nodes, rigid_subtrees(tree, constants)) if f] == ["sensor", "tool"]
+    compiled = numeric_model(derivation, "c")
+    expanded = numeric_model(derive(dataclasses.replace(system, tree=None)))
+    node = {nd.joint: b for b, nd in enumerate(tree.nodes)}
+    for q, w in _states(2, 2, seed=11):
+        sol = expanded.solve(0.0, q, w)
+        a, _, wrench = compiled.forward(0.0, q, w)
+        np.testing.assert_allclose(a, sol.accelerations, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(wrench, compiled.joint_wrenches(0.0, q, w, a), rtol=1e-12, atol=1e-12)
+        out = expanded.outputs(0.0, q, w, solution=sol)
+        for joint in ("mount_joint", "flange_joint", "sensor_joint", "elbow", "tool_joint"):
+            expected = [out[f"{k}_{joint}_{x}"] for k in "FM" for x in "xyz"]
+            np.testing.assert_allclose(wrench[node[joint]], expected, rtol=1e-10, atol=1e-10, err_msg=joint)
+        assert np.abs(wrench[node["flange_joint"]]).max() > 1.0  # it carries the forearm
+
+
+def test_inertias_kept_per_parameter_set_follow_the_parameters():
+    """The compiled forward dynamics keep the merged inertias of a parameter set (they depend on
+    the parameters alone) and form them again when the parameters change: a mount of mass ``m``
+    between two hinges, parameter sets taken in turn, against the expanded route at each."""
+    from appell.mechanism import Mechanism
+    from appell.numerics.codegen import c_source
+
+    mech = Mechanism("mounted", gravity=(0, -9.81, 0))
+    m = mech.parameter("m", 0.5, "kg", "the mount's mass")
+    upper = mech.body("upper", 1.0, inertia=(0.01, 0.02, 1 / 12), com=(0, -0.5, 0))
+    mount = mech.body("mount", m, inertia=(m / 50, m / 40, m / 30), com=(0.1, 0, 0.05))
+    lower = mech.body("lower", 1.0, inertia=(0.02, 0.01, 1 / 12), com=(0, -0.5, 0))
+    mech.revolute("shoulder", "ground", upper)
+    mech.fixed("mount_joint", upper, mount, origin=(0, -1.0, 0), rpy=(0.3, 0.2, 0.1))
+    mech.revolute("elbow", mount, lower, axis=(0, 0, 1), origin=(0, -0.1, 0))
+    system = recursive(mech.system(reactions=None))
+    derivation = derive(system)
+    assert "#define CONSTANT_INERTIA 1" in c_source(derivation)
+    compiled = numeric_model(derivation, "c")
+    expanded = numeric_model(derive(dataclasses.replace(system, tree=None)))
+    q, w = np.array([0.4, -0.7]), np.array([1.1, 0.3])
+    for mass in (0.5, 3.0, 3.0, 0.5, 0.0):
+        a, _, _ = compiled.forward(0.0, q, w, [mass])
+        np.testing.assert_allclose(a, expanded.solve(0.0, q, w, [mass]).accelerations, rtol=1e-12, atol=1e-12)
+    assert not np.allclose(compiled.forward(0.0, q, w, [0.5])[0], compiled.forward(0.0, q, w, [3.0])[0])
 
 
 def test_floating_base_recursions_in_numpy_and_c_agree():

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-__all__ = ["tree_layout", "rigid_subtrees", "speed_parents", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
+__all__ = ["tree_layout", "constant_joints", "rigid_subtrees", "folded_nodes", "speed_parents", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
            "TreeWrenches"]
 
 
@@ -37,16 +37,21 @@ def tree_layout(tree, n: int) -> tuple[np.ndarray, np.ndarray]:
     return parent, node_of
 
 
-def rigid_subtrees(tree, constants) -> list[bool]:
-    """Per node: whether it and its whole subtree are rigidly fixed to its parent, so that its
-    inertia may be merged into the parent's for ``M`` and ``h``: no speeds, a zero bias and a
+def constant_joints(tree, constants) -> list[bool]:
+    """Per node: whether its joint holds it rigidly to its parent: no speeds, a zero bias and a
     rotation and translation of constants alone (``constants``: the parameters' symbols; no
-    coordinate, no time). Nodes come after their parents (:class:`~appell.rigid_tree.RigidTree`)."""
+    coordinate, no time)."""
+    return [not node.speeds and all(e == 0 for e in node.bias)
+            and (sp.Matrix(node.rotation).free_symbols | sp.Matrix(node.translation).free_symbols) <= set(constants)
+            for node in tree.nodes]
+
+
+def rigid_subtrees(tree, constants) -> list[bool]:
+    """Per node: whether it and its whole subtree are rigidly fixed to its parent
+    (:func:`constant_joints`), so that its inertia may be merged into the parent's for ``M`` and
+    ``h``. Nodes come after their parents (:class:`~appell.rigid_tree.RigidTree`)."""
     nodes = tree.nodes
-    own = [not node.speeds and all(e == 0 for e in node.bias)
-           and (sp.Matrix(node.rotation).free_symbols | sp.Matrix(node.translation).free_symbols) <= set(constants)
-           for node in nodes]
-    fixed = list(own)
+    fixed = constant_joints(tree, constants)
     for b in range(len(nodes) - 1, -1, -1):
         parent = nodes[b].parent
         if parent >= b:
@@ -54,6 +59,15 @@ def rigid_subtrees(tree, constants) -> list[bool]:
         if parent >= 0 and not fixed[b]:
             fixed[parent] = False
     return fixed
+
+
+def folded_nodes(tree, constants) -> list[bool]:
+    """Per node: whether it is fixed rigidly to a parent (:func:`constant_joints`, not a root)
+    while something below it moves (not one of :func:`rigid_subtrees`): a mount between two
+    joints. The compiled recursions merge it into its parent and hang its children from that
+    parent through the composed transform; its own joint's reaction is formed after them."""
+    own, fixed = constant_joints(tree, constants), rigid_subtrees(tree, constants)
+    return [o and not f and node.parent >= 0 for o, f, node in zip(own, fixed, tree.nodes)]
 
 
 def speed_parents(tree) -> list[int]:

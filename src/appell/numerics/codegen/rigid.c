@@ -7,14 +7,28 @@
    its column of S (6), the base's acceleration (6: -g where the tree carries gravity), and Q,
    J, c of the constraints. SPEEDS lists the speeds node by node, node b's from FIRST[b] to
    FIRST[b + 1]; RIGID[b] marks a subtree fixed rigidly to its parent (numerics.rigid_tree.
-   rigid_subtrees), merged into it for M and h. Inertias are kept about the body origin as
-   (m, h = m c, I_o) and moved by 3x3 algebra (Featherstone 2008, section 2.13). */
+   rigid_subtrees), merged into it for M and h; FOLD[b] a node fixed rigidly to its parent whose
+   subtree moves (a mount between two joints: numerics.rigid_tree.folded_nodes), merged likewise,
+   its children then hanging from UP[b], the nearest ancestor that is not folded, through the
+   composed transform. Inertias are kept about the body origin as (m, h = m c, I_o) and moved by
+   3x3 algebra (Featherstone 2008, section 2.13). */
 
 static void cross3(const double *a, const double *b, double *out)
 {
     out[0] = a[1] * b[2] - a[2] * b[1];
     out[1] = a[2] * b[0] - a[0] * b[2];
     out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* the transform of a child (R2, r2) of a node (R1, r1) to that node's parent: R = R1 R2,
+   r = r1 + R1 r2 */
+static void compose(const double *R1, const double *r1, const double *R2, const double *r2, double *R, double *r)
+{
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j)
+            R[3 * i + j] = R1[3 * i] * R2[j] + R1[3 * i + 1] * R2[3 + j] + R1[3 * i + 2] * R2[6 + j];
+        r[i] = r1[i] + R1[3 * i] * r2[0] + R1[3 * i + 1] * r2[1] + R1[3 * i + 2] * r2[2];
+    }
 }
 
 /* x = X m: omega' = E omega, v' = E (v + omega x r), E = R^T */
@@ -102,16 +116,16 @@ static void body_force(const double *Y, const double *v, const double *a, double
 }
 
 /* the bodies' forces f (6 NB), velocities v and accelerations acc for speeds w, accelerations a
-   and the base's acceleration base, with the inertias Y (origin_inertia); nodes with skip[b]
-   (0: none) are left out */
+   and the base's acceleration base, with the inertias Y (origin_inertia), each node b hanging
+   from up[b] through (R, r); nodes with skip[b] (0: none) are left out */
 static void rigid_forces(const double *R, const double *r, const double *Sc, const double *cb, const double *Y,
-                         const double *w, const double *a, const double *base, const unsigned char *skip, double *v,
-                         double *acc, double *f)
+                         const double *w, const double *a, const double *base, const unsigned char *skip,
+                         const int *up, double *v, double *acc, double *f)
 {
     for (int b = 0; b < NB; ++b) {
         if (skip && skip[b]) continue;
         double *vb = v + 6 * b, *ab = acc + 6 * b, vJ[6] = {0.0};
-        const int p = PARENT[b];
+        const int p = up[b];
         if (p >= 0) {
             to_body(R + 9 * b, r + 3 * b, v + 6 * p, vb);
             to_body(R + 9 * b, r + 3 * b, acc + 6 * p, ab);
@@ -133,7 +147,7 @@ static void rigid_forces(const double *R, const double *r, const double *Sc, con
         body_force(Y + 10 * b, vb, ab, f + 6 * b);
     }
     for (int b = NB - 1; b >= 0; --b)
-        if (PARENT[b] >= 0 && !(skip && skip[b])) add_to_parent(R + 9 * b, r + 3 * b, f + 6 * b, f + 6 * PARENT[b]);
+        if (up[b] >= 0 && !(skip && skip[b])) add_to_parent(R + 9 * b, r + 3 * b, f + 6 * b, f + 6 * up[b]);
 }
 
 /* tau = S^T f, the generalized forces of the bodies' forces */
@@ -147,25 +161,71 @@ static void rigid_project(const double *Sc, const double *f, double *tau)
     }
 }
 
-/* the inertias about the body origins (Y, 10 NB) and, in Ym, the same with each subtree that is
-   rigidly fixed to its parent (RIGID[b]: no speeds, no motion in it) merged into the nearest
-   moving body, so that the recursions for M and h skip it (Pinocchio merges fixed joints alike) */
-static void rigid_inertias(const double *R, const double *r, const double *in, double *Y, double *Ym)
+/* What depends on the parameters alone: the inertias about the body origins with each subtree
+   fixed rigidly to its parent merged into the nearest moving body (Ym: RIGID[b], no speeds, no
+   motion in it; Pinocchio merges fixed joints alike) and with the folded nodes merged as well
+   (Ye: FOLD[b]), and each folded node's transform to UP[b] (Rf, rf) */
+struct rigid_constants { double Ym[10 * NB], Ye[10 * NB], Rf[9 * NB], rf[3 * NB]; };
+
+static void rigid_constants(const double *R, const double *r, const double *in, struct rigid_constants *k)
 {
-    for (int b = 0; b < NB; ++b) origin_inertia(in + 10 * b, Y + 10 * b);
-    for (int i = 0; i < 10 * NB; ++i) Ym[i] = Y[i];
+    for (int b = 0; b < NB; ++b) origin_inertia(in + 10 * b, k->Ym + 10 * b);
     for (int b = NB - 1; b >= 0; --b)
-        if (RIGID[b] && PARENT[b] >= 0) add_inertia_to_parent(R + 9 * b, r + 3 * b, Ym + 10 * b, Ym + 10 * PARENT[b]);
+        if (RIGID[b] && PARENT[b] >= 0) add_inertia_to_parent(R + 9 * b, r + 3 * b, k->Ym + 10 * b, k->Ym + 10 * PARENT[b]);
+    for (int i = 0; i < 10 * NB; ++i) k->Ye[i] = k->Ym[i];
+    for (int b = NB - 1; b >= 0; --b)
+        if (FOLD[b]) add_inertia_to_parent(R + 9 * b, r + 3 * b, k->Ye + 10 * b, k->Ye + 10 * PARENT[b]);
+    for (int b = 0; b < NB; ++b) {
+        if (!FOLD[b]) continue;
+        const int p = PARENT[b];
+        if (FOLD[p]) compose(k->Rf + 9 * p, k->rf + 3 * p, R + 9 * b, r + 3 * b, k->Rf + 9 * b, k->rf + 3 * b);
+        else for (int i = 0; i < 9; ++i) { k->Rf[9 * b + i] = R[9 * b + i]; if (i < 3) k->rf[3 * b + i] = r[3 * b + i]; }
+    }
+}
+
+/* the constants for the parameters p, computed once per parameter set where they are constants
+   (CONSTANT_INERTIA: the generated terms say so), else every time, into the caller's k */
+static const struct rigid_constants *rigid_constants_at(const double *p, const double *R, const double *r,
+                                                        const double *in, struct rigid_constants *k)
+{
+#if CONSTANT_INERTIA
+    static _Thread_local struct rigid_constants cache;
+    static _Thread_local double key[DIM(NP)];
+    static _Thread_local int valid = 0;
+    if (valid && (NP == 0 || memcmp(key, p, NP * sizeof(double)) == 0)) return &cache;
+    rigid_constants(R, r, in, &cache);
+    if (NP > 0) memcpy(key, p, NP * sizeof(double));
+    valid = 1;
+    (void)k;
+    return &cache;
+#else
+    (void)p;
+    rigid_constants(R, r, in, k);
+    return k;
+#endif
+}
+
+/* each moving node's transform to UP[b] (Re, re): a folded parent's composed in */
+static void hanging(const double *R, const double *r, const struct rigid_constants *k, double *Re, double *re)
+{
+    for (int b = 0; b < NB; ++b) {
+        if (RIGID[b] || FOLD[b]) continue;
+        const int p = PARENT[b];
+        if (p >= 0 && FOLD[p]) compose(k->Rf + 9 * p, k->rf + 3 * p, R + 9 * b, r + 3 * b, Re + 9 * b, re + 3 * b);
+        else for (int i = 0; i < 9; ++i) { Re[9 * b + i] = R[9 * b + i]; if (i < 3) re[3 * b + i] = r[3 * b + i]; }
+    }
 }
 
 /* M by composite inertias (CRBA): Y^c_p += X^T Y^c X inward, then M_kl = S_l . (X^T ... Y^c S_k)
-   along the path to the root; Ym from rigid_inertias */
-static void rigid_mass(const double *R, const double *r, const double *Sc, const double *Ym, double *M)
+   along the path to the root; the moving nodes only, each hanging from UP[b] through (R, r)
+   (hanging), with the inertias Ye (rigid_constants) */
+static void rigid_mass(const double *R, const double *r, const double *Sc, const double *Ye, double *M)
 {
     double Yc[10 * NB];
-    for (int i = 0; i < 10 * NB; ++i) Yc[i] = Ym[i];
+    for (int b = 0; b < NB; ++b)
+        if (!SKIP[b]) for (int i = 0; i < 10; ++i) Yc[10 * b + i] = Ye[10 * b + i];
     for (int b = NB - 1; b >= 0; --b)
-        if (!RIGID[b] && PARENT[b] >= 0) add_inertia_to_parent(R + 9 * b, r + 3 * b, Yc + 10 * b, Yc + 10 * PARENT[b]);
+        if (!SKIP[b] && UP[b] >= 0) add_inertia_to_parent(R + 9 * b, r + 3 * b, Yc + 10 * b, Yc + 10 * UP[b]);
     for (int e = 0; e < N; ++e) {
         const int k = SPEEDS[e];
         int j = NODE_OF[k];
@@ -178,27 +238,28 @@ static void rigid_mass(const double *R, const double *r, const double *Sc, const
                 for (int i = 0; i < 6; ++i) s += Sc[6 * l + i] * F[i];
                 M[k * N + l] = M[l * N + k] = s;
             }
-            if (PARENT[j] >= 0) {
+            if (UP[j] >= 0) {
                 double G[6] = {0.0};
                 add_to_parent(R + 9 * j, r + 3 * j, F, G);
                 for (int i = 0; i < 6; ++i) F[i] = G[i];
             }
-            j = PARENT[j];
+            j = UP[j];
         }
     }
 }
 
-/* M and h - Q from the joints' terms; v, acc and f of the nodes that are not RIGID at a = 0 */
-static void rigid_blocks(const double *R, const double *r, const double *Sc, const double *cb, const double *Ym,
-                         const double *base, const double *Q, const double *w, double *M, double *hQ, double *v,
-                         double *acc, double *f)
+/* M and h - Q from the joints' terms; v, acc and f of the moving nodes (neither RIGID nor
+   FOLD) at a = 0, with (Re, re) from hanging */
+static void rigid_blocks(const double *Re, const double *re, const double *Sc, const double *cb,
+                         const struct rigid_constants *k, const double *base, const double *Q, const double *w,
+                         double *M, double *hQ, double *v, double *acc, double *f)
 {
     const double zero[N] = {0.0};
-    rigid_forces(R, r, Sc, cb, Ym, w, zero, base, RIGID, v, acc, f);
+    rigid_forces(Re, re, Sc, cb, k->Ye, w, zero, base, SKIP, UP, v, acc, f);
     rigid_project(Sc, f, hQ);
-    for (int k = 0; k < N; ++k) hQ[k] -= Q[k];
+    for (int i = 0; i < N; ++i) hQ[i] -= Q[i];
     for (int i = 0; i < N * N; ++i) M[i] = 0.0;
-    rigid_mass(R, r, Sc, Ym, M);
+    rigid_mass(Re, re, Sc, k->Ye, M);
 }
 
 /* the blocks M, h - Q, J, c of the dense route from the tree's recursions */
@@ -206,11 +267,13 @@ void appell_blocks(double t, const double *restrict q, const double *restrict w,
                    const double *restrict p, double *restrict M, double *restrict hQ, double *restrict J,
                    double *restrict c)
 {
-    double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N], Y[10 * NB], Ym[10 * NB];
+    double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N], Re[9 * NB], re[3 * NB];
     double v[6 * NB], acc[6 * NB], f[6 * NB];
+    struct rigid_constants own;
     appell_rigid_terms(t, q, w, a, p, R, r, Sc, cb, in, base, Q, J, c);
-    rigid_inertias(R, r, in, Y, Ym);
-    rigid_blocks(R, r, Sc, cb, Ym, base, Q, w, M, hQ, v, acc, f);
+    const struct rigid_constants *k = rigid_constants_at(p, R, r, in, &own);
+    hanging(R, r, k, Re, re);
+    rigid_blocks(Re, re, Sc, cb, k, base, Q, w, M, hQ, v, acc, f);
 }
 
 /* each node's reaction (F, M) in world axes about its joint point (o) from its inward force f
@@ -245,42 +308,47 @@ static void rigid_wrenches(const double *R, const double *r, const double *Sc, c
 {
     double f[6 * NB], v[6 * NB], acc[6 * NB];
     const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]};
-    rigid_forces(R, r, Sc, cb, Y, w, a, fall, 0, v, acc, f);
+    rigid_forces(R, r, Sc, cb, Y, w, a, fall, 0, PARENT, v, acc, f);
     world_wrenches(R, o, f, out);
 }
 
 /* the same reactions from the pass of rigid_blocks at a = 0 (v, acc, f on the moving nodes,
-   with the base at base and the merged inertias Ym), by linearity in a and in the base's
-   acceleration: a second, shorter pass adds the part of the accelerations a and of the base's
-   change to -g (no velocity terms), and each RIGID node's force is that of its rigid subtree,
-   f = Ym a + v x* Ym v, moving with it */
-static void rigid_wrenches_after(const double *R, const double *r, const double *Sc, const double *Ym,
-                                 const double *g, const double *o, const double *base, const double *a, double *v,
-                                 double *acc, double *f, double *out)
+   with the base at base), by linearity in a and in the base's acceleration: a second, shorter
+   pass over the moving nodes adds the part of the accelerations a and of the base's change to
+   -g (no velocity terms); then each RIGID node's force is that of its rigid subtree,
+   f = Ym a + v x* Ym v, moving with it, and each FOLD node's that of its own rigid subtree plus
+   what its moving children pass to it */
+static void rigid_wrenches_after(const double *R, const double *r, const double *Re, const double *re,
+                                 const double *Sc, const struct rigid_constants *k, const double *g, const double *o,
+                                 const double *base, const double *a, double *v, double *acc, double *f, double *out)
 {
     double da[6 * NB], df[6 * NB], rest[6];
     const double fall[6] = {0.0, 0.0, 0.0, -g[0], -g[1], -g[2]}, still[6] = {0.0};
     for (int i = 0; i < 6; ++i) rest[i] = fall[i] - base[i];
     for (int b = 0; b < NB; ++b) {
         double *ab = da + 6 * b;
-        if (RIGID[b]) continue;
-        to_body(R + 9 * b, r + 3 * b, PARENT[b] >= 0 ? da + 6 * PARENT[b] : rest, ab);
+        if (SKIP[b]) continue;
+        to_body(Re + 9 * b, re + 3 * b, UP[b] >= 0 ? da + 6 * UP[b] : rest, ab);
         for (int e = FIRST[b]; e < FIRST[b + 1]; ++e)
             for (int i = 0; i < 6; ++i) ab[i] += Sc[6 * SPEEDS[e] + i] * a[SPEEDS[e]];
-        inertia_times(Ym + 10 * b, ab, df + 6 * b);
+        inertia_times(k->Ye + 10 * b, ab, df + 6 * b);
     }
     for (int b = NB - 1; b >= 0; --b) {
-        if (RIGID[b]) continue;
-        if (PARENT[b] >= 0) add_to_parent(R + 9 * b, r + 3 * b, df + 6 * b, df + 6 * PARENT[b]);
+        if (SKIP[b]) continue;
+        if (UP[b] >= 0) add_to_parent(Re + 9 * b, re + 3 * b, df + 6 * b, df + 6 * UP[b]);
         for (int i = 0; i < 6; ++i) { f[6 * b + i] += df[6 * b + i]; acc[6 * b + i] += da[6 * b + i]; }
     }
     for (int b = 0; b < NB; ++b) {
-        if (!RIGID[b]) continue;
+        if (!SKIP[b]) continue;
         double *vb = v + 6 * b, *ab = acc + 6 * b;
         const int p = PARENT[b];
         to_body(R + 9 * b, r + 3 * b, p >= 0 ? v + 6 * p : still, vb);
         to_body(R + 9 * b, r + 3 * b, p >= 0 ? acc + 6 * p : fall, ab);
-        body_force(Ym + 10 * b, vb, ab, f + 6 * b);
+        body_force(k->Ym + 10 * b, vb, ab, f + 6 * b);
+    }
+    for (int b = NB - 1; b >= 0; --b) {
+        const int p = PARENT[b];
+        if (p >= 0 && FOLD[p] && !RIGID[b]) add_to_parent(R + 9 * b, r + 3 * b, f + 6 * b, f + 6 * p);
     }
     world_wrenches(R, o, f, out);
 }

@@ -1,29 +1,40 @@
 
 /* M = L^T D L over the tree's speeds (Featherstone 2008, section 6.5), in place on H (N x N, the
-   speeds in SPEEDS order, where speed e's parent LAMBDA[e] < e and M's entries vanish between
-   speeds on different branches): D on the diagonal, L below it. O(sum of squared depths)
-   instead of N^3 / 3. 1 where M is not positive definite. */
+   speeds in SPEEDS order, where speed e's ancestors CHAIN[CHAIN_AT[e]], ... come before it and
+   M's entries vanish between speeds on different branches): D on the diagonal, L below it.
+   O(sum of squared depths) instead of N^3 / 3. 1 where M is not positive definite. */
 static int ltdl(double *H)
 {
     for (int k = N - 1; k >= 0; --k) {
-        if (!(H[k * N + k] > 0.0) || !isfinite(H[k * N + k])) return 1;
-        for (int i = LAMBDA[k]; i >= 0; i = LAMBDA[i]) {
-            const double x = H[k * N + i] / H[k * N + k];
-            for (int j = i; j >= 0; j = LAMBDA[j]) H[i * N + j] -= x * H[k * N + j];
+        const double d = H[k * N + k];
+        if (!(d > 0.0) || !isfinite(d)) return 1;
+        for (int u = CHAIN_AT[k]; u < CHAIN_AT[k + 1]; ++u) {
+            const int i = CHAIN[u];
+            const double x = H[k * N + i] / d;
+            H[i * N + i] -= x * H[k * N + i];
+            for (int v = u + 1; v < CHAIN_AT[k + 1]; ++v) H[i * N + CHAIN[v]] -= x * H[k * N + CHAIN[v]];
             H[k * N + i] = x;
         }
     }
     return 0;
 }
 
-/* b <- M^{-1} b with the factors of ltdl (b in SPEEDS order) */
-static void ltdl_solve(const double *H, double *b)
+/* B <- M^{-1} B for the K columns of B (column r at B + r N, SPEEDS order) with the factors of
+   ltdl */
+static void ltdl_solve(const double *H, int K, double *B)
 {
     for (int i = N - 1; i >= 0; --i)
-        for (int j = LAMBDA[i]; j >= 0; j = LAMBDA[j]) b[j] -= H[i * N + j] * b[i];
-    for (int i = 0; i < N; ++i) b[i] /= H[i * N + i];
+        for (int u = CHAIN_AT[i]; u < CHAIN_AT[i + 1]; ++u) {
+            const double h = H[i * N + CHAIN[u]];
+            for (int r = 0; r < K; ++r) B[r * N + CHAIN[u]] -= h * B[r * N + i];
+        }
     for (int i = 0; i < N; ++i)
-        for (int j = LAMBDA[i]; j >= 0; j = LAMBDA[j]) b[i] -= H[i * N + j] * b[j];
+        for (int r = 0; r < K; ++r) B[r * N + i] /= H[i * N + i];
+    for (int i = 0; i < N; ++i)
+        for (int u = CHAIN_AT[i]; u < CHAIN_AT[i + 1]; ++u) {
+            const double h = H[i * N + CHAIN[u]];
+            for (int r = 0; r < K; ++r) B[r * N + i] -= h * B[r * N + CHAIN[u]];
+        }
 }
 
 /* (1.4) on the tree's factors: a = a_0 + Y z with M a_0 = Q - h, Y = M^{-1} J^T and
@@ -43,7 +54,7 @@ static int rigid_solve(const double *M, const double *hQ, const double *J, const
         x[e] = -hQ[SPEEDS[e]];
         for (int r = 0; r < S; ++r) x[(r + 1) * N + e] = J[r * N + SPEEDS[e]];
     }
-    for (int r = 0; r <= S; ++r) ltdl_solve(H, x + r * N);
+    ltdl_solve(H, S + 1, x);
     if (S > 0) {
         double G[DIM(S * S)], z[DIM(S)];
         int pg[DIM(S)];
@@ -86,18 +97,20 @@ void appell_forward(double t, const double *restrict q, const double *restrict w
                     const double *restrict p, double *restrict acc, double *restrict lam, double *restrict wrench)
 {
     double Rr[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N], g[3], o[3 * NB];
-    double Y[10 * NB], Ym[10 * NB], v[6 * NB], acc_b[6 * NB], f[6 * NB];
+    double Re[9 * NB], re[3 * NB], v[6 * NB], acc_b[6 * NB], f[6 * NB];
     double M[N * N], hQ[N], J[DIM(S * N)], c[DIM(S)], R[N], mult[DIM(S)];
+    struct rigid_constants own;
     (void)a;
     appell_rigid_terms(t, q, w, 0, p, Rr, r, Sc, cb, in, base, Q, J, c);   /* the terms once */
     appell_rigid_points(t, q, w, 0, p, g, o);
-    rigid_inertias(Rr, r, in, Y, Ym);
-    rigid_blocks(Rr, r, Sc, cb, Ym, base, Q, w, M, hQ, v, acc_b, f);
+    const struct rigid_constants *k = rigid_constants_at(p, Rr, r, in, &own);
+    hanging(Rr, r, k, Re, re);
+    rigid_blocks(Re, re, Sc, cb, k, base, Q, w, M, hQ, v, acc_b, f);
     if (rigid_solve(M, hQ, J, c, acc, mult) &&
         appell_split(M, hQ, J, c, DEP0, KEEP_CONDITION, acc, mult, R)) {
         for (int i = 0; i < N; ++i) acc[i] = NAN;
         return;
     }
     for (int k = 0; k < S; ++k) lam[k] = mult[k];
-    rigid_wrenches_after(Rr, r, Sc, Ym, g, o, base, acc, v, acc_b, f, wrench);
+    rigid_wrenches_after(Rr, r, Re, re, Sc, k, g, o, base, acc, v, acc_b, f, wrench);
 }

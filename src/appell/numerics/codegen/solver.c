@@ -1,5 +1,5 @@
 
-#define DIM(k) ((k) > 0 ? (k) : 1)
+/* DIM(k): an array size of at least 1 (the header defines it) */
 
 static int lu_factor(int n, double *A, int *piv)
 {

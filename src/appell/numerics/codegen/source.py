@@ -13,7 +13,8 @@ import sympy as sp
 from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, program_substitutions
 from appell.numerics.codegen.printer import HEADER_END, UNIT_MARK, _symbol_map, c_comment, c_function, common_factor
 from appell.numerics.codegen.tree import _tree_recursions, particle_tree
-from appell.numerics.rigid_tree import point_matrices, rigid_subtrees, speed_parents, tree_layout, tree_matrices
+from appell.numerics.rigid_tree import (folded_nodes, point_matrices, rigid_subtrees, speed_parents, tree_layout,
+                                        tree_matrices)
 
 
 def _c_file(name: str) -> str:
@@ -43,7 +44,8 @@ def c_source(derivation) -> str:
     parts = [
         f"/* appell: generated C for system {c_comment(derivation.system.name)}; n = {n}, s = {s} */",
         "#include <math.h>",
-        f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}\n#define REFINE_CONDITION {REFINE_CONDITION!r}",
+        f"#define N {n}\n#define S {s}\n#define P {n - s}\n#define NQ {nq}\n#define REFINE_CONDITION {REFINE_CONDITION!r}"
+        "\n#define DIM(k) ((k) > 0 ? (k) : 1)",
         HEADER_END,
     ]
     rigid = inertia.tree
@@ -52,17 +54,27 @@ def c_source(derivation) -> str:
         parent, node_of = tree_layout(rigid, n)
         speeds = [k for node in rigid.nodes for k in node.speeds]
         first = np.cumsum([0] + [len(node.speeds) for node in rigid.nodes])
-        fixed = rigid_subtrees(rigid, {p.symbol for p in derivation.system.parameters})
+        constants = {p.symbol for p in derivation.system.parameters}
+        fixed, fold = rigid_subtrees(rigid, constants), folded_nodes(rigid, constants)
+        up = [b if b < 0 or not fold[b] else -2 for b in parent]  # each node's nearest unfolded ancestor
+        for b, p in enumerate(parent):
+            up[b] = p if p < 0 or not fold[p] else up[p]
+        matrices = [prepared(m) for m in tree_matrices(rigid, n, inertia.gravity)]
+        constant = matrices[4].free_symbols <= constants  # the inertias: parameters alone
         parts += [f"/* rigid bodies on a joint tree: {c_comment(', '.join(rigid.bodies))} */",
-                  f"#define NB {len(rigid.nodes)}",
+                  f"#include <string.h>\n#define NB {len(rigid.nodes)}\n#define NP {len(derivation.system.parameters)}"
+                  f"\n#define CONSTANT_INERTIA {int(constant)}",
                   "static const int PARENT[NB] = {" + ", ".join(map(str, parent)) + "};",
+                  "static const int UP[NB] = {" + ", ".join(map(str, up)) + "};",
                   "static const int NODE_OF[N] = {" + ", ".join(map(str, node_of)) + "};",
                   "static const int SPEEDS[N] = {" + (", ".join(map(str, speeds)) or "0") + "};",
                   "static const int FIRST[NB + 1] = {" + ", ".join(map(str, first)) + "};",
-                  "static const int LAMBDA[N] = {" + (", ".join(map(str, speed_parents(rigid))) or "0") + "};",
+                  *_ancestor_lists(speed_parents(rigid)),
                   "static const unsigned char RIGID[NB] = {" + ", ".join(str(int(f)) for f in fixed) + "};",
-                  c_function("appell_rigid_terms", [prepared(m) for m in tree_matrices(rigid, n, inertia.gravity)]
-                             + [prepared(inertia.generalized_forces), prepared(J0), prepared(c)], syms),
+                  "static const unsigned char FOLD[NB] = {" + ", ".join(str(int(f)) for f in fold) + "};",
+                  "static const unsigned char SKIP[NB] = {" + ", ".join(str(int(a or b)) for a, b in zip(fixed, fold)) + "};",
+                  c_function("appell_rigid_terms", matrices + [prepared(inertia.generalized_forces), prepared(J0),
+                                                              prepared(c)], syms),
                   c_function("appell_rigid_points", [prepared(m) for m in point_matrices(rigid)], syms),
                   _c_file("rigid.c")]
     elif tree is None:
@@ -94,6 +106,22 @@ def c_source(derivation) -> str:
         main.append(head.rstrip())
         units += [u.strip() for u in rest]
     return "\n\n".join(main) + "\n" + "".join(f"\n{UNIT_MARK}\n{u}\n" for u in units)
+
+
+def _ancestor_lists(parents: list[int]) -> list[str]:
+    """C arrays of each listed speed's ancestors (:func:`~appell.numerics.rigid_tree.speed_parents`),
+    nearest first: speed e's from ``CHAIN[CHAIN_AT[e]]`` to ``CHAIN[CHAIN_AT[e + 1] - 1]``; the
+    ancestors of ``CHAIN[u]`` are the rest of that list. Flat lists instead of following the
+    parents one load after another."""
+    chain, at = [], [0]
+    for e in range(len(parents)):
+        j = parents[e]
+        while j >= 0:
+            chain.append(j)
+            j = parents[j]
+        at.append(len(chain))
+    return ["static const int CHAIN[DIM(" + str(len(chain)) + ")] = {" + (", ".join(map(str, chain)) or "0") + "};",
+            "static const int CHAIN_AT[N + 1] = {" + ", ".join(map(str, at)) + "};"]
 
 
 def source_units(source: str) -> list[str]:
