@@ -147,14 +147,79 @@ def free_symbols(*exprs) -> set:
     return out
 
 
+def contains(exprs, types) -> bool:
+    """Whether some subexpression of ``exprs`` is an instance of ``types`` (a class or a tuple
+    of classes, as for ``expr.has``), each distinct subexpression visited once (``has`` walks
+    the expression as a tree: 2 s for the benchmark bicycle's linearisation)."""
+    seen, stack = set(), list(exprs)
+    while stack:
+        node = stack.pop()
+        if node in seen or not isinstance(node, sp.Basic):
+            continue
+        if isinstance(node, types):
+            return True
+        seen.add(node)
+        stack.extend(node.args)
+    return False
+
+
+def matmul(A, B) -> sp.Matrix:
+    """``A B`` of symbolic matrices as sums of the nonzero products. SymPy's product goes
+    through its domain matrices, which ask large entries for their assumptions (1.4 s of the
+    benchmark bicycle's ``dp/dq qdot`` in Lagrange's equations, where this takes milliseconds)."""
+    A, B = sp.Matrix(A), sp.Matrix(B)
+    if A.cols != B.rows:
+        raise sp.ShapeError(f"matrices of shapes {A.shape} and {B.shape} cannot be multiplied")
+    return sp.Matrix(A.rows, B.cols, lambda i, j: sp.Add(*[A[i, k] * B[k, j] for k in range(A.cols)
+                                                           if A[i, k] != 0 and B[k, j] != 0]))
+
+
+def graph_xreplace(exprs, rule: dict) -> list:
+    """``[e.xreplace(rule) for e in exprs]``, each distinct subexpression rebuilt once
+    (``xreplace`` walks the expression as a tree: 1 s for the benchmark bicycle's blocks)."""
+    done: dict = {}
+    stack = [(e, False) for e in exprs]
+    while stack:
+        node, ready = stack.pop()
+        if node in done:
+            continue
+        if node in rule:
+            done[node] = rule[node]
+        elif not isinstance(node, sp.Basic) or not node.args:
+            done[node] = node
+        elif not ready:
+            stack.append((node, True))
+            stack.extend((a, False) for a in node.args if a not in done)
+        else:
+            args = [done[a] for a in node.args]
+            done[node] = node.func(*args) if any(x is not y for x, y in zip(args, node.args)) else node
+    return [done[e] for e in exprs]
+
+
 def graph_cse(exprs, symbols=None):
     """``(replacements, reduced)`` as :func:`sympy.cse` gives them, found on the expression
     graph: every compound subexpression reached from more than one place becomes one
     replacement, children first. Linear in the number of distinct nodes; SymPy's ``cse``
     also sorts sums as trees and searches common subsets of arguments (35 s for the
-    Panda's 60 reaction outputs, 1 s here). ``lambdify(..., cse=graph_cse)`` takes it."""
+    Panda's 60 reaction outputs, 1 s here). ``lambdify(..., cse=graph_cse)`` takes it.
+    Matrices among ``exprs`` come back as matrices of their reduced entries; the replacements'
+    names skip the symbols that ``exprs`` hold (as ``sympy.cse`` does)."""
     symbols = iter(symbols) if symbols is not None else sp.numbered_symbols("x")
-    exprs = list(exprs)
+    given = list(exprs)
+    if any(isinstance(e, sp.MatrixBase) for e in given):
+        flat = [x for e in given for x in (e if isinstance(e, sp.MatrixBase) else [e])]
+        replacements, reduced = graph_cse(flat, symbols)
+        out, at = [], 0
+        for e in given:
+            if isinstance(e, sp.MatrixBase):
+                size = e.rows * e.cols
+                out.append(sp.Matrix(e.rows, e.cols, reduced[at:at + size]))
+                at += size
+            else:
+                out.append(reduced[at])
+                at += 1
+        return replacements, out
+    exprs = given
 
     def compound(e):
         return isinstance(e, sp.Basic) and bool(e.args) and not e.is_Atom
@@ -179,6 +244,8 @@ def graph_cse(exprs, symbols=None):
             uses[a] = uses.get(a, 0) + 1
             if compound(a) and a not in visited:
                 stack.append((a, False))
+    taken = {a for a in uses if isinstance(a, sp.Symbol)}  # a model's own x1 is not a replacement's name
+    names = (sym for sym in symbols if sym not in taken)
     new: dict = {}
     replacements = []
     for node in unique:
@@ -186,7 +253,7 @@ def graph_cse(exprs, symbols=None):
         value = node.func(*args) if any(x is not y for x, y in zip(args, node.args)) else node
         if uses.get(node, 0) > 1 and not (value.is_Mul and len(value.args) == 2 and value.args[0] == -1
                                            and value.args[1].is_Atom):
-            sym = next(symbols)
+            sym = next(names)
             replacements.append((sym, value))
             new[node] = sym
         else:

@@ -28,7 +28,7 @@ import sympy as sp
 from appell.core.simplification import refuse_derivative, refuse_result, tree_size
 from appell.errors import ModelError
 from appell.model import System
-from appell.symbols import GraphDerivative, derivative_symbol, split_derivative_name, t
+from appell.symbols import GraphDerivative, contains, derivative_symbol, split_derivative_name, t
 
 
 @dataclass(frozen=True)
@@ -82,7 +82,7 @@ class Kinematics:
                 rates.append((s, nxt))
         # a required step: refused before it runs when the derivative would swell (bound policy)
         refuse_derivative(expr, [s for s, _ in rates], [tree_size(r) for _, r in rates])
-        terms, smooth = terms_by_symbol(expr), not expr.has(*NONSMOOTH)
+        terms, smooth = terms_by_symbol(expr), not contains([expr], NONSMOOTH)
         # one sum of every term (adding term by term flattens and sorts the growing sum again)
         out = sp.Add(*[partial(terms, s, smooth) * rate for s, rate in rates])
         refuse_result(out)  # where the estimate fell short (|u| of a complex-valued u)
@@ -102,7 +102,7 @@ def derivative(expr, symbol):
     through real stand-ins where ``expr`` holds a function of :data:`NONSMOOTH`, and
     ``DiracDelta`` taken as zero."""
     expr = sp.sympify(expr)
-    if not expr.has(*NONSMOOTH):
+    if not contains([expr], NONSMOOTH):
         return GRAPH_DERIVATIVE(expr, symbol)
     real = {s: sp.Dummy(s.name, real=True) for s in expr.free_symbols | {symbol}
             if isinstance(s, sp.Symbol) and not s.is_real}

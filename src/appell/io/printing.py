@@ -19,7 +19,7 @@ from appell.core.equations import formulas_unavailable
 from appell.core.simplification import adjugate, determinant, graph_size, tidy, tree_size
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
-from appell.symbols import derivative_symbol, latex, t as time  # noqa: F401 (latex is re-exported)
+from appell.symbols import derivative_symbol, graph_xreplace, latex, t as time  # noqa: F401 (latex is re-exported)
 
 
 #: shown where no acceleration is free (p = 0): (1.4) has no rows
@@ -246,8 +246,9 @@ def equation_formulas(derivation) -> list[Formula]:
     rows += [Formula(lam_tag, sp.Symbol(f"lambda_{n}"), e, "reactions") for n, e in lam.items()]
     if solved is not None and red.dependent_solution is not None and lam:
         a_nu = dict(zip(red.independent, solved))
-        acc = {**a_nu, **{a: e.xreplace(a_nu) for a, e in zip(red.dependent, red.dependent_solution)}}
-        rows += [Formula("(t, q, w)", sp.Symbol(f"lambda_{n}"), e.xreplace(acc), "reactions") for n, e in lam.items()]
+        acc = {**a_nu, **dict(zip(red.dependent, graph_xreplace(list(red.dependent_solution), a_nu)))}
+        rows += [Formula("(t, q, w)", sp.Symbol(f"lambda_{n}"), e, "reactions")
+                 for n, e in zip(lam, graph_xreplace(list(lam.values()), acc))]
     rows += [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
     if controlled:
         controls = {c.name: c.unknown for c in derivation.system.controls}

@@ -40,7 +40,7 @@ import sympy as sp
 
 from appell.model import AppliedForce, AppliedTorque, RigidBody
 from appell.numerics.numeric import lambdify_blocks, program_substitutions
-from appell.symbols import GraphDerivative, derivative_symbol, t
+from appell.symbols import GraphDerivative, derivative_symbol, free_symbols, graph_xreplace, matmul, t
 
 __all__ = ["MechanicalEnergy", "LagrangeRoute", "mechanical_energy", "energy_unavailable",
            "lagrange_unavailable", "lagrange_route"]
@@ -109,20 +109,20 @@ def mechanical_energy(system, d: GraphDerivative | None = None) -> MechanicalEne
     T = sp.sympify(system.kinetic_energy).xreplace(subs) if system.kinetic_energy is not None else sp.S.Zero
     for body in system.bodies:
         v = _velocity(body.position, body.velocity, rates, q, subs, d)
-        T += body.mass * (v.T * v)[0] / 2
+        T += body.mass * matmul(v.T, v)[0] / 2
         if isinstance(body, RigidBody):
             om = sp.Matrix(body.angular_velocity).xreplace(subs)
-            T += (om.T * sp.Matrix(body.inertia) * om)[0] / 2
+            T += matmul(matmul(om.T, body.inertia), om)[0] / 2
     n = len(w)
     Q = sp.Matrix(system.generalized_forces).xreplace(subs) if system.generalized_forces is not None \
         else sp.zeros(n, 1)
     for load in system.loads:
         if isinstance(load, AppliedForce):
             v = _velocity(load.position, load.velocity, rates, q, subs, d)
-            Q += _jacobian(v, w, d).T * sp.Matrix(load.vector).xreplace(subs)
+            Q += matmul(_jacobian(v, w, d).T, sp.Matrix(load.vector).xreplace(subs))
         elif isinstance(load, AppliedTorque):
             om = sp.Matrix(load.angular_velocity).xreplace(subs)
-            Q += _jacobian(om, w, d).T * sp.Matrix(load.vector).xreplace(subs)
+            Q += matmul(_jacobian(om, w, d).T, sp.Matrix(load.vector).xreplace(subs))
     return MechanicalEnergy(sp.sympify(T), sp.sympify(system.potential_energy).xreplace(subs),
                             sp.ImmutableMatrix(Q), sp.ImmutableMatrix(rates),
                             tuple(b.name for b in system.bodies if b.position is None))
@@ -171,7 +171,7 @@ def lagrange_route(derivation) -> LagrangeRoute:
     T = energy.kinetic
     p = _jacobian([T], qd, d).T
     M = _jacobian(p, qd, d)
-    h = _jacobian(p, q, d) * qd + _jacobian(p, [t], d) - _jacobian([T], q, d).T
+    h = matmul(_jacobian(p, q, d), qd) + _jacobian(p, [t], d) - _jacobian([T], q, d).T
     Q = energy.applied - _jacobian([energy.potential], q, d).T
     f = _constraint_rows(system, subs, d)
     n = len(qd)
@@ -179,8 +179,8 @@ def lagrange_route(derivation) -> LagrangeRoute:
     zero = {a: 0 for a in qdd}
     params = [prm.symbol for prm in system.parameters]
     args = [t, list(q), list(qd), params]
-    linear = not any(e.has(*qdd) for e in J)
-    c = f.xreplace(zero)
+    linear = not (free_symbols(*J) & set(qdd))
+    c = sp.Matrix(f.rows, 1, graph_xreplace(list(f), zero))
     blocks = lambdify_blocks(args, [M, h - Q, J.xreplace(zero), c], what="blocks of Lagrange's equations")
     cfun = None
     if not linear:

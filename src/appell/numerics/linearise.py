@@ -54,7 +54,7 @@ from appell.core.equations import is_controlled
 from appell.core.kinematics import jacobian
 from appell.errors import ComputationError, ModelError
 from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
-from appell.symbols import t
+from appell.symbols import contains, free_symbols, graph_cse, matmul, t
 from appell.numerics.boundary import numeric_model
 
 __all__ = ["ExactJacobians", "LinearModel", "linearise", "motion_jacobian", "steady_motion", "STEADY_TOLERANCE"]
@@ -175,12 +175,12 @@ class ExactJacobians:
         self.columns = [slice(int(cuts[g]), int(cuts[g + 1])) for g in range(len(self.directions))]
         self.count = int(cuts[-1])
         groups = [list(g) for g in groups]
-        self.complex_step = not any(e.has(*NON_ANALYTIC) for m in vectors for e in m)
+        self.complex_step = not contains([e for m in vectors for e in m], NON_ANALYTIC)
         if self.complex_step:
             # every entry gets + Z (an array of zeros) so that constant entries broadcast too
             Z = sp.Dummy("Z")
             mats = [sp.Matrix(m.shape[0], 1, [e.xreplace(subs) + Z for e in m]) if m.shape[0] else m for m in vectors]
-            self.fn = sp.lambdify([t, *groups, Z], mats, modules="numpy", cse=True, docstring_limit=0,
+            self.fn = sp.lambdify([t, *groups, Z], mats, modules="numpy", cse=graph_cse, docstring_limit=0,
                                   use_imps=False)
             return
         along = [groups[g][i] for g, d in enumerate(self.directions) for i in d]
@@ -220,17 +220,16 @@ class _Sensitivities:
         n, s = len(w), cons.count
         J = sp.Matrix(cons.jacobian) if s else sp.zeros(0, n)
         c = sp.Matrix(cons.bias) if s else sp.zeros(0, 1)
-        R = sp.Matrix(inertia.mass_matrix) * sp.Matrix(a) + sp.Matrix(inertia.inertial_forces) \
-            - sp.Matrix(inertia.generalized_forces) - (J.T * sp.Matrix(lam) if s else sp.zeros(n, 1))
-        S = J * sp.Matrix(a) + c if s else sp.zeros(0, 1)
+        R = matmul(inertia.mass_matrix, a) + sp.Matrix(inertia.inertial_forces) \
+            - sp.Matrix(inertia.generalized_forces) - (matmul(J.T, lam) if s else sp.zeros(n, 1))
+        S = matmul(J, a) + c if s else sp.zeros(0, 1)
         rates = sp.Matrix(kin.coordinate_rates)
         F = sp.Matrix([e for e in cons.position_residual if e is not None])
         phi = sp.Matrix([e for e in cons.velocity_residual if e is not None])
         outs = sp.Matrix([o.expr for o in system.outputs])
         nz = outs.shape[0]
         self.shapes = (len(q), n, s, F.shape[0], phi.shape[0], nz, len(inputs))
-        self.free = [set().union(*(e.free_symbols for e in m)) if m.shape[0] * m.shape[1] else set()
-                     for m in (R, S, rates, F, phi)]
+        self.free = [free_symbols(*m) for m in (R, S, rates, F, phi)]
         # along q, w and the inputs; along a and lambda for the outputs alone (R and S are
         # linear in them: M and -J^T, evaluated by the split)
         directions = [range(len(q)), range(n), range(n) if nz else (), range(s) if nz else (),

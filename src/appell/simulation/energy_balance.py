@@ -175,6 +175,7 @@ class _Balance:
     """Compiled ``[H_kin, V, Q_nc, P_explicit]`` at ``(t, q, w, p)``."""
 
     def __init__(self, derivation, form):
+        from appell.core.kinematics import derivative, jacobian
         from appell.numerics.lagrange import mechanical_energy
         from appell.numerics.numeric import lambdify_blocks
         from appell.symbols import t
@@ -184,10 +185,10 @@ class _Balance:
         q, w = sp.Matrix(system.coordinates), sp.Matrix(system.speeds)
         T, V = energy.kinetic, energy.potential
         k = energy.rates.xreplace({s: 0 for s in w})
-        explicit = sp.diff(V, t) + (sp.Matrix([V]).jacobian(q) * k)[0]
+        explicit = derivative(V, t) + (jacobian([V], q) * k)[0]
         if form == "jacobi":
-            kinetic = (sp.Matrix([T]).jacobian(w) * w)[0] - T
-            explicit -= sp.diff(T, t)
+            kinetic = (jacobian([T], w) * w)[0] - T
+            explicit -= derivative(T, t)
         else:
             kinetic = T
         args = [t, list(q), list(w), [p.symbol for p in system.parameters]]

@@ -9,7 +9,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from appell.errors import ComputationError
-from appell.symbols import t
+from appell.symbols import free_symbols, graph_xreplace, t
 
 
 class _Printer(C99CodePrinter):
@@ -56,8 +56,9 @@ def c_function(name: str, outputs, subs: dict, split: int | None = None) -> str:
     ``name_part0, name_part1, ...`` of at most ``split`` statements, each after a
     :data:`UNIT_MARK` (its own translation unit); ``name`` calls them in order."""
     split = SPLIT_STATEMENTS if split is None else split
-    mats = [sp.Matrix(m).xreplace(subs) for m in outputs]
-    stray = set().union(*(m.free_symbols for m in mats)) - set(subs.values()) if mats else set()
+    mats = [sp.Matrix(m) for m in outputs]
+    mats = [sp.Matrix(m.rows, m.cols, graph_xreplace(list(m), subs)) for m in mats]
+    stray = free_symbols(*(e for m in mats for e in m)) - set(subs.values())
     if stray:
         raise ComputationError(
             f"C code for {name}: undeclared symbols {sorted(map(str, stray))}",
