@@ -5,6 +5,7 @@ in for (each visits every distinct subexpression once where SymPy walks the tree
   own symbols are named like its replacements (``x0``, ``x1``: a spring-mass model's
   coordinate; SymPy's ``cse`` skips such names, and so must this one, or a compiled block
   silently reads the wrong variable);
+* ``block_cse`` takes SymPy's ``cse`` for small blocks and ``graph_cse`` for large ones;
 * ``graph_xreplace`` equals ``xreplace``, ``contains`` equals ``has`` for classes, ``matmul``
   equals the matrix product.
 """
@@ -17,7 +18,7 @@ import random
 import numpy as np
 import sympy as sp
 
-from appell.symbols import contains, graph_cse, graph_xreplace, matmul
+from appell.symbols import CSE_NODES, block_cse, contains, graph_cse, graph_xreplace, matmul
 
 X0, X1, Y, Z = sp.symbols("x0 x1 y z")
 SYMBOLS = (X0, X1, Y, Z)
@@ -78,3 +79,14 @@ def test_graph_xreplace_contains_and_matmul_equal_sympys_operations():
     assert product.shape == (2, 2)
     assert all(sp.expand(x - y) == 0 for x, y in zip(product, A * B))
     assert math.isclose(float(matmul([[1, 2]], [[3], [4]])[0]), 11.0)
+
+
+def test_block_cse_takes_sympys_cse_for_small_blocks_and_the_graph_for_large_ones():
+    small = _shared_expressions(3)
+    assert block_cse(small) == sp.cse(small)
+    shared = [sp.sin(X0 + k) * sp.cos(Y + k) for k in range(CSE_NODES // 4)]  # ~5 nodes each
+    large = [sp.Add(*shared), sp.Add(*(e ** 2 for e in shared))]
+    assert block_cse(large) == graph_cse(large)
+    f = sp.lambdify([X0, Y], large, modules="math", cse=block_cse)
+    expected = [float(e.evalf(subs={X0: 0.3, Y: -0.2})) for e in large]
+    np.testing.assert_allclose(f(0.3, -0.2), expected, rtol=1e-12)

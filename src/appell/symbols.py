@@ -196,6 +196,29 @@ def graph_xreplace(exprs, rule: dict) -> list:
     return [done[e] for e in exprs]
 
 
+#: the distinct compound subexpressions up to which :func:`block_cse` takes SymPy's ``cse``
+CSE_NODES = 1000
+
+
+def block_cse(exprs, symbols=None):
+    """Shared subexpressions for generated code: SymPy's ``cse`` up to :data:`CSE_NODES`
+    distinct compound subexpressions (its search for common subsets of a sum's or product's
+    arguments gives the shorter code: the benchmark bicycle's blocks evaluate about 10% faster),
+    :func:`graph_cse` above, where SymPy's ``cse`` grows faster than linearly (the bicycle's
+    blocks, 2.8k subexpressions: 1.7 s against 0.2 s). ``lambdify(..., cse=block_cse)``."""
+    flat = [x for e in exprs for x in (e if isinstance(e, sp.MatrixBase) else [e])]
+    seen, stack = set(), list(flat)
+    while stack and len(seen) <= CSE_NODES:
+        node = stack.pop()
+        if node in seen or not isinstance(node, sp.Basic) or not node.args:
+            continue
+        seen.add(node)
+        stack.extend(node.args)
+    if len(seen) <= CSE_NODES:
+        return sp.cse(exprs) if symbols is None else sp.cse(exprs, symbols=symbols)
+    return graph_cse(exprs, symbols)
+
+
 def graph_cse(exprs, symbols=None):
     """``(replacements, reduced)`` as :func:`sympy.cse` gives them, found on the expression
     graph: every compound subexpression reached from more than one place becomes one

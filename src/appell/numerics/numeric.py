@@ -30,7 +30,7 @@ from appell.core.equations import formulas_unavailable
 from appell.errors import ComputationError, FormulaUnavailable, ModelError, SingularConfigurationError
 from appell.core.partition import (KEEP_CONDITION, RANK_CONDITION, REFINE_CONDITION, partition_condition,
                                    pivoted_columns, row_scales)
-from appell.symbols import derivative_symbol, graph_cse, t
+from appell.symbols import block_cse, derivative_symbol, t
 
 
 #: a row of df/da at the solution of a constraint nonlinear in a smaller than this fraction
@@ -51,7 +51,7 @@ def program_substitutions(system, orders: int = 8) -> dict:
 
 class ScalarBlocks:
     """Matrices compiled into one plain-Python function of floats, with shared
-    subexpressions (``sympy.lambdify(..., modules="math", cse=graph_cse)``).
+    subexpressions (``sympy.lambdify(..., modules="math", cse=block_cse)``).
 
     One state at a time, Python floats and the ``math`` module are about three times
     faster than NumPy's scalar arithmetic. Calling it returns the list of matrices as
@@ -65,8 +65,8 @@ class ScalarBlocks:
         flat = [e for m in matrices for e in m]
         # use_imps=False: lambdify's search for implemented functions walks the expression
         # as a tree, every use of a shared subexpression again (12 s of the bicycle's report);
-        # graph_cse: SymPy's cse sorts every sum as a tree (the bicycle's reactions: 16 s)
-        self.function = sp.lambdify(args, flat, modules="math", cse=graph_cse, docstring_limit=0, use_imps=False)
+        # block_cse: SymPy's cse on large blocks sorts every sum as a tree (the bicycle's reactions: 16 s)
+        self.function = sp.lambdify(args, flat, modules="math", cse=block_cse, docstring_limit=0, use_imps=False)
 
     def __call__(self, *args):
         args = [a.tolist() if isinstance(a, np.ndarray) else a for a in args]
@@ -111,7 +111,7 @@ def lambdify_blocks(args, outputs, subs: Mapping | None = None, what: str = "mod
     try:
         scalar.function(*probe)
     except (NameError, AttributeError):
-        function = sp.lambdify(args, mats, modules="numpy", cse=graph_cse, docstring_limit=0, use_imps=False)
+        function = sp.lambdify(args, mats, modules="numpy", cse=block_cse, docstring_limit=0, use_imps=False)
 
         def quiet(*values):
             # an overflow gives inf or NaN, which the caller names (:func:`check_finite`),

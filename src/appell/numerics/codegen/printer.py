@@ -64,7 +64,7 @@ def c_function(name: str, outputs, subs: dict, split: int | None = None) -> str:
             f"C code for {name}: undeclared symbols {sorted(map(str, stray))}",
             hint="declare every symbol as a coordinate, speed, parameter or program",
         )
-    replacements, reduced = sp.cse(mats, symbols=sp.numbered_symbols("x"))
+    replacements, reduced = sp.cse(mats, symbols=sp.numbered_symbols("x"), order="none")
     outs = ", ".join(f"double *restrict o{k}" for k in range(len(mats)))
     args = f"double t, const double *restrict q, const double *restrict w, const double *restrict a, " \
            f"const double *restrict p{', ' + outs if outs else ''}"
