@@ -8,7 +8,8 @@ and the integration all counted), and its peak memory.
 Targets of the issue: A02 with N = 40 four-bars simulated over the library's 20 s within
 60 s; ``derive`` and ``report`` of A02 (N = 10) and of Bricard's mechanism (A04) within 60 s
 each; the stiff flyball governor (A05) over its 10 s with every ``--method``. ``--quick``
-leaves out N = 40.
+leaves out N = 40. Issue 22 adds the benchmark bicycle (Meijaard et al. 2007): ``derive``,
+``check`` and ``report`` within 30 s each (``--model benchmark_bicycle``).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ CASES = [
     ("bricard", ("derive", "check", "simulate", "report")),
     ("iftomm_a02_n40", ("simulate",)),
     ("iftomm_a05_governor", ("derive", "check", "report") + tuple(f"simulate --method {m}" for m in METHODS)),
+    ("benchmark_bicycle", ("derive", "check", "report")),
 ]
 
 
