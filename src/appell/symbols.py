@@ -7,6 +7,7 @@ the generated code all meet on the same objects.
 
 from __future__ import annotations
 
+import itertools
 import re
 
 import sympy as sp
@@ -147,20 +148,28 @@ def free_symbols(*exprs) -> set:
     return out
 
 
-def contains(exprs, types) -> bool:
-    """Whether some subexpression of ``exprs`` is an instance of ``types`` (a class or a tuple
-    of classes, as for ``expr.has``), each distinct subexpression visited once (``has`` walks
-    the expression as a tree: 2 s for the benchmark bicycle's linearisation)."""
+def _distinct_nodes(exprs):
+    """Each distinct subexpression of ``exprs`` once (depth first), atoms included."""
     seen, stack = set(), list(exprs)
     while stack:
         node = stack.pop()
         if node in seen or not isinstance(node, sp.Basic):
             continue
-        if isinstance(node, types):
-            return True
         seen.add(node)
+        yield node
         stack.extend(node.args)
-    return False
+
+
+def _entries(exprs) -> list:
+    """``exprs`` with each matrix among them replaced by its entries (row by row)."""
+    return [x for e in exprs for x in (e if isinstance(e, sp.MatrixBase) else [e])]
+
+
+def contains(exprs, types) -> bool:
+    """Whether some subexpression of ``exprs`` is an instance of ``types`` (a class or a tuple
+    of classes, as for ``expr.has``), each distinct subexpression visited once (``has`` walks
+    the expression as a tree: 2 s for the benchmark bicycle's linearisation)."""
+    return any(isinstance(node, types) for node in _distinct_nodes(exprs))
 
 
 def matmul(A, B) -> sp.Matrix:
@@ -206,15 +215,8 @@ def block_cse(exprs, symbols=None):
     arguments gives the shorter code: the benchmark bicycle's blocks evaluate about 10% faster),
     :func:`graph_cse` above, where SymPy's ``cse`` grows faster than linearly (the bicycle's
     blocks, 2.8k subexpressions: 1.7 s against 0.2 s). ``lambdify(..., cse=block_cse)``."""
-    flat = [x for e in exprs for x in (e if isinstance(e, sp.MatrixBase) else [e])]
-    seen, stack = set(), list(flat)
-    while stack and len(seen) <= CSE_NODES:
-        node = stack.pop()
-        if node in seen or not isinstance(node, sp.Basic) or not node.args:
-            continue
-        seen.add(node)
-        stack.extend(node.args)
-    if len(seen) <= CSE_NODES:
+    compound = (node for node in _distinct_nodes(_entries(exprs)) if node.args)
+    if sum(1 for _ in itertools.islice(compound, CSE_NODES + 1)) <= CSE_NODES:
         return sp.cse(exprs) if symbols is None else sp.cse(exprs, symbols=symbols)
     return graph_cse(exprs, symbols)
 
@@ -230,8 +232,7 @@ def graph_cse(exprs, symbols=None):
     symbols = iter(symbols) if symbols is not None else sp.numbered_symbols("x")
     given = list(exprs)
     if any(isinstance(e, sp.MatrixBase) for e in given):
-        flat = [x for e in given for x in (e if isinstance(e, sp.MatrixBase) else [e])]
-        replacements, reduced = graph_cse(flat, symbols)
+        replacements, reduced = graph_cse(_entries(given), symbols)
         out, at = [], 0
         for e in given:
             if isinstance(e, sp.MatrixBase):

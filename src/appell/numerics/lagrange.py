@@ -180,8 +180,9 @@ def lagrange_route(derivation) -> LagrangeRoute:
     params = [prm.symbol for prm in system.parameters]
     args = [t, list(q), list(qd), params]
     linear = not (free_symbols(*J) & set(qdd))
-    c = sp.Matrix(f.rows, 1, graph_xreplace(list(f), zero))
-    blocks = lambdify_blocks(args, [M, h - Q, J.xreplace(zero), c], what="blocks of Lagrange's equations")
+    at_rest = graph_xreplace(list(J) + list(f), zero)  # J and f at a = 0, one walk
+    J0, c = sp.Matrix(J.rows, J.cols, at_rest[:len(J)]), sp.Matrix(f.rows, 1, at_rest[len(J):])
+    blocks = lambdify_blocks(args, [M, h - Q, J0, c], what="blocks of Lagrange's equations")
     cfun = None
     if not linear:
         cfun = lambdify_blocks([t, list(q), list(qd), list(qdd), params], [f, J],

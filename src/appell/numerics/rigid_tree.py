@@ -61,12 +61,14 @@ def rigid_subtrees(tree, constants) -> list[bool]:
     return fixed
 
 
-def folded_nodes(tree, constants) -> list[bool]:
+def folded_nodes(tree, constants, fixed: list[bool] | None = None) -> list[bool]:
     """Per node: whether it is fixed rigidly to a parent (:func:`constant_joints`, not a root)
-    while something below it moves (not one of :func:`rigid_subtrees`): a mount between two
-    joints. The compiled recursions merge it into its parent and hang its children from that
-    parent through the composed transform; its own joint's reaction is formed after them."""
-    own, fixed = constant_joints(tree, constants), rigid_subtrees(tree, constants)
+    while something below it moves (not one of :func:`rigid_subtrees`, ``fixed`` where the
+    caller has them): a mount between two joints. The compiled recursions merge it into its
+    parent and hang its children from that parent through the composed transform; its own
+    joint's reaction is formed after them."""
+    own = constant_joints(tree, constants)
+    fixed = rigid_subtrees(tree, constants) if fixed is None else fixed
     return [o and not f and node.parent >= 0 for o, f, node in zip(own, fixed, tree.nodes)]
 
 

@@ -56,8 +56,9 @@ def c_function(name: str, outputs, subs: dict, split: int | None = None) -> str:
     ``name_part0, name_part1, ...`` of at most ``split`` statements, each after a
     :data:`UNIT_MARK` (its own translation unit); ``name`` calls them in order."""
     split = SPLIT_STATEMENTS if split is None else split
-    mats = [sp.Matrix(m) for m in outputs]
-    mats = [sp.Matrix(m.rows, m.cols, graph_xreplace(list(m), subs)) for m in mats]
+    shapes = [sp.Matrix(m).shape for m in outputs]
+    entries = iter(graph_xreplace([e for m in outputs for e in sp.Matrix(m)], subs))  # one walk for all
+    mats = [sp.Matrix(rows, cols, [next(entries) for _ in range(rows * cols)]) for rows, cols in shapes]
     stray = free_symbols(*(e for m in mats for e in m)) - set(subs.values())
     if stray:
         raise ComputationError(

@@ -167,6 +167,18 @@ static void rigid_project(const double *Sc, const double *f, double *tau)
    (Ye: FOLD[b]), and each folded node's transform to UP[b] (Rf, rf) */
 struct rigid_constants { double Ym[10 * NB], Ye[10 * NB], Rf[9 * NB], rf[3 * NB]; };
 
+/* node b's transform to UP[b] (Ro, ro): through its folded parent's (Rf, rf), else its own */
+static void to_up(const double *R, const double *r, const double *Rf, const double *rf, int b, double *Ro, double *ro)
+{
+    const int p = PARENT[b];
+    if (p >= 0 && FOLD[p]) {
+        compose(Rf + 9 * p, rf + 3 * p, R + 9 * b, r + 3 * b, Ro, ro);
+    } else {
+        memcpy(Ro, R + 9 * b, 9 * sizeof(double));
+        memcpy(ro, r + 3 * b, 3 * sizeof(double));
+    }
+}
+
 static void rigid_constants(const double *R, const double *r, const double *in, struct rigid_constants *k)
 {
     for (int b = 0; b < NB; ++b) origin_inertia(in + 10 * b, k->Ym + 10 * b);
@@ -175,12 +187,8 @@ static void rigid_constants(const double *R, const double *r, const double *in, 
     for (int i = 0; i < 10 * NB; ++i) k->Ye[i] = k->Ym[i];
     for (int b = NB - 1; b >= 0; --b)
         if (FOLD[b]) add_inertia_to_parent(R + 9 * b, r + 3 * b, k->Ye + 10 * b, k->Ye + 10 * PARENT[b]);
-    for (int b = 0; b < NB; ++b) {
-        if (!FOLD[b]) continue;
-        const int p = PARENT[b];
-        if (FOLD[p]) compose(k->Rf + 9 * p, k->rf + 3 * p, R + 9 * b, r + 3 * b, k->Rf + 9 * b, k->rf + 3 * b);
-        else for (int i = 0; i < 9; ++i) { k->Rf[9 * b + i] = R[9 * b + i]; if (i < 3) k->rf[3 * b + i] = r[3 * b + i]; }
-    }
+    for (int b = 0; b < NB; ++b)
+        if (FOLD[b]) to_up(R, r, k->Rf, k->rf, b, k->Rf + 9 * b, k->rf + 3 * b);
 }
 
 /* the constants for the parameters p, computed once per parameter set where they are constants
@@ -208,12 +216,8 @@ static const struct rigid_constants *rigid_constants_at(const double *p, const d
 /* each moving node's transform to UP[b] (Re, re): a folded parent's composed in */
 static void hanging(const double *R, const double *r, const struct rigid_constants *k, double *Re, double *re)
 {
-    for (int b = 0; b < NB; ++b) {
-        if (RIGID[b] || FOLD[b]) continue;
-        const int p = PARENT[b];
-        if (p >= 0 && FOLD[p]) compose(k->Rf + 9 * p, k->rf + 3 * p, R + 9 * b, r + 3 * b, Re + 9 * b, re + 3 * b);
-        else for (int i = 0; i < 9; ++i) { Re[9 * b + i] = R[9 * b + i]; if (i < 3) re[3 * b + i] = r[3 * b + i]; }
-    }
+    for (int b = 0; b < NB; ++b)
+        if (!SKIP[b]) to_up(R, r, k->Rf, k->rf, b, Re + 9 * b, re + 3 * b);
 }
 
 /* M by composite inertias (CRBA): Y^c_p += X^T Y^c X inward, then M_kl = S_l . (X^T ... Y^c S_k)

@@ -55,10 +55,11 @@ def c_source(derivation) -> str:
         speeds = [k for node in rigid.nodes for k in node.speeds]
         first = np.cumsum([0] + [len(node.speeds) for node in rigid.nodes])
         constants = {p.symbol for p in derivation.system.parameters}
-        fixed, fold = rigid_subtrees(rigid, constants), folded_nodes(rigid, constants)
-        up = [b if b < 0 or not fold[b] else -2 for b in parent]  # each node's nearest unfolded ancestor
-        for b, p in enumerate(parent):
-            up[b] = p if p < 0 or not fold[p] else up[p]
+        fixed = rigid_subtrees(rigid, constants)
+        fold = folded_nodes(rigid, constants, fixed)
+        up: list[int] = []  # each node's nearest ancestor that is not folded (parents come first)
+        for p in parent:
+            up.append(p if p < 0 or not fold[p] else up[p])
         matrices = [prepared(m) for m in tree_matrices(rigid, n, inertia.gravity)]
         constant = matrices[4].free_symbols <= constants  # the inertias: parameters alone
         parts += [f"/* rigid bodies on a joint tree: {c_comment(', '.join(rigid.bodies))} */",
