@@ -27,6 +27,7 @@ from appell.core.constraints import ConstraintBlocks
 from appell.core.energy import InertiaBlocks
 from appell.core.simplification import adjugate, determinant, tidy
 from appell.core.partition import Partition
+from appell.symbols import matmul
 
 #: the largest dependent block ``J_h`` (s x s) whose inverse is formed symbolically; over it the
 #: closed forms (1.4)/(1.5) are not formed (:func:`formulas_unavailable`): the adjugate of a
@@ -111,13 +112,14 @@ def column(items) -> sp.Matrix:
     return sp.Matrix(items) if items else sp.zeros(0, 1)
 
 
-def admissible_basis(J: sp.Matrix, partition: Partition) -> tuple[sp.Matrix, sp.Matrix]:
-    """``C`` (n x p) and ``J_h^{-1}`` for a partition (symbolic)."""
+def admissible_basis(J: sp.Matrix, partition: Partition, Jh_inv: sp.Matrix | None = None
+                     ) -> tuple[sp.Matrix, sp.Matrix]:
+    """``C`` (n x p) and ``J_h^{-1}`` for a partition (symbolic); ``Jh_inv`` if already formed."""
     n = J.shape[1]
-    Jh = J[:, list(partition.dependent)]
     Jnu = J[:, list(partition.independent)]
-    Jh_inv = block_inverse(Jh)
-    X = Jh_inv * Jnu
+    if Jh_inv is None:
+        Jh_inv = block_inverse(J[:, list(partition.dependent)])
+    X = matmul(Jh_inv, Jnu)
     C = sp.zeros(n, len(partition.independent))
     for col, i in enumerate(partition.independent):
         C[i, col] = 1
@@ -128,24 +130,27 @@ def admissible_basis(J: sp.Matrix, partition: Partition) -> tuple[sp.Matrix, sp.
 
 
 def reduced_equations(inertia: InertiaBlocks, cons: ConstraintBlocks, partition: Partition,
-                      accelerations) -> ReducedEquations:
-    """Equations (1.4): ``C^T (M a + h - Q) = 0``; eliminated form for linear constraints."""
+                      accelerations, Jh_inv: sp.Matrix | None = None) -> ReducedEquations:
+    """Equations (1.4): ``C^T (M a + h - Q) = 0``; eliminated form for linear constraints.
+    ``Jh_inv``: the dependent block's inverse, if already formed (:func:`block_inverse`)."""
     a = sp.Matrix(accelerations)
-    C, Jh_inv = admissible_basis(sp.Matrix(cons.jacobian), partition)
+    C, Jh_inv = admissible_basis(sp.Matrix(cons.jacobian), partition, Jh_inv)
     E = inertia.residual(a)
-    eqs = C.T * E
+    eqs = matmul(C.T, E)
     dep_sol = mass = forcing = None
     if cons.linear:
         n = len(accelerations)
         d = sp.zeros(n, 1)
-        dh = -Jh_inv * sp.Matrix(cons.bias)
+        dh = -matmul(Jh_inv, cons.bias)
         for row, h in enumerate(partition.dependent):
             d[h] = dh[row]
         a_nu = column([accelerations[i] for i in partition.independent])
-        a_full = C * a_nu + d
+        a_full = matmul(C, a_nu) + d
         dep_sol = sp.Matrix([a_full[h] for h in partition.dependent])
-        mass = C.T * sp.Matrix(inertia.mass_matrix) * C
-        forcing = -C.T * (sp.Matrix(inertia.mass_matrix) * d + inertia.inertial_forces - inertia.generalized_forces)
+        M = sp.Matrix(inertia.mass_matrix)
+        mass = matmul(C.T, matmul(M, C))
+        forcing = -matmul(C.T, matmul(M, d) + sp.Matrix(inertia.inertial_forces)
+                          - sp.Matrix(inertia.generalized_forces))
     return ReducedEquations(
         independent=tuple(accelerations[i] for i in partition.independent),
         dependent=tuple(accelerations[i] for i in partition.dependent),
@@ -158,15 +163,17 @@ def reduced_equations(inertia: InertiaBlocks, cons: ConstraintBlocks, partition:
 
 
 def reaction_formulas(inertia: InertiaBlocks, cons: ConstraintBlocks, partition: Partition,
-                      accelerations) -> ReactionFormulas:
-    """Equations (1.5): ``lambda = J_h^{-T} E_h`` and ``R = J^T lambda``."""
+                      accelerations, Jh_inv: sp.Matrix | None = None) -> ReactionFormulas:
+    """Equations (1.5): ``lambda = J_h^{-T} E_h`` and ``R = J^T lambda``. ``Jh_inv``: the
+    dependent block's inverse, if already formed (:func:`block_inverse`)."""
     a = sp.Matrix(accelerations)
     J = sp.Matrix(cons.jacobian)
-    Jh_inv = block_inverse(J[:, list(partition.dependent)])
+    if Jh_inv is None:
+        Jh_inv = block_inverse(J[:, list(partition.dependent)])
     E = inertia.residual(a)
     Eh = sp.Matrix([E[h] for h in partition.dependent])
-    lam = Jh_inv.T * Eh
-    return ReactionFormulas(cons.names, sp.ImmutableMatrix(lam), sp.ImmutableMatrix(J.T * lam))
+    lam = matmul(Jh_inv.T, Eh)
+    return ReactionFormulas(cons.names, sp.ImmutableMatrix(lam), sp.ImmutableMatrix(matmul(J.T, lam)))
 
 
 class Derived:
@@ -213,14 +220,23 @@ class Derivation(Derived):
         return self.kinematics.accelerations
 
     @cached_property
+    def dependent_inverse(self) -> sp.Matrix:
+        """``J_h^{-1}``, the dependent block's inverse (:func:`block_inverse`), formed once for
+        both (1.4) and (1.5)."""
+        J = sp.Matrix(self.constraints.jacobian)
+        return block_inverse(J[:, list(self.partition.dependent)])
+
+    @cached_property
     def reduced(self) -> ReducedEquations:
         """Reduced equations of motion, eq. (1.4)."""
-        return reduced_equations(self.inertia, self.constraints, self.partition, self.accelerations)
+        return reduced_equations(self.inertia, self.constraints, self.partition, self.accelerations,
+                                 self.dependent_inverse)
 
     @cached_property
     def reactions(self) -> ReactionFormulas:
         """Multiplier formulas, eq. (1.5)."""
-        return reaction_formulas(self.inertia, self.constraints, self.partition, self.accelerations)
+        return reaction_formulas(self.inertia, self.constraints, self.partition, self.accelerations,
+                                 self.dependent_inverse)
 
     def with_partition(self, dependent) -> "Derivation":
         """The same derivation with another choice of dependent accelerations (checked)."""

@@ -18,6 +18,7 @@ import sympy as sp
 
 from appell.core.simplification import determinant, tidy
 from appell.errors import ModelError
+from appell.symbols import lambdify
 
 #: relative singular-value threshold under which a block counts as singular
 RANK_TOL = 1e-9
@@ -129,7 +130,7 @@ def _compiled_jacobian(J: sp.ImmutableMatrix):
     trees of a mechanism's Jacobian by ``subs`` and ``evalf`` took 25 s for the benchmark
     bicycle."""
     symbols = sorted(J.free_symbols, key=str)
-    return symbols, sp.lambdify(symbols, J, modules="numpy", cse=True, docstring_limit=0, use_imps=False)
+    return symbols, lambdify(symbols, J, modules="numpy", cse=True)
 
 
 def pivoted_columns(Jn: np.ndarray) -> tuple[np.ndarray, int]:

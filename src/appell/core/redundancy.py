@@ -41,7 +41,7 @@ from appell.core.kinematics import jacobian
 from appell.core.partition import (RANK_CONDITION, generic_values, jacobian_at, numeric_jacobian, partition_condition,
                                    pivoted_columns, row_normalised, row_scales)
 from appell.errors import ModelError
-from appell.symbols import free_symbols, graph_cse
+from appell.symbols import free_symbols, graph_cse, lambdify
 
 #: a null-space component below this fraction of the largest counts as zero (the
 #: constraint's multiplier is determined)
@@ -323,7 +323,7 @@ def _multiplier_gradients(exprs, symbols, values, lam, step: float = 1e-4):
     ``max(1, |lambda_j|)``), the expressions compiled once; None where they are not finite real
     numbers there."""
     try:
-        fn = sp.lambdify(symbols, exprs, modules="math", cse=graph_cse)
+        fn = lambdify(symbols, exprs, modules="math", cse=graph_cse)
         x0 = np.array([float(values[s]) for s in symbols])
         G = np.zeros((len(exprs), len(lam)))
         for j, name in enumerate(lam):

@@ -54,7 +54,7 @@ from appell.core.equations import is_controlled
 from appell.core.kinematics import jacobian
 from appell.errors import ComputationError, ModelError
 from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
-from appell.symbols import block_cse, contains, free_symbols, matmul, t
+from appell.symbols import block_cse, contains, free_symbols, lambdify, matmul, t
 from appell.numerics.boundary import numeric_model
 
 __all__ = ["ExactJacobians", "LinearModel", "linearise", "motion_jacobian", "steady_motion", "STEADY_TOLERANCE"]
@@ -180,8 +180,7 @@ class ExactJacobians:
             # every entry gets + Z (an array of zeros) so that constant entries broadcast too
             Z = sp.Dummy("Z")
             mats = [sp.Matrix(m.shape[0], 1, [e.xreplace(subs) + Z for e in m]) if m.shape[0] else m for m in vectors]
-            self.fn = sp.lambdify([t, *groups, Z], mats, modules="numpy", cse=block_cse, docstring_limit=0,
-                                  use_imps=False)
+            self.fn = lambdify([t, *groups, Z], mats, modules="numpy", cse=block_cse)
             return
         along = [groups[g][i] for g, d in enumerate(self.directions) for i in d]
 

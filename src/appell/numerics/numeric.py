@@ -30,7 +30,7 @@ from appell.core.equations import formulas_unavailable
 from appell.errors import ComputationError, FormulaUnavailable, ModelError, SingularConfigurationError
 from appell.core.partition import (KEEP_CONDITION, RANK_CONDITION, REFINE_CONDITION, partition_condition,
                                    pivoted_columns, row_scales)
-from appell.symbols import block_cse, derivative_symbol, t
+from appell.symbols import block_cse, derivative_symbol, lambdify, t
 
 
 #: a row of df/da at the solution of a constraint nonlinear in a smaller than this fraction
@@ -66,7 +66,7 @@ class ScalarBlocks:
         # use_imps=False: lambdify's search for implemented functions walks the expression
         # as a tree, every use of a shared subexpression again (12 s of the bicycle's report);
         # block_cse: SymPy's cse on large blocks sorts every sum as a tree (the bicycle's reactions: 16 s)
-        self.function = sp.lambdify(args, flat, modules="math", cse=block_cse, docstring_limit=0, use_imps=False)
+        self.function = lambdify(args, flat, modules="math", cse=block_cse)
 
     def __call__(self, *args):
         args = [a.tolist() if isinstance(a, np.ndarray) else a for a in args]
@@ -111,7 +111,7 @@ def lambdify_blocks(args, outputs, subs: Mapping | None = None, what: str = "mod
     try:
         scalar.function(*probe)
     except (NameError, AttributeError):
-        function = sp.lambdify(args, mats, modules="numpy", cse=block_cse, docstring_limit=0, use_imps=False)
+        function = lambdify(args, mats, modules="numpy", cse=block_cse)
 
         def quiet(*values):
             # an overflow gives inf or NaN, which the caller names (:func:`check_finite`),

@@ -18,7 +18,7 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import ComputationError, ModelError
-from appell.symbols import derivative_symbol, free_symbols, graph_cse, t
+from appell.symbols import derivative_symbol, free_symbols, graph_cse, lambdify, t
 
 
 @dataclass(frozen=True)
@@ -89,7 +89,7 @@ def compile_outputs(system, programs: Mapping | None = None) -> OutputFunction:
     if unknown:
         raise ModelError(f"outputs use undeclared symbol(s) {', '.join(unknown)}")
     args = sorted(used, key=list(cols).index)
-    function = sp.lambdify(args, exprs, modules="numpy", cse=graph_cse, docstring_limit=0, use_imps=False)
+    function = lambdify(args, exprs, modules="numpy", cse=graph_cse)
     names = tuple(o.name for o in system.outputs)
     units = tuple(o.unit for o in system.outputs)
     if tree is None:

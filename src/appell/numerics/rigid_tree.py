@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
+from appell.symbols import lambdify
+
 __all__ = ["tree_layout", "constant_joints", "rigid_subtrees", "folded_nodes", "speed_parents", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
            "TreeWrenches"]
 
@@ -271,8 +273,7 @@ def _compiled(arguments, matrices):
     """The matrices as one function of the arguments returning flat arrays (the ``math``
     module, shared subexpressions: the per-joint terms are small)."""
     sizes = [len(m) for m in matrices]
-    function = sp.lambdify(arguments, [e for m in matrices for e in m], modules="math", cse=True,
-                           docstring_limit=0)
+    function = lambdify(arguments, [e for m in matrices for e in m], modules="math", cse=True)
 
     def evaluate(*args):
         flat = np.array(function(*(a.tolist() if isinstance(a, np.ndarray) else a for a in args)), float)

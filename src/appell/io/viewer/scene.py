@@ -35,6 +35,7 @@ import sympy as sp
 
 from appell.errors import ModelError
 from appell.view import View, ViewBody
+from appell.symbols import lambdify
 
 __all__ = ["scene_data", "frame_indices", "quaternions", "default_view"]
 
@@ -127,7 +128,7 @@ def _evaluate(system, view: View, solution, rows: np.ndarray) -> list[np.ndarray
     exprs = [sp.sympify(e).xreplace(program_substitutions(system)) for e in view.expressions]
     symbols = sorted(set().union(*(e.free_symbols for e in exprs)) if exprs else set(), key=lambda s: s.name)
     values = _columns_of(system, solution, symbols)
-    f = sp.lambdify(symbols, exprs, modules="numpy", cse=True, docstring_limit=0, use_imps=False)
+    f = lambdify(symbols, exprs, modules="numpy", cse=True)
     n = rows.size
     with np.errstate(all="ignore"):
         results = f(*(values[s][rows] for s in symbols))
