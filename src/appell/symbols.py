@@ -183,9 +183,21 @@ def matmul(A, B) -> sp.Matrix:
                                                            if A[i, k] != 0 and B[k, j] != 0]))
 
 
-def graph_xreplace(exprs, rule: dict) -> list:
+def _rebuilt(node, args):
+    """``node`` with its arguments replaced by ``args`` (the names of shared subexpressions):
+    sums and products as they stand, without SymPy's flattening and its assumption queries
+    (the node was canonical, and a name in place of a compound argument changes nothing
+    there to combine); other functions evaluated again."""
+    if node.is_Add or node.is_Mul:
+        return node.func._from_args(args)
+    return node.func(*args)
+
+
+def graph_xreplace(exprs, rule: dict, evaluate: bool = True) -> list:
     """``[e.xreplace(rule) for e in exprs]``, each distinct subexpression rebuilt once
-    (``xreplace`` walks the expression as a tree: 1 s for the benchmark bicycle's blocks)."""
+    (``xreplace`` walks the expression as a tree: 1 s for the benchmark bicycle's blocks).
+    ``evaluate=False`` for a renaming (symbols to symbols): sums and products are then rebuilt
+    as they stand (:func:`_rebuilt`), without SymPy's flattening."""
     done: dict = {}
     stack = [(e, False) for e in exprs]
     while stack:
@@ -201,7 +213,10 @@ def graph_xreplace(exprs, rule: dict) -> list:
             stack.extend((a, False) for a in node.args if a not in done)
         else:
             args = [done[a] for a in node.args]
-            done[node] = node.func(*args) if any(x is not y for x, y in zip(args, node.args)) else node
+            if all(x is y for x, y in zip(args, node.args)):
+                done[node] = node
+            else:
+                done[node] = node.func(*args) if evaluate else _rebuilt(node, args)
     return [done[e] for e in exprs]
 
 
@@ -225,26 +240,17 @@ def lambdify(args, exprs, modules: str = "math", cse=None):
 CSE_NODES = 1000
 
 
-def block_cse(exprs, symbols=None):
+def block_cse(exprs, symbols=None, order: str = "canonical"):
     """Shared subexpressions for generated code: SymPy's ``cse`` up to :data:`CSE_NODES`
     distinct compound subexpressions (its search for common subsets of a sum's or product's
     arguments gives the shorter code: the benchmark bicycle's blocks evaluate about 10% faster),
     :func:`graph_cse` above, where SymPy's ``cse`` grows faster than linearly (the bicycle's
-    blocks, 2.8k subexpressions: 1.7 s against 0.2 s). ``lambdify(..., cse=block_cse)``."""
+    blocks, 2.8k subexpressions: 1.7 s against 0.2 s). ``lambdify(..., cse=block_cse)``.
+    ``order``: SymPy's (``"none"``: sums and products taken as stored, faster)."""
     compound = (node for node in _distinct_nodes(_entries(exprs)) if node.args)
     if sum(1 for _ in itertools.islice(compound, CSE_NODES + 1)) <= CSE_NODES:
-        return sp.cse(exprs) if symbols is None else sp.cse(exprs, symbols=symbols)
+        return sp.cse(exprs, order=order) if symbols is None else sp.cse(exprs, symbols=symbols, order=order)
     return graph_cse(exprs, symbols)
-
-
-def _rebuilt(node, args):
-    """``node`` with its arguments replaced by ``args`` (the names of shared subexpressions):
-    sums and products as they stand, without SymPy's flattening and its assumption queries
-    (the node was canonical, and a name in place of a compound argument changes nothing
-    there to combine); other functions evaluated again."""
-    if node.is_Add or node.is_Mul:
-        return node.func._from_args(args)
-    return node.func(*args)
 
 
 def graph_cse(exprs, symbols=None):

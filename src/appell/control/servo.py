@@ -336,7 +336,9 @@ def derive_controlled(system: System, dependent: Sequence | None = None,
     E = M * a_sub + sp.Matrix(blocks.control_matrix) * xi + sp.Matrix(blocks.forcing_bias)
     mu = Jh_inv.T * sp.Matrix([E[h] for h in dep])
     conditions = tidy(sp.Matrix(mu[s:, :]))
-    lam = tidy(sp.Matrix(mu[:s, :]))
+    # the reactions as formed (no later step builds on them): simplify took 1-3 s for each of
+    # the slider-crank's five, for a few operations fewer
+    lam = sp.Matrix(mu[:s, :])
     eqs = tidy(C.T * E)
 
     # (2.4) solved for a_nu (p x p, the reduced mass matrix C^T M C)

@@ -430,13 +430,31 @@ def adjugate(M: sp.Matrix, method: str = "bareiss") -> sp.Matrix:
     return M.adjugate(method=method) if within_bound(raw) else raw
 
 
+#: expressions :func:`tidy` has simplified, each with its result (and each result with itself:
+#: a formula tidied by the derivation is not simplified again when it is printed); emptied
+#: when it reaches :data:`TIDIED_SIZE` entries
+_TIDIED: dict = {}
+TIDIED_SIZE = 20_000
+
+
 def tidy(expr):
     """Simplify short formulas (fewer than :data:`TIDY_OPS` operations) within the bound
-    (:data:`TIDY_LIMIT`); anything else is returned as it is."""
+    (:data:`TIDY_LIMIT`); anything else is returned as it is. ``simplify`` takes up to
+    seconds on a formula of a few dozen operations with trigonometric terms (the
+    slider-crank's reactions: 1-3 s each), so each result is kept for the process
+    (:data:`_TIDIED`): a model derived again, or printed after it was derived, reuses it."""
     if isinstance(expr, sp.MatrixBase):
         return sp.ImmutableMatrix(expr.shape[0], expr.shape[1], [tidy(e) for e in expr])
+    expr = sp.sympify(expr)
+    done = _TIDIED.get(expr)
+    if done is not None:
+        return done
     if expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT and sp.count_ops(expr) <= TIDY_OPS:  # the bound first
-        return sp.simplify(expr)
+        if len(_TIDIED) >= TIDIED_SIZE:
+            _TIDIED.clear()
+        done = _TIDIED[expr] = sp.simplify(expr)
+        _TIDIED.setdefault(done, done)
+        return done
     return expr
 
 

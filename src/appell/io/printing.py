@@ -19,7 +19,7 @@ from appell.core.equations import formulas_unavailable
 from appell.core.simplification import adjugate, determinant, graph_size, tidy, tree_size
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
-from appell.symbols import derivative_symbol, graph_xreplace, latex, t as time  # noqa: F401 (latex is re-exported)
+from appell.symbols import block_cse, derivative_symbol, graph_xreplace, latex, matmul, t as time  # noqa: F401 (latex is re-exported)
 
 
 #: shown where no acceleration is free (p = 0): (1.4) has no rows
@@ -75,7 +75,7 @@ def _solved_independent(red):
     if Mr.shape == (1, 1):
         solved = sp.Matrix([fr[0] / Mr[0, 0]])
     else:
-        solved = adjugate(Mr, method="berkowitz") * fr / determinant(Mr, method="berkowitz")
+        solved = matmul(adjugate(Mr, method="berkowitz"), fr) / determinant(Mr, method="berkowitz")
     return solved if graph_size(solved, PRINT_NODES) <= PRINT_NODES else None
 
 
@@ -267,12 +267,12 @@ def printed_equations(derivation, only=None) -> PrintedEquations:
     taken = {s.name for s in _symbols(exprs)}
     prefix = next(p for p in ("c", "k", "z", "_c")  # not a model's name (the bicycle's trail c)
                   if not any(n == p or (n.startswith(p) and n[len(p):].isdigit()) for n in taken))
-    defs, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(prefix, start=1), order="none")
+    defs, reduced = block_cse(exprs, symbols=sp.numbered_symbols(prefix, start=1), order="none")
     defs, reduced = _inline_single_uses(defs, reduced)
     renumber = {sym: sp.Symbol(f"{prefix}{k}") for k, (sym, _) in enumerate(defs, start=1)}
+    renamed = graph_xreplace([e for _, e in defs] + list(reduced), renumber, evaluate=False)
     neat = tidy if len(defs) <= TIDY_DEFINITIONS else (lambda e: e)
-    defs = tuple((renumber[sym], neat(e.xreplace(renumber))) for sym, e in defs)
-    reduced = [e.xreplace(renumber) for e in reduced]
+    defs, reduced = tuple((renumber[sym], neat(e)) for (sym, _), e in zip(defs, renamed)), renamed[len(defs):]
     out = [Formula(f.label, tidy(reduced[2 * i]), tidy(reduced[2 * i + 1]), f.item) for i, f in enumerate(rows)]
     return PrintedEquations(defs, tuple(out))
 
