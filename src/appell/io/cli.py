@@ -899,9 +899,10 @@ def _energy_balance(derivation, t_end=None):
     opts = command_options(system, t_end)
     if not opts.t_end > opts.t0:
         return EnergyBalance(None, "the simulation span is empty (t_end = t0)")
-    # a model that declares an implicit method is stiff: its balance integrates implicitly too
+    # a model that declares an implicit method may be stiff: its balance integrates implicitly
+    # where the motion's Jacobian at the start says so ('auto')
     stiff = opts.method in ("Radau", "BDF", "LSODA")
-    return energy_balance(derivation, opts.t_end, t0=opts.t0, method="Radau" if stiff else "DOP853")
+    return energy_balance(derivation, opts.t_end, t0=opts.t0, method="auto" if stiff else "DOP853")
 
 
 def _echo_redundancy(derivation) -> None:
@@ -1009,7 +1010,17 @@ def report(model, output, t_end, no_simulation, data, backend, assignments, floa
         output_file(Path(output), "'-o'")
     system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
-    check_report = _cross_check(derivation)
+    compiling = None
+    if backend != "numpy" and not no_simulation and (system.initial or system.settings):
+        from appell.numerics.codegen.model import compile_in_background
+
+        compiling = compile_in_background(derivation)  # the compiler runs while the routes are checked
+    try:
+        check_report = _cross_check(derivation)
+    except BaseException:
+        if compiling is not None:
+            compiling.join()  # the compiler's temporary files go before the error is shown
+        raise
     solution, note = None, None
     if no_simulation:
         note = "Left out (--no-simulation)."

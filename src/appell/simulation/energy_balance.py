@@ -46,6 +46,7 @@ work shows.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -70,6 +71,12 @@ ENERGY_TOLERANCE = 1e-9
 MAX_EVALUATIONS = 50_000
 #: seconds the balance's integration may run (the bundled examples take at most 2)
 MAX_SECONDS = 10.0
+#: ``method='auto'`` integrates implicitly (Radau) where a mode of the motion's Jacobian at the
+#: start decays by more than this many e-folds over the span (``max(-Re lambda) (t_end - t0)``):
+#: an explicit method would spend its steps on stability there (the A05 governor: 8e3 per second);
+#: DOP853 elsewhere (the car, which declares Radau for its own run: 0 here, 0.6 s against
+#: the 10 s that Radau at the balance's tolerance ran into)
+STIFF_DECAYS = 1e3
 #: the budget of an implicit (Radau) balance and the evaluations before its first projection:
 #: the stiff flyball governor (IFToMM A05) takes 69,000 over its 10 s, its projection
 #: falls from 1e7 at the 100th (the first steps of 3e-7 s) to 9.6e4 at the 5000th
@@ -200,6 +207,26 @@ class _Balance:
         return float(kin[0, 0]), float(V[0, 0]), np.asarray(Q, float).reshape(-1), float(P[0, 0])
 
 
+def stiffness(model, t, y, p) -> float:
+    """``max(-Re lambda)`` over the eigenvalues of the motion's Jacobian at ``(t, y)``
+    (:func:`~appell.numerics.linearise.motion_jacobian`): the fastest decay rate of its modes;
+    ``inf`` where that Jacobian is not formed (constraints nonlinear in the accelerations) or
+    cannot be evaluated there, so that the caller keeps the implicit method."""
+    from appell.numerics.linearise import motion_jacobian
+
+    motion = motion_jacobian(model)
+    if motion is None:
+        return math.inf
+    try:
+        jac = motion(t, y, p)
+        rates = -np.linalg.eigvals(jac).real
+    except (ComputationError, np.linalg.LinAlgError, ValueError):
+        return math.inf
+    if not np.all(np.isfinite(rates)):
+        return math.inf
+    return float(max(rates.max(initial=0.0), 0.0))
+
+
 def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mapping | None = None, params=None,
                    model=None, samples: int = 201, rtol: float = 1e-11, atol: float = 1e-12,
                    method: str = "DOP853") -> EnergyBalance:
@@ -207,10 +234,11 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     system's initial values, dependent ones completed by
     :func:`~appell.simulation.initial.complete_initial`) over ``[t0, t_end]``, compared at
     ``samples`` equally spaced times (module docstring). ``model``: the numeric model whose
-    motion is checked (default ``numeric_model(derivation)``). ``method``: ``'DOP853'``, or
-    ``'Radau'`` for a stiff motion (the command line's choice where the model's own
-    ``[simulation]`` method is implicit: the stiff flyball governor's springs would take an
-    explicit method 2e5 evaluations over its 10 s).
+    motion is checked (default ``numeric_model(derivation)``). ``method``: ``'DOP853'``,
+    ``'Radau'`` for a stiff motion (the stiff flyball governor's springs would take an
+    explicit method 2e5 evaluations over its 10 s), or ``'auto'``: Radau where the motion's
+    Jacobian at the start shows it stiff (:data:`STIFF_DECAYS`), else DOP853 (the command
+    line's choice where the model's own ``[simulation]`` method is implicit).
 
     Returns an :class:`EnergyBalance`; not formed (with the reason) where no energy
     identity exists. Raises :class:`ComputationError` when the integration fails.
@@ -219,8 +247,8 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
 
     from appell.simulation.initial import complete_initial
 
-    if method not in ("DOP853", "Radau"):
-        raise ModelError(f"the energy balance integrates with 'DOP853' or 'Radau', not {method!r}")
+    if method not in ("DOP853", "Radau", "auto"):
+        raise ModelError(f"the energy balance integrates with 'DOP853', 'Radau' or 'auto', not {method!r}")
     form, reason = energy_form(derivation)
     if form is None:
         return EnergyBalance(None, reason)
@@ -232,6 +260,8 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     y0 = complete_initial(model, initial, t=t0, params=pv).y
     nq, n = len(model.coordinate_names), len(model.speed_names)
     balance = _Balance(derivation, form)
+    if method == "auto":
+        method = "Radau" if stiffness(model, t0, y0[:nq + n], pv) * (t_end - t0) > STIFF_DECAYS else "DOP853"
 
     def powers(tt, q, w):
         sol = model.solve(tt, q, w, pv)

@@ -272,6 +272,55 @@ def _forward_call(fn, sizes, outputs):
     return forward
 
 
+#: C sources formed by :func:`compile_in_background` for :func:`compile_c` to take up once (by
+#: the derivation's identity, the entry holding the derivation)
+_STARTED: dict = {}
+_STARTED_KEEP = 4
+_started_lock = threading.Lock()
+
+
+def _source_for(derivation) -> str:
+    """The C source of ``derivation``: the one :func:`compile_in_background` formed (taken
+    once), else :func:`~appell.numerics.codegen.source.c_source` now."""
+    with _started_lock:
+        entry = _STARTED.pop(id(derivation), None)
+    if entry is not None and entry[0] is derivation:
+        return entry[1]
+    return c_source(derivation)
+
+
+def compile_in_background(derivation) -> threading.Thread | None:
+    """Start building the compiled code of ``derivation`` while the caller goes on with other
+    work: the C source is formed here (Python), the compiler runs in a thread (a child
+    process: both cores work). A later :func:`compile_c` takes the source up and waits for
+    the library under the cache entry's lock, then loads it. Returns the thread, or None
+    where there is nothing to start (no C compiler, a controlled derivation: NumPy only).
+    A failure here is left for :func:`compile_c` to meet again and report."""
+    from appell.core.equations import is_controlled
+
+    compiler = find_compiler()
+    if compiler is None or is_controlled(derivation):
+        return None
+    try:
+        source = c_source(derivation)
+    except (ComputationError, ModelError):
+        return None  # compile_c meets it again and reports
+    with _started_lock:
+        _STARTED[id(derivation)] = (derivation, source)
+        while len(_STARTED) > _STARTED_KEEP:
+            _STARTED.pop(next(iter(_STARTED)))
+
+    def build():
+        try:
+            build_library(source, compiler)
+        except (ComputationError, OSError):
+            pass  # compile_c builds again and reports
+
+    thread = threading.Thread(target=build, name=f"appell-cc {derivation.system.name}", daemon=True)
+    thread.start()
+    return thread
+
+
 def compile_c(derivation, backend: str = "c") -> NumericModel:
     """Compiled numeric functions of a derivation (``backend`` 'c' or 'auto').
 
@@ -297,7 +346,7 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
         warnings.warn(f"no C compiler found (set ${COMPILER_ENV} or $CC); using the NumPy backend",
                       RuntimeWarning, stacklevel=2)
         return with_redundancy(compile_model(derivation))
-    source = c_source(derivation)
+    source = _source_for(derivation)
     try:
         path, fresh = build_library(source, compiler)
         lib, path, reloaded = load_library(path, source, compiler)

@@ -1,4 +1,4 @@
-"""Printing SymPy blocks as C functions with shared subexpressions (``sympy.cse``), split
+"""Printing SymPy blocks as C functions with shared subexpressions (:func:`appell.symbols.block_cse`), split
 into translation units past :data:`SPLIT_STATEMENTS` statements."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
 from appell.errors import ComputationError
-from appell.symbols import free_symbols, graph_xreplace, t
+from appell.symbols import block_cse, free_symbols, graph_xreplace, t
 
 
 class _Printer(C99CodePrinter):
@@ -23,7 +23,9 @@ class _Printer(C99CodePrinter):
         return super()._print_Pow(expr)
 
 
-_PRINTER = _Printer()
+#: sums and products printed in the order SymPy stores their terms (a canonical order, the
+#: same in every process), not sorted again for display as SymPy's printers do by default
+_PRINTER = _Printer({"order": "none"})
 
 
 def _symbol_map(derivation) -> dict:
@@ -65,7 +67,7 @@ def c_function(name: str, outputs, subs: dict, split: int | None = None) -> str:
             f"C code for {name}: undeclared symbols {sorted(map(str, stray))}",
             hint="declare every symbol as a coordinate, speed, parameter or program",
         )
-    replacements, reduced = sp.cse(mats, symbols=sp.numbered_symbols("x"), order="none")
+    replacements, reduced = block_cse(mats, symbols=sp.numbered_symbols("x"), order="none")
     outs = ", ".join(f"double *restrict o{k}" for k in range(len(mats)))
     args = f"double t, const double *restrict q, const double *restrict w, const double *restrict a, " \
            f"const double *restrict p{', ' + outs if outs else ''}"
