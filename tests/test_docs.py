@@ -9,8 +9,9 @@ For each page of ``docs/``, in document order and in a fresh temporary directory
 * ``toml`` blocks that hold a complete model (a ``[model]`` table and mechanics, or a
   ``[mechanism]``) must load as model files.
 
-Then the site is built once with ``sphinx-build -W`` (warnings are errors), and the
-gallery and the API page are checked to cover every bundled example and public module.
+The gallery and the API page are checked to cover every bundled example and public module;
+the site's build (``sphinx-build -W``) is checked in tests/test_docs_offline.py, so that the
+pytest-xdist worker that runs these pages does not wait for it.
 """
 
 from __future__ import annotations
@@ -134,15 +135,6 @@ def test_api_page_covers_every_public_module():
             modules.add(".".join(("appell",) + parts))
     missing = sorted(modules - documented)
     assert not missing, f"docs/api.md does not document {missing}"
-
-
-def test_sphinx_build_without_warnings(docs_build):
-    done, out = docs_build  # conftest.py: built once per session
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    for page in ("index", "tutorial", "method", "gallery", "api", "model-format"):
-        assert (out / f"{page}.html").exists(), page
-    api = (out / "api.html").read_text(encoding="utf-8")
-    assert "derive_controlled" in api and "write_report" in api  # autodoc found the docstrings
 
 
 def test_readme_python_example_runs(workdir, capsys):

@@ -1,4 +1,4 @@
-"""The HTML documentation works offline: its mathematics is MathML made at build time
+"""The HTML documentation builds without warnings and works offline: its mathematics is MathML made at build time
 (docs/_ext/mathml_math.py), no page loads a script, style or image from the network, and in
 headless Chromium every formula has a box and every fraction is laid out as a fraction;
 the gallery shows one figure per bundled example (docs/_ext/gallery_figures.py).
@@ -27,6 +27,16 @@ def html(docs_build) -> Path:
     done, out = docs_build
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     return out
+
+
+def test_sphinx_build_without_warnings(docs_build):
+    """``sphinx-build -W`` (warnings are errors) builds every page, and autodoc found the docstrings."""
+    done, out = docs_build  # conftest.py: built once per session
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    for page in ("index", "tutorial", "method", "gallery", "api", "model-format"):
+        assert (out / f"{page}.html").exists(), page
+    api = (out / "api.html").read_text(encoding="utf-8")
+    assert "derive_controlled" in api and "write_report" in api
 
 
 def _outside_math_and_code(page: str) -> str:

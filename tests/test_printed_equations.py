@@ -104,10 +104,19 @@ def _values(derivation, t, q, w):
     return vals
 
 
-def _evaluate(defs, expr, values):
-    """``expr`` at ``values`` with the definitions ``(symbol, expression)`` evaluated until
-    none more can be (the recursive route's named quantities and the shared subexpressions
-    refer to each other in both directions)."""
+#: the definitions' values of the last few (definitions, values) pairs: a bicycle's thousand
+#: definitions are evaluated once per set of values, not once per printed row
+_KNOWN: list = []
+
+
+def _known(defs, values) -> dict:
+    """``values`` with the definitions ``(symbol, expression)`` evaluated until none more can
+    be (the recursive route's named quantities and the shared subexpressions refer to each
+    other in both directions)."""
+    items = tuple(values.items())
+    for entry_defs, entry_items, known in _KNOWN:
+        if entry_defs is defs and entry_items == items:
+            return known
     known = dict(values)
     pending = list(defs)
     while pending:
@@ -121,7 +130,13 @@ def _evaluate(defs, expr, values):
         if len(left) == len(pending):
             break
         pending = left
-    return float(sp.sympify(expr).xreplace(known))
+    _KNOWN[:] = [*_KNOWN[-3:], (defs, items, known)]
+    return known
+
+
+def _evaluate(defs, expr, values):
+    """``expr`` at ``values`` with the definitions ``(symbol, expression)`` evaluated (:func:`_known`)."""
+    return float(sp.sympify(expr).xreplace(_known(defs, values)))
 
 
 #: rows of the recursive route that name a quantity (a joint's terms, the passes, world axes)
