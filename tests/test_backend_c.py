@@ -159,3 +159,50 @@ def test_a_hostile_model_name_never_becomes_c_code():
     sol = appell.simulate(model, 0.5)
     assert sol.status == 0  # it compiles and runs as the pendulum it is
     assert "injected" not in " ".join(l for l in c_source(derivation).splitlines()[1:])
+
+
+def test_a_library_built_in_the_background_is_the_one_compile_c_loads(tmp_path, monkeypatch):
+    """``appell report`` starts the compiler while it checks the routes
+    (:func:`appell.numerics.codegen.model.compile_in_background`): ``compile_c`` then takes up
+    the source formed there and loads the library without compiling again, and it gives
+    the NumPy model's accelerations and multipliers."""
+    import subprocess
+
+    from appell.numerics.codegen.model import compile_in_background
+
+    monkeypatch.setenv("APPELL_CACHE_DIR", str(tmp_path))
+    d = appell.derive(CATALOG["knife_edge"]())
+    thread = compile_in_background(d)
+    assert thread is not None
+    thread.join()
+
+    def no_compiler(*args, **kwargs):
+        raise AssertionError("compiled again")
+
+    monkeypatch.setattr(subprocess, "run", no_compiler)
+    monkeypatch.setattr(subprocess, "Popen", no_compiler)
+    compiled, reference = compile_c(d, "c"), compile_model(d)
+    assert not compiled.freshly_compiled
+    for t0, q, w in states(d):
+        a, b = compiled.solve(t0, q, w), reference.solve(t0, q, w)
+        close(a.accelerations, b.accelerations)
+        close(a.multipliers, b.multipliers)
+
+
+def test_a_background_build_that_fails_is_reported_by_compile_c(tmp_path, monkeypatch):
+    """A compiler that fails in the background leaves no library and no temporary file; the
+    failure reaches the user from ``compile_c``, with the compiler's message."""
+    from appell.numerics.codegen.model import compile_in_background
+
+    cache, cc = tmp_path / "cache", tmp_path / "broken-cc"
+    cc.write_text("#!/bin/sh\necho 'broken-cc: no code today' >&2\nexit 1\n")
+    cc.chmod(0o755)
+    monkeypatch.setenv("APPELL_CACHE_DIR", str(cache))
+    monkeypatch.setenv("APPELL_CC", str(cc))
+    d = appell.derive(CATALOG["pendulum"]())
+    thread = compile_in_background(d)
+    assert thread is not None
+    thread.join()
+    assert not [p for p in cache.iterdir() if p.suffix != ".lock"]
+    with pytest.raises(appell.ComputationError, match="no code today"):
+        compile_c(d, "c")
