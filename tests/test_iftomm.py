@@ -420,18 +420,18 @@ GOVERNOR_STATE = ("phi", "s", "beta1", "beta2", "phi_dot", "s_dot", "beta1_dot",
 @pytest.fixture(scope="module")
 def governor():
     """The derivation of the bundled file and the Lagrangian's motion over the library's 10 s
-    (SciPy's Radau at rtol 1e-12, dense)."""
+    (SciPy's Radau at rtol 1e-11, dense: within 4e-12 of its run at 1e-12, at 60% of the time)."""
     rates, momentum, accelerations, energy = governor_lagrangian()
     y0 = [0.0, 0.5, math.pi / 6, math.pi / 6, 2 * math.pi, 0.0, 0.0, 0.0]
     with np.errstate(over="ignore"):  # SciPy's finite-difference Jacobian tries huge steps in phi
-        ref = solve_ivp(rates, (0.0, 10.0), y0, method="Radau", rtol=1e-12, atol=1e-14, dense_output=True)
+        ref = solve_ivp(rates, (0.0, 10.0), y0, method="Radau", rtol=1e-11, atol=1e-13, dense_output=True)
     assert ref.success
     return appell.derive(appell.load_model("iftomm_a05_governor")), ref, momentum, accelerations, energy
 
 
 def test_a05_governor_against_an_independent_lagrangian(governor):
     """At the file's settings (Radau, rtol 1e-10) over the library's 10 s: the slider's
-    height within 1e-6 m of the Lagrangian's at 10 s (the issue's target; measured 6e-14),
+    height within 1e-6 m of the Lagrangian's at 10 s (the issue's target; measured below 1e-11),
     every coordinate and speed within 1e-7 at every output row, both rods alike, the angular
     momentum about z kept to 1e-9 of its size, and the ground hinge's vertical force equal to
     the whole governor's weight plus the rate of its vertical momentum, sum m_i (z_i'' + g)
