@@ -207,14 +207,11 @@ class _Balance:
         return float(kin[0, 0]), float(V[0, 0]), np.asarray(Q, float).reshape(-1), float(P[0, 0])
 
 
-def stiffness(model, t, y, p) -> float:
-    """``max(-Re lambda)`` over the eigenvalues of the motion's Jacobian at ``(t, y)``
+def stiffness(motion, t, y, p) -> float:
+    """``max(-Re lambda)`` over the eigenvalues of the motion's Jacobian ``motion(t, y, p)``
     (:func:`~appell.numerics.linearise.motion_jacobian`): the fastest decay rate of its modes;
-    ``inf`` where that Jacobian is not formed (constraints nonlinear in the accelerations) or
-    cannot be evaluated there, so that the caller keeps the implicit method."""
-    from appell.numerics.linearise import motion_jacobian
-
-    motion = motion_jacobian(model)
+    ``inf`` where that Jacobian is not formed (``motion`` None: constraints nonlinear in the
+    accelerations) or cannot be evaluated there, so that the caller keeps the implicit method."""
     if motion is None:
         return math.inf
     try:
@@ -260,8 +257,11 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     y0 = complete_initial(model, initial, t=t0, params=pv).y
     nq, n = len(model.coordinate_names), len(model.speed_names)
     balance = _Balance(derivation, form)
+    from appell.numerics.linearise import motion_jacobian
+
+    motion = motion_jacobian(model) if method in ("auto", "Radau") else None  # formed once for both uses
     if method == "auto":
-        method = "Radau" if stiffness(model, t0, y0[:nq + n], pv) * (t_end - t0) > STIFF_DECAYS else "DOP853"
+        method = "Radau" if stiffness(motion, t0, y0[:nq + n], pv) * (t_end - t0) > STIFF_DECAYS else "DOP853"
 
     def powers(tt, q, w):
         sol = model.solve(tt, q, w, pv)
@@ -293,9 +293,6 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     options = {}
     if method == "Radau":  # the motion's exact Jacobian (finite differences would push a cyclic
         # angle out of the expressions' domain); the works are quadratures, left out of Newton's
-        from appell.numerics.linearise import motion_jacobian
-
-        motion = motion_jacobian(model)
         if motion is not None:
             def jacobian(tt, y):
                 full = np.zeros((y.size, y.size))
