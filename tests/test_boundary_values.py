@@ -312,20 +312,33 @@ def test_memory_errors_at_the_command_line_are_one_clear_error(monkeypatch):
 
 
 # ------------------------------------------------------------------ 7. Ctrl-C
-#: what the ``appell`` console script runs (pyproject.toml [project.scripts])
-ENTRY = "import sys; from appell_entry import main; sys.exit(main())"
+#: what the ``appell`` console script runs (pyproject.toml [project.scripts]), after one byte written
+#: to the file descriptor {fd}: the moment the script's first line runs. The delays count from
+#: there: before it, Python starts and runs its site packages' .pth files (30 ms here, more on a
+#: loaded machine; a Ctrl-C then is Python's, before any line of appell's can handle it)
+ENTRY = "import os; os.write({fd}, b'.'); import sys; from appell_entry import main; sys.exit(main())"
 
 
 def interrupted(args, delay: float, timeout: float = 120):
-    """Start the command, send Ctrl-C to its process group after ``delay`` seconds (as a
-    terminal does: the Dask workers get it too) and return ``(exit code, stderr)``."""
-    proc = subprocess.Popen([sys.executable, "-c", ENTRY, *map(str, args)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env_with_src(), start_new_session=True)
+    """Start the command, send Ctrl-C to its process group ``delay`` seconds after its script's
+    first line (as a terminal does: the Dask workers get it too) and return ``(exit code, stderr)``."""
+    import select
+
+    started, mark = os.pipe()
     try:
+        proc = subprocess.Popen([sys.executable, "-c", ENTRY.format(fd=mark), *map(str, args)],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env_with_src(),
+                                start_new_session=True, pass_fds=(mark,))
+    finally:
+        os.close(mark)
+    try:
+        ready, _, _ = select.select([started], [], [], timeout)
+        assert ready and os.read(started, 1) == b".", "the command's script did not start"
         time.sleep(delay)
         os.killpg(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=timeout)
     finally:
+        os.close(started)
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.communicate()
