@@ -19,7 +19,7 @@ from appell.core.equations import formulas_unavailable
 from appell.core.simplification import adjugate, determinant, graph_size, tidy, tree_size
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
-from appell.symbols import block_cse, derivative_symbol, graph_xreplace, latex, matmul, t as time  # noqa: F401 (latex is re-exported)
+from appell.symbols import block_cse, derivative_symbol, free_symbols, graph_xreplace, latex, matmul, t as time  # noqa: F401 (latex is re-exported)
 
 
 #: shown where no acceleration is free (p = 0): (1.4) has no rows
@@ -264,7 +264,7 @@ def printed_equations(derivation, only=None) -> PrintedEquations:
     (:func:`appell.core.simplification.tidy`: small expressions only, so the cost is bounded)."""
     rows = [f for f in equation_formulas(derivation) if only is None or f.item in only]
     exprs = [e for f in rows for e in (f.lhs, f.rhs)]
-    taken = {s.name for s in _symbols(exprs)}
+    taken = {s.name for s in free_symbols(*map(sp.sympify, exprs))}
     prefix = next(p for p in ("c", "k", "z", "_c")  # not a model's name (the bicycle's trail c)
                   if not any(n == p or (n.startswith(p) and n[len(p):].isdigit()) for n in taken))
     defs, reduced = block_cse(exprs, symbols=sp.numbered_symbols(prefix, start=1), order="none")
@@ -275,22 +275,6 @@ def printed_equations(derivation, only=None) -> PrintedEquations:
     defs, reduced = tuple((renumber[sym], neat(e)) for (sym, _), e in zip(defs, renamed)), renamed[len(defs):]
     out = [Formula(f.label, tidy(reduced[2 * i]), tidy(reduced[2 * i + 1]), f.item) for i, f in enumerate(rows)]
     return PrintedEquations(defs, tuple(out))
-
-
-def _symbols(exprs) -> set:
-    """The symbols in ``exprs``, each shared subexpression visited once (``free_symbols``
-    walks the tree, exponential in the nesting of a large mechanism's formulas)."""
-    seen, out = set(), set()
-    stack = [sp.sympify(e) for e in exprs]
-    while stack:
-        e = stack.pop()
-        if e in seen:
-            continue
-        seen.add(e)
-        if e.is_Symbol:
-            out.add(e)
-        stack.extend(e.args)
-    return out
 
 
 def _inline_single_uses(defs, exprs):
@@ -620,7 +604,7 @@ def json_document(document: dict, derivation) -> dict:
     """
     roles = symbol_roles(derivation)
     exprs = [sp.sympify(e) for e in _expressions(document, [])]
-    symbols = sorted((s for s in _symbols(exprs) if isinstance(s, sp.Symbol)), key=lambda s: s.name)
+    symbols = sorted((s for s in free_symbols(*map(sp.sympify, exprs)) if isinstance(s, sp.Symbol)), key=lambda s: s.name)
     table = {}
     for s in symbols:
         if s.name in table:
