@@ -95,6 +95,20 @@ def test_cache_second_load_does_not_recompile(tmp_path, monkeypatch):
     assert (tmp_path / first.library_path.name.replace(".so", ".c")).read_text() == c_source(d)
 
 
+def test_auto_keeps_the_compiled_model_it_built(monkeypatch):
+    """numeric_model(d, 'auto') builds the compiled model once and shares it with 'c'; a
+    fallback to NumPy is not kept (its warning comes at every call)."""
+    d = appell.derive(CATALOG["knife_edge"]())
+    first = numeric_model(d, "auto")
+    assert isinstance(first, CompiledNumericModel)
+    assert numeric_model(d, "auto") is first and numeric_model(d, "c") is first
+    monkeypatch.setenv("APPELL_CC", "/nonexistent/cc")
+    other = appell.derive(CATALOG["pendulum"]())
+    for _ in range(2):
+        with pytest.warns(RuntimeWarning, match="no C compiler"):
+            assert not isinstance(numeric_model(other, "auto"), CompiledNumericModel)
+
+
 @pytest.mark.numpy_model  # without a compiler numeric_model(d) must be the NumPy model
 def test_fallback_without_compiler(monkeypatch):
     """Without a compiler 'auto' falls back to NumPy with a warning; 'c' is refused (ModelError)."""

@@ -101,6 +101,22 @@ def _plain(derivation: Derivation, backend: str | None = None):
 
         return compile_c(derivation, backend)
 
-    if backend == "auto":  # not kept under 'auto': the choice may fall back, and 'c' may be asked later
-        return build()
+    if backend == "auto":
+        # kept under 'c' when it compiled, so that 'auto' and 'c' share one library; a fallback
+        # to NumPy is not kept (its warning is given at every call, and a compiler may come)
+        with _lock:
+            entry = _models.get(id(derivation))
+            if entry is not None and entry[0] is derivation and "c" in entry[1]:
+                _models.move_to_end(id(derivation))
+                return entry[1]["c"]
+        model = build()
+        if _compiled(model):
+            model = cached(derivation, "c", lambda: model)
+        return model
     return cached(derivation, backend, build)
+
+
+def _compiled(model) -> bool:
+    from appell.numerics.codegen.model import CompiledNumericModel
+
+    return isinstance(getattr(model, "inner", model), CompiledNumericModel)
