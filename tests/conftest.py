@@ -117,6 +117,20 @@ HEAVY = {"test_docs.py", "test_docs_offline.py", "test_cli.py", "test_iftomm.py"
 QUICK = os.environ.get("APPELL_QUICK") == "1"
 
 
+def pytest_ignore_collect(collection_path, config):
+    """In a pass of scripts/test.sh (:data:`PART`), the other pass's modules are not even
+    imported (collecting all 1,500 tests to deselect most of them took the serial pass 10 s);
+    ``--quick`` skips the heavy ones likewise. None: pytest decides as usual."""
+    name = collection_path.name
+    if not (name.startswith("test_") and name.endswith(".py")):
+        return None
+    if PART and (name in SERIAL) != (PART == "serial"):
+        return True
+    if QUICK and name in HEAVY | SERIAL:
+        return True
+    return None
+
+
 def pytest_collection_modifyitems(config, items):
     if PART not in ("", "parallel", "serial"):
         raise pytest.UsageError(f"APPELL_TEST_PART must be 'parallel' or 'serial', got {PART!r}")
