@@ -134,14 +134,7 @@ def pytest_ignore_collect(collection_path, config):
 def pytest_collection_modifyitems(config, items):
     if PART not in ("", "parallel", "serial"):
         raise pytest.UsageError(f"APPELL_TEST_PART must be 'parallel' or 'serial', got {PART!r}")
-    if PART:
-        keep = [i for i in items if (i.path.name in SERIAL) == (PART == "serial")]
-        config.hook.pytest_deselected(items=[i for i in items if i not in keep])
-        items[:] = keep
-    if QUICK:
-        keep = [i for i in items if i.path.name not in HEAVY | SERIAL]
-        config.hook.pytest_deselected(items=[i for i in items if i not in keep])
-        items[:] = keep
+    # the modules of the other pass, and --quick's heavy ones, are not collected (pytest_ignore_collect)
     skip_slow = pytest.mark.skip(reason="a long run: set APPELL_SLOW=1 to run it")
     for item in items:
         if item.path.name not in NOT_NUMERICAL:
