@@ -438,10 +438,8 @@ def test_a05_governor_against_an_independent_lagrangian(governor):
     (Newton's law for the whole; the Lagrangian's accelerations). In compiled code where a
     compiler is found (as `appell simulate` runs it: 9 s against 19 s in NumPy); the NumPy
     route is checked with every method over the first second (below)."""
-    from appell.numerics.codegen.model import find_compiler
-
     derivation, ref, momentum, accelerations, energy = governor
-    sol = appell.simulate(numeric_model(derivation, "c") if find_compiler() else derivation)
+    sol = appell.simulate(numeric_model(derivation, "auto"))
     assert sol.status == 0 and sol["t"][-1] == pytest.approx(10.0)
     mine = np.array([sol[name] for name in GOVERNOR_STATE])
     theirs = ref.sol(sol["t"])

@@ -264,7 +264,7 @@ def printed_equations(derivation, only=None) -> PrintedEquations:
     (:func:`appell.core.simplification.tidy`: small expressions only, so the cost is bounded)."""
     rows = [f for f in equation_formulas(derivation) if only is None or f.item in only]
     exprs = [e for f in rows for e in (f.lhs, f.rhs)]
-    taken = {s.name for s in free_symbols(*map(sp.sympify, exprs))}
+    taken = {s.name for s in free_symbols(*exprs)}
     prefix = next(p for p in ("c", "k", "z", "_c")  # not a model's name (the bicycle's trail c)
                   if not any(n == p or (n.startswith(p) and n[len(p):].isdigit()) for n in taken))
     defs, reduced = block_cse(exprs, symbols=sp.numbered_symbols(prefix, start=1), order="none")
@@ -604,7 +604,7 @@ def json_document(document: dict, derivation) -> dict:
     """
     roles = symbol_roles(derivation)
     exprs = [sp.sympify(e) for e in _expressions(document, [])]
-    symbols = sorted((s for s in free_symbols(*map(sp.sympify, exprs)) if isinstance(s, sp.Symbol)), key=lambda s: s.name)
+    symbols = sorted((s for s in free_symbols(*exprs) if isinstance(s, sp.Symbol)), key=lambda s: s.name)
     table = {}
     for s in symbols:
         if s.name in table:

@@ -46,13 +46,11 @@ def cached(derivation, backend: str, build):
     """``build()`` for ``(derivation, backend)``, kept for the :data:`KEEP` most recently used
     derivations. The entry holds the derivation itself, so its ``id`` cannot be reused while
     the entry lives."""
-    key = id(derivation)
-    with _lock:
-        entry = _models.get(key)
-        if entry is not None and entry[0] is derivation and backend in entry[1]:
-            _models.move_to_end(key)
-            return entry[1][backend]
+    model = _kept(derivation, backend)
+    if model is not None:
+        return model
     model = build()
+    key = id(derivation)
     with _lock:
         entry = _models.get(key)
         if entry is None or entry[0] is not derivation:
@@ -63,6 +61,16 @@ def cached(derivation, backend: str, build):
         while len(_models) > KEEP:
             _models.popitem(last=False)
     return model
+
+
+def _kept(derivation, backend: str):
+    """The model kept for ``(derivation, backend)`` (marked most recently used), or None."""
+    with _lock:
+        entry = _models.get(id(derivation))
+        if entry is None or entry[0] is not derivation or backend not in entry[1]:
+            return None
+        _models.move_to_end(id(derivation))
+        return entry[1][backend]
 
 
 def forget(derivation=None) -> None:
@@ -104,11 +112,9 @@ def _plain(derivation: Derivation, backend: str | None = None):
     if backend == "auto":
         # kept under 'c' when it compiled, so that 'auto' and 'c' share one library; a fallback
         # to NumPy is not kept (its warning is given at every call, and a compiler may come)
-        with _lock:
-            entry = _models.get(id(derivation))
-            if entry is not None and entry[0] is derivation and "c" in entry[1]:
-                _models.move_to_end(id(derivation))
-                return entry[1]["c"]
+        model = _kept(derivation, "c")
+        if model is not None:
+            return model
         model = build()
         if _compiled(model):
             model = cached(derivation, "c", lambda: model)

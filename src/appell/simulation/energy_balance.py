@@ -242,6 +242,7 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     """
     from scipy.integrate import solve_ivp
 
+    from appell.numerics.linearise import motion_jacobian
     from appell.simulation.initial import complete_initial
 
     if method not in ("DOP853", "Radau", "auto"):
@@ -257,8 +258,6 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     y0 = complete_initial(model, initial, t=t0, params=pv).y
     nq, n = len(model.coordinate_names), len(model.speed_names)
     balance = _Balance(derivation, form)
-    from appell.numerics.linearise import motion_jacobian
-
     motion = motion_jacobian(model) if method in ("auto", "Radau") else None  # formed once for both uses
     if method == "auto":
         method = "Radau" if stiffness(motion, t0, y0[:nq + n], pv) * (t_end - t0) > STIFF_DECAYS else "DOP853"
