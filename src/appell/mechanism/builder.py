@@ -39,6 +39,7 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import AppellNote, ModelError
+from appell.mechanism.couplings import gear_mesh, rack_mesh
 from appell.mechanism.joints import JointMotion, joint_motion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew, unit_axis
 from appell.rigid_tree import RigidTree, TreeNode, Wrench
@@ -292,6 +293,7 @@ class Mechanism:
         self._names: dict[str, str] = {GROUND: "body"}
         self._shapes: list[tuple] = []  # (body, kind, sizes, origin, rotation, colour, mesh): the view
         self._marks: list[tuple[Body, sp.Matrix]] = []  # body points of closures and loads (the view's bars)
+        self._couplings: dict[str, Body] = {}  # tooth meshes: the body whose tooth force is an output
 
     # ------------------------------------------------------------ naming
     def _claim(self, name, kind: str) -> str:
@@ -675,6 +677,51 @@ class Mechanism:
 
         self._closures.append(_Closure(name, build))
 
+    def _mesh(self, name, ja, jb, mesh_of, what):
+        """A tooth mesh (:mod:`appell.mechanism.couplings`) as a closure: the row
+        ``<name> = c_a q_a - c_b q_b``; the tooth force ``f_A`` on the child of ``ja`` at the
+        pitch point and ``-f_A`` on the child of ``jb``, so that their bearings and guides
+        carry it (the outputs ``F_<name>_x .. _z``: the force on the child of ``jb``)."""
+        self._claim(name, "coupling")
+        ja, jb = self._joint(ja, what), self._joint(jb, what)
+        mesh = mesh_of(ja, jb)
+        housing = ja.parent
+        self._couplings[name] = jb.child
+
+        def build(frames):
+            h = frames[housing]
+            P = h.p + h.R * mesh.pitch_point
+            c = holonomic(name, mesh.row(ja.coordinates[0], jb.coordinates[0]))
+            f = h.R * mesh.force_on_pinion(sp.Symbol(f"lambda_{name}"))
+            return [c], [_Action(ja.child, P, f, sp.zeros(3, 1)), _Action(jb.child, P, -f, sp.zeros(3, 1))]
+
+        self._closures.append(_Closure(name, build))
+
+    def gear(self, name, joint_a, joint_b, ratio, internal=False, pressure_angle=0, helix_angle=0):
+        """Two gears on the revolute joints ``joint_a`` and ``joint_b`` (parallel axes, mounted
+        in the same body) mesh: ``ratio = r_b / r_a`` (teeth of b over teeth of a), the pitch
+        radii from the joints' centre distance ``d``, ``r_a = d / (1 + ratio)`` (``internal``:
+        b is a ring gear, ``r_a = d / (ratio - 1)``); they mesh in the plane of ``joint_a``'s
+        origin. The holonomic row ``<name>`` and its tooth force at the pitch point along the
+        line of action (``pressure_angle``, ``helix_angle`` in radians):
+        :mod:`appell.mechanism.couplings`. ``lambda_<name>`` is the tangential tooth force on
+        the gear of ``joint_a``; each joint's reaction is its bearing load."""
+        what = f"gear {name!r}"
+        self._mesh(name, joint_a, joint_b, lambda ja, jb: gear_mesh(what, ja, jb, ratio, bool(internal),
+                                                                     pressure_angle, helix_angle), what)
+
+    def rack_pinion(self, name, pinion, rack, radius, pressure_angle=0, helix_angle=0):
+        """A pinion on the revolute joint ``pinion`` (pitch radius ``radius``) drives a rack on
+        the prismatic joint ``rack`` (normal to the pinion's axis, mounted in the same body):
+        the holonomic row ``<name> = r theta - (t . u) s`` and its tooth force at the pitch
+        point, on the side of the pinion facing the rack's line (through the rack joint's
+        origin), along the line of action: :mod:`appell.mechanism.couplings`.
+        ``lambda_<name>`` is the tangential tooth force on the pinion; the rack joint's
+        reaction is the guide's load."""
+        what = f"rack and pinion {name!r}"
+        self._mesh(name, pinion, rack, lambda ja, jb: rack_mesh(what, ja, jb, radius, pressure_angle, helix_angle),
+                   what)
+
     # ------------------------------------------------------------ loads
     def force(self, name, point, vector):
         """A force ``vector`` (world axes; expressions in t, q, speeds, parameters) at the body
@@ -704,7 +751,10 @@ class Mechanism:
 
     def spring(self, name, a, b, stiffness, rest_length=0, damping=0):
         """A spring-damper between the points ``a = (body_a, r_a)`` and ``b``: tension
-        ``k (l - l0) + c dl/dt`` pulling them together (``l`` their distance)."""
+        ``k (l - l0) + c dl/dt`` pulling them together (``l`` their distance). With the rest
+        length ``l0 = 0`` (a centring spring, a bushing's translation) the force on ``a`` is
+        ``-k d - c (v_a - v_b)``, ``d = r_A - r_B``: defined where the ends meet, where the
+        direction of the spring is not."""
         self._claim(name, "load")
         what = f"spring {name!r}"
         (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
@@ -716,9 +766,12 @@ class Mechanism:
             pa, va, _ = frames[ba].point(ra)
             pb, vb, _ = frames[bb].point(rb)
             d = pa - pb
-            length = sp.sqrt(d.dot(d))
-            tension = k * (length - l0) + c * d.dot(va - vb) / length
-            f = -tension * d / length  # on a
+            if l0 == 0:
+                f = -k * d - c * (va - vb)  # on a
+            else:
+                length = sp.sqrt(d.dot(d))
+                tension = k * (length - l0) + c * d.dot(va - vb) / length
+                f = -tension * d / length  # on a
             loads = [AppliedForce(f, position=pa, velocity=va, name=f"{name}_a"),
                      AppliedForce(-f, position=pb, velocity=vb, name=f"{name}_b")]
             return loads, [_Action(ba, pa, f, sp.zeros(3, 1)), _Action(bb, pb, -f, sp.zeros(3, 1))]
@@ -953,6 +1006,7 @@ class Mechanism:
             params = [Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description) for p in params]
         reaction_groups = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit))
         reaction_outputs = [o for _, _, outs in reaction_groups for o in outs]
+        reaction_outputs += self._tooth_outputs(reactions, contact_forces, force_unit)
         acted = {act.body for act in actions}
         wrenches = tuple(Wrench(j.child.name, None if body is None else body.name, tuple(o.name for o in outs),
                                 tuple(o.expr for o in outs))
@@ -1070,10 +1124,27 @@ class Mechanism:
                 up = tuple(-x for x in g)
         return View(tuple(bodies), tuple(arrows), up=up, joints=tuple(joints))
 
+    def _tooth_outputs(self, reactions, contact_forces, force_unit) -> list[Output]:
+        """``F_<coupling>_x .. _z``: the tooth force of each gear or rack coupling on the body of
+        its second joint, at the pitch point (world axes), where ``reactions`` asks for it."""
+        if reactions is None:
+            return []
+        wanted = self._couplings if reactions == "all" else [n for n in reactions if n in self._couplings]
+        outs = []
+        for name, acts in contact_forces:
+            if name in wanted:
+                on = self._couplings[name]
+                f = sum((a.force for a in acts if a.body is on), sp.zeros(3, 1))
+                outs += [Output(f"F_{name}_{axis}", e, force_unit,
+                                f"tooth force on {on.name} of coupling {name} at the pitch point, {axis} (world axes)")
+                         for axis, e in zip("xyz", f)]
+        return outs
+
     def _reaction_outputs(self, reactions, frame, frames, actions, force_unit, moment_unit):
         if reactions is None:
             return
-        joints = self.joints if reactions == "all" else [self._joint(n, "reactions") for n in reactions]
+        joints = self.joints if reactions == "all" else [self._joint(n, "reactions") for n in reactions
+                                                         if n not in self._couplings]
         axes = {}
         for k, v in (frame or {}).items():
             axes[self._joint(k, "frame").name] = self._body(v, f"frame of joint {k!r}")

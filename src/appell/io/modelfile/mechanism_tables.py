@@ -34,7 +34,12 @@ CLOSURE_KEYS = {
     "rolling_disc": ("name", "type", "body", "radius", "axis", "normal", "height"),
     "rolling_sphere": ("name", "type", "body", "radius", "normal", "height"),
     "no_lateral_slip": ("name", "type", "body", "point", "direction"),
+    "gear": ("name", "type", "joint_a", "joint_b", "ratio", "internal", "pressure_angle", "helix_angle"),
+    "rack_pinion": ("name", "type", "pinion", "rack", "radius", "pressure_angle", "helix_angle"),
 }
+#: keys of a closure that may be left out
+CLOSURE_OPTIONAL = ("directions", "axis", "axis_b", "normal", "height", "rpy", "internal", "pressure_angle",
+                    "helix_angle")
 LOAD_KEYS = {
     "force": ("name", "type", "body", "point", "vector"),
     "torque": ("name", "type", "body", "vector"),
@@ -96,6 +101,24 @@ def _kind(r, path, item, kinds):
     if kind not in kinds:
         raise r.error(path + ("type",), f"unknown type {kind!r}", hint="type is one of " + ", ".join(map(repr, kinds)))
     return kind
+
+
+def _mesh(r, path, item, kind, cname, mech):
+    """A ``[[closures]]`` entry of type ``gear`` (``joint_a``, ``joint_b``, ``ratio``,
+    ``internal``) or ``rack_pinion`` (``pinion``, ``rack``, ``radius``), with the optional
+    ``pressure_angle`` and ``helix_angle`` (radians)."""
+    kw = {k: r.expr(path + (k,), item[k], "state") for k in ("pressure_angle", "helix_angle") if k in item}
+    if kind == "gear":
+        internal = item.get("internal", False)
+        if not isinstance(internal, bool):
+            raise r.error(path + ("internal",), "must be true or false", hint="internal = true for a ring gear")
+        joints = (r.string(path + ("joint_a",), item["joint_a"]), r.string(path + ("joint_b",), item["joint_b"]))
+        _call(r, path, mech.gear, cname, *joints, r.expr(path + ("ratio",), item["ratio"], "state"),
+              internal=internal, **kw)
+    else:
+        joints = (r.string(path + ("pinion",), item["pinion"]), r.string(path + ("rack",), item["rack"]))
+        _call(r, path, mech.rack_pinion, cname, *joints, r.expr(path + ("radius",), item["radius"], "state"), **kw)
+    mech.locate(cname, r.where(path + ("name",)))
 
 
 def build_mechanism(r, top: dict, base: Path):
@@ -190,8 +213,11 @@ def build_mechanism(r, top: dict, base: Path):
         path = ("closures", i)
         kind = _kind(r, path, item, tuple(CLOSURE_KEYS))
         r.table(path, item, CLOSURE_KEYS[kind], required=("name",) + tuple(
-            k for k in CLOSURE_KEYS[kind][2:] if k not in ("directions", "axis", "axis_b", "normal", "height", "rpy")))
+            k for k in CLOSURE_KEYS[kind][2:] if k not in CLOSURE_OPTIONAL))
         cname = r.name(path + ("name",), item["name"], "closure")
+        if kind in ("gear", "rack_pinion"):
+            _mesh(r, path, item, kind, cname, mech)
+            continue
         if kind in ("connect", "weld", "revolute"):
             a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
             b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
