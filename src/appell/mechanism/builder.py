@@ -44,7 +44,7 @@ from appell.mechanism.joints import JointMotion, joint_motion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew, unit_axis
 from appell.rigid_tree import RigidTree, TreeNode, Wrench
 from appell.model import (AppliedForce, AppliedTorque, Control, Output, Parameter, Particle, RigidBody,
-                          System, holonomic, nonholonomic)
+                          System, acceleration_constraint, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
 from appell.view import SHAPES, Shape, View, ViewArrow, ViewBody, ViewJoint, equivalent_box
 
@@ -294,6 +294,7 @@ class Mechanism:
         self._shapes: list[tuple] = []  # (body, kind, sizes, origin, rotation, colour, mesh): the view
         self._marks: list[tuple[Body, sp.Matrix]] = []  # body points of closures and loads (the view's bars)
         self._couplings: dict[str, Body] = {}  # tooth meshes: the body whose tooth force is an output
+        self._drives: list[tuple[str, bool]] = []  # (drive, rotational): its effort is an output
 
     # ------------------------------------------------------------ naming
     def _claim(self, name, kind: str) -> str:
@@ -400,7 +401,19 @@ class Mechanism:
                 raise ModelError(f"{what}: joining {parent.name!r} to {child.name!r} makes a cycle of joints",
                                  hint="the joints form a tree; close loops with mech.connect")
             up = j.parent
-        k = unit_axis(axis, what) if axis is not None else None
+        if kind == "universal":
+            k = tuple(unit_axis(a, f"{what}: axis {i}") for i, a in enumerate(axis, start=1))
+            if not identically_zero(k[0].dot(k[1])):
+                raise ModelError(f"{what}: the axes {_text(k[0])} and {_text(k[1])} are not perpendicular "
+                                 f"(cos = {_text(k[0].dot(k[1]))})",
+                                 hint="a Hooke joint's cross has perpendicular arms, e.g. axes (1, 0, 0) and (0, 1, 0)")
+        elif kind == "screw":
+            k = (unit_axis(axis[0], what), _real(axis[1], f"{what}: pitch"))
+            if k[1].is_number and k[1] == 0:
+                raise ModelError(f"{what}: the pitch is 0", hint="a screw of pitch 0 is a revolute joint; give the "
+                                 "advance per turn, e.g. pitch=0.005")
+        else:
+            k = unit_axis(axis, what) if axis is not None else None
         motion = joint_motion(name, kind, k, coordinate, rotation)
         self._claim(name, "joint")
         for q in motion.coordinates:
@@ -440,6 +453,27 @@ class Mechanism:
         """Motion in the joint frame's x-y plane: ``<name>_x``, ``<name>_y`` (translation, joint
         axes), then ``<name>_rz`` (rotation about z)."""
         return self._add_joint("planar", name, parent, child, None, origin, rpy, child_origin, coordinates)
+
+    def screw(self, name, parent, child, pitch, axis=(0, 0, 1), origin=(0, 0, 0), rpy=(0, 0, 0),
+              child_origin=(0, 0, 0), coordinate=None) -> Joint:
+        """A screw (a lead screw and its nut): the child turns by the coordinate ``q`` about the
+        unit ``axis`` and advances ``pitch q / (2 pi)`` along it (``pitch``: the advance per
+        turn, negative for a left-hand thread). Ideal threads do no work: the reaction's
+        force ``F`` and moment ``M`` along the axis satisfy ``M.k + pitch / (2 pi) F.k = Q``
+        (``Q`` an actuator's torque on the coordinate)."""
+        return self._add_joint("screw", name, parent, child, (axis, pitch), origin, rpy, child_origin, coordinate)
+
+    def universal(self, name, parent, child, axes=((1, 0, 0), (0, 1, 0)), origin=(0, 0, 0), rpy=(0, 0, 0),
+                  child_origin=(0, 0, 0), coordinates=None) -> Joint:
+        """A universal (Hooke, Cardan) joint: the child turns by ``<name>_r1`` about the unit
+        ``axes[0]`` (joint frame, fixed in the parent) and by ``<name>_r2`` about ``axes[1]``
+        (the cross's other arm, normal to the first, fixed in the child):
+        ``R_m = R(k1, q1) R(k2, q2)`` (:mod:`appell.mechanism.joints`). Two coordinates; its
+        reaction has four working rows (the force, and the moment normal to both arms)."""
+        if not isinstance(axes, (tuple, list)) or len(axes) != 2:
+            raise ModelError(f"universal joint {name!r}: axes must be two unit vectors, got {axes!r}",
+                             hint="e.g. axes=((1, 0, 0), (0, 1, 0))")
+        return self._add_joint("universal", name, parent, child, tuple(axes), origin, rpy, child_origin, coordinates)
 
     def spherical(self, name, parent, child, origin=(0, 0, 0), rpy=(0, 0, 0), child_origin=(0, 0, 0),
                   rotation="xyz", coordinates=None) -> Joint:
@@ -722,6 +756,75 @@ class Mechanism:
         self._mesh(name, pinion, rack, lambda ja, jb: rack_mesh(what, ja, jb, radius, pressure_angle, helix_angle),
                    what)
 
+    def distance(self, name, a, b, length):
+        """The points ``a = (body_a, r_a)`` and ``b = (body_b, r_b)`` keep the distance
+        ``length`` (a number, a parameter or an expression in ``t``: a driven distance, a
+        linear actuator): the holonomic ``<name> = |d| - L``, ``d = r_A - r_B``;
+        ``lambda_<name>`` is the force of b on a along ``d / |d|`` (positive pushes them
+        apart; a linear actuator's force), its opposite on b. ``L`` must not vanish (the
+        direction is undefined there: join coinciding points with :meth:`connect`)."""
+        self._claim(name, "closure")
+        what = f"distance {name!r}"
+        (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
+        if ba is bb:
+            raise ModelError(f"{what}: both points are on body {ba.name!r}", hint="join two different bodies")
+        L = _real(length, f"{what}: length")
+        if L.is_number and not L > 0:
+            raise ModelError(f"{what}: the length is {L}; a distance must be positive",
+                             hint="join coinciding points with connect(...)")
+        self._marks += [(ba, ra), (bb, rb)]
+
+        def build(frames):
+            pa, pb = frames[ba].point(ra)[0], frames[bb].point(rb)[0]
+            d = pa - pb
+            length_now = sp.sqrt(d.dot(d))
+            f = d / length_now * sp.Symbol(f"lambda_{name}")
+            return [holonomic(name, length_now - L)], [_Action(ba, pa, f, sp.zeros(3, 1)),
+                                                       _Action(bb, pb, -f, sp.zeros(3, 1))]
+
+        self._closures.append(_Closure(name, build))
+
+    def drive(self, name, joint, position=None, speed=None, acceleration=None, coordinate=None):
+        """A joint drive: the joint coordinate ``q`` (``coordinate``; the joint's only one by
+        default) follows a prescribed ``position`` (holonomic ``<name> = q - f(t)``), ``speed``
+        (first order ``q' - v(t)``) or ``acceleration`` (second order ``q'' - a(t)``),
+        expressions in ``t`` and the parameters (exactly one of them). Its multiplier
+        ``lambda_<name>``, by its own formula (1.5), is the drive's force or torque along the
+        coordinate (the output ``<name>_effort``); it acts in the joint like an actuator (the
+        joint's reaction includes it)."""
+        self._claim(name, "drive")
+        what = f"drive {name!r}"
+        given = [(k, v) for k, v in (("position", position), ("speed", speed), ("acceleration", acceleration))
+                 if v is not None]
+        if len(given) != 1:
+            raise ModelError(f"{what}: give exactly one of position, speed, acceleration (got "
+                             f"{', '.join(k for k, _ in given) or 'none'})", hint="e.g. speed='v*t'")
+        kind, value = given[0]
+        j = self._joint(joint, what)
+        q = self._coordinate(j, coordinate, what)
+        value = _real(value, f"{what}: {kind}")
+        if kind == "position":
+            c = holonomic(name, q - value)
+        elif kind == "speed":
+            c = nonholonomic(name, derivative_symbol(q) - value)
+        else:
+            c = acceleration_constraint(name, derivative_symbol(q, 2) - value)
+        rotational = j.motion.translation.diff(q) == sp.zeros(3, 1)
+        self._drives.append((name, rotational))
+        self._closures.append(_Closure(name, lambda frames: ([c], [])))
+
+    def _coordinate(self, j: Joint, coordinate, what: str) -> sp.Symbol:
+        if coordinate is None:
+            if len(j.coordinates) != 1:
+                raise ModelError(f"{what}: joint {j.name!r} has {len(j.coordinates)} coordinates",
+                                 hint="name one: coordinate=" + " or ".join(repr(q.name) for q in j.coordinates))
+            return j.coordinates[0]
+        q = next((s for s in j.coordinates if s.name == str(coordinate)), None)
+        if q is None:
+            raise ModelError(f"{what}: joint {j.name!r} has no coordinate {coordinate!r}",
+                             hint="coordinates: " + ", ".join(s.name for s in j.coordinates))
+        return q
+
     # ------------------------------------------------------------ loads
     def force(self, name, point, vector):
         """A force ``vector`` (world axes; expressions in t, q, speeds, parameters) at the body
@@ -785,16 +888,7 @@ class Mechanism:
         constraints). Returns the control's symbol (or ``value``)."""
         self._claim(name, "actuator")
         j = self._joint(joint, f"actuator {name!r}")
-        if coordinate is None:
-            if len(j.coordinates) != 1:
-                raise ModelError(f"actuator {name!r}: joint {j.name!r} has {len(j.coordinates)} coordinates",
-                                 hint="name one: coordinate=" + " or ".join(repr(q.name) for q in j.coordinates))
-            q = j.coordinates[0]
-        else:
-            q = next((s for s in j.coordinates if s.name == str(coordinate)), None)
-            if q is None:
-                raise ModelError(f"actuator {name!r}: joint {j.name!r} has no coordinate {coordinate!r}",
-                                 hint="coordinates: " + ", ".join(s.name for s in j.coordinates))
+        q = self._coordinate(j, coordinate, f"actuator {name!r}")
         sym = sp.Symbol(name)
         self._actuators.append((name, j, q, None if value is None else sp.sympify(value)))
         return sym if value is None else sp.sympify(value)
@@ -1007,6 +1101,9 @@ class Mechanism:
         reaction_groups = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit))
         reaction_outputs = [o for _, _, outs in reaction_groups for o in outs]
         reaction_outputs += self._tooth_outputs(reactions, contact_forces, force_unit)
+        reaction_outputs += [Output(f"{n}_effort", sp.Symbol(f"lambda_{n}"), moment_unit if turn else force_unit,
+                                    f"{'torque' if turn else 'force'} of drive {n} along its coordinate")
+                             for n, turn in self._drives if reactions is not None]
         acted = {act.body for act in actions}
         wrenches = tuple(Wrench(j.child.name, None if body is None else body.name, tuple(o.name for o in outs),
                                 tuple(o.expr for o in outs))
@@ -1113,7 +1210,8 @@ class Mechanism:
             m, axis = j.motion, ""
             if len(m.coordinates) == 1:
                 q = m.coordinates[0]
-                k = m.angular_velocity.diff(derivative_symbol(q)) if j.kind == "revolute" else m.translation.diff(q)
+                k = m.angular_velocity.diff(derivative_symbol(q)) if j.kind in ("revolute", "screw") else \
+                    m.translation.diff(q)
                 axis = _text(k)
             joints.append(ViewJoint(j.name, j.kind, j.parent.name, j.child.name, _text(j.origin), axis,
                                     ", ".join(q.name for q in m.coordinates)))

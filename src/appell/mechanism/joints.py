@@ -9,6 +9,11 @@ The motion is given in ``J`` by
 * ``angular_velocity`` ``omega_rel`` of ``J'`` relative to ``J`` in ``J'`` axes, linear in
   the joint's speeds.
 
+A screw joint turns by ``q`` about ``k`` and advances ``p q / (2 pi)`` along it (``p``, the
+pitch: the advance per turn). A universal (Hooke) joint turns by ``q1`` about ``k1`` (fixed in ``J``) and then by ``q2``
+about ``k2`` (normal to ``k1``, fixed in ``J'``): ``R_m = R(k1, q1) R(k2, q2)``,
+``omega_rel = R(k2, q2)^T k1 q1' + k2 q2'`` (singular nowhere: the cross's arms stay normal).
+
 Every joint's speeds are its coordinates' derivatives ``<coordinate>_dot``; a
 quaternion's four rates with the unit-norm holonomic constraint ``(q.q - 1)/2 = 0`` named
 ``<joint>_unit`` (:mod:`appell.mechanism.rotations`).
@@ -26,7 +31,7 @@ from appell.mechanism.rotations import (axis_rotation, basic_rotation, check_seq
 from appell.symbols import derivative_symbol
 
 #: the kinds of joints and their number of coordinates (quaternions: 4)
-KINDS = ("revolute", "prismatic", "fixed", "cylindrical", "planar", "spherical", "free")
+KINDS = ("revolute", "prismatic", "fixed", "cylindrical", "planar", "spherical", "free", "universal", "screw")
 
 
 @dataclass(frozen=True)
@@ -100,6 +105,16 @@ def joint_motion(joint: str, kind: str, axis: sp.Matrix | None, coordinate=None,
         x, y, phi = _names(joint, (f"{joint}_x", f"{joint}_y", f"{joint}_rz"), coordinate, kind)
         return JointMotion((x, y, phi), basic_rotation("z", phi), sp.Matrix([x, y, 0]),
                            sp.Matrix([0, 0, derivative_symbol(phi)]))
+    if kind == "screw":  # axis = (k, pitch): a turn q advances pitch q / (2 pi) along k
+        k, pitch = axis
+        (q,) = _names(joint, (joint,), coordinate, kind)
+        return JointMotion((q,), axis_rotation(k, q), k * (pitch * q / (2 * sp.pi)), k * derivative_symbol(q))
+    if kind == "universal":  # axis = (k1, k2): k1 fixed in the parent, k2 (normal to k1) in the child
+        k1, k2 = axis
+        q1, q2 = _names(joint, (f"{joint}_r1", f"{joint}_r2"), coordinate, kind)
+        R2 = axis_rotation(k2, q2)
+        return JointMotion((q1, q2), axis_rotation(k1, q1) * R2, zero,
+                           R2.T * k1 * derivative_symbol(q1) + k2 * derivative_symbol(q2))
     if kind == "spherical":
         q, R, w, cons, defaults = rotation_motion(joint, rotation, coordinate)
         return JointMotion(q, R, zero, w, cons, defaults)

@@ -23,9 +23,11 @@ MECHANISM_TABLES = ("model", "mechanism", "parameters", "bodies", "joints", "clo
                     "constraints", "controls", "servo_constraints", "simulation", "stability", "units", "outputs")
 BODY_KEYS = ("name", "mass", "inertia", "com", "particle")
 JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed",
-               "cylindrical": "cylindrical", "planar": "planar", "spherical": "spherical", "free": "free"}
-JOINT_KEYS = ("name", "type", "parent", "child", "axis", "origin", "rpy", "child_origin", "coordinate",
-              "coordinates", "rotation")
+               "cylindrical": "cylindrical", "planar": "planar", "spherical": "spherical", "free": "free",
+               "universal": "universal", "screw": "screw"}
+JOINT_KEYS = ("name", "type", "parent", "child", "axis", "axes", "pitch", "origin", "rpy", "child_origin", "coordinate",
+              "coordinates", "rotation", "drive", "drive_type")
+DRIVE_TYPES = ("position", "speed", "acceleration")
 CLOSURE_KEYS = {
     "connect": ("name", "type", "body_a", "point_a", "body_b", "point_b", "directions"),
     "weld": ("name", "type", "body_a", "point_a", "body_b", "point_b", "rpy"),
@@ -34,6 +36,7 @@ CLOSURE_KEYS = {
     "rolling_disc": ("name", "type", "body", "radius", "axis", "normal", "height"),
     "rolling_sphere": ("name", "type", "body", "radius", "normal", "height"),
     "no_lateral_slip": ("name", "type", "body", "point", "direction"),
+    "distance": ("name", "type", "body_a", "point_a", "body_b", "point_b", "length"),
     "gear": ("name", "type", "joint_a", "joint_b", "ratio", "internal", "pressure_angle", "helix_angle"),
     "rack_pinion": ("name", "type", "pinion", "rack", "radius", "pressure_angle", "helix_angle"),
 }
@@ -101,6 +104,20 @@ def _kind(r, path, item, kinds):
     if kind not in kinds:
         raise r.error(path + ("type",), f"unknown type {kind!r}", hint="type is one of " + ", ".join(map(repr, kinds)))
     return kind
+
+
+def _drive(r, path, item, jname, mech):
+    """A joint's ``drive = "expression in t"`` (``drive_type``: ``position``, the default,
+    ``speed`` or ``acceleration``): :meth:`Mechanism.drive` named ``<joint>_drive``."""
+    if "drive" not in item:
+        raise r.error(path + ("drive_type",), "drive_type without drive", hint="e.g. drive = \"v*t\"")
+    kind = r.string(path + ("drive_type",), item["drive_type"]) if "drive_type" in item else "position"
+    if kind not in DRIVE_TYPES:
+        raise r.error(path + ("drive_type",), f"unknown drive_type {kind!r}",
+                      hint="drive_type is one of " + ", ".join(map(repr, DRIVE_TYPES)))
+    value = r.expr(path + ("drive",), item["drive"], "time")
+    _call(r, path + ("drive",), mech.drive, f"{jname}_drive", jname, **{kind: value})
+    mech.locate(f"{jname}_drive", r.where(path + ("drive",)))
 
 
 def _mesh(r, path, item, kind, cname, mech):
@@ -197,17 +214,32 @@ def build_mechanism(r, top: dict, base: Path):
         child = _body_ref(r, path + ("child",), item["child"], mech)
         kw = {k: _vector(r, path + (k,), item[k]) for k in ("origin", "rpy", "child_origin") if k in item}
         if "axis" in item:
-            if JOINT_TYPES[kind] not in ("revolute", "prismatic", "cylindrical"):
+            if JOINT_TYPES[kind] not in ("revolute", "prismatic", "cylindrical", "screw"):
                 raise r.error(path + ("axis",), f"a {kind} joint has no axis")
             kw["axis"] = _vector(r, path + ("axis",), item["axis"])
+        if "axes" in item:  # a universal joint's two arms
+            if JOINT_TYPES[kind] != "universal":
+                raise r.error(path + ("axes",), f"a {kind} joint has no axes", hint="give axis = [...] instead")
+            value = item["axes"]
+            if not isinstance(value, list) or len(value) != 2:
+                raise r.error(path + ("axes",), "axes are two unit vectors", hint="e.g. axes = [[1, 0, 0], [0, 1, 0]]")
+            kw["axes"] = tuple(_vector(r, path + ("axes", k), v) for k, v in enumerate(value))
         if "coordinate" in item:
             kw["coordinate"] = r.name(path + ("coordinate",), item["coordinate"], "coordinate")
         if "coordinates" in item:
             kw["coordinates"] = r.names(path + ("coordinates",), item["coordinates"], "coordinate")
         if "rotation" in item:
             kw["rotation"] = r.string(path + ("rotation",), item["rotation"])
+        if JOINT_TYPES[kind] == "screw":
+            if "pitch" not in item:
+                raise r.error(path, "missing key 'pitch'", hint="a screw's advance per turn, e.g. pitch = 0.005")
+            kw["pitch"] = r.expr(path + ("pitch",), item["pitch"], "state")
+        elif "pitch" in item:
+            raise r.error(path + ("pitch",), f"a {kind} joint has no pitch", hint="pitch belongs to type = \"screw\"")
         method = getattr(mech, JOINT_TYPES[kind])
         _call(r, path, method, jname, parent, child, **kw)
+        if "drive" in item or "drive_type" in item:
+            _drive(r, path, item, jname, mech)
 
     for i, item in enumerate(_items(r, top, "closures")):
         path = ("closures", i)
@@ -217,6 +249,12 @@ def build_mechanism(r, top: dict, base: Path):
         cname = r.name(path + ("name",), item["name"], "closure")
         if kind in ("gear", "rack_pinion"):
             _mesh(r, path, item, kind, cname, mech)
+            continue
+        if kind == "distance":
+            a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
+            b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
+            _call(r, path, mech.distance, cname, a, b, r.expr(path + ("length",), item["length"], "time"))
+            mech.locate(cname, r.where(path + ("name",)))
             continue
         if kind in ("connect", "weld", "revolute"):
             a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
