@@ -881,6 +881,87 @@ class Mechanism:
 
         self._forces.append((name, build))
 
+    def _pair_loads(self, name, ba, ra, bb, rb, frames, f_b, tau_b):
+        """Model loads and actions of a force ``f_b`` at ``b``'s point and a torque ``tau_b`` on
+        ``b`` (world axes) with their reaction on ``a``: ``-f_b`` at ``a``'s point and
+        ``-tau_b - (r_B - r_A) x f_b`` (equal, opposite and of zero total moment)."""
+        fa, fb = frames[ba], frames[bb]
+        pa, va, _ = fa.point(ra)
+        pb, vb, _ = fb.point(rb)
+        tau_a = -tau_b - _cross(pb - pa, f_b)
+        loads = [AppliedForce(f_b, position=pb, velocity=vb, name=f"{name}_b"),
+                 AppliedForce(-f_b, position=pa, velocity=va, name=f"{name}_a")]
+        acts = [_Action(bb, pb, f_b, tau_b), _Action(ba, pa, -f_b, tau_a)]
+        for body, frame, tau in ((bb, fb, tau_b), (ba, fa, tau_a)):
+            if any(x != 0 for x in tau) and body is not self.ground:
+                loads.append(AppliedTorque(frame.R.T * tau, frame.omega, name=f"{name}_{body.name}"))
+        return loads, acts
+
+    def force_pair(self, name, a, b, force=(0, 0, 0), torque=(0, 0, 0), axes="world"):
+        """A general force element between two markers ``a = (body_a, r_a)`` and ``b``: the
+        force ``force`` at b's point and the torque ``torque`` on body_b (expressions in t, the
+        coordinates, speeds and parameters; components along the world axes, or along
+        body_a's with ``axes="a"``), and on body_a their reaction: ``-force`` at a's point and
+        ``-torque - (r_B - r_A) x force``."""
+        self._claim(name, "load")
+        what = f"force element {name!r}"
+        (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
+        if ba is bb:
+            raise ModelError(f"{what}: both markers are on body {ba.name!r}", hint="join two different bodies")
+        if axes not in ("world", "a"):
+            raise ModelError(f"{what}: axes {axes!r} must be 'world' or 'a'")
+        self._marks += [(ba, ra), (bb, rb)]
+        f, tau = _matrix(force, f"{what}: force"), _matrix(torque, f"{what}: torque")
+
+        def build(frames):
+            R = frames[ba].R if axes == "a" else sp.eye(3)
+            return self._pair_loads(name, ba, ra, bb, rb, frames, R * f, R * tau)
+
+        self._forces.append((name, build))
+
+    def bushing(self, name, a, b, stiffness, damping=(0, 0, 0), rotational_stiffness=(0, 0, 0),
+                rotational_damping=(0, 0, 0), rotation=None):
+        """A bushing: a six-component linear spring-damper between the frame ``A`` at the
+        marker ``a = (body_a, r_a)`` (axes ``R_A = R_a R_0``, ``rotation``: ``R_0``, 3x3 or
+        roll-pitch-yaw, default the body's axes) and the frame ``B`` at the marker ``b`` on
+        body_b (axes ``R_B = R_b R_0``: at rest where the bodies' axes agree). In A's axes,
+        with ``d = R_A^T (r_B - r_A)``, its rate
+        ``d' = R_A^T (v_B - v_A - w_a x (r_B - r_A))``, ``theta = vex(R - R^T) / 2`` of
+        ``R = R_A^T R_B`` (the rotation angle's sine along its axis) and
+        ``omega = R_A^T (w_b - w_a)``: the force on b ``f = -K d - C d'`` and the torque
+        ``tau = -K_r theta - C_r omega`` (K, C, K_r, C_r: three diagonal entries or 3x3),
+        on a their reaction (:meth:`force_pair`)."""
+        self._claim(name, "load")
+        what = f"bushing {name!r}"
+        (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
+        if ba is bb:
+            raise ModelError(f"{what}: both markers are on body {ba.name!r}", hint="join two different bodies")
+        self._marks += [(ba, ra), (bb, rb)]
+
+        def gains(value, key):
+            m = sp.Matrix(value)
+            return sp.diag(*_matrix(value, f"{what}: {key}")) if m.shape in ((3, 1), (1, 3)) else \
+                _matrix(value, f"{what}: {key}", shape=(3, 3))
+
+        K, C, Kr, Cr = (gains(v, k) for v, k in ((stiffness, "stiffness"), (damping, "damping"),
+                                                  (rotational_stiffness, "rotational_stiffness"),
+                                                  (rotational_damping, "rotational_damping")))
+        R0 = sp.eye(3) if rotation is None else _orientation(rotation, f"{what}: rotation")
+
+        def build(frames):
+            fa, fb = frames[ba], frames[bb]
+            RA = fa.R * R0
+            pa, va, _ = fa.point(ra)
+            pb, vb, _ = fb.point(rb)
+            d = pb - pa
+            R = RA.T * fb.R * R0
+            theta = sp.Matrix([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2
+            f = -K * (RA.T * d) - C * (RA.T * (vb - va - _cross(fa.w, d)))
+            tau = -Kr * theta - Cr * (RA.T * (fb.w - fa.w))
+            return self._pair_loads(name, ba, ra, bb, rb, frames, RA * f, RA * tau)
+
+        self._forces.append((name, build))
+
     def actuator(self, name, joint, value=None, coordinate=None) -> sp.Symbol:
         """A generalized force (force or torque) along a joint coordinate (``coordinate``; the
         joint's only one by default): ``value`` an expression in t, q, speeds and parameters,

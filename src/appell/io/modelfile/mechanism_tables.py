@@ -48,7 +48,13 @@ LOAD_KEYS = {
     "torque": ("name", "type", "body", "vector"),
     "spring": ("name", "type", "body_a", "point_a", "body_b", "point_b", "stiffness", "rest_length", "damping"),
     "actuator": ("name", "type", "joint", "value", "coordinate"),
+    "bushing": ("name", "type", "body_a", "point_a", "body_b", "point_b", "stiffness", "damping",
+                "rotational_stiffness", "rotational_damping", "rpy"),
+    "force_pair": ("name", "type", "body_a", "point_a", "body_b", "point_b", "force", "torque", "axes"),
 }
+#: keys of a load that may be left out
+LOAD_OPTIONAL = ("rest_length", "damping", "value", "coordinate", "rotational_stiffness", "rotational_damping", "rpy",
+                 "force", "torque", "axes")
 
 
 def urdf_path(r, value, base: Path) -> Path:
@@ -118,6 +124,25 @@ def _drive(r, path, item, jname, mech):
     value = r.expr(path + ("drive",), item["drive"], "time")
     _call(r, path + ("drive",), mech.drive, f"{jname}_drive", jname, **{kind: value})
     mech.locate(f"{jname}_drive", r.where(path + ("drive",)))
+
+
+def _pair(r, path, item, kind, lname, mech):
+    """A ``[[loads]]`` entry of type ``bushing`` (gains: three diagonal entries each, ``rpy``
+    of its frame in body_a) or ``force_pair`` (``force``, ``torque`` expressions, ``axes``
+    ``"world"`` or ``"a"``) between two markers."""
+    a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
+    b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
+    if kind == "bushing":
+        kw = {k: _vector(r, path + (k,), item[k], "forces") for k in
+              ("stiffness", "damping", "rotational_stiffness", "rotational_damping") if k in item}
+        if "rpy" in item:
+            kw["rotation"] = _vector(r, path + ("rpy",), item["rpy"])
+        _call(r, path, mech.bushing, lname, a, b, **kw)
+        return
+    kw = {k: _vector(r, path + (k,), item[k], "forces") for k in ("force", "torque") if k in item}
+    if "axes" in item:
+        kw["axes"] = r.string(path + ("axes",), item["axes"])
+    _call(r, path, mech.force_pair, lname, a, b, **kw)
 
 
 def _mesh(r, path, item, kind, cname, mech):
@@ -296,8 +321,11 @@ def build_mechanism(r, top: dict, base: Path):
         path = ("loads", i)
         kind = _kind(r, path, item, tuple(LOAD_KEYS))
         r.table(path, item, LOAD_KEYS[kind], required=("name",) + tuple(
-            k for k in LOAD_KEYS[kind][2:] if k not in ("rest_length", "damping", "value", "coordinate")))
+            k for k in LOAD_KEYS[kind][2:] if k not in LOAD_OPTIONAL))
         lname = r.name(path + ("name",), item["name"], "load")
+        if kind in ("bushing", "force_pair"):
+            _pair(r, path, item, kind, lname, mech)
+            continue
         if kind == "force":
             point = (_body_ref(r, path + ("body",), item["body"], mech), _vector(r, path + ("point",), item["point"]))
             _call(r, path, mech.force, lname, point, _vector(r, path + ("vector",), item["vector"], "forces"))
