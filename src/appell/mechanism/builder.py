@@ -295,6 +295,9 @@ class Mechanism:
         self._marks: list[tuple[Body, sp.Matrix]] = []  # body points of closures and loads (the view's bars)
         self._couplings: dict[str, Body] = {}  # tooth meshes: the body whose tooth force is an output
         self._drives: list[tuple[str, bool]] = []  # (drive, rotational): its effort is an output
+        self._reading: dict[str, tuple] = {}  # joint -> (on, marker body, marker point, axes): reaction_output
+        #: the axes of the reactions without a reaction_output of their own (system(reactions_in=...) overrides)
+        self.reactions_in: str | None = None
 
     # ------------------------------------------------------------ naming
     def _claim(self, name, kind: str) -> str:
@@ -881,6 +884,40 @@ class Mechanism:
 
         self._forces.append((name, build))
 
+    def reaction_output(self, joint, on="child", about=None, axes="world"):
+        """Where the reaction outputs ``F_<joint>_*``, ``M_<joint>_*`` are read: the force and
+        moment ``on`` the joint's ``"child"`` (of the parent: the default) or its ``"parent"``
+        (of the child: both negated); ``about`` a marker ``(body, r)``, a point fixed in a
+        body (``r`` in its frame; default the joint origin ``O``): ``M_P = M_O + (O - P) x F``;
+        along the ``axes`` of ``"world"`` (``"ground"``), a body (its name), ``"joint"`` (the
+        joint frame fixed in the parent, ``R_parent R0``: a bearing's housing), ``"child"`` or
+        ``"parent"``. The recursive route then leaves these outputs to their formulas."""
+        j = self._joint(joint, "reaction output")
+        what = f"reaction output of joint {j.name!r}"
+        if on not in ("child", "parent"):
+            raise ModelError(f"{what}: on={on!r} must be 'child' or 'parent'",
+                             hint=f"the reaction on {j.child.name!r} (child) or on {j.parent.name!r} (parent)")
+        marker = None if about is None else self._point(about, f"{what}: about")
+        self._axes_of(j, axes, what)
+        self._reading[j.name] = (on, marker, axes)
+
+    def _axes_of(self, j: Joint, axes, what: str):
+        """The body whose axes ``axes`` names for joint ``j`` (None: the world), or ``"joint"``."""
+        if axes in ("world", "ground", None):
+            return None
+        if axes == "joint":
+            return "joint"
+        if axes == "child":
+            return j.child
+        if axes == "parent":
+            return None if j.parent is self.ground else j.parent
+        try:
+            body = self._body(axes, what)
+        except ModelError as exc:
+            raise ModelError(f"{exc.message}; axes are 'world', 'joint', 'child', 'parent' or a body",
+                             hint=exc.hint) from None
+        return None if body is self.ground else body
+
     def _pair_loads(self, name, ba, ra, bb, rb, frames, f_b, tau_b):
         """Model loads and actions of a force ``f_b`` at ``b``'s point and a torque ``tau_b`` on
         ``b`` (world axes) with their reaction on ``a``: ``-f_b`` at ``a``'s point and
@@ -1111,7 +1148,7 @@ class Mechanism:
 
     def system(self, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
                constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
-               moment_unit="N*m", energy: bool = False) -> System:
+               moment_unit="N*m", energy: bool = False, reactions_in=None) -> System:
         """The :class:`appell.System` of the mechanism.
 
         Parameters
@@ -1126,6 +1163,9 @@ class Mechanism:
             moment of the parent on the child at the joint origin.
         frame : ``{joint: body}``: give that joint's components along the body's axes (default
             world axes).
+        reactions_in : the axes of every joint's reaction without a :meth:`reaction_output`
+            or ``frame`` of its own: ``'world'``/``'ground'`` (the default), ``'joint'``,
+            ``'child'``, ``'parent'`` or a body's name (``appell ... --reactions-in``).
         constraints, controls, servo_constraints, outputs, settings, units : added as given
             (constraints written in joint coordinates act as generalized forces at the
             joints, not through the reactions' cuts: docs/mechanism.md).
@@ -1179,16 +1219,23 @@ class Mechanism:
                                  hint="parameters: " + ", ".join(sorted(known)))
             values = {str(k): v for k, v in parameters.items()}
             params = [Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description) for p in params]
-        reaction_groups = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit))
+        reactions_in = reactions_in or self.reactions_in
+        if reactions_in is not None:
+            for j in self.joints:  # a name that is not a body fails here, before any work
+                self._axes_of(j, reactions_in, "reactions_in")
+        reaction_groups = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit,
+                                                      reactions_in))
         reaction_outputs = [o for _, _, outs in reaction_groups for o in outs]
         reaction_outputs += self._tooth_outputs(reactions, contact_forces, force_unit)
         reaction_outputs += [Output(f"{n}_effort", sp.Symbol(f"lambda_{n}"), moment_unit if turn else force_unit,
                                     f"{'torque' if turn else 'force'} of drive {n} along its coordinate")
                              for n, turn in self._drives if reactions is not None]
         acted = {act.body for act in actions}
+        drawn = {o.name for _, body, outs in reaction_groups if body != "read" for o in outs}  # the view's arrows
         wrenches = tuple(Wrench(j.child.name, None if body is None else body.name, tuple(o.name for o in outs),
                                 tuple(o.expr for o in outs))
-                         for j, body, outs in reaction_groups if not any(b in acted for b in self.subtree(j)))
+                         for j, body, outs in reaction_groups
+                         if body != "read" and not any(b in acted for b in self.subtree(j)))
         outs = list(reaction_outputs)
         for pname, body, r in self._points:
             position = frames[body].point(r)[0]
@@ -1223,7 +1270,7 @@ class Mechanism:
                       servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
-                      view=self._view(frames, contact_forces, {o.name for o in reaction_outputs}, frame, params),
+                      view=self._view(frames, contact_forces, drawn, frame, params),
                       tree=self.rigid_tree(coords, V, positions, wrenches))
 
     def _view(self, frames, contact_forces, reaction_names, frame, params) -> View:
@@ -1319,7 +1366,10 @@ class Mechanism:
                          for axis, e in zip("xyz", f)]
         return outs
 
-    def _reaction_outputs(self, reactions, frame, frames, actions, force_unit, moment_unit):
+    def _reaction_outputs(self, reactions, frame, frames, actions, force_unit, moment_unit, reactions_in=None):
+        """``(joint, axes body or None, outputs)`` per joint; ``"read"`` in place of the body
+        where a :meth:`reaction_output` (or a ``reactions_in`` other than a body's axes) sets
+        where it is read, so that the recursive route leaves it to its formulas."""
         if reactions is None:
             return
         joints = self.joints if reactions == "all" else [self._joint(n, "reactions") for n in reactions
@@ -1330,6 +1380,9 @@ class Mechanism:
         balance = self.reactions(frames, actions)
         for j in joints:
             F, M = balance[j]
+            if j.name in self._reading or (reactions_in not in (None, "world", "ground") and j.name not in axes):
+                yield j, "read", self._read(j, F, M, frames, reactions_in, force_unit, moment_unit)
+                continue
             body = axes.get(j.name)
             where = "world axes"
             if body is not None and body is not self.ground:
@@ -1339,5 +1392,36 @@ class Mechanism:
             yield j, (body if body is not self.ground else None), [
                 Output(f"{sym}_{j.name}_{axis}", e, unit,
                        f"{what} of {j.parent.name} on {j.child.name} at joint {j.name}'s origin, {axis} ({where})")
+                for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment"))
+                for axis, e in zip("xyz", vec)]
+
+    def _read(self, j: Joint, F, M, frames, reactions_in, force_unit, moment_unit) -> list[Output]:
+        """The outputs of joint ``j``'s reaction read as :meth:`reaction_output` says (or along
+        the axes ``reactions_in``): ``F``, ``M`` (world axes, parent on child at ``O``) turned
+        to the chosen body, moved to the marker and expressed in the chosen axes."""
+        on, marker, axes = self._reading.get(j.name, ("child", None, reactions_in))
+        fc = frames[j.child]
+        O = fc.p + fc.R * j.child_origin
+        who = f"{j.parent.name} on {j.child.name}"
+        if on == "parent":
+            F, M = -F, -M
+            who = f"{j.child.name} on {j.parent.name}"
+        at = f"joint {j.name}'s origin"
+        if marker is not None:
+            body, r = marker
+            P = frames[body].point(r)[0]
+            M = M + _cross(O - P, F)
+            at = f"the marker {_text(r)} of {body.name}"
+        target = self._axes_of(j, axes, f"reaction output of joint {j.name!r}")
+        where = "world axes"
+        if target == "joint":
+            R = frames[j.parent].R * j.rotation
+            where = f"axes of joint {j.name}"
+        elif target is not None:
+            R = frames[target].R
+            where = f"axes of body {target.name!r}"
+        if where != "world axes":
+            F, M = R.T * F, R.T * M
+        return [Output(f"{sym}_{j.name}_{axis}", e, unit, f"{what} of {who} about {at}, {axis} ({where})")
                 for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment"))
                 for axis, e in zip("xyz", vec)]

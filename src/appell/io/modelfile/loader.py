@@ -773,10 +773,11 @@ def _units(r: _Reader, doc: dict, allowed: list[str]) -> tuple[tuple[str, str], 
     return tuple(out)
 
 
-def _build_mechanism(r: _Reader, doc: dict) -> System:
+def _build_mechanism(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
     """A model file with a ``[mechanism]`` table (:mod:`.mechanism_tables`): the mechanism's
     System with the file's constraints, controls, servo constraints, initial values,
-    simulation settings and units."""
+    simulation settings and units (``reactions_in``: the axes of the joint reactions,
+    over the file's ``[mechanism] reactions_in``)."""
     from .mechanism_tables import MECHANISM_TABLES, build_mechanism
 
     top = r.table((), doc, MECHANISM_TABLES)
@@ -788,7 +789,7 @@ def _build_mechanism(r: _Reader, doc: dict) -> System:
     _check_controls(r, controls, servo)
     try:
         system = mech.system(reactions=reactions, frame=frame, energy=energy, constraints=tuple(extra) + tuple(constraints),
-                             controls=tuple(controls), servo_constraints=tuple(servo))
+                             controls=tuple(controls), servo_constraints=tuple(servo), reactions_in=reactions_in)
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.where(("mechanism",)), hint=exc.hint) from None
     states = [s.name for s in system.coordinates + system.speeds]
@@ -821,9 +822,12 @@ def _validated(r: _Reader, system: System) -> System:
     return system
 
 
-def _build(r: _Reader, doc: dict) -> System:
+def _build(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
     if isinstance(doc, dict) and "mechanism" in doc:
-        return _build_mechanism(r, doc)
+        return _build_mechanism(r, doc, reactions_in)
+    if reactions_in is not None:
+        raise ModelError("reactions_in applies to a model file with a [mechanism] table", where=r.source,
+                         hint="the joint reactions of a [mechanism] are read along the axes it names")
     top = r.table((), doc, tuple(TABLES))
     name, description, coordinates, speeds = _model(r, top)
     parameters = _parameters(r, top)
@@ -961,12 +965,15 @@ def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
         raise ModelError(exc.message, where=exc.where or source, hint=exc.hint) from None
 
 
-def loads_model(text: str, source: str = "<string>", overrides: Mapping | None = None) -> System:
+def loads_model(text: str, source: str = "<string>", overrides: Mapping | None = None, *,
+                reactions_in: str | None = None) -> System:
     """Build a :class:`System` from the text of a model file (TOML, docs/model-format.md).
 
     ``source`` names the text in error messages (``"<source>:<line>"``). ``overrides``
     ``{name: value}`` replaces parameter values and initial values (``x'`` or ``x_dot``
-    for speeds); an unknown name raises :class:`ModelError`.
+    for speeds); an unknown name raises :class:`ModelError`. ``reactions_in``: the axes of
+    a mechanism's joint reactions (``'ground'``, ``'joint'``, ``'child'``, ``'parent'`` or
+    a body; :meth:`appell.mechanism.Mechanism.system`), over the file's own.
     """
     if not isinstance(text, str):
         raise ModelError(f"a model must be text, got {type(text).__name__}", where=source)
@@ -991,18 +998,20 @@ def loads_model(text: str, source: str = "<string>", overrides: Mapping | None =
     reader = _Reader(text, source)
     doc, reader.map.aliases = expand_repeats(doc, reader.where)
     reader.doc = doc
-    system = _build(reader, doc)
+    system = _build(reader, doc, reactions_in)
     return _apply_overrides(system, overrides, source)
 
 
-def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floating_base: bool = False) -> System:
+def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floating_base: bool = False,
+               reactions_in: str | None = None) -> System:
     """Read a model file (TOML, docs/model-format.md) into a :class:`System`.
 
     ``overrides`` ``{name: value}`` replaces parameter values or initial values (as
     ``appell simulate --set NAME=VALUE`` does); unknown names raise :class:`ModelError`.
     ``floating_base``: a ``.urdf`` robot's root link on a free joint
     (:func:`~appell.mechanism.urdf.urdf_mechanism`; in a model file ``[mechanism]
-    floating_base = true``).
+    floating_base = true``). ``reactions_in``: the axes of a ``[mechanism]``'s joint
+    reactions, as :func:`loads_model` (``appell ... --reactions-in``).
     ``path`` may also be the name of a bundled example or benchmark (``load_model("pendulum")``,
     as listed by ``appell examples``) when no file of that name exists.
     Every error is a :class:`ModelError` with ``where="<file>:<line>"``.
@@ -1026,6 +1035,10 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floati
         if floating_base and not importer.floating_base:
             raise ModelError(f"--floating-base (floating_base=True) does not apply to {importer.what} "
                              f"({importer.name}), which gives its free joints itself", where=str(path))
+        if reactions_in not in (None, "world", "ground"):
+            raise ModelError(f"reactions_in={reactions_in!r} does not apply to {importer.what} ({importer.name}), "
+                             "whose reactions are along the world axes", where=str(path),
+                             hint="read the robot from a model file (urdf = \"...\" in [mechanism]) to choose the axes")
         return _apply_overrides(importer.system(path, floating_base), overrides, str(path))
     if floating_base:
         raise ModelError("--floating-base (floating_base=True) applies to a .urdf robot", where=str(path),
@@ -1042,4 +1055,4 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floati
     except UnicodeDecodeError as exc:
         raise ModelError(f"the model file is not UTF-8 text ({exc.reason} at byte {exc.start})",
                          where=str(path)) from None
-    return loads_model(text, source=str(path), overrides=overrides)
+    return loads_model(text, source=str(path), overrides=overrides, reactions_in=reactions_in)

@@ -18,7 +18,9 @@ import sympy as sp
 from appell.errors import ModelError
 from appell.model import Parameter
 
-MECHANISM_KEYS = ("urdf", "floating_base", "gravity", "reactions", "frame", "points", "energy")
+MECHANISM_KEYS = ("urdf", "floating_base", "gravity", "reactions", "frame", "points", "energy", "reactions_in",
+                  "reaction")
+REACTION_KEYS = ("on", "body", "point", "axes")
 MECHANISM_TABLES = ("model", "mechanism", "parameters", "bodies", "joints", "closures", "loads", "initial",
                     "constraints", "controls", "servo_constraints", "simulation", "stability", "units", "outputs")
 BODY_KEYS = ("name", "mass", "inertia", "com", "particle")
@@ -359,6 +361,18 @@ def build_mechanism(r, top: dict, base: Path):
         r.table(path, value, ("body", "point"), required=("body", "point"))
         body = _body_ref(r, path + ("body",), value["body"], mech)
         _call(r, path, mech.watch_point, key, (body, _vector(r, path + ("point",), value["point"])))
+    if "reactions_in" in section:
+        mech.reactions_in = r.string(("mechanism", "reactions_in"), section["reactions_in"])
+    for key, value in r.table(("mechanism", "reaction"), section.get("reaction", {}), r.ANY).items():
+        path = ("mechanism", "reaction", key)
+        r.table(path, value, REACTION_KEYS)
+        if ("body" in value) != ("point" in value):
+            raise r.error(path, "a marker needs both body and point", hint="e.g. body = \"housing\", point = [0, 0, 0.1]")
+        about = None
+        if "body" in value:
+            about = (r.string(path + ("body",), value["body"]), _vector(r, path + ("point",), value["point"]))
+        kw = {k: r.string(path + (k,), value[k]) for k in ("on", "axes") if k in value}
+        _call(r, path, mech.reaction_output, key, about=about, **kw)
     energy = section.get("energy", False)
     if not isinstance(energy, bool):
         raise r.error(("mechanism", "energy"), "must be true or false",

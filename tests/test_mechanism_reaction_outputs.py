@@ -1,0 +1,125 @@
+"""Reaction outputs where the user reads them (Mechanism.reaction_output, system(reactions_in=...)):
+on either body, about a marker, along the axes of the world, a body or the joint. Source:
+the default outputs (the parent's force and moment on the child at the joint origin, world
+axes; checked against closed forms in test_mechanism_joints.py) transformed by hand:
+M_P = M_O + (O - P) x F, the opposite on the parent, R^T of the chosen axes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from appell import derive, numeric_model
+from appell.errors import ModelError
+from appell.mechanism import Mechanism
+from appell.mechanism.rotations import rpy_rotation
+
+G = 9.81
+Q, W = [0.7], [1.3]
+
+
+def _pendulum():
+    mech = Mechanism("pendulum", gravity=(0, -G, 0))
+    link = mech.body("link", 1.5, inertia=(0.01, 0.02, 0.05), com=(0.4, 0.05, 0.02))
+    mech.revolute("pin", "ground", link, origin=(0.1, 0.2, 0.3), rpy=(0.3, 0.2, 0.1))
+    return mech
+
+
+def _reaction(mech, **kw):
+    model = numeric_model(derive(mech.system(**kw)))
+    sol = model.solve(0.0, Q, W)
+    out = model.outputs(0.0, Q, W, solution=sol)
+    return np.array([out[f"F_pin_{a}"] for a in "xyz"]), np.array([out[f"M_pin_{a}"] for a in "xyz"])
+
+
+def test_reaction_on_the_parent_about_a_marker_in_the_joint_axes():
+    F0, M0 = _reaction(_pendulum())
+    O = np.array([0.1, 0.2, 0.3])  # the pin's origin (the link turns about it)
+    R0 = np.array(rpy_rotation([0.3, 0.2, 0.1]), dtype=float)  # the joint frame fixed in the ground
+    mech = _pendulum()
+    marker = np.array([0.0, 0.0, -0.05])  # a bearing seat on the ground
+    mech.reaction_output("pin", on="parent", about=("ground", tuple(marker)), axes="joint")
+    F, M = _reaction(mech)
+    # rounding only: the same formulas turned by hand
+    assert F == pytest.approx(R0.T @ -F0, abs=1e-12)
+    assert M == pytest.approx(R0.T @ (-M0 + np.cross(O - marker, -F0)), abs=1e-12)
+
+
+def test_reaction_in_the_childs_axes_about_its_mass_centre():
+    F0, M0 = _reaction(_pendulum())
+    mech = _pendulum()
+    R = np.array(rpy_rotation([0.3, 0.2, 0.1]), dtype=float) @ np.array(
+        [[math.cos(Q[0]), -math.sin(Q[0]), 0], [math.sin(Q[0]), math.cos(Q[0]), 0], [0, 0, 1]])
+    O = np.array([0.1, 0.2, 0.3])
+    C = O + R @ np.array([0.4, 0.05, 0.02])
+    mech.reaction_output("pin", about=("link", (0.4, 0.05, 0.02)), axes="link")
+    F, M = _reaction(mech)
+    assert F == pytest.approx(R.T @ F0, abs=1e-12)
+    assert M == pytest.approx(R.T @ (M0 + np.cross(O - C, F0)), abs=1e-12)
+
+
+def test_reactions_in_the_child_axes_for_every_joint():
+    F0, M0 = _reaction(_pendulum())
+    R = np.array(rpy_rotation([0.3, 0.2, 0.1]), dtype=float) @ np.array(
+        [[math.cos(Q[0]), -math.sin(Q[0]), 0], [math.sin(Q[0]), math.cos(Q[0]), 0], [0, 0, 1]])
+    F, M = _reaction(_pendulum(), reactions_in="child")
+    assert F == pytest.approx(R.T @ F0, abs=1e-12)
+    assert M == pytest.approx(R.T @ M0, abs=1e-12)
+    # the moment about the hinge's own axis is zero in its own axes: an ideal hinge
+    assert M[2] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_a_marker_on_a_body_that_does_not_exist_is_refused_naming_the_joint():
+    mech = _pendulum()
+    with pytest.raises(ModelError, match="reaction output of joint 'pin': about: unknown body 'housing'"):
+        mech.reaction_output("pin", about=("housing", (0, 0, 0)))
+    with pytest.raises(ModelError, match="reaction output of joint 'pin'.*'middle'"):
+        mech.reaction_output("pin", on="middle")
+
+
+MODEL = """
+[mechanism]
+gravity = [0, -9.81, 0]
+READS
+[[bodies]]
+name = "link"
+mass = 1.5
+inertia = [0.01, 0.02, 0.05]
+com = [0.4, 0.05, 0.02]
+[[joints]]
+name = "pin"
+type = "revolute"
+parent = "ground"
+child = "link"
+origin = [0.1, 0.2, 0.3]
+rpy = [0.3, 0.2, 0.1]
+"""
+
+
+def test_reaction_outputs_in_a_model_file(tmp_path):
+    """[mechanism.reaction.<joint>] (on, body + point, axes) and reactions_in give the same
+    numbers as the Python API; load_model(reactions_in=...) (the command line's
+    --reactions-in) overrides the file's; a marker on an unknown body names the file's line."""
+    from appell import load_model
+
+    def reaction(system):
+        model = numeric_model(derive(system))
+        out = model.outputs(0.0, Q, W, solution=model.solve(0.0, Q, W))
+        return np.array([out[f"{s}_pin_{a}"] for s in "FM" for a in "xyz"])
+
+    mech = _pendulum()
+    mech.reaction_output("pin", on="parent", about=("ground", (0, 0, -0.05)), axes="joint")
+    path = tmp_path / "pin.toml"
+    path.write_text(MODEL.replace("READS", '[mechanism.reaction.pin]\non = "parent"\nbody = "ground"\n'
+                                           'point = [0, 0, -0.05]\naxes = "joint"'))
+    assert reaction(load_model(path)) == pytest.approx(reaction(mech.system()), abs=1e-12)
+    path.write_text(MODEL.replace("READS", 'reactions_in = "child"'))
+    assert reaction(load_model(path)) == pytest.approx(reaction(_pendulum().system(reactions_in="child")), abs=1e-12)
+    assert reaction(load_model(path, reactions_in="ground")) == pytest.approx(reaction(_pendulum().system()),
+                                                                              abs=1e-12)
+    path.write_text(MODEL.replace("READS", '[mechanism.reaction.pin]\nbody = "housing"\npoint = [0, 0, 0]'))
+    with pytest.raises(ModelError, match="unknown body 'housing'") as info:
+        load_model(path)
+    assert "pin.toml:4:" in str(info.value) and "joint 'pin'" in str(info.value)
