@@ -44,6 +44,7 @@ def steps(quick: bool) -> list[tuple[str, list[str], float]]:
         ("iftomm", ["iftomm.py"] + (["--quick"] if quick else []), 900),
         ("robots", ["robots.py"] + (["--robot", "panda", "--robot", "solo12"] if quick else ["--runs", "3"]), 1800),
         ("viewer", ["viewer.py"] + (["--quick"] if quick else []), 900),
+        ("gear_train", ["gear_train.py"], 600),
     ]
 
 

@@ -12,6 +12,7 @@ def _builders() -> dict:
     from .benchmark_examples import BENCHMARK_EXAMPLES
     from .drive_examples import DRIVE_EXAMPLES
     from .event_examples import EVENT_EXAMPLES
+    from .machine_examples import driveshaft, steering_gear
     from .mechanism_examples import benchmark_bicycle, four_bar, rolling_disc
     from .servo_examples import SERVO_EXAMPLES
     from .support_examples import SUPPORT_EXAMPLES
@@ -20,7 +21,8 @@ def _builders() -> dict:
               turntable_particle)
     return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES, **BENCHMARK_EXAMPLES,
             **DRIVE_EXAMPLES, **SUPPORT_EXAMPLES,
-            "four_bar": four_bar, "rolling_disc": rolling_disc, "benchmark_bicycle": benchmark_bicycle}
+            "four_bar": four_bar, "rolling_disc": rolling_disc, "benchmark_bicycle": benchmark_bicycle,
+            "driveshaft": driveshaft, "steering_gear": steering_gear}
 
 
 #: name of each bundled ``<name>.toml`` -> the Python builder of the same system

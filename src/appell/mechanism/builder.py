@@ -139,7 +139,10 @@ def _z_onto(k) -> sp.Matrix:
 
 def _dt(expr, coordinates):
     """Total time derivative of an expression in ``t``, the ``coordinates`` and their
-    rates (every joint's speeds are its coordinates' derivatives)."""
+    rates (every joint's speeds are its coordinates' derivatives); a matrix entry by entry
+    (SymPy's matrix derivative goes through its array machinery, several times slower)."""
+    if isinstance(expr, sp.MatrixBase):
+        return expr.applyfunc(lambda e: _dt(e, coordinates))
     out = sp.diff(expr, t) if expr.has(t) else expr * 0
     for q in coordinates:
         qd = derivative_symbol(q)

@@ -72,7 +72,9 @@ def _axis(joint, kind: str, what: str) -> sp.Matrix:
                          hint="a gear couples two revolute joints; a rack and pinion a revolute and a prismatic one")
     (q,) = joint.coordinates
     m = joint.motion
-    k = m.angular_velocity.diff(derivative_symbol(q)) if kind == "revolute" else m.translation.diff(q)
+    qd = derivative_symbol(q)
+    k = m.angular_velocity.applyfunc(lambda e: e.diff(qd)) if kind == "revolute" else \
+        m.translation.applyfunc(lambda e: e.diff(q))
     return joint.rotation * k
 
 
