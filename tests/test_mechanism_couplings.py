@@ -240,3 +240,15 @@ def test_a_zero_radius_or_ratio_is_refused_naming_the_coupling_and_line(tmp_path
     with pytest.raises(ModelError, match="gear 'g3'.*prismatic"):
         mech.prismatic("jd", "ground", mech.body("d", 1.0), axis=(1, 0, 0))
         mech.gear("g3", "ja", "jd", 2)
+
+
+def test_a_mesh_between_bodies_of_different_housings_or_coinciding_axes_is_refused():
+    mech = Mechanism("gears")
+    a, b, c = (mech.body(n, 1.0, inertia=(1, 1, 1)) for n in "abc")
+    mech.revolute("ja", "ground", a)
+    mech.revolute("jb", a, b, origin=(0.1, 0, 0))
+    mech.revolute("jc", "ground", c)
+    with pytest.raises(ModelError, match="gear 'g1'.*not mounted in the same body"):
+        mech.gear("g1", "ja", "jb", 2)
+    with pytest.raises(ModelError, match="gear 'g2'.*coincide"):
+        mech.gear("g2", "ja", "jc", 2)

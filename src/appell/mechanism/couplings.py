@@ -99,8 +99,8 @@ def _housing(ja, jb, what: str):
 
 
 def _unit(v, what: str, message: str, hint: str) -> tuple[sp.Matrix, sp.Expr]:
-    n2 = sp.nsimplify(v.dot(v)) if not v.free_symbols else v.dot(v)
-    if identically_zero(n2):
+    n2 = v.dot(v)
+    if (float(n2) < 1e-24) if n2.is_number else identically_zero(n2):
         raise ModelError(f"{what}: {message}", hint=hint)
     n = sp.sqrt(n2)
     return v / n, n
