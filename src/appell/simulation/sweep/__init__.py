@@ -56,12 +56,13 @@ from appell.files import atomic_path, output_target
 from appell.model import System
 from appell.numerics.dynamics import system_of
 from appell.simulation.resources import check_memory
-from appell.simulation.sweep.runs import (
-    MAX_RUNS, MAX_SAMPLES, RAISED, RunRecord, SweepResult, _assemble, _names, _prepare, _summary, _write_hdf5, chunks, parameter_grid, parse_spec,
+from appell.simulation.sweep.cluster import (
+    _compute_on, _distributed, _workers_without_interrupts, check_scheduler_address, sweep_cluster,
 )
 from appell.simulation.sweep.journal import RESUME_KEYS, _PartialFile, _resumed, model_fingerprint, read_partial
-from appell.simulation.sweep.cluster import (
-    _compute_on, _workers_without_interrupts, check_scheduler_address, sweep_cluster,
+from appell.simulation.sweep.runs import (
+    MAX_RUNS, MAX_SAMPLES, RAISED, RunRecord, SweepResult, _assemble, _names, _prepare, _summary, _write_hdf5,
+    chunks, parameter_grid, parse_spec,
 )
 from appell.simulation.sweep.runs import _MODELS  # noqa: F401 (the models kept on a worker: tests read them here)
 
@@ -127,6 +128,8 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     """
     from appell.numerics.codegen import BACKENDS
 
+    if client is None:
+        _distributed()  # a missing dask: the extra to install, before the model is derived
     t_end = number(t_end, "t_end", positive=True, hint="sweeps run from t = 0 to a finite t_end > 0")
     samples = count(samples, "samples", maximum=MAX_SAMPLES)
     if n_workers is not None:
