@@ -305,32 +305,79 @@ class _Positive(click.ParamType):
         return number
 
 
+class _Choice(click.Choice):
+    """A choice whose names are read on first use (``load()``): the integrators' names come
+    from the simulation layer, which ``appell --help`` does not import."""
+
+    def __init__(self, load):
+        self._load, self.case_sensitive = load, True
+
+    @property
+    def choices(self):
+        return tuple(self._load())
+
+    @choices.setter
+    def choices(self, value):  # click's own __init__ is not run
+        pass
+
+
+class _Option(click.Option):
+    """An option whose help is written on first use (``help_of()``: the defaults of
+    :class:`~appell.simulation.options.SimulationOptions`, read where they are kept)."""
+
+    def __init__(self, *args, help_of=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._help_of = help_of
+
+    def get_help_record(self, ctx):
+        if self._help_of is not None:
+            self.help, self._help_of = self._help_of(), None
+        return super().get_help_record(ctx)
+
+
+def _defaults():
+    from appell.simulation.options import DEFAULT_SAMPLES, SimulationOptions
+
+    return SimulationOptions(), DEFAULT_SAMPLES
+
+
+def _methods():
+    from appell.simulation.simulate import METHODS
+
+    return list(METHODS)
+
+
 def _solver_options(command):
     """The integrator's options (:data:`SOLVER_OPTIONS`), each defaulting to the model's
     ``[simulation]`` value, collected into the command's ``solver`` argument
-    (``{name: value, or None where not given}``) for :func:`command_options`."""
-    from appell.simulation.options import DEFAULT_SAMPLES, SimulationOptions
-    from appell.simulation.simulate import METHODS
-
-    positive, default = _Positive(), SimulationOptions()
+    (``{name: value, or None where not given}``) for :func:`~appell.workflows.command_options`.
+    Their choices and the defaults in their help are read when they are used."""
+    positive = _Positive()
     table = " (default: the model's [simulation] value, else {})."
+
+    def default(text, of):
+        return lambda: text + table.format(of(*_defaults()))
+
+    def option(*names, text, of=None, **kwargs):
+        return click.option(*names, cls=_Option, default=None, help_of=default(text, of) if of else None,
+                            help=None if of else text, **kwargs)
+
     options = [
-        click.option("--method", type=click.Choice(list(METHODS)), default=None,
-                     help="Integration method" + table.format(default.method)),
-        click.option("--rtol", type=positive, default=None, metavar="R",
-                     help="Relative tolerance of the integrator" + table.format(f"{default.rtol:g}".replace("e-0", "e-"))),
-        click.option("--atol", type=positive, default=None, metavar="A",
-                     help="Absolute tolerance of the integrator" + table.format(f"{default.atol:g}".replace("e-0", "e-"))),
-        click.option("--max-step", "max_step", type=_Positive(infinite=True), default=None, metavar="H",
-                     help="Largest integration step" + table.format("unbounded")),
-        click.option("--t0", "t0", type=float, default=None, metavar="T",
-                     help="Start time; the initial values hold at t0" + table.format(f"{default.t0:g}")),
-        click.option("--samples", type=click.IntRange(min=2), default=None, metavar="N",
-                     help="N equally spaced output times from t0 to t_end" + table.format(DEFAULT_SAMPLES)),
-        click.option("--output-step", "output_step", type=positive, default=None, metavar="H",
-                     help="Output times t0, t0 + H, ... and t_end (excludes --samples)."),
-        click.option("--stabilization", type=click.Choice(["projection", "baumgarte", "none"]), default=None,
-                     help="Constraint drift control" + table.format(default.stabilization)),
+        option("--method", type=_Choice(_methods), text="Integration method", of=lambda d, n: d.method),
+        option("--rtol", type=positive, metavar="R", text="Relative tolerance of the integrator",
+               of=lambda d, n: f"{d.rtol:g}".replace("e-0", "e-")),
+        option("--atol", type=positive, metavar="A", text="Absolute tolerance of the integrator",
+               of=lambda d, n: f"{d.atol:g}".replace("e-0", "e-")),
+        option("--max-step", "max_step", type=_Positive(infinite=True), metavar="H", text="Largest integration step",
+               of=lambda d, n: "unbounded"),
+        option("--t0", "t0", type=float, metavar="T", text="Start time; the initial values hold at t0",
+               of=lambda d, n: f"{d.t0:g}"),
+        option("--samples", type=click.IntRange(min=2), metavar="N",
+               text="N equally spaced output times from t0 to t_end", of=lambda d, n: n),
+        option("--output-step", "output_step", type=positive, metavar="H",
+               text="Output times t0, t0 + H, ... and t_end (excludes --samples)."),
+        option("--stabilization", type=click.Choice(["projection", "baumgarte", "none"]),
+               text="Constraint drift control", of=lambda d, n: d.stabilization),
     ]
 
     @functools.wraps(command)
