@@ -85,32 +85,7 @@ def test_no_layer_imports_a_higher_one():
 
 def test_no_import_circle_inside_a_layer():
     """Modules of one layer may import each other, but never in a circle."""
-    graph: dict[str, set[str]] = {}
-    names = {m for _, m in _modules()}
-    for path, module in _modules():
-        deps = set()
-        for _, target in _imports(path, module):
-            while target and target not in names:
-                target = target.rpartition(".")[0]
-            if target and target != module and target != "appell" and not module.startswith(target + "."):
-                deps.add(target)
-        graph[module] = deps
-    seen, stack, circles = set(), [], []
-
-    def visit(node):
-        if node in stack:
-            circles.append(stack[stack.index(node):] + [node])
-            return
-        if node in seen:
-            return
-        seen.add(node)
-        stack.append(node)
-        for nxt in sorted(graph.get(node, ())):
-            visit(nxt)
-        stack.pop()
-
-    for node in sorted(graph):
-        visit(node)
+    circles = _circles(_import_graph(list(_modules())))
     assert not circles, "import circles:\n" + "\n".join(" -> ".join(c) for c in circles)
 
 
@@ -237,13 +212,13 @@ def _all_modules():
         yield SOURCE / f"{name}.py", name
 
 
-def _import_graph() -> dict[str, set[str]]:
-    """module -> the modules of the package (and beside it) that it imports, at module level or
-    inside a function; an import of ``appell`` itself (the package's ``__init__``, which imports
-    every layer) is left out, as in :func:`test_no_import_circle_inside_a_layer`."""
-    names = {m for _, m in _all_modules()}
+def _import_graph(modules) -> dict[str, set[str]]:
+    """module -> the modules among ``modules`` (``(path, name)`` pairs) that it imports, at module
+    level or inside a function; an import of ``appell`` itself (the package's ``__init__``, which
+    imports every layer) is left out."""
+    names = {m for _, m in modules}
     graph: dict[str, set[str]] = {}
-    for path, module in _all_modules():
+    for path, module in modules:
         deps = set()
         for _, target in _imports(path, module):
             while target and target not in names:
@@ -279,7 +254,7 @@ def test_no_import_circle_through_the_entry_point():
     ``appell.io.cli``, which imported ``appell_entry`` back for the interrupt state, a circle the
     layer test could not see). The detector itself is checked on a graph with a known circle."""
     assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c", "a"]]
-    graph = _import_graph()
+    graph = _import_graph(list(_all_modules()))
     assert "appell.io.cli" in graph["appell_entry"]  # the entry point's import is seen
     circles = _circles(graph)
     assert not circles, "import circles:\n" + "\n".join(" -> ".join(c) for c in circles)
