@@ -43,12 +43,12 @@ from appell.errors import ComputationError, ModelError
 from appell.files import atomic_path, default_file_name, output_target
 
 __all__ = [
-    "OUTPUT_FORMATS", "SOLVER_OPTIONS", "check_inertia_at_start", "check_model", "command_options", "completion",
-    "copy_example", "cross_check_model", "derivation_json", "derive_model", "example_listing", "export_solution",
-    "failed_path", "internal_stability", "keep_cluster", "keep_failed_motion", "load_system", "read_trajectory",
-    "report_model", "resolve_model", "run_inverse", "run_simulation", "save_motion", "save_simulation",
-    "show_derivation", "solver_line", "span_energy_balance", "stability_analysis", "stability_table",
-    "sweep_model", "verdict", "write_stability",
+    "OUTPUT_FORMATS", "SOLVER_OPTIONS", "check_inertia_at_start", "check_model", "check_movie_writer",
+    "check_output_memory", "command_options", "completion", "copy_example", "cross_check_model", "derivation_json",
+    "derive_model", "example_listing", "export_solution", "failed_path", "first_integrals", "internal_stability",
+    "keep_cluster", "keep_failed_motion", "load_system", "read_trajectory", "report_model", "resolve_model",
+    "run_inverse", "run_simulation", "save_motion", "save_simulation", "show_derivation", "solver_line",
+    "span_energy_balance", "stability_analysis", "stability_table", "sweep_model", "verdict", "write_stability",
 ]
 
 
