@@ -31,14 +31,14 @@ a regular file); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM). Errors are 
 ``error: <message>`` (and a hint) on stderr, never as a traceback, and no output file
 (nor a temporary one) is left behind.
 
-Only click and the standard library are imported with this module (``appell --help`` and
-``appell examples`` need no SymPy): the workflows are imported by the command that runs.
+Only click, the standard library and the light top of :mod:`appell.workflows` are imported
+with this module (``appell --help`` and ``appell examples`` need no SymPy): what a workflow
+needs is imported when it runs.
 """
 
 from __future__ import annotations
 
 import functools
-import importlib
 import os
 import signal
 import sys
@@ -46,6 +46,7 @@ from pathlib import Path
 
 import click
 
+from appell import workflows
 from appell.errors import AppellError, ComputationError, ModelError
 from appell_interrupts import interrupt_received, rescue_interrupts
 
@@ -58,33 +59,15 @@ EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 #: exit codes of a command stopped by Ctrl-C (SIGINT) or SIGTERM: 128 + the signal number
 EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
 
-#: file suffix -> export format of ``appell simulate --out`` (:data:`appell.workflows.OUTPUT_FORMATS`)
-OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"}
-#: the integrator's command-line options (:data:`appell.workflows.SOLVER_OPTIONS`)
-SOLVER_OPTIONS = ("method", "rtol", "atol", "max_step", "t0", "samples", "output_step", "stabilization")
-
-
-def _workflows():
-    """:mod:`appell.workflows`, imported by the command that runs (not by ``--help``)."""
-    return importlib.import_module("appell.workflows")
-
-
-def _step(name: str):
-    def step(*args, **kwargs):
-        return getattr(_workflows(), name)(*args, **kwargs)
-
-    step.__name__ = step.__qualname__ = name
-    step.__doc__ = f":func:`appell.workflows.{name}` (imported on the first call)."
-    return step
-
-
-# the steps every command takes, as names of this module (a test replaces one to see the command go through it)
-derive_model, run_simulation = _step("derive_model"), _step("run_simulation")
+#: the workflows (light to import: what they need is imported when they run); the steps every command
+#: takes are names of this module too (a test replaces one to see the command go through it)
+derive_model, run_simulation = workflows.derive_model, workflows.run_simulation
+OUTPUT_FORMATS, SOLVER_OPTIONS = workflows.OUTPUT_FORMATS, workflows.SOLVER_OPTIONS
 
 
 def load_system(model: str, overrides=None, floating_base: bool = False):
     """:func:`appell.workflows.load_system` with the model's notes printed as ``note:`` lines."""
-    return _workflows().load_system(model, overrides, floating_base, echo=click.echo)
+    return workflows.load_system(model, overrides, floating_base, echo=click.echo)
 
 
 def __getattr__(name):  # the workflows' names, as before they moved there (from appell.io.cli import ...)
@@ -92,8 +75,8 @@ def __getattr__(name):  # the workflows' names, as before they moved there (from
         from appell.core.equations import is_controlled
 
         return is_controlled
-    if not name.startswith("_") and name in getattr(_workflows(), "__all__", ()):
-        return getattr(_workflows(), name)
+    if name in workflows.__all__:
+        return getattr(workflows, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -433,7 +416,7 @@ def derive_command(model, fmt, dependent, routh, assignments, floating_base, onl
         reduction = routh_reduction(system)
         system = reduction.system
     derivation = derive_model(system, dependent, formulas=True)
-    _workflows().show_derivation(derivation, fmt, reduction, only, echo=click.echo)
+    workflows.show_derivation(derivation, fmt, reduction, only, echo=click.echo)
 
 
 @cli.command(name="simulate", context_settings=_CONTEXT)
@@ -472,7 +455,6 @@ def simulate_command(model, t_end, out, plot, backend, assignments, floating_bas
             output_file(target, "'--out/--plot'")
     system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
-    workflows = _workflows()
     try:
         solution = run_simulation(derivation, t_end, backend, _solver(solver), **workflows.completion(complete, adjust))
     except ComputationError as exc:
@@ -511,7 +493,6 @@ def animate_command(model, out, t_end, fps, frames, backend, assignments, floati
                                  "file .html, .gif or .mp4", param_hint="'--out'")
     if path is not None:
         output_file(path, "'--out'")
-    workflows = _workflows()
     workflows.check_movie_writer(path)  # before the simulation, not after it
     system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
@@ -538,7 +519,6 @@ def inverse_command(model, trajectory, drives, out, assignments, floating_base):
     A closed loop names its drives with --drive (as many as the loop leaves degrees of
     freedom); the drives and the reactions must then be determined by the motion.
     """
-    workflows = _workflows()
     table = workflows.read_trajectory(Path(trajectory))  # a bad file is bad input before the derivation
     path = output_file(Path(out), "'--out'") if out else None
     system = load_system(model, parse_assignments(assignments), floating_base)
@@ -572,7 +552,7 @@ def check_command(model, tolerance, energy_tolerance, t_end, assignments, floati
             raise click.BadParameter("must be positive", param_hint=f"'{name}'")
     system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
-    _workflows().check_model(derivation, tolerance, energy_tolerance, t_end, echo=click.echo)
+    workflows.check_model(derivation, tolerance, energy_tolerance, t_end, echo=click.echo)
 
 
 @cli.command(name="report", context_settings=_CONTEXT)
@@ -603,7 +583,6 @@ def report_command(model, output, t_end, no_simulation, data, backend, assignmen
         output_file(Path(output), "'-o'")
     system = load_system(model, parse_assignments(assignments), floating_base)
     derivation = derive_model(system)
-    workflows = _workflows()
     workflows.report_model(derivation, output, t_end, not no_simulation, data, backend, _solver(solver),
                            echo=click.echo, **workflows.completion(complete, adjust))
 
@@ -644,7 +623,7 @@ def sweep_command(model, specs, t_end, out, scheduler, workers, worker_timeout, 
     system = load_system(model, parse_assignments(assignments), floating_base)
     if out:
         output_file(Path(out), "'--out'")
-    _workflows().sweep_model(system, specs, t_end, out, scheduler=scheduler, workers=workers,
+    workflows.sweep_model(system, specs, t_end, out, scheduler=scheduler, workers=workers,
                              worker_timeout=worker_timeout, resume=resume, backend=backend, solver=_solver(solver),
                              progress=sys.stderr.isatty(), echo=click.echo)
 
@@ -684,7 +663,6 @@ def stability_command(model, spec, free, ignore, outputs, assignments, floating_
     for o in outputs:
         output_target(o)
     system = load_system(model, parse_assignments(assignments), floating_base)
-    workflows = _workflows()
     if spec is None and not workflows.stability_table(system):
         raise click.UsageError("give --vary NAME=START:STOP:NUM, or a [stability] table in the model file "
                                "(vary = \"NAME=START:STOP:NUM\")")
@@ -711,7 +689,7 @@ def cluster_command(workers, host, port):
     workers keep each model they have built, so a later sweep of the same model starts its
     runs at once.
     """
-    _workflows().keep_cluster(workers, host, port, echo=click.echo)
+    workflows.keep_cluster(workers, host, port, echo=click.echo)
 
 
 @cli.command(name="examples", context_settings=_CONTEXT)
@@ -725,11 +703,11 @@ def examples_command(name, to):
     if name is None:
         if to is not None:
             raise click.UsageError("--to needs the NAME of an example")
-        click.echo(_workflows().example_listing())
+        click.echo(workflows.example_listing())
     elif to is None:
         click.echo(example_path(name).read_text(encoding="utf-8"), nl=False)
     else:
-        click.echo(f"wrote {_workflows().copy_example(name, to)}")
+        click.echo(f"wrote {workflows.copy_example(name, to)}")
 
 
 def main(argv=None, standalone: bool = True) -> int:
