@@ -65,6 +65,7 @@ def _is_controlled(derivation) -> bool:
     return is_controlled(derivation)
 
 
+#: file suffix -> export format of ``appell simulate --out`` (:func:`export_solution`)
 OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"}
 
 #: the integrator's command-line options (``--max-step`` is ``max_step``); each defaults to the
@@ -91,18 +92,17 @@ def resolve_model(model: str) -> Path:
                      + "; or a benchmark: " + ", ".join(list_benchmarks()))
 
 
-
 def load_system(model: str, overrides=None, floating_base: bool = False, echo=None):
     """Load a model file (or bundled example) with parameter / initial-value ``overrides``
     (``{name: value text}``, as ``--set NAME=VALUE``); ``floating_base`` puts a ``.urdf``
     robot's root link on a free joint. What the model's files hold that appell does not
     apply is one ``note:`` line each on ``echo(..., err=True)``."""
-    echo = echo or _print
     import warnings
 
     from appell.errors import AppellNote
     from appell.io.modelfile import load_model
 
+    echo = echo or _print
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", AppellNote)
         system = load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base)
