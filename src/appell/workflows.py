@@ -358,9 +358,6 @@ def export_solution(solution, path: Path) -> Path:
                                      hint=f"install it with: pip install {package}, or write .csv") from None
 
 
-
-
-
 def read_trajectory(path: Path) -> dict:
     """The columns (NumPy arrays) of a CSV file of numbers with a header row, by name."""
     import csv
@@ -559,7 +556,6 @@ def _first_line(path: Path) -> str:
         if line.startswith("#"):
             return line.lstrip("# ").strip()
     return ""
-
 
 
 # ---------------------------------------------------------------- one workflow per command

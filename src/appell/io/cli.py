@@ -111,7 +111,6 @@ def _solver(solver: dict) -> dict:
     return solver
 
 
-
 # ---------------------------------------------------------------- errors and exit codes
 # ---------------------------------------------------------------- the commands
 _NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
@@ -237,7 +236,6 @@ def _report_error(message: str, hint: str | None, code: int) -> int:
     return code
 
 
-
 # ---------------------------------------------------------------- the options
 _CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 _model_argument = click.argument("model", metavar="MODEL")
@@ -263,7 +261,6 @@ _complete_option = click.option("--complete", is_flag=True,
 _adjust_option = click.option("--adjust", "adjust", multiple=True, metavar="NAME",
                               help="An initial value to compute from the constraints instead of taking it as given "
                                    "(repeatable, e.g. --adjust \"xi'\"); implies --complete with these values only.")
-
 
 
 class _Positive(click.ParamType):
@@ -371,8 +368,6 @@ def _solver_options(command):
     for option in reversed(options):
         with_solver = option(with_solver)
     return with_solver
-
-
 
 
 # ---------------------------------------------------------------- the commands
