@@ -104,6 +104,7 @@ def test_a_new_span_regenerates_equally_spaced_output_times():
 # SimulationOptions.from_model there, by command_options here). The derivation, the one step
 # that both take alike (derive_model), is formed once per example and served to the command.
 import json  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 from click.testing import CliRunner  # noqa: E402
 
@@ -168,3 +169,16 @@ def test_every_command_and_its_twin_agree(name, tmp_path, monkeypatch):
         twin = 1
         assert exc.message in stderr
     assert (code, stdout) == (twin, "".join(out)), stderr
+
+
+def test_examples_and_its_twin_list_and_copy_the_same(tmp_path):
+    """``appell examples`` prints example_listing(), one line per bundled model file with its
+    description; ``appell examples NAME --to DIR`` writes what copy_example writes: the file itself."""
+    code, stdout, _ = _command("examples")
+    assert code == 0 and stdout == workflows.example_listing() + "\n"
+    assert all(any(line.split()[:1] == [name] for line in stdout.splitlines()) for name in list_examples())
+    code, stdout, _ = _command("examples", "pendulum", "--to", tmp_path / "cli")
+    api = workflows.copy_example("pendulum", tmp_path / "api")
+    assert code == 0 and stdout == f"wrote {tmp_path / 'cli' / 'pendulum.toml'}\n"
+    assert (tmp_path / "cli" / "pendulum.toml").read_bytes() == api.read_bytes() == \
+        (Path(appell.examples.__file__).parent / "pendulum.toml").read_bytes()
