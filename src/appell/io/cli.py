@@ -1,20 +1,21 @@
 """The command line ``appell``: argument parsing, one workflow of :mod:`appell.workflows`
 per command, printing.
 
-=========================  ===========================================================
-``appell derive MODEL``    :func:`~appell.workflows.show_derivation`: :func:`appell.derive` (or
-                           :func:`appell.control.servo.derive_controlled` for a model with servo
-                           constraints), printed as text, LaTeX or JSON
-``appell simulate MODEL``  :func:`~appell.workflows.run_simulation`, exported as CSV, HDF5 or netCDF
-``appell animate MODEL``   :func:`~appell.workflows.save_motion`: the 3-D view, a GIF or an MP4
-``appell inverse MODEL``   :func:`~appell.workflows.run_inverse`: drives and reactions along a motion
-``appell check MODEL``     :func:`~appell.workflows.check_model`: independent routes, the energy balance
-``appell report MODEL``    :func:`~appell.workflows.report_model`: one self-contained HTML page
-``appell stability MODEL`` :func:`~appell.workflows.stability_analysis`: eigenvalues against a parameter
-``appell sweep MODEL``     :func:`~appell.workflows.sweep_model`: a parameter grid on Dask
-``appell cluster``         :func:`~appell.workflows.keep_cluster`: a local Dask cluster kept for sweeps
-``appell examples``        the bundled model files (:mod:`appell.examples`)
-=========================  ===========================================================
+============================  ===========================================================================
+``appell derive MODEL``       :func:`~appell.workflows.show_derivation`: :func:`appell.derive` (or
+                              :func:`appell.control.servo.derive_controlled` for a model with servo
+                              constraints), printed as text, LaTeX or JSON
+``appell simulate MODEL``     :func:`~appell.workflows.run_simulation`, exported as CSV, HDF5 or netCDF
+``appell animate MODEL``      :func:`~appell.workflows.save_motion`: the 3-D view, a GIF or an MP4
+``appell inverse MODEL``      :func:`~appell.workflows.run_inverse`: drives and reactions along a motion
+``appell check MODEL``        :func:`~appell.workflows.check_model`: independent routes, the energy balance
+``appell report MODEL``       :func:`~appell.workflows.report_model`: one self-contained HTML page
+``appell stability MODEL``    :func:`~appell.workflows.stability_analysis`: eigenvalues against a parameter
+``appell sweep MODEL``        :func:`~appell.workflows.sweep_model`: a parameter grid on Dask
+``appell cluster``            :func:`~appell.workflows.keep_cluster`: a local Dask cluster kept for sweeps
+``appell examples``           the bundled model files (:mod:`appell.examples`)
+============================  ===========================================================================
+
 
 ``MODEL`` is a model file (docs/model-format.md) or the name of a bundled example. A new
 flag is a ``click.option`` on its command here, passed to the workflow's argument of the
