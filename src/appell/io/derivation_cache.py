@@ -160,7 +160,7 @@ class _Encoder:
         if isinstance(v, enum.Enum):
             return {"$": "enum", "c": name, "v": v.name}
         if dataclasses.is_dataclass(v):
-            fields = {f.name: self.value(getattr(v, f.name)) for f in dataclasses.fields(v)}
+            fields = {name: self.value(getattr(v, name)) for name in _stored_fields(cls)}
             extra = {}
             for key, x in getattr(v, "__dict__", {}).items():  # values of cached properties
                 if key not in fields:
@@ -168,6 +168,15 @@ class _Encoder:
                         extra[key] = self.value(x)
             return {"$": "o", "c": name, "v": fields, "x": extra}
         raise Unstorable(f"a {name}")
+
+
+def _stored_fields(cls) -> list[str]:
+    """The dataclass fields of ``cls`` held on its instances (a field that a subclass turns
+    into a property is computed, not stored)."""
+    import inspect
+
+    return [f.name for f in dataclasses.fields(cls)
+            if not hasattr(type(inspect.getattr_static(cls, f.name, None)), "__set__")]
 
 
 def _own(cls) -> bool:
@@ -249,7 +258,7 @@ class _Decoder:
             cls = _own_class(v.get("c"))
             if not dataclasses.is_dataclass(cls):
                 raise ValueError(f"{v.get('c')} is not a dataclass")
-            names = {f.name for f in dataclasses.fields(cls)}
+            names = set(_stored_fields(cls))
             if not isinstance(body, dict) or set(body) != names:
                 raise ValueError(f"the fields of {v.get('c')} differ")
             obj = object.__new__(cls)  # no constructor runs: the fields are set as stored
