@@ -183,3 +183,20 @@ def test_two_processes_filling_one_entry_both_get_the_model(cache):
     for out, _ in outs:
         np.testing.assert_allclose(json.loads(out.strip().splitlines()[-1]), expected, rtol=1e-15, atol=1e-15)
     assert len(_entries(cache)) == 1
+
+
+def test_the_notes_of_reading_a_file_come_again_from_the_cache(cache, tmp_path):
+    """A URDF joint's <dynamics> is not applied (an AppellNote when the file is read): the
+    second run, from the cache, gives the same note."""
+    urdf = tmp_path / "arm.urdf"
+    source = (Path(appell.__file__).parent / "examples" / "arm.urdf").read_text()
+    joint_end = source.index("</joint>")
+    urdf.write_text(source[:joint_end] + '<dynamics damping="0.5"/>' + source[joint_end:])
+    runs = []
+    for _ in range(2):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            dc.derive_file(urdf)
+        runs.append([str(w.message) for w in caught if issubclass(w.category, AppellNote)])
+    assert len(_entries(cache)) == 1
+    assert runs[0] and runs[1] == runs[0] and "dynamics" in runs[0][0]

@@ -344,9 +344,9 @@ def _note(message: str) -> None:
     warnings.warn(message, AppellNote, stacklevel=3)
 
 
-def read_entry(file: Path, key: str, quiet: bool = False):
+def read_entry(file: Path, key: str, quiet: bool = False, notes: list | None = None):
     """The derivation stored in ``file`` for ``key``, or None (with a note for a bad entry,
-    unless ``quiet``)."""
+    unless ``quiet``); the notes stored with it are given again (and added to ``notes``)."""
     try:
         raw = file.read_bytes()
     except FileNotFoundError:
@@ -364,20 +364,29 @@ def read_entry(file: Path, key: str, quiet: bool = False):
             raise ValueError("written for another model")
         if header.get("sha256") != hashlib.sha256(body).hexdigest():
             raise ValueError("its content does not match its checksum (truncated or changed)")
-        derivation = decode(json.loads(body))
+        doc = json.loads(body)
+        stored = doc.get("notes", [])
+        if not isinstance(stored, list) or not all(isinstance(n, str) for n in stored):
+            raise ValueError("bad notes")
+        derivation = decode(doc)
     except Exception as exc:  # noqa: BLE001 (whatever the file holds, it is not trusted)
         if not quiet:
             _note(f"the cached derivation {file} is ignored ({str(exc)[:200]}); deriving again")
         return None
     with contextlib.suppress(OSError):
         os.utime(file)  # most recently used
+    for note in stored:  # what reading the model file noted (a URDF's damping not applied), again
+        warnings.warn(note, AppellNote, stacklevel=3)
+    if notes is not None:
+        notes.extend(stored)
     return derivation
 
 
-def write_entry(root: Path, file: Path, key: str, derivation) -> bool:
-    """Store ``derivation`` under ``key`` (atomically); False when it cannot be stored."""
+def write_entry(root: Path, file: Path, key: str, derivation, notes=()) -> bool:
+    """Store ``derivation`` under ``key`` (atomically) with the ``notes`` that reading its model
+    file gave (given again when it is read); False when it cannot be stored."""
     try:
-        body = json.dumps(encode(derivation), separators=(",", ":")).encode()
+        body = json.dumps({**encode(derivation), "notes": list(notes)}, separators=(",", ":")).encode()
     except Unstorable:
         return False
     header = json.dumps({"magic": _MAGIC, "format": FORMAT, "key": key,
@@ -459,8 +468,17 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
         if path.name in list_examples() or path.name in list_benchmarks():
             path = example_path(path.name)
 
+    notes: list[str] = []
+
     def fresh():
-        derivation = _derive(load_model(path, overrides, floating_base=floating_base), dependent)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", AppellNote)
+            system = load_model(path, overrides, floating_base=floating_base)
+        for w in caught:  # given as they came, and kept with the entry
+            if issubclass(w.category, AppellNote):
+                notes.append(str(w.message))
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        derivation = _derive(system, dependent)
         if formulas:
             _formulas(derivation)
         return derivation
@@ -478,14 +496,14 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     if found is not None and (not formulas or _has_formulas(found)):
         return found
     with _lock(root, key):
-        found = read_entry(file, key, quiet=file.exists())  # filled by another process meanwhile
+        found = read_entry(file, key, quiet=file.exists(), notes=notes)  # filled by another process meanwhile
         if found is not None and (not formulas or _has_formulas(found)):
             return found
         derivation = found if found is not None else fresh()
         if formulas:
             _formulas(derivation)
         with contextlib.suppress(OSError):
-            write_entry(root, file, key, derivation)
+            write_entry(root, file, key, derivation, notes)
     return derivation
 
 
