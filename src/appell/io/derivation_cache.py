@@ -459,8 +459,6 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     (or ``$APPELL_NO_CACHE=1``) derives without reading or writing the cache; ``formulas``:
     the reduced equations (1.4) and the reaction formulas (1.5) are formed now and stored
     with the derivation where they exist in closed form."""
-    from appell.io.modelfile import load_model
-
     path = Path(path)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
         from appell.examples import example_path, list_benchmarks, list_examples
@@ -471,6 +469,8 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     notes: list[str] = []
 
     def fresh():
+        from appell.io.modelfile import load_model  # not imported when the cache answers
+
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", AppellNote)
             system = load_model(path, overrides, floating_base=floating_base)
