@@ -80,3 +80,14 @@ def test_without_a_compiler_the_default_is_numpy_with_one_warning(tmp_path):
 
 def test_appell_backend_names_another_default(tmp_path):
     assert _run(MODEL, APPELL_BACKEND="numpy").startswith("numpy ")
+
+
+@pytest.mark.skipif(find_compiler() is None, reason="no C compiler: 'auto' is NumPy anyway")
+def test_the_command_lines_numpy_backend_stays_numpy():
+    """``appell simulate --backend numpy`` (workflows.run_simulation) runs the NumPy model by
+    name: with the default now 'auto', passing the bare derivation on compiled C instead."""
+    code = ("from appell import derive, load_model\nfrom appell.numerics import boundary\n"
+            "from appell.workflows import run_simulation\n"
+            "d = derive(load_model('pendulum'))\nrun_simulation(d, 0.01, backend='numpy')\n"
+            "print(boundary._kept(d, 'c') is None and boundary._kept(d, 'numpy') is not None)")
+    assert _run(code) == "True"

@@ -156,7 +156,7 @@ def check_inertia_at_start(derivation) -> None:
         from appell.numerics.inertia import check_inertia
         from appell.simulation.initial import check_blocks_at_start
 
-        model = numeric_model(derivation)
+        model = numeric_model(derivation, "numpy")  # one state's blocks: no compiler
         t0 = float(dict(system.settings).get("t0", 0.0))
         y = [float(values.get(name, 0.0)) for name in model.state_names]
         check_blocks_at_start(model, t0, y, model.default_parameters)  # entries beyond the range: named
@@ -281,10 +281,10 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
     from appell.simulation.simulate import simulate
 
     with status(f"compiling the numeric code of {derivation.system.name} ({backend})"):
-        if backend == "numpy" or _is_controlled(derivation):
+        if _is_controlled(derivation):
             model = derivation
             numeric_model(derivation)  # built and kept here, under the status line
-        else:
+        else:  # 'numpy' by name too: numeric_model's own default is 'auto' (compiled where a compiler is found)
             model = numeric_model(derivation, backend)
     opts = command_options(derivation.system, t_end, **(solver or {}))
     # the command completes missing values; given ones change only where the model says so
