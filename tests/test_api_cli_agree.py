@@ -102,7 +102,7 @@ def test_a_new_span_regenerates_equally_spaced_output_times():
 # motion also equals the one of the plain public API, appell.simulate on the derivation (an
 # independent route through the options: the model's [simulation] table read by
 # SimulationOptions.from_model there, by command_options here). The derivation, the one step
-# that both take alike (derive_model), is formed once per example and served to the command.
+# that both take alike (load_derivation), is formed once per example and served to the command.
 import json  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -138,7 +138,7 @@ def test_every_command_and_its_twin_agree(name, tmp_path, monkeypatch):
     plain ``appell.simulate`` column by column."""
     quiet = lambda *a, **k: None  # noqa: E731
     derivation = workflows.derive_model(workflows.load_system(name, echo=quiet), formulas=True)
-    monkeypatch.setattr("appell.io.cli.derive_model", lambda system, *a, **k: derivation)
+    monkeypatch.setattr("appell.workflows.load_derivation", lambda *a, **k: derivation)
     # derive
     code, stdout, stderr = _command("derive", name, "--format", "json")
     echo, out, err = _collect()

@@ -524,7 +524,7 @@ def test_an_internal_error_is_reported_without_traceback(monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(cli_module, "derive_model", broken)
+    monkeypatch.setattr("appell.workflows.load_derivation", broken)
     monkeypatch.delenv("APPELL_DEBUG", raising=False)
     result = run("derive", "pendulum")
     assert result.exit_code == 1

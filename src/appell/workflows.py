@@ -46,7 +46,7 @@ __all__ = [
     "OUTPUT_FORMATS", "SOLVER_OPTIONS", "check_inertia_at_start", "check_model", "check_movie_writer",
     "check_output_memory", "command_options", "completion", "copy_example", "cross_check_model", "derivation_json",
     "derive_model", "example_listing", "export_solution", "failed_path", "first_integrals", "internal_stability",
-    "keep_cluster", "keep_failed_motion", "load_system", "read_trajectory", "report_model", "resolve_model",
+    "keep_cluster", "keep_failed_motion", "load_derivation", "load_system", "read_trajectory", "report_model", "resolve_model",
     "run_inverse", "run_simulation", "save_motion", "save_simulation", "show_derivation", "solver_line",
     "span_energy_balance", "stability_analysis", "stability_table", "sweep_model", "verdict", "write_stability",
 ]
@@ -92,10 +92,11 @@ def resolve_model(model: str) -> Path:
                      + "; or a benchmark: " + ", ".join(list_benchmarks()))
 
 
-def load_system(model: str, overrides=None, floating_base: bool = False, echo=None):
+def load_system(model: str, overrides=None, floating_base: bool = False, echo=None, reactions_in: str | None = None):
     """Load a model file (or bundled example) with parameter / initial-value ``overrides``
     (``{name: value text}``, as ``--set NAME=VALUE``); ``floating_base`` puts a ``.urdf``
-    robot's root link on a free joint. What the model's files hold that appell does not
+    robot's root link on a free joint; ``reactions_in`` the axes of the joint reactions of a
+    ``[mechanism]`` model. What the model's files hold that appell does not
     apply is one ``note:`` line each on ``echo(..., err=True)``."""
     import warnings
 
@@ -105,13 +106,46 @@ def load_system(model: str, overrides=None, floating_base: bool = False, echo=No
     echo = echo or _print
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", AppellNote)
-        system = load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base)
+        system = load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base,
+                            reactions_in=reactions_in)
     for w in caught:  # what the model's files hold that appell does not apply: one line each
         if issubclass(w.category, AppellNote):
             echo(f"note: {w.message}", err=True)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return system
+
+
+def load_derivation(model: str, overrides=None, floating_base: bool = False, dependent=None, formulas: bool = False,
+                    cache: bool | None = None, reactions_in: str | None = None, echo=None):
+    """:func:`load_system` and :func:`derive_model` in one step, through the derivation cache
+    (:func:`appell.io.derivation_cache.derive_file`: a model file derived before is read back,
+    not derived again; ``cache=False`` or ``$APPELL_NO_CACHE=1`` derives every time).
+    ``reactions_in``: the axes of the joint reactions of a ``[mechanism]`` model
+    (:func:`appell.io.modelfile.load_model`). The model's notes are ``note:`` lines on ``echo``,
+    from the cache too; the inertia is checked at the start as :func:`derive_model` does."""
+    import warnings
+
+    from appell.errors import AppellNote
+    from appell.io.derivation_cache import derive_file
+    from appell.io.progress import status
+    from appell.symbols import canonical_name
+
+    echo = echo or _print
+    path = resolve_model(model)
+    dependent = [canonical_name(d) for d in dependent] if dependent else None
+    with warnings.catch_warnings(record=True) as caught, status(f"deriving {path.stem}"):
+        warnings.simplefilter("always", AppellNote)
+        derivation = derive_file(path, overrides or None, floating_base=floating_base, dependent=dependent,
+                                 cache=cache, formulas=formulas, reactions_in=reactions_in)
+    for w in caught:
+        if issubclass(w.category, AppellNote):
+            echo(f"note: {w.message}", err=True)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if not _is_controlled(derivation):
+        check_inertia_at_start(derivation)
+    return derivation
 
 
 def derive_model(system, dependent=None, formulas: bool = False):

@@ -67,8 +67,11 @@ OUTPUT_FORMATS, SOLVER_OPTIONS = workflows.OUTPUT_FORMATS, workflows.SOLVER_OPTI
 
 
 def load_system(model: str, overrides=None, floating_base: bool = False):
-    """:func:`appell.workflows.load_system` with the model's notes printed as ``note:`` lines."""
-    return workflows.load_system(model, overrides, floating_base, echo=click.echo)
+    """:func:`appell.workflows.load_system` with the model's notes printed as ``note:`` lines
+    (and the command's ``--reactions-in``)."""
+    ctx = click.get_current_context(silent=True)
+    reactions_in = ctx.meta.get("appell.reactions_in") if ctx is not None else None
+    return workflows.load_system(model, overrides, floating_base, echo=click.echo, reactions_in=reactions_in)
 
 
 def __getattr__(name):  # the workflows' names, as before they moved there (from appell.io.cli import ...)
@@ -250,9 +253,39 @@ _floating_option = click.option("--floating-base", "floating_base", is_flag=True
                                      "a humanoid): world translations and yaw, pitch, roll, the motion of Pinocchio's free flyer.")
 
 
+def _keep(key):
+    """A click callback keeping an option's value in the command's context (``ctx.meta``), for
+    :func:`_derivation`: the options every model command has, without a parameter each."""
+    def callback(ctx, param, value):
+        ctx.meta[key] = value
+        return value
+    return callback
+
+
+_cache_option = click.option("--no-cache", "no_cache", is_flag=True, expose_value=False,
+                             callback=_keep("appell.no_cache"),
+                             help="Derive the model again instead of reading the derivation stored by an earlier run "
+                                  "(the derivation cache, $APPELL_CACHE_DIR), and store nothing.")
+_reactions_option = click.option("--reactions-in", "reactions_in", default=None, metavar="AXES", expose_value=False,
+                                 callback=_keep("appell.reactions_in"),
+                                 help="Axes of the joint reactions of a [mechanism] model: world (ground), joint, "
+                                      "child, parent or a body's name (default: the model file's reactions_in, else "
+                                      "world).")
+
+
 def _model_options(command):
-    """``--set`` and ``--floating-base``, the options of every command that loads a model."""
-    return _set_option(_floating_option(command))
+    """``--set``, ``--floating-base``, ``--no-cache`` and ``--reactions-in``, the options of every
+    command that loads a model."""
+    return _set_option(_floating_option(_cache_option(_reactions_option(command))))
+
+
+def _derivation(model, assignments, floating_base, dependent=None, formulas: bool = False):
+    """The derivation of MODEL with the command's ``--set`` / ``--floating-base`` /
+    ``--no-cache`` / ``--reactions-in`` (:func:`appell.workflows.load_derivation`)."""
+    meta = click.get_current_context().meta
+    return workflows.load_derivation(model, parse_assignments(assignments), floating_base, dependent, formulas,
+                                     cache=False if meta.get("appell.no_cache") else None,
+                                     reactions_in=meta.get("appell.reactions_in"), echo=click.echo)
 
 
 _complete_option = click.option("--complete", is_flag=True,
@@ -404,14 +437,14 @@ def derive_command(model, fmt, dependent, routh, assignments, floating_base, onl
     For a model with servo constraints: the dynamic conditions (2.3), the reduced
     equations (2.4), the reactions (2.5) and the control laws.
     """
-    system = load_system(model, parse_assignments(assignments), floating_base)
     reduction = None
     if routh:
         from appell.reduction.cyclic import routh_reduction
 
-        reduction = routh_reduction(system)
-        system = reduction.system
-    derivation = derive_model(system, dependent, formulas=True)
+        reduction = routh_reduction(load_system(model, parse_assignments(assignments), floating_base))
+        derivation = derive_model(reduction.system, dependent, formulas=True)
+    else:
+        derivation = _derivation(model, assignments, floating_base, dependent, formulas=True)
     workflows.show_derivation(derivation, fmt, reduction, only, echo=click.echo)
 
 
@@ -449,8 +482,7 @@ def simulate_command(model, t_end, out, plot, backend, assignments, floating_bas
     for target in (out_path, Path(plot) if plot else None):
         if target is not None:
             output_file(target, "'--out/--plot'")
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
+    derivation = _derivation(model, assignments, floating_base)
     try:
         solution = run_simulation(derivation, t_end, backend, _solver(solver), **workflows.completion(complete, adjust))
     except ComputationError as exc:
@@ -490,8 +522,7 @@ def animate_command(model, out, t_end, fps, frames, backend, assignments, floati
     if path is not None:
         output_file(path, "'--out'")
     workflows.check_movie_writer(path)  # before the simulation, not after it
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
+    derivation = _derivation(model, assignments, floating_base)
     solution = run_simulation(derivation, t_end, backend, _solver(solver), **workflows.completion(complete, adjust))
     workflows.save_motion(derivation, solution, path, fps, frames, echo=click.echo)
 
@@ -517,8 +548,7 @@ def inverse_command(model, trajectory, drives, out, assignments, floating_base):
     """
     table = workflows.read_trajectory(Path(trajectory))  # a bad file is bad input before the derivation
     path = output_file(Path(out), "'--out'") if out else None
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
+    derivation = _derivation(model, assignments, floating_base)
     workflows.run_inverse(derivation, trajectory, drives, path, echo=click.echo, table=table)
 
 
@@ -546,8 +576,7 @@ def check_command(model, tolerance, energy_tolerance, t_end, assignments, floati
     for name, value in (("--tolerance", tolerance), ("--energy-tolerance", energy_tolerance)):
         if value is not None and not value > 0:
             raise click.BadParameter("must be positive", param_hint=f"'{name}'")
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
+    derivation = _derivation(model, assignments, floating_base)
     workflows.check_model(derivation, tolerance, energy_tolerance, t_end, echo=click.echo)
 
 
@@ -577,8 +606,7 @@ def report_command(model, output, t_end, no_simulation, data, backend, assignmen
     """
     if output is not None:
         output_file(Path(output), "'-o'")
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
+    derivation = _derivation(model, assignments, floating_base)
     workflows.report_model(derivation, output, t_end, not no_simulation, data, backend, _solver(solver),
                            echo=click.echo, **workflows.completion(complete, adjust))
 

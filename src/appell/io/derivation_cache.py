@@ -9,7 +9,9 @@ SHA-256 of
 * the bytes of the model file and of the files it names (a model file's ``[mechanism] urdf``,
   an MJCF's ``<include file=...>``),
 * the overrides, the floating base and the chosen dependent accelerations (the partition),
-* appell's, SymPy's and Python's versions and :data:`FORMAT`.
+* the axes of the joint reactions (``reactions_in``),
+* appell's version and the digest of its source files (:func:`source_digest`), SymPy's and
+  Python's versions and :data:`FORMAT`.
 
 An entry is plain data that cannot run code when read (not pickle): one JSON document with a
 symbol table, a table of expression nodes (each node written once, its arguments referring to
@@ -318,12 +320,13 @@ def _named_files(path: Path, raw: bytes) -> list[Path]:
     return found
 
 
-def entry_key(path: Path, overrides=None, floating_base: bool = False, dependent=None) -> str:
+def entry_key(path: Path, overrides=None, floating_base: bool = False, dependent=None,
+              reactions_in: str | None = None) -> str:
     """The SHA-256 key of a model file's derivation (see the module's docstring)."""
     from appell import __version__
 
     digest = hashlib.sha256()
-    digest.update(f"{_MAGIC} {FORMAT} appell {__version__} sympy {sp.__version__} "
+    digest.update(f"{_MAGIC} {FORMAT} appell {__version__} {source_digest()} sympy {sp.__version__} "
                   f"python {sys.version_info[:3]}\n".encode())
     seen, todo = set(), [path]
     while todo:
@@ -335,9 +338,27 @@ def entry_key(path: Path, overrides=None, floating_base: bool = False, dependent
         digest.update(f"file {len(raw)}\n".encode() + raw)
         todo.extend(_named_files(file, raw))
     given = sorted((str(k), repr(v)) for k, v in dict(overrides or {}).items())
-    digest.update(repr((given, bool(floating_base), None if dependent is None else [str(d) for d in dependent]))
-                  .encode())
+    digest.update(repr((given, bool(floating_base), None if dependent is None else [str(d) for d in dependent],
+                        reactions_in)).encode())
     return digest.hexdigest()[:32]
+
+
+_SOURCE: list[str] = []
+
+
+def source_digest() -> str:
+    """SHA-256 of appell's own source files (formed once per process): a derivation stored by
+    other code of the same version number (a development checkout between releases) is
+    another entry, never read as this code's."""
+    if not _SOURCE:
+        digest = hashlib.sha256()
+        package = Path(__file__).resolve().parents[1]
+        for file in sorted(package.rglob("*")):
+            if file.suffix in (".py", ".c", ".toml", ".urdf", ".xml") and file.is_file():
+                digest.update(f"{file.relative_to(package).as_posix()} {file.stat().st_size}\n".encode())
+                digest.update(file.read_bytes())
+        _SOURCE.append(digest.hexdigest()[:16])
+    return _SOURCE[0]
 
 
 def _note(message: str) -> None:
@@ -451,14 +472,15 @@ def _derive(system, dependent):
 
 
 def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=None, cache: bool | None = None,
-                formulas: bool = False):
+                formulas: bool = False, reactions_in: str | None = None):
     """The derivation of the model file ``path`` (a bundled example's name too, as
     :func:`~appell.io.modelfile.load_model` takes), read from the derivation cache when the
     same input was derived before (see the module's docstring), else loaded, derived and
     stored. ``dependent``: the dependent accelerations of the partition; ``cache``: False
     (or ``$APPELL_NO_CACHE=1``) derives without reading or writing the cache; ``formulas``:
     the reduced equations (1.4) and the reaction formulas (1.5) are formed now and stored
-    with the derivation where they exist in closed form."""
+    with the derivation where they exist in closed form; ``reactions_in``: the axes of the joint
+    reactions (:func:`~appell.io.modelfile.load_model`)."""
     path = Path(path)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
         from appell.examples import example_path, list_benchmarks, list_examples
@@ -473,7 +495,7 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", AppellNote)
-            system = load_model(path, overrides, floating_base=floating_base)
+            system = load_model(path, overrides, floating_base=floating_base, reactions_in=reactions_in)
         for w in caught:  # given as they came, and kept with the entry
             if issubclass(w.category, AppellNote):
                 notes.append(str(w.message))
@@ -486,7 +508,7 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     if not cache_enabled(cache) or not path.is_file():
         return fresh()
     try:
-        key = entry_key(path, overrides, floating_base, dependent)
+        key = entry_key(path, overrides, floating_base, dependent, reactions_in)
         root = derivations_dir()
         root.mkdir(parents=True, exist_ok=True)
     except OSError:
