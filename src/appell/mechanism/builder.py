@@ -352,6 +352,15 @@ class Mechanism:
         self.bodies.append(b)
         return b
 
+    def massless(self, name: str) -> Body:
+        """A body without mass or inertia: a frame carried between joints (a MuJoCo body with
+        several joints, a mount that carries a joint). It moves and bears the reactions of its
+        joints, but adds no body to the system (its kinetic energy is zero)."""
+        self._claim(name, "body")
+        b = Body(name, sp.S.Zero, sp.zeros(3, 3), sp.zeros(3, 1))
+        self.bodies.append(b)
+        return b
+
     def particle(self, name: str, mass) -> Body:
         """A point mass (a body without inertia) at its frame's origin."""
         b = self.body(name, mass)
@@ -883,7 +892,7 @@ class Mechanism:
 
     def system(self, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
                constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
-               moment_unit="N*m", energy: bool = False) -> System:
+               moment_unit="N*m", energy: bool = False, joint_forces=None, rotor_energy=None, programs=()) -> System:
         """The :class:`appell.System` of the mechanism.
 
         Parameters
@@ -905,6 +914,14 @@ class Mechanism:
             ``energy_potential`` (gravity and the springs' ``k (l - l0)^2/2``) and ``energy``,
             their sum, constant where no damper, actuator or time-dependent load acts. The
             points of :meth:`watch_point` are outputs too.
+        joint_forces : ``{coordinate name: Q}``: generalized forces added along the speeds of
+            those coordinates (a joint's damper, spring or actuator, MJCF's passive forces),
+            acting between the joint's parent and child (inside its reaction).
+        rotor_energy : a kinetic energy ``T(q, w)`` added to the bodies' (the reflected inertia
+            of rotors, MJCF's ``armature``: ``sum a_k w_k^2 / 2``); the system then takes the
+            expanded route.
+        programs : :class:`~appell.model.Program` items (given functions of time, e.g. an
+            actuator's control signal), added as given.
         """
         frames = self.frames()
         order = self._tree()
@@ -916,6 +933,8 @@ class Mechanism:
             f = frames[b]
             rC, vC, _ = f.point(b.com)
             positions[b] = sp.ImmutableMatrix(rC)
+            if b.mass == 0:  # a massless frame (:meth:`massless`): no body, no energy
+                continue
             if b.particle:
                 bodies.append(Particle(b.name, b.mass, position=rC, velocity=vC))
             else:
@@ -942,6 +961,12 @@ class Mechanism:
             Q[coords.index(q)] += sp.Symbol(name) if value is None else value
             if value is None:
                 ctl.append(Control(sp.Symbol(name), "force"))
+        for qname, value in (joint_forces or {}).items():
+            k = next((i for i, q in enumerate(coords) if q.name == str(qname)), None)
+            if k is None:
+                raise ModelError(f"mechanism {self.name!r}: joint force on unknown coordinate {qname!r}",
+                                 hint="coordinates: " + ", ".join(q.name for q in coords))
+            Q[k] += sp.sympify(value)
         params = list(self.parameters)
         if parameters:
             known = {p.symbol.name for p in params}
@@ -986,9 +1011,10 @@ class Mechanism:
         if not bodies:
             raise ModelError(f"mechanism {self.name!r} has no bodies", hint="add one with mech.body(...)")
         return System(coordinates=tuple(coords), parameters=tuple(params), bodies=tuple(bodies), potential_energy=V,
+                      kinetic_energy=None if rotor_energy is None else sp.sympify(rotor_energy),
                       generalized_forces=tuple(Q) if any(e != 0 for e in Q) else None, loads=tuple(loads),
                       constraints=tuple(cons) + tuple(constraints), controls=tuple(ctl) + tuple(controls),
-                      servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
+                      programs=tuple(programs), servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
                       view=self._view(frames, contact_forces, {o.name for o in reaction_outputs}, frame, params),

@@ -35,6 +35,12 @@ def _mjcf_system(path: Path, floating_base: bool):
     return mjcf_system(path)
 
 
+def _sdf_system(path: Path, floating_base: bool):
+    from appell.mechanism.sdf import sdf_system
+
+    return sdf_system(path)
+
+
 @dataclass(frozen=True)
 class Importer:
     """A file format: ``name``, ``suffixes`` (lower case, with the dot), ``what`` its files
@@ -57,6 +63,7 @@ IMPORTERS: tuple[Importer, ...] = (
     Importer("URDF", (".urdf",), "a robot description", _urdf_system, _urdf_mechanism, key="urdf",
              floating_base=True),
     Importer("MJCF", (".xml", ".mjcf"), "a MuJoCo model", _mjcf_system, extra="mjcf"),
+    Importer("SDF", (".sdf",), "an SDFormat model", _sdf_system),
 )
 
 
