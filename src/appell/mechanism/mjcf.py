@@ -233,6 +233,7 @@ class MjcfModel:
     joints: tuple[MjcfJoint, ...]
     names: dict
     note: str | None
+    rotors: dict = None  # joint name -> its armature rotor's coordinate name
 
     def state(self, qpos, qvel=None) -> dict[str, float]:
         """appell's coordinates and speeds ``{name: value}`` at MuJoCo's ``qpos``, ``qvel``:
@@ -246,8 +247,10 @@ class MjcfModel:
         for j in self.joints:
             a, d = j.qposadr, j.dofadr
             if j.kind in ("hinge", "slide"):
-                out[j.coordinates[0]] = float(qpos[a] - self._qpos0[a])
-                out[j.coordinates[0] + "_dot"] = float(qvel[d])
+                names = (j.coordinates[0],) + ((self.rotors[j.name],) if j.name in (self.rotors or {}) else ())
+                for n in names:
+                    out[n] = float(qpos[a] - self._qpos0[a])
+                    out[n + "_dot"] = float(qvel[d])
                 continue
             if j.kind == "free":
                 R0 = np.asarray(j.rotation)
@@ -311,12 +314,22 @@ def _flag(model, name: str) -> bool:
     return bit is not None and bool(int(model.opt.disableflags) & int(bit))
 
 
-def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse") -> MjcfModel:
+def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armature: str = "rotors") -> MjcfModel:
     """The :class:`MjcfModel` of a compiled ``mujoco.MjModel`` (module docstring).
     ``frictionloss``: ``'refuse'`` (a joint or tendon with ``frictionloss`` is an error
     naming it: appell's Coulomb friction needs a normal force, MuJoCo's is a constant bound)
-    or ``'ignore'`` (left out, named in the note)."""
+    or ``'ignore'`` (left out, named in the note). ``armature`` (MuJoCo's reflected rotor
+    inertia ``a``, ``M_ii += a``): ``'rotors'`` gives each hinge or slide with armature a
+    rotor, a body of inertia ``a`` on a fixed axis of the ground turned by the joint's
+    coordinate (its own coordinate ``<joint>_rotor`` held equal to the joint's by the
+    constraint ``<joint>_armature``, whose multiplier is the rotor's torque ``a qddot``),
+    so that the joint tree and its recursions stay; ``'energy'`` adds ``a w^2/2`` to the
+    kinetic energy (no extra coordinates; the expanded route). Ball and free joints take
+    the energy in both cases."""
     mujoco = _mujoco()
+    armature_as = armature
+    if armature_as not in ("rotors", "energy"):
+        raise ModelError(f"armature must be 'rotors' or 'energy', got {armature!r}")
     from appell.mechanism.builder import Mechanism
     from appell.model import holonomic
 
@@ -401,6 +414,8 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse") -> Mj
     # ---- passive forces and rotor inertia (MuJoCo's qfrc_passive and armature)
     forces: dict[str, sp.Expr] = {}
     rotor = sp.S.Zero
+    rotors: dict[str, str] = {}  # joint -> its rotor's coordinate
+    constraints = []
     friction = []
     springs_off = _flag(model, "SPRING") or _flag(model, "PASSIVE")
     dampers_off = _flag(model, "DAMPER") or _flag(model, "PASSIVE")
@@ -429,7 +444,16 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse") -> Mj
             else:
                 rows = omega
         armature = [float(v) for v in model.dof_armature[d:d + n]]
-        rotor += sum((a * r**2 / 2 for a, r in zip(armature, rows) if a != 0), sp.S.Zero)
+        if armature_as == "rotors" and kind in ("hinge", "slide") and armature[0] != 0:
+            # a rotor of inertia a on a fixed axis, turned by the joint's coordinate: T = a w^2/2 exactly,
+            # and the joint tree (the recursions) keeps it
+            r_body = mech.body(names.claim("rotor", None, f"{jname[j]}_rotor_body"), 1.0, inertia=(armature[0],) * 3)
+            r_joint = mech.revolute(names.claim("rotor", None, f"{jname[j]}_rotor"), mech.ground, r_body)
+            rotors[jname[j]] = r_joint.coordinates[0].name
+            constraints.append(holonomic(names.claim("armature", None, f"{jname[j]}_armature"),
+                                         r_joint.coordinates[0] - qs[0]))
+        else:
+            rotor += sum((a * r**2 / 2 for a, r in zip(armature, rows) if a != 0), sp.S.Zero)
         if not dampers_off:
             add(rows, qs, [float(v) for v in model.dof_damping[d:d + n]])
         if np.any(np.asarray(model.dof_frictionloss[d:d + n]) != 0):
@@ -537,7 +561,6 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse") -> Mj
                        (body, tuple(p_off + R_off @ model.body_ipos[b])), tuple(-share * g for g in gravity))
 
     # ---- equalities
-    constraints = []
     equality_names = _names(model, mujoco.mjtObj.mjOBJ_EQUALITY, model.neq)
     site = int(mujoco.mjtObj.mjOBJ_SITE)
 
@@ -607,7 +630,7 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse") -> Mj
     note = f"{source}: not applied (no meaning for the rigid-body motion) or mapped: " + "; ".join(ignored) \
         if ignored else None
     out = MjcfModel(mech, tuple(constraints), {k: v for k, v in forces.items() if v != 0}, rotor,
-                    tuple(actuators), tuple(read_joints), dict(names.table), note)
+                    tuple(actuators), tuple(read_joints), dict(names.table), note, rotors)
     out.__dict__["qpos0"] = np.asarray(model.qpos0, float).copy()
     return out
 
@@ -622,7 +645,8 @@ def mjcf_mechanism(model, source: str = "<mjcf>", frictionloss: str = "refuse"):
     return read.mechanism, list(read.constraints)
 
 
-def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: str = "refuse", **options):
+def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: str = "refuse",
+                armature: str = "rotors", **options):
     """The :class:`~appell.model.System` of a MuJoCo model file (or XML string), every joint's
     force and moment as outputs (``options`` go to :meth:`Mechanism.system`).
 
@@ -630,7 +654,8 @@ def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: st
     number or an expression in ``t``; MuJoCo's ``ctrl``, 0 where not given; MJCF or appell
     name); ``actuators='controls'``: the controls are unknowns (:class:`~appell.model.Control`),
     fixed by servo constraints or solved for by inverse dynamics. ``frictionloss``: see
-    :func:`read_mjcf`."""
+    :func:`read_mjcf`, as ``armature``; the reactions are those of MuJoCo's joints (not of
+    the armature rotors) unless ``reactions`` is given."""
     from appell.model import Control, Program
     from appell.symbols import t
 
@@ -638,9 +663,12 @@ def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: st
         raise ModelError(f"actuators must be 'programs' or 'controls', got {actuators!r}")
     model = load_mjcf(source)
     where = str(source) if not str(source).lstrip().startswith("<") else "<mjcf>"
-    read = read_mjcf(model, where, frictionloss)
+    read = read_mjcf(model, where, frictionloss, armature)
     if read.note:
         warnings.warn(AppellNote(read.note), stacklevel=2)
+    if read.rotors and "reactions" not in options:
+        rotor_joints = set(read.rotors.values())
+        options["reactions"] = [j.name for j in read.mechanism.joints if j.name not in rotor_joints]
     given = dict(ctrl or {})
     known = {n for a in read.actuators for n in a[:2]}
     unknown = sorted(str(k) for k in given if str(k) not in known)
@@ -653,7 +681,14 @@ def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: st
             controls.append(Control(sp.Symbol(ident), "force"))
             continue
         value = given.get(original, given.get(ident, 0.0))
-        programs.append(Program(sp.Symbol(ident), sp.sympify(value, locals={"t": t})))
+        if isinstance(value, str) or not isinstance(value, (int, float, sp.Basic)):
+            raise ModelError(f"{where}: ctrl of actuator {original!r} must be a number or a SymPy expression in t, "
+                             f"got {type(value).__name__}", hint="e.g. 0.5*sympy.sin(2*appell.symbols.t)")
+        expr = sp.sympify(value)
+        if not expr.free_symbols <= {t}:
+            raise ModelError(f"{where}: ctrl of actuator {original!r} depends on {sorted(map(str, expr.free_symbols - {t}))}",
+                             hint="a program is a function of time t alone")
+        programs.append(Program(sp.Symbol(ident), expr))
     return read.mechanism.system(constraints=tuple(read.constraints), joint_forces=read.joint_forces,
                                  rotor_energy=read.rotor_energy if read.rotor_energy != 0 else None,
                                  programs=tuple(programs), controls=tuple(options.pop("controls", ())) + tuple(controls),
