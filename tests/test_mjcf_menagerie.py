@@ -74,7 +74,7 @@ def equality_rows(mj, data):
             rows.append(J[0] - J[1])
             bias.append(Jd[0] - Jd[1])
         elif kind == mujoco.mjtEq.mjEQ_JOINT:
-            d1, a1 = int(mj.jnt_dofadr[o1]), int(mj.jnt_qposadr[o1])
+            d1 = int(mj.jnt_dofadr[o1])
             row = np.zeros(mj.nv)
             row[d1] = 1.0
             b = 0.0
@@ -227,8 +227,8 @@ def closed_four_bar() -> str:
     mujoco.mj_kinematics(mj, data)
     tip = data.xpos[2] + data.xmat[2].reshape(3, 3) @ [1.0, 0, 0]
     local = data.xmat[3].reshape(3, 3).T @ (tip - data.xpos[3])  # the same point on the rocker
-    return xml.replace("</mujoco>", f'<equality><connect name="C" body1="coupler" body2="rocker" anchor="1 0 0"/>'
-                                    f'</equality></mujoco>'), local
+    return xml.replace("</mujoco>", '<equality><connect name="C" body1="coupler" body2="rocker" anchor="1 0 0"/>'
+                                    '</equality></mujoco>'), local
 
 
 def test_a_four_bar_with_armature_damping_stiffness_and_actuators_matches_the_kkt_reference():
@@ -274,3 +274,75 @@ def test_bad_equalities_and_actuators_name_the_element_and_line():
         mjcf_system(xml.replace('body2="rocker"', 'body2="nowhere"'))
     with pytest.raises(ModelError, match=r"(?s)unknown transmission target 'Z'.*Element name 'drive'.*line 20"):
         mjcf_system(xml.replace('joint="A" kp', 'joint="Z" kp'))
+
+
+def four_bar_sdf(local) -> str:
+    """The four-bar of :func:`four_bar_with_passive_elements` (no passive elements, no
+    actuators) as SDFormat: link poses in the model frame, the loop closed by a revolute
+    joint ``C`` whose child (the rocker) is already in the tree."""
+    import math
+
+    def inertial(m, length):
+        moment = m * length ** 2 / 12
+        return (f"<inertial><pose>{length / 2} 0 0 0 0 0</pose><mass>{m}</mass><inertia><ixx>1e-4</ixx>"
+                f"<iyy>{moment}</iyy><izz>{moment}</izz><ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial>")
+
+    cx, cy = 0.4 * math.cos(1.2), 0.4 * math.sin(1.2)
+    return f"""<?xml version="1.0"?>
+<sdf version="1.7"><world name="w"><gravity>0 -9.81 0</gravity>
+ <model name="four-bar sdf">
+  <link name="crank"><pose>0 0 0 0 0 1.2</pose>{inertial(1.0, 0.4)}</link>
+  <link name="coupler"><pose>{cx} {cy} 0 0 0 0.2</pose>{inertial(2.0, 1.0)}</link>
+  <link name="rocker"><pose>0.9 0 0 0 0 0</pose>{inertial(1.5, 0.8)}</link>
+  <joint name="A" type="revolute"><parent>world</parent><child>crank</child><axis><xyz>0 0 1</xyz></axis></joint>
+  <joint name="B" type="revolute"><parent>crank</parent><child>coupler</child><axis><xyz>0 0 1</xyz></axis></joint>
+  <joint name="D" type="revolute"><parent>world</parent><child>rocker</child><axis><xyz>0 0 1</xyz></axis></joint>
+  <joint name="C" type="revolute"><parent>coupler</parent><child>rocker</child>
+    <pose>{local[0]} {local[1]} 0 0 0 0</pose><axis><xyz>0 0 1</xyz></axis></joint>
+ </model></world></sdf>"""
+
+
+def test_an_sdf_four_bar_closed_by_a_loop_joint_matches_the_mujoco_reference():
+    """Source of truth: the same four-bar as MJCF, MuJoCo's KKT reference (module docstring)."""
+    from appell.mechanism.sdf import sdf_system
+
+    xml, local = closed_four_bar()
+    xml = xml.split("<tendon>")[0] + xml[xml.index("<equality>"):]
+    for attribute in ('armature="0.02" damping="0.3"', 'damping="0.05" stiffness="2" springref="0.3"',
+                      'armature="0.01" stiffness="1.5" springref="-0.4"'):
+        xml = xml.replace(attribute, "")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        model = numeric_model(appell.derive(sdf_system("four_bar.sdf", text=four_bar_sdf(local))))
+    assert set(model.coordinate_names) == {"A", "B", "D"}
+    assert {"C_x", "C_y"} <= set(model.constraint_names)  # the loop joint's point rows (the planar rest left out)
+    mj = load_mjcf(xml)
+    data = mujoco.MjData(mj)
+    rng = np.random.default_rng(2)
+    for _ in range(8):
+        qpos, qvel = assemble(mj, data, mj.qpos0 + rng.uniform(-0.5, 0.5, 3), rng)
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        expected = reference(mj, data)
+        values = dict(zip("ABD", qpos)) | {f"{n}_dot": v for n, v in zip("ABD", qvel)}
+        sol = model.solve(0.0, np.array([values[n] for n in model.coordinate_names]),
+                          np.array([values[n] for n in model.speed_names]))
+        got = dict(zip(model.speed_names, sol.accelerations))
+        assert np.abs(np.array([got[f"{n}_dot"] for n in "ABD"]) - expected).max() <= 1e-9 * np.abs(expected).max()
+
+
+def test_sdf_is_read_safely_and_bad_joints_are_named_with_their_line(tmp_path):
+    from appell.mechanism.sdf import sdf_system
+
+    _, local = closed_four_bar()
+    text = four_bar_sdf(local)
+    with pytest.raises(ModelError, match="document type declaration"):
+        sdf_system("bomb.sdf", text='<?xml version="1.0"?><!DOCTYPE sdf [<!ENTITY a "aaaa">]><sdf/>')
+    with pytest.raises(ModelError, match=r"joint 'C': its child 'nowhere' is not a link") as err:
+        sdf_system("bad.sdf", text=text.replace("<child>rocker</child>\n", "<child>nowhere</child>\n"))
+    assert "bad.sdf:12" in str(err.value)
+    path = tmp_path / "four_bar.sdf"
+    path.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        system = appell.load_model(path)  # through the one importer registry
+    assert {q.name for q in system.coordinates} == {"A", "B", "D"}

@@ -221,14 +221,17 @@ class _Action:
     torque: sp.Matrix
 
 
-def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None) -> tuple[list, list]:
+def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None, axes=None) -> tuple[list, list]:
     """The rows ``<name>_<d> = e_d . (p_a - p_b)`` holding two body points together along the
-    world ``directions``, and their actions: ``lambda e_d`` on body_a at ``p_a``, its opposite
-    on body_b. With a list ``idle``, a row that holds at every configuration is left out and
-    its name appended there."""
+    world ``directions`` (or along the axes ``e_d = R e_d`` of a body turned by ``axes = R``),
+    and their actions: ``lambda e_d`` on body_a at ``p_a``, its opposite on body_b (where the
+    points coincide). With a list ``idle``, a row that holds at every configuration is left out
+    and its name appended there."""
     cons, acts = [], []
     for d in directions:
         e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
+        if axes is not None:
+            e = axes * e
         row = (pa - pb).dot(e)
         if idle is not None and identically_zero(row):
             idle.append(f"{name}_{d}")
@@ -468,11 +471,14 @@ class Mechanism:
             raise ModelError(f"{what}: a point is (body, (x, y, z) in the body frame), got {item!r}")
         return self._body(item[0], what), _matrix(item[1], f"{what}: point")
 
-    def connect(self, name, a, b, directions="xyz"):
+    def connect(self, name, a, b, directions="xyz", axes=None):
         """Loop closure: the point ``a = (body_a, r_a)`` coincides with ``b = (body_b, r_b)``
-        along the world ``directions`` (a subset of ``'xyz'``): holonomic constraints
-        ``<name>_<d> = e_d . (r_A - r_B) = 0``; ``lambda_<name>_<d>`` is the force of
-        ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``)."""
+        along the world ``directions`` (a subset of ``'xyz'``; along body_a's axes where
+        ``axes='a'``: a planar loop carried by a moving body keeps its normal there):
+        holonomic constraints ``<name>_<d> = e_d . (r_A - r_B) = 0``; ``lambda_<name>_<d>`` is
+        the force of ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``)."""
+        if axes not in (None, "a"):
+            raise ModelError(f"closure {name!r}: axes must be None (the world's) or 'a' (body_a's), got {axes!r}")
         self._claim(name, "closure")
         what = f"closure {name!r}"
         (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
@@ -482,7 +488,8 @@ class Mechanism:
             raise ModelError(f"{what}: directions {directions!r} must be distinct letters of 'xyz'")
 
         def build(frames):
-            return _point_rows(name, ba, frames[ba].point(ra)[0], bb, frames[bb].point(rb)[0], dirs)
+            return _point_rows(name, ba, frames[ba].point(ra)[0], bb, frames[bb].point(rb)[0], dirs,
+                               axes=frames[ba].R if axes == "a" else None)
 
         self._closures.append(_Closure(name, build))
 

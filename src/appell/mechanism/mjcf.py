@@ -1,33 +1,57 @@
-"""MuJoCo models (MJCF) as mechanisms, read through the ``mujoco`` package's own compiler.
+"""MuJoCo models (MJCF) as mechanisms, read whole through the ``mujoco`` package's own compiler.
 
 ``mujoco.MjModel`` parses and compiles the file (no XML parser here: includes, defaults,
 ``childclass``, inertias computed from geoms, frames and orientations in every notation are
-MuJoCo's own). Its compiled model is mapped to a :class:`~appell.mechanism.Mechanism`:
+MuJoCo's own). :func:`read_mjcf` maps its compiled model to a
+:class:`~appell.mechanism.Mechanism` and what MuJoCo adds to it, so that appell's
+accelerations are MuJoCo's with its equalities held rigid (tests/test_mjcf_menagerie.py):
 
 * every body but the world is a body with ``body_mass``, the mass centre ``body_ipos`` and the
-  inertia ``R(body_iquat) diag(body_inertia) R^T`` in the body frame;
-* a body's joint moves it relative to its parent: ``hinge`` → revolute, ``slide`` →
-  prismatic, ``ball`` → spherical and ``free`` → free (unit quaternions, as MuJoCo's), a body
-  without a joint is welded to its parent. The joint frame sits at the joint's position
-  ``jnt_pos`` in the body, with the body's orientation ``body_quat`` relative to the parent,
-  so that a hinge's angle and a slide's displacement are MuJoCo's ``qpos - qpos0``;
-* gravity is ``opt.gravity``;
-* an active ``connect`` equality is a loop closure at the two anchors (``eq_data``), its
-  multipliers the force of the second body on the first (the rows along which the anchors
-  never part, the normal of a planar loop, are left out with a note); a ``joint`` equality
-  ``q1 - q1_0 = c0 + c1 (q2 - q2_0) + ... + c4 (q2 - q2_0)^4`` is a holonomic constraint; a
-  ``weld`` equality is :meth:`Mechanism.weld <appell.mechanism.Mechanism.weld>`: the anchor on
-  the second body held at its place in the first (``eq_data``: anchor, then its position
-  and the second body's orientation in the first, as MuJoCo's compiler computes them at
-  ``qpos0``), rigid (MuJoCo's ``torquescale`` and soft parameters are not applied);
-* the geoms (spheres, capsules, cylinders, boxes, meshes; not planes, ellipsoids, height
-  fields) are drawn in the picture of the motion (:mod:`appell.view`).
+  inertia ``R(body_iquat) diag(body_inertia) R^T`` in the body frame; a massless body without
+  a joint (a mount, a site carrier) is merged into its parent (its geoms, sites and children
+  placed in the parent's frame), one with joints is a massless frame;
+* a body's joints move it relative to its parent, in MuJoCo's order (several joints: each
+  moves the frame the one before left, through massless frames ``<body>_<joint>_frame``):
+  ``hinge`` -> revolute, ``slide`` -> prismatic, ``ball`` -> spherical, ``free`` -> free
+  (unit quaternions, as MuJoCo's). A hinge's angle and a slide's displacement are MuJoCo's
+  ``qpos - qpos0`` (:meth:`MjcfModel.state` maps MuJoCo's ``qpos``, ``qvel`` to appell's state);
+* ``armature`` ``a`` (``M_ii += a``): a rotor of inertia ``a`` on the ground turned by the
+  joint's coordinate (``armature='rotors'``, the tree's recursions kept) or ``a w^2/2`` in the
+  kinetic energy (``'energy'``); ball and free joints take the energy (``a |omega|^2/2``);
+* ``damping`` ``d``: ``-d qdot`` (``-d omega`` on a ball); ``stiffness`` ``k``:
+  ``-k (qpos - springref)`` on hinges and slides; fixed tendons' stiffness (about their
+  spring length), damping and armature along ``L = sum coef qpos``;
+* ``frictionloss`` (a constant bound, MuJoCo's dry friction; appell's Coulomb friction needs
+  a normal force): refused by name, or ignored with ``frictionloss='ignore'``;
+* gravity is ``opt.gravity`` (0 where ``disableflags`` has gravity off; springs, dampers,
+  actuation and equalities off likewise), ``gravcomp`` a force ``-gravcomp m g`` at the body's
+  mass centre;
+* actuators without activation states (``motor``, ``position``, ``velocity``, ``general``
+  with fixed gain and affine bias) on hinges, slides or fixed tendons: with ``L = gear
+  L_trn`` the force ``gain u + b0 + b1 L + b2 dL/dt`` along ``gear dL_trn/dq``, its control
+  ``u`` (MuJoCo's ``ctrl``) a named program (:func:`mjcf_system`'s ``ctrl``) or an unknown
+  control (``actuators='controls'``: servo constraints or inverse dynamics give it);
+  ``ctrlrange`` and force ranges are recorded, not enforced;
+* an active ``connect`` equality (bodies with anchors, or sites) is a loop closure at the
+  two points, its multipliers the force of the second body on the first (the rows along
+  which the points never part, the normal of a planar loop in the world's or the first
+  body's axes, are left out); a ``joint``
+  equality ``q1 - q1_0 = c0 + c1 (q2 - q2_0) + ... + c4 (q2 - q2_0)^4`` and a fixed-tendon
+  equality (the same polynomial in the tendons' ``L - L0``) are holonomic constraints; a
+  ``weld`` equality is :meth:`Mechanism.weld <appell.mechanism.Mechanism.weld>`: the anchor
+  on the second body held at its place in the first (``eq_data``: anchor, then its position
+  and the second body's orientation in the first), rigid;
+* the geoms (spheres, capsules, cylinders, boxes, meshes) are drawn in the picture of the
+  motion (:mod:`appell.view`).
 
-Names are MuJoCo's (unnamed joints ``<body>_joint``, welds ``<body>_weld``). What MuJoCo
-applies and appell does not — contacts between geoms, joint damping, armature, friction loss
-and limits, tendons, actuators, soft equality parameters — is named in an
-:class:`~appell.errors.AppellNote` warning; ``tendon`` and flex equalities and bodies
-with several joints are refused with the body or equality named.
+Names are MuJoCo's, per element kind: a name that is not an identifier, or that another kind
+already took (a joint and a body both ``waistRoll``), is mapped (``waistRoll_body``;
+``left-hip`` -> ``left_hip``) and the mapping is in the note and :attr:`MjcfModel.names`.
+What has no meaning for the rigid-body motion — contacts between geoms, joint and tendon
+limits, soft-constraint parameters, sensors, cameras and lights, keyframes, fluid forces,
+control ranges — is named in one :class:`~appell.errors.AppellNote`, never refused; what
+changes the motion and cannot be mapped (spatial tendons with forces, activation dynamics,
+site or body transmissions, flex equalities) is refused with the element named.
 """
 
 from __future__ import annotations
@@ -91,7 +115,7 @@ def _names(model, kind, count) -> list[str | None]:
     return [mujoco.mj_id2name(model, kind, i) for i in range(count)]
 
 
-def _open_directions(model, b1, anchor1, b2, anchor2) -> str:
+def _open_directions(model, b1, anchor1, b2, anchor2, body_axes=False) -> str:
     """The world axes along which the two anchors of a connect part at some configuration
     (MuJoCo's own kinematics at the reference pose moved at random, three times): a
     planar loop's connect holds by itself along the normal, and that row is left out (it
@@ -107,7 +131,8 @@ def _open_directions(model, b1, anchor1, b2, anchor2) -> str:
         mujoco.mj_kinematics(model, data)
         p1 = data.xpos[b1] + data.xmat[b1].reshape(3, 3) @ anchor1
         p2 = data.xpos[b2] + data.xmat[b2].reshape(3, 3) @ anchor2
-        apart = np.maximum(apart, np.abs(p1 - p2))
+        gap = data.xmat[b1].reshape(3, 3).T @ (p1 - p2) if body_axes else p1 - p2
+        apart = np.maximum(apart, np.abs(gap))
     return "".join(a for a, d in zip("xyz", apart) if d > 1e-9)
 
 
@@ -371,7 +396,7 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
             merged.append(bodies[b] or name)
             continue
 
-        def massive():
+        def massive(b=b, name=name, mass=mass):
             R_i = _rotation(model.body_iquat[b])
             tensor = R_i @ np.diag(model.body_inertia[b]) @ R_i.T
             tensor = (tensor + tensor.T) / 2  # symmetric also in floating point (a turned inertial frame)
@@ -583,12 +608,16 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
         data = np.asarray(model.eq_data[e], float)
         if kind == mujoco.mjtEq.mjEQ_CONNECT:
             (a1, r1, _, b1, m1), (a2, r2, _, b2, m2) = point(e, 1, data[0:3]), point(e, 2, data[3:6])
-            directions = _open_directions(model, b1, m1, b2, m2)
+            directions, axes = _open_directions(model, b1, m1, b2, m2), None
+            if directions == "xyz" and b1 != 0:  # a planar loop on a moving body: its normal is fixed there
+                in_body = _open_directions(model, b1, m1, b2, m2, body_axes=True)
+                if in_body != "xyz" and place[b1][0] is not mech.ground and np.allclose(place[b1][1], np.eye(3)):
+                    directions, axes = in_body, "a"
             if directions != "xyz":
                 ignored.append(f"the rows of connect {shown} along {', '.join(a for a in 'xyz' if a not in directions)} "
                                "(it holds by itself there: a planar loop)")
             if directions:
-                mech.connect(ename, (a1, r1), (a2, r2), directions=directions)
+                mech.connect(ename, (a1, r1), (a2, r2), directions=directions, axes=axes)
         elif kind == mujoco.mjtEq.mjEQ_JOINT:
             j1, j2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
             if j1 not in made_joints or len(made_joints[j1].coordinates) != 1 or \
