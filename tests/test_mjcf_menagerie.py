@@ -339,7 +339,7 @@ def test_sdf_is_read_safely_and_bad_joints_are_named_with_their_line(tmp_path):
         sdf_system("bomb.sdf", text='<?xml version="1.0"?><!DOCTYPE sdf [<!ENTITY a "aaaa">]><sdf/>')
     with pytest.raises(ModelError, match=r"joint 'C': its child 'nowhere' is not a link") as err:
         sdf_system("bad.sdf", text=text.replace("<child>rocker</child>\n", "<child>nowhere</child>\n"))
-    assert "bad.sdf:12" in str(err.value)
+    assert "bad.sdf:10" in str(err.value)  # the line of joint C
     path = tmp_path / "four_bar.sdf"
     path.write_text(text)
     with warnings.catch_warnings():
