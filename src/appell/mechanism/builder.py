@@ -221,18 +221,19 @@ class _Action:
     torque: sp.Matrix
 
 
-def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None, axes=None) -> tuple[list, list]:
+def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None, axes=None, gap=None) -> tuple[list, list]:
     """The rows ``<name>_<d> = e_d . (p_a - p_b)`` holding two body points together along the
     world ``directions`` (or along the axes ``e_d = R e_d`` of a body turned by ``axes = R``),
     and their actions: ``lambda e_d`` on body_a at ``p_a``, its opposite on body_b (where the
     points coincide). With a list ``idle``, a row that holds at every configuration is left out
-    and its name appended there."""
+    and its name appended there. ``gap``: the three components ``e_d . (p_a - p_b)`` already
+    formed (shorter: from the joints of the loop alone, :meth:`Mechanism._gap_in`)."""
     cons, acts = [], []
     for d in directions:
         e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
         if axes is not None:
             e = axes * e
-        row = (pa - pb).dot(e)
+        row = (pa - pb).dot(e) if gap is None else gap["xyz".index(d)]
         if idle is not None and identically_zero(row):
             idle.append(f"{name}_{d}")
             continue
@@ -489,7 +490,8 @@ class Mechanism:
 
         def build(frames):
             return _point_rows(name, ba, frames[ba].point(ra)[0], bb, frames[bb].point(rb)[0], dirs,
-                               axes=frames[ba].R if axes == "a" else None)
+                               axes=frames[ba].R if axes == "a" else None,
+                               gap=self._gap_in(ba, ra, bb, rb) if axes == "a" else None)
 
         self._closures.append(_Closure(name, build))
 
@@ -761,6 +763,37 @@ class Mechanism:
         sym = sp.Symbol(name)
         self._actuators.append((name, j, q, None if value is None else sp.sympify(value)))
         return sym if value is None else sp.sympify(value)
+
+    def _pose_in(self, body, ancestor) -> tuple[sp.Matrix, sp.Matrix]:
+        """``(R, p)`` of ``body``'s frame in the frame of its ``ancestor`` (the joints between
+        them alone: ``R_rel = R0 R_m``, ``p = o_J + R0 d_m - R_rel c_o`` composed downwards)."""
+        chain, b = [], body
+        while b is not ancestor:
+            j = next(j for j in self.joints if j.child is b)
+            chain.append(j)
+            b = j.parent
+        R, p = sp.eye(3), sp.zeros(3, 1)
+        for j in reversed(chain):
+            R_rel = j.rotation * j.motion.rotation
+            p = p + R * (j.origin + j.rotation * j.motion.translation - R_rel * j.child_origin)
+            R = R * R_rel
+        return R, p
+
+    def _gap_in(self, ba, ra, bb, rb) -> sp.Matrix:
+        """``R_a^T (p_a - p_b)``, the gap of two body points along body_a's axes, from the
+        joints of the loop alone (the frames of their nearest common ancestor ``L``:
+        ``R_La^T (p_a^L - p_b^L)``), so that a loop carried by a long chain stays short."""
+        def ancestors(b):
+            out = [b]
+            while b is not self.ground:
+                b = next(j for j in self.joints if j.child is b).parent
+                out.append(b)
+            return out
+
+        up_b = ancestors(bb)
+        common = next(b for b in ancestors(ba) if any(b is c for c in up_b))
+        (Ra, pa), (Rb, pb) = self._pose_in(ba, common), self._pose_in(bb, common)
+        return Ra.T * ((pa + Ra * ra) - (pb + Rb * rb))
 
     # ------------------------------------------------------------ the system
     def _tree(self) -> list[Joint]:
