@@ -80,7 +80,8 @@ def suffixes() -> tuple[str, ...]:
 
 
 def described() -> str:
-    """``"a model file (.toml), a robot description (.urdf) or a MuJoCo model (.xml, .mjcf)"``
+    """``"a model file (.toml), a robot description (.urdf), a MuJoCo model (.xml, .mjcf) or an
+    SDFormat model (.sdf)"``
     for messages and help."""
     parts = ["a model file (.toml)"] + [f"{imp.what} ({', '.join(imp.suffixes)})" for imp in IMPORTERS]
     return ", ".join(parts[:-1]) + " or " + parts[-1]
