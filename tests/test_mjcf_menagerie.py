@@ -347,3 +347,43 @@ def test_sdf_is_read_safely_and_bad_joints_are_named_with_their_line(tmp_path):
         warnings.simplefilter("ignore", AppellNote)
         system = appell.load_model(path)  # through the one importer registry
     assert {q.name for q in system.coordinates} == {"A", "B", "D"}
+
+
+def test_an_actuator_solved_for_a_prescribed_motion_makes_mujoco_follow_it():
+    """Inverse dynamics through the actuators as controls: the four-bar's crank prescribed,
+    ``A(t) = 0.4 sin 2t`` (a servo constraint), the tendon actuator ``pull`` given as a
+    program, the position actuator ``drive``'s control solved for (2.3). Source of truth:
+    MuJoCo's hard-constraint reference (module docstring) with ``ctrl = (drive, pull)``
+    gives the crank the prescribed acceleration ``-1.6 sin 2t``, to 1e-9."""
+    from appell.control.servo_numeric import compile_controlled
+    from appell.model import holonomic
+
+    xml, _ = closed_four_bar()
+    servo = [holonomic("follow", sp.Symbol("A") - 0.4 * sp.sin(2 * t_))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        system = mjcf_system(xml, actuators="controls", ctrl={"pull": 0.3 * sp.cos(t_)}, servo_constraints=servo)
+        model = compile_controlled(appell.derive_controlled(system))
+    assert model.control_names == ("drive",)
+    mj = load_mjcf(xml)
+    data = mujoco.MjData(mj)
+    read = read_mjcf(mj)
+    for tt in (0.3, 0.9, 1.6, 2.2, 3.1):
+        A, A_dot, A_ddot = 0.4 * np.sin(2 * tt), 0.8 * np.cos(2 * tt), -1.6 * np.sin(2 * tt)
+        qpos = mj.qpos0 + np.array([A, 0.0, 0.0])
+        for _ in range(50):  # B and D onto the loop, A held
+            data.qpos[:] = qpos
+            mujoco.mj_forward(mj, data)
+            J, _ = equality_rows(mj, data)
+            gap = (data.xpos[2] + data.xmat[2].reshape(3, 3) @ mj.eq_data[0][0:3]
+                   - data.xpos[3] - data.xmat[3].reshape(3, 3) @ mj.eq_data[0][3:6])
+            if np.abs(gap).max() < 1e-14:
+                break
+            qpos[1:] -= np.linalg.lstsq(J[:, 1:], gap, rcond=None)[0]
+        qvel = np.concatenate([[A_dot], -np.linalg.lstsq(J[:, 1:], J[:, 0] * A_dot, rcond=None)[0]])
+        values = read.state(qpos, qvel)
+        sol = model.solve(tt, np.array([values[n] for n in model.state_names]))
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        data.ctrl[:] = [sol.controls[0], 0.3 * np.cos(tt)]
+        expected = reference(mj, data)
+        assert abs(expected[0] - A_ddot) <= 1e-9 * max(1.0, abs(A_ddot)), (tt, expected[0], A_ddot)
