@@ -225,15 +225,19 @@ class _Action:
     torque: sp.Matrix
 
 
-def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None) -> tuple[list, list]:
+def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None, axes=None, gap=None) -> tuple[list, list]:
     """The rows ``<name>_<d> = e_d . (p_a - p_b)`` holding two body points together along the
-    world ``directions``, and their actions: ``lambda e_d`` on body_a at ``p_a``, its opposite
-    on body_b. With a list ``idle``, a row that holds at every configuration is left out and
-    its name appended there."""
+    world ``directions`` (or along the axes ``e_d = R e_d`` of a body turned by ``axes = R``),
+    and their actions: ``lambda e_d`` on body_a at ``p_a``, its opposite on body_b (where the
+    points coincide). With a list ``idle``, a row that holds at every configuration is left out
+    and its name appended there. ``gap``: the three components ``e_d . (p_a - p_b)`` already
+    formed (shorter: from the joints of the loop alone, :meth:`Mechanism._gap_in`)."""
     cons, acts = [], []
     for d in directions:
         e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
-        row = (pa - pb).dot(e)
+        if axes is not None:
+            e = axes * e
+        row = (pa - pb).dot(e) if gap is None else gap["xyz".index(d)]
         if idle is not None and identically_zero(row):
             idle.append(f"{name}_{d}")
             continue
@@ -358,6 +362,15 @@ class Mechanism:
         for e in I:
             _real(e, f"inertia of body {name!r}")
         b = Body(name, mass, I.applyfunc(sp.sympify), _matrix(com, f"mass centre of body {name!r}"))
+        self.bodies.append(b)
+        return b
+
+    def massless(self, name: str) -> Body:
+        """A body without mass or inertia: a frame carried between joints (a MuJoCo body with
+        several joints, a mount that carries a joint). It moves and bears the reactions of its
+        joints, but adds no body to the system (its kinetic energy is zero)."""
+        self._claim(name, "body")
+        b = Body(name, sp.S.Zero, sp.zeros(3, 3), sp.zeros(3, 1))
         self.bodies.append(b)
         return b
 
@@ -501,11 +514,14 @@ class Mechanism:
             raise ModelError(f"{what}: a point is (body, (x, y, z) in the body frame), got {item!r}")
         return self._body(item[0], what), _matrix(item[1], f"{what}: point")
 
-    def connect(self, name, a, b, directions="xyz"):
+    def connect(self, name, a, b, directions="xyz", axes=None):
         """Loop closure: the point ``a = (body_a, r_a)`` coincides with ``b = (body_b, r_b)``
-        along the world ``directions`` (a subset of ``'xyz'``): holonomic constraints
-        ``<name>_<d> = e_d . (r_A - r_B) = 0``; ``lambda_<name>_<d>`` is the force of
-        ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``)."""
+        along the world ``directions`` (a subset of ``'xyz'``; along body_a's axes where
+        ``axes='a'``: a planar loop carried by a moving body keeps its normal there):
+        holonomic constraints ``<name>_<d> = e_d . (r_A - r_B) = 0``; ``lambda_<name>_<d>`` is
+        the force of ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``)."""
+        if axes not in (None, "a"):
+            raise ModelError(f"closure {name!r}: axes must be None (the world's) or 'a' (body_a's), got {axes!r}")
         self._claim(name, "closure")
         what = f"closure {name!r}"
         (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
@@ -515,7 +531,9 @@ class Mechanism:
             raise ModelError(f"{what}: directions {directions!r} must be distinct letters of 'xyz'")
 
         def build(frames):
-            return _point_rows(name, ba, frames[ba].point(ra)[0], bb, frames[bb].point(rb)[0], dirs)
+            return _point_rows(name, ba, frames[ba].point(ra)[0], bb, frames[bb].point(rb)[0], dirs,
+                               axes=frames[ba].R if axes == "a" else None,
+                               gap=self._gap_in(ba, ra, bb, rb) if axes == "a" else None)
 
         self._closures.append(_Closure(name, build))
 
@@ -1014,6 +1032,37 @@ class Mechanism:
         self._actuators.append((name, j, q, None if value is None else sp.sympify(value)))
         return sym if value is None else sp.sympify(value)
 
+    def _pose_in(self, body, ancestor) -> tuple[sp.Matrix, sp.Matrix]:
+        """``(R, p)`` of ``body``'s frame in the frame of its ``ancestor`` (the joints between
+        them alone: ``R_rel = R0 R_m``, ``p = o_J + R0 d_m - R_rel c_o`` composed downwards)."""
+        chain, b = [], body
+        while b is not ancestor:
+            j = next(j for j in self.joints if j.child is b)
+            chain.append(j)
+            b = j.parent
+        R, p = sp.eye(3), sp.zeros(3, 1)
+        for j in reversed(chain):
+            R_rel = j.rotation * j.motion.rotation
+            p = p + R * (j.origin + j.rotation * j.motion.translation - R_rel * j.child_origin)
+            R = R * R_rel
+        return R, p
+
+    def _gap_in(self, ba, ra, bb, rb) -> sp.Matrix:
+        """``R_a^T (p_a - p_b)``, the gap of two body points along body_a's axes, from the
+        joints of the loop alone (the frames of their nearest common ancestor ``L``:
+        ``R_La^T (p_a^L - p_b^L)``), so that a loop carried by a long chain stays short."""
+        def ancestors(b):
+            out = [b]
+            while b is not self.ground:
+                b = next(j for j in self.joints if j.child is b).parent
+                out.append(b)
+            return out
+
+        up_b = ancestors(bb)
+        common = next(b for b in ancestors(ba) if any(b is c for c in up_b))
+        (Ra, pa), (Rb, pb) = self._pose_in(ba, common), self._pose_in(bb, common)
+        return Ra.T * ((pa + Ra * ra) - (pb + Rb * rb))
+
     # ------------------------------------------------------------ the system
     def _tree(self) -> list[Joint]:
         """The joints in an order where each parent comes before its children."""
@@ -1151,7 +1200,8 @@ class Mechanism:
 
     def system(self, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
                constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
-               moment_unit="N*m", energy: bool = False, reactions_in=None) -> System:
+               moment_unit="N*m", energy: bool = False, reactions_in=None, joint_forces=None, rotor_energy=None,
+               programs=()) -> System:
         """The :class:`appell.System` of the mechanism.
 
         Parameters
@@ -1176,6 +1226,14 @@ class Mechanism:
             ``energy_potential`` (gravity and the springs' ``k (l - l0)^2/2``) and ``energy``,
             their sum, constant where no damper, actuator or time-dependent load acts. The
             points of :meth:`watch_point` are outputs too.
+        joint_forces : ``{coordinate name: Q}``: generalized forces added along the speeds of
+            those coordinates (a joint's damper, spring or actuator, MJCF's passive forces),
+            acting between the joint's parent and child (inside its reaction).
+        rotor_energy : a kinetic energy ``T(q, w)`` added to the bodies' (the reflected inertia
+            of rotors, MJCF's ``armature``: ``sum a_k w_k^2 / 2``); the system then takes the
+            expanded route.
+        programs : :class:`~appell.model.Program` items (given functions of time, e.g. an
+            actuator's control signal), added as given.
         """
         frames = self.frames()
         order = self._tree()
@@ -1187,6 +1245,8 @@ class Mechanism:
             f = frames[b]
             rC, vC, _ = f.point(b.com)
             positions[b] = sp.ImmutableMatrix(rC)
+            if b.mass == 0:  # a massless frame (:meth:`massless`): no body, no energy
+                continue
             if b.particle:
                 bodies.append(Particle(b.name, b.mass, position=rC, velocity=vC))
             else:
@@ -1213,6 +1273,12 @@ class Mechanism:
             Q[coords.index(q)] += sp.Symbol(name) if value is None else value
             if value is None:
                 ctl.append(Control(sp.Symbol(name), "force"))
+        for qname, value in (joint_forces or {}).items():
+            k = next((i for i, q in enumerate(coords) if q.name == str(qname)), None)
+            if k is None:
+                raise ModelError(f"mechanism {self.name!r}: joint force on unknown coordinate {qname!r}",
+                                 hint="coordinates: " + ", ".join(q.name for q in coords))
+            Q[k] += sp.sympify(value)
         params = list(self.parameters)
         if parameters:
             known = {p.symbol.name for p in params}
@@ -1268,9 +1334,10 @@ class Mechanism:
         if not bodies:
             raise ModelError(f"mechanism {self.name!r} has no bodies", hint="add one with mech.body(...)")
         return System(coordinates=tuple(coords), parameters=tuple(params), bodies=tuple(bodies), potential_energy=V,
+                      kinetic_energy=None if rotor_energy is None else sp.sympify(rotor_energy),
                       generalized_forces=tuple(Q) if any(e != 0 for e in Q) else None, loads=tuple(loads),
                       constraints=tuple(cons) + tuple(constraints), controls=tuple(ctl) + tuple(controls),
-                      servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
+                      programs=tuple(programs), servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
                       view=self._view(frames, contact_forces, drawn, frame, params),
