@@ -1,0 +1,330 @@
+"""Closed chains at tree speed: the spanning tree by the recursions, the loop closures as
+constraint rows formed from the tree's spatial quantities (method.md §2–3).
+
+A mechanism whose closures are recorded on its joint tree (:class:`appell.rigid_tree.LoopRow`)
+is evaluated at a state without expanding a product of the chain:
+
+* ``M`` by CRBA and ``h`` (gravity included, as the base's acceleration ``-g``) by RNEA over
+  the joints' own small terms (:mod:`appell.numerics.rigid_tree`);
+* an outward pass gives each body's pose ``(R_b, p_b)`` (world), its spatial velocity and
+  its spatial acceleration at ``a = 0`` without gravity; a point ``P`` of body ``b`` has the
+  Jacobian columns ``omega_k x (P - p_j) + v_k`` (``[omega_k; v_k]`` the motion ``S_k`` of a
+  speed ``k`` on the path to ``b``, on its body ``j``, in world axes) and the acceleration at
+  ``a = 0`` ``R_b (a_o + alpha x r + omega x (v_o + omega x r))`` (spatial to classical);
+* a point row ``e . (p_a - p_b) = 0`` has ``J = e^T (J_a - J_b)``, ``c = e . (dotJ_a w - dotJ_b w)``;
+  an alignment row ``u . v = 0`` (``u`` fixed in ``a``, ``v`` in ``b``) has
+  ``J = (u x v)^T (J_omega_a - J_omega_b)`` and
+  ``c = (u x v) . (alpha_a - alpha_b) + (omega_a - omega_b) . ((omega_a x u) x v + u x (omega_b x v))``;
+* the other constraints of the system (a free joint's unit quaternion) keep their compiled
+  ``J`` and ``c``, small expressions of one joint's coordinates.
+
+The split of (1.4)/(1.5) is solved numerically: ``a = a_0 + M^{-1} J^T lambda`` with
+``M a_0 = Q - h`` and ``(J M^{-1} J^T) lambda = -(J a_0 + c)``. Where ``J`` has dependent rows
+(a planar loop's out-of-plane rows) the multipliers are the minimum-norm solution and the
+combinations that do no work, the null space of ``J^T``, are named as undetermined
+(:attr:`LoopState.undetermined`). Every joint's wrench is then the inward pass of RNEA with
+the loop forces applied as external forces at their anchors
+(:func:`appell.numerics.rigid_tree.wrenches`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from appell.errors import ModelError
+from appell.numerics.rigid_tree import (TreeArrays, _compiled, crba, point_matrices, rnea, tree_layout,
+                                        tree_matrices, wrenches)
+from appell.symbols import derivative_symbol, t
+
+__all__ = ["LoopModel", "LoopState", "loop_model"]
+
+#: relative size of a singular value of ``J M^{-1/2}`` below which a combination of rows is dependent
+RANK_TOLERANCE = 1e-9
+
+
+def _skew_cross(a, b):
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+@dataclass(frozen=True)
+class LoopState:
+    """The forward dynamics of a closed chain at one state: accelerations ``a`` (the system's
+    speeds' order), multipliers ``lam`` (the constraints' order, :attr:`LoopModel.constraint_names`),
+    ``wrenches`` ``{joint: (F_x, F_y, F_z, M_x, M_y, M_z)}`` (the parent's force and moment on
+    the child's subtree at the joint's point, world axes), ``undetermined``: each combination
+    of multipliers that rigid-body mechanics leaves open, as ``{constraint: weight}`` (empty
+    where every multiplier is determined; ``lam`` is then the minimum-norm choice)."""
+
+    a: np.ndarray
+    lam: np.ndarray
+    wrenches: dict
+    undetermined: tuple = ()
+
+
+class LoopModel:
+    """The numeric closed-chain model of a :class:`appell.System` whose ``tree`` records its
+    loop closures (module docstring). ``evaluate(q, w, u=None, t=0, p=None)`` gives
+    :class:`LoopState`; :meth:`blocks` the blocks ``M, h - Q, J, c`` at a state."""
+
+    def __init__(self, parts):
+        tree = parts.tree
+        coords = list(parts.coordinates)
+        self.name = parts.name
+        self.coordinate_names = tuple(q.name for q in coords)
+        speeds = [derivative_symbol(q) for q in coords]
+        self.speed_names = tuple(w.name for w in speeds)
+        self.n = n = len(speeds)
+        owned = sorted(k for node in tree.nodes for k in node.speeds)
+        if owned != list(range(n)):
+            raise ModelError(f"system {parts.name!r}: its joint tree does not own every speed")
+        self.parameter_names = tuple(p.symbol.name for p in parts.parameters)
+        self.parameter_values = np.array([float(p.value) for p in parts.parameters], float)
+        self.control_names = tuple(c.name for c in parts.controls)
+        self.start = dict(parts.start)
+        args = [t, coords, speeds, [p.symbol for p in parts.parameters], list(parts.controls)]
+        self.tree = tree
+        self.parent, self.node_of = tree_layout(tree, n)
+        self.terms = _compiled(args, tree_matrices(tree, n, gravity=True) + point_matrices(tree))
+        # the loop rows by name, the others compiled from their own expressions
+        by_name = {row.name: row for row in tree.loops}
+        self.constraint_names = names = tuple(name for name, _ in parts.constraints)
+        self.loop_rows = [(k, by_name[nm]) for k, nm in enumerate(names) if nm in by_name]
+        others = [(k, nm, expr) for k, (nm, expr) in enumerate(parts.constraints) if nm not in by_name]
+        J_o, c_o = [], []
+        qdot = sp.Matrix(speeds)
+        for _, nm, expr in others:
+            if expr is None or sp.sympify(expr).has(t) or sp.sympify(expr).free_symbols & set(speeds):
+                raise ModelError(f"constraint {nm!r} is not a loop closure nor a time-free holonomic row: the "
+                                 "closed-chain route does not take it", hint="use appell.derive(system)")
+            grad = sp.Matrix([expr]).jacobian(coords)
+            J_o.append(list(grad))
+            c_o.append((grad.jacobian(coords) * qdot).T.dot(qdot) if coords else 0)
+        self.other_rows = [k for k, _, _ in others]
+        self.position_rows = _compiled([coords, [p.symbol for p in parts.parameters]],
+                                       [sp.Matrix([e for _, _, e in others] or [0])])
+        data = [sp.Matrix([x for _, row in self.loop_rows for x in (*row.point_a, *row.axis_a, *row.point_b,
+                                                                     *row.axis_b)] or [0])]
+        self.more = _compiled(args, [sp.Matrix(parts.forces or [0] * n), sp.Matrix(J_o or [[0] * n]),
+                                     sp.Matrix(c_o or [0])] + data)
+        # the speeds on each node's path from the ground
+        path: list[list[int]] = []
+        for node in tree.nodes:
+            path.append((path[node.parent] if node.parent >= 0 else []) + list(node.speeds))
+        self.path = path
+        self.joints = tuple(node.joint for node in tree.nodes)
+
+    # ------------------------------------------------------------------ the pieces
+    def _evaluate_terms(self, t0, q, w, p, u):
+        rot, trans, S, bias, inert, base, g, points = self.terms(t0, q, w, p, u)
+        arrays = TreeArrays(rot, trans, S, bias, inert)
+        Q, Jo, co, data = self.more(t0, q, w, p, u)
+        return arrays, base, g, points, Q, Jo.reshape(-1, self.n), co, data
+
+    def _kinematics(self, arrays, w):
+        """World rotations and origins of the bodies, their spatial velocities and accelerations
+        at ``a = 0`` without gravity (body axes), and the speeds' motions in world axes."""
+        nb = len(self.parent)
+        Rw, pw = np.empty((nb, 3, 3)), np.empty((nb, 3))
+        v, acc = np.zeros((nb, 6)), np.zeros((nb, 6))
+        S = arrays.S[0]
+        motion = np.zeros((self.n, 6))  # [omega_k; v_k at the origin of its body], world axes
+        for b in range(nb):
+            R, r, p = arrays.R[0, b], arrays.r[0, b], self.parent[b]
+            ks = np.flatnonzero(self.node_of == b)
+            vJ = S[ks].T @ w[ks] if ks.size else np.zeros(6)
+            if p >= 0:
+                Rw[b] = Rw[p] @ R
+                pw[b] = pw[p] + Rw[p] @ r
+                vp, ap = v[p], acc[p]
+                om = R.T @ vp[:3]
+                v[b, :3] = om + vJ[:3]
+                v[b, 3:] = R.T @ (vp[3:] + _skew_cross(vp[:3], r)) + vJ[3:]
+                acc[b, :3] = R.T @ ap[:3]
+                acc[b, 3:] = R.T @ (ap[3:] + _skew_cross(ap[:3], r))
+            else:
+                Rw[b], pw[b] = R, r
+                v[b] = vJ
+            vb = v[b]
+            acc[b] += arrays.c[0, b] + np.concatenate([_skew_cross(vb[:3], vJ[:3]),
+                                                       _skew_cross(vb[:3], vJ[3:]) + _skew_cross(vb[3:], vJ[:3])])
+            for k in ks:
+                motion[k, :3] = Rw[b] @ S[k, :3]
+                motion[k, 3:] = Rw[b] @ S[k, 3:]
+        return Rw, pw, v, acc, motion
+
+    def _point(self, b, r, kin):
+        """Jacobian (3 x n), acceleration at a = 0 (world) and world position of the point ``r`` of body ``b``."""
+        Rw, pw, v, acc, motion = kin
+        J = np.zeros((3, self.n))
+        if b < 0:
+            return J, np.zeros(3), np.asarray(r, float)
+        P = pw[b] + Rw[b] @ r
+        for k in self.path[b]:
+            j = self.node_of[k]
+            J[:, k] = motion[k, 3:] + _skew_cross(motion[k, :3], P - pw[j])
+        om, vo = v[b, :3], v[b, 3:]
+        a_body = acc[b, 3:] + _skew_cross(acc[b, :3], r) + _skew_cross(om, vo + _skew_cross(om, r))
+        return J, Rw[b] @ a_body, P
+
+    def _angular(self, b, kin):
+        """Jacobian of the angular velocity (3 x n), angular velocity and acceleration at a = 0, world axes."""
+        Rw, pw, v, acc, motion = kin
+        J = np.zeros((3, self.n))
+        if b < 0:
+            return J, np.zeros(3), np.zeros(3)
+        for k in self.path[b]:
+            J[:, k] = motion[k, :3]
+        return J, Rw[b] @ v[b, :3], Rw[b] @ acc[b, :3]
+
+    def _loop_blocks(self, kin, data):
+        """``J`` (rows x n), ``c`` and, per row, the loop force's action ``(body, point or None, force, moment)``
+        for the two bodies (world axes) per unit multiplier."""
+        Rw = kin[0]
+        rows = len(self.loop_rows)
+        J, c = np.zeros((rows, self.n)), np.zeros(rows)
+        actions = []
+        data = np.reshape(data, (-1, 12))
+        for i, (_, row) in enumerate(self.loop_rows):
+            ra, ua, rb, ub = data[i, :3], data[i, 3:6], data[i, 6:9], data[i, 9:]
+            if row.kind == "point":
+                Ja, aa, _ = self._point(row.body_a, ra, kin)
+                Jb, ab, _ = self._point(row.body_b, rb, kin)
+                J[i] = ua @ (Ja - Jb)
+                c[i] = ua @ (aa - ab)
+                actions.append(((row.body_a, ra, ua, np.zeros(3)), (row.body_b, rb, -ua, np.zeros(3))))
+            else:
+                Ja, oa, al_a = self._angular(row.body_a, kin)
+                Jb, ob, al_b = self._angular(row.body_b, kin)
+                u = Rw[row.body_a] @ ua if row.body_a >= 0 else ua
+                vv = Rw[row.body_b] @ ub if row.body_b >= 0 else ub
+                n = _skew_cross(u, vv)
+                J[i] = n @ (Ja - Jb)
+                c[i] = n @ (al_a - al_b) + (oa - ob) @ (_skew_cross(_skew_cross(oa, u), vv)
+                                                        + _skew_cross(u, _skew_cross(ob, vv)))
+                actions.append(((row.body_a, ra, np.zeros(3), n), (row.body_b, rb, np.zeros(3), -n)))
+        return J, c, actions
+
+    def blocks(self, q, w, u=None, t0=0.0, p=None):
+        """``M, h - Q, J, c`` at a state (the system's speeds and constraints order) and the
+        pieces the wrenches need."""
+        q, w = np.asarray(q, float), np.asarray(w, float)
+        p = self.parameter_values if p is None else np.asarray(p, float)
+        u = np.zeros(len(self.control_names)) if u is None else np.asarray(u, float)
+        arrays, base, g, points, Q, Jo, co, data = self._evaluate_terms(t0, q, w, p, u)
+        M = crba(arrays, self.parent, self.node_of)
+        h = rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
+        kin = self._kinematics(arrays, w)
+        Jl, cl, actions = self._loop_blocks(kin, data)
+        s = len(self.constraint_names)
+        J, c = np.zeros((s, self.n)), np.zeros(s)
+        for i, (k, _) in enumerate(self.loop_rows):
+            J[k], c[k] = Jl[i], cl[i]
+        for i, k in enumerate(self.other_rows):
+            J[k], c[k] = Jo[i], co[i]
+        return M, h - Q, J, c, (arrays, g, points, kin, actions)
+
+    def external(self, lam, kin, actions):
+        """The loop forces of the multipliers ``lam`` as external spatial forces on the bodies
+        (nb, 6), body axes, moments about the body origins."""
+        Rw = kin[0]
+        ext = np.zeros((len(self.parent), 6))
+        for (k, _), pair in zip(self.loop_rows, actions):
+            for body, r, force, moment in pair:
+                if body < 0:
+                    continue
+                f = Rw[body].T @ (lam[k] * force)
+                ext[body, 3:] += f
+                ext[body, :3] += Rw[body].T @ (lam[k] * moment) + _skew_cross(r, f)
+        return ext
+
+    def joint_wrenches(self, w, a, lam, pieces) -> dict:
+        """``{joint: (F, M)}`` (6 values, world axes, about the joint's point): the inward pass
+        with the loop forces applied at their anchors."""
+        arrays, g, points, kin, actions = pieces
+        ext = self.external(lam, kin, actions)
+        W, _ = wrenches(arrays, self.parent, self.node_of, np.reshape(w, (1, -1)), np.reshape(a, (1, -1)),
+                        np.reshape(g, (1, 3)), np.reshape(points, (1, -1)), external=ext[None])
+        return {joint: W[0, b] for b, joint in enumerate(self.joints)}
+
+    # ------------------------------------------------------------------ forward dynamics
+    def evaluate(self, q, w, u=None, t0=0.0, p=None) -> LoopState:
+        """Accelerations, every multiplier and every joint's wrench at a state (module docstring)."""
+        M, hQ, J, c, pieces = self.blocks(q, w, u, t0, p)
+        a, lam, undetermined = solve_split(M, hQ, J, c, self.constraint_names)
+        return LoopState(a, lam, self.joint_wrenches(w, a, lam, pieces), undetermined)
+
+
+def undetermined_combinations(J, names, tol=RANK_TOLERANCE) -> tuple:
+    """The combinations of multipliers that do no work (the null space of ``J^T``), each as
+    ``{constraint: weight}`` with the weights above 1e-12 (the largest 1)."""
+    if J.shape[0] == 0:
+        return ()
+    _, sv, Vt = np.linalg.svd(J.T, full_matrices=True)
+    scale = sv[0] if sv.size and sv[0] > 0 else 1.0
+    rank = int(np.sum(sv > tol * scale))
+    out = []
+    for vec in Vt[rank:]:
+        vec = vec / np.max(np.abs(vec))
+        out.append({names[k]: float(x) for k, x in enumerate(vec) if abs(x) > 1e-12})
+    return tuple(out)
+
+
+def solve_split(M, hQ, J, c, names=None, tol=RANK_TOLERANCE):
+    """``(a, lam, undetermined)`` of ``M a + hQ = J^T lam``, ``J a + c = 0`` (module docstring);
+    the minimum-norm multipliers where ``J`` has dependent rows. ``M`` need only be positive
+    definite on the constraints' tangent space (a free joint's four quaternion rates): the
+    split is solved with ``M + rho J^T J`` (``rho`` the mean of ``M``'s diagonal), which has
+    the same solution, ``lam - rho c`` taking the place of ``lam``."""
+    from scipy.linalg import cho_factor, cho_solve
+
+    if J.shape[0] == 0:
+        return cho_solve(cho_factor(M), -hQ), np.zeros(0), ()
+    rho = float(np.mean(np.diag(M)))
+    factor = cho_factor(M + rho * J.T @ J)
+    a0 = cho_solve(factor, -hQ)
+    Y = cho_solve(factor, J.T)
+    mu = np.linalg.lstsq(J @ Y, -(J @ a0 + c), rcond=tol)[0]
+    a = a0 + Y @ mu
+    lam = mu + rho * c
+    names = names if names is not None else tuple(f"row{k}" for k in range(J.shape[0]))
+    undetermined = undetermined_combinations(J, names, tol)
+    if undetermined:  # the minimum-norm multipliers: orthogonal to every combination that does no work
+        Nt = np.array([[comb.get(nm, 0.0) for nm in names] for comb in undetermined])
+        Qn, _ = np.linalg.qr(Nt.T)
+        lam = lam - Qn @ (Qn.T @ lam)
+    return a, lam, undetermined
+
+
+def loop_model(source) -> LoopModel:
+    """The :class:`LoopModel` of a :class:`appell.Mechanism` (its joint tree and closures,
+    without the bodies' expanded kinematics: seconds for a legged robot) or of a mechanism's
+    :class:`appell.System` (the tree it records)."""
+    if hasattr(source, "loop_parts"):
+        return LoopModel(source.loop_parts())
+    return LoopModel(_system_parts(source))
+
+
+def _system_parts(system):
+    """The :class:`~appell.mechanism.builder.LoopParts` of a mechanism's system."""
+    from appell.mechanism.builder import LoopParts
+
+    tree = system.tree
+    if tree is None:
+        raise ModelError(f"system {system.name!r} has no joint tree", hint="build it with appell.Mechanism")
+    if system.kinetic_energy is not None or system.acceleration_energy is not None:
+        raise ModelError(f"system {system.name!r} states its own energy: the loop route takes the tree's bodies")
+    if system.loads:
+        raise ModelError(f"system {system.name!r} has loads ({', '.join(ld.name for ld in system.loads)}): "
+                         "the closed-chain route takes joint forces only", hint="use appell.derive(system)")
+    if sp.sympify(system.potential_energy) != tree.potential:
+        raise ModelError(f"system {system.name!r}: a potential energy beside gravity", hint="use appell.derive")
+    loops = {row.name for row in tree.loops}
+    constraints = tuple((c.name, None if c.name in loops else (c.expr if c.kind == "holonomic" else None))
+                        for c in system.constraints)
+    n = len(system.coordinates)
+    Q = tuple(system.generalized_forces) if system.generalized_forces is not None else (sp.S.Zero,) * n
+    return LoopParts(system.name, tuple(system.coordinates), tree, constraints, Q,
+                     tuple(c.symbol for c in system.controls), tuple(system.parameters), dict(system.initial))
