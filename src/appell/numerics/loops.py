@@ -226,6 +226,32 @@ class LoopModel:
             J[k], c[k] = Jo[i], co[i]
         return M, h - Q, J, c, (arrays, g, points, kin, actions)
 
+    def positions(self, q, p=None):
+        """``(Phi, J)``: every constraint's position residual at ``q`` (a loop row's
+        ``e . (p_a - p_b)`` or ``u . v``, the others' own expressions) and ``J = dPhi/dq``."""
+        q = np.asarray(q, float)
+        p = self.parameter_values if p is None else np.asarray(p, float)
+        w = np.zeros(self.n)
+        arrays, _, _, _, _, Jo, _, data = self._evaluate_terms(0.0, q, w, p, np.zeros(len(self.control_names)))
+        kin = self._kinematics(arrays, w)
+        Jl, _, _ = self._loop_blocks(kin, data)
+        Rw = kin[0]
+        data = np.reshape(data, (-1, 12))
+        s = len(self.constraint_names)
+        Phi, J = np.zeros(s), np.zeros((s, self.n))
+        for i, (k, row) in enumerate(self.loop_rows):
+            ra, ua, rb, ub = data[i, :3], data[i, 3:6], data[i, 6:9], data[i, 9:]
+            if row.kind == "point":
+                Phi[k] = ua @ (self._point(row.body_a, ra, kin)[2] - self._point(row.body_b, rb, kin)[2])
+            else:
+                u = Rw[row.body_a] @ ua if row.body_a >= 0 else ua
+                Phi[k] = u @ (Rw[row.body_b] @ ub if row.body_b >= 0 else ub)
+            J[k] = Jl[i]
+        if self.other_rows:
+            Phi[self.other_rows] = np.ravel(self.position_rows(q, p)[0])
+            J[self.other_rows] = Jo
+        return Phi, J
+
     def external(self, lam, kin, actions):
         """The loop forces of the multipliers ``lam`` as external spatial forces on the bodies
         (nb, 6), body axes, moments about the body origins."""
@@ -257,19 +283,30 @@ class LoopModel:
         return LoopState(a, lam, self.joint_wrenches(w, a, lam, pieces), undetermined)
 
 
+def echelon_null_space(A, names, tol=RANK_TOLERANCE) -> tuple:
+    """The null space of ``A`` (columns named ``names``) as ``{name: weight}`` per combination,
+    in reduced echelon form: each has its own leading name (weight 1) absent from the others,
+    weights above 1e-12 kept."""
+    from scipy.linalg import qr
+
+    if A.shape[1] == 0:
+        return ()
+    _, sv, Vt = np.linalg.svd(A, full_matrices=True)
+    scale = sv[0] if sv.size and sv[0] > 0 else 1.0
+    N = Vt[int(np.sum(sv > tol * scale)):]
+    if not N.shape[0]:
+        return ()
+    _, _, piv = qr(N, pivoting=True)
+    N = np.linalg.solve(N[:, piv[:N.shape[0]]], N)
+    return tuple({names[k]: float(x) for k, x in enumerate(row) if abs(x) > 1e-12} for row in N)
+
+
 def undetermined_combinations(J, names, tol=RANK_TOLERANCE) -> tuple:
     """The combinations of multipliers that do no work (the null space of ``J^T``), each as
-    ``{constraint: weight}`` with the weights above 1e-12 (the largest 1)."""
+    ``{constraint: weight}`` (:func:`echelon_null_space`)."""
     if J.shape[0] == 0:
         return ()
-    _, sv, Vt = np.linalg.svd(J.T, full_matrices=True)
-    scale = sv[0] if sv.size and sv[0] > 0 else 1.0
-    rank = int(np.sum(sv > tol * scale))
-    out = []
-    for vec in Vt[rank:]:
-        vec = vec / np.max(np.abs(vec))
-        out.append({names[k]: float(x) for k, x in enumerate(vec) if abs(x) > 1e-12})
-    return tuple(out)
+    return echelon_null_space(J.T, names, tol)
 
 
 def solve_split(M, hQ, J, c, names=None, tol=RANK_TOLERANCE):
