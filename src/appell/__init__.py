@@ -39,6 +39,7 @@ from appell.simulation.initial import InitialState, check_initial, complete_init
 from appell.simulation.energy_balance import EnergyBalance, energy_balance
 from appell.simulation.simulate import simulate
 from appell.simulation.inverse import InverseDynamics, inverse_dynamics
+from appell.numerics.loops import LoopModel, loop_model
 from appell.simulation.solution import Solution
 from appell.reduction.cyclic import RouthReduction, cyclic_coordinates, routh_reduction
 from appell.reduction.first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
@@ -78,7 +79,7 @@ __all__ = [
     "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",
     "Event", "InitialState", "InitialValueError", "Solution", "check_initial", "complete_initial", "simulate",
-    "InverseDynamics", "inverse_dynamics",
+    "InverseDynamics", "inverse_dynamics", "LoopModel", "loop_model",
     "EnergyBalance", "energy_balance",
     "LinearModel", "StabilitySweep", "linearise", "stability_sweep", "steady_motion",
     "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",
