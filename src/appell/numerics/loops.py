@@ -4,7 +4,8 @@ constraint rows formed from the tree's spatial quantities (method.md §2–3).
 A mechanism whose closures are recorded on its joint tree (:class:`appell.rigid_tree.LoopRow`)
 is evaluated at a state without expanding a product of the chain:
 
-* ``M`` by CRBA and ``h`` (gravity included, as the base's acceleration ``-g``) by RNEA over
+* ``M = sum_b J_b^T I_b J_b`` over the bodies' spatial Jacobians and ``h`` (gravity included, as
+  the base's acceleration ``-g``) by RNEA over
   the joints' own small terms (:mod:`appell.numerics.rigid_tree`);
 * an outward pass gives each body's pose ``(R_b, p_b)`` (world), its spatial velocity and
   its spatial acceleration at ``a = 0`` without gravity; a point ``P`` of body ``b`` has the
@@ -35,14 +36,23 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
-from appell.numerics.rigid_tree import (TreeArrays, _compiled, crba, point_matrices, rnea, tree_layout,
-                                        tree_matrices, wrenches)
+from appell.numerics.rigid_tree import TreeArrays, _compiled, _spatial_inertia, point_matrices, tree_layout, tree_matrices
 from appell.symbols import derivative_symbol, t
 
 __all__ = ["LoopModel", "LoopState", "loop_model"]
 
 #: relative size of a singular value of ``J M^{-1/2}`` below which a combination of rows is dependent
 RANK_TOLERANCE = 1e-9
+
+
+def _cross_rows(a, b):
+    """Row-wise ``a x b`` of (k, 3) arrays (b may be one 3-vector)."""
+    b = np.broadcast_to(b, a.shape)
+    out = np.empty(a.shape)
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
 
 
 def _skew_cross(a, b):
@@ -114,6 +124,7 @@ class LoopModel:
         for node in tree.nodes:
             path.append((path[node.parent] if node.parent >= 0 else []) + list(node.speeds))
         self.path = path
+        self.path_array = [np.array(ks, dtype=np.int64) for ks in path]
         self.joints = tuple(node.joint for node in tree.nodes)
 
     # ------------------------------------------------------------------ the pieces
@@ -153,25 +164,77 @@ class LoopModel:
             for k in ks:
                 motion[k, :3] = Rw[b] @ S[k, :3]
                 motion[k, 3:] = Rw[b] @ S[k, 3:]
-        return Rw, pw, v, acc, motion
+        return Rw, pw, v, acc, motion, {}
 
     def _point(self, b, r, kin):
         """Jacobian (3 x n), acceleration at a = 0 (world) and world position of the point ``r`` of body ``b``."""
-        Rw, pw, v, acc, motion = kin
+        Rw, pw, v, acc, motion, _ = kin
         J = np.zeros((3, self.n))
         if b < 0:
             return J, np.zeros(3), np.asarray(r, float)
         P = pw[b] + Rw[b] @ r
-        for k in self.path[b]:
-            j = self.node_of[k]
-            J[:, k] = motion[k, 3:] + _skew_cross(motion[k, :3], P - pw[j])
+        ks = self.path_array[b]
+        J[:, ks] = (motion[ks, 3:] + _cross_rows(motion[ks, :3], P - pw[self.node_of[ks]])).T
         om, vo = v[b, :3], v[b, 3:]
         a_body = acc[b, 3:] + _skew_cross(acc[b, :3], r) + _skew_cross(om, vo + _skew_cross(om, r))
         return J, Rw[b] @ a_body, P
 
+    def _body_jacobian(self, b, kin):
+        """The speeds on body ``b``'s path and the 6 x k Jacobian of its spatial velocity (body
+        axes), formed once per state (kept in ``kin``)."""
+        Rw, pw, _, _, motion, cache = kin
+        if b not in cache:
+            ks = self.path_array[b]
+            om = motion[ks, :3]
+            lin = motion[ks, 3:] + _cross_rows(om, pw[b] - pw[self.node_of[ks]])
+            cache[b] = (ks, np.vstack([Rw[b].T @ om.T, Rw[b].T @ lin.T]))
+        return cache[b]
+
+    def _inertias(self, arrays):
+        return [_spatial_inertia(arrays.m[0, b], arrays.com[0, b], arrays.Ic[0, b]) for b in range(len(self.parent))]
+
+    def _mass_matrix(self, kin, inertias):
+        """``M = sum_b J_b^T I_b J_b`` over the bodies' spatial Jacobians (body axes)."""
+        M = np.zeros((self.n, self.n))
+        for b, I in enumerate(inertias):
+            ks, Jb = self._body_jacobian(b, kin)
+            if ks.size:
+                M[np.ix_(ks, ks)] += Jb.T @ I @ Jb
+        return M
+
+    def _forces(self, arrays, kin, inertias, a, gravity, ext=None):
+        """The bodies' inward spatial forces (nb, 6, body axes) at accelerations ``a`` with the
+        base accelerating at ``-gravity`` and the external forces ``ext`` (RNEA's passes on the
+        outward quantities of ``kin``)."""
+        Rw, pw, v, acc, motion, _ = kin
+        nb = len(self.parent)
+        f = np.empty((nb, 6))
+        for b in range(nb):
+            ab = acc[b].copy()
+            ab[3:] -= Rw[b].T @ gravity
+            ks, Jb = self._body_jacobian(b, kin)
+            if ks.size:
+                ab += Jb @ a[ks]
+            I = inertias[b]
+            Iv = I @ v[b]
+            om, vo = v[b, :3], v[b, 3:]
+            f[b] = I @ ab
+            f[b, :3] += _skew_cross(om, Iv[:3]) + _skew_cross(vo, Iv[3:])
+            f[b, 3:] += _skew_cross(om, Iv[3:])
+            if ext is not None:
+                f[b] -= ext[b]
+        for b in range(nb - 1, -1, -1):
+            p = self.parent[b]
+            if p >= 0:
+                R, r = arrays.R[0, b], arrays.r[0, b]
+                n, fl = R @ f[b, :3], R @ f[b, 3:]
+                f[p, :3] += n + _skew_cross(r, fl)
+                f[p, 3:] += fl
+        return f
+
     def _angular(self, b, kin):
         """Jacobian of the angular velocity (3 x n), angular velocity and acceleration at a = 0, world axes."""
-        Rw, pw, v, acc, motion = kin
+        Rw, pw, v, acc, motion, _ = kin
         J = np.zeros((3, self.n))
         if b < 0:
             return J, np.zeros(3), np.zeros(3)
@@ -214,9 +277,13 @@ class LoopModel:
         p = self.parameter_values if p is None else np.asarray(p, float)
         u = np.zeros(len(self.control_names)) if u is None else np.asarray(u, float)
         arrays, base, g, points, Q, Jo, co, data = self._evaluate_terms(t0, q, w, p, u)
-        M = crba(arrays, self.parent, self.node_of)
-        h = rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
+        g = np.ravel(g)
         kin = self._kinematics(arrays, w)
+        inertias = self._inertias(arrays)
+        M = self._mass_matrix(kin, inertias)
+        f = self._forces(arrays, kin, inertias, np.zeros(self.n), g)
+        S = arrays.S[0]
+        h = np.einsum("ki,ki->k", S, f[self.node_of])
         Jl, cl, actions = self._loop_blocks(kin, data)
         s = len(self.constraint_names)
         J, c = np.zeros((s, self.n)), np.zeros(s)
@@ -224,7 +291,7 @@ class LoopModel:
             J[k], c[k] = Jl[i], cl[i]
         for i, k in enumerate(self.other_rows):
             J[k], c[k] = Jo[i], co[i]
-        return M, h - Q, J, c, (arrays, g, points, kin, actions)
+        return M, h - Q, J, c, (arrays, g, points, kin, actions, inertias)
 
     def positions(self, q, p=None):
         """``(Phi, J)``: every constraint's position residual at ``q`` (a loop row's
@@ -269,11 +336,15 @@ class LoopModel:
     def joint_wrenches(self, w, a, lam, pieces) -> dict:
         """``{joint: (F, M)}`` (6 values, world axes, about the joint's point): the inward pass
         with the loop forces applied at their anchors."""
-        arrays, g, points, kin, actions = pieces
-        ext = self.external(lam, kin, actions)
-        W, _ = wrenches(arrays, self.parent, self.node_of, np.reshape(w, (1, -1)), np.reshape(a, (1, -1)),
-                        np.reshape(g, (1, 3)), np.reshape(points, (1, -1)), external=ext[None])
-        return {joint: W[0, b] for b, joint in enumerate(self.joints)}
+        arrays, g, points, kin, actions, inertias = pieces
+        f = self._forces(arrays, kin, inertias, np.asarray(a, float), g, self.external(lam, kin, actions))
+        Rw = kin[0]
+        o = np.reshape(points, (-1, 3))
+        out = {}
+        for b, joint in enumerate(self.joints):
+            fb = f[b]
+            out[joint] = np.concatenate([Rw[b] @ fb[3:], Rw[b] @ (fb[:3] - _skew_cross(o[b], fb[3:]))])
+        return out
 
     # ------------------------------------------------------------------ forward dynamics
     def evaluate(self, q, w, u=None, t0=0.0, p=None) -> LoopState:

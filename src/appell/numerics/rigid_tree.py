@@ -188,10 +188,9 @@ def _crf(v, f):
     return np.concatenate([_cross(v[:, :3], f[:, :3]) + _cross(v[:, 3:], f[:, 3:]), _cross(v[:, :3], f[:, 3:])], -1)
 
 
-def _passes(arrays: TreeArrays, parent, node_of, w, a, base, external=None):
+def _passes(arrays: TreeArrays, parent, node_of, w, a, base):
     """Outward velocities and accelerations, then the bodies' inward forces ``f`` (T, nb, 6);
-    ``w``, ``a`` (T, n), ``base`` (T, 6); ``external`` (T, nb, 6): forces applied to the bodies
-    (body axes, moments about their origins), subtracted from their inertial forces."""
+    ``w``, ``a`` (T, n), ``base`` (T, 6)."""
     rows, nb = arrays.r.shape[:2]
     v = np.zeros((rows, nb, 6))
     acc = np.zeros((rows, nb, 6))
@@ -210,8 +209,6 @@ def _passes(arrays: TreeArrays, parent, node_of, w, a, base, external=None):
         acc[:, b] += np.einsum("tki,tk->ti", arrays.S[:, ks], a[:, ks]) + arrays.c[:, b] + _crm(v[:, b], vJ)
         m, c, Ic = arrays.m[:, b], arrays.com[:, b], arrays.Ic[:, b]
         f[:, b] = _inertia_times(m, c, Ic, acc[:, b]) + _crf(v[:, b], _inertia_times(m, c, Ic, v[:, b]))
-        if external is not None:
-            f[:, b] -= external[:, b]
     for b in reversed(range(nb)):
         if parent[b] >= 0:
             f[:, parent[b]] += _to_parent(arrays.R[:, b], arrays.r[:, b], f[:, b])
@@ -253,16 +250,15 @@ def point_matrices(tree) -> list[sp.Matrix]:
     return [sp.Matrix(tree.gravity), sp.Matrix([x for node in tree.nodes for x in node.joint_origin])]
 
 
-def wrenches(arrays: TreeArrays, parent, node_of, w, a, gravity, points, external=None) -> tuple[np.ndarray, np.ndarray]:
+def wrenches(arrays: TreeArrays, parent, node_of, w, a, gravity, points) -> tuple[np.ndarray, np.ndarray]:
     """Each node's joint reaction ``(F, M)`` at ``T`` states, (T, nb, 6) (world axes, the moment
     about the joint's point), and the bodies' rotations to world axes (T, nb, 3, 3): the
     inward force of :func:`rnea`'s passes with the base accelerating at ``-g``, ``F = R f``,
     ``M = R (n - o x f)`` with ``R`` the body's rotation to world axes and ``o`` its joint
-    point. ``w``, ``a`` (T, n), ``gravity`` (T, 3), ``points`` (T, 3 nb); ``external`` (T, nb,
-    6): forces on the bodies beside the joints' (a loop closure's, :mod:`appell.numerics.loops`)."""
+    point. ``w``, ``a`` (T, n), ``gravity`` (T, 3), ``points`` (T, 3 nb)."""
     rows, nb = arrays.r.shape[:2]
     base = np.concatenate([np.zeros((rows, 3)), -np.reshape(gravity, (rows, 3))], -1)
-    f = _passes(arrays, parent, node_of, np.reshape(w, (rows, -1)), np.reshape(a, (rows, -1)), base, external)
+    f = _passes(arrays, parent, node_of, np.reshape(w, (rows, -1)), np.reshape(a, (rows, -1)), base)
     points = np.reshape(points, (rows, nb, 3))
     out = np.empty((rows, nb, 6))
     rotation = np.empty((rows, nb, 3, 3))
