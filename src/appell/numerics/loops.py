@@ -166,8 +166,9 @@ class LoopModel:
                 motion[k, 3:] = Rw[b] @ S[k, 3:]
         return Rw, pw, v, acc, motion, {}
 
-    def _point(self, b, r, kin):
-        """Jacobian (3 x n), acceleration at a = 0 (world) and world position of the point ``r`` of body ``b``."""
+    def _point(self, b, r, kin, bias=True):
+        """Jacobian (3 x n), acceleration at a = 0 (world; None without ``bias``) and world
+        position of the point ``r`` of body ``b``."""
         Rw, pw, v, acc, motion, _ = kin
         J = np.zeros((3, self.n))
         if b < 0:
@@ -175,6 +176,8 @@ class LoopModel:
         P = pw[b] + Rw[b] @ r
         ks = self.path_array[b]
         J[:, ks] = (motion[ks, 3:] + _cross_rows(motion[ks, :3], P - pw[self.node_of[ks]])).T
+        if not bias:
+            return J, None, P
         om, vo = v[b, :3], v[b, 3:]
         a_body = acc[b, 3:] + _skew_cross(acc[b, :3], r) + _skew_cross(om, vo + _skew_cross(om, r))
         return J, Rw[b] @ a_body, P
@@ -242,21 +245,24 @@ class LoopModel:
             J[:, k] = motion[k, :3]
         return J, Rw[b] @ v[b, :3], Rw[b] @ acc[b, :3]
 
-    def _loop_blocks(self, kin, data):
-        """``J`` (rows x n), ``c`` and, per row, the loop force's action ``(body, point or None, force, moment)``
-        for the two bodies (world axes) per unit multiplier."""
+    def _loop_blocks(self, kin, data, bias=True):
+        """``J`` (rows x n), ``c`` (zero without ``bias``), per row the loop force's action
+        ``(body, point or None, force, moment)`` for the two bodies (world axes) per unit
+        multiplier, and the rows' position residuals ``Phi``."""
         Rw = kin[0]
         rows = len(self.loop_rows)
-        J, c = np.zeros((rows, self.n)), np.zeros(rows)
+        J, c, Phi = np.zeros((rows, self.n)), np.zeros(rows), np.zeros(rows)
         actions = []
         data = np.reshape(data, (-1, 12))
         for i, (_, row) in enumerate(self.loop_rows):
             ra, ua, rb, ub = data[i, :3], data[i, 3:6], data[i, 6:9], data[i, 9:]
             if row.kind == "point":
-                Ja, aa, _ = self._point(row.body_a, ra, kin)
-                Jb, ab, _ = self._point(row.body_b, rb, kin)
+                Ja, aa, Pa = self._point(row.body_a, ra, kin, bias)
+                Jb, ab, Pb = self._point(row.body_b, rb, kin, bias)
                 J[i] = ua @ (Ja - Jb)
-                c[i] = ua @ (aa - ab)
+                Phi[i] = ua @ (Pa - Pb)
+                if bias:
+                    c[i] = ua @ (aa - ab)
                 actions.append(((row.body_a, ra, ua, np.zeros(3)), (row.body_b, rb, -ua, np.zeros(3))))
             else:
                 Ja, oa, al_a = self._angular(row.body_a, kin)
@@ -265,10 +271,11 @@ class LoopModel:
                 vv = Rw[row.body_b] @ ub if row.body_b >= 0 else ub
                 n = _skew_cross(u, vv)
                 J[i] = n @ (Ja - Jb)
+                Phi[i] = u @ vv
                 c[i] = n @ (al_a - al_b) + (oa - ob) @ (_skew_cross(_skew_cross(oa, u), vv)
                                                         + _skew_cross(u, _skew_cross(ob, vv)))
                 actions.append(((row.body_a, ra, np.zeros(3), n), (row.body_b, rb, np.zeros(3), -n)))
-        return J, c, actions
+        return J, c, actions, Phi
 
     def blocks(self, q, w, u=None, t0=0.0, p=None):
         """``M, h - Q, J, c`` at a state (the system's speeds and constraints order) and the
@@ -284,7 +291,7 @@ class LoopModel:
         f = self._forces(arrays, kin, inertias, np.zeros(self.n), g)
         S = arrays.S[0]
         h = np.einsum("ki,ki->k", S, f[self.node_of])
-        Jl, cl, actions = self._loop_blocks(kin, data)
+        Jl, cl, actions, _ = self._loop_blocks(kin, data)
         s = len(self.constraint_names)
         J, c = np.zeros((s, self.n)), np.zeros(s)
         for i, (k, _) in enumerate(self.loop_rows):
@@ -301,19 +308,11 @@ class LoopModel:
         w = np.zeros(self.n)
         arrays, _, _, _, _, Jo, _, data = self._evaluate_terms(0.0, q, w, p, np.zeros(len(self.control_names)))
         kin = self._kinematics(arrays, w)
-        Jl, _, _ = self._loop_blocks(kin, data)
-        Rw = kin[0]
-        data = np.reshape(data, (-1, 12))
+        Jl, _, _, Pl = self._loop_blocks(kin, data, bias=False)
         s = len(self.constraint_names)
         Phi, J = np.zeros(s), np.zeros((s, self.n))
-        for i, (k, row) in enumerate(self.loop_rows):
-            ra, ua, rb, ub = data[i, :3], data[i, 3:6], data[i, 6:9], data[i, 9:]
-            if row.kind == "point":
-                Phi[k] = ua @ (self._point(row.body_a, ra, kin)[2] - self._point(row.body_b, rb, kin)[2])
-            else:
-                u = Rw[row.body_a] @ ua if row.body_a >= 0 else ua
-                Phi[k] = u @ (Rw[row.body_b] @ ub if row.body_b >= 0 else ub)
-            J[k] = Jl[i]
+        rows = [k for k, _ in self.loop_rows]
+        Phi[rows], J[rows] = Pl, Jl
         if self.other_rows:
             Phi[self.other_rows] = np.ravel(self.position_rows(q, p)[0])
             J[self.other_rows] = Jo

@@ -291,6 +291,9 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
     undetermined: tuple = ()
     residual = 0.0
     for k in range(t.size):
+        if k >= 1 and passive:  # the passive coordinates predicted from the last time's speeds and accelerations
+            dt = t[k] - t[k - 1]
+            qk[passive] += W_all[k - 1, passive] * dt + A_all[k - 1, passive] * dt**2 / 2
         qk, Phi, J = _assemble(model, qk, ind, passive, qi[k], pv, tol, max_iterations)
         if np.abs(Phi).max(initial=0.0) > tol:
             if k == 0:
