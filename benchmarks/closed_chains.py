@@ -124,13 +124,10 @@ def inverse(samples: int = 1000) -> float:
         warnings.simplefilter("ignore")
         mech, _ = mjcf_mechanism(load_mjcf(xml))
     model = appell.loop_model(mech)
+    from appell.examples.parallel_examples import biped_gait
+
     t = np.linspace(0.0, 1.0, samples)
-    given = {}
-    for side, sign in (("left", 1), ("right", -1)):
-        given[f"{side}_hip_roll"] = 0.05 * sign * np.sin(2 * np.pi * t)
-        given[f"{side}_hip_pitch"] = -0.3 + 0.3 * np.sin(2 * np.pi * t + sign)
-        given[f"{side}_knee"] = 0.3 + 0.15 * np.sin(2 * np.pi * t + sign + 0.5)
-        given[f"{side}_crank"] = 0.2 * np.sin(2 * np.pi * t)
+    given = biped_gait(t)
     t0 = time.perf_counter()
     appell.inverse_dynamics(model, t, given)
     return time.perf_counter() - t0

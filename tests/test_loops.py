@@ -23,6 +23,7 @@ from appell.examples.mechanism_examples import four_bar
 from appell.mechanism import Mechanism
 from appell.numerics.loops import loop_model, solve_split
 from appell.simulation.recording import acceleration_name, recorded_outputs
+from closed_chain_models import four_bar_3d, mujoco_kkt
 
 BIPED = Path(__file__).resolve().parents[1] / "src" / "appell" / "examples" / "loop_biped.xml"
 
@@ -97,27 +98,14 @@ def test_spatial_loops_against_the_expanded_route(closure):
     _against_expanded(system, states, rtol=1e-9)
 
 
-def _planar_four_bar(directions="xy"):
-    mech = Mechanism("four_bar_3d", gravity=(0, -9.81, 0))
-    lengths, masses = (0.4, 1.0, 0.8), (1.0, 2.0, 1.5)
-    crank, coupler, rocker = (mech.body(name, m, inertia=(m * l**2 / 100, m * l**2 / 12, m * l**2 / 12),
-                                        com=(l / 2, 0, 0))
-                              for name, l, m in zip(("crank", "coupler", "rocker"), lengths, masses))
-    mech.revolute("A", "ground", crank)
-    mech.revolute("B", crank, coupler, origin=(lengths[0], 0, 0))
-    mech.revolute("D", "ground", rocker, origin=(1.0, 0, 0))
-    mech.connect("C", (coupler, (lengths[1], 0, 0)), (rocker, (lengths[2], 0, 0)), directions=directions)
-    return mech
-
-
 def test_a_planar_loops_out_of_plane_row_is_named_undetermined():
     """The out-of-plane row of a planar loop closed in x, y and z does no work: its multiplier
     is named undetermined (minimum norm: 0) and the motion and in-plane forces are those of
     the loop closed in x and y alone (the expanded route of that model)."""
     rng = np.random.default_rng(5)
     q, w = rng.uniform(-2, 2, 3), rng.normal(size=3)
-    full = loop_model(_planar_four_bar("xyz")).evaluate(q, w)
-    planar_system = _planar_four_bar("xy").system()
+    full = loop_model(four_bar_3d("xyz")).evaluate(q, w)
+    planar_system = four_bar_3d("xy").system()
     ref = numeric_model(derive(planar_system), "numpy").solve(0.0, q, w)
     assert full.undetermined == ({"C_z": 1.0},)
     assert np.allclose(full.a, ref.accelerations, rtol=1e-11, atol=1e-11)
@@ -163,37 +151,10 @@ def test_solve_split_minimum_norm_on_dependent_rows():
 
 
 def test_loads_are_refused_by_name():
-    mech = _planar_four_bar()
+    mech = four_bar_3d()
     mech.force("push", ("crank", (0.4, 0, 0)), (1, 0, 0))
     with pytest.raises(ModelError, match="push"):
         loop_model(mech)
-
-
-def _mujoco_reference(m, d):
-    """Accelerations and multipliers of the hard-constraint augmented system from MuJoCo's
-    blocks: ``[M J^T; J 0]`` with ``J = jac(p1) - jac(p2)`` and ``c = (jacDot(p1) - jacDot(p2)) v``
-    for every connect, multipliers minimum-norm."""
-    import mujoco
-
-    M = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, M)
-    Js, cs = [], []
-    for e in range(m.neq):
-        b1, b2 = m.eq_obj1id[e], m.eq_obj2id[e]
-        p1 = d.xpos[b1] + d.xmat[b1].reshape(3, 3) @ m.eq_data[e, :3]
-        p2 = d.xpos[b2] + d.xmat[b2].reshape(3, 3) @ m.eq_data[e, 3:6]
-        J1, J2, D1, D2 = (np.zeros((3, m.nv)) for _ in range(4))
-        mujoco.mj_jac(m, d, J1, None, p1, b1)
-        mujoco.mj_jac(m, d, J2, None, p2, b2)
-        mujoco.mj_jacDot(m, d, D1, None, p1, b1)
-        mujoco.mj_jacDot(m, d, D2, None, p2, b2)
-        Js.append(J1 - J2)
-        cs.append((D1 - D2) @ d.qvel)
-    J, c = np.vstack(Js), np.concatenate(cs)
-    Minv = np.linalg.inv(M)
-    a0 = -Minv @ d.qfrc_bias
-    lam = np.linalg.lstsq(J @ Minv @ J.T, -(J @ a0 + c), rcond=1e-12)[0]
-    return a0 + Minv @ J.T @ lam, lam
 
 
 def biped_state(m, d, rng):
@@ -228,7 +189,7 @@ def test_floating_biped_with_four_leg_loops_against_mujoco():
     rng = np.random.default_rng(2)
     for _ in range(3):
         q, w, G = biped_state(m, d, rng)
-        acc, lam = _mujoco_reference(m, d)
+        acc, lam, _ = mujoco_kkt(m, d)
         state = model.evaluate(q, w)
         scale = np.abs(acc).max()
         assert np.abs(state.a[7:] - acc[6:]).max() <= 1e-9 * scale

@@ -14,35 +14,21 @@ import pytest
 
 from appell import derive, inverse_dynamics, numeric_model
 from appell.errors import ComputationError, ModelError
-from appell.mechanism import Mechanism
+from appell.examples.parallel_examples import biped_gait
 from appell.numerics.loops import loop_model
+from closed_chain_models import four_bar_3d, mujoco_kkt
 
 BIPED = Path(__file__).resolve().parents[1] / "src" / "appell" / "examples" / "loop_biped.xml"
-
-
-def _four_bar(motor=True):
-    mech = Mechanism("driven_four_bar", gravity=(0, -9.81, 0))
-    lengths, masses = (0.4, 1.0, 0.8), (1.0, 2.0, 1.5)
-    crank, coupler, rocker = (mech.body(name, m, inertia=(m * l**2 / 100, m * l**2 / 12, m * l**2 / 12),
-                                        com=(l / 2, 0, 0))
-                              for name, l, m in zip(("crank", "coupler", "rocker"), lengths, masses))
-    mech.revolute("A", "ground", crank)
-    mech.revolute("B", crank, coupler, origin=(lengths[0], 0, 0))
-    mech.revolute("D", "ground", rocker, origin=(1.0, 0, 0))
-    mech.connect("C", (coupler, (lengths[1], 0, 0)), (rocker, (lengths[2], 0, 0)), directions="xy")
-    if motor:
-        mech.actuator("motor", "A")
-    return mech
 
 
 def test_four_bar_motor_torque_balances_the_expanded_equations():
     """The crank turned by a motor through a full revolution: the loop closes at every time, and
     the torque and pin forces satisfy the expanded route's M a + h - Q = B tau + J^T lambda."""
-    mech = _four_bar()
+    mech = four_bar_3d(motor=True)
     t = np.linspace(0.0, 1.0, 41)
     res = inverse_dynamics(mech, t, {"A": 1.0 + 2 * np.pi * t + 0.3 * np.sin(3 * t)},
                            guess={"B": 1.5, "D": 2.0})
-    system = _four_bar(motor=False).system(initial={"A": 1.0, "B": 1.5, "D": 2.0})
+    system = four_bar_3d().system(initial={"A": 1.0, "B": 1.5, "D": 2.0})
     model = numeric_model(derive(system), "numpy")
     names = model.coordinate_names
     for k in range(0, t.size, 5):
@@ -61,30 +47,6 @@ def test_four_bar_motor_torque_balances_the_expanded_equations():
     assert {"F_A_x", "M_D_z", "F_B_y"} <= set(res.outputs)
 
 
-def _mujoco_accelerations(m, d, tau):
-    import mujoco
-
-    M = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, M)
-    Js, cs = [], []
-    for e in range(m.neq):
-        b1, b2 = m.eq_obj1id[e], m.eq_obj2id[e]
-        p1 = d.xpos[b1] + d.xmat[b1].reshape(3, 3) @ m.eq_data[e, :3]
-        p2 = d.xpos[b2] + d.xmat[b2].reshape(3, 3) @ m.eq_data[e, 3:6]
-        J1, J2, D1, D2 = (np.zeros((3, m.nv)) for _ in range(4))
-        mujoco.mj_jac(m, d, J1, None, p1, b1)
-        mujoco.mj_jac(m, d, J2, None, p2, b2)
-        mujoco.mj_jacDot(m, d, D1, None, p1, b1)
-        mujoco.mj_jacDot(m, d, D2, None, p2, b2)
-        Js.append(J1 - J2)
-        cs.append((D1 - D2) @ d.qvel)
-    J, c = np.vstack(Js), np.concatenate(cs)
-    Minv = np.linalg.inv(M)
-    a0 = Minv @ (tau - d.qfrc_bias)
-    lam = np.linalg.lstsq(J @ Minv @ J.T, -(J @ a0 + c), rcond=1e-12)[0]
-    return a0 + Minv @ J.T @ lam, np.abs(J @ d.qvel).max()
-
-
 def test_biped_legs_inverse_reproduced_by_mujoco():
     """The loop biped on a fixed pelvis, its four motors per leg (hip roll, hip pitch, knee, foot
     crank) following a gait-like motion: the ankles, toes and rods follow from the loops, and
@@ -96,12 +58,7 @@ def test_biped_legs_inverse_reproduced_by_mujoco():
     mech, _ = mjcf_mechanism(load_mjcf(xml))
     model = loop_model(mech)
     t = np.linspace(0.0, 0.5, 26)
-    given = {}
-    for side, sign in (("left", 1), ("right", -1)):
-        given[f"{side}_hip_roll"] = 0.05 * sign * np.sin(2 * np.pi * t)
-        given[f"{side}_hip_pitch"] = -0.3 + 0.3 * np.sin(2 * np.pi * t + sign)
-        given[f"{side}_knee"] = 0.3 + 0.15 * np.sin(2 * np.pi * t + sign + 0.5)
-        given[f"{side}_crank"] = 0.2 * np.sin(2 * np.pi * t)
+    given = biped_gait(t)
     res = inverse_dynamics(model, t, given)
     # the planar loops' out-of-plane rows: named, each alone
     assert sorted(k for comb in res.undetermined for k in comb) == sorted(
@@ -116,18 +73,18 @@ def test_biped_legs_inverse_reproduced_by_mujoco():
         tau = np.zeros(m.nv)
         for speed, value in res.drives.items():
             tau[names.index(speed.removesuffix("_dot"))] = value[k]
-        acc, drift = _mujoco_accelerations(m, d, tau)
+        acc, _, drift = mujoco_kkt(m, d, tau)
         prescribed = np.array([res.motion[n + "_ddot"][k] for n in names])
         assert drift < 1e-10
         assert np.abs(acc - prescribed).max() <= 1e-9 * np.abs(prescribed).max()
 
 
 def test_under_actuated_and_dependent_motions_are_refused():
-    mech = _four_bar()
+    mech = four_bar_3d(motor=True)
     t = np.linspace(0.0, 0.3, 8)
     with pytest.raises(ModelError, match="not independent"):
         inverse_dynamics(mech, t, {"A": 1.0 + t, "D": 2.0 + t}, guess={"B": 1.5})
-    flagged = _four_bar()
+    flagged = four_bar_3d(motor=True)
     flagged.revolute("E", "ground", flagged.body("flag", 0.5, inertia=(0, 0, 0.01), com=(0.1, 0, 0)))
     with pytest.raises(ModelError, match="leave 1 passive"):
         inverse_dynamics(flagged, t, {"A": 1.0 + t}, guess={"B": 1.5, "D": 2.0})
@@ -135,3 +92,14 @@ def test_under_actuated_and_dependent_motions_are_refused():
         inverse_dynamics(mech, t, {"A": 1.0 + t ** 2}, guess={"B": 1.5, "D": 2.0}, drives=[])
     with pytest.raises(ComputationError, match="do not close"):
         inverse_dynamics(mech, t, {"A": 1.0 + t}, guess={"B": 1.5, "D": 2.0}, max_iterations=0)
+
+
+def test_a_mechanisms_system_with_loops_takes_the_closed_chain_route():
+    """The System a mechanism gives (as the command line loads it) inverts like the mechanism."""
+    mech = four_bar_3d(motor=True)
+    t = np.linspace(0.0, 0.2, 6)
+    motion = {"A": 1.0 + t}
+    a = inverse_dynamics(mech, t, motion, guess={"B": 1.5, "D": 2.0})
+    b = inverse_dynamics(mech.system(), t, motion, guess={"B": 1.5, "D": 2.0})
+    assert np.allclose(a.drives["motor"], b.drives["motor"], rtol=1e-12, atol=1e-12)
+    assert np.allclose(a.multipliers["C_x"], b.multipliers["C_x"], rtol=1e-12, atol=1e-12)

@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from appell.mechanism import Mechanism
 
-__all__ = ["five_bar", "delta_robot", "stewart_platform", "FIVE_BAR", "DELTA", "STEWART"]
+__all__ = ["five_bar", "delta_robot", "stewart_platform", "biped_gait", "FIVE_BAR", "DELTA", "STEWART"]
 
 #: the five-bar's dimensions: motor pivots at (0, 0) and (d, 0), proximal and distal links
 FIVE_BAR = {"d": 0.2, "proximal": 0.2, "distal": 0.3, "m_proximal": 0.4, "m_distal": 0.5}
@@ -134,3 +136,17 @@ def stewart_platform() -> Mechanism:
         mech.actuator(f"leg_{k}", f"S{k}")
         mech.connect(f"T{k}", (piston, (0, 0, length)), (platform, tp))
     return mech
+
+
+def biped_gait(t) -> dict:
+    """A gait-like motion of the motors of ``loop_biped.xml`` (beside this module) at the times
+    ``t``: hip roll, hip pitch, knee and foot crank of each leg, the legs half a period apart
+    in phase; the ankles, toes and rods follow from the loops."""
+    t = np.asarray(t, float)
+    given = {}
+    for side, sign in (("left", 1), ("right", -1)):
+        given[f"{side}_hip_roll"] = 0.05 * sign * np.sin(2 * np.pi * t)
+        given[f"{side}_hip_pitch"] = -0.3 + 0.3 * np.sin(2 * np.pi * t + sign)
+        given[f"{side}_knee"] = 0.3 + 0.15 * np.sin(2 * np.pi * t + sign + 0.5)
+        given[f"{side}_crank"] = 0.2 * np.sin(2 * np.pi * t)
+    return given

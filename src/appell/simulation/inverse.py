@@ -83,11 +83,13 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
     ``drives`` the names of the driven speeds (default: every speed of a system without
     constraints). Module docstring: the equations.
 
-    A closed chain (an :class:`appell.Mechanism`, or the
-    :class:`~appell.numerics.loops.LoopModel` of one) takes its motion for the actuated or
+    A closed chain (an :class:`appell.Mechanism`, a mechanism's :class:`appell.System` whose
+    tree records loop closures, or the :class:`~appell.numerics.loops.LoopModel` of one)
+    takes its motion for the actuated or
     other independent coordinates alone, ``q = {name: values}``, and completes the passive
     ones from the loop closures (:func:`closed_chain_inverse`, whose ``options`` it passes)."""
-    if hasattr(derivation, "loop_parts") or hasattr(derivation, "loop_rows"):
+    tree = getattr(derivation, "tree", None)
+    if hasattr(derivation, "loop_parts") or hasattr(derivation, "loop_rows") or getattr(tree, "loops", ()):
         return closed_chain_inverse(derivation, t, q, w, a, drives, p, **options)
     model = numeric_model(derivation)
     names, speeds = model.coordinate_names, model.speed_names
