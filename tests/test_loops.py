@@ -108,6 +108,8 @@ def test_a_planar_loops_out_of_plane_row_is_named_undetermined():
     planar_system = four_bar_3d("xy").system()
     ref = numeric_model(derive(planar_system), "numpy").solve(0.0, q, w)
     assert full.undetermined == ({"C_z": 1.0},)
+    # the out-of-plane force at C bends the loop's hinges: their wrenches are not determined
+    assert set(full.undetermined_wrenches) == {"A", "B", "D"}
     assert np.allclose(full.a, ref.accelerations, rtol=1e-11, atol=1e-11)
     assert np.allclose(full.lam, [*ref.multipliers, 0.0], rtol=1e-11, atol=1e-11)
 

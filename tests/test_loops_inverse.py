@@ -63,6 +63,8 @@ def test_biped_legs_inverse_reproduced_by_mujoco():
     # the planar loops' out-of-plane rows: named, each alone
     assert sorted(k for comb in res.undetermined for k in comb) == sorted(
         f"{s}_{loop}_loop_y" for s in ("left", "right") for loop in ("achilles", "plantar"))
+    # the joints inside the loops carry those open forces; the hips above them do not
+    assert "left_knee" in res.undetermined_wrenches and "left_hip_roll" not in res.undetermined_wrenches
     m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
     names = model.coordinate_names

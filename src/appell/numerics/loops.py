@@ -66,12 +66,15 @@ class LoopState:
     ``wrenches`` ``{joint: (F_x, F_y, F_z, M_x, M_y, M_z)}`` (the parent's force and moment on
     the child's subtree at the joint's point, world axes), ``undetermined``: each combination
     of multipliers that rigid-body mechanics leaves open, as ``{constraint: weight}`` (empty
-    where every multiplier is determined; ``lam`` is then the minimum-norm choice)."""
+    where every multiplier is determined; ``lam`` is then the minimum-norm choice), and
+    ``undetermined_wrenches``: the joints whose wrench such a combination changes (their
+    values are those of the minimum-norm choice, not determined by rigid-body mechanics)."""
 
     a: np.ndarray
     lam: np.ndarray
     wrenches: dict
     undetermined: tuple = ()
+    undetermined_wrenches: tuple = ()
 
 
 class LoopModel:
@@ -350,7 +353,19 @@ class LoopModel:
         """Accelerations, every multiplier and every joint's wrench at a state (module docstring)."""
         M, hQ, J, c, pieces = self.blocks(q, w, u, t0, p)
         a, lam, undetermined = solve_split(M, hQ, J, c, self.constraint_names)
-        return LoopState(a, lam, self.joint_wrenches(w, a, lam, pieces), undetermined)
+        wrench = self.joint_wrenches(w, a, lam, pieces)
+        return LoopState(a, lam, wrench, undetermined, self.open_wrenches(w, a, lam, pieces, undetermined, wrench))
+
+    def open_wrenches(self, w, a, lam, pieces, undetermined, wrench) -> tuple:
+        """The joints whose wrench a combination of :attr:`LoopState.undetermined` changes (the
+        wrenches with that combination added to the multipliers, at the same motion)."""
+        names = self.constraint_names
+        out = set()
+        scale = max(1.0, max(float(np.abs(W).max()) for W in wrench.values()))
+        for comb in undetermined:
+            shifted = self.joint_wrenches(w, a, lam + np.array([comb.get(nm, 0.0) for nm in names]) * scale, pieces)
+            out |= {j for j, W in shifted.items() if np.abs(W - wrench[j]).max() > 1e-9 * scale}
+        return tuple(j for j in self.joints if j in out)
 
 
 def echelon_null_space(A, names, tol=RANK_TOLERANCE) -> tuple:

@@ -37,7 +37,7 @@ class InverseDynamics:
     and ``residual`` (the largest velocity-level constraint residual of the given motion);
     ``undetermined`` (closed chains, :func:`closed_chain_inverse`): each combination of drives
     and multipliers that does no work, ``{name: weight}``, the answer being their minimum-norm
-    choice."""
+    choice; ``undetermined_wrenches`` the joints whose wrench those combinations change."""
 
     t: np.ndarray
     motion: Mapping[str, np.ndarray]
@@ -46,6 +46,7 @@ class InverseDynamics:
     outputs: Mapping[str, np.ndarray] = field(default_factory=dict)
     residual: float = 0.0
     undetermined: tuple = ()  # closed chains: combinations of drives and multipliers the motion leaves open
+    undetermined_wrenches: tuple = ()  # closed chains: joints whose wrench those combinations change
 
     def columns(self) -> list[tuple[str, np.ndarray]]:
         """``(name, values)`` in the order of a result file: t, the motion, ``drive_<speed>``,
@@ -237,7 +238,8 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
     motion (under-actuated) a :class:`ComputationError` names the speeds out of balance.
     Every joint's wrench (``F_<joint>_x .. M_<joint>_z``, world axes, the parent's force and
     moment on the subtree at the joint's point) comes from RNEA's inward pass with the loop
-    forces applied at their anchors."""
+    forces applied at their anchors; those an undetermined combination changes are named in
+    ``undetermined_wrenches``."""
     from appell.numerics.loops import LoopModel, loop_model
 
     model = model if isinstance(model, LoopModel) else loop_model(model)
@@ -291,6 +293,7 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
     tau, lam = np.zeros((t.size, len(drives))), np.zeros((t.size, s))
     wrench: dict[str, np.ndarray] = {}
     undetermined: tuple = ()
+    open_joints: set = set()
     residual = 0.0
     for k in range(t.size):
         if k >= 1 and passive:  # the passive coordinates predicted from the last time's speeds and accelerations
@@ -329,7 +332,11 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
         if k == 0:
             undetermined = _combinations(A, list(drives) + list(cons), 1e-10)
         tau[k], lam[k] = x[:len(drives)], x[len(drives):]
-        for joint, W in model.joint_wrenches(wk, ak, lam[k], pieces).items():
+        wrenches_k = model.joint_wrenches(wk, ak, lam[k], pieces)
+        if undetermined:
+            in_lam = tuple({c: v for c, v in comb.items() if c in cons} for comb in undetermined)
+            open_joints |= set(model.open_wrenches(wk, ak, lam[k], pieces, in_lam, wrenches_k))
+        for joint, W in wrenches_k.items():
             for i, nm in enumerate(f"{f}_{joint}_{x}" for f in "FM" for x in "xyz"):
                 wrench.setdefault(nm, np.zeros(t.size))[k] = W[i]
         Q_all[k], W_all[k], A_all[k] = qk, wk, ak
@@ -338,4 +345,5 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
     motion = {**{nm: Q_all[:, i] for i, nm in enumerate(names)}, **{nm: W_all[:, i] for i, nm in enumerate(speeds)},
               **{acceleration_name(nm): A_all[:, i] for i, nm in enumerate(speeds)}}
     return InverseDynamics(t, motion, {d: tau[:, j] for j, d in enumerate(drives)},
-                           {c: lam[:, j] for j, c in enumerate(cons)}, wrench, residual, undetermined)
+                           {c: lam[:, j] for j, c in enumerate(cons)}, wrench, residual, undetermined,
+                           tuple(j for j in model.joints if j in open_joints))
