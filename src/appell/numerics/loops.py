@@ -441,6 +441,9 @@ def _system_parts(system):
     if system.loads:
         raise ModelError(f"system {system.name!r} has loads ({', '.join(ld.name for ld in system.loads)}): "
                          "the closed-chain route takes joint forces only", hint="use appell.derive(system)")
+    if system.servo_constraints or any(c.kind != "force" for c in system.controls):
+        raise ModelError(f"system {system.name!r} has servo constraints or kinematic controls: the closed-chain "
+                         "route takes force controls only", hint="use appell.derive_controlled(system)")
     if sp.sympify(system.potential_energy) != tree.potential:
         raise ModelError(f"system {system.name!r}: a potential energy beside gravity", hint="use appell.derive")
     loops = {row.name for row in tree.loops}
