@@ -200,3 +200,63 @@ def test_floating_biped_with_four_leg_loops_against_mujoco():
         loops = [model.constraint_names.index(f"{e}_{x}") for e in
                  ("left_achilles_loop", "left_plantar_loop", "right_achilles_loop", "right_plantar_loop") for x in "xyz"]
         assert np.abs(state.lam[loops] - lam).max() <= 1e-9 * np.abs(lam).max()
+
+
+def _parity(mech, states, controls=0):
+    """The compiled loop route (C: loops.c over rigid.c) against the NumPy one at ``states``:
+    the blocks to 1e-12 of their size, the positions and their Jacobian, the accelerations,
+    multipliers and every joint wrench (the NumPy split by SVD and least squares, the C one by
+    two Cholesky factorizations: the same numbers to the split's conditioning, 1e-11)."""
+    compiled, plain = loop_model(mech, "c"), loop_model(mech, "numpy")
+    assert compiled.backend == "c" and plain.backend == "numpy"
+    rng = np.random.default_rng(19)
+    for q, w in states:
+        u = rng.normal(size=controls)
+        for x, y in zip(compiled.blocks(q, w, u)[:4], plain.blocks(q, w, u)[:4]):
+            assert np.abs(x - y).max(initial=0.0) <= 1e-12 * max(1.0, np.abs(y).max(initial=0.0))
+        for x, y in zip(compiled.positions(q), plain.positions(q)):
+            assert np.abs(x - y).max(initial=0.0) <= 1e-12 * max(1.0, np.abs(y).max(initial=0.0))
+        sc, sn = compiled.evaluate(q, w, u), plain.evaluate(q, w, u)
+        assert sc.undetermined == sn.undetermined and sc.undetermined_wrenches == sn.undetermined_wrenches
+        big = max(1.0, max(np.abs(W).max() for W in sn.wrenches.values()))  # the wrenches' size
+        for x, y in [(sc.a, sn.a), (sc.lam, sn.lam)]:
+            assert np.abs(x - y).max(initial=0.0) <= 1e-11 * max(1.0, np.abs(y).max(initial=0.0))
+        for j in plain.joints:
+            assert np.abs(sc.wrenches[j] - sn.wrenches[j]).max() <= 1e-11 * big, j
+        pieces_c, pieces_n = compiled.blocks(q, w, u)[4], plain.blocks(q, w, u)[4]
+        ref = plain.joint_wrenches(w, sn.a, sn.lam, pieces_n)
+        for j, W in compiled.joint_wrenches(w, sn.a, sn.lam, pieces_c).items():
+            assert np.abs(W - ref[j]).max() <= 1e-12 * big, j
+
+
+def test_compiled_loop_route_equals_the_numpy_route():
+    pytest.importorskip("mujoco")
+    from appell.numerics.codegen import find_compiler
+    from appell.mechanism.mjcf import load_mjcf, mjcf_mechanism
+
+    if find_compiler() is None:
+        pytest.skip("no C compiler")
+    rng = np.random.default_rng(23)
+    mech, _ = mjcf_mechanism(load_mjcf(BIPED), str(BIPED))   # point rows, a quaternion's norm row, motors
+    states = []
+    for _ in range(2):
+        q, w = np.zeros(23), rng.normal(size=23)
+        quat = rng.normal(size=4)
+        q[:3], q[3:7], q[7:] = rng.normal(size=3), quat / np.linalg.norm(quat), rng.uniform(-0.5, 0.5, 16)
+        states.append((q, w))
+    _parity(mech, states, controls=len(loop_model(mech, "numpy").control_names))
+    # alignment rows (weld), and a hinge's dependent rows: C leaves the split to NumPy, which names them
+    for mech, n in ((_spatial_loop("weld"), 7), (four_bar_3d("xyz"), 3)):
+        _parity(mech, [(rng.uniform(-1, 1, n), rng.normal(size=n)) for _ in range(2)])
+
+
+def test_loop_route_without_a_compiler(monkeypatch):
+    """No C compiler: 'auto' takes the NumPy route, 'c' is refused with a reason."""
+    import appell.numerics.codegen.loops as compiled_loops
+
+    monkeypatch.setattr(compiled_loops, "find_compiler", lambda: None)
+    assert loop_model(four_bar_3d(), "auto").backend == "numpy"
+    with pytest.raises(ModelError, match="C compiler"):
+        loop_model(four_bar_3d(), "c")
+    with pytest.raises(ModelError, match="backend"):
+        loop_model(four_bar_3d(), "fortran")

@@ -82,7 +82,7 @@ class LoopModel:
     loop closures (module docstring). ``evaluate(q, w, u=None, t=0, p=None)`` gives
     :class:`LoopState`; :meth:`blocks` the blocks ``M, h - Q, J, c`` at a state."""
 
-    def __init__(self, parts):
+    def __init__(self, parts, backend: str = "auto"):
         tree = parts.tree
         coords = list(parts.coordinates)
         self.name = parts.name
@@ -116,6 +116,8 @@ class LoopModel:
             J_o.append(list(grad))
             c_o.append((grad.jacobian(coords) * qdot).T.dot(qdot) if coords else 0)
         self.other_rows = [k for k, _, _ in others]
+        self.other_blocks = (sp.Matrix(J_o) if J_o else sp.zeros(0, n), sp.Matrix(c_o) if c_o else sp.zeros(0, 1),
+                             sp.Matrix([e for _, _, e in others]) if others else sp.zeros(0, 1))
         self.position_rows = _compiled([coords, [p.symbol for p in parts.parameters]],
                                        [sp.Matrix([e for _, _, e in others] or [0])])
         data = [sp.Matrix([x for _, row in self.loop_rows for x in (*row.point_a, *row.axis_a, *row.point_b,
@@ -129,6 +131,17 @@ class LoopModel:
         self.path = path
         self.path_array = [np.array(ks, dtype=np.int64) for ks in path]
         self.joints = tuple(node.joint for node in tree.nodes)
+        self.compiled = None
+        if backend not in ("auto", "c", "numpy"):
+            raise ModelError(f"unknown backend {backend!r} of the closed-chain route", hint="'auto', 'c' or 'numpy'")
+        if backend != "numpy":
+            from appell.numerics.codegen.loops import compile_loops
+
+            self.compiled = compile_loops(self, parts)
+            if self.compiled is None and backend == "c":
+                raise ModelError("the C backend needs a C compiler, and none was found",
+                                 hint="install cc or set $APPELL_CC, or choose the backend 'auto' or 'numpy'")
+        self.backend = "numpy" if self.compiled is None else "c"
 
     # ------------------------------------------------------------------ the pieces
     def _evaluate_terms(self, t0, q, w, p, u):
@@ -283,9 +296,10 @@ class LoopModel:
     def blocks(self, q, w, u=None, t0=0.0, p=None):
         """``M, h - Q, J, c`` at a state (the system's speeds and constraints order) and the
         pieces the wrenches need."""
-        q, w = np.asarray(q, float), np.asarray(w, float)
-        p = self.parameter_values if p is None else np.asarray(p, float)
-        u = np.zeros(len(self.control_names)) if u is None else np.asarray(u, float)
+        q, w, u, p = self._inputs(q, w, u, p)
+        if self.compiled is not None:
+            M, hQ, J, c = self.compiled.blocks(t0, q, w, u, p)
+            return M, hQ, J, c, ("c", t0, q, u, p)
         arrays, base, g, points, Q, Jo, co, data = self._evaluate_terms(t0, q, w, p, u)
         g = np.ravel(g)
         kin = self._kinematics(arrays, w)
@@ -303,11 +317,19 @@ class LoopModel:
             J[k], c[k] = Jo[i], co[i]
         return M, h - Q, J, c, (arrays, g, points, kin, actions, inertias)
 
+    def _inputs(self, q, w, u, p):
+        q, w = np.asarray(q, float), np.asarray(w, float)
+        p = self.parameter_values if p is None else np.asarray(p, float)
+        u = np.zeros(len(self.control_names)) if u is None else np.asarray(u, float)
+        return q, w, u, p
+
     def positions(self, q, p=None):
         """``(Phi, J)``: every constraint's position residual at ``q`` (a loop row's
         ``e . (p_a - p_b)`` or ``u . v``, the others' own expressions) and ``J = dPhi/dq``."""
         q = np.asarray(q, float)
         p = self.parameter_values if p is None else np.asarray(p, float)
+        if self.compiled is not None:
+            return self.compiled.positions(q, p)
         w = np.zeros(self.n)
         arrays, _, _, _, _, Jo, _, data = self._evaluate_terms(0.0, q, w, p, np.zeros(len(self.control_names)))
         kin = self._kinematics(arrays, w)
@@ -338,19 +360,32 @@ class LoopModel:
     def joint_wrenches(self, w, a, lam, pieces) -> dict:
         """``{joint: (F, M)}`` (6 values, world axes, about the joint's point): the inward pass
         with the loop forces applied at their anchors."""
+        return dict(zip(self.joints, self.wrench_array(w, a, lam, pieces)))
+
+    def wrench_array(self, w, a, lam, pieces) -> np.ndarray:
+        """:meth:`joint_wrenches` as one array (a row per joint, :attr:`joints`' order)."""
+        if pieces[0] == "c":
+            _, t0, q, u, p = pieces
+            return self.compiled.wrenches(t0, q, w, u, p, a, lam)
         arrays, g, points, kin, actions, inertias = pieces
         f = self._forces(arrays, kin, inertias, np.asarray(a, float), g, self.external(lam, kin, actions))
         Rw = kin[0]
         o = np.reshape(points, (-1, 3))
-        out = {}
-        for b, joint in enumerate(self.joints):
+        out = np.empty((len(self.joints), 6))
+        for b in range(len(self.joints)):
             fb = f[b]
-            out[joint] = np.concatenate([Rw[b] @ fb[3:], Rw[b] @ (fb[:3] - _skew_cross(o[b], fb[3:]))])
+            out[b, :3], out[b, 3:] = Rw[b] @ fb[3:], Rw[b] @ (fb[:3] - _skew_cross(o[b], fb[3:]))
         return out
 
     # ------------------------------------------------------------------ forward dynamics
     def evaluate(self, q, w, u=None, t0=0.0, p=None) -> LoopState:
-        """Accelerations, every multiplier and every joint's wrench at a state (module docstring)."""
+        """Accelerations, every multiplier and every joint's wrench at a state (module docstring):
+        one C call where compiled and every row independent, else the split solved here."""
+        if self.compiled is not None:
+            q, w, u, p = self._inputs(q, w, u, p)
+            out = self.compiled.evaluate(t0, q, w, u, p)
+            if out is not None:
+                return LoopState(out[0], out[1], dict(zip(self.joints, out[2])))
         M, hQ, J, c, pieces = self.blocks(q, w, u, t0, p)
         a, lam, undetermined = solve_split(M, hQ, J, c, self.constraint_names)
         wrench = self.joint_wrenches(w, a, lam, pieces)
@@ -360,12 +395,15 @@ class LoopModel:
         """The joints whose wrench a combination of :attr:`LoopState.undetermined` changes (the
         wrenches with that combination added to the multipliers, at the same motion)."""
         names = self.constraint_names
-        out = set()
-        scale = max(1.0, max(float(np.abs(W).max()) for W in wrench.values()))
+        if not undetermined:
+            return ()
+        W = wrench if isinstance(wrench, np.ndarray) else np.array([wrench[j] for j in self.joints])
+        scale = max(1.0, float(np.abs(W).max()))
+        changed = np.zeros(len(self.joints), bool)
         for comb in undetermined:
-            shifted = self.joint_wrenches(w, a, lam + np.array([comb.get(nm, 0.0) for nm in names]) * scale, pieces)
-            out |= {j for j, W in shifted.items() if np.abs(W - wrench[j]).max() > 1e-9 * scale}
-        return tuple(j for j in self.joints if j in out)
+            shifted = self.wrench_array(w, a, lam + np.array([comb.get(nm, 0.0) for nm in names]) * scale, pieces)
+            changed |= np.abs(shifted - W).max(axis=1) > 1e-9 * scale
+        return tuple(j for j, x in zip(self.joints, changed) if x)
 
 
 def echelon_null_space(A, names, tol=RANK_TOLERANCE) -> tuple:
@@ -420,13 +458,14 @@ def solve_split(M, hQ, J, c, names=None, tol=RANK_TOLERANCE):
     return a, lam, undetermined
 
 
-def loop_model(source) -> LoopModel:
+def loop_model(source, backend: str = "auto") -> LoopModel:
     """The :class:`LoopModel` of a :class:`appell.Mechanism` (its joint tree and closures,
     without the bodies' expanded kinematics: seconds for a legged robot) or of a mechanism's
-    :class:`appell.System` (the tree it records)."""
+    :class:`appell.System` (the tree it records). ``backend``: 'c' (compiled, refused without a
+    C compiler), 'numpy' or 'auto' (C where a compiler is found)."""
     if hasattr(source, "loop_parts"):
-        return LoopModel(source.loop_parts())
-    return LoopModel(_system_parts(source))
+        return LoopModel(source.loop_parts(), backend)
+    return LoopModel(_system_parts(source), backend)
 
 
 def _system_parts(system):
