@@ -190,6 +190,17 @@ def _independent(J, ind, passive, names):
                          f"{len(passive) - rank_p} more", hint="passive: " + ", ".join(names[i] for i in passive))
 
 
+def _passive_solve(Jp, rhs):
+    """The least-squares solution of ``Jp x = rhs`` for a ``Jp`` of full column rank (the passive
+    coordinates' columns, :func:`_independent`): by the normal equations ``Jp^T Jp x = Jp^T rhs``
+    (a small dense solve, a tenth of ``lstsq``'s cost; the systems solved here are consistent:
+    the loops' rows at a closed assembly), ``lstsq`` where ``Jp^T Jp`` is singular."""
+    try:
+        return np.linalg.solve(Jp.T @ Jp, Jp.T @ rhs)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(Jp, rhs, rcond=None)[0]
+
+
 def _newton(model, q, passive, pv, tol, max_iterations):
     """Newton's method on the passive coordinates for ``Phi(q) = 0`` (least squares: dependent
     rows allowed); ``(q, Phi, J)`` at the last step, converged where ``|Phi| <= tol``."""
@@ -198,7 +209,7 @@ def _newton(model, q, passive, pv, tol, max_iterations):
         Phi, J = model.positions(q, pv)
         if np.abs(Phi).max(initial=0.0) <= tol or not passive or step == max_iterations:
             break
-        dq = np.linalg.lstsq(J[:, passive], -Phi, rcond=None)[0]
+        dq = _passive_solve(J[:, passive], -Phi)
         q[passive] += dq * min(1.0, 0.5 / max(np.abs(dq).max(), 1e-300))  # at most half a radian a step
     return q, Phi, J
 
@@ -291,7 +302,7 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
     qk = np.array([start.get(nm, 0.0) for nm in names], float)
     Q_all, W_all, A_all = np.zeros((t.size, n)), np.zeros((t.size, n)), np.zeros((t.size, n))
     tau, lam = np.zeros((t.size, len(drives))), np.zeros((t.size, s))
-    wrench: dict[str, np.ndarray] = {}
+    wrench_all = np.zeros((t.size, len(model.joints), 6))
     undetermined: tuple = ()
     open_joints: set = set()
     residual = 0.0
@@ -313,12 +324,12 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
         wk = np.zeros(n)
         wk[ind] = wi[k]
         if passive:
-            wk[passive] = np.linalg.lstsq(J[:, passive], -J[:, ind] @ wi[k], rcond=None)[0]
+            wk[passive] = _passive_solve(J[:, passive], -J[:, ind] @ wi[k])
         M, hQ, Jk, c, pieces = model.blocks(qk, wk, u0, t[k], pv)
         ak = np.zeros(n)
         ak[ind] = ai[k]
         if passive:
-            ak[passive] = np.linalg.lstsq(Jk[:, passive], -(Jk[:, ind] @ ai[k] + c), rcond=None)[0]
+            ak[passive] = _passive_solve(Jk[:, passive], -(Jk[:, ind] @ ai[k] + c))
         residual = max(residual, float(np.abs(Jk @ wk).max(initial=0.0)))
         A = np.hstack([B, Jk.T])
         rhs = M @ ak + hQ
@@ -332,14 +343,13 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
         if k == 0:
             undetermined = _combinations(A, list(drives) + list(cons), 1e-10)
         tau[k], lam[k] = x[:len(drives)], x[len(drives):]
-        wrenches_k = model.joint_wrenches(wk, ak, lam[k], pieces)
-        if undetermined:
+        wrench_all[k] = model.wrench_array(wk, ak, lam[k], pieces)
+        if undetermined and k in (0, t.size - 1):  # the joints on the open rows' loops: checked at both ends
             in_lam = tuple({c: v for c, v in comb.items() if c in cons} for comb in undetermined)
-            open_joints |= set(model.open_wrenches(wk, ak, lam[k], pieces, in_lam, wrenches_k))
-        for joint, W in wrenches_k.items():
-            for i, nm in enumerate(f"{f}_{joint}_{x}" for f in "FM" for x in "xyz"):
-                wrench.setdefault(nm, np.zeros(t.size))[k] = W[i]
+            open_joints |= set(model.open_wrenches(wk, ak, lam[k], pieces, in_lam, wrench_all[k]))
         Q_all[k], W_all[k], A_all[k] = qk, wk, ak
+    wrench = {f"{f}_{joint}_{x}": wrench_all[:, b, i] for b, joint in enumerate(model.joints)
+              for i, (f, x) in enumerate((f, x) for f in "FM" for x in "xyz")}
     from appell.simulation.recording import acceleration_name
 
     motion = {**{nm: Q_all[:, i] for i, nm in enumerate(names)}, **{nm: W_all[:, i] for i, nm in enumerate(speeds)},
