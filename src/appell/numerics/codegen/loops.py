@@ -16,8 +16,8 @@ import sympy as sp
 
 from appell.numerics.codegen.build import build_library, find_compiler, load_library
 from appell.numerics.codegen.model import _Scratch, _wrap, caller
-from appell.numerics.codegen.printer import HEADER_END, UNIT_MARK, c_comment, c_function
-from appell.numerics.codegen.source import _c_file
+from appell.numerics.codegen.printer import HEADER_END, c_comment, c_function
+from appell.numerics.codegen.source import _c_file, joined_parts
 from appell.numerics.rigid_tree import point_matrices, tree_matrices
 from appell.symbols import t
 
@@ -65,12 +65,7 @@ def loop_c_source(model, parts) -> str:
         c_function("appell_rigid_points", point_matrices(tree), syms),
         c_function("appell_loop_data", [data, phi_o], syms),
         _c_file("rigid.c"), _c_file("loops.c")]
-    main, units = [], []
-    for part in parts_c:   # the parts of long functions go to the end, a unit each (as c_source)
-        head, *rest = part.split(UNIT_MARK)
-        main.append(head.rstrip())
-        units += [u.strip() for u in rest]
-    return "\n\n".join(main) + "\n" + "".join(f"\n{UNIT_MARK}\n{u}\n" for u in units)
+    return joined_parts(parts_c)
 
 
 class CompiledLoops:
