@@ -260,3 +260,18 @@ def test_loop_route_without_a_compiler(monkeypatch):
         loop_model(four_bar_3d(), "c")
     with pytest.raises(ModelError, match="backend"):
         loop_model(four_bar_3d(), "fortran")
+
+
+def test_loop_route_after_a_failed_compilation(monkeypatch):
+    """A compiler that fails: 'auto' warns and takes the NumPy route, 'c' passes the error on."""
+    import appell.numerics.codegen.loops as compiled_loops
+    from appell.errors import ComputationError
+
+    def broken(model, parts):
+        raise ComputationError("C compilation failed: broken compiler")
+
+    monkeypatch.setattr(compiled_loops, "compile_loops", broken)
+    with pytest.warns(RuntimeWarning, match="broken compiler"):
+        assert loop_model(four_bar_3d(), "auto").backend == "numpy"
+    with pytest.raises(ComputationError, match="broken compiler"):
+        loop_model(four_bar_3d(), "c")

@@ -30,12 +30,13 @@ the loop forces applied as external forces at their anchors
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
 
-from appell.errors import ModelError
+from appell.errors import ComputationError, ModelError
 from appell.numerics.rigid_tree import TreeArrays, _compiled, _spatial_inertia, point_matrices, tree_layout, tree_matrices
 from appell.symbols import derivative_symbol, t
 
@@ -137,7 +138,12 @@ class LoopModel:
         if backend != "numpy":
             from appell.numerics.codegen.loops import compile_loops
 
-            self.compiled = compile_loops(self, parts)
+            try:
+                self.compiled = compile_loops(self, parts)
+            except (ComputationError, OSError) as exc:  # a failed compilation: NumPy for 'auto'
+                if backend == "c":
+                    raise
+                warnings.warn(f"{exc}; the closed-chain route of {self.name!r} uses NumPy", RuntimeWarning, stacklevel=3)
             if self.compiled is None and backend == "c":
                 raise ModelError("the C backend needs a C compiler, and none was found",
                                  hint="install cc or set $APPELL_CC, or choose the backend 'auto' or 'numpy'")
