@@ -42,7 +42,7 @@ from appell.errors import AppellNote, ModelError
 from appell.mechanism.couplings import gear_mesh, rack_mesh
 from appell.mechanism.joints import JointMotion, joint_motion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew, unit_axis
-from appell.rigid_tree import RigidTree, TreeNode, Wrench
+from appell.rigid_tree import LoopRow, RigidTree, TreeNode, Wrench
 from appell.model import (AppliedForce, AppliedTorque, Control, Output, Parameter, Particle, RigidBody,
                           System, acceleration_constraint, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
@@ -266,6 +266,29 @@ def _alignment_rows(rows, ba, pa, bb, pb, idle=None) -> tuple[list, list]:
     return cons, acts
 
 
+def _loop_points(name, ba, ra, bb, rb, directions) -> tuple:
+    """The point rows of a loop closure as :class:`_Closure` records them (world directions)."""
+    return tuple((f"{name}_{d}", "point", ba, ra, sp.Matrix([1 if d == x else 0 for x in "xyz"]), bb, rb,
+                  sp.zeros(3, 1)) for d in directions)
+
+
+@dataclass(frozen=True)
+class LoopParts:
+    """A mechanism as the closed-chain route takes it (:meth:`Mechanism.loop_parts`):
+    ``constraints`` ``((name, expr or None), ...)`` in the system's order (None: a loop row
+    of ``tree.loops``), ``forces`` the generalized forces per coordinate, ``controls`` their
+    input symbols, ``start`` the coordinates' default values."""
+
+    name: str
+    coordinates: tuple
+    tree: RigidTree
+    constraints: tuple
+    forces: tuple
+    controls: tuple
+    parameters: tuple
+    start: dict
+
+
 @dataclass
 class _Closure:
     """Constraints of a closure or contact (built once the kinematics is known)."""
@@ -273,6 +296,7 @@ class _Closure:
     name: str
     build: object  # (frames) -> (constraints, actions)
     where: str | None = None  # origin (file and line) given to the closure's constraints
+    rows: tuple = ()  # a loop closure's possible rows for the recursive route: (name, kind, body_a, point_a, axis_a, body_b, point_b, axis_b)
 
 
 class Mechanism:
@@ -535,7 +559,10 @@ class Mechanism:
                                axes=frames[ba].R if axes == "a" else None,
                                gap=self._gap_in(ba, ra, bb, rb) if axes == "a" else None)
 
-        self._closures.append(_Closure(name, build))
+        # the loop route's point rows are along world directions: rows along body_a's turning axes
+        # are left to their expressions there (the same constraint, another multiplier per name)
+        rows = () if axes == "a" else _loop_points(name, ba, ra, bb, rb, dirs)
+        self._closures.append(_Closure(name, build, rows=rows))
 
     def weld(self, name, a, b, rotation=None):
         """Loop closure that holds two bodies together: the point ``a = (body_a, r_a)``
@@ -565,7 +592,10 @@ class Mechanism:
                                           for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1)))], ba, pa, bb, pb)
             return cons + more, acts + turn
 
-        self._closures.append(_Closure(name, build))
+        rows = _loop_points(name, ba, ra, bb, rb, "xyz") + tuple(
+            (f"{name}_r{d}", "align", ba, ra, R_ab[:, j], bb, rb, sp.eye(3)[:, k])
+            for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1))))
+        self._closures.append(_Closure(name, build, rows=rows))
 
     def watch_point(self, name, point):
         """Outputs ``<name>_x``, ``_y``, ``_z``: the world position of the body point
@@ -617,7 +647,9 @@ class Mechanism:
                                          "and are left out"), stacklevel=2)
             return cons, acts
 
-        self._closures.append(_Closure(name, build))
+        rows = _loop_points(name, ba, ra, bb, rb, "xyz") + (
+            (f"{name}_r1", "align", ba, ra, u, bb, rb, b1), (f"{name}_r2", "align", ba, ra, u, bb, rb, b2))
+        self._closures.append(_Closure(name, build, rows=rows))
 
     def point_on_surface(self, name, point, surface):
         """The body point ``point = (body, r)`` stays on the surface ``s(x, y, z) = 0`` (world
@@ -676,7 +708,7 @@ class Mechanism:
         its constraints carry it into error messages."""
         for k, closure in enumerate(self._closures):
             if closure.name == name:
-                self._closures[k] = _Closure(closure.name, closure.build, where)
+                self._closures[k] = _Closure(closure.name, closure.build, where, closure.rows)
                 return
         raise ModelError(f"mechanism {self.name!r}: no closure or contact {name!r}", where=where)
 
@@ -1111,12 +1143,13 @@ class Mechanism:
             frames[j.child] = Frame(R, p, omega, eps, w, e, v, a)
         return frames
 
-    def rigid_tree(self, coordinates, potential=sp.S.Zero, positions=None, wrenches=()) -> RigidTree | None:
+    def rigid_tree(self, coordinates, potential=sp.S.Zero, positions=None, wrenches=(), loops=()) -> RigidTree | None:
         """The :class:`~appell.rigid_tree.RigidTree` of the bodies (``coordinates``: the
         system's, in order; its speeds are their derivatives; ``potential``: the gravity
         potential the system states; ``positions``: ``{body: its mass centre's position}`` as
         the system states them; ``wrenches``: the reaction outputs the recursion may evaluate,
-        :class:`~appell.rigid_tree.Wrench`), for the recursive route; None
+        :class:`~appell.rigid_tree.Wrench`; ``loops``: the rows of the loop closures, as
+        :class:`_Closure` records them, that the system holds), for the recursive route; None
         where a joint's motion depends on time or on another joint's coordinates.
 
         For a joint ``J`` (``R0``, ``o_J``, ``c_o``) with motion ``R_m``, ``d_m``, ``omega_rel``::
@@ -1153,7 +1186,38 @@ class Mechanism:
                                   sp.ImmutableMatrix(body.com), sp.ImmutableMatrix(body.inertia),
                                   sp.ImmutableMatrix(j.child_origin), positions.get(body)))
         g = self.gravity if self.gravity is not None else sp.zeros(3, 1)
-        return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential, tuple(wrenches))
+        rows = tuple(LoopRow(name, name.rsplit("_", 1)[0], kind, place[ba], sp.ImmutableMatrix(ra), sp.ImmutableMatrix(ua),
+                             place[bb], sp.ImmutableMatrix(rb), sp.ImmutableMatrix(ub))
+                     for name, kind, ba, ra, ua, bb, rb, ub in loops)
+        return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential, tuple(wrenches), loops=rows)
+
+    def loop_parts(self) -> LoopParts:
+        """What the closed-chain route (:mod:`appell.numerics.loops`) takes, without the bodies'
+        expanded kinematics: the joint tree with every row of the loop closures (``connect``,
+        ``weld``, ``hinge``; a planar loop's idle rows kept, to be named undetermined there),
+        the joints' own constraints (a quaternion's unit norm), the actuators' generalized
+        forces and controls. A :class:`ModelError` names a contact or load it does not take."""
+        other = [c.name for c in self._closures if not c.rows] + [name for name, _ in self._forces]
+        if other:
+            raise ModelError(f"mechanism {self.name!r}: the closed-chain route takes joints, loop closures and "
+                             f"actuators only, not {', '.join(other)}", hint="use mech.system() and appell.derive")
+        coords = [q for j in self.joints for q in j.coordinates]
+        loops = [row for c in self._closures for row in c.rows]
+        tree = self.rigid_tree(coords, loops=loops)
+        if tree is None:
+            raise ModelError(f"mechanism {self.name!r}: a joint's motion depends on time or another joint",
+                             hint="use mech.system() and appell.derive")
+        constraints = tuple((n, e) for j in self._tree() for n, e in j.motion.constraints)
+        constraints += tuple((row[0], None) for row in loops)
+        Q = [sp.S.Zero] * len(coords)
+        for name, _, q, value in self._actuators:
+            Q[coords.index(q)] += sp.Symbol(name) if value is None else value
+        controls = tuple(sp.Symbol(name) for name, _, _, value in self._actuators if value is None)
+        start = {q.name: 0.0 for q in coords}
+        for j in self._tree():
+            start.update(dict(j.motion.defaults))
+        return LoopParts(self.name, tuple(coords), tree, constraints, tuple(Q), controls, tuple(self.parameters),
+                         start)
 
     def subtree(self, joint: Joint) -> list[Body]:
         """The bodies carried by ``joint``: its child and all the child's descendants."""
@@ -1260,9 +1324,11 @@ class Mechanism:
             loads += more
             actions += acts
         cons = [holonomic(n, e) for j in order for n, e in j.motion.constraints]
-        contact_forces = []
+        contact_forces, loops = [], []
         for closure in self._closures:
             more, acts = closure.build(frames)
+            built = {c.name for c in more}
+            loops += [row for row in closure.rows if row[0] in built]
             cons += [dc_replace(c, where=closure.where) if closure.where and c.where is None else c for c in more]
             actions += acts
             if acts:
@@ -1341,7 +1407,7 @@ class Mechanism:
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
                       view=self._view(frames, contact_forces, drawn, frame, params),
-                      tree=self.rigid_tree(coords, V, positions, wrenches))
+                      tree=self.rigid_tree(coords, V, positions, wrenches, loops))
 
     def _view(self, frames, contact_forces, reaction_names, frame, params) -> View:
         """The :class:`appell.view.View` of the mechanism: each body at its frame's pose with
