@@ -519,7 +519,6 @@ def test_check_reports_first_integral_verdicts():
 
 def test_an_internal_error_is_reported_without_traceback(monkeypatch):
     """A bug (here: derive raising RuntimeError) gives 'error: internal error ...', exit 1, no traceback."""
-    import appell.io.cli as cli_module
 
     def broken(*args, **kwargs):
         raise RuntimeError("boom")
