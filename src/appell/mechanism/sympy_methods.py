@@ -109,7 +109,7 @@ def _nonholonomic_rows(velocity: sp.Matrix, hol, kane) -> list:
     u = list(kane.u)
     rates = kane.kindiffdict()
     dhol = sp.Matrix([sp.diff(h, t) for h in hol]).xreplace(rates) if hol else sp.zeros(0, 1)
-    rows = [sp.Matrix([e]).jacobian(u).col_join(sp.Matrix([[e.xreplace({w: 0 for w in u})]])) for e in velocity]
+    rows = [sp.Matrix([e]).jacobian(u).row_join(sp.Matrix([[e.xreplace({w: 0 for w in u})]])) for e in velocity]
     basis = [sp.Matrix([e]).jacobian(u).row_join(sp.Matrix([[e.xreplace({w: 0 for w in u})]])) for e in dhol]
     rng = np.random.default_rng(3)
     dyn = sorted(set().union(*(m.free_symbols | set(me.find_dynamicsymbols(m)) for m in rows + basis)), key=str)
@@ -120,7 +120,7 @@ def _nonholonomic_rows(velocity: sp.Matrix, hol, kane) -> list:
 
     kept, span = [], [num(b) for b in basis]
     for e, row in zip(velocity, rows):
-        vec = num(row.T)
+        vec = num(row)
         if span and np.linalg.matrix_rank(np.vstack(span + [vec]), tol=1e-9 * (1 + np.abs(vec).max())) == len(span):
             continue
         kept.append(e)

@@ -296,7 +296,8 @@ def _omega_from_orientation(frame, N, ren: _Renamer, what: str) -> sp.ImmutableM
     ``frame``: ``skew(omega) = R^T R'`` with ``R`` the frame's unit vectors in ``N``."""
     R = sp.Matrix.hstack(*[e.to_matrix(N) for e in (frame.x, frame.y, frame.z)])
     W = R.T * R.diff(ren.t)
-    return sp.ImmutableMatrix([ren.plain(c, what) for c in (W[2, 1], W[0, 2], W[1, 0])])
+    comps = [ren.plain(c, what) for c in (W[2, 1], W[0, 2], W[1, 0])]
+    return sp.ImmutableMatrix([sp.trigsimp(c) if sp.count_ops(c) < 80 else c for c in comps])
 
 
 def _body_name(body) -> str:
