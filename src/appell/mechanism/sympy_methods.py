@@ -27,10 +27,13 @@ __all__ = ["as_system"]
 
 
 def as_system(obj, parameters, initial):
-    """``(system, parameters, initial, lagrangian)``: a SymPy ``System`` for ``obj`` and the
-    Lagrangian where ``obj`` is a ``LagrangesMethod`` (else None)."""
+    """``(system, parameters, initial, lagrangian, specified)``: a SymPy ``System`` for ``obj``,
+    the Lagrangian where ``obj`` is a ``LagrangesMethod`` (else None) and ``{F(t): F}`` for a
+    PyDy system's constant specifieds (parameters of appell's model)."""
+    from sympy.core.function import AppliedUndef
     from sympy.physics import mechanics as me
 
+    specified = {}
     if type(obj).__name__ == "System" and type(obj).__module__.startswith("pydy"):
         parameters = {**{str(k): v for k, v in (obj.constants or {}).items()},
                       **{str(k): v for k, v in (parameters or {}).items()}}
@@ -39,16 +42,18 @@ def as_system(obj, parameters, initial):
                 raise ModelError(f"the PyDy specified {k} is given as {type(v).__name__}: appell needs a constant "
                                  "value, or the input as a load in the model",
                                  hint="give the input as a force or torque expression in the model")
-            parameters[str(getattr(k, "func", k).__name__ if hasattr(k, "func") and
-                               hasattr(k.func, "__name__") else k)] = float(v)
+            name = k.func.__name__ if isinstance(k, AppliedUndef) else str(k)
+            parameters[name] = float(v)
+            if isinstance(k, AppliedUndef):
+                specified[k] = sp.Symbol(name)
         initial = {**dict(obj.initial_conditions or {}), **dict(initial or {})}
         obj = obj.eom_method
     if isinstance(obj, me.KanesMethod):
-        return _from_kane(obj), parameters, initial, None
+        return _from_kane(obj), parameters, initial, None, specified
     if isinstance(obj, me.LagrangesMethod):
         system, lagrangian = _from_lagrange(obj)
-        return system, parameters, initial, lagrangian
-    return obj, parameters, initial, None
+        return system, parameters, initial, lagrangian, specified
+    return obj, parameters, initial, None, specified
 
 
 def _fresh_system(frame):

@@ -332,7 +332,7 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
     me = _mechanics()
     from appell.mechanism.sympy_methods import as_system
 
-    system, parameters, initial, lagrangian = as_system(system, parameters, initial)
+    system, parameters, initial, lagrangian, specified = as_system(system, parameters, initial)
     if not isinstance(system, me.System):
         raise ModelError(f"from_sympy needs a sympy.physics.mechanics System, KanesMethod or LagrangesMethod, "
                          f"got {type(system).__name__}")
@@ -344,6 +344,7 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
                          hint="give them as nonholonomic constraints (add_nonholonomic_constraints)")
     N = system.frame
     ren = _Renamer(list(system.q), list(system.u), list(system.kdes))
+    ren.plain_map.update(specified)  # a PyDy system's constant specifieds: parameters
 
     hol, nonhol = list(system.holonomic_constraints), list(system.nonholonomic_constraints)
     names = list(constraint_names) if constraint_names is not None else (
