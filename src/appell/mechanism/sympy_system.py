@@ -39,6 +39,7 @@ from __future__ import annotations
 
 from typing import Mapping, Sequence
 
+import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
@@ -258,7 +259,8 @@ class _Reader:
                                  "animation)")
 
     def frame(self, frame, what: str):
-        """``(frame, omega)``: the frame whose components are used and the angular velocity in it."""
+        """``(frame, omega, None)``: the frame whose components are used and the angular velocity
+        in it (the inertia is then expressed in it), after the check against its orientation."""
         ren, N = self.ren, self.N
         omega = frame.ang_vel_in(N)
         try:
@@ -266,16 +268,23 @@ class _Reader:
         except ValueError:
             raise _Unoriented(frame) from None
         w = ren.vector(omega, frame, what)
-        derived = _omega_from_orientation(frame, N, ren, what)
-        if w != derived:
-            err = disagreement(self.states(), w, derived)
-            if err is not None:
-                raise ModelError(f"frame {frame}: the angular velocity set in SymPy, {list(w)}, is not the one of "
-                                 f"its orientation in {N}, {list(derived)} (they differ by {err:.2g} relative, at "
-                                 "random states that satisfy the constraints; components along the frame)",
-                                 hint="make the kinematic differential equations relate the speeds to the "
-                                      "orientation angles' derivatives (add_kdes), or correct set_ang_vel")
-        return frame, w
+        R = sp.Matrix.hstack(*[e.to_matrix(N) for e in (frame.x, frame.y, frame.z)])
+        err = None  # skew(omega) = R^T R' at the states, numerically (the symbolic product swells)
+        for wv, Rv, Rd in self.states().values_of([w, R.applyfunc(lambda e: ren.plain(e, what)),
+                                                   R.diff(ren.t).applyfunc(lambda e: ren.plain(e, what))]):
+            W = Rv.reshape(3, 3).T @ Rd.reshape(3, 3)
+            wv, derived = wv.reshape(-1), np.array([W[2, 1], W[0, 2], W[1, 0]])
+            if np.all(np.isfinite(wv)) and np.all(np.isfinite(derived)):
+                e = float(np.max(np.abs(wv - derived))) / (1.0 + float(np.max(np.abs(wv))))
+                err = e if e > 1e-9 and (err is None or e > err) else err
+        if err is not None:
+            derived = _omega_from_orientation(frame, N, ren, what)
+            raise ModelError(f"frame {frame}: the angular velocity set in SymPy, {list(w)}, is not the one of its "
+                             f"orientation in {N}, {list(derived)} (they differ by {err:.2g} relative, at random "
+                             "states that satisfy the constraints; components along the frame)",
+                             hint="make the kinematic differential equations relate the speeds to the orientation "
+                                  "angles' derivatives (add_kdes), or correct set_ang_vel")
+        return frame, w, None
 
 
 class _Unoriented(Exception):
@@ -365,9 +374,9 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
         rigid = isinstance(body, me.RigidBody)
         if rigid:
             try:
-                frame, omega = reader.frame(body.frame, what)
+                frame, omega, inertia = reader.frame(body.frame, what)
             except _Unoriented:
-                frame, omega = _unoriented(body, reader, what)
+                frame, omega, inertia = _unoriented(body, reader, what)
         else:
             frame, omega = None, sp.zeros(3, 1)
         moving = (position if position is not None else velocity).free_symbols | omega.free_symbols
@@ -378,8 +387,9 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
         if rigid:
             # entries of a 3x3 tensor re-expressed in the body frame: small, so trigsimp
             # removes the cos^2 + sin^2 of a tensor given in another frame
-            inertia = sp.ImmutableMatrix(body.central_inertia.to_matrix(frame)).applyfunc(
-                lambda e: sp.trigsimp(ren.plain(e, f"inertia of {body.name}")))  # noqa: B023 (applied here)
+            if inertia is None:
+                inertia = sp.ImmutableMatrix(body.central_inertia.to_matrix(frame)).applyfunc(
+                    lambda e: sp.trigsimp(ren.plain(e, f"inertia of {body.name}")))  # noqa: B023 (applied here)
             bodies.append(RigidBody(_body_name(body), mass, position, velocity, inertia, omega))
         else:
             bodies.append(Particle(_body_name(body), mass, position, velocity))
@@ -428,7 +438,7 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
 
 
 def _unoriented(body, reader: _Reader, what: str):
-    """``(frame, omega)`` of a body whose frame ``W`` has an angular velocity relative to an
+    """``(frame, omega, inertia)`` of a body whose frame ``W`` has an angular velocity relative to an
     oriented frame ``F`` but no orientation: its rotation angle ``W_angle`` about the fixed axis
     ``e`` of that relative rotation becomes a coordinate (``W_angle' = omega_WF . e``) and the
     body frame is ``F`` turned by it about ``e``, when the angle is cyclic (the inertia,
@@ -472,7 +482,7 @@ def _unoriented(body, reader: _Reader, what: str):
     ren.add_coordinate(angle, rate)
     B = F.orientnew(f"{W}_rotated", "Axis", (angle, e[0] * F.x + e[1] * F.y + e[2] * F.z))
     omega = ren.vector(W.ang_vel_in(N), B, what)
-    return B, omega
+    return B, omega, sp.ImmutableMatrix(inertia_F)  # the same in B: symmetric about e
 
 
 def _oriented(frame, N) -> bool:
