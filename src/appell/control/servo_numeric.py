@@ -283,7 +283,16 @@ def augmented_controlled_solve(model: ControlledModel, t, y, p=None) -> Controll
     top = np.hstack([M, N, -Jf.T])
     mid = np.hstack([Jf, Kf, np.zeros((s, s))])
     bot = np.hstack([Jg, Kg, np.zeros((r, s))])
-    x = np.linalg.solve(np.vstack([top, mid, bot]), -np.concatenate([e, cf, cg]))
+    try:
+        x = np.linalg.solve(np.vstack([top, mid, bot]), -np.concatenate([e, cf, cg]))
+    except np.linalg.LinAlgError:
+        from appell.numerics.inertia import extreme_parameters
+
+        extreme = extreme_parameters(model.parameter_names, pv)
+        raise ComputationError(f"the augmented system [M N -J_f^T; J_f K_f 0; J_g K_g 0] of the cross-check is "
+                               f"singular at t = {float(t):.10g}" + (f": {extreme}" if extreme else ""),
+                               hint="give the parameters values of ordinary size (or rescale the model's units); "
+                                    "a singular configuration or servo constraint otherwise") from None
     return ControlledSolution(x[n:n + k], x[:n], x[n + k:], np.zeros(r), ())
 
 

@@ -386,10 +386,11 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
         mass = ren.plain(body.mass, f"mass of {body.name}")
         if rigid:
             # entries of a 3x3 tensor re-expressed in the body frame: small, so trigsimp
-            # removes the cos^2 + sin^2 of a tensor given in another frame
+            # removes the cos^2 + sin^2 of the coordinates of a tensor given in another frame
+            # (one turned by constant angles, the bicycle's head tube, has nothing to remove)
             if inertia is None:
                 inertia = sp.ImmutableMatrix(body.central_inertia.to_matrix(frame)).applyfunc(
-                    lambda e: sp.trigsimp(ren.plain(e, f"inertia of {body.name}")))  # noqa: B023 (applied here)
+                    lambda e: _constant_or_trigsimp(ren.plain(e, f"inertia of {body.name}"), ren))  # noqa: B023
             bodies.append(RigidBody(_body_name(body), mass, position, velocity, inertia, omega))
         else:
             bodies.append(Particle(_body_name(body), mass, position, velocity))
@@ -483,6 +484,10 @@ def _unoriented(body, reader: _Reader, what: str):
     B = F.orientnew(f"{W}_rotated", "Axis", (angle, e[0] * F.x + e[1] * F.y + e[2] * F.z))
     omega = ren.vector(W.ang_vel_in(N), B, what)
     return B, omega, sp.ImmutableMatrix(inertia_F)  # the same in B: symmetric about e
+
+
+def _constant_or_trigsimp(e, ren: _Renamer):
+    return sp.trigsimp(e) if e.free_symbols & set(ren.coordinates) else e
 
 
 def _oriented(frame, N) -> bool:

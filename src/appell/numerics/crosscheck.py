@@ -182,7 +182,16 @@ def augmented_solve(model: NumericModel, t, q, w, p=None) -> StateSolution:
     """Accelerations and multipliers from the augmented system at (t, q, w)."""
     pv = model.params(p)
     M, hQ, J, c = model.evaluate_blocks(t, q, w, pv)
-    a, lam, Ja, its = solve_augmented(M, hQ, J, c, _model_constraint_function(model, t, q, w, pv))
+    try:
+        a, lam, Ja, its = solve_augmented(M, hQ, J, c, _model_constraint_function(model, t, q, w, pv))
+    except np.linalg.LinAlgError:
+        from appell.numerics.inertia import extreme_parameters
+
+        extreme = extreme_parameters(model.parameter_names, pv)
+        raise ComputationError(f"the augmented system [M -J^T; J 0] of the cross-check is singular at t = "
+                               f"{float(t):.10g}" + (f": {extreme}" if extreme else ""),
+                               hint="give the parameters values of ordinary size (or rescale the model's units); "
+                                    "else a singular configuration of the constraints") from None
     return StateSolution(a, lam, Ja.T @ lam, (), False, its)
 
 

@@ -280,9 +280,10 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     def rhs(tt, y):
         budget(tt)
         q, w = y[:nq], y[nq:nq + n]
-        a, p_app, p_reac, p_expl = powers(tt, q, w)
-        dq = model.coordinate_rates(tt, q, w, pv)
-        out = np.concatenate([dq, a, [p_app, p_reac, p_expl, abs(p_app) + abs(p_reac) + abs(p_expl)]])
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is named just below
+            a, p_app, p_reac, p_expl = powers(tt, q, w)
+            dq = model.coordinate_rates(tt, q, w, pv)
+            out = np.concatenate([dq, a, [p_app, p_reac, p_expl, abs(p_app) + abs(p_reac) + abs(p_expl)]])
         _check_range(tt, out, names, model, pv)
         return out
 
