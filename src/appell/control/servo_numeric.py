@@ -193,10 +193,13 @@ class ControlledModel:
         dep, switched = tuple(self.derivation.real_partition.dependent), False
         if s:
             dep, _, switched = usable_partition(Jf, dep, self.constraint_names)
-        a, lam = split_solve(M, N @ xi + e, Jf, Kf @ xi + cf, dep)
-        # servo multipliers (2.3) at the solution: least squares of E = J_f^T lam + J_g^T mu
-        J = np.vstack([Jf, Jg])
-        E = M @ a + N @ xi + e
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is named below
+            a, lam = split_solve(M, N @ xi + e, Jf, Kf @ xi + cf, dep)
+            _finite_solution(self, t, pv, (("controls", xi), ("accelerations", a), ("multipliers", lam)))
+            # servo multipliers (2.3) at the solution: least squares of E = J_f^T lam + J_g^T mu
+            J = np.vstack([Jf, Jg])
+            E = M @ a + N @ xi + e
+            _finite_solution(self, t, pv, (("forces M a + N xi + e", E),))
         mu = np.linalg.lstsq(J.T, E, rcond=None)[0][s:] if J.size else np.zeros(0)
         return ControlledSolution(xi, a, lam, mu, tuple(dep), switched)
 
@@ -268,6 +271,19 @@ class ControlledModel:
             F, phi, acc = self.servo_residuals(t, y, pv)
         out = np.where(self.has_position[1], F, np.where(self.has_velocity[1], phi, np.nan))
         return out if acc is None else np.where(np.isnan(out), acc, out)
+
+
+def _finite_solution(model, t, pv, parts) -> None:
+    """Refuse a controlled solution with an entry that is not finite (an overflow: a parameter
+    of extreme size), naming the part and the parameters of extreme size."""
+    for what, values in parts:
+        if not np.all(np.isfinite(values)):
+            from appell.numerics.inertia import extreme_parameters
+
+            extreme = extreme_parameters(model.parameter_names, pv)
+            raise ComputationError(f"the {what} of {model.name!r} overflow the floating range at t = {float(t):.10g}"
+                                   + (f": {extreme}" if extreme else ""),
+                                   hint="give the parameters values of ordinary size, or rescale the model's units")
 
 
 def augmented_controlled_solve(model: ControlledModel, t, y, p=None) -> ControlledSolution:

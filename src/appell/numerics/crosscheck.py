@@ -201,8 +201,11 @@ def relative_difference(x, y) -> float:
     y = np.asarray(y, float)
     if x.size == 0:
         return 0.0
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        return float("inf")  # a comparison with NaN or an overflow must not pass
     scale = max(np.max(np.abs(x)), np.max(np.abs(y)), 1e-12)
-    return float(np.max(np.abs(x - y)) / scale)
+    with np.errstate(over="ignore"):
+        return float(np.max(np.abs(x - y)) / scale)
 
 
 def _ratio(difference: float, scale: float) -> float:
