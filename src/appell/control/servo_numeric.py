@@ -200,7 +200,9 @@ class ControlledModel:
             J = np.vstack([Jf, Jg])
             E = M @ a + N @ xi + e
             _finite_solution(self, t, pv, (("forces M a + N xi + e", E),))
-        mu = np.linalg.lstsq(J.T, E, rcond=None)[0][s:] if J.size else np.zeros(0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            mu = np.linalg.lstsq(J.T, E, rcond=None)[0][s:] if J.size else np.zeros(0)
+        _finite_solution(self, t, pv, (("servo multipliers (2.3)", mu),))
         return ControlledSolution(xi, a, lam, mu, tuple(dep), switched)
 
     # ------------------------------------------------- Dynamics protocol

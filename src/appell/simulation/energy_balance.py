@@ -362,7 +362,7 @@ def _check_range(t, values, names, model, pv) -> None:
     k = int(np.argmax(bad))
     extreme = extreme_parameters(model.parameter_names, pv)
     raise ComputationError(f"the energy balance cannot integrate: {names[k]} is {values[k]:.3g} at t = {float(t):.10g}, "
-                           "beyond double precision's range for the integration's error norms"
+                           "beyond the floating range that the integration's error norms can square (1e150)"
                            + (f" ({extreme})" if extreme else ""),
                            hint="give the parameters values of ordinary size, or rescale the model's units")
 
