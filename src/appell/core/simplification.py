@@ -606,6 +606,9 @@ def readable(expr, focus=(), parameters=()):
         return expr
 
     def plain(e):
+        e = sp.sympify(e)
+        if e.is_Atom:
+            return e
         forms = [e, sp.factor_terms(e)]
         if expanded_size(e, SWELL_LIMIT) <= SWELL_LIMIT:
             forms.append(sp.factor_terms(sp.together(e)))

@@ -271,8 +271,10 @@ LINE_OPS = 80
 def _focus(derivation) -> tuple[tuple, tuple]:
     """The symbols a printed line's terms are collected by: the accelerations and the
     multipliers, then (within each coefficient) the model's parameters."""
-    lam = tuple(sp.Symbol(f"lambda_{n}") for n in derivation.constraints.names)
-    return tuple(derivation.kinematics.accelerations) + lam, tuple(p.symbol for p in derivation.system.parameters)
+    lam = tuple(sp.Symbol(f"lambda_{c.name}") for c in derivation.system.constraints)
+    unknowns = tuple(c.unknown for c in getattr(derivation.system, "controls", ()))
+    return (tuple(derivation.kinematics.accelerations) + unknowns + lam,
+            tuple(p.symbol for p in derivation.system.parameters))
 
 
 def _closed(row: Formula, focus) -> Formula | None:
