@@ -62,6 +62,10 @@ class PrintedEquations:
     formulas: tuple[Formula, ...]
     #: lines said in words (what a reaction in the state is, when it is not printed substituted)
     notes: tuple[str, ...] = ()
+    #: named blocks ``(symbol, expression)`` the formulas use (the reduced mass matrix
+    #: ``M_r_ij`` and forcing ``f_r_i``), printed under "where" before the shared subexpressions
+    #: (which they may use)
+    blocks: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
 
 
 def _solved_independent(red):
@@ -288,10 +292,33 @@ def _closed(row: Formula, focus) -> Formula | None:
     return Formula(row.label, lhs, rhs, row.item)
 
 
+#: label of the rows that define a named block (``M_r_12 = ...``): printed under "where"
+BLOCK = "(block)"
+
+
+def _named(prefix: str, matrix: sp.Matrix, taken: set) -> tuple[sp.Matrix, list[Formula]] | None:
+    """``matrix`` with each nonzero entry named ``<prefix>_<i><j>`` (``<prefix>_<i>`` for a
+    column), and the rows that define the names; None where a model symbol has such a name."""
+    names, rows = sp.zeros(*matrix.shape), []
+    for i in range(matrix.rows):
+        for j in range(matrix.cols):
+            e = matrix[i, j]
+            if e == 0:
+                continue
+            name = f"{prefix}_{i + 1}" if matrix.cols == 1 else f"{prefix}_{i + 1}{j + 1}"
+            if name in taken:
+                return None
+            names[i, j] = sp.Symbol(name)
+            rows.append(Formula(BLOCK, names[i, j], e, "motion"))
+    return names, rows
+
+
 def _reduced_rows(derivation, rows: list[Formula], focus) -> list[Formula]:
     """The solved accelerations of (1.4) replaced by the reduced equations ``M_r a_nu = f_r``
     (method.md's (1.4) as the paper prints it, (1.9) for the car) where the solved form is
-    not a short line but each reduced equation is."""
+    not a short line but each reduced equation is; where neither is and more than one
+    acceleration is free, by ``M_r a_nu = f_r`` over the named blocks ``M_r_ij``, ``f_r_i``
+    (the reduced mass matrix and forcing, defined under "where"), not over anonymous names."""
     solved = [f for f in rows if f.label == "(1.4)"]
     if not solved or all(_closed(f, focus) is not None for f in solved):
         return rows
@@ -300,10 +327,19 @@ def _reduced_rows(derivation, rows: list[Formula], focus) -> list[Formula]:
     a_nu = sp.Matrix(red.independent)
     lhs = Mr * a_nu
     reduced = [Formula(f"(1.4) [{a}]", l, r, "motion") for a, l, r in zip(red.independent, lhs, fr)]
-    if not all(_closed(f, focus) is not None for f in reduced):
-        return rows
     at = rows.index(solved[0])
-    return rows[:at] + reduced + [f for f in rows[at:] if f.label != "(1.4)"]
+    rest = [f for f in rows[at:] if f.label != "(1.4)"]
+    if all(_closed(f, focus) is not None for f in reduced):
+        return rows[:at] + reduced + rest
+    if len(solved) < 2:
+        return rows
+    taken = {s.name for s in free_symbols(*[e for f in rows for e in (f.lhs, f.rhs)])}
+    named_M, named_f = _named("M_r", Mr, taken), _named("f_r", fr, taken)
+    if named_M is None or named_f is None:
+        return rows
+    lhs = named_M[0] * a_nu
+    reduced = [Formula(f"(1.4) [{a}]", l, r, "motion") for a, l, r in zip(red.independent, lhs, named_f[0])]
+    return rows[:at] + reduced + rest + named_M[1] + named_f[1]
 
 
 def printed_equations(derivation, only=None, expand: bool = False) -> PrintedEquations:
@@ -328,7 +364,9 @@ def printed_equations(derivation, only=None, expand: bool = False) -> PrintedEqu
     defs, formulas = _shared(large) if large else ((), [])
     by_row = iter(formulas)
     out = [closed[i] if i in closed else next(by_row) for i in range(len(rows))]
-    return PrintedEquations(defs, tuple(out), notes)
+    blocks = tuple((f.lhs, f.rhs) for f in out if f.label == BLOCK)
+    out = [f for f in out if f.label != BLOCK]
+    return PrintedEquations(defs, tuple(out), notes, blocks)
 
 
 def _shared(rows: list[Formula]):
@@ -422,9 +460,9 @@ def derivation_text(derivation, only=None, expand: bool = False) -> str:
             lines += [f"  {f.label:<10s} {f.lhs} = {f.rhs}" for f in rows]
             if item == "reactions":
                 lines += list(printed.notes)
-    if printed.definitions:
+    if printed.definitions or printed.blocks:
         lines += ["", "where"]
-        lines += [f"  {sym} = {e}" for sym, e in printed.definitions]
+        lines += [f"  {sym} = {e}" for sym, e in printed.blocks + printed.definitions]
     return "\n".join(lines)
 
 
@@ -461,7 +499,7 @@ def derivation_latex(derivation, only=None, expand: bool = False) -> str:
     printed = printed_equations(derivation, only, expand)
     rows = [rf"{latex(f.lhs)} &= {latex(f.rhs)} && \text{{{f.label}}}" for f in printed.formulas]
     rows += [rf"&\text{{{note}}}" for note in printed.notes]
-    rows += [rf"{latex(sym)} &= {latex(e)}" for sym, e in printed.definitions]
+    rows += [rf"{latex(sym)} &= {latex(e)}" for sym, e in printed.blocks + printed.definitions]
     return "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
 
 

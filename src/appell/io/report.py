@@ -83,7 +83,7 @@ def equation_groups(derivation, expand: bool = False) -> list[tuple[str, list[Eq
     printed = printed_equations(derivation, expand=expand)
     rows = {item: [f for f in printed.formulas if f.item == item] for item in ITEMS}
     groups = []
-    shared = [EquationRow("", sym, e) for sym, e in printed.definitions]
+    shared = [EquationRow("", sym, e) for sym, e in printed.blocks + printed.definitions]
     if is_controlled(derivation):
         controls = rows["controls"]
         groups.append(("Dynamic conditions (2.3) — the equations of the controls",
@@ -118,7 +118,8 @@ def equation_groups(derivation, expand: bool = False) -> list[tuple[str, list[Eq
 
 
 def _shared_group(shared: list[EquationRow]) -> list[tuple[str, list[EquationRow]]]:
-    return [("Shared subexpressions of the longer formulas above (each defined once)", shared)] if shared else []
+    return [("Named blocks (the reduced mass matrix M_r, forcing f_r) and shared subexpressions of the longer "
+             "formulas above, each defined once", shared)] if shared else []
 
 
 # ------------------------------------------------------------------ mathematics
