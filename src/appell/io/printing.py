@@ -209,8 +209,9 @@ def equation_formulas(derivation, expand: bool = True) -> list[Formula]:
     else the reduced equations ``M_r a_nu = f_r``), then ``a_h`` from ``f = 0``; for
     constraints nonlinear in ``a``: ``C^T E = 0`` and ``f = 0``; where the dependent block is
     too large for closed forms (:func:`~appell.core.equations.formulas_unavailable`), the
-    equations (1.3) ``M a + h = Q + J^T lambda`` row by row and ``f = 0``, which the numeric
-    split solves. reactions: each
+    equations (1.3) ``M a + h = Q + J^T lambda`` row by row over the named blocks ``M_ij``,
+    ``h_i``, ``Q_i``, ``J_ai`` (rows labelled :data:`BLOCK` define them), and ``f = 0``,
+    which the numeric split solves. reactions: each
     ``lambda`` by (1.5) in ``(t, q, w, a)`` and, where the accelerations are solved and
     ``expand`` holds, in ``(t, q, w)``. outputs: each output (e.g. a joint's reaction force) in terms of
     ``t, q, w, a`` and the multipliers. controls (servo constraints): the control laws and
@@ -222,15 +223,25 @@ def equation_formulas(derivation, expand: bool = True) -> list[Formula]:
     if not controlled and formulas_unavailable(derivation.partition) is not None:
         # the equations the numeric split solves, by named blocks: (1.3) M a + h = Q + J^T lambda
         # row by row, and f = J a + c = 0 (never the symbolic inverse of the large J_h)
+        # over the named blocks M_ij, h_i, Q_i, J_ai where no model symbol has such a name
         inertia, cons = derivation.inertia, derivation.constraints
         a = sp.Matrix(derivation.accelerations)
         lam = sp.Matrix([sp.Symbol(f"lambda_{n}") for n in cons.names])
-        lhs = sp.Matrix(inertia.mass_matrix) * a + sp.Matrix(inertia.inertial_forces)
-        rhs = sp.Matrix(inertia.generalized_forces) + sp.Matrix(cons.jacobian).T * lam
+        blocks = {"M": sp.Matrix(inertia.mass_matrix), "h": sp.Matrix(inertia.inertial_forces),
+                  "Q": sp.Matrix(inertia.generalized_forces), "J": sp.Matrix(cons.jacobian)}
+        taken = {s.name for s in free_symbols(*[e for m in blocks.values() for e in m])}
+        named = {k: _named(k, m, taken) for k, m in blocks.items()}
+        definitions = []
+        if all(v is not None for v in named.values()):
+            definitions = [row for _, rows in named.values() for row in rows]
+            blocks = {k: v[0] for k, v in named.items()}
+        lhs = blocks["M"] * a + blocks["h"]
+        rhs = blocks["Q"] + (blocks["J"].T * lam if cons.count else sp.zeros(len(a), 1))
         rows = [Formula(f"(1.3) [{w}]", lhs[i], rhs[i], "motion")
                 for i, w in enumerate(derivation.kinematics.speeds)]
         rows += [Formula(f"(f_{n} = 0)", f, sp.S.Zero, "motion") for n, f in zip(cons.names, cons.second_order)]
-        return rows + [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
+        rows += [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
+        return rows + definitions
     red, rows = derivation.reduced, []
     tag = "(2.4)" if controlled else "(1.4)"
     solved = None if controlled else _solved_independent(red)
