@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import math
 import random
+import time
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -499,11 +500,10 @@ def vanishes(expr) -> bool:
 
 #: a printed line of up to this many operations (``count_ops``) is tried in the bounded set
 #: of equivalent forms of :func:`readable`; a larger one is printed as derived
-READABLE_OPS = 200
-#: the part of a line (a coefficient, the rest) of at most this many operations is also
-#: tried simplified (:func:`tidy`: ``simplify`` takes about 0.1 s a dozen operations and
-#: grows faster than the size)
-READABLE_TIDY_OPS = 8
+READABLE_OPS = 160
+#: CPU seconds a line's forms may take (:func:`readable`): past it the forms not yet begun
+#: are skipped (a line of the slider-crank's controls took seconds through ``factor_terms``)
+READABLE_SECONDS = 0.3
 #: random points at which each form :func:`readable` chooses is checked against the derived
 #: expression, and the relative difference (at :data:`READABLE_DIGITS` digits) it may show
 READABLE_POINTS, READABLE_DIGITS, READABLE_TOLERANCE = 3, 30, 1e-20
@@ -587,14 +587,16 @@ def _collected(expr, focus, shorten):
 def readable(expr, focus=(), parameters=()):
     """The shortest (``count_ops``) of a bounded set of forms equal to ``expr``, for a
     printed line: ``expr`` itself, ``together``, ``factor_terms`` (common factors pulled
-    out: ``M/sin(theta)``), a few of Fu's trigonometric rules (:func:`_trig_rules`), ``cancel`` within :data:`SWELL_LIMIT`, the bounded ``simplify``
-    of :func:`tidy` on parts of at most :data:`READABLE_TIDY_OPS` operations, and the terms collected by the ``focus`` symbols (accelerations,
-    multipliers) and, within each coefficient, by the ``parameters`` it is linear in (the
-    traction ``F``, the mass ``M``), each coefficient so shortened. Only lines of at most
-    :data:`READABLE_OPS` operations are tried; each candidate is formed only within the
-    bound (:func:`expanded_size`), never a blanket ``simplify``. The chosen form is checked
-    against ``expr`` at random points (:func:`same_values`); where the check fails, ``expr``
-    is kept: a printed formula never changes a number."""
+    out: ``M/sin(theta)``), a few of Fu's trigonometric rules (:func:`_trig_rules`), ``cancel``
+    within :data:`TIDY_LIMIT`, and the terms collected by the ``focus`` symbols
+    (accelerations, multipliers) and, within each coefficient, by the ``parameters`` it is
+    linear in (the traction ``F``, the mass ``M``), each coefficient so shortened. Only lines
+    of at most :data:`READABLE_OPS` operations are tried, for at most :data:`READABLE_SECONDS`
+    (the forms not begun by then are skipped); each candidate that may expand is
+    formed only within the bound (:func:`expanded_size`), and ``simplify`` is not among them
+    (it took seconds a line and chose no shorter form on the bundled examples). The chosen
+    form is checked against ``expr`` at random points (:func:`same_values`); where the check
+    fails, ``expr`` is kept: a printed formula never changes a number."""
     expr = sp.sympify(expr)
     if not isinstance(expr, sp.Expr) or expr.is_Atom:
         return expr
@@ -605,28 +607,30 @@ def readable(expr, focus=(), parameters=()):
     if tree_size(expr, 4 * READABLE_OPS) > 4 * READABLE_OPS or sp.count_ops(expr) > READABLE_OPS:
         return expr
 
+    deadline = time.process_time() + READABLE_SECONDS
+
     def plain(e):
         e = sp.sympify(e)
-        if e.is_Atom:
+        if e.is_Atom or time.process_time() > deadline:
             return e
         forms = [e, sp.factor_terms(e)]
         if expanded_size(e, SWELL_LIMIT) <= SWELL_LIMIT:
             forms.append(sp.factor_terms(sp.together(e)))
         if e.has(sp.sin, sp.cos):
             forms.append(_trig_rules(forms[-1]))
-        if sp.count_ops(e) <= READABLE_TIDY_OPS:
-            forms.append(tidy(e))
         return min(forms, key=sp.count_ops)
 
     def shorten(e):
         by_parameters = _collected(e, parameters, plain) if parameters else None
         return min([plain(e)] + ([by_parameters] if by_parameters is not None else []), key=sp.count_ops)
 
-    forms = [shorten(expr)]
+    forms = [expr]
     collected = _collected(expr, focus, shorten)
     if collected is not None:
         forms.append(collected)
-    if expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT:
+    if time.process_time() <= deadline:
+        forms.append(shorten(expr))
+    if time.process_time() <= deadline and expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT:
         forms.append(sp.factor_terms(sp.cancel(expr)))
     best = min(forms, key=sp.count_ops)
     if best != expr and not same_values(best, expr):
