@@ -295,8 +295,8 @@ def _focus(derivation) -> tuple[tuple, tuple]:
 def _closed(row: Formula, focus) -> Formula | None:
     """``row`` in the shortest of its equivalent forms (:func:`~appell.core.simplification.readable`)
     when it is a short line (:data:`LINE_OPS`), else None."""
-    if row.label.startswith(NAMING):
-        return None
+    if row.label.startswith(NAMING) or any(tree_size(e, 4 * LINE_OPS) > 4 * LINE_OPS for e in (row.lhs, row.rhs)):
+        return None  # (count_ops walks every use of a shared subexpression: the bicycle's take minutes)
     lhs, rhs = readable(row.lhs, *focus), readable(row.rhs, *focus)
     if sp.count_ops(lhs) + sp.count_ops(rhs) > LINE_OPS:
         return None
