@@ -367,7 +367,7 @@ def printed_equations(derivation, only=None, expand: bool = False) -> PrintedEqu
     if not expand and any(f.label == "(1.4)" for f in every) and any(f.label == "(f = 0)" for f in every) \
             and any(f.label == "(1.5)" for f in every) and (only is None or "reactions" in only):
         names = ", ".join(str(a) for a in derivation.kinematics.accelerations)
-        notes = (f"in the state (t, q, w): each reaction is its (1.5) with {names} from (1.4) and f = 0 "
+        notes = (f"in the state (t, q, w): each reaction is its (1.5) with {names} from the reduced equations and f = 0 "
                  "(printed substituted on request: expand=True)",)
     rows = _reduced_rows(derivation, [f for f in every if only is None or f.item in only], focus)
     closed = {i: c for i, c in ((i, _closed(f, focus)) for i, f in enumerate(rows)) if c is not None}
