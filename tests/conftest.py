@@ -116,7 +116,7 @@ HEAVY = {"test_docs.py", "test_docs_offline.py", "test_cli.py", "test_iftomm.py"
          "test_bicycle.py", "test_matrix_script.py", "test_inverse.py", "test_evidence.py", "test_result_schema.py",
          "test_mjcf.py", "test_implicit_jacobian.py", "test_urdf_pinocchio.py", "test_report_browser.py",
          "test_cli_solver.py", "test_symbolic_bounds.py", "test_api_cli_agree.py", "test_tree_route.py",
-         "test_derivation_cache.py", "test_mjcf_menagerie.py"}
+         "test_derivation_cache.py", "test_mjcf_menagerie.py", "test_paper_forms.py"}
 QUICK = os.environ.get("APPELL_QUICK") == "1"
 
 

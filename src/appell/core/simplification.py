@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import math
 import random
+import time
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -495,3 +496,146 @@ def vanishes(expr) -> bool:
         if not (fine == 0.0 or fine <= VANISH_FALL * coarse):
             return False
     return True
+
+
+#: a printed line of up to this many operations (``count_ops``) is tried in the bounded set
+#: of equivalent forms of :func:`readable`; a larger one is printed as derived
+READABLE_OPS = 160
+#: CPU seconds a line's forms may take (:func:`readable`): past it the forms not yet begun
+#: are skipped (a line of the slider-crank's controls took seconds through ``factor_terms``)
+READABLE_SECONDS = 0.3
+#: random points at which each form :func:`readable` chooses is checked against the derived
+#: expression, and the relative difference (at :data:`READABLE_DIGITS` digits) it may show
+READABLE_POINTS, READABLE_DIGITS, READABLE_TOLERANCE = 3, 30, 1e-20
+#: chosen forms of :func:`readable`, kept for the process as :data:`_TIDIED`
+_READABLE: dict = {}
+
+
+def same_values(a, b) -> bool:
+    """Whether ``a`` and ``b`` take the same values (relative difference under
+    :data:`READABLE_TOLERANCE` at :data:`READABLE_DIGITS` digits) at :data:`READABLE_POINTS`
+    random points of their free symbols; False where either cannot be formed."""
+    free = sorted(sp.sympify(a).free_symbols | sp.sympify(b).free_symbols, key=str)
+    try:
+        fa = sp.lambdify(free, a, modules="mpmath")
+        fb = sp.lambdify(free, b, modules="mpmath")
+    except Exception:  # noqa: BLE001 (an expression lambdify cannot print: keep the derived one)
+        return False
+    for seed in range(READABLE_POINTS):
+        rng = random.Random(1000 + seed)
+        point = [mpmath.mpf(rng.uniform(0.3, 1.3)) for _ in free]
+        with mpmath.workdps(READABLE_DIGITS):
+            try:
+                va, vb = complex(fa(*point)), complex(fb(*point))
+            except (TypeError, ValueError, ZeroDivisionError, OverflowError):
+                return False
+        if not abs(va - vb) <= READABLE_TOLERANCE * max(1.0, abs(va), abs(vb)):
+            return False
+    return True
+
+
+def _pythagoras(expr):
+    """``expr`` with each pair of terms ``k sin(u)^2 + k cos(u)^2`` of a sum put as ``k``."""
+
+    def fold(add):
+        terms = list(add.args)
+        for i, term in enumerate(terms):
+            for f in sp.Mul.make_args(term):
+                if f.is_Pow and f.exp == 2 and isinstance(f.base, sp.sin):
+                    partner = term / f * sp.cos(f.base.args[0]) ** 2
+                    if partner in terms[:i] + terms[i + 1:]:
+                        terms.remove(term)
+                        terms.remove(partner)
+                        return fold(sp.Add(*terms, term / f)) if terms else term / f
+        return add
+
+    return expr.replace(lambda e: e.is_Add, fold)
+
+
+def _trig_rules(expr):
+    """``expr`` through a few of Fu's rules, each linear in the size: sums of products of
+    sines and cosines as functions of sums (``TR10i``: ``cos(phi) cos(phi + theta) +
+    sin(phi) sin(phi + theta) = cos(theta)``), ``sin^2 + cos^2 = 1``, ratios as ``tan``
+    (``TR2i``)."""
+    from sympy.simplify.fu import TR2i, TR10i
+
+    return sp.factor_terms(TR2i(TR10i(_pythagoras(expr))))
+
+
+def _linear_parts(expr, focus):
+    """``(coefficients, rest)`` of ``expr = sum_k coefficient_k focus_k + rest`` when ``expr``
+    is linear in the ``focus`` symbols it holds, else None."""
+    held = [s for s in focus if expr.has(s)]
+    if not held:
+        return None
+    coefficients = [sp.diff(expr, s) for s in held]
+    if any(c.has(*held) for c in coefficients):
+        return None
+    return dict(zip(held, coefficients)), expr.xreplace({s: 0 for s in held})
+
+
+def _collected(expr, focus, shorten):
+    """``expr`` with its terms collected by the ``focus`` symbols (accelerations, multipliers),
+    each coefficient and the rest shortened, the common factor pulled out (``factor_terms``)."""
+    parts = _linear_parts(expr, focus)
+    if parts is None:
+        return None
+    coefficients, rest = parts
+    return sp.factor_terms(sp.Add(*(shorten(c) * s for s, c in coefficients.items()), shorten(rest)))
+
+
+def readable(expr, focus=(), parameters=()):
+    """The shortest (``count_ops``) of a bounded set of forms equal to ``expr``, for a
+    printed line: ``expr`` itself, ``together``, ``factor_terms`` (common factors pulled
+    out: ``M/sin(theta)``), a few of Fu's trigonometric rules (:func:`_trig_rules`), ``cancel``
+    within :data:`TIDY_LIMIT`, and the terms collected by the ``focus`` symbols
+    (accelerations, multipliers) and, within each coefficient, by the ``parameters`` it is
+    linear in (the traction ``F``, the mass ``M``), each coefficient so shortened. Only lines
+    of at most :data:`READABLE_OPS` operations are tried, for at most :data:`READABLE_SECONDS`
+    (the forms not begun by then are skipped); each candidate that may expand is
+    formed only within the bound (:func:`expanded_size`), and ``simplify`` is not among them
+    (it took seconds a line and chose no shorter form on the bundled examples). The chosen
+    form is checked against ``expr`` at random points (:func:`same_values`); where the check
+    fails, ``expr`` is kept: a printed formula never changes a number."""
+    expr = sp.sympify(expr)
+    if not isinstance(expr, sp.Expr) or expr.is_Atom:
+        return expr
+    key = (expr, tuple(focus), tuple(parameters))
+    done = _READABLE.get(key)
+    if done is not None:
+        return done
+    if tree_size(expr, 4 * READABLE_OPS) > 4 * READABLE_OPS or sp.count_ops(expr) > READABLE_OPS:
+        return expr
+
+    deadline = time.process_time() + READABLE_SECONDS
+
+    def plain(e):
+        e = sp.sympify(e)
+        if e.is_Atom or time.process_time() > deadline:
+            return e
+        forms = [e, sp.factor_terms(e)]
+        if expanded_size(e, SWELL_LIMIT) <= SWELL_LIMIT:
+            forms.append(sp.factor_terms(sp.together(e)))
+        if e.has(sp.sin, sp.cos):
+            forms.append(_trig_rules(forms[-1]))
+        return min(forms, key=sp.count_ops)
+
+    def shorten(e):
+        by_parameters = _collected(e, parameters, plain) if parameters else None
+        return min([plain(e)] + ([by_parameters] if by_parameters is not None else []), key=sp.count_ops)
+
+    forms = [expr]
+    collected = _collected(expr, focus, shorten)
+    if collected is not None:
+        forms.append(collected)
+    if time.process_time() <= deadline:
+        forms.append(shorten(expr))
+    if time.process_time() <= deadline and expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT:
+        forms.append(sp.factor_terms(sp.cancel(expr)))
+    best = min(forms, key=sp.count_ops)
+    if best != expr and not same_values(best, expr):
+        best = expr
+    if len(_READABLE) >= TIDIED_SIZE:
+        _READABLE.clear()
+    _READABLE[key] = best
+    return best

@@ -9,17 +9,27 @@ from __future__ import annotations
 
 import sympy as sp
 
-from appell.core.simplification import tidy
+from appell.core.simplification import readable, tidy
 from appell.symbols import latex_name
 
 
-def _sections(derivation):
+def _sections(derivation, neat: bool = False):
+    """The printed sections; ``neat``: each formula in the shortest of its equivalent forms
+    (:func:`appell.core.simplification.readable`, the terms collected by the accelerations,
+    the controls' unknowns and the multipliers, then by the parameters), for people."""
     a_nu, a_h = derivation.partition.names(derivation.accelerations)
+    focus = (tuple(derivation.kinematics.accelerations) + tuple(c.unknown for c in derivation.system.controls)
+             + tuple(sp.Symbol(f"lambda_{k}") for k in derivation.reactions.as_dict()),
+             tuple(p.symbol for p in derivation.system.parameters))
+
+    def shown(body: dict) -> dict:
+        return {k: readable(v, *focus) for k, v in body.items()} if neat else body
+
     yield "partition", (a_nu, a_h)
-    yield "(2.3) dynamic conditions", derivation.dynamic_conditions
-    yield "(2.4) reduced equations", {f"[{nm}]": e for nm, e in zip(a_nu, derivation.reduced.equations)}
-    yield "(2.5) reactions", {f"lambda_{k}": v for k, v in derivation.reactions.as_dict().items()}
-    yield "controls", derivation.control_laws
+    yield "(2.3) dynamic conditions", shown(derivation.dynamic_conditions)
+    yield "(2.4) reduced equations", shown({f"[{nm}]": e for nm, e in zip(a_nu, derivation.reduced.equations)})
+    yield "(2.5) reactions", shown({f"lambda_{k}": v for k, v in derivation.reactions.as_dict().items()})
+    yield "controls", shown(derivation.control_laws)
     yield "internal dynamics", derivation.internal_dynamics
 
 
@@ -29,7 +39,7 @@ def controlled_text(derivation) -> str:
              + ", ".join(f"{c.name} ({c.kind}, unknown {c.unknown})" for c in derivation.system.controls),
              "  real constraints: " + (", ".join(derivation.blocks.real.names) or "none"),
              "  servo constraints: " + ", ".join(derivation.blocks.servo.names)]
-    for title, body in _sections(derivation):
+    for title, body in _sections(derivation, neat=True):
         if title == "partition":
             lines.append(f"  independent accelerations: {', '.join(body[0]) or 'none'}; "
                          f"dependent: {', '.join(body[1])}")
@@ -68,7 +78,7 @@ def controlled_latex(derivation) -> str:
         return sp.latex(e, symbol_names={s: latex_name(s.name) for s in e.free_symbols if s.is_Symbol})
 
     rows = []
-    for title, body in _sections(derivation):
+    for title, body in _sections(derivation, neat=True):
         if title == "partition" or not body:
             continue
         rows.append(rf"&\text{{{title}}}")

@@ -16,7 +16,7 @@ import sympy as sp
 
 from appell.core.equations import is_controlled
 from appell.core.equations import formulas_unavailable
-from appell.core.simplification import adjugate, determinant, graph_size, tidy, tree_size
+from appell.core.simplification import adjugate, determinant, graph_size, readable, tidy, tree_size
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
 from appell.symbols import block_cse, derivative_symbol, free_symbols, graph_xreplace, latex, matmul, t as time  # noqa: F401 (latex is re-exported)
@@ -60,6 +60,12 @@ class PrintedEquations:
 
     definitions: tuple[tuple[sp.Symbol, sp.Expr], ...]
     formulas: tuple[Formula, ...]
+    #: lines said in words (what a reaction in the state is, when it is not printed substituted)
+    notes: tuple[str, ...] = ()
+    #: named blocks ``(symbol, expression)`` the formulas use (the reduced mass matrix
+    #: ``M_r_ij`` and forcing ``f_r_i``), printed under "where" before the shared subexpressions
+    #: (which they may use)
+    blocks: tuple[tuple[sp.Symbol, sp.Expr], ...] = ()
 
 
 def _solved_independent(red):
@@ -196,17 +202,18 @@ def tree_formulas(derivation) -> list[Formula]:
     return rows
 
 
-def equation_formulas(derivation) -> list[Formula]:
+def equation_formulas(derivation, expand: bool = True) -> list[Formula]:
     """The printed items of a derivation, unsimplified.
 
     motion: the accelerations of (1.4) solved (``a_nu = M_r^{-1} f_r`` for small ``M_r``,
     else the reduced equations ``M_r a_nu = f_r``), then ``a_h`` from ``f = 0``; for
     constraints nonlinear in ``a``: ``C^T E = 0`` and ``f = 0``; where the dependent block is
     too large for closed forms (:func:`~appell.core.equations.formulas_unavailable`), the
-    equations (1.3) ``M a + h = Q + J^T lambda`` row by row and ``f = 0``, which the numeric
-    split solves. reactions: each
-    ``lambda`` by (1.5) in ``(t, q, w, a)`` and, where the accelerations are solved, in
-    ``(t, q, w)``. outputs: each output (e.g. a joint's reaction force) in terms of
+    equations (1.3) ``M a + h = Q + J^T lambda`` row by row over the named blocks ``M_ij``,
+    ``h_i``, ``Q_i``, ``J_ai`` (rows labelled :data:`BLOCK` define them), and ``f = 0``,
+    which the numeric split solves. reactions: each
+    ``lambda`` by (1.5) in ``(t, q, w, a)`` and, where the accelerations are solved and
+    ``expand`` holds, in ``(t, q, w)``. outputs: each output (e.g. a joint's reaction force) in terms of
     ``t, q, w, a`` and the multipliers. controls (servo constraints): the control laws and
     the dynamic conditions (2.3).
     """
@@ -216,15 +223,25 @@ def equation_formulas(derivation) -> list[Formula]:
     if not controlled and formulas_unavailable(derivation.partition) is not None:
         # the equations the numeric split solves, by named blocks: (1.3) M a + h = Q + J^T lambda
         # row by row, and f = J a + c = 0 (never the symbolic inverse of the large J_h)
+        # over the named blocks M_ij, h_i, Q_i, J_ai where no model symbol has such a name
         inertia, cons = derivation.inertia, derivation.constraints
         a = sp.Matrix(derivation.accelerations)
         lam = sp.Matrix([sp.Symbol(f"lambda_{n}") for n in cons.names])
-        lhs = sp.Matrix(inertia.mass_matrix) * a + sp.Matrix(inertia.inertial_forces)
-        rhs = sp.Matrix(inertia.generalized_forces) + sp.Matrix(cons.jacobian).T * lam
+        blocks = {"M": sp.Matrix(inertia.mass_matrix), "h": sp.Matrix(inertia.inertial_forces),
+                  "Q": sp.Matrix(inertia.generalized_forces), "J": sp.Matrix(cons.jacobian)}
+        taken = {s.name for s in free_symbols(*[e for m in blocks.values() for e in m])}
+        named = {k: _named(k, m, taken) for k, m in blocks.items()}
+        definitions = []
+        if all(v is not None for v in named.values()):
+            definitions = [row for _, rows in named.values() for row in rows]
+            blocks = {k: v[0] for k, v in named.items()}
+        lhs = blocks["M"] * a + blocks["h"]
+        rhs = blocks["Q"] + (blocks["J"].T * lam if cons.count else sp.zeros(len(a), 1))
         rows = [Formula(f"(1.3) [{w}]", lhs[i], rhs[i], "motion")
                 for i, w in enumerate(derivation.kinematics.speeds)]
         rows += [Formula(f"(f_{n} = 0)", f, sp.S.Zero, "motion") for n, f in zip(cons.names, cons.second_order)]
-        return rows + [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
+        rows += [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
+        return rows + definitions
     red, rows = derivation.reduced, []
     tag = "(2.4)" if controlled else "(1.4)"
     solved = None if controlled else _solved_independent(red)
@@ -244,7 +261,7 @@ def equation_formulas(derivation) -> list[Formula]:
     lam_tag = "(2.5)" if controlled else "(1.5)"
     lam = derivation.reactions.as_dict()
     rows += [Formula(lam_tag, sp.Symbol(f"lambda_{n}"), e, "reactions") for n, e in lam.items()]
-    if solved is not None and red.dependent_solution is not None and lam:
+    if expand and solved is not None and red.dependent_solution is not None and lam:
         a_nu = dict(zip(red.independent, solved))
         acc = {**a_nu, **dict(zip(red.dependent, graph_xreplace(list(red.dependent_solution), a_nu)))}
         rows += [Formula("(t, q, w)", sp.Symbol(f"lambda_{n}"), e, "reactions")
@@ -258,11 +275,113 @@ def equation_formulas(derivation) -> list[Formula]:
     return rows
 
 
-def printed_equations(derivation, only=None) -> PrintedEquations:
-    """The formulas of ``only`` (items of :data:`ITEMS`; all by default) with their shared
-    subexpressions named once (``sympy.cse``), each definition and formula then tidied
-    (:func:`appell.core.simplification.tidy`: small expressions only, so the cost is bounded)."""
-    rows = [f for f in equation_formulas(derivation) if only is None or f.item in only]
+#: labels of the rows of the recursive route that name a quantity (a joint's terms, the
+#: passes, world axes): printed as they are
+NAMING = ("(joint ", "(RNEA)", "(world axes)")
+#: a printed line (both sides, ``count_ops``) of at most this many operations is printed in
+#: closed form, without shared-subexpression names; longer lines share named subexpressions
+LINE_OPS = 80
+
+
+def _focus(derivation) -> tuple[tuple, tuple]:
+    """The symbols a printed line's terms are collected by: the accelerations and the
+    multipliers, then (within each coefficient) the model's parameters."""
+    lam = tuple(sp.Symbol(f"lambda_{c.name}") for c in derivation.system.constraints)
+    unknowns = tuple(c.unknown for c in getattr(derivation.system, "controls", ()))
+    return (tuple(derivation.kinematics.accelerations) + unknowns + lam,
+            tuple(p.symbol for p in derivation.system.parameters))
+
+
+def _closed(row: Formula, focus) -> Formula | None:
+    """``row`` in the shortest of its equivalent forms (:func:`~appell.core.simplification.readable`)
+    when it is a short line (:data:`LINE_OPS`), else None."""
+    if row.label.startswith(NAMING) or any(tree_size(e, 4 * LINE_OPS) > 4 * LINE_OPS for e in (row.lhs, row.rhs)):
+        return None  # (count_ops walks every use of a shared subexpression: the bicycle's take minutes)
+    lhs, rhs = readable(row.lhs, *focus), readable(row.rhs, *focus)
+    if sp.count_ops(lhs) + sp.count_ops(rhs) > LINE_OPS:
+        return None
+    return Formula(row.label, lhs, rhs, row.item)
+
+
+#: label of the rows that define a named block (``M_r_12 = ...``): printed under "where"
+BLOCK = "(block)"
+
+
+def _named(prefix: str, matrix: sp.Matrix, taken: set) -> tuple[sp.Matrix, list[Formula]] | None:
+    """``matrix`` with each nonzero entry named ``<prefix>_<i><j>`` (``<prefix>_<i>`` for a
+    column), and the rows that define the names; None where a model symbol has such a name."""
+    names, rows = sp.zeros(*matrix.shape), []
+    for i in range(matrix.rows):
+        for j in range(matrix.cols):
+            e = matrix[i, j]
+            if e == 0:
+                continue
+            name = f"{prefix}_{i + 1}" if matrix.cols == 1 else f"{prefix}_{i + 1}{j + 1}"
+            if name in taken:
+                return None
+            names[i, j] = sp.Symbol(name)
+            rows.append(Formula(BLOCK, names[i, j], e, "motion"))
+    return names, rows
+
+
+def _reduced_rows(derivation, rows: list[Formula], focus) -> list[Formula]:
+    """The solved accelerations of (1.4) replaced by the reduced equations ``M_r a_nu = f_r``
+    (method.md's (1.4) as the paper prints it, (1.9) for the car) where the solved form is
+    not a short line but each reduced equation is; where neither is and more than one
+    acceleration is free, by ``M_r a_nu = f_r`` over the named blocks ``M_r_ij``, ``f_r_i``
+    (the reduced mass matrix and forcing, defined under "where"), not over anonymous names."""
+    solved = [f for f in rows if f.label == "(1.4)"]
+    if not solved or all(_closed(f, focus) is not None for f in solved):
+        return rows
+    red = derivation.reduced
+    Mr, fr = sp.Matrix(red.mass_matrix), sp.Matrix(red.forcing)
+    a_nu = sp.Matrix(red.independent)
+    lhs = Mr * a_nu
+    reduced = [Formula(f"(1.4) [{a}]", l, r, "motion") for a, l, r in zip(red.independent, lhs, fr)]
+    at = rows.index(solved[0])
+    rest = [f for f in rows[at:] if f.label != "(1.4)"]
+    if all(_closed(f, focus) is not None for f in reduced):
+        return rows[:at] + reduced + rest
+    if len(solved) < 2:
+        return rows
+    taken = {s.name for s in free_symbols(*[e for f in rows for e in (f.lhs, f.rhs)])}
+    named_M, named_f = _named("M_r", Mr, taken), _named("f_r", fr, taken)
+    if named_M is None or named_f is None:
+        return rows
+    lhs = named_M[0] * a_nu
+    reduced = [Formula(f"(1.4) [{a}]", l, r, "motion") for a, l, r in zip(red.independent, lhs, named_f[0])]
+    return rows[:at] + reduced + rest + named_M[1] + named_f[1]
+
+
+def printed_equations(derivation, only=None, expand: bool = False) -> PrintedEquations:
+    """The formulas of ``only`` (items of :data:`ITEMS`; all by default) as a paper prints
+    them: each short line in the shortest of its equivalent forms, checked at random points
+    (:func:`appell.core.simplification.readable`: no shared names, :data:`LINE_OPS`); the
+    longer lines with their shared subexpressions named once (``sympy.cse``), each
+    definition and formula then tidied (:func:`appell.core.simplification.tidy`: small
+    expressions only, so the cost is bounded). ``expand``: each reaction also in ``(t, q,
+    w)``, the accelerations of (1.4) substituted (by default (1.5) names them)."""
+    focus = _focus(derivation)
+    every = equation_formulas(derivation, expand)
+    notes = ()
+    if not expand and any(f.label == "(1.4)" for f in every) and any(f.label == "(f = 0)" for f in every) \
+            and any(f.label == "(1.5)" for f in every) and (only is None or "reactions" in only):
+        names = ", ".join(str(a) for a in derivation.kinematics.accelerations)
+        notes = (f"in the state (t, q, w): each reaction is its (1.5) with {names} from the reduced equations and f = 0 "
+                 "(printed substituted on request: expand=True)",)
+    rows = _reduced_rows(derivation, [f for f in every if only is None or f.item in only], focus)
+    closed = {i: c for i, c in ((i, _closed(f, focus)) for i, f in enumerate(rows)) if c is not None}
+    large = [f for i, f in enumerate(rows) if i not in closed]
+    defs, formulas = _shared(large) if large else ((), [])
+    by_row = iter(formulas)
+    out = [closed[i] if i in closed else next(by_row) for i in range(len(rows))]
+    blocks = tuple((f.lhs, f.rhs) for f in out if f.label == BLOCK)
+    out = [f for f in out if f.label != BLOCK]
+    return PrintedEquations(defs, tuple(out), notes, blocks)
+
+
+def _shared(rows: list[Formula]):
+    """``(definitions, formulas)`` of ``rows`` with their shared subexpressions named once."""
     exprs = [e for f in rows for e in (f.lhs, f.rhs)]
     taken = {s.name for s in free_symbols(*exprs)}
     prefix = next(p for p in ("c", "k", "z", "_c")  # not a model's name (the bicycle's trail c)
@@ -273,8 +392,7 @@ def printed_equations(derivation, only=None) -> PrintedEquations:
     renamed = graph_xreplace([e for _, e in defs] + list(reduced), renumber, evaluate=False)
     neat = tidy if len(defs) <= TIDY_DEFINITIONS else (lambda e: e)
     defs, reduced = tuple((renumber[sym], neat(e)) for (sym, _), e in zip(defs, renamed)), renamed[len(defs):]
-    out = [Formula(f.label, tidy(reduced[2 * i]), tidy(reduced[2 * i + 1]), f.item) for i, f in enumerate(rows)]
-    return PrintedEquations(defs, tuple(out))
+    return defs, [Formula(f.label, tidy(reduced[2 * i]), tidy(reduced[2 * i + 1]), f.item) for i, f in enumerate(rows)]
 
 
 def _inline_single_uses(defs, exprs):
@@ -304,10 +422,11 @@ REDUNDANT_FORMULAS = ("the formulas (1.5) below are those of the independent con
                       "null-space component of the split stated above")
 
 
-def derivation_text(derivation, only=None) -> str:
+def derivation_text(derivation, only=None, expand: bool = False) -> str:
     """Plain-text summary: system, partition, then the items of ``only`` (motion (1.4),
-    reactions (1.5); all by default) as a paper prints them: shared subexpressions
-    defined once ("where"), then short formulas (:func:`printed_equations`)."""
+    reactions (1.5); all by default) as a paper prints them: short formulas in closed form,
+    then the subexpressions the longer ones share, each defined once ("where")
+    (:func:`printed_equations`; ``expand``: each reaction also in ``(t, q, w)``)."""
     sysm = derivation.system
     kin = derivation.kinematics
     ind, dep = derivation.partition.names(kin.accelerations)
@@ -335,7 +454,7 @@ def derivation_text(derivation, only=None) -> str:
     if getattr(derivation, "redundancy", None) is not None:
         lines += ["  " + line for line in derivation.redundancy.summary()]
         lines.append("  " + REDUNDANT_FORMULAS)
-    printed = printed_equations(derivation, only)
+    printed = printed_equations(derivation, only, expand)
     if not is_controlled(derivation) and derivation.inertia.tree is not None:
         motion = ("motion: the joints' terms, the recursive Newton-Euler passes over spatial vectors (body axes), "
                   "the equations (1.3) with the multipliers and f = 0, solved at each state by the numeric split")
@@ -345,14 +464,16 @@ def derivation_text(derivation, only=None) -> str:
         motion = "motion: accelerations (1.4) and f = 0"
     titles = {"motion": motion, "reactions": "reactions (1.5)",
               "outputs": "outputs (from t, q, w, a and the multipliers)", "controls": "controls"}
-    if printed.definitions:
-        lines += ["", "where"]
-        lines += [f"  {sym} = {e}" for sym, e in printed.definitions]
     for item in ITEMS:
         rows = [f for f in printed.formulas if f.item == item]
         if rows:
             lines += ["", titles[item] + ":"]
             lines += [f"  {f.label:<10s} {f.lhs} = {f.rhs}" for f in rows]
+            if item == "reactions":
+                lines += list(printed.notes)
+    if printed.definitions or printed.blocks:
+        lines += ["", "where"]
+        lines += [f"  {sym} = {e}" for sym, e in printed.blocks + printed.definitions]
     return "\n".join(lines)
 
 
@@ -383,12 +504,13 @@ def singular_where(derivation) -> str | None:
     return "formulas singular where " + " or ".join(zeros) + f" (det J_h = {det})"
 
 
-def derivation_latex(derivation, only=None) -> str:
-    """LaTeX ``aligned`` block: the shared subexpressions, then the formulas of ``only``
-    (all by default) as in :func:`derivation_text`."""
-    printed = printed_equations(derivation, only)
-    rows = [rf"{latex(sym)} &= {latex(e)}" for sym, e in printed.definitions]
-    rows += [rf"{latex(f.lhs)} &= {latex(f.rhs)} && \text{{{f.label}}}" for f in printed.formulas]
+def derivation_latex(derivation, only=None, expand: bool = False) -> str:
+    """LaTeX ``aligned`` block: the formulas of ``only`` (all by default), then the
+    subexpressions they share, as in :func:`derivation_text`."""
+    printed = printed_equations(derivation, only, expand)
+    rows = [rf"{latex(f.lhs)} &= {latex(f.rhs)} && \text{{{f.label}}}" for f in printed.formulas]
+    rows += [rf"&\text{{{note}}}" for note in printed.notes]
+    rows += [rf"{latex(sym)} &= {latex(e)}" for sym, e in printed.blocks + printed.definitions]
     return "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
 
 
@@ -639,25 +761,27 @@ def document_expressions(derivation) -> dict:
     return derivation_document(derivation)
 
 
-def to_text(derivation, only=None) -> str:
-    """The derivation as plain text: the reduced equations (1.4) and each reaction (1.5) through
-    shared subexpressions (:func:`derivation_text`; ``only`` selects items), or for a controlled
-    derivation (2.3)-(2.5) and the control laws (:mod:`appell.io.controlled_printing`; with
-    ``only``, the selected items of :func:`derivation_text`)."""
+def to_text(derivation, only=None, expand: bool = False) -> str:
+    """The derivation as plain text: the reduced equations (1.4) and each reaction (1.5), short
+    lines in closed form, longer ones through shared subexpressions (:func:`derivation_text`;
+    ``only`` selects items; ``expand``: each reaction also with the accelerations of (1.4)
+    substituted, in ``(t, q, w)``), or for a controlled derivation (2.3)-(2.5) and the control
+    laws (:mod:`appell.io.controlled_printing`; with ``only``, the selected items of
+    :func:`derivation_text`)."""
     if is_controlled(derivation) and not only:
         from appell.io.controlled_printing import controlled_text
 
         return controlled_text(derivation)
-    return derivation_text(derivation, only)
+    return derivation_text(derivation, only, expand)
 
 
-def to_latex(derivation, only=None) -> str:
+def to_latex(derivation, only=None, expand: bool = False) -> str:
     """The derivation as LaTeX, as :func:`to_text` (:func:`derivation_latex`)."""
     if is_controlled(derivation) and not only:
         from appell.io.controlled_printing import controlled_latex
 
         return controlled_latex(derivation)
-    return derivation_latex(derivation, only)
+    return derivation_latex(derivation, only, expand)
 
 
 def to_json(derivation) -> dict:

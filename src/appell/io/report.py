@@ -66,10 +66,12 @@ class EquationRow:
         return f"{latex(self.lhs)} = {latex(self.rhs)}"
 
 
-def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
+def equation_groups(derivation, expand: bool = False) -> list[tuple[str, list[EquationRow]]]:
     """The equations shown in the report, grouped under titles, as ``appell derive`` prints
-    them (:func:`appell.io.printing.printed_equations`): the shared subexpressions defined
-    once, then short formulas.
+    them (:func:`appell.io.printing.printed_equations`): short formulas in closed form, then
+    the subexpressions the longer ones share, each defined once (last, after the formulas
+    that use them). ``expand``: each reaction also in the state, the accelerations of (1.4)
+    substituted (by default its (1.5) names them).
 
     For a :class:`~appell.core.equations.Derivation`: the accelerations of (1.4) and the
     dependent ones from ``f = 0`` (or the equations themselves when they are not solved),
@@ -78,12 +80,10 @@ def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
     conditions (2.3), the reduced equations (2.4), the reactions (2.5), the control laws
     and the internal dynamics.
     """
-    printed = printed_equations(derivation)
+    printed = printed_equations(derivation, expand=expand)
     rows = {item: [f for f in printed.formulas if f.item == item] for item in ITEMS}
     groups = []
-    if printed.definitions:
-        groups.append(("Shared subexpressions (each defined once, used below)",
-                       [EquationRow("", sym, e) for sym, e in printed.definitions]))
+    shared = [EquationRow("", sym, e) for sym, e in printed.blocks + printed.definitions]
     if is_controlled(derivation):
         controls = rows["controls"]
         groups.append(("Dynamic conditions (2.3) — the equations of the controls",
@@ -98,7 +98,7 @@ def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
                     for e in getattr(derivation, "internal_dynamics", {}).values()]
         if internal:
             groups.append(("Internal dynamics left by the servo constraints", internal))
-        return groups
+        return groups + _shared_group(shared)
     groups.append(("Motion: the accelerations of (1.4) — free of multipliers — and f = 0",
                    [EquationRow(f.label, f.lhs, f.rhs) for f in rows["motion"]]))
     by_formula = [EquationRow(f.label, f.lhs, f.rhs) for f in rows["reactions"] if f.label == "(1.5)"]
@@ -108,10 +108,18 @@ def equation_groups(derivation) -> list[tuple[str, list[EquationRow]]]:
     if by_state:
         groups.append(("Each reaction in terms of the state (t, q, w), the accelerations of (1.4) put in",
                        by_state))
+    elif printed.notes:
+        groups.append(("Each reaction in terms of the state (t, q, w): its (1.5) with the accelerations of (1.4) "
+                       "and f = 0 above (shown substituted with expand=True)", []))
     if rows["outputs"]:
         groups.append(("Outputs (e.g. joint forces and moments) from t, q, w, the accelerations and the multipliers",
                        [EquationRow(f.label, f.lhs, f.rhs) for f in rows["outputs"]]))
-    return groups
+    return groups + _shared_group(shared)
+
+
+def _shared_group(shared: list[EquationRow]) -> list[tuple[str, list[EquationRow]]]:
+    return [("Named blocks (the reduced mass matrix M_r, forcing f_r) and shared subexpressions of the longer "
+             "formulas above, each defined once", shared)] if shared else []
 
 
 # ------------------------------------------------------------------ mathematics
@@ -310,7 +318,7 @@ def _model_section(system, kinematics) -> str:
     return "\n".join(parts)
 
 
-def _equation_section(derivation) -> str:
+def _equation_section(derivation, expand: bool = False) -> str:
     ind, dep = derivation.partition.names(derivation.accelerations)
     parts = ["<h2 id='equations'>Equations</h2>",
              f"<p>Independent accelerations: {', '.join(_inline(sp.Symbol(n)) for n in ind) or '—'}; "
@@ -329,9 +337,9 @@ def _equation_section(derivation) -> str:
                      + " prescribe the motion; the formulas below give "
                      + ("the controls and " if is_controlled(derivation) else "")
                      + "every reaction along it.</p>")
-    for title, rows in equation_groups(derivation):
+    for title, rows in equation_groups(derivation, expand):
         parts.append(f"<h3>{_e(title)}</h3>")
-        if not rows:
+        if not rows and not title.startswith("Each reaction"):
             parts.append("<p class='muted'>none</p>")
         for row in rows:
             parts.append(f"<div class='eq'><div class='label'>{_e(row.label)}</div>"
@@ -475,7 +483,7 @@ def _stability_section(sweep) -> str:
 def render_report(derivation, solution=None, check=None, *, title: str | None = None,
                   tolerance: float = 1e-9, simulation_note: str | None = None, integrals=None,
                   internal=None, energy=None, energy_tolerance: float | None = None, stability=None,
-                  data_file: str | None = None) -> str:
+                  data_file: str | None = None, expand: bool = False) -> str:
     """The HTML page (a string) for ``derivation`` (a :class:`~appell.core.equations.Derivation`
     or a controlled derivation of :mod:`appell.control.servo`), with the plots of ``solution``
     (:class:`~appell.simulation.solution.Solution`) and the table of ``check``
@@ -488,14 +496,15 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
     cross-check and judged at ``energy_tolerance`` (the verdict fails when any line exceeds
     its tolerance); ``stability`` a :class:`~appell.numerics.stability.StabilitySweep`
     (the eigenvalues against a parameter, with the critical values); ``data_file`` the
-    motion's data file, linked by its name relative to the page.
+    motion's data file, linked by its name relative to the page; ``expand`` shows each
+    reaction also in the state, the accelerations of (1.4) substituted.
     The simulation section shows the motion in 3-D (:mod:`appell.io.viewer`) beside its plots,
     which share a time cursor with it."""
     from appell import __version__
 
     system = derivation.system
     title = title or f"appell report: {system.name}"
-    sections = [_model_section(system, derivation.kinematics), _equation_section(derivation)]
+    sections = [_model_section(system, derivation.kinematics), _equation_section(derivation, expand)]
     nav = ["<a href='#model'>model</a>", "<a href='#equations'>equations</a>"]
     if internal is not None:
         sections.append(_internal_section(internal))

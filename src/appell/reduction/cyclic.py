@@ -60,7 +60,7 @@ import sympy as sp
 
 from appell.core.energy import generalized_forces
 from appell.core.equations import block_inverse
-from appell.core.simplification import tidy
+from appell.core.simplification import readable, tidy
 from appell.errors import ComputationError, ModelError
 from appell.core.kinematics import kinematics_of
 from appell.model import Parameter, System
@@ -173,11 +173,18 @@ class RouthReduction:
         out = [(derivative_symbol(q).name, e) for q, e in zip(self.cyclic, self.cyclic_velocities)]
         return out + [("T*", self.reduced_kinetic_energy), ("V", self.routh_potential), ("L*", self.routhian)]
 
+    def printed(self) -> list[tuple[str, sp.Expr]]:
+        """:meth:`equations` for people: each in the shortest of its equivalent forms
+        (:func:`appell.core.simplification.readable`, terms collected by the momenta, then
+        the parameters)."""
+        params = tuple(p.symbol for p in self.system.parameters)
+        return [(name, readable(e, self.momenta, params)) for name, e in self.equations()]
+
     def to_text(self) -> str:
         """Plain-text summary: momenta and their values, then :meth:`equations`."""
         lines = [f"Routh reduction of {self.full.name} over {', '.join(q.name for q in self.cyclic)}"]
         lines += [f"  {h} = {v:.12g}" for h, v in zip(self.momenta, self.momentum_values)]
-        lines += [f"  {name} = {sp.sstr(e)}" for name, e in self.equations()]
+        lines += [f"  {name} = {sp.sstr(e)}" for name, e in self.printed()]
         return "\n".join(lines)
 
     def to_latex(self) -> str:
@@ -185,7 +192,7 @@ class RouthReduction:
         from appell.symbols import latex, latex_name
 
         names = {"T*": "T^{*}", "V": "V", "L*": "L^{*}"}
-        return " \\\\\n".join(f"{names.get(n) or latex_name(n)} = {latex(e)}" for n, e in self.equations())
+        return " \\\\\n".join(f"{names.get(n) or latex_name(n)} = {latex(e)}" for n, e in self.printed())
 
     def cyclic_rates(self, positional_states) -> np.ndarray:
         """``q_dot_alpha`` of (3.4) at positional states ``[q_i, q_dot_i]`` (shape (N, 2m) or (2m,))."""
