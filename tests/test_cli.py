@@ -545,3 +545,15 @@ def test_derive_routh_prints_the_reduced_lagrangian():
     assert out["routh"]["momenta"]["h_psi"] == pytest.approx(0.4 * (12.0 + math.cos(0.6) * 0.5), rel=1e-12)
     bad = run("derive", "car", "--routh")
     assert bad.exit_code == 2 and "no cyclic coordinate" in bad.output
+
+
+def test_derive_expand_prints_the_reactions_in_the_state():
+    """``appell derive MODEL`` prints each reaction as its (1.5) formula and names the
+    accelerations it uses; ``--expand`` adds the reaction in the state (t, q, w), the form
+    ``to_text(d, expand=True)`` prints (the Python twin)."""
+    from appell import derive, load_model, to_text
+
+    plain, expanded = run("derive", "pendulum"), run("derive", "pendulum", "--expand")
+    assert plain.exit_code == 0 and expanded.exit_code == 0, plain.output + expanded.output
+    assert "(t, q, w)  lambda_rod" not in plain.output and "(t, q, w)  lambda_rod" in expanded.output
+    assert to_text(derive(load_model("pendulum")), expand=True) in expanded.output

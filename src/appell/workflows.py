@@ -603,10 +603,12 @@ def completion(complete: bool = False, adjust=()) -> dict:
     return {"complete": True, "adjust": None} if complete else {}
 
 
-def show_derivation(derivation, fmt: str = "text", reduction=None, only=None, echo=None) -> None:
+def show_derivation(derivation, fmt: str = "text", reduction=None, only=None, echo=None, expand: bool = False) -> None:
     """``appell derive``: the reduced equations (1.4) and the reaction formulas (1.5) of
     ``derivation`` as ``fmt`` ('text', 'latex' or 'json', :func:`derivation_json`), after the
-    Routh ``reduction`` when given; ``only`` the items of :func:`appell.io.printing.to_text`.
+    Routh ``reduction`` when given; ``only`` the items of :func:`appell.io.printing.to_text`;
+    ``expand``: each reaction also in the state (t, q, w), the accelerations substituted
+    (JSON always holds it).
     A friction note and a warning on unstable internal dynamics go to stderr."""
     echo = echo or _print
     linearisation, note = internal_stability(derivation)
@@ -615,12 +617,12 @@ def show_derivation(derivation, fmt: str = "text", reduction=None, only=None, ec
     elif fmt == "latex":
         from appell.io.printing import to_latex
 
-        body = to_latex(derivation, only or None)
+        body = to_latex(derivation, only or None, expand=expand)
         echo((reduction.to_latex() + "\n\n" if reduction is not None else "") + body)
     else:
         from appell.io.printing import to_text
 
-        body = to_text(derivation, only or None)
+        body = to_text(derivation, only or None, expand=expand)
         echo((reduction.to_text() + "\n\n" if reduction is not None else "") + body)
         if linearisation is not None and (not only or "controls" in only):
             echo(linearisation.to_text())
@@ -764,11 +766,12 @@ def check_model(derivation, tolerance: float = 1e-9, energy_tolerance: float | N
 
 
 def report_model(derivation, output=None, t_end=None, simulation: bool = True, data: bool = True,
-                 backend: str = "auto", solver=None, echo=None, **options) -> Path:
+                 backend: str = "auto", solver=None, echo=None, expand: bool = False, **options) -> Path:
     """``appell report``: the cross-check (with the C code compiled meanwhile), the simulation
     (:func:`run_simulation` with ``solver`` and ``options``) unless left out or impossible,
     the energy balance and the ``[stability]`` table, written as one HTML page (default
-    ``<model name>-report.html``) with the motion's data beside it (``data``); raises
+    ``<model name>-report.html``) with the motion's data beside it (``data``), the reactions
+    also in the state (t, q, w) where ``expand``; raises
     :class:`~appell.errors.ComputationError` after writing when a check fails."""
     from appell.io.report import write_report
     from appell.simulation.energy_balance import ENERGY_TOLERANCE
@@ -805,7 +808,7 @@ def report_model(derivation, output=None, t_end=None, simulation: bool = True, d
         solution.to_csv(data_path)
     write_report(path, derivation, solution, check_report, simulation_note=note,
                  integrals=first_integrals(derivation), internal=linearisation, energy=energy, stability=sweep,
-                 data_file=data_path.name if data_path is not None else None)
+                 data_file=data_path.name if data_path is not None else None, expand=expand)
     if data_path is not None:
         echo(f"wrote {data_path}")
     echo(f"wrote {path}")

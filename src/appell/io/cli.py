@@ -273,6 +273,11 @@ _reactions_option = click.option("--reactions-in", "reactions_in", default=None,
                                       "world).")
 
 
+_expand_option = click.option("--expand", is_flag=True,
+                               help="Print each reaction also in the state (t, q, w), with the accelerations of the "
+                                    "reduced equations substituted (long); by default its (1.5) formula names them.")
+
+
 def _model_options(command):
     """``--set``, ``--floating-base``, ``--no-cache`` and ``--reactions-in``, the options of every
     command that loads a model."""
@@ -430,8 +435,9 @@ def cli():
               help="Print only these items (repeatable): motion (the accelerations of (1.4) and f = 0), "
                    "reactions ((1.5), also solved in t, q, w), outputs (e.g. joint forces and moments, "
                    "in t, q, w, a and the multipliers) or controls (control laws and (2.3)).")
+@_expand_option
 @_model_options
-def derive_command(model, fmt, dependent, routh, assignments, floating_base, only):
+def derive_command(model, fmt, dependent, routh, assignments, floating_base, only, expand):
     """Print the reduced equations (1.4) and one reaction formula per constraint (1.5).
 
     For a model with servo constraints: the dynamic conditions (2.3), the reduced
@@ -445,7 +451,7 @@ def derive_command(model, fmt, dependent, routh, assignments, floating_base, onl
         derivation = derive_model(reduction.system, dependent, formulas=True)
     else:
         derivation = _derivation(model, assignments, floating_base, dependent, formulas=True)
-    workflows.show_derivation(derivation, fmt, reduction, only, echo=click.echo)
+    workflows.show_derivation(derivation, fmt, reduction, only, echo=click.echo, expand=expand)
 
 
 @cli.command(name="simulate", context_settings=_CONTEXT)
@@ -594,8 +600,9 @@ def check_command(model, tolerance, energy_tolerance, t_end, assignments, floati
 @_model_options
 @_complete_option
 @_adjust_option
+@_expand_option
 def report_command(model, output, t_end, no_simulation, data, backend, assignments, floating_base, complete, adjust,
-                   solver):
+                   solver, expand):
     """Write one self-contained HTML page: the model, its equations as mathematics, the
     motion in 3-D with its forces, plots of coordinates, reactions and controls (with a
     shared time cursor), and the cross-check; the motion's data beside it (FILE.csv).
@@ -608,7 +615,7 @@ def report_command(model, output, t_end, no_simulation, data, backend, assignmen
         output_file(Path(output), "'-o'")
     derivation = _derivation(model, assignments, floating_base)
     workflows.report_model(derivation, output, t_end, not no_simulation, data, backend, _solver(solver),
-                           echo=click.echo, **workflows.completion(complete, adjust))
+                           echo=click.echo, expand=expand, **workflows.completion(complete, adjust))
 
 
 @cli.command(name="sweep", context_settings=_CONTEXT)
