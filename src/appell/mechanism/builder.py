@@ -292,6 +292,7 @@ class Mechanism:
         self._springs: list[tuple] = []  # (body_a, r_a, body_b, r_b, k, l0): their energy (system(energy=True))
         self._points: list[tuple] = []  # (name, body, r): world positions as outputs (watch_point)
         self._forces: list[tuple[str, object]] = []  # (name, builder(frames) -> (model loads, actions))
+        self._drawn: set[str] = set()  # springs, bushings and force pairs: the view draws their force
         self._actuators: list[tuple[str, Joint, sp.Symbol, sp.Expr | None]] = []
         self._names: dict[str, str] = {GROUND: "body"}
         self._shapes: list[tuple] = []  # (body, kind, sizes, origin, rotation, colour, mesh): the view
@@ -870,6 +871,7 @@ class Mechanism:
         self._marks += [(ba, ra), (bb, rb)]
         k, l0, c = (sp.sympify(v) for v in (stiffness, rest_length, damping))
         self._springs.append((ba, ra, bb, rb, k, l0))
+        self._drawn.add(name)
 
         def build(frames):
             pa, va, _ = frames[ba].point(ra)
@@ -951,6 +953,7 @@ class Mechanism:
         if axes not in ("world", "a"):
             raise ModelError(f"{what}: axes {axes!r} must be 'world' or 'a'")
         self._marks += [(ba, ra), (bb, rb)]
+        self._drawn.add(name)
         f, tau = _matrix(force, f"{what}: force"), _matrix(torque, f"{what}: torque")
 
         def build(frames):
@@ -977,6 +980,7 @@ class Mechanism:
         if ba is bb:
             raise ModelError(f"{what}: both markers are on body {ba.name!r}", hint="join two different bodies")
         self._marks += [(ba, ra), (bb, rb)]
+        self._drawn.add(name)
 
         def gains(value, key):
             m = sp.Matrix(value)
@@ -1195,10 +1199,14 @@ class Mechanism:
             if self.gravity is not None:
                 V -= b.mass * self.gravity.dot(rC)
         loads, actions = [], []
-        for _, build in self._forces:
+        drawn_loads = []
+        for name, build in self._forces:
             more, acts = build(frames)
             loads += more
             actions += acts
+            if name in self._drawn and any(a.body is not self.ground for a in acts):
+                body = next(a.body for a in acts if a.body is not self.ground)  # drawn on a moving body
+                drawn_loads.append((name, [a for a in acts if a.body is body] + [a for a in acts if a.body is not body]))
         cons = [holonomic(n, e) for j in order for n, e in j.motion.constraints]
         contact_forces = []
         for closure in self._closures:
@@ -1273,14 +1281,16 @@ class Mechanism:
                       servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
-                      view=self._view(frames, contact_forces, drawn, frame, params),
+                      view=self._view(frames, contact_forces + drawn_loads, drawn, frame, params),
                       tree=self.rigid_tree(coords, V, positions, wrenches))
 
     def _view(self, frames, contact_forces, reaction_names, frame, params) -> View:
         """The :class:`appell.view.View` of the mechanism: each body at its frame's pose with
         its shapes (or bars to the joints it carries and the points of its closures and loads,
         and the equivalent box of a full inertia); the force and moment of every joint whose
-        reaction outputs exist, and the force of every closure and contact on its first body."""
+        reaction outputs exist, and the force of every closure and contact on its first body, and
+        of every spring, bushing and force pair (with a bushing's or pair's torque, ``<name>_moment``)
+        on its first body that is not the ground (a spring: a, then b; a bushing or pair: b, then a)."""
         values = {p.symbol: p.value for p in params}
 
         def numbers(v):
