@@ -286,3 +286,29 @@ def test_a_torque_changing_sign_runs_through_the_radial_loads_kink():
     assert np.abs(mine - F_jb).max() < 1e-9
     # the radial load on b points away from a's axis (+x) on both sides of every sign change
     assert np.all(sol["F_mesh_x"] >= -1e-12)
+
+
+def test_a_tooth_force_read_in_a_wheels_axes():
+    """``reaction_output(coupling, axes=body)``: the tooth force ``F_mesh`` along wheel b's
+    axes is ``R_b^T`` of the world one (b turned by ``jb`` about z), and the report's text says
+    so; a marker or the other body is refused for a coupling, naming it."""
+    q, w = [0.3, -0.15], [3.0, -1.5]
+    _, world = _solve(derive(_gear_pair(math.radians(20), math.radians(10), 0.7).system()), q, w)
+    mech = _gear_pair(math.radians(20), math.radians(10), 0.7)
+    mech.reaction_output("mesh", axes="wheel_b")
+    system = mech.system()
+    _, out = _solve(derive(system), q, w)
+    assert _vec(out, "F_mesh") == pytest.approx(_rotz(q[1]).T @ _vec(world, "F_mesh"), abs=1e-12)
+    assert _vec(out, "F_jb") == pytest.approx(_vec(world, "F_jb"), abs=1e-12)  # the joints unchanged
+    described = next(o.description for o in system.outputs if o.name == "F_mesh_x")
+    assert described.endswith("(axes of body 'wheel_b')")
+    with pytest.raises(ModelError, match="coupling 'mesh'"):
+        mech.reaction_output("mesh", about=("wheel_b", (0, 0, 0)))
+    with pytest.raises(ModelError, match="coupling 'mesh'.*'world' or a body"):
+        mech.reaction_output("mesh", axes="nowhere")
+    # in a model file: [mechanism.reaction.<coupling>] axes
+    from appell.io.modelfile import loads_model
+
+    text = MODEL.replace("RADIUS", "0.05") + '\n[mechanism.reaction.mesh]\naxes = "rack"\n'
+    described = [o.description for o in loads_model(text).outputs if o.name == "F_mesh_y"]
+    assert described == ["tooth force on rack of coupling mesh at the pitch point, y (axes of body 'rack')"]

@@ -298,6 +298,7 @@ class Mechanism:
         self._shapes: list[tuple] = []  # (body, kind, sizes, origin, rotation, colour, mesh): the view
         self._marks: list[tuple[Body, sp.Matrix]] = []  # body points of closures and loads (the view's bars)
         self._couplings: dict[str, Body] = {}  # tooth meshes: the body whose tooth force is an output
+        self._tooth_axes: dict[str, Body | None] = {}  # coupling -> the axes of its tooth force (reaction_output)
         self._drives: list[tuple[str, bool]] = []  # (drive, rotational): its effort is an output
         self._reading: dict[str, tuple] = {}  # joint -> (on, marker body, marker point, axes): reaction_output
         #: the axes of the reactions without a reaction_output of their own (system(reactions_in=...) overrides)
@@ -896,7 +897,22 @@ class Mechanism:
         body (``r`` in its frame; default the joint origin ``O``): ``M_P = M_O + (O - P) x F``;
         along the ``axes`` of ``"world"`` (``"ground"``), a body (its name), ``"joint"`` (the
         joint frame fixed in the parent, ``R_parent R0``: a bearing's housing), ``"child"`` or
-        ``"parent"``. The recursive route then leaves these outputs to their formulas."""
+        ``"parent"``. The recursive route then leaves these outputs to their formulas.
+
+        For a gear or rack coupling (``joint`` its name) only ``axes`` applies: ``"world"`` or a
+        body's name, the axes of its tooth force ``F_<coupling>_*`` (on the second body, at the
+        pitch point)."""
+        if isinstance(joint, str) and joint in self._couplings:
+            what = f"reaction output of coupling {joint!r}"
+            if on != "child" or about is not None:
+                raise ModelError(f"{what}: a tooth force is read on its second body at the pitch point",
+                                 hint="give only axes ('world' or a body's name)")
+            try:
+                body = None if axes in ("world", "ground", None) else self._body(axes, what)
+            except ModelError as exc:
+                raise ModelError(f"{exc.message}; a coupling's axes are 'world' or a body", hint=exc.hint) from None
+            self._tooth_axes[joint] = None if body is self.ground else body
+            return
         j = self._joint(joint, "reaction output")
         what = f"reaction output of joint {j.name!r}"
         if on not in ("child", "parent"):
@@ -1237,7 +1253,7 @@ class Mechanism:
         reaction_groups = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit,
                                                       reactions_in))
         reaction_outputs = [o for _, _, outs in reaction_groups for o in outs]
-        reaction_outputs += self._tooth_outputs(reactions, contact_forces, force_unit)
+        reaction_outputs += self._tooth_outputs(reactions, contact_forces, force_unit, frames)
         reaction_outputs += [Output(f"{n}_effort", sp.Symbol(f"lambda_{n}"), moment_unit if turn else force_unit,
                                     f"{'torque' if turn else 'force'} of drive {n} along its coordinate")
                              for n, turn in self._drives if reactions is not None]
@@ -1363,9 +1379,10 @@ class Mechanism:
                 up = tuple(-x for x in g)
         return View(tuple(bodies), tuple(arrows), up=up, joints=tuple(joints))
 
-    def _tooth_outputs(self, reactions, contact_forces, force_unit) -> list[Output]:
+    def _tooth_outputs(self, reactions, contact_forces, force_unit, frames) -> list[Output]:
         """``F_<coupling>_x .. _z``: the tooth force of each gear or rack coupling on the body of
-        its second joint, at the pitch point (world axes), where ``reactions`` asks for it."""
+        its second joint, at the pitch point (world axes, or a body's: :meth:`reaction_output`),
+        where ``reactions`` asks for it."""
         if reactions is None:
             return []
         wanted = self._couplings if reactions == "all" else [n for n in reactions if n in self._couplings]
@@ -1374,8 +1391,11 @@ class Mechanism:
             if name in wanted:
                 on = self._couplings[name]
                 f = sum((a.force for a in acts if a.body is on), sp.zeros(3, 1))
+                body, where = self._tooth_axes.get(name), "world axes"
+                if body is not None:
+                    f, where = frames[body].R.T * f, f"axes of body {body.name!r}"
                 outs += [Output(f"F_{name}_{axis}", e, force_unit,
-                                f"tooth force on {on.name} of coupling {name} at the pitch point, {axis} (world axes)")
+                                f"tooth force on {on.name} of coupling {name} at the pitch point, {axis} ({where})")
                          for axis, e in zip("xyz", f)]
         return outs
 
