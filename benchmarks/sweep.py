@@ -47,7 +47,7 @@ def main():
 
     import appell
     from appell.examples import example_path
-    from appell.io.cli import command_options
+    from appell.workflows import command_options
     from appell.simulation.simulate import simulate
     from appell.simulation.sweep import parameter_grid, sweep, sweep_cluster
 

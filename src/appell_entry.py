@@ -19,143 +19,36 @@ and the import of this module, where only Python's default handler can act):
 * a second one, or one after the command has finished, ends the process at once
   (:func:`os._exit`), printing the line unless it was printed already.
 
-CPython runs a signal's handler at the next check of its interpreter loop, which may fall inside
-a finalizer or a weak reference's callback (an import's module lock has one); what the handler
-raises there is ignored ("Exception ignored in ..."), and the command went on as if no Ctrl-C
-had come, ending with exit code 0 or sleeping on. :func:`rescue_interrupts` installs a
-``sys.unraisablehook`` that sees such a :class:`KeyboardInterrupt` and sends SIGINT to the
-process again a moment later, with the first Ctrl-C's handling restored, so that it is raised
-where the command can clean up.
+The handling itself, and the state it keeps (whether the first Ctrl-C has come), is
+:mod:`appell_interrupts`, which the command line imports too; this module only chooses the
+command (:func:`appell.io.cli.main`, imported after the handler of SIGINT is installed).
 
 Worker processes of a local Dask cluster do not receive Ctrl-C at all
 (:mod:`appell.simulation.sweep`); the command that started them stops them.
 """
 
-import os
-import signal
 import sys
 
+from appell_interrupts import EXIT_INTERRUPTED, interrupt_received, rescue_interrupts, run
+
 # nothing else at the top: until main() installs its handler, a Ctrl-C is Python's own (a
-# traceback), so this module imports only what Python has loaded already or at once (``signal``:
-# 1 ms; ``threading``, 1.5 ms more, is imported by the hook that needs it)
+# traceback), so this module imports only the standard library (appell_interrupts: ``os``,
+# ``signal``, ``sys``, loaded already or at once)
 
 __all__ = ["main", "rescue_interrupts", "interrupt_received", "EXIT_INTERRUPTED"]
 
-#: exit code of a command stopped by Ctrl-C: 128 + SIGINT
-EXIT_INTERRUPTED = 128 + signal.SIGINT
-_LINE = b"error: interrupted\n"
-_reported = False
-_received = False
 
+def _command_line():
+    from appell.io.cli import main as command
 
-def _report() -> None:
-    """Print the line once (straight to the file descriptor: safe inside a signal handler)."""
-    global _reported
-    if not _reported:
-        _reported = True
-        try:
-            os.write(2, (b"\n" if os.isatty(2) else b"") + _LINE)  # on a terminal, after its ^C
-        except OSError:
-            pass
-
-
-def _flush() -> None:
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError, AttributeError):
-            pass
-
-
-def _exit_now(signum, frame) -> None:
-    """A Ctrl-C while the first is handled, or after the command: exit at once."""
-    _report()
-    os._exit(EXIT_INTERRUPTED)
-
-
-def _interrupt(signum, frame) -> None:
-    """The first Ctrl-C: a :class:`KeyboardInterrupt` where the command is (module docstring)."""
-    global _received
-    _received = True
-    _handle(_exit_now)
-    raise KeyboardInterrupt
-
-
-def interrupt_received() -> bool:
-    """Whether the first Ctrl-C has come. A :class:`KeyboardInterrupt` raised inside the
-    initialisation of a C extension that the command imports as it runs (as NumPy's import of
-    ``datetime`` does) reaches the command as an :class:`ImportError` instead; an error that ends the command after a Ctrl-C is its
-    consequence, and the command ends as interrupted (exit 130), not with a traceback."""
-    return _received
-
-
-def _handle(handler) -> None:
-    try:
-        signal.signal(signal.SIGINT, handler)
-    except ValueError:  # not the main thread (an embedding program): leave its signals alone
-        pass
-
-
-#: seconds after a swallowed KeyboardInterrupt before SIGINT is sent again
-RESEND_AFTER = 0.02
-
-
-def _resend() -> None:
-    try:
-        os.kill(os.getpid(), signal.SIGINT)
-    except OSError:
-        pass
-
-
-def rescue_interrupts() -> None:
-    """Install the ``sys.unraisablehook`` of the module docstring (once; the hook in place
-    before it handles everything else)."""
-    previous = sys.unraisablehook
-    if getattr(previous, "appell_rescue", False):
-        return
-
-    def hook(info):
-        if isinstance(info.exc_value, KeyboardInterrupt):
-            if signal.getsignal(signal.SIGINT) is _exit_now:
-                _handle(_interrupt)  # the swallowed one was the first Ctrl-C: raise it again
-            import threading
-
-            timer = threading.Timer(RESEND_AFTER, _resend)
-            timer.daemon = True
-            timer.start()
-            return
-        previous(info)
-
-    hook.appell_rescue = True
-    sys.unraisablehook = hook
+    return command
 
 
 def main(argv=None, command=None) -> int:
     """Run the command line (``argv`` defaults to ``sys.argv[1:]``) and return its exit code.
     ``command``: the function that runs it (default :func:`appell.io.cli.main`, imported here,
     after the handler of SIGINT is installed), called as ``command(argv, standalone=False)``."""
-    global _reported
-    rescue_interrupts()
-    try:
-        if command is None:
-            # while appell is imported there is nothing to clean up, and a KeyboardInterrupt
-            # raised there can be lost: a C extension's initialisation reports it as an
-            # ImportError, which a library's optional import then swallows (the command ran
-            # on after a Ctrl-C 0.3 s after its start). A Ctrl-C here ends the process at once.
-            _handle(_exit_now)
-            from appell.io.cli import main as command
-        _handle(_interrupt)
-        code = command(argv, standalone=False)
-        _flush()
-        if code == EXIT_INTERRUPTED:
-            _reported = True  # the command line has printed the line
-        _handle(_exit_now)
-    except KeyboardInterrupt:  # during the import, or outside the command line's own handling
-        _handle(_exit_now)
-        _flush()
-        _report()
-        code = EXIT_INTERRUPTED
-    return code if isinstance(code, int) else 0
+    return run(argv, command, _command_line)
 
 
 if __name__ == "__main__":

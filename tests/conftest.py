@@ -69,7 +69,9 @@ NOT_NUMERICAL = {
 
 #: ``$APPELL_TEST_BACKEND=c``: ``numeric_model(derivation)`` is the compiled C model
 #: (:func:`appell.compile_c`) for the whole session, so that every test that reads
-#: ``numeric_model(derivation)`` runs its numbers through the C split; the default is NumPy.
+#: ``numeric_model(derivation)`` runs its numbers through the C split; the default is NumPy
+#: (the library's own default is 'auto', C where a compiler is found: the suite names the
+#: backend it checks, and tests/test_fast_default.py checks the library's default)
 BACKEND = os.environ.get("APPELL_TEST_BACKEND", "numpy")
 
 
@@ -82,15 +84,15 @@ def pytest_configure(config):
                                        "APPELL_SLOW=1")
     if BACKEND not in ("numpy", "c"):
         raise pytest.UsageError(f"APPELL_TEST_BACKEND must be 'numpy' or 'c', got {BACKEND!r}")
-    if BACKEND == "c":
-        _use_c_backend()
+    _use_backend(BACKEND)
 
 
-def _use_c_backend():
-    """Every ``numeric_model(derivation)`` without a backend gives the compiled C model."""
+def _use_backend(backend: str):
+    """Every ``numeric_model(derivation)`` without a backend gives the model of ``backend``."""
     from appell.numerics import boundary
 
-    boundary.DEFAULT_BACKEND = "c"
+    boundary.DEFAULT_BACKEND = backend
+    os.environ["APPELL_BACKEND"] = backend  # the same in the child processes (docs, command lines)
 
 
 #: ``$APPELL_SLOW=1``: run the tests marked ``slow`` too
@@ -113,7 +115,8 @@ HEAVY = {"test_docs.py", "test_docs_offline.py", "test_cli.py", "test_iftomm.py"
          "test_printed_equations.py", "test_servo_drive.py", "test_json_exact.py", "test_viewer_browser.py",
          "test_bicycle.py", "test_matrix_script.py", "test_inverse.py", "test_evidence.py", "test_result_schema.py",
          "test_mjcf.py", "test_implicit_jacobian.py", "test_urdf_pinocchio.py", "test_report_browser.py",
-         "test_cli_solver.py", "test_symbolic_bounds.py"}
+         "test_cli_solver.py", "test_symbolic_bounds.py", "test_api_cli_agree.py", "test_tree_route.py",
+         "test_derivation_cache.py", "test_mjcf_menagerie.py"}
 QUICK = os.environ.get("APPELL_QUICK") == "1"
 
 

@@ -93,3 +93,92 @@ def test_a_new_span_regenerates_equally_spaced_output_times():
     np.testing.assert_allclose(table.t_eval, np.linspace(0.0, 0.5, 6), rtol=0, atol=1e-15)
     np.testing.assert_allclose(table.given(t_end=1.0).t_eval, np.linspace(0.0, 1.0, 11), rtol=0, atol=1e-15)
     assert table.given(t_end=0.25).t_eval[-1] == 0.25
+
+
+# ------------------------------------------------------------------ every command and its twin (issue 45)
+# Each command of appell.io.cli is argument parsing, the workflow of appell.workflows and
+# printing: on every bundled example, the command (run in-process by click's runner) and its
+# Python twin (the workflow called from Python) print the same and give the same numbers; the
+# motion also equals the one of the plain public API, appell.simulate on the derivation (an
+# independent route through the options: the model's [simulation] table read by
+# SimulationOptions.from_model there, by command_options here). The derivation, the one step
+# that both take alike (load_derivation), is formed once per example and served to the command.
+import json  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from click.testing import CliRunner  # noqa: E402
+
+from appell import workflows  # noqa: E402
+from appell.examples import list_examples  # noqa: E402
+from appell.io.cli import cli  # noqa: E402
+
+#: the span of the runs compared (short: the test is about the path, not the motion)
+SPAN = 0.01
+
+
+def _command(*args):
+    result = CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
+    return result.exit_code, result.stdout, result.stderr
+
+
+def _collect():
+    out, err = [], []
+
+    def echo(text="", err_=False, **kw):
+        (err if kw.get("err", err_) else out).append(f"{text}\n")
+    return echo, out, err
+
+
+@pytest.mark.parametrize("name", list_examples())
+def test_every_command_and_its_twin_agree(name, tmp_path, monkeypatch):
+    """On example NAME: ``appell derive NAME --format json``, ``appell simulate NAME --t-end 0.01
+    --out m.csv --backend numpy`` and ``appell check NAME --t-end 0.01`` against their workflows
+    called from Python: the same printed lines, the same file byte for byte, the same exit code
+    (1 where the workflow raises ComputationError, the same message), and the motion of the
+    plain ``appell.simulate`` column by column."""
+    quiet = lambda *a, **k: None  # noqa: E731
+    derivation = workflows.derive_model(workflows.load_system(name, echo=quiet), formulas=True)
+    monkeypatch.setattr("appell.workflows.load_derivation", lambda *a, **k: derivation)
+    # derive
+    code, stdout, stderr = _command("derive", name, "--format", "json")
+    echo, out, err = _collect()
+    workflows.show_derivation(derivation, "json", echo=echo)
+    assert code == 0, stderr
+    assert json.loads(stdout) == json.loads("".join(out))
+    # simulate
+    code, stdout, stderr = _command("simulate", name, "--t-end", SPAN, "--out", tmp_path / "cli.csv",
+                                    "--backend", "numpy")
+    echo, out, err = _collect()
+    try:
+        solution = workflows.run_simulation(derivation, SPAN, "numpy")
+    except appell.AppellError as exc:  # the command refuses what the API refuses, with the same message
+        assert code == exc.exit_code and exc.message in stderr, (code, stderr)
+    else:
+        assert code == 0, stderr
+        workflows.save_simulation(derivation, solution, tmp_path / "api.csv", echo=echo)
+        assert (tmp_path / "cli.csv").read_bytes() == (tmp_path / "api.csv").read_bytes()
+        assert stdout.replace("cli.csv", "api.csv") == "".join(out)
+        _same(appell.simulate(derivation, SPAN), solution)
+    # check
+    code, stdout, stderr = _command("check", name, "--t-end", SPAN)
+    echo, out, err = _collect()
+    try:
+        workflows.check_model(derivation, t_end=SPAN, echo=echo)
+        twin = 0
+    except appell.ComputationError as exc:
+        twin = 1
+        assert exc.message in stderr
+    assert (code, stdout) == (twin, "".join(out)), stderr
+
+
+def test_examples_and_its_twin_list_and_copy_the_same(tmp_path):
+    """``appell examples`` prints example_listing(), one line per bundled model file with its
+    description; ``appell examples NAME --to DIR`` writes what copy_example writes: the file itself."""
+    code, stdout, _ = _command("examples")
+    assert code == 0 and stdout == workflows.example_listing() + "\n"
+    assert all(any(line.split()[:1] == [name] for line in stdout.splitlines()) for name in list_examples())
+    code, stdout, _ = _command("examples", "pendulum", "--to", tmp_path / "cli")
+    api = workflows.copy_example("pendulum", tmp_path / "api")
+    assert code == 0 and stdout == f"wrote {tmp_path / 'cli' / 'pendulum.toml'}\n"
+    assert (tmp_path / "cli" / "pendulum.toml").read_bytes() == api.read_bytes() == \
+        (Path(appell.examples.__file__).parent / "pendulum.toml").read_bytes()

@@ -28,7 +28,7 @@ LAYERS = {
     "numerics": 4,
     "simulation": 5,
     "control": 6, "reduction": 6,
-    "io": 7,
+    "io": 7, "workflows": 7,
     "view": 1,
 }
 
@@ -85,32 +85,7 @@ def test_no_layer_imports_a_higher_one():
 
 def test_no_import_circle_inside_a_layer():
     """Modules of one layer may import each other, but never in a circle."""
-    graph: dict[str, set[str]] = {}
-    names = {m for _, m in _modules()}
-    for path, module in _modules():
-        deps = set()
-        for _, target in _imports(path, module):
-            while target and target not in names:
-                target = target.rpartition(".")[0]
-            if target and target != module and target != "appell" and not module.startswith(target + "."):
-                deps.add(target)
-        graph[module] = deps
-    seen, stack, circles = set(), [], []
-
-    def visit(node):
-        if node in stack:
-            circles.append(stack[stack.index(node):] + [node])
-            return
-        if node in seen:
-            return
-        seen.add(node)
-        stack.append(node)
-        for nxt in sorted(graph.get(node, ())):
-            visit(nxt)
-        stack.pop()
-
-    for node in sorted(graph):
-        visit(node)
+    circles = _circles(_import_graph(list(_modules())))
     assert not circles, "import circles:\n" + "\n".join(" -> ".join(c) for c in circles)
 
 
@@ -223,3 +198,79 @@ def test_the_driver_reads_like_the_method():
                  and node.func.attr == "update" and isinstance(node.func.value, ast.Attribute)
                  and node.func.value.attr == "signs"]
     assert not mutations, mutations
+
+
+SOURCE = PACKAGE.parent
+#: the modules beside the package (pyproject.toml ``py-modules``): the entry point and its interrupt state
+TOP_LEVEL = ("appell_entry", "appell_interrupts")
+
+
+def _all_modules():
+    """The package's modules and the top-level modules beside it, with their files."""
+    yield from _modules()
+    for name in TOP_LEVEL:
+        yield SOURCE / f"{name}.py", name
+
+
+def _import_graph(modules) -> dict[str, set[str]]:
+    """module -> the modules among ``modules`` (``(path, name)`` pairs) that it imports, at module
+    level or inside a function; an import of ``appell`` itself (the package's ``__init__``, which
+    imports every layer) is left out."""
+    names = {m for _, m in modules}
+    graph: dict[str, set[str]] = {}
+    for path, module in modules:
+        deps = set()
+        for _, target in _imports(path, module):
+            while target and target not in names:
+                target = target.rpartition(".")[0]
+            if target and target != module and target != "appell" and not module.startswith(target + "."):
+                deps.add(target)
+        graph[module] = deps
+    return graph
+
+
+def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    seen, stack, circles = set(), [], []
+
+    def visit(node):
+        if node in stack:
+            circles.append(stack[stack.index(node):] + [node])
+            return
+        if node in seen:
+            return
+        seen.add(node)
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            visit(nxt)
+        stack.pop()
+
+    for node in sorted(graph):
+        visit(node)
+    return circles
+
+
+def test_no_import_circle_through_the_entry_point():
+    """No import circle anywhere, the entry point included (issue 45: ``appell_entry`` imported
+    ``appell.io.cli``, which imported ``appell_entry`` back for the interrupt state, a circle the
+    layer test could not see). The detector itself is checked on a graph with a known circle."""
+    assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c", "a"]]
+    graph = _import_graph(list(_all_modules()))
+    assert "appell.io.cli" in graph["appell_entry"]  # the entry point's import is seen
+    circles = _circles(graph)
+    assert not circles, "import circles:\n" + "\n".join(" -> ".join(c) for c in circles)
+
+
+def test_the_interrupt_state_needs_the_standard_library_only():
+    """``appell_interrupts`` is imported before appell (a Ctrl-C during the import of SymPy is
+    handled): it imports nothing but the standard library, and the entry point nothing else
+    at module level."""
+    import sys
+
+    for name in TOP_LEVEL:
+        tree = ast.parse((SOURCE / f"{name}.py").read_text(encoding="utf-8"))
+        top = {alias.name.split(".")[0] for node in tree.body if isinstance(node, ast.Import) for alias in node.names}
+        top |= {node.module.split(".")[0] for node in tree.body if isinstance(node, ast.ImportFrom)}
+        assert top <= set(sys.stdlib_module_names) | {"appell_interrupts"}, (name, top)
+    every = {alias.name.split(".")[0] for node in ast.walk(ast.parse((SOURCE / "appell_interrupts.py").read_text()))
+             if isinstance(node, ast.Import) for alias in node.names}
+    assert every <= set(sys.stdlib_module_names), every

@@ -519,12 +519,11 @@ def test_check_reports_first_integral_verdicts():
 
 def test_an_internal_error_is_reported_without_traceback(monkeypatch):
     """A bug (here: derive raising RuntimeError) gives 'error: internal error ...', exit 1, no traceback."""
-    import appell.io.cli as cli_module
 
     def broken(*args, **kwargs):
         raise RuntimeError("boom")
 
-    monkeypatch.setattr(cli_module, "derive_model", broken)
+    monkeypatch.setattr("appell.workflows.load_derivation", broken)
     monkeypatch.delenv("APPELL_DEBUG", raising=False)
     result = run("derive", "pendulum")
     assert result.exit_code == 1

@@ -21,7 +21,9 @@ def test_every_suffix_has_one_importer():
     assert importer_for("robot.URDF").name == "URDF" and importer_for("a/b.xml").name == "MJCF"
     assert importer_for("model.toml") is None
     assert len(formats.suffixes()) == len(set(formats.suffixes()))
-    assert described() == ("a model file (.toml), a robot description (.urdf) or a MuJoCo model (.xml, .mjcf)")
+    assert importer_for("gripper.sdf").name == "SDF"
+    assert described() == ("a model file (.toml), a robot description (.urdf), a MuJoCo model (.xml, .mjcf) or an "
+                           "SDFormat model (.sdf)")
 
 
 def test_a_new_format_is_one_entry(tmp_path, monkeypatch):

@@ -125,6 +125,42 @@ def test_reaction_outputs_in_a_model_file(tmp_path):
     assert "pin.toml:4:" in str(info.value) and "joint 'pin'" in str(info.value)
 
 
+def test_the_command_lines_reactions_in_and_no_cache(tmp_path, monkeypatch):
+    """``appell simulate MODEL --reactions-in ground`` writes the world-axes reactions of a model
+    file that asks for the child's axes (the numbers of load_model(path, reactions_in="ground"),
+    the Python twin), and ``--no-cache`` stores no derivation."""
+    import csv
+
+    from click.testing import CliRunner
+
+    from appell import load_model
+    from appell.io.cli import cli
+
+    monkeypatch.setenv("APPELL_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.delenv("APPELL_NO_CACHE", raising=False)
+    path = tmp_path / "pin.toml"
+    path.write_text(MODEL.replace("READS", 'reactions_in = "child"') + '[initial]\n"pin" = 0.7\n"pin\'" = 1.3\n')
+
+    def row(*flags):
+        out = tmp_path / "m.csv"
+        result = CliRunner().invoke(cli, ["simulate", str(path), "--t-end", "0", "--out", str(out), *flags])
+        assert result.exit_code == 0, result.output
+        with open(out) as f:
+            first = next(csv.DictReader(f))
+        return np.array([float(first[f"{s}_pin_{a}"]) for s in "FM" for a in "xyz"])
+
+    model = numeric_model(derive(load_model(path, reactions_in="ground")))
+    out = model.outputs(0.0, Q, W, solution=model.solve(0.0, Q, W))
+    world = np.array([out[f"{s}_pin_{a}"] for s in "FM" for a in "xyz"])
+    assert row("--no-cache", "--reactions-in", "ground") == pytest.approx(world, abs=1e-9)
+    assert not (tmp_path / "cache" / "derivations").exists() or not any((tmp_path / "cache" / "derivations").glob("*.json"))
+    child = row()  # the file's own choice, stored in the cache
+    assert any((tmp_path / "cache" / "derivations").glob("*.json"))
+    assert np.abs(child[:3] - world[:3]).max() > 1e-3  # another frame: other components
+    assert np.linalg.norm(child[:3]) == pytest.approx(np.linalg.norm(world[:3]), rel=1e-9)
+    assert row("--reactions-in", "ground") == pytest.approx(world, abs=1e-9)  # another cache entry, not the child's
+
+
 def test_the_report_says_where_each_reaction_is_read():
     """The HTML report's table of reactions names, for each vector output, the body it acts
     on, the point it is taken about and the axes: a joint read on the parent about a marker

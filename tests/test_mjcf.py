@@ -148,7 +148,7 @@ def four_bar_xml() -> str:
 
 def test_a_four_bar_with_a_connect_equality_matches_appells_own_four_bar():
     xml, start = four_bar_xml()
-    with pytest.warns(AppellNote, match="holds by itself along z"):
+    with pytest.warns(AppellNote, match="the rows of connect 'C' along z"):
         mine = numeric_model(appell.derive(mjcf_system(xml)))
     theirs = numeric_model(appell.derive(appell.load_model("four_bar")))
     assert mine.constraint_names == ("C_x", "C_y")
@@ -169,23 +169,26 @@ def test_a_four_bar_with_a_connect_equality_matches_appells_own_four_bar():
         assert abs(lam["C_x"] - ref_lam["C_x"]) <= 1e-9 * scale and abs(lam["C_y"] - ref_lam["C_y"]) <= 1e-9 * scale
 
 
-def test_what_appell_does_not_apply_is_named_and_what_it_cannot_map_is_refused(tmp_path):
+def test_what_has_no_meaning_here_is_one_note_and_what_cannot_be_mapped_is_refused_by_name(tmp_path):
     soft = CHAIN.replace('<default><geom contype="0" conaffinity="0"/></default>',
-                         '<default><joint damping="0.1"/></default>')
+                         '<default><joint damping="0.1"/></default>').replace('name="yaw"', 'name="yaw" range="-1 1" limited="true"')
     with pytest.warns(AppellNote) as notes:
         mjcf_system(soft)
-    text = " ".join(str(n.message) for n in notes)
-    assert "contacts between geoms" in text and "damping" in text
-    tendon = CHAIN.replace("</worldbody>", '</worldbody><tendon><fixed name="t"><joint joint="yaw" coef="1"/>'
-                                           '</fixed></tendon><equality><tendon tendon1="t"/></equality>')
-    with pytest.raises(ModelError, match="equality 'equality0' is of a kind appell does not map"):
+    assert len(notes) == 1  # one grouped note
+    text = str(notes[0].message)
+    assert "contacts between geoms" in text and "joint limits" in text and "damping" not in text  # damping applied
+    spatial = CHAIN.replace("</worldbody>", '<site name="s1" pos="0 0 0"/></worldbody><tendon><spatial name="t" '
+                            'stiffness="3"><site site="s1"/><site site="s2"/></spatial></tendon>').replace(
+        '<joint name="wrist" type="ball"/>', '<joint name="wrist" type="ball"/><site name="s2"/>')
+    with pytest.raises(ModelError, match=r"tendon 'tendon_t' \(MJCF tendon 't'\) is a spatial tendon"):
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore", AppellNote)  # the tendon itself is named in a note
-            mjcf_system(tendon)
-    two = CHAIN.replace('<joint name="extend" type="slide" axis="1 0 0"/>',
-                        '<joint name="extend" type="slide" axis="1 0 0"/><joint name="roll" axis="1 0 0"/>')
-    with pytest.raises(ModelError, match="body 'slider' has 2 joints"):
-        mjcf_system(two)
+            warnings.simplefilter("ignore", AppellNote)
+            mjcf_system(spatial)
+    dry = CHAIN.replace('<joint name="shoulder"', '<joint name="shoulder" frictionloss="0.3"')
+    with pytest.raises(ModelError, match="frictionloss on joint 'shoulder'"):
+        mjcf_system(dry)
+    with pytest.warns(AppellNote, match="frictionloss"):
+        mjcf_system(dry, frictionloss="ignore")
     bad = tmp_path / "broken.xml"
     bad.write_text("<mujoco><worldbody><body><joint type='hinge'/></body></worldbody>")
     with pytest.raises(ModelError, match="MuJoCo could not read the model"):

@@ -7,8 +7,8 @@ and ``mujoco`` are installed, MuJoCo's own URDF compiler turns a shipped robot i
 transmissions and plug-in tags are left out first, as they need files or change nothing
 that is compared), appell reads that MJCF, and at 20 random states its accelerations and
 every joint's force and moment are compared with MuJoCo's ``mj_forward`` and ``cfrc_int``
-(constraints, damping and armature off in MuJoCo: appell applies none of them and says
-so), to 1e-9 relative, as for the chain of tests/test_mjcf.py. Robots: the UR5 (six hinges)
+(constraints off in MuJoCo: friction loss, read with ``frictionloss='ignore'``, and limits;
+damping and armature on in both), to 1e-9 relative, as for the chain of tests/test_mjcf.py. Robots: the UR5 (six hinges)
 and the double pendulum. Skipped where ``example-robot-data`` (414 MB) is not installed; it is
 not a test dependency.
 """
@@ -66,11 +66,9 @@ def test_a_shipped_robot_as_mjcf_matches_mujoco(name, relative, tmp_path):
     path = shipped_as_mjcf(ROBOTS / relative, tmp_path / f"{name}.xml")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AppellNote)  # joint limits and actuator ranges: named, not applied
-        model = numeric_model(appell.derive(mjcf_system(path)))
+        model = numeric_model(appell.derive(mjcf_system(path, frictionloss="ignore")))
     mj = load_mjcf(path)
-    mj.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
-    mj.dof_damping[:] = 0.0
-    mj.dof_armature[:] = 0.0
+    mj.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)  # friction loss and limits: not applied
     data = mujoco.MjData(mj)
     names = [mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(mj.njnt)]
     assert all(mj.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE for j in range(mj.njnt))

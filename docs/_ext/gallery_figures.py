@@ -3,7 +3,7 @@
 While the gallery page is read, every section whose title names bundled examples
 (```car```, ```pendulum```, ...; :func:`appell.examples.list_examples`) gets, at its end,
 one figure per example: the example is derived and simulated with its model file's
-``[simulation]`` settings over at most :data:`SPAN` seconds (:func:`appell.io.cli.run_simulation`,
+``[simulation]`` settings over at most :data:`SPAN` seconds (:func:`appell.workflows.run_simulation`,
 NumPy backend) and its reactions (multipliers lambda(t)) and controls are drawn by the
 report's plotting (:func:`appell.io.report.solution_figures`). An example without
 constraints shows its coordinates; one without initial values says so. The images are
@@ -26,7 +26,7 @@ PAGE, SPAN, SAMPLES = "gallery", 5.0, 301
 def example_figure(name: str) -> tuple[str, list[str]]:
     """``(caption, PNG data URIs)`` of the bundled example ``name`` (no image when it has no
     initial values)."""
-    from appell.io.cli import command_options, derive_model, load_system, run_simulation
+    from appell.workflows import command_options, derive_model, load_system, run_simulation
     from appell.io.report import solution_figures
 
     system = load_system(name)

@@ -6,53 +6,67 @@ functions and the split solve, NumPy or C) -> :func:`simulate`, :func:`cross_che
 :func:`to_text`, :func:`to_latex`, :func:`to_json` print a derivation.
 """
 
+import importlib
 import sys
 
-from appell.numerics.boundary import numeric_model
-from appell.numerics.crosscheck import CrossCheckReport, augmented_solve, cross_check
-from appell.core.derive import derive
-from appell.core.equations import Derivation, ReactionFormulas, ReducedEquations
-from appell.errors import AppellError, ComputationError, InitialValueError, ModelError, PainleveError, ResourceError
-from appell.model import (
-    AppliedForce,
-    AppliedTorque,
-    Constraint,
-    Control,
-    FirstIntegral,
-    Output,
-    Friction,
-    Parameter,
-    Particle,
-    Program,
-    RigidBody,
-    System,
-    acceleration_constraint,
-    holonomic,
-    nonholonomic,
-)
-from appell.io.modelfile import load_model, loads_model
-from appell.numerics.numeric import NumericModel, StateSolution
-from appell.numerics.linearise import LinearModel, linearise, steady_motion
-from appell.numerics.stability import StabilitySweep, stability_sweep
-from appell.simulation.events import Event
-from appell.simulation.initial import InitialState, check_initial, complete_initial
-from appell.simulation.energy_balance import EnergyBalance, energy_balance
-from appell.simulation.simulate import simulate
-from appell.simulation.inverse import InverseDynamics, inverse_dynamics
-from appell.simulation.solution import Solution
-from appell.reduction.cyclic import RouthReduction, cyclic_coordinates, routh_reduction
-from appell.reduction.first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
-from appell.symbols import derivative_symbol, t
-from appell.numerics.codegen import compile_c
-from appell.simulation.sweep import SweepResult, parameter_grid, sweep, sweep_cluster
-from appell.control.servo import ControlledDerivation, derive_controlled
-from appell.control.servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
-from appell.io.printing import display_latex, read_json, to_json, to_latex, to_text
-from appell.io.report import render_report, write_report
-from appell.io.viewer import MotionView, view_motion
-from appell.mechanism.sympy_system import from_sympy
+#: public name -> the module that defines it, imported on first use (PEP 562): ``import appell``
+#: costs no SymPy, SciPy, xarray, pandas or matplotlib; ``from appell import simulate`` imports
+#: what the simulation needs
+_LAZY = {
+    **dict.fromkeys(('numeric_model',), 'appell.numerics.boundary'),
+    **dict.fromkeys(('CrossCheckReport', 'augmented_solve', 'cross_check'), 'appell.numerics.crosscheck'),
+    **dict.fromkeys(('derive',), 'appell.core.derive'),
+    **dict.fromkeys(('Derivation', 'ReactionFormulas', 'ReducedEquations'), 'appell.core.equations'),
+    **dict.fromkeys(('AppellError', 'ComputationError', 'InitialValueError', 'ModelError', 'PainleveError', 'ResourceError'), 'appell.errors'),
+    **dict.fromkeys(('AppliedForce', 'AppliedTorque', 'Constraint', 'Control', 'FirstIntegral', 'Output', 'Friction', 'Parameter', 'Particle', 'Program', 'RigidBody', 'System', 'acceleration_constraint', 'holonomic', 'nonholonomic'), 'appell.model'),
+    **dict.fromkeys(('load_model', 'loads_model'), 'appell.io.modelfile'),
+    **dict.fromkeys(('derive_file',), 'appell.io.derivation_cache'),
+    **dict.fromkeys(('NumericModel', 'StateSolution'), 'appell.numerics.numeric'),
+    **dict.fromkeys(('LinearModel', 'linearise', 'steady_motion'), 'appell.numerics.linearise'),
+    **dict.fromkeys(('StabilitySweep', 'stability_sweep'), 'appell.numerics.stability'),
+    **dict.fromkeys(('Event',), 'appell.simulation.events'),
+    **dict.fromkeys(('InitialState', 'check_initial', 'complete_initial'), 'appell.simulation.initial'),
+    **dict.fromkeys(('EnergyBalance', 'energy_balance'), 'appell.simulation.energy_balance'),
+    **dict.fromkeys(('simulate',), 'appell.simulation.simulate'),
+    **dict.fromkeys(('InverseDynamics', 'inverse_dynamics'), 'appell.simulation.inverse'),
+    **dict.fromkeys(('LoopModel', 'loop_model'), 'appell.numerics.loops'),
+    **dict.fromkeys(('Solution',), 'appell.simulation.solution'),
+    **dict.fromkeys(('RouthReduction', 'cyclic_coordinates', 'routh_reduction'), 'appell.reduction.cyclic'),
+    **dict.fromkeys(('FirstIntegralCheck', 'FirstIntegralReport', 'check_first_integrals'), 'appell.reduction.first_integrals'),
+    **dict.fromkeys(('derivative_symbol', 't'), 'appell.symbols'),
+    **dict.fromkeys(('compile_c',), 'appell.numerics.codegen'),
+    **dict.fromkeys(('SweepResult', 'parameter_grid', 'sweep', 'sweep_cluster'), 'appell.simulation.sweep'),
+    **dict.fromkeys(('ControlledDerivation', 'derive_controlled'), 'appell.control.servo'),
+    **dict.fromkeys(('ControlledModel', 'augmented_controlled_solve', 'cross_check_controlled'), 'appell.control.servo_numeric'),
+    **dict.fromkeys(('display_latex', 'read_json', 'to_json', 'to_latex', 'to_text'), 'appell.io.printing'),
+    **dict.fromkeys(('render_report', 'write_report'), 'appell.io.report'),
+    **dict.fromkeys(('MotionView', 'view_motion'), 'appell.io.viewer'),
+    **dict.fromkeys(('from_sympy',), 'appell.mechanism.sympy_system'),
+}
 
 __version__ = "0.1.0"
+
+
+#: subpackages and modules reached as attributes (``appell.io.printing``) after ``import appell``
+_SUBMODULES = {"arguments", "control", "core", "errors", "examples", "files", "io", "mechanism", "model", "numerics",
+               "reduction", "rigid_tree", "simulation", "symbols", "view"}
+
+
+def __getattr__(name: str):
+    """A public name imported on first use (PEP 562), then kept in the module."""
+    module = _LAZY.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(module), name)
+    elif name in _SUBMODULES:
+        value = importlib.import_module(f"{__name__}.{name}")
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
 
 
 def _register_display() -> None:
@@ -63,6 +77,10 @@ def _register_display() -> None:
     shell = getattr(ipython, "get_ipython", lambda: None)() if ipython is not None else None
     if shell is None or not hasattr(shell, "display_formatter"):
         return
+    from appell.control.servo import ControlledDerivation
+    from appell.core.equations import Derivation
+    from appell.io.printing import display_latex
+
     formatter = shell.display_formatter.formatters["text/latex"]
     for kind in (Derivation, ControlledDerivation):
         formatter.for_type(kind, display_latex)
@@ -75,10 +93,11 @@ __all__ = [
     "CrossCheckReport", "Derivation", "FirstIntegral", "Friction", "ModelError", "NumericModel", "Output",
     "PainleveError", "Parameter", "Particle",
     "Program", "ReactionFormulas", "ReducedEquations", "ResourceError", "RigidBody", "StateSolution", "System",
-    "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "holonomic",
+    "acceleration_constraint", "augmented_solve", "cross_check", "derivative_symbol", "derive", "derive_file",
+    "holonomic",
     "load_model", "loads_model", "nonholonomic", "t",
     "Event", "InitialState", "InitialValueError", "Solution", "check_initial", "complete_initial", "simulate",
-    "InverseDynamics", "inverse_dynamics",
+    "InverseDynamics", "inverse_dynamics", "LoopModel", "loop_model",
     "EnergyBalance", "energy_balance",
     "LinearModel", "StabilitySweep", "linearise", "stability_sweep", "steady_motion",
     "FirstIntegralCheck", "FirstIntegralReport", "RouthReduction", "check_first_integrals", "cyclic_coordinates",

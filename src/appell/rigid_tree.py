@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-__all__ = ["RigidTree", "TreeNode", "Wrench", "RECURSIVE_DEPTH", "RECURSIVE_FROM", "ROUTES"]
+__all__ = ["RigidTree", "TreeNode", "Wrench", "LoopRow", "RECURSIVE_DEPTH", "RECURSIVE_FROM", "ROUTES"]
 
 #: ``route='auto'`` takes the recursions from this many speeds (a 6-joint arm) on chains of
 #: at least :data:`RECURSIVE_DEPTH` moving joints: below, the expanded blocks stay small
@@ -77,6 +77,33 @@ class Wrench:
 
 
 @dataclass(frozen=True)
+class LoopRow:
+    """One holonomic row of a loop closure between two bodies of the tree (``-1``: the ground),
+    stated by the tree's own quantities so that its Jacobian row and bias come from the
+    recursion's spatial velocities and accelerations, never from expanded products:
+
+    * ``kind = 'point'``: ``e . (p_a - p_b) = 0`` with ``p_a`` the point ``point_a`` of body
+      ``a`` (its frame), ``p_b`` likewise, ``e = axis_a`` a world direction; the multiplier
+      is the force ``lambda e`` on body ``a`` at ``p_a`` and ``-lambda e`` on body ``b`` at ``p_b``;
+    * ``kind = 'align'``: ``(R_a u) . (R_b v) = 0`` with ``u = axis_a`` fixed in body ``a``
+      and ``v = axis_b`` fixed in body ``b``; the multiplier is the moment
+      ``lambda (R_a u) x (R_b v)`` on body ``a`` and its opposite on body ``b``.
+
+    ``name`` is the constraint's name in the system, ``closure`` the closure it belongs to.
+    The entries are parameters' expressions or numbers (no coordinate)."""
+
+    name: str
+    closure: str
+    kind: str
+    body_a: int
+    point_a: sp.ImmutableMatrix
+    axis_a: sp.ImmutableMatrix
+    body_b: int
+    point_b: sp.ImmutableMatrix
+    axis_b: sp.ImmutableMatrix
+
+
+@dataclass(frozen=True)
 class RigidTree:
     """Bodies in an order where each parent comes first (:class:`TreeNode`), the gravity
     vector ``g`` (world axes) and ``potential``, the bodies' potential energy in it as the
@@ -102,6 +129,7 @@ class RigidTree:
     potential: sp.Expr = sp.S.Zero
     wrenches: tuple[Wrench, ...] = ()
     route: str = "auto"
+    loops: tuple[LoopRow, ...] = ()  # the loop closures' rows (:class:`LoopRow`), in the system's order
 
     def __post_init__(self):
         if self.route not in ROUTES:

@@ -193,11 +193,16 @@ class ControlledModel:
         dep, switched = tuple(self.derivation.real_partition.dependent), False
         if s:
             dep, _, switched = usable_partition(Jf, dep, self.constraint_names)
-        a, lam = split_solve(M, N @ xi + e, Jf, Kf @ xi + cf, dep)
-        # servo multipliers (2.3) at the solution: least squares of E = J_f^T lam + J_g^T mu
-        J = np.vstack([Jf, Jg])
-        E = M @ a + N @ xi + e
-        mu = np.linalg.lstsq(J.T, E, rcond=None)[0][s:] if J.size else np.zeros(0)
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is named below
+            a, lam = split_solve(M, N @ xi + e, Jf, Kf @ xi + cf, dep)
+            _finite_solution(self, t, pv, (("controls", xi), ("accelerations", a), ("multipliers", lam)))
+            # servo multipliers (2.3) at the solution: least squares of E = J_f^T lam + J_g^T mu
+            J = np.vstack([Jf, Jg])
+            E = M @ a + N @ xi + e
+            _finite_solution(self, t, pv, (("forces M a + N xi + e", E),))
+        with np.errstate(over="ignore", invalid="ignore"):
+            mu = np.linalg.lstsq(J.T, E, rcond=None)[0][s:] if J.size else np.zeros(0)
+        _finite_solution(self, t, pv, (("servo multipliers (2.3)", mu),))
         return ControlledSolution(xi, a, lam, mu, tuple(dep), switched)
 
     # ------------------------------------------------- Dynamics protocol
@@ -270,6 +275,19 @@ class ControlledModel:
         return out if acc is None else np.where(np.isnan(out), acc, out)
 
 
+def _finite_solution(model, t, pv, parts) -> None:
+    """Refuse a controlled solution with an entry that is not finite (an overflow: a parameter
+    of extreme size), naming the part and the parameters of extreme size."""
+    for what, values in parts:
+        if not np.all(np.isfinite(values)):
+            from appell.numerics.inertia import extreme_parameters
+
+            extreme = extreme_parameters(model.parameter_names, pv)
+            raise ComputationError(f"the {what} of {model.name!r} overflow the floating range at t = {float(t):.10g}"
+                                   + (f": {extreme}" if extreme else ""),
+                                   hint="give the parameters values of ordinary size, or rescale the model's units")
+
+
 def augmented_controlled_solve(model: ControlledModel, t, y, p=None) -> ControlledSolution:
     """The independent route: ``[M N -J_f^T; J_f K_f 0; J_g K_g 0] [a; xi; lambda] = [-e; -c_f; -c_g]``.
 
@@ -283,7 +301,16 @@ def augmented_controlled_solve(model: ControlledModel, t, y, p=None) -> Controll
     top = np.hstack([M, N, -Jf.T])
     mid = np.hstack([Jf, Kf, np.zeros((s, s))])
     bot = np.hstack([Jg, Kg, np.zeros((r, s))])
-    x = np.linalg.solve(np.vstack([top, mid, bot]), -np.concatenate([e, cf, cg]))
+    try:
+        x = np.linalg.solve(np.vstack([top, mid, bot]), -np.concatenate([e, cf, cg]))
+    except np.linalg.LinAlgError:
+        from appell.numerics.inertia import extreme_parameters
+
+        extreme = extreme_parameters(model.parameter_names, pv)
+        raise ComputationError(f"the augmented system [M N -J_f^T; J_f K_f 0; J_g K_g 0] of the cross-check is "
+                               f"singular at t = {float(t):.10g}" + (f": {extreme}" if extreme else ""),
+                               hint="give the parameters values of ordinary size (or rescale the model's units); "
+                                    "a singular configuration or servo constraint otherwise") from None
     return ControlledSolution(x[n:n + k], x[:n], x[n + k:], np.zeros(r), ())
 
 

@@ -158,7 +158,8 @@ def usable_tree(system: System, kin: Kinematics):
     if owned != list(range(len(kin.speeds))):
         return None
     by_name = {node.body: node for node in tree.nodes}
-    if sorted(by_name) != sorted(b.name for b in system.bodies) or len(by_name) != len(tree.nodes):
+    massive = [name for name, node in by_name.items() if not _massless(node)]  # a massless frame adds no body
+    if sorted(massive) != sorted(b.name for b in system.bodies) or len(by_name) != len(tree.nodes):
         return None
     for body in system.bodies:
         node = by_name[body.name]
@@ -166,6 +167,11 @@ def usable_tree(system: System, kin: Kinematics):
         if node.mass != body.mass or sp.Matrix(node.inertia) != inertia:
             return None
     return tree if _same_positions(system, kin, tree) else None
+
+
+def _massless(node) -> bool:
+    """A tree node without mass or inertia (a frame between joints: no body of the system)."""
+    return node.mass == 0 and all(e == 0 for e in node.inertia)
 
 
 def _same_positions(system, kin, tree) -> bool:

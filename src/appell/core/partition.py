@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-import scipy.linalg as sla
 import sympy as sp
 
 from appell.core.simplification import determinant, tidy
@@ -144,6 +143,8 @@ def pivoted_columns(Jn: np.ndarray) -> tuple[np.ndarray, int]:
             "state, where appell decides its rank: values beyond the floating-point range",
             hint="rescale the units or the parameters, or write the constraints so that their values stay "
                  "moderate (F = 0 rather than F^100 = 0)")
+    import scipy.linalg as sla  # here: a derivation read from the cache needs no SciPy
+
     _, R, piv = sla.qr(Jn, pivoting=True, mode="economic")
     d = np.abs(np.diag(R))
     rank = int(np.sum(d > RANK_TOL * max(d[0], 1e-300))) if d.size else 0

@@ -1,8 +1,25 @@
-"""Bundled examples: Python builders (:mod:`.catalog`) and model files in this folder."""
+"""Bundled examples: Python builders (:mod:`.catalog`) and model files in this folder.
 
-from .catalog import CATALOG, car, chaplygin_sleigh, cone_particle, cubic_acceleration, knife_edge, pendulum, rolling_ball
+The builders (SymPy) are imported on first use of their names (:data:`BUILDERS`, :data:`CATALOG`,
+``pendulum``, ...): listing and locating the model files (``appell examples``) needs none."""
 
 from pathlib import Path as _Path
+
+#: the builders of :mod:`.catalog`, imported on first use
+_CATALOG_NAMES = ("CATALOG", "car", "chaplygin_sleigh", "cone_particle", "cubic_acceleration", "knife_edge", "pendulum",
+                  "rolling_ball")
+
+
+def __getattr__(name):
+    if name in _CATALOG_NAMES:
+        from . import catalog
+
+        return getattr(catalog, name)
+    if name == "BUILDERS":  # name of each bundled <name>.toml -> the Python builder of the same system
+        global BUILDERS
+        BUILDERS = _builders()
+        return BUILDERS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _builders() -> dict:
@@ -12,6 +29,7 @@ def _builders() -> dict:
     from .benchmark_examples import BENCHMARK_EXAMPLES
     from .drive_examples import DRIVE_EXAMPLES
     from .event_examples import EVENT_EXAMPLES
+    from .catalog import CATALOG
     from .machine_examples import driveshaft, steering_gear
     from .mechanism_examples import benchmark_bicycle, four_bar, rolling_disc
     from .servo_examples import SERVO_EXAMPLES
@@ -23,10 +41,6 @@ def _builders() -> dict:
             **DRIVE_EXAMPLES, **SUPPORT_EXAMPLES,
             "four_bar": four_bar, "rolling_disc": rolling_disc, "benchmark_bicycle": benchmark_bicycle,
             "driveshaft": driveshaft, "steering_gear": steering_gear}
-
-
-#: name of each bundled ``<name>.toml`` -> the Python builder of the same system
-BUILDERS = _builders()
 
 
 def list_examples() -> list[str]:

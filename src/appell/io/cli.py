@@ -1,82 +1,87 @@
-"""The command line ``appell``: a thin layer over the Python API.
+"""The command line ``appell``: argument parsing, one workflow of :mod:`appell.workflows`
+per command, printing.
 
-=========================  ===========================================================
-``appell derive MODEL``    :func:`appell.derive` (or :func:`appell.control.servo.derive_controlled`
-                           for a model with servo constraints), printed as text, LaTeX or JSON
-``appell simulate MODEL``  :func:`appell.simulation.simulate.simulate`, exported as CSV, HDF5 or netCDF
-``appell check MODEL``     :func:`appell.cross_check` (independent routes) and the energy balance
-``appell report MODEL``    :func:`appell.io.report.write_report`: one self-contained HTML page
-``appell sweep MODEL``     :func:`appell.simulation.sweep.sweep`: a parameter grid on Dask
-``appell cluster``         :func:`appell.simulation.sweep.sweep_cluster`: a local Dask cluster kept for sweeps
-``appell examples``        the bundled model files (:mod:`appell.examples`)
-=========================  ===========================================================
+============================  ===========================================================================
+``appell derive MODEL``       :func:`~appell.workflows.show_derivation`: :func:`appell.derive` (or
+                              :func:`appell.control.servo.derive_controlled` for a model with servo
+                              constraints), printed as text, LaTeX or JSON
+``appell simulate MODEL``     :func:`~appell.workflows.run_simulation`, exported as CSV, HDF5 or netCDF
+``appell animate MODEL``      :func:`~appell.workflows.save_motion`: the 3-D view, a GIF or an MP4
+``appell inverse MODEL``      :func:`~appell.workflows.run_inverse`: drives and reactions along a motion
+``appell check MODEL``        :func:`~appell.workflows.check_model`: independent routes, the energy balance
+``appell report MODEL``       :func:`~appell.workflows.report_model`: one self-contained HTML page
+``appell stability MODEL``    :func:`~appell.workflows.stability_analysis`: eigenvalues against a parameter
+``appell sweep MODEL``        :func:`~appell.workflows.sweep_model`: a parameter grid on Dask
+``appell cluster``            :func:`~appell.workflows.keep_cluster`: a local Dask cluster kept for sweeps
+``appell examples``           the bundled model files (:mod:`appell.examples`)
+============================  ===========================================================================
 
-``MODEL`` is a model file (docs/model-format.md) or the name of a bundled example.
+
+``MODEL`` is a model file (docs/model-format.md) or the name of a bundled example. A new
+flag is a ``click.option`` on its command here, passed to the workflow's argument of the
+same meaning (an integrator's option: a field of
+:class:`~appell.simulation.options.SimulationOptions` and :data:`~appell.workflows.SOLVER_OPTIONS`).
 
 Exit codes: 0 success; 1 the computation failed (:class:`~appell.errors.ComputationError`,
 a failed cross-check, a failed integration, a failed run of a sweep) or the environment
 did (:class:`~appell.errors.ResourceError`, an :class:`OSError` such as a full disk or a
-read-only file system, an unreachable Dask scheduler); 2 bad input
+read-only file system, an unreachable Dask scheduler, a missing optional package:
+:class:`~appell.errors.MissingDependencyError`); 2 bad input
 (:class:`~appell.errors.ModelError`, bad options, a missing file, an output path that is not
 a regular file); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM). Errors are printed as
 ``error: <message>`` (and a hint) on stderr, never as a traceback, and no output file
 (nor a temporary one) is left behind.
+
+Only click, the standard library and the light top of :mod:`appell.workflows` are imported
+with this module (``appell --help`` and ``appell examples`` need no SymPy): what a workflow
+needs is imported when it runs.
 """
 
 from __future__ import annotations
 
 import functools
-import json
 import os
-import shutil
 import signal
 import sys
 from pathlib import Path
 
 import click
 
-from appell.core.equations import is_controlled
-from appell_entry import interrupt_received
-
-from appell.core.equations import formulas_unavailable
+from appell import workflows
 from appell.errors import AppellError, ComputationError, ModelError
-from appell.files import atomic_path, default_file_name, output_target
-from appell.symbols import canonical_name
-from appell.numerics.boundary import numeric_model
+from appell_interrupts import interrupt_received, rescue_interrupts
 
-__all__ = ["main", "cli", "load_system", "derive_model", "derivation_json", "command_options",
-           "run_simulation", "export_solution", "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
+# the workflows (derivation_json, command_options, export_solution, ...) are appell.workflows'; this
+# module still answers their names (its __getattr__), as before they moved there
+__all__ = ["main", "cli", "load_system", "derive_model", "run_simulation", "parse_assignments", "output_file",
+           "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 #: exit codes of a command stopped by Ctrl-C (SIGINT) or SIGTERM: 128 + the signal number
 EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
 
-#: file suffix -> export format of ``appell simulate --out``
-OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"}
-
-#: the integrator's command-line options (``--max-step`` is ``max_step``); each defaults to the
-#: model's ``[simulation]`` value (:func:`command_options`)
-SOLVER_OPTIONS = ("method", "rtol", "atol", "max_step", "t0", "samples", "output_step", "stabilization")
+#: the workflows (light to import: what they need is imported when they run); the steps every command
+#: takes are names of this module too (a test replaces one to see the command go through it)
+derive_model, run_simulation = workflows.derive_model, workflows.run_simulation
+OUTPUT_FORMATS, SOLVER_OPTIONS = workflows.OUTPUT_FORMATS, workflows.SOLVER_OPTIONS
 
 
-# ---------------------------------------------------------------- the API the commands use
-def resolve_model(model: str) -> Path:
-    """The model file named by ``model``: an existing path, or a bundled example's or
-    benchmark's name."""
-    path = Path(model)
-    if path.is_file():
-        return path
-    from appell.examples import example_path, list_benchmarks, list_examples
+def load_system(model: str, overrides=None, floating_base: bool = False):
+    """:func:`appell.workflows.load_system` with the model's notes printed as ``note:`` lines
+    (and the command's ``--reactions-in``)."""
+    ctx = click.get_current_context(silent=True)
+    reactions_in = ctx.meta.get("appell.reactions_in") if ctx is not None else None
+    return workflows.load_system(model, overrides, floating_base, echo=click.echo, reactions_in=reactions_in)
 
-    if path.suffix == "" and (model in list_examples() or model in list_benchmarks()):
-        return example_path(model)
-    if path.exists():
-        from appell.mechanism.formats import described
 
-        raise ModelError(f"{model}: not a file", hint=f"give the path of {described()}")
-    raise ModelError(f"{model}: no such model file",
-                     hint="give the path of a model file, or a bundled example: " + ", ".join(list_examples())
-                     + "; or a benchmark: " + ", ".join(list_benchmarks()))
+def __getattr__(name):  # the workflows' names, as before they moved there (from appell.io.cli import ...)
+    if name == "is_controlled":
+        from appell.core.equations import is_controlled
+
+        return is_controlled
+    if name in workflows.__all__:
+        return getattr(workflows, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def parse_assignments(items) -> dict[str, str]:
@@ -91,261 +96,26 @@ def parse_assignments(items) -> dict[str, str]:
     return out
 
 
-def load_system(model: str, overrides=None, floating_base: bool = False):
-    """Load a model file (or bundled example) with parameter / initial-value ``overrides``;
-    ``floating_base`` puts a ``.urdf`` robot's root link on a free joint."""
-    import warnings
+def output_file(path: Path, option: str) -> Path:
+    """``path`` checked before any work is done: its folder exists (else a bad ``option``)
+    and it is a file a write may replace (:func:`appell.files.output_target`: a device, a
+    FIFO or a directory is refused)."""
+    from appell.files import output_target
 
-    from appell.errors import AppellNote
-    from appell.io.modelfile import load_model
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", AppellNote)
-        system = load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base)
-    for w in caught:  # what the model's files hold that appell does not apply: one line each
-        if issubclass(w.category, AppellNote):
-            click.echo(f"note: {w.message}", err=True)
-        else:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    return system
+    if not path.parent.is_dir():
+        raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint=option)
+    output_target(path)
+    return path
 
 
-def derive_model(system, dependent=None, formulas: bool = False):
-    """:func:`appell.derive`, or :func:`appell.control.servo.derive_controlled` when the system has
-    servo constraints (method.md §4); ``formulas`` also computes the reduced equations (1.4)
-    and the reaction formulas (1.5) now (they are otherwise built on first use). A status
-    line shows the stage on a terminal (:func:`appell.io.progress.status`)."""
-    from appell.io.progress import status
-
-    dependent = [canonical_name(d) for d in dependent] if dependent else None
-    with status(f"deriving {system.name}"):
-        if system.servo_constraints:
-            from appell.control.servo import derive_controlled
-
-            derivation = derive_controlled(system, dependent=dependent)
-        else:
-            from appell.core.derive import derive
-
-            derivation = derive(system, dependent=dependent)
-            check_inertia_at_start(derivation)
-        if formulas and (is_controlled(derivation) or formulas_unavailable(derivation.partition) is None
-                         and derivation.inertia.tree is None):
-            derivation.reduced, derivation.reactions  # noqa: B018 (computed and cached here)
-    return derivation
-
-
-def check_inertia_at_start(derivation) -> None:
-    """Refuse a derivation whose inertia is not positive on every admissible motion, before
-    its formulas are formed (they would divide by zero: ``zoo`` in the printed equations, a
-    singular matrix in the first solve): :func:`appell.numerics.inertia.check_inertia` at the
-    model's initial state (its ``[simulation]`` t0), which names the motion without inertia
-    as a combination of the speeds. Where the model gives no initial coordinates, a speed
-    whose row of ``C^T M C`` vanishes identically (no inertia in any state) is named."""
-    system = derivation.system
-    values = system.initial_values
-    if all(q.name in values for q in system.coordinates):
-        from appell.numerics.inertia import check_inertia
-        from appell.simulation.initial import check_blocks_at_start
-
-        model = numeric_model(derivation)
-        t0 = float(dict(system.settings).get("t0", 0.0))
-        y = [float(values.get(name, 0.0)) for name in model.state_names]
-        check_blocks_at_start(model, t0, y, model.default_parameters)  # entries beyond the range: named
-        check_inertia(model, t0, y, model.default_parameters)
-        return
-    if formulas_unavailable(derivation.partition) is not None or derivation.inertia.tree is not None:
-        return  # no closed form (or the recursive route): the inertia is checked where the numbers are computed
-    reduced = derivation.reduced
-    matrix = reduced.mass_matrix
-    if matrix is None:
-        return
-    empty = [a.name for a, row in zip(reduced.independent, matrix.tolist()) if all(e == 0 for e in row)]
-    if empty:
-        raise ModelError(f"the reduced mass matrix C^T M C of {system.name!r} has a zero row for "
-                         f"{', '.join(empty)}: that motion has no inertia in any state, so its acceleration is "
-                         "not determined",
-                         hint="give it inertia (a mass or a moment of inertia in the kinetic energy), or constrain it")
-
-
-def internal_stability(derivation, solution=None):
-    """``(linearisation, note)``: the internal dynamics of a controlled derivation linearised
-    at its initial state (:func:`appell.control.internal_dynamics.internal_linearisation`), at
-    the first row of ``solution`` when given; ``(None, None)`` without internal dynamics or
-    initial values, ``(None, reason)`` when the linearisation cannot be computed there."""
-    if not is_controlled(derivation) or derivation.internal_dimension == 0 or not derivation.system.initial:
-        return None, None
-    from appell.control.internal_dynamics import internal_linearisation
-
-    time = state = None
-    if solution is not None and solution.t.size:
-        model = numeric_model(derivation)
-        time, state = float(solution.t[0]), [float(solution.states[n][0]) for n in model.state_names]
-    try:
-        return internal_linearisation(derivation, time, state), None
-    except ComputationError as exc:
-        return None, f"the internal dynamics were not linearised at the initial state: {exc}"
-
-
-def _warn_internal(linearisation, note) -> None:
-    """``warning: ...`` on stderr for an unstable internal dynamics (or one not linearised)."""
-    message = linearisation.warning() if linearisation is not None else note
-    if message:
-        click.echo(f"warning: {message}", err=True)
-
-
-def derivation_json(derivation, reduction=None) -> dict:
-    """The JSON document of ``appell derive --format json``.
-
-    Keys (at least): ``coordinates``, ``speeds``, ``independent``, ``dependent``,
-    ``reduced_equations`` (1.4)/(2.4), ``multipliers`` (constraint name -> formula
-    (1.5)/(2.5)), ``controls`` (control name -> control law from the dynamic conditions
-    (2.3); empty without servo constraints), ``first_integrals`` (name -> expression) and,
-    with ``reduction`` (a :class:`~appell.reduction.cyclic.RouthReduction`), ``routh``.
-    Every expression is a string for reading; ``symbols`` and ``exact`` give them exactly
-    (:func:`appell.io.printing.read_json`). ``outputs``: output name -> ``expression``,
-    ``unit``, ``description``.
-    """
-    from appell.io.printing import document_expressions, json_document
-
-    system = derivation.system
-    out = document_expressions(derivation)
-    out.setdefault("outputs", {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
-                               for o in system.outputs})
-    linearisation, _ = internal_stability(derivation)
-    if linearisation is not None:
-        out["internal_linearisation"] = linearisation.to_json()
-    out.setdefault("controls", {})
-    if not out.get("first_integrals"):
-        out["first_integrals"] = {f.name: f.expr for f in system.first_integrals}
-    if reduction is not None:
-        out["routh"] = {
-            "cyclic": [q.name for q in reduction.cyclic],
-            "momenta": {h.name: v for h, v in zip(reduction.momenta, reduction.momentum_values)},
-            **dict(reduction.equations()),
-        }
-    return json_document(out, derivation)
-
-
-def command_options(system, t_end: float | None = None, **solver):
-    """The :class:`~appell.simulation.options.SimulationOptions` of a command: the model's
-    run settings (:meth:`~appell.simulation.options.SimulationOptions.from_model`), then
-    ``t_end`` and the command line's solver options (:data:`SOLVER_OPTIONS`; a value of None
-    is not given) through :meth:`~appell.simulation.options.SimulationOptions.given`, the
-    same two steps as :func:`appell.simulation.simulate.simulate`: ``t0``, ``method``,
-    ``rtol``, ``atol``, ``max_step``, ``stabilization`` (``'none'`` for None), and the output
-    times as ``samples`` or ``output_step``."""
-    from appell.arguments import number
-    from appell.simulation.options import SimulationOptions
-
-    solver = {k: v for k, v in solver.items() if v is not None}
-    unknown = sorted(set(solver) - set(SOLVER_OPTIONS))
-    if unknown:
-        raise TypeError(f"unknown solver option(s) {', '.join(unknown)}")
-    if "samples" in solver and "output_step" in solver:
+def _solver(solver: dict) -> dict:
+    """The command's ``solver`` options, ``--samples`` and ``--output-step`` exclusive."""
+    if solver.get("samples") is not None and solver.get("output_step") is not None:
         raise click.UsageError("give --samples or --output-step, not both")
-    if "stabilization" in solver:
-        solver["stabilization"] = None if solver["stabilization"] == "none" else solver["stabilization"]
-    if t_end is not None:
-        t_end = number(t_end, "t_end (--t-end)", hint="give a finite final time")
-    return SimulationOptions.from_model(system).given(t_end=t_end, **solver)
+    return solver
 
 
-def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy", solver=None, **options):
-    """Simulate ``derivation`` with the model's settings (:func:`command_options`), the
-    command line's ``solver`` options (``{name: value or None}``, :data:`SOLVER_OPTIONS`)
-    overriding them.
-
-    ``t_end`` equal to the start time gives the single row at the initial state.
-    Initial values the model does not give are computed from the given ones
-    (``complete=True, adjust=()``); given values that violate a constraint are refused
-    (:class:`~appell.errors.InitialValueError`, exit code 2) unless completion is requested,
-    by ``complete=True`` in the model's ``[simulation]`` table or ``adjust=None`` /
-    ``adjust=[names]`` here (``--complete`` / ``--adjust NAME``); the changes are events of
-    the solution. ``complete = false`` in the table checks the values only.
-    ``backend`` ('numpy', 'c', 'auto') chooses the numeric code of a plain derivation
-    (:meth:`~appell.core.equations.Derivation.compiled`); a controlled one runs as it is.
-    Raises :class:`ComputationError` when the integration fails (status -1).
-    """
-    from appell.io.progress import status
-    from appell.simulation.simulate import simulate
-
-    with status(f"compiling the numeric code of {derivation.system.name} ({backend})"):
-        if backend == "numpy" or is_controlled(derivation):
-            model = derivation
-            numeric_model(derivation)  # built and kept here, under the status line
-        else:
-            model = numeric_model(derivation, backend)
-    opts = command_options(derivation.system, t_end, **(solver or {}))
-    # the command completes missing values; given ones change only where the model says so
-    opts = opts.given(complete=True, adjust=None if opts.complete else ()).given(**options)
-    if opts.t_end == opts.t0:
-        opts = opts.given(t_eval=[opts.t0])
-    check_output_memory(derivation, model, opts)
-    solution = simulate(model, options=opts)
-    if solution.status < 0:
-        singular = [e for e in solution.events if e.kind == "singular"]
-        hint = ("try another integration method or tighter tolerances ([simulation] method, rtol, atol), "
-                "or a shorter --t-end")
-        if singular:
-            hint = (f"end the run before it (--t-end below {singular[-1].t:.6g}) or change the geometry or the "
-                    "start so that the motion avoids this position: appell passes a singular position only where "
-                    "one branch continues the motion with continuous positions and velocities")
-        error = ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
-                                 hint=hint)
-        error.solution = solution  # the motion up to the failure, for the output files
-        raise error
-    return solution
-
-
-def check_output_memory(derivation, model, opts) -> None:
-    """Refuse, before integrating, output times whose recorded rows would not fit in memory
-    (:func:`appell.simulation.resources.check_memory`): ``--samples 100000000`` is a
-    :class:`~appell.errors.ResourceError` at once, not a failure after minutes."""
-    if opts.t_eval is None:
-        return
-    from appell.numerics.compiled_loop import supports
-    from appell.numerics.dynamics import Dynamics
-    from appell.simulation.resources import check_run_memory
-
-    dynamics = model if isinstance(model, Dynamics) else numeric_model(derivation)
-    compiled = opts.method == "DOP853" and supports(model) and not opts.project_output
-    check_run_memory(dynamics, len(opts.t_eval), compiled)
-
-
-def solver_line(solution) -> str:
-    """One line: the integrator's settings as they ran (from the solution's metadata) and
-    its statistics, e.g. ``solver: RK45, rtol 1e-06, atol 1e-09, max_step inf, stabilization
-    projection; 52 steps, 320 evaluations, 3 projections``."""
-    settings, stats = dict(solution.metadata.settings), solution.statistics
-    if settings.get("stabilization") in (None, "None"):
-        settings["stabilization"] = "none"
-    names = [k for k in ("rtol", "atol", "max_step", "stabilization") if k in settings]
-    return (f"solver: {settings.get('method', '?')}, " + ", ".join(f"{k} {settings[k]}" for k in names)
-            + f"; {stats.steps} steps, {stats.nfev} evaluations, {stats.projections} projections")
-
-
-def export_solution(solution, path: Path) -> Path:
-    """Write ``solution`` to ``path`` in the format of its suffix (:data:`OUTPUT_FORMATS`).
-
-    A writer whose package is not installed (a netCDF engine, say) raises
-    :class:`~appell.errors.MissingDependencyError` naming the package, not an internal error.
-    """
-    from appell.errors import MissingDependencyError
-
-    kind = OUTPUT_FORMATS[path.suffix.lower()]
-    try:
-        if kind == "csv":
-            return solution.to_csv(path)
-        if kind == "hdf5":
-            return solution.to_hdf5(path)
-        return solution.to_netcdf(path)
-    except ModuleNotFoundError as exc:
-        package = (exc.name or "").split(".")[0] or str(exc)
-        raise MissingDependencyError(f"writing {path.suffix} files ({kind}) needs the package {package!r}, "
-                                     "which is not installed",
-                                     hint=f"install it with: pip install {package}, or write .csv") from None
-
-
+# ---------------------------------------------------------------- errors and exit codes
 # ---------------------------------------------------------------- the commands
 _NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
@@ -399,7 +169,7 @@ class _AppellGroup(click.Group):
                 code = _out_of_memory()
         except Exception as exc:  # a bug, not the user's input: no traceback unless asked for
             # unless a Ctrl-C came first (raised inside a C extension's import, it arrives as an
-            # ImportError: appell_entry.interrupt_received)
+            # ImportError: appell_interrupts.interrupt_received)
             code = _interrupted() if interrupt_received() else _internal_error(exc)
         else:
             code = rv if isinstance(rv, int) else EXIT_OK
@@ -470,6 +240,7 @@ def _report_error(message: str, hint: str | None, code: int) -> int:
     return code
 
 
+# ---------------------------------------------------------------- the options
 _CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 _model_argument = click.argument("model", metavar="MODEL")
 _backend_option = click.option("--backend", type=click.Choice(["auto", "c", "numpy"]), default="auto", show_default=True,
@@ -482,9 +253,39 @@ _floating_option = click.option("--floating-base", "floating_base", is_flag=True
                                      "a humanoid): world translations and yaw, pitch, roll, the motion of Pinocchio's free flyer.")
 
 
+def _keep(key):
+    """A click callback keeping an option's value in the command's context (``ctx.meta``), for
+    :func:`_derivation`: the options every model command has, without a parameter each."""
+    def callback(ctx, param, value):
+        ctx.meta[key] = value
+        return value
+    return callback
+
+
+_cache_option = click.option("--no-cache", "no_cache", is_flag=True, expose_value=False,
+                             callback=_keep("appell.no_cache"),
+                             help="Derive the model again instead of reading the derivation stored by an earlier run "
+                                  "(the derivation cache, $APPELL_CACHE_DIR), and store nothing.")
+_reactions_option = click.option("--reactions-in", "reactions_in", default=None, metavar="AXES", expose_value=False,
+                                 callback=_keep("appell.reactions_in"),
+                                 help="Axes of the joint reactions of a [mechanism] model: world (ground), joint, "
+                                      "child, parent or a body's name (default: the model file's reactions_in, else "
+                                      "world).")
+
+
 def _model_options(command):
-    """``--set`` and ``--floating-base``, the options of every command that loads a model."""
-    return _set_option(_floating_option(command))
+    """``--set``, ``--floating-base``, ``--no-cache`` and ``--reactions-in``, the options of every
+    command that loads a model."""
+    return _set_option(_floating_option(_cache_option(_reactions_option(command))))
+
+
+def _derivation(model, assignments, floating_base, dependent=None, formulas: bool = False):
+    """The derivation of MODEL with the command's ``--set`` / ``--floating-base`` /
+    ``--no-cache`` / ``--reactions-in`` (:func:`appell.workflows.load_derivation`)."""
+    meta = click.get_current_context().meta
+    return workflows.load_derivation(model, parse_assignments(assignments), floating_base, dependent, formulas,
+                                     cache=False if meta.get("appell.no_cache") else None,
+                                     reactions_in=meta.get("appell.reactions_in"), echo=click.echo)
 
 
 _complete_option = click.option("--complete", is_flag=True,
@@ -494,13 +295,6 @@ _complete_option = click.option("--complete", is_flag=True,
 _adjust_option = click.option("--adjust", "adjust", multiple=True, metavar="NAME",
                               help="An initial value to compute from the constraints instead of taking it as given "
                                    "(repeatable, e.g. --adjust \"xi'\"); implies --complete with these values only.")
-
-
-def _completion(complete: bool, adjust) -> dict:
-    """``run_simulation`` options of ``--complete`` / ``--adjust``: none, automatic, or the named values."""
-    if adjust:
-        return {"complete": True, "adjust": [canonical_name(a) for a in adjust]}
-    return {"complete": True, "adjust": None} if complete else {}
 
 
 class _Positive(click.ParamType):
@@ -525,32 +319,79 @@ class _Positive(click.ParamType):
         return number
 
 
+class _Choice(click.Choice):
+    """A choice whose names are read on first use (``load()``): the integrators' names come
+    from the simulation layer, which ``appell --help`` does not import."""
+
+    def __init__(self, load):
+        self._load, self.case_sensitive = load, True
+
+    @property
+    def choices(self):
+        return tuple(self._load())
+
+    @choices.setter
+    def choices(self, value):  # click's own __init__ is not run
+        pass
+
+
+class _Option(click.Option):
+    """An option whose help is written on first use (``help_of()``: the defaults of
+    :class:`~appell.simulation.options.SimulationOptions`, read where they are kept)."""
+
+    def __init__(self, *args, help_of=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._help_of = help_of
+
+    def get_help_record(self, ctx):
+        if self._help_of is not None:
+            self.help, self._help_of = self._help_of(), None
+        return super().get_help_record(ctx)
+
+
+def _defaults():
+    from appell.simulation.options import DEFAULT_SAMPLES, SimulationOptions
+
+    return SimulationOptions(), DEFAULT_SAMPLES
+
+
+def _methods():
+    from appell.simulation.simulate import METHODS
+
+    return list(METHODS)
+
+
 def _solver_options(command):
     """The integrator's options (:data:`SOLVER_OPTIONS`), each defaulting to the model's
     ``[simulation]`` value, collected into the command's ``solver`` argument
-    (``{name: value, or None where not given}``) for :func:`command_options`."""
-    from appell.simulation.options import DEFAULT_SAMPLES, SimulationOptions
-    from appell.simulation.simulate import METHODS
-
-    positive, default = _Positive(), SimulationOptions()
+    (``{name: value, or None where not given}``) for :func:`~appell.workflows.command_options`.
+    Their choices and the defaults in their help are read when they are used."""
+    positive = _Positive()
     table = " (default: the model's [simulation] value, else {})."
+
+    def default(text, of):
+        return lambda: text + table.format(of(*_defaults()))
+
+    def option(*names, text, of=None, **kwargs):
+        return click.option(*names, cls=_Option, default=None, help_of=default(text, of) if of else None,
+                            help=None if of else text, **kwargs)
+
     options = [
-        click.option("--method", type=click.Choice(list(METHODS)), default=None,
-                     help="Integration method" + table.format(default.method)),
-        click.option("--rtol", type=positive, default=None, metavar="R",
-                     help="Relative tolerance of the integrator" + table.format(f"{default.rtol:g}".replace("e-0", "e-"))),
-        click.option("--atol", type=positive, default=None, metavar="A",
-                     help="Absolute tolerance of the integrator" + table.format(f"{default.atol:g}".replace("e-0", "e-"))),
-        click.option("--max-step", "max_step", type=_Positive(infinite=True), default=None, metavar="H",
-                     help="Largest integration step" + table.format("unbounded")),
-        click.option("--t0", "t0", type=float, default=None, metavar="T",
-                     help="Start time; the initial values hold at t0" + table.format(f"{default.t0:g}")),
-        click.option("--samples", type=click.IntRange(min=2), default=None, metavar="N",
-                     help="N equally spaced output times from t0 to t_end" + table.format(DEFAULT_SAMPLES)),
-        click.option("--output-step", "output_step", type=positive, default=None, metavar="H",
-                     help="Output times t0, t0 + H, ... and t_end (excludes --samples)."),
-        click.option("--stabilization", type=click.Choice(["projection", "baumgarte", "none"]), default=None,
-                     help="Constraint drift control" + table.format(default.stabilization)),
+        option("--method", type=_Choice(_methods), text="Integration method", of=lambda d, n: d.method),
+        option("--rtol", type=positive, metavar="R", text="Relative tolerance of the integrator",
+               of=lambda d, n: f"{d.rtol:g}".replace("e-0", "e-")),
+        option("--atol", type=positive, metavar="A", text="Absolute tolerance of the integrator",
+               of=lambda d, n: f"{d.atol:g}".replace("e-0", "e-")),
+        option("--max-step", "max_step", type=_Positive(infinite=True), metavar="H", text="Largest integration step",
+               of=lambda d, n: "unbounded"),
+        option("--t0", "t0", type=float, metavar="T", text="Start time; the initial values hold at t0",
+               of=lambda d, n: f"{d.t0:g}"),
+        option("--samples", type=click.IntRange(min=2), metavar="N",
+               text="N equally spaced output times from t0 to t_end", of=lambda d, n: n),
+        option("--output-step", "output_step", type=positive, metavar="H",
+               text="Output times t0, t0 + H, ... and t_end (excludes --samples)."),
+        option("--stabilization", type=click.Choice(["projection", "baumgarte", "none"]),
+               text="Constraint drift control", of=lambda d, n: d.stabilization),
     ]
 
     @functools.wraps(command)
@@ -563,6 +404,7 @@ def _solver_options(command):
     return with_solver
 
 
+# ---------------------------------------------------------------- the commands
 @click.group(name="appell", cls=_AppellGroup, context_settings=_CONTEXT)
 @click.version_option(package_name="appell", prog_name="appell", message="%(prog)s %(version)s")
 def cli():
@@ -574,7 +416,7 @@ def cli():
     """
 
 
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="derive", context_settings=_CONTEXT)
 @_model_argument
 @click.option("--format", "fmt", type=click.Choice(["text", "latex", "json"]), default="text", show_default=True,
               help="Output format; JSON gives each expression as text and exactly (read it with "
@@ -589,55 +431,24 @@ def cli():
                    "reactions ((1.5), also solved in t, q, w), outputs (e.g. joint forces and moments, "
                    "in t, q, w, a and the multipliers) or controls (control laws and (2.3)).")
 @_model_options
-def derive(model, fmt, dependent, routh, assignments, floating_base, only):
+def derive_command(model, fmt, dependent, routh, assignments, floating_base, only):
     """Print the reduced equations (1.4) and one reaction formula per constraint (1.5).
 
     For a model with servo constraints: the dynamic conditions (2.3), the reduced
     equations (2.4), the reactions (2.5) and the control laws.
     """
-    system = load_system(model, parse_assignments(assignments), floating_base)
     reduction = None
     if routh:
         from appell.reduction.cyclic import routh_reduction
 
-        reduction = routh_reduction(system)
-        system = reduction.system
-    derivation = derive_model(system, dependent, formulas=True)
-    linearisation, note = internal_stability(derivation)
-    if fmt == "json":
-        out = derivation_json(derivation, reduction)
-        click.echo(json.dumps(out, indent=2))
-    elif fmt == "latex":
-        from appell.io.printing import to_latex
-
-        body = to_latex(derivation, only or None)
-        click.echo((reduction.to_latex() + "\n\n" if reduction is not None else "") + body)
+        reduction = routh_reduction(load_system(model, parse_assignments(assignments), floating_base))
+        derivation = derive_model(reduction.system, dependent, formulas=True)
     else:
-        from appell.io.printing import to_text
-
-        body = to_text(derivation, only or None)
-        click.echo((reduction.to_text() + "\n\n" if reduction is not None else "") + body)
-        if linearisation is not None and (not only or "controls" in only):
-            click.echo(linearisation.to_text())
-    if system.frictions:
-        click.echo("note: the equations above are those of the ideal constraints; the friction of "
-                   + ", ".join(f.name for f in system.frictions) + " adds Q_f = (dv_t/dw)^T F_t to Q (sliding: "
-                   "F_t = -mu_k |N| v_t/|v_t| - c v_t, N by its formula (1.5); sticking: v_t = 0), applied by "
-                   "simulate and check (docs/friction.md)", err=True)
-    _warn_internal(linearisation, note)
+        derivation = _derivation(model, assignments, floating_base, dependent, formulas=True)
+    workflows.show_derivation(derivation, fmt, reduction, only, echo=click.echo)
 
 
-def output_file(path: Path, option: str) -> Path:
-    """``path`` checked before any work is done: its folder exists (else a bad ``option``)
-    and it is a file a write may replace (:func:`appell.files.output_target`: a device, a
-    FIFO or a directory is refused)."""
-    if not path.parent.is_dir():
-        raise click.BadParameter(f"directory {str(path.parent)!r} does not exist", param_hint=option)
-    output_target(path)
-    return path
-
-
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="simulate", context_settings=_CONTEXT)
 @_model_argument
 @click.option("--t-end", type=float, default=None, metavar="T",
               help="Final time (default: the model's [simulation] t_end, else 10). "
@@ -651,7 +462,7 @@ def output_file(path: Path, option: str) -> Path:
 @_model_options
 @_complete_option
 @_adjust_option
-def simulate(model, t_end, out, plot, backend, assignments, floating_base, complete, adjust, solver):
+def simulate_command(model, t_end, out, plot, backend, assignments, floating_base, complete, adjust, solver):
     """Simulate the motion with its reactions, controls and constraint residuals.
 
     Columns (CSV, HDF5, netCDF): t, each coordinate, each speed, each acceleration,
@@ -671,26 +482,15 @@ def simulate(model, t_end, out, plot, backend, assignments, floating_base, compl
     for target in (out_path, Path(plot) if plot else None):
         if target is not None:
             output_file(target, "'--out/--plot'")
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
+    derivation = _derivation(model, assignments, floating_base)
     try:
-        solution = run_simulation(derivation, t_end, backend, solver, **_completion(complete, adjust))
+        solution = run_simulation(derivation, t_end, backend, _solver(solver), **workflows.completion(complete, adjust))
     except ComputationError as exc:
-        raise _keep_failed_motion(exc, out_path, plot) from exc
-    if out_path is not None:
-        export_solution(solution, out_path)
-    if plot:
-        solution.plot(plot)
-    _echo_redundancy(derivation)
-    click.echo(solution.summary())
-    click.echo(solver_line(solution))
-    _warn_internal(*internal_stability(derivation, solution))
-    for path in (out_path, plot):
-        if path:
-            click.echo(f"wrote {path}")
+        raise workflows.keep_failed_motion(exc, out_path, plot) from exc
+    workflows.save_simulation(derivation, solution, out_path, plot, echo=click.echo)
 
 
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="animate", context_settings=_CONTEXT)
 @_model_argument
 @click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE",
               help="FILE.html (the interactive 3-D view, self-contained), FILE.gif or FILE.mp4 (a movie; "
@@ -706,7 +506,7 @@ def simulate(model, t_end, out, plot, backend, assignments, floating_base, compl
 @_model_options
 @_complete_option
 @_adjust_option
-def animate(model, out, t_end, fps, frames, backend, assignments, floating_base, complete, adjust, solver):
+def animate_command(model, out, t_end, fps, frames, backend, assignments, floating_base, complete, adjust, solver):
     """Simulate the motion and save it as a picture that moves: the mechanism with the force
     and moment at each joint and contact (arrows scaled to the largest), paths, a time
     slider and play/pause in the page; the same drawing as a GIF or MP4.
@@ -715,46 +515,19 @@ def animate(model, out, t_end, fps, frames, backend, assignments, floating_base,
     their joints and inertia; a model written by its energies from its [view] table, else
     its bodies as spheres, else the point of its first coordinates (said in a note).
     """
-    from appell.errors import MissingDependencyError
-    from appell.io.viewer import MOVIE_SUFFIXES, view_motion
-
     path = Path(out) if out else None
-    if path is not None and path.suffix.lower() not in (".html", ".htm") + MOVIE_SUFFIXES:
+    if path is not None and path.suffix.lower() not in (".html", ".htm", ".gif", ".mp4"):
         raise click.BadParameter(f"cannot tell what to write from {path.suffix or '(no suffix)'!r}; name the "
                                  "file .html, .gif or .mp4", param_hint="'--out'")
     if path is not None:
         output_file(path, "'--out'")
-    if path is not None and path.suffix.lower() == ".mp4":
-        from matplotlib import animation
-
-        if not animation.writers.is_available("ffmpeg"):  # before the simulation, not after it
-            raise MissingDependencyError("writing an MP4 video needs ffmpeg, which is not installed",
-                                         hint="install ffmpeg (Debian: apt-get install ffmpeg), or write a .gif "
-                                              "or .html")
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
-    solution = run_simulation(derivation, t_end, backend, solver, **_completion(complete, adjust))
-    click.echo(solution.summary().splitlines()[0])
-    motion = view_motion(derivation, solution)
-    if motion.scene.get("note"):
-        click.echo(f"note: {motion.scene['note']}", err=True)
-    path = path if path is not None else default_file_name(system.name, "-motion.html")
-    output_target(path)
-    if path.suffix.lower() in MOVIE_SUFFIXES:
-        from tqdm import tqdm
-
-        from appell.io.progress import is_terminal
-
-        count = min(len(motion.scene["t"]), frames)
-        with tqdm(total=count, desc="appell: frames", unit="frame", disable=not is_terminal(sys.stderr),
-                  leave=False) as bar:
-            motion.save(path, fps=fps, max_frames=frames, progress=bar.update)
-    else:
-        motion.save(path)
-    click.echo(f"wrote {path}")
+    workflows.check_movie_writer(path)  # before the simulation, not after it
+    derivation = _derivation(model, assignments, floating_base)
+    solution = run_simulation(derivation, t_end, backend, _solver(solver), **workflows.completion(complete, adjust))
+    workflows.save_motion(derivation, solution, path, fps, frames, echo=click.echo)
 
 
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="inverse", context_settings=_CONTEXT)
 @_model_argument
 @click.option("--trajectory", "trajectory", type=click.Path(exists=True, dir_okay=False), required=True,
               metavar="FILE.csv", help="The motion: a column t and one per coordinate (by name); speeds "
@@ -766,173 +539,20 @@ def animate(model, out, t_end, fps, frames, backend, assignments, floating_base,
               help="Where to write t, the motion, drive_<speed>, lambda_<constraint> and the joint forces and "
                    "moments (default: <model name>-inverse.csv).")
 @_model_options
-def inverse(model, trajectory, drives, out, assignments, floating_base):
+def inverse_command(model, trajectory, drives, out, assignments, floating_base):
     """Inverse dynamics: the drive forces (torques) along the driven speeds, every reaction
     and every joint's force and moment along a given motion (what RNEA gives for a robot).
 
     A closed loop names its drives with --drive (as many as the loop leaves degrees of
     freedom); the drives and the reactions must then be determined by the motion.
     """
-    import numpy as np
-
-    from appell.simulation.inverse import inverse_dynamics
-
-    table = _read_trajectory(Path(trajectory))
+    table = workflows.read_trajectory(Path(trajectory))  # a bad file is bad input before the derivation
     path = output_file(Path(out), "'--out'") if out else None
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
-    numeric = numeric_model(derivation)
-    missing = [n for n in ("t",) + tuple(numeric.coordinate_names) if n not in table]
-    if missing:
-        raise ModelError(f"{trajectory}: no column {', '.join(missing)}",
-                         hint="columns: t and the coordinates " + ", ".join(numeric.coordinate_names))
-    q = np.stack([table[n] for n in numeric.coordinate_names], axis=1)
-    from appell.simulation.recording import acceleration_name
-
-    given = lambda names: np.stack([table[n] for n in names], 1) if all(n in table for n in names) else None  # noqa
-    w = given(numeric.speed_names)
-    a = given([acceleration_name(n) for n in numeric.speed_names]) if w is not None else None
-    result = inverse_dynamics(derivation, table["t"], q, w, a, drives=list(drives) or None)
-    path = path if path is not None else default_file_name(system.name, "-inverse.csv")
-    output_target(path)
-    result.to_csv(path)
-    for name, values in result.drives.items():
-        k = int(np.argmax(np.abs(values)))
-        click.echo(f"drive_{name}: largest |value| {abs(values[k]):.6g} at t = {result.t[k]:.6g}")
-    if result.multipliers:
-        click.echo(f"largest velocity-level residual of the given motion: {result.residual:.3e}")
-    click.echo(f"{'derived' if w is None else 'given'} speeds and accelerations; {result.t.size} rows")
-    click.echo(f"wrote {path}")
+    derivation = _derivation(model, assignments, floating_base)
+    workflows.run_inverse(derivation, trajectory, drives, path, echo=click.echo, table=table)
 
 
-def _read_trajectory(path: Path) -> dict:
-    """The columns (NumPy arrays) of a CSV file of numbers with a header row, by name."""
-    import csv
-
-    import numpy as np
-
-    try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ModelError(f"cannot read the trajectory: {exc}", where=str(path)) from None
-    if len(rows) < 2:
-        raise ModelError("the trajectory needs a header row and at least one row of numbers", where=str(path))
-    header = [h.strip() for h in rows[0]]
-    columns: dict[str, list[float]] = {h: [] for h in header}
-    for line, row in enumerate(rows[1:], start=2):
-        if not row:
-            continue
-        if len(row) != len(header):
-            raise ModelError(f"{len(row)} values for {len(header)} columns", where=f"{path}:{line}")
-        for h, cell in zip(header, row):
-            try:
-                value = float(cell)
-            except ValueError:
-                raise ModelError(f"column {h!r}: {cell!r} is not a number", where=f"{path}:{line}") from None
-            if not np.isfinite(value):
-                raise ModelError(f"column {h!r}: {cell!r} is not a finite number", where=f"{path}:{line}")
-            columns[h].append(value)
-    return {h: np.array(v) for h, v in columns.items()}
-
-
-def failed_path(path: Path) -> Path:
-    """Where a failed run's motion goes instead of ``path``: ``<stem>.failed<suffix>``
-    beside it, so that a failed run never replaces a result and its name says it failed."""
-    return path.with_name(f"{path.stem}.failed{path.suffix}")
-
-
-def _keep_failed_motion(exc, out_path: Path | None, plot) -> Exception:
-    """A failed integration keeps what it computed (as SciPy's result does): the motion up
-    to the failure is written beside ``--out`` and ``--plot`` (:func:`failed_path`; HDF5
-    and netCDF files also carry the status -1 and the message as attributes), the files
-    asked for are not touched, and the error says where and up to when. Returns the error
-    to raise (``exc`` itself when there was nothing to write)."""
-    solution = getattr(exc, "solution", None)
-    if solution is None or solution.t.size == 0 or (out_path is None and not plot):
-        return exc
-    written = []
-    if out_path is not None:
-        written.append(str(export_solution(solution, failed_path(out_path))))
-    if plot:
-        target = failed_path(Path(plot))
-        solution.plot(target)
-        written.append(str(target))
-    kept = (f"the motion up to t = {solution.t[-1]:.10g}, where it failed, is in {' and '.join(written)}"
-            + (" (status -1 and the message in its attributes)" if out_path is not None
-               and OUTPUT_FORMATS[out_path.suffix.lower()] != "csv" else ""))
-    return ComputationError(exc.message, where=exc.where,
-                            hint="; ".join(h for h in (exc.hint, kept) if h))
-
-
-def _first_integrals(derivation):
-    """The verdicts on the model's candidate first integrals, or None when it has none
-    (or is a controlled system, whose integrals are not checked)."""
-    if not derivation.system.first_integrals or is_controlled(derivation):
-        return None
-    from appell.reduction.first_integrals import check_first_integrals
-
-    return check_first_integrals(derivation.system)
-
-
-def _cross_check(derivation):
-    """:func:`appell.cross_check`, or :func:`appell.cross_check_controlled` for a
-    controlled derivation (the augmented system with the controls as unknowns)."""
-    if is_controlled(derivation):
-        from appell.control.servo_numeric import cross_check_controlled
-
-        return cross_check_controlled(derivation)
-    from appell.numerics.crosscheck import cross_check
-
-    return cross_check(derivation)
-
-
-def _energy_balance(derivation, t_end=None):
-    """:func:`appell.simulation.energy_balance.energy_balance` over the model's simulation
-    span (``t_end`` overriding its final time), or not formed when the model gives no
-    initial values."""
-    from appell.simulation.energy_balance import EnergyBalance, energy_balance
-
-    system = derivation.system
-    if not system.initial:
-        return EnergyBalance(None, "the model gives no initial values ([initial]) to start a motion from")
-    opts = command_options(system, t_end)
-    if not opts.t_end > opts.t0:
-        return EnergyBalance(None, "the simulation span is empty (t_end = t0)")
-    # a model that declares an implicit method may be stiff: its balance integrates implicitly
-    # where the motion's Jacobian at the start says so ('auto')
-    stiff = opts.method in ("Radau", "BDF", "LSODA")
-    return energy_balance(derivation, opts.t_end, t0=opts.t0, method="auto" if stiff else "DOP853")
-
-
-def _echo_redundancy(derivation) -> None:
-    """Print which constraints are redundant and how their reactions are split
-    (:meth:`appell.core.redundancy.Redundancy.summary`), when any are."""
-    red = getattr(derivation, "redundancy", None)
-    if red is not None:
-        click.echo("\n".join(red.summary()))
-
-
-def _verdict(check_report, energy, tolerance: float, energy_tolerance: float) -> tuple[bool, str]:
-    """``(passed, one line)`` over every line of the cross-check and the energy balance."""
-    failed = []
-    if not check_report.passed(tolerance):
-        failed.append(check_report.verdict(tolerance) if hasattr(check_report, "verdict")
-                      else f"cross-check: a relative difference exceeds {tolerance:g}")
-    if energy is not None and not energy.passed(energy_tolerance):
-        failed.append(energy.verdict(energy_tolerance))
-    if failed:
-        return False, "; ".join(failed)
-    checked = getattr(check_report, "checked", True)
-    if not checked and (energy is None or not energy.formed):
-        return True, "nothing to cross-check: no independent route applies to this model (see above)"
-    parts = [f"every cross-check line is at most {tolerance:g}" if checked else "no cross-check line"]
-    if energy is not None and energy.formed:
-        parts.append(f"the energy balance holds within {energy_tolerance:g}")
-    return True, "passed: " + " and ".join(parts)
-
-
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="check", context_settings=_CONTEXT)
 @_model_argument
 @click.option("--tolerance", type=float, default=1e-9, show_default=True,
               help="Largest normalised difference accepted on any cross-check line.")
@@ -941,9 +561,8 @@ def _verdict(check_report, energy, tolerance: float, energy_tolerance: float) ->
 @click.option("--t-end", type=float, default=None, metavar="T",
               help="Final time of the motion whose energy balance is checked (default: the model's "
                    "[simulation] t_end, else 10).")
-
 @_model_options
-def check(model, tolerance, energy_tolerance, t_end, assignments, floating_base):
+def check_command(model, tolerance, energy_tolerance, t_end, assignments, floating_base):
     """Check the split (1.4)/(1.5) against independent routes, and the energy balance.
 
     Prints, per route, the largest normalised difference of the accelerations and of each
@@ -954,34 +573,14 @@ def check(model, tolerance, energy_tolerance, t_end, assignments, floating_base)
     when any line exceeds its tolerance. A model with candidate first integrals also gets
     the verdict on each (method.md §5).
     """
-    from appell.simulation.energy_balance import ENERGY_TOLERANCE
-
-    energy_tolerance = ENERGY_TOLERANCE if energy_tolerance is None else energy_tolerance
     for name, value in (("--tolerance", tolerance), ("--energy-tolerance", energy_tolerance)):
-        if not value > 0:
+        if value is not None and not value > 0:
             raise click.BadParameter("must be positive", param_hint=f"'{name}'")
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
-    report = _cross_check(derivation)
-    _echo_redundancy(derivation)
-    click.echo(str(report))
-    linearisation, note = internal_stability(derivation)
-    if linearisation is not None:
-        click.echo("internal dynamics:\n" + linearisation.to_text())
-    _warn_internal(linearisation, note)
-    energy = _energy_balance(derivation, t_end)
-    click.echo(str(energy))
-    integrals = _first_integrals(derivation)
-    if integrals is not None:
-        click.echo(integrals.to_text())
-    ok, line = _verdict(report, energy, tolerance, energy_tolerance)
-    if not ok:
-        raise ComputationError(f"check failed: {line}",
-                               hint="a route or the energy balance disagrees with the split; see the lines above")
-    click.echo(line)
+    derivation = _derivation(model, assignments, floating_base)
+    workflows.check_model(derivation, tolerance, energy_tolerance, t_end, echo=click.echo)
 
 
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="report", context_settings=_CONTEXT)
 @_model_argument
 @click.option("-o", "--output", "output", type=click.Path(dir_okay=False, writable=True), default=None,
               metavar="FILE.html", help="The page to write (default: <model name>-report.html).")
@@ -995,7 +594,8 @@ def check(model, tolerance, energy_tolerance, t_end, assignments, floating_base)
 @_model_options
 @_complete_option
 @_adjust_option
-def report(model, output, t_end, no_simulation, data, backend, assignments, floating_base, complete, adjust, solver):
+def report_command(model, output, t_end, no_simulation, data, backend, assignments, floating_base, complete, adjust,
+                   solver):
     """Write one self-contained HTML page: the model, its equations as mathematics, the
     motion in 3-D with its forces, plots of coordinates, reactions and controls (with a
     shared time cursor), and the cross-check; the motion's data beside it (FILE.csv).
@@ -1004,54 +604,14 @@ def report(model, output, t_end, no_simulation, data, backend, assignments, floa
     neither initial values nor a [simulation] table is reported without a simulation; one
     with a [stability] table gets the eigenvalues against its parameter (appell stability).
     """
-    from appell.io.report import write_report
-
     if output is not None:
         output_file(Path(output), "'-o'")
-    system = load_system(model, parse_assignments(assignments), floating_base)
-    derivation = derive_model(system)
-    compiling = None
-    if backend != "numpy" and not no_simulation and (system.initial or system.settings):
-        from appell.numerics.codegen.model import compile_in_background
-
-        compiling = compile_in_background(derivation)  # the compiler runs while the routes are checked
-    try:
-        check_report = _cross_check(derivation)
-    except BaseException:
-        if compiling is not None:
-            compiling.join()  # the compiler's temporary files go before the error is shown
-        raise
-    solution, note = None, None
-    if no_simulation:
-        note = "Left out (--no-simulation)."
-    elif not system.initial and not system.settings:
-        note = "Left out: the model gives neither initial values ([initial]) nor a [simulation] table."
-    else:
-        solution = run_simulation(derivation, t_end, backend, solver, **_completion(complete, adjust))
-    linearisation, internal_note = internal_stability(derivation, solution)
-    _warn_internal(linearisation, internal_note)
-    from appell.simulation.energy_balance import ENERGY_TOLERANCE
-
-    energy = _energy_balance(derivation, t_end)
-    path = Path(output) if output else default_file_name(system.name, "-report.html")
-    output_target(path)
-    sweep = None if is_controlled(derivation) else stability_analysis(derivation)  # the [stability] table
-    data_path = path.with_suffix(".csv") if data and solution is not None else None
-    if data_path is not None:
-        output_target(data_path)
-        solution.to_csv(data_path)
-    write_report(path, derivation, solution, check_report, simulation_note=note,
-                 integrals=_first_integrals(derivation), internal=linearisation, energy=energy, stability=sweep,
-                 data_file=data_path.name if data_path is not None else None)
-    if data_path is not None:
-        click.echo(f"wrote {data_path}")
-    click.echo(f"wrote {path}")
-    ok, line = _verdict(check_report, energy, 1e-9, ENERGY_TOLERANCE)
-    if not ok:
-        raise ComputationError(f"check failed (see the report): {line}")
+    derivation = _derivation(model, assignments, floating_base)
+    workflows.report_model(derivation, output, t_end, not no_simulation, data, backend, _solver(solver),
+                           echo=click.echo, **workflows.completion(complete, adjust))
 
 
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="sweep", context_settings=_CONTEXT)
 @_model_argument
 @click.option("--param", "specs", multiple=True, required=True, metavar="NAME=START:STOP:NUM",
               help="A parameter axis (repeatable): NUM values from START to STOP, or NAME=V1,V2,...; "
@@ -1074,7 +634,8 @@ def report(model, output, t_end, no_simulation, data, backend, assignments, floa
                    "and times) and compute only the others.")
 @_backend_option
 @_model_options
-def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, backend, assignments, floating_base, solver):
+def sweep_command(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, backend, assignments,
+                  floating_base, solver):
     """Simulate MODEL over a grid of parameter values, in parallel on Dask.
 
     Writes one HDF5 dataset with every run (states, reactions, controls, status) and a
@@ -1083,31 +644,15 @@ def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, 
     parameters and error; the exit code is 0 only when every run succeeded, 1 when any
     run failed.
     """
-    from appell.simulation.sweep import parameter_grid
-    from appell.simulation.sweep import sweep as run_sweep
-
     system = load_system(model, parse_assignments(assignments), floating_base)
-    if system.servo_constraints:
-        raise ModelError("sweeps of models with servo constraints are not supported yet",
-                         hint="sweep the plain constrained system, or loop over appell simulate --set")
-    parameter_grid(specs)  # bad specs are bad input, before a cluster starts
-    opts = command_options(system, t_end, **solver)
-    if opts.complete:  # missing values are computed; a run whose given values violate a constraint fails
-        opts = opts.given(adjust=())  # (its changes could not be reported), instead of being changed silently
-    final, times = opts.t_end, opts.output_times()
-    path = Path(out) if out else default_file_name(system.name, "-sweep.h5")
-    output_file(path, "'--out'")
-    result = run_sweep(system, list(specs), final, output=path, t_eval=times, scheduler=scheduler,
-                       n_workers=workers, backend=backend, progress=sys.stderr.isatty(),
-                       worker_timeout=worker_timeout, resume=resume, **opts.changes(but=("t_end", "t_eval")))
-    click.echo(result.summary_text())
-    if result.failed:
-        which = "every run" if len(result.failed) == len(result.runs) else f"{len(result.failed)} of {len(result.runs)} runs"
-        raise ComputationError(f"{which} of the sweep failed (listed above); the summary uses the successful runs only",
-                               hint="the dataset records every run with its status and message")
+    if out:
+        output_file(Path(out), "'--out'")
+    workflows.sweep_model(system, specs, t_end, out, scheduler=scheduler, workers=workers,
+                             worker_timeout=worker_timeout, resume=resume, backend=backend, solver=_solver(solver),
+                             progress=sys.stderr.isatty(), echo=click.echo)
 
 
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="stability", context_settings=_CONTEXT)
 @_model_argument
 @click.option("--vary", "spec", default=None, metavar="NAME=START:STOP:NUM",
               help="The varied name: a parameter, or a coordinate or speed of the point (x' for a speed); "
@@ -1122,7 +667,7 @@ def sweep(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, 
               metavar="FILE", help="Write the eigenvalues (repeatable): .json, .csv, .nc (netCDF), or a plot "
                                    ".png, .svg, .pdf.")
 @_model_options
-def stability(model, spec, free, ignore, outputs, assignments, floating_base):
+def stability_command(model, spec, free, ignore, outputs, assignments, floating_base):
     """Eigenvalues of the linear model against a parameter or a speed, with the critical
     values where a mode turns unstable or stable.
 
@@ -1132,6 +677,8 @@ def stability(model, spec, free, ignore, outputs, assignments, floating_base):
     located by root finding (numerics/stability.py). Without --vary, the model file's
     [stability] table gives the sweep (and --free, --ignore where they are not given).
     """
+    from appell.files import output_target
+
     kinds = {Path(o).suffix.lower() for o in outputs}
     unknown = kinds - {".json", ".csv", ".nc", ".png", ".svg", ".pdf"}
     if unknown:
@@ -1140,80 +687,25 @@ def stability(model, spec, free, ignore, outputs, assignments, floating_base):
     for o in outputs:
         output_target(o)
     system = load_system(model, parse_assignments(assignments), floating_base)
-    if spec is None and not _stability_table(system):
+    if spec is None and not workflows.stability_table(system):
         raise click.UsageError("give --vary NAME=START:STOP:NUM, or a [stability] table in the model file "
                                "(vary = \"NAME=START:STOP:NUM\")")
     derivation = derive_model(system)
-    result = stability_analysis(derivation, spec, free, ignore)
+    result = workflows.stability_analysis(derivation, spec, free, ignore)
     click.echo(result.table())
     for o in outputs:
-        _write_stability(result, Path(o))
+        workflows.write_stability(result, Path(o))
         click.echo(f"wrote {o}")
 
 
-def _stability_table(system) -> dict:
-    """The model file's [stability] table (``{}`` without one)."""
-    return dict(dict(system.settings).get("stability", ()))
-
-
-def stability_analysis(derivation, spec=None, free=(), ignore=()):
-    """:func:`appell.numerics.stability.stability_sweep` as ``appell stability`` runs it:
-    ``spec`` ``NAME=START:STOP:NUM``, ``free`` and ``ignore`` names (``('cyclic',)``), each
-    defaulting to the model's [stability] table; the point is the model's initial values
-    (those written in a varied parameter follow it). None when neither ``spec`` nor a
-    table is given."""
-    from appell.numerics.stability import stability_sweep
-    from appell.simulation.sweep import parse_spec
-
-    table = _stability_table(derivation.system)
-    spec = spec if spec is not None else table.get("vary")
-    if spec is None:
-        return None
-    free = tuple(free) or tuple(table.get("free", ()))
-    ignore = tuple(ignore) or (("cyclic",) if table.get("ignore") == "cyclic" else tuple(table.get("ignore", ())))
-    name, values = parse_spec(spec)
-    name = canonical_name(name)
-    ignored = "cyclic" if ignore == ("cyclic",) else tuple(canonical_name(i) for i in ignore) or None
-    return stability_sweep(derivation, name, values, free=tuple(canonical_name(f) for f in free),
-                           ignore=ignored, progress=None)
-
-
-def _write_stability(result, path: Path) -> None:
-    """The sweep as JSON, CSV, netCDF or a plot, written atomically."""
-    from appell.files import write_bytes
-
-    kind = path.suffix.lower()
-    if kind in (".png", ".svg", ".pdf"):
-        result.plot(path)
-        return
-    if kind == ".nc":
-        data = result.to_xarray().to_netcdf(engine="h5netcdf")
-    elif kind == ".json":
-        data = json.dumps({
-            "name": result.name, "values": result.values.tolist(), "states": list(result.states),
-            "modes": list(result.names), "real": result.eigenvalues.real.tolist(),
-            "imag": result.eigenvalues.imag.tolist(),
-            "crossings": [{"mode": c.mode, "value": c.value, "imag": c.imag, "kind": c.kind,
-                           "becomes": "unstable" if c.direction > 0 else "stable"} for c in result.crossings],
-        }, indent=1).encode()
-    else:
-        m = result.eigenvalues.shape[1]
-        head = ",".join([result.name] + [f"real_{j},imag_{j}" for j in range(m)])
-        rows = [",".join([repr(float(v))] + [f"{float(e.real)!r},{float(e.imag)!r}" for e in row])
-                for v, row in zip(result.values, result.eigenvalues)]
-        data = ("\n".join([head] + rows) + "\n").encode()
-    with atomic_path(path) as tmp:
-        write_bytes(tmp, data)
-
-
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="cluster", context_settings=_CONTEXT)
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Worker processes, one thread each (default: one per core).")
 @click.option("--host", default="127.0.0.1", show_default=True,
               help="Interface the scheduler listens on (0.0.0.0: all, for workers and sweeps on other machines).")
 @click.option("--port", type=click.IntRange(0, 65535), default=8786, show_default=True,
               help="Scheduler port (0: a free one).")
-def cluster(workers, host, port):
+def cluster_command(workers, host, port):
     """Keep a local Dask cluster running for several sweeps, until Ctrl-C.
 
     Prints the scheduler's address; give it to 'appell sweep --scheduler ADDRESS'. More
@@ -1221,66 +713,25 @@ def cluster(workers, host, port):
     workers keep each model they have built, so a later sweep of the same model starts its
     runs at once.
     """
-    import time
-
-    from appell.simulation.sweep import sweep_cluster
-
-    with sweep_cluster(workers, host=host, port=port) as client:
-        address = client.scheduler.address
-        click.echo(f"Dask scheduler at {address} with {len(client.scheduler_info()['workers'])} worker(s); "
-                   f"run sweeps with: appell sweep MODEL --param ... --scheduler {address}; Ctrl-C stops it")
-        sys.stdout.flush()
-        try:
-            while True:
-                time.sleep(3600)
-        except KeyboardInterrupt:
-            click.echo("stopping the cluster")
+    workflows.keep_cluster(workers, host, port, echo=click.echo)
 
 
-@cli.command(context_settings=_CONTEXT)
+@cli.command(name="examples", context_settings=_CONTEXT)
 @click.argument("name", required=False)
 @click.option("--to", "to", type=click.Path(file_okay=False), default=None, metavar="DIR",
               help="Copy the example's model file into DIR.")
-def examples(name, to):
+def examples_command(name, to):
     """List the bundled examples, show one model file, or copy it out with --to."""
-    from appell.examples import example_path, list_benchmarks, list_examples
+    from appell.examples import example_path
 
     if name is None:
         if to is not None:
             raise click.UsageError("--to needs the NAME of an example")
-        for item in list_examples():
-            click.echo(f"{item:<20s} {_first_line(example_path(item))}")
-        click.echo("\nbenchmarks (published benchmark problems, larger):")
-        for item in list_benchmarks():
-            click.echo(f"{item:<20s} {_first_line(example_path(item))}")
-        return
-    source = example_path(name)
-    if to is None:
-        click.echo(source.read_text(encoding="utf-8"), nl=False)
-        return
-    target_dir = Path(to)
-    target_dir.mkdir(parents=True, exist_ok=True)
-    target = target_dir / source.name
-    with atomic_path(target) as tmp:
-        shutil.copyfile(source, tmp)
-    click.echo(f"wrote {target}")
-
-
-def _first_line(path: Path) -> str:
-    """The model's description (``[model] description``), else its first comment line."""
-    import tomllib
-
-    text = path.read_text(encoding="utf-8")
-    try:
-        description = tomllib.loads(text).get("model", {}).get("description")
-    except tomllib.TOMLDecodeError:
-        description = None
-    if description:
-        return str(description)
-    for line in text.splitlines():
-        if line.startswith("#"):
-            return line.lstrip("# ").strip()
-    return ""
+        click.echo(workflows.example_listing())
+    elif to is None:
+        click.echo(example_path(name).read_text(encoding="utf-8"), nl=False)
+    else:
+        click.echo(f"wrote {workflows.copy_example(name, to)}")
 
 
 def main(argv=None, standalone: bool = True) -> int:
@@ -1291,16 +742,14 @@ def main(argv=None, standalone: bool = True) -> int:
     SIGTERM raises :class:`Terminated` in the main thread, so that a write under way removes
     its temporary file; the command then exits with :data:`EXIT_TERMINATED`. A Ctrl-C whose
     KeyboardInterrupt was raised inside a finalizer, and ignored there, is raised again
-    (:func:`appell_entry.rescue_interrupts`).
+    (:func:`appell_interrupts.rescue_interrupts`).
     """
-    from appell_entry import rescue_interrupts
-
     previous = None
     try:
         previous = signal.signal(signal.SIGTERM, _terminate)
     except ValueError:  # not the main thread: leave the signal alone
         pass
-    rescue_interrupts()  # a Ctrl-C raised inside a finalizer is raised again (appell_entry)
+    rescue_interrupts()  # a Ctrl-C raised inside a finalizer is raised again (appell_interrupts)
     try:
         return cli.main(args=argv, prog_name="appell", standalone_mode=standalone)
     finally:
@@ -1309,6 +758,6 @@ def main(argv=None, standalone: bool = True) -> int:
 
 
 if __name__ == "__main__":  # python -m appell.io.cli: the entry point's handling of Ctrl-C, after the import
-    from appell_entry import main as entry
+    from appell_interrupts import run
 
-    sys.exit(entry(command=main))
+    sys.exit(run(command=main))

@@ -42,7 +42,7 @@ from appell.errors import AppellNote, ModelError
 from appell.mechanism.couplings import gear_mesh, rack_mesh
 from appell.mechanism.joints import JointMotion, joint_motion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew, unit_axis
-from appell.rigid_tree import RigidTree, TreeNode, Wrench
+from appell.rigid_tree import LoopRow, RigidTree, TreeNode, Wrench
 from appell.model import (AppliedForce, AppliedTorque, Control, Output, Parameter, Particle, RigidBody,
                           System, acceleration_constraint, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol, t
@@ -225,15 +225,19 @@ class _Action:
     torque: sp.Matrix
 
 
-def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None) -> tuple[list, list]:
+def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None, axes=None, gap=None) -> tuple[list, list]:
     """The rows ``<name>_<d> = e_d . (p_a - p_b)`` holding two body points together along the
-    world ``directions``, and their actions: ``lambda e_d`` on body_a at ``p_a``, its opposite
-    on body_b. With a list ``idle``, a row that holds at every configuration is left out and
-    its name appended there."""
+    world ``directions`` (or along the axes ``e_d = R e_d`` of a body turned by ``axes = R``),
+    and their actions: ``lambda e_d`` on body_a at ``p_a``, its opposite on body_b (where the
+    points coincide). With a list ``idle``, a row that holds at every configuration is left out
+    and its name appended there. ``gap``: the three components ``e_d . (p_a - p_b)`` already
+    formed (shorter: from the joints of the loop alone, :meth:`Mechanism._gap_in`)."""
     cons, acts = [], []
     for d in directions:
         e = sp.Matrix([1 if d == x else 0 for x in "xyz"])
-        row = (pa - pb).dot(e)
+        if axes is not None:
+            e = axes * e
+        row = (pa - pb).dot(e) if gap is None else gap["xyz".index(d)]
         if idle is not None and identically_zero(row):
             idle.append(f"{name}_{d}")
             continue
@@ -262,6 +266,29 @@ def _alignment_rows(rows, ba, pa, bb, pb, idle=None) -> tuple[list, list]:
     return cons, acts
 
 
+def _loop_points(name, ba, ra, bb, rb, directions) -> tuple:
+    """The point rows of a loop closure as :class:`_Closure` records them (world directions)."""
+    return tuple((f"{name}_{d}", "point", ba, ra, sp.Matrix([1 if d == x else 0 for x in "xyz"]), bb, rb,
+                  sp.zeros(3, 1)) for d in directions)
+
+
+@dataclass(frozen=True)
+class LoopParts:
+    """A mechanism as the closed-chain route takes it (:meth:`Mechanism.loop_parts`):
+    ``constraints`` ``((name, expr or None), ...)`` in the system's order (None: a loop row
+    of ``tree.loops``), ``forces`` the generalized forces per coordinate, ``controls`` their
+    input symbols, ``start`` the coordinates' default values."""
+
+    name: str
+    coordinates: tuple
+    tree: RigidTree
+    constraints: tuple
+    forces: tuple
+    controls: tuple
+    parameters: tuple
+    start: dict
+
+
 @dataclass
 class _Closure:
     """Constraints of a closure or contact (built once the kinematics is known)."""
@@ -269,6 +296,7 @@ class _Closure:
     name: str
     build: object  # (frames) -> (constraints, actions)
     where: str | None = None  # origin (file and line) given to the closure's constraints
+    rows: tuple = ()  # a loop closure's possible rows for the recursive route: (name, kind, body_a, point_a, axis_a, body_b, point_b, axis_b)
 
 
 class Mechanism:
@@ -360,6 +388,15 @@ class Mechanism:
         for e in I:
             _real(e, f"inertia of body {name!r}")
         b = Body(name, mass, I.applyfunc(sp.sympify), _matrix(com, f"mass centre of body {name!r}"))
+        self.bodies.append(b)
+        return b
+
+    def massless(self, name: str) -> Body:
+        """A body without mass or inertia: a frame carried between joints (a MuJoCo body with
+        several joints, a mount that carries a joint). It moves and bears the reactions of its
+        joints, but adds no body to the system (its kinetic energy is zero)."""
+        self._claim(name, "body")
+        b = Body(name, sp.S.Zero, sp.zeros(3, 3), sp.zeros(3, 1))
         self.bodies.append(b)
         return b
 
@@ -503,11 +540,14 @@ class Mechanism:
             raise ModelError(f"{what}: a point is (body, (x, y, z) in the body frame), got {item!r}")
         return self._body(item[0], what), _matrix(item[1], f"{what}: point")
 
-    def connect(self, name, a, b, directions="xyz"):
+    def connect(self, name, a, b, directions="xyz", axes=None):
         """Loop closure: the point ``a = (body_a, r_a)`` coincides with ``b = (body_b, r_b)``
-        along the world ``directions`` (a subset of ``'xyz'``): holonomic constraints
-        ``<name>_<d> = e_d . (r_A - r_B) = 0``; ``lambda_<name>_<d>`` is the force of
-        ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``)."""
+        along the world ``directions`` (a subset of ``'xyz'``; along body_a's axes where
+        ``axes='a'``: a planar loop carried by a moving body keeps its normal there):
+        holonomic constraints ``<name>_<d> = e_d . (r_A - r_B) = 0``; ``lambda_<name>_<d>`` is
+        the force of ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``)."""
+        if axes not in (None, "a"):
+            raise ModelError(f"closure {name!r}: axes must be None (the world's) or 'a' (body_a's), got {axes!r}")
         self._claim(name, "closure")
         what = f"closure {name!r}"
         (ba, ra), (bb, rb) = self._point(a, what), self._point(b, what)
@@ -517,9 +557,14 @@ class Mechanism:
             raise ModelError(f"{what}: directions {directions!r} must be distinct letters of 'xyz'")
 
         def build(frames):
-            return _point_rows(name, ba, frames[ba].point(ra)[0], bb, frames[bb].point(rb)[0], dirs)
+            return _point_rows(name, ba, frames[ba].point(ra)[0], bb, frames[bb].point(rb)[0], dirs,
+                               axes=frames[ba].R if axes == "a" else None,
+                               gap=self._gap_in(ba, ra, bb, rb) if axes == "a" else None)
 
-        self._closures.append(_Closure(name, build))
+        # the loop route's point rows are along world directions: rows along body_a's turning axes
+        # are left to their expressions there (the same constraint, another multiplier per name)
+        rows = () if axes == "a" else _loop_points(name, ba, ra, bb, rb, dirs)
+        self._closures.append(_Closure(name, build, rows=rows))
 
     def weld(self, name, a, b, rotation=None):
         """Loop closure that holds two bodies together: the point ``a = (body_a, r_a)``
@@ -549,7 +594,10 @@ class Mechanism:
                                           for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1)))], ba, pa, bb, pb)
             return cons + more, acts + turn
 
-        self._closures.append(_Closure(name, build))
+        rows = _loop_points(name, ba, ra, bb, rb, "xyz") + tuple(
+            (f"{name}_r{d}", "align", ba, ra, R_ab[:, j], bb, rb, sp.eye(3)[:, k])
+            for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1))))
+        self._closures.append(_Closure(name, build, rows=rows))
 
     def watch_point(self, name, point):
         """Outputs ``<name>_x``, ``_y``, ``_z``: the world position of the body point
@@ -601,7 +649,9 @@ class Mechanism:
                                          "and are left out"), stacklevel=2)
             return cons, acts
 
-        self._closures.append(_Closure(name, build))
+        rows = _loop_points(name, ba, ra, bb, rb, "xyz") + (
+            (f"{name}_r1", "align", ba, ra, u, bb, rb, b1), (f"{name}_r2", "align", ba, ra, u, bb, rb, b2))
+        self._closures.append(_Closure(name, build, rows=rows))
 
     def point_on_surface(self, name, point, surface):
         """The body point ``point = (body, r)`` stays on the surface ``s(x, y, z) = 0`` (world
@@ -660,7 +710,7 @@ class Mechanism:
         its constraints carry it into error messages."""
         for k, closure in enumerate(self._closures):
             if closure.name == name:
-                self._closures[k] = _Closure(closure.name, closure.build, where)
+                self._closures[k] = _Closure(closure.name, closure.build, where, closure.rows)
                 return
         raise ModelError(f"mechanism {self.name!r}: no closure or contact {name!r}", where=where)
 
@@ -1034,6 +1084,37 @@ class Mechanism:
         self._actuators.append((name, j, q, None if value is None else sp.sympify(value)))
         return sym if value is None else sp.sympify(value)
 
+    def _pose_in(self, body, ancestor) -> tuple[sp.Matrix, sp.Matrix]:
+        """``(R, p)`` of ``body``'s frame in the frame of its ``ancestor`` (the joints between
+        them alone: ``R_rel = R0 R_m``, ``p = o_J + R0 d_m - R_rel c_o`` composed downwards)."""
+        chain, b = [], body
+        while b is not ancestor:
+            j = next(j for j in self.joints if j.child is b)
+            chain.append(j)
+            b = j.parent
+        R, p = sp.eye(3), sp.zeros(3, 1)
+        for j in reversed(chain):
+            R_rel = j.rotation * j.motion.rotation
+            p = p + R * (j.origin + j.rotation * j.motion.translation - R_rel * j.child_origin)
+            R = R * R_rel
+        return R, p
+
+    def _gap_in(self, ba, ra, bb, rb) -> sp.Matrix:
+        """``R_a^T (p_a - p_b)``, the gap of two body points along body_a's axes, from the
+        joints of the loop alone (the frames of their nearest common ancestor ``L``:
+        ``R_La^T (p_a^L - p_b^L)``), so that a loop carried by a long chain stays short."""
+        def ancestors(b):
+            out = [b]
+            while b is not self.ground:
+                b = next(j for j in self.joints if j.child is b).parent
+                out.append(b)
+            return out
+
+        up_b = ancestors(bb)
+        common = next(b for b in ancestors(ba) if any(b is c for c in up_b))
+        (Ra, pa), (Rb, pb) = self._pose_in(ba, common), self._pose_in(bb, common)
+        return Ra.T * ((pa + Ra * ra) - (pb + Rb * rb))
+
     # ------------------------------------------------------------ the system
     def _tree(self) -> list[Joint]:
         """The joints in an order where each parent comes before its children."""
@@ -1082,12 +1163,13 @@ class Mechanism:
             frames[j.child] = Frame(R, p, omega, eps, w, e, v, a)
         return frames
 
-    def rigid_tree(self, coordinates, potential=sp.S.Zero, positions=None, wrenches=()) -> RigidTree | None:
+    def rigid_tree(self, coordinates, potential=sp.S.Zero, positions=None, wrenches=(), loops=()) -> RigidTree | None:
         """The :class:`~appell.rigid_tree.RigidTree` of the bodies (``coordinates``: the
         system's, in order; its speeds are their derivatives; ``potential``: the gravity
         potential the system states; ``positions``: ``{body: its mass centre's position}`` as
         the system states them; ``wrenches``: the reaction outputs the recursion may evaluate,
-        :class:`~appell.rigid_tree.Wrench`), for the recursive route; None
+        :class:`~appell.rigid_tree.Wrench`; ``loops``: the rows of the loop closures, as
+        :class:`_Closure` records them, that the system holds), for the recursive route; None
         where a joint's motion depends on time or on another joint's coordinates.
 
         For a joint ``J`` (``R0``, ``o_J``, ``c_o``) with motion ``R_m``, ``d_m``, ``omega_rel``::
@@ -1124,7 +1206,38 @@ class Mechanism:
                                   sp.ImmutableMatrix(body.com), sp.ImmutableMatrix(body.inertia),
                                   sp.ImmutableMatrix(j.child_origin), positions.get(body)))
         g = self.gravity if self.gravity is not None else sp.zeros(3, 1)
-        return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential, tuple(wrenches))
+        rows = tuple(LoopRow(name, name.rsplit("_", 1)[0], kind, place[ba], sp.ImmutableMatrix(ra), sp.ImmutableMatrix(ua),
+                             place[bb], sp.ImmutableMatrix(rb), sp.ImmutableMatrix(ub))
+                     for name, kind, ba, ra, ua, bb, rb, ub in loops)
+        return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential, tuple(wrenches), loops=rows)
+
+    def loop_parts(self) -> LoopParts:
+        """What the closed-chain route (:mod:`appell.numerics.loops`) takes, without the bodies'
+        expanded kinematics: the joint tree with every row of the loop closures (``connect``,
+        ``weld``, ``hinge``; a planar loop's idle rows kept, to be named undetermined there),
+        the joints' own constraints (a quaternion's unit norm), the actuators' generalized
+        forces and controls. A :class:`ModelError` names a contact or load it does not take."""
+        other = [c.name for c in self._closures if not c.rows] + [name for name, _ in self._forces]
+        if other:
+            raise ModelError(f"mechanism {self.name!r}: the closed-chain route takes joints, loop closures and "
+                             f"actuators only, not {', '.join(other)}", hint="use mech.system() and appell.derive")
+        coords = [q for j in self.joints for q in j.coordinates]
+        loops = [row for c in self._closures for row in c.rows]
+        tree = self.rigid_tree(coords, loops=loops)
+        if tree is None:
+            raise ModelError(f"mechanism {self.name!r}: a joint's motion depends on time or another joint",
+                             hint="use mech.system() and appell.derive")
+        constraints = tuple((n, e) for j in self._tree() for n, e in j.motion.constraints)
+        constraints += tuple((row[0], None) for row in loops)
+        Q = [sp.S.Zero] * len(coords)
+        for name, _, q, value in self._actuators:
+            Q[coords.index(q)] += sp.Symbol(name) if value is None else value
+        controls = tuple(sp.Symbol(name) for name, _, _, value in self._actuators if value is None)
+        start = {q.name: 0.0 for q in coords}
+        for j in self._tree():
+            start.update(dict(j.motion.defaults))
+        return LoopParts(self.name, tuple(coords), tree, constraints, tuple(Q), controls, tuple(self.parameters),
+                         start)
 
     def subtree(self, joint: Joint) -> list[Body]:
         """The bodies carried by ``joint``: its child and all the child's descendants."""
@@ -1171,7 +1284,8 @@ class Mechanism:
 
     def system(self, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
                constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
-               moment_unit="N*m", energy: bool = False, reactions_in=None) -> System:
+               moment_unit="N*m", energy: bool = False, reactions_in=None, joint_forces=None, rotor_energy=None,
+               programs=()) -> System:
         """The :class:`appell.System` of the mechanism.
 
         Parameters
@@ -1196,6 +1310,14 @@ class Mechanism:
             ``energy_potential`` (gravity and the springs' ``k (l - l0)^2/2``) and ``energy``,
             their sum, constant where no damper, actuator or time-dependent load acts. The
             points of :meth:`watch_point` are outputs too.
+        joint_forces : ``{coordinate name: Q}``: generalized forces added along the speeds of
+            those coordinates (a joint's damper, spring or actuator, MJCF's passive forces),
+            acting between the joint's parent and child (inside its reaction).
+        rotor_energy : a kinetic energy ``T(q, w)`` added to the bodies' (the reflected inertia
+            of rotors, MJCF's ``armature``: ``sum a_k w_k^2 / 2``); the system then takes the
+            expanded route.
+        programs : :class:`~appell.model.Program` items (given functions of time, e.g. an
+            actuator's control signal), added as given.
         """
         frames = self.frames()
         order = self._tree()
@@ -1207,6 +1329,8 @@ class Mechanism:
             f = frames[b]
             rC, vC, _ = f.point(b.com)
             positions[b] = sp.ImmutableMatrix(rC)
+            if b.mass == 0:  # a massless frame (:meth:`massless`): no body, no energy
+                continue
             if b.particle:
                 bodies.append(Particle(b.name, b.mass, position=rC, velocity=vC))
             else:
@@ -1224,9 +1348,11 @@ class Mechanism:
                 body = next(a.body for a in acts if a.body is not self.ground)  # drawn on a moving body
                 drawn_loads.append((name, [a for a in acts if a.body is body] + [a for a in acts if a.body is not body]))
         cons = [holonomic(n, e) for j in order for n, e in j.motion.constraints]
-        contact_forces = []
+        contact_forces, loops = [], []
         for closure in self._closures:
             more, acts = closure.build(frames)
+            built = {c.name for c in more}
+            loops += [row for row in closure.rows if row[0] in built]
             cons += [dc_replace(c, where=closure.where) if closure.where and c.where is None else c for c in more]
             actions += acts
             if acts:
@@ -1237,6 +1363,12 @@ class Mechanism:
             Q[coords.index(q)] += sp.Symbol(name) if value is None else value
             if value is None:
                 ctl.append(Control(sp.Symbol(name), "force"))
+        for qname, value in (joint_forces or {}).items():
+            k = next((i for i, q in enumerate(coords) if q.name == str(qname)), None)
+            if k is None:
+                raise ModelError(f"mechanism {self.name!r}: joint force on unknown coordinate {qname!r}",
+                                 hint="coordinates: " + ", ".join(q.name for q in coords))
+            Q[k] += sp.sympify(value)
         params = list(self.parameters)
         if parameters:
             known = {p.symbol.name for p in params}
@@ -1292,13 +1424,14 @@ class Mechanism:
         if not bodies:
             raise ModelError(f"mechanism {self.name!r} has no bodies", hint="add one with mech.body(...)")
         return System(coordinates=tuple(coords), parameters=tuple(params), bodies=tuple(bodies), potential_energy=V,
+                      kinetic_energy=None if rotor_energy is None else sp.sympify(rotor_energy),
                       generalized_forces=tuple(Q) if any(e != 0 for e in Q) else None, loads=tuple(loads),
                       constraints=tuple(cons) + tuple(constraints), controls=tuple(ctl) + tuple(controls),
-                      servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
+                      programs=tuple(programs), servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
                       view=self._view(frames, contact_forces + drawn_loads, drawn, frame, params),
-                      tree=self.rigid_tree(coords, V, positions, wrenches))
+                      tree=self.rigid_tree(coords, V, positions, wrenches, loops))
 
     def _view(self, frames, contact_forces, reaction_names, frame, params) -> View:
         """The :class:`appell.view.View` of the mechanism: each body at its frame's pose with

@@ -35,6 +35,12 @@ def _mjcf_system(path: Path, floating_base: bool):
     return mjcf_system(path)
 
 
+def _sdf_system(path: Path, floating_base: bool):
+    from appell.mechanism.sdf import sdf_system
+
+    return sdf_system(path)
+
+
 @dataclass(frozen=True)
 class Importer:
     """A file format: ``name``, ``suffixes`` (lower case, with the dot), ``what`` its files
@@ -57,6 +63,7 @@ IMPORTERS: tuple[Importer, ...] = (
     Importer("URDF", (".urdf",), "a robot description", _urdf_system, _urdf_mechanism, key="urdf",
              floating_base=True),
     Importer("MJCF", (".xml", ".mjcf"), "a MuJoCo model", _mjcf_system, extra="mjcf"),
+    Importer("SDF", (".sdf",), "an SDFormat model", _sdf_system),
 )
 
 
@@ -73,7 +80,8 @@ def suffixes() -> tuple[str, ...]:
 
 
 def described() -> str:
-    """``"a model file (.toml), a robot description (.urdf) or a MuJoCo model (.xml, .mjcf)"``
+    """``"a model file (.toml), a robot description (.urdf), a MuJoCo model (.xml, .mjcf) or an
+    SDFormat model (.sdf)"``
     for messages and help."""
     parts = ["a model file (.toml)"] + [f"{imp.what} ({', '.join(imp.suffixes)})" for imp in IMPORTERS]
     return ", ".join(parts[:-1]) + " or " + parts[-1]

@@ -39,9 +39,11 @@ from __future__ import annotations
 
 from typing import Mapping, Sequence
 
+import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
+from appell.mechanism.sympy_meaning import ConsistentStates, disagreement, refuse_disagreement, solve_linear
 from appell.model import (AppliedForce, AppliedTorque, Output, Parameter, Particle, RigidBody, System, holonomic,
                           nonholonomic)
 from appell.symbols import derivative_symbol, t
@@ -110,7 +112,7 @@ class _Renamer:
                                  "derivatives")
             b = kdes.subs({x: 0 for x in unknown})
             try:
-                values = A.LUsolve(-b)
+                values = solve_linear(A, -b)
             except (ValueError, ZeroDivisionError):
                 raise ModelError("the kinematic differential equations cannot be solved for "
                                  f"{', '.join(str(x) for x in unknown)}") from None
@@ -121,6 +123,7 @@ class _Renamer:
                                  "coordinates and speeds")
         self.kinematics = solved
         self.second = {x.diff(t): sp.diff(v, t).xreplace(solved) for x, v in solved.items()}
+        self.dynamic_coordinates = list(q)
         plain = {qi: sym for qi, sym in zip(q, self.coordinates)}
         plain.update({s: sym for s, sym in names.items() if not isinstance(s, sp.Derivative)})
         for s, sym in names.items():
@@ -130,6 +133,22 @@ class _Renamer:
             else:
                 plain[s.diff(t)] = derivative_symbol(sym)
         self.plain_map = plain
+
+    def add_coordinate(self, angle, rate) -> sp.Symbol:
+        """A coordinate ``angle(t)`` with ``angle' = rate`` (in the dynamic symbols), the rotation
+        angle of a frame given by its angular velocity alone."""
+        sym = sp.Symbol(angle.func.__name__)
+        self.coordinates += (sym,)
+        self.dynamic_coordinates.append(angle)
+        self.kinematics[angle.diff(self.t)] = rate
+        self.second[angle.diff(self.t, 2)] = rate.diff(self.t).xreplace(self.kinematics)
+        self.plain_map[angle] = sym
+        return sym
+
+    def rates(self) -> list:
+        """``q'`` of every coordinate in plain symbols."""
+        return [self.plain(self.kinematics[qd], f"kinematics of {q}") if qd in self.kinematics else self.plain_map[qd]
+                for q, qd in zip(self.coordinates, (s.diff(self.t) for s in self.dynamic_coordinates))]
 
     def plain(self, expr, what: str) -> sp.Expr:
         expr = sp.sympify(expr)
@@ -181,17 +200,113 @@ def _check_evaluable(expr, what: str) -> None:
                          hint="give real, finite values")
 
 
-def _position(point, origin, frame, ren: _Renamer, what: str):
-    """``(position, velocity)`` of ``point`` in ``frame`` components, one of them None."""
-    try:
-        return ren.vector(point.pos_from(origin), frame, what), None
-    except ValueError:
-        pass
-    try:
-        return None, ren.vector(point.vel(frame), frame, what)
-    except ValueError:
-        raise ModelError(f"{what}: the point {point} has neither a position from the fixed point {origin} nor a "
-                         f"velocity in {frame}", hint="locate it with set_pos or give its velocity with set_vel") from None
+class _Reader:
+    """The velocities of points and the rotations of frames as the SymPy model means them
+    (:mod:`appell.mechanism.sympy_meaning`): ``Point.vel`` and ``ReferenceFrame.ang_vel_in``
+    where SymPy can form them, positions and orientations kept where they agree.
+
+    ``positions="check"`` refuses a point whose set velocity is not the derivative of its
+    position from the fixed point; ``positions="ignore"`` takes the set velocity there and
+    drops the position."""
+
+    def __init__(self, system, ren: _Renamer, positions: str, values, hol, nonhol):
+        if positions not in ("check", "ignore"):
+            raise ModelError(f"positions={positions!r}: give 'check' or 'ignore'")
+        self.N, self.O, self.ren, self.positions = system.frame, system.fixed_point, ren, positions
+        self.values = {sp.Symbol(str(k)): v for k, v in (values or {}).items()
+                       if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        self.hol, self.nonhol = hol, nonhol
+        self._states = None
+
+    def states(self) -> ConsistentStates:
+        if self._states is None:
+            ren = self.ren
+            self._states = ConsistentStates(ren.coordinates, ren.speeds, ren.rates(), self.hol, self.nonhol,
+                                            self.values)
+        return self._states
+
+    def point(self, point, what: str):
+        """``(position, velocity)`` of ``point`` in N components, one of them None."""
+        ren, N, O = self.ren, self.N, self.O
+        try:
+            r = point.pos_from(O)
+            position = ren.vector(r, N, what)
+        except ValueError:
+            r = position = None
+        try:
+            velocity = point.vel(N)
+        except ValueError:
+            velocity = None
+        if velocity is None:
+            if position is None:
+                raise ModelError(f"{what}: the point {point} has neither a position from the fixed point {O} nor a "
+                                 f"velocity in {N}", hint="locate it with set_pos or give its velocity with set_vel")
+            return position, None
+        velocity = ren.vector(velocity, N, what)
+        if position is None:
+            return None, velocity
+        derived = ren.vector(_derivative(r, N, ren.t), N, what)
+        err = disagreement(self.states(), velocity, derived) if velocity != derived else None
+        if err is None:
+            return position, None
+        if self.positions == "ignore":
+            return None, velocity
+        refuse_disagreement("point", str(point), velocity, derived, f"position from the fixed point {O}", err,
+                            hint=f"SymPy uses the velocity that was set; appell would differentiate the position. "
+                                 f"If {O} is no point fixed in {N} (a contact point, say), wrap the model as "
+                                 f"System({N}) with a fixed point of its own, or pass positions='ignore' to take the "
+                                 "set velocities (the positions are then left out: no Lagrange cross-check, no "
+                                 "animation)")
+
+    def frame(self, frame, what: str):
+        """``(frame, omega, None)``: the frame whose components are used and the angular velocity
+        in it (the inertia is then expressed in it), after the check against its orientation."""
+        ren, N = self.ren, self.N
+        omega = frame.ang_vel_in(N)
+        try:
+            frame.dcm(N)
+        except ValueError:
+            raise _Unoriented(frame) from None
+        w = ren.vector(omega, frame, what)
+        R = sp.Matrix.hstack(*[e.to_matrix(N) for e in (frame.x, frame.y, frame.z)])
+        err = None  # skew(omega) = R^T R' at the states, numerically (the symbolic product swells)
+        for wv, Rv, Rd in self.states().values_of([w, R.applyfunc(lambda e: ren.plain(e, what)),
+                                                   R.diff(ren.t).applyfunc(lambda e: ren.plain(e, what))]):
+            W = Rv.reshape(3, 3).T @ Rd.reshape(3, 3)
+            wv, derived = wv.reshape(-1), np.array([W[2, 1], W[0, 2], W[1, 0]])
+            if np.all(np.isfinite(wv)) and np.all(np.isfinite(derived)):
+                e = float(np.max(np.abs(wv - derived))) / (1.0 + float(np.max(np.abs(wv))))
+                err = e if e > 1e-9 and (err is None or e > err) else err
+        if err is not None:
+            derived = _omega_from_orientation(frame, N, ren, what)
+            raise ModelError(f"frame {frame}: the angular velocity set in SymPy, {list(w)}, is not the one of its "
+                             f"orientation in {N}, {list(derived)} (they differ by {err:.2g} relative, at random "
+                             "states that satisfy the constraints; components along the frame)",
+                             hint="make the kinematic differential equations relate the speeds to the orientation "
+                                  "angles' derivatives (add_kdes), or correct set_ang_vel")
+        return frame, w, None
+
+
+class _Unoriented(Exception):
+    def __init__(self, frame):
+        super().__init__(str(frame))
+        self.frame = frame
+
+
+def _derivative(vec, N, t):
+    """``d vec/dt`` in ``N`` from its components in ``N`` (orientations differentiated, no
+    angular velocity that was set)."""
+    me = _mechanics()
+    return me.Vector([(vec.to_matrix(N).diff(t), N)]) if vec != 0 else me.Vector(0)
+
+
+def _omega_from_orientation(frame, N, ren: _Renamer, what: str) -> sp.ImmutableMatrix:
+    """The angular velocity of ``frame`` in ``N`` from its orientation, components along
+    ``frame``: ``skew(omega) = R^T R'`` with ``R`` the frame's unit vectors in ``N``."""
+    R = sp.Matrix.hstack(*[e.to_matrix(N) for e in (frame.x, frame.y, frame.z)])
+    W = R.T * R.diff(ren.t)
+    comps = [ren.plain(c, what) for c in (W[2, 1], W[0, 2], W[1, 0])]
+    return sp.ImmutableMatrix([sp.trigsimp(c) if sp.count_ops(c) < 80 else c for c in comps])
 
 
 def _body_name(body) -> str:
@@ -201,8 +316,20 @@ def _body_name(body) -> str:
 
 def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | None = None, *,
                name: str = "sympy_system", constraint_names: Sequence[str] | None = None,
-               reactions: str | Sequence[str] | None = "all") -> System:
-    """The appell :class:`~appell.model.System` of a SymPy mechanics ``system``.
+               reactions: str | Sequence[str] | None = "all", positions: str = "check") -> System:
+    """The appell :class:`~appell.model.System` of a SymPy mechanics ``system`` — a
+    ``sympy.physics.mechanics.System``, a ``KanesMethod`` or ``LagrangesMethod`` (after its
+    equations were formed, so that it holds its bodies and loads), or a PyDy ``System``
+    (its constants, specifieds and initial conditions as defaults of ``parameters`` and
+    ``initial``).
+
+    The model means what SymPy means: the velocities and angular velocities as they were
+    set (``Point.vel``, ``ang_vel_in``), positions kept where the set velocity is their
+    derivative at random states on the constraint manifold, and a refusal naming the point
+    or frame where it is not (``positions="ignore"``: take the set velocities there and drop
+    the positions). A frame with an angular velocity but no orientation gets its rotation
+    angle ``<frame>_angle`` as a coordinate when that angle is cyclic (the body's inertia
+    symmetric about the rotation axis), else a refusal naming the frame.
 
     ``parameters``: ``{symbol or name: value}`` for every constant symbol the system uses;
     ``initial``: ``{coordinate or speed (dynamic symbol, symbol or name): value}``;
@@ -212,52 +339,21 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
     ``F_<joint>_<x|y|z>``, ``M_<joint>_<x|y|z>`` are added as outputs (module docstring).
     """
     me = _mechanics()
+    from appell.mechanism.sympy_methods import as_system
+
+    system, parameters, initial, lagrangian, specified = as_system(system, parameters, initial)
     if not isinstance(system, me.System):
-        raise ModelError(f"from_sympy needs a sympy.physics.mechanics.System, got {type(system).__name__}")
+        raise ModelError(f"from_sympy needs a sympy.physics.mechanics System, KanesMethod or LagrangesMethod, "
+                         f"got {type(system).__name__}")
     if len(system.u_aux):
         raise ModelError("the SymPy system has auxiliary speeds " + ", ".join(str(u) for u in system.u_aux),
                          hint="leave them out: appell gives every constraint and joint reaction by its own formula")
     if system._vel_constrs is not None:  # set explicitly instead of derived from the constraints
         raise ModelError("the SymPy system has explicitly set velocity constraints",
                          hint="give them as nonholonomic constraints (add_nonholonomic_constraints)")
-    N, O = system.frame, system.fixed_point
+    N = system.frame
     ren = _Renamer(list(system.q), list(system.u), list(system.kdes))
-
-    bodies, statics = [], set()
-    for body in system.bodies:
-        what = f"body {body.name}"
-        position, velocity = _position(body.masscenter, O, N, ren, what)
-        rigid = isinstance(body, me.RigidBody)
-        omega = ren.vector(body.frame.ang_vel_in(N), body.frame, what) if rigid else sp.zeros(3, 1)
-        moving = (position if position is not None else velocity).free_symbols | omega.free_symbols
-        if not moving & set(ren.coordinates + ren.speeds):
-            statics.add(body)
-            continue
-        mass = ren.plain(body.mass, f"mass of {body.name}")
-        if rigid:
-            # entries of a 3x3 tensor re-expressed in the body frame: small, so trigsimp
-            # removes the cos^2 + sin^2 of a tensor given in another frame
-            inertia = sp.ImmutableMatrix(body.central_inertia.to_matrix(body.frame)).applyfunc(
-                lambda e: sp.trigsimp(ren.plain(e, f"inertia of {body.name}")))  # noqa: B023 (applied here)
-            bodies.append(RigidBody(_body_name(body), mass, position, velocity, inertia, omega))
-        else:
-            bodies.append(Particle(_body_name(body), mass, position, velocity))
-    if not bodies:
-        raise ModelError("the SymPy system has no moving bodies")
-
-    loads = []
-    all_loads = _moving_loads(system, ren)
-    for k, load in enumerate(all_loads, 1):
-        if isinstance(load, me.Force):
-            what = f"force {k} at {load.point}"
-            position, velocity = _position(load.point, O, N, ren, what)
-            loads.append(AppliedForce(ren.vector(load.vector, N, what), position, velocity, name=f"force_{k}"))
-        else:
-            what = f"torque {k} on {load.frame}"
-            loads.append(AppliedTorque(ren.vector(load.vector, N, what),
-                                       ren.vector(load.frame.ang_vel_in(N), N, what), name=f"torque_{k}"))
-    potential = sum((ren.plain(b.potential_energy, f"potential energy of {b.name}")
-                     for b in system.bodies if b not in statics), sp.S.Zero)
+    ren.plain_map.update(specified)  # a PyDy system's constant specifieds: parameters
 
     hol, nonhol = list(system.holonomic_constraints), list(system.nonholonomic_constraints)
     names = list(constraint_names) if constraint_names is not None else (
@@ -265,13 +361,66 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
     if len(names) != len(hol) + len(nonhol):
         raise ModelError(f"{len(names)} constraint names for {len(hol)} holonomic and {len(nonhol)} nonholonomic "
                          "constraints", hint="name the holonomic constraints first, then the nonholonomic ones")
-    constraints = [holonomic(n, ren.plain(e, f"holonomic constraint {n}")) for n, e in zip(names, hol)]
-    constraints += [nonholonomic(n, ren.plain(e, f"nonholonomic constraint {n}"))
-                    for n, e in zip(names[len(hol):], nonhol)]
+    hol_plain = [ren.plain(e, f"holonomic constraint {n}") for n, e in zip(names, hol)]
+    nonhol_plain = [ren.plain(e, f"nonholonomic constraint {n}") for n, e in zip(names[len(hol):], nonhol)]
+    constraints = [holonomic(n, e) for n, e in zip(names, hol_plain)]
+    constraints += [nonholonomic(n, e) for n, e in zip(names[len(hol):], nonhol_plain)]
+    reader = _Reader(system, ren, positions, parameters, hol_plain, nonhol_plain)
+
+    bodies, statics = [], set()
+    for body in system.bodies if lagrangian is None else ():
+        what = f"body {body.name}"
+        position, velocity = reader.point(body.masscenter, what)
+        rigid = isinstance(body, me.RigidBody)
+        if rigid:
+            try:
+                frame, omega, inertia = reader.frame(body.frame, what)
+            except _Unoriented:
+                frame, omega, inertia = _unoriented(body, reader, what)
+        else:
+            frame, omega = None, sp.zeros(3, 1)
+        moving = (position if position is not None else velocity).free_symbols | omega.free_symbols
+        if not moving & set(ren.coordinates + ren.speeds):
+            statics.add(body)
+            continue
+        mass = ren.plain(body.mass, f"mass of {body.name}")
+        if rigid:
+            # entries of a 3x3 tensor re-expressed in the body frame: small, so trigsimp
+            # removes the cos^2 + sin^2 of the coordinates of a tensor given in another frame
+            # (one turned by constant angles, the bicycle's head tube, has nothing to remove)
+            if inertia is None:
+                inertia = sp.ImmutableMatrix(body.central_inertia.to_matrix(frame)).applyfunc(
+                    lambda e: _constant_or_trigsimp(ren.plain(e, f"inertia of {body.name}"), ren))  # noqa: B023
+            bodies.append(RigidBody(_body_name(body), mass, position, velocity, inertia, omega))
+        else:
+            bodies.append(Particle(_body_name(body), mass, position, velocity))
+    if not bodies and lagrangian is None:
+        raise ModelError("the SymPy system has no moving bodies")
+
+    loads = []
+    all_loads = _moving_loads(system, ren)
+    for k, load in enumerate(all_loads, 1):
+        if isinstance(load, me.Force):
+            what = f"force {k} at {load.point}"
+            position, velocity = reader.point(load.point, what)
+            loads.append(AppliedForce(ren.vector(load.vector, N, what), position, velocity, name=f"force_{k}"))
+        else:
+            what = f"torque {k} on {load.frame}"
+            loads.append(AppliedTorque(ren.vector(load.vector, N, what),
+                                       ren.vector(load.frame.ang_vel_in(N), N, what), name=f"torque_{k}"))
+    potential = sum((ren.plain(b.potential_energy, f"potential energy of {b.name}")
+                     for b in system.bodies if b not in statics), sp.S.Zero) if lagrangian is None else sp.S.Zero
+    kinetic = None
+    if lagrangian is not None:  # L = T - V: T the part that moves with the speeds, -V the rest
+        L = ren.plain(lagrangian, "the Lagrangian")
+        V = -L.xreplace({w: 0 for w in ren.speeds})
+        kinetic, potential = sp.expand(L + V), V
 
     outputs = _joint_reactions(system, reactions, ren, statics) if system.joints and reactions is not None else ()
 
     used = set().union(*(e.free_symbols for e in _expressions(bodies, loads, constraints, outputs, potential)))
+    if kinetic is not None:
+        used |= kinetic.free_symbols
     known = set(ren.coordinates + ren.speeds) | {derivative_symbol(w) for w in ren.speeds} | {t}
     values = {str(k): v for k, v in (parameters or {}).items()}
     missing = sorted(s.name for s in used - known if s.name not in values)
@@ -282,12 +431,71 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
     init = {}
     for key, value in (initial or {}).items():
         init[_initial_name(key, ren)] = value
-    kinematics = {q: (ren.plain(ren.kinematics[qd], f"kinematics of {q}") if qd in ren.kinematics else
-                      ren.plain_map[qd]) for q, qd in zip(ren.coordinates, (s.diff(ren.t) for s in system.q))}
+    kinematics = dict(zip(ren.coordinates, ren.rates()))
     return System(coordinates=ren.coordinates, speeds=ren.speeds, kinematics=kinematics, parameters=params,
-                  bodies=tuple(bodies), loads=tuple(loads), potential_energy=potential,
+                  bodies=tuple(bodies), loads=tuple(loads), potential_energy=potential, kinetic_energy=kinetic,
                   constraints=tuple(constraints), initial=init, name=name,
                   description="imported from a sympy.physics.mechanics System", outputs=tuple(outputs))
+
+
+def _unoriented(body, reader: _Reader, what: str):
+    """``(frame, omega, inertia)`` of a body whose frame ``W`` has an angular velocity relative to an
+    oriented frame ``F`` but no orientation: its rotation angle ``W_angle`` about the fixed axis
+    ``e`` of that relative rotation becomes a coordinate (``W_angle' = omega_WF . e``) and the
+    body frame is ``F`` turned by it about ``e``, when the angle is cyclic (the inertia,
+    given in ``F``, symmetric about ``e``); else a refusal naming ``W``."""
+    me = _mechanics()
+    ren, N, W = reader.ren, reader.N, body.frame
+    hint = (f"orient {W} (for example {W}.orient_axis(F, axis, angle)) and add the angle as a coordinate with its "
+            "kinematic differential equation")
+    bases = [F for F in W._ang_vel_dict if F is not W and _oriented(F, N)]
+    if not bases:
+        raise ModelError(f"{what}: the frame {W} has no orientation in {N} and no angular velocity relative to a "
+                         "frame that has one", hint=hint)
+    F = bases[0]
+    rel = W.ang_vel_in(F).to_matrix(F)
+    nonzero = [k for k in range(3) if rel[k] != 0]
+    if not nonzero:
+        raise ModelError(f"{what}: the frame {W} has no orientation in {N} and does not turn relative to {F}",
+                         hint=hint)
+    k0 = nonzero[0]
+    axis = sp.Matrix([sp.simplify(rel[k] / rel[k0]) for k in range(3)])
+    if any(_is_dynamic(f) for f in axis.atoms(sp.Function)) or axis.has(sp.Derivative):
+        raise ModelError(f"{what}: the frame {W} has no orientation in {N}, and its rotation relative to {F} is not "
+                         f"about a fixed axis ({list(rel)} along {F})", hint=hint)
+    norm = sp.sqrt(sum(a**2 for a in axis))
+    e = axis / norm
+    rate = rel[k0] / e[k0]
+    try:
+        inertia_F = body.central_inertia.to_matrix(F).applyfunc(lambda c: ren.plain(c, f"inertia of {body.name}"))
+    except ValueError:
+        raise ModelError(f"{what}: the frame {W} has no orientation in {N}, and the inertia is not expressed in a "
+                         "frame that has one", hint=hint) from None
+    E = sp.Matrix([[0, -e[2], e[1]], [e[2], 0, -e[0]], [-e[1], e[0], 0]])
+    if any(sp.simplify(c) != 0 for c in inertia_F * E - E * inertia_F):
+        raise ModelError(f"{what}: the frame {W} has an angular velocity but no orientation in {N}, and its rotation "
+                         f"angle about {list(e)} (along {F}) is not cyclic: the inertia {inertia_F.tolist()} is not "
+                         "symmetric about that axis", hint=hint)
+    angle = me.dynamicsymbols(f"{_body_name(W)}_angle")
+    if sp.Symbol(angle.func.__name__) in ren.coordinates + ren.speeds:
+        raise ModelError(f"{what}: the rotation angle of the frame {W} would be named {angle.func.__name__}, "
+                         "which the system uses already", hint=hint)
+    ren.add_coordinate(angle, rate)
+    B = F.orientnew(f"{W}_rotated", "Axis", (angle, e[0] * F.x + e[1] * F.y + e[2] * F.z))
+    omega = ren.vector(W.ang_vel_in(N), B, what)
+    return B, omega, sp.ImmutableMatrix(inertia_F)  # the same in B: symmetric about e
+
+
+def _constant_or_trigsimp(e, ren: _Renamer):
+    return sp.trigsimp(e) if e.free_symbols & set(ren.coordinates) else e
+
+
+def _oriented(frame, N) -> bool:
+    try:
+        frame.dcm(N)
+    except ValueError:
+        return False
+    return True
 
 
 def _moving_loads(system, ren: _Renamer) -> tuple:
@@ -299,10 +507,13 @@ def _moving_loads(system, ren: _Renamer) -> tuple:
     moving = set(ren.coordinates + ren.speeds) | {t}
     for load in tuple(system.loads) + tuple(ld for act in system.actuators for ld in act.to_loads()):
         if isinstance(load, me.Force):
-            try:
-                at_rest = not ren.vector(load.point.pos_from(O), N, f"point {load.point}").free_symbols & moving
+            try:  # the velocity as SymPy means it; the position where none can be formed
+                at_rest = not ren.vector(load.point.vel(N), N, f"point {load.point}").free_symbols & moving
             except ValueError:
-                at_rest = False
+                try:
+                    at_rest = not ren.vector(load.point.pos_from(O), N, f"point {load.point}").free_symbols & moving
+                except ValueError:
+                    at_rest = False
         else:
             at_rest = not ren.vector(load.frame.ang_vel_in(N), N, f"frame {load.frame}").free_symbols & moving
         if not at_rest:
@@ -391,8 +602,7 @@ def _joint_reactions(system, reactions, ren: _Renamer, statics) -> tuple:
         for b in subtree:
             if b in statics:
                 continue
-            acc = b.masscenter.pos_from(system.fixed_point).dt(N).dt(N) \
-                if _has_position(b.masscenter, system.fixed_point) else b.masscenter.vel(N).dt(N)
+            acc = b.masscenter.vel(N).dt(N)  # the velocity as SymPy means it (from_sympy checked the position)
             r = b.masscenter.pos_from(P)
             force += b.mass * acc
             moment += r.cross(b.mass * acc)
@@ -423,11 +633,3 @@ def _joint_reactions(system, reactions, ren: _Renamer, statics) -> tuple:
                                       f"{'force' if kind == 'F' else 'moment about the joint point'} of the parent "
                                       f"on the child at joint {jname}, along {N}.{axis}"))
     return tuple(outputs)
-
-
-def _has_position(point, origin) -> bool:
-    try:
-        point.pos_from(origin)
-    except ValueError:
-        return False
-    return True

@@ -4,8 +4,9 @@ A derivation (:class:`appell.core.equations.Derivation`, or a controlled one fro
 :mod:`appell.control.servo`) is plain symbolic data; it knows nothing of numbers. Every
 layer above that wants numbers asks here, once::
 
-    model = numeric_model(derivation)              # NumPy/math functions, the split solve
-    model = numeric_model(derivation, "c")         # the same interface in compiled C
+    model = numeric_model(derivation)              # 'auto': compiled C where a compiler is found
+    model = numeric_model(derivation, "numpy")     # NumPy/math functions, the split solve
+    model = numeric_model(derivation, "c")         # compiled C, refused without a compiler
 
 What comes back implements :class:`appell.numerics.dynamics.Dynamics` (and, for a plain
 derivation, the :class:`~appell.numerics.numeric.NumericModel` interface); with redundant
@@ -20,6 +21,7 @@ Other kinds of derivation register their builder with ``numeric_model.register(k
 
 from __future__ import annotations
 
+import os
 import threading
 from collections import OrderedDict
 from functools import singledispatch
@@ -34,9 +36,11 @@ KEEP = 32
 #: 'auto' (C when a compiler is found, else NumPy with a warning)
 BACKENDS = ("numpy", "c", "auto")
 
-#: the backend of ``numeric_model(derivation)`` without one (the test suite's backend matrix
-#: sets it to 'c' to run every test on the compiled code)
-DEFAULT_BACKEND = "numpy"
+#: the backend of ``numeric_model(derivation)`` without one, and so of every entry that takes a
+#: derivation (simulate, cross_check, linearise, ...): 'auto', the command line's default, so that
+#: the API is as fast as the command line without asking (``$APPELL_BACKEND`` sets another; the
+#: test suite sets it to its backend, tests/conftest.py)
+DEFAULT_BACKEND = os.environ.get("APPELL_BACKEND") or "auto"
 
 _models: OrderedDict[int, tuple[object, dict]] = OrderedDict()
 _lock = threading.RLock()

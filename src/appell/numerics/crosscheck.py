@@ -182,7 +182,16 @@ def augmented_solve(model: NumericModel, t, q, w, p=None) -> StateSolution:
     """Accelerations and multipliers from the augmented system at (t, q, w)."""
     pv = model.params(p)
     M, hQ, J, c = model.evaluate_blocks(t, q, w, pv)
-    a, lam, Ja, its = solve_augmented(M, hQ, J, c, _model_constraint_function(model, t, q, w, pv))
+    try:
+        a, lam, Ja, its = solve_augmented(M, hQ, J, c, _model_constraint_function(model, t, q, w, pv))
+    except np.linalg.LinAlgError:
+        from appell.numerics.inertia import extreme_parameters
+
+        extreme = extreme_parameters(model.parameter_names, pv)
+        raise ComputationError(f"the augmented system [M -J^T; J 0] of the cross-check is singular at t = "
+                               f"{float(t):.10g}" + (f": {extreme}" if extreme else ""),
+                               hint="give the parameters values of ordinary size (or rescale the model's units); "
+                                    "else a singular configuration of the constraints") from None
     return StateSolution(a, lam, Ja.T @ lam, (), False, its)
 
 
@@ -192,8 +201,11 @@ def relative_difference(x, y) -> float:
     y = np.asarray(y, float)
     if x.size == 0:
         return 0.0
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        return float("inf")  # a comparison with NaN or an overflow must not pass
     scale = max(np.max(np.abs(x)), np.max(np.abs(y)), 1e-12)
-    return float(np.max(np.abs(x - y)) / scale)
+    with np.errstate(over="ignore"):
+        return float(np.max(np.abs(x - y)) / scale)
 
 
 def _ratio(difference: float, scale: float) -> float:

@@ -60,6 +60,22 @@ def check_body_masses(system, t, q, w, p, parameter_names) -> None:
                              hint="give the body a positive mass (check the parameter values and --set)")
 
 
+#: a parameter's magnitude outside [EXTREME_SMALL, EXTREME_LARGE] (and not zero) is named when
+#: a matrix it enters is singular to double precision
+EXTREME_SMALL, EXTREME_LARGE = 1e-12, 1e12
+
+
+def extreme_parameters(names, p) -> str:
+    """A clause naming the parameters of extreme magnitude (empty when none): beside the others,
+    a value of 9.2e18 or 1e-300 leaves matrices singular to double precision."""
+    found = [f"{n} = {v:.3g}" for n, v in zip(names, np.asarray(p, float).reshape(-1))
+             if np.isfinite(v) and v != 0.0 and not EXTREME_SMALL <= abs(v) <= EXTREME_LARGE]
+    if not found:
+        return ""
+    return (f"the parameter{'s' if len(found) > 1 else ''} {', '.join(found)} "
+            f"{'are' if len(found) > 1 else 'is'} of extreme size beside the others")
+
+
 def check_inertia(model, t, y, p) -> None:
     """Refuse a model whose inertia at ``(t, y)`` is not positive (module docstring).
 
@@ -90,6 +106,11 @@ def check_inertia(model, t, y, p) -> None:
     if scale == 0.0:
         raise ModelError(f"the {_energy_name(system)} is zero {where}: nothing has inertia",
                          hint="give the bodies positive masses (check the parameter values and --set)")
+    extreme = extreme_parameters(model.parameter_names, p)
+    if extreme and abs(eig[0]) <= ZERO_EIGENVALUE * scale:
+        raise ModelError(f"the mass matrix is singular to double precision {where} (eigenvalues from "
+                         f"{eig[0]:.3g} to {eig[-1]:.3g}): {extreme}",
+                         hint="give that parameter a value of ordinary size, or rescale the model's units")
     if eig[0] < -ZERO_EIGENVALUE * scale:
         raise ModelError(f"the {_energy_name(system)} is not positive definite {where}: it is negative "
                          f"along {_direction(vec[:, 0], names)} (mass-matrix eigenvalue {eig[0]:.3g})",
@@ -106,6 +127,9 @@ def check_inertia(model, t, y, p) -> None:
     if basis.shape[1] == 0:
         return
     reduced, rvec = np.linalg.eigh(basis.T @ M @ basis)
+    if reduced[0] <= ZERO_EIGENVALUE * scale and extreme:
+        raise ModelError(f"the reduced mass matrix is singular to double precision {where}: {extreme}",
+                         hint="give that parameter a value of ordinary size, or rescale the model's units")
     if reduced[0] <= ZERO_EIGENVALUE * scale:
         raise ModelError(f"the {_energy_name(system)} is not positive definite {where}: it is zero for the "
                          f"admissible motion along {_direction(basis @ rvec[:, 0], names)}",

@@ -273,7 +273,10 @@ def _solved_sensitivities(model, sens: _Sensitivities, tt, q, w, pv):
     (1.4)/(1.5) with the sensitivities as right-hand sides (module docstring)."""
     nq, n, s, _, _, _, nu = sens.shapes
     sol = model.solve(tt, q, w, pv)
-    jacobians = sens(tt, q, w, sol.accelerations, sol.multipliers, pv)
+    # R and S hold the independent constraints and their multipliers, those of the wrapped model
+    # (the redundant split redistributes them over all constraints)
+    lam = sol.multipliers if getattr(model, "redundancy", None) is None else model.inner.solve(tt, q, w, pv).multipliers
+    jacobians = sens(tt, q, w, sol.accelerations, lam, pv)
     Ry, Sy, _, Ru, Su = jacobians[:5]
     blocks = M, _, J, _ = model.evaluate_blocks(tt, q, w, pv)
     try:
@@ -504,6 +507,7 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     # outputs: the multipliers, then the model's outputs (chain rule through a and lambda)
     zy_full = zy + za @ ay + zl @ ly
     zu_full = zu + za @ au + zl @ lu
+    ly, lu = _all_multipliers(model, tt, q, w, pv, ly, lu, [pnames.index(u) for u in inputs])
     C = np.vstack([ly, zy_full]) @ T
     D = np.vstack([lu, zu_full])
     states = tuple([cnames[i] for i in qi] + [snames[i] for i in wi])
@@ -520,6 +524,51 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     return LinearModel(A, B, C, D, states, tuple(inputs), outputs,
                        tuple(cnames[i] for i in ignored) + tuple(snames[i] for i in ignored_w), point,
                        Tw.T @ M @ Tw, steady, coordinates=len(qi))
+
+
+#: relative step of the central differences of the redundant split in the state
+REDUNDANT_STEP = 1e-6
+
+
+def _all_multipliers(model, tt, q, w, pv, ly, lu, inputs: list[int]):
+    """``(dlambda/dy, dlambda/du)`` of every constraint of a model with redundant ones: the
+    split ``lambda = L(J) lambda_i`` of :func:`~appell.core.redundancy.multipliers_with_redundancy`
+    (minimum row-scaled norm, or elastic) is linear in the independent multipliers
+    ``lambda_i``, so ``dlambda = L dlambda_i + (dL/dy) lambda_i``; ``L`` column by column,
+    ``(dL/dy) lambda_i`` by central differences of the split with ``lambda_i`` held
+    (:data:`REDUNDANT_STEP`; ``J`` of every row at the shifted state). Unchanged without
+    redundancy."""
+    from appell.core.redundancy import multipliers_with_redundancy
+
+    red = getattr(model, "redundancy", None)
+    if red is None:
+        return ly, lu
+    rows, s = list(red.independent), len(red.names)
+    lam_i = model.inner.solve(tt, q, w, pv).multipliers
+
+    def split(qq, ww, pp, lam):
+        J = model.full_blocks(tt, qq, ww, pp)[0]
+        return multipliers_with_redundancy(J, rows, lam, model.weights)
+
+    L = np.column_stack([split(q, w, pv, e) for e in np.eye(len(rows))]) if rows else np.zeros((s, 0))
+    y = np.concatenate([np.asarray(q, float), np.asarray(w, float)])
+    nq = len(q)
+    dy = np.zeros((s, len(y)))
+    for k in range(len(y)):
+        h = REDUNDANT_STEP * (1.0 + abs(y[k]))
+        yp, ym = y.copy(), y.copy()
+        yp[k] += h
+        ym[k] -= h
+        dy[:, k] = (split(yp[:nq], yp[nq:], pv, lam_i) - split(ym[:nq], ym[nq:], pv, lam_i)) / (2 * h)
+    pv = np.asarray(pv, float)
+    du = np.zeros((s, len(inputs)))
+    for k, i in enumerate(inputs):
+        h = REDUNDANT_STEP * (1.0 + abs(pv[i]))
+        pp, pm = pv.copy(), pv.copy()
+        pp[i] += h
+        pm[i] -= h
+        du[:, k] = (split(q, w, pp, lam_i) - split(q, w, pm, lam_i)) / (2 * h)
+    return L @ ly + dy, L @ lu + du
 
 
 def _known(name: str, names: list[str], what: str) -> str:

@@ -462,7 +462,8 @@ class NumericModel:
         # a reaction direction that (nearly) vanishes at the solution leaves its multiplier
         # undetermined: Newton fixes a to ~1e-12, so a row shrunk below 1e-4 of its size at
         # the start would carry that error into lambda beyond 1e-8
-        shrunk = np.linalg.norm(J, axis=1) < VANISHING_ROW * np.linalg.norm(J0, axis=1)
+        with np.errstate(over="ignore"):  # rows of 1e300 (a parameter of extreme size): no shrinking to tell
+            shrunk = np.linalg.norm(J, axis=1) < VANISHING_ROW * np.linalg.norm(J0, axis=1)
         if np.any(shrunk):
             bad = [n for n, b in zip(names, shrunk) if b]
             raise SingularConfigurationError(

@@ -274,14 +274,21 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
               EvaluationBudget("the energy balance's integration", t0, t_end, MAX_EVALUATIONS_IMPLICIT, None,
                                first=FIRST_PROJECTION_IMPLICIT))
 
+    names = ([f"{x}'" for x in model.coordinate_names] + [f"{w}'" for w in model.speed_names]
+             + ["the power of the applied forces", "the power of the reactions", "the explicit power", "the work"])
+
     def rhs(tt, y):
         budget(tt)
         q, w = y[:nq], y[nq:nq + n]
-        a, p_app, p_reac, p_expl = powers(tt, q, w)
-        dq = model.coordinate_rates(tt, q, w, pv)
-        return np.concatenate([dq, a, [p_app, p_reac, p_expl, abs(p_app) + abs(p_reac) + abs(p_expl)]])
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflow is named just below
+            a, p_app, p_reac, p_expl = powers(tt, q, w)
+            dq = model.coordinate_rates(tt, q, w, pv)
+            out = np.concatenate([dq, a, [p_app, p_reac, p_expl, abs(p_app) + abs(p_reac) + abs(p_expl)]])
+        _check_range(tt, out, names, model, pv)
+        return out
 
     kin0, V0, _, _ = balance(t0, y0[:nq], y0[nq:], pv)
+    _check_range(t0, np.array([kin0, V0]), ["the kinetic energy", "the potential energy"], model, pv)
     times = np.linspace(t0, t_end, max(int(samples), 2))
     start = np.concatenate([y0, np.zeros(4)])
     scale0 = max(1.0, abs(kin0) + abs(V0))
@@ -299,8 +306,9 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
                 return full
 
             options["jac"] = jacobian
-    run = solve_ivp(rhs, (t0, t_end), start, method=method, t_eval=times, rtol=rtol, atol=tolerances,
-                    events=events, **options)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # ranges are checked in rhs
+        run = solve_ivp(rhs, (t0, t_end), start, method=method, t_eval=times, rtol=rtol, atol=tolerances,
+                        events=events, **options)
     cut = ""
     ended = [k for k in range(len(events)) if run.t_events[k].size]
     if run.status == 1 and ended:
@@ -336,6 +344,27 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     return EnergyBalance(form, "", t0, float(run.t[-1]) if cut else t_end, int(run.t.size), float(H[-1] - H[0]),
                          float(W_app[-1]), float(W_reac[-1]), float(W_expl[-1]), float(r[worst]), scale, relative,
                          float(run.t[worst]), cut, method)
+
+
+#: largest magnitude of a state derivative or an energy the balance integrates: the
+#: integrator's error norms square them (1e300 squared overflows)
+LARGEST = 1e150
+
+
+def _check_range(t, values, names, model, pv) -> None:
+    """Refuse, naming it, a derivative or energy that is not finite or beyond :data:`LARGEST`
+    (with the parameters of extreme size that explain it)."""
+    bad = ~(np.abs(values) <= LARGEST)
+    if not bad.any():
+        return
+    from appell.numerics.inertia import extreme_parameters
+
+    k = int(np.argmax(bad))
+    extreme = extreme_parameters(model.parameter_names, pv)
+    raise ComputationError(f"the energy balance cannot integrate: {names[k]} is {values[k]:.3g} at t = {float(t):.10g}, "
+                           "beyond the floating range that the integration's error norms can square (1e150)"
+                           + (f" ({extreme})" if extreme else ""),
+                           hint="give the parameters values of ordinary size, or rescale the model's units")
 
 
 class _Deadline:

@@ -57,6 +57,26 @@ def exact_jacobian(model, solver_cls, cache: dict):
     return cache[id(model)][1]
 
 
+#: largest magnitude of a state derivative the integrators take: their error norms square it
+#: (1e300 squared overflows, with NumPy's warnings and then a failed step size)
+LARGEST = 1e150
+
+
+def _out_of_range(model, t, derivative, p) -> None:
+    """Refuse a state derivative beyond :data:`LARGEST` or not finite, naming its entry and the
+    parameters of extreme size."""
+    from appell.errors import ComputationError
+    from appell.numerics.inertia import extreme_parameters
+
+    k = int(np.argmax(~(np.abs(derivative) <= LARGEST)))
+    names = [f"{n}'" for n in getattr(model, "state_names", ())]
+    what = names[k] if k < len(names) else f"entry {k + 1} of the state's derivative"
+    extreme = extreme_parameters(getattr(model, "parameter_names", ()), p) if p is not None else ""
+    raise ComputationError(f"{what} is {derivative[k]:.3g} at t = {float(t):.10g}, beyond the floating range that "
+                           "the integrator's error norms can square (1e150)" + (f" ({extreme})" if extreme else ""),
+                           hint="give the parameters values of ordinary size, or rescale the model's units")
+
+
 @dataclass(frozen=True)
 class Step:
     """One accepted step: its end ``(t, y)``, its dense output, and ``k`` the index of the next
@@ -86,7 +106,10 @@ class Integration:
 
     def fun(self, t, y):
         self.run.nfev += 1
-        return self.run.evaluate(self.active, t, y).derivative
+        derivative = self.run.evaluate(self.active, t, y).derivative
+        if not np.all(np.abs(derivative) <= LARGEST):
+            _out_of_range(self.active, t, derivative, self.p)
+        return derivative
 
     def _tolerances(self) -> dict:
         return {"rtol": self.options.rtol, "atol": self.options.atol, "max_step": self.options.max_step}

@@ -26,7 +26,7 @@ from appell.errors import ComputationError, ModelError
 from appell.symbols import derivative_name
 from appell.numerics.boundary import numeric_model
 
-__all__ = ["InverseDynamics", "inverse_dynamics"]
+__all__ = ["InverseDynamics", "inverse_dynamics", "closed_chain_inverse"]
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,10 @@ class InverseDynamics:
     """The answer along the motion: ``t``, the ``motion`` (coordinates, speeds and
     accelerations by name), ``drives`` (``{speed: force along it}``), ``multipliers``
     (``{constraint: lambda}``), ``outputs`` (joint forces and moments, the model's outputs)
-    and ``residual`` (the largest velocity-level constraint residual of the given motion)."""
+    and ``residual`` (the largest velocity-level constraint residual of the given motion);
+    ``undetermined`` (closed chains, :func:`closed_chain_inverse`): each combination of drives
+    and multipliers that does no work, ``{name: weight}``, the answer being their minimum-norm
+    choice; ``undetermined_wrenches`` the joints whose wrench those combinations change."""
 
     t: np.ndarray
     motion: Mapping[str, np.ndarray]
@@ -42,6 +45,8 @@ class InverseDynamics:
     multipliers: Mapping[str, np.ndarray]
     outputs: Mapping[str, np.ndarray] = field(default_factory=dict)
     residual: float = 0.0
+    undetermined: tuple = ()  # closed chains: combinations of drives and multipliers the motion leaves open
+    undetermined_wrenches: tuple = ()  # closed chains: joints whose wrench those combinations change
 
     def columns(self) -> list[tuple[str, np.ndarray]]:
         """``(name, values)`` in the order of a result file: t, the motion, ``drive_<speed>``,
@@ -72,12 +77,21 @@ def _spline(t, q, order):
 
 
 def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | None = None,
-                     p=None) -> InverseDynamics:
+                     p=None, **options) -> InverseDynamics:
     """Drive forces, multipliers and outputs of ``derivation`` along the motion ``q``
     (rows: times ``t``, columns: coordinates in the model's order) with speeds ``w`` and
     accelerations ``a`` (same shapes; derived from ``q`` by a cubic spline when not given);
     ``drives`` the names of the driven speeds (default: every speed of a system without
-    constraints). Module docstring: the equations."""
+    constraints). Module docstring: the equations.
+
+    A closed chain (an :class:`appell.Mechanism`, a mechanism's :class:`appell.System` whose
+    tree records loop closures, or the :class:`~appell.numerics.loops.LoopModel` of one)
+    takes its motion for the actuated or
+    other independent coordinates alone, ``q = {name: values}``, and completes the passive
+    ones from the loop closures (:func:`closed_chain_inverse`, whose ``options`` it passes)."""
+    tree = getattr(derivation, "tree", None)
+    if hasattr(derivation, "loop_parts") or hasattr(derivation, "loop_rows") or getattr(tree, "loops", ()):
+        return closed_chain_inverse(derivation, t, q, w, a, drives, p, **options)
     model = numeric_model(derivation)
     names, speeds = model.coordinate_names, model.speed_names
     t = np.asarray(t, float).reshape(-1)
@@ -138,3 +152,208 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
     return InverseDynamics(t, motion, {d: tau[:, k] for k, d in enumerate(drives)},
                            {c: lam[:, k] for k, c in enumerate(cons)},
                            dict(outputs), residual)
+
+
+def _given_columns(values, names, what, size):
+    """``{index: values}`` of a mapping keyed by coordinate names (or their speeds' names)."""
+    out = {}
+    for key, column in dict(values).items():
+        key = str(key)
+        k = names[0].index(key) if key in names[0] else names[1].index(key) if key in names[1] else None
+        if k is None:
+            raise ModelError(f"{what}: unknown coordinate {key!r}", hint="coordinates: " + ", ".join(names[0]))
+        column = np.asarray(column, float).reshape(-1)
+        if column.size != size or not np.all(np.isfinite(column)):
+            raise ModelError(f"{what}: {key!r} must have {size} finite values, one per time")
+        out[k] = column
+    return out
+
+
+def _combinations(A, names, tol):
+    """The null space of ``A`` as ``{name: weight}``, in reduced echelon form (each combination
+    has its own leading name, weight 1, absent from the others)."""
+    from appell.numerics.loops import echelon_null_space
+
+    return echelon_null_space(A, names, tol)
+
+
+def _independent(J, ind, passive, names):
+    """A :class:`ModelError` where the given coordinates are related by the loops, or leave
+    passive ones free (ranks of ``J`` and its passive columns, relative tolerance 1e-9)."""
+    rank, rank_p = (np.linalg.matrix_rank(M_, tol=1e-9 * max(np.abs(J).max(initial=0.0), 1e-300))
+                    for M_ in (J, J[:, passive]))
+    if rank_p < rank:
+        raise ModelError(f"the given coordinates {', '.join(names[i] for i in ind)} are not independent: the "
+                         "loop closures relate them", hint="give fewer, or other, coordinates")
+    if len(passive) > rank_p:
+        raise ModelError(f"the loop closures leave {len(passive) - rank_p} passive coordinate(s) free: give "
+                         f"{len(passive) - rank_p} more", hint="passive: " + ", ".join(names[i] for i in passive))
+
+
+def _passive_solve(Jp, rhs):
+    """The least-squares solution of ``Jp x = rhs`` for a ``Jp`` of full column rank (the passive
+    coordinates' columns, :func:`_independent`): by the normal equations ``Jp^T Jp x = Jp^T rhs``
+    (a small dense solve, a tenth of ``lstsq``'s cost; the systems solved here are consistent:
+    the loops' rows at a closed assembly), ``lstsq`` where ``Jp^T Jp`` is singular."""
+    try:
+        return np.linalg.solve(Jp.T @ Jp, Jp.T @ rhs)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(Jp, rhs, rcond=None)[0]
+
+
+def _newton(model, q, passive, pv, tol, max_iterations):
+    """Newton's method on the passive coordinates for ``Phi(q) = 0`` (least squares: dependent
+    rows allowed); ``(q, Phi, J)`` at the last step, converged where ``|Phi| <= tol``."""
+    q = q.copy()
+    for step in range(max_iterations + 1):
+        Phi, J = model.positions(q, pv)
+        if np.abs(Phi).max(initial=0.0) <= tol or not passive or step == max_iterations:
+            break
+        dq = _passive_solve(J[:, passive], -Phi)
+        q[passive] += dq * min(1.0, 0.5 / max(np.abs(dq).max(), 1e-300))  # at most half a radian a step
+    return q, Phi, J
+
+
+def _assemble(model, q, ind, passive, target, pv, tol, max_iterations, depth=0):
+    """The passive coordinates closing the loops with the given ones at ``target``, from ``q``:
+    Newton's method, and where it fails, the given coordinates moved there in halves."""
+    trial = q.copy()
+    trial[ind] = target
+    out = _newton(model, trial, passive, pv, tol, max_iterations)
+    if np.abs(out[1]).max(initial=0.0) <= tol or depth >= 8:
+        return out
+    mid, Phi, _ = _assemble(model, q, ind, passive, (q[ind] + target) / 2, pv, tol, max_iterations, depth + 1)
+    if np.abs(Phi).max(initial=0.0) > tol:
+        return out
+    return _assemble(model, mid, ind, passive, target, pv, tol, max_iterations, depth + 1)
+
+
+def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | None = None, p=None,
+                         guess: Mapping[str, float] | None = None, tol: float = 1e-11,
+                         max_iterations: int = 50) -> InverseDynamics:
+    """Inverse dynamics of a closed chain along a motion given for its independent coordinates.
+
+    ``model``: an :class:`appell.Mechanism` or its :class:`~appell.numerics.loops.LoopModel`;
+    ``q = {coordinate: values}`` at the times ``t`` for the actuated (or any independent)
+    coordinates, ``w``, ``a`` likewise for their speeds and accelerations (a cubic spline of
+    ``q`` where not given). At each time the passive coordinates ``q_p`` solve the loops'
+    position rows ``Phi(q) = 0`` by Newton's method (from the previous time's, at first
+    ``guess`` or the model's defaults), then ``J_p w_p = -J_i w_i`` and
+    ``J_p a_p = -(J_i a_i + c)``: the motion is consistent at position, speed and
+    acceleration. The drive forces ``tau`` and multipliers ``lambda`` solve
+    ``[B  J^T] [tau; lambda] = M a + h - Q``: ``B`` maps each drive to the generalized forces
+    (``drives``: the model's actuators by default, else the given coordinates' speeds; a
+    speed's name drives it directly). Where ``[B J^T]`` has more columns than it determines
+    (over-actuated, a planar loop's idle rows), the minimum-norm answer is given and each
+    combination left open is named in ``undetermined``; where the drives cannot balance the
+    motion (under-actuated) a :class:`ComputationError` names the speeds out of balance.
+    Every joint's wrench (``F_<joint>_x .. M_<joint>_z``, world axes, the parent's force and
+    moment on the subtree at the joint's point) comes from RNEA's inward pass with the loop
+    forces applied at their anchors; those an undetermined combination changes are named in
+    ``undetermined_wrenches``."""
+    from appell.numerics.loops import LoopModel, loop_model
+
+    model = model if isinstance(model, LoopModel) else loop_model(model)
+    names, speeds = model.coordinate_names, model.speed_names
+    t = np.asarray(t, float).reshape(-1)
+    if t.size < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise ModelError("the motion's times must be finite and increasing")
+    if not isinstance(q, Mapping):
+        q = np.asarray(q, float).reshape(t.size, -1)
+        if q.shape[1] != len(names):
+            raise ModelError(f"the motion gives {q.shape[1]} coordinates, the model has {len(names)}",
+                             hint="give the independent ones by name: q={name: values}")
+        q = {nm: q[:, k] for k, nm in enumerate(names)}
+    given = _given_columns(q, (names, speeds), "the motion", t.size)
+    if not given:
+        raise ModelError("the motion gives no coordinate", hint="q={name: values} for the independent coordinates")
+    if (w is None or a is None) and t.size < 4:
+        raise ModelError("deriving speeds and accelerations from the coordinates needs at least 4 times",
+                         hint="give the speeds and accelerations, or more rows")
+    ind = sorted(given)
+    qi = np.column_stack([given[k] for k in ind])
+    wi = _spline(t, qi, 1) if w is None else np.column_stack([_given_columns(w, (names, speeds), "the speeds",
+                                                                             t.size)[k] for k in ind])
+    ai = _spline(t, wi, 1) if a is None else np.column_stack([_given_columns(a, (names, speeds),
+                                                                             "the accelerations", t.size)[k]
+                                                              for k in ind])
+    passive = [k for k in range(len(names)) if k not in given]
+    pv = model.parameter_values if p is None else np.asarray(p, float)
+    cons = model.constraint_names
+    n, s = len(names), len(cons)
+    # the drives' columns B
+    u0 = np.zeros(len(model.control_names))
+    if drives is None:
+        drives = list(model.control_names) or [speeds[k] for k in ind]
+    drives = [str(d) for d in drives]
+    B = np.zeros((n, len(drives)))
+    _, _, _, _, Q0, *_ = model._evaluate_terms(0.0, np.zeros(n), np.zeros(n), pv, u0)
+    for j, d in enumerate(drives):
+        if d in speeds:
+            B[speeds.index(d), j] = 1.0
+        elif d in model.control_names:
+            u = u0.copy()
+            u[model.control_names.index(d)] = 1.0
+            B[:, j] = model._evaluate_terms(0.0, np.zeros(n), np.zeros(n), pv, u)[4] - Q0
+        else:
+            raise ModelError(f"unknown drive {d!r}", hint="actuators: " + (", ".join(model.control_names) or "none")
+                             + "; speeds: " + ", ".join(speeds))
+    start = {**model.start, **{str(k): float(v) for k, v in (guess or {}).items()}}
+    qk = np.array([start.get(nm, 0.0) for nm in names], float)
+    Q_all, W_all, A_all = np.zeros((t.size, n)), np.zeros((t.size, n)), np.zeros((t.size, n))
+    tau, lam = np.zeros((t.size, len(drives))), np.zeros((t.size, s))
+    wrench_all = np.zeros((t.size, len(model.joints), 6))
+    undetermined: tuple = ()
+    open_joints: set = set()
+    residual = 0.0
+    for k in range(t.size):
+        if k >= 1 and passive:  # the passive coordinates predicted from the last time's speeds and accelerations
+            dt = t[k] - t[k - 1]
+            qk[passive] += W_all[k - 1, passive] * dt + A_all[k - 1, passive] * dt**2 / 2
+        qk, Phi, J = _assemble(model, qk, ind, passive, qi[k], pv, tol, max_iterations)
+        if np.abs(Phi).max(initial=0.0) > tol:
+            if k == 0:
+                _independent(J, ind, passive, names)
+            worst = cons[int(np.argmax(np.abs(Phi)))]
+            raise ComputationError(f"at t = {t[k]:.10g} the loops do not close: {worst!r} keeps a residual "
+                                   f"{np.abs(Phi).max():.3g} after Newton's method",
+                                   hint="the given coordinates leave no assembly, or start the passive ones nearer "
+                                        "(guess={name: value})")
+        if k == 0 and s:
+            _independent(J, ind, passive, names)
+        wk = np.zeros(n)
+        wk[ind] = wi[k]
+        if passive:
+            wk[passive] = _passive_solve(J[:, passive], -J[:, ind] @ wi[k])
+        M, hQ, Jk, c, pieces = model.blocks(qk, wk, u0, t[k], pv)
+        ak = np.zeros(n)
+        ak[ind] = ai[k]
+        if passive:
+            ak[passive] = _passive_solve(Jk[:, passive], -(Jk[:, ind] @ ai[k] + c))
+        residual = max(residual, float(np.abs(Jk @ wk).max(initial=0.0)))
+        A = np.hstack([B, Jk.T])
+        rhs = M @ ak + hQ
+        x = np.linalg.lstsq(A, rhs, rcond=1e-10)[0]
+        off = A @ x - rhs
+        if np.abs(off).max() > 1e-8 * max(1.0, np.abs(rhs).max()):
+            worst = [speeds[i] for i in np.argsort(-np.abs(off))[:3] if abs(off[i]) > 1e-8 * max(1.0, np.abs(rhs).max())]
+            raise ComputationError(f"at t = {t[k]:.10g} the drives {', '.join(drives)} cannot produce the motion: "
+                                   f"the forces along {', '.join(worst)} stay out of balance (under-actuated)",
+                                   hint="drive more speeds, or prescribe a motion the passive chain can follow")
+        if k == 0:
+            undetermined = _combinations(A, list(drives) + list(cons), 1e-10)
+        tau[k], lam[k] = x[:len(drives)], x[len(drives):]
+        wrench_all[k] = model.wrench_array(wk, ak, lam[k], pieces)
+        if undetermined and k in (0, t.size - 1):  # the joints on the open rows' loops: checked at both ends
+            in_lam = tuple({c: v for c, v in comb.items() if c in cons} for comb in undetermined)
+            open_joints |= set(model.open_wrenches(wk, ak, lam[k], pieces, in_lam, wrench_all[k]))
+        Q_all[k], W_all[k], A_all[k] = qk, wk, ak
+    wrench = {f"{f}_{joint}_{x}": wrench_all[:, b, i] for b, joint in enumerate(model.joints)
+              for i, (f, x) in enumerate((f, x) for f in "FM" for x in "xyz")}
+    from appell.simulation.recording import acceleration_name
+
+    motion = {**{nm: Q_all[:, i] for i, nm in enumerate(names)}, **{nm: W_all[:, i] for i, nm in enumerate(speeds)},
+              **{acceleration_name(nm): A_all[:, i] for i, nm in enumerate(speeds)}}
+    return InverseDynamics(t, motion, {d: tau[:, j] for j, d in enumerate(drives)},
+                           {c: lam[:, j] for j, c in enumerate(cons)}, wrench, residual, undetermined,
+                           tuple(j for j in model.joints if j in open_joints))

@@ -101,8 +101,14 @@ def c_source(derivation) -> str:
                       _c_file("rigid_forward.c")]
     else:
         parts.append(c_function("appell_constraint", [prepared(cons.second_order), prepared(J)], syms))
+    return joined_parts(parts)
+
+
+def joined_parts(parts: list[str]) -> str:
+    """The parts of a source joined, the parts of long functions (after :data:`UNIT_MARK`)
+    moved to the end, a translation unit each."""
     main, units = [], []
-    for part in parts:          # the parts of long functions go to the end, a unit each
+    for part in parts:
         head, *rest = part.split(UNIT_MARK)
         main.append(head.rstrip())
         units += [u.strip() for u in rest]

@@ -1,0 +1,546 @@
+"""Derivations kept on disk, beside the compiled-code cache: a second run of a model file goes
+straight to numbers.
+
+:func:`derive_file` reads a model file (TOML, URDF, MJCF: :func:`appell.io.modelfile.load_model`)
+and derives it (:func:`appell.derive`, or :func:`appell.control.servo.derive_controlled` for
+servo constraints), or reads the derivation stored for the same input. The entry's key is the
+SHA-256 of
+
+* the bytes of the model file and of the files it names (a model file's ``[mechanism] urdf``,
+  an MJCF's ``<include file=...>``),
+* the overrides, the floating base and the chosen dependent accelerations (the partition),
+* the axes of the joint reactions (``reactions_in``),
+* appell's version and the digest of its source files (:func:`source_digest`), SymPy's and
+  Python's versions and :data:`FORMAT`.
+
+An entry is plain data that cannot run code when read (not pickle): one JSON document with a
+symbol table, a table of expression nodes (each node written once, its arguments referring to
+earlier nodes; the whitelisted heads of :mod:`appell.io.expression_tree`, read back without
+evaluation) and the derivation's dataclasses by field (``module:class``, only dataclasses and
+enums of appell's own modules are rebuilt, field by field, without calling their constructors).
+The first line holds the key and the SHA-256 of the document: an entry that is truncated,
+tampered with (its bytes no longer those written), written for another key or by another
+format is ignored with a note (:class:`~appell.errors.AppellNote`) and derived again.
+
+Entries are written under a per-entry file lock to a temporary name and renamed (two processes
+filling the same entry: one derives, the other waits and reads it), kept in
+``$APPELL_CACHE_DIR/derivations`` (:func:`appell.numerics.codegen.build.cache_dir`), at most
+``$APPELL_DERIVATION_CACHE_MB`` (default 512) MB in all, the least recently used removed first.
+``$APPELL_NO_CACHE=1`` (``cache=False``) derives every time and writes nothing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import enum
+import hashlib
+import importlib
+import json
+import os
+import re
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+
+from appell.errors import AppellNote
+from appell.io.expression_tree import HEADS, expression_from_tree, expression_tree, symbol_assumptions, \
+    symbol_from_table
+
+#: bumped when the layout of an entry changes (part of the key)
+FORMAT = 1
+NO_CACHE_ENV = "APPELL_NO_CACHE"
+SIZE_ENV = "APPELL_DERIVATION_CACHE_MB"
+DEFAULT_SIZE_MB = 512
+_MAGIC = "appell-derivation"
+
+__all__ = ["FORMAT", "NO_CACHE_ENV", "SIZE_ENV", "cache_enabled", "decode", "derive_file", "encode", "entry_key"]
+
+
+class Unstorable(Exception):
+    """A derivation holds something the format does not write (a callable, a Dummy symbol):
+    it is derived every time."""
+
+
+def cache_enabled(cache: bool | None = None) -> bool:
+    """``cache`` when given, else not ``$APPELL_NO_CACHE`` (set to anything but '' or '0')."""
+    if cache is not None:
+        return bool(cache)
+    return os.environ.get(NO_CACHE_ENV, "") in ("", "0")
+
+
+def derivations_dir() -> Path:
+    from appell.numerics.codegen.build import cache_dir
+
+    return cache_dir() / "derivations"
+
+
+# ------------------------------------------------------------------ encoding
+class _Encoder:
+    def __init__(self):
+        self.nodes: list = []
+        self.index: dict = {}
+        self.symbols: dict[str, dict] = {}
+        self.symbol_of: dict[str, sp.Symbol] = {}
+
+    def expr(self, e: sp.Basic) -> int:
+        """The index of ``e`` in the node table (its arguments written before it)."""
+        found = self.index.get(e)
+        if found is not None:
+            return found
+        stack = [(e, False)]
+        while stack:
+            node, ready = stack.pop()
+            if node in self.index:
+                continue
+            if node.args and not ready:
+                stack.append((node, True))
+                stack.extend((a, False) for a in reversed(node.args) if a not in self.index)
+                continue
+            self.index[node] = len(self.nodes)
+            self.nodes.append(self._node(node))
+        return self.index[e]
+
+    def _node(self, e):
+        if e.is_Symbol:
+            if type(e) is not sp.Symbol:
+                raise Unstorable(f"{type(e).__name__} {e}")
+            known = self.symbol_of.setdefault(e.name, e)
+            if known is not e and known != e:
+                raise Unstorable(f"two symbols named {e.name!r}")
+            self.symbols[e.name] = symbol_assumptions(e)
+            return ["Symbol", e.name]
+        if not e.args:
+            try:
+                return expression_tree(e)
+            except Exception as exc:
+                raise Unstorable(str(exc)) from None
+        if type(e) is sp.Tuple:
+            return ["Tuple", *(["Ref", self.index[a]] for a in e.args)]
+        head = next((name for name, cls in HEADS.items() if type(e) is cls), None)
+        if head is None:
+            raise Unstorable(f"{type(e).__name__} ({e.func})")
+        return [head, *(["Ref", self.index[a]] for a in e.args)]
+
+    def value(self, v):
+        if v is None or isinstance(v, (bool, str)):
+            return v
+        if isinstance(v, int) and type(v) is int:
+            return v
+        if type(v) is float:
+            return {"$": "f", "v": v.hex()}
+        if isinstance(v, sp.MatrixBase):
+            if type(v) not in (sp.ImmutableDenseMatrix, sp.MutableDenseMatrix):
+                raise Unstorable(type(v).__name__)
+            return {"$": "M", "m": type(v) is sp.ImmutableDenseMatrix, "r": v.rows, "c": v.cols,
+                    "v": [self.expr(x) for x in v]}
+        if isinstance(v, sp.Basic):
+            return {"$": "e", "v": self.expr(v)}
+        if type(v) is tuple:
+            return {"$": "t", "v": [self.value(x) for x in v]}
+        if type(v) is list:
+            return [self.value(x) for x in v]
+        if type(v) is dict:
+            return {"$": "d", "v": [[self.value(k), self.value(x)] for k, x in v.items()]}
+        if type(v) in (frozenset, set):
+            return {"$": "fs" if type(v) is frozenset else "set", "v": [self.value(x) for x in v]}
+        if type(v) is np.ndarray and v.dtype.kind in "fib" and v.dtype.isnative:
+            flat = v.ravel().tolist()
+            return {"$": "a", "t": v.dtype.str, "s": list(v.shape),
+                    "v": [x.hex() for x in flat] if v.dtype.kind == "f" else flat}
+        if isinstance(v, np.generic) and v.dtype.kind in "fib":
+            return {"$": "a", "t": v.dtype.str, "s": None,
+                    "v": [float(v).hex()] if v.dtype.kind == "f" else [v.item()]}
+        cls = type(v)
+        name = f"{cls.__module__}:{cls.__qualname__}"
+        if not _own(cls):
+            raise Unstorable(f"a {name}")
+        if isinstance(v, enum.Enum):
+            return {"$": "enum", "c": name, "v": v.name}
+        if dataclasses.is_dataclass(v):
+            fields = {name: self.value(getattr(v, name)) for name in _stored_fields(cls)}
+            extra = {}
+            for key, x in getattr(v, "__dict__", {}).items():  # values of cached properties
+                if key not in fields:
+                    with contextlib.suppress(Unstorable):
+                        extra[key] = self.value(x)
+            return {"$": "o", "c": name, "v": fields, "x": extra}
+        raise Unstorable(f"a {name}")
+
+
+def _stored_fields(cls) -> list[str]:
+    """The dataclass fields of ``cls`` held on its instances (a field that a subclass turns
+    into a property is computed, not stored)."""
+    import inspect
+
+    return [f.name for f in dataclasses.fields(cls)
+            if not hasattr(type(inspect.getattr_static(cls, f.name, None)), "__set__")]
+
+
+def _own(cls) -> bool:
+    return cls.__module__ == "appell" or cls.__module__.startswith("appell.")
+
+
+def encode(derivation) -> dict:
+    """The JSON document of ``derivation`` (:class:`Unstorable` when it holds a value the
+    format does not write)."""
+    enc = _Encoder()
+    root = enc.value(derivation)
+    return {"symbols": enc.symbols, "nodes": enc.nodes, "root": root}
+
+
+class _Decoder:
+    def __init__(self, doc: dict):
+        if not isinstance(doc, dict) or not isinstance(doc.get("symbols"), dict) \
+                or not isinstance(doc.get("nodes"), list):
+            raise ValueError("not a derivation document")
+        self.symbols = {name: symbol_from_table(name, a) for name, a in doc["symbols"].items()}
+        self.nodes: list = []
+        for tree in doc["nodes"]:
+            if isinstance(tree, list) and tree and tree[0] == "Tuple":
+                self.nodes.append(sp.Tuple(*(self._ref(r) for r in tree[1:])))
+            else:
+                self.nodes.append(expression_from_tree(tree, self.symbols, shared=self.nodes))
+
+    def _ref(self, r):
+        if not (isinstance(r, list) and len(r) == 2 and r[0] == "Ref" and type(r[1]) is int
+                and 0 <= r[1] < len(self.nodes)):
+            raise ValueError(f"a bad reference {r!r}")
+        return self.nodes[r[1]]
+
+    def _node(self, k):
+        if type(k) is not int or not 0 <= k < len(self.nodes):
+            raise ValueError(f"a bad node index {k!r}")
+        return self.nodes[k]
+
+    def value(self, v, depth: int = 0):
+        if depth > 200:
+            raise ValueError("nested too deep")
+        if v is None or isinstance(v, (bool, str, int)):
+            return v
+        if isinstance(v, list):
+            return [self.value(x, depth + 1) for x in v]
+        if not isinstance(v, dict) or not isinstance(v.get("$"), str):
+            raise ValueError(f"an unknown value {str(v)[:80]}")
+        tag, body = v["$"], v.get("v")
+        if tag == "f":
+            return float.fromhex(body)
+        if tag == "e":
+            return self._node(body)
+        if tag == "a":
+            dtype = np.dtype(v["t"])
+            if dtype.kind not in "fib" or not isinstance(body, list):
+                raise ValueError("a bad array")
+            items = [float.fromhex(x) for x in body] if dtype.kind == "f" else body
+            if v["s"] is None:
+                return dtype.type(items[0])
+            return np.array(items, dtype=dtype).reshape([int(n) for n in v["s"]])
+        if tag == "M":
+            rows, cols = v["r"], v["c"]
+            if type(rows) is not int or type(cols) is not int or not isinstance(body, list) \
+                    or len(body) != rows * cols:
+                raise ValueError("a bad matrix")
+            cls = sp.ImmutableDenseMatrix if v.get("m") else sp.MutableDenseMatrix
+            return cls(rows, cols, [self._node(k) for k in body])
+        if tag in ("t", "fs", "set"):
+            items = [self.value(x, depth + 1) for x in body]
+            return {"t": tuple, "fs": frozenset, "set": set}[tag](items)
+        if tag == "d":
+            return {self.value(k, depth + 1): self.value(x, depth + 1) for k, x in body}
+        if tag == "enum":
+            cls = _own_class(v.get("c"))
+            if not issubclass(cls, enum.Enum):
+                raise ValueError(f"{v.get('c')} is not an enum")
+            return cls[body]
+        if tag == "o":
+            cls = _own_class(v.get("c"))
+            if not dataclasses.is_dataclass(cls):
+                raise ValueError(f"{v.get('c')} is not a dataclass")
+            names = set(_stored_fields(cls))
+            if not isinstance(body, dict) or set(body) != names:
+                raise ValueError(f"the fields of {v.get('c')} differ")
+            obj = object.__new__(cls)  # no constructor runs: the fields are set as stored
+            for name, x in body.items():
+                object.__setattr__(obj, name, self.value(x, depth + 1))
+            extra = v.get("x") or {}
+            if extra and not hasattr(obj, "__dict__"):
+                raise ValueError(f"{v.get('c')} keeps no computed values")
+            for name, x in extra.items():
+                if not isinstance(name, str) or not name.isidentifier() or name in names \
+                        or hasattr(type(getattr(cls, name, None)), "__set__"):
+                    raise ValueError(f"{name!r} is not a computed value of {v.get('c')}")
+                obj.__dict__[name] = self.value(x, depth + 1)
+            return obj
+        raise ValueError(f"an unknown tag {tag!r}")
+
+
+_CLASS = re.compile(r"appell(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_.]*")
+
+
+def _own_class(name):
+    """The class ``module:qualname`` of one of appell's own modules (imported as usual)."""
+    if not isinstance(name, str) or not _CLASS.fullmatch(name):
+        raise ValueError(f"{name!r} is not a class of appell")
+    module, qualname = name.split(":")
+    cls = importlib.import_module(module)
+    for part in qualname.split("."):
+        cls = getattr(cls, part)
+    if not isinstance(cls, type) or not _own(cls):
+        raise ValueError(f"{name!r} is not a class of appell")
+    return cls
+
+
+def decode(doc: dict):
+    """The derivation of a document written by :func:`encode` (ValueError, KeyError or
+    ModelError for anything else)."""
+    dec = _Decoder(doc)
+    return dec.value(doc.get("root"))
+
+
+# ------------------------------------------------------------------ keys and files
+_INCLUDE = re.compile(rb"<include\s+file\s*=\s*[\"']([^\"']+)[\"']")
+
+
+def _named_files(path: Path, raw: bytes) -> list[Path]:
+    """The files a model file names: a TOML's ``[mechanism] urdf``, an MJCF's includes."""
+    found = []
+    if path.suffix == ".toml":
+        import tomllib
+
+        with contextlib.suppress(Exception):
+            urdf = tomllib.loads(raw.decode("utf-8")).get("mechanism", {}).get("urdf")
+            if isinstance(urdf, str):
+                found.append(path.parent / urdf)
+    elif path.suffix == ".xml":
+        found = [path.parent / m.decode("utf-8", "replace") for m in _INCLUDE.findall(raw)]
+    return found
+
+
+def entry_key(path: Path, overrides=None, floating_base: bool = False, dependent=None,
+              reactions_in: str | None = None) -> str:
+    """The SHA-256 key of a model file's derivation (see the module's docstring)."""
+    from appell import __version__
+
+    digest = hashlib.sha256()
+    digest.update(f"{_MAGIC} {FORMAT} appell {__version__} {source_digest()} sympy {sp.__version__} "
+                  f"python {sys.version_info[:3]}\n".encode())
+    seen, todo = set(), [path]
+    while todo:
+        file = todo.pop(0).resolve()
+        if file in seen:
+            continue
+        seen.add(file)
+        raw = file.read_bytes()
+        digest.update(f"file {len(raw)}\n".encode() + raw)
+        todo.extend(_named_files(file, raw))
+    given = sorted((str(k), repr(v)) for k, v in dict(overrides or {}).items())
+    digest.update(repr((given, bool(floating_base), None if dependent is None else [str(d) for d in dependent],
+                        reactions_in)).encode())
+    return digest.hexdigest()[:32]
+
+
+_SOURCE: list[str] = []
+
+
+def source_digest() -> str:
+    """SHA-256 of appell's own source files (formed once per process): a derivation stored by
+    other code of the same version number (a development checkout between releases) is
+    another entry, never read as this code's."""
+    if not _SOURCE:
+        digest = hashlib.sha256()
+        package = Path(__file__).resolve().parents[1]
+        for file in sorted(package.rglob("*")):
+            if file.suffix in (".py", ".c", ".toml", ".urdf", ".xml") and file.is_file():
+                digest.update(f"{file.relative_to(package).as_posix()} {file.stat().st_size}\n".encode())
+                digest.update(file.read_bytes())
+        _SOURCE.append(digest.hexdigest()[:16])
+    return _SOURCE[0]
+
+
+def _note(message: str) -> None:
+    warnings.warn(message, AppellNote, stacklevel=3)
+
+
+def read_entry(file: Path, key: str, quiet: bool = False, notes: list | None = None):
+    """The derivation stored in ``file`` for ``key``, or None (with a note for a bad entry,
+    unless ``quiet``); the notes stored with it are given again (and added to ``notes``)."""
+    try:
+        raw = file.read_bytes()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        if not quiet:
+            _note(f"the cached derivation {file} cannot be read ({exc.strerror or exc}); deriving again")
+        return None
+    try:
+        head, _, body = raw.partition(b"\n")
+        header = json.loads(head)
+        if header.get("magic") != _MAGIC or header.get("format") != FORMAT:
+            raise ValueError("written by another format")
+        if header.get("key") != key:
+            raise ValueError("written for another model")
+        if header.get("sha256") != hashlib.sha256(body).hexdigest():
+            raise ValueError("its content does not match its checksum (truncated or changed)")
+        doc = json.loads(body)
+        stored = doc.get("notes", [])
+        if not isinstance(stored, list) or not all(isinstance(n, str) for n in stored):
+            raise ValueError("bad notes")
+        derivation = decode(doc)
+    except Exception as exc:  # noqa: BLE001 (whatever the file holds, it is not trusted)
+        if not quiet:
+            _note(f"the cached derivation {file} is ignored ({str(exc)[:200]}); deriving again")
+        return None
+    with contextlib.suppress(OSError):
+        os.utime(file)  # most recently used
+    for note in stored:  # what reading the model file noted (a URDF's damping not applied), again
+        warnings.warn(note, AppellNote, stacklevel=3)
+    if notes is not None:
+        notes.extend(stored)
+    return derivation
+
+
+def write_entry(root: Path, file: Path, key: str, derivation, notes=()) -> bool:
+    """Store ``derivation`` under ``key`` (atomically) with the ``notes`` that reading its model
+    file gave (given again when it is read); False when it cannot be stored."""
+    try:
+        body = json.dumps({**encode(derivation), "notes": list(notes)}, separators=(",", ":")).encode()
+    except Unstorable:
+        return False
+    header = json.dumps({"magic": _MAGIC, "format": FORMAT, "key": key,
+                         "sha256": hashlib.sha256(body).hexdigest()}).encode()
+    fd, tmp = tempfile.mkstemp(prefix=f"{key}_", suffix=".tmp", dir=root)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(header + b"\n" + body)
+        os.replace(tmp, file)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+    evict(root)
+    return True
+
+
+def evict(root: Path, limit_bytes: int | None = None) -> None:
+    """Remove the least recently used entries until the folder holds at most ``limit_bytes``
+    (default ``$APPELL_DERIVATION_CACHE_MB`` MB)."""
+    if limit_bytes is None:
+        try:
+            limit_bytes = int(float(os.environ.get(SIZE_ENV) or DEFAULT_SIZE_MB) * 2**20)
+        except ValueError:
+            limit_bytes = DEFAULT_SIZE_MB * 2**20
+    entries = []
+    for file in root.glob("*.json"):
+        with contextlib.suppress(OSError):
+            st = file.stat()
+            entries.append((st.st_mtime, st.st_size, file))
+    total = sum(size for _, size, _ in entries)
+    for _, size, file in sorted(entries, key=lambda e: e[0]):
+        if total <= limit_bytes:
+            break
+        with contextlib.suppress(OSError):
+            file.unlink()
+            total -= size
+
+
+@contextlib.contextmanager
+def _lock(root: Path, key: str):
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: atomic renames alone
+        yield
+        return
+    with open(root / f"{key}.lock", "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _derive(system, dependent):
+    if system.servo_constraints:
+        from appell.control.servo import derive_controlled
+
+        return derive_controlled(system, dependent=dependent)
+    from appell.core.derive import derive
+
+    return derive(system, dependent=dependent)
+
+
+def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=None, cache: bool | None = None,
+                formulas: bool = False, reactions_in: str | None = None):
+    """The derivation of the model file ``path`` (a bundled example's name too, as
+    :func:`~appell.io.modelfile.load_model` takes), read from the derivation cache when the
+    same input was derived before (see the module's docstring), else loaded, derived and
+    stored. ``dependent``: the dependent accelerations of the partition; ``cache``: False
+    (or ``$APPELL_NO_CACHE=1``) derives without reading or writing the cache; ``formulas``:
+    the reduced equations (1.4) and the reaction formulas (1.5) are formed now and stored
+    with the derivation where they exist in closed form; ``reactions_in``: the axes of the joint
+    reactions (:func:`~appell.io.modelfile.load_model`)."""
+    path = Path(path)
+    if not path.exists() and path.suffix == "" and len(path.parts) == 1:
+        from appell.examples import example_path, list_benchmarks, list_examples
+
+        if path.name in list_examples() or path.name in list_benchmarks():
+            path = example_path(path.name)
+
+    notes: list[str] = []
+
+    def fresh():
+        from appell.io.modelfile import load_model  # not imported when the cache answers
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", AppellNote)
+            system = load_model(path, overrides, floating_base=floating_base, reactions_in=reactions_in)
+        for w in caught:  # given as they came, and kept with the entry
+            if issubclass(w.category, AppellNote):
+                notes.append(str(w.message))
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        derivation = _derive(system, dependent)
+        if formulas:
+            _formulas(derivation)
+        return derivation
+
+    if not cache_enabled(cache) or not path.is_file():
+        return fresh()
+    try:
+        key = entry_key(path, overrides, floating_base, dependent, reactions_in)
+        root = derivations_dir()
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return fresh()
+    file = root / f"{key}.json"
+    found = read_entry(file, key)
+    if found is not None and (not formulas or _has_formulas(found)):
+        return found
+    with _lock(root, key):
+        found = read_entry(file, key, quiet=file.exists(), notes=notes)  # filled by another process meanwhile
+        if found is not None and (not formulas or _has_formulas(found)):
+            return found
+        derivation = found if found is not None else fresh()
+        if formulas:
+            _formulas(derivation)
+        with contextlib.suppress(OSError):
+            write_entry(root, file, key, derivation, notes)
+    return derivation
+
+
+def _closed_form(derivation) -> bool:
+    from appell.core.equations import formulas_unavailable
+
+    if getattr(derivation, "controlled", False):
+        return True
+    return formulas_unavailable(derivation.partition) is None and derivation.inertia.tree is None
+
+
+def _formulas(derivation) -> None:
+    if _closed_form(derivation):
+        derivation.reduced, derivation.reactions  # noqa: B018 (computed and kept here)
+
+
+def _has_formulas(derivation) -> bool:
+    return not _closed_form(derivation) or {"reduced", "reactions"} <= set(vars(derivation))

@@ -1,0 +1,202 @@
+"""The derivation cache (appell.io.derivation_cache, issue 46 §2).
+
+Source of truth: a fresh derivation of the same model file in the same process
+(appell.derive of appell.load_model, no cache): the cached one must give the same numbers in
+every block (M, h - Q, J, c, the coordinate rates, the accelerations, multipliers and
+outputs) at random states, to 1e-15 relative, and the same reduced equations and reaction
+formulas (structural SymPy equality). A tampered, truncated or foreign entry must be ignored
+with a note and rebuilt; two processes filling one entry at once must both get the model.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import appell
+from appell.errors import AppellNote
+from appell.examples import example_path
+from appell.io import derivation_cache as dc
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("APPELL_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv(dc.NO_CACHE_ENV, raising=False)
+    return tmp_path / "derivations"
+
+
+def _entries(folder: Path) -> list[Path]:
+    return sorted(folder.glob("*.json"))
+
+
+def _same_numbers(fresh, cached, seed=0):
+    a, b = appell.numeric_model(fresh, "numpy"), appell.numeric_model(cached, "numpy")
+    assert a.state_names == b.state_names and a.parameter_names == b.parameter_names
+    rng = np.random.default_rng(seed)
+    n, nq = len(a.speed_names), len(a.coordinate_names)
+    for _ in range(3):
+        t, q, w = rng.uniform(0, 1), rng.uniform(-1, 1, nq), rng.uniform(-1, 1, n)
+        for x, y in zip(a.evaluate_blocks(t, q, w), b.evaluate_blocks(t, q, w)):
+            np.testing.assert_allclose(y, x, rtol=1e-15, atol=1e-15)
+        np.testing.assert_allclose(b.coordinate_rates(t, q, w), a.coordinate_rates(t, q, w), rtol=1e-15, atol=1e-15)
+        sa, sb = a.solve(t, q, w), b.solve(t, q, w)
+        for name in ("accelerations", "multipliers", "generalized_reactions"):
+            np.testing.assert_allclose(getattr(sb, name), getattr(sa, name), rtol=1e-15, atol=1e-15)
+        oa, ob = a.outputs(t, q, w, solution=sa), b.outputs(t, q, w, solution=sb)
+        assert oa.keys() == ob.keys()
+        np.testing.assert_allclose(list(ob.values()), list(oa.values()), rtol=1e-15, atol=1e-15)
+
+
+@pytest.mark.parametrize("name", ["car", "four_bar", "table_four_legs", "rolling_disc"])
+def test_a_cached_derivation_equals_a_fresh_one(cache, name):
+    fresh = appell.derive(appell.load_model(name))
+    first = dc.derive_file(name, formulas=True)  # derived and stored
+    assert len(_entries(cache)) == 1
+    second = dc.derive_file(name)  # read back
+    assert second is not first
+    assert {"reduced", "reactions"} <= set(vars(second))  # the formulas came with it
+    _same_numbers(fresh, second)
+    assert second.reduced == fresh.reduced and second.reactions == fresh.reactions
+    assert second.system.parameters == fresh.system.parameters
+
+
+def test_a_urdf_robot_from_the_cache(cache):
+    path = Path(appell.__file__).parent / "examples" / "arm.urdf"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        fresh = appell.derive(appell.load_model(path))
+        dc.derive_file(path)
+        cached = dc.derive_file(path)
+    assert cached.inertia.tree == fresh.inertia.tree
+    _same_numbers(fresh, cached, seed=1)
+
+
+def test_the_key_covers_the_content_the_overrides_and_the_partition(cache, tmp_path):
+    source = example_path("pendulum").read_text()
+    model = tmp_path / "p.toml"
+    model.write_text(source)
+    key = dc.entry_key(model)
+    assert dc.entry_key(model, {"m": 2.0}) != key
+    assert dc.entry_key(model, dependent=["x_ddot"]) != key
+    model.write_text(source + "\n# a comment\n")
+    assert dc.entry_key(model) != key
+    d = dc.derive_file(model, {"m": 2.0})
+    assert next(p.value for p in d.system.parameters if p.symbol.name == "m") == 2.0
+
+
+def _stored(cache) -> Path:
+    dc.derive_file("pendulum")
+    (entry,) = _entries(cache)
+    return entry
+
+
+def _tampered(entry: Path, how: str) -> None:
+    raw = entry.read_bytes()
+    if how == "truncated":
+        entry.write_bytes(raw[: len(raw) // 2])
+    elif how == "tampered":  # one number changed, the checksum left as it was
+        head, body = raw.split(b"\n", 1)
+        entry.write_bytes(head + b"\n" + body.replace(b'"Integer","2"', b'"Integer","3"', 1))
+    elif how == "foreign":  # a valid entry of another model under this one's name
+        other = dc.entry_key(example_path("four_bar"))
+        dc.write_entry(entry.parent, entry, other, appell.derive(appell.load_model("four_bar")))
+    elif how == "empty":
+        entry.write_bytes(b"")
+    elif how == "code":  # a well-formed entry naming a class outside appell
+        head, body = raw.split(b"\n", 1)
+        body = body.replace(b'"appell.model:System"', b'"os:system"', 1)
+        import hashlib
+        import json
+
+        header = json.loads(head)
+        header["sha256"] = hashlib.sha256(body).hexdigest()
+        entry.write_bytes(json.dumps(header).encode() + b"\n" + body)
+
+
+@pytest.mark.parametrize("how", ["truncated", "tampered", "foreign", "empty", "code"])
+def test_a_bad_entry_is_ignored_with_a_note_and_rebuilt(cache, how):
+    entry = _stored(cache)
+    good = entry.read_bytes()
+    _tampered(entry, how)
+    assert entry.read_bytes() != good
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        d = dc.derive_file("pendulum")
+    notes = [str(w.message) for w in caught if issubclass(w.category, AppellNote)]
+    assert len(notes) == 1 and "ignored" in notes[0] and str(entry) in notes[0], notes
+    _same_numbers(appell.derive(appell.load_model("pendulum")), d)
+    assert entry.read_bytes() == good  # rebuilt
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AppellNote)
+        dc.derive_file("pendulum")  # and trusted again without a note
+
+
+def test_no_cache_switch_reads_and_writes_nothing(cache, monkeypatch):
+    monkeypatch.setenv(dc.NO_CACHE_ENV, "1")
+    dc.derive_file("pendulum")
+    assert not cache.exists() or not _entries(cache)
+    monkeypatch.delenv(dc.NO_CACHE_ENV)
+    dc.derive_file("pendulum", cache=False)
+    assert not cache.exists() or not _entries(cache)
+
+
+def test_the_size_bound_removes_the_least_recently_used(cache):
+    import os
+
+    dc.derive_file("pendulum")
+    dc.derive_file("four_bar")
+    old, new = sorted(_entries(cache), key=lambda p: p.stat().st_mtime)
+    os.utime(old, (1, 1))
+    dc.evict(cache, limit_bytes=new.stat().st_size)
+    assert _entries(cache) == [new]
+
+
+CHILD = """
+import json, sys, numpy as np, appell
+from appell.io.derivation_cache import derive_file
+d = derive_file("four_bar")
+m = appell.numeric_model(d, "numpy")
+q = np.full(len(m.coordinate_names), 0.3); w = np.full(len(m.speed_names), 0.2)
+print(json.dumps(m.solve(0.0, q, w).multipliers.tolist()))
+"""
+
+
+def test_two_processes_filling_one_entry_both_get_the_model(cache):
+    import os
+
+    env = {**os.environ, "APPELL_CACHE_DIR": str(cache.parent)}
+    procs = [subprocess.Popen([sys.executable, "-c", CHILD], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [err for _, err in outs]
+    assert all("note" not in err.lower() for _, err in outs), [err for _, err in outs]
+    m = appell.numeric_model(appell.derive(appell.load_model("four_bar")), "numpy")
+    q, w = np.full(len(m.coordinate_names), 0.3), np.full(len(m.speed_names), 0.2)
+    expected = m.solve(0.0, q, w).multipliers
+    for out, _ in outs:
+        np.testing.assert_allclose(json.loads(out.strip().splitlines()[-1]), expected, rtol=1e-15, atol=1e-15)
+    assert len(_entries(cache)) == 1
+
+
+def test_the_notes_of_reading_a_file_come_again_from_the_cache(cache, tmp_path):
+    """A URDF joint's <dynamics> is not applied (an AppellNote when the file is read): the
+    second run, from the cache, gives the same note."""
+    urdf = tmp_path / "arm.urdf"
+    source = (Path(appell.__file__).parent / "examples" / "arm.urdf").read_text()
+    joint_end = source.index("</joint>")
+    urdf.write_text(source[:joint_end] + '<dynamics damping="0.5"/>' + source[joint_end:])
+    runs = []
+    for _ in range(2):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            dc.derive_file(urdf)
+        runs.append([str(w.message) for w in caught if issubclass(w.category, AppellNote)])
+    assert len(_entries(cache)) == 1
+    assert runs[0] and runs[1] == runs[0] and "dynamics" in runs[0][0]

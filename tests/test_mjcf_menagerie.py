@@ -1,0 +1,389 @@
+"""MuJoCo Menagerie files as shipped, read whole (issue 41 §1), against MuJoCo itself.
+
+Source of truth: a hard-constraint reference built from MuJoCo's own quantities at each
+state, not from appell: the joint-space mass matrix ``mj_fullM`` (armature included), the
+bias ``qfrc_bias``, the passive forces ``qfrc_passive`` (damping, stiffness about
+``springref``, tendon springs), the actuator forces ``qfrc_actuator`` (MuJoCo's gain and
+bias of each actuator at its ``ctrl``; force and control clamping switched off: appell
+does not enforce ranges, and says so), and for every equality the rows ``J`` and ``Jdot
+qvel`` from ``mj_jac``/``mj_jacDot`` (connect: the two anchors' points), the joint
+polynomials (joint equality) and ``ten_J`` (fixed tendons, constant ``J``). Then
+
+    [M  J^T] [qacc   ]   [qfrc_passive + qfrc_actuator - qfrc_bias]
+    [J   0 ] [-lambda] = [-Jdot qvel                               ]
+
+solved minimum-norm (``lstsq``: the xArm7's two planar finger loops have a redundant row
+each). MuJoCo's own ``qacc`` is not the reference: its equalities are soft and its
+``frictionloss`` is a constraint (read here with ``frictionloss='ignore'``, the option
+appell names when it refuses them). appell's accelerations are mapped to MuJoCo's ``qacc``
+(a quaternion's ``qddot`` to the body-axes ``omega_dot = 2 vec(q* qddot)``; a free joint's
+translation along the world axes) and compared to 1e-9 of the largest.
+
+The actuators' controls are programs ``u(t) = c sin(3 t + phi)`` (random ``c``, ``phi``),
+so each state's time gives new controls, which MuJoCo gets as ``ctrl``.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import appell
+from appell import numeric_model
+from appell.errors import AppellNote, ModelError
+from appell.symbols import t as t_
+
+mujoco = pytest.importorskip("mujoco")
+from appell.mechanism.mjcf import load_mjcf, mjcf_system, read_mjcf  # noqa: E402
+
+# ../shared beside the clone (CI), or where APPELL_SHARED points (a worktree elsewhere)
+MENAGERIE = next((base / "models" / "menagerie" for base in (Path(__file__).resolve().parents[2] / "shared",
+                                                              Path(os.environ.get("APPELL_SHARED", "/nonexistent")))
+                  if (base / "models" / "menagerie").is_dir()), Path("/nonexistent"))
+needs_files = pytest.mark.skipif(not MENAGERIE.is_dir(), reason="../shared/models/menagerie is not beside the clone")
+
+
+def product(a, b):
+    a0, av, b0, bv = a[0], np.asarray(a[1:]), b[0], np.asarray(b[1:])
+    return np.concatenate([[a0 * b0 - av @ bv], a0 * bv + b0 * av + np.cross(av, bv)])
+
+
+def equality_rows(mj, data):
+    """``(J, Jdot qvel)`` of MuJoCo's active equalities at ``data`` (kinematics done)."""
+    rows, bias = [], []
+    for e in range(mj.neq):
+        kind, o1, o2 = int(mj.eq_type[e]), int(mj.eq_obj1id[e]), int(mj.eq_obj2id[e])
+        prm = np.asarray(mj.eq_data[e], float)
+        if kind == mujoco.mjtEq.mjEQ_CONNECT:
+            if int(mj.eq_objtype[e]) == int(mujoco.mjtObj.mjOBJ_SITE):
+                ends = [(int(mj.site_bodyid[o]), data.site_xpos[o].copy()) for o in (o1, o2)]
+            else:
+                ends = [(o, data.xpos[o] + data.xmat[o].reshape(3, 3) @ a) for o, a in ((o1, prm[0:3]), (o2, prm[3:6]))]
+            J, Jd = [], []
+            for b, p in ends:
+                jac, jacd = np.zeros((3, mj.nv)), np.zeros((3, mj.nv))
+                mujoco.mj_jac(mj, data, jac, None, p, b)
+                mujoco.mj_jacDot(mj, data, jacd, None, p, b)
+                J.append(jac)
+                Jd.append(jacd @ data.qvel)
+            rows.append(J[0] - J[1])
+            bias.append(Jd[0] - Jd[1])
+        elif kind == mujoco.mjtEq.mjEQ_JOINT:
+            d1 = int(mj.jnt_dofadr[o1])
+            row = np.zeros(mj.nv)
+            row[d1] = 1.0
+            b = 0.0
+            if o2 >= 0:
+                d2, a2 = int(mj.jnt_dofadr[o2]), int(mj.jnt_qposadr[o2])
+                x = data.qpos[a2] - mj.qpos0[a2]
+                row[d2] -= sum(k * prm[k] * x ** (k - 1) for k in range(1, 5))
+                b = -sum(k * (k - 1) * prm[k] * x ** (k - 2) for k in range(2, 5)) * data.qvel[d2] ** 2
+            rows.append(row[None, :])
+            bias.append(np.array([b]))
+        elif kind == mujoco.mjtEq.mjEQ_TENDON:
+            assert o2 < 0 or np.all(prm[2:5] == 0), "a linear tendon coupling (constant J) is what is checked"
+            row = data.ten_J[o1].copy() - (prm[1] * data.ten_J[o2] if o2 >= 0 else 0)
+            rows.append(row[None, :])
+            bias.append(np.zeros(1))
+        else:
+            raise AssertionError(f"equality kind {kind} is not in the reference")
+    if not rows:
+        return np.zeros((0, mj.nv)), np.zeros(0)
+    return np.vstack(rows), np.concatenate(bias)
+
+
+def reference(mj, data):
+    """MuJoCo's hard-constraint accelerations at ``data`` (module docstring)."""
+    mujoco.mj_forward(mj, data)
+    M = np.zeros((mj.nv, mj.nv))
+    mujoco.mj_fullM(mj, data, M)  # MuJoCo 4: (model, data, dst)
+    rhs = data.qfrc_passive + data.qfrc_actuator - data.qfrc_bias
+    J, Jdq = equality_rows(mj, data)
+    k = J.shape[0]
+    kkt = np.block([[M, J.T], [J, np.zeros((k, k))]])
+    sol = np.linalg.lstsq(kkt, np.concatenate([rhs, -Jdq]), rcond=1e-12)[0]
+    return sol[:mj.nv]
+
+
+def assemble(mj, data, qpos, rng):
+    """``qpos`` moved onto the equalities (Newton steps of minimum norm on MuJoCo's own
+    residuals) and a ``qvel`` in the null space of their rows (hinge and slide models)."""
+    for _ in range(50):
+        data.qpos[:] = qpos
+        mujoco.mj_forward(mj, data)
+        J, _ = equality_rows(mj, data)
+        residual = np.asarray(data.efc_pos[data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY], float)
+        if not residual.size or np.abs(residual).max() < 1e-14:
+            break
+        efc = data.efc_J.reshape(data.nefc, mj.nv)[data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY]
+        qpos = qpos - np.linalg.lstsq(efc, residual, rcond=1e-12)[0]
+    J, _ = equality_rows(mj, data)
+    qvel = rng.uniform(-1.5, 1.5, mj.nv)
+    if J.shape[0]:
+        qvel -= np.linalg.pinv(J, rcond=1e-10) @ (J @ qvel)
+    return qpos, qvel
+
+
+def appell_qacc(read, accelerations: dict, qpos, nv):
+    """appell's accelerations as MuJoCo's ``qacc``."""
+    qacc = np.zeros(nv)
+    for j in read.joints:
+        d = j.dofadr
+        if j.kind in ("hinge", "slide"):
+            qacc[d] = accelerations[j.coordinates[0] + "_dot"]
+            continue
+        names = j.coordinates[3:] if j.kind == "free" else j.coordinates
+        quat = np.array([read.state(qpos)[n] for n in names])
+        qdd = np.array([accelerations[n + "_dot"] for n in names])
+        eps = 2.0 * product(quat * [1, -1, -1, -1], qdd)[1:]
+        if j.kind == "free":
+            R0 = np.asarray(j.rotation)
+            qacc[d:d + 3] = R0 @ [accelerations[n + "_dot"] for n in j.coordinates[:3]]
+            qacc[d + 3:d + 6] = eps
+        else:
+            qacc[d:d + 3] = eps
+    return qacc
+
+
+def compare(path_or_xml, states=6, seed=5, spread=0.6, **options):
+    """appell's accelerations vs the reference at ``states`` random states; the largest
+    relative difference."""
+    rng = np.random.default_rng(seed)
+    mj = load_mjcf(path_or_xml)
+    where = str(path_or_xml) if not str(path_or_xml).lstrip().startswith("<") else "<mjcf>"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)  # contacts, limits ...: named in the note
+        read = read_mjcf(mj, where, options.get("frictionloss", "refuse"), options.get("armature", "rotors"))
+        amplitude, phase = rng.uniform(-2, 2, mj.nu), rng.uniform(0, 2 * np.pi, mj.nu)
+        ctrl = {original: float(c) * sp.sin(3 * t_ + float(p)) for (_, original, _), c, p in zip(read.actuators, amplitude,
+                                                                                              phase)}
+        system = mjcf_system(path_or_xml, ctrl=ctrl, **options)
+        model = numeric_model(appell.derive(system))
+    mj.actuator_ctrllimited[:] = 0
+    mj.actuator_forcelimited[:] = 0
+    if hasattr(mj, "jnt_actfrclimited"):
+        mj.jnt_actfrclimited[:] = 0
+    data = mujoco.MjData(mj)
+    worst = 0.0
+    for k in range(states):
+        t = 0.37 * (k + 1)
+        qpos = mj.qpos0 + rng.uniform(-spread, spread, mj.nq)
+        mujoco.mj_normalizeQuat(mj, qpos)
+        qpos, qvel = assemble(mj, data, qpos, rng)
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        data.ctrl[:] = amplitude * np.sin(3 * t + phase)
+        expected = reference(mj, data)
+        values = read.state(qpos, qvel)
+        q = np.array([values[n] for n in model.coordinate_names])
+        w = np.array([values[n] for n in model.speed_names])
+        sol = model.solve(t, q, w)
+        got = appell_qacc(read, dict(zip(model.speed_names, sol.accelerations)), qpos, mj.nv)
+        worst = max(worst, np.abs(got - expected).max() / np.abs(expected).max())
+    return worst, system, read
+
+
+def four_bar_with_passive_elements() -> str:
+    """A planar four-bar (crank, coupler, rocker; pivots 0.9 m apart; closed by a connect at
+    the assembled pose) with armature, damping, stiffness about a springref, a position
+    actuator with gear and a general affine actuator on a fixed tendon."""
+    def link(m, length):
+        return f'<inertial pos="{length / 2} 0 0" mass="{m}" diaginertia="1e-4 {m * length ** 2 / 12} {m * length ** 2 / 12}"/>'
+
+    return f"""<mujoco model="four-bar passive">
+  <compiler angle="radian"/>
+  <option gravity="0 -9.81 0"/>
+  <worldbody>
+    <body name="crank" euler="0 0 1.2">
+      <joint name="A" axis="0 0 1" armature="0.02" damping="0.3"/>
+      {link(1.0, 0.4)}
+      <body name="coupler" pos="0.4 0 0" euler="0 0 -1.0">
+        <joint name="B" axis="0 0 1" damping="0.05" stiffness="2" springref="0.3"/>
+        {link(2.0, 1.0)}
+      </body>
+    </body>
+    <body name="rocker" pos="0.9 0 0">
+      <joint name="D" axis="0 0 1" armature="0.01" stiffness="1.5" springref="-0.4"/>
+      {link(1.5, 0.8)}
+    </body>
+  </worldbody>
+  <tendon><fixed name="sum"><joint joint="A" coef="0.5"/><joint joint="D" coef="0.5"/></fixed></tendon>
+  <actuator>
+    <position name="drive" joint="A" kp="20" kv="1" gear="2"/>
+    <general name="pull" tendon="sum" gainprm="3" biastype="affine" biasprm="0.1 -0.5 -0.2"/>
+  </actuator>
+</mujoco>"""
+
+
+def closed_four_bar() -> str:
+    """The four-bar above with its connect placed where the coupler's tip is at the start."""
+    xml = four_bar_with_passive_elements()
+    mj = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(mj)
+    mujoco.mj_kinematics(mj, data)
+    tip = data.xpos[2] + data.xmat[2].reshape(3, 3) @ [1.0, 0, 0]
+    local = data.xmat[3].reshape(3, 3).T @ (tip - data.xpos[3])  # the same point on the rocker
+    return xml.replace("</mujoco>", '<equality><connect name="C" body1="coupler" body2="rocker" anchor="1 0 0"/>'
+                                    '</equality></mujoco>'), local
+
+
+def test_a_four_bar_with_armature_damping_stiffness_and_actuators_matches_the_kkt_reference():
+    xml, local = closed_four_bar()
+    assert np.linalg.norm(local) < 0.85  # the rocker (0.8 m) reaches it: an assembled loop, not the anchor's copy
+    for armature in ("rotors", "energy"):  # a rotor on the ground, or the energy a w^2/2: the same motion
+        worst, system, _ = compare(xml, states=10, armature=armature)
+        assert worst < 1e-9, (armature, worst)
+    # the model file has no way to say armature but appell does: without it MuJoCo differs
+    plain = xml.replace('armature="0.02"', "").replace('armature="0.01"', "")
+    assert compare(plain, states=3)[0] < 1e-9
+
+
+@needs_files
+@pytest.mark.parametrize("relative", ["kinova_gen3/gen3.xml", "unitree_go2/go2.xml",
+                                      "berkeley_humanoid/berkeley_humanoid.xml", "umi_gripper/umi_gripper.xml",
+                                      "ufactory_xarm7/xarm7.xml", "pndbotics_adam_lite/adam_lite.xml"])
+def test_a_menagerie_file_as_shipped_matches_the_kkt_reference(relative):
+    worst, system, read = compare(MENAGERIE / relative, states=4, frictionloss="ignore")
+    assert worst < 1e-9, worst
+
+
+@needs_files
+def test_a_joint_and_a_body_of_the_same_name_and_the_mapped_names_are_shown():
+    path = MENAGERIE / "pndbotics_adam_lite" / "adam_lite.xml"
+    read = read_mjcf(load_mjcf(path), str(path))
+    text = read.note
+    assert "body 'waistRoll' -> waistRoll_body" in text and "actuator 'waistRoll' -> waistRoll_actuator" in text
+    assert read.names["waistRoll_body"] == ("body", "waistRoll")
+    assert "waistRoll" in {q.name for j in read.mechanism.joints for q in j.coordinates}
+    assert "waistRoll_body" in {b.name for b in read.mechanism.bodies}
+    assert ("waistRoll_actuator", "waistRoll", (-110.0, 110.0)) in read.actuators  # its ctrlrange, recorded
+
+
+@needs_files
+def test_frictionloss_is_refused_by_name_unless_ignored():
+    with pytest.raises(ModelError, match=r"(?s)frictionloss on joint 'FL_hip_joint'.*frictionloss='ignore'"):
+        mjcf_system(MENAGERIE / "unitree_go2" / "go2.xml")
+
+
+def test_bad_equalities_and_actuators_name_the_element_and_line():
+    xml, _ = closed_four_bar()
+    with pytest.raises(ModelError, match=r"(?s)unknown element 'nowhere' in equality.*Element name 'C'.*line 23"):
+        mjcf_system(xml.replace('body2="rocker"', 'body2="nowhere"'))
+    with pytest.raises(ModelError, match=r"(?s)unknown transmission target 'Z'.*Element name 'drive'.*line 20"):
+        mjcf_system(xml.replace('joint="A" kp', 'joint="Z" kp'))
+
+
+def four_bar_sdf(local) -> str:
+    """The four-bar of :func:`four_bar_with_passive_elements` (no passive elements, no
+    actuators) as SDFormat: link poses in the model frame, the loop closed by a revolute
+    joint ``C`` whose child (the rocker) is already in the tree."""
+    import math
+
+    def inertial(m, length):
+        moment = m * length ** 2 / 12
+        return (f"<inertial><pose>{length / 2} 0 0 0 0 0</pose><mass>{m}</mass><inertia><ixx>1e-4</ixx>"
+                f"<iyy>{moment}</iyy><izz>{moment}</izz><ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial>")
+
+    cx, cy = 0.4 * math.cos(1.2), 0.4 * math.sin(1.2)
+    return f"""<?xml version="1.0"?>
+<sdf version="1.7"><world name="w"><gravity>0 -9.81 0</gravity>
+ <model name="four-bar sdf">
+  <link name="crank"><pose>0 0 0 0 0 1.2</pose>{inertial(1.0, 0.4)}</link>
+  <link name="coupler"><pose>{cx} {cy} 0 0 0 0.2</pose>{inertial(2.0, 1.0)}</link>
+  <link name="rocker"><pose>0.9 0 0 0 0 0</pose>{inertial(1.5, 0.8)}</link>
+  <joint name="A" type="revolute"><parent>world</parent><child>crank</child><axis><xyz>0 0 1</xyz></axis></joint>
+  <joint name="B" type="revolute"><parent>crank</parent><child>coupler</child><axis><xyz>0 0 1</xyz></axis></joint>
+  <joint name="D" type="revolute"><parent>world</parent><child>rocker</child><axis><xyz>0 0 1</xyz></axis></joint>
+  <joint name="C" type="revolute"><parent>coupler</parent><child>rocker</child>
+    <pose>{local[0]} {local[1]} 0 0 0 0</pose><axis><xyz>0 0 1</xyz></axis></joint>
+ </model></world></sdf>"""
+
+
+def test_an_sdf_four_bar_closed_by_a_loop_joint_matches_the_mujoco_reference():
+    """Source of truth: the same four-bar as MJCF, MuJoCo's KKT reference (module docstring)."""
+    from appell.mechanism.sdf import sdf_system
+
+    xml, local = closed_four_bar()
+    xml = xml.split("<tendon>")[0] + xml[xml.index("<equality>"):]
+    for attribute in ('armature="0.02" damping="0.3"', 'damping="0.05" stiffness="2" springref="0.3"',
+                      'armature="0.01" stiffness="1.5" springref="-0.4"'):
+        xml = xml.replace(attribute, "")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        model = numeric_model(appell.derive(sdf_system("four_bar.sdf", text=four_bar_sdf(local))))
+    assert set(model.coordinate_names) == {"A", "B", "D"}
+    assert {"C_x", "C_y"} <= set(model.constraint_names)  # the loop joint's point rows (the planar rest left out)
+    mj = load_mjcf(xml)
+    data = mujoco.MjData(mj)
+    rng = np.random.default_rng(2)
+    for _ in range(8):
+        qpos, qvel = assemble(mj, data, mj.qpos0 + rng.uniform(-0.5, 0.5, 3), rng)
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        expected = reference(mj, data)
+        values = dict(zip("ABD", qpos)) | {f"{n}_dot": v for n, v in zip("ABD", qvel)}
+        sol = model.solve(0.0, np.array([values[n] for n in model.coordinate_names]),
+                          np.array([values[n] for n in model.speed_names]))
+        got = dict(zip(model.speed_names, sol.accelerations))
+        assert np.abs(np.array([got[f"{n}_dot"] for n in "ABD"]) - expected).max() <= 1e-9 * np.abs(expected).max()
+
+
+def test_sdf_is_read_safely_and_bad_joints_are_named_with_their_line(tmp_path):
+    from appell.mechanism.sdf import sdf_system
+
+    _, local = closed_four_bar()
+    text = four_bar_sdf(local)
+    with pytest.raises(ModelError, match="document type declaration"):
+        sdf_system("bomb.sdf", text='<?xml version="1.0"?><!DOCTYPE sdf [<!ENTITY a "aaaa">]><sdf/>')
+    with pytest.raises(ModelError, match=r"joint 'C': its child 'nowhere' is not a link") as err:
+        sdf_system("bad.sdf", text=text.replace("<child>rocker</child>\n", "<child>nowhere</child>\n"))
+    assert "bad.sdf:10" in str(err.value)  # the line of joint C
+    path = tmp_path / "four_bar.sdf"
+    path.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        system = appell.load_model(path)  # through the one importer registry
+    assert {q.name for q in system.coordinates} == {"A", "B", "D"}
+
+
+def test_an_actuator_solved_for_a_prescribed_motion_makes_mujoco_follow_it():
+    """Inverse dynamics through the actuators as controls: the four-bar's crank prescribed,
+    ``A(t) = 0.4 sin 2t`` (a servo constraint), the tendon actuator ``pull`` given as a
+    program, the position actuator ``drive``'s control solved for (2.3). Source of truth:
+    MuJoCo's hard-constraint reference (module docstring) with ``ctrl = (drive, pull)``
+    gives the crank the prescribed acceleration ``-1.6 sin 2t``, to 1e-9."""
+    from appell.control.servo_numeric import compile_controlled
+    from appell.model import holonomic
+
+    xml, _ = closed_four_bar()
+    servo = [holonomic("follow", sp.Symbol("A") - 0.4 * sp.sin(2 * t_))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        system = mjcf_system(xml, actuators="controls", ctrl={"pull": 0.3 * sp.cos(t_)}, servo_constraints=servo)
+        model = compile_controlled(appell.derive_controlled(system))
+    assert model.control_names == ("drive",)
+    mj = load_mjcf(xml)
+    data = mujoco.MjData(mj)
+    read = read_mjcf(mj)
+    for tt in (0.3, 0.9, 1.6, 2.2, 3.1):
+        A, A_dot, A_ddot = 0.4 * np.sin(2 * tt), 0.8 * np.cos(2 * tt), -1.6 * np.sin(2 * tt)
+        qpos = mj.qpos0 + np.array([A, 0.0, 0.0])
+        for _ in range(50):  # B and D onto the loop, A held
+            data.qpos[:] = qpos
+            mujoco.mj_forward(mj, data)
+            J, _ = equality_rows(mj, data)
+            gap = (data.xpos[2] + data.xmat[2].reshape(3, 3) @ mj.eq_data[0][0:3]
+                   - data.xpos[3] - data.xmat[3].reshape(3, 3) @ mj.eq_data[0][3:6])
+            if np.abs(gap).max() < 1e-14:
+                break
+            qpos[1:] -= np.linalg.lstsq(J[:, 1:], gap, rcond=None)[0]
+        qvel = np.concatenate([[A_dot], -np.linalg.lstsq(J[:, 1:], J[:, 0] * A_dot, rcond=None)[0]])
+        values = read.state(qpos, qvel)
+        sol = model.solve(tt, np.array([values[n] for n in model.state_names]))
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        data.ctrl[:] = [sol.controls[0], 0.3 * np.cos(tt)]
+        expected = reference(mj, data)
+        assert abs(expected[0] - A_ddot) <= 1e-9 * max(1.0, abs(A_ddot)), (tt, expected[0], A_ddot)

@@ -1,0 +1,129 @@
+"""The numeric recursive route of a robot file (appell.numerics.tree_route, issue 46 §4): the
+first accelerations and joint wrenches of a URDF without deriving it and without a compiler.
+
+Sources of truth: Pinocchio (``aba`` for the accelerations, ``rnea``'s ``data.f`` for every
+joint's force and moment, the mimic joint's reaction as ``rnea``'s joint torques), an
+independent implementation of the same rigid-body algorithms; and appell's compiled route of
+the derived system (``numeric_model(derive(load_model(path)), 'c')``: symbolic tree, generated
+C), to 1e-12 relative to the largest value.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import appell
+from appell.errors import AppellNote, ModelError
+from appell.numerics.codegen import find_compiler
+from appell.numerics.tree_route import tree_route
+
+pin = pytest.importorskip("pinocchio", reason="Pinocchio is not installed (pip install pin, in appell[test])")
+
+
+def _robots_folder() -> Path | None:
+    for base in map(Path, sys.path):
+        folder = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
+        if folder.is_dir():
+            return folder
+    return None
+
+
+ROBOTS = _robots_folder()
+FIXED = {"ur5": "ur_description/urdf/ur5_robot.urdf", "panda": "panda_description/urdf/panda.urdf"}
+ARM = Path(appell.__file__).parent / "examples" / "arm.urdf"
+needs_robots = pytest.mark.skipif(ROBOTS is None, reason="example-robot-data is not installed (in appell[test])")
+
+
+def _route(path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        return tree_route(path)
+
+
+def _state(route, seed):
+    rng = np.random.default_rng(seed)
+    names = route.coordinate_names
+    q, w = rng.uniform(-1.5, 1.5, len(names)), rng.uniform(-2, 2, len(names))
+    if "panda_finger_joint2" in names:  # the mimic finger: start on its constraint
+        q[names.index("panda_finger_joint2")] = q[names.index("panda_finger_joint1")]
+        w[names.index("panda_finger_joint2")] = w[names.index("panda_finger_joint1")]
+    return q, w
+
+
+@needs_robots
+@pytest.mark.parametrize("robot", sorted(FIXED))
+def test_accelerations_and_joint_wrenches_equal_pinocchio(robot):
+    path = ROBOTS / FIXED[robot]
+    route = _route(path)
+    model = pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    names = list(route.coordinate_names)
+    order = [names.index(model.names[j]) for j in range(1, model.njoints)]
+    assert all(model.joints[j].nq == 1 for j in range(1, model.njoints))
+    for seed in range(3):
+        q, w = _state(route, seed)
+        a, out = route.forward(0.0, q, w)
+        tau = pin.rnea(model, data, q[order], w[order], a[order])
+        if route.constraint_names:  # the mimic's reaction: +lambda on finger 2, -lambda on finger 1
+            lam = out["lambda_panda_finger_joint2_mimic"]
+            expected = np.zeros(len(names))
+            expected[names.index("panda_finger_joint2")] = lam
+            expected[names.index("panda_finger_joint1")] = -lam
+            np.testing.assert_allclose(tau, expected[order], atol=1e-9)
+        else:
+            np.testing.assert_allclose(pin.aba(model, data, q[order], w[order], np.zeros(model.nv)), a[order],
+                                       rtol=1e-10, atol=1e-10)
+            np.testing.assert_allclose(tau, 0.0, atol=1e-9)
+        pin.forwardKinematics(model, data, q[order])
+        for jid in range(1, model.njoints):
+            joint = model.names[jid]
+            R = data.oMi[jid].rotation
+            F = np.array([out[f"F_{joint}_{x}"] for x in "xyz"])
+            M = np.array([out[f"M_{joint}_{x}"] for x in "xyz"])
+            np.testing.assert_allclose(R.T @ F, data.f[jid].linear, rtol=1e-9, atol=1e-9, err_msg=joint)
+            np.testing.assert_allclose(R.T @ M, data.f[jid].angular, rtol=1e-9, atol=1e-9, err_msg=joint)
+
+
+def _against_the_derived_route(path, backend):
+    route = _route(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        derivation = appell.derive_file(path)  # the derivation cache: shared by the suite's processes
+    model = appell.numeric_model(derivation, backend)
+    assert model.coordinate_names == route.coordinate_names
+    for seed in range(3):
+        q, w = _state(route, seed)
+        a, out = route.forward(0.0, q, w)
+        sol = model.solve(0.0, q, w)
+        expected = model.outputs(0.0, q, w, solution=sol)
+        expected.update((f"lambda_{n}", v) for n, v in zip(model.constraint_names, sol.multipliers))
+        scale = max(1.0, np.max(np.abs(sol.accelerations)))
+        np.testing.assert_allclose(a, sol.accelerations, rtol=0, atol=1e-12 * scale)
+        names = [k for k in expected if k.startswith(("F_", "M_", "lambda_"))]
+        assert set(names) == set(out), set(names) ^ set(out)
+        scale = max(1.0, max(abs(expected[k]) for k in names))
+        np.testing.assert_allclose([out[k] for k in names], [expected[k] for k in names], rtol=0, atol=1e-12 * scale)
+
+
+@pytest.mark.skipif(find_compiler() is None, reason="no C compiler")
+def test_the_bundled_arm_equals_the_compiled_route():
+    _against_the_derived_route(ARM, "c")
+
+
+@needs_robots
+@pytest.mark.skipif(find_compiler() is None, reason="no C compiler")
+def test_the_panda_equals_the_compiled_route():
+    _against_the_derived_route(ROBOTS / FIXED["panda"], "c")
+
+
+def test_the_route_refuses_a_model_file_and_a_bad_state(tmp_path):
+    with pytest.raises(ModelError, match="robot file"):
+        tree_route(appell.examples.example_path("pendulum"))
+    route = _route(ARM)
+    with pytest.raises(ModelError, match="values each"):
+        route.forward(0.0, np.zeros(route.n + 1), np.zeros(route.n))
