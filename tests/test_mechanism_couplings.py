@@ -252,3 +252,63 @@ def test_a_mesh_between_bodies_of_different_housings_or_coinciding_axes_is_refus
         mech.gear("g1", "ja", "jb", 2)
     with pytest.raises(ModelError, match="gear 'g2'.*coincide"):
         mech.gear("g2", "ja", "jc", 2)
+
+
+def test_a_torque_changing_sign_runs_through_the_radial_loads_kink():
+    """The radial tooth load ``|W_t| tan(phi)`` always separates the gears (the line of action
+    turns over with the torque's sense), so it has a kink where the torque changes sign. It does
+    no work on the joints' motions (the relative motion at the pitch point is along the
+    tangent), so the motion stays smooth and ``simulate`` runs through the kink undisturbed.
+    Closed form (a pinion a driven by ``tau0 sin(W t)`` from rest, Ieff = Ia + Ib / n^2):
+    ``th_a = tau0 / (Ieff W^2) (W t - sin W t)``; Newton-Euler of wheel b at every recorded time:
+    its bearing carries ``-tooth + m_b g`` with the tangential load ``W_t = Ib th_b'' / r_b``
+    signed and the radial load ``|W_t| tan(phi)`` away from a's axis on both sides of the
+    sign change (Shigley eqs. 13-39/13-40)."""
+    import sympy as sp
+    from appell import simulate
+
+    alpha, beta, tau0, W, n, ra = math.radians(20), math.radians(10), 0.7, 2 * math.pi, 2.0, 0.05
+    Ia, Ib, mb = 0.0015, 0.012, 2.0
+    mech = _gear_pair(alpha, beta, tau0 * sp.sin(W * sp.Symbol("t")), n)
+    t = np.linspace(0.0, 2.0, 81)  # four sign changes of the torque, at t = 0.5, 1, 1.5 (and 0)
+    sol = simulate(derive(mech.system()), 2.0, t_eval=t)
+    Ieff = Ia + Ib / n**2
+    th_a = tau0 / (Ieff * W**2) * (W * t - np.sin(W * t))
+    # DOP853 at the default rtol 1e-9: the angle (up to 7 rad) within 1e-9 of it; 1e-7 is 100x
+    assert np.abs(sol["ja"] - th_a).max() < 1e-7
+    assert np.abs(sol["jb"] + th_a / n).max() < 1e-7
+    acc_a = tau0 * np.sin(W * t) / Ieff
+    Wt = Ib * acc_a / n / (n * ra)  # signed: negative where the torque is
+    assert Wt.min() < -1.0 and Wt.max() > 1.0
+    F_jb = np.stack([-np.abs(Wt) * math.tan(alpha), -Wt + mb * G, -Wt * math.tan(beta)], axis=1)
+    mine = np.stack([sol[f"F_jb_{a}"] for a in "xyz"], axis=1)
+    # the accelerations are recomputed at the recorded states: rounding of loads of ~10 N
+    assert np.abs(mine - F_jb).max() < 1e-9
+    # the radial load on b points away from a's axis (+x) on both sides of every sign change
+    assert np.all(sol["F_mesh_x"] >= -1e-12)
+
+
+def test_a_tooth_force_read_in_a_wheels_axes():
+    """``reaction_output(coupling, axes=body)``: the tooth force ``F_mesh`` along wheel b's
+    axes is ``R_b^T`` of the world one (b turned by ``jb`` about z), and the report's text says
+    so; a marker or the other body is refused for a coupling, naming it."""
+    q, w = [0.3, -0.15], [3.0, -1.5]
+    _, world = _solve(derive(_gear_pair(math.radians(20), math.radians(10), 0.7).system()), q, w)
+    mech = _gear_pair(math.radians(20), math.radians(10), 0.7)
+    mech.reaction_output("mesh", axes="wheel_b")
+    system = mech.system()
+    _, out = _solve(derive(system), q, w)
+    assert _vec(out, "F_mesh") == pytest.approx(_rotz(q[1]).T @ _vec(world, "F_mesh"), abs=1e-12)
+    assert _vec(out, "F_jb") == pytest.approx(_vec(world, "F_jb"), abs=1e-12)  # the joints unchanged
+    described = next(o.description for o in system.outputs if o.name == "F_mesh_x")
+    assert described.endswith("(axes of body 'wheel_b')")
+    with pytest.raises(ModelError, match="coupling 'mesh'"):
+        mech.reaction_output("mesh", about=("wheel_b", (0, 0, 0)))
+    with pytest.raises(ModelError, match="coupling 'mesh'.*'world' or a body"):
+        mech.reaction_output("mesh", axes="nowhere")
+    # in a model file: [mechanism.reaction.<coupling>] axes
+    from appell.io.modelfile import loads_model
+
+    text = MODEL.replace("RADIUS", "0.05") + '\n[mechanism.reaction.mesh]\naxes = "rack"\n'
+    described = [o.description for o in loads_model(text).outputs if o.name == "F_mesh_y"]
+    assert described == ["tooth force on rack of coupling mesh at the pitch point, y (axes of body 'rack')"]

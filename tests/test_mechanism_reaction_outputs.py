@@ -159,3 +159,34 @@ def test_the_command_lines_reactions_in_and_no_cache(tmp_path, monkeypatch):
     assert np.abs(child[:3] - world[:3]).max() > 1e-3  # another frame: other components
     assert np.linalg.norm(child[:3]) == pytest.approx(np.linalg.norm(world[:3]), rel=1e-9)
     assert row("--reactions-in", "ground") == pytest.approx(world, abs=1e-9)  # another cache entry, not the child's
+
+
+def test_the_report_says_where_each_reaction_is_read():
+    """The HTML report's table of reactions names, for each vector output, the body it acts
+    on, the point it is taken about and the axes: a joint read on the parent about a marker
+    in the joint's axes, a joint left at its default (world axes, joint origin, on the child),
+    a joint under reactions_in='child', and a gear's tooth force (on the second wheel, at the
+    pitch point, world axes: the limitation docs/mechanism.md states)."""
+    from appell.io.report import render_report
+
+    mech = Mechanism("report", gravity=(0, -G, 0))
+    a = mech.body("wheel_a", 0.8, inertia=(0.001, 0.001, 0.0015))
+    b = mech.body("wheel_b", 2.0, inertia=(0.004, 0.004, 0.012))
+    arm = mech.body("arm", 0.5, inertia=(0.01, 0.01, 0.01), com=(0.2, 0, 0))
+    mech.revolute("ja", "ground", a)
+    mech.revolute("jb", "ground", b, origin=(0.15, 0, 0))
+    mech.revolute("jc", a, arm, origin=(0, 0, 0.1))
+    mech.gear("mesh", "ja", "jb", 2.0)
+    mech.reaction_output("jb", on="parent", about=(b, (0, 0, 0.05)), axes="joint")
+    html = render_report(derive(mech.system(reactions_in=None)))
+    table = html.split("Reactions: where each is read", 1)[1].split("</table>", 1)[0]
+    rows = {r.split("</td>", 1)[0].split("<td>")[-1]: r for r in table.split("<tr>")[2:]}
+    assert "force of wheel_b on ground about the marker [0, 0, 0.05] of wheel_b" in rows["F_jb_x, _y, _z"]
+    assert "axes of joint jb" in rows["M_jb_x, _y, _z"]
+    assert "force of ground on wheel_a at joint ja" in rows["F_ja_x, _y, _z"]
+    assert "world axes" in rows["F_ja_x, _y, _z"]
+    assert "tooth force on wheel_b of coupling mesh at the pitch point" in rows["F_mesh_x, _y, _z"]
+    assert "world axes" in rows["F_mesh_x, _y, _z"]
+    html = render_report(derive(mech.system(reactions_in="child")))
+    table = html.split("Reactions: where each is read", 1)[1].split("</table>", 1)[0]
+    assert "axes of body &#x27;arm&#x27;" in table and "axes of body &#x27;wheel_a&#x27;" in table

@@ -123,6 +123,44 @@ def test_friction_states_and_forces_on_the_incline():
     assert np.allclose(np.linalg.norm(arrows["normal"][sticking], axis=1), m * g * np.cos(alpha), rtol=1e-4)
 
 
+def test_springs_bushings_and_force_pairs_are_drawn_with_their_forces():
+    """A cart on a slide along x held by a zero-length spring (k = 20) from the ground's origin
+    to its own, a bushing (K = 5 along x, a torsional K_r that the slide leaves unloaded) between
+    markers at y = 0.1, and a force pair of force (0, 0, 2 sin t) and torque (0, 0, 0.5) on the
+    cart. Closed forms from the solution's own coordinate x: the spring's force on the cart
+    -k (x, 0, 0) at the cart's origin, the bushing's -K (x, 0, 0) at (x, 0.1, 0), the pair's
+    force and its torque (the arrow ``pair_moment``), each drawn on the cart (not the ground)."""
+    from appell.mechanism import Mechanism
+    import sympy as sp
+
+    mech = Mechanism("drawn_loads", gravity=None)
+    cart = mech.body("cart", 2.0, inertia=(0.1, 0.1, 0.1))
+    mech.prismatic("slide", "ground", cart, axis=(1, 0, 0))
+    mech.spring("spring", ("ground", (0, 0, 0)), (cart, (0, 0, 0)), 20.0)
+    mech.bushing("bush", ("ground", (0, 0.1, 0)), (cart, (0, 0.1, 0)), (5.0, 5.0, 5.0),
+                 rotational_stiffness=(1.0, 1.0, 1.0))
+    mech.force_pair("pair", ("ground", (0, 0, 0)), (cart, (0.2, 0, 0)), force=(0, 0, 2 * sp.sin(sp.Symbol("t"))),
+                    torque=(0, 0, 0.5))
+    system = mech.system(initial={"slide": 0.1})
+    solution = appell.simulate(appell.derive(system), t_end=1.0)
+    scene = scene_data(system, solution)
+    rows = np.searchsorted(solution.t, scene["t"])
+    assert np.allclose(solution.t[rows], scene["t"], atol=1e-6)
+    x, t = solution["slide"][rows], solution.t[rows]
+    zero = np.zeros_like(x)
+    arrows = {a["name"]: a for a in scene["arrows"]}
+    expected = {"spring": (np.stack([-20 * x, zero, zero], 1), np.stack([x, zero, zero], 1)),
+                "bush": (np.stack([-5 * x, zero, zero], 1), np.stack([x, zero + 0.1, zero], 1)),
+                "pair": (np.stack([zero, zero, 2 * np.sin(t)], 1), np.stack([x + 0.2, zero, zero], 1)),
+                "pair_moment": (np.stack([zero, zero, zero + 0.5], 1), np.stack([x + 0.2, zero, zero], 1))}
+    for name, (v, at) in expected.items():
+        # the page's numbers have 5 significant figures
+        assert np.allclose(np.array(arrows[name]["v"]).reshape(-1, 3), v, rtol=1e-4, atol=1e-5), name
+        assert np.allclose(np.array(arrows[name]["at"]).reshape(-1, 3), at, rtol=1e-4, atol=1e-5), name
+    assert arrows["pair_moment"]["kind"] == "moment" and arrows["bush"]["kind"] == "force"
+    assert "bush_moment" not in arrows  # no relative rotation: the bushing's torque is identically zero
+
+
 def test_equivalent_box_has_the_inertia():
     a, b, c = 0.3, 0.5, 1.1
     m = 2.0

@@ -265,6 +265,25 @@ def _table(header: Sequence[str] | None, rows: Sequence[Sequence[str]]) -> str:
     return f"<table>{head}<tbody>{body}</tbody></table>"
 
 
+_COMPONENT = re.compile(r"^(F|M)_(.+)_x$")
+_READ = re.compile(r"^(?P<what>.*), x \((?P<axes>[^()]*)\)$")
+
+
+def _reaction_rows(outputs) -> list[tuple[str, str, str, str]]:
+    """One row per vector output ``F_<name>_x, _y, _z`` (``M_...``) of a mechanism: the joint,
+    coupling or closure it belongs to, on which body, about which point (the joint origin, a
+    marker, the pitch point) and along which axes, as its description says
+    (:meth:`appell.mechanism.Mechanism.reaction_output`, ``reactions_in``)."""
+    names = {o.name for o in outputs}
+    rows = []
+    for o in outputs:
+        m, read = _COMPONENT.match(o.name), _READ.match(o.description or "")
+        if m is None or read is None or not {f"{m[1]}_{m[2]}_y", f"{m[1]}_{m[2]}_z"} <= names:
+            continue
+        rows.append((_e(f"{m[1]}_{m[2]}_x, _y, _z"), _e(read["what"]), _e(read["axes"]), _e(o.unit or "—")))
+    return rows
+
+
 def _model_section(system, kinematics) -> str:
     parts = ["<h2 id='model'>Model</h2>"]
     if system.description:
@@ -284,6 +303,10 @@ def _model_section(system, kinematics) -> str:
                  _e(j.coordinates or "—")) for j in view.joints]
         parts.append("<h3>Joints</h3>" + _table(("joint", "type", "parent → child", "origin (parent frame)",
                                                   "axis (joint frame)", "coordinates"), rows))
+    reactions = _reaction_rows(system.outputs)
+    if reactions:
+        parts.append("<h3>Reactions: where each is read</h3>" + _table(
+            ("outputs", "force and moment of … on … about …", "axes", "unit"), reactions))
     q = list(kinematics.coordinates)
     w = list(kinematics.speeds)
     rows = [("coordinates q", ", ".join(_inline(s) for s in q)), ("speeds w", ", ".join(_inline(s) for s in w))]

@@ -320,11 +320,13 @@ class Mechanism:
         self._springs: list[tuple] = []  # (body_a, r_a, body_b, r_b, k, l0): their energy (system(energy=True))
         self._points: list[tuple] = []  # (name, body, r): world positions as outputs (watch_point)
         self._forces: list[tuple[str, object]] = []  # (name, builder(frames) -> (model loads, actions))
+        self._drawn: set[str] = set()  # springs, bushings and force pairs: the view draws their force
         self._actuators: list[tuple[str, Joint, sp.Symbol, sp.Expr | None]] = []
         self._names: dict[str, str] = {GROUND: "body"}
         self._shapes: list[tuple] = []  # (body, kind, sizes, origin, rotation, colour, mesh): the view
         self._marks: list[tuple[Body, sp.Matrix]] = []  # body points of closures and loads (the view's bars)
         self._couplings: dict[str, Body] = {}  # tooth meshes: the body whose tooth force is an output
+        self._tooth_axes: dict[str, Body | None] = {}  # coupling -> the axes of its tooth force (reaction_output)
         self._drives: list[tuple[str, bool]] = []  # (drive, rotational): its effort is an output
         self._reading: dict[str, tuple] = {}  # joint -> (on, marker body, marker point, axes): reaction_output
         #: the axes of the reactions without a reaction_output of their own (system(reactions_in=...) overrides)
@@ -920,6 +922,7 @@ class Mechanism:
         self._marks += [(ba, ra), (bb, rb)]
         k, l0, c = (sp.sympify(v) for v in (stiffness, rest_length, damping))
         self._springs.append((ba, ra, bb, rb, k, l0))
+        self._drawn.add(name)
 
         def build(frames):
             pa, va, _ = frames[ba].point(ra)
@@ -944,7 +947,22 @@ class Mechanism:
         body (``r`` in its frame; default the joint origin ``O``): ``M_P = M_O + (O - P) x F``;
         along the ``axes`` of ``"world"`` (``"ground"``), a body (its name), ``"joint"`` (the
         joint frame fixed in the parent, ``R_parent R0``: a bearing's housing), ``"child"`` or
-        ``"parent"``. The recursive route then leaves these outputs to their formulas."""
+        ``"parent"``. The recursive route then leaves these outputs to their formulas.
+
+        For a gear or rack coupling (``joint`` its name) only ``axes`` applies: ``"world"`` or a
+        body's name, the axes of its tooth force ``F_<coupling>_*`` (on the second body, at the
+        pitch point)."""
+        if isinstance(joint, str) and joint in self._couplings:
+            what = f"reaction output of coupling {joint!r}"
+            if on != "child" or about is not None:
+                raise ModelError(f"{what}: a tooth force is read on its second body at the pitch point",
+                                 hint="give only axes ('world' or a body's name)")
+            try:
+                body = None if axes in ("world", "ground", None) else self._body(axes, what)
+            except ModelError as exc:
+                raise ModelError(f"{exc.message}; a coupling's axes are 'world' or a body", hint=exc.hint) from None
+            self._tooth_axes[joint] = None if body is self.ground else body
+            return
         j = self._joint(joint, "reaction output")
         what = f"reaction output of joint {j.name!r}"
         if on not in ("child", "parent"):
@@ -1001,6 +1019,7 @@ class Mechanism:
         if axes not in ("world", "a"):
             raise ModelError(f"{what}: axes {axes!r} must be 'world' or 'a'")
         self._marks += [(ba, ra), (bb, rb)]
+        self._drawn.add(name)
         f, tau = _matrix(force, f"{what}: force"), _matrix(torque, f"{what}: torque")
 
         def build(frames):
@@ -1027,6 +1046,7 @@ class Mechanism:
         if ba is bb:
             raise ModelError(f"{what}: both markers are on body {ba.name!r}", hint="join two different bodies")
         self._marks += [(ba, ra), (bb, rb)]
+        self._drawn.add(name)
 
         def gains(value, key):
             m = sp.Matrix(value)
@@ -1319,10 +1339,14 @@ class Mechanism:
             if self.gravity is not None:
                 V -= b.mass * self.gravity.dot(rC)
         loads, actions = [], []
-        for _, build in self._forces:
+        drawn_loads = []
+        for name, build in self._forces:
             more, acts = build(frames)
             loads += more
             actions += acts
+            if name in self._drawn and any(a.body is not self.ground for a in acts):
+                body = next(a.body for a in acts if a.body is not self.ground)  # drawn on a moving body
+                drawn_loads.append((name, [a for a in acts if a.body is body] + [a for a in acts if a.body is not body]))
         cons = [holonomic(n, e) for j in order for n, e in j.motion.constraints]
         contact_forces, loops = [], []
         for closure in self._closures:
@@ -1361,7 +1385,7 @@ class Mechanism:
         reaction_groups = list(self._reaction_outputs(reactions, frame, frames, actions, force_unit, moment_unit,
                                                       reactions_in))
         reaction_outputs = [o for _, _, outs in reaction_groups for o in outs]
-        reaction_outputs += self._tooth_outputs(reactions, contact_forces, force_unit)
+        reaction_outputs += self._tooth_outputs(reactions, contact_forces, force_unit, frames)
         reaction_outputs += [Output(f"{n}_effort", sp.Symbol(f"lambda_{n}"), moment_unit if turn else force_unit,
                                     f"{'torque' if turn else 'force'} of drive {n} along its coordinate")
                              for n, turn in self._drives if reactions is not None]
@@ -1406,14 +1430,16 @@ class Mechanism:
                       programs=tuple(programs), servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
                       name=self.name,
                       description=self.description, settings=settings, units=units or (), outputs=tuple(outs),
-                      view=self._view(frames, contact_forces, drawn, frame, params),
+                      view=self._view(frames, contact_forces + drawn_loads, drawn, frame, params),
                       tree=self.rigid_tree(coords, V, positions, wrenches, loops))
 
     def _view(self, frames, contact_forces, reaction_names, frame, params) -> View:
         """The :class:`appell.view.View` of the mechanism: each body at its frame's pose with
         its shapes (or bars to the joints it carries and the points of its closures and loads,
         and the equivalent box of a full inertia); the force and moment of every joint whose
-        reaction outputs exist, and the force of every closure and contact on its first body."""
+        reaction outputs exist, and the force of every closure and contact on its first body, and
+        of every spring, bushing and force pair (with a bushing's or pair's torque, ``<name>_moment``)
+        on its first body that is not the ground (a spring: a, then b; a bushing or pair: b, then a)."""
         values = {p.symbol: p.value for p in params}
 
         def numbers(v):
@@ -1486,9 +1512,10 @@ class Mechanism:
                 up = tuple(-x for x in g)
         return View(tuple(bodies), tuple(arrows), up=up, joints=tuple(joints))
 
-    def _tooth_outputs(self, reactions, contact_forces, force_unit) -> list[Output]:
+    def _tooth_outputs(self, reactions, contact_forces, force_unit, frames) -> list[Output]:
         """``F_<coupling>_x .. _z``: the tooth force of each gear or rack coupling on the body of
-        its second joint, at the pitch point (world axes), where ``reactions`` asks for it."""
+        its second joint, at the pitch point (world axes, or a body's: :meth:`reaction_output`),
+        where ``reactions`` asks for it."""
         if reactions is None:
             return []
         wanted = self._couplings if reactions == "all" else [n for n in reactions if n in self._couplings]
@@ -1497,8 +1524,11 @@ class Mechanism:
             if name in wanted:
                 on = self._couplings[name]
                 f = sum((a.force for a in acts if a.body is on), sp.zeros(3, 1))
+                body, where = self._tooth_axes.get(name), "world axes"
+                if body is not None:
+                    f, where = frames[body].R.T * f, f"axes of body {body.name!r}"
                 outs += [Output(f"F_{name}_{axis}", e, force_unit,
-                                f"tooth force on {on.name} of coupling {name} at the pitch point, {axis} (world axes)")
+                                f"tooth force on {on.name} of coupling {name} at the pitch point, {axis} ({where})")
                          for axis, e in zip("xyz", f)]
         return outs
 

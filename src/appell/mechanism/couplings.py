@@ -20,7 +20,11 @@ bearings and guides, by the pressure angle ``alpha`` and the helix angle ``beta`
     f_A = lambda t - |lambda| tan(alpha) e + lambda tan(beta) k,     f_B = -f_A,
 
 the radial part separating the two (towards each one's axis whatever the sense of the
-torque), the axial thrust of helical teeth following the sense of ``lambda``
+torque: a tooth only pushes, and when the torque reverses the other flanks take the load and
+the line of action turns over; hence ``|lambda|``, which has a kink where ``lambda`` changes
+sign, felt only by the reactions: the radial and axial parts do no work on the joints'
+motions, so the equations of motion do not contain them), the axial thrust of helical teeth
+following the sense of ``lambda``
 (a gear's tangential, radial and axial loads, e.g. Shigley's Mechanical Engineering
 Design, 10th ed., eqs. 13-37 and 13-40: ``W_r = W_t tan(phi_t)``, ``W_a = W_t tan(psi)``).
 """
@@ -56,7 +60,9 @@ class Mesh:
         return self.c_a * qa - self.c_b * qb
 
     def force_on_pinion(self, lam) -> sp.Matrix:
-        """``f_A = lambda t - |lambda| tan(alpha) e + lambda tan(beta) k`` (housing axes)."""
+        """``f_A = lambda t - |lambda| tan(alpha) e + lambda tan(beta) k`` (housing axes): the
+        radial part always separates the gears, so it is not smooth where ``lambda`` changes
+        sign (module docstring)."""
         return self.tangent * lam - self.radial * (sp.Abs(lam) * self.tan_pressure) + self.axial * (lam * self.tan_helix)
 
 
