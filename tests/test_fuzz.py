@@ -74,8 +74,9 @@ from appell.io.modelfile.expressions import FUNCTIONS  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 #: bundled files added after the recorded full run (9b1fc31), left out so that each seed
-#: keeps its case (FIXED below); the benchmark bicycle's derive and check alone take 40 s
-LATER = {"benchmark_bicycle.toml"}
+#: keeps its case (FIXED below); the benchmark bicycle's derive and check alone take 40 s; the
+#: driveshaft and the steering gear (issue 43) came after the second run
+LATER = {"benchmark_bicycle.toml", "driveshaft.toml", "steering_gear.toml"}
 EXAMPLES = sorted(p for p in example_path("pendulum").parent.glob("*.toml") if p.name not in LATER)
 #: seeds of the default run and of the full run (APPELL_SLOW=1)
 QUICK, FULL = 16, 2000

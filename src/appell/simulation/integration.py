@@ -69,9 +69,9 @@ def _out_of_range(model, t, derivative, p) -> None:
     from appell.numerics.inertia import extreme_parameters
 
     k = int(np.argmax(~(np.abs(derivative) <= LARGEST)))
-    names = [f"{n}'" for n in getattr(model, "state_names", ())]
+    names = [f"{n}'" for n in model.state_names]  # the Dynamics protocol's members
     what = names[k] if k < len(names) else f"entry {k + 1} of the state's derivative"
-    extreme = extreme_parameters(getattr(model, "parameter_names", ()), p) if p is not None else ""
+    extreme = extreme_parameters(model.parameter_names, p) if p is not None else ""
     raise ComputationError(f"{what} is {derivative[k]:.3g} at t = {float(t):.10g}, beyond the floating range that "
                            "the integrator's error norms can square (1e150)" + (f" ({extreme})" if extreme else ""),
                            hint="give the parameters values of ordinary size, or rescale the model's units")
