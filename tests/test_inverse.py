@@ -267,3 +267,51 @@ axis = [0, 0, 1]
     result = runner.invoke(cli, ["inverse", "four_bar", "--trajectory", str(crank), "--guess", "B=-0.5",
                                  "--guess", "D=1.4", "--out", str(out)])
     assert result.exit_code == 0, result.output
+
+
+def test_mjcf_actuators_as_controls_are_the_drives_and_mujoco_follows(tmp_path):
+    """--mjcf actuators=controls: the MJCF four-bar with armature, damping, springs and two
+    actuators (tests/test_mjcf_menagerie.closed_four_bar), its crank alone given; --drive drive
+    solves the position actuator's control (the tendon actuator 'pull' at ctrl 0). Python twin:
+    inverse_dynamics on loop_model(mjcf_system(..., actuators='controls')), the same numbers.
+    Source of truth: MuJoCo's blocks with that ctrl (qfrc_actuator + qfrc_passive, mj_fullM with
+    the armature, the connect's mj_jac/mj_jacDot rows) give back the file's accelerations."""
+    mujoco = pytest.importorskip("mujoco")
+    import warnings
+
+    from appell.errors import AppellNote
+    from appell.mechanism.mjcf import mjcf_system
+    from appell.numerics.loops import loop_model
+    from closed_chain_models import mujoco_kkt
+    from test_mjcf_menagerie import closed_four_bar
+
+    xml, _ = closed_four_bar()
+    model_file = tmp_path / "four_bar.xml"
+    model_file.write_text(xml)
+    t = np.linspace(0.0, 0.5, 11)
+    crank = 0.4 * np.sin(2 * t)
+    motion = _write_csv(tmp_path / "crank.csv", {"t": t, "A": crank})
+    out = tmp_path / "ctrl.csv"
+    result = CliRunner().invoke(cli, ["inverse", str(model_file), "--trajectory", str(motion), "--mjcf",
+                                      "actuators=controls", "--drive", "drive", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    got = _read_csv(out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        twin = inverse_dynamics(loop_model(mjcf_system(model_file, actuators="controls")), t, {"A": crank},
+                                drives=["drive"])
+    for name, values in twin.columns():
+        assert np.allclose(got[name], values, rtol=1e-12, atol=1e-12), name
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    names = [m.joint(j).name for j in range(m.njnt)]
+    for k in range(1, t.size - 1, 3):
+        d.qpos[:] = m.qpos0 + [got[n][k] for n in names]
+        d.qvel[:] = [got[n + "_dot"][k] for n in names]
+        d.ctrl[:] = 0.0
+        d.ctrl[m.actuator("drive").id] = got["drive_drive"][k]
+        mujoco.mj_forward(m, d)
+        acc, _, drift = mujoco_kkt(m, d, d.qfrc_actuator + d.qfrc_passive)
+        prescribed = np.array([got[n + "_ddot"][k] for n in names])
+        assert drift < 1e-10
+        assert np.abs(acc - prescribed).max() <= 1e-9 * max(1.0, np.abs(prescribed).max())
