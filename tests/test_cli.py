@@ -557,3 +557,100 @@ def test_derive_expand_prints_the_reactions_in_the_state():
     assert plain.exit_code == 0 and expanded.exit_code == 0, plain.output + expanded.output
     assert "(t, q, w)  lambda_rod" not in plain.output and "(t, q, w)  lambda_rod" in expanded.output
     assert to_text(derive(load_model("pendulum")), expand=True) in expanded.output
+
+
+# ---------------------------------------------------------------- --mjcf: the MuJoCo reader's options (issue 41)
+_FRICTION_XML = """<mujoco model="rubbing_pendulum">
+  <option gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="upper" pos="0 0 0">
+      <joint name="shoulder" type="hinge" axis="0 1 0" armature="0.05" damping="0.1" frictionloss="0.2"/>
+      <inertial pos="0.25 0 0" mass="1.0" diaginertia="0.001 0.02 0.02"/>
+      <body name="lower" pos="0.5 0 0">
+        <joint name="elbow" type="hinge" axis="0 1 0" armature="0.02"/>
+        <inertial pos="0.2 0 0" mass="0.5" diaginertia="0.0005 0.007 0.007"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _csv_columns(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
+
+
+def test_the_mjcf_readers_options_on_the_command_line(tmp_path):
+    """A MuJoCo model with frictionloss is refused naming it and the flag; with
+    --mjcf frictionloss=ignore it simulates, with the armature as rotors (the default: a rotor
+    body per joint, held by a constraint) or as energy (a w^2/2 in the kinetic energy): two
+    routes of MuJoCo's M_ii += armature that must give the same motion (1e-8), and the motion
+    equals the Python twin mjcf_system(..., frictionloss='ignore', armature='energy') simulated
+    by appell.simulate. A bad option, or one given to a model file, is bad input."""
+    import appell
+    from appell.mechanism.mjcf import mjcf_system
+
+    model = tmp_path / "rubbing.xml"
+    model.write_text(_FRICTION_XML)
+    runner = CliRunner()
+    out = tmp_path / "m.csv"
+    result = runner.invoke(cli, ["simulate", str(model), "--t-end", "0.3", "--out", str(out)])
+    assert result.exit_code == 2 and "frictionloss on joint 'shoulder'" in result.output
+    assert "--mjcf frictionloss=ignore" in result.output and not out.exists()
+    motions = {}
+    for armature in ("rotors", "energy"):
+        path = tmp_path / f"{armature}.csv"
+        result = runner.invoke(cli, ["simulate", str(model), "--t-end", "0.3", "--output-step", "0.05",
+                                     "--mjcf", "frictionloss=ignore", "--mjcf", f"armature={armature}",
+                                     "--backend", "numpy", "--no-cache", "--out", str(path)])
+        assert result.exit_code == 0, result.output
+        assert "frictionloss (on 1 joints and tendons)" in result.output  # the note: left out, and said so
+        motions[armature] = _csv_columns(path)
+    rotors, energy = motions["rotors"], motions["energy"]
+    assert "shoulder_rotor" in rotors and "shoulder_rotor" not in energy
+    for name in ("shoulder", "elbow", "shoulder_dot", "elbow_dot"):
+        assert np.allclose(rotors[name], energy[name], rtol=0, atol=1e-8), name
+    assert abs(energy["shoulder"][-1]) > 1e-2  # it fell from the horizontal
+    twin = appell.simulate(appell.derive(mjcf_system(model, frictionloss="ignore", armature="energy")), 0.3,
+                           output_step=0.05)
+    for name in ("shoulder", "elbow"):
+        assert np.allclose(energy[name], twin[name], rtol=0, atol=1e-8), name
+    result = runner.invoke(cli, ["simulate", str(model), "--mjcf", "friction=ignore"])
+    assert result.exit_code == 2 and "unknown reader option(s) friction" in result.output
+    result = runner.invoke(cli, ["simulate", str(model), "--mjcf", "frictionloss"])
+    assert result.exit_code == 2 and "is not NAME=VALUE" in result.output
+    result = runner.invoke(cli, ["simulate", "pendulum", "--mjcf", "frictionloss=ignore"])
+    assert result.exit_code == 2 and "apply to a MuJoCo model" in result.output
+
+
+def test_go2_as_shipped_is_refused_for_its_frictionloss_and_read_with_the_flag(tmp_path, monkeypatch):
+    """Unitree Go2 from MuJoCo Menagerie (../shared/models/menagerie, or $APPELL_SHARED): its
+    joints' frictionloss is refused naming a joint and --mjcf frictionloss=ignore; with the flag
+    `appell simulate go2.xml --t-end 0` writes the single initial row: at rest, no ctrl and no
+    contacts (ignored, said in the note), the robot falls freely: base acceleration (0, 0, -9.81)
+    (the option's gravity, closed form) and no joint acceleration (1e-12)."""
+    import os
+    from pathlib import Path
+
+    shared = next((base for base in (Path(__file__).resolve().parents[2] / "shared",
+                                     Path(os.environ.get("APPELL_SHARED", "/nonexistent")))
+                   if (base / "models" / "menagerie" / "unitree_go2" / "go2.xml").is_file()), None)
+    if shared is None:
+        pytest.skip("../shared/models/menagerie/unitree_go2/go2.xml is not beside the clone")
+    go2 = shared / "models" / "menagerie" / "unitree_go2" / "go2.xml"
+    runner = CliRunner()
+    out = tmp_path / "go2.csv"
+    result = runner.invoke(cli, ["simulate", str(go2), "--t-end", "0", "--out", str(out)])
+    assert result.exit_code == 2 and "frictionloss on joint 'FL_hip_joint'" in result.output
+    assert "--mjcf frictionloss=ignore" in result.output and not out.exists()
+    result = runner.invoke(cli, ["simulate", str(go2), "--t-end", "0", "--mjcf", "frictionloss=ignore",
+                                 "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    row = _csv_columns(out)
+    assert row["t"].size == 1 and row["t"][0] == 0.0
+    assert row["base_joint_q0"][0] == 1.0
+    assert row["base_joint_z_ddot"][0] == pytest.approx(-9.81, rel=1e-12)
+    others = [k for k in row if k.endswith("_ddot") and k != "base_joint_z_ddot"]
+    assert len(others) >= 18 and max(abs(row[k][0]) for k in others) < 1e-12

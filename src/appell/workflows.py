@@ -46,7 +46,7 @@ __all__ = [
     "OUTPUT_FORMATS", "SOLVER_OPTIONS", "check_inertia_at_start", "check_model", "check_movie_writer",
     "check_output_memory", "command_options", "completion", "copy_example", "cross_check_model", "derivation_json",
     "derive_model", "example_listing", "export_solution", "failed_path", "first_integrals", "internal_stability",
-    "keep_cluster", "keep_failed_motion", "load_derivation", "load_system", "read_trajectory", "report_model", "resolve_model",
+    "keep_cluster", "keep_failed_motion", "closed_chain_model", "load_derivation", "load_inverse_source", "load_system", "read_trajectory", "report_model", "resolve_model",
     "run_inverse", "run_simulation", "save_motion", "save_simulation", "show_derivation", "solver_line",
     "span_energy_balance", "stability_analysis", "stability_table", "sweep_model", "verdict", "write_stability",
 ]
@@ -92,12 +92,15 @@ def resolve_model(model: str) -> Path:
                      + "; or a benchmark: " + ", ".join(list_benchmarks()))
 
 
-def load_system(model: str, overrides=None, floating_base: bool = False, echo=None, reactions_in: str | None = None):
+def load_system(model: str, overrides=None, floating_base: bool = False, echo=None, reactions_in: str | None = None,
+                reader=None):
     """Load a model file (or bundled example) with parameter / initial-value ``overrides``
     (``{name: value text}``, as ``--set NAME=VALUE``); ``floating_base`` puts a ``.urdf``
     robot's root link on a free joint; ``reactions_in`` the axes of the joint reactions of a
-    ``[mechanism]`` model. What the model's files hold that appell does not
-    apply is one ``note:`` line each on ``echo(..., err=True)``."""
+    ``[mechanism]`` model; ``reader`` the options of a robot file's reader (a MuJoCo model's
+    ``frictionloss``, ``armature``, ``actuators``: :func:`appell.io.modelfile.load_model`).
+    What the model's files hold that appell does not apply is one ``note:`` line each on
+    ``echo(..., err=True)``."""
     import warnings
 
     from appell.errors import AppellNote
@@ -107,7 +110,7 @@ def load_system(model: str, overrides=None, floating_base: bool = False, echo=No
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", AppellNote)
         system = load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base,
-                            reactions_in=reactions_in)
+                            reactions_in=reactions_in, reader=reader)
     for w in caught:  # what the model's files hold that appell does not apply: one line each
         if issubclass(w.category, AppellNote):
             echo(f"note: {w.message}", err=True)
@@ -117,12 +120,13 @@ def load_system(model: str, overrides=None, floating_base: bool = False, echo=No
 
 
 def load_derivation(model: str, overrides=None, floating_base: bool = False, dependent=None, formulas: bool = False,
-                    cache: bool | None = None, reactions_in: str | None = None, echo=None):
+                    cache: bool | None = None, reactions_in: str | None = None, echo=None, reader=None):
     """:func:`load_system` and :func:`derive_model` in one step, through the derivation cache
     (:func:`appell.io.derivation_cache.derive_file`: a model file derived before is read back,
     not derived again; ``cache=False`` or ``$APPELL_NO_CACHE=1`` derives every time).
     ``reactions_in``: the axes of the joint reactions of a ``[mechanism]`` model
-    (:func:`appell.io.modelfile.load_model`). The model's notes are ``note:`` lines on ``echo``,
+    (:func:`appell.io.modelfile.load_model`), ``reader`` the options of a robot file's reader
+    (:func:`load_system`). The model's notes are ``note:`` lines on ``echo``,
     from the cache too; the inertia is checked at the start as :func:`derive_model` does."""
     import warnings
 
@@ -137,7 +141,7 @@ def load_derivation(model: str, overrides=None, floating_base: bool = False, dep
     with warnings.catch_warnings(record=True) as caught, status(f"deriving {path.stem}"):
         warnings.simplefilter("always", AppellNote)
         derivation = derive_file(path, overrides or None, floating_base=floating_base, dependent=dependent,
-                                 cache=cache, formulas=formulas, reactions_in=reactions_in)
+                                 cache=cache, formulas=formulas, reactions_in=reactions_in, reader=reader)
     for w in caught:
         if issubclass(w.category, AppellNote):
             echo(f"note: {w.message}", err=True)
@@ -695,11 +699,96 @@ def save_motion(derivation, solution, path=None, fps: int = 25, frames: int = 30
     return path
 
 
-def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=None):
+def closed_chain_model(system):
+    """The :class:`~appell.numerics.loops.LoopModel` of a mechanism's
+    :class:`~appell.model.System` whose tree is closed by holonomic constraints (loop
+    closures: ``connect`` in a ``[[closures]]`` table, an MJCF equality), through which
+    :func:`run_inverse` completes the passive coordinates from the given ones; None for a
+    system without a joint tree or constraints, or one the closed-chain route does not take
+    (loads, servo constraints, its own energies: :func:`~appell.numerics.loops.loop_model`
+    says which), whose motion is then given whole (``--drive`` naming the drives)."""
+    if getattr(system, "tree", None) is None or not system.constraints:
+        return None
+    from appell.numerics.loops import loop_model
+
+    try:
+        return loop_model(system)
+    except ModelError:
+        return None
+
+
+def load_inverse_source(model: str, overrides=None, floating_base: bool = False, cache: bool | None = None,
+                        reactions_in: str | None = None, reader=None, echo=None):
+    """What ``appell inverse`` works on: the :func:`closed_chain_model` of a closed chain (no
+    derivation: the tree's recursions and the loops' rows), else the derivation
+    (:func:`load_derivation`). The model's notes are printed once."""
+    echo = echo or _print
+    notes = []
+    system = load_system(model, overrides, floating_base, echo=lambda text, err=False: notes.append(text),
+                         reactions_in=reactions_in, reader=reader)
+    closed = closed_chain_model(system)
+    if closed is None:
+        return load_derivation(model, overrides, floating_base, cache=cache, reactions_in=reactions_in,
+                               reader=reader, echo=echo)
+    for text in notes:
+        echo(text, err=True)
+    return closed
+
+
+def _closed_chain_inverse(model, trajectory, table, drives, guess, echo):
+    """:func:`run_inverse` of a closed chain (its :class:`~appell.numerics.loops.LoopModel`):
+    the motion of the coordinates the file gives (any independent set: the actuated ones),
+    the passive ones completed from the loops by
+    :func:`appell.simulation.inverse.inverse_dynamics`; a motion the drives cannot produce, or
+    that leaves the loops open, is bad input (:class:`ModelError`) naming the file."""
+    from appell.simulation.inverse import inverse_dynamics
+    from appell.simulation.recording import acceleration_name
+
+    names, speeds = list(model.coordinate_names), list(model.speed_names)
+    given = [n for n in names if n in table]
+    if "t" not in table or not given:
+        raise ModelError(f"{trajectory}: the motion needs a column t and one per given coordinate",
+                         hint="columns: t and the actuated (or other independent) coordinates among "
+                              + ", ".join(names))
+    rates = [speeds[names.index(n)] for n in given]
+
+    def column(names_):
+        return {n: table[n] for n in names_} if all(n in table for n in names_) else None
+
+    w = column(rates)
+    a = column([acceleration_name(n) for n in rates]) if w is not None else None
+    if a is not None:
+        a = {r: a[acceleration_name(r)] for r in rates}
+    try:
+        values = {str(k): float(v) for k, v in dict(guess or {}).items()}
+    except ValueError as exc:
+        raise ModelError(f"--guess: {exc}", hint="give NAME=NUMBER, a passive coordinate's start") from None
+    unknown = sorted(set(values) - set(names))
+    if unknown:
+        raise ModelError(f"--guess of unknown coordinate(s) {', '.join(unknown)}", hint="coordinates: " + ", ".join(names))
+    try:
+        result = inverse_dynamics(model, table["t"], {n: table[n] for n in given}, w, a,
+                                  drives=list(drives) or None, guess=values or None)
+    except ComputationError as exc:  # the motion given cannot be followed: the file's fault, not appell's
+        raise ModelError(exc.message, where=str(trajectory), hint=exc.hint) from None
+    passive = [n for n in names if n not in given]
+    echo(f"given {', '.join(given)}; completed from the loops: {', '.join(passive) or 'none'}")
+    for comb in result.undetermined:
+        echo("undetermined (minimum-norm answer given): " + " + ".join(f"{v:.6g}*{k}" for k, v in comb.items()))
+    if result.undetermined_wrenches:
+        echo("joint wrenches those change: " + ", ".join(result.undetermined_wrenches))
+    return result, w is not None
+
+
+def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=None, guess=None):
     """``appell inverse``: :func:`appell.simulation.inverse.inverse_dynamics` along the motion
     of the CSV file ``trajectory`` (:func:`read_trajectory`: t and each coordinate; speeds and
     accelerations where given; ``table``: its columns read already), written to ``out``
-    (default ``<model name>-inverse.csv``)."""
+    (default ``<model name>-inverse.csv``). ``derivation`` may be the
+    :class:`~appell.numerics.loops.LoopModel` of a closed chain (:func:`load_inverse_source`): the file
+    then gives the independent coordinates alone (the actuated ones), the passive ones are
+    completed from the loops (``guess``: ``{coordinate: start}`` for the first time's
+    assembly), and the output holds every drive, loop force and joint wrench."""
     import numpy as np
 
     from appell.numerics.boundary import numeric_model
@@ -708,6 +797,12 @@ def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=No
 
     echo = echo or _print
     table = read_trajectory(Path(trajectory)) if table is None else table
+    if hasattr(derivation, "loop_rows"):  # a closed chain's LoopModel (load_inverse_source)
+        result, given = _closed_chain_inverse(derivation, trajectory, table, drives, guess, echo)
+        return _write_inverse(result, derivation.name, out, given, echo)
+    if guess:
+        raise ModelError("--guess applies to a closed chain (a mechanism whose loops the motion completes)",
+                         hint="this model's motion gives every coordinate; leave --guess out")
     numeric = numeric_model(derivation)
     missing = [n for n in ("t",) + tuple(numeric.coordinate_names) if n not in table]
     if missing:
@@ -721,15 +816,22 @@ def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=No
     w = given(numeric.speed_names)
     a = given([acceleration_name(n) for n in numeric.speed_names]) if w is not None else None
     result = inverse_dynamics(derivation, table["t"], q, w, a, drives=list(drives) or None)
-    path = Path(out) if out is not None else default_file_name(derivation.system.name, "-inverse.csv")
+    return _write_inverse(result, derivation.system.name, out, w is not None, echo)
+
+
+def _write_inverse(result, name, out, given, echo):
+    """``result`` written to ``out`` (default ``<name>-inverse.csv``), its summary on ``echo``."""
+    import numpy as np
+
+    path = Path(out) if out is not None else default_file_name(name, "-inverse.csv")
     output_target(path)
     result.to_csv(path)
-    for name, values in result.drives.items():
+    for drive, values in result.drives.items():
         k = int(np.argmax(np.abs(values)))
-        echo(f"drive_{name}: largest |value| {abs(values[k]):.6g} at t = {result.t[k]:.6g}")
+        echo(f"drive_{drive}: largest |value| {abs(values[k]):.6g} at t = {result.t[k]:.6g}")
     if result.multipliers:
         echo(f"largest velocity-level residual of the given motion: {result.residual:.3e}")
-    echo(f"{'derived' if w is None else 'given'} speeds and accelerations; {result.t.size} rows")
+    echo(f"{'given' if given else 'derived'} speeds and accelerations; {result.t.size} rows")
     echo(f"wrote {path}")
     return result
 

@@ -70,8 +70,9 @@ def load_system(model: str, overrides=None, floating_base: bool = False):
     """:func:`appell.workflows.load_system` with the model's notes printed as ``note:`` lines
     (and the command's ``--reactions-in``)."""
     ctx = click.get_current_context(silent=True)
-    reactions_in = ctx.meta.get("appell.reactions_in") if ctx is not None else None
-    return workflows.load_system(model, overrides, floating_base, echo=click.echo, reactions_in=reactions_in)
+    meta = ctx.meta if ctx is not None else {}
+    return workflows.load_system(model, overrides, floating_base, echo=click.echo,
+                                 reactions_in=meta.get("appell.reactions_in"), reader=meta.get("appell.mjcf"))
 
 
 def __getattr__(name):  # the workflows' names, as before they moved there (from appell.io.cli import ...)
@@ -84,14 +85,14 @@ def __getattr__(name):  # the workflows' names, as before they moved there (from
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def parse_assignments(items) -> dict[str, str]:
+def parse_assignments(items, option: str = "'--set'") -> dict[str, str]:
     """``["m=2", "x'=0.1"]`` -> ``{"m": "2", "x'": "0.1"}`` (values checked by the loader)."""
     out = {}
     for item in items or ():
         name, sep, value = item.partition("=")
         name, value = name.strip(), value.strip()
         if not sep or not name or not value:
-            raise click.BadParameter(f"{item!r} is not NAME=VALUE", param_hint="'--set'")
+            raise click.BadParameter(f"{item!r} is not NAME=VALUE", param_hint=option)
         out[name] = value
     return out
 
@@ -271,6 +272,12 @@ _reactions_option = click.option("--reactions-in", "reactions_in", default=None,
                                  help="Axes of the joint reactions of a [mechanism] model: world (ground), joint, "
                                       "child, parent or a body's name (default: the model file's reactions_in, else "
                                       "world).")
+_mjcf_option = click.option("--mjcf", "mjcf", multiple=True, metavar="NAME=VALUE", expose_value=False,
+                            callback=lambda ctx, param, value: ctx.meta.__setitem__(
+                                "appell.mjcf", parse_assignments(value, "'--mjcf'")),
+                            help="How a MuJoCo model (.xml) is read (repeatable): frictionloss=ignore (leave MuJoCo's "
+                                 "dry friction out; else refused), armature=rotors|energy, actuators=programs|controls "
+                                 "(ctrl 0, or unknowns for inverse dynamics and servo constraints).")
 
 
 _expand_option = click.option("--expand", is_flag=True,
@@ -279,9 +286,9 @@ _expand_option = click.option("--expand", is_flag=True,
 
 
 def _model_options(command):
-    """``--set``, ``--floating-base``, ``--no-cache`` and ``--reactions-in``, the options of every
-    command that loads a model."""
-    return _set_option(_floating_option(_cache_option(_reactions_option(command))))
+    """``--set``, ``--floating-base``, ``--no-cache``, ``--reactions-in`` and ``--mjcf``, the
+    options of every command that loads a model."""
+    return _set_option(_floating_option(_cache_option(_reactions_option(_mjcf_option(command)))))
 
 
 def _derivation(model, assignments, floating_base, dependent=None, formulas: bool = False):
@@ -290,7 +297,8 @@ def _derivation(model, assignments, floating_base, dependent=None, formulas: boo
     meta = click.get_current_context().meta
     return workflows.load_derivation(model, parse_assignments(assignments), floating_base, dependent, formulas,
                                      cache=False if meta.get("appell.no_cache") else None,
-                                     reactions_in=meta.get("appell.reactions_in"), echo=click.echo)
+                                     reactions_in=meta.get("appell.reactions_in"), echo=click.echo,
+                                     reader=meta.get("appell.mjcf"))
 
 
 _complete_option = click.option("--complete", is_flag=True,
@@ -536,26 +544,40 @@ def animate_command(model, out, t_end, fps, frames, backend, assignments, floati
 @cli.command(name="inverse", context_settings=_CONTEXT)
 @_model_argument
 @click.option("--trajectory", "trajectory", type=click.Path(exists=True, dir_okay=False), required=True,
-              metavar="FILE.csv", help="The motion: a column t and one per coordinate (by name); speeds "
-                                       "(<q>_dot) and accelerations (<q>_ddot) where known, else derived by a "
-                                       "cubic spline.")
+              metavar="FILE.csv", help="The motion: a column t and one per coordinate (by name; of a closed "
+                                       "chain only the actuated or other independent ones, the passive ones "
+                                       "follow from the loops); speeds (<q>_dot) and accelerations (<q>_ddot) "
+                                       "where known, else derived by a cubic spline.")
 @click.option("--drive", "drives", multiple=True, metavar="SPEED",
-              help="A driven speed (repeat); default every speed of a model without constraints.")
+              help="A driven speed or actuator (repeat); default every speed of a model without constraints, the "
+                   "actuators (else the given coordinates' speeds) of a closed chain.")
+@click.option("--guess", "guess", multiple=True, metavar="NAME=VALUE",
+              help="A closed chain's passive coordinate near its value at the first time (repeat): the start of "
+                   "the loops' assembly (default: the model's initial values).")
 @click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE.csv",
               help="Where to write t, the motion, drive_<speed>, lambda_<constraint> and the joint forces and "
                    "moments (default: <model name>-inverse.csv).")
 @_model_options
-def inverse_command(model, trajectory, drives, out, assignments, floating_base):
+def inverse_command(model, trajectory, drives, guess, out, assignments, floating_base):
     """Inverse dynamics: the drive forces (torques) along the driven speeds, every reaction
     and every joint's force and moment along a given motion (what RNEA gives for a robot).
 
-    A closed loop names its drives with --drive (as many as the loop leaves degrees of
-    freedom); the drives and the reactions must then be determined by the motion.
+    A closed chain (a mechanism whose loops are closed by connect: an MJCF equality, a
+    [[closures]] table) takes the motion of its actuated (or other independent) coordinates
+    alone and completes the passive ones from the loops; it writes the actuator torques,
+    every loop force and every joint wrench, and names the combinations the motion leaves
+    undetermined (minimum-norm answer). Another model with constraints names its drives
+    with --drive (as many as the constraints leave degrees of freedom).
     """
     table = workflows.read_trajectory(Path(trajectory))  # a bad file is bad input before the derivation
     path = output_file(Path(out), "'--out'") if out else None
-    derivation = _derivation(model, assignments, floating_base)
-    workflows.run_inverse(derivation, trajectory, drives, path, echo=click.echo, table=table)
+    meta = click.get_current_context().meta
+    source = workflows.load_inverse_source(model, parse_assignments(assignments), floating_base,
+                                           cache=False if meta.get("appell.no_cache") else None,
+                                           reactions_in=meta.get("appell.reactions_in"),
+                                           reader=meta.get("appell.mjcf"), echo=click.echo)
+    workflows.run_inverse(source, trajectory, drives, path, echo=click.echo, table=table,
+                          guess=parse_assignments(guess, "'--guess'"))
 
 
 @cli.command(name="check", context_settings=_CONTEXT)

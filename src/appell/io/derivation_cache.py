@@ -321,7 +321,7 @@ def _named_files(path: Path, raw: bytes) -> list[Path]:
 
 
 def entry_key(path: Path, overrides=None, floating_base: bool = False, dependent=None,
-              reactions_in: str | None = None) -> str:
+              reactions_in: str | None = None, reader=None) -> str:
     """The SHA-256 key of a model file's derivation (see the module's docstring)."""
     from appell import __version__
 
@@ -339,7 +339,8 @@ def entry_key(path: Path, overrides=None, floating_base: bool = False, dependent
         todo.extend(_named_files(file, raw))
     given = sorted((str(k), repr(v)) for k, v in dict(overrides or {}).items())
     digest.update(repr((given, bool(floating_base), None if dependent is None else [str(d) for d in dependent],
-                        reactions_in)).encode())
+                        reactions_in) + ((sorted((str(k), str(v)) for k, v in dict(reader).items()),)
+                                         if reader else ())).encode())
     return digest.hexdigest()[:32]
 
 
@@ -472,7 +473,7 @@ def _derive(system, dependent):
 
 
 def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=None, cache: bool | None = None,
-                formulas: bool = False, reactions_in: str | None = None):
+                formulas: bool = False, reactions_in: str | None = None, reader=None):
     """The derivation of the model file ``path`` (a bundled example's name too, as
     :func:`~appell.io.modelfile.load_model` takes), read from the derivation cache when the
     same input was derived before (see the module's docstring), else loaded, derived and
@@ -480,7 +481,7 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     (or ``$APPELL_NO_CACHE=1``) derives without reading or writing the cache; ``formulas``:
     the reduced equations (1.4) and the reaction formulas (1.5) are formed now and stored
     with the derivation where they exist in closed form; ``reactions_in``: the axes of the joint
-    reactions (:func:`~appell.io.modelfile.load_model`)."""
+    reactions, ``reader`` the options of a robot file's reader (:func:`~appell.io.modelfile.load_model`)."""
     path = Path(path)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
         from appell.examples import example_path, list_benchmarks, list_examples
@@ -495,7 +496,8 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", AppellNote)
-            system = load_model(path, overrides, floating_base=floating_base, reactions_in=reactions_in)
+            system = load_model(path, overrides, floating_base=floating_base, reactions_in=reactions_in,
+                                reader=reader)
         for w in caught:  # given as they came, and kept with the entry
             if issubclass(w.category, AppellNote):
                 notes.append(str(w.message))
@@ -508,7 +510,7 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     if not cache_enabled(cache) or not path.is_file():
         return fresh()
     try:
-        key = entry_key(path, overrides, floating_base, dependent, reactions_in)
+        key = entry_key(path, overrides, floating_base, dependent, reactions_in, reader)
         root = derivations_dir()
         root.mkdir(parents=True, exist_ok=True)
     except OSError:

@@ -29,10 +29,10 @@ def _urdf_mechanism(path: Path, floating_base: bool):
     return urdf_mechanism(read_urdf(path), floating_base=floating_base)
 
 
-def _mjcf_system(path: Path, floating_base: bool):
+def _mjcf_system(path: Path, floating_base: bool, **options):
     from appell.mechanism.mjcf import mjcf_system
 
-    return mjcf_system(path)
+    return mjcf_system(path, **options)
 
 
 def _sdf_system(path: Path, floating_base: bool):
@@ -47,7 +47,8 @@ class Importer:
     hold (for messages), ``system(path, floating_base)`` the reader, ``mechanism(path,
     floating_base)`` -> ``(Mechanism, extra constraints)`` where a model file's ``[mechanism]``
     table may add to it under the key ``key`` (None: not available there), whether
-    ``floating_base`` applies, and the pip extra that brings its reader's package."""
+    ``floating_base`` applies, the pip extra that brings its reader's package, and the
+    ``options`` its ``system`` reader takes by name (text values; ``appell ... --mjcf``)."""
 
     name: str
     suffixes: tuple[str, ...]
@@ -57,12 +58,14 @@ class Importer:
     key: str | None = None
     floating_base: bool = False
     extra: str | None = None
+    options: tuple[str, ...] = ()
 
 
 IMPORTERS: tuple[Importer, ...] = (
     Importer("URDF", (".urdf",), "a robot description", _urdf_system, _urdf_mechanism, key="urdf",
              floating_base=True),
-    Importer("MJCF", (".xml", ".mjcf"), "a MuJoCo model", _mjcf_system, extra="mjcf"),
+    Importer("MJCF", (".xml", ".mjcf"), "a MuJoCo model", _mjcf_system, extra="mjcf",
+             options=("frictionloss", "armature", "actuators")),
     Importer("SDF", (".sdf",), "an SDFormat model", _sdf_system),
 )
 

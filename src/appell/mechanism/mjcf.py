@@ -534,7 +534,8 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
     if friction and frictionloss == "refuse":
         raise ModelError(f"{source}: frictionloss on {', '.join(friction)}: MuJoCo's dry friction with a constant "
                          "bound has no counterpart in appell (its Coulomb friction needs a normal force)",
-                         hint="read with frictionloss='ignore' to leave it out (named in a note)")
+                         hint="read with frictionloss='ignore' to leave it out (named in a note); on the command "
+                              "line: --mjcf frictionloss=ignore")
     if friction:
         ignored.append(f"frictionloss (on {len(friction)} joints and tendons)")
 

@@ -1003,7 +1003,7 @@ def loads_model(text: str, source: str = "<string>", overrides: Mapping | None =
 
 
 def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floating_base: bool = False,
-               reactions_in: str | None = None) -> System:
+               reactions_in: str | None = None, reader: Mapping | None = None) -> System:
     """Read a model file (TOML, docs/model-format.md) into a :class:`System`.
 
     ``overrides`` ``{name: value}`` replaces parameter values or initial values (as
@@ -1011,7 +1011,9 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floati
     ``floating_base``: a ``.urdf`` robot's root link on a free joint
     (:func:`~appell.mechanism.urdf.urdf_mechanism`; in a model file ``[mechanism]
     floating_base = true``). ``reactions_in``: the axes of a ``[mechanism]``'s joint
-    reactions, as :func:`loads_model` (``appell ... --reactions-in``).
+    reactions, as :func:`loads_model` (``appell ... --reactions-in``). ``reader``: options of a
+    robot file's reader by name (a MuJoCo model's: ``frictionloss``, ``armature``, ``actuators``
+    of :func:`~appell.mechanism.mjcf.mjcf_system`; ``appell ... --mjcf NAME=VALUE``).
     ``path`` may also be the name of a bundled example or benchmark (``load_model("pendulum")``,
     as listed by ``appell examples``) when no file of that name exists.
     Every error is a :class:`ModelError` with ``where="<file>:<line>"``.
@@ -1039,7 +1041,19 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floati
             raise ModelError(f"reactions_in={reactions_in!r} does not apply to {importer.what} ({importer.name}), "
                              "whose reactions are along the world axes", where=str(path),
                              hint="read the robot from a model file (urdf = \"...\" in [mechanism]) to choose the axes")
-        return _apply_overrides(importer.system(path, floating_base), overrides, str(path))
+        if reader and not importer.options:
+            raise ModelError(f"reader options ({', '.join(map(str, reader))}) do not apply to {importer.what} "
+                             f"({importer.name})", where=str(path), hint="--mjcf applies to a MuJoCo model (.xml)")
+        unknown = sorted(str(k) for k in dict(reader or {}) if str(k) not in importer.options)
+        if unknown:
+            raise ModelError(f"unknown reader option(s) {', '.join(unknown)} of {importer.what} ({importer.name})",
+                             where=str(path), hint="options: " + ", ".join(importer.options))
+        return _apply_overrides(importer.system(path, floating_base, **{str(k): str(v) for k, v in
+                                                                        dict(reader or {}).items()}),
+                                overrides, str(path))
+    if reader:
+        raise ModelError(f"reader options ({', '.join(map(str, reader))}) apply to a MuJoCo model (.xml), not to "
+                         "a model file", where=str(path))
     if floating_base:
         raise ModelError("--floating-base (floating_base=True) applies to a .urdf robot", where=str(path),
                          hint="in a model file that reads a URDF, write floating_base = true in [mechanism]")
