@@ -499,6 +499,29 @@ def test_an_extreme_case_the_run_found_behaves(case, tmp_path):
     assert run["code"] == code and fragment in run["output"], run["output"][-2000:]
 
 
+def test_a_failed_cross_check_names_the_parameter_of_extreme_size():
+    """A cross-check that fails beside a parameter of extreme size says so in the line that
+    ``appell check`` ends with (it said only "cross-check: a relative difference exceeds
+    1e-09"): the servo route of differential_drive at m = 2^63 (the augmented system and the
+    split differ by 100 % in the accelerations there) and the plain route of the door on two
+    hinges at g = 1e-300 (its reactions of 1e-299 lose their minimum-norm split to underflow).
+    At ordinary values both pass: the clause is not there."""
+    from appell.control.servo_numeric import cross_check_controlled
+    from appell.numerics.crosscheck import cross_check
+    from appell.workflows import load_derivation, verdict
+
+    drive = load_derivation("differential_drive")
+    door = load_derivation("door_two_hinges")
+    for report, clause in ((cross_check_controlled(drive, p={"m": 2.0**63}), "the parameter m = 9.22e+18"),
+                           (cross_check(door, p={"g": 1e-300}), "the parameter g = 1e-300")):
+        ok, line = verdict(report, None, 1e-9, 1e-9)
+        assert not ok and f"{clause} is of extreme size beside the others" in line, line
+        assert "rescale the model's units" in line
+    for report in (cross_check_controlled(drive), cross_check(door)):
+        ok, line = verdict(report, None, 1e-9, 1e-9)
+        assert ok and "extreme" not in line, line
+
+
 @pytest.mark.slow
 def test_extreme_parameter_values_full(tmp_path):
     _extreme(range(len(extreme_cases())), tmp_path)
