@@ -62,6 +62,7 @@ def _beam_on_equal_supports(load):
 
 EXAMPLES = {"door_two_hinges": (door_two_hinges, ("top_z", "bottom_z")),
             "table_four_legs": (table_four_legs, ("leg_1", "leg_2", "leg_3", "leg_4")),
+            "table_on_elastic_legs": (lambda: table_four_legs(compliance=1e-6), ("leg_1", "leg_2", "leg_3", "leg_4")),
             "twin_rods": (twin_rods, ("rod_a", "rod_b")),
             "bar_on_three_rollers": (bar_on_three_rollers, ("roller_1", "roller_2", "roller_3"))}
 
@@ -69,7 +70,8 @@ EXAMPLES = {"door_two_hinges": (door_two_hinges, ("top_z", "bottom_z")),
 @pytest.mark.parametrize("name", sorted(EXAMPLES))
 def test_compiled_model_of_a_redundant_set_matches_numpy_and_the_least_squares_route(name):
     """numeric_model(d, 'c'): every constraint's multiplier, the undetermined ones named, and
-    at six states moved onto all constraints the accelerations and minimum-norm multipliers
+    at six states moved onto all constraints the accelerations and minimum-norm (or, with
+    compliances, the elastic) multipliers
     of NumPy's model to 1e-12 and of the whole-system least squares to 1e-9 (both relative to
     the largest entry); the Dynamics evaluation (what simulate integrates) too."""
     make, involved = EXAMPLES[name]
@@ -93,7 +95,7 @@ def test_compiled_model_of_a_redundant_set_matches_numpy_and_the_least_squares_r
         assert np.abs(a.multipliers - b.multipliers).max() <= 1e-12 * l_scale
         Mm, hQ, _, _ = numpy_model.evaluate_blocks(t, q, w, pv)
         J, c = numpy_model.full_blocks(t, q, w, pv)[:2]
-        a_ls, lam_ls = solve_indeterminate(Mm, hQ, J, c, None, d.redundancy.rank)
+        a_ls, lam_ls = solve_indeterminate(Mm, hQ, J, c, numpy_model.weights, d.redundancy.rank)
         # least squares on the whole systems against the split and null-space step: rounding of
         # an SVD of condition < 1e3 (measured at most 1e-14 relative)
         assert np.abs(b.accelerations - a_ls).max() <= 1e-9 * a_scale
