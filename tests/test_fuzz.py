@@ -49,6 +49,14 @@ error norms of the energy balance and of simulate, a vanishing-row test, a servo
 each fixed at its root and run again clean (:data:`EXTREME_FIXED`); 65 runs passed the
 20 s hang guard in wall time alone (the andrews squeezer's, rolling disc's and the drives'
 symbolic stages under that load: a derive's CPU time does not depend on the values).
+Second run 2026-11-29 at commit 4ab0879 (all 656 cases, in two chunks under nice on a
+machine at load 4-5 on 2 cores): no internal error, no traceback, no NumPy warning, no file
+written outside; 4 derives of the andrews squeezer ran past the 20 s guard in wall time
+(20.3-21.0 s, in the symbolic adjugate). Exit 1 or 2 that did not name the parameter: an
+overflow of the compiled blocks at the start and Newton's method completing the initial
+values beside a parameter of extreme size; both name it since (:data:`EXTREME_FIXED`). Still
+not naming it: the energy balance's budget refusal (it gives the projected evaluations) and
+a kinetic energy refused as not positive definite (it names the speed and the eigenvalue).
 """
 
 from __future__ import annotations
