@@ -34,6 +34,7 @@ import sympy as sp
 from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError, ModelError
 from appell.numerics.crosscheck import relative_difference
+from appell.numerics.inertia import extreme_parameters
 from appell.numerics.numeric import (check_finite, lambdify_blocks, program_substitutions, split_basis, split_solve,
                                      usable_partition)
 from appell.symbols import derivative_symbol, t
@@ -389,6 +390,9 @@ class ControlledCrossCheck:
     (:data:`TRACKING_CHECK` s at rtol 1e-10) — the independent evidence there; NaN otherwise,
     and NaN with ``tracking_note`` saying why when that run would cost more than
     :data:`TRACKING_EVALUATIONS` evaluations (a motion too fast or stiff to judge).
+    ``extreme``: the clause naming the parameters of extreme size
+    (:func:`~appell.numerics.inertia.extreme_parameters`, empty when none), which a failed
+    :meth:`verdict` names as the likely cause.
     """
 
     route: str
@@ -399,10 +403,24 @@ class ControlledCrossCheck:
     states: int
     tracking: float = float("nan")
     tracking_note: str = ""
+    extreme: str = ""
 
     def passed(self, tol: float = 1e-9) -> bool:
         ok = max(self.controls, self.accelerations, self.multipliers) <= tol
         return ok and not (np.isfinite(self.tracking) and self.tracking > TRACKING_TOLERANCE)
+
+    def verdict(self, tol: float = 1e-9) -> str:
+        """One line: passed, or failed naming the lines above ``tol`` (a NaN fails) and the
+        parameters of extreme size where there are any."""
+        bad = [f"{k} {v:.3e}" for k, v in (("controls", self.controls), ("accelerations", self.accelerations),
+                                            ("multipliers", self.multipliers)) if not v <= tol]
+        if np.isfinite(self.tracking) and self.tracking > TRACKING_TOLERANCE:
+            bad.append(f"tracking error {self.tracking:.3e} (accepted up to {TRACKING_TOLERANCE:g})")
+        if not bad:
+            return f"passed: every relative difference is at most the tolerance {tol:g}"
+        return (f"cross-check of the controlled system [{self.route}] failed (tolerance {tol:g}): " + ", ".join(bad)
+                + (f"; {self.extreme} (give the parameters values of ordinary size, or rescale the model's units)"
+                   if self.extreme else ""))
 
     def __str__(self) -> str:
         lines = [
@@ -453,7 +471,8 @@ def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCh
             dc, da, dl = max(dc, relative_difference(s1.controls, s2.controls)), max(da, relative_difference(s1.accelerations, s2.accelerations)), \
                 max(dl, relative_difference(s1.multipliers, s2.multipliers))
             ds = max(ds, float(np.max(np.abs(s1.servo_multipliers), initial=0.0)))
-        return ControlledCrossCheck("augmented", dc, da, dl, ds, len(states))
+        return ControlledCrossCheck("augmented", dc, da, dl, ds, len(states),
+                                    extreme=extreme_parameters(model.parameter_names, pv))
     system = derivation.system
     subs_prog = program_substitutions(system, orders=12)
     syms = [sp.Symbol(n) for n in model.state_names]
@@ -476,7 +495,8 @@ def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCh
             note = run.message
         else:
             tracking = float("inf")
-    return ControlledCrossCheck("symbolic", dc, 0.0, 0.0, float("nan"), len(states), tracking, note)
+    return ControlledCrossCheck("symbolic", dc, 0.0, 0.0, float("nan"), len(states), tracking, note,
+                                extreme_parameters(model.parameter_names, pv))
 
 
 def _real(value, what: str, t, y, names) -> float:

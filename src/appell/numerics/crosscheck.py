@@ -57,7 +57,7 @@ import numpy as np
 from appell.core.equations import is_controlled
 from appell.core.partition import row_scales
 from appell.errors import ComputationError, FormulaUnavailable, ModelError
-from appell.numerics.inertia import check_inertia
+from appell.numerics.inertia import check_inertia, extreme_parameters
 from appell.numerics.numeric import NumericModel, StateSolution, newton
 from appell.numerics.boundary import numeric_model
 
@@ -185,8 +185,6 @@ def augmented_solve(model: NumericModel, t, q, w, p=None) -> StateSolution:
     try:
         a, lam, Ja, its = solve_augmented(M, hQ, J, c, _model_constraint_function(model, t, q, w, pv))
     except np.linalg.LinAlgError:
-        from appell.numerics.inertia import extreme_parameters
-
         extreme = extreme_parameters(model.parameter_names, pv)
         raise ComputationError(f"the augmented system [M -J^T; J 0] of the cross-check is singular at t = "
                                f"{float(t):.10g}" + (f": {extreme}" if extreme else ""),
@@ -259,12 +257,16 @@ class CrossCheckReport:
     ``comparisons``: one :class:`Comparison` per route that ran; ``unavailable``: ``{route:
     reason}`` for the routes that could not; ``states`` sampled. Every line is normalised by
     :data:`NORMALISATION`; :meth:`passed` fails when any line exceeds the tolerance.
+    ``extreme``: the clause naming the parameters of extreme size
+    (:func:`~appell.numerics.inertia.extreme_parameters`, empty when none), which a failed
+    :meth:`verdict` names as the likely cause (rounding beside a value of 9.2e18).
     """
 
     states: int
     comparisons: tuple[Comparison, ...]
     unavailable: Mapping[str, str] = field(default_factory=dict)
     names: tuple[str, ...] = ()
+    extreme: str = ""
 
     def _lines(self):
         for c in self.comparisons:
@@ -310,7 +312,9 @@ class CrossCheckReport:
         bad = self.failures(tol)
         if bad:
             return (f"failed (tolerance {tol:g}): "
-                    + ", ".join(f"{k} [{r}] {v:.3e}" for r, k, v in bad))
+                    + ", ".join(f"{k} [{r}] {v:.3e}" for r, k, v in bad)
+                    + (f"; {self.extreme} (give the parameters values of ordinary size, or rescale the model's "
+                       "units)" if self.extreme else ""))
         value, key, route = self.largest
         return f"passed: every line is at most the tolerance {tol:g} (largest {key} [{route}] {value:.3e})"
 
@@ -439,7 +443,8 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
         comparisons.append(lag.comparison("lagrange"))
     if getattr(derivation.system, "frictions", ()):
         comparisons.append(_friction_comparison(derivation, states, pv, names))
-    return CrossCheckReport(len(states), tuple(comparisons), unavailable, names)
+    return CrossCheckReport(len(states), tuple(comparisons), unavailable, names,
+                            extreme_parameters(model.parameter_names, pv))
 
 
 def _lagrange_solve(route, t, q, w, pv, weights=False, rank=None):

@@ -56,12 +56,14 @@ class ScalarBlocks:
     One state at a time, Python floats and the ``math`` module are about three times
     faster than NumPy's scalar arithmetic. Calling it returns the list of matrices as
     arrays. A value the model cannot take there (a square root of a negative number, a
-    division by zero, a complex power) raises :class:`ComputationError` naming the blocks.
+    division by zero, a complex power) raises :class:`ComputationError` naming the blocks;
+    an overflow names the arguments of extreme size too (a parameter of 1e300).
     """
 
     def __init__(self, args, matrices, what: str):
         self.shapes = [m.shape for m in matrices]
         self.what = what
+        self.names = [str(s) for a in args for s in (a if isinstance(a, (list, tuple)) else [a])]
         flat = [e for m in matrices for e in m]
         # use_imps=False: lambdify's search for implemented functions walks the expression
         # as a tree, every use of a shared subexpression again (12 s of the bicycle's report);
@@ -75,7 +77,7 @@ class ScalarBlocks:
         except OverflowError as exc:
             reason = exc.args[-1] if exc.args else exc
             raise ComputationError(f"the {self.what} cannot be evaluated {_at(args)}: a value overflows the "
-                                   f"floating range ({reason})", hint=RANGE_HINT) from exc
+                                   f"floating range ({reason}){self._extreme(args)}", hint=RANGE_HINT) from exc
         except (ValueError, ZeroDivisionError, TypeError) as exc:
             raise ComputationError(
                 f"the {self.what} cannot be evaluated {_at(args)}: {exc}",
@@ -87,6 +89,18 @@ class ScalarBlocks:
             out.append(values[start:start + rows * cols].reshape(rows, cols))
             start += rows * cols
         return out
+
+    def _extreme(self, args) -> str:
+        """``"; L = 1e+300 is of extreme size beside the others"`` for the arguments (parameters,
+        state) outside [1e-12, 1e12] in magnitude, empty when none."""
+        from appell.numerics.inertia import EXTREME_LARGE, EXTREME_SMALL
+
+        flat = [v for a in args for v in (a if isinstance(a, (list, tuple)) else [a])]
+        found = [f"{n} = {float(v):.3g}" for n, v in zip(self.names, flat)
+                 if isinstance(v, (int, float)) and np.isfinite(v) and v != 0.0
+                 and not EXTREME_SMALL <= abs(v) <= EXTREME_LARGE]
+        return (f": {', '.join(found)} {'are' if len(found) > 1 else 'is'} of extreme size beside the others"
+                if found else "")
 
 
 def _at(args) -> str:

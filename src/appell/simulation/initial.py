@@ -36,6 +36,7 @@ from appell.core.equations import Derived
 from appell.numerics.boundary import numeric_model
 from appell.numerics.dynamics import (DYNAMICS_MEMBERS, Dynamics, ResidualJacobians, ServoTracking, SplitBlocks,
                                       system_of)
+from appell.numerics.inertia import extreme_parameters
 from appell.numerics.redundant import RedundantModel
 
 __all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians",
@@ -402,7 +403,15 @@ def _solve_level(model, t, y, p, level: int, idx: list[int], rows, what: str, to
         y[idx] = x
         return _level_jacobian(model, t, y, p, level, idx, rows)
 
-    y[idx], _ = _newton_block(residual, jacobian, y[idx].copy(), what, tol, maxiter)
+    try:
+        y[idx], _ = _newton_block(residual, jacobian, y[idx].copy(), what, tol, maxiter)
+    except ComputationError as exc:  # beside a parameter of 9.2e18 Newton's steps drown in rounding: name it
+        extreme = extreme_parameters(model.parameter_names, model.params(p))
+        if not extreme:
+            raise
+        raise ComputationError(f"{exc.message}: {extreme}",
+                               hint="give the parameters values of ordinary size (or rescale the model's units); "
+                                    f"else {exc.hint}") from None
 
 
 def complete_initial(derivation, values=None, adjust: Sequence[str] | None = None, *, t: float = 0.0,
