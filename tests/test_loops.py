@@ -40,10 +40,10 @@ def _newton_euler_wrenches(system, model, q, w, a, lam):
     return {j: np.array([outs[f"{k}_{j}_{x}"][0] for k in "FM" for x in "xyz"]) for j in model.joints}
 
 
-def _against_expanded(system, states, rtol=1e-10):
+def _against_expanded(system, states, rtol=1e-10, backend="auto"):
     """Blocks, accelerations, multipliers and joint wrenches of the loop route against the
     expanded symbolic route at ``states``."""
-    model = loop_model(system)
+    model = loop_model(system, backend)
     ref = numeric_model(derive(system), "numpy")
     for q, w in states:
         M, hQ, J, c, _ = model.blocks(q, w)
@@ -96,6 +96,60 @@ def test_spatial_loops_against_the_expanded_route(closure):
     n = len(system.coordinates)
     states = [(rng.uniform(-1, 1, n), rng.normal(size=n)) for _ in range(2)]
     _against_expanded(system, states, rtol=1e-9)
+
+
+def _loop_on_a_moving_body(kind: str):
+    """Loops closed by ``connect(axes='a')`` along the axes of a turning body_a, on a base that
+    itself turns about a tilted hinge: ``'spatial'``, a crank (body_a) on the base and a rocker
+    on a spherical joint held to it in x, y and z of the crank's axes; ``'planar'``, a four-bar
+    in a tilted plane of the base closed in x and y of the coupler's axes (body_a, its z the
+    plane's normal, as MJCF's planar loops on a moving body)."""
+    mech = Mechanism(f"moving_{kind}", gravity=(0, 0, -9.81))
+    base = mech.body("base", 3.0, inertia=(0.1, 0.2, 0.15), com=(0.1, 0.0, 0.05))
+    crank = mech.body("crank", 1.2, inertia=(0.02, 0.03, 0.01), com=(0.2, 0.05, 0.0))
+    rocker = mech.body("rocker", 0.8, inertia=(0.01, 0.012, 0.004), com=(0.0, 0.1, 0.15))
+    mech.revolute("T", "ground", base, axis=(0.6, 0.0, 0.8), origin=(0.1, 0.2, 0.3))
+    if kind == "spatial":
+        mech.revolute("A", base, crank, axis=(0, 0, 1), rpy=(0.3, -0.2, 0.1))
+        mech.spherical("S", base, rocker, origin=(0.3, 0.0, -0.2))
+        mech.connect("C", (crank, (0.3, 0.1, 0.0)), (rocker, (0.0, 0.1, 0.2)), axes="a")
+    else:
+        coupler = mech.body("coupler", 2.0, inertia=(0.02, 0.2, 0.2), com=(0.5, 0.0, 0.0))
+        plane = (0.4, 0.7, -0.3)
+        mech.revolute("A", base, crank, rpy=plane)
+        mech.revolute("B", crank, coupler, origin=(0.4, 0, 0))
+        mech.revolute("D", base, rocker, origin=(1.0, 0, 0), rpy=plane)
+        mech.connect("C", (coupler, (1.0, 0, 0)), (rocker, (0.8, 0, 0)), directions="xy", axes="a")
+    return mech
+
+
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+@pytest.mark.parametrize("kind", ["spatial", "planar"])
+def test_rows_along_a_moving_body_against_the_expanded_route(kind, backend):
+    """``connect(axes='a')`` rows (kind 'point_a': ``e = R_a u`` turns with body_a, so ``J`` gains
+    ``(e x d)^T J_omega_a`` and ``c`` the terms of ``omega_a`` and ``alpha_a``) against the expanded
+    symbolic route (derive + numeric_model: J and c by differentiating ``(R_a u) . (p_a - p_b)``)
+    and the builder's Newton-Euler reactions, at random states where the points do not meet
+    (``d != 0``, so every term of the row counts), NumPy and C."""
+    mech = _loop_on_a_moving_body(kind)
+    rows = [(row.name, row.kind) for row in mech.loop_parts().tree.loops]
+    assert rows == [(f"C_{d}", "point_a") for d in ("xyz" if kind == "spatial" else "xy")]
+    system = mech.system()
+    rng = np.random.default_rng(13)
+    n = len(system.coordinates)
+    states = [(rng.uniform(-2, 2, n), rng.normal(size=n)) for _ in range(3)]
+    model = _against_expanded(system, states, rtol=1e-9, backend=backend)
+    assert model.backend == backend
+    ref = numeric_model(derive(system), "numpy")
+    for q, _ in states:  # the position residuals and their gradient (no quaternion: J = dPhi/dq)
+        Phi, Jq = model.positions(q)
+        M0, hQ0, J0, c0 = ref.evaluate_blocks(0.0, q, np.zeros(n))
+        assert np.allclose(Jq, J0, rtol=1e-9, atol=1e-9)
+        assert np.abs(Phi).min() > 1e-3  # the points do not meet: the terms in d are exercised
+    # the mechanism's own loop route (loop_parts) agrees with the system's (_system_parts)
+    q, w = states[0]
+    direct = loop_model(mech, backend).evaluate(q, w)
+    assert np.allclose(direct.a, model.evaluate(q, w).a, rtol=1e-12, atol=1e-12)
 
 
 def test_a_planar_loops_out_of_plane_row_is_named_undetermined():
