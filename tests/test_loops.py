@@ -232,6 +232,32 @@ def biped_state(m, d, rng):
     return q, w, G
 
 
+def closed_biped_state(m, d, model, rng):
+    """:func:`biped_state` with the leg loops closed (Newton's method on the legs' coordinates
+    on appell's rows, minimum-norm steps) and the legs' speeds projected onto ``J w = 0``, set
+    in MuJoCo's ``d`` (checked there: each connect's anchors meet, ``|J v|`` of MuJoCo's rows)."""
+    import mujoco
+
+    q, w, G = biped_state(m, d, rng)
+    rows = [k for k, _ in model.loop_rows]
+    for _ in range(50):
+        Phi, J = model.positions(q)
+        if np.abs(Phi[rows]).max() < 1e-13:
+            break
+        q[7:] -= np.linalg.lstsq(J[rows][:, 7:], Phi[rows], rcond=None)[0]
+    J = model.positions(q)[1][rows]
+    w[7:] -= np.linalg.lstsq(J[:, 7:], J @ w, rcond=None)[0]
+    d.qpos[:] = np.concatenate([q[:3] + m.qpos0[:3], q[3:]])
+    d.qvel[:] = np.concatenate([w[:3], 2 * G @ w[3:7], w[7:]])
+    mujoco.mj_forward(m, d)
+    for e in range(m.neq):
+        b1, b2 = m.eq_obj1id[e], m.eq_obj2id[e]
+        p1 = d.xpos[b1] + d.xmat[b1].reshape(3, 3) @ m.eq_data[e, :3]
+        p2 = d.xpos[b2] + d.xmat[b2].reshape(3, 3) @ m.eq_data[e, 3:6]
+        assert np.abs(p1 - p2).max() < 1e-10
+    return q, w, G
+
+
 def test_floating_biped_with_four_leg_loops_against_mujoco():
     mujoco = pytest.importorskip("mujoco")
     from appell.mechanism.mjcf import load_mjcf, mjcf_mechanism
@@ -239,21 +265,32 @@ def test_floating_biped_with_four_leg_loops_against_mujoco():
     mech, extra = mjcf_mechanism(load_mjcf(BIPED), str(BIPED))
     assert not extra
     model = loop_model(mech)
-    assert model.n == 23 and len(model.loop_rows) == 12
+    # each planar leg loop on a moving body keeps its x and z rows in body1's axes (MJCF reader)
+    assert model.n == 23 and len(model.loop_rows) == 8
+    assert {row.kind for _, row in model.loop_rows} == {"point_a"}
     m = mujoco.MjModel.from_xml_path(str(BIPED))
     d = mujoco.MjData(m)
     rng = np.random.default_rng(2)
     for _ in range(3):
-        q, w, G = biped_state(m, d, rng)
-        acc, lam, _ = mujoco_kkt(m, d)
+        # at closed loops (the planar loops' rows along body1's axes and MuJoCo's world rows are
+        # the same constraint there, not at a random state where the anchors part)
+        q, w, G = closed_biped_state(m, d, model, rng)
+        acc, lam, drift = mujoco_kkt(m, d)
+        assert drift < 1e-9
         state = model.evaluate(q, w)
         scale = np.abs(acc).max()
         assert np.abs(state.a[7:] - acc[6:]).max() <= 1e-9 * scale
         assert np.abs(state.a[:3] - acc[:3]).max() <= 1e-9 * scale
         assert np.abs(2 * G @ state.a[3:7] - acc[3:6]).max() <= 1e-9 * scale
-        loops = [model.constraint_names.index(f"{e}_{x}") for e in
-                 ("left_achilles_loop", "left_plantar_loop", "right_achilles_loop", "right_plantar_loop") for x in "xyz"]
-        assert np.abs(state.lam[loops] - lam).max() <= 1e-9 * np.abs(lam).max()
+        # the loop force on body1 in world axes: sum_d lambda_d R_1 e_d over the kept rows; MuJoCo's
+        # minimum-norm lambda (world x, y, z) has no part along a planar loop's normal
+        force = []
+        for e in range(m.neq):
+            loop = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_EQUALITY, e)
+            local = np.array([state.lam[model.constraint_names.index(f"{loop}_{x}")]
+                              if f"{loop}_{x}" in model.constraint_names else 0.0 for x in "xyz"])
+            force.append(d.xmat[m.eq_obj1id[e]].reshape(3, 3) @ local)
+        assert np.abs(np.concatenate(force) - lam).max() <= 1e-9 * np.abs(lam).max()
 
 
 def _parity(mech, states, controls=0):
