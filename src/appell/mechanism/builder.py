@@ -550,7 +550,10 @@ class Mechanism:
         along the world ``directions`` (a subset of ``'xyz'``; along body_a's axes where
         ``axes='a'``: a planar loop carried by a moving body keeps its normal there):
         holonomic constraints ``<name>_<d> = e_d . (r_A - r_B) = 0``; ``lambda_<name>_<d>`` is
-        the force of ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``)."""
+        the force of ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``;
+        along body_a's axis ``e_d = R_a u_d`` it also turns body_a by ``lambda e_d x (r_A - r_B)``,
+        zero where the points meet). The closed-chain route records the rows as
+        :class:`~appell.rigid_tree.LoopRow` of kind ``'point'`` or, with ``axes='a'``, ``'point_a'``."""
         if axes not in (None, "a"):
             raise ModelError(f"closure {name!r}: axes must be None (the world's) or 'a' (body_a's), got {axes!r}")
         self._claim(name, "closure")
