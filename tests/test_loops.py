@@ -40,10 +40,10 @@ def _newton_euler_wrenches(system, model, q, w, a, lam):
     return {j: np.array([outs[f"{k}_{j}_{x}"][0] for k in "FM" for x in "xyz"]) for j in model.joints}
 
 
-def _against_expanded(system, states, rtol=1e-10):
+def _against_expanded(system, states, rtol=1e-10, backend="auto"):
     """Blocks, accelerations, multipliers and joint wrenches of the loop route against the
     expanded symbolic route at ``states``."""
-    model = loop_model(system)
+    model = loop_model(system, backend)
     ref = numeric_model(derive(system), "numpy")
     for q, w in states:
         M, hQ, J, c, _ = model.blocks(q, w)
@@ -96,6 +96,60 @@ def test_spatial_loops_against_the_expanded_route(closure):
     n = len(system.coordinates)
     states = [(rng.uniform(-1, 1, n), rng.normal(size=n)) for _ in range(2)]
     _against_expanded(system, states, rtol=1e-9)
+
+
+def _loop_on_a_moving_body(kind: str):
+    """Loops closed by ``connect(axes='a')`` along the axes of a turning body_a, on a base that
+    itself turns about a tilted hinge: ``'spatial'``, a crank (body_a) on the base and a rocker
+    on a spherical joint held to it in x, y and z of the crank's axes; ``'planar'``, a four-bar
+    in a tilted plane of the base closed in x and y of the coupler's axes (body_a, its z the
+    plane's normal, as MJCF's planar loops on a moving body)."""
+    mech = Mechanism(f"moving_{kind}", gravity=(0, 0, -9.81))
+    base = mech.body("base", 3.0, inertia=(0.1, 0.2, 0.15), com=(0.1, 0.0, 0.05))
+    crank = mech.body("crank", 1.2, inertia=(0.02, 0.03, 0.01), com=(0.2, 0.05, 0.0))
+    rocker = mech.body("rocker", 0.8, inertia=(0.01, 0.012, 0.004), com=(0.0, 0.1, 0.15))
+    mech.revolute("T", "ground", base, axis=(0.6, 0.0, 0.8), origin=(0.1, 0.2, 0.3))
+    if kind == "spatial":
+        mech.revolute("A", base, crank, axis=(0, 0, 1), rpy=(0.3, -0.2, 0.1))
+        mech.spherical("S", base, rocker, origin=(0.3, 0.0, -0.2))
+        mech.connect("C", (crank, (0.3, 0.1, 0.0)), (rocker, (0.0, 0.1, 0.2)), axes="a")
+    else:
+        coupler = mech.body("coupler", 2.0, inertia=(0.02, 0.2, 0.2), com=(0.5, 0.0, 0.0))
+        plane = (0.4, 0.7, -0.3)
+        mech.revolute("A", base, crank, rpy=plane)
+        mech.revolute("B", crank, coupler, origin=(0.4, 0, 0))
+        mech.revolute("D", base, rocker, origin=(1.0, 0, 0), rpy=plane)
+        mech.connect("C", (coupler, (1.0, 0, 0)), (rocker, (0.8, 0, 0)), directions="xy", axes="a")
+    return mech
+
+
+@pytest.mark.parametrize("backend", ["numpy", "c"])
+@pytest.mark.parametrize("kind", ["spatial", "planar"])
+def test_rows_along_a_moving_body_against_the_expanded_route(kind, backend):
+    """``connect(axes='a')`` rows (kind 'point_a': ``e = R_a u`` turns with body_a, so ``J`` gains
+    ``(e x d)^T J_omega_a`` and ``c`` the terms of ``omega_a`` and ``alpha_a``) against the expanded
+    symbolic route (derive + numeric_model: J and c by differentiating ``(R_a u) . (p_a - p_b)``)
+    and the builder's Newton-Euler reactions, at random states where the points do not meet
+    (``d != 0``, so every term of the row counts), NumPy and C."""
+    mech = _loop_on_a_moving_body(kind)
+    rows = [(row.name, row.kind) for row in mech.loop_parts().tree.loops]
+    assert rows == [(f"C_{d}", "point_a") for d in ("xyz" if kind == "spatial" else "xy")]
+    system = mech.system()
+    rng = np.random.default_rng(13)
+    n = len(system.coordinates)
+    states = [(rng.uniform(-2, 2, n), rng.normal(size=n)) for _ in range(3)]
+    model = _against_expanded(system, states, rtol=1e-9, backend=backend)
+    assert model.backend == backend
+    ref = numeric_model(derive(system), "numpy")
+    for q, _ in states:  # the position residuals and their gradient (no quaternion: J = dPhi/dq)
+        Phi, Jq = model.positions(q)
+        M0, hQ0, J0, c0 = ref.evaluate_blocks(0.0, q, np.zeros(n))
+        assert np.allclose(Jq, J0, rtol=1e-9, atol=1e-9)
+        assert np.abs(Phi).min() > 1e-3  # the points do not meet: the terms in d are exercised
+    # the mechanism's own loop route (loop_parts) agrees with the system's (_system_parts)
+    q, w = states[0]
+    direct = loop_model(mech, backend).evaluate(q, w)
+    assert np.allclose(direct.a, model.evaluate(q, w).a, rtol=1e-12, atol=1e-12)
 
 
 def test_a_planar_loops_out_of_plane_row_is_named_undetermined():
@@ -178,6 +232,32 @@ def biped_state(m, d, rng):
     return q, w, G
 
 
+def closed_biped_state(m, d, model, rng):
+    """:func:`biped_state` with the leg loops closed (Newton's method on the legs' coordinates
+    on appell's rows, minimum-norm steps) and the legs' speeds projected onto ``J w = 0``, set
+    in MuJoCo's ``d`` (checked there: each connect's anchors meet, ``|J v|`` of MuJoCo's rows)."""
+    import mujoco
+
+    q, w, G = biped_state(m, d, rng)
+    rows = [k for k, _ in model.loop_rows]
+    for _ in range(50):
+        Phi, J = model.positions(q)
+        if np.abs(Phi[rows]).max() < 1e-13:
+            break
+        q[7:] -= np.linalg.lstsq(J[rows][:, 7:], Phi[rows], rcond=None)[0]
+    J = model.positions(q)[1][rows]
+    w[7:] -= np.linalg.lstsq(J[:, 7:], J @ w, rcond=None)[0]
+    d.qpos[:] = np.concatenate([q[:3] + m.qpos0[:3], q[3:]])
+    d.qvel[:] = np.concatenate([w[:3], 2 * G @ w[3:7], w[7:]])
+    mujoco.mj_forward(m, d)
+    for e in range(m.neq):
+        b1, b2 = m.eq_obj1id[e], m.eq_obj2id[e]
+        p1 = d.xpos[b1] + d.xmat[b1].reshape(3, 3) @ m.eq_data[e, :3]
+        p2 = d.xpos[b2] + d.xmat[b2].reshape(3, 3) @ m.eq_data[e, 3:6]
+        assert np.abs(p1 - p2).max() < 1e-10
+    return q, w, G
+
+
 def test_floating_biped_with_four_leg_loops_against_mujoco():
     mujoco = pytest.importorskip("mujoco")
     from appell.mechanism.mjcf import load_mjcf, mjcf_mechanism
@@ -185,21 +265,32 @@ def test_floating_biped_with_four_leg_loops_against_mujoco():
     mech, extra = mjcf_mechanism(load_mjcf(BIPED), str(BIPED))
     assert not extra
     model = loop_model(mech)
-    assert model.n == 23 and len(model.loop_rows) == 12
+    # each planar leg loop on a moving body keeps its x and z rows in body1's axes (MJCF reader)
+    assert model.n == 23 and len(model.loop_rows) == 8
+    assert {row.kind for _, row in model.loop_rows} == {"point_a"}
     m = mujoco.MjModel.from_xml_path(str(BIPED))
     d = mujoco.MjData(m)
     rng = np.random.default_rng(2)
     for _ in range(3):
-        q, w, G = biped_state(m, d, rng)
-        acc, lam, _ = mujoco_kkt(m, d)
+        # at closed loops (the planar loops' rows along body1's axes and MuJoCo's world rows are
+        # the same constraint there, not at a random state where the anchors part)
+        q, w, G = closed_biped_state(m, d, model, rng)
+        acc, lam, drift = mujoco_kkt(m, d)
+        assert drift < 1e-9
         state = model.evaluate(q, w)
         scale = np.abs(acc).max()
         assert np.abs(state.a[7:] - acc[6:]).max() <= 1e-9 * scale
         assert np.abs(state.a[:3] - acc[:3]).max() <= 1e-9 * scale
         assert np.abs(2 * G @ state.a[3:7] - acc[3:6]).max() <= 1e-9 * scale
-        loops = [model.constraint_names.index(f"{e}_{x}") for e in
-                 ("left_achilles_loop", "left_plantar_loop", "right_achilles_loop", "right_plantar_loop") for x in "xyz"]
-        assert np.abs(state.lam[loops] - lam).max() <= 1e-9 * np.abs(lam).max()
+        # the loop force on body1 in world axes: sum_d lambda_d R_1 e_d over the kept rows; MuJoCo's
+        # minimum-norm lambda (world x, y, z) has no part along a planar loop's normal
+        force = []
+        for e in range(m.neq):
+            loop = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_EQUALITY, e)
+            local = np.array([state.lam[model.constraint_names.index(f"{loop}_{x}")]
+                              if f"{loop}_{x}" in model.constraint_names else 0.0 for x in "xyz"])
+            force.append(d.xmat[m.eq_obj1id[e]].reshape(3, 3) @ local)
+        assert np.abs(np.concatenate(force) - lam).max() <= 1e-9 * np.abs(lam).max()
 
 
 def _parity(mech, states, controls=0):

@@ -85,6 +85,9 @@ class LoopRow:
     * ``kind = 'point'``: ``e . (p_a - p_b) = 0`` with ``p_a`` the point ``point_a`` of body
       ``a`` (its frame), ``p_b`` likewise, ``e = axis_a`` a world direction; the multiplier
       is the force ``lambda e`` on body ``a`` at ``p_a`` and ``-lambda e`` on body ``b`` at ``p_b``;
+    * ``kind = 'point_a'``: as ``'point'`` with ``e = R_a u``, ``u = axis_a`` fixed in body
+      ``a`` (a world direction where ``a`` is the ground); the multiplier adds the moment
+      ``lambda e x (p_a - p_b)`` on body ``a``;
     * ``kind = 'align'``: ``(R_a u) . (R_b v) = 0`` with ``u = axis_a`` fixed in body ``a``
       and ``v = axis_b`` fixed in body ``b``; the multiplier is the moment
       ``lambda (R_a u) x (R_b v)`` on body ``a`` and its opposite on body ``b``.

@@ -244,7 +244,12 @@ def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None, axes=None, ga
         c = holonomic(f"{name}_{d}", row)
         lam = sp.Symbol(f"lambda_{c.name}")
         cons.append(c)
-        acts += [_Action(ba, pa, e * lam, sp.zeros(3, 1)), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
+        # along a turning body_a's axis the row's virtual work has the moment e x (p_a - p_b) on body_a
+        # (R_a (u x R_a^T (p_a - p_b))), zero where the points coincide
+        turn = sp.zeros(3, 1) if axes is None else axes * _cross(
+            sp.Matrix([1 if d == x else 0 for x in "xyz"]),
+            axes.T * (pa - pb) if gap is None else sp.Matrix(gap)) * lam
+        acts += [_Action(ba, pa, e * lam, turn), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
     return cons, acts
 
 
@@ -266,9 +271,11 @@ def _alignment_rows(rows, ba, pa, bb, pb, idle=None) -> tuple[list, list]:
     return cons, acts
 
 
-def _loop_points(name, ba, ra, bb, rb, directions) -> tuple:
-    """The point rows of a loop closure as :class:`_Closure` records them (world directions)."""
-    return tuple((f"{name}_{d}", "point", ba, ra, sp.Matrix([1 if d == x else 0 for x in "xyz"]), bb, rb,
+def _loop_points(name, ba, ra, bb, rb, directions, kind="point") -> tuple:
+    """The point rows of a loop closure as :class:`_Closure` records them: along world
+    directions (``kind='point'``) or along body_a's axes (``'point_a'``, the unit vector
+    ``e_d`` fixed in body_a)."""
+    return tuple((f"{name}_{d}", kind, ba, ra, sp.Matrix([1 if d == x else 0 for x in "xyz"]), bb, rb,
                   sp.zeros(3, 1)) for d in directions)
 
 
@@ -545,7 +552,10 @@ class Mechanism:
         along the world ``directions`` (a subset of ``'xyz'``; along body_a's axes where
         ``axes='a'``: a planar loop carried by a moving body keeps its normal there):
         holonomic constraints ``<name>_<d> = e_d . (r_A - r_B) = 0``; ``lambda_<name>_<d>`` is
-        the force of ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``)."""
+        the force of ``body_b`` on ``body_a`` along ``e_d`` (and its opposite on ``body_b``;
+        along body_a's axis ``e_d = R_a u_d`` it also turns body_a by ``lambda e_d x (r_A - r_B)``,
+        zero where the points meet). The closed-chain route records the rows as
+        :class:`~appell.rigid_tree.LoopRow` of kind ``'point'`` or, with ``axes='a'``, ``'point_a'``."""
         if axes not in (None, "a"):
             raise ModelError(f"closure {name!r}: axes must be None (the world's) or 'a' (body_a's), got {axes!r}")
         self._claim(name, "closure")
@@ -561,9 +571,7 @@ class Mechanism:
                                axes=frames[ba].R if axes == "a" else None,
                                gap=self._gap_in(ba, ra, bb, rb) if axes == "a" else None)
 
-        # the loop route's point rows are along world directions: rows along body_a's turning axes
-        # are left to their expressions there (the same constraint, another multiplier per name)
-        rows = () if axes == "a" else _loop_points(name, ba, ra, bb, rb, dirs)
+        rows = _loop_points(name, ba, ra, bb, rb, dirs, "point_a" if axes == "a" else "point")
         self._closures.append(_Closure(name, build, rows=rows))
 
     def weld(self, name, a, b, rotation=None):

@@ -13,6 +13,9 @@ is evaluated at a state without expanding a product of the chain:
   speed ``k`` on the path to ``b``, on its body ``j``, in world axes) and the acceleration at
   ``a = 0`` ``R_b (a_o + alpha x r + omega x (v_o + omega x r))`` (spatial to classical);
 * a point row ``e . (p_a - p_b) = 0`` has ``J = e^T (J_a - J_b)``, ``c = e . (dotJ_a w - dotJ_b w)``;
+  along an axis of body ``a`` (``e = R_a u``, ``d = p_a - p_b``) ``J = e^T (J_a - J_b) + (e x d)^T J_omega_a``
+  and ``c = e . (dotJ_a w - dotJ_b w) + 2 (omega_a x e) . (v_a - v_b) + (alpha_a x e + omega_a x (omega_a x e)) . d``
+  (its multiplier also turns body ``a`` by the moment ``e x d``);
   an alignment row ``u . v = 0`` (``u`` fixed in ``a``, ``v`` in ``b``) has
   ``J = (u x v)^T (J_omega_a - J_omega_b)`` and
   ``c = (u x v) . (alpha_a - alpha_b) + (omega_a - omega_b) . ((omega_a x u) x v + u x (omega_b x v))``;
@@ -204,6 +207,13 @@ class LoopModel:
         a_body = acc[b, 3:] + _skew_cross(acc[b, :3], r) + _skew_cross(om, vo + _skew_cross(om, r))
         return J, Rw[b] @ a_body, P
 
+    def _velocity(self, b, r, kin):
+        """World velocity ``R_b (v_o + omega x r)`` of the point ``r`` of body ``b``."""
+        Rw, _, v, _, _, _ = kin
+        if b < 0:
+            return np.zeros(3)
+        return Rw[b] @ (v[b, 3:] + _skew_cross(v[b, :3], r))
+
     def _body_jacobian(self, b, kin):
         """The speeds on body ``b``'s path and the 6 x k Jacobian of its spatial velocity (body
         axes), formed once per state (kept in ``kin``)."""
@@ -286,6 +296,20 @@ class LoopModel:
                 if bias:
                     c[i] = ua @ (aa - ab)
                 actions.append(((row.body_a, ra, ua, np.zeros(3)), (row.body_b, rb, -ua, np.zeros(3))))
+            elif row.kind == "point_a":
+                Ja, aa, Pa = self._point(row.body_a, ra, kin, bias)
+                Jb, ab, Pb = self._point(row.body_b, rb, kin, bias)
+                Jw, oa, al_a = self._angular(row.body_a, kin)
+                e = Rw[row.body_a] @ ua if row.body_a >= 0 else ua
+                d = Pa - Pb
+                n = _skew_cross(e, d)
+                J[i] = e @ (Ja - Jb) + n @ Jw
+                Phi[i] = e @ d
+                if bias:
+                    oe = _skew_cross(oa, e)
+                    dv = self._velocity(row.body_a, ra, kin) - self._velocity(row.body_b, rb, kin)
+                    c[i] = e @ (aa - ab) + 2.0 * oe @ dv + (_skew_cross(al_a, e) + _skew_cross(oa, oe)) @ d
+                actions.append(((row.body_a, ra, e, n), (row.body_b, rb, -e, np.zeros(3))))
             else:
                 Ja, oa, al_a = self._angular(row.body_a, kin)
                 Jb, ob, al_b = self._angular(row.body_b, kin)

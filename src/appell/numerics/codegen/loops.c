@@ -1,7 +1,9 @@
 
 /* Closed chains on a joint tree (appell.numerics.loops has the same in NumPy), after rigid.c.
    NC constraints: NL loop rows (LROW[i] their place among the constraints, LKIND[i] 0 for a
-   point row e . (P_a - P_b) = 0, 1 for an alignment u . v = 0, LBODY_A/LBODY_B their bodies,
+   point row e . (P_a - P_b) = 0, 1 for an alignment u . v = 0, 2 for a point row along e = Rw_a u
+   fixed in body a (J gains (e x d)^T J_omega_a, c the terms of omega_a, alpha_a; the multiplier
+   the moment e x d on body a, d = P_a - P_b), LBODY_A/LBODY_B their bodies,
    -1: ground) and S other rows (OROW[i] their place; J and c from appell_rigid_terms).
    appell_loop_data fills, per loop row, r_a, u_a, r_b, u_b (12) and the other rows' positions.
    Each body's world rotation Rw and origin pw, its spatial velocity v and acceleration at a = 0
@@ -109,9 +111,19 @@ static void point_of(const struct loop_state *st, int b, const double *r, double
     to_world(Rw, body, acc);
 }
 
+/* the world velocity R_b (v_o + omega x r) of the point r of body b (b >= 0) */
+static void point_velocity(const struct loop_state *st, int b, const double *r, double *vel)
+{
+    const double *v = st->v + 6 * b;
+    double x[3];
+    cross3(v, r, x);
+    for (int i = 0; i < 3; ++i) x[i] += v[3 + i];
+    to_world(st->Rw + 9 * b, x, vel);
+}
+
 /* the loop rows: J (NC x N, rows LROW), c (bias) and Phi (positions), each where not NULL; with
    act, per row the force (3) and moment (3) on body a per unit multiplier (world axes; body b
-   takes their opposites) */
+   takes their opposites, the force alone for a row along body a's axis, LKIND 2) */
 static void loop_rows(const struct loop_state *st, double *J, double *c, double *Phi, double *act)
 {
     for (int i = 0; i < NL; ++i) {
@@ -119,15 +131,33 @@ static void loop_rows(const struct loop_state *st, double *J, double *c, double 
         const int A = LBODY_A[i], B = LBODY_B[i], k = LROW[i];
         double *row = J ? J + N * k : 0, force[3] = {0.0, 0.0, 0.0}, moment[3] = {0.0, 0.0, 0.0};
         if (row) for (int j = 0; j < N; ++j) row[j] = 0.0;
-        if (LKIND[i] == 0) {
-            double Pa[3], Pb[3], aa[3], ab[3];
+        if (LKIND[i] != 1) {
+            double Pa[3], Pb[3], aa[3], ab[3], e[3], dd[3];
             point_of(st, A, ra, Pa, c ? aa : 0);
             point_of(st, B, rb, Pb, c ? ab : 0);
-            if (row && A >= 0) add_row(st, A, Pa, ua, 1.0, 1, row);
-            if (row && B >= 0) add_row(st, B, Pb, ua, -1.0, 1, row);
-            if (Phi) Phi[k] = ua[0] * (Pa[0] - Pb[0]) + ua[1] * (Pa[1] - Pb[1]) + ua[2] * (Pa[2] - Pb[2]);
-            if (c) c[k] = ua[0] * (aa[0] - ab[0]) + ua[1] * (aa[1] - ab[1]) + ua[2] * (aa[2] - ab[2]);
-            for (int j = 0; j < 3; ++j) force[j] = ua[j];
+            if (LKIND[i] == 2 && A >= 0) to_world(st->Rw + 9 * A, ua, e); else memcpy(e, ua, sizeof e);
+            for (int j = 0; j < 3; ++j) dd[j] = Pa[j] - Pb[j];
+            if (row && A >= 0) add_row(st, A, Pa, e, 1.0, 1, row);
+            if (row && B >= 0) add_row(st, B, Pb, e, -1.0, 1, row);
+            if (Phi) Phi[k] = e[0] * dd[0] + e[1] * dd[1] + e[2] * dd[2];
+            if (c) c[k] = e[0] * (aa[0] - ab[0]) + e[1] * (aa[1] - ab[1]) + e[2] * (aa[2] - ab[2]);
+            for (int j = 0; j < 3; ++j) force[j] = e[j];
+            if (LKIND[i] == 2 && A >= 0) {                  /* e = R_a u turns with body a */
+                cross3(e, dd, moment);                      /* e x d: J += (e x d)^T J_omega_a */
+                if (row) add_row(st, A, 0, moment, 1.0, 0, row);
+                if (c) {
+                    double oa[3], la[3], oe[3], x[3], y[3], va[3], vb[3] = {0.0, 0.0, 0.0}, s = 0.0;
+                    to_world(st->Rw + 9 * A, st->v + 6 * A, oa);
+                    to_world(st->Rw + 9 * A, st->acc + 6 * A, la);
+                    point_velocity(st, A, ra, va);
+                    if (B >= 0) point_velocity(st, B, rb, vb);
+                    cross3(oa, e, oe);                      /* omega_a x e */
+                    cross3(la, e, x);                       /* alpha_a x e */
+                    cross3(oa, oe, y);                      /* omega_a x (omega_a x e) */
+                    for (int j = 0; j < 3; ++j) s += 2.0 * oe[j] * (va[j] - vb[j]) + (x[j] + y[j]) * dd[j];
+                    c[k] += s;
+                }
+            }
         } else {
             double U[3], V[3], n[3], oa[3] = {0.0}, ob[3] = {0.0}, la[3] = {0.0}, lb[3] = {0.0};
             if (A >= 0) to_world(st->Rw + 9 * A, ua, U); else memcpy(U, ua, sizeof U);
@@ -224,7 +254,8 @@ static void loop_wrenches(const struct loop_state *st, const double *w, const do
             if (b < 0) continue;
             const double sgn = (side ? -1.0 : 1.0) * lam[LROW[i]], *r = d + 6 * side;
             double F[3], Mo[3], fb[3], mb[3], x[3];
-            for (int j = 0; j < 3; ++j) { F[j] = sgn * act[6 * i + j]; Mo[j] = sgn * act[6 * i + 3 + j]; }
+            const double turn = side && LKIND[i] == 2 ? 0.0 : sgn;
+            for (int j = 0; j < 3; ++j) { F[j] = sgn * act[6 * i + j]; Mo[j] = turn * act[6 * i + 3 + j]; }
             to_axes(st->Rw + 9 * b, F, fb);
             to_axes(st->Rw + 9 * b, Mo, mb);
             cross3(r, fb, x);

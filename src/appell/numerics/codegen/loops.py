@@ -56,7 +56,7 @@ def loop_c_source(model, parts) -> str:
         _array("SPEEDS", speeds, "N"), _array("FIRST", first, "NB + 1"),
         "static const unsigned char RIGID[NB] = {0}, FOLD[NB] = {0}, SKIP[NB] = {0};",
         _array("LROW", [k for k, _ in model.loop_rows], "DIM(NL)"),
-        _array("LKIND", [int(row.kind != "point") for row in rows], "DIM(NL)"),
+        _array("LKIND", [{"point": 0, "align": 1, "point_a": 2}[row.kind] for row in rows], "DIM(NL)"),
         _array("LBODY_A", [row.body_a for row in rows], "DIM(NL)"),
         _array("LBODY_B", [row.body_b for row in rows], "DIM(NL)"),
         _array("OROW", model.other_rows, "DIM(S)"),
