@@ -48,6 +48,7 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import AppellNote
+from appell.numerics.codegen.build import _cache_lock
 from appell.io.expression_tree import HEADS, expression_from_tree, expression_tree, symbol_assumptions, \
     symbol_from_table
 
@@ -447,21 +448,6 @@ def evict(root: Path, limit_bytes: int | None = None) -> None:
             total -= size
 
 
-@contextlib.contextmanager
-def _lock(root: Path, key: str):
-    try:
-        import fcntl
-    except ImportError:  # not POSIX: atomic renames alone
-        yield
-        return
-    with open(root / f"{key}.lock", "a") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
-
-
 def _derive(system, dependent):
     if system.servo_constraints:
         from appell.control.servo import derive_controlled
@@ -519,7 +505,7 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     found = read_entry(file, key)
     if found is not None and (not formulas or _has_formulas(found)):
         return found
-    with _lock(root, key):
+    with _cache_lock(root, key):  # the compiled-code cache's lock, one file per entry
         found = read_entry(file, key, quiet=file.exists(), notes=notes)  # filled by another process meanwhile
         if found is not None and (not formulas or _has_formulas(found)):
             return found
