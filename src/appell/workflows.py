@@ -34,6 +34,7 @@ a field of :class:`~appell.simulation.options.SimulationOptions`).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 import sys
@@ -101,22 +102,30 @@ def load_system(model: str, overrides=None, floating_base: bool = False, echo=No
     ``frictionloss``, ``armature``, ``actuators``: :func:`appell.io.modelfile.load_model`).
     What the model's files hold that appell does not apply is one ``note:`` line each on
     ``echo(..., err=True)``."""
+    from appell.io.modelfile import load_model
+
+    with _notes_as_lines(echo or _print):
+        return load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base,
+                          reactions_in=reactions_in, reader=reader)
+
+
+@contextlib.contextmanager
+def _notes_as_lines(echo):
+    """What the model's files hold that appell does not apply (:class:`AppellNote` warnings
+    raised inside) as one ``note:`` line each on ``echo(..., err=True)``; other warnings are
+    given again as they came."""
     import warnings
 
     from appell.errors import AppellNote
-    from appell.io.modelfile import load_model
 
-    echo = echo or _print
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", AppellNote)
-        system = load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base,
-                            reactions_in=reactions_in, reader=reader)
-    for w in caught:  # what the model's files hold that appell does not apply: one line each
+        yield
+    for w in caught:
         if issubclass(w.category, AppellNote):
             echo(f"note: {w.message}", err=True)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    return system
 
 
 def load_derivation(model: str, overrides=None, floating_base: bool = False, dependent=None, formulas: bool = False,
@@ -128,9 +137,6 @@ def load_derivation(model: str, overrides=None, floating_base: bool = False, dep
     (:func:`appell.io.modelfile.load_model`), ``reader`` the options of a robot file's reader
     (:func:`load_system`). The model's notes are ``note:`` lines on ``echo``,
     from the cache too; the inertia is checked at the start as :func:`derive_model` does."""
-    import warnings
-
-    from appell.errors import AppellNote
     from appell.io.derivation_cache import derive_file
     from appell.io.progress import status
     from appell.symbols import canonical_name
@@ -138,15 +144,9 @@ def load_derivation(model: str, overrides=None, floating_base: bool = False, dep
     echo = echo or _print
     path = resolve_model(model)
     dependent = [canonical_name(d) for d in dependent] if dependent else None
-    with warnings.catch_warnings(record=True) as caught, status(f"deriving {path.stem}"):
-        warnings.simplefilter("always", AppellNote)
+    with _notes_as_lines(echo), status(f"deriving {path.stem}"):
         derivation = derive_file(path, overrides or None, floating_base=floating_base, dependent=dependent,
                                  cache=cache, formulas=formulas, reactions_in=reactions_in, reader=reader)
-    for w in caught:
-        if issubclass(w.category, AppellNote):
-            echo(f"note: {w.message}", err=True)
-        else:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if not _is_controlled(derivation):
         check_inertia_at_start(derivation)
     return derivation
