@@ -15,8 +15,14 @@ Differential Equations I*, 2nd ed., 1993, §II.10; the same scheme as SciPy's
 
 At every output time inside a step the C code evaluates the model (accelerations by (1.4),
 multipliers by (1.5)) and the constraint residuals into preallocated rows, with no Python
-in between. It hands a step back to Python where Python has work: a projection onto the
-constraints is due, the final time is reached, or every step when events are watched.
+in between. Where a step's end has a constraint residual above the projection tolerance
+the C code projects it onto the constraints itself (the steps of
+:func:`appell.simulation.projection.project`, ``dop853.c``'s header) and restarts there, as
+the run's Python restart does. It hands a step back to Python where Python has work: a
+projection the C code leaves to Python (rows nearly dependent, no convergence), the rank
+watch asks for a look, the budget of evaluations is spent, the final time is reached, or
+every step when events are watched. The common case, a run without watched events, is one
+C call.
 Where the compiled split refuses a state (the partition must switch) a Python callback
 evaluates it, so that partition switches are handled and logged as on the reference path.
 
@@ -48,6 +54,9 @@ FALLBACK = ctypes.CFUNCTYPE(_I, _D, _DP, _DP, _DP)
 #: SciPy's message for a step below the spacing of floating-point numbers
 TOO_SMALL_STEP = "Required step size is less than spacing between numbers."
 _LIBRARY: list = []
+#: whether the loop projects onto the constraints itself (False: every projection in Python,
+#: the loop handing each step that needs one back; the reference of the tests)
+PROJECT_IN_LOOP = True
 
 
 def loop_library():
@@ -70,7 +79,13 @@ def loop_library():
     lib.appell_loop_start.restype = _I
     lib.appell_loop_outputs.argtypes = [_P, _P, _L, _P, _P, _P, _P, _P]
     lib.appell_loop_outputs.restype = None
-    lib.appell_loop_advance.argtypes = [_P, _I, _D, ctypes.POINTER(_L)]
+    lib.appell_loop_projection.argtypes = [_P, _P]
+    lib.appell_loop_projection.restype = _I
+    lib.appell_loop_project.argtypes = [_P, _D, _P, _P]
+    lib.appell_loop_project.restype = _I
+    lib.appell_loop_projections.argtypes = [_P]
+    lib.appell_loop_projections.restype = _L
+    lib.appell_loop_advance.argtypes = [_P, _I, _D, _L, ctypes.POINTER(_L)]
     lib.appell_loop_advance.restype = _I
     lib.appell_loop_dense.argtypes = [_P, _L, _P, _P]
     lib.appell_loop_dense.restype = _I
@@ -146,6 +161,24 @@ class CompiledLoop:
                               int(baumgarte is not None), alpha, beta)
         self.state = np.empty(6 + self.ny)
         self._scratch: Outputs | None = None
+        self.projects = PROJECT_IN_LOOP
+        if self.projects and lib.appell_loop_projection(ctx, ctypes.cast(mlib.appell_blocks, _P).value):
+            raise MemoryError("the compiled loop could not allocate the work arrays of its projection")
+
+    def projections(self) -> int:
+        """Projections the C code has done itself since this context was made."""
+        return int(self.lib.appell_loop_projections(self.ctx))
+
+    def project(self, t, y):
+        """The state ``y`` at ``t`` projected onto the constraints as the loop projects a
+        step's end (:func:`appell.simulation.projection.project`'s steps in C), or None where
+        the loop leaves the projection to Python (rows nearly dependent, no convergence, a
+        value not finite) or projects nothing itself (:data:`PROJECT_IN_LOOP` off)."""
+        y0 = np.ascontiguousarray(y, dtype=float).reshape(self.ny)
+        out = np.empty(self.ny)
+        if self.lib.appell_loop_project(self.ctx, float(t), y0.ctypes.data, out.ctypes.data):
+            return None
+        return out
 
     def _python_evaluation(self, t, yp, dyp, lamp):
         try:
@@ -233,6 +266,7 @@ class LoopSolver:
         self.status = "running" if t0 < t_bound else "finished"
         self.nfev = self.steps = 0
         self._k = _L(0)
+        self._projected = loop.projections()
         self._read()
 
     def _read(self):
@@ -248,24 +282,35 @@ class LoopSolver:
         counted, self._taken = getattr(self, "_taken", (0, 0)), done
         return done[0] - counted[0], done[1] - counted[1]
 
+    def projections(self) -> int:
+        """Projections (each with its restart) the C code has done since the last call
+        (or the start)."""
+        done = self.loop.projections()
+        counted, self._projected = self._projected, done
+        return done - counted
+
     @property
     def step_size(self):
         return abs(self.t - self.t_old)
 
     def step(self):
         """One accepted step (None, or SciPy's message when the step size underflows)."""
-        return self._advance(True, np.inf, 0)[1]
+        return self._advance(True, np.inf, 0, None)[1]
 
-    def advance(self, k: int, projection_tol: float = np.inf):
-        """Steps in C until one needs Python (its end has a constraint residual above
-        ``projection_tol``, or it reaches ``t_bound``); the outputs from row ``k`` on inside
-        the steps before that one are recorded in the bound :class:`Outputs`. Returns the
-        next output row and the message (None, or SciPy's on a step size underflow)."""
-        return self._advance(False, projection_tol, k)
+    def advance(self, k: int, projection_tol: float = np.inf, evaluations: int | None = None):
+        """Steps in C until one needs Python (module docstring): where a step's end has a
+        constraint residual above ``projection_tol`` the C code projects it itself when the
+        context :attr:`CompiledLoop.projects` (else that step returns), and it returns
+        after the step that spends more than ``evaluations`` function evaluations (None: no
+        bound) or reaches ``t_bound``. The outputs from row ``k`` on inside the steps before
+        the returned one are recorded in the bound :class:`Outputs`. Returns the next output
+        row and the message (None, or SciPy's on a step size underflow)."""
+        return self._advance(False, projection_tol, k, evaluations)
 
-    def _advance(self, single, projection_tol, k):
+    def _advance(self, single, projection_tol, k, evaluations):
         self._k.value = int(k)
-        r = self.loop.lib.appell_loop_advance(self.loop.ctx, int(single), float(projection_tol),
+        limit = -1 if evaluations is None else int(self.loop.state[4]) + max(int(evaluations), 0)
+        r = self.loop.lib.appell_loop_advance(self.loop.ctx, int(single), float(projection_tol), limit,
                                               ctypes.byref(self._k))
         self._read()
         if r == -2:

@@ -16,15 +16,32 @@
    value is not finite) a Python callback evaluates it instead (the switch of partition),
    and it is called again at the first state the compiled split accepts afterwards (so that
    Python logs the return of the partition). The loop returns to Python after a step whose
-   end needs it: a projection onto the constraints is due, the final time is reached, or
-   every step when Python watches events.
+   end needs it: the final time is reached, a projection onto the constraints is due that
+   the loop cannot do itself (below), the budget of evaluations is spent, or every step when
+   Python watches events.
+
+   The projection (appell.simulation.projection, switched on by appell_loop_projection): where
+   a step's end has a constraint residual above projection_tol, the loop records the output
+   times inside the step from its dense output, projects the end onto the constraints as
+   appell.simulation.projection.project does (Newton's method with minimum-norm steps
+   dq = -F_q^+ F on the holonomic rows, F_q by central differences of appell_residuals with
+   the steps 1e-7 max(1, |q_j|) of numeric.difference_jacobian; then dw = -phi_w^+ phi with
+   phi_w = J = df/da from appell_blocks, which equals the velocity residual's Jacobian for
+   every constraint linear in a; each step by Householder QR of the rows' transpose), and
+   restarts there keeping its step size, as Python's restart does. It leaves the projection
+   to Python where Python's answer could differ: a Jacobian whose rows are nearly dependent
+   (a diagonal entry of R below PROJECTION_RANK of the largest, where numpy.linalg.lstsq's
+   cut-off could drop a direction), more rows than columns, a value not finite, a Newton
+   iteration that does not converge, or Python's partition in use.
 
    The rank watch (appell.simulation.singular): with appell_loop_watch, the loop follows
    g~ = sqrt of the smallest pivot of the pivoted Cholesky factorisation of (D0 J)(D0 J)^T
    at every step's end (D0 the start scaling of the constraint rows; g~ >= sigma_min(D0 J))
    and returns to Python where g~ at the previous step's end is a local minimum with a dip,
    or g~ falls below the level: Python then minimises the exact measure over the last two
-   steps, the previous one through appell_loop_dense_previous (its stages are kept). */
+   steps, the previous one through appell_loop_dense_previous (its stages are kept). A
+   projection in the loop moves the state by the residual alone: the watch's history goes
+   on across it, and the projected step stays the previous one of the next. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -32,6 +49,10 @@
 #define NS 12   /* stages of a step (the 13th is f at the step's end) */
 #define NK 16   /* with the three stages of the dense output */
 #define NF 7    /* coefficient vectors of the interpolant */
+#define PROJECTION_TOL 1e-13   /* Newton's target of appell.simulation.projection.project */
+#define PROJECTION_ITER 20     /* its iterations per level */
+#define PROJECTION_FAIL 1e-9   /* the residual above which project() fails */
+#define PROJECTION_RANK 1e-6   /* |R_kk| below this of the largest: rows nearly dependent, Python projects */
 
 /* coefficients of Hairer's dop853.f (c_i, a_ij, b_i, the error weights of orders 5 and 3,
    and the dense-output weights d_ij) */
@@ -99,8 +120,14 @@ typedef struct {
     double wlevel, wdip, g0, g1;
     double *wmem, *wM, *whQ, *wJ, *wc, *wG;
     int have_prev, prev_dense_ready;
+    int prev_kept;              /* a projection kept its step as the previous one (the next step keeps it) */
     double p_t_old, p_t, p_h;
     double *p_y_old, *p_y, *p_f, *p_K, *p_Fd;
+    /* the projection in the loop (NULL pblocks: Python projects) and the budget of evaluations */
+    blocks_fn pblocks;
+    double *pmem, *pM, *phQ, *pJ, *pc, *pA, *pz, *pyp, *pF, *pphi, *pFp, *pFm, *pb, *pRd, *ptau;
+    int *prow;
+    long projections;
 } appell_loop;
 
 appell_loop *appell_loop_new(int nq, int n, int s)
@@ -120,8 +147,31 @@ appell_loop *appell_loop_new(int nq, int n, int s)
 
 void appell_loop_free(appell_loop *c)
 {
-    if (c) { free(c->mem); free(c->wmem); free(c); }
+    if (c) { free(c->mem); free(c->wmem); free(c->pmem); free(c->prow); free(c); }
 }
+
+/* switch the projection in the loop on (header comment): blocks the model's appell_blocks.
+   0, or -1 out of memory */
+int appell_loop_projection(appell_loop *c, blocks_fn blocks)
+{
+    int n = c->n, s = c->s > 0 ? c->s : 1, ny = c->ny, m = c->nq > n ? c->nq : n;
+    size_t size = (size_t)n * n + n + (size_t)s * n + s + (size_t)s * m + m + ny + 7 * (size_t)s;
+    free(c->pmem);
+    free(c->prow);
+    c->pmem = calloc(size, sizeof(double));
+    c->prow = calloc((size_t)s, sizeof(int));
+    c->pblocks = NULL;
+    if (!c->pmem || !c->prow) return -1;
+    c->pM = c->pmem; c->phQ = c->pM + (size_t)n * n; c->pJ = c->phQ + n; c->pc = c->pJ + (size_t)s * n;
+    c->pA = c->pc + s; c->pz = c->pA + (size_t)s * m; c->pyp = c->pz + m;
+    c->pF = c->pyp + ny; c->pphi = c->pF + s; c->pFp = c->pphi + s; c->pFm = c->pFp + s; c->pb = c->pFm + s;
+    c->pRd = c->pb + s; c->ptau = c->pRd + s;
+    c->pblocks = blocks;
+    return 0;
+}
+
+/* projections done in the loop since its creation */
+long appell_loop_projections(const appell_loop *c) { return c->projections; }
 
 void appell_loop_model(appell_loop *c, evaluate_fn evaluate, residuals_fn residuals, fallback_fn fallback,
                        const double *p, const int *dep, double cond_max, int baumgarte, double alpha, double beta)
@@ -256,7 +306,7 @@ int appell_loop_start(appell_loop *c, double t0, const double *y0, double t_boun
                       double max_step, double first_step)
 {
     c->t = c->t_old = t0; c->t_bound = t_bound; c->rtol = rtol; c->atol = atol; c->max_step = max_step;
-    c->h_prev = NAN; c->dense_ready = 0; c->have_prev = 0;
+    c->h_prev = NAN; c->dense_ready = 0; c->have_prev = 0; c->prev_kept = 0;
     memcpy(c->y, y0, sizeof(double) * c->ny);
     if (rhs(c, t0, c->y, c->f)) return -2;
     if (c->blocks) {  /* a restart: its start may be the bottom of a dip (g0 above everything) */
@@ -275,6 +325,19 @@ void appell_loop_outputs(appell_loop *c, const double *t_eval, long n_eval, doub
     c->rec_y = Y; c->rec_acc = A; c->rec_lam = L; c->rec_F = F; c->rec_phi = PHI;
 }
 
+/* the last step becomes the previous one (its stages and interpolant kept for the watch) */
+static void save_prev(appell_loop *c)
+{
+    int ny = c->ny;
+    c->p_t_old = c->t_old; c->p_t = c->t; c->p_h = c->h_prev; c->prev_dense_ready = c->dense_ready;
+    memcpy(c->p_y_old, c->y_old, sizeof(double) * ny);
+    memcpy(c->p_y, c->y, sizeof(double) * ny);
+    memcpy(c->p_f, c->f, sizeof(double) * ny);
+    memcpy(c->p_K, c->K, sizeof(double) * NK * ny);
+    memcpy(c->p_Fd, c->Fd, sizeof(double) * NF * ny);
+    c->have_prev = 1;
+}
+
 /* one accepted step from (t, y); 0, -1 step size too small, -2 the model failed */
 static int step(appell_loop *c)
 {
@@ -283,16 +346,9 @@ static int step(appell_loop *c)
     double min_step = 10.0 * fabs(nextafter(t, INFINITY) - t);
     double h_abs = c->h_abs > c->max_step ? c->max_step : (c->h_abs < min_step ? min_step : c->h_abs);
     int rejected = 0;
-    c->have_prev = 0;
-    if (c->blocks && !isnan(c->h_prev)) {  /* the step that ends here becomes the previous one */
-        c->p_t_old = c->t_old; c->p_t = c->t; c->p_h = c->h_prev; c->prev_dense_ready = c->dense_ready;
-        memcpy(c->p_y_old, c->y_old, sizeof(double) * ny);
-        memcpy(c->p_y, c->y, sizeof(double) * ny);
-        memcpy(c->p_f, c->f, sizeof(double) * ny);
-        memcpy(c->p_K, c->K, sizeof(double) * NK * ny);
-        memcpy(c->p_Fd, c->Fd, sizeof(double) * NF * ny);
-        c->have_prev = 1;
-    }
+    if (c->blocks && !isnan(c->h_prev)) save_prev(c);  /* the step that ends here becomes the previous one */
+    else if (!c->prev_kept) c->have_prev = 0;
+    c->prev_kept = 0;
     for (;;) {
         if (h_abs < min_step) return -1;
         double t_new = t + h_abs;
@@ -474,17 +530,160 @@ static int record_step(appell_loop *c, long *k)
     return 0;
 }
 
-/* steps until one needs Python: every step when single, else one whose end has a constraint
-   residual above projection_tol, or reaches t_bound. The outputs of the steps before it are
-   recorded (rows *k.. of the output arrays, *k advanced); the returned step's are not.
-   1: a step was taken; -1: the step size fell below the spacing of floating-point numbers;
-   -2: the model failed (Python holds the reason). */
-int appell_loop_advance(appell_loop *c, int single, double projection_tol, long *k)
+/* the minimum-norm solution dx (in pz, m entries) of A dx = b for the rows x m matrix pA
+   (row-major, rows <= m) and b in pb: Householder QR of A^T (the reflectors kept in the rows
+   of pA, R_kj in row j), R^T u = b, dx = Q (u, 0). 0, or 1 where R's diagonal says that the
+   rows are nearly dependent (header comment: Python projects) */
+static int min_norm_step(appell_loop *c, int rows, int m)
+{
+    double *A = c->pA, *Rd = c->pRd, *tau = c->ptau, *z = c->pz, *b = c->pb, largest = 0.0;
+    for (int k = 0; k < rows; ++k) {
+        double *v = A + (size_t)k * m, norm = 0.0;
+        for (int i = k; i < m; ++i) norm += v[i] * v[i];
+        norm = sqrt(norm);
+        if (!(norm > 0.0) || !isfinite(norm)) return 1;
+        double alpha = v[k] >= 0.0 ? -norm : norm;
+        v[k] -= alpha;
+        tau[k] = 1.0 / (norm * (norm + fabs(v[k] + alpha)));  /* 2 / |v|^2 */
+        Rd[k] = alpha;
+        if (fabs(alpha) > largest) largest = fabs(alpha);
+        for (int j = k + 1; j < rows; ++j) {
+            double *a = A + (size_t)j * m, d = 0.0;
+            for (int i = k; i < m; ++i) d += v[i] * a[i];
+            d *= tau[k];
+            for (int i = k; i < m; ++i) a[i] -= d * v[i];
+        }
+    }
+    for (int k = 0; k < rows; ++k)
+        if (!(fabs(Rd[k]) > PROJECTION_RANK * largest)) return 1;
+    for (int j = 0; j < rows; ++j) {  /* R^T u = b, u in z */
+        double acc = b[j];
+        for (int k = 0; k < j; ++k) acc -= A[(size_t)j * m + k] * z[k];
+        z[j] = acc / Rd[j];
+    }
+    for (int i = rows; i < m; ++i) z[i] = 0.0;
+    for (int k = rows - 1; k >= 0; --k) {  /* z <- H_k z, the last reflector first */
+        const double *v = A + (size_t)k * m;
+        double d = 0.0;
+        for (int i = k; i < m; ++i) d += v[i] * z[i];
+        d *= tau[k];
+        for (int i = k; i < m; ++i) z[i] -= d * v[i];
+    }
+    return 0;
+}
+
+/* y: y0 projected onto the constraints (header comment; the steps of
+   appell.simulation.projection.project). 0, or 1 where Python should project */
+static int project_state(appell_loop *c, double t, const double *y0, double *y)
+{
+    int nq = c->nq, n = c->n, s = c->s;
+    memcpy(y, y0, sizeof(double) * c->ny);
+    for (int level = 0; level < 2; ++level) {
+        int m = level ? n : nq;
+        double *x = level ? y + nq : y;
+        const double *r = level ? c->pphi : c->pF;
+        for (int it = 0; it < PROJECTION_ITER; ++it) {
+            c->residuals(t, y, y + nq, NULL, c->p, c->pF, c->pphi);
+            int rows = 0;
+            double worst = 0.0;
+            for (int i = 0; i < s; ++i) {
+                if (isnan(r[i])) continue;
+                if (!isfinite(r[i])) return 1;
+                if (fabs(r[i]) > worst) worst = fabs(r[i]);
+                c->prow[rows] = i; c->pb[rows] = -r[i]; ++rows;
+            }
+            if (rows == 0 || worst <= PROJECTION_TOL) break;
+            if (rows > m) return 1;
+            if (level) {  /* dphi/dw = J */
+                c->pblocks(t, y, y + nq, NULL, c->p, c->pM, c->phQ, c->pJ, c->pc);
+                for (int a = 0; a < rows; ++a) memcpy(c->pA + (size_t)a * m, c->pJ + (size_t)c->prow[a] * n, sizeof(double) * n);
+            } else {  /* dF/dq by central differences */
+                for (int j = 0; j < m; ++j) {
+                    double xj = x[j], h = 1e-7 * fmax(1.0, fabs(xj));
+                    x[j] = xj + h;
+                    c->residuals(t, y, y + nq, NULL, c->p, c->pFp, c->pphi);
+                    x[j] = xj - h;
+                    c->residuals(t, y, y + nq, NULL, c->p, c->pFm, c->pphi);
+                    x[j] = xj;
+                    for (int a = 0; a < rows; ++a) {
+                        double d = (c->pFp[c->prow[a]] - c->pFm[c->prow[a]]) / (2.0 * h);
+                        c->pA[(size_t)a * m + j] = isnan(d) ? 0.0 : d;
+                    }
+                }
+            }
+            if (min_norm_step(c, rows, m)) return 1;
+            double dmax = 0.0, xmax = 0.0;
+            for (int j = 0; j < m; ++j) {
+                x[j] += c->pz[j];
+                if (fabs(c->pz[j]) > dmax) dmax = fabs(c->pz[j]);
+                if (fabs(x[j]) > xmax) xmax = fabs(x[j]);
+            }
+            if (!isfinite(dmax) || !isfinite(xmax)) return 1;
+            if (dmax <= 1e-15 * (1.0 + xmax)) break;
+        }
+        c->residuals(t, y, y + nq, NULL, c->p, c->pF, c->pphi);
+        for (int i = 0; i < s; ++i)
+            if (!isnan(r[i]) && !(fabs(r[i]) <= fmax(PROJECTION_TOL, PROJECTION_FAIL))) return 1;
+    }
+    return 0;
+}
+
+/* y0 (at t) projected onto the constraints into y as the loop does (the tests' entry):
+   0, 1 where the loop leaves it to Python, -1 the projection is off */
+int appell_loop_project(appell_loop *c, double t, const double *y0, double *y)
+{
+    if (!c->pblocks) return -1;
+    return project_state(c, t, y0, y);
+}
+
+/* the projection of the last step's end in the loop (header comment): its outputs before
+   the end from its dense output, the end projected, the restart there keeping the step size
+   (as appell_loop_start with first_step), the end's output from the projected state.
+   0 done, 1 Python should project (nothing changed), -2 the model failed */
+static int project_step(appell_loop *c, long *k)
+{
+    int ny = c->ny;
+    if (!c->pblocks || c->switched || project_state(c, c->t, c->y, c->pyp)) return 1;
+    while (*k < c->n_eval && c->t_eval[*k] < c->t) {
+        double tk = c->t_eval[*k], *yk = c->rec_y + *k * ny;
+        if (dense_prepare(c)) return -2;
+        interpolate(c, tk, yk);
+        if (record_row(c, *k, tk, yk, NULL, NULL)) return -2;
+        ++*k;
+    }
+    if (c->blocks) {  /* the step stays the watch's previous one across the restart */
+        save_prev(c);
+        c->prev_kept = 1;
+    }
+    memcpy(c->y, c->pyp, sizeof(double) * ny);
+    if (rhs(c, c->t, c->y, c->f)) return -2;
+    memcpy(c->lam, c->lamt, sizeof(double) * (c->s > 0 ? c->s : 1));
+    c->t_old = c->t; c->h_prev = NAN; c->dense_ready = 0;
+    if (c->h_abs > c->t_bound - c->t) c->h_abs = c->t_bound - c->t;
+    c->projections++;
+    if (*k < c->n_eval && c->t_eval[*k] == c->t) {
+        double *yk = c->rec_y + *k * ny;
+        memcpy(yk, c->y, sizeof(double) * ny);
+        if (record_row(c, *k, c->t, yk, c->f, c->lam)) return -2;
+        ++*k;
+    }
+    return 0;
+}
+
+/* steps until one needs Python: every step when single, else one that reaches t_bound, one
+   after which the function evaluations exceed max_nfev (negative: no bound), one where the
+   rank watch asks Python to look, or one whose end has a constraint residual above
+   projection_tol that the loop cannot project itself (project_step). The outputs of the steps
+   before it are recorded (rows *k.. of the output arrays, *k advanced); the returned step's
+   are not. 1: a step was taken; -1: the step size fell below the spacing of floating-point
+   numbers; -2: the model failed (Python holds the reason). */
+int appell_loop_advance(appell_loop *c, int single, double projection_tol, long max_nfev, long *k)
 {
     for (;;) {
         int r = step(c);
         if (r) return r;
         if (single || c->t >= c->t_bound) return 1;
+        if (max_nfev >= 0 && c->nfev > max_nfev) return 1;
         if (c->blocks && c->s > 0 && watch_step(c)) return 1;
         if (projection_tol < INFINITY && c->s > 0) {
             double worst = 0.0;
@@ -493,7 +692,11 @@ int appell_loop_advance(appell_loop *c, int single, double projection_tol, long 
                 if (fabs(c->Fr[i]) > worst) worst = fabs(c->Fr[i]);
                 if (fabs(c->phi[i]) > worst) worst = fabs(c->phi[i]);
             }
-            if (worst > projection_tol || isnan(worst)) return 1;
+            if (worst > projection_tol || isnan(worst)) {
+                r = project_step(c, k);
+                if (r) return r == 1 ? 1 : r;
+                continue;
+            }
         }
         if (record_step(c, k)) return -2;
     }

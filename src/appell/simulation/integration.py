@@ -4,8 +4,8 @@ The integrator is driven step by step through SciPy's ``OdeSolver`` interface (t
 behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``, ``RK23``, ``Radau``,
 ``BDF``, ``LSODA``). With ``method="DOP853"`` on a compiled model whose constraints are linear in
 ``a`` the compiled loop of :mod:`appell.numerics.compiled_loop` takes SciPy's place: the same
-scheme and step control in C, which runs the steps that need nothing of Python (no projection
-due, no watched events) and records their output times there. The implicit methods get the
+scheme and step control in C, which runs the steps that need nothing of Python (no watched
+events; projections onto the constraints it does itself) and records their output times there. The implicit methods get the
 exact Jacobian of the motion (:func:`~appell.numerics.linearise.motion_jacobian`) where the
 model is a plain split. Each start also sets the rank watch of the active model
 (:mod:`appell.simulation.singular`).
@@ -166,7 +166,11 @@ class Integration:
                     msg = solver.step()
                 else:
                     tol = self.options.projection_tol if self.options.stabilization == "projection" else np.inf
-                    k, msg = solver.advance(k, tol)
+                    budget = self.options.max_evaluations
+                    k, msg = solver.advance(k, tol, None if budget is None else budget - run.nfev)
+                    projected = solver.projections()  # done in C, each with its restart
+                    run.projections += projected
+                    run.restarts += projected
                 if k > k0:
                     ys, acc, lam, F, phi = out.rows(k0, k)
                     run.add_block(self.active, t_eval[k0:k], ys, acc, lam, np.zeros((k - k0, 0)), F, phi)
