@@ -3,13 +3,15 @@
     .venv/bin/python benchmarks/loop.py [--repeats 15] [--chain 4 10] [--json out.json]
 
 Car (catalog.car, Do Shan's example 1): 10 s with both axle reactions recorded at 1 kHz
-(10 001 output times). Three candidates, run in turn (A B C A B C ...) so that a drift of
+(10 001 output times). Four candidates, run in turn (A B C A B C ...) so that a drift of
 the machine's speed touches all of them alike; each ratio is taken pair by pair and its
 median printed:
 
 * ``simulate`` with its default DOP853 on the C backend: the compiled loop
   (appell.numerics.compiled_loop; projection onto the constraints when a residual exceeds
-  1e-10, rtol 1e-9, atol 1e-12);
+  1e-10, done inside the loop, so that the run is one C call; rtol 1e-9, atol 1e-12);
+* the same with every projection in Python (``compiled_loop.PROJECT_IN_LOOP = False``: the
+  loop hands each step that needs one back to Python, the driver before issue 46 §5);
 * ``simulate`` with SciPy's ``DOP853`` class (the reference path: the same steps, Python
   driving SciPy, the outputs recorded in batches);
 * the yardstick: classical RK4 with the fixed step 1 ms written in C around the same
@@ -35,6 +37,7 @@ import numpy as np
 import scipy.integrate as si
 
 import appell
+import appell.numerics.compiled_loop as compiled_loop
 from appell.examples.catalog import car, nlink_pendulum
 from appell.numerics.codegen import build_library, find_compiler, load_library
 from appell.numerics.numeric import KEEP_CONDITION
@@ -74,6 +77,15 @@ def rk4(lib, model, y0, t_end: float, h: float):
     return Y, A, L
 
 
+def python_projection(run):
+    """``run()`` with every projection of the compiled loop in Python."""
+    compiled_loop.PROJECT_IN_LOOP = False
+    try:
+        return run()
+    finally:
+        compiled_loop.PROJECT_IN_LOOP = True
+
+
 def compare(name, model, initial, t_end, rate, repeats, lib):
     t_eval = np.linspace(0.0, t_end, int(round(t_end * rate)) + 1)
     kw = dict(t_eval=t_eval, initial=initial, complete=initial is None, progress=False, rtol=1e-9, atol=1e-12)
@@ -85,6 +97,8 @@ def compare(name, model, initial, t_end, rate, repeats, lib):
     lam_scipy = np.column_stack([scipy_sol.multipliers[c] for c in model.constraint_names])
     scale = np.max(np.abs(lam_loop))
     candidates = (("simulate (compiled loop)", lambda: simulate(model, t_end, method="DOP853", **kw)),
+                  ("  projection in Python", lambda: python_projection(
+                      lambda: simulate(model, t_end, method="DOP853", **kw))),
                   ("simulate (SciPy DOP853)", lambda: simulate(model, t_end, method=si.DOP853, **kw)),
                   ("RK4 in C", lambda: rk4(lib, model, y0, t_end, 1.0 / rate)))
     wall = {key: [] for key, _ in candidates}
@@ -98,6 +112,9 @@ def compare(name, model, initial, t_end, rate, repeats, lib):
     st = loop_sol.statistics
     print(f"\n{name}: {t_end:g} s, {len(t_eval)} output times; compiled loop {st.steps} steps, {st.nfev} evaluations, "
           f"{st.projections} projections")
+    old_sol = python_projection(lambda: simulate(model, t_end, method="DOP853", **kw))
+    lam_old = np.column_stack([old_sol.multipliers[c] for c in model.constraint_names])
+    print(f"  max |lambda| difference: projection in the loop vs in Python {np.max(np.abs(lam_loop - lam_old)) / scale:.1e}")
     print(f"  max |lambda| difference: compiled loop vs SciPy path {np.max(np.abs(lam_loop - lam_scipy)) / scale:.1e}, "
           f"vs RK4 {np.max(np.abs(lam_loop - L)) / scale:.1e} (relative to max |lambda| = {scale:.4g})")
     print(f"  {'candidate':<26} {'wall median [ms]':>17} {'ratio to RK4':>13} {'CPU median [ms]':>16} "

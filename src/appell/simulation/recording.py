@@ -171,9 +171,12 @@ class Run:
             cols = np.array([own.index(n) if n in own else -1 for n in self.names], dtype=int)
             self.columns[id(model)] = cols
         have = cols >= 0
+        same = cols.size == len(model.constraint_names) and np.array_equal(cols, np.arange(cols.size))
 
         def by_name(values, fill):
             values = np.asarray(values, float).reshape(m, -1)
+            if same:  # the run's columns are the model's own, in its order
+                return values
             out = np.full((m, len(self.names)), fill)
             out[:, have] = values[:, cols[have]]
             return out
