@@ -212,3 +212,22 @@ def test_the_loops_projection_of_a_state_is_pythons_or_refused_where_rows_are_de
     F, phi = model.state_residuals(0.0, mine, p)
     assert np.max(np.abs(F)) <= 1e-13 and np.max(np.abs(phi)) <= 1e-13
     assert loop.project(0.0, np.array([0.5, 1e-9, 1e-9, 0.0, 0.1, 0.0])) is None
+
+
+@pytest.mark.parametrize("name", ["car", "chaplygin_sleigh", "knife_edge", "pendulum", "rolling_ball", "chain"])
+def test_the_loops_velocity_jacobian_is_the_residuals(name):
+    """The loop's velocity step takes dphi/dw from appell_blocks (J = df/da): for a
+    constraint linear in a, f = dphi/dt = (dphi/dw) a + ..., so the two are one matrix. Here
+    against the symbolic derivative of the velocity residuals (NumericModel.residual_jacobians,
+    SymPy) at random states, on the rows that have a velocity level."""
+    system = catalog.nlink_pendulum(4) if name == "chain" else getattr(catalog, name)()
+    model = numeric_model(derive(system), "c")
+    nq, p = len(model.coordinate_names), model.default_parameters
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        y = rng.standard_normal(len(model.state_names))
+        J = model.evaluate_blocks(0.3, y[:nq], y[nq:], p)[2]
+        rows = ~np.isnan(model.state_residuals(0.3, y, p)[1])
+        assert rows.any()
+        jw = model.residual_jacobians(0.3, y, p)[1]
+        np.testing.assert_allclose(J[rows], jw[rows], rtol=0, atol=1e-12 * max(1.0, np.max(np.abs(jw))))
