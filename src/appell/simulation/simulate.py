@@ -16,9 +16,10 @@ line's C backend) the compiled loop of :mod:`appell.numerics.compiled_loop` take
 place: the same scheme and step control in C, which runs the steps that need nothing of
 Python (no watched events) and records their output times there, projecting a step's end
 onto the constraints itself as 3. below does (``dop853.c``: a run without events is one C
-call), and hands every other step to the logic below as SciPy's class would (a projection it
-leaves to Python, a dip of the rank watch, the budget spent, the final step). ``"DOP853-scipy"`` (or the
-class ``scipy.integrate.DOP853``) keeps SciPy's, the reference. After every accepted step:
+call), and hands every other step to the logic below as SciPy's class would (a projection
+it leaves to Python, a dip of the rank watch, the budget spent, the final step).
+``"DOP853-scipy"`` (or the class ``scipy.integrate.DOP853``) keeps SciPy's, the reference.
+After every accepted step:
 
 1. the model is evaluated at the step's end (multipliers for events, the partition of
    dependent accelerations for the switch log);
