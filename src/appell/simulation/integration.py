@@ -6,9 +6,9 @@ behind ``scipy.integrate.solve_ivp``: ``DOP853`` by default, or ``RK45``, ``RK23
 ``a`` the compiled loop of :mod:`appell.numerics.compiled_loop` takes SciPy's place: the same
 scheme and step control in C, which runs the steps that need nothing of Python (no watched
 events; projections onto the constraints it does itself) and records their output times
-there. The implicit methods get the exact Jacobian of the motion (:func:`~appell.numerics.linearise.motion_jacobian`) where the
-model is a plain split. Each start also sets the rank watch of the active model
-(:mod:`appell.simulation.singular`).
+there. The implicit methods get the exact Jacobian of the motion
+(:func:`~appell.numerics.linearise.motion_jacobian`) where the model is a plain split. Each
+start also sets the rank watch of the active model (:mod:`appell.simulation.singular`).
 """
 
 from __future__ import annotations
