@@ -191,7 +191,9 @@ def simulate(model_or_derivation, t_end: float | None = None, *, options: Simula
         integ.start(active, t, y)
         while t < t_end:
             step = integ.step(k, t_eval, single=bool(watches or run.settings["project_output"]))
-            failure = step.failure or motion.over_budget(t)
+            # the motion is recorded up to the start of the step that spent the budget (the
+            # compiled loop may have run many steps since Python's last one)
+            failure = step.failure or motion.over_budget(integ.solver.t_old)
             if failure:
                 status, message = -1, failure
                 break
