@@ -50,6 +50,7 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
+from appell._cache import Cache
 from appell.core.equations import is_controlled
 from appell.core.kinematics import jacobian
 from appell.errors import ComputationError, ModelError
@@ -246,25 +247,20 @@ class _Sensitivities:
                 z[:, y], za, zl, z[:, cu]]
 
 
-#: compiled sensitivities per derivation and inputs: id -> (weak reference, {inputs: _Sensitivities})
-_COMPILED: dict = {}
+#: how many derivations keep their compiled sensitivities (least recently used dropped first)
+SENSITIVITIES_KEEP = 8
+#: compiled sensitivities per derivation (by identity): {inputs: _Sensitivities}
+_COMPILED: Cache[dict] = Cache(SENSITIVITIES_KEEP, identity=True)
 
 
 def _sensitivities(derivation, inputs: tuple) -> _Sensitivities:
     """:class:`_Sensitivities` of ``derivation`` for ``inputs``, compiled once (a sweep
     linearises hundreds of times)."""
-    import weakref
-
-    key = id(derivation)
-    entry = _COMPILED.get(key)
-    if entry is None or entry[0]() is not derivation:
-        for k in [k for k, (ref, _) in _COMPILED.items() if ref() is None]:
-            del _COMPILED[k]
-        entry = _COMPILED[key] = (weakref.ref(derivation), {})
-    if inputs not in entry[1]:
+    entry = _COMPILED.get_or_make(derivation, dict)
+    if inputs not in entry:
         psyms = {p.symbol.name: p.symbol for p in derivation.system.parameters}
-        entry[1][inputs] = _Sensitivities(derivation, [psyms[u] for u in inputs])
-    return entry[1][inputs]
+        entry.setdefault(inputs, _Sensitivities(derivation, [psyms[u] for u in inputs]))
+    return entry[inputs]
 
 
 def _solved_sensitivities(model, sens: _Sensitivities, tt, q, w, pv):
