@@ -53,7 +53,7 @@ import sympy as sp
 from appell._cache import Cache
 from appell.core.equations import is_controlled
 from appell.core.kinematics import jacobian
-from appell.errors import ComputationError, ModelError
+from appell.errors import ComputationError, ModelError, import_optional
 from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
 from appell.symbols import block_cse, contains, free_symbols, lambdify, matmul, t
 from appell.numerics.boundary import numeric_model
@@ -113,10 +113,7 @@ class LinearModel:
 
     def control(self):
         """The model as python-control's ``ss`` (when python-control is installed)."""
-        try:
-            import control
-        except ImportError as exc:
-            raise ModelError("python-control is not installed", hint="pip install control") from exc
+        control = import_optional("control", extra="control", feature="LinearModel.control() (python-control)")
         return control.ss(self.A, self.B, self.C, self.D, states=list(self.states), inputs=list(self.inputs),
                           outputs=list(self.outputs))
 
