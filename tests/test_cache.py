@@ -110,8 +110,16 @@ def test_every_module_level_cache_of_the_package_is_one_cache_type():
     from appell.numerics.codegen import build, model
     from appell.simulation.sweep import runs
 
-    caches = [boundary._models, linearise._COMPILED, model._STARTED, build._LOADED, runs._MODELS,
-              simplification._TIDIED, simplification._READABLE, partition._JACOBIANS]
+    caches = [
+        boundary._models,
+        linearise._COMPILED,
+        model._STARTED,
+        build._LOADED,
+        runs._MODELS,
+        simplification._TIDIED,
+        simplification._READABLE,
+        partition._JACOBIANS,
+    ]
     assert all(isinstance(c, Cache) for c in caches)
     assert [c.identity for c in caches[:3]] == [True, True, True]  # per derivation
 
@@ -128,8 +136,14 @@ def test_no_other_kind_of_cache_is_left_in_the_package():
     found = []
     for path in sorted(Path(appell.__file__).parent.rglob("*.py")):
         text = path.read_text(encoding="utf-8")
-        for kind in ("lru_cache", r"functools\.cache\b", r"@cache\b", "OrderedDict", "WeakKeyDictionary",
-                     "WeakValueDictionary"):
+        for kind in (
+            "lru_cache",
+            r"functools\.cache\b",
+            r"@cache\b",
+            "OrderedDict",
+            "WeakKeyDictionary",
+            "WeakValueDictionary",
+        ):
             if re.search(kind, text) and kind not in allowed.get(path.name, ()):
                 found.append(f"{path.name}: {kind}")
     assert found == []
