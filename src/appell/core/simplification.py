@@ -242,8 +242,12 @@ def derivative_nodes(expr, symbols, rates=None, limit: int | None = None) -> int
         if s not in present:
             continue
         try:
-            d = _postorder(expr, {}, lambda e, parts: _derivative(e, parts, s, sizes, limit - total),  # noqa: B023
-                           skip=lambda e: s not in below[e])  # noqa: B023 (both used here, at once)
+            d = _postorder(
+                expr,
+                {},
+                lambda e, parts: _derivative(e, parts, s, sizes, limit - total),  # noqa: B023 (used here, at once)
+                skip=lambda e: s not in below[e],  # noqa: B023
+            )
         except _Over:
             return limit + 1
         if d:
