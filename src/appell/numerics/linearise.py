@@ -394,19 +394,19 @@ def _cyclic_states(full: np.ndarray, qi: list[int], found: Sequence[int]) -> lis
     state not left out, repeated until none is added (the bicycle's heading drives only the
     rates of x and y, which go first). A wheel's angle whose sines and cosines cancel in the
     contact's expressions without the expressions showing it is found here."""
-    found = set(found)
+    cyclic = set(found)
     bound = CYCLIC_TOLERANCE * max(1.0, float(np.abs(full).max(initial=0.0)))
     added = True
     while added:
         added = False
         for k, i in enumerate(qi):
-            if i in found:
+            if i in cyclic:
                 continue
-            rows = [r for r in range(full.shape[0]) if r != k and not (r < len(qi) and qi[r] in found)]
+            rows = [r for r in range(full.shape[0]) if r != k and not (r < len(qi) and qi[r] in cyclic)]
             if np.abs(full[rows, k]).max(initial=0.0) <= bound:
-                found.add(i)
+                cyclic.add(i)
                 added = True
-    return sorted(found)
+    return sorted(cyclic)
 
 
 def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequence[str] = (),
@@ -590,7 +590,7 @@ def steady_motion(derivation, guess: Mapping[str, float] | None = None, *, free:
     if ignore == "cyclic":
         # the cyclic coordinates at the guess: a symmetry holds at every point
         try:
-            found = linearise(derivation, guess, params=params, ignore="cyclic", check=False).ignored
+            found = list(linearise(derivation, guess, params=params, ignore="cyclic", check=False).ignored)
         except (ModelError, ComputationError):
             found = [cnames[i] for i in _ignored(derivation, _sensitivities(derivation, ()), "cyclic")[0]]
         skip = {cnames.index(x) for x in found if x in cnames}
