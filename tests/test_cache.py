@@ -147,3 +147,27 @@ def test_no_other_kind_of_cache_is_left_in_the_package():
             if re.search(kind, text) and kind not in allowed.get(path.name, ()):
                 found.append(f"{path.name}: {kind}")
     assert found == []
+
+
+def test_threads_that_miss_at_once_all_get_the_first_value_kept():
+    """Eight threads miss the same key together (a barrier inside ``make``), each makes its own
+    value; every one of them gets the one value that was kept, as a compiled model built twice
+    must still be one model in use."""
+    cache = Cache(4, identity=True)
+    key = object()
+    barrier = threading.Barrier(8)
+    got = [None] * 8
+
+    def work(i):
+        def make():
+            barrier.wait(timeout=10)
+            return [i]  # a distinct object per thread
+
+        got[i] = cache.get_or_make(key, make)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(8)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert all(g is got[0] for g in got) and cache.get(key) is got[0]
