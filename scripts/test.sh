@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Run the test suite in the local environment (created on first use, with the extra [test]):
-# the linter (ruff), then every module but the few that time signals, child processes and alarms, on two
-# workers (pytest-xdist, which the extra brings; one module per worker at a time), then
-# those on their own (tests/conftest.py: SERIAL), so that the other worker's load cannot
-# stretch their timing. Any pytest arguments pass through to both passes; a pass that the
-# arguments leave empty is skipped. APPELL_TEST_WORKERS=1 runs the first pass in one process.
+# the formatter and the linter (ruff), the type checker (mypy), then every module but the few
+# that time signals, child processes and alarms, on two workers (pytest-xdist, which the extra
+# brings; one module per worker at a time), then those on their own (tests/conftest.py:
+# SERIAL), so that the other worker's load cannot stretch their timing. Any pytest arguments
+# pass through to both passes; a pass that the arguments leave empty is skipped.
+# APPELL_TEST_WORKERS=1 runs the first pass in one process.
 # --quick (first argument): the everyday subset, about a minute (tests/conftest.py: HEAVY).
 set -euo pipefail
 if [ "${1:-}" = "--quick" ]; then
@@ -16,8 +17,11 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 workers="${APPELL_TEST_WORKERS:-2}"
 parallel=(-n "$workers" --dist loadfile)
 [ "$workers" = 1 ] && parallel=()
-# the linter first (pyproject.toml, [tool.ruff]): a finding fails the run before the tests start
-python -m ruff check --quiet src tests benchmarks scripts docs/_ext
+# the formatter, the linter and the type checker first (pyproject.toml, [tool.ruff] and [tool.mypy]):
+# a finding fails the run before the tests start
+python -m ruff format --check --quiet .
+python -m ruff check --quiet .
+python -m mypy
 status=0
 APPELL_TEST_PART=parallel python -m pytest "${parallel[@]}" "$@" || status=$?
 [ "$status" = 5 ] && status=0  # no test selected in this pass

@@ -3,9 +3,13 @@ that brings it) to install, never "internal error ... this is a bug" (issue 45).
 hides the module in a child process (``sys.modules[name] = None``: its import raises
 ModuleNotFoundError as if it were not installed) and runs the command line or the API there.
 
+Every refusal ends the command with one exit code, that of
+:class:`~appell.errors.MissingDependencyError` (1: the environment lacks a package, as
+io/cli.py's docstring states), whichever package is missing.
+
 Source of truth: pyproject.toml's ``[project.optional-dependencies]`` (``sweep`` brings dask,
-``mjcf`` brings mujoco) and its dependencies (h5py, h5netcdf); python-control is no
-dependency of appell at all (LinearModel.control() names it)."""
+``mjcf`` brings mujoco, ``control`` brings python-control) and its dependencies (h5py,
+h5netcdf)."""
 
 from __future__ import annotations
 
@@ -43,8 +47,10 @@ def _run(hidden, body, cwd):
     return done.returncode, done.stdout, done.stderr
 
 
-def _refused(code, err, wanted, exit_code=1):
-    assert code == exit_code, err
+def _refused(code, err, wanted):
+    from appell.errors import MissingDependencyError
+
+    assert code == MissingDependencyError.exit_code == 1, err
     assert wanted in err, err
     assert "internal error" not in err and "Traceback" not in err and "this is a bug" not in err, err
 
@@ -75,8 +81,9 @@ def test_the_sweep_api_without_dask_raises_missing_dependency(tmp_path):
 def test_a_mujoco_model_without_mujoco_names_the_extra(tmp_path):
     (tmp_path / "tiny.xml").write_text(TINY_MJCF)
     code, _, err = _run(["mujoco"], COMMAND.format(args=["simulate", "tiny.xml", "--t-end", "0.01"]), tmp_path)
-    # mechanism/mjcf.py refuses it as a ModelError (exit 2), naming the package and the extra
-    _refused(code, err, "appell[mjcf]", exit_code=2)
+    # mechanism/mjcf.py refuses it as a MissingDependencyError, naming the package and the extra
+    _refused(code, err, "needs the optional package 'mujoco'")
+    assert "pip install 'appell[mjcf]'" in err
 
 
 @pytest.mark.parametrize("suffix, module, wanted", [(".h5", "h5py", "pip install h5py"),
@@ -91,13 +98,14 @@ def test_a_writer_without_its_package_names_it(suffix, module, wanted, tmp_path)
 def test_python_control_is_named_where_it_is_missing(tmp_path):
     body = """
     import appell
+    from appell.errors import MissingDependencyError
     d = appell.derive(appell.load_model("pendulum"))
     linear = appell.linearise(d, {"x": 0.0, "y": -1.0, "x_dot": 0.0, "y_dot": 0.0})
     try:
         linear.control()
-    except appell.ModelError as exc:
+    except MissingDependencyError as exc:
         print(exc)
     """
     code, out, err = _run(["control"], body, tmp_path)
     assert code == 0, err
-    assert "python-control is not installed" in out and "pip install control" in out
+    assert "needs the optional package 'control'" in out and "pip install 'appell[control]'" in out

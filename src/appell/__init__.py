@@ -8,6 +8,7 @@ functions and the split solve, NumPy or C) -> :func:`simulate`, :func:`cross_che
 
 import importlib
 import sys
+from typing import TYPE_CHECKING
 
 #: public name -> the module that defines it, imported on first use (PEP 562): ``import appell``
 #: costs no SymPy, SciPy, xarray, pandas or matplotlib; ``from appell import simulate`` imports
@@ -43,6 +44,53 @@ _LAZY = {
     **dict.fromkeys(('MotionView', 'view_motion'), 'appell.io.viewer'),
     **dict.fromkeys(('from_sympy',), 'appell.mechanism.sympy_system'),
 }
+
+if TYPE_CHECKING:  # the names of _LAZY as a type checker sees them (tests/test_typing.py: the same)
+    from appell.control.servo import ControlledDerivation, derive_controlled
+    from appell.control.servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
+    from appell.core.derive import derive
+    from appell.core.equations import Derivation, ReactionFormulas, ReducedEquations
+    from appell.errors import AppellError, ComputationError, InitialValueError, ModelError, PainleveError, ResourceError
+    from appell.io.derivation_cache import derive_file
+    from appell.io.modelfile import load_model, loads_model
+    from appell.io.printing import display_latex, read_json, to_json, to_latex, to_text  # noqa: F401 (display_latex: not in __all__)
+    from appell.io.report import render_report, write_report
+    from appell.io.viewer import MotionView, view_motion
+    from appell.mechanism.sympy_system import from_sympy
+    from appell.model import (
+        AppliedForce,
+        AppliedTorque,
+        Constraint,
+        Control,
+        FirstIntegral,
+        Friction,
+        Output,
+        Parameter,
+        Particle,
+        Program,
+        RigidBody,
+        System,
+        acceleration_constraint,
+        holonomic,
+        nonholonomic,
+    )
+    from appell.numerics.boundary import numeric_model
+    from appell.numerics.codegen import compile_c
+    from appell.numerics.crosscheck import CrossCheckReport, augmented_solve, cross_check
+    from appell.numerics.linearise import LinearModel, linearise, steady_motion
+    from appell.numerics.loops import LoopModel, loop_model
+    from appell.numerics.numeric import NumericModel, StateSolution
+    from appell.numerics.stability import StabilitySweep, stability_sweep
+    from appell.reduction.cyclic import RouthReduction, cyclic_coordinates, routh_reduction
+    from appell.reduction.first_integrals import FirstIntegralCheck, FirstIntegralReport, check_first_integrals
+    from appell.simulation.energy_balance import EnergyBalance, energy_balance
+    from appell.simulation.events import Event
+    from appell.simulation.initial import InitialState, check_initial, complete_initial
+    from appell.simulation.inverse import InverseDynamics, inverse_dynamics
+    from appell.simulation.simulate import simulate
+    from appell.simulation.solution import Solution
+    from appell.simulation.sweep import SweepResult, parameter_grid, sweep, sweep_cluster
+    from appell.symbols import derivative_symbol, t
 
 __version__ = "0.1.0"
 

@@ -455,8 +455,9 @@ class System:
     """
 
     coordinates: tuple[sp.Symbol, ...]
-    speeds: tuple[sp.Symbol, ...] | None = None
-    kinematics: tuple[tuple[sp.Symbol, sp.Expr], ...] | None = None
+    #: given as None: the rates of the coordinates (with ``kinematics``), filled in at construction
+    speeds: tuple[sp.Symbol, ...] = None  # type: ignore[assignment]
+    kinematics: tuple[tuple[sp.Symbol, sp.Expr], ...] = None  # type: ignore[assignment]
     parameters: tuple[Parameter, ...] = ()
     programs: tuple[Program, ...] = ()
     kinetic_energy: sp.Expr | None = None

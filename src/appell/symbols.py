@@ -50,8 +50,8 @@ _ORDER = re.compile(r"^(?P<base>.+?)(?:_(?P<suffix>dot|ddot|d(?P<k>[0-9]+)))?$")
 def split_derivative_name(name: str) -> tuple[str, int]:
     """Return ``(base, order)`` of a derivative name: ``'x_ddot' -> ('x', 2)``."""
     m = _ORDER.match(name)
-    suffix = m.group("suffix")
-    if suffix is None:
+    suffix = m.group("suffix") if m is not None else None  # no match: the empty name
+    if m is None or suffix is None:
         return name, 0
     if suffix == "dot":
         return m.group("base"), 1
@@ -111,7 +111,7 @@ def as_symbols(items) -> tuple[sp.Symbol, ...]:
         from appell.errors import ModelError
 
         raise ModelError(f"expected symbols (a SymPy symbol, a name or a list of them), got {items!r}")
-    out = []
+    out: list[sp.Symbol] = []
     for item in items:
         out.extend(as_symbols(item))
     return tuple(out)

@@ -134,7 +134,7 @@ def _numeric(m: sp.Matrix, seed: int) -> np.ndarray:
 
 def _rank(m: sp.Matrix) -> tuple[int, np.ndarray]:
     """Largest numerical rank at two generic points, and the matrix at the better one."""
-    best = (-1, None)
+    best: tuple[int, np.ndarray] = (-1, np.zeros((0, 0)))  # replaced at the first point (rank >= 0)
     for seed in (0, 1):
         mn = _numeric(m, seed)
         r = pivoted_columns(mn)[1]

@@ -25,8 +25,10 @@ import sympy as sp
 
 from appell.core.constraints import ConstraintBlocks
 from appell.core.energy import InertiaBlocks
+from appell.core.kinematics import Kinematics
 from appell.core.simplification import adjugate, determinant, tidy
 from appell.core.partition import Partition
+from appell.model import System
 from appell.symbols import matmul
 
 #: the largest dependent block ``J_h`` (s x s) whose inverse is formed symbolically; over it the
@@ -204,8 +206,8 @@ class Derivation(Derived):
     nothing on it.
     """
 
-    system: object
-    kinematics: object
+    system: System
+    kinematics: Kinematics
     inertia: InertiaBlocks
     constraints: ConstraintBlocks
     partition: Partition

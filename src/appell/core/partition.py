@@ -8,13 +8,13 @@ means redundant or contradictory constraints, and QR with pivoting on ``J^T`` na
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 import sympy as sp
 
+from appell._cache import Cache
 from appell.core.simplification import determinant, tidy
 from appell.errors import ModelError
 from appell.symbols import lambdify
@@ -121,15 +121,22 @@ def _evaluate(J, symbols, fn, vals) -> np.ndarray | None:
         return None
 
 
-@functools.lru_cache(maxsize=8)
+#: the Jacobians :func:`_compiled_jacobian` compiled, by matrix (the 8 most recently used)
+_JACOBIANS: Cache = Cache(8)
+
+
 def _compiled_jacobian(J: sp.ImmutableMatrix):
     """``(symbols, f)``: ``J`` as a NumPy function of its symbols in sorted order, evaluated
     in complex arithmetic (a root or logarithm of a negative value shows as an imaginary
     part instead of an error), with shared subexpressions once: evaluating the expression
     trees of a mechanism's Jacobian by ``subs`` and ``evalf`` took 25 s for the benchmark
     bicycle."""
-    symbols = sorted(J.free_symbols, key=str)
-    return symbols, lambdify(symbols, J, modules="numpy", cse=True)
+
+    def compile_jacobian():
+        symbols = sorted(J.free_symbols, key=str)
+        return symbols, lambdify(symbols, J, modules="numpy", cse=True)
+
+    return _JACOBIANS.get_or_make(J, compile_jacobian)
 
 
 def pivoted_columns(Jn: np.ndarray) -> tuple[np.ndarray, int]:

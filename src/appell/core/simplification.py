@@ -62,6 +62,7 @@ from dataclasses import dataclass
 import mpmath
 import sympy as sp
 
+from appell._cache import Cache
 from appell.errors import ModelError
 
 #: expressions with fewer operations than this are simplified for display (and only
@@ -241,8 +242,12 @@ def derivative_nodes(expr, symbols, rates=None, limit: int | None = None) -> int
         if s not in present:
             continue
         try:
-            d = _postorder(expr, {}, lambda e, parts: _derivative(e, parts, s, sizes, limit - total),  # noqa: B023
-                           skip=lambda e: s not in below[e])  # noqa: B023 (both used here, at once)
+            d = _postorder(
+                expr,
+                {},
+                lambda e, parts: _derivative(e, parts, s, sizes, limit - total),  # noqa: B023 (used here, at once)
+                skip=lambda e: s not in below[e],  # noqa: B023
+            )
         except _Over:
             return limit + 1
         if d:
@@ -432,10 +437,10 @@ def adjugate(M: sp.Matrix, method: str = "bareiss") -> sp.Matrix:
 
 
 #: expressions :func:`tidy` has simplified, each with its result (and each result with itself:
-#: a formula tidied by the derivation is not simplified again when it is printed); emptied
-#: when it reaches :data:`TIDIED_SIZE` entries
-_TIDIED: dict = {}
+#: a formula tidied by the derivation is not simplified again when it is printed); at most
+#: :data:`TIDIED_SIZE` entries, the least recently used dropped first
 TIDIED_SIZE = 20_000
+_TIDIED: Cache = Cache(TIDIED_SIZE)
 
 
 def tidy(expr):
@@ -451,10 +456,8 @@ def tidy(expr):
     if done is not None:
         return done
     if expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT and sp.count_ops(expr) <= TIDY_OPS:  # the bound first
-        if len(_TIDIED) >= TIDIED_SIZE:
-            _TIDIED.clear()
-        done = _TIDIED[expr] = sp.simplify(expr)
-        _TIDIED.setdefault(done, done)
+        done = _TIDIED.put(expr, sp.simplify(expr))
+        _TIDIED.put(done, done)
         return done
     return expr
 
@@ -508,7 +511,7 @@ READABLE_SECONDS = 0.3
 #: expression, and the relative difference (at :data:`READABLE_DIGITS` digits) it may show
 READABLE_POINTS, READABLE_DIGITS, READABLE_TOLERANCE = 3, 30, 1e-20
 #: chosen forms of :func:`readable`, kept for the process as :data:`_TIDIED`
-_READABLE: dict = {}
+_READABLE: Cache = Cache(TIDIED_SIZE)
 
 
 def same_values(a, b) -> bool:
@@ -635,7 +638,4 @@ def readable(expr, focus=(), parameters=()):
     best = min(forms, key=sp.count_ops)
     if best != expr and not same_values(best, expr):
         best = expr
-    if len(_READABLE) >= TIDIED_SIZE:
-        _READABLE.clear()
-    _READABLE[key] = best
-    return best
+    return _READABLE.put(key, best)

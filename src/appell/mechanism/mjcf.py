@@ -65,17 +65,14 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from appell.errors import AppellNote, ModelError
+from appell.errors import AppellNote, ModelError, import_optional
 from appell.symbols import derivative_symbol
 
 
 def _mujoco():
-    try:
-        import mujoco
-    except ImportError as exc:  # pragma: no cover - the test environment has it
-        raise ModelError("reading a MuJoCo model (MJCF) needs the mujoco package",
-                         hint="pip install mujoco (or appell[mjcf])") from exc
-    return mujoco
+    """The mujoco package, or :class:`~appell.errors.MissingDependencyError` naming the extra
+    (``pip install 'appell[mjcf]'``)."""
+    return import_optional("mujoco", extra="mjcf", feature="reading a MuJoCo model (MJCF)")
 
 
 def load_mjcf(source) -> object:

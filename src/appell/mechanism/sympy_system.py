@@ -390,7 +390,8 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
             # (one turned by constant angles, the bicycle's head tube, has nothing to remove)
             if inertia is None:
                 inertia = sp.ImmutableMatrix(body.central_inertia.to_matrix(frame)).applyfunc(
-                    lambda e: _constant_or_trigsimp(ren.plain(e, f"inertia of {body.name}"), ren))  # noqa: B023
+                    lambda e: _constant_or_trigsimp(ren.plain(e, f"inertia of {body.name}"), ren)  # noqa: B023
+                )
             bodies.append(RigidBody(_body_name(body), mass, position, velocity, inertia, omega))
         else:
             bodies.append(Particle(_body_name(body), mass, position, velocity))

@@ -22,10 +22,9 @@ Other kinds of derivation register their builder with ``numeric_model.register(k
 from __future__ import annotations
 
 import os
-import threading
-from collections import OrderedDict
 from functools import singledispatch
 
+from appell._cache import Cache
 from appell.core.equations import Derivation
 from appell.errors import ModelError
 
@@ -42,50 +41,31 @@ BACKENDS = ("numpy", "c", "auto")
 #: test suite sets it to its backend, tests/conftest.py)
 DEFAULT_BACKEND = os.environ.get("APPELL_BACKEND") or "auto"
 
-_models: OrderedDict[int, tuple[object, dict]] = OrderedDict()
-_lock = threading.RLock()
+#: the numeric models of each derivation, by backend
+_models: Cache[dict] = Cache(KEEP, identity=True)
 
 
 def cached(derivation, backend: str, build):
     """``build()`` for ``(derivation, backend)``, kept for the :data:`KEEP` most recently used
-    derivations. The entry holds the derivation itself, so its ``id`` cannot be reused while
-    the entry lives."""
+    derivations (:class:`appell._cache.Cache`, by the derivation's identity)."""
     model = _kept(derivation, backend)
     if model is not None:
         return model
     model = build()
-    key = id(derivation)
-    with _lock:
-        entry = _models.get(key)
-        if entry is None or entry[0] is not derivation:
-            entry = (derivation, {})
-            _models[key] = entry
-        model = entry[1].setdefault(backend, model)
-        _models.move_to_end(key)
-        while len(_models) > KEEP:
-            _models.popitem(last=False)
-    return model
+    return _models.get_or_make(derivation, dict).setdefault(backend, model)
 
 
 def _kept(derivation, backend: str):
     """The model kept for ``(derivation, backend)`` (marked most recently used), or None."""
-    with _lock:
-        entry = _models.get(id(derivation))
-        if entry is None or entry[0] is not derivation or backend not in entry[1]:
-            return None
-        _models.move_to_end(id(derivation))
-        return entry[1][backend]
+    return _models.get(derivation, {}).get(backend)
 
 
 def forget(derivation=None) -> None:
     """Drop the numeric models kept for ``derivation`` (all of them when None)."""
-    with _lock:
-        if derivation is None:
-            _models.clear()
-        else:
-            entry = _models.get(id(derivation))
-            if entry is not None and entry[0] is derivation:
-                del _models[id(derivation)]
+    if derivation is None:
+        _models.clear()
+    else:
+        _models.pop(derivation)
 
 
 @singledispatch

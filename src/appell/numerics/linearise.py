@@ -50,9 +50,10 @@ import numpy as np
 import scipy.linalg as sla
 import sympy as sp
 
+from appell._cache import Cache
 from appell.core.equations import is_controlled
 from appell.core.kinematics import jacobian
-from appell.errors import ComputationError, ModelError
+from appell.errors import ComputationError, ModelError, import_optional
 from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
 from appell.symbols import block_cse, contains, free_symbols, lambdify, matmul, t
 from appell.numerics.boundary import numeric_model
@@ -112,10 +113,7 @@ class LinearModel:
 
     def control(self):
         """The model as python-control's ``ss`` (when python-control is installed)."""
-        try:
-            import control
-        except ImportError as exc:
-            raise ModelError("python-control is not installed", hint="pip install control") from exc
+        control = import_optional("control", extra="control", feature="LinearModel.control() (python-control)")
         return control.ss(self.A, self.B, self.C, self.D, states=list(self.states), inputs=list(self.inputs),
                           outputs=list(self.outputs))
 
@@ -246,25 +244,20 @@ class _Sensitivities:
                 z[:, y], za, zl, z[:, cu]]
 
 
-#: compiled sensitivities per derivation and inputs: id -> (weak reference, {inputs: _Sensitivities})
-_COMPILED: dict = {}
+#: how many derivations keep their compiled sensitivities (least recently used dropped first)
+SENSITIVITIES_KEEP = 8
+#: compiled sensitivities per derivation (by identity): {inputs: _Sensitivities}
+_COMPILED: Cache[dict] = Cache(SENSITIVITIES_KEEP, identity=True)
 
 
 def _sensitivities(derivation, inputs: tuple) -> _Sensitivities:
     """:class:`_Sensitivities` of ``derivation`` for ``inputs``, compiled once (a sweep
     linearises hundreds of times)."""
-    import weakref
-
-    key = id(derivation)
-    entry = _COMPILED.get(key)
-    if entry is None or entry[0]() is not derivation:
-        for k in [k for k, (ref, _) in _COMPILED.items() if ref() is None]:
-            del _COMPILED[k]
-        entry = _COMPILED[key] = (weakref.ref(derivation), {})
-    if inputs not in entry[1]:
+    entry = _COMPILED.get_or_make(derivation, dict)
+    if inputs not in entry:
         psyms = {p.symbol.name: p.symbol for p in derivation.system.parameters}
-        entry[1][inputs] = _Sensitivities(derivation, [psyms[u] for u in inputs])
-    return entry[1][inputs]
+        entry.setdefault(inputs, _Sensitivities(derivation, [psyms[u] for u in inputs]))
+    return entry[inputs]
 
 
 def _solved_sensitivities(model, sens: _Sensitivities, tt, q, w, pv):
@@ -401,19 +394,19 @@ def _cyclic_states(full: np.ndarray, qi: list[int], found: Sequence[int]) -> lis
     state not left out, repeated until none is added (the bicycle's heading drives only the
     rates of x and y, which go first). A wheel's angle whose sines and cosines cancel in the
     contact's expressions without the expressions showing it is found here."""
-    found = set(found)
+    cyclic = set(found)
     bound = CYCLIC_TOLERANCE * max(1.0, float(np.abs(full).max(initial=0.0)))
     added = True
     while added:
         added = False
         for k, i in enumerate(qi):
-            if i in found:
+            if i in cyclic:
                 continue
-            rows = [r for r in range(full.shape[0]) if r != k and not (r < len(qi) and qi[r] in found)]
+            rows = [r for r in range(full.shape[0]) if r != k and not (r < len(qi) and qi[r] in cyclic)]
             if np.abs(full[rows, k]).max(initial=0.0) <= bound:
-                found.add(i)
+                cyclic.add(i)
                 added = True
-    return sorted(found)
+    return sorted(cyclic)
 
 
 def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequence[str] = (),
@@ -597,7 +590,7 @@ def steady_motion(derivation, guess: Mapping[str, float] | None = None, *, free:
     if ignore == "cyclic":
         # the cyclic coordinates at the guess: a symmetry holds at every point
         try:
-            found = linearise(derivation, guess, params=params, ignore="cyclic", check=False).ignored
+            found = list(linearise(derivation, guess, params=params, ignore="cyclic", check=False).ignored)
         except (ModelError, ComputationError):
             found = [cnames[i] for i in _ignored(derivation, _sensitivities(derivation, ()), "cyclic")[0]]
         skip = {cnames.index(x) for x in found if x in cnames}

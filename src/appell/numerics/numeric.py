@@ -26,7 +26,7 @@ import sympy as sp
 from appell.numerics.dynamics import Evaluation
 from appell.numerics.rigid_tree import TreeBlocks, tree_matrices
 from appell.arguments import number, vector
-from appell.core.equations import formulas_unavailable
+from appell.core.equations import Derivation, formulas_unavailable
 from appell.errors import ComputationError, FormulaUnavailable, ModelError, SingularConfigurationError
 from appell.core.partition import (KEEP_CONDITION, RANK_CONDITION, REFINE_CONDITION, partition_condition,
                                    pivoted_columns, row_scales)
@@ -317,7 +317,7 @@ class NumericModel:
     vector ``p`` (order of ``system.parameters``; defaults from the model).
     """
 
-    derivation: object
+    derivation: Derivation
     parameters: tuple[sp.Symbol, ...]
     default_parameters: np.ndarray
     blocks: Callable  # (t, q, w, p) -> [M, h - Q, J, c]

@@ -139,8 +139,8 @@ def stability_sweep(derivation, name: str, values: Sequence[float], *, at: Mappi
     the system writes in the parameter ``name``, such as ``rear_x' = v``, follow it);
     ``free``: names solved for a steady motion at each value (none: the point is used as it
     is); ``ignore``, ``coordinates``, ``speeds``: as for :func:`linearise`."""
-    values = np.asarray(values, float)
-    if values.ndim != 1 or values.size < 2 or not np.all(np.diff(values) > 0):
+    grid = np.asarray(values, float)
+    if grid.ndim != 1 or grid.size < 2 or not np.all(np.diff(grid) > 0):
         raise ModelError("the values of a stability sweep must be at least two, increasing")
     point = dict(at or {})
     system = derivation.system
@@ -171,7 +171,7 @@ def stability_sweep(derivation, name: str, values: Sequence[float], *, at: Mappi
 
     show = progress if progress is not None else False
     eig, before, start, first = [], None, point, None
-    for v in tqdm(values, desc=f"eigenvalues against {name}", disable=not show, leave=False):
+    for v in tqdm(grid, desc=f"eigenvalues against {name}", disable=not show, leave=False):
         lm, start = model_at(v, start)
         ev = np.linalg.eigvals(lm.A)
         if first is None:
@@ -183,9 +183,10 @@ def stability_sweep(derivation, name: str, values: Sequence[float], *, at: Mappi
             before = eig[-1]
         eig.append(ev)
     eigenvalues = np.array(eig)
+    assert first is not None  # the grid holds two values or more
     names = tuple(n for _, n in sorted(first.modes(), key=lambda m: (m[0].real, m[0].imag)))
-    crossings = _crossings(model_at, point, values, eigenvalues, xtol)
-    return StabilitySweep(name, values, eigenvalues, names, first.states, crossings)
+    crossings = _crossings(model_at, point, grid, eigenvalues, xtol)
+    return StabilitySweep(name, grid, eigenvalues, names, first.states, crossings)
 
 
 #: real parts within this of zero count as zero (marginal modes: conserved quantities,

@@ -309,7 +309,8 @@ def consistent_states(derivation, count: int, *, seed: int = 0, t_span: float = 
     rng = np.random.default_rng(seed)
     sq, sw = np.maximum(0.5, np.abs(q0)), np.maximum(1.0, np.abs(w0))
     pv = model.params(None)
-    states, failed = [], 0
+    states: list[tuple] = []
+    failed = 0
     for _ in range(attempts * count):
         if len(states) == count:
             break
@@ -453,7 +454,7 @@ def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic
         raise ComputationError(f"first integral {fi.name!r}: no random state could be brought onto the constraints",
                                hint="give initial values that satisfy the constraints")
     mu_value = float("nan")
-    if aug is not None:
+    if aug is not None and worst_state is not None:
         try:
             mu_value = abs(float(numeric_model(aug).solve(*worst_state).multipliers[-1]))
         except (ComputationError, np.linalg.LinAlgError):

@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, cast
 
 import numpy as np
 import sympy as sp
@@ -138,7 +138,7 @@ class EnergyBalance:
         return "\n".join([
             f"energy balance along the motion from the initial values, t = {self.t0:g} .. {self.t_end:g} "
             f"({self.method}, rtol 1e-11, {self.samples} times compared):",
-            f"  {FORMS[self.form]}",
+            f"  {FORMS[cast(str, self.form)]}",
             f"  energy change {self.energy_change:.6e} = work of applied forces {self.work_applied:.6e} "
             f"+ of reactions {self.work_reactions:.6e} + of explicit time dependence {self.work_explicit:.6e} "
             f"+ residual",
@@ -379,7 +379,7 @@ class _Deadline:
 
         self.clock = time.perf_counter
         self.deadline = self.clock() + seconds
-        self.t_cut = None
+        self.t_cut: float | None = None
 
     def __call__(self, t, y) -> float:
         if self.t_cut is None:

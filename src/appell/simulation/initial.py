@@ -359,7 +359,7 @@ def _level_jacobian(model, t, y, p, level: int, columns: Sequence[int], rows: np
     if isinstance(model, ResidualJacobians) and not _constraint_names(model)[1] \
             and all(first <= c < stop for c in columns):
         J = np.asarray(model.residual_jacobians(t, y, p)[level], float)
-        return J[np.ix_(rows, [c - first for c in columns])]
+        return J[np.ix_(rows, np.asarray(columns, dtype=int) - first)]
     total = len(sum(_constraint_names(model), ()))
     from appell.numerics.numeric import difference_jacobian
 

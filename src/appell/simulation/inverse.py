@@ -90,7 +90,8 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
     other independent coordinates alone, ``q = {name: values}``, and completes the passive
     ones from the loop closures (:func:`closed_chain_inverse`, whose ``options`` it passes)."""
     tree = getattr(derivation, "tree", None)
-    if hasattr(derivation, "loop_parts") or hasattr(derivation, "loop_rows") or getattr(tree, "loops", ()):
+    loops = getattr(tree, "loops", None)
+    if hasattr(derivation, "loop_parts") or hasattr(derivation, "loop_rows") or loops:
         return closed_chain_inverse(derivation, t, q, w, a, drives, p, **options)
     model = numeric_model(derivation)
     names, speeds = model.coordinate_names, model.speed_names

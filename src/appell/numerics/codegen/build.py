@@ -16,6 +16,7 @@ import warnings
 from pathlib import Path
 
 
+from appell._cache import Cache
 from appell.errors import ComputationError
 from appell.numerics.codegen.source import source_units
 
@@ -211,7 +212,9 @@ def _compile(source: str, compiler: list[str], root: Path, key: str, lib: Path) 
 
 #: libraries loaded by this process, by (path, checksum): the dynamic loader caches by
 #: path, so a library rebuilt at the path of a rejected one is reached through this table
-_LOADED: dict = {}
+#: (one dropped from it is loaded again by path and checked: a stale one is rebuilt)
+LOADED_KEEP = 256
+_LOADED: Cache[ctypes.CDLL] = Cache(LOADED_KEEP)
 
 
 def _library_key(lib, key: str) -> str | None:
@@ -237,8 +240,7 @@ def load_library(path: Path, source: str, compiler: list[str]) -> tuple[ctypes.C
     except OSError:
         found = None
     if found == key:
-        _LOADED[(str(path), checksum)] = lib
-        return lib, path, False
+        return _LOADED.put((str(path), checksum), lib), path, False
     warnings.warn(f"the cached library {path} is not the one compiled for this model (key {found!r}); "
                   "compiling it again", RuntimeWarning, stacklevel=3)
     path, _ = build_library(source, compiler, force=True)
@@ -254,7 +256,6 @@ def load_library(path: Path, source: str, compiler: list[str]) -> tuple[ctypes.C
     if found != key:
         raise ComputationError(f"the compiled library {path} does not carry its key {key!r}",
                                hint="remove the cache directory ($APPELL_CACHE_DIR) and try again")
-    _LOADED[(str(path), _checksum_path(path).read_text().strip())] = lib
-    return lib, path, True
+    return _LOADED.put((str(path), _checksum_path(path).read_text().strip()), lib), path, True
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from appell._cache import Cache
 from appell.numerics.dynamics import Evaluation
 from appell.numerics import fastcall
 from appell.errors import ComputationError, ModelError, ResourceError
@@ -273,20 +274,16 @@ def _forward_call(fn, sizes, outputs):
 
 
 #: C sources formed by :func:`compile_in_background` for :func:`compile_c` to take up once (by
-#: the derivation's identity, the entry holding the derivation)
-_STARTED: dict = {}
+#: the derivation's identity)
 _STARTED_KEEP = 4
-_started_lock = threading.Lock()
+_STARTED: Cache[str] = Cache(_STARTED_KEEP, identity=True)
 
 
 def _source_for(derivation) -> str:
     """The C source of ``derivation``: the one :func:`compile_in_background` formed (taken
     once), else :func:`~appell.numerics.codegen.source.c_source` now."""
-    with _started_lock:
-        entry = _STARTED.pop(id(derivation), None)
-    if entry is not None and entry[0] is derivation:
-        return entry[1]
-    return c_source(derivation)
+    source = _STARTED.pop(derivation)
+    return c_source(derivation) if source is None else source
 
 
 def compile_in_background(derivation) -> threading.Thread | None:
@@ -305,10 +302,8 @@ def compile_in_background(derivation) -> threading.Thread | None:
         source = c_source(derivation)
     except (ComputationError, ModelError):
         return None  # compile_c meets it again and reports
-    with _started_lock:
-        _STARTED[id(derivation)] = (derivation, source)
-        while len(_STARTED) > _STARTED_KEEP:
-            _STARTED.pop(next(iter(_STARTED)))
+    _STARTED.pop(derivation)
+    _STARTED.put(derivation, source)
 
     def build():
         try:

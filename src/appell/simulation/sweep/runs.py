@@ -18,6 +18,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from appell._cache import Cache
 from appell.core.equations import is_controlled
 from appell.errors import ModelError
 from appell.files import write_hdf5
@@ -128,12 +129,10 @@ class SweepResult:
 
 
 # ------------------------------------------------------------------ worker side
-#: numeric models built on this worker process, by shipment key (the newest last)
-_MODELS: dict = {}
-
-
 #: how many models a worker keeps (a cluster kept across sweeps of several models)
 _KEPT_MODELS = 8
+#: numeric models built on this worker process, by shipment key (least recently used dropped first)
+_MODELS: Cache = Cache(_KEPT_MODELS)
 
 
 @dataclass(frozen=True)
@@ -164,20 +163,9 @@ class _Shipment:
         return numeric_model(self.derivation, None if self.backend == "own" else self.backend)
 
 
-def _keep(key: str, model):
-    """Keep ``model`` in this process by ``key``, as the newest; the oldest beyond
-    :data:`_KEPT_MODELS` are dropped."""
-    _MODELS.pop(key, None)
-    _MODELS[key] = model
-    while len(_MODELS) > _KEPT_MODELS:
-        _MODELS.pop(next(iter(_MODELS)))
-    return model
-
-
 def _model_on_worker(shipment: _Shipment):
     """The Dynamics of a sweep, built once per worker process and kept by its key."""
-    model = _MODELS.get(shipment.key)
-    return _keep(shipment.key, shipment.build() if model is None else model)
+    return _MODELS.get_or_make(shipment.key, shipment.build)
 
 
 def _run_one(shipment, index, params, t_end, t_eval, options) -> dict:
@@ -353,5 +341,5 @@ def _prepare(model, backend: str) -> _Shipment:
         key = hashlib.sha256(pickle.dumps((backend, derivation))).hexdigest()[:32]
     except Exception:  # noqa: BLE001 (Python callables in a System: threads still share the model built here)
         key = uuid.uuid4().hex
-    _keep(key, numeric)
+    _MODELS.put(key, numeric)
     return _Shipment(key, derivation, backend)
