@@ -11,13 +11,14 @@
    given on the command line, tau = 0, it times
      * constraintDynamics (initConstraintDynamics once, before the loop, as Pinocchio's examples do);
      * lcaba (computeJointMinimalOrdering once, before the loop),
-   with ProximalSettings(accuracy 1e-12, mu 1e-12, 3 iterations), as benchmarks/closed_chains.py calls
-   them from Python. Each is run `iterations` times per round, 41 rounds; the per-call CPU time
+   with the ProximalSettings (accuracy, mu, iterations) of each that SPEC gives, as benchmarks/closed_chains.py
+   calls them from Python. Each is run `iterations` times per round, 41 rounds; the per-call CPU time
    (CLOCK_PROCESS_CPUTIME_ID, as benchmarks/harness.py and reference/bench_loops.c) of the best round
    and the median round is printed as JSON, with the accelerations for the cross-check against Python.
 
    usage: pinocchio_loop SPEC iterations q[nq]... v[nv]...   (Pinocchio's order: x y z qx qy qz qw)
-   SPEC: "gravity" gx gy gz; per joint "joint" parent type ax ay az R[9] p[3] mass c[3] I[9] (type
+   SPEC: "settings" accuracy mu iterations (constraintDynamics) accuracy mu iterations (lcaba);
+   "gravity" gx gy gz; per joint "joint" parent type ax ay az R[9] p[3] mass c[3] I[9] (type
    FreeFlyer, RX, RY, RZ or RevoluteUnaligned; R row-major; I about the centre of mass); per closure
    "contact" type(3|6) joint1 R1[9] p1[3] joint2 R2[9] p2[3] frame(0 WORLD, 1 LOCAL, 2 LOCAL_WORLD_ALIGNED). */
 #include <algorithm>
@@ -79,13 +80,19 @@ static SE3 read_placement(std::istream & in)
 }
 
 /* the model and its closures from SPEC (the file's comment) */
-static void read_spec(const char * path, Model & model, std::vector<RigidConstraintModel> & cmodels)
+static void read_spec(const char * path, Model & model, std::vector<RigidConstraintModel> & cmodels,
+                      double settings[6])
 {
   std::ifstream in(path);
   std::string word;
   while (in >> word)
   {
-    if (word == "gravity")
+    if (word == "settings")
+    {
+      for (int i = 0; i < 6; ++i)
+        in >> settings[i];
+    }
+    else if (word == "gravity")
     {
       Eigen::Vector3d g;
       in >> g[0] >> g[1] >> g[2];
@@ -143,7 +150,8 @@ int main(int argc, char ** argv)
     return 2;
   Model model;
   std::vector<RigidConstraintModel> cmodels;
-  read_spec(argv[1], model, cmodels);
+  double settings[6] = {1e-12, 1e-12, 3, 1e-12, 1e-4, 100};
+  read_spec(argv[1], model, cmodels, settings);
   const int iters = std::atoi(argv[2]);
   if (argc != 3 + model.nq + model.nv)
   {
@@ -162,7 +170,8 @@ int main(int argc, char ** argv)
   std::vector<RigidConstraintData> cdatas;
   for (const auto & c : cmodels)
     cdatas.push_back(RigidConstraintData(c));
-  ProximalSettings prox(1e-12, 1e-12, 3);
+  ProximalSettings prox(settings[0], settings[1], int(settings[2]));
+  ProximalSettings lprox(settings[3], settings[4], int(settings[5]));
   initConstraintDynamics(model, data, cmodels, cdatas);
   const Eigen::VectorXd a_cd = constraintDynamics(model, data, q, v, tau, cmodels, cdatas, prox);
   const Eigen::VectorXd lam_cd = data.lambda_c;
@@ -177,11 +186,11 @@ int main(int argc, char ** argv)
   for (const auto & c : cmodels)
     ldatas.push_back(RigidConstraintData(c));
   computeJointMinimalOrdering(model, ldata, cmodels);
-  const Eigen::VectorXd a_lc = lcaba(model, ldata, q, v, tau, cmodels, ldatas, prox);
+  const Eigen::VectorXd a_lc = lcaba(model, ldata, q, v, tau, cmodels, ldatas, lprox);
   double lc_best, lc_mid;
   timed([&] {
     q[0] += 1e-300;
-    sink += lcaba(model, ldata, q, v, tau, cmodels, ldatas, prox)[0];
+    sink += lcaba(model, ldata, q, v, tau, cmodels, ldatas, lprox)[0];
   }, iters, rounds, lc_best, lc_mid);
 
   std::printf("{\"nq\": %d, \"nv\": %d, \"constraints\": %zu, ", model.nq, model.nv, cmodels.size());
