@@ -245,13 +245,27 @@ static void loop_blocks(const struct loop_state *st, const double *w, double *M,
 }
 
 /* every joint's wrench (NB x 6, world axes, about the joint's point) at accelerations a with the
-   loop forces of the multipliers lam at their anchors */
+   loop forces of the multipliers lam at their anchors: the bodies' forces at a = 0 (st->f, the
+   base at -g) plus those of the accelerations' own part, acc_b = X_b acc_parent + S_b a_b (linear
+   in a: no velocity terms), f_b = Y_b acc_b, summed inward */
 static void loop_wrenches(const struct loop_state *st, const double *w, const double *a, const double *lam,
                           double *out)
 {
-    double v[6 * NB], acc[6 * NB], f[6 * NB], ext[6 * NB] = {0.0}, act[DIM(6 * NL)];
-    const double fall[6] = {0.0, 0.0, 0.0, -st->g[0], -st->g[1], -st->g[2]};
-    rigid_forces(st->R, st->r, st->Sc, st->cb, st->Y, w, a, fall, 0, PARENT, v, acc, f);
+    double acc[6 * NB], f[6 * NB], ext[6 * NB] = {0.0}, act[DIM(6 * NL)];
+    (void)w;
+    for (int b = 0; b < NB; ++b) {
+        double *ab = acc + 6 * b;
+        if (PARENT[b] >= 0) to_body(st->R + 9 * b, st->r + 3 * b, acc + 6 * PARENT[b], ab);
+        else for (int i = 0; i < 6; ++i) ab[i] = 0.0;
+        for (int e = FIRST[b]; e < FIRST[b + 1]; ++e) {
+            const int k = SPEEDS[e];
+            for (int i = 0; i < 6; ++i) ab[i] += st->Sc[6 * k + i] * a[k];
+        }
+        inertia_times(st->Y + 10 * b, ab, f + 6 * b);
+    }
+    for (int b = NB - 1; b >= 0; --b)
+        if (PARENT[b] >= 0) add_to_parent(st->R + 9 * b, st->r + 3 * b, f + 6 * b, f + 6 * PARENT[b]);
+    for (int i = 0; i < 6 * NB; ++i) f[i] += st->f[i];
     loop_rows(st, 0, 0, 0, act);
     for (int i = 0; i < NL; ++i) {
         const double *d = st->data + 12 * i;
