@@ -16,7 +16,8 @@ fingers closed by ``connect``, a joint equality, an actuator on a tendon, armatu
   closed-chain model (:func:`appell.loop_model`: the joints' small terms compiled) and evaluate
   the accelerations, every loop force and every joint wrench at a state; wall time, CPU time
   (the process's and the C compiler's it started: the fair measure on a loaded machine) and
-  the peak resident memory of the process and of the compiler;
+  the peak resident memory of the process and of its largest child (the C compiler, or a
+  forked copy of the process);
 * **one evaluation** — appell's ``LoopModel.evaluate`` (accelerations, 13 multipliers, 17
   joint wrenches; one call of the compiled ``appell_loop_evaluate``, and the NumPy route for
   comparison) against Pinocchio's ``constraintDynamics`` with the four
@@ -300,7 +301,7 @@ def main(argv=None):
     print("|---|---|---|---|")
     for label, r in (("biped", first), ("gripper", grip)):
         print(f"| {label}: file to first compiled evaluation (fresh process, empty cache; wall, CPU) | "
-              f"{r['seconds']:.1f} s, {r['cpu']:.1f} s CPU; {r['peak_mb']:.0f} MB peak (compiler "
+              f"{r['seconds']:.1f} s, {r['cpu']:.1f} s CPU; {r['peak_mb']:.0f} MB peak (largest child "
               f"{r['compiler_peak_mb']:.0f} MB) | — | — |")
     best_peer = best_c = None
     peers = [k for k in times if k.startswith("pinocchio")]
