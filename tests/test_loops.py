@@ -366,3 +366,25 @@ def test_loop_route_after_a_failed_compilation(monkeypatch):
         assert loop_model(four_bar_3d(), "auto").backend == "numpy"
     with pytest.raises(ComputationError, match="broken compiler"):
         loop_model(four_bar_3d(), "c")
+
+
+def test_compiled_split_where_the_mass_matrix_alone_is_singular():
+    """A rocker with its mass on its hinge's axis and no inertia about it: ``M`` alone is
+    singular (the tree's sparse split of loops.c declines it) and the compiled route takes the
+    dense split with every row, ``M + rho J^T J``; the same numbers as the NumPy route."""
+    from appell.numerics.codegen import find_compiler
+
+    if find_compiler() is None:
+        pytest.skip("no C compiler")
+    mech = Mechanism("point_rocker", gravity=(0, -9.81, 0))
+    crank = mech.body("crank", 1.0, inertia=(0.001, 0.01, 0.01), com=(0.2, 0, 0))
+    coupler = mech.body("coupler", 2.0, inertia=(0.002, 0.2, 0.2), com=(0.5, 0, 0))
+    rocker = mech.body("rocker", 1.5, inertia=(0.01, 0.01, 0.0), com=(0, 0, 0))
+    mech.revolute("A", "ground", crank)
+    mech.revolute("B", crank, coupler, origin=(0.4, 0, 0))
+    mech.revolute("D", "ground", rocker, origin=(1.0, 0, 0))
+    mech.connect("C", (coupler, (1.0, 0, 0)), (rocker, (0.8, 0, 0)), directions="xy")
+    rng = np.random.default_rng(29)
+    _parity(mech, [(rng.uniform(-1, 1, 3), rng.normal(size=3)) for _ in range(2)])
+    M = loop_model(mech, "numpy").blocks(np.zeros(3), np.zeros(3))[0]
+    assert abs(M[2, 2]) < 1e-14   # the rocker's own diagonal entry: nothing turns with it

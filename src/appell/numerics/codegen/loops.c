@@ -10,9 +10,16 @@
    without gravity acc0 (body axes) come from one outward pass (rigid_forces with the base at -g,
    which also gives h; gravity taken back out: acc0 = acc + [0; Rw^T g]). A point P of body b has
    the Jacobian columns omega_k x (P - p_j) + v_k along its path; a row's column k is e . that,
-   = S_k . [Rw_j^T ((P - p_j) x e); Rw_j^T e]. The split is solved densely: Cholesky of
-   A = M + rho J^T J (rho the mean of M's diagonal), a0 = -A^-1 (h - Q), Y = A^-1 J^T, Cholesky of
-   J Y, lambda = mu + rho c. Dependent rows (a pivot of J Y below PIVOT_MIN of its largest
+   = S_k . [Rw_j^T ((P - p_j) x e); Rw_j^T e]. The split is solved on the tree's sparsity
+   (loop_split_tree, where SPARSE_SPLIT): A = M + rho Jo^T Jo (rho the mean of M's diagonal, Jo
+   the other rows alone, a free joint's unit quaternion: they lie on one path, so that A keeps M's
+   branch-induced sparsity) factored A = L^T L without fill (Featherstone's LTL, RBDA 6.5, over the
+   speeds in the tree's order, LAMBDA[g] the speed before g on its path); X = L^-T J^T (each row
+   scattered up its paths only), u = -L^-T (h - Q); Cholesky of X^T X = J A^-1 J^T, mu from
+   X^T X mu = -(X^T u + c), a = L^-1 (u + X mu), lambda = mu + rho c on the other rows. Where A is
+   not positive definite there (a pivot below 1e-14 of the largest), the dense split: Cholesky of
+   A = M + rho J^T J with every row, a0 = -A^-1 (h - Q), Y = A^-1 J^T, Cholesky of J Y,
+   lambda = mu + rho c. Dependent rows (a pivot of J A^-1 J^T below PIVOT_MIN of its largest
    diagonal entry) or a failed factorization report status 1: the NumPy route then names the
    undetermined combinations. */
 
@@ -238,13 +245,27 @@ static void loop_blocks(const struct loop_state *st, const double *w, double *M,
 }
 
 /* every joint's wrench (NB x 6, world axes, about the joint's point) at accelerations a with the
-   loop forces of the multipliers lam at their anchors */
+   loop forces of the multipliers lam at their anchors: the bodies' forces at a = 0 (st->f, the
+   base at -g) plus those of the accelerations' own part, acc_b = X_b acc_parent + S_b a_b (linear
+   in a: no velocity terms), f_b = Y_b acc_b, summed inward */
 static void loop_wrenches(const struct loop_state *st, const double *w, const double *a, const double *lam,
                           double *out)
 {
-    double v[6 * NB], acc[6 * NB], f[6 * NB], ext[6 * NB] = {0.0}, act[DIM(6 * NL)];
-    const double fall[6] = {0.0, 0.0, 0.0, -st->g[0], -st->g[1], -st->g[2]};
-    rigid_forces(st->R, st->r, st->Sc, st->cb, st->Y, w, a, fall, 0, PARENT, v, acc, f);
+    double acc[6 * NB], f[6 * NB], ext[6 * NB] = {0.0}, act[DIM(6 * NL)];
+    (void)w;
+    for (int b = 0; b < NB; ++b) {
+        double *ab = acc + 6 * b;
+        if (PARENT[b] >= 0) to_body(st->R + 9 * b, st->r + 3 * b, acc + 6 * PARENT[b], ab);
+        else for (int i = 0; i < 6; ++i) ab[i] = 0.0;
+        for (int e = FIRST[b]; e < FIRST[b + 1]; ++e) {
+            const int k = SPEEDS[e];
+            for (int i = 0; i < 6; ++i) ab[i] += st->Sc[6 * k + i] * a[k];
+        }
+        inertia_times(st->Y + 10 * b, ab, f + 6 * b);
+    }
+    for (int b = NB - 1; b >= 0; --b)
+        if (PARENT[b] >= 0) add_to_parent(st->R + 9 * b, st->r + 3 * b, f + 6 * b, f + 6 * PARENT[b]);
+    for (int i = 0; i < 6 * NB; ++i) f[i] += st->f[i];
     loop_rows(st, 0, 0, 0, act);
     for (int i = 0; i < NL; ++i) {
         const double *d = st->data + 12 * i;
@@ -307,6 +328,72 @@ static int loop_split(double *M, const double *hQ, const double *J, const double
     return 0;
 }
 
+#if SPARSE_SPLIT
+/* the split on the tree's sparsity (the header): 0 solved, 1 dependent rows, 2 A not positive
+   definite on the tree's pattern (the dense split then) */
+static int loop_split_tree(const double *M, const double *hQ, const double *J, const double *c, double *a,
+                           double *lam)
+{
+    double H[N * N], X[DIM(NC * N)], u[N], Z[DIM(NC * NC)], mu[DIM(NC)], rho = 0.0, big = 0.0;
+    if (S > 0) {
+        for (int i = 0; i < N; ++i) rho += M[i * N + i];
+        rho /= N;
+    }
+    for (int g = 0; g < N; ++g) {                          /* A on each speed's path, the tree's order */
+        const int k = SPEEDS[g];
+        for (int h = g; h >= 0; h = LAMBDA[h]) {
+            const int l = SPEEDS[h];
+            double x = M[k * N + l];
+            for (int i = 0; i < S; ++i) x += rho * J[OROW[i] * N + k] * J[OROW[i] * N + l];
+            H[g * N + h] = x;
+        }
+        if (H[g * N + g] > big) big = H[g * N + g];
+    }
+    for (int k = N - 1; k >= 0; --k) {                     /* A = L^T L, L in H's lower part */
+        const double d = H[k * N + k];
+        if (!(d > 1e-14 * big)) return 2;
+        const double l = sqrt(d);
+        H[k * N + k] = l;
+        for (int i = LAMBDA[k]; i >= 0; i = LAMBDA[i]) H[k * N + i] /= l;
+        for (int i = LAMBDA[k]; i >= 0; i = LAMBDA[i])
+            for (int j = i; j >= 0; j = LAMBDA[j]) H[i * N + j] -= H[k * N + i] * H[k * N + j];
+    }
+    for (int r = 0; r <= NC; ++r) {                        /* X = L^-T J^T, then u = -L^-T (h - Q) */
+        double *x = r < NC ? X + r * N : u;
+        for (int g = 0; g < N; ++g) x[g] = r < NC ? J[r * N + SPEEDS[g]] : -hQ[SPEEDS[g]];
+        for (int i = N - 1; i >= 0; --i) {
+            if (x[i] == 0.0) continue;
+            x[i] /= H[i * N + i];
+            for (int j = LAMBDA[i]; j >= 0; j = LAMBDA[j]) x[j] -= H[i * N + j] * x[i];
+        }
+    }
+    for (int r = 0; r < NC; ++r) {
+        double s = c[r];
+        for (int g = 0; g < N; ++g) s += X[r * N + g] * u[g];
+        mu[r] = -s;
+        for (int k = 0; k <= r; ++k) {
+            double z = 0.0;
+            for (int g = 0; g < N; ++g) z += X[r * N + g] * X[k * N + g];
+            Z[r * NC + k] = Z[k * NC + r] = z;
+        }
+    }
+    if (cholesky(Z, NC, PIVOT_MIN)) return 1;
+    cholesky_solve(Z, NC, mu);
+    for (int r = 0; r < NC; ++r) {
+        for (int g = 0; g < N; ++g) u[g] += X[r * N + g] * mu[r];
+        lam[r] = mu[r];
+    }
+    for (int i = 0; i < S; ++i) lam[OROW[i]] += rho * c[OROW[i]];
+    for (int g = 0; g < N; ++g) {                          /* a = L^-1 (u + X mu) */
+        double x = u[g];
+        for (int j = LAMBDA[g]; j >= 0; j = LAMBDA[j]) x -= H[g * N + j] * u[j];
+        u[g] = x / H[g * N + g];
+        a[SPEEDS[g]] = u[g];
+    }
+    return 0;
+}
+#endif
+
 /* accelerations a, multipliers lam and every joint's wrench (out) at a state, u the controls;
    status[0] 0, or 1 where the split is left to the NumPy route */
 void appell_loop_evaluate(double t, const double *restrict q, const double *restrict w, const double *restrict u,
@@ -317,7 +404,12 @@ void appell_loop_evaluate(double t, const double *restrict q, const double *rest
     double M[N * N], hQ[N], J[DIM(NC * N)], c[DIM(NC)];
     loop_state(t, q, w, u, p, &st, 1);
     loop_blocks(&st, w, M, hQ, J, c);
-    status[0] = loop_split(M, hQ, J, c, a, lam);
+    int split = 2;
+#if SPARSE_SPLIT
+    if (NC > 0) split = loop_split_tree(M, hQ, J, c, a, lam);
+#endif
+    if (split == 2) split = loop_split(M, hQ, J, c, a, lam);
+    status[0] = split;
     if (status[0] == 0) loop_wrenches(&st, w, a, lam, out);
 }
 

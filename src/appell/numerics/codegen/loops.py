@@ -28,6 +28,30 @@ def _array(name: str, values, size: str) -> str:
     return f"static const int {name}[{size}] = {{" + (", ".join(str(int(v)) for v in values) or "0") + "};"
 
 
+def _tree_order(model, first) -> tuple[list[int], bool]:
+    """The speed before each speed on its path in the tree's order (``LAMBDA`` of loops.c; -1 at a
+    root), and whether the tree's sparse split applies: nodes after their parents and every
+    other row's columns on one path (so that ``rho Jo^T Jo`` adds no entry off ``M``'s pattern)."""
+    parent, nb = list(model.parent), len(model.tree.nodes)
+    before, ordered = [], all(parent[b] < b for b in range(nb))
+    for b in range(nb):
+        for i in range(first[b + 1] - first[b]):
+            a = parent[b]
+            while a >= 0 and first[a] == first[a + 1]:
+                a = parent[a]
+            before.append(first[b] + i - 1 if i else (first[a + 1] - 1 if a >= 0 else -1))
+    place = {k: g for g, k in enumerate(k for node in model.tree.nodes for k in node.speeds)}
+    J_o = model.other_blocks[0]
+    for i in range(J_o.rows):
+        cols = sorted(place[k] for k in range(J_o.cols) if J_o[i, k] != 0)
+        for lo, hi in zip(cols, cols[1:]):
+            g = hi
+            while g > lo:
+                g = before[g]
+            ordered &= g == lo
+    return before, ordered
+
+
 def loop_c_source(model, parts) -> str:
     """The C source of a loop model built from ``parts`` (module docstring)."""
     tree, n = model.tree, model.n
@@ -42,6 +66,7 @@ def loop_c_source(model, parts) -> str:
     speeds = [k for node in tree.nodes for k in node.speeds]
     first = np.cumsum([0] + [len(node.speeds) for node in tree.nodes])
     rows = [row for _, row in model.loop_rows]
+    before, sparse = _tree_order(model, first)
     J_o, c_o, phi_o = model.other_blocks
     data = sp.Matrix([x for row in rows for x in (*row.point_a, *row.axis_a, *row.point_b, *row.axis_b)]) \
         if rows else sp.zeros(0, 1)
@@ -50,10 +75,11 @@ def loop_c_source(model, parts) -> str:
         "#include <math.h>\n#include <string.h>",
         f"#define N {n}\n#define S {s}\n#define NC {len(model.constraint_names)}\n#define NL {len(rows)}"
         f"\n#define NB {nb}\n#define NP {len(parts.parameters)}\n#define CONSTANT_INERTIA 0"
+        f"\n#define SPARSE_SPLIT {int(sparse and n > 0)}"
         "\n#define DIM(k) ((k) > 0 ? (k) : 1)",
         HEADER_END,
         _array("PARENT", model.parent, "NB"), _array("UP", model.parent, "NB"), _array("NODE_OF", model.node_of, "N"),
-        _array("SPEEDS", speeds, "N"), _array("FIRST", first, "NB + 1"),
+        _array("SPEEDS", speeds, "N"), _array("FIRST", first, "NB + 1"), _array("LAMBDA", before, "DIM(N)"),
         "static const unsigned char RIGID[NB] = {0}, FOLD[NB] = {0}, SKIP[NB] = {0};",
         _array("LROW", [k for k, _ in model.loop_rows], "DIM(NL)"),
         _array("LKIND", [{"point": 0, "align": 1, "point_a": 2}[row.kind] for row in rows], "DIM(NL)"),
