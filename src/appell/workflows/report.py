@@ -22,6 +22,7 @@ def report_model(derivation, output=None, t_end=None, simulation: bool = True, d
     also in the state (t, q, w) where ``expand``; raises
     :class:`~appell.errors.ComputationError` after writing when a check fails."""
     from appell.io.report import write_report
+    from appell.io.results import write_csv
     from appell.simulation.energy_balance import ENERGY_TOLERANCE
 
     echo = echo or _print
@@ -53,7 +54,7 @@ def report_model(derivation, output=None, t_end=None, simulation: bool = True, d
     data_path = path.with_suffix(".csv") if data and solution is not None else None
     if data_path is not None:
         output_target(data_path)
-        solution.to_csv(data_path)
+        write_csv(solution, data_path)
     write_report(path, derivation, solution, check_report, simulation_note=note,
                  integrals=first_integrals(derivation), internal=linearisation, energy=energy, stability=sweep,
                  data_file=data_path.name if data_path is not None else None, expand=expand)

@@ -124,20 +124,19 @@ def solver_line(solution) -> str:
 
 
 def export_solution(solution, path: Path) -> Path:
-    """Write ``solution`` to ``path`` in the format of its suffix (:data:`OUTPUT_FORMATS`).
+    """Write ``solution`` to ``path`` in the format of its suffix (:data:`OUTPUT_FORMATS`) by
+    its writer in :mod:`appell.io.results`.
 
     A writer whose package is not installed (a netCDF engine, say) raises
     :class:`~appell.errors.MissingDependencyError` naming the package, not an internal error.
     """
     from appell.errors import MissingDependencyError
 
+    from appell.io.results import write_csv, write_hdf5, write_netcdf
+
     kind = OUTPUT_FORMATS[path.suffix.lower()]
     try:
-        if kind == "csv":
-            return solution.to_csv(path)
-        if kind == "hdf5":
-            return solution.to_hdf5(path)
-        return solution.to_netcdf(path)
+        return {"csv": write_csv, "hdf5": write_hdf5, "netcdf": write_netcdf}[kind](solution, path)
     except ModuleNotFoundError as exc:
         package = (exc.name or "").split(".")[0] or str(exc)
         raise MissingDependencyError(f"writing {path.suffix} files ({kind}) needs the package {package!r}, "
