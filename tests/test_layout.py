@@ -24,6 +24,14 @@ PACKAGE = Path(appell.__file__).parent
 MAX_MODULE_LINES = 900
 MAX_FUNCTION_CODE = 120
 
+#: over the limits and being split in another change this round (issue 45): each entry must
+#: still be over (a test below fails on a stale one, so that it is removed once split)
+PENDING = {
+    "appell/mechanism/urdf.py": "the URDF reader (917 lines), split with the tree route's work",
+    "appell/mechanism/urdf.py: urdf_mechanism": "129 lines of code, split with the tree route's work",
+    "appell/mechanism/mjcf.py: read_mjcf": "293 lines of code, split with the MJCF names' work",
+}
+
 
 def code_lines(function: ast.FunctionDef | ast.AsyncFunctionDef, lines: list[str]) -> int:
     """The lines of code of ``function`` (module docstring: the rule) in the file ``lines``."""
@@ -75,13 +83,24 @@ def f(x):
 
 
 def test_no_module_over_the_limit():
-    over = sorted(((n, p) for p, n, _ in _sizes() if n > MAX_MODULE_LINES), reverse=True)
+    over = sorted(((n, p) for p, n, _ in _sizes() if n > MAX_MODULE_LINES and p not in PENDING), reverse=True)
     assert not over, (f"modules over {MAX_MODULE_LINES} lines (split them along their seams):\n"
                       + "\n".join(f"{p}: {n} lines" for n, p in over))
 
 
 def test_no_function_over_the_limit():
     over = sorted(((n, f"{p}: {name}") for p, _, functions in _sizes() for name, n in functions
-                   if n > MAX_FUNCTION_CODE), reverse=True)
+                   if n > MAX_FUNCTION_CODE and f"{p}: {name}" not in PENDING), reverse=True)
     assert not over, (f"functions over {MAX_FUNCTION_CODE} lines of code (split them into named stages):\n"
                       + "\n".join(f"{where}: {n} lines of code" for n, where in over))
+
+
+def test_every_pending_entry_is_still_over_the_limit():
+    """An entry of :data:`PENDING` that was split is removed from it (no allowance outlives its cause)."""
+    over = set()
+    for path, n, functions in _sizes():
+        if n > MAX_MODULE_LINES:
+            over.add(path)
+        over |= {f"{path}: {name}" for name, k in functions if k > MAX_FUNCTION_CODE}
+    stale = sorted(set(PENDING) - over)
+    assert not stale, f"within the limits now; remove from PENDING: {stale}"
