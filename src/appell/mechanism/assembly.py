@@ -59,6 +59,7 @@ def _pose_in(mech, body, ancestor) -> tuple[sp.Matrix, sp.Matrix]:
         R = R * R_rel
     return R, p
 
+
 def gap_in(mech, ba, ra, bb, rb) -> sp.Matrix:
     """``R_a^T (p_a - p_b)``, the gap of two body points along body_a's axes, from the
     joints of the loop alone (the frames of their nearest common ancestor ``L``:
@@ -74,6 +75,7 @@ def gap_in(mech, ba, ra, bb, rb) -> sp.Matrix:
     common = next(b for b in ancestors(ba) if any(b is c for c in up_b))
     (Ra, pa), (Rb, pb) = _pose_in(mech, ba, common), _pose_in(mech, bb, common)
     return Ra.T * ((pa + Ra * ra) - (pb + Rb * rb))
+
 
 def joint_order(mech) -> list[Joint]:
     """The joints in an order where each parent comes before its children."""
@@ -95,6 +97,7 @@ def joint_order(mech) -> list[Joint]:
             placed.add(j.child)
             pending.remove(j)
     return order
+
 
 def body_frames(mech) -> dict[Body, Frame]:
     """The :class:`Frame` of every body (module docstring: the recursion)."""
@@ -121,6 +124,7 @@ def body_frames(mech) -> dict[Body, Frame]:
         a = P.a + _cross(P.e, s) + _cross(P.w, ws + v_r) + _cross(P.w, v_r) + a_r - _cross(e, c) - _cross(w, wc)
         frames[j.child] = Frame(R, p, omega, eps, w, e, v, a)
     return frames
+
 
 def rigid_tree(mech, coordinates, potential=sp.S.Zero, positions=None, wrenches=(), loops=()) -> RigidTree | None:
     """The :class:`~appell.rigid_tree.RigidTree` of the bodies (``coordinates``: the
@@ -170,6 +174,7 @@ def rigid_tree(mech, coordinates, potential=sp.S.Zero, positions=None, wrenches=
                  for name, kind, ba, ra, ua, bb, rb, ub in loops)
     return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential, tuple(wrenches), loops=rows)
 
+
 def loop_parts(mech) -> LoopParts:
     """What the closed-chain route (:mod:`appell.numerics.loops`) takes, without the bodies'
     expanded kinematics: the joint tree with every row of the loop closures (``connect``,
@@ -198,6 +203,7 @@ def loop_parts(mech) -> LoopParts:
     return LoopParts(mech.name, tuple(coords), tree, constraints, tuple(Q), controls, tuple(mech.parameters),
                      start)
 
+
 def subtree(mech, joint: Joint) -> list[Body]:
     """The bodies carried by ``joint``: its child and all the child's descendants."""
     out, stack = [], [joint.child]
@@ -206,6 +212,7 @@ def subtree(mech, joint: Joint) -> list[Body]:
         out.append(b)
         stack += [j.child for j in mech.joints if j.parent is b]
     return out
+
 
 def joint_reactions(mech, frames, actions) -> dict[Joint, tuple[sp.Matrix, sp.Matrix]]:
     """``{joint: (F, M)}``: force and moment (world axes) of the parent on the child of each
@@ -241,15 +248,63 @@ def joint_reactions(mech, frames, actions) -> dict[Joint, tuple[sp.Matrix, sp.Ma
         out[joint] = (F, M)
     return out
 
+
 def system(mech, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
            constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
            moment_unit="N*m", energy: bool = False, reactions_in=None, joint_forces=None, rotor_energy=None,
            programs=()) -> System:
     """The :class:`appell.System` of ``mech`` (the arguments as
-    :meth:`appell.mechanism.builder.Mechanism.system` states them)."""
+    :meth:`appell.mechanism.builder.Mechanism.system` states them), in stages: the bodies and
+    their gravity potential, the loads, the joints' and closures' constraints, the generalized
+    forces of the actuators, the parameters, the outputs (reactions, points, energy), the start."""
     frames = body_frames(mech)
     order = joint_order(mech)
     coords = [q for j in mech.joints for q in j.coordinates]  # in the order the joints were added
+    bodies, V, positions = _bodies(mech, frames)
+    loads, actions, drawn_loads = _loads(mech, frames)
+    cons, acts, contact_forces, loops = _constraints(mech, frames, order)
+    actions += acts
+    Q, ctl = _generalized_forces(mech, coords, joint_forces)
+    params = _parameters(mech, parameters)
+    reactions_in = reactions_in or mech.reactions_in
+    if reactions_in is not None:
+        for j in mech.joints:  # a name that is not a body fails here, before any work
+            mech._axes_of(j, reactions_in, "reactions_in")
+    reaction_groups = list(_reaction_outputs(mech, reactions, frame, frames, actions, force_unit, moment_unit,
+                                             reactions_in))
+    reaction_outputs = [o for _, _, outs in reaction_groups for o in outs]
+    reaction_outputs += _tooth_outputs(mech, reactions, contact_forces, force_unit, frames)
+    reaction_outputs += [Output(f"{n}_effort", sp.Symbol(f"lambda_{n}"), moment_unit if turn else force_unit,
+                                f"{'torque' if turn else 'force'} of drive {n} along its coordinate")
+                         for n, turn in mech._drives if reactions is not None]
+    acted = {act.body for act in actions}
+    drawn = {o.name for _, body, outs in reaction_groups if body != "read" for o in outs}  # the view's arrows
+    wrenches = tuple(Wrench(j.child.name, None if body is None else body.name, tuple(o.name for o in outs),
+                            tuple(o.expr for o in outs))
+                     for j, body, outs in reaction_groups
+                     if body != "read" and not any(b in acted for b in subtree(mech, j)))
+    outs = reaction_outputs + _point_outputs(mech, frames)
+    if energy:
+        outs += _energy_outputs(mech, frames, bodies, V)
+    outs += list(outputs.values() if isinstance(outputs, dict) else outputs)
+    start, guesses = _start(order, coords, initial)
+    if not bodies:
+        raise ModelError(f"mechanism {mech.name!r} has no bodies", hint="add one with mech.body(...)")
+    return System(coordinates=tuple(coords), parameters=tuple(params), bodies=tuple(bodies), potential_energy=V,
+                  kinetic_energy=None if rotor_energy is None else sp.sympify(rotor_energy),
+                  generalized_forces=tuple(Q) if any(e != 0 for e in Q) else None, loads=tuple(loads),
+                  constraints=tuple(cons) + tuple(constraints), controls=tuple(ctl) + tuple(controls),
+                  programs=tuple(programs), servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
+                  name=mech.name,
+                  description=mech.description, settings=settings, units=units or (), outputs=tuple(outs),
+                  view=_view(mech, frames, contact_forces + drawn_loads, drawn, frame, params),
+                  tree=rigid_tree(mech, coords, V, positions, wrenches, loops))
+
+
+def _bodies(mech, frames):
+    """``(bodies, V, positions)``: the model's bodies (a particle or a rigid body at its mass
+    centre; a massless frame none), the gravity potential ``V = -sum m g . r_C`` and every body's
+    mass centre ``{body: r_C}`` (world axes)."""
     bodies = []
     V = sp.S.Zero
     positions = {}
@@ -266,6 +321,12 @@ def system(mech, parameters=None, initial=None, reactions="all", frame=None, set
                                     angular_velocity=f.omega))
         if mech.gravity is not None:
             V -= b.mass * mech.gravity.dot(rC)
+    return bodies, V, positions
+
+
+def _loads(mech, frames):
+    """``(loads, actions, drawn loads)``: the model's applied forces and torques of the loads,
+    their actions on the bodies (for the reactions) and those the view draws ``(name, actions)``."""
     loads, actions = [], []
     drawn_loads = []
     for name, build in mech._forces:
@@ -275,8 +336,15 @@ def system(mech, parameters=None, initial=None, reactions="all", frame=None, set
         if name in mech._drawn and any(a.body is not mech.ground for a in acts):
             body = next(a.body for a in acts if a.body is not mech.ground)  # drawn on a moving body
             drawn_loads.append((name, [a for a in acts if a.body is body] + [a for a in acts if a.body is not body]))
+    return loads, actions, drawn_loads
+
+
+def _constraints(mech, frames, order):
+    """``(constraints, actions, contact forces, loop rows)``: the joints' own constraints (a
+    quaternion's norm) and those of the closures and contacts (located where the file gave
+    them), their multipliers' actions on the bodies, and the rows the recursive route takes."""
     cons = [holonomic(n, e) for j in order for n, e in j.motion.constraints]
-    contact_forces, loops = [], []
+    actions, contact_forces, loops = [], [], []
     for closure in mech._closures:
         more, acts = closure.build(frames)
         built = {c.name for c in more}
@@ -285,8 +353,13 @@ def system(mech, parameters=None, initial=None, reactions="all", frame=None, set
         actions += acts
         if acts:
             contact_forces.append((closure.name, acts))
-    speeds = [derivative_symbol(q) for q in coords]
-    Q, ctl = [sp.S.Zero] * len(speeds), []
+    return cons, actions, contact_forces, loops
+
+
+def _generalized_forces(mech, coords, joint_forces):
+    """``(Q, controls)``: the actuators' forces along their coordinates (a control where no value
+    is given) and the ``joint_forces`` ``{coordinate name: Q}``."""
+    Q, ctl = [sp.S.Zero] * len(coords), []
     for name, _, q, value in mech._actuators:
         Q[coords.index(q)] += sp.Symbol(name) if value is None else value
         if value is None:
@@ -297,6 +370,11 @@ def system(mech, parameters=None, initial=None, reactions="all", frame=None, set
             raise ModelError(f"mechanism {mech.name!r}: joint force on unknown coordinate {qname!r}",
                              hint="coordinates: " + ", ".join(q.name for q in coords))
         Q[k] += sp.sympify(value)
+    return Q, ctl
+
+
+def _parameters(mech, parameters) -> list[Parameter]:
+    """The mechanism's parameters with the values ``parameters`` ``{name: value}`` gives."""
     params = list(mech.parameters)
     if parameters:
         known = {p.symbol.name for p in params}
@@ -306,60 +384,48 @@ def system(mech, parameters=None, initial=None, reactions="all", frame=None, set
                              hint="parameters: " + ", ".join(sorted(known)))
         values = {str(k): v for k, v in parameters.items()}
         params = [Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description) for p in params]
-    reactions_in = reactions_in or mech.reactions_in
-    if reactions_in is not None:
-        for j in mech.joints:  # a name that is not a body fails here, before any work
-            mech._axes_of(j, reactions_in, "reactions_in")
-    reaction_groups = list(_reaction_outputs(mech, reactions, frame, frames, actions, force_unit, moment_unit,
-                                                  reactions_in))
-    reaction_outputs = [o for _, _, outs in reaction_groups for o in outs]
-    reaction_outputs += _tooth_outputs(mech, reactions, contact_forces, force_unit, frames)
-    reaction_outputs += [Output(f"{n}_effort", sp.Symbol(f"lambda_{n}"), moment_unit if turn else force_unit,
-                                f"{'torque' if turn else 'force'} of drive {n} along its coordinate")
-                         for n, turn in mech._drives if reactions is not None]
-    acted = {act.body for act in actions}
-    drawn = {o.name for _, body, outs in reaction_groups if body != "read" for o in outs}  # the view's arrows
-    wrenches = tuple(Wrench(j.child.name, None if body is None else body.name, tuple(o.name for o in outs),
-                            tuple(o.expr for o in outs))
-                     for j, body, outs in reaction_groups
-                     if body != "read" and not any(b in acted for b in subtree(mech, j)))
-    outs = list(reaction_outputs)
+    return params
+
+
+def _point_outputs(mech, frames) -> list[Output]:
+    """``<point>_x .. _z``: the world position of every point of ``watch_point``."""
+    outs = []
     for pname, body, r in mech._points:
         position = frames[body].point(r)[0]
         outs += [Output(f"{pname}_{a}", position[i], "m", f"world {a} of point {pname!r} of body {body.name!r}")
                  for i, a in enumerate("xyz")]
-    if energy:
-        kinetic = sp.S.Zero
-        for b in bodies:
-            kinetic += b.mass * b.velocity.dot(b.velocity) / 2
-            if isinstance(b, RigidBody):
-                kinetic += (b.angular_velocity.T * b.inertia * b.angular_velocity)[0] / 2
-        potential = V
-        for ba, ra, bb, rb, k, l0 in mech._springs:
-            d = frames[ba].point(ra)[0] - frames[bb].point(rb)[0]
-            potential += k * (sp.sqrt(d.dot(d)) - l0) ** 2 / 2
-        outs += [Output("energy_kinetic", kinetic, "J", "kinetic energy of the bodies"),
-                 Output("energy_potential", potential, "J", "potential energy of gravity and the springs"),
-                 Output("energy", kinetic + potential, "J", "kinetic + potential energy")]
-    outs += list(outputs.values() if isinstance(outputs, dict) else outputs)
+    return outs
+
+
+def _energy_outputs(mech, frames, bodies, V) -> list[Output]:
+    """``energy_kinetic`` (``sum m v.v/2 + w.I w/2``), ``energy_potential`` (gravity's ``V`` and
+    the springs' ``k (l - l0)^2/2``) and ``energy``, their sum."""
+    kinetic = sp.S.Zero
+    for b in bodies:
+        kinetic += b.mass * b.velocity.dot(b.velocity) / 2
+        if isinstance(b, RigidBody):
+            kinetic += (b.angular_velocity.T * b.inertia * b.angular_velocity)[0] / 2
+    potential = V
+    for ba, ra, bb, rb, k, l0 in mech._springs:
+        d = frames[ba].point(ra)[0] - frames[bb].point(rb)[0]
+        potential += k * (sp.sqrt(d.dot(d)) - l0) ** 2 / 2
+    return [Output("energy_kinetic", kinetic, "J", "kinetic energy of the bodies"),
+            Output("energy_potential", potential, "J", "potential energy of gravity and the springs"),
+            Output("energy", kinetic + potential, "J", "kinetic + potential energy")]
+
+
+def _start(order, coords, initial):
+    """``(initial values, guesses)``: zero (the joints' defaults: a quaternion at the identity)
+    where ``initial`` gives no value; the names not given are starting guesses."""
     start = {q.name: 0.0 for q in coords}
-    start.update({w.name: 0.0 for w in speeds})
+    start.update({derivative_symbol(q).name: 0.0 for q in coords})
     for j in order:
         start.update(dict(j.motion.defaults))
     given = {str(k): v for k, v in (initial or {}).items()}
     start.update(given)
     guesses = tuple(n for n in start if n not in given)
-    if not bodies:
-        raise ModelError(f"mechanism {mech.name!r} has no bodies", hint="add one with mech.body(...)")
-    return System(coordinates=tuple(coords), parameters=tuple(params), bodies=tuple(bodies), potential_energy=V,
-                  kinetic_energy=None if rotor_energy is None else sp.sympify(rotor_energy),
-                  generalized_forces=tuple(Q) if any(e != 0 for e in Q) else None, loads=tuple(loads),
-                  constraints=tuple(cons) + tuple(constraints), controls=tuple(ctl) + tuple(controls),
-                  programs=tuple(programs), servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
-                  name=mech.name,
-                  description=mech.description, settings=settings, units=units or (), outputs=tuple(outs),
-                  view=_view(mech, frames, contact_forces + drawn_loads, drawn, frame, params),
-                  tree=rigid_tree(mech, coords, V, positions, wrenches, loops))
+    return start, guesses
+
 
 def _view(mech, frames, contact_forces, reaction_names, frame, params) -> View:
     """The :class:`appell.view.View` of the mechanism: each body at its frame's pose with
@@ -440,6 +506,7 @@ def _view(mech, frames, contact_forces, reaction_names, frame, params) -> View:
             up = tuple(-x for x in g)
     return View(tuple(bodies), tuple(arrows), up=up, joints=tuple(joints))
 
+
 def _tooth_outputs(mech, reactions, contact_forces, force_unit, frames) -> list[Output]:
     """``F_<coupling>_x .. _z``: the tooth force of each gear or rack coupling on the body of
     its second joint, at the pitch point (world axes, or a body's: :meth:`~appell.mechanism.builder.Mechanism.reaction_output`),
@@ -459,6 +526,7 @@ def _tooth_outputs(mech, reactions, contact_forces, force_unit, frames) -> list[
                             f"tooth force on {on.name} of coupling {name} at the pitch point, {axis} ({where})")
                      for axis, e in zip("xyz", f)]
     return outs
+
 
 def _reaction_outputs(mech, reactions, frame, frames, actions, force_unit, moment_unit, reactions_in=None):
     """``(joint, axes body or None, outputs)`` per joint; ``"read"`` in place of the body
@@ -488,6 +556,7 @@ def _reaction_outputs(mech, reactions, frame, frames, actions, force_unit, momen
                    f"{what} of {j.parent.name} on {j.child.name} at joint {j.name}'s origin, {axis} ({where})")
             for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment"))
             for axis, e in zip("xyz", vec)]
+
 
 def _read(mech, j: Joint, F, M, frames, reactions_in, force_unit, moment_unit) -> list[Output]:
     """The outputs of joint ``j``'s reaction read as :meth:`~appell.mechanism.builder.Mechanism.reaction_output` says (or along
