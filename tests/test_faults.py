@@ -33,6 +33,7 @@ from appell.examples import example_path
 from appell.examples.catalog import CATALOG
 from appell import files
 from appell.io.cli import cli
+from appell.io.results import write_netcdf
 from processes import env_with_src
 
 SRC = str(Path(appell.__file__).resolve().parents[1])
@@ -77,16 +78,15 @@ def test_full_disk_fails_cleanly_and_keeps_the_old_file(tmp_path, monkeypatch, s
     target.write_bytes(b"previous result\n")
     # HDF5 and netCDF-4: the bytes of the file built in memory
     monkeypatch.setattr(files, "write_bytes", enospc)
-    from appell.simulation import solution as solution_module
-    from appell.simulation.solution import Solution
+    from appell.io import results
 
-    monkeypatch.setattr(solution_module, "write_bytes", enospc)
+    monkeypatch.setattr(results, "write_bytes", enospc)
 
     if suffix == ".csv":
         def rows(self):
             yield ["t"]
             enospc()
-        monkeypatch.setattr(Solution, "_csv_rows", rows)
+        monkeypatch.setattr("appell.io.results.csv_rows", rows)
     result = run("simulate", "pendulum", "--t-end", "0.2", "--backend", "numpy", "--out", target)
     assert result.exit_code == 1, result.output
     assert "no space left on device" in result.stderr.lower() and str(target) in result.stderr
@@ -277,7 +277,7 @@ def test_stale_temporary_of_a_dead_process_is_removed_on_the_next_write(tmp_path
 
 SLOW_WRITE = """
 import sys, time
-from appell.simulation.solution import Solution
+import appell.io.results
 from appell.io.cli import main
 
 def rows(self):
@@ -286,7 +286,7 @@ def rows(self):
     time.sleep(60)
     yield ["1"]
 
-Solution._csv_rows = rows
+appell.io.results.csv_rows = rows
 main(sys.argv[1:])
 """
 
@@ -364,7 +364,7 @@ def test_non_ascii_model_name_and_symbols_in_netcdf(tmp_path):
     from appell.simulation.simulate import simulate
 
     sol = simulate(appell.derive(system), 1.0, t_eval=[0.0, 1.0], progress=False)
-    sol.to_netcdf(tmp_path / "theta.nc")
+    write_netcdf(sol, tmp_path / "theta.nc")
     with xr.open_dataset(tmp_path / "theta.nc", engine="h5netcdf") as ds:  # netCDF-4 names are UTF-8
         # theta'' = -theta; the default rtol 1e-9 over 1 s: 7e-11 (measured)
         assert ds["θ"].values == pytest.approx([1.0, np.cos(1.0)], abs=1e-7)

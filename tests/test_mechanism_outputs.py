@@ -17,6 +17,7 @@ from appell import ModelError, Output, System, derive, holonomic, simulate
 from appell.io.printing import derivation_text, read_json
 from appell.mechanism import Mechanism
 from appell import numeric_model
+from appell.io.results import write_csv, write_hdf5, write_netcdf
 
 M, L, G = 2.0, 1.5, 9.81
 
@@ -53,19 +54,19 @@ def test_solution_records_joint_forces_after_the_multipliers_with_units(solution
 
 def test_output_columns_reach_csv_netcdf_and_hdf5(solution, tmp_path):
     """Each file carries the output columns with their values (read back) and units."""
-    solution.to_csv(tmp_path / "p.csv")
+    write_csv(solution, tmp_path / "p.csv")
     with open(tmp_path / "p.csv") as fh:
         rows = list(csv.DictReader(fh))
     # the files hold the float64 values exactly (repr in CSV): equal, approx only compares lists
     assert [float(r["F_pin_y"]) for r in rows] == pytest.approx(list(solution["F_pin_y"]))
     xr = pytest.importorskip("xarray")
     pytest.importorskip("h5netcdf")
-    solution.to_netcdf(tmp_path / "p.nc")
+    write_netcdf(solution, tmp_path / "p.nc")
     with xr.open_dataset(tmp_path / "p.nc") as ds:
         assert ds["F_pin_x"].attrs["units"] == "N" and ds["F_pin_x"].attrs["kind"] == "output"
         assert np.asarray(ds["F_pin_x"]) == pytest.approx(solution["F_pin_x"])
     h5py = pytest.importorskip("h5py")
-    solution.to_hdf5(tmp_path / "p.h5")
+    write_hdf5(solution, tmp_path / "p.h5")
     with h5py.File(tmp_path / "p.h5") as f:
         assert f["outputs/M_pin_z"].attrs["units"] == "N*m"
         assert np.asarray(f["outputs/F_pin_y"]) == pytest.approx(solution["F_pin_y"])

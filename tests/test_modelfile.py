@@ -18,6 +18,7 @@ from appell.examples import CATALOG, example_path, list_examples
 from appell.io.modelfile import ExpressionError, parse_expression
 from appell.simulation.options import SimulationOptions
 from appell import numeric_model
+from appell.io.results import write_hdf5
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -441,7 +442,7 @@ def test_units_table_reaches_the_result_files(tmp_path):
     system = load_model(example_path("car"))
     assert system.unit_of["lambda_rear"] == "N" and system.unit_of["phi_dot"] == "rad/s"
     sol = simulate(derive(system), 0.5, complete=True)
-    sol.to_hdf5(tmp_path / "car.h5")
+    write_hdf5(sol, tmp_path / "car.h5")
     with h5py.File(tmp_path / "car.h5") as f:
         assert f["states/x"].attrs["units"] == "m" and f["states/phi_dot"].attrs["units"] == "rad/s"
         assert f["multipliers/front"].attrs["units"] == "N"

@@ -23,6 +23,7 @@ from appell import load_model, simulate, sweep
 from appell.core.derive import derive
 from appell.control.servo import derive_controlled
 from appell.examples import example_path
+from appell.io.results import write_csv, write_hdf5, write_netcdf
 
 EXAMPLES = Path(example_path("pendulum")).parent
 
@@ -48,15 +49,15 @@ def test_every_column_is_in_csv_hdf5_and_netcdf(case, tmp_path):
     _, sol, _, _ = case
     columns = sol.column_info()
     kinds = {c.kind for c in columns}
-    with open(sol.to_csv(tmp_path / "r.csv"), newline="") as fh:
+    with open(write_csv(sol, tmp_path / "r.csv"), newline="") as fh:
         header = next(row for row in csv.reader(fh) if row and not row[0].startswith("#"))
     assert header == [c.name for c in columns]
-    with h5py.File(sol.to_hdf5(tmp_path / "r.h5"), "r") as f:
+    with h5py.File(write_hdf5(sol, tmp_path / "r.h5"), "r") as f:
         for c in columns:
             path = c.key if not c.group else f"{c.group}/{c.key}"
             np.testing.assert_array_equal(f[path][()], np.asarray(c.values, float), err_msg=c.name)
             assert f[path].attrs["units"] == c.units
-    data = xr.open_dataset(sol.to_netcdf(tmp_path / "r.nc"), engine="h5netcdf")
+    data = xr.open_dataset(write_netcdf(sol, tmp_path / "r.nc"), engine="h5netcdf")
     for c in columns[1:]:
         np.testing.assert_array_equal(data[c.name].values, np.asarray(c.values, float), err_msg=c.name)
     name = sol.metadata.name

@@ -33,6 +33,7 @@ from appell.examples import example_path
 from appell.io.cli import cli
 from appell.simulation.solution import EventRecord, ModelMetadata, SolverStatistics
 from appell import numeric_model
+from appell.io.results import write_csv, write_hdf5, write_netcdf
 
 G, TH0 = 9.81, math.pi / 3
 
@@ -103,7 +104,7 @@ def test_accelerations_sit_next_to_the_states_in_every_output(car_solution, tmp_
     assert names[:10] == ["t", "x", "y", "phi", "x_dot", "y_dot", "phi_dot", "x_ddot", "y_ddot", "phi_ddot"]
     import h5py
 
-    with h5py.File(car_solution.to_hdf5(tmp_path / "car.h5"), "r") as f:
+    with h5py.File(write_hdf5(car_solution, tmp_path / "car.h5"), "r") as f:
         np.testing.assert_array_equal(f["accelerations/phi_ddot"][()], car_solution["phi_ddot"])
         assert f["accelerations/x_ddot"].attrs["units"] == "m/s^2"  # from the speed's m/s
         assert f["accelerations/phi_ddot"].attrs["units"] == "rad/s^2"
@@ -111,7 +112,7 @@ def test_accelerations_sit_next_to_the_states_in_every_output(car_solution, tmp_
 
 # ------------------------------------------------------------------ netCDF, xarray, pandas
 def test_netcdf_is_cf_netcdf4_that_xarray_opens(car_solution, tmp_path):
-    path = car_solution.to_netcdf(tmp_path / "car.nc")
+    path = write_netcdf(car_solution, tmp_path / "car.nc")
     assert path.read_bytes()[:8] == b"\x89HDF\r\n\x1a\n"  # netCDF-4 is HDF5
     with xr.open_dataset(path) as ds:
         assert ds.attrs["Conventions"] == "CF-1.10"
@@ -152,12 +153,12 @@ def test_dataframe_round_trips_the_arrays_and_the_csv(car_solution, tmp_path):
         np.testing.assert_array_equal(df[name].to_numpy(), car_solution[name])
     assert df.attrs["units"]["lambda_rear"] == "N" and df.attrs["units"]["x_ddot"] == "m/s^2"
     # the CSV read by pandas is the same frame (values written with repr: exact)
-    back = pd.read_csv(car_solution.to_csv(tmp_path / "car.csv"), index_col="t")
+    back = pd.read_csv(write_csv(car_solution, tmp_path / "car.csv"), index_col="t")
     pd.testing.assert_frame_equal(back, df, check_exact=True)
 
 
 def test_hdf5_groups_open_in_xarray_on_the_time_scale(car_solution, tmp_path):
-    path = car_solution.to_hdf5(tmp_path / "car.h5")
+    path = write_hdf5(car_solution, tmp_path / "car.h5")
     tree = xr.open_datatree(path, engine="h5netcdf")
     states = tree["states"].to_dataset()
     np.testing.assert_array_equal(states["t"].values, car_solution.t)

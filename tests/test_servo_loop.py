@@ -13,6 +13,7 @@ import numpy as np
 from appell.examples.servo_examples import appell_ball, spring_masses
 from appell.control.servo import derive_controlled
 from appell.simulation.simulate import simulate
+from appell.io.results import write_csv
 
 W, M = 2.0, 1.0
 
@@ -85,7 +86,7 @@ def test_tracking_error_is_recorded_for_the_servo_constraints(tmp_path):
     assert set(sol.tracking) == {"circle_x", "circle_y"}
     assert 0 < sol.max_tracking_error < 1e-8  # linear invariants of the run (above): rounding only
     assert "tracking error" in sol.summary()
-    with open(sol.to_csv(tmp_path / "ball.csv"), newline="") as fh:
+    with open(write_csv(sol, tmp_path / "ball.csv"), newline="") as fh:
         header = next(csv.reader(fh))
     assert header[-4:] == ["residual_roll_x", "residual_roll_y", "residual_circle_x", "residual_circle_y"]
 

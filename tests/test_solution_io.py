@@ -12,6 +12,7 @@ import appell
 from appell import Solution, simulate
 from appell.examples import catalog
 from appell.simulation.solution import EventRecord, ModelMetadata, SolverStatistics
+from appell.io.results import write_csv, write_hdf5
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +38,7 @@ def synthetic():
 
 
 def test_csv_columns_in_the_documented_order(car_solution, tmp_path):
-    path = car_solution.to_csv(tmp_path / "car.csv")
+    path = write_csv(car_solution, tmp_path / "car.csv")
     with open(path, newline="") as fh:
         rows = list(csv.reader(fh))
     assert rows[0] == ["t", "x", "y", "phi", "x_dot", "y_dot", "phi_dot", "x_ddot", "y_ddot", "phi_ddot",
@@ -53,7 +54,7 @@ def test_csv_columns_in_the_documented_order(car_solution, tmp_path):
 
 def test_csv_controls_and_second_order_residual(tmp_path):
     sol = synthetic()
-    with open(sol.to_csv(tmp_path / "toy.csv"), newline="") as fh:
+    with open(write_csv(sol, tmp_path / "toy.csv"), newline="") as fh:
         rows = list(csv.reader(fh))
     assert rows[0] == ["t", "q", "q_dot", "lambda_hol", "lambda_first", "lambda_second", "control_u",
                        "residual_hol", "residual_first", "residual_second"]
@@ -65,7 +66,7 @@ def test_csv_controls_and_second_order_residual(tmp_path):
 
 def test_hdf5_is_self_describing(car_solution, tmp_path):
     # the car declares its units ([units] / System.units); an explicit mapping overrides them
-    path = car_solution.to_hdf5(tmp_path / "car.h5", units={"x": "km"})
+    path = write_hdf5(car_solution, tmp_path / "car.h5", units={"x": "km"})
     with h5py.File(path, "r") as f:
         assert f.attrs["model"] == "car"
         assert f.attrs["appell_version"] == appell.__version__
@@ -95,14 +96,14 @@ def test_failed_csv_write_leaves_no_file(tmp_path, monkeypatch):
         yield ["0.0", "0.0"]
         raise OSError("disk full (simulated)")
 
-    monkeypatch.setattr(Solution, "_csv_rows", broken_rows)
+    monkeypatch.setattr("appell.io.results.csv_rows", broken_rows)
     with pytest.raises(OSError, match="simulated"):
-        sol.to_csv(target)
+        write_csv(sol, target)
     assert os.listdir(tmp_path) == []
     # an existing file is left untouched
     target.write_text("old content\n")
     with pytest.raises(OSError):
-        sol.to_csv(target)
+        write_csv(sol, target)
     assert target.read_text() == "old content\n"
     assert os.listdir(tmp_path) == ["out.csv"]
 
@@ -120,7 +121,7 @@ def test_failed_hdf5_write_leaves_no_file(tmp_path, monkeypatch):
 
     monkeypatch.setattr(h5py.Group, "create_dataset", failing)
     with pytest.raises(OSError, match="simulated"):
-        sol.to_hdf5(tmp_path / "toy.h5")
+        write_hdf5(sol, tmp_path / "toy.h5")
     assert os.listdir(tmp_path) == []
 
 

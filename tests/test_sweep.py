@@ -15,6 +15,7 @@ pytest.importorskip("appell.simulation.simulate")
 import appell  # noqa: E402
 from appell.examples.catalog import CATALOG  # noqa: E402
 from appell.simulation.sweep import parameter_grid, parse_spec, sweep  # noqa: E402
+from appell.io.results import write_netcdf
 
 
 def test_specs():
@@ -69,7 +70,7 @@ def test_a_sweep_leaves_no_default_dask_client_behind(tmp_path):
           n_workers=1, processes=False, backend="numpy", progress=False)
     assert dask.config.get("scheduler", None) != "dask.distributed"
     sol = appell.simulate(appell.derive(CATALOG["pendulum"]()), 0.1, t_eval=[0.0, 0.1], progress=False)
-    sol.to_netcdf(tmp_path / "after.nc")
+    write_netcdf(sol, tmp_path / "after.nc")
     import xarray as xr
 
     with xr.open_dataset(tmp_path / "after.nc", engine="h5netcdf") as ds:

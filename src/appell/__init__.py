@@ -41,6 +41,7 @@ _LAZY = {
     **dict.fromkeys(('ControlledModel', 'augmented_controlled_solve', 'cross_check_controlled'), 'appell.control.servo_numeric'),
     **dict.fromkeys(('display_latex', 'read_json', 'to_json', 'to_latex', 'to_text'), 'appell.io.printing'),
     **dict.fromkeys(('render_report', 'write_report'), 'appell.io.report'),
+    **dict.fromkeys(('write_csv', 'write_hdf5', 'write_netcdf'), 'appell.io.results'),
     **dict.fromkeys(('MotionView', 'view_motion'), 'appell.io.viewer'),
     **dict.fromkeys(('from_sympy',), 'appell.mechanism.sympy_system'),
 }
@@ -153,7 +154,7 @@ __all__ = [
     "SweepResult", "compile_c", "parameter_grid", "sweep", "sweep_cluster",
     "ControlledDerivation", "ControlledModel", "augmented_controlled_solve", "cross_check_controlled",
     "derive_controlled",
-    "render_report", "write_report", "MotionView", "view_motion",
+    "render_report", "write_report", "write_csv", "write_hdf5", "write_netcdf", "MotionView", "view_motion",
     "from_sympy",
     "numeric_model", "read_json", "to_json", "to_latex", "to_text",
 ]

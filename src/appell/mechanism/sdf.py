@@ -131,24 +131,20 @@ def _model(tree, source):
     return model, gravity
 
 
-def sdf_mechanism(source, text=None):
-    """``(Mechanism, constraints, joint_forces)`` of an SDF file (module docstring)."""
-    from appell.mechanism.builder import Mechanism
+def _read_bytes(source):
+    """The bytes of the SDF file ``source`` (at most :data:`MAX_URDF_SIZE`)."""
+    path = Path(source)
+    try:
+        if path.stat().st_size > MAX_URDF_SIZE:
+            raise ModelError(f"the SDF file has more than {MAX_URDF_SIZE} bytes", where=str(path))
+        return path.read_bytes()
+    except OSError as exc:
+        raise ModelError(f"cannot read the SDF file: {exc.strerror or exc}", where=str(path)) from None
 
-    if text is None:
-        path = Path(source)
-        try:
-            if path.stat().st_size > MAX_URDF_SIZE:
-                raise ModelError(f"the SDF file has more than {MAX_URDF_SIZE} bytes", where=str(path))
-            text = path.read_bytes()
-        except OSError as exc:
-            raise ModelError(f"cannot read the SDF file: {exc.strerror or exc}", where=str(path)) from None
-    source = str(source)
-    model, gravity = _model(read_sdf_text(text, source), source)
-    name = _appell_name(model.attrib.get("name") or "sdf_model", "model", f"{source}:{model.line}")
-    static = (model.find("static") is not None and model.find("static").attrib["_text"].strip() in ("true", "1"))
-    mech = Mechanism(name, gravity=gravity)
-    links, ignored = {}, []
+
+def _links(model, source) -> dict:
+    """``{name: <link>}`` of the model, each named once."""
+    links = {}
     for link in model.findall("link"):
         lname = link.attrib.get("name")
         if not lname:
@@ -158,7 +154,12 @@ def sdf_mechanism(source, text=None):
         links[lname] = link
     if not links:
         raise ModelError("the model has no links", where=f"{source}:{model.line}")
-    joints = model.findall("joint")
+    return links
+
+
+def _joints_by_parent(joints, links, source, ignored) -> dict[str, list]:
+    """``{parent link or 'world': [<joint>, ...]}``, each joint checked (a name, a type read,
+    links of the model); what is not applied (limits) is appended to ``ignored``."""
     by_parent: dict[str, list] = {}
     for j in joints:
         jname = j.attrib.get("name")
@@ -179,15 +180,48 @@ def sdf_mechanism(source, text=None):
         by_parent.setdefault(parent, []).append(j)
         if j.find("physics") is not None or (j.find("axis") is not None and j.find("axis").find("limit") is not None):
             ignored.append(f"the limits of joint {jname!r}")
+    return by_parent
 
-    X = {n: _pose(link, source, f"link {n!r}") for n, link in links.items()}  # link frames in the model frame
-    F = {"world": (np.eye(3), np.zeros(3))}  # appell body frames (at the assembled pose) in the model frame
-    body = {}
-    forces: dict[str, sp.Expr] = {}
 
-    def make_body(lname, R_F, p_F):
-        link = links[lname]
-        R_L, p_L = X[lname]
+def _axis_of(j, source):
+    """The unit axis of joint ``j`` in its own frame (z without ``<axis>``)."""
+    axis = j.find("axis")
+    where = f"{source}:{j.line}"
+    if axis is None:
+        return (0.0, 0.0, 1.0)
+    xyz = axis.find("xyz")
+    if axis.find("use_parent_model_frame") is not None or (xyz is not None and xyz.attrib.get("expressed_in")):
+        raise ModelError(f"joint {j.attrib['name']!r}: an axis expressed in another frame is not read", where=where,
+                         hint="give <xyz> in the joint frame (SDF's default)")
+    dynamics = axis.find("dynamics")
+    if dynamics is not None and dynamics.find("friction") is not None and \
+            float(dynamics.find("friction").attrib["_text"] or 0) != 0:
+        raise ModelError(f"joint {j.attrib['name']!r} has dry friction, which appell does not apply here",
+                         where=where, hint="remove <friction> (appell's Coulomb friction needs a normal force)")
+    return _numbers(xyz, 3, source, f"axis of joint {j.attrib['name']!r}", (0.0, 0.0, 1.0))
+
+
+def _in_frame(frame, R, p):
+    """A pose (model frame) in an appell body frame ``frame = (R_F, p_F)``."""
+    R_F, p_F = frame
+    return R_F.T @ R, R_F.T @ (p - p_F)
+
+
+class _Placing:
+    """The links placed as bodies of ``mech``: ``X`` the link frames in the model frame, ``F`` the
+    appell body frames (at the assembled pose) in the model frame, ``body`` the bodies by link."""
+
+    def __init__(self, mech, links, source):
+        self.mech, self.links, self.source = mech, links, source
+        self.X = {n: _pose(link, source, f"link {n!r}") for n, link in links.items()}
+        self.F = {"world": (np.eye(3), np.zeros(3))}
+        self.body = {}
+
+    def make_body(self, lname, R_F, p_F):
+        """The body of link ``lname`` with its frame at ``(R_F, p_F)`` (model frame): its mass,
+        inertia and mass centre moved from the link's ``<inertial>`` into that frame."""
+        source, link = self.source, self.links[lname]
+        R_L, p_L = self.X[lname]
         R_T, p_T = R_F.T @ R_L, R_F.T @ (p_L - p_F)  # the link frame in the body frame
         inertial = link.find("inertial")
         mass, I, com = 1.0, np.eye(3), np.zeros(3)
@@ -204,51 +238,40 @@ def sdf_mechanism(source, text=None):
             I, com = R_I @ I @ R_I.T, p_I
         I = R_T @ I @ R_T.T
         ident = _appell_name(lname, "link", f"{source}:{link.line}")
-        F[lname] = (R_F, p_F)
+        self.F[lname] = (R_F, p_F)
         if mass == 0 and not np.any(I):
-            body[lname] = mech.massless(ident)
+            self.body[lname] = self.mech.massless(ident)
         else:
-            body[lname] = mech.body(ident, mass, inertia=sp.Matrix((I + I.T) / 2).applyfunc(sp.Float),
-                                    com=tuple(float(c) for c in p_T + R_T @ com))
-        return body[lname]
+            self.body[lname] = self.mech.body(ident, mass, inertia=sp.Matrix((I + I.T) / 2).applyfunc(sp.Float),
+                                              com=tuple(float(c) for c in p_T + R_T @ com))
+        return self.body[lname]
 
-    def joint_frame(j):
+    def joint_frame(self, j):
+        """The frame of joint ``j`` in the model frame (its pose is in its child link's frame)."""
         child = j.find("child").attrib["_text"].strip()
-        R_C, p_C = X[child]
-        R_J, p_J = _pose(j, source, f"joint {j.attrib['name']!r}")
+        R_C, p_C = self.X[child]
+        R_J, p_J = _pose(j, self.source, f"joint {j.attrib['name']!r}")
         return R_C @ R_J, p_C + R_C @ p_J
 
-    def axis_of(j):
-        axis = j.find("axis")
-        where = f"{source}:{j.line}"
-        if axis is None:
-            return (0.0, 0.0, 1.0)
-        xyz = axis.find("xyz")
-        if axis.find("use_parent_model_frame") is not None or (xyz is not None and xyz.attrib.get("expressed_in")):
-            raise ModelError(f"joint {j.attrib['name']!r}: an axis expressed in another frame is not read", where=where,
-                             hint="give <xyz> in the joint frame (SDF's default)")
-        dynamics = axis.find("dynamics")
-        if dynamics is not None and dynamics.find("friction") is not None and \
-                float(dynamics.find("friction").attrib["_text"] or 0) != 0:
-            raise ModelError(f"joint {j.attrib['name']!r} has dry friction, which appell does not apply here",
-                             where=where, hint="remove <friction> (appell's Coulomb friction needs a normal force)")
-        return _numbers(xyz, 3, source, f"axis of joint {j.attrib['name']!r}", (0.0, 0.0, 1.0))
 
-    def in_frame(frame, R, p):  # a pose (model frame) in an appell body frame
-        R_F, p_F = frame
-        return R_F.T @ R, R_F.T @ (p - p_F)
-
-    placed = {"world"}
-    loops = []
-    queue = ["world"] + [n for n in links if not any(j.find("child").attrib["_text"].strip() == n for j in joints)]
-    for root in queue[1:]:  # links no joint reaches: floating (or fixed in a static model)
-        R_L, p_L = X[root]
-        b = make_body(root, R_L, p_L)
+def _place_roots(placing, roots, static) -> None:
+    """Links no joint reaches: floating (or fixed in a static model), at their pose."""
+    mech = placing.mech
+    for root in roots:
+        R_L, p_L = placing.X[root]
+        b = placing.make_body(root, R_L, p_L)
         if static:
             mech.fixed(f"{b.name}_weld", mech.ground, b, origin=tuple(p_L), rpy=R_L.tolist())
         else:
             mech.free(f"{b.name}_free", mech.ground, b, origin=tuple(p_L), rpy=R_L.tolist())
-        placed.add(root)
+
+
+def _place_tree(placing, queue, by_parent, forces) -> list:
+    """The joints of the tree, breadth first from ``queue`` (the world and the roots), each
+    with its damper and spring as a generalized force in ``forces``; returns the joints that
+    close a loop (their child placed already)."""
+    mech, source = placing.mech, placing.source
+    placed, loops = set(queue), []
     k = 0
     while k < len(queue):
         parent = queue[k]
@@ -257,18 +280,18 @@ def sdf_mechanism(source, text=None):
             child = j.find("child").attrib["_text"].strip()
             jname = _appell_name(j.attrib["name"], "joint", f"{source}:{j.line}")
             kind = j.attrib["type"]
-            R_J, p_J = joint_frame(j)
+            R_J, p_J = placing.joint_frame(j)
             if child in placed:
                 loops.append((j, jname, kind, parent, child, R_J, p_J))
                 continue
-            b = make_body(child, R_J, p_J)
-            up = mech.ground if parent == "world" else body[parent]
-            R0, o = in_frame(F[parent], R_J, p_J)
+            b = placing.make_body(child, R_J, p_J)
+            up = mech.ground if parent == "world" else placing.body[parent]
+            R0, o = _in_frame(placing.F[parent], R_J, p_J)
             common = dict(origin=tuple(float(v) for v in o), rpy=R0.tolist())
             if kind in ("revolute", "continuous"):
-                made = mech.revolute(jname, up, b, axis=axis_of(j), **common)
+                made = mech.revolute(jname, up, b, axis=_axis_of(j, source), **common)
             elif kind == "prismatic":
-                made = mech.prismatic(jname, up, b, axis=axis_of(j), **common)
+                made = mech.prismatic(jname, up, b, axis=_axis_of(j, source), **common)
             elif kind == "ball":
                 made = mech.spherical(jname, up, b, rotation="quaternion", **common)
             else:
@@ -284,25 +307,54 @@ def sdf_mechanism(source, text=None):
                 value = -d * derivative_symbol(q) - s * (q - ref)
                 if value != 0:
                     forces[q.name] = value
+    return loops
+
+
+def _close_loops(placing, loops) -> None:
+    """The joints whose child was placed already, as loop closures (a hinge, a point, a weld)."""
+    mech, source = placing.mech, placing.source
     for j, jname, kind, parent, child, R_J, p_J in loops:
         where = f"{source}:{j.line}"
-        up = mech.ground if parent == "world" else body[parent]
-        _, point_parent = in_frame(F[parent], R_J, p_J)
-        R_child, point_child = in_frame(F[child], R_J, p_J)
+        up = mech.ground if parent == "world" else placing.body[parent]
+        _, point_parent = _in_frame(placing.F[parent], R_J, p_J)
+        R_child, point_child = _in_frame(placing.F[child], R_J, p_J)
         a = (up, tuple(float(v) for v in point_parent))
-        b = (body[child], tuple(float(v) for v in point_child))
+        b = (placing.body[child], tuple(float(v) for v in point_child))
         if kind in ("revolute", "continuous"):
-            axis = np.asarray(axis_of(j), float)
-            R_parent, _ = in_frame(F[parent], R_J, p_J)
+            axis = np.asarray(_axis_of(j, source), float)
+            R_parent, _ = _in_frame(placing.F[parent], R_J, p_J)
             mech.hinge(jname, a, b, axis=tuple(R_parent @ axis), axis_b=tuple(R_child @ axis))
         elif kind == "ball":
             mech.connect(jname, a, b)
         elif kind == "fixed":
-            R_parent, _ = in_frame(F[parent], R_J, p_J)
+            R_parent, _ = _in_frame(placing.F[parent], R_J, p_J)
             mech.weld(jname, a, b, rotation=(R_parent @ R_child.T).tolist())
         else:
             raise ModelError(f"joint {j.attrib['name']!r} closes a loop as a {kind} joint, which is not read",
                              where=where, hint="loops are closed by revolute, continuous, ball or fixed joints")
+
+
+def sdf_mechanism(source, text=None):
+    """``(Mechanism, joint_forces)`` of an SDF file (module docstring): the links, the joints
+    checked, the roots placed, the tree of joints walked from them, the loops closed."""
+    from appell.mechanism.builder import Mechanism
+
+    if text is None:
+        text = _read_bytes(source)
+    source = str(source)
+    model, gravity = _model(read_sdf_text(text, source), source)
+    name = _appell_name(model.attrib.get("name") or "sdf_model", "model", f"{source}:{model.line}")
+    static = (model.find("static") is not None and model.find("static").attrib["_text"].strip() in ("true", "1"))
+    mech = Mechanism(name, gravity=gravity)
+    links, ignored = _links(model, source), []
+    joints = model.findall("joint")
+    by_parent = _joints_by_parent(joints, links, source, ignored)
+    placing = _Placing(mech, links, source)
+    roots = [n for n in links if not any(j.find("child").attrib["_text"].strip() == n for j in joints)]
+    _place_roots(placing, roots, static)
+    forces: dict[str, sp.Expr] = {}
+    loops = _place_tree(placing, ["world"] + roots, by_parent, forces)
+    _close_loops(placing, loops)
     if ignored:
         warnings.warn(AppellNote(f"{source}: not applied (no meaning for the rigid-body motion): "
                                  + "; ".join(ignored)), stacklevel=2)

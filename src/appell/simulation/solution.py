@@ -1,9 +1,10 @@
-"""The result of a simulation: named arrays, diagnostics and export (stage after simulate).
+"""The result of a simulation: named arrays, diagnostics and their tables (stage after simulate).
 
-A :class:`Solution` is frozen: its arrays are read-only and its mappings are views.
-Every file it writes (CSV, netCDF, HDF5, plots) is written atomically: to a temporary file
-in the target's directory, then moved over the target with :func:`os.replace`, so that an
-error part way leaves neither a partial file nor a changed target.
+A :class:`Solution` is frozen: its arrays are read-only and its mappings are views. Its
+files (CSV, netCDF, HDF5) are written by :mod:`appell.io.results` from the columns named
+here; a plot is written atomically: to a temporary file in the target's directory, then
+moved over the target with :func:`os.replace`, so that an error part way leaves neither a
+partial file nor a changed target.
 
 Columns (CSV, netCDF variables, :meth:`Solution.to_dataframe`), in this order: ``t``, each
 coordinate, each speed (then any extra states of the model), each acceleration (the time
@@ -22,14 +23,13 @@ Units: those the model declares (``[units]``, ``System.units``), an acceleration
 speed's (``m/s -> m/s^2``), ``s`` for time, else ``unspecified``.
 
 :meth:`Solution.to_xarray` gives an :class:`xarray.Dataset` on the dimension ``time``;
-:meth:`Solution.to_netcdf` writes it as netCDF-4 following the CF conventions (CF-1.10):
+:func:`appell.io.results.write_netcdf` writes it as netCDF-4 following the CF conventions (CF-1.10):
 ``time`` a coordinate variable in seconds, ``units`` and ``long_name`` on every variable,
 the model, parameters, solver settings, statistics and status as global attributes.
 """
 
 from __future__ import annotations
 
-import csv
 import html
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,8 +38,8 @@ from typing import Mapping
 
 import numpy as np
 
-from appell.errors import ComputationError, ModelError
-from appell.files import atomic_path, write_bytes, write_hdf5
+from appell.errors import ModelError
+from appell.files import atomic_path
 
 __all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Column", "Solution", "UNSPECIFIED", "per_second",
            "draw_panel", "atomic_path"]
@@ -339,7 +339,7 @@ class Solution:
         """Every column of :meth:`column_info` in its group, plus the residual of each
         constraint at the level it does not own (``residuals/position`` and
         ``residuals/velocity`` hold every constraint, NaN where it has no such level): the
-        layout of :meth:`to_hdf5` and of a sweep's file (:data:`GROUPS`)."""
+        layout of :func:`appell.io.results.write_hdf5` and of a sweep's file (:data:`GROUPS`)."""
         cols = self.column_info(units)
         placed = {(c.group, c.key) for c in cols}
         for group, table, level in (("residuals/position", self.position_residuals, "position residual F"),
@@ -356,22 +356,6 @@ class Solution:
         return [(c.name, c.values) for c in self.column_info()]
 
     # ---------------------------------------------------------------- export
-    def _csv_rows(self):
-        cols = self.columns()
-        yield [c for c, _ in cols]
-        for i in range(self.t.size):
-            yield ["" if np.isnan(a[i]) else repr(float(a[i])) for _, a in cols]
-
-    def to_csv(self, path) -> Path:
-        """Write the columns of :meth:`columns` as CSV (atomically); NaN as empty cells."""
-        path = Path(path)
-        with atomic_path(path) as tmp:
-            with open(tmp, "w", newline="") as fh:
-                writer = csv.writer(fh)
-                for row in self._csv_rows():
-                    writer.writerow(row)
-        return path
-
     def to_dataframe(self, units: Mapping[str, str] | None = None):
         """The columns as a :class:`pandas.DataFrame` indexed by time (index ``t``, in s).
 
@@ -450,85 +434,6 @@ class Solution:
                                                            "kind": c.kind}) for c in cols[1:]}
         coords = {"time": ("time", np.array(time.values, float), {"units": time.units, "long_name": "time"})}
         return xr.Dataset(data, coords=coords, attrs=self.attributes())
-
-    def to_netcdf(self, path, units: Mapping[str, str] | None = None) -> Path:
-        """Write :meth:`to_xarray` as a netCDF-4 file (CF-1.10; engine h5netcdf), atomically.
-
-        The file is built in memory and then written by :func:`atomic_path`;
-        ``xarray.open_dataset(path)`` reads it back (as do ncview and Panoply).
-        """
-        try:
-            import h5netcdf  # noqa: F401  (xarray's engine for netCDF-4)
-        except ImportError as exc:
-            raise ComputationError("netCDF output needs the package h5netcdf, which is not installed",
-                                   hint="pip install h5netcdf (or pip install appell, which brings it)") from exc
-        data = self.to_xarray(units).to_netcdf(engine="h5netcdf", encoding={"time": {"_FillValue": None}})
-        path = Path(path)
-        with atomic_path(path, suffix=".nc") as tmp:
-            write_bytes(tmp, data)
-        return path
-
-    def to_hdf5(self, path, units: Mapping[str, str] | None = None) -> Path:
-        """Write a self-describing HDF5 file (atomically).
-
-        Every column of :meth:`column_info` in its group (:meth:`grouped`, :data:`GROUPS`):
-        datasets ``/t``, ``/states/<name>``, ``/accelerations/<name>``,
-        ``/multipliers/<constraint>``, ``/outputs/<name>``, ``/controls/<name>``,
-        ``/friction/<name>`` (the last three when the model has them),
-        ``/residuals/position/<c>``, ``/residuals/velocity/<c>``, ``/residuals/servo/<c>``
-        (tracking errors of servo constraints), each with ``units`` and ``description``
-        attributes (those of :meth:`column_info`); ``/t`` is the dimension scale of every other dataset, so that
-        ``xarray.open_datatree(path, engine="h5netcdf")`` reads each group on ``t``. Root
-        attributes: model name, status, message, appell version, constraint names and
-        kinds, solver statistics, settings; group ``/parameters`` with one attribute per
-        parameter value and ``<name>.unit`` / ``<name>.description``; ``/events`` and
-        ``/log`` as string datasets.
-        """
-        import h5py
-
-        md = self.metadata
-        path = Path(path)
-
-        def fill(f):
-            f.attrs["format"] = "appell simulation result"
-            f.attrs["model"] = md.name
-            f.attrs["appell_version"] = md.appell_version
-            f.attrs["status"] = self.status
-            f.attrs["message"] = self.message
-            f.attrs["constraint_names"] = np.array(md.constraint_names, dtype=h5py.string_dtype())
-            f.attrs["constraint_kinds"] = np.array(md.constraint_kinds, dtype=h5py.string_dtype())
-            f.attrs["coordinate_names"] = np.array(self.coordinate_names, dtype=h5py.string_dtype())
-            f.attrs["speed_names"] = np.array(self.speed_names, dtype=h5py.string_dtype())
-            f.attrs["acceleration_names"] = np.array(self.acceleration_names, dtype=h5py.string_dtype())
-            f.attrs["max_position_residual"] = self.max_position_residual
-            f.attrs["max_velocity_residual"] = self.max_velocity_residual
-            for k, v in vars(self.statistics).items():
-                f.attrs[f"statistics.{k}"] = v
-            for k, v in md.settings.items():
-                f.attrs[f"settings.{k}"] = str(v)
-            pg = f.create_group("parameters")
-            for name, value, unit, desc in md.parameters:
-                pg.attrs[name] = value
-                pg.attrs[f"{name}.unit"] = unit or UNSPECIFIED
-                pg.attrs[f"{name}.description"] = desc or ""
-
-            def put(c):
-                ds = f.require_group(c.group or "/").create_dataset(c.key, data=np.asarray(c.values, float))
-                ds.attrs["units"] = c.units
-                ds.attrs["description"] = c.long_name
-                return ds
-
-            times, *others = self.grouped(units)
-            put(times).make_scale("t")
-            for group in ALWAYS:
-                f.require_group(group)
-            for c in others:
-                put(c).dims[0].attach_scale(f["t"])
-            for key, lines in (("events", [str(e) for e in self.events]), ("log", list(self.log))):
-                f.create_dataset(key, data=np.array(lines, dtype=h5py.string_dtype())).make_scale(key)
-
-        write_hdf5(path, fill)
-        return path
 
     # ------------------------------------------------------------------ plot
     def panels(self, accelerations: bool = False) -> list[tuple[str, str, list[Column], bool]]:

@@ -166,7 +166,24 @@ def _mesh(r, path, item, kind, cname, mech):
 
 
 def build_mechanism(r, top: dict, base: Path):
-    """``(mechanism, extra constraints from the URDF, reactions, frame)`` from the tables."""
+    """``(mechanism, extra constraints from the URDF, reactions, frame, energy)`` from the
+    tables, each read by its reader in the order a later one may refer to an earlier one's
+    names: ``[mechanism]`` (a robot file read), ``[parameters]``, the gravity, ``[[bodies]]``,
+    ``[[joints]]``, ``[[closures]]``, ``[[loads]]``, then what ``[mechanism]`` asks as outputs."""
+    section, mech, extra = _mechanism_base(r, top, base)
+    _mechanism_parameters(r, top, mech)  # first: masses, lengths and the gravity vector may use them
+    _gravity(r, section, mech)
+    _bodies(r, top, mech)
+    _joints(r, top, mech)
+    _closures(r, top, mech)
+    _loads(r, top, mech)
+    reactions, frame, energy = _mechanism_outputs(r, section, mech)
+    return mech, extra, reactions, frame, energy
+
+
+def _mechanism_base(r, top: dict, base: Path):
+    """``([mechanism] table, the mechanism, extra constraints)``: the robot file of ``urdf = ...``
+    read (with ``floating_base``), or an empty mechanism named by ``[model] name``."""
     from appell.mechanism import Mechanism
     from appell.mechanism.formats import importer_for
 
@@ -190,7 +207,12 @@ def build_mechanism(r, top: dict, base: Path):
             mech.name = name
     else:
         mech = Mechanism(name or Path(r.source).stem or "mechanism", gravity=None)
-    # parameters first: masses, lengths and the gravity vector may use them
+    return section, mech, extra
+
+
+def _mechanism_parameters(r, top: dict, mech) -> None:
+    """``[parameters]``: each a parameter of ``mech`` (a robot file's own, such as its ``g``, takes
+    the file's value)."""
     known = {p.symbol.name: k for k, p in enumerate(mech.parameters)}
     for key, value in r.table(("parameters",), top.get("parameters", {}), r.ANY).items():
         path = ("parameters", key)
@@ -207,6 +229,10 @@ def build_mechanism(r, top: dict, base: Path):
             mech.parameters[known[key]] = Parameter(old.symbol, number, unit or old.unit, text or old.description)
         else:
             _call(r, path, mech.parameter, key, number, unit, text)
+
+
+def _gravity(r, section: dict, mech) -> None:
+    """``[mechanism] gravity``: a vector, ``"none"``, or -9.81 m/s^2 along z without a robot file."""
     if "gravity" in section:
         value = section["gravity"]
         if value == "none":
@@ -216,6 +242,9 @@ def build_mechanism(r, top: dict, base: Path):
     elif "urdf" not in section:
         mech.gravity = sp.Matrix([0, 0, sp.Float(-9.81)])
 
+
+def _bodies(r, top: dict, mech) -> None:
+    """``[[bodies]]``: rigid bodies and particles."""
     for i, item in enumerate(_items(r, top, "bodies")):
         path = ("bodies", i)
         r.table(path, item, BODY_KEYS, required=("name", "mass"))
@@ -232,6 +261,9 @@ def build_mechanism(r, top: dict, base: Path):
         com = _vector(r, path + ("com",), item["com"]) if "com" in item else (0, 0, 0)
         _call(r, path, mech.body, bname, mass, inertia=inertia, com=com)
 
+
+def _joints(r, top: dict, mech) -> None:
+    """``[[joints]]``: each joint of its type, with its drive."""
     for i, item in enumerate(_items(r, top, "joints")):
         path = ("joints", i)
         kind = _kind(r, path, item, tuple(JOINT_TYPES))
@@ -268,6 +300,9 @@ def build_mechanism(r, top: dict, base: Path):
         if "drive" in item or "drive_type" in item:
             _drive(r, path, item, jname, mech)
 
+
+def _closures(r, top: dict, mech) -> None:
+    """``[[closures]]``: loop closures, contacts and couplings, each located at its file line."""
     for i, item in enumerate(_items(r, top, "closures")):
         path = ("closures", i)
         kind = _kind(r, path, item, tuple(CLOSURE_KEYS))
@@ -319,6 +354,9 @@ def build_mechanism(r, top: dict, base: Path):
             _call(r, path, getattr(mech, kind), cname, body, radius, **kw)
         mech.locate(cname, r.where(path + ("name",)))
 
+
+def _loads(r, top: dict, mech) -> None:
+    """``[[loads]]``: forces, torques, springs, bushings, force pairs and actuators."""
     for i, item in enumerate(_items(r, top, "loads")):
         path = ("loads", i)
         kind = _kind(r, path, item, tuple(LOAD_KEYS))
@@ -346,6 +384,10 @@ def build_mechanism(r, top: dict, base: Path):
             coordinate = r.string(path + ("coordinate",), item["coordinate"]) if "coordinate" in item else None
             _call(r, path, mech.actuator, lname, joint, value, coordinate)
 
+
+def _mechanism_outputs(r, section: dict, mech):
+    """``(reactions, frame, energy)`` of ``[mechanism]``, and its watched points and reaction
+    outputs added to ``mech``."""
     reactions = section.get("reactions", "all")
     if reactions == "none":
         reactions = None
@@ -377,4 +419,4 @@ def build_mechanism(r, top: dict, base: Path):
     if not isinstance(energy, bool):
         raise r.error(("mechanism", "energy"), "must be true or false",
                       hint="energy = true adds the outputs energy_kinetic, energy_potential and energy")
-    return mech, extra, reactions, frame, energy
+    return reactions, frame, energy
