@@ -26,7 +26,51 @@ from appell.errors import ComputationError, ModelError
 from appell.symbols import derivative_name
 from appell.numerics.boundary import numeric_model
 
-__all__ = ["InverseDynamics", "inverse_dynamics", "closed_chain_inverse"]
+__all__ = ["Contact", "InverseDynamics", "inverse_dynamics", "closed_chain_inverse", "contact_model"]
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A foot or tool held on the ground along the motion, as a loop closure to the world.
+
+    ``body``: a body of the joint tree (or, through ``points``, an MJCF site or merged body:
+    :func:`contact_model`); ``point``: the contact point in the body's frame; ``kind``:
+    ``'point'`` (a point contact: the point held at its place, rows ``<name>_x, _y, _z``,
+    the ground's force on the body along the world axes) or ``'weld'`` (a flat foot, a
+    clamped tool: the body's orientation held as well, rows ``<name>_rx, _ry, _rz`` as in
+    :meth:`Mechanism.weld <appell.mechanism.Mechanism.weld>`, each the ground's moment on the
+    body about the held frame's axis ``A e_i``); ``name``: the rows' prefix (default
+    ``<body>_contact``); ``at`` the point's world place and ``rotation`` (a weld) the body's
+    world orientation ``A`` while held (default: where the point and body are at the first time,
+    the given coordinates at their first values and the others at their start values)."""
+
+    body: str
+    point: tuple = (0.0, 0.0, 0.0)
+    kind: str = "point"
+    name: str | None = None
+    at: tuple | None = None
+    rotation: tuple | None = None
+
+    @classmethod
+    def of(cls, item) -> "Contact":
+        """A :class:`Contact` from itself, ``"body"``, ``"body:point"``, ``"body:weld"``, a
+        tuple ``(body, point[, kind])`` or a mapping of the fields."""
+        if isinstance(item, Contact):
+            return item
+        if isinstance(item, str):
+            body, _, kind = item.partition(":")
+            return cls(body, kind=kind or "point")
+        if isinstance(item, Mapping):
+            return cls(**dict(item))
+        if isinstance(item, (tuple, list)) and 1 <= len(item) <= 3:
+            return cls(*item)
+        raise ModelError(f"contact {item!r}: give a body name ('foot', 'foot:weld'), (body, point[, kind]) or "
+                         "appell.Contact(...)")
+
+    @property
+    def rows(self) -> tuple[str, ...]:
+        """The suffixes of its rows."""
+        return ("_x", "_y", "_z") + (("_rx", "_ry", "_rz") if self.kind == "weld" else ())
 
 
 @dataclass(frozen=True)
@@ -70,6 +114,136 @@ class InverseDynamics:
         return path
 
 
+def _loop_parts(source):
+    """The :class:`~appell.mechanism.builder.LoopParts` of a mechanism, a mechanism's system or
+    its derivation (contacts are added to these before the closed-chain model is built)."""
+    from appell.numerics.loops import LoopModel, _system_parts
+
+    if hasattr(source, "loop_parts"):
+        return source.loop_parts()
+    if isinstance(source, LoopModel):
+        raise ModelError("contacts are added to a mechanism or its system, not to a LoopModel built already",
+                         hint="pass the Mechanism or System to inverse_dynamics(..., contacts=[...])")
+    system = getattr(source, "system", source)
+    if getattr(system, "tree", None) is None:
+        raise ModelError(f"system {getattr(system, 'name', '?')!r} has no joint tree: contacts are loop rows of a "
+                         "mechanism's tree", hint="build it with appell.Mechanism (or read a URDF or MJCF file)")
+    return _system_parts(system)
+
+
+def contact_model(source, contacts, points: Mapping | None = None, backend: str = "auto"):
+    """``(model, held)``: the :class:`~appell.numerics.loops.LoopModel` of ``source`` (a
+    mechanism, its system or derivation) with each :class:`Contact` added as loop rows to the
+    ground, and per contact ``(contact, node, point, at, A)``: its tree node, its point in that
+    body's frame and the indices in :attr:`LoopModel.parameter_names` of its world place ``at``
+    (``<name>_at_x, _y, _z``) and, for a weld, its held orientation ``A`` (``<name>_A11`` ..
+    ``_A33``, row by row), set at the first time (:func:`closed_chain_inverse`).
+
+    A point row is ``e_d . (p - at) = 0`` (:class:`~appell.rigid_tree.LoopRow` ``'point'``,
+    ``p`` the body's point, ``e_d`` a world axis; its multiplier the ground's force on the body
+    along ``e_d``); a weld adds ``(R e_j) . (A e_k) = 0`` for ``(j, k)`` = (y, z), (z, x), (x, y)
+    (``'align'``, ``R`` the body's orientation; the multiplier the ground's moment on the body,
+    ``lambda (R e_j) x (A e_k) = lambda A e_i`` where held). ``points``: ``{name: (body,
+    (x, y, z))}`` for contact names that are not tree bodies (an MJCF file's sites and merged
+    bodies)."""
+    import dataclasses
+
+    import sympy as sp
+
+    from appell.model import Parameter
+    from appell.numerics.loops import LoopModel
+    from appell.rigid_tree import LoopRow
+
+    parts = _loop_parts(source)
+    tree = parts.tree
+    nodes = {node.body: k for k, node in enumerate(tree.nodes)}
+    taken = ({q.name for q in parts.coordinates} | {p.symbol.name for p in parts.parameters}
+             | {name for name, _ in parts.constraints})
+    rows, params, held = [], [], []
+    zero = sp.ImmutableMatrix([0, 0, 0])
+    for item in contacts:
+        c = Contact.of(item)
+        if c.kind not in ("point", "weld"):
+            raise ModelError(f"contact {c.body!r}: kind {c.kind!r} is not 'point' (a point contact) or 'weld' "
+                             "(a flat foot, the orientation held)")
+        what = f"contact {c.name or c.body!r}"
+        try:
+            r = np.asarray(c.point, float).reshape(3)
+        except (TypeError, ValueError):
+            raise ModelError(f"{what}: point {c.point!r} is not (x, y, z) in the body frame") from None
+        body = c.body
+        if body not in nodes and points and body in points:
+            body, offset = points[body]
+            r = r + np.asarray(offset, float).reshape(3)
+        if body not in nodes:
+            raise ModelError(f"{what}: no body {c.body!r} on the joint tree",
+                             hint="bodies: " + ", ".join(nodes) + (("; sites: " + ", ".join(points)) if points else ""))
+        name = c.name or f"{body}_contact"
+        mine = [name + sfx for sfx in c.rows] + [f"{name}_at_{x}" for x in "xyz"]
+        mine += [f"{name}_A{i}{j}" for i in "123" for j in "123"] if c.kind == "weld" else []
+        clash = sorted(taken & set(mine))
+        if clash or not name.isidentifier():
+            raise ModelError(f"{what}: the name {name!r} " + (f"gives {', '.join(clash)}, taken already" if clash
+                                                               else "is not an identifier"),
+                             hint="give the contact another name (Contact(..., name=...))")
+        taken |= set(mine)
+        base = len(parts.parameters) + len(params)
+        at = [sp.Symbol(f"{name}_at_{x}") for x in "xyz"]
+        A = sp.Matrix(3, 3, [sp.Symbol(f"{name}_A{i}{j}") for i in "123" for j in "123"]) if c.kind == "weld" else None
+        params += [Parameter(s_, 0.0) for s_ in at] + ([Parameter(s_, 0.0) for s_ in A] if A is not None else [])
+        k, point = nodes[body], sp.ImmutableMatrix([float(x) for x in r])
+        rows += [LoopRow(f"{name}_{d}", name, "point", k, point, sp.ImmutableMatrix(sp.eye(3)[:, i]), -1,
+                         sp.ImmutableMatrix(at), zero) for i, d in enumerate("xyz")]
+        if A is not None:
+            rows += [LoopRow(f"{name}_r{d}", name, "align", k, point, sp.ImmutableMatrix(sp.eye(3)[:, j]), -1, zero,
+                             sp.ImmutableMatrix(A[:, m])) for d, (j, m) in zip("xyz", ((1, 2), (2, 0), (0, 1)))]
+        held.append((dataclasses.replace(c, name=name), k, r, list(range(base, base + 3)),
+                     list(range(base + 3, base + 12)) if A is not None else None))
+    tree = dataclasses.replace(tree, loops=tuple(tree.loops) + tuple(rows))
+    parts = dataclasses.replace(parts, tree=tree, constraints=tuple(parts.constraints) + tuple((r_.name, None) for r_ in rows),
+                                parameters=tuple(parts.parameters) + tuple(params))
+    return LoopModel(parts, backend), tuple(held)
+
+
+def _plant(model, held, q, passive, pv, tol, max_iterations):
+    """``(q, pv)``: the coordinates ``q`` with the passive ones moved (least steps, Newton's
+    method) to close the model's own rows (the loops, a quaternion's norm: not the contacts),
+    and the parameters ``pv`` with each contact's place and orientation set where its body is
+    there (its own ``at``, ``rotation`` where given)."""
+    pv, q = np.array(pv, float), np.array(q, float)
+    n = len(model.speed_names)
+    mine = {c.name + sfx for c, *_ in held for sfx in c.rows}
+    own = [i for i, nm in enumerate(model.constraint_names) if nm not in mine]
+    for _ in range(max_iterations if own and passive else 0):
+        Phi, J = model.positions(q, pv)
+        if np.abs(Phi[own]).max() <= tol:
+            break
+        dq = np.linalg.lstsq(J[np.ix_(own, passive)], -Phi[own], rcond=None)[0]
+        q[passive] += dq * min(1.0, 0.5 / max(np.abs(dq).max(), 1e-300))
+    arrays = model._evaluate_terms(0.0, q, np.zeros(n), pv, np.zeros(len(model.control_names)))[0]
+    Rw, pw = model._kinematics(arrays, np.zeros(n))[:2]
+    for c, k, r, at, A in held:
+        pv[at] = pw[k] + Rw[k] @ r if c.at is None else np.asarray(c.at, float).reshape(3)
+        if A is not None:
+            R = Rw[k] if c.rotation is None else np.asarray(c.rotation, float).reshape(3, 3)
+            pv[A] = R.reshape(-1)
+    return q, pv
+
+
+def _contact_wrenches(held, lam, names, pv) -> dict:
+    """``F_<contact>_x .. _z`` (the ground's force on the body, world axes) and, for a weld,
+    ``M_<contact>_x .. _z`` (its moment about the contact point, ``A (lambda_rx, _ry, _rz)``)."""
+    out = {}
+    for c, _, _, _, A in held:
+        F = np.column_stack([lam[:, names.index(f"{c.name}_{d}")] for d in "xyz"])
+        out.update({f"F_{c.name}_{d}": F[:, i] for i, d in enumerate("xyz")})
+        if A is not None:
+            R = np.asarray(pv[A], float).reshape(3, 3)
+            M = np.column_stack([lam[:, names.index(f"{c.name}_r{d}")] for d in "xyz"]) @ R.T
+            out.update({f"M_{c.name}_{d}": M[:, i] for i, d in enumerate("xyz")})
+    return out
+
+
 def _spline(t, q, order):
     from scipy.interpolate import CubicSpline
 
@@ -88,9 +262,12 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
     tree records loop closures, or the :class:`~appell.numerics.loops.LoopModel` of one)
     takes its motion for the actuated or
     other independent coordinates alone, ``q = {name: values}``, and completes the passive
-    ones from the loop closures (:func:`closed_chain_inverse`, whose ``options`` it passes)."""
+    ones from the loop closures (:func:`closed_chain_inverse`, whose ``options`` it passes).
+    ``contacts`` (feet or tools held on the ground, :class:`Contact`) take that route for any
+    mechanism: its motion given likewise, the contact forces solved with the loop forces."""
     tree = getattr(derivation, "tree", None)
-    if hasattr(derivation, "loop_parts") or hasattr(derivation, "loop_rows") or getattr(tree, "loops", ()):
+    if (hasattr(derivation, "loop_parts") or hasattr(derivation, "loop_rows") or getattr(tree, "loops", ())
+            or options.get("contacts")):
         return closed_chain_inverse(derivation, t, q, w, a, drives, p, **options)
     model = numeric_model(derivation)
     names, speeds = model.coordinate_names, model.speed_names
@@ -230,7 +407,8 @@ def _assemble(model, q, ind, passive, target, pv, tol, max_iterations, depth=0):
 
 def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | None = None, p=None,
                          guess: Mapping[str, float] | None = None, tol: float = 1e-11,
-                         max_iterations: int = 50) -> InverseDynamics:
+                         max_iterations: int = 50, contacts: Sequence | None = None,
+                         points: Mapping | None = None) -> InverseDynamics:
     """Inverse dynamics of a closed chain along a motion given for its independent coordinates.
 
     ``model``: an :class:`appell.Mechanism` or its :class:`~appell.numerics.loops.LoopModel`;
@@ -250,10 +428,21 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
     Every joint's wrench (``F_<joint>_x .. M_<joint>_z``, world axes, the parent's force and
     moment on the subtree at the joint's point) comes from RNEA's inward pass with the loop
     forces applied at their anchors; those an undetermined combination changes are named in
-    ``undetermined_wrenches``."""
+    ``undetermined_wrenches``.
+
+    ``contacts``: feet or tools held on the ground (:class:`Contact`, or ``'body'``,
+    ``'body:weld'``; ``points`` as :func:`contact_model`), each added as loop rows to the world
+    at its place at the first time; their multipliers are the ground's forces (and a weld's
+    moments), also given in the outputs as ``F_<contact>_x .. M_<contact>_z``. Where the motion
+    leaves them open (double support), the minimum-norm answer is given and the combinations
+    named in ``undetermined``, as for redundant loops."""
     from appell.numerics.loops import LoopModel, loop_model
 
-    model = model if isinstance(model, LoopModel) else loop_model(model)
+    held: tuple = ()
+    if contacts:
+        model, held = contact_model(model, contacts, points)
+    else:
+        model = model if isinstance(model, LoopModel) else loop_model(model)
     names, speeds = model.coordinate_names, model.speed_names
     t = np.asarray(t, float).reshape(-1)
     if t.size < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
@@ -300,6 +489,10 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
                              + "; speeds: " + ", ".join(speeds))
     start = {**model.start, **{str(k): float(v) for k, v in (guess or {}).items()}}
     qk = np.array([start.get(nm, 0.0) for nm in names], float)
+    if held:  # the contacts held where they are at the first time
+        pv = np.concatenate([pv, model.parameter_values[pv.size:]])  # a given p without the contacts' places
+        qk[ind] = qi[0]
+        qk, pv = _plant(model, held, qk, passive, pv, tol, max_iterations)
     Q_all, W_all, A_all = np.zeros((t.size, n)), np.zeros((t.size, n)), np.zeros((t.size, n))
     tau, lam = np.zeros((t.size, len(drives))), np.zeros((t.size, s))
     wrench_all = np.zeros((t.size, len(model.joints), 6))
@@ -354,6 +547,7 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
 
     motion = {**{nm: Q_all[:, i] for i, nm in enumerate(names)}, **{nm: W_all[:, i] for i, nm in enumerate(speeds)},
               **{acceleration_name(nm): A_all[:, i] for i, nm in enumerate(speeds)}}
+    wrench.update(_contact_wrenches(held, lam, list(cons), pv))
     return InverseDynamics(t, motion, {d: tau[:, j] for j, d in enumerate(drives)},
                            {c: lam[:, j] for j, c in enumerate(cons)}, wrench, residual, undetermined,
                            tuple(j for j in model.joints if j in open_joints))
