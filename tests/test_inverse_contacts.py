@@ -167,3 +167,75 @@ def test_bad_contacts_are_refused_by_name():
     with pytest.raises(ModelError, match="not independent"):  # the crank's tip held: A cannot turn
         inverse_dynamics(mech, t, {"A": 1.0 + t}, guess={"B": 1.5, "D": 2.0}, contacts=[("crank", (0.4, 0, 0))])
     assert Contact.of("foot:weld") == Contact("foot", kind="weld")
+
+
+def test_the_command_line_holds_a_foot_by_an_mjcf_site(tmp_path):
+    """``appell inverse biped.xml --contact left_sole:weld``: a site on the left foot at the
+    contact point (MJCF name), the motors' motion in the file; the torques and the ground's
+    force and moment are those of the Python route above (checked there against MuJoCo), to
+    1e-9."""
+    pytest.importorskip("mujoco")
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+    from appell.mechanism.mjcf import load_mjcf, mjcf_mechanism
+    from test_inverse import _read_csv, _write_csv
+
+    xml = BIPED.read_text().replace(
+        '<inertial pos="0.03 0 -0.02" mass="0.3" diaginertia="0.0005 0.0008 0.0004"/>',
+        '<inertial pos="0.03 0 -0.02" mass="0.3" diaginertia="0.0005 0.0008 0.0004"/>'
+        '<site name="{side}_sole" pos="0.03 0 -0.04"/>', 2)
+    xml = xml.replace("{side}_sole", "left_sole", 1).replace("{side}_sole", "right_sole", 1)
+    model_file = tmp_path / "biped.xml"
+    model_file.write_text(xml)
+    t = np.linspace(0.0, 0.3, 16)
+    motion = _write_csv(tmp_path / "gait.csv", {"t": t, **biped_gait(t)})
+    out = tmp_path / "stance.csv"
+    result = CliRunner().invoke(cli, ["inverse", str(model_file), "--trajectory", str(motion),
+                                      "--contact", "left_sole:weld", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    got = _read_csv(out)
+    mech, _ = mjcf_mechanism(load_mjcf(BIPED), str(BIPED))
+    ref = inverse_dynamics(mech, t, biped_gait(t), contacts=[Contact("left_foot", FOOT, "weld")])
+    for name, values in ref.drives.items():
+        assert np.abs(got[f"drive_{name}"] - values).max() <= 1e-9 * np.abs(values).max()
+    for x in "xyz":
+        for f in "FM":
+            ours, theirs = got[f"{f}_left_sole_contact_{x}"], ref.outputs[f"{f}_left_foot_contact_{x}"]
+            assert np.abs(ours - theirs).max() <= 1e-9 * max(1.0, np.abs(theirs).max())
+    bad = CliRunner().invoke(cli, ["inverse", str(model_file), "--trajectory", str(motion),
+                                   "--contact", "left_heel", "--out", str(out)])
+    assert bad.exit_code == 2 and "no body 'left_heel'" in bad.output and "left_sole" in bad.output
+
+
+def test_a_refused_closed_chain_route_says_why(tmp_path):
+    """The four-bar with a force load: the closed-chain route does not take loads, so
+    ``appell inverse`` says so in a note and, given the crank alone, refuses naming the missing
+    coordinates and that route; a contact on it is refused with the reason."""
+    from click.testing import CliRunner
+
+    from appell.examples import example_path
+    from appell.io.cli import cli
+    from test_inverse import _write_csv
+
+    text = example_path("four_bar").read_text() + """
+[[loads]]
+name = "push"
+type = "force"
+body = "crank"
+point = [0.4, 0, 0]
+vector = [1, 0, 0]
+"""
+    model = tmp_path / "pushed.toml"
+    model.write_text(text)
+    t = np.linspace(0.0, 0.3, 8)
+    crank = _write_csv(tmp_path / "crank.csv", {"t": t, "A": 1.0 + t})
+    out = tmp_path / "out.csv"
+    runner = CliRunner()
+    result = runner.invoke(cli, ["inverse", str(model), "--trajectory", str(crank), "--out", str(out)])
+    assert result.exit_code == 2, result.output
+    assert "closed-chain route" in result.output and "push" in result.output
+    assert "no column B, D" in result.output and not out.exists()
+    result = runner.invoke(cli, ["inverse", str(model), "--trajectory", str(crank), "--contact", "rocker",
+                                 "--out", str(out)])
+    assert result.exit_code == 2 and "--contact" in result.output and "push" in result.output

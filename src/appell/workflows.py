@@ -699,35 +699,60 @@ def save_motion(derivation, solution, path=None, fps: int = 25, frames: int = 30
     return path
 
 
-def closed_chain_model(system):
+def closed_chain_model(system, reasons: list | None = None):
     """The :class:`~appell.numerics.loops.LoopModel` of a mechanism's
     :class:`~appell.model.System` whose tree is closed by holonomic constraints (loop
     closures: ``connect`` in a ``[[closures]]`` table, an MJCF equality), through which
     :func:`run_inverse` completes the passive coordinates from the given ones; None for a
     system without a joint tree or constraints, or one the closed-chain route does not take
     (loads, servo constraints, its own energies: :func:`~appell.numerics.loops.loop_model`
-    says which), whose motion is then given whole (``--drive`` naming the drives)."""
+    says which, appended to ``reasons``), whose motion is then given whole (``--drive``
+    naming the drives)."""
     if getattr(system, "tree", None) is None or not system.constraints:
         return None
     from appell.numerics.loops import loop_model
 
     try:
         return loop_model(system)
-    except ModelError:
+    except ModelError as exc:
+        if reasons is not None:
+            reasons.append(exc.message)
         return None
 
 
 def load_inverse_source(model: str, overrides=None, floating_base: bool = False, cache: bool | None = None,
-                        reactions_in: str | None = None, reader=None, echo=None):
+                        reactions_in: str | None = None, reader=None, echo=None, contacts=()):
     """What ``appell inverse`` works on: the :func:`closed_chain_model` of a closed chain (no
     derivation: the tree's recursions and the loops' rows), else the derivation
-    (:func:`load_derivation`). The model's notes are printed once."""
+    (:func:`load_derivation`), with a note saying why where the closed-chain route refused a
+    model with constraints. ``contacts`` (``appell inverse --contact``: ``NAME``,
+    ``NAME:point``, ``NAME:weld``; a body, or an MJCF body or site by its MJCF name) are
+    added as loop rows to the world (:func:`appell.simulation.inverse.contact_model`), refused
+    with the reason where the closed-chain route does not take the model. The model's notes
+    are printed once."""
     echo = echo or _print
-    notes = []
+    notes, reasons = [], []
     system = load_system(model, overrides, floating_base, echo=lambda text, err=False: notes.append(text),
                          reactions_in=reactions_in, reader=reader)
-    closed = closed_chain_model(system)
+    if contacts:
+        from appell.mechanism.formats import importer_for
+        from appell.simulation.inverse import contact_model
+
+        points = None
+        if getattr(importer_for(Path(model)), "name", None) == "MJCF":
+            from appell.mechanism.mjcf import mjcf_points
+
+            points = mjcf_points(Path(model))
+        try:
+            closed = contact_model(system, list(contacts), points)
+        except ModelError as exc:
+            raise ModelError(f"--contact: {exc.message}", where=str(model), hint=exc.hint) from None
+    else:
+        closed = closed_chain_model(system, reasons)
     if closed is None:
+        for reason in reasons:
+            echo(f"note: the closed-chain route, which completes the passive coordinates from the given ones, "
+                 f"does not take this model: {reason}; the motion must give every coordinate", err=True)
         return load_derivation(model, overrides, floating_base, cache=cache, reactions_in=reactions_in,
                                reader=reader, echo=echo)
     for text in notes:
@@ -806,8 +831,11 @@ def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=No
     numeric = numeric_model(derivation)
     missing = [n for n in ("t",) + tuple(numeric.coordinate_names) if n not in table]
     if missing:
+        closed = getattr(getattr(derivation.system, "tree", None), "loops", ())
         raise ModelError(f"{trajectory}: no column {', '.join(missing)}",
-                         hint="columns: t and the coordinates " + ", ".join(numeric.coordinate_names))
+                         hint="columns: t and the coordinates " + ", ".join(numeric.coordinate_names)
+                         + ("; the closed-chain route, which completes the passive ones from the loops, does not "
+                            "take this model (the note above says why)" if closed else ""))
     q = np.stack([table[n] for n in numeric.coordinate_names], axis=1)
 
     def given(names):

@@ -259,6 +259,7 @@ class MjcfModel:
     names: dict
     note: str | None
     rotors: dict = None  # joint name -> its armature rotor's coordinate name
+    points: dict = None  # MJCF body or site name (and a body's identifier) -> (appell body, its point there)
 
     def state(self, qpos, qvel=None) -> dict[str, float]:
         """appell's coordinates and speeds ``{name: value}`` at MuJoCo's ``qpos``, ``qvel``:
@@ -659,10 +660,27 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
                                                                  in names.table.items()))
     note = f"{source}: not applied (no meaning for the rigid-body motion) or mapped: " + "; ".join(ignored) \
         if ignored else None
+    points = {}  # where each MJCF body's frame and each site is on appell's bodies (merged bodies included)
+    for b in range(1, model.nbody):
+        body, _, p_b = place[b]
+        points[bname[b]] = points[bodies[b] or bname[b]] = (body.name, tuple(float(x) for x in p_b))
+    for k, site in enumerate(_names(model, mujoco.mjtObj.mjOBJ_SITE, model.nsite)):
+        body, R_b, p_b = place[int(model.site_bodyid[k])]
+        if site and site not in points and body is not mech.ground:
+            points[site] = (body.name, tuple(float(x) for x in p_b + R_b @ np.asarray(model.site_pos[k], float)))
     out = MjcfModel(mech, tuple(constraints), {k: v for k, v in forces.items() if v != 0}, rotor,
-                    tuple(actuators), tuple(read_joints), dict(names.table), note, rotors)
+                    tuple(actuators), tuple(read_joints), dict(names.table), note, rotors, points)
     out.__dict__["qpos0"] = np.asarray(model.qpos0, float).copy()
     return out
+
+
+def mjcf_points(source) -> dict:
+    """``{name: (appell body, (x, y, z))}``: where each body's frame and each site of a MuJoCo
+    model file (or XML string) is, on the body of appell's tree that carries it (a massless body
+    merged into its parent included), by MJCF name and by identifier (:attr:`MjcfModel.points`):
+    the places a contact may name (:func:`appell.simulation.inverse.contact_model`)."""
+    where = str(source) if not str(source).lstrip().startswith("<") else "<mjcf>"
+    return dict(read_mjcf(load_mjcf(source), where, "ignore").points)
 
 
 def mjcf_mechanism(model, source: str = "<mjcf>", frictionloss: str = "refuse"):

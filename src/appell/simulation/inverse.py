@@ -17,6 +17,7 @@ satisfy the constraints; its largest velocity-level residual is reported.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
@@ -117,13 +118,24 @@ class InverseDynamics:
 def _loop_parts(source):
     """The :class:`~appell.mechanism.builder.LoopParts` of a mechanism, a mechanism's system or
     its derivation (contacts are added to these before the closed-chain model is built)."""
-    from appell.numerics.loops import LoopModel, _system_parts
+    from appell.numerics.loops import LoopModel
 
-    if hasattr(source, "loop_parts"):
-        return source.loop_parts()
     if isinstance(source, LoopModel):
         raise ModelError("contacts are added to a mechanism or its system, not to a LoopModel built already",
                          hint="pass the Mechanism or System to inverse_dynamics(..., contacts=[...])")
+    try:
+        return _parts_of(source)
+    except ModelError as exc:
+        raise ModelError(f"contacts are loop rows of the closed-chain route, which does not take this model: "
+                         f"{exc.message}", hint="hold the foot by a closure of the model (a weld or connect to the "
+                                                "ground) and give the motion of every coordinate") from None
+
+
+def _parts_of(source):
+    from appell.numerics.loops import _system_parts
+
+    if hasattr(source, "loop_parts"):
+        return source.loop_parts()
     system = getattr(source, "system", source)
     if getattr(system, "tree", None) is None:
         raise ModelError(f"system {getattr(system, 'name', '?')!r} has no joint tree: contacts are loop rows of a "
@@ -132,12 +144,12 @@ def _loop_parts(source):
 
 
 def contact_model(source, contacts, points: Mapping | None = None, backend: str = "auto"):
-    """``(model, held)``: the :class:`~appell.numerics.loops.LoopModel` of ``source`` (a
-    mechanism, its system or derivation) with each :class:`Contact` added as loop rows to the
-    ground, and per contact ``(contact, node, point, at, A)``: its tree node, its point in that
-    body's frame and the indices in :attr:`LoopModel.parameter_names` of its world place ``at``
-    (``<name>_at_x, _y, _z``) and, for a weld, its held orientation ``A`` (``<name>_A11`` ..
-    ``_A33``, row by row), set at the first time (:func:`closed_chain_inverse`).
+    """The :class:`~appell.numerics.loops.LoopModel` of ``source`` (a mechanism, its system or
+    derivation) with each :class:`Contact` added as loop rows to the ground; its attribute
+    ``contacts`` holds per contact ``(contact, node, point, at, A)``: its tree node, its point
+    in that body's frame and the indices in :attr:`LoopModel.parameter_names` of its world
+    place ``at`` (``<name>_at_x, _y, _z``) and, for a weld, its held orientation ``A``
+    (``<name>_A11`` .. ``_A33``, row by row), set at the first time (:func:`closed_chain_inverse`).
 
     A point row is ``e_d . (p - at) = 0`` (:class:`~appell.rigid_tree.LoopRow` ``'point'``,
     ``p`` the body's point, ``e_d`` a world axis; its multiplier the ground's force on the body
@@ -178,7 +190,7 @@ def contact_model(source, contacts, points: Mapping | None = None, backend: str 
         if body not in nodes:
             raise ModelError(f"{what}: no body {c.body!r} on the joint tree",
                              hint="bodies: " + ", ".join(nodes) + (("; sites: " + ", ".join(points)) if points else ""))
-        name = c.name or f"{body}_contact"
+        name = c.name or re.sub(r"\W+", "_", c.body, flags=re.ASCII).strip("_") + "_contact"
         mine = [name + sfx for sfx in c.rows] + [f"{name}_at_{x}" for x in "xyz"]
         mine += [f"{name}_A{i}{j}" for i in "123" for j in "123"] if c.kind == "weld" else []
         clash = sorted(taken & set(mine))
@@ -202,7 +214,9 @@ def contact_model(source, contacts, points: Mapping | None = None, backend: str 
     tree = dataclasses.replace(tree, loops=tuple(tree.loops) + tuple(rows))
     parts = dataclasses.replace(parts, tree=tree, constraints=tuple(parts.constraints) + tuple((r_.name, None) for r_ in rows),
                                 parameters=tuple(parts.parameters) + tuple(params))
-    return LoopModel(parts, backend), tuple(held)
+    model = LoopModel(parts, backend)
+    model.contacts = tuple(held)
+    return model
 
 
 def _plant(model, held, q, passive, pv, tol, max_iterations):
@@ -438,11 +452,11 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
     named in ``undetermined``, as for redundant loops."""
     from appell.numerics.loops import LoopModel, loop_model
 
-    held: tuple = ()
     if contacts:
-        model, held = contact_model(model, contacts, points)
+        model = contact_model(model, contacts, points)
     else:
         model = model if isinstance(model, LoopModel) else loop_model(model)
+    held = getattr(model, "contacts", ())  # a contact_model's contacts
     names, speeds = model.coordinate_names, model.speed_names
     t = np.asarray(t, float).reshape(-1)
     if t.size < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
