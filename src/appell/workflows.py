@@ -749,6 +749,8 @@ def load_inverse_source(model: str, overrides=None, floating_base: bool = False,
             raise ModelError(f"--contact: {exc.message}", where=str(model), hint=exc.hint) from None
     else:
         closed = closed_chain_model(system, reasons)
+    if closed is not None:
+        closed.names = dict(system.names)  # the file's own spelling, for run_inverse
     if closed is None:
         for reason in reasons:
             echo(f"note: the closed-chain route, which completes the passive coordinates from the given ones, "
@@ -813,18 +815,42 @@ def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=No
     :class:`~appell.numerics.loops.LoopModel` of a closed chain (:func:`load_inverse_source`): the file
     then gives the independent coordinates alone (the actuated ones), the passive ones are
     completed from the loops (``guess``: ``{coordinate: start}`` for the first time's
-    assembly), and the output holds every drive, loop force and joint wrench."""
+    assembly), and the output holds every drive, loop force and joint wrench. A model whose
+    file's names are not identifiers (``System.names``: MJCF's ``left-hip-roll``) takes them
+    in the file, ``--drive`` and ``--guess`` and shows them in the output and messages."""
+    from appell.symbols import given_names, shown_names
+
+    echo = echo or _print
+    table = read_trajectory(Path(trajectory)) if table is None else table
+    names = dict(getattr(derivation, "names", None) or getattr(getattr(derivation, "system", None), "names", ()))
+    if not names:
+        return _run_inverse(derivation, trajectory, drives, out, echo, table, guess)
+    # a file whose names are not identifiers (MJCF's 'left-hip-roll'): read and shown as it spells them
+
+    def shown(text, **kw):
+        return echo(shown_names([text], names)[0], **kw)
+
+    table = dict(zip(given_names(table, names), table.values()))
+    drives = given_names(drives, names)
+    guess = dict(zip(given_names(guess, names), guess.values())) if guess else guess
+    try:
+        return _run_inverse(derivation, trajectory, drives, out, shown, table, guess, names)
+    except (ModelError, ComputationError) as exc:
+        raise type(exc)(shown_names([exc.message], names)[0], where=exc.where,
+                        hint=exc.hint and shown_names([exc.hint], names)[0]) from None
+
+
+def _run_inverse(derivation, trajectory, drives, out, echo, table, guess, names=None):
+    """:func:`run_inverse` on the table read (the model's identifiers); ``names`` as shown."""
     import numpy as np
 
     from appell.numerics.boundary import numeric_model
     from appell.simulation.inverse import inverse_dynamics
     from appell.simulation.recording import acceleration_name
 
-    echo = echo or _print
-    table = read_trajectory(Path(trajectory)) if table is None else table
     if hasattr(derivation, "loop_rows"):  # a closed chain's LoopModel (load_inverse_source)
         result, given = _closed_chain_inverse(derivation, trajectory, table, drives, guess, echo)
-        return _write_inverse(result, derivation.name, out, given, echo)
+        return _write_inverse(result, derivation.name, out, given, echo, names)
     if guess:
         raise ModelError("--guess applies to a closed chain (a mechanism whose loops the motion completes)",
                          hint="this model's motion gives every coordinate; leave --guess out")
@@ -844,16 +870,17 @@ def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=No
     w = given(numeric.speed_names)
     a = given([acceleration_name(n) for n in numeric.speed_names]) if w is not None else None
     result = inverse_dynamics(derivation, table["t"], q, w, a, drives=list(drives) or None)
-    return _write_inverse(result, derivation.system.name, out, w is not None, echo)
+    return _write_inverse(result, derivation.system.name, out, w is not None, echo, names)
 
 
-def _write_inverse(result, name, out, given, echo):
-    """``result`` written to ``out`` (default ``<name>-inverse.csv``), its summary on ``echo``."""
+def _write_inverse(result, name, out, given, echo, names=None):
+    """``result`` written to ``out`` (default ``<name>-inverse.csv``; the columns named as the
+    model's file spells them, ``names``), its summary on ``echo``."""
     import numpy as np
 
     path = Path(out) if out is not None else default_file_name(name, "-inverse.csv")
     output_target(path)
-    result.to_csv(path)
+    result.to_csv(path, names)
     for drive, values in result.drives.items():
         k = int(np.argmax(np.abs(values)))
         echo(f"drive_{drive}: largest |value| {abs(values[k]):.6g} at t = {result.t[k]:.6g}")

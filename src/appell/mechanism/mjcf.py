@@ -59,6 +59,7 @@ from __future__ import annotations
 import keyword
 import re
 import warnings
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -195,6 +196,7 @@ class _Names:
     def __init__(self, reserved=()):
         self.used = set(reserved)
         self.table: dict[str, tuple[str, str]] = {}
+        self.kept: list[str] = []  # the names that are MuJoCo's own
 
     def claim(self, kind: str, original: str | None, fallback: str, derived=()) -> str:
         from appell.symbols import name_problem
@@ -211,12 +213,14 @@ class _Names:
         self.used.update(candidate + d for d in derived)
         if original and candidate != original:
             self.table[candidate] = (kind, original)
+        elif original:
+            self.kept.append(candidate)
         return candidate
 
     def shown(self, ident: str) -> str:
-        """``ident`` with its MJCF name where that differs (for messages)."""
+        """``ident`` as the file spells it (for messages: the note gives the identifier)."""
         kind, original = self.table.get(ident, (None, None))
-        return repr(ident) if original is None else f"{ident!r} (MJCF {kind} {original!r})"
+        return repr(ident) if original is None else repr(original)
 
 
 #: the coordinates and constraints a joint of each kind adds beside its name
@@ -260,6 +264,7 @@ class MjcfModel:
     note: str | None
     rotors: dict = None  # joint name -> its armature rotor's coordinate name
     points: dict = None  # MJCF body or site name (and a body's identifier) -> (appell body, its point there)
+    kept: tuple = ()  # the MJCF names read unchanged
 
     def state(self, qpos, qvel=None) -> dict[str, float]:
         """appell's coordinates and speeds ``{name: value}`` at MuJoCo's ``qpos``, ``qvel``:
@@ -669,7 +674,8 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
         if site and site not in points and body is not mech.ground:
             points[site] = (body.name, tuple(float(x) for x in p_b + R_b @ np.asarray(model.site_pos[k], float)))
     out = MjcfModel(mech, tuple(constraints), {k: v for k, v in forces.items() if v != 0}, rotor,
-                    tuple(actuators), tuple(read_joints), dict(names.table), note, rotors, points)
+                    tuple(actuators), tuple(read_joints), dict(names.table), note, rotors, points,
+                    tuple(names.kept))
     out.__dict__["qpos0"] = np.asarray(model.qpos0, float).copy()
     return out
 
@@ -737,7 +743,12 @@ def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: st
             raise ModelError(f"{where}: ctrl of actuator {original!r} depends on {sorted(map(str, expr.free_symbols - {t}))}",
                              hint="a program is a function of time t alone")
         programs.append(Program(sp.Symbol(ident), expr))
-    return read.mechanism.system(constraints=tuple(read.constraints), joint_forces=read.joint_forces,
-                                 rotor_energy=read.rotor_energy if read.rotor_energy != 0 else None,
-                                 programs=tuple(programs), controls=tuple(options.pop("controls", ())) + tuple(controls),
-                                 **options)
+    system = read.mechanism.system(constraints=tuple(read.constraints), joint_forces=read.joint_forces,
+                                   rotor_energy=read.rotor_energy if read.rotor_energy != 0 else None,
+                                   programs=tuple(programs), controls=tuple(options.pop("controls", ())) + tuple(controls),
+                                   **options)
+    if read.names:  # every table and message shows MuJoCo's names (System.names); the names read
+        # unchanged map to themselves, so that a longer one is not read as a renamed shorter one
+        table = {**{k: k for k in read.kept}, **{ident: original for ident, (_, original) in read.names.items()}}
+        system = dataclasses.replace(system, names=tuple(table.items()))
+    return system

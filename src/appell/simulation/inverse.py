@@ -99,17 +99,19 @@ class InverseDynamics:
         return ([("t", self.t)] + list(self.motion.items()) + [(f"drive_{k}", v) for k, v in self.drives.items()]
                 + [(f"lambda_{k}", v) for k, v in self.multipliers.items()] + list(self.outputs.items()))
 
-    def to_csv(self, path):
-        """Write :meth:`columns` as CSV, atomically."""
+    def to_csv(self, path, names=None):
+        """Write :meth:`columns` as CSV, atomically; ``names`` (``{identifier: name in the
+        model's file}``, :attr:`appell.System.names`) heads the columns as the file spells them."""
         import csv
 
         from appell.files import atomic_path
+        from appell.symbols import shown_names
 
         cols = self.columns()
         with atomic_path(path) as tmp:
             with open(tmp, "w", newline="") as fh:
                 writer = csv.writer(fh)
-                writer.writerow([n for n, _ in cols])
+                writer.writerow(shown_names([n for n, _ in cols], names))
                 for k in range(self.t.size):
                     writer.writerow([repr(float(v[k])) for _, v in cols])
         return path

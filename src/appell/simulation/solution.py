@@ -100,6 +100,7 @@ class ModelMetadata:
     appell_version: str = ""
     settings: Mapping[str, str] = field(default_factory=dict)
     units: Mapping[str, str] = field(default_factory=dict)
+    names: Mapping[str, str] = field(default_factory=dict)  # identifier -> the model file's name (System.names)
 
 
 def _frozen_arrays(mapping) -> Mapping[str, np.ndarray]:
@@ -357,8 +358,10 @@ class Solution:
 
     # ---------------------------------------------------------------- export
     def _csv_rows(self):
+        from appell.symbols import shown_names
+
         cols = self.columns()
-        yield [c for c, _ in cols]
+        yield shown_names([c for c, _ in cols], self.metadata.names)  # as the model's file spells them
         for i in range(self.t.size):
             yield ["" if np.isnan(a[i]) else repr(float(a[i])) for _, a in cols]
 
