@@ -372,7 +372,10 @@ def _combinations(A, names, tol):
 
 def _independent(J, ind, passive, names):
     """A :class:`ModelError` where the given coordinates are related by the loops, or leave
-    passive ones free (ranks of ``J`` and its passive columns, relative tolerance 1e-9)."""
+    passive ones free (ranks of ``J`` and its passive columns, relative tolerance 1e-9; a row
+    of the given coordinates alone, a floating base's unit quaternion given whole, is theirs
+    to hold and left out)."""
+    J = J[np.abs(J[:, passive]).max(axis=1, initial=0.0) > 0] if passive else J
     rank, rank_p = (np.linalg.matrix_rank(M_, tol=1e-9 * max(np.abs(J).max(initial=0.0), 1e-300))
                     for M_ in (J, J[:, passive]))
     if rank_p < rank:
