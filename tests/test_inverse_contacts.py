@@ -169,43 +169,82 @@ def test_bad_contacts_are_refused_by_name():
     assert Contact.of("foot:weld") == Contact("foot", kind="weld")
 
 
-def test_the_command_line_holds_a_foot_by_an_mjcf_site(tmp_path):
-    """``appell inverse biped.xml --contact left_sole:weld``: a site on the left foot at the
-    contact point (MJCF name), the motors' motion in the file; the torques and the ground's
-    force and moment are those of the Python route above (checked there against MuJoCo), to
-    1e-9."""
-    pytest.importorskip("mujoco")
+#: a three-link planar arm in MuJoCo's spelling, its tool at the site 'tool-tip'
+ARM = """<mujoco model="three-link arm">
+  <option gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="upper-link" pos="0 0 1">
+      <joint name="shoulder-pitch" type="hinge" axis="0 1 0"/>
+      <inertial pos="0.25 0 0" mass="2" diaginertia="0.001 0.04 0.04"/>
+      <body name="fore-link" pos="0.5 0 0">
+        <joint name="elbow-pitch" type="hinge" axis="0 1 0"/>
+        <inertial pos="0.2 0 0" mass="1.2" diaginertia="0.001 0.016 0.016"/>
+        <body name="hand-link" pos="0.4 0 0">
+          <joint name="wrist-pitch" type="hinge" axis="0 1 0"/>
+          <inertial pos="0.05 0 0" mass="0.5" diaginertia="0.001 0.001 0.001"/>
+          <site name="tool-tip" pos="0.15 0 0"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_the_command_line_holds_a_tool_by_an_mjcf_site(tmp_path):
+    """``appell inverse arm.xml --contact tool-tip`` (an MJCF site, hyphenated names): the tool
+    held where it is at the first time, the shoulder's motion in the file; the elbow and wrist
+    follow. The columns show the file's names, the contact row out of the arm's plane is named
+    undetermined, and MuJoCo's blocks with the tool connected to the world and the shoulder's
+    torque give back the prescribed accelerations and the contact force (1e-9)."""
+    import mujoco
     from click.testing import CliRunner
 
     from appell.io.cli import cli
-    from appell.mechanism.mjcf import load_mjcf, mjcf_mechanism
     from test_inverse import _read_csv, _write_csv
 
-    xml = BIPED.read_text().replace(
-        '<inertial pos="0.03 0 -0.02" mass="0.3" diaginertia="0.0005 0.0008 0.0004"/>',
-        '<inertial pos="0.03 0 -0.02" mass="0.3" diaginertia="0.0005 0.0008 0.0004"/>'
-        '<site name="{side}_sole" pos="0.03 0 -0.04"/>', 2)
-    xml = xml.replace("{side}_sole", "left_sole", 1).replace("{side}_sole", "right_sole", 1)
-    model_file = tmp_path / "biped.xml"
-    model_file.write_text(xml)
-    t = np.linspace(0.0, 0.3, 16)
-    motion = _write_csv(tmp_path / "gait.csv", {"t": t, **biped_gait(t)})
-    out = tmp_path / "stance.csv"
-    result = CliRunner().invoke(cli, ["inverse", str(model_file), "--trajectory", str(motion),
-                                      "--contact", "left_sole:weld", "--out", str(out)])
+    model_file = tmp_path / "arm.xml"
+    model_file.write_text(ARM)
+    t = np.linspace(0.0, 0.4, 9)
+    motion = _write_csv(tmp_path / "shoulder.csv", {"t": t, "shoulder-pitch": 0.3 + 0.2 * np.sin(2 * t)})
+    out = tmp_path / "held.csv"
+    result = CliRunner().invoke(cli, ["inverse", str(model_file), "--trajectory", str(motion), "--contact",
+                                      "tool-tip", "--guess", "elbow-pitch=0.8", "--guess", "wrist-pitch=-0.4",
+                                      "--out", str(out)])
     assert result.exit_code == 0, result.output
+    assert "completed from the loops: elbow-pitch, wrist-pitch" in result.output
+    assert "undetermined (minimum-norm answer given): 1*tool-tip_contact_y" in result.output
     got = _read_csv(out)
-    mech, _ = mjcf_mechanism(load_mjcf(BIPED), str(BIPED))
-    ref = inverse_dynamics(mech, t, biped_gait(t), contacts=[Contact("left_foot", FOOT, "weld")])
-    for name, values in ref.drives.items():
-        assert np.abs(got[f"drive_{name}"] - values).max() <= 1e-9 * np.abs(values).max()
-    for x in "xyz":
-        for f in "FM":
-            ours, theirs = got[f"{f}_left_sole_contact_{x}"], ref.outputs[f"{f}_left_foot_contact_{x}"]
-            assert np.abs(ours - theirs).max() <= 1e-9 * max(1.0, np.abs(theirs).max())
+    assert {"drive_shoulder-pitch_dot", "F_tool-tip_contact_x", "F_elbow-pitch_z", "wrist-pitch_ddot"} <= set(got)
+    m = mujoco.MjModel.from_xml_string(ARM)
+    d = mujoco.MjData(m)
+    site = m.site("tool-tip")
+    body = int(site.bodyid[0])
+    names = ["shoulder-pitch", "elbow-pitch", "wrist-pitch"]
+    place = None
+    for k in range(t.size):
+        d.qpos[:] = [got[n][k] for n in names]
+        d.qvel[:] = [got[n + "_dot"][k] for n in names]
+        mujoco.mj_forward(m, d)
+        p = d.site_xpos[site.id].copy()
+        place = p if place is None else place
+        assert np.abs(p - place).max() < 1e-10
+        J, D = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        mujoco.mj_jac(m, d, J, None, p, body)
+        mujoco.mj_jacDot(m, d, D, None, p, body)
+        J, c = J[[0, 2]], (D @ d.qvel)[[0, 2]]  # the rows in the arm's plane
+        M = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, M)
+        tau = np.array([got["drive_shoulder-pitch_dot"][k], 0.0, 0.0])
+        K = np.block([[M, -J.T], [J, np.zeros((2, 2))]])
+        x = np.linalg.solve(K, np.concatenate([tau - d.qfrc_bias, -c]))
+        prescribed = np.array([got[n + "_ddot"][k] for n in names])
+        assert np.abs(x[:3] - prescribed).max() <= 1e-9 * np.abs(prescribed).max()
+        force = np.array([got["F_tool-tip_contact_x"][k], got["F_tool-tip_contact_z"][k]])
+        assert np.abs(x[3:] - force).max() <= 1e-9 * np.abs(force).max()
+        assert got["F_tool-tip_contact_y"][k] == 0.0  # the minimum-norm choice of the open row
     bad = CliRunner().invoke(cli, ["inverse", str(model_file), "--trajectory", str(motion),
-                                   "--contact", "left_heel", "--out", str(out)])
-    assert bad.exit_code == 2 and "no body 'left_heel'" in bad.output and "left_sole" in bad.output
+                                   "--contact", "tool-heel", "--out", str(out)])
+    assert bad.exit_code == 2 and "no body 'tool-heel'" in bad.output and "tool-tip" in bad.output
 
 
 def test_a_refused_closed_chain_route_says_why(tmp_path):

@@ -749,8 +749,9 @@ def load_inverse_source(model: str, overrides=None, floating_base: bool = False,
             raise ModelError(f"--contact: {exc.message}", where=str(model), hint=exc.hint) from None
     else:
         closed = closed_chain_model(system, reasons)
-    if closed is not None:
-        closed.names = dict(system.names)  # the file's own spelling, for run_inverse
+    if closed is not None:  # the file's own spelling, for run_inverse (a contact's name from its body or site)
+        closed.names = {**dict(system.names), **{c.name.removesuffix("_contact"): c.body for c, *_ in
+                                                 getattr(closed, "contacts", ()) if not c.body.isidentifier()}}
     if closed is None:
         for reason in reasons:
             echo(f"note: the closed-chain route, which completes the passive coordinates from the given ones, "

@@ -370,12 +370,13 @@ def _combinations(A, names, tol):
     return echelon_null_space(A, names, tol)
 
 
-def _independent(J, ind, passive, names):
+def _independent(J, ind, passive, names, own=()):
     """A :class:`ModelError` where the given coordinates are related by the loops, or leave
     passive ones free (ranks of ``J`` and its passive columns, relative tolerance 1e-9; a row
-    of the given coordinates alone, a floating base's unit quaternion given whole, is theirs
-    to hold and left out)."""
-    J = J[np.abs(J[:, passive]).max(axis=1, initial=0.0) > 0] if passive else J
+    of ``own`` (a joint's own constraint, not a loop's) on the given coordinates alone, a
+    floating base's unit quaternion given whole, is theirs to hold and left out)."""
+    if own and passive:
+        J = np.delete(J, [k for k in own if not np.any(J[k, passive])], axis=0)
     rank, rank_p = (np.linalg.matrix_rank(M_, tol=1e-9 * max(np.abs(J).max(initial=0.0), 1e-300))
                     for M_ in (J, J[:, passive]))
     if rank_p < rank:
@@ -525,14 +526,14 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
         qk, Phi, J = _assemble(model, qk, ind, passive, qi[k], pv, tol, max_iterations)
         if np.abs(Phi).max(initial=0.0) > tol:
             if k == 0:
-                _independent(J, ind, passive, names)
+                _independent(J, ind, passive, names, model.other_rows)
             worst = cons[int(np.argmax(np.abs(Phi)))]
             raise ComputationError(f"at t = {t[k]:.10g} the loops do not close: {worst!r} keeps a residual "
                                    f"{np.abs(Phi).max():.3g} after Newton's method",
                                    hint="the given coordinates leave no assembly, or start the passive ones nearer "
                                         "(guess={name: value})")
         if k == 0 and s:
-            _independent(J, ind, passive, names)
+            _independent(J, ind, passive, names, model.other_rows)
         wk = np.zeros(n)
         wk[ind] = wi[k]
         if passive:
