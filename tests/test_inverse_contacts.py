@@ -278,3 +278,31 @@ vector = [1, 0, 0]
     result = runner.invoke(cli, ["inverse", str(model), "--trajectory", str(crank), "--contact", "rocker",
                                  "--out", str(out)])
     assert result.exit_code == 2 and "--contact" in result.output and "push" in result.output
+
+
+def test_contact_rows_alike_in_the_compiled_and_numpy_routes():
+    """The contact rows (``'point'`` and ``'align'`` to the ground) of the compiled route equal
+    the NumPy route's at a random state: positions, ``J``, ``c`` and the wrenches of given
+    multipliers."""
+    from appell.mechanism.mjcf import load_mjcf, mjcf_mechanism
+    from appell.simulation.inverse import contact_model
+
+    mech, _ = mjcf_mechanism(load_mjcf(BIPED), str(BIPED))
+    held = [Contact("left_foot", FOOT, "weld"), Contact("right_foot", FOOT, "point")]
+    fast, slow = (contact_model(mech, held, backend=b) for b in ("c", "numpy"))
+    assert fast.backend == "c" and slow.backend == "numpy"
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-0.5, 0.5, fast.n)
+    q[3:7] /= np.linalg.norm(q[3:7])
+    w, lam = rng.normal(size=fast.n), rng.normal(size=len(fast.constraint_names))
+    p = fast.parameter_values.copy()
+    p[-15:] = rng.normal(size=15)  # the contacts' places and held orientation
+    (Phi_f, J_f), (Phi_s, J_s) = fast.positions(q, p), slow.positions(q, p)
+    assert np.allclose(Phi_f, Phi_s, rtol=1e-12, atol=1e-12) and np.allclose(J_f, J_s, rtol=1e-12, atol=1e-12)
+    *blocks_f, pieces_f = fast.blocks(q, w, None, 0.0, p)
+    *blocks_s, pieces_s = slow.blocks(q, w, None, 0.0, p)
+    for x, y in zip(blocks_f, blocks_s):
+        assert np.allclose(x, y, rtol=1e-11, atol=1e-11)
+    a = rng.normal(size=fast.n)
+    assert np.allclose(fast.wrench_array(w, a, lam, pieces_f), slow.wrench_array(w, a, lam, pieces_s),
+                       rtol=1e-10, atol=1e-10)
