@@ -823,7 +823,8 @@ def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=No
 
     echo = echo or _print
     table = read_trajectory(Path(trajectory)) if table is None else table
-    names = dict(getattr(derivation, "names", None) or getattr(getattr(derivation, "system", None), "names", ()))
+    names = dict(getattr(derivation, "names", {}) if hasattr(derivation, "loop_rows")  # load_inverse_source's
+                 else getattr(getattr(derivation, "system", None), "names", ()))
     if not names:
         return _run_inverse(derivation, trajectory, drives, out, echo, table, guess)
     # a file whose names are not identifiers (MJCF's 'left-hip-roll'): read and shown as it spells them
