@@ -85,6 +85,7 @@ def test_inverse_reads_and_shows_the_files_names(tmp_path):
 
 
 def test_simulate_writes_the_files_names(tmp_path):
+    """The CSV and HDF5 files of ``appell simulate`` name every column as the MJCF file does."""
     plain, hyphen = _files(tmp_path)
     tables = {}
     for model in (plain, hyphen):
@@ -99,3 +100,10 @@ def test_simulate_writes_the_files_names(tmp_path):
     assert set(got) == {_as_shown(n) for n in ref}
     for name, values in ref.items():
         assert np.allclose(got[_as_shown(name)], values, rtol=1e-12, atol=1e-12), name
+    h5py = pytest.importorskip("h5py")
+    out = tmp_path / "hyphen-sim.h5"
+    assert CliRunner().invoke(cli, ["simulate", str(hyphen), "--t-end", "0.05", "--out", str(out)]).exit_code == 0
+    with h5py.File(out) as f:
+        assert {"crank-joint", "coupler-joint_dot"} <= set(f["states"]) and "F_crank-joint_x" in f["outputs"]
+        assert "knee-loop_x" in f["multipliers"] and "rocker-joint" in list(f.attrs["coordinate_names"])
+        _check_no_identifier(" ".join(list(f["states"]) + list(f["outputs"]) + list(f["multipliers"])))

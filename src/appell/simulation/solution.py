@@ -489,8 +489,13 @@ class Solution:
         """
         import h5py
 
+        from appell.symbols import shown_names
+
         md = self.metadata
         path = Path(path)
+
+        def shown(names):  # as the model's file spells them (ModelMetadata.names)
+            return np.array(shown_names(names, md.names), dtype=h5py.string_dtype())
 
         def fill(f):
             f.attrs["format"] = "appell simulation result"
@@ -498,11 +503,11 @@ class Solution:
             f.attrs["appell_version"] = md.appell_version
             f.attrs["status"] = self.status
             f.attrs["message"] = self.message
-            f.attrs["constraint_names"] = np.array(md.constraint_names, dtype=h5py.string_dtype())
+            f.attrs["constraint_names"] = shown(md.constraint_names)
             f.attrs["constraint_kinds"] = np.array(md.constraint_kinds, dtype=h5py.string_dtype())
-            f.attrs["coordinate_names"] = np.array(self.coordinate_names, dtype=h5py.string_dtype())
-            f.attrs["speed_names"] = np.array(self.speed_names, dtype=h5py.string_dtype())
-            f.attrs["acceleration_names"] = np.array(self.acceleration_names, dtype=h5py.string_dtype())
+            f.attrs["coordinate_names"] = shown(self.coordinate_names)
+            f.attrs["speed_names"] = shown(self.speed_names)
+            f.attrs["acceleration_names"] = shown(self.acceleration_names)
             f.attrs["max_position_residual"] = self.max_position_residual
             f.attrs["max_velocity_residual"] = self.max_velocity_residual
             for k, v in vars(self.statistics).items():
@@ -516,7 +521,8 @@ class Solution:
                 pg.attrs[f"{name}.description"] = desc or ""
 
             def put(c):
-                ds = f.require_group(c.group or "/").create_dataset(c.key, data=np.asarray(c.values, float))
+                ds = f.require_group(c.group or "/").create_dataset(str(shown([c.key])[0]),
+                                                                     data=np.asarray(c.values, float))
                 ds.attrs["units"] = c.units
                 ds.attrs["description"] = c.long_name
                 return ds
