@@ -85,7 +85,7 @@ def test_inverse_reads_and_shows_the_files_names(tmp_path):
 
 
 def test_simulate_writes_the_files_names(tmp_path):
-    """The CSV and HDF5 files of ``appell simulate`` name every column as the MJCF file does."""
+    """The CSV, HDF5 and netCDF files of ``appell simulate`` name every column as the MJCF file does."""
     plain, hyphen = _files(tmp_path)
     tables = {}
     for model in (plain, hyphen):
@@ -107,3 +107,10 @@ def test_simulate_writes_the_files_names(tmp_path):
         assert {"crank-joint", "coupler-joint_dot"} <= set(f["states"]) and "F_crank-joint_x" in f["outputs"]
         assert "knee-loop_x" in f["multipliers"] and "rocker-joint" in list(f.attrs["coordinate_names"])
         _check_no_identifier(" ".join(list(f["states"]) + list(f["outputs"]) + list(f["multipliers"])))
+    xr = pytest.importorskip("xarray")
+    pytest.importorskip("h5netcdf")
+    out = tmp_path / "hyphen-sim.nc"
+    assert CliRunner().invoke(cli, ["simulate", str(hyphen), "--t-end", "0.05", "--out", str(out)]).exit_code == 0
+    with xr.open_dataset(out) as ds:
+        assert {"crank-joint", "lambda_knee-loop_x", "F_rocker-joint_y"} <= set(ds.data_vars)
+        _check_no_identifier(" ".join(map(str, ds.data_vars)))

@@ -465,7 +465,12 @@ class Solution:
         except ImportError as exc:
             raise ComputationError("netCDF output needs the package h5netcdf, which is not installed",
                                    hint="pip install h5netcdf (or pip install appell, which brings it)") from exc
-        data = self.to_xarray(units).to_netcdf(engine="h5netcdf", encoding={"time": {"_FillValue": None}})
+        from appell.symbols import shown_names
+
+        ds = self.to_xarray(units)
+        names = [str(n) for n in ds.data_vars]  # the variables as the model's file spells them (ModelMetadata.names)
+        ds = ds.rename({a: b for a, b in zip(names, shown_names(names, self.metadata.names)) if a != b})
+        data = ds.to_netcdf(engine="h5netcdf", encoding={"time": {"_FillValue": None}})
         path = Path(path)
         with atomic_path(path, suffix=".nc") as tmp:
             write_bytes(tmp, data)
