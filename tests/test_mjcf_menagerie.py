@@ -39,7 +39,7 @@ from appell.errors import AppellNote, ModelError
 from appell.symbols import t as t_
 
 mujoco = pytest.importorskip("mujoco")
-from appell.mechanism.mjcf import load_mjcf, mjcf_system, read_mjcf  # noqa: E402
+from appell.mechanism.mjcf import _product, _quaternion, load_mjcf, mjcf_system, read_mjcf  # noqa: E402
 
 # ../shared beside the clone (CI), or where APPELL_SHARED points (a worktree elsewhere)
 MENAGERIE = next((base / "models" / "menagerie" for base in (Path(__file__).resolve().parents[2] / "shared",
@@ -387,3 +387,75 @@ def test_an_actuator_solved_for_a_prescribed_motion_makes_mujoco_follow_it():
         data.ctrl[:] = [sol.controls[0], 0.3 * np.cos(tt)]
         expected = reference(mj, data)
         assert abs(expected[0] - A_ddot) <= 1e-9 * max(1.0, abs(A_ddot)), (tt, expected[0], A_ddot)
+
+
+@needs_files
+def test_a_menagerie_humanoid_standing_on_both_feet_inverted_with_its_contact_forces(tmp_path):
+    """Berkeley Humanoid as shipped (frictionloss left out), on the command line:
+    ``appell inverse FILE --mjcf actuators=controls --contact ll_faa:weld --contact lr_faa:weld``
+    with the torso's place in the file (issue 41 part 3: contacts as constraints): the twelve
+    position actuators' controls and both feet's forces and moments, minimum-norm with the six
+    combinations double support leaves open named; the columns name the actuators as the file
+    does (``drive_LL_HR``, not the identifier ``LL_HR_actuator``: part 1). Source of truth:
+    MuJoCo's blocks with those controls (``mj_fullM`` with the armature, ``qfrc_bias``,
+    ``qfrc_actuator``, ``qfrc_passive``, the feet's ``mj_jac``/``mj_jacDot`` rows,
+    tests/test_inverse_contacts._mujoco_kkt_held) give back the prescribed accelerations and the
+    same contact forces (unique once the controls are given), to 1e-9."""
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+    from test_inverse import _read_csv, _write_csv
+    from test_inverse_contacts import _mujoco_kkt_held
+
+    path = MENAGERIE / "berkeley_humanoid" / "berkeley_humanoid.xml"
+    read = read_mjcf(load_mjcf(path), str(path), "ignore")
+    joints = [j for j in read.joints if j.kind == "hinge"]
+    base = read.joints[0]
+    assert base.kind == "free"
+    t = np.linspace(0.0, 0.3, 7)
+    x, y, z, q0, q1, q2, q3 = base.coordinates
+    motion = {"t": t, x: 0.02 * np.sin(np.pi * t), y: 0.01 * np.sin(np.pi * t), z: -0.03 * np.sin(np.pi * t),
+              q0: np.ones(t.size), q1: np.zeros(t.size), q2: np.zeros(t.size), q3: np.zeros(t.size)}
+    bent = {"LL_HFE": -0.3, "LL_KFE": 0.6, "LL_FFE": -0.3, "LR_HFE": 0.3, "LR_KFE": -0.6, "LR_FFE": 0.3}
+    out = tmp_path / "standing.csv"
+    result = CliRunner().invoke(cli, ["inverse", str(path), "--trajectory", str(_write_csv(tmp_path / "torso.csv", motion)),
+                                      "--mjcf", "actuators=controls", "--mjcf", "frictionloss=ignore",
+                                      "--contact", "ll_faa:weld", "--contact", "lr_faa:weld", "--out", str(out)]
+                                + [f"--guess={k}={v}" for k, v in bent.items()])
+    assert result.exit_code == 0, result.output
+    assert result.output.count("undetermined (minimum-norm answer given)") == 6  # 12 controls + 12 rows, 18 dof
+    got = _read_csv(out)
+    assert "drive_LL_HR" in got and not any("_actuator" in name for name in got)
+    m = mujoco.MjModel.from_xml_path(str(path))
+    # the control and force ranges are recorded by appell, not enforced: MuJoCo's clamps off likewise
+    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL)
+    m.jnt_actfrclimited[:] = 0
+    m.actuator_forcelimited[:] = 0
+    d = mujoco.MjData(m)
+    feet = [(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b), (0.0, 0.0, 0.0)) for b in ("ll_faa", "lr_faa")]
+    R0, p0 = np.asarray(base.rotation), np.asarray(base.origin)
+    for k in (1, 3, 5):
+        at = {name: values[k] for name, values in got.items()}
+        quat = np.array([at[q] for q in (q0, q1, q2, q3)])
+        a, b, c, e = quat
+        G = np.array([[-b, a, e, -c], [-c, -e, a, b], [-e, c, -b, a]])
+        d.qpos[:3] = p0 + R0 @ [at[x], at[y], at[z]]
+        d.qpos[3:7] = _product(_quaternion(R0), quat)
+        d.qvel[:3] = R0 @ [at[x + "_dot"], at[y + "_dot"], at[z + "_dot"]]
+        d.qvel[3:6] = 2 * G @ [at[q + "_dot"] for q in (q0, q1, q2, q3)]
+        prescribed = np.zeros(m.nv)
+        prescribed[:3] = R0 @ [at[x + "_ddot"], at[y + "_ddot"], at[z + "_ddot"]]
+        prescribed[3:6] = 2 * G @ [at[q + "_ddot"] for q in (q0, q1, q2, q3)]
+        for j in joints:
+            d.qpos[j.qposadr] = m.qpos0[j.qposadr] + at[j.name]
+            d.qvel[j.dofadr] = at[j.name + "_dot"]
+            prescribed[j.dofadr] = at[j.name + "_ddot"]
+        for i in range(m.nu):
+            d.ctrl[i] = at["drive_" + mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i)]
+        mujoco.mj_forward(m, d)
+        acc, lam = _mujoco_kkt_held(m, d, d.qfrc_passive + d.qfrc_actuator, feet)
+        assert np.abs(acc - prescribed).max() <= 1e-9 * np.abs(prescribed).max()
+        ours = np.array([at[f"{f}_{s}_contact_{x_}"] for s in ("ll_faa", "lr_faa") for f in "FM" for x_ in "xyz"])
+        assert np.abs(lam[-12:] - ours).max() <= 1e-9 * np.abs(ours).max()
+    total = float(m.body_mass.sum()) * 9.81
+    assert got["F_ll_faa_contact_z"][0] + got["F_lr_faa_contact_z"][0] == pytest.approx(total, rel=0.05)

@@ -158,7 +158,7 @@ def _rotation_xyz(a):
 def _stewart_lengths_and_potential(pose):
     """Leg lengths and potential energy at the platform ``pose`` (x, y, z from the home
     position, Euler x-y-z): cylinders' centres 0.2 m up the leg from the base, pistons' 0.2 m
-    below the platform point, yokes at the base points."""
+    below the platform point."""
     p = STEWART
     base, top = _stewart_points()
     R = _rotation_xyz(pose[3:])
@@ -171,7 +171,7 @@ def _stewart_lengths_and_potential(pose):
         L = np.linalg.norm(T - b)
         u = (T - b) / L
         lengths.append(L)
-        V += G * (p["m_cylinder"] * (b + 0.2 * u)[2] + p["m_piston"] * (T - 0.2 * u)[2] + p["m_yoke"] * b[2])
+        V += G * (p["m_cylinder"] * (b + 0.2 * u)[2] + p["m_piston"] * (T - 0.2 * u)[2])
     return np.array(lengths), V
 
 
@@ -193,5 +193,5 @@ def test_stewart_platform_holding_a_pose_by_virtual_work():
     tau = np.array([res.drives[f"leg_{k}"][0] for k in range(1, 7)])
     assert np.allclose(tau, expected, rtol=1e-6, atol=1e-6 * np.abs(expected).max())
     total = float(sum(b.mass for b in mech.bodies))
-    lift = sum(res.outputs[f"F_U{k}1_z"][0] for k in range(1, 7)) + res.outputs["F_P_z"][0]
+    lift = sum(res.outputs[f"F_U{k}_z"][0] for k in range(1, 7)) + res.outputs["F_P_z"][0]
     assert lift == pytest.approx(total * G, rel=1e-10)

@@ -452,6 +452,10 @@ class System:
         mechanism records it): the inertia is then computed by recursions along the tree
         (:mod:`appell.numerics.rigid_tree`), never expanded. Only read where it describes
         exactly these bodies and coordinates (:func:`appell.core.energy.usable_tree`).
+    names : ``((identifier, name in the source file), ...)`` where a file's names are not all
+        identifiers (an MJCF joint ``left-hip-roll`` is the coordinate ``left_hip_roll``; the
+        model's other names map to themselves): result tables and messages show the source's
+        names (:func:`appell.symbols.shown_names`).
     """
 
     coordinates: tuple[sp.Symbol, ...]
@@ -481,6 +485,7 @@ class System:
     outputs: tuple[Output, ...] = ()
     view: object | None = None
     tree: object | None = None
+    names: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self):
         s = object.__setattr__

@@ -3,8 +3,10 @@ returns a :class:`~appell.mechanism.Mechanism` whose loops are closed by ``conne
 motors as actuators, assembled at all-zero coordinates; ``appell.loop_model(mech)`` evaluates it
 and ``appell.inverse_dynamics(mech, t, {motor coordinate: values})`` inverts it.
 
-A universal joint is two revolute joints through a light cross (``yoke``, 10 g): the
-builder has no universal joint of its own here.
+The delta robot's rods hang on universal joints made of two revolute joints through a light
+cross (``yoke``, 10 g); the Stewart-Gough platform's legs use :meth:`Mechanism.universal
+<appell.mechanism.Mechanism.universal>` at the base and a spherical joint at the platform (a
+``connect``: the point rows of an ideal ball joint closing the loop).
 """
 
 from __future__ import annotations
@@ -93,7 +95,7 @@ def delta_robot() -> Mechanism:
 #: the Stewart-Gough platform: base and platform radii, the half angle between a pair's
 #: attachments, the legs' length at zero extension
 STEWART = {"base": 0.5, "platform": 0.3, "base_half": math.radians(10), "platform_half": math.radians(50),
-           "height": 0.6, "m_platform": 5.0, "m_cylinder": 0.8, "m_piston": 0.4, "m_yoke": 0.01}
+           "height": 0.6, "m_platform": 5.0, "m_cylinder": 0.8, "m_piston": 0.4}
 
 
 def _stewart_points():
@@ -113,9 +115,10 @@ def _stewart_points():
 def stewart_platform() -> Mechanism:
     """A Stewart-Gough platform: six legs from the base to the platform (on a free joint ``P``,
     Euler angles, at ``height`` above the base), each a cylinder on a universal joint at the
-    base (two hinges through a yoke), a piston on a prismatic joint ``S<k>`` (the actuator
-    ``leg_<k>`` pushes along it) and a spherical joint at the platform: ``connect`` rows
-    ``T<k>_x, _y, _z``. At zero coordinates every leg points from its base point to its
+    base (:meth:`~appell.mechanism.Mechanism.universal` ``U<k>``: ``U<k>_r1`` about the
+    leg frame's x, then ``U<k>_r2`` about the cross's y), a piston on a prismatic joint ``S<k>``
+    (the actuator ``leg_<k>`` pushes along it) and a spherical joint at the platform, closing the
+    loop: ``connect`` rows ``T<k>_x, _y, _z`` (an ideal ball joint's three force rows). At zero coordinates every leg points from its base point to its
     platform point. Six degrees of freedom: the six leg lengths."""
     p = STEWART
     mech = Mechanism("stewart_platform", gravity=(0, 0, -9.81), description="Stewart-Gough platform, six legs")
@@ -127,11 +130,9 @@ def stewart_platform() -> Mechanism:
         length = math.sqrt(sum(x * x for x in d))
         # the leg's frame: z along the leg at zero coordinates (rotation about z by yaw, then about y by pitch)
         yaw, pitch = math.atan2(d[1], d[0]), math.acos(d[2] / length)
-        yoke = mech.body(f"yoke{k}", p["m_yoke"], inertia=(1e-6, 1e-6, 1e-6))
         cylinder = mech.body(f"cylinder{k}", p["m_cylinder"], inertia=(0.01, 0.01, 1e-4), com=(0, 0, 0.2))
         piston = mech.body(f"piston{k}", p["m_piston"], inertia=(0.005, 0.005, 5e-5), com=(0, 0, length - 0.2))
-        mech.revolute(f"U{k}1", "ground", yoke, axis=(1, 0, 0), origin=b, rpy=(0, pitch, yaw))
-        mech.revolute(f"U{k}2", yoke, cylinder, axis=(0, 1, 0))
+        mech.universal(f"U{k}", "ground", cylinder, axes=((1, 0, 0), (0, 1, 0)), origin=b, rpy=(0, pitch, yaw))
         mech.prismatic(f"S{k}", cylinder, piston, axis=(0, 0, 1))
         mech.actuator(f"leg_{k}", f"S{k}")
         mech.connect(f"T{k}", (piston, (0, 0, length)), (platform, tp))

@@ -554,11 +554,16 @@ def animate_command(model, out, t_end, fps, frames, backend, assignments, floati
 @click.option("--guess", "guess", multiple=True, metavar="NAME=VALUE",
               help="A closed chain's passive coordinate near its value at the first time (repeat): the start of "
                    "the loops' assembly (default: the model's initial values).")
+@click.option("--contact", "contacts", multiple=True, metavar="NAME[:point|:weld]",
+              help="A foot or tool held on the ground along the motion (repeat): a body, or an MJCF body or site, "
+                   "held at its place at the first time; ':point' holds the point (default), ':weld' the "
+                   "orientation too (a flat foot). Its force (and moment) are solved with the drives: "
+                   "F_<name>_contact_x .. M_<name>_contact_z.")
 @click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE.csv",
               help="Where to write t, the motion, drive_<speed>, lambda_<constraint> and the joint forces and "
                    "moments (default: <model name>-inverse.csv).")
 @_model_options
-def inverse_command(model, trajectory, drives, guess, out, assignments, floating_base):
+def inverse_command(model, trajectory, drives, guess, contacts, out, assignments, floating_base):
     """Inverse dynamics: the drive forces (torques) along the driven speeds, every reaction
     and every joint's force and moment along a given motion (what RNEA gives for a robot).
 
@@ -566,8 +571,10 @@ def inverse_command(model, trajectory, drives, guess, out, assignments, floating
     [[closures]] table) takes the motion of its actuated (or other independent) coordinates
     alone and completes the passive ones from the loops; it writes the actuator torques,
     every loop force and every joint wrench, and names the combinations the motion leaves
-    undetermined (minimum-norm answer). Another model with constraints names its drives
-    with --drive (as many as the constraints leave degrees of freedom).
+    undetermined (minimum-norm answer). --contact holds a foot or tool on the ground (a loop
+    row to the world, as a closure) and writes the ground's force and moment on it. Another
+    model with constraints names its drives with --drive (as many as the constraints leave
+    degrees of freedom).
     """
     table = workflows.read_trajectory(Path(trajectory))  # a bad file is bad input before the derivation
     path = output_file(Path(out), "'--out'") if out else None
@@ -575,7 +582,7 @@ def inverse_command(model, trajectory, drives, guess, out, assignments, floating
     source = workflows.load_inverse_source(model, parse_assignments(assignments), floating_base,
                                            cache=False if meta.get("appell.no_cache") else None,
                                            reactions_in=meta.get("appell.reactions_in"),
-                                           reader=meta.get("appell.mjcf"), echo=click.echo)
+                                           reader=meta.get("appell.mjcf"), echo=click.echo, contacts=contacts)
     workflows.run_inverse(source, trajectory, drives, path, echo=click.echo, table=table,
                           guess=parse_assignments(guess, "'--guess'"))
 

@@ -30,8 +30,10 @@ def csv_rows(solution):
     """The CSV file's rows: the header (the names of
     :meth:`~appell.simulation.solution.Solution.columns`), then one row per time, NaN as an empty
     cell."""
+    from appell.symbols import shown_names
+
     cols = solution.columns()
-    yield [c for c, _ in cols]
+    yield shown_names([c for c, _ in cols], solution.metadata.names)  # as the model's file spells them
     for i in range(solution.t.size):
         yield ["" if np.isnan(a[i]) else repr(float(a[i])) for _, a in cols]
 
@@ -60,7 +62,12 @@ def write_netcdf(solution, path, units: Mapping[str, str] | None = None) -> Path
     except ImportError as exc:
         raise ComputationError("netCDF output needs the package h5netcdf, which is not installed",
                                hint="pip install h5netcdf (or pip install appell, which brings it)") from exc
-    data = solution.to_xarray(units).to_netcdf(engine="h5netcdf", encoding={"time": {"_FillValue": None}})
+    from appell.symbols import shown_names
+
+    ds = solution.to_xarray(units)
+    names = [str(n) for n in ds.data_vars]  # the variables as the model's file spells them (ModelMetadata.names)
+    ds = ds.rename({a: b for a, b in zip(names, shown_names(names, solution.metadata.names)) if a != b})
+    data = ds.to_netcdf(engine="h5netcdf", encoding={"time": {"_FillValue": None}})
     path = Path(path)
     with atomic_path(path, suffix=".nc") as tmp:
         write_bytes(tmp, data)
@@ -86,8 +93,13 @@ def write_hdf5(solution, path, units: Mapping[str, str] | None = None) -> Path:
     """
     import h5py
 
+    from appell.symbols import shown_names
+
     md = solution.metadata
     path = Path(path)
+
+    def shown(names):  # as the model's file spells them (ModelMetadata.names)
+        return np.array(shown_names(names, md.names), dtype=h5py.string_dtype())
 
     def fill(f):
         f.attrs["format"] = "appell simulation result"
@@ -95,11 +107,11 @@ def write_hdf5(solution, path, units: Mapping[str, str] | None = None) -> Path:
         f.attrs["appell_version"] = md.appell_version
         f.attrs["status"] = solution.status
         f.attrs["message"] = solution.message
-        f.attrs["constraint_names"] = np.array(md.constraint_names, dtype=h5py.string_dtype())
+        f.attrs["constraint_names"] = shown(md.constraint_names)
         f.attrs["constraint_kinds"] = np.array(md.constraint_kinds, dtype=h5py.string_dtype())
-        f.attrs["coordinate_names"] = np.array(solution.coordinate_names, dtype=h5py.string_dtype())
-        f.attrs["speed_names"] = np.array(solution.speed_names, dtype=h5py.string_dtype())
-        f.attrs["acceleration_names"] = np.array(solution.acceleration_names, dtype=h5py.string_dtype())
+        f.attrs["coordinate_names"] = shown(solution.coordinate_names)
+        f.attrs["speed_names"] = shown(solution.speed_names)
+        f.attrs["acceleration_names"] = shown(solution.acceleration_names)
         f.attrs["max_position_residual"] = solution.max_position_residual
         f.attrs["max_velocity_residual"] = solution.max_velocity_residual
         for k, v in vars(solution.statistics).items():
@@ -113,7 +125,8 @@ def write_hdf5(solution, path, units: Mapping[str, str] | None = None) -> Path:
             pg.attrs[f"{name}.description"] = desc or ""
 
         def put(c):
-            ds = f.require_group(c.group or "/").create_dataset(c.key, data=np.asarray(c.values, float))
+            ds = f.require_group(c.group or "/").create_dataset(str(shown([c.key])[0]),
+                                                                     data=np.asarray(c.values, float))
             ds.attrs["units"] = c.units
             ds.attrs["description"] = c.long_name
             return ds

@@ -59,6 +59,7 @@ from __future__ import annotations
 import keyword
 import re
 import warnings
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -192,6 +193,7 @@ class _Names:
     def __init__(self, reserved=()):
         self.used = set(reserved)
         self.table: dict[str, tuple[str, str]] = {}
+        self.kept: list[str] = []  # the names that are MuJoCo's own
 
     def claim(self, kind: str, original: str | None, fallback: str, derived=()) -> str:
         from appell.symbols import name_problem
@@ -208,12 +210,14 @@ class _Names:
         self.used.update(candidate + d for d in derived)
         if original and candidate != original:
             self.table[candidate] = (kind, original)
+        elif original:
+            self.kept.append(candidate)
         return candidate
 
     def shown(self, ident: str) -> str:
-        """``ident`` with its MJCF name where that differs (for messages)."""
+        """``ident`` as the file spells it (for messages: the note gives the identifier)."""
         kind, original = self.table.get(ident, (None, None))
-        return repr(ident) if original is None else f"{ident!r} (MJCF {kind} {original!r})"
+        return repr(ident) if original is None else repr(original)
 
 
 #: the coordinates and constraints a joint of each kind adds beside its name
@@ -256,6 +260,8 @@ class MjcfModel:
     names: dict
     note: str | None
     rotors: dict = None  # joint name -> its armature rotor's coordinate name
+    points: dict = None  # MJCF body or site name (and a body's identifier) -> (appell body, its point there)
+    kept: tuple = ()  # the MJCF names read unchanged
 
     def state(self, qpos, qvel=None) -> dict[str, float]:
         """appell's coordinates and speeds ``{name: value}`` at MuJoCo's ``qpos``, ``qvel``:
@@ -656,10 +662,28 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
                                                                  in names.table.items()))
     note = f"{source}: not applied (no meaning for the rigid-body motion) or mapped: " + "; ".join(ignored) \
         if ignored else None
+    points = {}  # where each MJCF body's frame and each site is on appell's bodies (merged bodies included)
+    for b in range(1, model.nbody):
+        body, _, p_b = place[b]
+        points[bname[b]] = points[bodies[b] or bname[b]] = (body.name, tuple(float(x) for x in p_b))
+    for k, site in enumerate(_names(model, mujoco.mjtObj.mjOBJ_SITE, model.nsite)):
+        body, R_b, p_b = place[int(model.site_bodyid[k])]
+        if site and site not in points and body is not mech.ground:
+            points[site] = (body.name, tuple(float(x) for x in p_b + R_b @ np.asarray(model.site_pos[k], float)))
     out = MjcfModel(mech, tuple(constraints), {k: v for k, v in forces.items() if v != 0}, rotor,
-                    tuple(actuators), tuple(read_joints), dict(names.table), note, rotors)
+                    tuple(actuators), tuple(read_joints), dict(names.table), note, rotors, points,
+                    tuple(names.kept))
     out.__dict__["qpos0"] = np.asarray(model.qpos0, float).copy()
     return out
+
+
+def mjcf_points(source) -> dict:
+    """``{name: (appell body, (x, y, z))}``: where each body's frame and each site of a MuJoCo
+    model file (or XML string) is, on the body of appell's tree that carries it (a massless body
+    merged into its parent included), by MJCF name and by identifier (:attr:`MjcfModel.points`):
+    the places a contact may name (:func:`appell.simulation.inverse.contact_model`)."""
+    where = str(source) if not str(source).lstrip().startswith("<") else "<mjcf>"
+    return dict(read_mjcf(load_mjcf(source), where, "ignore").points)
 
 
 def mjcf_mechanism(model, source: str = "<mjcf>", frictionloss: str = "refuse"):
@@ -716,7 +740,12 @@ def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: st
             raise ModelError(f"{where}: ctrl of actuator {original!r} depends on {sorted(map(str, expr.free_symbols - {t}))}",
                              hint="a program is a function of time t alone")
         programs.append(Program(sp.Symbol(ident), expr))
-    return read.mechanism.system(constraints=tuple(read.constraints), joint_forces=read.joint_forces,
-                                 rotor_energy=read.rotor_energy if read.rotor_energy != 0 else None,
-                                 programs=tuple(programs), controls=tuple(options.pop("controls", ())) + tuple(controls),
-                                 **options)
+    system = read.mechanism.system(constraints=tuple(read.constraints), joint_forces=read.joint_forces,
+                                   rotor_energy=read.rotor_energy if read.rotor_energy != 0 else None,
+                                   programs=tuple(programs), controls=tuple(options.pop("controls", ())) + tuple(controls),
+                                   **options)
+    if read.names:  # every table and message shows MuJoCo's names (System.names); the names read
+        # unchanged map to themselves, so that a longer one is not read as a renamed shorter one
+        table = {**{k: k for k in read.kept}, **{ident: original for ident, (_, original) in read.names.items()}}
+        system = dataclasses.replace(system, names=tuple(table.items()))
+    return system

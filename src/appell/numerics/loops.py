@@ -520,5 +520,8 @@ def _system_parts(system):
                         for c in system.constraints)
     n = len(system.coordinates)
     Q = tuple(system.generalized_forces) if system.generalized_forces is not None else (sp.S.Zero,) * n
+    if system.programs:  # programs (an MJCF actuator's ctrl) in the joint forces: their expressions in t
+        rule = {prog.symbol: prog.expr for prog in system.programs}
+        Q = tuple(sp.sympify(f).xreplace(rule) for f in Q)
     return LoopParts(system.name, tuple(system.coordinates), tree, constraints, Q,
                      tuple(c.symbol for c in system.controls), tuple(system.parameters), dict(system.initial))

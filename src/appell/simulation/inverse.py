@@ -17,6 +17,7 @@ satisfy the constraints; its largest velocity-level residual is reported.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
@@ -26,7 +27,51 @@ from appell.errors import ComputationError, ModelError
 from appell.symbols import derivative_name
 from appell.numerics.boundary import numeric_model
 
-__all__ = ["InverseDynamics", "inverse_dynamics", "closed_chain_inverse"]
+__all__ = ["Contact", "InverseDynamics", "inverse_dynamics", "closed_chain_inverse", "contact_model"]
+
+
+@dataclass(frozen=True)
+class Contact:
+    """A foot or tool held on the ground along the motion, as a loop closure to the world.
+
+    ``body``: a body of the joint tree (or, through ``points``, an MJCF site or merged body:
+    :func:`contact_model`); ``point``: the contact point in the body's frame; ``kind``:
+    ``'point'`` (a point contact: the point held at its place, rows ``<name>_x, _y, _z``,
+    the ground's force on the body along the world axes) or ``'weld'`` (a flat foot, a
+    clamped tool: the body's orientation held as well, rows ``<name>_rx, _ry, _rz`` as in
+    :meth:`Mechanism.weld <appell.mechanism.Mechanism.weld>`, each the ground's moment on the
+    body about the held frame's axis ``A e_i``); ``name``: the rows' prefix (default
+    ``<body>_contact``); ``at`` the point's world place and ``rotation`` (a weld) the body's
+    world orientation ``A`` while held (default: where the point and body are at the first time,
+    the given coordinates at their first values and the others at their start values)."""
+
+    body: str
+    point: tuple = (0.0, 0.0, 0.0)
+    kind: str = "point"
+    name: str | None = None
+    at: tuple | None = None
+    rotation: tuple | None = None
+
+    @classmethod
+    def of(cls, item) -> "Contact":
+        """A :class:`Contact` from itself, ``"body"``, ``"body:point"``, ``"body:weld"``, a
+        tuple ``(body, point[, kind])`` or a mapping of the fields."""
+        if isinstance(item, Contact):
+            return item
+        if isinstance(item, str):
+            body, _, kind = item.partition(":")
+            return cls(body, kind=kind or "point")
+        if isinstance(item, Mapping):
+            return cls(**dict(item))
+        if isinstance(item, (tuple, list)) and 1 <= len(item) <= 3:
+            return cls(*item)
+        raise ModelError(f"contact {item!r}: give a body name ('foot', 'foot:weld'), (body, point[, kind]) or "
+                         "appell.Contact(...)")
+
+    @property
+    def rows(self) -> tuple[str, ...]:
+        """The suffixes of its rows."""
+        return ("_x", "_y", "_z") + (("_rx", "_ry", "_rz") if self.kind == "weld" else ())
 
 
 @dataclass(frozen=True)
@@ -54,20 +99,165 @@ class InverseDynamics:
         return ([("t", self.t)] + list(self.motion.items()) + [(f"drive_{k}", v) for k, v in self.drives.items()]
                 + [(f"lambda_{k}", v) for k, v in self.multipliers.items()] + list(self.outputs.items()))
 
-    def to_csv(self, path):
-        """Write :meth:`columns` as CSV, atomically."""
+    def to_csv(self, path, names=None):
+        """Write :meth:`columns` as CSV, atomically; ``names`` (``{identifier: name in the
+        model's file}``, :attr:`appell.System.names`) heads the columns as the file spells them."""
         import csv
 
         from appell.files import atomic_path
+        from appell.symbols import shown_names
 
         cols = self.columns()
         with atomic_path(path) as tmp:
             with open(tmp, "w", newline="") as fh:
                 writer = csv.writer(fh)
-                writer.writerow([n for n, _ in cols])
+                writer.writerow(shown_names([n for n, _ in cols], names))
                 for k in range(self.t.size):
                     writer.writerow([repr(float(v[k])) for _, v in cols])
         return path
+
+
+def _loop_parts(source):
+    """The :class:`~appell.mechanism.builder.LoopParts` of a mechanism, a mechanism's system or
+    its derivation (contacts are added to these before the closed-chain model is built)."""
+    from appell.numerics.loops import LoopModel
+
+    if isinstance(source, LoopModel):
+        raise ModelError("contacts are added to a mechanism or its system, not to a LoopModel built already",
+                         hint="pass the Mechanism or System to inverse_dynamics(..., contacts=[...])")
+    try:
+        return _parts_of(source)
+    except ModelError as exc:
+        raise ModelError(f"contacts are loop rows of the closed-chain route, which does not take this model: "
+                         f"{exc.message}", hint="hold the foot by a closure of the model (a weld or connect to the "
+                                                "ground) and give the motion of every coordinate") from None
+
+
+def _parts_of(source):
+    from appell.numerics.loops import _system_parts
+
+    if hasattr(source, "loop_parts"):
+        return source.loop_parts()
+    system = getattr(source, "system", source)
+    if getattr(system, "tree", None) is None:
+        raise ModelError(f"system {getattr(system, 'name', '?')!r} has no joint tree: contacts are loop rows of a "
+                         "mechanism's tree", hint="build it with appell.Mechanism (or read a URDF or MJCF file)")
+    return _system_parts(system)
+
+
+def contact_model(source, contacts, points: Mapping | None = None, backend: str = "auto"):
+    """The :class:`~appell.numerics.loops.LoopModel` of ``source`` (a mechanism, its system or
+    derivation) with each :class:`Contact` added as loop rows to the ground; its attribute
+    ``contacts`` holds per contact ``(contact, node, point, at, A)``: its tree node, its point
+    in that body's frame and the indices in :attr:`LoopModel.parameter_names` of its world
+    place ``at`` (``<name>_at_x, _y, _z``) and, for a weld, its held orientation ``A``
+    (``<name>_A11`` .. ``_A33``, row by row), set at the first time (:func:`closed_chain_inverse`).
+
+    A point row is ``e_d . (p - at) = 0`` (:class:`~appell.rigid_tree.LoopRow` ``'point'``,
+    ``p`` the body's point, ``e_d`` a world axis; its multiplier the ground's force on the body
+    along ``e_d``); a weld adds ``(R e_j) . (A e_k) = 0`` for ``(j, k)`` = (y, z), (z, x), (x, y)
+    (``'align'``, ``R`` the body's orientation; the multiplier the ground's moment on the body,
+    ``lambda (R e_j) x (A e_k) = lambda A e_i`` where held). ``points``: ``{name: (body,
+    (x, y, z))}`` for contact names that are not tree bodies (an MJCF file's sites and merged
+    bodies)."""
+    import dataclasses
+
+    import sympy as sp
+
+    from appell.model import Parameter
+    from appell.numerics.loops import LoopModel
+    from appell.rigid_tree import LoopRow
+
+    parts = _loop_parts(source)
+    tree = parts.tree
+    nodes = {node.body: k for k, node in enumerate(tree.nodes)}
+    taken = ({q.name for q in parts.coordinates} | {p.symbol.name for p in parts.parameters}
+             | {name for name, _ in parts.constraints})
+    rows, params, held = [], [], []
+    zero = sp.ImmutableMatrix([0, 0, 0])
+    for item in contacts:
+        c = Contact.of(item)
+        if c.kind not in ("point", "weld"):
+            raise ModelError(f"contact {c.body!r}: kind {c.kind!r} is not 'point' (a point contact) or 'weld' "
+                             "(a flat foot, the orientation held)")
+        what = f"contact {c.name or c.body!r}"
+        try:
+            r = np.asarray(c.point, float).reshape(3)
+        except (TypeError, ValueError):
+            raise ModelError(f"{what}: point {c.point!r} is not (x, y, z) in the body frame") from None
+        body = c.body
+        if body not in nodes and points and body in points:
+            body, offset = points[body]
+            r = r + np.asarray(offset, float).reshape(3)
+        if body not in nodes:
+            raise ModelError(f"{what}: no body {c.body!r} on the joint tree",
+                             hint="bodies: " + ", ".join(nodes) + (("; sites: " + ", ".join(points)) if points else ""))
+        name = c.name or re.sub(r"\W+", "_", c.body, flags=re.ASCII).strip("_") + "_contact"
+        mine = [name + sfx for sfx in c.rows] + [f"{name}_at_{x}" for x in "xyz"]
+        mine += [f"{name}_A{i}{j}" for i in "123" for j in "123"] if c.kind == "weld" else []
+        clash = sorted(taken & set(mine))
+        if clash or not name.isidentifier():
+            raise ModelError(f"{what}: the name {name!r} " + (f"gives {', '.join(clash)}, taken already" if clash
+                                                               else "is not an identifier"),
+                             hint="give the contact another name (Contact(..., name=...))")
+        taken |= set(mine)
+        base = len(parts.parameters) + len(params)
+        at = [sp.Symbol(f"{name}_at_{x}") for x in "xyz"]
+        A = sp.Matrix(3, 3, [sp.Symbol(f"{name}_A{i}{j}") for i in "123" for j in "123"]) if c.kind == "weld" else None
+        params += [Parameter(s_, 0.0) for s_ in at] + ([Parameter(s_, 0.0) for s_ in A] if A is not None else [])
+        k, point = nodes[body], sp.ImmutableMatrix([float(x) for x in r])
+        rows += [LoopRow(f"{name}_{d}", name, "point", k, point, sp.ImmutableMatrix(sp.eye(3)[:, i]), -1,
+                         sp.ImmutableMatrix(at), zero) for i, d in enumerate("xyz")]
+        if A is not None:
+            rows += [LoopRow(f"{name}_r{d}", name, "align", k, point, sp.ImmutableMatrix(sp.eye(3)[:, j]), -1, zero,
+                             sp.ImmutableMatrix(A[:, m])) for d, (j, m) in zip("xyz", ((1, 2), (2, 0), (0, 1)))]
+        held.append((dataclasses.replace(c, name=name), k, r, list(range(base, base + 3)),
+                     list(range(base + 3, base + 12)) if A is not None else None))
+    tree = dataclasses.replace(tree, loops=tuple(tree.loops) + tuple(rows))
+    parts = dataclasses.replace(parts, tree=tree, constraints=tuple(parts.constraints) + tuple((r_.name, None) for r_ in rows),
+                                parameters=tuple(parts.parameters) + tuple(params))
+    model = LoopModel(parts, backend)
+    model.contacts = tuple(held)
+    return model
+
+
+def _plant(model, held, q, passive, pv, tol, max_iterations):
+    """``(q, pv)``: the coordinates ``q`` with the passive ones moved (least steps, Newton's
+    method) to close the model's own rows (the loops, a quaternion's norm: not the contacts),
+    and the parameters ``pv`` with each contact's place and orientation set where its body is
+    there (its own ``at``, ``rotation`` where given)."""
+    pv, q = np.array(pv, float), np.array(q, float)
+    n = len(model.speed_names)
+    mine = {c.name + sfx for c, *_ in held for sfx in c.rows}
+    own = [i for i, nm in enumerate(model.constraint_names) if nm not in mine]
+    for _ in range(max_iterations if own and passive else 0):
+        Phi, J = model.positions(q, pv)
+        if np.abs(Phi[own]).max() <= tol:
+            break
+        dq = np.linalg.lstsq(J[np.ix_(own, passive)], -Phi[own], rcond=None)[0]
+        q[passive] += dq * min(1.0, 0.5 / max(np.abs(dq).max(), 1e-300))
+    arrays = model._evaluate_terms(0.0, q, np.zeros(n), pv, np.zeros(len(model.control_names)))[0]
+    Rw, pw = model._kinematics(arrays, np.zeros(n))[:2]
+    for c, k, r, at, A in held:
+        pv[at] = pw[k] + Rw[k] @ r if c.at is None else np.asarray(c.at, float).reshape(3)
+        if A is not None:
+            R = Rw[k] if c.rotation is None else np.asarray(c.rotation, float).reshape(3, 3)
+            pv[A] = R.reshape(-1)
+    return q, pv
+
+
+def _contact_wrenches(held, lam, names, pv) -> dict:
+    """``F_<contact>_x .. _z`` (the ground's force on the body, world axes) and, for a weld,
+    ``M_<contact>_x .. _z`` (its moment about the contact point, ``A (lambda_rx, _ry, _rz)``)."""
+    out = {}
+    for c, _, _, _, A in held:
+        F = np.column_stack([lam[:, names.index(f"{c.name}_{d}")] for d in "xyz"])
+        out.update({f"F_{c.name}_{d}": F[:, i] for i, d in enumerate("xyz")})
+        if A is not None:
+            R = np.asarray(pv[A], float).reshape(3, 3)
+            M = np.column_stack([lam[:, names.index(f"{c.name}_r{d}")] for d in "xyz"]) @ R.T
+            out.update({f"M_{c.name}_{d}": M[:, i] for i, d in enumerate("xyz")})
+    return out
 
 
 def _spline(t, q, order):
@@ -88,10 +278,12 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
     tree records loop closures, or the :class:`~appell.numerics.loops.LoopModel` of one)
     takes its motion for the actuated or
     other independent coordinates alone, ``q = {name: values}``, and completes the passive
-    ones from the loop closures (:func:`closed_chain_inverse`, whose ``options`` it passes)."""
+    ones from the loop closures (:func:`closed_chain_inverse`, whose ``options`` it passes).
+    ``contacts`` (feet or tools held on the ground, :class:`Contact`) take that route for any
+    mechanism: its motion given likewise, the contact forces solved with the loop forces."""
     tree = getattr(derivation, "tree", None)
     loops = getattr(tree, "loops", None)
-    if hasattr(derivation, "loop_parts") or hasattr(derivation, "loop_rows") or loops:
+    if hasattr(derivation, "loop_parts") or hasattr(derivation, "loop_rows") or loops or options.get("contacts"):
         return closed_chain_inverse(derivation, t, q, w, a, drives, p, **options)
     model = numeric_model(derivation)
     names, speeds = model.coordinate_names, model.speed_names
@@ -178,9 +370,13 @@ def _combinations(A, names, tol):
     return echelon_null_space(A, names, tol)
 
 
-def _independent(J, ind, passive, names):
+def _independent(J, ind, passive, names, own=()):
     """A :class:`ModelError` where the given coordinates are related by the loops, or leave
-    passive ones free (ranks of ``J`` and its passive columns, relative tolerance 1e-9)."""
+    passive ones free (ranks of ``J`` and its passive columns, relative tolerance 1e-9; a row
+    of ``own`` (a joint's own constraint, not a loop's) on the given coordinates alone, a
+    floating base's unit quaternion given whole, is theirs to hold and left out)."""
+    if own and passive:
+        J = np.delete(J, [k for k in own if not np.any(J[k, passive])], axis=0)
     rank, rank_p = (np.linalg.matrix_rank(M_, tol=1e-9 * max(np.abs(J).max(initial=0.0), 1e-300))
                     for M_ in (J, J[:, passive]))
     if rank_p < rank:
@@ -231,7 +427,8 @@ def _assemble(model, q, ind, passive, target, pv, tol, max_iterations, depth=0):
 
 def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | None = None, p=None,
                          guess: Mapping[str, float] | None = None, tol: float = 1e-11,
-                         max_iterations: int = 50) -> InverseDynamics:
+                         max_iterations: int = 50, contacts: Sequence | None = None,
+                         points: Mapping | None = None) -> InverseDynamics:
     """Inverse dynamics of a closed chain along a motion given for its independent coordinates.
 
     ``model``: an :class:`appell.Mechanism` or its :class:`~appell.numerics.loops.LoopModel`;
@@ -251,10 +448,21 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
     Every joint's wrench (``F_<joint>_x .. M_<joint>_z``, world axes, the parent's force and
     moment on the subtree at the joint's point) comes from RNEA's inward pass with the loop
     forces applied at their anchors; those an undetermined combination changes are named in
-    ``undetermined_wrenches``."""
+    ``undetermined_wrenches``.
+
+    ``contacts``: feet or tools held on the ground (:class:`Contact`, or ``'body'``,
+    ``'body:weld'``; ``points`` as :func:`contact_model`), each added as loop rows to the world
+    at its place at the first time; their multipliers are the ground's forces (and a weld's
+    moments), also given in the outputs as ``F_<contact>_x .. M_<contact>_z``. Where the motion
+    leaves them open (double support), the minimum-norm answer is given and the combinations
+    named in ``undetermined``, as for redundant loops."""
     from appell.numerics.loops import LoopModel, loop_model
 
-    model = model if isinstance(model, LoopModel) else loop_model(model)
+    if contacts:
+        model = contact_model(model, contacts, points)
+    else:
+        model = model if isinstance(model, LoopModel) else loop_model(model)
+    held = getattr(model, "contacts", ())  # a contact_model's contacts
     names, speeds = model.coordinate_names, model.speed_names
     t = np.asarray(t, float).reshape(-1)
     if t.size < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
@@ -301,6 +509,10 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
                              + "; speeds: " + ", ".join(speeds))
     start = {**model.start, **{str(k): float(v) for k, v in (guess or {}).items()}}
     qk = np.array([start.get(nm, 0.0) for nm in names], float)
+    if held:  # the contacts held where they are at the first time
+        pv = np.concatenate([pv, model.parameter_values[pv.size:]])  # a given p without the contacts' places
+        qk[ind] = qi[0]
+        qk, pv = _plant(model, held, qk, passive, pv, tol, max_iterations)
     Q_all, W_all, A_all = np.zeros((t.size, n)), np.zeros((t.size, n)), np.zeros((t.size, n))
     tau, lam = np.zeros((t.size, len(drives))), np.zeros((t.size, s))
     wrench_all = np.zeros((t.size, len(model.joints), 6))
@@ -314,14 +526,14 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
         qk, Phi, J = _assemble(model, qk, ind, passive, qi[k], pv, tol, max_iterations)
         if np.abs(Phi).max(initial=0.0) > tol:
             if k == 0:
-                _independent(J, ind, passive, names)
+                _independent(J, ind, passive, names, model.other_rows)
             worst = cons[int(np.argmax(np.abs(Phi)))]
             raise ComputationError(f"at t = {t[k]:.10g} the loops do not close: {worst!r} keeps a residual "
                                    f"{np.abs(Phi).max():.3g} after Newton's method",
                                    hint="the given coordinates leave no assembly, or start the passive ones nearer "
                                         "(guess={name: value})")
         if k == 0 and s:
-            _independent(J, ind, passive, names)
+            _independent(J, ind, passive, names, model.other_rows)
         wk = np.zeros(n)
         wk[ind] = wi[k]
         if passive:
@@ -355,6 +567,7 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
 
     motion = {**{nm: Q_all[:, i] for i, nm in enumerate(names)}, **{nm: W_all[:, i] for i, nm in enumerate(speeds)},
               **{acceleration_name(nm): A_all[:, i] for i, nm in enumerate(speeds)}}
+    wrench.update(_contact_wrenches(held, lam, list(cons), pv))
     return InverseDynamics(t, motion, {d: tau[:, j] for j, d in enumerate(drives)},
                            {c: lam[:, j] for j, c in enumerate(cons)}, wrench, residual, undetermined,
                            tuple(j for j in model.joints if j in open_joints))

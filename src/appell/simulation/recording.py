@@ -350,7 +350,8 @@ def metadata(model, system, p, kinds, settings) -> ModelMetadata:
     params = tuple((n, float(v), *units.get(n, ("", ""))) for n, v in zip(model.parameter_names, p))
     return ModelMetadata(model.name, params, tuple(model.constraint_names), kinds,
                          getattr(appell, "__version__", ""), settings,
-                         system.unit_of if system is not None else {})
+                         system.unit_of if system is not None else {},
+                         dict(getattr(system, "names", ()) or ()))
 
 
 def record_passage(run, model, passed, t_eval, p) -> int:

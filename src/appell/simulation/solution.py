@@ -100,6 +100,7 @@ class ModelMetadata:
     appell_version: str = ""
     settings: Mapping[str, str] = field(default_factory=dict)
     units: Mapping[str, str] = field(default_factory=dict)
+    names: Mapping[str, str] = field(default_factory=dict)  # identifier -> the model file's name (System.names)
 
 
 def _frozen_arrays(mapping) -> Mapping[str, np.ndarray]:
