@@ -210,7 +210,10 @@ class NumericTreeRoute:
     articulated-body algorithm (:func:`aba`; with mimic rows ``J a = 0``, ``lambda`` from
     ``(J M^-1 J^T) lambda = -J a_0``, the columns of ``M^-1 J^T`` by :func:`aba` at rest without
     gravity), every joint's reaction by the inward pass (:func:`appell.numerics.rigid_tree.wrenches`).
-    The same attributes and calls as :class:`TreeRoute`; the one parameter is ``g``."""
+    The same attributes and calls as :class:`TreeRoute`; the one parameter is ``g``. It is also
+    a model the simulator integrates (:class:`~appell.numerics.dynamics.Dynamics`):
+    ``appell.simulate(tree_route("panda.urdf"), options=...)`` runs without deriving (the
+    joint forces are not recorded along the motion: :meth:`forward` gives them at a state)."""
 
     def __init__(self, tree, name: str = ""):
         self.name = name or tree.name
@@ -237,6 +240,7 @@ class NumericTreeRoute:
         self.output_names = tuple(f"{s}_{j}_{axis}" for j in self.joint_names for s in "FM" for axis in "xyz")
         self.constraint_names = tuple(name for name, *_ in tree.mimics)
         self._J = np.zeros((len(tree.mimics), n))
+        self._offsets = np.array([offset for *_, offset in tree.mimics], float)
         for row, (_, a, b, multiplier, _) in enumerate(tree.mimics):
             self._J[row, a] += 1.0
             self._J[row, b] -= multiplier
@@ -274,9 +278,7 @@ class NumericTreeRoute:
         """``a`` of ``M a = tau - h`` (with the mimic rows, :meth:`forward`)."""
         return self.forward(time, q, w, tau, p)[0]
 
-    def forward(self, time, q, w, tau=None, p=None) -> tuple[np.ndarray, dict[str, float]]:
-        """The accelerations and every joint's reaction ``{output name: value}`` at one state,
-        and the mimic rows' multipliers ``lambda_<name>`` of ``M a + h = tau + J^T lambda``."""
+    def _solve(self, q, w, tau, p):
         arrays, q, w, gravity = self._arrays(q, w, p)
         tau = np.zeros(self.n) if tau is None else np.asarray(tau, float).reshape(self.n)
         X, a = self._aba(arrays, w, tau, np.concatenate([np.zeros(3), -gravity]))
@@ -289,11 +291,52 @@ class NumericTreeRoute:
             except np.linalg.LinAlgError:
                 raise ModelError(f"{self.name}: the mimic rows are dependent", hint="remove a <mimic>") from None
             a = a + MJ @ lam
+        return arrays, w, gravity, a, lam
+
+    def forward(self, time, q, w, tau=None, p=None) -> tuple[np.ndarray, dict[str, float]]:
+        """The accelerations and every joint's reaction ``{output name: value}`` at one state,
+        and the mimic rows' multipliers ``lambda_<name>`` of ``M a + h = tau + J^T lambda``."""
+        arrays, w, gravity, a, lam = self._solve(q, w, tau, p)
         W, _ = wrenches(arrays, self.parent, self.node_of, w[None], a[None], gravity[None],
                         np.zeros((1, 3 * len(self._nodes))))
         out = dict(zip(self.output_names, W[0, self._reporting].reshape(-1).tolist()))
         out.update((f"lambda_{name}", float(v)) for name, v in zip(self.constraint_names, lam))
         return a, out
+
+    # ------------------------------------------------ the simulator's contract (appell.numerics.dynamics)
+    control_names: tuple[str, ...] = ()
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return self.coordinate_names + self.speed_names
+
+    def params(self, p=None) -> np.ndarray:
+        """``[g]``: the default, or ``p`` (one value, or ``{"g": value}``)."""
+        if p is None:
+            return self.default_parameters
+        if isinstance(p, dict):
+            unknown = set(map(str, p)) - {"g"}
+            if unknown:
+                raise ModelError(f"unknown parameter {sorted(unknown)[0]!r}", hint="parameters: g")
+            return np.array([float(p.get("g", self.default_parameters[0]))])
+        return np.asarray(p, float).reshape(1)
+
+    def evaluate(self, t, y, p=None):
+        """``dy/dt = (w, a)`` and the mimic rows' multipliers at ``(t, y)`` (no joint forces)."""
+        from appell.numerics.dynamics import Evaluation
+
+        y = np.asarray(y, float)
+        _, w, _, a, lam = self._solve(y[:self.n], y[self.n:], None, p)
+        return Evaluation(np.concatenate([w, a]), lam, np.zeros(0))
+
+    def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """The mimic rows ``a - m b - offset`` and their rates ``J w``."""
+        y = np.asarray(y, float)
+        return self._J @ y[:self.n] - self._offsets, self._J @ y[self.n:]
+
+    def residual_jacobians(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(dF/dq, dphi/dw) = (J, J)``: the mimic rows are linear."""
+        return self._J, self._J
 
 
 def tree_route(source, *, floating_base: bool = False) -> TreeRoute:
