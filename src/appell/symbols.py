@@ -13,7 +13,15 @@ import re
 import sympy as sp
 
 # the name rule (plain Python, for readers that need no SymPy)
-from appell.names import CONSTANT_NAMES, FUNCTION_NAMES, MAX_NAME, NAME_HINT, RESERVED_NAMES, _NAME, name_problem  # noqa: F401
+from appell.names import (  # noqa: F401
+    _NAME,
+    CONSTANT_NAMES,
+    FUNCTION_NAMES,
+    MAX_NAME,
+    NAME_HINT,
+    RESERVED_NAMES,
+    name_problem,
+)
 
 #: The time variable used by every model.
 t = sp.Symbol("t")

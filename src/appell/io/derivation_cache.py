@@ -53,9 +53,14 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import AppellNote
+from appell.io.expression_tree import (
+    HEADS,
+    expression_from_tree,
+    expression_tree,
+    symbol_assumptions,
+    symbol_from_table,
+)
 from appell.numerics.codegen.build import _cache_lock
-from appell.io.expression_tree import HEADS, expression_from_tree, expression_tree, symbol_assumptions, \
-    symbol_from_table
 
 #: bumped when the layout of an entry changes (part of the key)
 FORMAT = 1
@@ -493,7 +498,9 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     notes: list[str] = []
 
     def fresh():
-        from appell.io.modelfile import load_model  # not imported when the cache answers
+        from appell.io.modelfile import (
+            load_model,  # not imported when the cache answers
+        )
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", AppellNote)

@@ -48,9 +48,17 @@ from pathlib import Path
 import numpy as np
 
 from appell.errors import ModelError
+from appell.mechanism.urdf_tree import (
+    _ONE_DOF,
+    FLOATING_ROTATION,
+    ROOT_JOINT,
+    _appell_name,
+    _identifier,
+    composite_inertial,
+    reading_notes,
+    root_cluster,
+)
 from appell.names import MAX_NAME
-from appell.mechanism.urdf_tree import FLOATING_ROTATION, ROOT_JOINT, _appell_name, _identifier, composite_inertial, \
-    reading_notes, root_cluster
 
 __all__ = [
     "UrdfVisual", "UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "parse_urdf",
@@ -62,8 +70,6 @@ JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "plan
 MAX_URDF_SIZE = 20_000_000
 # the name rule of model files and the API (appell.symbols): one rule for every importer
 _MAX_DEPTH = 64
-#: joint types with one coordinate (the ones ``<mimic>`` can couple)
-_ONE_DOF = ("revolute", "continuous", "prismatic")
 _MIMIC_HINT = "a mimic joint follows another revolute, continuous or prismatic joint; remove or correct <mimic>"
 #: relative tolerance (of the trace) of the inertia checks
 _INERTIA_TOL = 1e-9

@@ -40,6 +40,8 @@ __all__ = ["NotNumeric", "TreeNode", "UrdfTree", "composite_inertial", "root_clu
 
 #: prefixes of result columns (multipliers, controls, residuals): no coordinate may start so
 _RESULT_PREFIXES = ("lambda_", "control_", "residual_")
+#: joint types with one coordinate (the ones ``<mimic>`` can couple)
+_ONE_DOF = ("revolute", "continuous", "prismatic")
 
 
 def _identifier(name: str) -> str:
@@ -173,9 +175,9 @@ def urdf_tree(robot, floating_base: bool = False) -> UrdfTree:
     from appell.errors import AppellNote
 
     src = robot.source
-    odd = [j.name for j in robot.joints if j.type in ("floating", "planar")
-           or j.mimic is not None and j.type != "fixed" and (j.type not in _ONE_DOF or by_type(robot, j.mimic.joint)
-                                                             not in _ONE_DOF)]
+    types = {j.name: j.type for j in robot.joints}
+    odd = [j.name for j in robot.joints if j.type in ("floating", "planar") or j.mimic is not None
+           and j.type != "fixed" and (j.type not in _ONE_DOF or types.get(j.mimic.joint) not in _ONE_DOF)]
     if odd:
         raise NotNumeric(f"joints {', '.join(odd[:3])} (floating, planar, or a mimic of a multi-coordinate joint)")
     nodes: list[TreeNode] = []
@@ -225,11 +227,3 @@ def urdf_tree(robot, floating_base: bool = False) -> UrdfTree:
     for note in reading_notes(robot):
         warnings.warn(AppellNote(note), stacklevel=2)
     return UrdfTree(_identifier(robot.name), tuple(nodes), mimics)
-
-
-_ONE_DOF = ("revolute", "continuous", "prismatic")
-
-
-def by_type(robot, name: str) -> str | None:
-    """The type of the joint ``name`` of ``robot`` (None: no such joint)."""
-    return next((j.type for j in robot.joints if j.name == name), None)

@@ -30,8 +30,17 @@ from pathlib import Path
 import numpy as np
 
 from appell.errors import ModelError
-from appell.numerics.rigid_tree import TreeArrays, _spatial_inertia, _transform, crba, point_matrices, rnea, \
-    tree_layout, tree_matrices, wrenches
+from appell.numerics.rigid_tree import (
+    TreeArrays,
+    _spatial_inertia,
+    _transform,
+    crba,
+    point_matrices,
+    rnea,
+    tree_layout,
+    tree_matrices,
+    wrenches,
+)
 
 __all__ = ["NumericTreeRoute", "TreeRoute", "aba", "tree_route"]
 
