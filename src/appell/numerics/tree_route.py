@@ -1,26 +1,33 @@
 """A robot's first numbers without deriving its system and without a compiler: the numeric
-recursive route from the joint tree a :class:`~appell.mechanism.Mechanism` records.
+recursive route of a joint tree, in two forms with one interface.
 
-A URDF or MJCF file (:mod:`appell.mechanism.formats`) is read into its mechanism; its joint
-tree (:meth:`Mechanism.rigid_tree <appell.mechanism.Mechanism.rigid_tree>`: each joint's
-rotation, translation, motion subspace ``S``, bias ``c`` and body inertia, small expressions in
-the joint's own coordinates and speeds) is compiled once (:func:`appell.symbols.lambdify`, the
-``math`` module), and at a state the recursions of :mod:`appell.numerics.rigid_tree` give
+* :class:`NumericTreeRoute`, :func:`tree_route`'s choice for a URDF file: the file read in
+  floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`: the bodies,
+  joints, coordinates and names of :func:`~appell.mechanism.urdf.urdf_mechanism`), without
+  SymPy; the accelerations by the articulated-body algorithm (:func:`aba`). A fraction of a
+  second from a fresh interpreter for a 38-speed humanoid (``benchmarks/instant.py``). It is
+  also a model the simulator integrates (:class:`~appell.numerics.dynamics.Dynamics`).
+* :class:`TreeRoute`, for an MJCF file, a :class:`~appell.mechanism.Mechanism`, or a URDF
+  holding what the floating-point reader does not take (``floating`` or ``planar`` joints):
+  the mechanism's joint tree (:meth:`Mechanism.rigid_tree
+  <appell.mechanism.Mechanism.rigid_tree>`: each joint's rotation, translation, motion
+  subspace ``S``, bias ``c`` and body inertia, small expressions in the joint's own
+  coordinates and speeds) compiled once (:func:`appell.symbols.lambdify`, the ``math``
+  module); ``M`` by the composite-rigid-body algorithm, ``h`` (with gravity: the base
+  accelerating at ``-g``) by the recursive Newton-Euler algorithm, then a dense solve.
 
-* ``M`` by the composite-rigid-body algorithm and ``h`` (with gravity: the base accelerating at
-  ``-g``) by the recursive Newton-Euler algorithm, then the accelerations of the open tree
-  ``M a = tau - h`` (``tau`` the joint forces given, zero by default) by a Cholesky solve;
-* every joint's reaction, the force and moment of the parent on the child at the joint's
-  origin in world axes (the outputs ``F_<joint>_x .. M_<joint>_z`` that
-  :meth:`Mechanism.system <appell.mechanism.Mechanism.system>` states symbolically), by the
-  inward pass of the Newton-Euler recursion at those accelerations
-  (:func:`appell.numerics.rigid_tree.wrenches`).
+Both give, at a state, the accelerations of ``M a = tau - h`` (``tau`` the joint forces given,
+zero by default; with holonomic constraints, a URDF's mimic joints, the multipliers of the
+augmented system ``M a + h = tau + J^T lambda``, ``J a + c = 0``) and every joint's reaction,
+the force and moment of the parent on the child at the joint's origin in world axes (the
+outputs ``F_<joint>_x .. M_<joint>_z`` that :meth:`Mechanism.system
+<appell.mechanism.Mechanism.system>` states symbolically), by the inward pass of the
+Newton-Euler recursion at those accelerations (:func:`appell.numerics.rigid_tree.wrenches`).
 
 Neither the symbolic frames and reaction balances of the mechanism's system nor the
-derivation are formed, which is what costs seconds to minutes on a robot; the numbers are the
-same recursions the NumPy and C backends evaluate on the derived tree, so they agree with
-them to rounding. Closed chains (a mechanism's closures, a URDF's mimic joints) and joints
-moved by time are refused: they need the derivation (:func:`appell.derive`).
+derivation are formed, which is what costs seconds to minutes on a robot; the numbers agree
+with the NumPy and C backends' on the derived tree to rounding. Closed chains (a mechanism's
+closures) and joints moved by time are refused: they need the derivation (:func:`appell.derive`).
 """
 
 from __future__ import annotations
