@@ -20,7 +20,7 @@ PACKAGE = Path(appell.__file__).parent
 
 #: layer of each top-level module or subpackage of appell (higher imports lower)
 LAYERS = {
-    "errors": 0, "symbols": 0, "files": 0, "arguments": 0, "_cache": 0,
+    "errors": 0, "names": 0, "symbols": 0, "files": 0, "arguments": 0, "_cache": 0,
     "model": 1, "rigid_tree": 1,
     "mechanism": 1.5,
     "examples": 2,

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 import appell
-from appell.errors import AppellNote
+from appell.errors import AppellNote, ModelError
 from appell.examples import example_path
 from appell.io import derivation_cache as dc
 
@@ -200,3 +200,30 @@ def test_the_notes_of_reading_a_file_come_again_from_the_cache(cache, tmp_path):
         runs.append([str(w.message) for w in caught if issubclass(w.category, AppellNote)])
     assert len(_entries(cache)) == 1
     assert runs[0] and runs[1] == runs[0] and "dynamics" in runs[0][0]
+
+
+def test_a_check_runs_before_storing_and_not_again_on_a_checked_entry(cache):
+    """derive_file(check=...): run on the fresh derivation before it is stored, skipped when
+    the entry records that it passed, run on an entry stored without it; a derivation the
+    check refuses is not stored (the command line's inertia check, issue 46: a second run
+    does not build the NumPy model for it)."""
+    calls = []
+
+    def check(derivation):
+        calls.append(derivation.system.name)
+
+    def refuse(derivation):
+        raise ModelError("refused by the check")
+
+    with pytest.raises(ModelError, match="refused"):
+        dc.derive_file("pendulum", check=refuse)
+    assert _entries(cache) == []  # nothing stored
+    dc.derive_file("pendulum", check=check)
+    assert len(calls) == 1 and len(_entries(cache)) == 1
+    _same_numbers(dc.derive_file("pendulum", check=check), dc.derive_file("pendulum", cache=False))
+    assert len(calls) == 1  # the entry passed it
+    dc.derive_file("particle_on_sphere")  # stored without a check
+    dc.derive_file("particle_on_sphere", check=check)
+    assert len(calls) == 2
+    with pytest.raises(ModelError, match="refused"):  # an unchecked entry is checked when read
+        dc.derive_file("particle_on_sphere", check=refuse)

@@ -5,11 +5,16 @@ Sources of truth: Pinocchio (``aba`` for the accelerations, ``rnea``'s ``data.f`
 joint's force and moment, the mimic joint's reaction as ``rnea``'s joint torques), an
 independent implementation of the same rigid-body algorithms; and appell's compiled route of
 the derived system (``numeric_model(derive(load_model(path)), 'c')``: symbolic tree, generated
-C), to 1e-12 relative to the largest value.
+C), to 1e-12 relative to the largest value. A URDF is read in floating point and its
+accelerations come from the articulated-body algorithm (``NumericTreeRoute``, no SymPy); the
+floating-base humanoid is checked against the route of the SymPy-built mechanism
+(``TreeRoute``: the joint tree of ``urdf_mechanism``, CRBA and a Cholesky solve), the
+fixed-base one against Pinocchio's ``aba``.
 """
 
 from __future__ import annotations
 
+import subprocess
 import sys
 import warnings
 from pathlib import Path
@@ -20,7 +25,7 @@ import pytest
 import appell
 from appell.errors import AppellNote, ModelError
 from appell.numerics.codegen import find_compiler
-from appell.numerics.tree_route import tree_route
+from appell.numerics.tree_route import NumericTreeRoute, TreeRoute, tree_route
 
 pin = pytest.importorskip("pinocchio", reason="Pinocchio is not installed (pip install pin, in appell[test])")
 
@@ -91,6 +96,7 @@ def test_accelerations_and_joint_wrenches_equal_pinocchio(robot):
 
 def _against_the_derived_route(path, backend):
     route = _route(path)
+    assert isinstance(route, NumericTreeRoute)  # read without SymPy
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AppellNote)
         derivation = appell.derive_file(path)  # the derivation cache: shared by the suite's processes
@@ -127,3 +133,83 @@ def test_the_route_refuses_a_model_file_and_a_bad_state(tmp_path):
     route = _route(ARM)
     with pytest.raises(ModelError, match="values each"):
         route.forward(0.0, np.zeros(route.n + 1), np.zeros(route.n))
+
+
+HUMANOID = "talos_data/robots/talos_reduced.urdf"
+
+
+@needs_robots
+def test_a_humanoid_equals_pinocchio_aba():
+    """Talos on its fixed base (32 revolute joints) with random joint torques: Pinocchio's
+    articulated-body algorithm, to 1e-12 of the largest acceleration."""
+    path = ROBOTS / HUMANOID
+    route = _route(path)
+    assert isinstance(route, NumericTreeRoute) and route.n == 32
+    model = pin.buildModelFromUrdf(str(path))
+    data = model.createData()
+    names = list(route.coordinate_names)
+    order = [names.index(model.names[j]) for j in range(1, model.njoints)]
+    rng = np.random.default_rng(46)
+    for _ in range(3):
+        q, w, tau = rng.uniform(-1.5, 1.5, route.n), rng.uniform(-2, 2, route.n), rng.uniform(-50, 50, route.n)
+        a = route.accelerations(0.0, q, w, tau)
+        expected = pin.aba(model, data, q[order], w[order], tau[order])
+        np.testing.assert_allclose(a[order], expected, rtol=0, atol=1e-12 * np.max(np.abs(expected)))
+
+
+@needs_robots
+def test_a_floating_humanoid_equals_the_mechanism_route():
+    """Talos on the free joint ``root_joint`` (38 speeds): the floating-point tree (the free
+    joint as three sliders and three hinges) against the SymPy-built mechanism's tree
+    (``urdf_mechanism``'s free joint, yaw-pitch-roll), accelerations, joint wrenches and
+    ``M``, ``h`` to 1e-12 of their largest values."""
+    from appell.mechanism.formats import importer_for
+
+    path = ROBOTS / HUMANOID
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        route = tree_route(path, floating_base=True)
+        reference = TreeRoute(*importer_for(path).mechanism(path, True)[:1], path.stem)
+    assert isinstance(route, NumericTreeRoute)
+    assert route.coordinate_names == reference.coordinate_names and set(route.output_names) == set(reference.output_names)
+    rng = np.random.default_rng(38)
+    for _ in range(3):
+        q, w, tau = rng.uniform(-1, 1, route.n), rng.uniform(-2, 2, route.n), rng.uniform(-50, 50, route.n)
+        (a, out), (a_ref, out_ref) = route.forward(0.0, q, w, tau), reference.forward(0.0, q, w, tau)
+        np.testing.assert_allclose(a, a_ref, rtol=0, atol=1e-12 * np.max(np.abs(a_ref)))
+        scale = max(abs(v) for v in out_ref.values())
+        np.testing.assert_allclose([out[k] for k in out_ref], list(out_ref.values()), rtol=0, atol=1e-12 * scale)
+        for block, expected in zip(route.blocks(0.0, q, w), reference.blocks(0.0, q, w)):
+            np.testing.assert_allclose(block, expected, rtol=0, atol=1e-12 * np.max(np.abs(expected)))
+
+
+def test_the_numeric_route_does_not_import_sympy():
+    """A URDF's first numbers in a fresh process: SymPy is never imported (issue 46 §4)."""
+    paths = [str(ARM)] + ([str(ROBOTS / FIXED["panda"])] if ROBOTS is not None else [])
+    code = ("import sys, warnings\nwarnings.simplefilter('ignore')\nimport numpy as np\n"
+            "from appell.numerics.tree_route import tree_route\n"
+            "for path in sys.argv[1:]:\n"
+            "    route = tree_route(path)\n"
+            "    a, out = route.forward(0.0, np.full(route.n, 0.3), np.full(route.n, 0.2))\n"
+            "    assert np.all(np.isfinite(a)) and out, path\n"
+            "    print(type(route).__name__)\n"
+            "print('sympy' in sys.modules)\n")
+    done = subprocess.run([sys.executable, "-c", code, *paths], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["NumericTreeRoute"] * len(paths) + ["False"], done.stdout + done.stderr
+
+
+@pytest.mark.skipif(find_compiler() is None, reason="no C compiler")
+def test_a_simulation_of_the_numeric_route_equals_the_compiled_one():
+    """The numeric route as the simulator's model (no derivation): the bundled arm's motion
+    over 0.5 s from a moving start equals the compiled route's (the derived system, C), both
+    DOP853 at rtol 1e-10, to 1e-8 in every state."""
+    route = _route(ARM)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        compiled = appell.numeric_model(appell.derive_file(ARM), "c")
+    y0 = np.concatenate(_state(route, 7))
+    runs = [appell.simulate(model, 0.5, initial=y0, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0, 0.5, 11))
+            for model in (route, compiled)]
+    assert [run.status for run in runs] == [0, 0]
+    for name in route.state_names:
+        np.testing.assert_allclose(runs[0].states[name], runs[1].states[name], rtol=0, atol=1e-8, err_msg=name)

@@ -22,6 +22,11 @@ The first line holds the key and the SHA-256 of the document: an entry that is t
 tampered with (its bytes no longer those written), written for another key or by another
 format is ignored with a note (:class:`~appell.errors.AppellNote`) and derived again.
 
+A check given to :func:`derive_file` (the command line's: the inertia at the start,
+:func:`appell.workflows.check_inertia_at_start`) runs on a fresh derivation before it is
+stored; an entry records that it passed, and is not checked again when read (an entry stored
+without it is). A derivation the check refuses is not stored.
+
 Entries are written under a per-entry file lock to a temporary name and renamed (two processes
 filling the same entry: one derives, the other waits and reads it), kept in
 ``$APPELL_CACHE_DIR/derivations`` (:func:`appell.numerics.codegen.build.cache_dir`), at most
@@ -48,9 +53,14 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import AppellNote
+from appell.io.expression_tree import (
+    HEADS,
+    expression_from_tree,
+    expression_tree,
+    symbol_assumptions,
+    symbol_from_table,
+)
 from appell.numerics.codegen.build import _cache_lock
-from appell.io.expression_tree import HEADS, expression_from_tree, expression_tree, symbol_assumptions, \
-    symbol_from_table
 
 #: bumped when the layout of an entry changes (part of the key)
 FORMAT = 1
@@ -367,9 +377,11 @@ def _note(message: str) -> None:
     warnings.warn(message, AppellNote, stacklevel=3)
 
 
-def read_entry(file: Path, key: str, quiet: bool = False, notes: list | None = None):
+def read_entry(file: Path, key: str, quiet: bool = False, notes: list | None = None, checked: list | None = None):
     """The derivation stored in ``file`` for ``key``, or None (with a note for a bad entry,
-    unless ``quiet``); the notes stored with it are given again (and added to ``notes``)."""
+    unless ``quiet``); the notes stored with it are given again (and added to ``notes``);
+    whether the check of :func:`derive_file` passed before it was stored is appended to
+    ``checked``."""
     try:
         raw = file.read_bytes()
     except FileNotFoundError:
@@ -402,14 +414,18 @@ def read_entry(file: Path, key: str, quiet: bool = False, notes: list | None = N
         warnings.warn(note, AppellNote, stacklevel=3)
     if notes is not None:
         notes.extend(stored)
+    if checked is not None:
+        checked.append(doc.get("checked") is True)
     return derivation
 
 
-def write_entry(root: Path, file: Path, key: str, derivation, notes=()) -> bool:
+def write_entry(root: Path, file: Path, key: str, derivation, notes=(), checked: bool = False) -> bool:
     """Store ``derivation`` under ``key`` (atomically) with the ``notes`` that reading its model
-    file gave (given again when it is read); False when it cannot be stored."""
+    file gave (given again when it is read) and whether :func:`derive_file`'s check passed;
+    False when it cannot be stored."""
     try:
-        body = json.dumps({**encode(derivation), "notes": list(notes)}, separators=(",", ":")).encode()
+        body = json.dumps({**encode(derivation), "notes": list(notes), "checked": bool(checked)},
+                          separators=(",", ":")).encode()
     except Unstorable:
         return False
     header = json.dumps({"magic": _MAGIC, "format": FORMAT, "key": key,
@@ -459,7 +475,7 @@ def _derive(system, dependent):
 
 
 def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=None, cache: bool | None = None,
-                formulas: bool = False, reactions_in: str | None = None, reader=None):
+                formulas: bool = False, reactions_in: str | None = None, reader=None, check=None):
     """The derivation of the model file ``path`` (a bundled example's name too, as
     :func:`~appell.io.modelfile.load_model` takes), read from the derivation cache when the
     same input was derived before (see the module's docstring), else loaded, derived and
@@ -467,7 +483,11 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     (or ``$APPELL_NO_CACHE=1``) derives without reading or writing the cache; ``formulas``:
     the reduced equations (1.4) and the reaction formulas (1.5) are formed now and stored
     with the derivation where they exist in closed form; ``reactions_in``: the axes of the joint
-    reactions, ``reader`` the options of a robot file's reader (:func:`~appell.io.modelfile.load_model`)."""
+    reactions, ``reader`` the options of a robot file's reader (:func:`~appell.io.modelfile.load_model`);
+    ``check(derivation)``: a check that raises for a derivation not to be used (the inertia at
+    the start, :func:`appell.workflows.check_inertia_at_start`), run on a fresh derivation
+    before it is stored and on an entry stored without it; an entry stored after it passed is
+    not checked again (the key covers everything it reads)."""
     path = Path(path)
     if not path.exists() and path.suffix == "" and len(path.parts) == 1:
         from appell.examples import example_path, list_benchmarks, list_examples
@@ -478,7 +498,9 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
     notes: list[str] = []
 
     def fresh():
-        from appell.io.modelfile import load_model  # not imported when the cache answers
+        from appell.io.modelfile import (
+            load_model,  # not imported when the cache answers
+        )
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", AppellNote)
@@ -493,27 +515,34 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
             _formulas(derivation)
         return derivation
 
+    def checked(derivation):
+        if check is not None:
+            check(derivation)
+        return derivation
+
     if not cache_enabled(cache) or not path.is_file():
-        return fresh()
+        return checked(fresh())
     try:
         key = entry_key(path, overrides, floating_base, dependent, reactions_in, reader)
         root = derivations_dir()
         root.mkdir(parents=True, exist_ok=True)
     except OSError:
-        return fresh()
+        return checked(fresh())
     file = root / f"{key}.json"
-    found = read_entry(file, key)
+    passed: list[bool] = []
+    found = read_entry(file, key, checked=passed)
     if found is not None and (not formulas or _has_formulas(found)):
-        return found
+        return found if passed[-1] or check is None else checked(found)
     with _cache_lock(root, key):  # the compiled-code cache's lock, one file per entry
-        found = read_entry(file, key, quiet=file.exists(), notes=notes)  # filled by another process meanwhile
+        found = read_entry(file, key, quiet=file.exists(), notes=notes, checked=passed)  # filled meanwhile
         if found is not None and (not formulas or _has_formulas(found)):
-            return found
+            return found if passed[-1] or check is None else checked(found)
         derivation = found if found is not None else fresh()
         if formulas:
             _formulas(derivation)
+        checked(derivation)  # raises for a derivation not to be used: nothing is stored
         with contextlib.suppress(OSError):
-            write_entry(root, file, key, derivation, notes)
+            write_entry(root, file, key, derivation, notes, checked=check is not None)
     return derivation
 
 

@@ -46,10 +46,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import sympy as sp
 
 from appell.errors import ModelError
-from appell.symbols import MAX_NAME, NAME_HINT, name_problem
+from appell.mechanism.urdf_tree import (
+    _ONE_DOF,
+    FLOATING_ROTATION,
+    ROOT_JOINT,
+    _appell_name,
+    _identifier,
+    composite_inertial,
+    reading_notes,
+    root_cluster,
+)
+from appell.names import MAX_NAME
 
 __all__ = [
     "UrdfVisual", "UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "parse_urdf",
@@ -61,10 +70,6 @@ JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "plan
 MAX_URDF_SIZE = 20_000_000
 # the name rule of model files and the API (appell.symbols): one rule for every importer
 _MAX_DEPTH = 64
-#: joint types with one coordinate (the ones ``<mimic>`` can couple)
-_ONE_DOF = ("revolute", "continuous", "prismatic")
-#: prefixes of result columns (multipliers, controls, residuals): no coordinate may start so
-_RESULT_PREFIXES = ("lambda_", "control_", "residual_")
 _MIMIC_HINT = "a mimic joint follows another revolute, continuous or prismatic joint; remove or correct <mimic>"
 #: relative tolerance (of the trace) of the inertia checks
 _INERTIA_TOL = 1e-9
@@ -623,31 +628,6 @@ def read_urdf(path) -> UrdfRobot:
 
 
 # ------------------------------------------------------------------ mechanism
-def _identifier(name: str) -> str:
-    """A URDF name as an identifier: characters other than letters, digits and ``_`` become
-    ``_``; a leading digit gets a ``_`` before it."""
-    out = "".join(c if c.isalnum() and c.isascii() or c == "_" else "_" for c in name)
-    return out if out and not out[0].isdigit() else f"_{out}"
-
-
-def _appell_name(name: str, what: str, where: str) -> str:
-    """The appell name of a joint or link that appell uses: :func:`_identifier` of ``name``,
-    which must then pass the model files' rule (an ASCII letter first, then letters, digits
-    or ``_``, no ``__``, at most :data:`MAX_NAME` characters, not a function, constant or
-    ``t``) and, as its columns are results, must not start with ``lambda_``, ``control_``
-    or ``residual_``."""
-    ident = _identifier(name)
-    shown = f"{what} {name!r}" + (f" (named {ident!r} in appell)" if ident != name else "")
-    problem = name_problem(ident)
-    if problem is not None:
-        hint = f"rename the {what} in the URDF" + (f": {NAME_HINT} (as in model files)" if problem == "not valid" else "")
-        raise ModelError(f"{shown}: {what} name {ident!r} is {problem}", where=where, hint=hint)
-    if ident.startswith(_RESULT_PREFIXES):
-        raise ModelError(f"{shown}: names starting with {', '.join(_RESULT_PREFIXES)} are those of result columns",
-                         where=where, hint=f"rename the {what} in the URDF")
-    return ident
-
-
 def _check_coordinates(mech, lines: dict[str, int], src: str):
     """No coordinate, speed or acceleration name of one joint is a name of another joint's
     (the derivative rule of model files, :func:`appell.model.name_clash`: a joint ``x_dot``
@@ -682,48 +662,6 @@ def _rotation(rpy):
     return rpy_rotation([float(v) for v in rpy])
 
 
-#: the name of the free joint that ``floating_base`` puts under the root link (Pinocchio's)
-ROOT_JOINT = "root_joint"
-#: its rotation: yaw, pitch, roll (``R = Rz Ry Rx``, coordinates ``root_joint_rz, _ry, _rx``);
-#: a quaternion derives 30 times slower today, and pitch +-90 deg, where these
-#: angles are singular, is refused by the mass matrix check, never passed silently
-FLOATING_ROTATION = "zyx"
-
-
-def _root_cluster(robot: UrdfRobot) -> dict[str, tuple[sp.Matrix, sp.Matrix]]:
-    """The root link and every link joined to it by fixed joints only, each with the
-    rotation and origin ``(R, p)`` of its frame in the root link's frame."""
-    out = {robot.root: (sp.eye(3), sp.zeros(3, 1))}
-    for joint in robot.joints_from_root():
-        if joint.type == "fixed" and joint.parent in out:
-            R, p = out[joint.parent]
-            out[joint.child] = (R * _rotation(joint.rpy), p + R * sp.Matrix(joint.xyz))
-    return out
-
-
-def _composite_inertial(robot: UrdfRobot, cluster) -> tuple[float, tuple, sp.Matrix]:
-    """Mass, mass centre and inertia about it, in the root link's frame, of the links in
-    ``cluster`` (:func:`_root_cluster`): the one rigid body a floating base is."""
-    links = {link.name: link for link in robot.links}
-    parts = []
-    for name, (R, p) in cluster.items():
-        inertial = links[name].inertial
-        if inertial is None or inertial.mass == 0.0:
-            continue
-        Ri = R * _rotation(inertial.rpy)
-        parts.append((inertial.mass, p + R * sp.Matrix(inertial.xyz), Ri * sp.Matrix(inertial.inertia_matrix) * Ri.T))
-    mass = sum(m for m, _, _ in parts)
-    if mass == 0.0:
-        return 0.0, (0.0, 0.0, 0.0), sp.zeros(3, 3)
-    com = sum((m * c for m, c, _ in parts), sp.zeros(3, 1)) / mass
-    inertia = sp.zeros(3, 3)
-    for m, c, I_c in parts:  # parallel axes: I_c + m (|d|^2 E - d d^T), d from the composite centre
-        d = c - com
-        inertia += I_c + m * ((d.T * d)[0] * sp.eye(3) - d * d.T)
-    inertia = (inertia + inertia.T) / 2
-    return float(mass), tuple(float(v) for v in com), inertia.applyfunc(lambda v: sp.Float(float(v)))
-
-
 def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool = False):
     """The :class:`~appell.mechanism.Mechanism` of ``robot`` and the extra constraints of its
     mimic joints: ``(mechanism, constraints)``.
@@ -756,13 +694,15 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
     """
     import warnings
 
+    import sympy as sp
+
     from appell.errors import AppellNote
     from appell.mechanism.builder import GROUND, Mechanism
     from appell.model import holonomic
 
     src = robot.source
-    for sentence in robot.not_read:
-        warnings.warn(AppellNote(f"{src}: {sentence}"), stacklevel=2)
+    for note in reading_notes(robot):
+        warnings.warn(AppellNote(note), stacklevel=2)
     mech = Mechanism(_identifier(robot.name), gravity=(0, 0, -sp.Symbol("g")))
     mech.parameter("g", gravity, unit="m/s^2", description="gravity, along -z of the root link")
     joint_names, first = {}, {}
@@ -780,8 +720,8 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
     moving_name: dict[str, str] = {}
     merged: set[str] = set()
     if floating_base:
-        cluster = _root_cluster(robot)
-        mass, com, inertia = _composite_inertial(robot, cluster)
+        cluster = root_cluster(robot)
+        mass, com, inertia = composite_inertial(robot, cluster)
         root_line = links[robot.root].line
         if mass == 0.0:
             raise ModelError(f"floating base: the root link {robot.root!r} and the links fixed to it have no mass",
@@ -791,11 +731,11 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
             raise ModelError(f"floating base: the name {name if name in taken else ROOT_JOINT!r} is taken",
                              where=f"{src}:{root_line}", hint="rename the link or joint of that name")
         taken |= {name, ROOT_JOINT}
-        base = mech.body(name, mass, inertia=inertia, com=com)
+        base = mech.body(name, mass, inertia=sp.Matrix(inertia), com=tuple(com.tolist()))
         mech.free(ROOT_JOINT, mech.ground, base, rotation=FLOATING_ROTATION)
         lines[ROOT_JOINT] = root_line
         for link_name, (R, p) in cluster.items():
-            place[link_name] = (base, None, None) if link_name == robot.root else (base, R, p)
+            place[link_name] = (base, None, None) if link_name == robot.root else (base, sp.Matrix(R), sp.Matrix(p))
         merged = set(cluster) - {robot.root}
     for joint in robot.joints_from_root():
         if joint.child in merged:  # a fixed joint inside the floating base's one body
@@ -868,11 +808,6 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
             mech.shape(body, v.kind, v.size, origin=xyz, rpy=rpy, colour=v.colour)
     constraints = []
     by_name = {j.name: j for j in robot.joints}
-    idle = [j.name for j in robot.joints if j.mimic is not None and j.type == "fixed"]
-    if idle:  # a fixed joint does not move: nothing to couple (Talos' gripper files have them)
-        warnings.warn(AppellNote(f"{src}: <mimic> on {len(idle)} fixed joint{'s' if len(idle) > 1 else ''} "
-                                 f"({', '.join(idle[:3])}{', ...' if len(idle) > 3 else ''}) not applied: "
-                                 "a fixed joint does not move"), stacklevel=2)
     for joint in robot.joints:
         if joint.mimic is not None and joint.type != "fixed":
             other = by_name[joint.mimic.joint]

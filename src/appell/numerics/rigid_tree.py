@@ -21,10 +21,14 @@ ones serve the NumPy backend and check the C.
 
 from __future__ import annotations
 
-import numpy as np
-import sympy as sp
+from typing import TYPE_CHECKING
 
-from appell.symbols import lambdify
+import numpy as np
+
+if TYPE_CHECKING:
+    import sympy as sp
+# SymPy (for the per-joint expressions) is imported by the functions that form them: the
+# recursions themselves are NumPy alone (the numeric tree route, appell.numerics.tree_route)
 
 __all__ = ["tree_layout", "constant_joints", "rigid_subtrees", "folded_nodes", "speed_parents", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
            "TreeWrenches"]
@@ -43,6 +47,8 @@ def constant_joints(tree, constants) -> list[bool]:
     """Per node: whether its joint holds it rigidly to its parent: no speeds, a zero bias and a
     rotation and translation of constants alone (``constants``: the parameters' symbols; no
     coordinate, no time)."""
+    import sympy as sp
+
     return [not node.speeds and all(e == 0 for e in node.bias)
             and (sp.Matrix(node.rotation).free_symbols | sp.Matrix(node.translation).free_symbols) <= set(constants)
             for node in tree.nodes]
@@ -97,6 +103,8 @@ def tree_matrices(tree, n: int, gravity: bool = False) -> list[sp.Matrix]:
     speed), ``c`` (6 per node), inertias (10 per node: ``m, c_x, c_y, c_z, I_xx, I_yy, I_zz,
     I_xy, I_xz, I_yz`` about the centre), and the base's spatial acceleration (6: ``-g``
     where ``gravity``, else zero)."""
+    import sympy as sp
+
     rot, trans, bias, inert = [], [], [], []
     S = [sp.S.Zero] * (6 * n)
     for node in tree.nodes:
@@ -247,6 +255,8 @@ def crba(arrays: TreeArrays, parent, node_of) -> np.ndarray:
 
 def point_matrices(tree) -> list[sp.Matrix]:
     """Gravity (3, world axes) and each node's joint point in its body frame (3 per node)."""
+    import sympy as sp
+
     return [sp.Matrix(tree.gravity), sp.Matrix([x for node in tree.nodes for x in node.joint_origin])]
 
 
@@ -272,6 +282,8 @@ def wrenches(arrays: TreeArrays, parent, node_of, w, a, gravity, points) -> tupl
 def _compiled(arguments, matrices):
     """The matrices as one function of the arguments returning flat arrays (the ``math``
     module, shared subexpressions: the per-joint terms are small)."""
+    from appell.symbols import lambdify
+
     sizes = [len(m) for m in matrices]
     function = lambdify(arguments, [e for m in matrices for e in m], modules="math", cse=True)
 

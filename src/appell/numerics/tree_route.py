@@ -1,26 +1,33 @@
 """A robot's first numbers without deriving its system and without a compiler: the numeric
-recursive route from the joint tree a :class:`~appell.mechanism.Mechanism` records.
+recursive route of a joint tree, in two forms with one interface.
 
-A URDF or MJCF file (:mod:`appell.mechanism.formats`) is read into its mechanism; its joint
-tree (:meth:`Mechanism.rigid_tree <appell.mechanism.Mechanism.rigid_tree>`: each joint's
-rotation, translation, motion subspace ``S``, bias ``c`` and body inertia, small expressions in
-the joint's own coordinates and speeds) is compiled once (:func:`appell.symbols.lambdify`, the
-``math`` module), and at a state the recursions of :mod:`appell.numerics.rigid_tree` give
+* :class:`NumericTreeRoute`, :func:`tree_route`'s choice for a URDF file: the file read in
+  floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`: the bodies,
+  joints, coordinates and names of :func:`~appell.mechanism.urdf.urdf_mechanism`), without
+  SymPy; the accelerations by the articulated-body algorithm (:func:`aba`). A fraction of a
+  second from a fresh interpreter for a 38-speed humanoid (``benchmarks/instant.py``). It is
+  also a model the simulator integrates (:class:`~appell.numerics.dynamics.Dynamics`).
+* :class:`TreeRoute`, for an MJCF file, a :class:`~appell.mechanism.Mechanism`, or a URDF
+  holding what the floating-point reader does not take (``floating`` or ``planar`` joints):
+  the mechanism's joint tree (:meth:`Mechanism.rigid_tree
+  <appell.mechanism.Mechanism.rigid_tree>`: each joint's rotation, translation, motion
+  subspace ``S``, bias ``c`` and body inertia, small expressions in the joint's own
+  coordinates and speeds) compiled once (:func:`appell.symbols.lambdify`, the ``math``
+  module); ``M`` by the composite-rigid-body algorithm, ``h`` (with gravity: the base
+  accelerating at ``-g``) by the recursive Newton-Euler algorithm, then a dense solve.
 
-* ``M`` by the composite-rigid-body algorithm and ``h`` (with gravity: the base accelerating at
-  ``-g``) by the recursive Newton-Euler algorithm, then the accelerations of the open tree
-  ``M a = tau - h`` (``tau`` the joint forces given, zero by default) by a Cholesky solve;
-* every joint's reaction, the force and moment of the parent on the child at the joint's
-  origin in world axes (the outputs ``F_<joint>_x .. M_<joint>_z`` that
-  :meth:`Mechanism.system <appell.mechanism.Mechanism.system>` states symbolically), by the
-  inward pass of the Newton-Euler recursion at those accelerations
-  (:func:`appell.numerics.rigid_tree.wrenches`).
+Both give, at a state, the accelerations of ``M a = tau - h`` (``tau`` the joint forces given,
+zero by default; with holonomic constraints, a URDF's mimic joints, the multipliers of the
+augmented system ``M a + h = tau + J^T lambda``, ``J a + c = 0``) and every joint's reaction,
+the force and moment of the parent on the child at the joint's origin in world axes (the
+outputs ``F_<joint>_x .. M_<joint>_z`` that :meth:`Mechanism.system
+<appell.mechanism.Mechanism.system>` states symbolically), by the inward pass of the
+Newton-Euler recursion at those accelerations (:func:`appell.numerics.rigid_tree.wrenches`).
 
 Neither the symbolic frames and reaction balances of the mechanism's system nor the
-derivation are formed, which is what costs seconds to minutes on a robot; the numbers are the
-same recursions the NumPy and C backends evaluate on the derived tree, so they agree with
-them to rounding. Closed chains (a mechanism's closures, a URDF's mimic joints) and joints
-moved by time are refused: they need the derivation (:func:`appell.derive`).
+derivation are formed, which is what costs seconds to minutes on a robot; the numbers agree
+with the NumPy and C backends' on the derived tree to rounding. Closed chains (a mechanism's
+closures) and joints moved by time are refused: they need the derivation (:func:`appell.derive`).
 """
 
 from __future__ import annotations
@@ -28,13 +35,21 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import sympy as sp
 
 from appell.errors import ModelError
-from appell.numerics.rigid_tree import TreeArrays, crba, point_matrices, rnea, tree_layout, tree_matrices, wrenches
-from appell.symbols import derivative_symbol, lambdify, t
+from appell.numerics.rigid_tree import (
+    TreeArrays,
+    _spatial_inertia,
+    _transform,
+    crba,
+    point_matrices,
+    rnea,
+    tree_layout,
+    tree_matrices,
+    wrenches,
+)
 
-__all__ = ["TreeRoute", "tree_route"]
+__all__ = ["NumericTreeRoute", "TreeRoute", "aba", "tree_route"]
 
 
 class TreeRoute:
@@ -45,6 +60,10 @@ class TreeRoute:
     ``output_names``: every joint's reaction components."""
 
     def __init__(self, mechanism, name: str = "", constraints=()):
+        import sympy as sp
+
+        from appell.symbols import derivative_symbol, lambdify, t
+
         self.name = name or getattr(mechanism, "name", "")
         if getattr(mechanism, "_closures", ()):
             raise ModelError(f"{self.name}: the numeric tree route takes open trees; this mechanism has closed "
@@ -73,9 +92,11 @@ class TreeRoute:
         self.joint_names = tuple(node.joint for node in tree.nodes)
         self.output_names = tuple(f"{s}_{j}_{axis}" for j in self.joint_names for s in "FM" for axis in "xyz")
 
-    def _constraint_terms(self, constraints) -> list[sp.Matrix]:
+    def _constraint_terms(self, constraints) -> list:
         """``J`` (row-major) and ``c`` of the holonomic constraints ``F(q) = 0`` in
         second-order form ``J a + c = 0``: ``J = dF/dq``, ``c = d(J w)/dq w``."""
+        import sympy as sp
+
         if not constraints:
             return [sp.zeros(0, 1), sp.zeros(0, 1)]
         allowed = set(self.coordinates) | {p for p in sp.symbols(self.parameter_names)}
@@ -139,14 +160,217 @@ class TreeRoute:
         return a, out
 
 
+def _cross_matrix(x) -> np.ndarray:
+    return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
+
+
+def _crm(v) -> np.ndarray:
+    """``v x`` on motion vectors ``[omega; v]``: ``[[wx, 0], [vx, wx]]``."""
+    out = np.zeros((6, 6))
+    out[:3, :3] = out[3:, 3:] = _cross_matrix(v[:3])
+    out[3:, :3] = _cross_matrix(v[3:])
+    return out
+
+
+def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
+    """The accelerations ``a`` of ``M a + h = tau`` by the articulated-body algorithm
+    (Featherstone 2008, table 7.1), body axes, spatial vectors ``[omega; v]``: ``X`` (nb, 6, 6)
+    each node's transform from its parent, ``inertia`` (nb, 6, 6) the bodies' spatial inertias
+    about their origins, ``parent`` (-1: the ground), ``speed`` each node's speed (-1: a fixed
+    joint), ``S`` (n, 6) each speed's motion axis, ``base`` the ground's spatial acceleration
+    (``-g``: gravity). Outward ``v_i = X_i v_p + S_i w_i``, ``c_i = v_i x S_i w_i``,
+    ``p_i = v_i x* I_i v_i``; inward ``U = I^A S``, ``D = S^T U``, ``u = tau - S^T p^A``,
+    ``I^A_p += X^T (I^A - U U^T / D) X``, ``p^A_p += X^T (p^A + I^a c + U u / D)``; outward
+    ``a_i = X_i a_p + c_i``, ``qdd = (u - U^T a_i) / D``, ``a_i += S qdd``."""
+    nb, n = len(parent), len(S)
+    v, c, pA = np.zeros((nb, 6)), np.zeros((nb, 6)), np.zeros((nb, 6))
+    IA = np.array(inertia, float)
+    for i in range(nb):
+        if parent[i] >= 0:
+            v[i] = X[i] @ v[parent[i]]
+        k = speed[i]
+        if k >= 0:
+            vJ = S[k] * w[k]
+            v[i] += vJ
+            c[i] = _crm(v[i]) @ vJ
+        pA[i] = -_crm(v[i]).T @ (inertia[i] @ v[i])
+    U, D, u = np.zeros((nb, 6)), np.ones(nb), np.zeros(nb)
+    for i in reversed(range(nb)):
+        k = speed[i]
+        Ia = IA[i]
+        if k >= 0:
+            U[i] = IA[i] @ S[k]
+            D[i] = S[k] @ U[i]
+            if not D[i] > 0.0:
+                raise ModelError("a joint carries no inertia (a zero pivot of the articulated-body algorithm)",
+                                 hint="give the bodies it moves a mass and inertia")
+            u[i] = tau[k] - S[k] @ pA[i]
+            Ia = IA[i] - np.outer(U[i], U[i]) / D[i]
+        pa = pA[i] + Ia @ c[i] + U[i] * (u[i] / D[i])
+        if parent[i] >= 0:
+            IA[parent[i]] += X[i].T @ Ia @ X[i]
+            pA[parent[i]] += X[i].T @ pa
+    acc, qdd = np.zeros((nb, 6)), np.zeros(n)
+    for i in range(nb):
+        acc[i] = X[i] @ (acc[parent[i]] if parent[i] >= 0 else base) + c[i]
+        k = speed[i]
+        if k >= 0:
+            qdd[k] = (u[i] - U[i] @ acc[i]) / D[i]
+            acc[i] += S[k] * qdd[k]
+    return qdd
+
+
+class NumericTreeRoute:
+    """The numeric route of a URDF's joint tree read in floating point
+    (:func:`appell.mechanism.urdf_tree.urdf_tree`), without SymPy: the accelerations by the
+    articulated-body algorithm (:func:`aba`; with mimic rows ``J a = 0``, ``lambda`` from
+    ``(J M^-1 J^T) lambda = -J a_0``, the columns of ``M^-1 J^T`` by :func:`aba` at rest without
+    gravity), every joint's reaction by the inward pass (:func:`appell.numerics.rigid_tree.wrenches`).
+    The same attributes and calls as :class:`TreeRoute`; the one parameter is ``g``. It is also
+    a model the simulator integrates (:class:`~appell.numerics.dynamics.Dynamics`):
+    ``appell.simulate(tree_route("panda.urdf"), options=...)`` runs without deriving (the
+    joint forces are not recorded along the motion: :meth:`forward` gives them at a state)."""
+
+    def __init__(self, tree, name: str = ""):
+        self.name = name or tree.name
+        nodes = tree.nodes
+        self.coordinate_names = tree.coordinates
+        self.speed_names = tuple(f"{q}_dot" for q in self.coordinate_names)
+        self.n = n = len(self.coordinate_names)
+        self.parameter_names, self.default_parameters = ("g",), np.array([9.81])
+        self.parent = np.array([node.parent for node in nodes], dtype=np.int64)
+        self.speed = np.full(len(nodes), -1, dtype=np.int64)
+        self.S = np.zeros((n, 6))
+        for b, node in enumerate(nodes):
+            if node.coordinate is not None:
+                k = self.speed[b] = self.coordinate_names.index(node.coordinate)
+                start = 0 if node.kind == "revolute" else 3  # [axis; 0] or [0; axis]: the joint's axes are the body's
+                self.S[k, start:start + 3] = node.axis
+        self.node_of = np.array([int(np.flatnonzero(self.speed == k)[0]) for k in range(n)], dtype=np.int64)
+        self._nodes = nodes
+        self._inert = np.array([[node.mass, *node.com, node.inertia[0, 0], node.inertia[1, 1], node.inertia[2, 2],
+                                 node.inertia[0, 1], node.inertia[0, 2], node.inertia[1, 2]] for node in nodes])
+        self._spatial = np.array([_spatial_inertia(node.mass, node.com, node.inertia) for node in nodes])
+        self.joint_names = tuple(node.reaction for node in nodes if node.reaction is not None)
+        self._reporting = [b for b, node in enumerate(nodes) if node.reaction is not None]
+        self.output_names = tuple(f"{s}_{j}_{axis}" for j in self.joint_names for s in "FM" for axis in "xyz")
+        self.constraint_names = tuple(name for name, *_ in tree.mimics)
+        self._J = np.zeros((len(tree.mimics), n))
+        self._offsets = np.array([offset for *_, offset in tree.mimics], float)
+        for row, (_, a, b, multiplier, _) in enumerate(tree.mimics):
+            self._J[row, a] += 1.0
+            self._J[row, b] -= multiplier
+
+    def _arrays(self, q, w, p):
+        p = self.default_parameters if p is None else np.asarray(p, float).reshape(-1)
+        q, w = np.asarray(q, float).reshape(-1), np.asarray(w, float).reshape(-1)
+        if q.shape != (self.n,) or w.shape != (self.n,):
+            raise ModelError(f"{self.name}: q and w need {self.n} values each (got {q.size}, {w.size})",
+                             hint="in the order of coordinate_names and speed_names")
+        nb = len(self._nodes)
+        R, r = np.empty((nb, 3, 3)), np.empty((nb, 3))
+        for b, node in enumerate(self._nodes):
+            k = self.speed[b]
+            R[b], r[b] = node.rotation, node.origin
+            if node.kind == "revolute":  # Rodrigues: R0 (E + sin K + (1 - cos) K^2)
+                K = _cross_matrix(node.axis)
+                R[b] = node.rotation @ (np.eye(3) + np.sin(q[k]) * K + (1.0 - np.cos(q[k])) * K @ K)
+            elif node.kind == "prismatic":
+                r[b] = node.origin + node.rotation @ node.axis * q[k]
+        arrays = TreeArrays(R.ravel(), r.ravel(), self.S.ravel(), np.zeros(6 * nb), self._inert.ravel())
+        return arrays, q, w, np.array([0.0, 0.0, -p[0]])
+
+    def _aba(self, arrays, w, tau, base):
+        X = [_transform(arrays.R[0, b], arrays.r[0, b]) for b in range(len(self._nodes))]
+        return X, aba(X, self._spatial, self.parent, self.speed, self.S, w, tau, base)
+
+    def blocks(self, time, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(M, h)`` (CRBA and RNEA, :mod:`appell.numerics.rigid_tree`), gravity in ``h``."""
+        arrays, q, w, gravity = self._arrays(q, w, p)
+        base = np.concatenate([np.zeros(3), -gravity])
+        return crba(arrays, self.parent, self.node_of), rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
+
+    def accelerations(self, time, q, w, tau=None, p=None) -> np.ndarray:
+        """``a`` of ``M a = tau - h`` (with the mimic rows, :meth:`forward`)."""
+        return self.forward(time, q, w, tau, p)[0]
+
+    def _solve(self, q, w, tau, p):
+        arrays, q, w, gravity = self._arrays(q, w, p)
+        tau = np.zeros(self.n) if tau is None else np.asarray(tau, float).reshape(self.n)
+        X, a = self._aba(arrays, w, tau, np.concatenate([np.zeros(3), -gravity]))
+        lam = np.zeros(len(self._J))
+        if len(self._J):
+            MJ = np.array([aba(X, self._spatial, self.parent, self.speed, self.S, np.zeros(self.n), row, np.zeros(6))
+                           for row in self._J]).T
+            try:
+                lam = np.linalg.solve(self._J @ MJ, -self._J @ a)
+            except np.linalg.LinAlgError:
+                raise ModelError(f"{self.name}: the mimic rows are dependent", hint="remove a <mimic>") from None
+            a = a + MJ @ lam
+        return arrays, w, gravity, a, lam
+
+    def forward(self, time, q, w, tau=None, p=None) -> tuple[np.ndarray, dict[str, float]]:
+        """The accelerations and every joint's reaction ``{output name: value}`` at one state,
+        and the mimic rows' multipliers ``lambda_<name>`` of ``M a + h = tau + J^T lambda``."""
+        arrays, w, gravity, a, lam = self._solve(q, w, tau, p)
+        W, _ = wrenches(arrays, self.parent, self.node_of, w[None], a[None], gravity[None],
+                        np.zeros((1, 3 * len(self._nodes))))
+        out = dict(zip(self.output_names, W[0, self._reporting].reshape(-1).tolist()))
+        out.update((f"lambda_{name}", float(v)) for name, v in zip(self.constraint_names, lam))
+        return a, out
+
+    # ------------------------------------------------ the simulator's contract (appell.numerics.dynamics)
+    control_names: tuple[str, ...] = ()
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return self.coordinate_names + self.speed_names
+
+    def params(self, p=None) -> np.ndarray:
+        """``[g]``: the default, or ``p`` (one value, or ``{"g": value}``)."""
+        if p is None:
+            return self.default_parameters
+        if isinstance(p, dict):
+            unknown = set(map(str, p)) - {"g"}
+            if unknown:
+                raise ModelError(f"unknown parameter {sorted(unknown)[0]!r}", hint="parameters: g")
+            return np.array([float(p.get("g", self.default_parameters[0]))])
+        return np.asarray(p, float).reshape(1)
+
+    def evaluate(self, t, y, p=None):
+        """``dy/dt = (w, a)`` and the mimic rows' multipliers at ``(t, y)`` (no joint forces)."""
+        from appell.numerics.dynamics import Evaluation
+
+        y = np.asarray(y, float)
+        _, w, _, a, lam = self._solve(y[:self.n], y[self.n:], None, p)
+        return Evaluation(np.concatenate([w, a]), lam, np.zeros(0))
+
+    def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """The mimic rows ``a - m b - offset`` and their rates ``J w``."""
+        y = np.asarray(y, float)
+        return self._J @ y[:self.n] - self._offsets, self._J @ y[self.n:]
+
+    def residual_jacobians(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(dF/dq, dphi/dw) = (J, J)``: the mimic rows are linear."""
+        return self._J, self._J
+
+
 def tree_route(source, *, floating_base: bool = False) -> TreeRoute:
     """The :class:`TreeRoute` of a robot file (URDF or MJCF, by its suffix) or of a
     :class:`~appell.mechanism.Mechanism`."""
     if not isinstance(source, (str, Path)):
         return TreeRoute(source)
+    path = Path(source)
+    if path.suffix.lower() == ".urdf":  # read in floating point, no SymPy (NumericTreeRoute)
+        from appell.mechanism.urdf import read_urdf
+        from appell.mechanism.urdf_tree import NotNumeric, urdf_tree
+
+        try:
+            return NumericTreeRoute(urdf_tree(read_urdf(path), floating_base), path.stem)
+        except NotNumeric:
+            pass  # the symbolic route reads it (or says why not)
     from appell.mechanism.formats import importer_for
 
-    path = Path(source)
     importer = importer_for(path)
     if importer is None or importer.mechanism is None:
         raise ModelError(f"{path}: the numeric tree route reads a robot file (URDF or MJCF)",

@@ -70,14 +70,16 @@ def _notes_as_lines(echo):
 
     from appell.errors import AppellNote
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", AppellNote)
-        yield
-    for w in caught:
-        if issubclass(w.category, AppellNote):
-            echo(f"note: {w.message}", err=True)
-        else:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", AppellNote)
+            yield
+    finally:  # also before an error raised inside (the model refused after its notes)
+        for w in caught:
+            if issubclass(w.category, AppellNote):
+                echo(f"note: {w.message}", err=True)
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def load_derivation(model: str, overrides=None, floating_base: bool = False, dependent=None, formulas: bool = False,
@@ -97,11 +99,15 @@ def load_derivation(model: str, overrides=None, floating_base: bool = False, dep
     path = resolve_model(model)
     dependent = [canonical_name(d) for d in dependent] if dependent else None
     with _notes_as_lines(echo), status(f"deriving {path.stem}"):
-        derivation = derive_file(path, overrides or None, floating_base=floating_base, dependent=dependent,
-                                 cache=cache, formulas=formulas, reactions_in=reactions_in, reader=reader)
+        # the inertia check runs before an entry is stored, not again on one stored after it
+        return derive_file(path, overrides or None, floating_base=floating_base, dependent=dependent,
+                           cache=cache, formulas=formulas, reactions_in=reactions_in, reader=reader,
+                           check=_check_at_start)
+
+
+def _check_at_start(derivation) -> None:
     if not _is_controlled(derivation):
         check_inertia_at_start(derivation)
-    return derivation
 
 
 def derive_model(system, dependent=None, formulas: bool = False):
