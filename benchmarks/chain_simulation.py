@@ -49,11 +49,12 @@ def pydy_rhs(n: int):
     from sympy.physics.mechanics import dynamicsymbols
 
     KM, A, b, params, q, u = nlink_kane(n)
-    lam_state = dynamicsymbols("lam_state")   # stands for lam so that A [u'; lam] = b fits PyDy
+    lam_state = dynamicsymbols("lam_state")  # stands for lam so that A [u'; lam] = b fits PyDy
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        rhs = generate_ode_function(b, q, list(u) + [lam_state], params, mass_matrix=A,
-                                    coordinate_derivatives=sp.Matrix(u), generator="cython")
+        rhs = generate_ode_function(
+            b, q, list(u) + [lam_state], params, mass_matrix=A, coordinate_derivatives=sp.Matrix(u), generator="cython"
+        )
     values = nlink_parameters(n)
     return rhs, np.array([values[s.name] for s in params])
 
@@ -62,17 +63,17 @@ def run_pydy(rhs, pk, n, y0, t_end, t_eval):
     buf = np.zeros(2 * n + 1)
 
     def fun(t, x):
-        buf[:2 * n] = x
+        buf[: 2 * n] = x
         # PyDy's Cython function returns the same output array at every call: a view would be
         # overwritten by the next call (DOP853's dense output then corrupts its stages)
-        return rhs(buf, t, pk)[:2 * n].copy()
+        return rhs(buf, t, pk)[: 2 * n].copy()
 
     t0 = CLOCK()
     sol = solve_ivp(fun, (0.0, t_end), y0, method="DOP853", t_eval=t_eval, rtol=RTOL, atol=ATOL)
     t1 = CLOCK()
     lam = np.empty(len(sol.t))
     for k, (t, x) in enumerate(zip(sol.t, sol.y.T)):
-        buf[:2 * n] = x
+        buf[: 2 * n] = x
         lam[k] = rhs(buf, t, pk)[2 * n]
     t2 = CLOCK()
     return sol, lam, t1 - t0, t2 - t1
@@ -80,8 +81,15 @@ def run_pydy(rhs, pk, n, y0, t_end, t_eval):
 
 def run_appell_ivp(cm, y0, t_end, t_eval):
     t0 = CLOCK()
-    sol = solve_ivp(lambda t, x: cm.evaluate(t, x).derivative, (0.0, t_end), y0, method="DOP853", t_eval=t_eval,
-                    rtol=RTOL, atol=ATOL)
+    sol = solve_ivp(
+        lambda t, x: cm.evaluate(t, x).derivative,
+        (0.0, t_end),
+        y0,
+        method="DOP853",
+        t_eval=t_eval,
+        rtol=RTOL,
+        atol=ATOL,
+    )
     lam = np.array([cm.evaluate(t, x).multipliers[0] for t, x in zip(sol.t, sol.y.T)])
     return sol, lam, CLOCK() - t0
 
@@ -127,10 +135,17 @@ def measure(n: int, args) -> dict:
     names = list(cm.state_names)
     sim_y = np.column_stack([np.asarray(sim.states[k]) for k in names]) if hasattr(sim, "states") else None
     sim_lam = np.asarray(sim.multipliers["tip"])
-    out = {"n": n, "samples": len(t_eval), "status": int(sim.status), "median_s": {k: median(v) for k, v in rows.items()},
-           "rounds": rows}
-    out["residual"] = {"simulate": tip_residual(sim_y[:, :n].T, n) if sim_y is not None else None,
-                       "ivp": tip_residual(ivp.y[:n], n)}
+    out = {
+        "n": n,
+        "samples": len(t_eval),
+        "status": int(sim.status),
+        "median_s": {k: median(v) for k, v in rows.items()},
+        "rounds": rows,
+    }
+    out["residual"] = {
+        "simulate": tip_residual(sim_y[:, :n].T, n) if sim_y is not None else None,
+        "ivp": tip_residual(ivp.y[:n], n),
+    }
     if have_pydy:
         out["ratio_states"] = median(a / b for a, b in zip(rows["simulate"], rows["pydy"]))
         out["ratio_reactions"] = median(a / b for a, b in zip(rows["simulate"], rows["pydy_rec"]))
@@ -148,22 +163,42 @@ def markdown(results: list[dict]) -> str:
     for r in results:
         m = r["median_s"]
         pyd = "pydy" in m
-        rows.append([
-            str(r["n"]), f"{m['simulate']:.3f} s",
-            f"{m['pydy']:.3f} s" if pyd else "not installed",
-            f"{m['pydy_rec']:.3f} s" if pyd else "—",
-            f"{m['ivp']:.3f} s",
-            f"**{r['ratio_states']:.2f}×** / {r['ratio_reactions']:.2f}×" if pyd else "—",
-            (f"{r['max_theta_diff']:.0e} rad / {r['max_lam_diff']:.0e} N" if "max_theta_diff" in r else "—"),
-            " / ".join(f"{r['residual'][k]:.0e}" for k in ("simulate", "pydy", "ivp") if r["residual"].get(k) is not None),
-        ])
-    goals = [target(f"n = {r['n']}: simulate / PyDy + solve_ivp (states only)", r["ratio_states"], 0.5)
-             for r in results if "ratio_states" in r]
-    return "CPU time of the process, median of the rounds:\n\n" + markdown_table(["n", "appell simulate", "PyDy + solve_ivp", "PyDy + solve_ivp + reactions",
-                           "appell C + solve_ivp (+ reactions)", "simulate / PyDy (states / + reactions)",
-                           "largest difference simulate vs PyDy (θ / λ)",
-                           "largest constraint residual, m (simulate / PyDy / appell C + solve_ivp)"], rows) \
+        rows.append(
+            [
+                str(r["n"]),
+                f"{m['simulate']:.3f} s",
+                f"{m['pydy']:.3f} s" if pyd else "not installed",
+                f"{m['pydy_rec']:.3f} s" if pyd else "—",
+                f"{m['ivp']:.3f} s",
+                f"**{r['ratio_states']:.2f}×** / {r['ratio_reactions']:.2f}×" if pyd else "—",
+                (f"{r['max_theta_diff']:.0e} rad / {r['max_lam_diff']:.0e} N" if "max_theta_diff" in r else "—"),
+                " / ".join(
+                    f"{r['residual'][k]:.0e}" for k in ("simulate", "pydy", "ivp") if r["residual"].get(k) is not None
+                ),
+            ]
+        )
+    goals = [
+        target(f"n = {r['n']}: simulate / PyDy + solve_ivp (states only)", r["ratio_states"], 0.5)
+        for r in results
+        if "ratio_states" in r
+    ]
+    return (
+        "CPU time of the process, median of the rounds:\n\n"
+        + markdown_table(
+            [
+                "n",
+                "appell simulate",
+                "PyDy + solve_ivp",
+                "PyDy + solve_ivp + reactions",
+                "appell C + solve_ivp (+ reactions)",
+                "simulate / PyDy (states / + reactions)",
+                "largest difference simulate vs PyDy (θ / λ)",
+                "largest constraint residual, m (simulate / PyDy / appell C + solve_ivp)",
+            ],
+            rows,
+        )
         + ("\n\nTargets (issue 13):\n\n" + "\n".join(goals) if goals else "")
+    )
 
 
 def main():
@@ -180,12 +215,19 @@ def main():
         r = measure(n, args)
         results.append(r)
         m = r["median_s"]
-        print(f"n = {n}: {r['samples']} samples; median CPU time [s]: " + ", ".join(f"{k} {v:.3f}" for k, v in m.items()))
+        print(
+            f"n = {n}: {r['samples']} samples; median CPU time [s]: " + ", ".join(f"{k} {v:.3f}" for k, v in m.items())
+        )
         if "ratio_states" in r:
-            print(f"  simulate / PyDy: {r['ratio_states']:.2f} (states), {r['ratio_reactions']:.2f} (+ reactions); "
-                  f"appell C + solve_ivp / PyDy + reactions: {r['ratio_ivp']:.2f}")
-        print(f"  differences: {({k: r[k] for k in ('max_theta_diff', 'max_lam_diff') if k in r})}, "
-              f"residuals {r['residual']}", flush=True)
+            print(
+                f"  simulate / PyDy: {r['ratio_states']:.2f} (states), {r['ratio_reactions']:.2f} (+ reactions); "
+                f"appell C + solve_ivp / PyDy + reactions: {r['ratio_ivp']:.2f}"
+            )
+        print(
+            f"  differences: { ({k: r[k] for k in ('max_theta_diff', 'max_lam_diff') if k in r}) }, "
+            f"residuals {r['residual']}",
+            flush=True,
+        )
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
     if args.markdown:

@@ -94,8 +94,13 @@ def first_evaluation(path=MODEL, route="mechanism", joints=17) -> dict:
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "APPELL_CACHE_DIR": cache}
         env.pop("APPELL_NO_CACHE", None)
-        out = subprocess.run([sys.executable, "-c", FIRST, str(path), route, str(joints)], capture_output=True,
-                             text=True, check=True, env=env)
+        out = subprocess.run(
+            [sys.executable, "-c", FIRST, str(path), route, str(joints)],
+            capture_output=True,
+            text=True,
+            check=True,
+            env=env,
+        )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -123,16 +128,34 @@ def from_c(model, q, w, iterations=5000) -> tuple[float, float] | None:
         subprocess.run([cc, "-O2", str(HERE / "reference" / "bench_loops.c"), "-o", str(exe), "-ldl"], check=True)
         p = model.parameter_values
         sizes = [len(q), len(w), len(model.control_names), len(p), len(model.constraint_names), len(model.joints)]
-        out = subprocess.run([str(exe), str(model.compiled.library_path), str(iterations), *map(str, sizes),
-                              *(repr(float(x)) for x in [*q, *w, *p])], capture_output=True, text=True, check=True)
+        out = subprocess.run(
+            [
+                str(exe),
+                str(model.compiled.library_path),
+                str(iterations),
+                *map(str, sizes),
+                *(repr(float(x)) for x in [*q, *w, *p]),
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
     r = json.loads(out.stdout)
     assert r["status"] == 0 and abs(r["a0"] - model.evaluate(q, w).a[0]) <= 1e-9 * max(1.0, abs(r["a0"]))
     return r["appell_ns"] * 1e-9, r["appell_median_ns"] * 1e-9
 
 
 #: g++ flags of pinocchio_loop.cpp: Pinocchio's own compile definitions (its CMake targets)
-CXXFLAGS = ("-O3", "-march=native", "-DNDEBUG", "-std=c++17", "-DBOOST_MPL_LIMIT_LIST_SIZE=30",
-            "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30", "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS", "-DBOOST_FUSION_INVOKE_MAX_ARITY=12")
+CXXFLAGS = (
+    "-O3",
+    "-march=native",
+    "-DNDEBUG",
+    "-std=c++17",
+    "-DBOOST_MPL_LIMIT_LIST_SIZE=30",
+    "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30",
+    "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS",
+    "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
+)
 
 
 def pinocchio_executable() -> tuple[Path | None, str]:
@@ -140,9 +163,12 @@ def pinocchio_executable() -> tuple[Path | None, str]:
     flags: the build takes minutes), or None and the reason it is not."""
     gxx = shutil.which("g++")
     inc = Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix" / "include"
-    needs = {"g++": gxx, "Pinocchio's headers (pip package pin)": (inc / "pinocchio").is_dir(),
-             "Eigen's headers (pip package cmeel-eigen)": (inc / "eigen3" / "Eigen").is_dir(),
-             "Boost's headers (pip package cmeel-boost)": (inc / "boost").is_dir()}
+    needs = {
+        "g++": gxx,
+        "Pinocchio's headers (pip package pin)": (inc / "pinocchio").is_dir(),
+        "Eigen's headers (pip package cmeel-eigen)": (inc / "eigen3" / "Eigen").is_dir(),
+        "Boost's headers (pip package cmeel-boost)": (inc / "boost").is_dir(),
+    }
     missing = [k for k, ok in needs.items() if not ok]
     if missing:
         return None, f"not built: no {', '.join(missing)} (pip install appell[bench])"
@@ -169,6 +195,7 @@ def pinocchio_spec(pin, pmodel, cmodels) -> str:
     """The text that ``pinocchio_loop.cpp`` rebuilds Pinocchio's model and closures from (its
     comment): the settings, the joints, inertias and gravity of ``pmodel``, the
     ``RigidConstraintModel`` s."""
+
     def numbers(*arrays):
         return " ".join(repr(float(x)) for a in arrays for x in np.ravel(a))
 
@@ -180,13 +207,17 @@ def pinocchio_spec(pin, pmodel, cmodels) -> str:
         joint, inertia = pmodel.joints[i], pmodel.inertias[i]
         kind = joint.shortname().removeprefix("JointModel")
         axis = getattr(joint, "axis", np.zeros(3)) if kind == "RevoluteUnaligned" else np.zeros(3)
-        lines.append(f"joint {pmodel.parents[i]} {kind} {numbers(axis)} {placement(pmodel.jointPlacements[i])} "
-                     f"{numbers([inertia.mass], inertia.lever, inertia.inertia)}")
+        lines.append(
+            f"joint {pmodel.parents[i]} {kind} {numbers(axis)} {placement(pmodel.jointPlacements[i])} "
+            f"{numbers([inertia.mass], inertia.lever, inertia.inertia)}"
+        )
     frames = {pin.ReferenceFrame.WORLD: 0, pin.ReferenceFrame.LOCAL: 1, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED: 2}
     for c in cmodels:
         size = 6 if c.type == pin.ContactType.CONTACT_6D else 3
-        lines.append(f"contact {size} {c.joint1_id} {placement(c.joint1_placement)} {c.joint2_id} "
-                     f"{placement(c.joint2_placement)} {frames[c.reference_frame]}")
+        lines.append(
+            f"contact {size} {c.joint1_id} {placement(c.joint1_placement)} {c.joint2_id} "
+            f"{placement(c.joint2_placement)} {frames[c.reference_frame]}"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -201,14 +232,20 @@ def pinocchio_cpp(spec, pq, pv, iterations=2000) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "model.txt"
         path.write_text(spec)
-        out = subprocess.run([str(exe), str(path), str(iterations), *(repr(float(x)) for x in [*pq, *pv])],
-                             capture_output=True, text=True)
+        out = subprocess.run(
+            [str(exe), str(path), str(iterations), *(repr(float(x)) for x in [*pq, *pv])],
+            capture_output=True,
+            text=True,
+        )
     if out.returncode != 0:
         return {"note": "failed: " + (out.stderr.strip() or f"status {out.returncode}")[:200]}
     r = json.loads(out.stdout)
-    return {"constraintDynamics": tuple(x * 1e-9 for x in r["constraintDynamics_ns"]),
-            "lcaba": tuple(x * 1e-9 for x in r["lcaba_ns"]), "a": np.array(r["a_constraintDynamics"]),
-            "a_lcaba": np.array(r["a_lcaba"])}
+    return {
+        "constraintDynamics": tuple(x * 1e-9 for x in r["constraintDynamics_ns"]),
+        "lcaba": tuple(x * 1e-9 for x in r["lcaba_ns"]),
+        "a": np.array(r["a_constraintDynamics"]),
+        "a_lcaba": np.array(r["a_lcaba"]),
+    }
 
 
 def evaluation(rounds: int) -> dict:
@@ -244,8 +281,9 @@ def evaluation(rounds: int) -> dict:
         pq = np.concatenate([q[:3] + pin.neutral(pmodel)[:3], [0, 0, 0, 1], q[7:]])  # pin: x y z qx qy qz qw
         pv = np.concatenate([np.zeros(6), w[7:]])
         tau = np.zeros(pmodel.nv)
-        candidates["pinocchio constraintDynamics"] = lambda: pin.constraintDynamics(pmodel, pdata, pq, pv, tau, cmodels,
-                                                                                     cdatas, prox)
+        candidates["pinocchio constraintDynamics"] = lambda: pin.constraintDynamics(
+            pmodel, pdata, pq, pv, tau, cmodels, cdatas, prox
+        )
         a_pin = np.array(pin.constraintDynamics(pmodel, pdata, pq, pv, tau, cmodels, cdatas, prox))
         agree = float(np.abs(a_pin[6:] - model.evaluate(q, w).a[7:]).max())
         cpp = pinocchio_cpp(pinocchio_spec(pin, pmodel, cmodels), pq, pv)
@@ -259,8 +297,14 @@ def evaluation(rounds: int) -> dict:
         except Exception as exc:  # noqa: BLE001 - a peer's API that may be absent
             print(f"(lcaba not run: {exc})")
     times = interleaved(candidates, rounds=rounds)
-    return {"times": times, "agree": agree, "agree_lcaba": agree_lcaba, "from_c": from_c(model, q, w),
-            "backend": model.backend, "cpp": cpp}
+    return {
+        "times": times,
+        "agree": agree,
+        "agree_lcaba": agree_lcaba,
+        "from_c": from_c(model, q, w),
+        "backend": model.backend,
+        "cpp": cpp,
+    }
 
 
 def inverse(samples: int = 1000) -> tuple[float, float]:
@@ -300,9 +344,11 @@ def main(argv=None):
     print("| measure | appell | peer | ratio appell / peer |")
     print("|---|---|---|---|")
     for label, r in (("biped", first), ("gripper", grip)):
-        print(f"| {label}: file to first compiled evaluation (fresh process, empty cache; wall, CPU) | "
-              f"{r['seconds']:.1f} s, {r['cpu']:.1f} s CPU; {r['peak_mb']:.0f} MB peak (largest child "
-              f"{r['compiler_peak_mb']:.0f} MB) | — | — |")
+        print(
+            f"| {label}: file to first compiled evaluation (fresh process, empty cache; wall, CPU) | "
+            f"{r['seconds']:.1f} s, {r['cpu']:.1f} s CPU; {r['peak_mb']:.0f} MB peak (largest child "
+            f"{r['compiler_peak_mb']:.0f} MB) | — | — |"
+        )
     best_peer = best_c = None
     peers = [k for k in times if k.startswith("pinocchio")]
     for name in ("appell", "appell NumPy route"):
@@ -311,9 +357,11 @@ def main(argv=None):
             if name == "appell":
                 best_peer = r if best_peer is None else max(best_peer, r)
             route = f"{ev['backend']}" if name == "appell" else "numpy"
-            print(f"| one evaluation from Python ({route}; every loop force and joint wrench) | "
-                  f"{median(times[name]) * 1e6:.1f} µs | {peer} from Python {median(times[peer]) * 1e6:.1f} µs | "
-                  f"{r:.2f}× |")
+            print(
+                f"| one evaluation from Python ({route}; every loop force and joint wrench) | "
+                f"{median(times[name]) * 1e6:.1f} µs | {peer} from Python {median(times[peer]) * 1e6:.1f} µs | "
+                f"{r:.2f}× |"
+            )
     if ev["from_c"] is not None:
         best, mid = ev["from_c"]
         for peer in ("constraintDynamics", "lcaba"):
@@ -322,39 +370,65 @@ def main(argv=None):
             pbest, pmid = cpp[peer]
             r = mid / pmid
             best_c = r if best_c is None else max(best_c, r)
-            print(f"| one evaluation from C: appell_loop_evaluate in a C loop (best; median) | {best * 1e6:.1f}; "
-                  f"{mid * 1e6:.1f} µs | pinocchio {peer} in a C++ loop {pbest * 1e6:.1f}; {pmid * 1e6:.1f} µs | "
-                  f"{r:.2f}× (medians), {best / pbest:.2f}× (best) |")
+            print(
+                f"| one evaluation from C: appell_loop_evaluate in a C loop (best; median) | {best * 1e6:.1f}; "
+                f"{mid * 1e6:.1f} µs | pinocchio {peer} in a C++ loop {pbest * 1e6:.1f}; {pmid * 1e6:.1f} µs | "
+                f"{r:.2f}× (medians), {best / pbest:.2f}× (best) |"
+            )
         if "note" in cpp:
-            print(f"| one evaluation from C: appell_loop_evaluate in a C loop (best; median) | {best * 1e6:.1f}; "
-                  f"{mid * 1e6:.1f} µs | Pinocchio's C++ loop {cpp['note']} | — |")
-    print(f"| inverse dynamics, legs, {args.samples} samples (wall; CPU) | {inv[0]:.2f} s; {inv[1]:.2f} s CPU | — | — |")
-    print("\nColumns: appell's evaluation gives the accelerations, every multiplier (each loop force) and every "
-          "joint's wrench; Pinocchio's the accelerations and the constraint forces (lambda_c). From Python: "
-          "per-call CPU time, the median of the interleaved rounds, binding costs included on both sides. From C: "
-          "no Python in the loop on either side, the per-call CPU time of the best and the median of 41 rounds "
-          "at the same state; the ratio is appell's over the peer's.")
+            print(
+                f"| one evaluation from C: appell_loop_evaluate in a C loop (best; median) | {best * 1e6:.1f}; "
+                f"{mid * 1e6:.1f} µs | Pinocchio's C++ loop {cpp['note']} | — |"
+            )
+    print(
+        f"| inverse dynamics, legs, {args.samples} samples (wall; CPU) | {inv[0]:.2f} s; {inv[1]:.2f} s CPU | — | — |"
+    )
+    print(
+        "\nColumns: appell's evaluation gives the accelerations, every multiplier (each loop force) and every "
+        "joint's wrench; Pinocchio's the accelerations and the constraint forces (lambda_c). From Python: "
+        "per-call CPU time, the median of the interleaved rounds, binding costs included on both sides. From C: "
+        "no Python in the loop on either side, the per-call CPU time of the best and the median of 41 rounds "
+        "at the same state; the ratio is appell's over the peer's."
+    )
     if ev["agree"] is not None:
         print(f"\njoint accelerations, appell against Pinocchio at the state: largest difference {ev['agree']:.2e}")
     if ev["agree_lcaba"] is not None:
-        print(f"Pinocchio's lcaba (mu {PROX_LCABA[1]:g}) against its constraintDynamics at the state: largest "
-              f"difference {ev['agree_lcaba']:.2e}")
+        print(
+            f"Pinocchio's lcaba (mu {PROX_LCABA[1]:g}) against its constraintDynamics at the state: largest "
+            f"difference {ev['agree_lcaba']:.2e}"
+        )
     if "agree" in cpp:
-        print(f"Pinocchio's C++ runs (both) against its Python constraintDynamics at the state: largest difference "
-              f"{cpp['agree']:.2e}")
-    print("\n" + "\n".join([
-        target("biped: file to first evaluation, wall", first["seconds"], 30, " s"),
-        target("biped: file to first evaluation, CPU", first["cpu"], 30, " s"),
-        target("gripper: file to first evaluation, wall", grip["seconds"], 15, " s"),
-        target("gripper: file to first evaluation, CPU", grip["cpu"], 15, " s"),
-        target("peak memory, the largest process", max(first["peak_mb"], grip["peak_mb"], first["compiler_peak_mb"],
-                                                        grip["compiler_peak_mb"]), 500, " MB"),
-        target("one evaluation from Python against Pinocchio's fastest from Python", best_peer, 1.5),
-        target("one evaluation from C against Pinocchio's fastest from C++ (medians)", best_c, 1.0)
-        if best_c is not None else f"- one evaluation from C (target ≤ 1×): not measured ({cpp.get('note', 'no compiled model')})",
-        target(f"inverse dynamics along 1000 samples, CPU time (from {args.samples} measured)", inv[1] * 1000 / args.samples, 1.0,
-               " s"),
-    ]))
+        print(
+            f"Pinocchio's C++ runs (both) against its Python constraintDynamics at the state: largest difference "
+            f"{cpp['agree']:.2e}"
+        )
+    print(
+        "\n"
+        + "\n".join(
+            [
+                target("biped: file to first evaluation, wall", first["seconds"], 30, " s"),
+                target("biped: file to first evaluation, CPU", first["cpu"], 30, " s"),
+                target("gripper: file to first evaluation, wall", grip["seconds"], 15, " s"),
+                target("gripper: file to first evaluation, CPU", grip["cpu"], 15, " s"),
+                target(
+                    "peak memory, the largest process",
+                    max(first["peak_mb"], grip["peak_mb"], first["compiler_peak_mb"], grip["compiler_peak_mb"]),
+                    500,
+                    " MB",
+                ),
+                target("one evaluation from Python against Pinocchio's fastest from Python", best_peer, 1.5),
+                target("one evaluation from C against Pinocchio's fastest from C++ (medians)", best_c, 1.0)
+                if best_c is not None
+                else f"- one evaluation from C (target ≤ 1×): not measured ({cpp.get('note', 'no compiled model')})",
+                target(
+                    f"inverse dynamics along 1000 samples, CPU time (from {args.samples} measured)",
+                    inv[1] * 1000 / args.samples,
+                    1.0,
+                    " s",
+                ),
+            ]
+        )
+    )
 
 
 if __name__ == "__main__":

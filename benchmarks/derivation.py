@@ -34,13 +34,20 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
 from appell import numeric_model
 
 HERE = Path(__file__).resolve().parent
 METHODS = ("appell", "appell-c", "kane", "pydy", "lagrange", "kane-expl")
-LABELS = {"appell": "appell (NumPy)", "appell-c": "appell (C, empty cache)", "kane": "SymPy Kane + lambdify",
-          "pydy": "PyDy Cython", "lagrange": "SymPy Lagrange + lambdify", "kane-expl": "Kane explicit A⁻¹b",
-          "appell-file": "appell: model file → first compiled evaluation"}
+LABELS = {
+    "appell": "appell (NumPy)",
+    "appell-c": "appell (C, empty cache)",
+    "kane": "SymPy Kane + lambdify",
+    "pydy": "PyDy Cython",
+    "lagrange": "SymPy Lagrange + lambdify",
+    "kane-expl": "Kane explicit A⁻¹b",
+    "appell-file": "appell: model file → first compiled evaluation",
+}
 
 
 def run_case(method: str, n: int) -> dict:
@@ -92,8 +99,15 @@ def run_case(method: str, n: int) -> dict:
 
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                generate_ode_function(b, q, list(u) + [dynamicsymbols("lam_state")], params, mass_matrix=A,
-                                      coordinate_derivatives=sp.Matrix(u), generator="cython")
+                generate_ode_function(
+                    b,
+                    q,
+                    list(u) + [dynamicsymbols("lam_state")],
+                    params,
+                    mass_matrix=A,
+                    coordinate_derivatives=sp.Matrix(u),
+                    generator="cython",
+                )
     return {"seconds": time.perf_counter() - t0}
 
 
@@ -121,8 +135,9 @@ def measure(method: str, n: int, limit: float) -> dict:
     env["APPELL_CACHE_DIR"] = tempfile.mkdtemp(prefix="appell_bench_")
     cmd = [sys.executable, __file__, "--case", method, "--n", str(n)]
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        proc = subprocess.Popen(cmd, stdout=out, stderr=err, text=True, env=env,
-                                cwd=tempfile.mkdtemp(prefix="appell_case_"))
+        proc = subprocess.Popen(
+            cmd, stdout=out, stderr=err, text=True, env=env, cwd=tempfile.mkdtemp(prefix="appell_case_")
+        )
         start, peak = time.monotonic(), 0.0
         while proc.poll() is None:
             if time.monotonic() - start > limit:
@@ -163,8 +178,9 @@ def markdown(results: dict, sizes, methods, file_sizes) -> str:
     if file_sizes:
         from harness import target
 
-        text += "\n\n" + markdown_table(["n", LABELS["appell-file"]],
-                                        [[str(n), cell(results[f"appell-file:{n}"])] for n in file_sizes])
+        text += "\n\n" + markdown_table(
+            ["n", LABELS["appell-file"]], [[str(n), cell(results[f"appell-file:{n}"])] for n in file_sizes]
+        )
         goals = []
         for n in file_sizes:
             r = results[f"appell-file:{n}"]
@@ -172,12 +188,15 @@ def markdown(results: dict, sizes, methods, file_sizes) -> str:
             if not ok and r["status"].startswith(">"):
                 goals.append(f"- n = {n}, model file to first compiled step: {r['status']}, **not met**")
             elif n == 50:
-                goals += [target("n = 50, model file to first compiled step: time", r["seconds"] if ok else None, 60,
-                                 " s"),
-                          target("n = 50: peak memory with the compiler", r["rss_mb"] if ok else None, 1000, " MB")]
+                goals += [
+                    target("n = 50, model file to first compiled step: time", r["seconds"] if ok else None, 60, " s"),
+                    target("n = 50: peak memory with the compiler", r["rss_mb"] if ok else None, 1000, " MB"),
+                ]
             elif n == 100:
-                goals += [target("n = 100: time", r["seconds"] if ok else None, 600, " s"),
-                          target("n = 100: peak memory", r["rss_mb"] if ok else None, 4000, " MB")]
+                goals += [
+                    target("n = 100: time", r["seconds"] if ok else None, 600, " s"),
+                    target("n = 100: peak memory", r["rss_mb"] if ok else None, 4000, " MB"),
+                ]
         if goals:
             text += "\n\nTargets (issue 13):\n\n" + "\n".join(goals)
     return text
@@ -210,8 +229,11 @@ def main():
     for n in sizes:
         cells = []
         for m in methods:
-            r = {"seconds": None, "rss_mb": None, "status": "> limit at smaller n"} if m in dead \
+            r = (
+                {"seconds": None, "rss_mb": None, "status": "> limit at smaller n"}
+                if m in dead
                 else measure(m, n, args.limit)
+            )
             if r["status"] != "ok":
                 dead.add(m)
             cells.append(cell(r)[:18].rjust(18))
@@ -221,9 +243,11 @@ def main():
     for n in file_sizes:
         r = measure("appell-file", n, args.file_limit)
         results[f"appell-file:{n}"] = r
-        print(f"model file -> first compiled evaluation, n = {n}: {cell(r)}"
-              + (f" (own ru_maxrss {r['self_mb']:.0f} MB)" if r["status"] == "ok"
-                 else ""), flush=True)
+        print(
+            f"model file -> first compiled evaluation, n = {n}: {cell(r)}"
+            + (f" (own ru_maxrss {r['self_mb']:.0f} MB)" if r["status"] == "ok" else ""),
+            flush=True,
+        )
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
     if args.markdown:

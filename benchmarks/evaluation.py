@@ -37,6 +37,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+
 from appell import numeric_model
 
 HERE = Path(__file__).resolve().parent
@@ -45,12 +46,20 @@ sys.path.insert(0, str(HERE))
 import appell  # noqa: E402
 from appell.numerics.codegen import compile_c  # noqa: E402
 from harness import interleaved, markdown_table, median, optional, ratio, target, us  # noqa: E402
-from models import (nlink_appell, nlink_kane, nlink_parameters, nlink_pinocchio_function,  # noqa: E402
-                    nlink_state, pinocchio_state)
+from models import (
+    nlink_appell,
+    nlink_kane,
+    nlink_parameters,
+    nlink_pinocchio_function,  # noqa: E402
+    nlink_state,
+    pinocchio_state,
+)
 
 TOLERANCE = 1e-9
-APPELL_EVALUATE = re.compile(r"int appell_evaluate\(double t, const double \*y, const double \*p, "
-                             r"const double \*bias, const int \*dep,\s*double cond_max, double \*dy, double \*lam\)")
+APPELL_EVALUATE = re.compile(
+    r"int appell_evaluate\(double t, const double \*y, const double \*p, "
+    r"const double \*bias, const int \*dep,\s*double cond_max, double \*dy, double \*lam\)"
+)
 
 
 class Timeout(Exception):
@@ -59,8 +68,10 @@ class Timeout(Exception):
 
 def with_limit(seconds: float, fn):
     """``fn()``, or Timeout after ``seconds`` (SIGALRM interrupts SymPy's Python loops)."""
+
     def handler(signum, frame):
         raise Timeout()
+
     old = signal.signal(signal.SIGALRM, handler)
     signal.setitimer(signal.ITIMER_REAL, seconds)
     try:
@@ -105,7 +116,7 @@ def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
     y = np.concatenate([th, w])
     out = {"n": n, "setup": {}, "check": {}, "python": {}, "ratio": {}, "spread": {}, "status": {}, "cloop": None}
     ref_a, ref_lam = c_function(lib, "nlink_recursive", n, pv)(y) if lib else (None, None)
-    if ref_a is None:   # no compiler: appell NumPy is the reference
+    if ref_a is None:  # no compiler: appell NumPy is the reference
         ev = numeric_model(appell.derive(nlink_appell(n))).evaluate(0.0, y)
         ref_a, ref_lam = ev.derivative[n:], float(ev.multipliers[0])
     scale = max(np.max(np.abs(ref_a)), abs(ref_lam))
@@ -132,13 +143,21 @@ def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
     cm = compile_c(d, "c") if lib else None
     t_c = time.perf_counter() - t0
     if cm is not None:
-        add("appell C", t_derive + t_c, lambda: cm.evaluate(0.0, y),
-            lambda: (cm.evaluate(0.0, y).derivative[n:], float(cm.evaluate(0.0, y).multipliers[0])))
+        add(
+            "appell C",
+            t_derive + t_c,
+            lambda: cm.evaluate(0.0, y),
+            lambda: (cm.evaluate(0.0, y).derivative[n:], float(cm.evaluate(0.0, y).multipliers[0])),
+        )
     t0 = time.perf_counter()
     nm = numeric_model(d)
     t_np = time.perf_counter() - t0
-    add("appell NumPy", t_derive + t_np, lambda: nm.evaluate(0.0, y),
-        lambda: (nm.evaluate(0.0, y).derivative[n:], float(nm.evaluate(0.0, y).multipliers[0])))
+    add(
+        "appell NumPy",
+        t_derive + t_np,
+        lambda: nm.evaluate(0.0, y),
+        lambda: (nm.evaluate(0.0, y).derivative[n:], float(nm.evaluate(0.0, y).multipliers[0])),
+    )
 
     if optional("pinocchio") is None:
         add("Pinocchio", "not installed (pip install pin)", None, None)
@@ -148,8 +167,12 @@ def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
         setup = time.perf_counter() - t0
         qp, vp = pinocchio_state(th, w)
         # Pinocchio works in relative angles: theta'' = cumsum(ddq) (outside the timed call)
-        add("Pinocchio", setup, lambda: pin_eval(qp, vp),
-            lambda: (np.cumsum(pin_eval(qp, vp)[0]), float(pin_eval(qp, vp)[1])))
+        add(
+            "Pinocchio",
+            setup,
+            lambda: pin_eval(qp, vp),
+            lambda: (np.cumsum(pin_eval(qp, vp)[0]), float(pin_eval(qp, vp)[1])),
+        )
 
     kane = None
     try:
@@ -166,15 +189,16 @@ def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
         pl = [values[s.name] for s in params]
         try:
             t0 = time.perf_counter()
-            entries = with_limit(args.setup_limit, lambda: sp.lambdify([*q, *u, *params], list(A) + list(b), cse=True,
-                                                                       modules="math"))
+            entries = with_limit(
+                args.setup_limit, lambda: sp.lambdify([*q, *u, *params], list(A) + list(b), cse=True, modules="math")
+            )
             t_l = time.perf_counter() - t0
             k = n + 1
             thl, wl = th.tolist(), w.tolist()
 
             def kane_call():
                 e = np.array(entries(*thl, *wl, *pl))
-                return np.linalg.solve(e[:k * k].reshape(k, k), e[k * k:])
+                return np.linalg.solve(e[: k * k].reshape(k, k), e[k * k :])
 
             add("SymPy Kane", t_kane + t_l, kane_call, lambda: (kane_call()[:n], float(kane_call()[n])))
         except Timeout:
@@ -185,19 +209,32 @@ def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
             from pydy.codegen.ode_function_generators import generate_ode_function
             from sympy.physics.mechanics import dynamicsymbols
 
-            lam_state = dynamicsymbols("lam_state")   # stands for lam so that A [u'; lam] = b fits PyDy
+            lam_state = dynamicsymbols("lam_state")  # stands for lam so that A [u'; lam] = b fits PyDy
             try:
                 t0 = time.perf_counter()
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    rhs = with_limit(args.setup_limit, lambda: generate_ode_function(
-                        b, q, list(u) + [lam_state], params, mass_matrix=A, coordinate_derivatives=sp.Matrix(u),
-                        generator="cython"))
+                    rhs = with_limit(
+                        args.setup_limit,
+                        lambda: generate_ode_function(
+                            b,
+                            q,
+                            list(u) + [lam_state],
+                            params,
+                            mass_matrix=A,
+                            coordinate_derivatives=sp.Matrix(u),
+                            generator="cython",
+                        ),
+                    )
                 t_p = time.perf_counter() - t0
                 x = np.concatenate([th, w, [0.0]])
                 pk = np.array(pl)
-                add("PyDy Cython", t_kane + t_p, lambda: rhs(x, 0.0, pk),
-                    lambda: (rhs(x, 0.0, pk)[n:2 * n], float(rhs(x, 0.0, pk)[2 * n])))
+                add(
+                    "PyDy Cython",
+                    t_kane + t_p,
+                    lambda: rhs(x, 0.0, pk),
+                    lambda: (rhs(x, 0.0, pk)[n : 2 * n], float(rhs(x, 0.0, pk)[2 * n])),
+                )
             except Timeout:
                 add("PyDy Cython", f"Cython generation > {args.setup_limit:g} s", None, None)
             except Exception as exc:  # noqa: BLE001 (a failing peer is reported, not fatal)
@@ -222,9 +259,20 @@ def measure(n: int, args, lib, exe, notes: list[str]) -> dict:
         lib_arg = str(cm.library_path) if APPELL_EVALUATE.search(text) else "-"
         if lib_arg == "-":
             notes.append(f"n = {n}: appell_evaluate's C signature changed: update benchmarks/reference/bench_eval.c")
-        iters = max(2000, int(2e6 / n ** 2))
-        proc = subprocess.run([str(exe), lib_arg, str(n), str(iters), str(d.partition.dependent[0]),
-                               *map(repr, y.tolist()), *map(repr, pv.tolist())], capture_output=True, text=True)
+        iters = max(2000, int(2e6 / n**2))
+        proc = subprocess.run(
+            [
+                str(exe),
+                lib_arg,
+                str(n),
+                str(iters),
+                str(d.partition.dependent[0]),
+                *map(repr, y.tolist()),
+                *map(repr, pv.tolist()),
+            ],
+            capture_output=True,
+            text=True,
+        )
         if proc.returncode == 0:
             out["cloop"] = json.loads(proc.stdout)
         else:
@@ -246,8 +294,9 @@ def markdown(results: list[dict]) -> str:
             else:
                 cells.append(r["status"].get(name, "—"))
         rows.append([name] + cells)
-    rows.append(["largest relative difference from the O(n) recursion"]
-                + [f"{max(r['check'].values()):.0e}" for r in results])
+    rows.append(
+        ["largest relative difference from the O(n) recursion"] + [f"{max(r['check'].values()):.0e}" for r in results]
+    )
     py = markdown_table(head, rows)
     crow = []
     for r in results:
@@ -256,23 +305,52 @@ def markdown(results: list[dict]) -> str:
             continue
         appell_cell = us(c["appell_ns"] * 1e-9) if c["has_appell"] else "n/a"
         ratio_cell = f"**{c['appell_over_recursive']:.2f}×**" if c["has_appell"] else "n/a"
-        crow.append([str(r["n"]), appell_cell, us(c["dense_ns"] * 1e-9), us(c["recursive_ns"] * 1e-9), ratio_cell,
-                     f"{c['dense_over_recursive']:.2f}×",
-                     f"{max(c['max_abs_diff_appell'], c['max_abs_diff_dense']):.0e}"])
-    cl = markdown_table(["n", "appell generated C", "dense hand-written C", "O(n) recursion in C",
-                         "appell / O(n)", "dense / O(n)", "max abs. difference"], crow)
+        crow.append(
+            [
+                str(r["n"]),
+                appell_cell,
+                us(c["dense_ns"] * 1e-9),
+                us(c["recursive_ns"] * 1e-9),
+                ratio_cell,
+                f"{c['dense_over_recursive']:.2f}×",
+                f"{max(c['max_abs_diff_appell'], c['max_abs_diff_dense']):.0e}",
+            ]
+        )
+    cl = markdown_table(
+        [
+            "n",
+            "appell generated C",
+            "dense hand-written C",
+            "O(n) recursion in C",
+            "appell / O(n)",
+            "dense / O(n)",
+            "max abs. difference",
+        ],
+        crow,
+    )
     goals = []
     for r in results:
         c, n = r["cloop"], r["n"]
         if c and c["has_appell"] and n in (10, 40):
-            goals.append(target(f"C loop, n = {n}: appell / O(n) recursion", c["appell_over_recursive"],
-                                1.5 if n == 10 else 3.0))
+            goals.append(
+                target(f"C loop, n = {n}: appell / O(n) recursion", c["appell_over_recursive"], 1.5 if n == 10 else 3.0)
+            )
     for r in results:
         if r["n"] in (10, 20, 40) and "Pinocchio" in r["ratio"] and r["base"] == "appell C":
-            goals.append(target(f"from Python, n = {r['n']}: Pinocchio / appell C (above 1: appell faster)",
-                                r["ratio"]["Pinocchio"], 1.0, below=False))
-    return (py + "\n\nFrom a C loop (CPU time of one evaluation, candidates interleaved):\n\n" + cl
-            + ("\n\nTargets (issue 13):\n\n" + "\n".join(goals) if goals else ""))
+            goals.append(
+                target(
+                    f"from Python, n = {r['n']}: Pinocchio / appell C (above 1: appell faster)",
+                    r["ratio"]["Pinocchio"],
+                    1.0,
+                    below=False,
+                )
+            )
+    return (
+        py
+        + "\n\nFrom a C loop (CPU time of one evaluation, candidates interleaved):\n\n"
+        + cl
+        + ("\n\nTargets (issue 13):\n\n" + "\n".join(goals) if goals else "")
+    )
 
 
 def main():
@@ -294,15 +372,19 @@ def main():
         print(f"n = {n}: time per call from Python (ratio to {r['base']}, median of paired rounds)")
         for name in ORDER:
             if name in r["python"]:
-                print(f"  {name:<18} {us(r['python'][name]):>10} {r['ratio'][name]:6.2f}x   "
-                      f"set-up {r['setup'][name]:6.1f} s   diff {r['check'][name]:.0e}")
+                print(
+                    f"  {name:<18} {us(r['python'][name]):>10} {r['ratio'][name]:6.2f}x   "
+                    f"set-up {r['setup'][name]:6.1f} s   diff {r['check'][name]:.0e}"
+                )
             else:
                 print(f"  {name:<18} {r['status'].get(name, '-')}")
         if r["cloop"]:
             c = r["cloop"]
-            print(f"  C loop: appell {c['appell_ns']:.0f} ns, dense {c['dense_ns']:.0f} ns, O(n) "
-                  f"{c['recursive_ns']:.0f} ns; appell/O(n) {c['appell_over_recursive']:.2f}, "
-                  f"dense/O(n) {c['dense_over_recursive']:.2f}")
+            print(
+                f"  C loop: appell {c['appell_ns']:.0f} ns, dense {c['dense_ns']:.0f} ns, O(n) "
+                f"{c['recursive_ns']:.0f} ns; appell/O(n) {c['appell_over_recursive']:.2f}, "
+                f"dense/O(n) {c['dense_over_recursive']:.2f}"
+            )
         sys.stdout.flush()
     for note in notes:
         print("note:", note)

@@ -21,8 +21,8 @@ import re
 import statistics
 import subprocess
 import time
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Callable, Mapping
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -43,8 +43,9 @@ def batch_size(fn: Callable[[], object], seconds: float = 0.01) -> int:
         number *= 4
 
 
-def interleaved(candidates: Mapping[str, Callable[[], object]], rounds: int = 15, seconds: float = 0.01,
-                batch: bool = True) -> dict[str, list[float]]:
+def interleaved(
+    candidates: Mapping[str, Callable[[], object]], rounds: int = 15, seconds: float = 0.01, batch: bool = True
+) -> dict[str, list[float]]:
     """Per-call times [s] of each candidate, one entry per round; the candidates run in turn
     inside each round (``batch``: a batch of calls of about ``seconds`` each, else one call)."""
     sizes = {k: batch_size(fn, seconds) if batch else 1 for k, fn in candidates.items()}
@@ -104,8 +105,10 @@ def machine() -> str:
         mem = f", {kb / 2**20:.0f} GiB"
     except (OSError, AttributeError):
         pass
-    return f"{model}, {os.cpu_count()} cores{mem}, {platform.system()} {platform.release()}, " \
-           f"Python {platform.python_version()}"
+    return (
+        f"{model}, {os.cpu_count()} cores{mem}, {platform.system()} {platform.release()}, "
+        f"Python {platform.python_version()}"
+    )
 
 
 def compiler() -> str:
@@ -129,15 +132,15 @@ def versions() -> str:
 
 
 def today() -> str:
-    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    return datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
 
 
 def git_commit() -> str:
     try:
-        out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                             text=True)
-        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "src"],
-                               capture_output=True, text=True).stdout.strip()
+        out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+        dirty = subprocess.run(
+            ["git", "-C", str(ROOT), "status", "--porcelain", "--", "src"], capture_output=True, text=True
+        ).stdout.strip()
         return out.stdout.strip() + (" (src modified)" if dirty else "")
     except OSError:
         return "unknown"
@@ -166,7 +169,7 @@ def replace_between_markers(text: str, name: str, body: str) -> str:
     i, j = text.find(begin), text.find(end)
     if i < 0 or j < i:
         raise KeyError(f"markers {begin} ... {end} not found")
-    return text[:i + len(begin)] + "\n" + body.strip() + "\n" + text[j:]
+    return text[: i + len(begin)] + "\n" + body.strip() + "\n" + text[j:]
 
 
 def target(label: str, value: float | None, limit: float, unit: str = "×", below: bool = True) -> str:

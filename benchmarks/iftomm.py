@@ -24,10 +24,9 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import load, machine, today  # noqa: E402
-
 from appell.examples import example_path  # noqa: E402
 from appell.simulation.simulate import METHODS  # noqa: E402
+from harness import load, machine, today  # noqa: E402
 
 #: (model file, commands) in the order run
 CASES = [
@@ -76,14 +75,22 @@ def main():
             for command in commands:
                 wall, peak, code, last = run(command, model, folder)
                 rows.append((model, command, wall, peak, code, last))
-                print(f"{model:16s} {command:30s} {wall:7.1f} s  peak <= {peak:6.0f} MB  exit {code}  {last}",
-                      flush=True)
+                print(
+                    f"{model:16s} {command:30s} {wall:7.1f} s  peak <= {peak:6.0f} MB  exit {code}  {last}", flush=True
+                )
     if args.markdown:
-        out = [head, "", "| model file | command | wall time | peak memory (largest so far) | exit |",
-               "|---|---|---|---|---|"]
+        out = [
+            head,
+            "",
+            "| model file | command | wall time | peak memory (largest so far) | exit |",
+            "|---|---|---|---|---|",
+        ]
         out += [f"| {m} | `appell {c}` | {w:.1f} s | {p:.0f} MB | {code} |" for m, c, w, p, code, _ in rows]
-        out += ["", "Each command a fresh process with an empty compiled-code cache (derivation, C compiler and "
-                "integration included); `simulate` writes HDF5, `report` the HTML report."]
+        out += [
+            "",
+            "Each command a fresh process with an empty compiled-code cache (derivation, C compiler and "
+            "integration included); `simulate` writes HDF5, `report` the HTML report.",
+        ]
         Path(args.markdown).write_text("\n".join(out) + "\n")
 
 

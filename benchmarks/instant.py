@@ -56,8 +56,10 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import harness  # noqa: E402
 
-ROBOTS = {"panda": ("panda_description/urdf/panda.urdf", False),
-          "talos": ("talos_data/robots/talos_reduced.urdf", True)}
+ROBOTS = {
+    "panda": ("panda_description/urdf/panda.urdf", False),
+    "talos": ("talos_data/robots/talos_reduced.urdf", True),
+}
 
 
 def robots_folder() -> Path | None:
@@ -71,8 +73,13 @@ def robots_folder() -> Path | None:
 def _fresh(code: str, *args, env=None) -> dict:
     import os
 
-    out = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True,
-                         env={**os.environ, **(env or {})}, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code, *map(str, args)],
+        capture_output=True,
+        text=True,
+        env={**os.environ, **(env or {})},
+        check=True,
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -84,8 +91,13 @@ def _command(args, env) -> tuple[float, float]:
 
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "appell.io.cli", *map(str, args)], capture_output=True, text=True,
-                   env={**os.environ, **env}, check=True)
+    subprocess.run(
+        [sys.executable, "-m", "appell.io.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        env={**os.environ, **env},
+        check=True,
+    )
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -128,15 +140,23 @@ def simulate_twice(path: Path) -> None:
         first = _command(["simulate", *args, Path(cache) / "first.csv"], env)
         second = _command(["simulate", *args, Path(cache) / "second.csv"], env)
         stages = _fresh(STAGES, *args, Path(cache) / "third.csv", env={**os.environ, **env})
-    print("\n## 2. the Panda: `appell simulate panda.urdf --t-end 1 --out FILE.csv`, fresh processes, one cache "
-          "folder\n")
-    print(harness.markdown_table(
-        ["run", "wall", "CPU (with children)"],
-        [["first (empty cache: derive, compile)", f"{first[0]:.2f} s", f"{first[1]:.2f} s"],
-         ["second (warm cache)", f"{second[0]:.2f} s", f"{second[1]:.2f} s"],
-         ["ratio", f"{second[0] / first[0]:.2f}x", f"{second[1] / first[1]:.2f}x"]]))
-    print("\nThe warm run's CPU time by stage (one more fresh process, in-process clock; a stage met inside "
-          "another is in both rows):\n")
+    print(
+        "\n## 2. the Panda: `appell simulate panda.urdf --t-end 1 --out FILE.csv`, fresh processes, one cache folder\n"
+    )
+    print(
+        harness.markdown_table(
+            ["run", "wall", "CPU (with children)"],
+            [
+                ["first (empty cache: derive, compile)", f"{first[0]:.2f} s", f"{first[1]:.2f} s"],
+                ["second (warm cache)", f"{second[0]:.2f} s", f"{second[1]:.2f} s"],
+                ["ratio", f"{second[0] / first[0]:.2f}x", f"{second[1] / first[1]:.2f}x"],
+            ],
+        )
+    )
+    print(
+        "\nThe warm run's CPU time by stage (one more fresh process, in-process clock; a stage met inside "
+        "another is in both rows):\n"
+    )
     print(harness.markdown_table(["stage", "CPU"], [[k, f"{v:.2f} s"] for k, v in stages.items()]))
 
 
@@ -149,16 +169,24 @@ def car(rounds: int) -> None:
     d = appell.derive(appell.load_model("car"))
     compiled, numpy = appell.numeric_model(d, "c"), appell.numeric_model(d, "numpy")
     appell.simulate(d)  # built once (kept), as a user's second call finds it
-    times = harness.interleaved({
-        "simulate(d) (defaults)": lambda: appell.simulate(d),
-        "simulate(numeric_model(d, 'c'))": lambda: appell.simulate(compiled),
-        "simulate(numeric_model(d, 'numpy'))": lambda: appell.simulate(numpy),
-    }, rounds=rounds, batch=False)
+    times = harness.interleaved(
+        {
+            "simulate(d) (defaults)": lambda: appell.simulate(d),
+            "simulate(numeric_model(d, 'c'))": lambda: appell.simulate(compiled),
+            "simulate(numeric_model(d, 'numpy'))": lambda: appell.simulate(numpy),
+        },
+        rounds=rounds,
+        batch=False,
+    )
     reference = "simulate(numeric_model(d, 'c'))"
-    rows = [[name, f"{harness.median(v) * 1e3:.1f} ms", f"{harness.ratio(times, name, reference):.2f}x"]
-            for name, v in times.items()]
-    print("\n## 1. the car, 10 s, the model file's [simulation] (method "
-          f"{dict(d.system.settings).get('method')}), CPU time\n")
+    rows = [
+        [name, f"{harness.median(v) * 1e3:.1f} ms", f"{harness.ratio(times, name, reference):.2f}x"]
+        for name, v in times.items()
+    ]
+    print(
+        "\n## 1. the car, 10 s, the model file's [simulation] (method "
+        f"{dict(d.system.settings).get('method')}), CPU time\n"
+    )
     print(harness.markdown_table(["call", "median", "ratio to compiled"], rows))
 
 
@@ -183,11 +211,16 @@ def second_run(name: str, path: Path, floating: bool) -> None:
         first = _fresh(RUN, path, "1" if floating else "0", env=env)
         second = _fresh(RUN, path, "1" if floating else "0", env=env)
     print(f"\n## 2b. {name}: derive_file + numeric_model + one solve, fresh processes, one cache folder (wall time)\n")
-    print(harness.markdown_table(
-        ["run", "to derivation", "to first joint wrenches"],
-        [["first (empty cache)", f"{first['derive']:.2f} s", f"{first['seconds']:.2f} s"],
-         ["second (warm cache)", f"{second['derive']:.2f} s", f"{second['seconds']:.2f} s"],
-         ["ratio", f"{second['derive'] / first['derive']:.2f}x", f"{second['seconds'] / first['seconds']:.2f}x"]]))
+    print(
+        harness.markdown_table(
+            ["run", "to derivation", "to first joint wrenches"],
+            [
+                ["first (empty cache)", f"{first['derive']:.2f} s", f"{first['seconds']:.2f} s"],
+                ["second (warm cache)", f"{second['derive']:.2f} s", f"{second['seconds']:.2f} s"],
+                ["ratio", f"{second['derive'] / first['derive']:.2f}x", f"{second['seconds'] / first['seconds']:.2f}x"],
+            ],
+        )
+    )
 
 
 IMPORT = """
@@ -205,9 +238,12 @@ def imports(runs: int) -> None:
             times[module].append(_fresh(IMPORT, module)["seconds"])
     a, s = statistics.median(times["appell"]), statistics.median(times["sympy"])
     print("\n## 3. import, fresh processes (wall time, median)\n")
-    print(harness.markdown_table(["import", "median", "ratio to sympy"],
-                                 [["appell", f"{a * 1e3:.0f} ms", f"{a / s:.3f}x"],
-                                  ["sympy", f"{s * 1e3:.0f} ms", "1x"]]))
+    print(
+        harness.markdown_table(
+            ["import", "median", "ratio to sympy"],
+            [["appell", f"{a * 1e3:.0f} ms", f"{a / s:.3f}x"], ["sympy", f"{s * 1e3:.0f} ms", "1x"]],
+        )
+    )
 
 
 ROUTE = """
@@ -233,11 +269,24 @@ def numeric_route(name: str, path: Path, floating: bool, runs: int) -> None:
     seconds = statistics.median(r["seconds"] for r in results)
     cpu = statistics.median(r["cpu"] for r in results)
     first = results[0]
-    print(f"\n## 4. {name} ({first['n']} speeds): first accelerations and {first['outputs']} joint wrench "
-          "components by the numeric tree route, fresh process with its imports (median)\n")
-    print(harness.markdown_table(["robot", "route", "wall", "CPU", "SymPy imported"],
-                                 [[name, first["route"], f"{seconds:.2f} s", f"{cpu:.2f} s",
-                                   "yes" if any(r["sympy"] for r in results) else "no"]]))
+    print(
+        f"\n## 4. {name} ({first['n']} speeds): first accelerations and {first['outputs']} joint wrench "
+        "components by the numeric tree route, fresh process with its imports (median)\n"
+    )
+    print(
+        harness.markdown_table(
+            ["robot", "route", "wall", "CPU", "SymPy imported"],
+            [
+                [
+                    name,
+                    first["route"],
+                    f"{seconds:.2f} s",
+                    f"{cpu:.2f} s",
+                    "yes" if any(r["sympy"] for r in results) else "no",
+                ]
+            ],
+        )
+    )
 
 
 def main() -> None:

@@ -18,17 +18,27 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from appell import numeric_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import load, machine, today  # noqa: E402
-
 from appell import derive, linearise, load_model, stability_sweep, steady_motion  # noqa: E402
 from appell.examples import example_path  # noqa: E402
 from appell.examples.mechanism_examples import benchmark_bicycle  # noqa: E402
+from harness import load, machine, today  # noqa: E402
 
-FREE = ["rear_x_dot", "rear_y_dot", "rear_z_dot", "rear_rz_dot", "rear_rx_dot", "rear_ry_dot", "front_spin_dot",
-        "steer_dot", "rear_z", "rear_ry"]
+FREE = [
+    "rear_x_dot",
+    "rear_y_dot",
+    "rear_z_dot",
+    "rear_rz_dot",
+    "rear_rx_dot",
+    "rear_ry_dot",
+    "front_spin_dot",
+    "steer_dot",
+    "rear_z",
+    "rear_ry",
+]
 IGNORE = ["rear_x", "rear_y", "rear_rz", "rear_spin", "front_spin", "rear_spin_dot"]
 
 
@@ -45,8 +55,12 @@ def main() -> None:
     numeric_model(d)  # noqa: B018 (made on first access: the time measured)
     rows.append(("numeric model (NumPy)", time.perf_counter() - t1))
     t2 = time.perf_counter()
-    point = steady_motion(d, {"rear_z": -0.3, "rear_x_dot": 5.0, "rear_spin_dot": -5.0 / 0.3,
-                              "front_spin_dot": -5.0 / 0.35}, free=FREE, ignore=IGNORE[:5])
+    point = steady_motion(
+        d,
+        {"rear_z": -0.3, "rear_x_dot": 5.0, "rear_spin_dot": -5.0 / 0.3, "front_spin_dot": -5.0 / 0.35},
+        free=FREE,
+        ignore=IGNORE[:5],
+    )
     rows.append(("steady motion at 5 m/s", time.perf_counter() - t2))
     t3 = time.perf_counter()
     lm = linearise(d, point, ignore=IGNORE, coordinates=["rear_rx", "steer"])
@@ -60,11 +74,18 @@ def main() -> None:
     rows.append(("one linearisation (median of 50)", statistics.median(times)))
     rates = -np.linspace(0.0, 10.0, args.speeds)[::-1] / 0.3
     s = time.perf_counter()
-    sweep = stability_sweep(d, "rear_spin_dot", rates, at={"rear_z": -0.3, "rear_x_dot": 10.0,
-                                                          "front_spin_dot": -10.0 / 0.35},
-                            free=FREE, ignore=IGNORE, coordinates=["rear_rx", "steer"])
-    rows.append((f"sweep of {args.speeds} speeds 0..10 m/s, steady motion at each, crossings located",
-                 time.perf_counter() - s))
+    sweep = stability_sweep(
+        d,
+        "rear_spin_dot",
+        rates,
+        at={"rear_z": -0.3, "rear_x_dot": 10.0, "front_spin_dot": -10.0 / 0.35},
+        free=FREE,
+        ignore=IGNORE,
+        coordinates=["rear_rx", "steer"],
+    )
+    rows.append(
+        (f"sweep of {args.speeds} speeds 0..10 m/s, steady motion at each, crossings located", time.perf_counter() - s)
+    )
     # the bundled model file: its speeds follow the parameter v, no steady motion to solve
     t4 = time.perf_counter()
     df = derive(load_model(example_path("benchmark_bicycle")))
@@ -74,8 +95,10 @@ def main() -> None:
     s = time.perf_counter()
     file_sweep = stability_sweep(df, "v", np.linspace(0.0, 10.0, args.speeds), ignore=IGNORE[:5])
     rows.append((f"sweep of {args.speeds} values of the file's v, crossings located", time.perf_counter() - s))
-    print(f"benchmark bicycle, {today()}, {machine()}, load {load()}; eigenvalues at 5 m/s: "
-          + ", ".join(f"{z.real:.6f}{z.imag:+.6f}i" for z in lm.eigenvalues()))
+    print(
+        f"benchmark bicycle, {today()}, {machine()}, load {load()}; eigenvalues at 5 m/s: "
+        + ", ".join(f"{z.real:.6f}{z.imag:+.6f}i" for z in lm.eigenvalues())
+    )
     print("crossings: " + ", ".join(f"{-0.3 * c.value:.11f} m/s ({c.kind})" for c in sweep.crossings))
     print("crossings over the file's v: " + ", ".join(f"{c.value:.11f} m/s ({c.kind})" for c in file_sweep.crossings))
     print("| stage | time |\n|---|---|")

@@ -25,11 +25,10 @@ import numpy as np
 from scipy.optimize import brentq
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import interleaved, load, machine, median, today, version  # noqa: E402
-from models import rolling_disc_sympy_linear  # noqa: E402
-
 import appell  # noqa: E402
 from appell.examples.mechanism_examples import rolling_disc  # noqa: E402
+from harness import interleaved, load, machine, median, today, version  # noqa: E402
+from models import rolling_disc_sympy_linear  # noqa: E402
 
 R, MASS, G = 0.25, 1.5, 9.81
 FREE = ["float_x_dot", "float_y_dot", "float_z_dot", "float_z"]
@@ -59,14 +58,18 @@ def main() -> None:
     appell.linearise(d, point, ignore=IGNORE).eigenvalues()
     appell_first = time.perf_counter() - t0
 
-    times = interleaved({
-        "sympy": lambda: np.array(sympy_A(6.5, R, MASS, G), float),
-        "appell": lambda: appell.linearise(d, point, ignore=IGNORE),
-    }, rounds=15)
+    times = interleaved(
+        {
+            "sympy": lambda: np.array(sympy_A(6.5, R, MASS, G), float),
+            "appell": lambda: appell.linearise(d, point, ignore=IGNORE),
+        },
+        rounds=15,
+    )
 
     t0 = time.perf_counter()
     growth = [np.max(np.linalg.eigvals(np.array(sympy_A(s, R, MASS, G), float)).real) for s in spins]
     k = next(i for i in range(len(spins) - 1) if growth[i] > 1e-9 >= growth[i + 1])
+
     # the lean-yaw block (q2, u1, u3) has eigenvalues 0 and +-mu with mu^2 = trace(A^2) / 2,
     # a smooth function of the spin rate: its root, bracketed by the sweep
     def mu2(s):
@@ -77,24 +80,35 @@ def main() -> None:
     sympy_sweep = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    sweep = appell.stability_sweep(d, "float_ry_dot", spins, at={"alpha": 0.0, "float_z": R, "float_x_dot": R},
-                                   free=FREE, ignore=IGNORE)
+    sweep = appell.stability_sweep(
+        d, "float_ry_dot", spins, at={"alpha": 0.0, "float_z": R, "float_x_dot": R}, free=FREE, ignore=IGNORE
+    )
     appell_sweep = time.perf_counter() - t0
     appell_crit = sweep.crossings[0].value
 
-    print(f"rolling disc about upright rolling, {today()}, {machine()}, load {load()}; "
-          f"SymPy {version('sympy')}, appell {version('appell')}")
+    print(
+        f"rolling disc about upright rolling, {today()}, {machine()}, load {load()}; "
+        f"SymPy {version('sympy')}, appell {version('appell')}"
+    )
     print("| stage | SymPy Linearizer | appell.linearise |\n|---|---|---|")
     print(f"| equations of motion | {stages['equations']:.2f} s (Kane) | {derive_s:.2f} s (derive) |")
-    print(f"| model to first eigenvalues | {sympy_first:.2f} s (Kane, linearize {stages['linearise']:.2f} s, "
-          f"lambdify {stages['compile'] * 1e3:.0f} ms) | {appell_first:.2f} s (derive, compile, steady motion, "
-          f"linearise) |")
-    print(f"| one more A (median of 15 rounds) | {median(times['sympy']) * 1e6:.1f} us (A from the closed form) | "
-          f"{median(times['appell']) * 1e3:.2f} ms (exact Jacobians, split, chart) |")
-    print(f"| {args.spins} spin rates, eigenvalues, critical rate located | {sympy_sweep:.2f} s (operating point "
-          f"given) | {appell_sweep:.2f} s (steady motion solved at each) |")
-    print(f"| critical spin rate, error against sqrt(g/(3r)) = {exact:.12f} | {abs(sympy_crit - exact):.1e} | "
-          f"{abs(appell_crit - exact):.1e} |")
+    print(
+        f"| model to first eigenvalues | {sympy_first:.2f} s (Kane, linearize {stages['linearise']:.2f} s, "
+        f"lambdify {stages['compile'] * 1e3:.0f} ms) | {appell_first:.2f} s (derive, compile, steady motion, "
+        f"linearise) |"
+    )
+    print(
+        f"| one more A (median of 15 rounds) | {median(times['sympy']) * 1e6:.1f} us (A from the closed form) | "
+        f"{median(times['appell']) * 1e3:.2f} ms (exact Jacobians, split, chart) |"
+    )
+    print(
+        f"| {args.spins} spin rates, eigenvalues, critical rate located | {sympy_sweep:.2f} s (operating point "
+        f"given) | {appell_sweep:.2f} s (steady motion solved at each) |"
+    )
+    print(
+        f"| critical spin rate, error against sqrt(g/(3r)) = {exact:.12f} | {abs(sympy_crit - exact):.1e} | "
+        f"{abs(appell_crit - exact):.1e} |"
+    )
 
 
 if __name__ == "__main__":

@@ -38,11 +38,11 @@ import scipy.integrate as si
 
 import appell
 import appell.numerics.compiled_loop as compiled_loop
+from appell import numeric_model
 from appell.examples.catalog import car, nlink_pendulum
 from appell.numerics.codegen import build_library, find_compiler, load_library
 from appell.numerics.numeric import KEEP_CONDITION
 from appell.simulation.simulate import simulate
-from appell import numeric_model
 
 HERE = Path(__file__).resolve().parent
 
@@ -53,8 +53,25 @@ def rk4_library():
     path, _ = build_library(source, compiler)
     lib, _, _ = load_library(path, source, compiler)
     P = ctypes.c_void_p
-    lib.rk4_run.argtypes = [P, P, P, P, ctypes.c_double, ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_double, P,
-                            ctypes.c_double, ctypes.c_long, P, P, P, P, P]
+    lib.rk4_run.argtypes = [
+        P,
+        P,
+        P,
+        P,
+        ctypes.c_double,
+        ctypes.c_int,
+        ctypes.c_int,
+        ctypes.c_int,
+        ctypes.c_double,
+        P,
+        ctypes.c_double,
+        ctypes.c_long,
+        P,
+        P,
+        P,
+        P,
+        P,
+    ]
     lib.rk4_run.restype = ctypes.c_int
     return lib
 
@@ -67,11 +84,25 @@ def rk4(lib, model, y0, t_end: float, h: float):
     L, F, PHI = np.empty((steps + 1, s)), np.empty((steps + 1, s)), np.empty((steps + 1, s))
     y0 = np.ascontiguousarray(y0, dtype=float)
     mlib = model._lib
-    status = lib.rk4_run(ctypes.cast(mlib.appell_evaluate, ctypes.c_void_p).value,
-                         ctypes.cast(mlib.appell_residuals, ctypes.c_void_p).value,
-                         model.default_parameters.ctypes.data, model._default_dep.ctypes.data, KEEP_CONDITION,
-                         nq, n, s, 0.0, y0.ctypes.data, h, steps, Y.ctypes.data, A.ctypes.data, L.ctypes.data,
-                         F.ctypes.data, PHI.ctypes.data)
+    status = lib.rk4_run(
+        ctypes.cast(mlib.appell_evaluate, ctypes.c_void_p).value,
+        ctypes.cast(mlib.appell_residuals, ctypes.c_void_p).value,
+        model.default_parameters.ctypes.data,
+        model._default_dep.ctypes.data,
+        KEEP_CONDITION,
+        nq,
+        n,
+        s,
+        0.0,
+        y0.ctypes.data,
+        h,
+        steps,
+        Y.ctypes.data,
+        A.ctypes.data,
+        L.ctypes.data,
+        F.ctypes.data,
+        PHI.ctypes.data,
+    )
     if status:
         raise RuntimeError("the compiled split refused a state in the RK4 yardstick")
     return Y, A, L
@@ -96,11 +127,12 @@ def compare(name, model, initial, t_end, rate, repeats, lib):
     lam_loop = np.column_stack([loop_sol.multipliers[c] for c in model.constraint_names])
     lam_scipy = np.column_stack([scipy_sol.multipliers[c] for c in model.constraint_names])
     scale = np.max(np.abs(lam_loop))
-    candidates = (("simulate (compiled loop)", lambda: simulate(model, t_end, method="DOP853", **kw)),
-                  ("  projection in Python", lambda: python_projection(
-                      lambda: simulate(model, t_end, method="DOP853", **kw))),
-                  ("simulate (SciPy DOP853)", lambda: simulate(model, t_end, method=si.DOP853, **kw)),
-                  ("RK4 in C", lambda: rk4(lib, model, y0, t_end, 1.0 / rate)))
+    candidates = (
+        ("simulate (compiled loop)", lambda: simulate(model, t_end, method="DOP853", **kw)),
+        ("  projection in Python", lambda: python_projection(lambda: simulate(model, t_end, method="DOP853", **kw))),
+        ("simulate (SciPy DOP853)", lambda: simulate(model, t_end, method=si.DOP853, **kw)),
+        ("RK4 in C", lambda: rk4(lib, model, y0, t_end, 1.0 / rate)),
+    )
     wall = {key: [] for key, _ in candidates}
     cpu = {key: [] for key, _ in candidates}
     for _ in range(repeats):
@@ -110,22 +142,34 @@ def compare(name, model, initial, t_end, rate, repeats, lib):
             cpu[key].append(time.process_time() - c0)
             wall[key].append(time.perf_counter() - w0)
     st = loop_sol.statistics
-    print(f"\n{name}: {t_end:g} s, {len(t_eval)} output times; compiled loop {st.steps} steps, {st.nfev} evaluations, "
-          f"{st.projections} projections")
+    print(
+        f"\n{name}: {t_end:g} s, {len(t_eval)} output times; compiled loop {st.steps} steps, {st.nfev} evaluations, "
+        f"{st.projections} projections"
+    )
     old_sol = python_projection(lambda: simulate(model, t_end, method="DOP853", **kw))
     lam_old = np.column_stack([old_sol.multipliers[c] for c in model.constraint_names])
-    print(f"  max |lambda| difference: projection in the loop vs in Python {np.max(np.abs(lam_loop - lam_old)) / scale:.1e}")
-    print(f"  max |lambda| difference: compiled loop vs SciPy path {np.max(np.abs(lam_loop - lam_scipy)) / scale:.1e}, "
-          f"vs RK4 {np.max(np.abs(lam_loop - L)) / scale:.1e} (relative to max |lambda| = {scale:.4g})")
-    print(f"  {'candidate':<26} {'wall median [ms]':>17} {'ratio to RK4':>13} {'CPU median [ms]':>16} "
-          f"{'ratio to RK4':>13}")
+    print(
+        f"  max |lambda| difference: projection in the loop vs in Python {np.max(np.abs(lam_loop - lam_old)) / scale:.1e}"
+    )
+    print(
+        f"  max |lambda| difference: compiled loop vs SciPy path {np.max(np.abs(lam_loop - lam_scipy)) / scale:.1e}, "
+        f"vs RK4 {np.max(np.abs(lam_loop - L)) / scale:.1e} (relative to max |lambda| = {scale:.4g})"
+    )
+    print(
+        f"  {'candidate':<26} {'wall median [ms]':>17} {'ratio to RK4':>13} {'CPU median [ms]':>16} "
+        f"{'ratio to RK4':>13}"
+    )
     result = {}
     for key, _ in candidates:
         w, c = np.array(wall[key]), np.array(cpu[key])
         rw = float(np.median(w / np.array(wall["RK4 in C"])))
         rc = float(np.median(c / np.array(cpu["RK4 in C"])))
-        result[key] = {"wall_median_s": float(np.median(w)), "cpu_median_s": float(np.median(c)),
-                       "wall_ratio_to_rk4": rw, "cpu_ratio_to_rk4": rc}
+        result[key] = {
+            "wall_median_s": float(np.median(w)),
+            "cpu_median_s": float(np.median(c)),
+            "wall_ratio_to_rk4": rw,
+            "cpu_ratio_to_rk4": rc,
+        }
         print(f"  {key:<26} {1e3 * np.median(w):17.2f} {rw:13.2f} {1e3 * np.median(c):16.2f} {rc:13.2f}")
     return result
 
@@ -144,8 +188,15 @@ def main():
 
     for n in args.chain:
         th, w = nlink_state(n)
-        out[f"chain{n}"] = compare(f"{n}-link chain, tip on a line", numeric_model(appell.derive(nlink_pendulum(n)), "c"),
-                                   np.concatenate([th, w]), 10.0, 1000.0, max(3, args.repeats // 3), lib)
+        out[f"chain{n}"] = compare(
+            f"{n}-link chain, tip on a line",
+            numeric_model(appell.derive(nlink_pendulum(n)), "c"),
+            np.concatenate([th, w]),
+            10.0,
+            1000.0,
+            max(3, args.repeats // 3),
+            lib,
+        )
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))
 

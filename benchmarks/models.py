@@ -82,7 +82,7 @@ def nlink_lagrange(n: int):
     Returns (LM, M, F, params, q, qd): ``M [q''; lambda] = F`` is the dynamic part
     (rows and columns after the kinematic identity) of ``mass_matrix_full``.
     """
-    from sympy.physics.mechanics import Lagrangian, LagrangesMethod
+    from sympy.physics.mechanics import LagrangesMethod, Lagrangian
 
     q, m, l, g, d, N, particles, _, x_tip = _mechanics(n)
     LM = LagrangesMethod(Lagrangian(N, *particles), q, hol_coneqs=[x_tip - d], frame=N)
@@ -113,8 +113,11 @@ def nlink_kane(n: int):
     F0 = F.subs(lam, 0)
     # loop closure at the acceleration level: J u' + c = 0
     ud = [ui.diff(t) for ui in u]
-    xdd = x_tip.diff(t, 2).subs({qi.diff(t, 2): udi for qi, udi in zip(q, ud)}).subs(
-        {qi.diff(t): ui for qi, ui in zip(q, u)})
+    xdd = (
+        x_tip.diff(t, 2)
+        .subs({qi.diff(t, 2): udi for qi, udi in zip(q, ud)})
+        .subs({qi.diff(t): ui for qi, ui in zip(q, u)})
+    )
     J = sp.Matrix([[xdd.diff(udi) for udi in ud]])
     c = xdd.subs({udi: 0 for udi in ud})
     A = M.row_join(-Fl).col_join(J.row_join(sp.zeros(1, 1)))
@@ -136,7 +139,7 @@ def nlink_kane_function(n: int):
 
     def evaluate(theta, theta_dot, p):
         out = np.array(entries(*theta, *theta_dot, *p))
-        x = np.linalg.solve(out[:k * k].reshape(k, k), out[k * k:])
+        x = np.linalg.solve(out[: k * k].reshape(k, k), out[k * k :])
         return x[:n], x[n]
 
     return evaluate
@@ -162,8 +165,9 @@ def nlink_pinocchio(n: int):
         parent = model.addJoint(parent, pin.JointModelRZ(), place, f"joint{i + 1}")
         bob = pin.Inertia(masses[i], np.array([0.0, -lengths[i], 0.0]), np.zeros((3, 3)))
         model.appendBodyToJoint(parent, bob, pin.SE3.Identity())
-    tip = model.addFrame(pin.Frame("tip", parent, 0, pin.SE3(np.eye(3), np.array([0.0, -lengths[-1], 0.0])),
-                                   pin.FrameType.OP_FRAME))
+    tip = model.addFrame(
+        pin.Frame("tip", parent, 0, pin.SE3(np.eye(3), np.array([0.0, -lengths[-1], 0.0])), pin.FrameType.OP_FRAME)
+    )
     model.gravity = pin.Motion(np.array([0.0, -p["g"], 0.0]), np.zeros(3))
     return model, tip
 
@@ -206,19 +210,26 @@ def nlink_model_file(n: int) -> str:
     ``[[bodies]]`` and its start on the line."""
     p = file_parameters(n)
     th, w = nlink_state(n, params=p)
-    lines = [f'[model]\nname = "pendulum{n}"', "coordinates = [" + ", ".join(f'"theta{i}"' for i in range(1, n + 1))
-             + "]", "\n[parameters]"]
+    lines = [
+        f'[model]\nname = "pendulum{n}"',
+        "coordinates = [" + ", ".join(f'"theta{i}"' for i in range(1, n + 1)) + "]",
+        "\n[parameters]",
+    ]
     lines += [f"{k} = {v!r}" for k, v in p.items()]
     x = y = ""
     for i in range(1, n + 1):
         x += f" + l{i}*sin(theta{i})"
         y += f" - l{i}*cos(theta{i})"
         lines += ["\n[[bodies]]", f'name = "bob{i}"', f'mass = "m{i}"', f'position = ["{x[3:]}", "{y}", 0]']
-        lines += ["\n[[forces]]", f'name = "weight{i}"', f'vector = [0, "-m{i}*g", 0]',
-                  f'position = ["{x[3:]}", "{y}", 0]']
+        lines += [
+            "\n[[forces]]",
+            f'name = "weight{i}"',
+            f'vector = [0, "-m{i}*g", 0]',
+            f'position = ["{x[3:]}", "{y}", 0]',
+        ]
     lines += ["\n[constraints.tip]", 'kind = "holonomic"', f'expr = "{x[3:]} - d"', "\n[initial]"]
     lines += [f"theta{i + 1} = {float(th[i])!r}" for i in range(n)]
-    lines += [f"\"theta{i + 1}'\" = {float(w[i])!r}" for i in range(n)]
+    lines += [f'"theta{i + 1}\'" = {float(w[i])!r}' for i in range(n)]
     return "\n".join(lines) + "\n"
 
 
@@ -252,8 +263,9 @@ def rolling_disc_sympy_linear():
     centre = contact.locatenew("D", r * L.z)
     centre.v2pt_theory(contact, N, R)
     disc = RigidBody("disc", centre, R, m, (inertia(L, m * r**2 / 4, m * r**2 / 2, m * r**2 / 4), centre))
-    kane = KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3],
-                       kd_eqs=[dot(R.ang_vel_in(N) - from_rates, e) for e in L])
+    kane = KanesMethod(
+        N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3], kd_eqs=[dot(R.ang_vel_in(N) - from_rates, e) for e in L]
+    )
     kane.kanes_equations([disc], [(centre, -m * g * Y.z)])
     t1 = time.perf_counter()
     A, _, _ = kane.linearize(op_point={q2: 0, u1: 0, u2: spin, u3: 0}, A_and_B=True)

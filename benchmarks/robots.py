@@ -34,6 +34,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+
 from appell import numeric_model
 
 HERE = Path(__file__).resolve().parent
@@ -94,8 +95,13 @@ print(json.dumps({"seconds": time.perf_counter() - t0}))
 def fresh(script: str, path: Path, floating: bool) -> dict:
     with tempfile.TemporaryDirectory() as cache:
         env = {**__import__("os").environ, "APPELL_CACHE_DIR": cache}
-        out = subprocess.run([sys.executable, "-c", script, str(path), "1" if floating else "0"],
-                             capture_output=True, text=True, env=env, check=True)
+        out = subprocess.run(
+            [sys.executable, "-c", script, str(path), "1" if floating else "0"],
+            capture_output=True,
+            text=True,
+            env=env,
+            check=True,
+        )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -111,7 +117,9 @@ def evaluation(path: Path, floating: bool, rounds: int) -> tuple[float, float, f
     warnings.simplefilter("ignore")
     system = urdf_system(path, floating_base=floating, reactions=None)
     model = numeric_model(appell.derive(system), "c")
-    pmodel = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer()) if floating else pin.buildModelFromUrdf(str(path))
+    pmodel = (
+        pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer()) if floating else pin.buildModelFromUrdf(str(path))
+    )
     data = pmodel.createData()
     rng = np.random.default_rng(0)
     q = rng.uniform(-0.5, 0.5, len(system.coordinates))
@@ -128,16 +136,28 @@ def evaluation(path: Path, floating: bool, rounds: int) -> tuple[float, float, f
         pin.rnea(pmodel, data, qp, vp, a)
 
     times = harness.interleaved({"appell": ours, "pinocchio": theirs}, rounds=rounds)
-    return harness.median(times["appell"]), harness.median(times["pinocchio"]), harness.ratio(times, "appell", "pinocchio")
+    return (
+        harness.median(times["appell"]),
+        harness.median(times["pinocchio"]),
+        harness.ratio(times, "appell", "pinocchio"),
+    )
 
 
 #: what the C++ driver needs beside Pinocchio's headers (in the pin wheel): Eigen and urdfdom's
 #: headers (Debian: libeigen3-dev, liburdfdom-headers-dev), and the configuration Pinocchio's
 #: own build passes to its users
-CXX_FLAGS = ["-O3", "-DNDEBUG", "-std=c++17", "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS",
-             "-DBOOST_MPL_LIMIT_LIST_SIZE=30", "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30", "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
-             "-DBOOST_FUSION_INVOKE_FUNCTION_OBJECT_MAX_ARITY=12", "-DBOOST_FUSION_INVOKE_PROCEDURE_MAX_ARITY=12",
-             "-DPINOCCHIO_WITH_URDFDOM"]
+CXX_FLAGS = [
+    "-O3",
+    "-DNDEBUG",
+    "-std=c++17",
+    "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS",
+    "-DBOOST_MPL_LIMIT_LIST_SIZE=30",
+    "-DBOOST_MPL_LIMIT_VECTOR_SIZE=30",
+    "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
+    "-DBOOST_FUSION_INVOKE_FUNCTION_OBJECT_MAX_ARITY=12",
+    "-DBOOST_FUSION_INVOKE_PROCEDURE_MAX_ARITY=12",
+    "-DPINOCCHIO_WITH_URDFDOM",
+]
 
 
 def c_loop_driver() -> Path:
@@ -150,17 +170,32 @@ def c_loop_driver() -> Path:
     prefix = robots_folder().parents[2]  # cmeel.prefix
     eigen = Path("/usr/include/eigen3")
     if not (eigen / "Eigen").is_dir() or not Path("/usr/include/urdf_model/model.h").exists():
-        sys.exit("the C loop needs Eigen's and urdfdom's headers (apt-get install libeigen3-dev "
-                 "liburdfdom-headers-dev)")
+        sys.exit(
+            "the C loop needs Eigen's and urdfdom's headers (apt-get install libeigen3-dev liburdfdom-headers-dev)"
+        )
     key = hashlib.sha256(source.read_bytes() + " ".join(CXX_FLAGS).encode()).hexdigest()[:16]
     exe = Path.home() / ".cache" / "appell-bench" / f"bench_robot-{key}"
     if not exe.exists():
         exe.parent.mkdir(parents=True, exist_ok=True)
         print("compiling the Pinocchio driver (a few minutes) ...", flush=True)
         tmp = exe.with_suffix(".tmp")
-        subprocess.run([shutil.which("c++") or "g++", *CXX_FLAGS, f"-I{prefix / 'include'}", f"-I{eigen}",
-                        str(source), "-o", str(tmp), f"-L{prefix / 'lib'}", "-lpinocchio_default",
-                        "-lpinocchio_parsers", "-ldl", f"-Wl,-rpath,{prefix / 'lib'}"], check=True)
+        subprocess.run(
+            [
+                shutil.which("c++") or "g++",
+                *CXX_FLAGS,
+                f"-I{prefix / 'include'}",
+                f"-I{eigen}",
+                str(source),
+                "-o",
+                str(tmp),
+                f"-L{prefix / 'lib'}",
+                "-lpinocchio_default",
+                "-lpinocchio_parsers",
+                "-ldl",
+                f"-Wl,-rpath,{prefix / 'lib'}",
+            ],
+            check=True,
+        )
         tmp.replace(exe)
     return exe
 
@@ -185,18 +220,41 @@ def c_loop(names) -> None:
         w = rng.uniform(-0.5, 0.5, len(system.speeds))
         p = model.default_parameters
         sizes = [len(q), len(w), len(p), len(derivation.inertia.tree.nodes), derivation.constraints.count]
-        out = subprocess.run([str(exe), str(model.library_path), str(folder / rel), "1" if floating else "0", "20000",
-                              *map(str, sizes), *(repr(float(x)) for x in [*q, *w, *p])],
-                             capture_output=True, text=True, check=True)
+        out = subprocess.run(
+            [
+                str(exe),
+                str(model.library_path),
+                str(folder / rel),
+                "1" if floating else "0",
+                "20000",
+                *map(str, sizes),
+                *(repr(float(x)) for x in [*q, *w, *p]),
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         r = json.loads(out.stdout)
-        rows.append([name + (" (floating)" if floating else ""), str(r["nv"]), f"{r['appell_ns'] / 1e3:.2f} µs",
-                     f"{r['pinocchio_ns'] / 1e3:.2f} µs", f"{r['median_ratio']:.2f}×"])
+        rows.append(
+            [
+                name + (" (floating)" if floating else ""),
+                str(r["nv"]),
+                f"{r['appell_ns'] / 1e3:.2f} µs",
+                f"{r['pinocchio_ns'] / 1e3:.2f} µs",
+                f"{r['median_ratio']:.2f}×",
+            ]
+        )
         print(" | ".join(rows[-1]), flush=True)
     print()
-    print(f"machine: {harness.machine()}; {harness.today()}; commit {harness.git_commit()}; "
-          f"both at {' '.join(CXX_FLAGS[:2])} (appell's library at its own -O3)")
-    print(harness.markdown_table(["robot", "speeds", "appell_forward (C)", "Pinocchio aba + rnea (C++)",
-                                  "median ratio"], rows))
+    print(
+        f"machine: {harness.machine()}; {harness.today()}; commit {harness.git_commit()}; "
+        f"both at {' '.join(CXX_FLAGS[:2])} (appell's library at its own -O3)"
+    )
+    print(
+        harness.markdown_table(
+            ["robot", "speeds", "appell_forward (C)", "Pinocchio aba + rnea (C++)", "median ratio"], rows
+        )
+    )
 
 
 def main():
@@ -204,8 +262,9 @@ def main():
     parser.add_argument("--robot", action="append", choices=sorted(ROBOTS), help="robots (default: all)")
     parser.add_argument("--runs", type=int, default=1, help="fresh processes per robot for the first number")
     parser.add_argument("--rounds", type=int, default=15, help="interleaved rounds of the evaluation timing")
-    parser.add_argument("--c-loop", action="store_true",
-                        help="appell_forward from a C++ loop against Pinocchio's own C++ aba + rnea")
+    parser.add_argument(
+        "--c-loop", action="store_true", help="appell_forward from a C++ loop against Pinocchio's own C++ aba + rnea"
+    )
     args = parser.parse_args()
     if args.c_loop:
         c_loop(args.robot or list(ROBOTS))
@@ -221,15 +280,40 @@ def main():
         load = fresh(PIN_LOAD, path, floating)["seconds"]
         ours, theirs, ratio = evaluation(path, floating, args.rounds)
         limit = TARGETS.get(name)
-        rows.append([name + (" (floating)" if floating else ""), str(first[0]["n"]), str(first[0]["bodies"]),
-                     str(first[0]["outputs"]),
-                     f"{seconds:.1f} s" + (f" (≤ {limit:.0f})" if limit else ""), f"{peak:.0f} MB",
-                     f"{load * 1e3:.1f} ms", harness.us(ours), harness.us(theirs), f"{ratio:.2f}×"])
+        rows.append(
+            [
+                name + (" (floating)" if floating else ""),
+                str(first[0]["n"]),
+                str(first[0]["bodies"]),
+                str(first[0]["outputs"]),
+                f"{seconds:.1f} s" + (f" (≤ {limit:.0f})" if limit else ""),
+                f"{peak:.0f} MB",
+                f"{load * 1e3:.1f} ms",
+                harness.us(ours),
+                harness.us(theirs),
+                f"{ratio:.2f}×",
+            ]
+        )
         print(" | ".join(rows[-1]), flush=True)
     print()
     print(f"machine: {harness.machine()}; {harness.today()}; commit {harness.git_commit()}")
-    print(harness.markdown_table(["robot", "speeds", "bodies", "outputs", "first number", "peak memory",
-                                  "Pinocchio load", "appell forward", "Pinocchio aba + rnea", "ratio"], rows))
+    print(
+        harness.markdown_table(
+            [
+                "robot",
+                "speeds",
+                "bodies",
+                "outputs",
+                "first number",
+                "peak memory",
+                "Pinocchio load",
+                "appell forward",
+                "Pinocchio aba + rnea",
+                "ratio",
+            ],
+            rows,
+        )
+    )
 
 
 if __name__ == "__main__":

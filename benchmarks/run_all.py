@@ -30,11 +30,19 @@ DOCS = ROOT / "docs" / "performance.md"
 def steps(quick: bool) -> list[tuple[str, list[str], float]]:
     """(section, script and arguments, time limit [s]) of every benchmark."""
     return [
-        ("evaluation", ["evaluation.py"] + (["--sizes", "4,10,20", "--setup-limit", "30", "--rounds", "7"]
-                                            if quick else ["--sizes", "4,10,20,40"]), 3600),
+        (
+            "evaluation",
+            ["evaluation.py"]
+            + (["--sizes", "4,10,20", "--setup-limit", "30", "--rounds", "7"] if quick else ["--sizes", "4,10,20,40"]),
+            3600,
+        ),
         ("chain", ["chain_simulation.py"] + (["--rounds", "1"] if quick else ["--rounds", "3"]), 1800),
-        ("derivation", ["derivation.py"] + (["--sizes", "2,4,6,8,10", "--limit", "20"] if quick
-                                            else ["--limit", "60", "--file-sizes", "50"]), 3600),
+        (
+            "derivation",
+            ["derivation.py"]
+            + (["--sizes", "2,4,6,8,10", "--limit", "20"] if quick else ["--limit", "60", "--file-sizes", "50"]),
+            3600,
+        ),
         ("car", ["car_simulation.py"], 900),
         ("loop", ["loop.py"] + (["--repeats", "3"] if quick else []), 1800),
         ("sweep", ["sweep.py"] + (["--repeats", "1"] if quick else []), 3600),
@@ -62,7 +70,7 @@ def run_step(name: str, argv: list[str], limit: float, quick: bool) -> tuple[str
     if "--quick" in args and not accepts(script, "--quick"):
         args.remove("--quick")
     if "--repeats" in args and not accepts(script, "--repeats"):
-        args = args[:args.index("--repeats")] + args[args.index("--repeats") + 2:]
+        args = args[: args.index("--repeats")] + args[args.index("--repeats") + 2 :]
     command = "python " + " ".join([f"benchmarks/{argv[0]}", *args])
     md = Path(tempfile.mkdtemp(prefix="appell_md_")) / f"{name}.md"
     if accepts(script, "--markdown"):
@@ -93,17 +101,22 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--no-docs", action="store_true", help="print only; leave docs/performance.md alone")
-    ap.add_argument("--only", help="comma-separated sections (evaluation, chain, derivation, car, loop, sweep, "
-                                   "scaling, linearise, linearise_peers, iftomm, robots, viewer)")
+    ap.add_argument(
+        "--only",
+        help="comma-separated sections (evaluation, chain, derivation, car, loop, sweep, "
+        "scaling, linearise, linearise_peers, iftomm, robots, viewer)",
+    )
     ap.add_argument("--out", help="also write everything printed to this file")
     args = ap.parse_args()
     chosen = set(args.only.split(",")) if args.only else None
-    head = [f"- machine: {machine()}; {compiler()}",
-            f"- date: {today()}; {load()} at the start",
-            f"- versions: {versions()}; appell at commit {git_commit()}",
-            f"- command: `python benchmarks/run_all.py{' --quick' if args.quick else ''}"
-            f"{' --only ' + args.only if args.only else ''}`"
-            + (" (quick: smaller sizes, fewer rounds)" if args.quick else "")]
+    head = [
+        f"- machine: {machine()}; {compiler()}",
+        f"- date: {today()}; {load()} at the start",
+        f"- versions: {versions()}; appell at commit {git_commit()}",
+        f"- command: `python benchmarks/run_all.py{' --quick' if args.quick else ''}"
+        f"{' --only ' + args.only if args.only else ''}`"
+        + (" (quick: smaller sizes, fewer rounds)" if args.quick else ""),
+    ]
     print("\n".join(head), flush=True)
     printed = ["\n".join(head)]
 
@@ -123,9 +136,11 @@ def main():
         # a partial re-run keeps the machine section of the full run and adds a line to it
         text = DOCS.read_text()
         begin, end = "<!-- bench:machine -->", "<!-- /bench:machine -->"
-        earlier = text[text.find(begin) + len(begin):text.find(end)].strip()
-        head = [earlier, f"- re-run of {args.only}: {today()}, {load()} at the start; {versions()}; "
-                         f"appell at commit {git_commit()}"]
+        earlier = text[text.find(begin) + len(begin) : text.find(end)].strip()
+        head = [
+            earlier,
+            f"- re-run of {args.only}: {today()}, {load()} at the start; {versions()}; appell at commit {git_commit()}",
+        ]
     write({"machine": "\n".join(head + ["- (running)"])})
     for name, argv, limit in steps(args.quick):
         if chosen and name not in chosen:

@@ -32,6 +32,7 @@ import timeit
 from pathlib import Path
 
 import numpy as np
+
 from appell import numeric_model
 
 HERE = Path(__file__).resolve().parent
@@ -70,8 +71,13 @@ def model_file(n: int) -> str:
     th[-1] = np.arcsin(np.clip((p["d"] - lengths[:-1] @ np.sin(th[:-1])) / lengths[-1], -1, 1))
     w = rng.uniform(-0.5, 0.5, n)
     w[-1] = -(lengths[:-1] * np.cos(th[:-1])) @ w[:-1] / (lengths[-1] * np.cos(th[-1]))
-    lines = ["[model]", f'name = "pendulum{n}"', f'coordinates = [{", ".join(f"{chr(34)}theta{i}{chr(34)}" for i in range(1, n + 1))}]',
-             "", "[parameters]"]
+    lines = [
+        "[model]",
+        f'name = "pendulum{n}"',
+        f"coordinates = [{', '.join(f'{chr(34)}theta{i}{chr(34)}' for i in range(1, n + 1))}]",
+        "",
+        "[parameters]",
+    ]
     lines += [f"{k} = {v!r}" for k, v in p.items()]
     x, y = [], []
     for i in range(1, n + 1):
@@ -83,7 +89,7 @@ def model_file(n: int) -> str:
         lines += ["", "[[forces]]", f'name = "weight{i}"', f'vector = [0, "-m{i}*g", 0]', position]
     lines += ["", "[constraints.tip]", 'kind = "holonomic"', f'expr = "{" + ".join(x)} - d"', "", "[initial]"]
     lines += [f"theta{i + 1} = {float(th[i])!r}" for i in range(n)]
-    lines += [f"\"theta{i + 1}'\" = {float(w[i])!r}" for i in range(n)]
+    lines += [f'"theta{i + 1}\'" = {float(w[i])!r}' for i in range(n)]
     return "\n".join(lines) + "\n"
 
 
@@ -156,8 +162,12 @@ def compile_cost(n: int, dense: bool = False) -> dict:
     try:
         cc, log = measuring_compiler(work)
         env = {**os.environ, "APPELL_CACHE_DIR": str(work / "cache"), "APPELL_CC": cc}
-        out = subprocess.run([sys.executable, "-c", _COMPILE, str(n), str(HERE), "dense" if dense else "tree"], env=env, capture_output=True,
-                             text=True)
+        out = subprocess.run(
+            [sys.executable, "-c", _COMPILE, str(n), str(HERE), "dense" if dense else "tree"],
+            env=env,
+            capture_output=True,
+            text=True,
+        )
         if out.returncode != 0:
             raise RuntimeError(out.stderr[-2000:])
         r = json.loads(out.stdout.strip().splitlines()[-1])
@@ -174,16 +184,20 @@ def pipeline(n: int) -> dict:
         (work / "chain.toml").write_text(model_file(n))
         cc, log = measuring_compiler(work)
         env = {**os.environ, "APPELL_CACHE_DIR": str(work / "cache"), "APPELL_CC": cc}
-        out = subprocess.run([sys.executable, "-c", _PIPELINE, str(work / "chain.toml")], env=env,
-                             capture_output=True, text=True)
+        out = subprocess.run(
+            [sys.executable, "-c", _PIPELINE, str(work / "chain.toml")], env=env, capture_output=True, text=True
+        )
         if out.returncode != 0:
             raise RuntimeError(out.stderr[-2000:])
         r = json.loads(out.stdout.strip().splitlines()[-1])
         peaks = compiler_peaks(log)
         r["peak_compiler_MB"] = max(peaks, default=0.0)
         # the process waits while its compilers run: at most min(units, cores) of them at once
-        r["peak_with_compilers_MB"] = r["peak_process_MB"] + sorted(peaks)[-1] * min(len(peaks), os.cpu_count() or 1) \
-            if peaks else r["peak_process_MB"]
+        r["peak_with_compilers_MB"] = (
+            r["peak_process_MB"] + sorted(peaks)[-1] * min(len(peaks), os.cpu_count() or 1)
+            if peaks
+            else r["peak_process_MB"]
+        )
         return r
     finally:
         shutil.rmtree(work, ignore_errors=True)
@@ -195,10 +209,23 @@ def c_loop(sizes) -> None:
     cc = shutil.which("cc")
     work = Path(tempfile.mkdtemp(prefix="appell_cloop_"))
     exe = work / "bench_aba"
-    subprocess.run([cc, "-O2", "-o", str(exe), str(HERE / "reference" / "bench_aba.c"),
-                    str(HERE / "reference" / "nlink_aba.c"), "-lm", "-ldl"], check=True)
-    print(f"{'n':>3} {'gen. ops':>9} {'appell C [us]':>14} {'O(n) recursion [us]':>20} {'ratio of best':>14} "
-          f"{'median ratio':>13} {'rel. diff':>10}")
+    subprocess.run(
+        [
+            cc,
+            "-O2",
+            "-o",
+            str(exe),
+            str(HERE / "reference" / "bench_aba.c"),
+            str(HERE / "reference" / "nlink_aba.c"),
+            "-lm",
+            "-ldl",
+        ],
+        check=True,
+    )
+    print(
+        f"{'n':>3} {'gen. ops':>9} {'appell C [us]':>14} {'O(n) recursion [us]':>20} {'ratio of best':>14} "
+        f"{'median ratio':>13} {'rel. diff':>10}"
+    )
     for n in sizes:
         d = appell.derive(nlink_appell(n))
         cm = numeric_model(d, "c")
@@ -206,13 +233,26 @@ def c_loop(sizes) -> None:
         y = np.concatenate(nlink_state(n))
         ops = generated_operations(cm.library_path.with_suffix(".c").read_text())
         iters = max(2000, 4_000_000 // (n * n))
-        out = subprocess.run([str(exe), str(cm.library_path), str(n), str(iters), str(d.partition.dependent[0]),
-                              *map(repr, y.tolist()), *map(repr, pv.tolist())], capture_output=True, text=True,
-                             check=True)
+        out = subprocess.run(
+            [
+                str(exe),
+                str(cm.library_path),
+                str(n),
+                str(iters),
+                str(d.partition.dependent[0]),
+                *map(repr, y.tolist()),
+                *map(repr, pv.tolist()),
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         r = json.loads(out.stdout)
-        print(f"{n:>3} {ops:>9} {r['appell_c_ns'] / 1e3:14.3f} {r['recursion_ns'] / 1e3:20.3f} "
-              f"{r['appell_c_ns'] / r['recursion_ns']:14.2f} {r['median_ratio']:13.2f} {r['max_rel_diff']:10.1e}",
-              flush=True)
+        print(
+            f"{n:>3} {ops:>9} {r['appell_c_ns'] / 1e3:14.3f} {r['recursion_ns'] / 1e3:20.3f} "
+            f"{r['appell_c_ns'] / r['recursion_ns']:14.2f} {r['median_ratio']:13.2f} {r['max_rel_diff']:10.1e}",
+            flush=True,
+        )
 
 
 def main():
@@ -230,18 +270,25 @@ def main():
             print(f"n = {n}: " + ", ".join(f"{k} {v:.1f}" for k, v in r.items()), flush=True)
         return
     if args.compile:
-        print(f"{'n':>3} {'gen. ops':>9} {'source [kB]':>12} {'units':>6} {'generate [s]':>13} {'compile [s]':>12} "
-              f"{'compiler CPU [s]':>17} {'compiler peak [MB]':>19}")
+        print(
+            f"{'n':>3} {'gen. ops':>9} {'source [kB]':>12} {'units':>6} {'generate [s]':>13} {'compile [s]':>12} "
+            f"{'compiler CPU [s]':>17} {'compiler peak [MB]':>19}"
+        )
         for n in map(int, args.sizes.split(",")):
             r = compile_cost(n, args.dense)
-            print(f"{n:>3} {r['ops']:>9} {r['kB']:>12.0f} {r['units']:>6} {r['generate_s']:>13.1f} "
-                  f"{r['compile_s']:>12.1f} {r['compiler_cpu_s']:>17.1f} {r['compiler_peak_MB']:>19.0f}", flush=True)
+            print(
+                f"{n:>3} {r['ops']:>9} {r['kB']:>12.0f} {r['units']:>6} {r['generate_s']:>13.1f} "
+                f"{r['compile_s']:>12.1f} {r['compiler_cpu_s']:>17.1f} {r['compiler_peak_MB']:>19.0f}",
+                flush=True,
+            )
         return
     if args.c_loop:
         c_loop(list(map(int, args.sizes.split(","))))
         return
-    print(f"{'n':>3} {'s':>2} {'derive [s]':>11} {'numpy fns [s]':>14} {'C gen+cc [s]':>13} {'C source [kB]':>14} "
-          f"{'eval numpy [us]':>16} {'eval C [us]':>12}")
+    print(
+        f"{'n':>3} {'s':>2} {'derive [s]':>11} {'numpy fns [s]':>14} {'C gen+cc [s]':>13} {'C source [kB]':>14} "
+        f"{'eval numpy [us]':>16} {'eval C [us]':>12}"
+    )
     for n in map(int, args.sizes.split(",")):
         for s in (1, 2):
             if s > n - 1:
@@ -257,8 +304,11 @@ def main():
             y = np.concatenate([th, w])
             e_np, e_c = per_call(lambda: nm.evaluate(0.0, y)), per_call(lambda: cm.evaluate(0.0, y))  # noqa: B023
             src = cm.library_path.with_suffix(".c").stat().st_size / 1024
-            print(f"{n:>3} {s:>2} {t1 - t0:11.2f} {t2 - t1:14.2f} {t3 - t2:13.2f} {src:14.0f} "
-                  f"{e_np * 1e6:16.1f} {e_c * 1e6:12.2f}", flush=True)
+            print(
+                f"{n:>3} {s:>2} {t1 - t0:11.2f} {t2 - t1:14.2f} {t3 - t2:13.2f} {src:14.0f} "
+                f"{e_np * 1e6:16.1f} {e_c * 1e6:12.2f}",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -33,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from appell import numeric_model
 
 
@@ -41,15 +42,18 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2, help="worker processes (one thread each)")
     ap.add_argument("--t-end", type=float, default=None, help="final time of every run (default: the model's, 10 s)")
-    ap.add_argument("--grid", default="F=600:1000:8,M=1000:1400:8",
-                    help="the sweep specs, comma-separated between axes (default 64 runs)")
+    ap.add_argument(
+        "--grid",
+        default="F=600:1000:8,M=1000:1400:8",
+        help="the sweep specs, comma-separated between axes (default 64 runs)",
+    )
     args = ap.parse_args()
 
     import appell
     from appell.examples import example_path
-    from appell.workflows import command_options
     from appell.simulation.simulate import simulate
     from appell.simulation.sweep import parameter_grid, sweep, sweep_cluster
+    from appell.workflows import command_options
 
     system = appell.load_model(example_path("car"))
     derivation = appell.derive(system)
@@ -59,9 +63,11 @@ def main():
     opts = {"method": options.method, "rtol": options.rtol, **options.changes(but=("t_end", "t_eval"))}
     specs = _specs(args.grid)
     grid = parameter_grid(specs)
-    print(f"car, {len(grid)} runs of {t_end:g} s ({opts['method']}, rtol {opts['rtol']:g}, {len(t_eval)} output "
-          f"times each); sweep on {args.workers} worker process(es) x 1 thread; {os.cpu_count()} cores; "
-          f"load average {', '.join(f'{x:.2f}' for x in os.getloadavg())}; {time.strftime('%Y-%m-%d %H:%M %Z')}")
+    print(
+        f"car, {len(grid)} runs of {t_end:g} s ({opts['method']}, rtol {opts['rtol']:g}, {len(t_eval)} output "
+        f"times each); sweep on {args.workers} worker process(es) x 1 thread; {os.cpu_count()} cores; "
+        f"load average {', '.join(f'{x:.2f}' for x in os.getloadavg())}; {time.strftime('%Y-%m-%d %H:%M %Z')}"
+    )
 
     def loop():
         out = []
@@ -73,8 +79,17 @@ def main():
         return [w for w, _ in out]
 
     def swept(directory, **where):
-        result = sweep(derivation, specs, t_end, t_eval=t_eval, output=Path(directory) / "car-sweep.h5",
-                       backend="c", progress=False, **where, **opts)
+        result = sweep(
+            derivation,
+            specs,
+            t_end,
+            t_eval=t_eval,
+            output=Path(directory) / "car-sweep.h5",
+            backend="c",
+            progress=False,
+            **where,
+            **opts,
+        )
         assert not result.failed, result.summary_text()
         return [r.wall_time for r in result.runs]
 
@@ -93,9 +108,10 @@ def main():
         for rep in range(args.repeats):
             timings, per_run, cpus = {}, {}, {}
             for name, job, workers in (
-                    ("loop", loop, None),
-                    ("sweep, kept cluster", lambda: swept(directory, client=client), client),
-                    ("sweep, new cluster", lambda: swept(directory, n_workers=args.workers), None)):
+                ("loop", loop, None),
+                ("sweep, kept cluster", lambda: swept(directory, client=client), client),
+                ("sweep, new cluster", lambda: swept(directory, n_workers=args.workers), None),
+            ):
                 c0 = cpu(workers)
                 t0 = time.perf_counter()
                 per_run[name] = job()
@@ -103,20 +119,31 @@ def main():
                 cpus[name] = cpu(workers) - c0
             rows.append(timings)
             cpu_rows.append(cpus)
-            print(f"repeat {rep + 1} (load {os.getloadavg()[0]:.1f}): " + "; ".join(
-                f"{name} {t:.2f} s, CPU {cpus[name]:.2f} s (mean run {1e3 * np.mean(per_run[name]):.0f} ms)"
-                for name, t in timings.items())
-                + "; ratios " + ", ".join(f"{name} / loop {timings[name] / timings['loop']:.2f}"
-                                          for name in timings if name != "loop"), flush=True)
+            print(
+                f"repeat {rep + 1} (load {os.getloadavg()[0]:.1f}): "
+                + "; ".join(
+                    f"{name} {t:.2f} s, CPU {cpus[name]:.2f} s (mean run {1e3 * np.mean(per_run[name]):.0f} ms)"
+                    for name, t in timings.items()
+                )
+                + "; ratios "
+                + ", ".join(
+                    f"{name} / loop {timings[name] / timings['loop']:.2f}" for name in timings if name != "loop"
+                ),
+                flush=True,
+            )
     print(f"median over the {len(rows)} repeats (wall time; CPU time):")
     for name in rows[0]:
-        line = f"  {name:<20} {statistics.median(r[name] for r in rows):7.2f} s; " \
-               f"{statistics.median(r[name] for r in cpu_rows):7.2f} s"
+        line = (
+            f"  {name:<20} {statistics.median(r[name] for r in rows):7.2f} s; "
+            f"{statistics.median(r[name] for r in cpu_rows):7.2f} s"
+        )
         if name != "loop":
             ratios = [r[name] / r["loop"] for r in rows]
             cpu_ratio = statistics.median(r[name] / r["loop"] for r in cpu_rows)
-            line += f"   ratio to the loop {statistics.median(ratios):.2f} " \
-                    f"(repeats: {', '.join(f'{x:.2f}' for x in ratios)}); CPU time ratio {cpu_ratio:.2f}"
+            line += (
+                f"   ratio to the loop {statistics.median(ratios):.2f} "
+                f"(repeats: {', '.join(f'{x:.2f}' for x in ratios)}); CPU time ratio {cpu_ratio:.2f}"
+            )
         print(line)
     print(f"load average after: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
 

@@ -23,21 +23,31 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import load, machine, today  # noqa: E402
-
 import appell  # noqa: E402
 from appell.examples import example_path  # noqa: E402
 from appell.io.modelfile import load_model  # noqa: E402
 from appell.io.viewer import view_motion  # noqa: E402
+from harness import load, machine, today  # noqa: E402
 
 CHROMIUM = shutil.which("chromium")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-extensions",
-         "--disable-background-networking", "--window-size=1000,760"]
+FLAGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--no-first-run",
+    "--disable-extensions",
+    "--disable-background-networking",
+    "--window-size=1000,760",
+]
 
 
 def fps(page: Path, frames: int, profile: Path) -> float:
-    out = subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={profile}", "--dump-dom",
-                          f"{page.as_uri()}#bench={frames}"], capture_output=True, text=True, timeout=300)
+    out = subprocess.run(
+        [CHROMIUM, *FLAGS, f"--user-data-dir={profile}", "--dump-dom", f"{page.as_uri()}#bench={frames}"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     found = re.search(r'data-viewer-fps="([0-9.]+)"', out.stdout)
     if not found:
         raise RuntimeError(f"no rate in the page: {out.stderr[-500:]}")
@@ -52,8 +62,11 @@ def main():
     if CHROMIUM is None:
         sys.exit("headless Chromium is not installed (Debian: apt-get install chromium)")
     runs = 1 if args.quick else 3
-    models = [("URDF arm", example_path("four_bar").parent / "arm.urdf", 2.0),
-              ("four-bar", example_path("four_bar"), 3.0), ("car", example_path("car"), 10.0)]
+    models = [
+        ("URDF arm", example_path("four_bar").parent / "arm.urdf", 2.0),
+        ("four-bar", example_path("four_bar"), 3.0),
+        ("car", example_path("car"), 10.0),
+    ]
     head = f"{machine()}, {today()}; Chromium headless, SwiftShader (software WebGL), 1000 x 760 window"
     print(head)
     rows = []
@@ -67,14 +80,25 @@ def main():
             motion.save(page)
             rates = [fps(page, 600, tmp / f"profile{k}") for k in range(runs)]
             meshes = sum(len(b["shapes"]) + max(len(b["links"]), 1) * 2 for b in motion.scene["bodies"])
-            row = (name, len(motion.scene["t"]), meshes, page.stat().st_size / 1e6, min(rates),
-                   statistics.median(rates), max(rates))
+            row = (
+                name,
+                len(motion.scene["t"]),
+                meshes,
+                page.stat().st_size / 1e6,
+                min(rates),
+                statistics.median(rates),
+                max(rates),
+            )
             rows.append(row)
-            print(f"{name:10s} frames {row[1]:4d}  parts ~{row[2]:3d}  page {row[3]:.2f} MB  "
-                  f"fps min {row[4]:.0f} median {row[5]:.0f} max {row[6]:.0f}", flush=True)
+            print(
+                f"{name:10s} frames {row[1]:4d}  parts ~{row[2]:3d}  page {row[3]:.2f} MB  "
+                f"fps min {row[4]:.0f} median {row[5]:.0f} max {row[6]:.0f}",
+                flush=True,
+            )
         report = tmp / "car-report.html"
-        subprocess.run([sys.executable, "-m", "appell", "report", "car", "-o", str(report)], check=True,
-                       capture_output=True)
+        subprocess.run(
+            [sys.executable, "-m", "appell", "report", "car", "-o", str(report)], check=True, capture_output=True
+        )
         size = report.stat().st_size / 1e6
         print(f"appell report car: {size:.2f} MB (target < 1.5 MB)")
     if args.markdown:

@@ -24,7 +24,7 @@ extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
-    "mathml_math",      # _ext/mathml_math.py: LaTeX -> MathML at build time, no script, no network
+    "mathml_math",  # _ext/mathml_math.py: LaTeX -> MathML at build time, no script, no network
     "gallery_figures",  # _ext/gallery_figures.py: the figure of each example's reactions on the gallery
 ]
 html_math_renderer = "mathml"

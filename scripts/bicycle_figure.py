@@ -11,14 +11,31 @@ import numpy as np
 from appell import derive, stability_sweep
 from appell.examples.mechanism_examples import benchmark_bicycle
 
-FREE = ["rear_x_dot", "rear_y_dot", "rear_z_dot", "rear_rz_dot", "rear_rx_dot", "rear_ry_dot", "front_spin_dot",
-        "steer_dot", "rear_z", "rear_ry"]
+FREE = [
+    "rear_x_dot",
+    "rear_y_dot",
+    "rear_z_dot",
+    "rear_rz_dot",
+    "rear_rx_dot",
+    "rear_ry_dot",
+    "front_spin_dot",
+    "steer_dot",
+    "rear_z",
+    "rear_ry",
+]
 IGNORE = ["rear_x", "rear_y", "rear_rz", "rear_spin", "front_spin", "rear_spin_dot"]
 
 d = derive(benchmark_bicycle())
 rates = -np.linspace(0.0, 10.0, 201)[::-1] / 0.3
-sweep = stability_sweep(d, "rear_spin_dot", rates, at={"rear_z": -0.3, "rear_x_dot": 10.0, "front_spin_dot": -10.0 / 0.35},
-                        free=FREE, ignore=IGNORE, coordinates=["rear_rx", "steer"])
+sweep = stability_sweep(
+    d,
+    "rear_spin_dot",
+    rates,
+    at={"rear_z": -0.3, "rear_x_dot": 10.0, "front_spin_dot": -10.0 / 0.35},
+    free=FREE,
+    ignore=IGNORE,
+    coordinates=["rear_rx", "steer"],
+)
 from matplotlib.figure import Figure
 
 fig = Figure(figsize=(7, 4.2), constrained_layout=True)

@@ -18,9 +18,10 @@ def four_bar_3d(directions="xy", motor=False) -> Mechanism:
     control ``motor`` on A where asked."""
     mech = Mechanism("four_bar_3d", gravity=(0, -9.81, 0))
     lengths, masses = (0.4, 1.0, 0.8), (1.0, 2.0, 1.5)
-    crank, coupler, rocker = (mech.body(name, m, inertia=(m * l**2 / 100, m * l**2 / 12, m * l**2 / 12),
-                                        com=(l / 2, 0, 0))
-                              for name, l, m in zip(("crank", "coupler", "rocker"), lengths, masses))
+    crank, coupler, rocker = (
+        mech.body(name, m, inertia=(m * l**2 / 100, m * l**2 / 12, m * l**2 / 12), com=(l / 2, 0, 0))
+        for name, l, m in zip(("crank", "coupler", "rocker"), lengths, masses)
+    )
     mech.revolute("A", "ground", crank)
     mech.revolute("B", crank, coupler, origin=(lengths[0], 0, 0))
     mech.revolute("D", "ground", rocker, origin=(1.0, 0, 0))

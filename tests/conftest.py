@@ -35,8 +35,25 @@ def docs_build(tmp_path_factory):
             if not record.exists():
                 env = {**os.environ, "MPLBACKEND": "Agg"}
                 done = subprocess.run(
-                    [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", "-d",
-                     str(root / "doctrees"), str(DOCS), str(out)], capture_output=True, text=True, timeout=600, env=env)
+                    [
+                        sys.executable,
+                        "-m",
+                        "sphinx",
+                        "-W",
+                        "--keep-going",
+                        "-q",
+                        "-b",
+                        "html",
+                        "-d",
+                        str(root / "doctrees"),
+                        str(DOCS),
+                        str(out),
+                    ],
+                    capture_output=True,
+                    text=True,
+                    timeout=600,
+                    env=env,
+                )
                 record.write_text(json.dumps([done.args, done.returncode, done.stdout, done.stderr]))
             args, code, stdout, stderr = json.loads(record.read_text())
         finally:
@@ -60,11 +77,26 @@ def dask_processes(tmp_path):
 #: Left out: the browser, packaging, documentation, CLI-text and hostile-input tests, whose
 #: outcome does not depend on rounding (``pytest -m numerical`` selects the rest).
 NOT_NUMERICAL = {
-    "test_api_misuse.py", "test_architecture.py", "test_benchmark_references.py", "test_cli.py",
-    "test_cli_solver.py", "test_core_bad_input.py", "test_core_printing.py", "test_display.py", "test_docs.py",
-    "test_docs_offline.py", "test_faults.py", "test_json_exact.py", "test_matrix_script.py", "test_mechanism_errors.py",
-    "test_modelfile_hostile.py", "test_packaging.py", "test_report_browser.py", "test_servo_bad_input.py",
-    "test_sweep.py", "test_urdf_hostile.py",
+    "test_api_misuse.py",
+    "test_architecture.py",
+    "test_benchmark_references.py",
+    "test_cli.py",
+    "test_cli_solver.py",
+    "test_core_bad_input.py",
+    "test_core_printing.py",
+    "test_display.py",
+    "test_docs.py",
+    "test_docs_offline.py",
+    "test_faults.py",
+    "test_json_exact.py",
+    "test_matrix_script.py",
+    "test_mechanism_errors.py",
+    "test_modelfile_hostile.py",
+    "test_packaging.py",
+    "test_report_browser.py",
+    "test_servo_bad_input.py",
+    "test_sweep.py",
+    "test_urdf_hostile.py",
 }
 
 #: ``$APPELL_TEST_BACKEND=c``: ``numeric_model(derivation)`` is the compiled C model
@@ -76,12 +108,16 @@ BACKEND = os.environ.get("APPELL_TEST_BACKEND", "numpy")
 
 
 def pytest_configure(config):
-    config.addinivalue_line("markers", "numerical: a closed-form, published-value or cross-route test "
-                                       "(selected by scripts/test-matrix.sh)")
-    config.addinivalue_line("markers", "numpy_model: the test mutates or inspects the NumPy model itself "
-                                       "(kept on NumPy under APPELL_TEST_BACKEND=c)")
-    config.addinivalue_line("markers", "slow: a long run (e.g. the full fuzz of tests/test_fuzz.py), skipped unless "
-                                       "APPELL_SLOW=1")
+    config.addinivalue_line(
+        "markers", "numerical: a closed-form, published-value or cross-route test (selected by scripts/test-matrix.sh)"
+    )
+    config.addinivalue_line(
+        "markers",
+        "numpy_model: the test mutates or inspects the NumPy model itself (kept on NumPy under APPELL_TEST_BACKEND=c)",
+    )
+    config.addinivalue_line(
+        "markers", "slow: a long run (e.g. the full fuzz of tests/test_fuzz.py), skipped unless APPELL_SLOW=1"
+    )
     if BACKEND not in ("numpy", "c"):
         raise pytest.UsageError(f"APPELL_TEST_BACKEND must be 'numpy' or 'c', got {BACKEND!r}")
     _use_backend(BACKEND)
@@ -111,12 +147,33 @@ PART = os.environ.get("APPELL_TEST_PART", "")
 #: on two cores: every module but :data:`SERIAL` and these, which derive the large models
 #: (the bicycle, the URDF arm, the IFToMM chains), run every bundled example, build the
 #: documentation or drive a browser or subprocesses (9 s to 140 s each on two cores)
-HEAVY = {"test_docs.py", "test_docs_offline.py", "test_cli.py", "test_iftomm.py", "test_modelfile_examples.py",
-         "test_printed_equations.py", "test_servo_drive.py", "test_json_exact.py", "test_viewer_browser.py",
-         "test_bicycle.py", "test_matrix_script.py", "test_inverse.py", "test_evidence.py", "test_result_schema.py",
-         "test_mjcf.py", "test_implicit_jacobian.py", "test_urdf_pinocchio.py", "test_report_browser.py",
-         "test_cli_solver.py", "test_symbolic_bounds.py", "test_api_cli_agree.py", "test_tree_route.py",
-         "test_derivation_cache.py", "test_mjcf_menagerie.py", "test_paper_forms.py"}
+HEAVY = {
+    "test_docs.py",
+    "test_docs_offline.py",
+    "test_cli.py",
+    "test_iftomm.py",
+    "test_modelfile_examples.py",
+    "test_printed_equations.py",
+    "test_servo_drive.py",
+    "test_json_exact.py",
+    "test_viewer_browser.py",
+    "test_bicycle.py",
+    "test_matrix_script.py",
+    "test_inverse.py",
+    "test_evidence.py",
+    "test_result_schema.py",
+    "test_mjcf.py",
+    "test_implicit_jacobian.py",
+    "test_urdf_pinocchio.py",
+    "test_report_browser.py",
+    "test_cli_solver.py",
+    "test_symbolic_bounds.py",
+    "test_api_cli_agree.py",
+    "test_tree_route.py",
+    "test_derivation_cache.py",
+    "test_mjcf_menagerie.py",
+    "test_paper_forms.py",
+}
 QUICK = os.environ.get("APPELL_QUICK") == "1"
 
 

@@ -44,8 +44,10 @@ class DaskProcesses:
         self.exe, self.directory = dask_cli(), directory
         self.file = directory / "scheduler.json"
         self.procs = []
-        self.scheduler = self._start(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                                      "--scheduler-file", str(self.file)], "scheduler")
+        self.scheduler = self._start(
+            ["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", str(self.file)],
+            "scheduler",
+        )
         deadline = time.monotonic() + 90
         while not self.file.exists() and time.monotonic() < deadline:
             if self.scheduler.poll() is not None:
@@ -65,8 +67,13 @@ class DaskProcesses:
         """Start ``count`` single-threaded workers and wait until the scheduler has them all."""
         from dask.distributed import Client
 
-        started = [self._start(["worker", "--scheduler-file", str(self.file), "--nthreads", "1", "--no-nanny",
-                                "--no-dashboard"], f"worker{len(self.procs)}") for _ in range(count)]
+        started = [
+            self._start(
+                ["worker", "--scheduler-file", str(self.file), "--nthreads", "1", "--no-nanny", "--no-dashboard"],
+                f"worker{len(self.procs)}",
+            )
+            for _ in range(count)
+        ]
         with Client(self.address, timeout=60) as client:
             client.wait_for_workers(len(self.procs) - 1, timeout=120)
         return started

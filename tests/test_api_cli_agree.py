@@ -52,7 +52,9 @@ def test_a_missing_initial_speed_is_computed_by_both():
     derivation = appell.derive(appell.loads_model(MISSING_SPEED))
     api, cli = appell.simulate(derivation), run_simulation(derivation)
     assert api["y_dot"][0] == pytest.approx(0.6, abs=1e-12)
-    assert [str(e) for e in api.events if e.kind == "initial"] == ["t = 0: initial y_dot — (not given) -> 0.6 (computed)"]
+    assert [str(e) for e in api.events if e.kind == "initial"] == [
+        "t = 0: initial y_dot — (not given) -> 0.6 (computed)"
+    ]
     _same(api, cli)
 
 
@@ -126,6 +128,7 @@ def _collect():
 
     def echo(text="", err_=False, **kw):
         (err if kw.get("err", err_) else out).append(f"{text}\n")
+
     return echo, out, err
 
 
@@ -146,8 +149,9 @@ def test_every_command_and_its_twin_agree(name, tmp_path, monkeypatch):
     assert code == 0, stderr
     assert json.loads(stdout) == json.loads("".join(out))
     # simulate
-    code, stdout, stderr = _command("simulate", name, "--t-end", SPAN, "--out", tmp_path / "cli.csv",
-                                    "--backend", "numpy")
+    code, stdout, stderr = _command(
+        "simulate", name, "--t-end", SPAN, "--out", tmp_path / "cli.csv", "--backend", "numpy"
+    )
     echo, out, err = _collect()
     try:
         solution = workflows.run_simulation(derivation, SPAN, "numpy")
@@ -180,5 +184,8 @@ def test_examples_and_its_twin_list_and_copy_the_same(tmp_path):
     code, stdout, _ = _command("examples", "pendulum", "--to", tmp_path / "cli")
     api = workflows.copy_example("pendulum", tmp_path / "api")
     assert code == 0 and stdout == f"wrote {tmp_path / 'cli' / 'pendulum.toml'}\n"
-    assert (tmp_path / "cli" / "pendulum.toml").read_bytes() == api.read_bytes() == \
-        (Path(appell.examples.__file__).parent / "pendulum.toml").read_bytes()
+    assert (
+        (tmp_path / "cli" / "pendulum.toml").read_bytes()
+        == api.read_bytes()
+        == (Path(appell.examples.__file__).parent / "pendulum.toml").read_bytes()
+    )

@@ -18,13 +18,12 @@ import sympy as sp
 from click.testing import CliRunner
 
 import appell
-from appell import ModelError
+from appell import ModelError, numeric_model
 from appell.examples import example_path
 from appell.examples.catalog import CATALOG
 from appell.io.cli import cli
 from appell.simulation.events import Event
 from appell.simulation.simulate import simulate
-from appell import numeric_model
 
 G = 9.81
 
@@ -95,9 +94,16 @@ def test_simulate_still_takes_the_documented_forms(pendulum):
     """Valid edge values stay valid: atol 0 and per state, max_step inf, Baumgarte (0, 0),
     an Event, a bare callable, params as a vector, initial as a mapping."""
     tension = lambda t, y, lam: lam["rod"] - 1.0  # noqa: E731
-    sol = sim(pendulum, t_end=0.2, atol=[0.0, 0.0, 1e-12, 1e-12], max_step=math.inf, t_eval=[0.0, 0.1, 0.2],
-              events=[Event("e", tension), tension], params=np.array([1.0, 1.0, G]),
-              initial={"x": math.sin(math.pi / 3), "y": -0.5, "x_dot": 0.0, "y_dot": 0.0})
+    sol = sim(
+        pendulum,
+        t_end=0.2,
+        atol=[0.0, 0.0, 1e-12, 1e-12],
+        max_step=math.inf,
+        t_eval=[0.0, 0.1, 0.2],
+        events=[Event("e", tension), tension],
+        params=np.array([1.0, 1.0, G]),
+        initial={"x": math.sin(math.pi / 3), "y": -0.5, "x_dot": 0.0, "y_dot": 0.0},
+    )
     assert sol.status == 0 and sol.t.tolist() == [0.0, 0.1, 0.2]
     # released at rest from 60 degrees: tension m g (3 cos(theta) - 2 cos(60 deg)), cos(theta) = -y
     y = sol.states["y"]
@@ -127,10 +133,14 @@ def test_derive_solve_sweep_load_model_misuse(pendulum, tmp_path):
         (lambda: appell.parameter_grid(3), "sweep specs"),
         (lambda: appell.compile_c(pendulum, "fortran"), "backend"),
         (lambda: appell.System(coordinates=3, kinetic_energy=sp.Symbol("x_dot") ** 2), "expected symbols"),
-        (lambda: appell.System(coordinates="x", parameters={"m": "heavy"}, kinetic_energy=sp.Symbol("x_dot") ** 2),
-         "parameter m"),
-        (lambda: appell.System(coordinates="x", parameters={"m": math.nan}, kinetic_energy=sp.Symbol("x_dot") ** 2),
-         "parameter m"),
+        (
+            lambda: appell.System(coordinates="x", parameters={"m": "heavy"}, kinetic_energy=sp.Symbol("x_dot") ** 2),
+            "parameter m",
+        ),
+        (
+            lambda: appell.System(coordinates="x", parameters={"m": math.nan}, kinetic_energy=sp.Symbol("x_dot") ** 2),
+            "parameter m",
+        ),
     ]
     pytest.importorskip("dask.distributed")
     from appell.simulation.sweep import sweep
@@ -164,15 +174,18 @@ def test_reserved_derivative_names_are_refused_in_the_api():
     acceleration of y: refused, naming the clash (also a program or a control so named)."""
     x, y, xd, yd, m = sp.symbols("x y x_dot y_dot m")
     T = m / 2 * (xd**2 + yd**2)
-    for params, clash in (({"x_dot": 1.0, "m": 1.0}, "'x_dot' is used twice: as a speed and as a parameter"),
-                          ({"y_ddot": 1.0, "m": 1.0}, "second time derivative of the coordinate 'y'"),
-                          ({"x_d3": 1.0, "m": 1.0}, "third time derivative of the coordinate 'x'"),
-                          ({"t": 1.0, "m": 1.0}, "'t' is reserved for time")):
+    for params, clash in (
+        ({"x_dot": 1.0, "m": 1.0}, "'x_dot' is used twice: as a speed and as a parameter"),
+        ({"y_ddot": 1.0, "m": 1.0}, "second time derivative of the coordinate 'y'"),
+        ({"x_d3": 1.0, "m": 1.0}, "third time derivative of the coordinate 'x'"),
+        ({"t": 1.0, "m": 1.0}, "'t' is reserved for time"),
+    ):
         with pytest.raises(ModelError, match=clash):
             appell.System(coordinates=(x, y), parameters=params, kinetic_energy=T)
     with pytest.raises(ModelError, match="program name 'x_ddot' is reserved"):
-        appell.System(coordinates=(x,), parameters={m: 1.0}, programs={"x_ddot": sp.Symbol("t")},
-                      kinetic_energy=m * xd**2 / 2)
+        appell.System(
+            coordinates=(x,), parameters={m: 1.0}, programs={"x_ddot": sp.Symbol("t")}, kinetic_energy=m * xd**2 / 2
+        )
     with pytest.raises(ModelError, match="'x_dot' is used twice: as a coordinate and as a speed"):
         appell.System(coordinates=(x, xd), parameters={m: 1.0}, kinetic_energy=m * xd**2 / 2)
     # parameters may share a stem with each other: k and k_dot are two constants
@@ -222,8 +235,9 @@ potential_energy = "m*g*z"
 z = 0.0
 "z'" = 0.0
 """)
-    result = CliRunner().invoke(cli, ["simulate", str(body_model), "--t-end", "0.1", "--set", "m=-2"],
-                                catch_exceptions=False)
+    result = CliRunner().invoke(
+        cli, ["simulate", str(body_model), "--t-end", "0.1", "--set", "m=-2"], catch_exceptions=False
+    )
     assert result.exit_code == 2 and "body 'ball' has mass -2 (m = -2)" in result.stderr
 
 
@@ -233,9 +247,14 @@ def test_inertia_check_looks_at_admissible_motions_only():
     -k x its motion is x = cos(sqrt(k/m) t) (closed form). Without the tie the massless
     direction is free: refused, naming it."""
     x, y, xd, yd, m, k = sp.symbols("x y x_dot y_dot m k")
-    tied = appell.System(coordinates=(x, y), parameters={m: 2.0, k: 8.0}, kinetic_energy=m * xd**2 / 2,
-                         potential_energy=k * x**2 / 2, constraints=(appell.holonomic("tie", y - x),),
-                         initial={"x": 1.0, "y": 1.0, "x_dot": 0.0, "y_dot": 0.0})
+    tied = appell.System(
+        coordinates=(x, y),
+        parameters={m: 2.0, k: 8.0},
+        kinetic_energy=m * xd**2 / 2,
+        potential_energy=k * x**2 / 2,
+        constraints=(appell.holonomic("tie", y - x),),
+        initial={"x": 1.0, "y": 1.0, "x_dot": 0.0, "y_dot": 0.0},
+    )
     sol = sim(appell.derive(tied), t_end=1.0, t_eval=[0.0, 0.5, 1.0])
     assert sol.status == 0
     # the default rtol 1e-9 over 1 s (2 rad of the oscillation): 1.4e-10 (measured)
@@ -245,13 +264,20 @@ def test_inertia_check_looks_at_admissible_motions_only():
         sim(appell.derive(free))
 
 
-@pytest.mark.parametrize("command", [["simulate", "car"], ["simulate", "pendulum"], ["report", "car"],
-                                     ["sweep", "pendulum", "--param", "m=1"]])
+@pytest.mark.parametrize(
+    "command",
+    [["simulate", "car"], ["simulate", "pendulum"], ["report", "car"], ["sweep", "pendulum", "--param", "m=1"]],
+)
 @pytest.mark.parametrize("t_end", ["inf", "nan"])
 def test_command_line_refuses_a_final_time_that_is_not_finite(command, t_end, tmp_path):
     """--t-end inf hung (pendulum) or was an internal OverflowError (car: output_step)."""
-    out = ["--out", str(tmp_path / "s.h5")] if command[0] == "sweep" else \
-        ["-o", str(tmp_path / "r.html")] if command[0] == "report" else []
+    out = (
+        ["--out", str(tmp_path / "s.h5")]
+        if command[0] == "sweep"
+        else ["-o", str(tmp_path / "r.html")]
+        if command[0] == "report"
+        else []
+    )
     result = CliRunner().invoke(cli, [*command, "--t-end", t_end, *out], catch_exceptions=False)
     assert result.exit_code == 2 and "t_end" in result.stderr and "finite" in result.stderr, result.output
     assert list(tmp_path.iterdir()) == []

@@ -20,15 +20,23 @@ PACKAGE = Path(appell.__file__).parent
 
 #: layer of each top-level module or subpackage of appell (higher imports lower)
 LAYERS = {
-    "errors": 0, "names": 0, "symbols": 0, "files": 0, "arguments": 0, "_cache": 0,
-    "model": 1, "rigid_tree": 1,
+    "errors": 0,
+    "names": 0,
+    "symbols": 0,
+    "files": 0,
+    "arguments": 0,
+    "_cache": 0,
+    "model": 1,
+    "rigid_tree": 1,
     "mechanism": 1.5,
     "examples": 2,
     "core": 3,
     "numerics": 4,
     "simulation": 5,
-    "control": 6, "reduction": 6,
-    "io": 7, "workflows": 7,
+    "control": 6,
+    "reduction": 6,
+    "io": 7,
+    "workflows": 7,
     "view": 1,
 }
 
@@ -46,7 +54,11 @@ def _imports(path: Path, module: str):
                 yield node.lineno, alias.name
         elif isinstance(node, ast.ImportFrom):
             if node.level:  # relative: resolve against the module's package
-                base = module.split(".")[: -node.level] if not path.name == "__init__.py" else module.split(".")[: len(module.split(".")) - node.level + 1]
+                base = (
+                    module.split(".")[: -node.level]
+                    if not path.name == "__init__.py"
+                    else module.split(".")[: len(module.split(".")) - node.level + 1]
+                )
                 target = ".".join(base + ([node.module] if node.module else []))
             else:
                 target = node.module or ""
@@ -99,11 +111,21 @@ def test_controlled_derivations_are_told_apart_by_their_type():
 
     plain, controlled = appell.derive(appell.load_model("pendulum")), derive_model(load_system("cart_pole"))
     assert isinstance(plain, Derived) and isinstance(controlled, Derived)
-    assert (is_controlled(plain), is_controlled(controlled), is_controlled(numeric_model(plain))) == (False, True, False)
-    probes = [f"{path.relative_to(PACKAGE)}:{node.lineno}" for path in PACKAGE.rglob("*.py")
-              for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
-              if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "hasattr" and len(node.args) == 2
-              and isinstance(node.args[1], ast.Constant) and node.args[1].value in ("control_laws", "dynamic_conditions")]
+    assert (is_controlled(plain), is_controlled(controlled), is_controlled(numeric_model(plain))) == (
+        False,
+        True,
+        False,
+    )
+    probes = [
+        f"{path.relative_to(PACKAGE)}:{node.lineno}"
+        for path in PACKAGE.rglob("*.py")
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.Call)
+        and getattr(node.func, "id", None) == "hasattr"
+        and len(node.args) == 2
+        and isinstance(node.args[1], ast.Constant)
+        and node.args[1].value in ("control_laws", "dynamic_conditions")
+    ]
     assert not probes, probes
 
 
@@ -158,8 +180,9 @@ def test_the_numeric_model_is_kept_outside_the_derivation():
     assert set(vars(d)) == before
     copy = pickle.loads(pickle.dumps(d))
     q, w = [0.6, -0.8], [0.3, 0.4]
-    assert np.allclose(numeric_model(copy).solve(0.0, q, w).multipliers, model.solve(0.0, q, w).multipliers,
-                       rtol=1e-14, atol=0)
+    assert np.allclose(
+        numeric_model(copy).solve(0.0, q, w).multipliers, model.solve(0.0, q, w).multipliers, rtol=1e-14, atol=0
+    )
     boundary.forget(d)
     assert numeric_model(d) is not model
     with pytest.raises(appell.ModelError, match="unknown numeric backend"):
@@ -194,11 +217,16 @@ def test_the_driver_reads_like_the_method():
     assert hasattr(driver._Motion, "on_singular") and dataclasses.is_dataclass(Mode)
     with pytest.raises(dataclasses.FrozenInstanceError):
         Mode().released = ("x",)
-    mutations = [f"{path.relative_to(PACKAGE)}:{node.lineno}" for path in PACKAGE.rglob("*.py")
-                 for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
-                 if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
-                 and node.func.attr == "update" and isinstance(node.func.value, ast.Attribute)
-                 and node.func.value.attr == "signs"]
+    mutations = [
+        f"{path.relative_to(PACKAGE)}:{node.lineno}"
+        for path in PACKAGE.rglob("*.py")
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Attribute)
+        and node.func.attr == "update"
+        and isinstance(node.func.value, ast.Attribute)
+        and node.func.value.attr == "signs"
+    ]
     assert not mutations, mutations
 
 
@@ -236,7 +264,7 @@ def _circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
     def visit(node):
         if node in stack:
-            circles.append(stack[stack.index(node):] + [node])
+            circles.append(stack[stack.index(node) :] + [node])
             return
         if node in seen:
             return
@@ -273,6 +301,10 @@ def test_the_interrupt_state_needs_the_standard_library_only():
         top = {alias.name.split(".")[0] for node in tree.body if isinstance(node, ast.Import) for alias in node.names}
         top |= {node.module.split(".")[0] for node in tree.body if isinstance(node, ast.ImportFrom)}
         assert top <= set(sys.stdlib_module_names) | {"appell_interrupts"}, (name, top)
-    every = {alias.name.split(".")[0] for node in ast.walk(ast.parse((SOURCE / "appell_interrupts.py").read_text()))
-             if isinstance(node, ast.Import) for alias in node.names}
+    every = {
+        alias.name.split(".")[0]
+        for node in ast.walk(ast.parse((SOURCE / "appell_interrupts.py").read_text()))
+        if isinstance(node, ast.Import)
+        for alias in node.names
+    }
     assert every <= set(sys.stdlib_module_names), every

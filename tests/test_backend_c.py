@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 import appell
-from appell.numerics.codegen import CompiledNumericModel, c_source, compile_c
+from appell import numeric_model
 from appell.examples import example_path
 from appell.examples.catalog import CATALOG, nlink_pendulum
+from appell.numerics.codegen import CompiledNumericModel, c_source, compile_c
 from appell.numerics.numeric import compile_model
-from appell import numeric_model
 
 pytestmark = pytest.mark.skipif(__import__("shutil").which("cc") is None, reason="no C compiler")
 
@@ -117,7 +117,9 @@ def test_fallback_without_compiler(monkeypatch):
     with pytest.warns(RuntimeWarning, match="no C compiler"):
         m = compile_c(d, "auto")
     assert not isinstance(m, CompiledNumericModel)
-    close(m.solve(0, [0.6, -0.8], [0.1, 0.2]).multipliers, numeric_model(d).solve(0, [0.6, -0.8], [0.1, 0.2]).multipliers)
+    close(
+        m.solve(0, [0.6, -0.8], [0.1, 0.2]).multipliers, numeric_model(d).solve(0, [0.6, -0.8], [0.1, 0.2]).multipliers
+    )
     with pytest.raises(appell.ModelError, match="needs a C compiler"):
         compile_c(d, "c")
     assert not isinstance(compile_model(d), CompiledNumericModel)
@@ -136,8 +138,9 @@ def test_simulation_with_c_backend():
         np.testing.assert_allclose(s2.multipliers[k], s1.multipliers[k], rtol=1e-8, atol=1e-8)
 
 
-@pytest.mark.parametrize("call", ["short q", "long w", "dependent out of range", "repeated dependent",
-                                  "short state", "short bias"])
+@pytest.mark.parametrize(
+    "call", ["short q", "long w", "dependent out of range", "repeated dependent", "short state", "short bias"]
+)
 def test_compiled_model_refuses_wrong_sizes_before_the_c_code_reads_them(call):
     """The C functions read exactly n_q, n, s entries: a wrong length or an index outside
     0..n-1 would be read out of bounds. Each is a ModelError naming the sizes instead."""
@@ -155,7 +158,9 @@ def test_compiled_model_refuses_wrong_sizes_before_the_c_code_reads_them(call):
     with pytest.raises(appell.ModelError):
         calls[call]()
     # and a right call still agrees with the NumPy split: rounding only (measured 4e-16 relative)
-    assert np.allclose(m.solve(0.0, q, w).multipliers, numeric_model(d).solve(0.0, q, w).multipliers, rtol=1e-12, atol=0)
+    assert np.allclose(
+        m.solve(0.0, q, w).multipliers, numeric_model(d).solve(0.0, q, w).multipliers, rtol=1e-12, atol=0
+    )
 
 
 def test_a_hostile_model_name_never_becomes_c_code():
@@ -164,8 +169,11 @@ def test_a_hostile_model_name_never_becomes_c_code():
     before, a name holding ``*/`` put the rest of the name into the compiled library."""
     from appell.numerics.codegen import c_source
 
-    text = example_path("pendulum").read_text().replace(
-        'name = "pendulum"', 'name = "p */ int injected = 1; /* \\n#include <stdio.h>"')
+    text = (
+        example_path("pendulum")
+        .read_text()
+        .replace('name = "pendulum"', 'name = "p */ int injected = 1; /* \\n#include <stdio.h>"')
+    )
     derivation = appell.derive(appell.loads_model(text))
     first = c_source(derivation).splitlines()[0]
     assert first == "/* appell: generated C for system p ?? int injected ? 1? ?? ??include ?stdio.h?; n = 2, s = 1 */"

@@ -31,8 +31,15 @@ from appell import numeric_model
 BENCH = Path(__file__).resolve().parent.parent / "benchmarks"
 sys.path.insert(0, str(BENCH))
 
-from models import (nlink_appell, nlink_kane_function, nlink_model_file, nlink_parameters,  # noqa: E402
-                    nlink_pinocchio_function, nlink_state, pinocchio_state)
+from models import (
+    nlink_appell,
+    nlink_kane_function,
+    nlink_model_file,
+    nlink_parameters,  # noqa: E402
+    nlink_pinocchio_function,
+    nlink_state,
+    pinocchio_state,
+)
 
 
 @pytest.fixture(scope="module")
@@ -41,8 +48,20 @@ def references(tmp_path_factory):
     if cc is None:
         pytest.skip("no C compiler")
     so = tmp_path_factory.mktemp("ref") / "nlink.so"
-    subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", str(so), str(BENCH / "reference" / "nlink.c"),
-                    str(BENCH / "reference" / "nlink_recursive.c"), "-lm"], check=True)
+    subprocess.run(
+        [
+            cc,
+            "-O2",
+            "-shared",
+            "-fPIC",
+            "-o",
+            str(so),
+            str(BENCH / "reference" / "nlink.c"),
+            str(BENCH / "reference" / "nlink_recursive.c"),
+            "-lm",
+        ],
+        check=True,
+    )
     return ctypes.CDLL(str(so))
 
 
@@ -137,19 +156,21 @@ def test_sympy_linearizer_of_the_rolling_disc_has_appells_eigenvalues():
     disc (free joint, rolling contact, steady motion solved) about upright rolling give the
     same lean-yaw eigenvalues on both sides of the critical spin rate sqrt(g / (3 r))
     (the closed form of ``tests/test_linearise.py``)."""
-    from models import rolling_disc_sympy_linear
-
     from appell.examples.mechanism_examples import rolling_disc
+    from models import rolling_disc_sympy_linear
 
     _, sympy_A = rolling_disc_sympy_linear()
     d = appell.derive(rolling_disc())
     r, m, g = 0.25, 1.5, 9.81
     for spin in (2.0, 3.6, 3.7, 6.0):
-        point = appell.steady_motion(d, {"alpha": 0.0, "float_z": r, "float_ry_dot": spin, "float_x_dot": -r * spin},
-                                     free=["float_x_dot", "float_y_dot", "float_z_dot", "float_z"],
-                                     ignore=["float_x", "float_y", "float_rz", "float_ry"])
+        point = appell.steady_motion(
+            d,
+            {"alpha": 0.0, "float_z": r, "float_ry_dot": spin, "float_x_dot": -r * spin},
+            free=["float_x_dot", "float_y_dot", "float_z_dot", "float_z"],
+            ignore=["float_x", "float_y", "float_rz", "float_ry"],
+        )
         mine = appell.linearise(d, point, ignore=["float_x", "float_y", "float_rz", "float_ry"]).eigenvalues()
         theirs = np.linalg.eigvals(np.array(sympy_A(spin, r, m, g), float))
         nonzero = lambda ev: sorted(ev[np.abs(ev) > 1e-9], key=lambda z: (z.real, z.imag))  # noqa: E731
         assert np.allclose(nonzero(mine), nonzero(theirs), rtol=1e-10, atol=1e-12)
-        assert (np.max(theirs.real) > 1e-9) == (spin ** 2 < g / (3 * r))
+        assert (np.max(theirs.real) > 1e-9) == (spin**2 < g / (3 * r))

@@ -30,8 +30,18 @@ R_REAR, R_FRONT = 0.3, 0.35
 
 #: speeds left free when the steady motion is found at each forward speed, and the
 #: coordinates and the speed (the rear wheel's rate, the forward speed) left out
-FREE = ["rear_x_dot", "rear_y_dot", "rear_z_dot", "rear_rz_dot", "rear_rx_dot", "rear_ry_dot", "front_spin_dot",
-        "steer_dot", "rear_z", "rear_ry"]
+FREE = [
+    "rear_x_dot",
+    "rear_y_dot",
+    "rear_z_dot",
+    "rear_rz_dot",
+    "rear_rx_dot",
+    "rear_ry_dot",
+    "front_spin_dot",
+    "steer_dot",
+    "rear_z",
+    "rear_ry",
+]
 IGNORE = ["rear_x", "rear_y", "rear_rz", "rear_spin", "front_spin", "rear_spin_dot"]
 
 
@@ -42,8 +52,12 @@ def bicycle():
 
 def upright(d, v):
     """The linear model about upright straight running at forward speed v."""
-    point = steady_motion(d, {"rear_z": -R_REAR, "rear_x_dot": v, "rear_spin_dot": -v / R_REAR,
-                              "front_spin_dot": -v / R_FRONT}, free=FREE, ignore=IGNORE[:5])
+    point = steady_motion(
+        d,
+        {"rear_z": -R_REAR, "rear_x_dot": v, "rear_spin_dot": -v / R_REAR, "front_spin_dot": -v / R_FRONT},
+        free=FREE,
+        ignore=IGNORE[:5],
+    )
     assert point["rear_x_dot"] == pytest.approx(v, abs=1e-12)
     return linearise(d, point, ignore=IGNORE, coordinates=["rear_rx", "steer"])
 
@@ -64,8 +78,7 @@ def test_the_benchmark_matrices(request, source):
     assert lm5.states == ("rear_rx", "steer", "rear_rx_dot", "steer_dot")
     M, C0, K0g, _ = lm0.second_order()
     M5, C5, K5, _ = lm5.second_order()
-    for got, published in ((M, M_PUB), (M5, M_PUB), (C5 / 5.0, C1_PUB), (K0g / G, K0_PUB),
-                           ((K5 - K0g) / 25.0, K2_PUB)):
+    for got, published in ((M, M_PUB), (M5, M_PUB), (C5 / 5.0, C1_PUB), (K0g / G, K0_PUB), ((K5 - K0g) / 25.0, K2_PUB)):
         assert np.abs(got - published).max() <= 1e-12 * np.abs(published).max(), (got, published)
     assert np.abs(C0).max() <= 1e-12
 
@@ -91,9 +104,16 @@ def test_weave_and_capsize_speeds(bicycle):
     weave speed (an oscillatory pair turns stable) and the capsize speed (a real mode turns
     unstable) to 1e-10 m/s."""
     rates = -np.linspace(3.0, 7.0, 9)[::-1] / R_REAR  # increasing rates: decreasing speeds
-    sweep = stability_sweep(bicycle, "rear_spin_dot", rates,
-                            at={"rear_z": -R_REAR, "rear_x_dot": 7.0, "front_spin_dot": -7.0 / R_FRONT},
-                            free=FREE, ignore=IGNORE, coordinates=["rear_rx", "steer"], xtol=1e-13)
+    sweep = stability_sweep(
+        bicycle,
+        "rear_spin_dot",
+        rates,
+        at={"rear_z": -R_REAR, "rear_x_dot": 7.0, "front_spin_dot": -7.0 / R_FRONT},
+        free=FREE,
+        ignore=IGNORE,
+        coordinates=["rear_rx", "steer"],
+        xtol=1e-13,
+    )
     speeds = sorted(-R_REAR * c.value for c in sweep.crossings)
     kinds = {round(-R_REAR * c.value, 6): c.kind for c in sweep.crossings}
     assert len(speeds) == 2
@@ -108,8 +128,8 @@ def test_the_json_document_reads_back_exactly(bicycle_file):
     shared subexpression once (``exact_shared``) and reads back structurally equal."""
     import json
 
-    from appell.io.printing import JSON_TREE_LIMIT, derivation_json, read_json
     from appell.core.simplification import tree_size
+    from appell.io.printing import JSON_TREE_LIMIT, derivation_json, read_json
 
     reactions = bicycle_file.reactions.as_dict()
     assert max(tree_size(e, JSON_TREE_LIMIT) for e in reactions.values()) > JSON_TREE_LIMIT
@@ -136,8 +156,9 @@ def test_a_sweep_over_the_files_speed_parameter_keeps_the_conserved_speed(bicycl
     from appell.io.cli import stability_analysis
 
     if grid.startswith("21"):
-        sweep = stability_sweep(bicycle_file, "v", np.linspace(0.0, 10.0, 21), ignore=IGNORE[:5],
-                                coordinates=["rear_rx", "steer"])
+        sweep = stability_sweep(
+            bicycle_file, "v", np.linspace(0.0, 10.0, 21), ignore=IGNORE[:5], coordinates=["rear_rx", "steer"]
+        )
     else:  # as 'appell stability benchmark_bicycle' runs it: v = 0:10:201, the chart chosen by QR
         sweep = stability_analysis(bicycle_file)
         assert sweep.values.size == 201
@@ -155,8 +176,12 @@ def test_cyclic_finds_the_wheel_angles_and_the_heading(bicycle):
     of x and y); the steady motion at 5 m/s is found with the same 'cyclic', and the
     eigenvalues are the published ones (1e-10)."""
     v = 5.0
-    point = steady_motion(bicycle, {"rear_z": -R_REAR, "rear_x_dot": v, "rear_spin_dot": -v / R_REAR,
-                                    "front_spin_dot": -v / R_FRONT}, free=FREE, ignore="cyclic")
+    point = steady_motion(
+        bicycle,
+        {"rear_z": -R_REAR, "rear_x_dot": v, "rear_spin_dot": -v / R_REAR, "front_spin_dot": -v / R_FRONT},
+        free=FREE,
+        ignore="cyclic",
+    )
     lm = linearise(bicycle, point, ignore="cyclic")
     assert set(lm.ignored) == set(IGNORE[:5])
     # the forward speed stays a state here (its zero eigenvalue is the sixth)
@@ -171,7 +196,11 @@ def test_a_coordinate_that_matters_cannot_be_left_out(bicycle):
     refused with the coupling named, instead of a silently wrong linear model."""
     from appell.errors import ModelError
 
-    point = steady_motion(bicycle, {"rear_z": -R_REAR, "rear_x_dot": 5.0, "rear_spin_dot": -5.0 / R_REAR,
-                                    "front_spin_dot": -5.0 / R_FRONT}, free=FREE, ignore=IGNORE[:5])
+    point = steady_motion(
+        bicycle,
+        {"rear_z": -R_REAR, "rear_x_dot": 5.0, "rear_spin_dot": -5.0 / R_REAR, "front_spin_dot": -5.0 / R_FRONT},
+        free=FREE,
+        ignore=IGNORE[:5],
+    )
     with pytest.raises(ModelError, match="rear_rx cannot be left out"):
         linearise(bicycle, point, ignore=IGNORE[:5] + ["rear_rx"])

@@ -28,12 +28,11 @@ import warnings
 import pytest
 from click.testing import CliRunner
 
-from appell import derive, loads_model
+from appell import derive, loads_model, numeric_model
 from appell.errors import ComputationError, ModelError, ResourceError
 from appell.examples import example_path
 from appell.io.cli import cli
 from processes import env_with_src
-from appell import numeric_model
 
 PENDULUM = example_path("pendulum").read_text(encoding="utf-8")
 FOUR_BAR = example_path("four_bar").read_text(encoding="utf-8")
@@ -119,8 +118,11 @@ t_end = 1.0
 def test_an_infinite_servo_residual_is_named_not_called_a_violation(tmp_path):
     """A generalized force of 1e308 m2 on the tracked mass: the dynamic condition (2.3) of the
     servo constraint is infinite at the start; refused naming it, not as a violation to complete."""
-    text = example_path("spring_masses").read_text(encoding="utf-8").replace(
-        'generalized_forces = ["u", 0]', 'generalized_forces = ["u", "1e308*m2"]')
+    text = (
+        example_path("spring_masses")
+        .read_text(encoding="utf-8")
+        .replace('generalized_forces = ["u", 0]', 'generalized_forces = ["u", "1e308*m2"]')
+    )
     for extra in ((), ("--complete",)):
         result, caught = run("simulate", write(tmp_path, text), *extra)
         assert result.exit_code == 2, result.output
@@ -131,40 +133,91 @@ def test_an_infinite_servo_residual_is_named_not_called_a_violation(tmp_path):
 # ------------------------------------------------------------------ 2. values of a model file
 FIELD_CASES = [
     # (document, original, replacement, field named, what the message says)
-    (FOUR_BAR, "point_a = [1.0, 0, 0]", 'point_a = ["sqrt(-1)", 0, 0]', "closures[0].point_a[0] (closure 'C')",
-     "the value is complex ('sqrt(-1)' reads I)"),
-    (FOUR_BAR, "point_a = [1.0, 0, 0]", 'point_a = ["log(-1)", 0, 0]', "closures[0].point_a[0] (closure 'C')",
-     "complex"),
-    (FOUR_BAR, "point_b = [0.8, 0, 0]", 'point_b = [0.8, "exp(1000)", 0]', "closures[0].point_b[1] (closure 'C')",
-     "exp(1000) is not a finite real number"),
+    (
+        FOUR_BAR,
+        "point_a = [1.0, 0, 0]",
+        'point_a = ["sqrt(-1)", 0, 0]',
+        "closures[0].point_a[0] (closure 'C')",
+        "the value is complex ('sqrt(-1)' reads I)",
+    ),
+    (
+        FOUR_BAR,
+        "point_a = [1.0, 0, 0]",
+        'point_a = ["log(-1)", 0, 0]',
+        "closures[0].point_a[0] (closure 'C')",
+        "complex",
+    ),
+    (
+        FOUR_BAR,
+        "point_b = [0.8, 0, 0]",
+        'point_b = [0.8, "exp(1000)", 0]',
+        "closures[0].point_b[1] (closure 'C')",
+        "exp(1000) is not a finite real number",
+    ),
     (FOUR_BAR, "mass = 1.0", "mass = 1e999", "bodies[0].mass (body 'crank')", "not a finite number"),
     (FOUR_BAR, "mass = 1.0", 'mass = "exp(1000)"', "bodies[0].mass (body 'crank')", "not a finite real number"),
     (FOUR_BAR, "mass = 1.0", 'mass = "asin(2)"', "bodies[0].mass (body 'crank')", "asin(2)"),
-    (FOUR_BAR, "inertia = [0, 0, 0.013333333333333336]", 'inertia = [0, 0, "sqrt(-2)"]',
-     "bodies[0].inertia[2] (body 'crank')", "complex"),
+    (
+        FOUR_BAR,
+        "inertia = [0, 0, 0.013333333333333336]",
+        'inertia = [0, 0, "sqrt(-2)"]',
+        "bodies[0].inertia[2] (body 'crank')",
+        "complex",
+    ),
     (FOUR_BAR, "com = [0.2, 0, 0]", 'com = ["1e999", 0, 0]', "bodies[0].com[0] (body 'crank')", "floating-point range"),
     (FOUR_BAR, "origin = [0.4, 0, 0]", 'origin = [0.4, "log(-2)", 0]', "joints[1].origin[1] (joint 'B')", "complex"),
     (FOUR_BAR, "axis = [0, 0, 1]", 'axis = [0, 0, "sqrt(-1)"]', "joints[0].axis[2] (joint 'A')", "complex"),
-    (FOUR_BAR, "gravity = [0, -9.81, 0]", 'gravity = [0, "-9.81*exp(800)", 0]', "mechanism.gravity[1]",
-     "not a finite real number"),
-    (PENDULUM, 'm = { value = 1.0, unit = "kg" }', 'm = { value = "exp(1000)", unit = "kg" }', "parameters.m.value",
-     "not a finite real number"),
-    (PENDULUM, 'm = { value = 1.0, unit = "kg" }', 'm = { value = 1e999, unit = "kg" }', "parameters.m.value",
-     "not a finite number"),
-    (PENDULUM, 'm = { value = 1.0, unit = "kg" }', 'm = { value = "sqrt(-1)", unit = "kg" }', "parameters.m.value",
-     "complex"),
+    (
+        FOUR_BAR,
+        "gravity = [0, -9.81, 0]",
+        'gravity = [0, "-9.81*exp(800)", 0]',
+        "mechanism.gravity[1]",
+        "not a finite real number",
+    ),
+    (
+        PENDULUM,
+        'm = { value = 1.0, unit = "kg" }',
+        'm = { value = "exp(1000)", unit = "kg" }',
+        "parameters.m.value",
+        "not a finite real number",
+    ),
+    (
+        PENDULUM,
+        'm = { value = 1.0, unit = "kg" }',
+        'm = { value = 1e999, unit = "kg" }',
+        "parameters.m.value",
+        "not a finite number",
+    ),
+    (
+        PENDULUM,
+        'm = { value = 1.0, unit = "kg" }',
+        'm = { value = "sqrt(-1)", unit = "kg" }',
+        "parameters.m.value",
+        "complex",
+    ),
     (PENDULUM, 'm = { value = 1.0, unit = "kg" }', "m = 1" + "0" * 400, "parameters.m", "floating-point range"),
-    (PENDULUM, 'potential_energy = "m*g*y"', 'potential_energy = "m*g*y*exp(1000)"', "mechanics.potential_energy",
-     "exp(1000) is not a finite real number"),
-    (PENDULUM, 'potential_energy = "m*g*y"', 'potential_energy = "m*g*y*sqrt(-1)"', "mechanics.potential_energy",
-     "complex"),
+    (
+        PENDULUM,
+        'potential_energy = "m*g*y"',
+        'potential_energy = "m*g*y*exp(1000)"',
+        "mechanics.potential_energy",
+        "exp(1000) is not a finite real number",
+    ),
+    (
+        PENDULUM,
+        'potential_energy = "m*g*y"',
+        'potential_energy = "m*g*y*sqrt(-1)"',
+        "mechanics.potential_energy",
+        "complex",
+    ),
     (PENDULUM, 'x = "sin(pi/3)"', 'x = "sqrt(-1)"', "initial.x", "complex"),
     (PENDULUM, "t_end = 5.0", 't_end = "exp(1000)"', "simulation.t_end", "not a finite real number"),
 ]
 
 
-@pytest.mark.parametrize("doc, old, new, field, says", FIELD_CASES,
-                         ids=[f"{c[3]}={c[2].split('=', 1)[1].strip()[:20]}" for c in FIELD_CASES])
+@pytest.mark.parametrize(
+    "doc, old, new, field, says", FIELD_CASES, ids=[f"{c[3]}={c[2].split('=', 1)[1].strip()[:20]}" for c in FIELD_CASES]
+)
 def test_complex_infinite_or_overflowing_values_name_the_field_and_line(doc, old, new, field, says):
     assert old in doc
     text = doc.replace(old, new, 1)
@@ -192,12 +245,16 @@ def test_the_mechanism_builder_refuses_complex_and_infinite_values():
 
     from appell.mechanism import Mechanism
 
-    cases = [(lambda m: m.body("b", sp.I), "mass of body 'b' is complex"),
-             (lambda m: m.body("b", sp.exp(1000)), "mass of body 'b': exp(1000) is not a finite real number"),
-             (lambda m: m.body("b", 1, inertia=(1, 1, sp.sqrt(-1))), "inertia of body 'b' is complex"),
-             (lambda m: m.body("b", 1, com=(sp.log(-1), 0, 0)), "mass centre of body 'b' is complex"),
-             (lambda m: (m.body("b", 1), m.revolute("j", "ground", "b", origin=(1j, 0, 0))),
-              "origin of revolute joint 'j' is complex")]
+    cases = [
+        (lambda m: m.body("b", sp.I), "mass of body 'b' is complex"),
+        (lambda m: m.body("b", sp.exp(1000)), "mass of body 'b': exp(1000) is not a finite real number"),
+        (lambda m: m.body("b", 1, inertia=(1, 1, sp.sqrt(-1))), "inertia of body 'b' is complex"),
+        (lambda m: m.body("b", 1, com=(sp.log(-1), 0, 0)), "mass centre of body 'b' is complex"),
+        (
+            lambda m: (m.body("b", 1), m.revolute("j", "ground", "b", origin=(1j, 0, 0))),
+            "origin of revolute joint 'j' is complex",
+        ),
+    ]
     for build, says in cases:
         with pytest.raises(ModelError) as exc:
             build(Mechanism("t"))
@@ -284,9 +341,14 @@ def test_a_hundred_million_samples_under_an_address_space_limit_fail_at_once():
     def limit():
         resource.setrlimit(resource.RLIMIT_AS, (4_000_000 * 1024, resource.getrlimit(resource.RLIMIT_AS)[1]))
 
-    done = subprocess.run([sys.executable, "-m", "appell.io.cli", "simulate", "pendulum", "--samples", "100000000",
-                           "--backend", "numpy"], capture_output=True, text=True, timeout=300, env=env_with_src(),
-                          preexec_fn=limit)
+    done = subprocess.run(
+        [sys.executable, "-m", "appell.io.cli", "simulate", "pendulum", "--samples", "100000000", "--backend", "numpy"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env_with_src(),
+        preexec_fn=limit,
+    )
     assert done.returncode == 1, done.stderr
     assert done.stderr.startswith("error: out of memory: recording 'pendulum' at 100,000,000 output times")
     assert "ulimit -v" in done.stderr and "Traceback" not in done.stderr
@@ -326,9 +388,15 @@ def interrupted(args, delay: float, timeout: float = 120):
 
     started, mark = os.pipe()
     try:
-        proc = subprocess.Popen([sys.executable, "-c", ENTRY.format(fd=mark), *map(str, args)],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env_with_src(),
-                                start_new_session=True, pass_fds=(mark,))
+        proc = subprocess.Popen(
+            [sys.executable, "-c", ENTRY.format(fd=mark), *map(str, args)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env_with_src(),
+            start_new_session=True,
+            pass_fds=(mark,),
+        )
     finally:
         os.close(mark)
     try:
@@ -374,17 +442,23 @@ sys.exit(appell_entry.main(["--version"]))
 
 
 def test_ctrl_c_inside_an_extensions_import_ends_as_interrupted():
-    proc = subprocess.run([sys.executable, "-c", IMPORT_INTERRUPTED], capture_output=True, text=True,
-                          env=env_with_src(), timeout=120, preexec_fn=lambda: signal.signal(signal.SIGINT,
-                                                                                            signal.SIG_DFL))
+    proc = subprocess.run(
+        [sys.executable, "-c", IMPORT_INTERRUPTED],
+        capture_output=True,
+        text=True,
+        env=env_with_src(),
+        timeout=120,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     assert_interrupted(proc.returncode, proc.stderr)
 
 
 @pytest.mark.parametrize("delay", [0.05, 0.3, 1.0, 3.0])
 def test_ctrl_c_while_simulating_from_the_import_on(tmp_path, delay):
     """From the import of appell (the first second) through the derivation to the run."""
-    code, err = interrupted(["simulate", "pendulum", "--t-end", "100000", "--backend", "numpy", "--out",
-                             tmp_path / "x.csv"], delay)
+    code, err = interrupted(
+        ["simulate", "pendulum", "--t-end", "100000", "--backend", "numpy", "--out", tmp_path / "x.csv"], delay
+    )
     assert_interrupted(code, err)
     assert list(tmp_path.iterdir()) == []  # neither the file nor a temporary one
 
@@ -402,8 +476,23 @@ def test_ctrl_c_during_a_sweep_stops_the_workers_quietly(tmp_path, delay):
     partial file for --resume."""
     pytest.importorskip("dask.distributed")
     out = tmp_path / "s.h5"
-    code, err = interrupted(["sweep", "pendulum", "--param", "m=1:2:40", "--t-end", "20", "--workers", "2",
-                             "--backend", "numpy", "--out", out], delay)
+    code, err = interrupted(
+        [
+            "sweep",
+            "pendulum",
+            "--param",
+            "m=1:2:40",
+            "--t-end",
+            "20",
+            "--workers",
+            "2",
+            "--backend",
+            "numpy",
+            "--out",
+            out,
+        ],
+        delay,
+    )
     assert_interrupted(code, err)
     assert not out.exists()
     assert {p.name for p in tmp_path.iterdir()} <= {"s.h5.partial"}
@@ -439,8 +528,11 @@ def test_the_energy_balance_of_a_motion_too_fast_for_its_span_is_refused_in_seco
     from appell.numerics.budget import PROJECT_EVERY
     from appell.simulation.energy_balance import MAX_EVALUATIONS, energy_balance
 
-    text = example_path("bouncing_ball").read_text(encoding="utf-8").replace(
-        'potential_energy = "m*g*y"', 'potential_energy = "m*g*y + (sin(x) + cos(x) + 1)^30"')
+    text = (
+        example_path("bouncing_ball")
+        .read_text(encoding="utf-8")
+        .replace('potential_energy = "m*g*y"', 'potential_energy = "m*g*y + (sin(x) + cos(x) + 1)^30"')
+    )
     assert "(sin(x) + cos(x) + 1)^30" in text
     d = derive(loads_model(text))
     with pytest.raises(ComputationError) as info:
@@ -476,8 +568,7 @@ def test_a_ctrl_c_swallowed_by_a_finalizer_still_ends_the_command_with_130(tmp_p
     script = tmp_path / "rescue.py"
     script.write_text(RESCUE)
     start = time.perf_counter()
-    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env_with_src(),
-                          timeout=60)
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env_with_src(), timeout=60)
     assert done.returncode == 130, done.stderr
     assert time.perf_counter() - start < 20
     assert "swallowed" in done.stdout and done.stderr.strip().endswith("error: interrupted"), done.stderr

@@ -6,17 +6,16 @@ the printed paper in (1.9) and (1.10). The closed forms are written out here fro
 note, not taken from appell.
 """
 
-import appell
 import json
 
 import numpy as np
 import pytest
 import sympy as sp
 
-from appell import derive, load_model
+import appell
+from appell import derive, load_model, numeric_model
 from appell.examples import catalog, example_path
 from appell.io.printing import read_json
-from appell import numeric_model
 
 PARAMS = [  # M, J, a, b, F: the example's values and another car
     {"M": 1200.0, "J": 1500.0, "a": 1.2, "b": 1.5, "F": 800.0},
@@ -73,9 +72,19 @@ def _symbolic_results(exprs, P, t, q, w):
     """Evaluate derived expressions: phi'' from the reduced equation (1.4) (linear in it),
     then x'', y'' from f = 0, then the reaction formulas (1.5)."""
     vals = {sp.Symbol(k): v for k, v in P.items()}
-    vals.update({sp.Symbol("x"): q[0], sp.Symbol("y"): q[1], sp.Symbol("phi"): q[2], sp.Symbol("x_dot"): w[0],
-                 sp.Symbol("y_dot"): w[1], sp.Symbol("phi_dot"): w[2], sp.Symbol("theta"): 0.2 + 0.05 * t,
-                 sp.Symbol("theta_dot"): 0.05, sp.Symbol("t"): t})
+    vals.update(
+        {
+            sp.Symbol("x"): q[0],
+            sp.Symbol("y"): q[1],
+            sp.Symbol("phi"): q[2],
+            sp.Symbol("x_dot"): w[0],
+            sp.Symbol("y_dot"): w[1],
+            sp.Symbol("phi_dot"): w[2],
+            sp.Symbol("theta"): 0.2 + 0.05 * t,
+            sp.Symbol("theta_dot"): 0.05,
+            sp.Symbol("t"): t,
+        }
+    )
     xdd, ydd, phidd = sp.symbols("x_ddot y_ddot phi_ddot")
     dep = exprs["dependent_accelerations"]
     eq = exprs["reduced_equations"][0].xreplace({xdd: dep["x_ddot"], ydd: dep["y_ddot"]}).xreplace(vals)
@@ -122,8 +131,10 @@ def test_car_reduced_equation_force_side_is_F_l_cot_theta_not_zero_as_printed_in
     #   + y'' [a cos(theta) sin(phi) + b sin(phi+theta)]} = F l ctg(theta)
     M, J = sp.symbols("M J")
     xdd, ydd, phidd = sp.symbols("x_ddot y_ddot phi_ddot")
-    lhs = J * phidd + M / sp.sin(th) * (xdd * (b * sp.cos(phi + th) + a * sp.cos(th) * sp.cos(phi))
-                                        + ydd * (a * sp.cos(th) * sp.sin(phi) + b * sp.sin(phi + th)))
+    lhs = J * phidd + M / sp.sin(th) * (
+        xdd * (b * sp.cos(phi + th) + a * sp.cos(th) * sp.cos(phi))
+        + ydd * (a * sp.cos(th) * sp.sin(phi) + b * sp.sin(phi + th))
+    )
     assert sp.simplify(d.reduced.equations[0] - (lhs - F * (a + b) * sp.cot(th))) == 0
 
 

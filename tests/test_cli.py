@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import csv
 import json
-import re
 import math
+import re
 import subprocess
 import sys
 
@@ -20,8 +20,8 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
-from appell.io.cli import cli
 from appell.examples import example_path, list_benchmarks, list_examples
+from appell.io.cli import cli
 
 BAD_TOML = """\
 [model]
@@ -201,8 +201,15 @@ def test_derive_json_keys_and_parsable_expressions():
     result = run("derive", example_path("pendulum"), "--format", "json")
     assert result.exit_code == 0, result.output
     doc = json.loads(result.output)
-    for key in ("coordinates", "speeds", "dependent", "reduced_equations", "multipliers", "controls",
-                "first_integrals"):
+    for key in (
+        "coordinates",
+        "speeds",
+        "dependent",
+        "reduced_equations",
+        "multipliers",
+        "controls",
+        "first_integrals",
+    ):
         assert key in doc, key
     assert doc["coordinates"] == ["x", "y"] and doc["speeds"] == ["x_dot", "y_dot"]
     assert set(doc["multipliers"]) == {"rod"} and doc["controls"] == {}
@@ -215,9 +222,17 @@ def test_derive_json_keys_and_parsable_expressions():
     lam = sp.sympify(doc["multipliers"]["rod"])
     x0, y0 = math.sin(math.pi / 3), -math.cos(math.pi / 3)
     # at rest the bob accelerates along the tangent with g sin(theta)
-    at = {"x": x0, "y": y0, "x_dot": 0, "y_dot": 0, "m": 1, "L": 1, "g": 9.81,
-          "x_ddot": -9.81 * math.sin(math.pi / 3) * math.cos(math.pi / 3),
-          "y_ddot": -9.81 * math.sin(math.pi / 3) ** 2}
+    at = {
+        "x": x0,
+        "y": y0,
+        "x_dot": 0,
+        "y_dot": 0,
+        "m": 1,
+        "L": 1,
+        "g": 9.81,
+        "x_ddot": -9.81 * math.sin(math.pi / 3) * math.cos(math.pi / 3),
+        "y_ddot": -9.81 * math.sin(math.pi / 3) ** 2,
+    }
     value = float(lam.subs({sp.Symbol(k): v for k, v in at.items()}))
     # the printed formula at exact accelerations: rounding only, a few eps
     assert value == pytest.approx(9.81 * math.cos(math.pi / 3), rel=1e-12)
@@ -257,8 +272,22 @@ def test_simulate_car_csv_header_order(tmp_path):
     result = run("simulate", "car", "--t-end", "0.5", "--out", out)
     assert result.exit_code == 0, result.output
     header, data = read_csv(out)
-    assert header == ["t", "x", "y", "phi", "x_dot", "y_dot", "phi_dot", "x_ddot", "y_ddot", "phi_ddot",
-                      "lambda_rear", "lambda_front", "residual_rear", "residual_front"]
+    assert header == [
+        "t",
+        "x",
+        "y",
+        "phi",
+        "x_dot",
+        "y_dot",
+        "phi_dot",
+        "x_ddot",
+        "y_ddot",
+        "phi_ddot",
+        "lambda_rear",
+        "lambda_front",
+        "residual_rear",
+        "residual_front",
+    ]
     # the velocity constraints' drift at the car's rtol 1e-9 over 0.5 s (measured 8e-12)
     assert np.all(np.abs(data[:, -2:]) < 1e-8), "the constraints hold along the motion"
 
@@ -280,8 +309,22 @@ def test_t_end_zero_gives_the_initial_row(tmp_path):
 def test_set_overrides_parameters_and_initial_values(tmp_path):
     out = tmp_path / "start.csv"
     theta = 0.4
-    result = run("simulate", "pendulum", "--t-end", "0", "--out", out, "--set", "m=2.5", "--set", "g=3",
-                 "--set", f"x={math.sin(theta)!r}", "--set", f"y={-math.cos(theta)!r}")
+    result = run(
+        "simulate",
+        "pendulum",
+        "--t-end",
+        "0",
+        "--out",
+        out,
+        "--set",
+        "m=2.5",
+        "--set",
+        "g=3",
+        "--set",
+        f"x={math.sin(theta)!r}",
+        "--set",
+        f"y={-math.cos(theta)!r}",
+    )
     assert result.exit_code == 0, result.output
     header, data = read_csv(out)
     row = dict(zip(header, data[0]))
@@ -358,8 +401,16 @@ def test_servo_model_derive_json_controls_and_simulate(tmp_path):
     result = run("simulate", model, "--t-end", "0.5", "--out", out)
     assert result.exit_code == 0, result.output + result.stderr
     header, data = read_csv(out)
-    assert header[-8:] == ["lambda_roll_x", "lambda_roll_y", "control_u", "control_v",
-                           "residual_roll_x", "residual_roll_y", "residual_circle_x", "residual_circle_y"]
+    assert header[-8:] == [
+        "lambda_roll_x",
+        "lambda_roll_y",
+        "control_u",
+        "control_v",
+        "residual_roll_x",
+        "residual_roll_y",
+        "residual_circle_x",
+        "residual_circle_y",
+    ]
     col = {name: data[:, i] for i, name in enumerate(header)}
     # the formulas at each row's own state: rounding only (measured 4e-9 of these tolerances)
     np.testing.assert_allclose(col["control_u"], -3.5 * 4.0 * col["xi"], rtol=1e-6, atol=1e-9)
@@ -372,7 +423,7 @@ def test_check_every_bundled_example(name):
     result = run("check", name)
     assert result.exit_code == 0, result.output + result.stderr
     assert "passed" in result.output and "energy balance" in result.output
-    assert ("multipliers" in result.output or "lambda_" in result.output or "[lagrange]" in result.output)
+    assert "multipliers" in result.output or "lambda_" in result.output or "[lagrange]" in result.output
 
 
 # ------------------------------------------------------------------ report
@@ -416,8 +467,11 @@ def test_unknown_option_is_bad_input():
 def test_failing_computation_exits_1_without_output(tmp_path):
     model = tmp_path / "no_solution.toml"
     model.write_text(NO_SOLUTION)
-    for command in (["check", model], ["simulate", model, "--t-end", "1", "--out", tmp_path / "out.csv"],
-                    ["report", model, "-o", tmp_path / "out.html"]):
+    for command in (
+        ["check", model],
+        ["simulate", model, "--t-end", "1", "--out", tmp_path / "out.csv"],
+        ["report", model, "-o", tmp_path / "out.html"],
+    ):
         result = run(*command)
         assert result.exit_code == 1, (command, result.output, result.stderr)
         assert result.stderr.startswith("error: Newton's method")
@@ -440,19 +494,29 @@ def test_failed_simulation_keeps_its_motion_beside_the_target(tmp_path):
         assert f"is in {tmp_path / (target.stem + '.failed.csv')}" in result.stderr
     assert not out.exists() and not plot.exists()
     assert kept.read_text() == "previous result\n"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fails.toml", "kept.csv", "kept.failed.csv",
-                                                         "new.failed.csv", "new.failed.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "fails.toml",
+        "kept.csv",
+        "kept.failed.csv",
+        "new.failed.csv",
+        "new.failed.png",
+    ]
     times = np.atleast_1d(np.loadtxt(tmp_path / "new.failed.csv", delimiter=",", skiprows=1, usecols=0))
     assert times[0] == 0.0 and times[-1] <= 0.5
 
 
 def test_installed_entry_point_exit_codes(tmp_path):
     """The real process: ``python -m appell.io.cli`` (what the ``appell`` script runs)."""
-    bad = subprocess.run([sys.executable, "-m", "appell.io.cli", "check", str(tmp_path / "missing.toml")],
-                         capture_output=True, text=True, timeout=120)
+    bad = subprocess.run(
+        [sys.executable, "-m", "appell.io.cli", "check", str(tmp_path / "missing.toml")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert bad.returncode == 2 and bad.stderr.startswith("error: ") and "Traceback" not in bad.stderr
-    usage = subprocess.run([sys.executable, "-m", "appell.io.cli", "frobnicate"], capture_output=True, text=True,
-                           timeout=120)
+    usage = subprocess.run(
+        [sys.executable, "-m", "appell.io.cli", "frobnicate"], capture_output=True, text=True, timeout=120
+    )
     assert usage.returncode == 2 and "No such command" in usage.stderr
 
 
@@ -464,8 +528,22 @@ def test_sweep_records_each_run_and_the_extreme_tension(tmp_path):
     pytest.importorskip("dask.distributed")
     h5py = pytest.importorskip("h5py")
     out = tmp_path / "sweep.h5"
-    result = run("sweep", "pendulum", "--param", "m=0.5:2:4", "--param", "L=1,2", "--t-end", "1.5",
-                 "--samples", "301", "--workers", "1", "--out", out)
+    result = run(
+        "sweep",
+        "pendulum",
+        "--param",
+        "m=0.5:2:4",
+        "--param",
+        "L=1,2",
+        "--t-end",
+        "1.5",
+        "--samples",
+        "301",
+        "--workers",
+        "1",
+        "--out",
+        out,
+    )
     assert result.exit_code == 1, result.output
     assert "4 of 8 runs of the sweep failed" in result.output
     summary = json.loads((tmp_path / "sweep.h5.summary.json").read_text())
@@ -602,9 +680,26 @@ def test_the_mjcf_readers_options_on_the_command_line(tmp_path):
     motions = {}
     for armature in ("rotors", "energy"):
         path = tmp_path / f"{armature}.csv"
-        result = runner.invoke(cli, ["simulate", str(model), "--t-end", "0.3", "--output-step", "0.05",
-                                     "--mjcf", "frictionloss=ignore", "--mjcf", f"armature={armature}",
-                                     "--backend", "numpy", "--no-cache", "--out", str(path)])
+        result = runner.invoke(
+            cli,
+            [
+                "simulate",
+                str(model),
+                "--t-end",
+                "0.3",
+                "--output-step",
+                "0.05",
+                "--mjcf",
+                "frictionloss=ignore",
+                "--mjcf",
+                f"armature={armature}",
+                "--backend",
+                "numpy",
+                "--no-cache",
+                "--out",
+                str(path),
+            ],
+        )
         assert result.exit_code == 0, result.output
         assert "frictionloss (on 1 joints and tendons)" in result.output  # the note: left out, and said so
         motions[armature] = _csv_columns(path)
@@ -613,8 +708,9 @@ def test_the_mjcf_readers_options_on_the_command_line(tmp_path):
     for name in ("shoulder", "elbow", "shoulder_dot", "elbow_dot"):
         assert np.allclose(rotors[name], energy[name], rtol=0, atol=1e-8), name
     assert abs(energy["shoulder"][-1]) > 1e-2  # it fell from the horizontal
-    twin = appell.simulate(appell.derive(mjcf_system(model, frictionloss="ignore", armature="energy")), 0.3,
-                           output_step=0.05)
+    twin = appell.simulate(
+        appell.derive(mjcf_system(model, frictionloss="ignore", armature="energy")), 0.3, output_step=0.05
+    )
     for name in ("shoulder", "elbow"):
         assert np.allclose(energy[name], twin[name], rtol=0, atol=1e-8), name
     result = runner.invoke(cli, ["simulate", str(model), "--mjcf", "friction=ignore"])
@@ -634,9 +730,17 @@ def test_go2_as_shipped_is_refused_for_its_frictionloss_and_read_with_the_flag(t
     import os
     from pathlib import Path
 
-    shared = next((base for base in (Path(__file__).resolve().parents[2] / "shared",
-                                     Path(os.environ.get("APPELL_SHARED", "/nonexistent")))
-                   if (base / "models" / "menagerie" / "unitree_go2" / "go2.xml").is_file()), None)
+    shared = next(
+        (
+            base
+            for base in (
+                Path(__file__).resolve().parents[2] / "shared",
+                Path(os.environ.get("APPELL_SHARED", "/nonexistent")),
+            )
+            if (base / "models" / "menagerie" / "unitree_go2" / "go2.xml").is_file()
+        ),
+        None,
+    )
     if shared is None:
         pytest.skip("../shared/models/menagerie/unitree_go2/go2.xml is not beside the clone")
     go2 = shared / "models" / "menagerie" / "unitree_go2" / "go2.xml"
@@ -645,8 +749,9 @@ def test_go2_as_shipped_is_refused_for_its_frictionloss_and_read_with_the_flag(t
     result = runner.invoke(cli, ["simulate", str(go2), "--t-end", "0", "--out", str(out)])
     assert result.exit_code == 2 and "frictionloss on joint 'FL_hip_joint'" in result.output
     assert "--mjcf frictionloss=ignore" in result.output and not out.exists()
-    result = runner.invoke(cli, ["simulate", str(go2), "--t-end", "0", "--mjcf", "frictionloss=ignore",
-                                 "--out", str(out)])
+    result = runner.invoke(
+        cli, ["simulate", str(go2), "--t-end", "0", "--mjcf", "frictionloss=ignore", "--out", str(out)]
+    )
     assert result.exit_code == 0, result.output
     row = _csv_columns(out)
     assert row["t"].size == 1 and row["t"][0] == 0.0

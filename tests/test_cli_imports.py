@@ -37,14 +37,16 @@ print(json.dumps({{"code": code, "out": out.getvalue(), "heavy": heavy}}))
 
 def _probe(args, bare):
     code = PROBE.format(bare=bare, package=f"{SRC}/appell", args=args)
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                          env=env_with_src())
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env_with_src())
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout.splitlines()[-1])
 
 
-@pytest.mark.parametrize("args", [["--help"], ["examples"], ["examples", "pendulum"], ["simulate", "--help"]],
-                         ids=["help", "examples", "example", "simulate-help"])
+@pytest.mark.parametrize(
+    "args",
+    [["--help"], ["examples"], ["examples", "pendulum"], ["simulate", "--help"]],
+    ids=["help", "examples", "example", "simulate-help"],
+)
 def test_the_command_line_itself_imports_no_sympy(args):
     result = _probe(args, bare=True)
     assert result["code"] == 0
@@ -61,8 +63,13 @@ def test_the_command_line_itself_imports_no_sympy(args):
 
 
 def test_appell_help_and_examples_import_no_sympy():
-    done = subprocess.run([sys.executable, "-c", "import sys, appell; print('sympy' in sys.modules)"],
-                          capture_output=True, text=True, timeout=300, env=env_with_src())
+    done = subprocess.run(
+        [sys.executable, "-c", "import sys, appell; print('sympy' in sys.modules)"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env_with_src(),
+    )
     if done.stdout.strip() == "True":
         pytest.skip("the package's __init__ imports SymPy at once (its lazy imports are another change)")
     for args in (["--help"], ["examples"]):

@@ -94,9 +94,11 @@ def test_t0_starts_the_motion_at_t0(tmp_path):
 def test_rtol_and_atol_change_the_steps_and_the_accuracy(tmp_path):
     """Loose tolerances: fewer steps and a visibly worse rod tension against the closed form."""
     errors, steps = {}, {}
-    for label, extra in {"tight": ["--rtol", "1e-10", "--atol", "1e-12"],
-                         "loose_rtol": ["--rtol", "1e-4", "--atol", "1e-6"],
-                         "loose_atol": ["--atol", "1e-3"]}.items():
+    for label, extra in {
+        "tight": ["--rtol", "1e-10", "--atol", "1e-12"],
+        "loose_rtol": ["--rtol", "1e-4", "--atol", "1e-6"],
+        "loose_atol": ["--atol", "1e-3"],
+    }.items():
         out = tmp_path / f"{label}.csv"
         result = run("simulate", "pendulum", "--t-end", "5", "--out", out, *extra)
         assert result.exit_code == 0, result.output
@@ -138,8 +140,10 @@ def test_method_runs_and_is_recorded_in_the_metadata(tmp_path):
 def test_stabilization_choice_is_applied(tmp_path):
     """Projection projects (count > 0 at a loose tolerance); none and Baumgarte never do.
     The pendulum's file asks for baumgarte, so that is the default."""
-    runs = {choice: run("simulate", "pendulum", "--rtol", "1e-5", *(["--stabilization", choice] if choice else []))
-            for choice in ("projection", "none", "baumgarte", None)}
+    runs = {
+        choice: run("simulate", "pendulum", "--rtol", "1e-5", *(["--stabilization", choice] if choice else []))
+        for choice in ("projection", "none", "baumgarte", None)
+    }
     stats = {k: solver_stats(r.output) for k, r in runs.items()}
     assert stats["projection"]["projections"] > 0
     assert stats["none"]["projections"] == 0 and stats["baumgarte"]["projections"] == 0
@@ -148,9 +152,14 @@ def test_stabilization_choice_is_applied(tmp_path):
 
 
 def test_the_model_files_values_are_the_defaults(tmp_path):
-    text = example_path("pendulum").read_text(encoding="utf-8").replace(
-        't_end = 5.0\nstabilization = "baumgarte"',
-        't_end = 1.0\nstabilization = "none"\nmethod = "RK23"\nrtol = 1e-5\noutput_step = 0.25\nt0 = 0.5')
+    text = (
+        example_path("pendulum")
+        .read_text(encoding="utf-8")
+        .replace(
+            't_end = 5.0\nstabilization = "baumgarte"',
+            't_end = 1.0\nstabilization = "none"\nmethod = "RK23"\nrtol = 1e-5\noutput_step = 0.25\nt0 = 0.5',
+        )
+    )
     assert 'method = "RK23"' in text
     model = tmp_path / "p.toml"
     model.write_text(text, encoding="utf-8")
@@ -160,20 +169,43 @@ def test_the_model_files_values_are_the_defaults(tmp_path):
     line = solver_stats(result.output)["line"]
     assert line.startswith("solver: RK23, rtol 1e-05,") and "stabilization none" in line
     assert np.allclose(table(out)["t"], [0.5, 0.75, 1.0])  # output times: exact to an ulp
-    result = run("simulate", model, "--method", "DOP853", "--rtol", "1e-8", "--t0", "0", "--samples", "3",
-                 "--stabilization", "projection", "--out", out)
+    result = run(
+        "simulate",
+        model,
+        "--method",
+        "DOP853",
+        "--rtol",
+        "1e-8",
+        "--t0",
+        "0",
+        "--samples",
+        "3",
+        "--stabilization",
+        "projection",
+        "--out",
+        out,
+    )
     line = solver_stats(result.output)["line"]
     # DOP853 on the C backend (a compiler present) is the compiled loop, else SciPy's class
     assert re.match(r"solver: DOP853( \(compiled loop\))?, rtol 1e-08,", line) and "stabilization projection" in line
     assert np.allclose(table(out)["t"], [0.0, 0.5, 1.0])
 
 
-@pytest.mark.parametrize("args, culprit", [
-    (["--rtol", "0"], "--rtol"), (["--rtol", "-1e-6"], "--rtol"), (["--atol", "nan"], "--atol"),
-    (["--atol", "x"], "--atol"), (["--max-step", "0"], "--max-step"), (["--samples", "1"], "--samples"),
-    (["--output-step", "-0.1"], "--output-step"), (["--method", "Euler"], "--method"),
-    (["--stabilization", "magic"], "--stabilization"), (["--samples", "5", "--output-step", "0.1"], "--samples"),
-])
+@pytest.mark.parametrize(
+    "args, culprit",
+    [
+        (["--rtol", "0"], "--rtol"),
+        (["--rtol", "-1e-6"], "--rtol"),
+        (["--atol", "nan"], "--atol"),
+        (["--atol", "x"], "--atol"),
+        (["--max-step", "0"], "--max-step"),
+        (["--samples", "1"], "--samples"),
+        (["--output-step", "-0.1"], "--output-step"),
+        (["--method", "Euler"], "--method"),
+        (["--stabilization", "magic"], "--stabilization"),
+        (["--samples", "5", "--output-step", "0.1"], "--samples"),
+    ],
+)
 def test_bad_solver_options_are_bad_input(args, culprit, tmp_path):
     out = tmp_path / "x.csv"
     result = run("simulate", "pendulum", "--out", out, *args)
@@ -193,8 +225,20 @@ def test_report_simulates_with_the_solver_options(tmp_path, monkeypatch):
         return Path(path)
 
     monkeypatch.setattr(appell.io.report, "write_report", capture)
-    result = run("report", "pendulum", "-o", tmp_path / "r.html", "--t-end", "1", "--samples", "11",
-                 "--method", "RK45", "--rtol", "1e-7")
+    result = run(
+        "report",
+        "pendulum",
+        "-o",
+        tmp_path / "r.html",
+        "--t-end",
+        "1",
+        "--samples",
+        "11",
+        "--method",
+        "RK45",
+        "--rtol",
+        "1e-7",
+    )
     assert result.exit_code == 0, result.output
     solution = seen["solution"]
     assert solution.t.size == 11 and solution.metadata.settings["method"] == "RK45"
@@ -207,8 +251,26 @@ def test_sweep_takes_the_solver_options(tmp_path):
     import h5py
 
     out = tmp_path / "s.h5"
-    result = run("sweep", "pendulum", "--param", "g=9.81", "--t-end", "1.2", "--t0", "0.2", "--samples", "11",
-                 "--method", "RK45", "--workers", "1", "--backend", "numpy", "--out", out)
+    result = run(
+        "sweep",
+        "pendulum",
+        "--param",
+        "g=9.81",
+        "--t-end",
+        "1.2",
+        "--t0",
+        "0.2",
+        "--samples",
+        "11",
+        "--method",
+        "RK45",
+        "--workers",
+        "1",
+        "--backend",
+        "numpy",
+        "--out",
+        out,
+    )
     assert result.exit_code == 0, result.output
     with h5py.File(out) as f:
         t = f["t"][()]
@@ -225,8 +287,22 @@ def test_sweep_lists_failed_runs_and_exits_nonzero(tmp_path):
     """m = 0 makes the mass matrix singular: that run fails, the other succeeds; the sweep
     names the failed run with its parameters and error and exits with 1."""
     pytest.importorskip("dask.distributed")
-    result = run("sweep", "pendulum", "--param", "m=0,1", "--t-end", "0.5", "--samples", "11", "--workers", "1",
-                 "--backend", "numpy", "--out", tmp_path / "s.h5")
+    result = run(
+        "sweep",
+        "pendulum",
+        "--param",
+        "m=0,1",
+        "--t-end",
+        "0.5",
+        "--samples",
+        "11",
+        "--workers",
+        "1",
+        "--backend",
+        "numpy",
+        "--out",
+        tmp_path / "s.h5",
+    )
     assert result.exit_code == 1, result.output
     failed = [line for line in result.output.splitlines() if "failed" in line and "'m': 0.0" in line]
     assert failed and "run 0" in failed[0], result.output
@@ -260,16 +336,23 @@ def test_import_optional_names_the_missing_package(monkeypatch):
 # ------------------------------------------------------------------ python -m appell
 def test_python_dash_m_appell_is_the_command_line(tmp_path):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")])}
-    helped = subprocess.run([sys.executable, "-m", "appell", "--help"], capture_output=True, text=True,
-                            timeout=120, env=env)
+    helped = subprocess.run(
+        [sys.executable, "-m", "appell", "--help"], capture_output=True, text=True, timeout=120, env=env
+    )
     assert helped.returncode == 0 and "Usage: appell" in helped.stdout
     for command in ("derive", "simulate", "check", "report", "sweep", "examples"):
         assert command in helped.stdout
-    bad = subprocess.run([sys.executable, "-m", "appell", "simulate", "pendulum", "--rtol", "0"],
-                         capture_output=True, text=True, timeout=120, env=env)
+    bad = subprocess.run(
+        [sys.executable, "-m", "appell", "simulate", "pendulum", "--rtol", "0"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
     assert bad.returncode == 2 and bad.stderr.startswith("error: ") and "--rtol" in bad.stderr
-    listed = subprocess.run([sys.executable, "-m", "appell", "examples"], capture_output=True, text=True,
-                            timeout=120, env=env, cwd=tmp_path)
+    listed = subprocess.run(
+        [sys.executable, "-m", "appell", "examples"], capture_output=True, text=True, timeout=120, env=env, cwd=tmp_path
+    )
     assert listed.returncode == 0 and "pendulum" in listed.stdout
 
 

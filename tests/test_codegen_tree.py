@@ -7,9 +7,9 @@ hand-written O(n) recursion of benchmarks/reference/nlink_aba.c (articulated-bod
 the planar chain, written from the mechanics, sharing no code with the generator)."""
 
 import ctypes
-from dataclasses import replace
 import shutil
 import subprocess
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,13 +17,15 @@ import pytest
 import sympy as sp
 
 import appell
+from appell import numeric_model
 from appell.examples.catalog import CATALOG, nlink_pendulum
 from appell.model import Parameter, Particle, System, holonomic
 from appell.numerics import codegen as codegen_c
-from appell.numerics.codegen import build as codegen_build, printer as codegen_printer, source as codegen_source
+from appell.numerics.codegen import build as codegen_build
 from appell.numerics.codegen import c_source, compile_c, particle_tree
+from appell.numerics.codegen import printer as codegen_printer
+from appell.numerics.codegen import source as codegen_source
 from appell.symbols import t
-from appell import numeric_model
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 REFERENCE = Path(__file__).resolve().parents[1] / "benchmarks" / "reference" / "nlink_aba.c"
@@ -108,8 +110,10 @@ def test_a_mass_shared_by_two_links_keeps_the_dense_route():
     p1 = (sp.sin(th1), -sp.cos(th1), 0)
     p2 = (sp.sin(th1) + sp.sin(th2), -sp.cos(th1) - sp.cos(th2), 0)
     mid = (sp.sin(th1) + sp.sin(th2) / 2, -sp.cos(th1) - sp.cos(th2) / 2, 0)
-    system = System(coordinates=(th1, th2), bodies=(Particle("a", 1, position=p1), Particle("b", 1, position=p2),
-                                                    Particle("mid", 1, position=mid)))
+    system = System(
+        coordinates=(th1, th2),
+        bodies=(Particle("a", 1, position=p1), Particle("b", 1, position=p2), Particle("mid", 1, position=mid)),
+    )
     assert particle_tree(appell.derive(system).inertia, 2) is None
 
 
@@ -119,8 +123,12 @@ def test_tree_code_equals_the_dense_route(case, monkeypatch):
     """Blocks, accelerations (1.4), multipliers (1.5) and generalized reactions of the tree code
     agree to 1e-12 with the dense C code on the expanded M, h and with the NumPy model, at
     random states, with the derivation's partition, a chosen one and a constraint bias."""
-    system = {"chain10": lambda: nlink_pendulum(10), "chain8 tip at a point": lambda: nlink_pendulum(8, 2),
-              "branched": branched, "branched, unconstrained": lambda: replace(branched(), constraints=())}[case]()
+    system = {
+        "chain10": lambda: nlink_pendulum(10),
+        "chain8 tip at a point": lambda: nlink_pendulum(8, 2),
+        "branched": branched,
+        "branched, unconstrained": lambda: replace(branched(), constraints=()),
+    }[case]()
     d = appell.derive(system)
     assert "tree_solve" in c_source(d)
     tree, flat, nm = compile_c(d, "c"), dense(d, monkeypatch), numeric_model(d)
@@ -128,7 +136,9 @@ def test_tree_code_equals_the_dense_route(case, monkeypatch):
     other = tuple(range(len(d.kinematics.speeds)))[:s]
     for t0, q, w in states(d):
         # M, h by the tree's passes and from the expanded expressions: rounding only (measured 4e-16)
-        for x, y, z in zip(tree.evaluate_blocks(t0, q, w), flat.evaluate_blocks(t0, q, w), nm.evaluate_blocks(t0, q, w)):
+        for x, y, z in zip(
+            tree.evaluate_blocks(t0, q, w), flat.evaluate_blocks(t0, q, w), nm.evaluate_blocks(t0, q, w)
+        ):
             close(x, y)
             close(x, z)
         for dep, bias in ((None, None), (other, None), (None, np.linspace(0.1, 0.3, s))):
@@ -164,8 +174,16 @@ def test_tree_code_equals_the_hand_written_recursion(tmp_path):
     for _ in range(3):
         y = np.r_[rng.uniform(-0.4, 0.4, n), rng.uniform(-1, 1, n)]
         dy, lam = np.empty(2 * n), np.empty(1)
-        assert lib.nlink_aba_evaluate(n, y.ctypes.data_as(ctypes.c_void_p), p.ctypes.data_as(ctypes.c_void_p),
-                                      dy.ctypes.data_as(ctypes.c_void_p), lam.ctypes.data_as(ctypes.c_void_p)) == 0
+        assert (
+            lib.nlink_aba_evaluate(
+                n,
+                y.ctypes.data_as(ctypes.c_void_p),
+                p.ctypes.data_as(ctypes.c_void_p),
+                dy.ctypes.data_as(ctypes.c_void_p),
+                lam.ctypes.data_as(ctypes.c_void_p),
+            )
+            == 0
+        )
         ev = cm.evaluate(0.0, y)
         # two O(n) recursions: rounding only, eps times cond(M) (~200 for 12 links; measured 7e-15)
         close(ev.derivative, dy)
@@ -198,8 +216,13 @@ def test_long_functions_are_split_into_units_that_give_the_same_library(monkeypa
 
 def test_a_failing_unit_names_the_compiler_error(monkeypatch, tmp_path):
     """A unit the compiler rejects raises ComputationError with the compiler's message."""
-    source = "#include <math.h>\n" + codegen_c.HEADER_END + "\nint ok(void) { return 1; }\n" + \
-        codegen_c.UNIT_MARK + "\nint broken(void) { return undeclared_name; }\n"
+    source = (
+        "#include <math.h>\n"
+        + codegen_c.HEADER_END
+        + "\nint ok(void) { return 1; }\n"
+        + codegen_c.UNIT_MARK
+        + "\nint broken(void) { return undeclared_name; }\n"
+    )
     with pytest.raises(appell.ComputationError, match="undeclared_name"):
         codegen_c.build_library(source)
 
@@ -220,8 +243,11 @@ def test_point_masses_sum_m_and_h_only_where_a_formula_asks():
     model.solve(0.0, np.full(n, 0.2), np.full(n, -0.1))
     assert "_blocks" not in d.inertia.__dict__  # the recursions along the tree needed no M
     th, m, ell = sp.symbols(f"theta1:{n + 1}"), sp.symbols(f"m1:{n + 1}"), sp.symbols(f"l1:{n + 1}")
-    expected = sp.Matrix(n, n, lambda i, j: ell[i] * ell[j] * sp.cos(th[i] - th[j]) * sum(m[max(i, j):]))
+    expected = sp.Matrix(n, n, lambda i, j: ell[i] * ell[j] * sp.cos(th[i] - th[j]) * sum(m[max(i, j) :]))
     values = {s: v for s, v in zip(th + m + ell, np.random.default_rng(3).uniform(0.2, 1.5, 3 * n))}
-    np.testing.assert_allclose(np.array(d.inertia.mass_matrix.xreplace(values), dtype=float),
-                               np.array(expected.xreplace(values), dtype=float), rtol=1e-13)
+    np.testing.assert_allclose(
+        np.array(d.inertia.mass_matrix.xreplace(values), dtype=float),
+        np.array(expected.xreplace(values), dtype=float),
+        rtol=1e-13,
+    )
     assert d.inertia == appell.derive(nlink_pendulum(n)).inertia

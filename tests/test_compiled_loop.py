@@ -23,12 +23,11 @@ import numpy as np
 import pytest
 import scipy.integrate as si
 
-from appell import Event, derive, simulate
+from appell import Event, derive, numeric_model, simulate
 from appell.errors import ComputationError
 from appell.examples import catalog
 from appell.numerics.compiled_loop import CompiledLoop, LoopSolver, supports
 from appell.simulation.initial import complete_initial
-from appell import numeric_model
 
 
 @pytest.fixture(scope="module")
@@ -49,8 +48,9 @@ def knife():
 def chain_state(model):
     """A state of the 4-link chain on its constraint (the last angle closes the loop)."""
     th = np.array([0.1, -0.2, 0.25, 0.0])
-    return complete_initial(model, dict(zip(model.state_names, [*th, 0.3, -0.1, 0.2, 0.0])),
-                            adjust=["theta4", "theta4_dot"], t=0.0).y
+    return complete_initial(
+        model, dict(zip(model.state_names, [*th, 0.3, -0.1, 0.2, 0.0])), adjust=["theta4", "theta4_dot"], t=0.0
+    ).y
 
 
 def _step_ends(solver):
@@ -155,8 +155,13 @@ def test_car_with_projection_same_as_reference_path(car):
 def test_chain_with_baumgarte_same_as_reference_path(chain):
     """Baumgarte stabilization (the bias 2 alpha phi + beta^2 F computed in C): the same
     samples as SciPy's path on the 4-link chain."""
-    kw = dict(t_eval=np.linspace(0.0, 2.0, 401), initial=chain_state(chain), stabilization="baumgarte",
-              baumgarte=(5.0, 5.0), progress=False)
+    kw = dict(
+        t_eval=np.linspace(0.0, 2.0, 401),
+        initial=chain_state(chain),
+        stabilization="baumgarte",
+        baumgarte=(5.0, 5.0),
+        progress=False,
+    )
     fast = simulate(chain, 2.0, **kw)
     ref = simulate(chain, 2.0, method=si.DOP853, **kw)
     assert fast.statistics.steps == ref.statistics.steps
@@ -193,8 +198,14 @@ def test_events_with_compiled_loop_same_as_reference_path():
     1e-10 one path projected once more and the residuals differed by 2.8e-10)."""
     model = numeric_model(derive(catalog.pendulum()), "c")
     horizontal = Event("horizontal", lambda tt, yy, mult: yy[1])
-    kw = dict(initial={"x": 0.0, "y": -1.0, "x_dot": 8.0, "y_dot": 0.0}, events=[horizontal],
-              t_eval=np.linspace(0, 2, 401), rtol=1e-12, atol=1e-14, progress=False)
+    kw = dict(
+        initial={"x": 0.0, "y": -1.0, "x_dot": 8.0, "y_dot": 0.0},
+        events=[horizontal],
+        t_eval=np.linspace(0, 2, 401),
+        rtol=1e-12,
+        atol=1e-14,
+        progress=False,
+    )
     fast = simulate(model, 2.0, **kw)
     ref = simulate(model, 2.0, method=si.DOP853, **kw)
     hits = [e for e in fast.events if e.kind == "user"]
@@ -217,8 +228,14 @@ def test_evaluate_many_equals_one_evaluation_per_state(knife):
     phi = pi/2, where the compiled split refuses the derivation's partition and Python
     switches it."""
     ts = np.array([0.0, 0.3, 0.7, 1.1])
-    ys = np.array([[0.1, 0.2, 0.3, 0.5, -0.2, 1.5], [0.0, 0.0, math.pi / 2, 0.1, 0.2, 1.5],
-                   [0.3, -0.1, 2.0, 0.0, 0.4, 1.5], [0.0, 0.1, 3 * math.pi / 2, 0.2, 0.1, 1.5]])
+    ys = np.array(
+        [
+            [0.1, 0.2, 0.3, 0.5, -0.2, 1.5],
+            [0.0, 0.0, math.pi / 2, 0.1, 0.2, 1.5],
+            [0.3, -0.1, 2.0, 0.0, 0.4, 1.5],
+            [0.0, 0.1, 3 * math.pi / 2, 0.2, 0.1, 1.5],
+        ]
+    )
     loop = CompiledLoop(knife)
     acc, lam, F, phi = loop.evaluate_many(ts, ys)
     nq = len(knife.coordinate_names)
@@ -235,6 +252,7 @@ def test_evaluate_many_equals_one_evaluation_per_state(knife):
 def test_python_error_inside_the_loop_is_raised_in_python(knife):
     """An error of the Python evaluation called from C (a state the compiled split refuses)
     comes back as that error, not as a wrong number."""
+
     def failing(t, y):
         raise ComputationError("refused here")
 
@@ -281,8 +299,19 @@ def test_fast_calls_equal_plain_ctypes_calls(chain):
     nq, ny, s = len(chain.coordinate_names), len(y), len(chain.constraint_names)
     lib = chain._lib
     dy, lam, F, phi = np.empty(ny), np.empty(s), np.empty(s), np.empty(s)
-    assert lib.appell_evaluate(0.3, y.ctypes.data, p.ctypes.data, None, chain._default_dep.ctypes.data, 1e4,
-                               dy.ctypes.data, lam.ctypes.data) == 0
+    assert (
+        lib.appell_evaluate(
+            0.3,
+            y.ctypes.data,
+            p.ctypes.data,
+            None,
+            chain._default_dep.ctypes.data,
+            1e4,
+            dy.ctypes.data,
+            lam.ctypes.data,
+        )
+        == 0
+    )
     ev = chain.evaluate(0.3, y, p)
     assert np.array_equal(ev.derivative, dy) and np.array_equal(ev.multipliers, lam)
     q, w = y[:nq].copy(), y[nq:].copy()

@@ -18,12 +18,11 @@ from click.testing import CliRunner
 from scipy.integrate import quad
 
 import appell
-from appell import Event, ModelError, simulate
+from appell import Event, ModelError, numeric_model, simulate
 from appell.examples import event_examples, example_path
 from appell.io.cli import cli
 from appell.io.modelfile import load_model, loads_model
 from appell.model import Constraint, Parameter, System, holonomic
-from appell import numeric_model
 
 G = 9.81
 
@@ -67,15 +66,17 @@ def test_pendulum_file_with_a_rod_unit_goes_slack_and_snaps_taut_instead_of_flyi
     beyond L (before the fix: "units given for unknown name(s) rod", and without
     re-engagement it flew to 2.64 L)."""
     system = load_model(example_path("pendulum"), overrides={"x": 0.0, "y": -1.0, "x'": 5.0, "y'": 0.0})
-    sol = simulate(appell.derive(system), 1.5, unilateral={"rod": +1}, t_eval=np.linspace(0.0, 1.5, 301),
-                   rtol=1e-11, atol=1e-12)
+    sol = simulate(
+        appell.derive(system), 1.5, unilateral={"rod": +1}, t_eval=np.linspace(0.0, 1.5, 301), rtol=1e-11, atol=1e-12
+    )
     assert sol.status == 0, sol.message
     assert sol.metadata.units["lambda_rod"] == "N"
     v0, L = 5.0, 1.0
     cos_r = -(v0**2 - 2 * G * L) / (3 * G * L)
     phi_r = math.acos(cos_r)
-    t_r, _ = quad(lambda phi: L / math.sqrt(v0**2 - 2 * G * L * (1 - math.cos(phi))), 0.0, phi_r,
-                  epsabs=1e-14, epsrel=1e-13)
+    t_r, _ = quad(
+        lambda phi: L / math.sqrt(v0**2 - 2 * G * L * (1 - math.cos(phi))), 0.0, phi_r, epsabs=1e-14, epsrel=1e-13
+    )
     release, snap = sol.events[0], sol.events[1]
     assert release.kind == "release" and release.name == "rod"
     # the release located on the run at rtol 1e-11 (off by ~5e-13, measured); quad's t_r to 1e-13
@@ -116,8 +117,9 @@ def test_particle_leaving_a_sphere_lands_on_the_floor_where_the_parabola_meets_i
     vertical speed reversed by the factor e and the horizontal one kept."""
     e, theta0, R = 0.5, 0.4, 1.0
     base = event_examples.particle_on_sphere(theta0)
-    system = base.replace(constraints=base.constraints + (holonomic("floor", sp.Symbol("y") + sp.Symbol("R"),
-                                                                    restitution=e),))
+    system = base.replace(
+        constraints=base.constraints + (holonomic("floor", sp.Symbol("y") + sp.Symbol("R"), restitution=e),)
+    )
     sol = simulate(appell.derive(system), 1.5, unilateral={"surface": +1, "floor": +1}, rtol=1e-12, atol=1e-13)
     assert sol.status == 0, sol.message
     assert sol.log[0].startswith("t = 0: the gap of contact(s) floor is open")
@@ -159,8 +161,7 @@ def test_slack_string_snaps_taut_and_loses_the_energy_newtons_law_says(e):
     just after is the pendulum's m v^2/L - m g y/L."""
     v0, L, m = 2.0, 1.0, 1.0
     d = appell.derive(event_examples.slack_pendulum(v0, e))
-    sol = simulate(d, 0.6, unilateral={"rod": +1}, rtol=1e-11, atol=1e-12,
-                   t_eval=np.linspace(0.0, 0.6, 61))
+    sol = simulate(d, 0.6, unilateral={"rod": +1}, rtol=1e-11, atol=1e-12, t_eval=np.linspace(0.0, 0.6, 61))
     assert sol.status == 0, sol.message
     assert sol.events[0].kind == "release" and sol.events[0].t == 0.0
     # the split's formula at the given start: rounding only
@@ -192,8 +193,7 @@ def test_slack_string_snaps_taut_and_loses_the_energy_newtons_law_says(e):
         v2 = sol["x_dot"][later] ** 2 + sol["y_dot"][later] ** 2
         # both from the same states: they differ by the states' drift off |p| = L (rtol 1e-11 run;
         # ~3e-11 relative measured)
-        np.testing.assert_allclose(sol["lambda_rod"][later], m * v2 / L - m * G * sol["y"][later] / L,
-                                   rtol=1e-7)
+        np.testing.assert_allclose(sol["lambda_rod"][later], m * v2 / L - m * G * sol["y"][later] / L, rtol=1e-7)
     else:
         assert "bounces" in snap.detail
 
@@ -268,9 +268,11 @@ def _spherical_pendulum_over_a_floor(e):
     theta_hat = np.array([math.cos(theta0), 0.0, math.sin(theta0)])
     v0 = -u * theta_hat + w * np.array([0.0, 1.0, 0.0])
     return System(
-        name="pendulum_over_floor", coordinates=(x, y, z),
+        name="pendulum_over_floor",
+        coordinates=(x, y, z),
         parameters=(Parameter(m, 1.0), Parameter(L, 1.0), Parameter(g, G), Parameter(h, 0.8)),
-        kinetic_energy=m / 2 * (xd**2 + yd**2 + zd**2), potential_energy=m * g * z,
+        kinetic_energy=m / 2 * (xd**2 + yd**2 + zd**2),
+        potential_energy=m * g * z,
         constraints=(holonomic("rod", (L**2 - x**2 - y**2 - z**2) / (2 * L)), holonomic("floor", z + h, restitution=e)),
         initial=dict(zip(("x", "y", "z", "x_dot", "y_dot", "z_dot"), [*p0, *v0])),
     )
@@ -349,9 +351,9 @@ def test_model_file_restitution_is_read_and_bad_values_are_located():
     with pytest.raises(ModelError) as kind:
         loads_model(CONTACT_TOML.format(kind="first-order", expr="y'", e="0.5"), source="c.toml")
     assert kind.value.where == "c.toml:14" and "holonomic" in kind.value.message
-    servo = CONTACT_TOML.format(kind="holonomic", expr="y", e="0.5").replace("[constraints.floor]",
-                                                                           "[controls]\nF = \"force\"\n"
-                                                                           "[servo_constraints.floor]")
+    servo = CONTACT_TOML.format(kind="holonomic", expr="y", e="0.5").replace(
+        "[constraints.floor]", '[controls]\nF = "force"\n[servo_constraints.floor]'
+    )
     with pytest.raises(ModelError, match="unknown key 'restitution'"):
         loads_model(servo, source="c.toml")
 

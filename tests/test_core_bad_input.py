@@ -4,9 +4,17 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import ComputationError, ModelError, System, acceleration_constraint, derive, holonomic, nonholonomic
+from appell import (
+    ComputationError,
+    ModelError,
+    System,
+    acceleration_constraint,
+    derive,
+    holonomic,
+    nonholonomic,
+    numeric_model,
+)
 from appell.examples import catalog
-from appell import numeric_model
 
 x, y, phi = sp.symbols("x y phi")
 xd, yd, phid = sp.symbols("x_dot y_dot phi_dot")
@@ -14,15 +22,18 @@ m = sp.Symbol("m")
 
 
 def _particle(constraints, **kw):
-    return System(coordinates=(x, y), parameters={m: 1.0}, kinetic_energy=m / 2 * (xd**2 + yd**2),
-                  constraints=constraints, **kw)
+    return System(
+        coordinates=(x, y), parameters={m: 1.0}, kinetic_energy=m / 2 * (xd**2 + yd**2), constraints=constraints, **kw
+    )
 
 
 def test_redundant_constraints_are_accepted_and_named():
     """The same circle written twice: consistent, so accepted (statically indeterminate);
     the second is named redundant and the pair's split undetermined."""
-    sysm = _particle((holonomic("rod", x**2 + y**2 - 1), holonomic("rod_again", 2 * x**2 + 2 * y**2 - 2)),
-                     initial={"x": 1.0, "y": 0.0})
+    sysm = _particle(
+        (holonomic("rod", x**2 + y**2 - 1), holonomic("rod_again", 2 * x**2 + 2 * y**2 - 2)),
+        initial={"x": 1.0, "y": 0.0},
+    )
     red = derive(sysm).redundancy
     assert red.named("redundant") == ("rod_again",) and red.named("involved") == ("rod", "rod_again")
 

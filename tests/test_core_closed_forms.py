@@ -4,9 +4,8 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import RigidBody, System, derive
+from appell import RigidBody, System, derive, numeric_model
 from appell.examples import catalog
-from appell import numeric_model
 
 
 def _pv(system):
@@ -136,8 +135,11 @@ def test_rigid_body_gyroscopic_terms_reproduce_euler_equations():
     w = np.array([0.3, -1.1, 0.7])
     acc = numeric_model(d).solve(0.0, [], w).accelerations
     I = np.array([1.0, 2.0, 3.0])
-    expected = [(I[1] - I[2]) * w[1] * w[2] / I[0], (I[2] - I[0]) * w[2] * w[0] / I[1],
-                (I[0] - I[1]) * w[0] * w[1] / I[2]]
+    expected = [
+        (I[1] - I[2]) * w[1] * w[2] / I[0],
+        (I[2] - I[0]) * w[2] * w[0] / I[1],
+        (I[0] - I[1]) * w[0] * w[1] / I[2],
+    ]
     assert np.allclose(acc, expected, rtol=1e-13)  # diagonal inertia: rounding only, a few eps
 
 
@@ -146,8 +148,14 @@ def test_kinetic_energy_route_polar_coordinates():
     d/dt(r^2 theta') = 0 (Lagrange's equations from T with a coordinate-dependent mass matrix)."""
     r, th, m, k = sp.symbols("r theta m k")
     rd, thd = sp.symbols("r_dot theta_dot")
-    d = derive(System(coordinates=(r, th), parameters={m: 2.0, k: 3.0},
-                      kinetic_energy=m / 2 * (rd**2 + r**2 * thd**2), potential_energy=k * r**2 / 2))
+    d = derive(
+        System(
+            coordinates=(r, th),
+            parameters={m: 2.0, k: 3.0},
+            kinetic_energy=m / 2 * (rd**2 + r**2 * thd**2),
+            potential_energy=k * r**2 / 2,
+        )
+    )
     acc = numeric_model(d).solve(0.0, [1.5, 0.2], [0.4, 0.9]).accelerations
     # diagonal mass matrix, no constraint: rounding only, a few eps
     assert acc[0] == pytest.approx(1.5 * 0.9**2 - 3.0 * 1.5 / 2.0, rel=1e-13)

@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import augmented_solve, cross_check, derive
-from appell.numerics.crosscheck import relative_difference, sample_states
+from appell import augmented_solve, cross_check, derive, numeric_model
 from appell.errors import ModelError
 from appell.examples import CATALOG, catalog
-from appell import numeric_model
+from appell.numerics.crosscheck import relative_difference, sample_states
 
 NAMES = sorted(CATALOG)
 

@@ -1,27 +1,42 @@
 """Text, LaTeX and JSON output of a derivation round-trip to the same numbers."""
 
-import appell
 import json
 
 import numpy as np
 import sympy as sp
 
-from appell import derive
+import appell
+from appell import derive, numeric_model
 from appell.examples import catalog
-from appell import numeric_model
 
 
 def test_json_expressions_parse_back_and_evaluate_like_the_derivation():
     d = derive(catalog.car())
     js = json.loads(json.dumps(appell.to_json(d)))
-    for key in ("coordinates", "speeds", "dependent", "reduced_equations", "multipliers", "controls",
-                "first_integrals"):
+    for key in (
+        "coordinates",
+        "speeds",
+        "dependent",
+        "reduced_equations",
+        "multipliers",
+        "controls",
+        "first_integrals",
+    ):
         assert key in js
     assert js["coordinates"] == ["x", "y", "phi"] and set(js["multipliers"]) == {"rear", "front"}
     sol = numeric_model(d).solve(0.0, [0.0, 0.0, 0.3], [1.0, 0.2, 0.1])
-    values = {"x": 0.0, "y": 0.0, "phi": 0.3, "x_dot": 1.0, "y_dot": 0.2, "phi_dot": 0.1,
-              "theta": 0.2, "theta_dot": 0.05, **{k: v["value"] for k, v in js["parameters"].items()},
-              **dict(zip(js["accelerations"], sol.accelerations))}
+    values = {
+        "x": 0.0,
+        "y": 0.0,
+        "phi": 0.3,
+        "x_dot": 1.0,
+        "y_dot": 0.2,
+        "phi_dot": 0.1,
+        "theta": 0.2,
+        "theta_dot": 0.05,
+        **{k: v["value"] for k, v in js["parameters"].items()},
+        **dict(zip(js["accelerations"], sol.accelerations)),
+    }
     subs = {sp.Symbol(k): v for k, v in values.items()}
     lam = [float(sp.sympify(js["multipliers"][n]).xreplace(subs)) for n in ("rear", "front")]
     # the printed formulas (1.5) at the split's accelerations: rounding times 1/sin(theta) (theta = 0.2:

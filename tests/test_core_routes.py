@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import AppliedForce, AppliedTorque, Particle, RigidBody, System, derive, holonomic
+from appell import AppliedForce, AppliedTorque, Particle, RigidBody, System, derive, holonomic, numeric_model
 from appell.numerics.crosscheck import relative_difference
-from appell import numeric_model
 
 
 def test_acceleration_energy_of_a_rigid_body_equals_the_body_route():
@@ -22,8 +21,9 @@ def test_acceleration_energy_of_a_rigid_body_equals_the_body_route():
     S = (Wd.T * I * Wd)[0] / 2 + (Wd.T * W.cross(I * W))[0]
     by_S = System(coordinates=(), speeds=w, kinematics={}, acceleration_energy=S, generalized_forces=tuple(tau))
     body = RigidBody("b", 1, velocity=(0, 0, 0), inertia=I, angular_velocity=w)
-    by_body = System(coordinates=(), speeds=w, kinematics={}, bodies=(body,),
-                     loads=(AppliedTorque(tau, angular_velocity=w),))
+    by_body = System(
+        coordinates=(), speeds=w, kinematics={}, bodies=(body,), loads=(AppliedTorque(tau, angular_velocity=w),)
+    )
     wv = np.array([0.4, -0.3, 1.2])
     a1 = numeric_model(derive(by_S)).solve(0.0, [], wv).accelerations
     a2 = numeric_model(derive(by_body)).solve(0.0, [], wv).accelerations
@@ -40,8 +40,13 @@ def test_applied_force_at_a_point_equals_the_potential():
     xd, yd = sp.symbols("x_dot y_dot")
     rod = (holonomic("rod", (1 - x**2 - y**2) / 2),)
     common = dict(coordinates=(x, y), parameters={m: 1.5, g: 9.81}, constraints=rod)
-    a = derive(System(**common, bodies=(Particle("bob", m, position=(x, y, 0)),),
-                      loads=(AppliedForce((0, -m * g, 0), position=(x, y, 0)),)))
+    a = derive(
+        System(
+            **common,
+            bodies=(Particle("bob", m, position=(x, y, 0)),),
+            loads=(AppliedForce((0, -m * g, 0), position=(x, y, 0)),),
+        )
+    )
     b = derive(System(**common, kinetic_energy=m / 2 * (xd**2 + yd**2), potential_energy=m * g * y))
     th = 0.4
     q, w = [np.sin(th), -np.cos(th)], [0.0, 0.0]

@@ -20,9 +20,9 @@ import sympy as sp
 from click.testing import CliRunner
 
 import appell
+from appell import numeric_model
 from appell.examples.drive_examples import programmed_pendulum
 from appell.io.cli import cli
-from appell import numeric_model
 
 M, L, G, TH0, OM = 1.0, 1.0, 9.81, 0.5, 2.0
 
@@ -38,8 +38,7 @@ def closed_form(t):
 
 def exact_state(t):
     th, thd, *_ = closed_form(t)
-    return (np.array([L * np.sin(th), -L * np.cos(th)]),
-            np.array([L * thd * np.cos(th), L * thd * np.sin(th)]))
+    return (np.array([L * np.sin(th), -L * np.cos(th)]), np.array([L * thd * np.cos(th), L * thd * np.sin(th)]))
 
 
 @pytest.fixture(scope="module")
@@ -71,8 +70,14 @@ def test_zero_dof_reaction_formulas_are_the_closed_forms(derivation):
     params = {p.symbol: p.value for p in derivation.system.parameters}
     for t in (0.0, 0.4, 1.1, 2.5):
         q, w = exact_state(t)
-        vals = {appell.t: t, sp.Symbol("x"): q[0], sp.Symbol("y"): q[1], sp.Symbol("x_dot"): w[0],
-                sp.Symbol("y_dot"): w[1], **params}
+        vals = {
+            appell.t: t,
+            sp.Symbol("x"): q[0],
+            sp.Symbol("y"): q[1],
+            sp.Symbol("x_dot"): w[0],
+            sp.Symbol("y_dot"): w[1],
+            **params,
+        }
         a = {k: float(v.xreplace(prog).xreplace(vals)) for k, v in acc.items()}
         lam = [float(e.xreplace(a).xreplace(prog).xreplace(vals)) for e in derivation.reactions.multipliers]
         _, _, _, rod, drive = closed_form(t)
@@ -80,8 +85,10 @@ def test_zero_dof_reaction_formulas_are_the_closed_forms(derivation):
         assert lam == pytest.approx([rod, drive], rel=1e-12, abs=1e-12)
 
 
-@pytest.mark.parametrize("backend", ["numpy", pytest.param("c", marks=pytest.mark.skipif(
-    shutil.which("cc") is None, reason="no C compiler"))])
+@pytest.mark.parametrize(
+    "backend",
+    ["numpy", pytest.param("c", marks=pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler"))],
+)
 def test_zero_dof_reactions_along_the_programmed_motion(derivation, backend):
     """Simulated with each backend (the C split solve has its own p = 0 branch): the state
     follows the program and every reaction is the closed form along it."""

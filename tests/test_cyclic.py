@@ -13,7 +13,7 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 import appell
-from appell.reduction.cyclic import cyclic_coordinates, routh_reduction
+from appell import numeric_model
 from appell.errors import ModelError
 from appell.examples.cyclic_examples import (
     spherical_pendulum,
@@ -22,7 +22,7 @@ from appell.examples.cyclic_examples import (
     symmetric_top,
     turntable_particle,
 )
-from appell import numeric_model
+from appell.reduction.cyclic import cyclic_coordinates, routh_reduction
 
 
 def full_motion(system, times, rtol=1e-11, atol=1e-12):
@@ -54,8 +54,10 @@ def compare_with_full(system, t_end, points=801, rtol=1e-12, atol=1e-13):
     err_w = np.max(np.abs(W[:, ip] - pos[:, m:]))
     err_c = np.max(np.abs(Q[:, ic] - cyc))
     # momenta p_alpha = dT/dq_dot_alpha along the *full* motion
-    pfun = sp.lambdify([list(coords), list(system.speeds)],
-                       [sp.diff(system.kinetic_energy, system.speeds[i]).subs(system.parameter_values) for i in ic])
+    pfun = sp.lambdify(
+        [list(coords), list(system.speeds)],
+        [sp.diff(system.kinetic_energy, system.speeds[i]).subs(system.parameter_values) for i in ic],
+    )
     P = np.array([pfun(q, w) for q, w in zip(Q, W)], float)
     drift = np.max(np.abs(P - np.array(red.momentum_values)))
     return red, err_q, err_w, err_c, drift
@@ -114,8 +116,9 @@ def test_turntable_gyroscopic_force_closed_form():
     # T* is the particle's energy relative to the table, minus the part tied up in p_phi
     a_star = sp.hessian(red.reduced_kinetic_energy, sp.Matrix([xd, yd]))
     D = J + m * (x**2 + y**2)
-    assert sp.simplify(a_star - sp.Matrix([[m - m**2 * y**2 / D, m**2 * x * y / D],
-                                           [m**2 * x * y / D, m - m**2 * x**2 / D]])) == sp.zeros(2, 2)
+    assert sp.simplify(
+        a_star - sp.Matrix([[m - m**2 * y**2 / D, m**2 * x * y / D], [m**2 * x * y / D, m - m**2 * x**2 / D]])
+    ) == sp.zeros(2, 2)
 
 
 def test_reduced_system_is_a_regular_system():
@@ -144,8 +147,9 @@ def test_symmetric_top_routh_potential_closed_form():
 
 
 # ------------------------------------------------------------ reduced = full motion
-@pytest.mark.parametrize("builder,t_end", [(spherical_pendulum, 20.0), (symmetric_top, 10.0),
-                                           (turntable_particle, 20.0)])
+@pytest.mark.parametrize(
+    "builder,t_end", [(spherical_pendulum, 20.0), (symmetric_top, 10.0), (turntable_particle, 20.0)]
+)
 def test_reduced_motion_equals_full_motion(builder, t_end):
     """method.md §5 check: reduced + quadrature (3.4) = full motion; momenta constant.
     20 s are about 10 swings of the pendulum and 7 to 9 periods of the turntable's springs;
@@ -169,8 +173,9 @@ def test_gyroscopic_factor_one_not_one_half():
     Q, _ = full_motion(system, times)
 
     def positional_motion(lagrangian):
-        s = red.system.replace(kinetic_energy=lagrangian, potential_energy=0, generalized_forces=None,
-                               name="turntable_lagrangian")
+        s = red.system.replace(
+            kinetic_energy=lagrangian, potential_energy=0, generalized_forces=None, name="turntable_lagrangian"
+        )
         return full_motion(s, times)[0]
 
     xy_one = positional_motion(red.routhian)  # L* = T* - V, Lagrange's operator on all of it
@@ -216,9 +221,14 @@ def test_spherical_pendulum_tension_along_reduced_motion():
     cart = numeric_model(appell.derive(spherical_pendulum_cartesian()))
     ph = phi[:, 0]
     x = np.stack([L * np.sin(th) * np.cos(ph), L * np.sin(th) * np.sin(ph), -L * np.cos(th)], axis=1)
-    v = np.stack([L * (np.cos(th) * np.cos(ph) * thd - np.sin(th) * np.sin(ph) * phd),
-                  L * (np.cos(th) * np.sin(ph) * thd + np.sin(th) * np.cos(ph) * phd),
-                  L * np.sin(th) * thd], axis=1)
+    v = np.stack(
+        [
+            L * (np.cos(th) * np.cos(ph) * thd - np.sin(th) * np.sin(ph) * phd),
+            L * (np.cos(th) * np.sin(ph) * thd + np.sin(th) * np.cos(ph) * phd),
+            L * np.sin(th) * thd,
+        ],
+        axis=1,
+    )
     lam_cart = np.array([cart.solve(t, q, w).multipliers[0] for t, q, w in zip(tt, x, v)])
 
     rod = routh_reduction(spherical_pendulum_rod())
@@ -250,7 +260,8 @@ def test_symmetric_top_nutation_limits():
     p_phi = I1 * np.sin(th0) ** 2 * phd0 + p_psi * np.cos(th0)
     E = I1 / 2 * (thd0**2 + np.sin(th0) ** 2 * phd0**2) + p_psi**2 / (2 * I3) + M * g * l * np.cos(th0)
     assert dict(zip([h.name for h in red.momenta], red.momentum_values)) == pytest.approx(
-        {"h_phi": p_phi, "h_psi": p_psi}, rel=1e-13)
+        {"h_phi": p_phi, "h_psi": p_psi}, rel=1e-13
+    )
     P = np.polynomial.Polynomial
     f = P([1, 0, -1]) * P([2 * E - p_psi**2 / I3, -2 * M * g * l]) / I1 - P([p_phi, -p_psi]) ** 2 / I1**2
     roots = np.sort([r.real for r in f.roots() if abs(r.imag) < 1e-12 and -1 <= r.real <= 1])
@@ -265,8 +276,9 @@ def test_symmetric_top_nutation_limits():
     def turning(t, y):
         return y[1]
 
-    sol = solve_ivp(rhs, (0.0, 10.0), [th0, thd0], method="DOP853", rtol=1e-12, atol=1e-13,
-                    events=turning, dense_output=True)
+    sol = solve_ivp(
+        rhs, (0.0, 10.0), [th0, thd0], method="DOP853", rtol=1e-12, atol=1e-13, events=turning, dense_output=True
+    )
     turns = sol.y_events[0][:, 0]
     assert len(turns) > 10
     # the run's rtol 1e-12 over 10 s; theta is stationary at a turning point, so the event's time

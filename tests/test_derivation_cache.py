@@ -172,8 +172,12 @@ def test_two_processes_filling_one_entry_both_get_the_model(cache):
     import os
 
     env = {**os.environ, "APPELL_CACHE_DIR": str(cache.parent)}
-    procs = [subprocess.Popen([sys.executable, "-c", CHILD], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                              text=True) for _ in range(2)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", CHILD], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        for _ in range(2)
+    ]
     outs = [p.communicate(timeout=300) for p in procs]
     assert all(p.returncode == 0 for p in procs), [err for _, err in outs]
     assert all("note" not in err.lower() for _, err in outs), [err for _, err in outs]

@@ -24,8 +24,8 @@ import pytest
 from click.testing import CliRunner
 
 import appell
-from appell.io.cli import cli
 from appell.examples import example_path, list_examples
+from appell.io.cli import cli
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 EXAMPLES = example_path(list_examples()[0]).parent
@@ -66,7 +66,8 @@ def cli_commands(code: str):
 def is_complete_model(code: str) -> bool:
     """A TOML block with a ``[model]`` table and mechanics (not a fragment of one)."""
     return bool(re.search(r"^\[model\]", code, re.MULTILINE)) and bool(
-        re.search(r"^(kinetic_energy|acceleration_energy)\s*=|^\[\[bodies\]\]|^\[mechanism\]", code, re.MULTILINE))
+        re.search(r"^(kinetic_energy|acceleration_energy)\s*=|^\[\[bodies\]\]|^\[mechanism\]", code, re.MULTILINE)
+    )
 
 
 @pytest.fixture()

@@ -23,8 +23,15 @@ from appell.examples import catalog
 from appell.examples.event_examples import block_on_incline
 from appell.examples.servo_examples import appell_ball
 from appell.examples.support_examples import table_four_legs
-from appell.numerics.dynamics import (DYNAMICS_MEMBERS, Dynamics, FrictionModes, FromDerivation, ResidualJacobians,
-                                      ServoTracking, SplitBlocks)
+from appell.numerics.dynamics import (
+    DYNAMICS_MEMBERS,
+    Dynamics,
+    FrictionModes,
+    FromDerivation,
+    ResidualJacobians,
+    ServoTracking,
+    SplitBlocks,
+)
 from appell.numerics.friction import FrictionLaws
 from appell.numerics.redundant import RedundantModel
 
@@ -71,22 +78,37 @@ def test_wrappers_hold_their_protocol_members_themselves(models, kind):
     if kind == "redundant":  # all four legs, not only the independent three
         assert len(model.constraint_names) == 4 and len(inner.constraint_names) == 3
         assert model.state_residuals(0.0, y, None)[0].shape == (4,)
-    M, hQ, J, c = model.evaluate_blocks(0.0, y[:len(model.coordinate_names)], y[len(model.coordinate_names):], None)
+    M, hQ, J, c = model.evaluate_blocks(0.0, y[: len(model.coordinate_names)], y[len(model.coordinate_names) :], None)
     assert M.shape[0] == len(model.speed_names)
 
 
 def test_the_simulation_layer_asks_protocols_not_attributes():
     """No module of the simulation layer probes a model for a capability member with
     ``hasattr``/``getattr`` (the members of the protocols above)."""
-    members = {"evaluate_blocks", "residual_jacobians", "start_blocks", "start_conditions", "servo_names",
-               "relation_of", "laws", "frictions", "derivation", "redundancy", "state_names"}
+    members = {
+        "evaluate_blocks",
+        "residual_jacobians",
+        "start_blocks",
+        "start_conditions",
+        "servo_names",
+        "relation_of",
+        "laws",
+        "frictions",
+        "derivation",
+        "redundancy",
+        "state_names",
+    }
     folder = Path(appell.__file__).parent / "simulation"
     probes = []
     for path in sorted(folder.glob("*.py")):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if (isinstance(node, ast.Call) and getattr(node.func, "id", None) in ("hasattr", "getattr")
-                    and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant)
-                    and node.args[1].value in members):
+            if (
+                isinstance(node, ast.Call)
+                and getattr(node.func, "id", None) in ("hasattr", "getattr")
+                and len(node.args) >= 2
+                and isinstance(node.args[1], ast.Constant)
+                and node.args[1].value in members
+            ):
                 probes.append(f"{path.name}:{node.lineno} {node.func.id}(..., {node.args[1].value!r})")
     assert not probes, probes
 

@@ -9,9 +9,8 @@ import sympy as sp
 from scipy.integrate import quad
 
 import appell
-from appell import Event, ModelError, simulate
+from appell import Event, ModelError, numeric_model, simulate
 from appell.examples import catalog, event_examples
-from appell import numeric_model
 
 THETA0 = 0.4
 G, R = 9.81, 1.0
@@ -41,8 +40,7 @@ def release_time_by_quadrature():
 def test_particle_leaves_sphere_where_cos_theta_is_two_thirds(sphere):
     """Particle released at rest at theta0 from the top of a smooth sphere leaves it where
     the normal force m g (3 cos theta - 2 cos theta0) vanishes: cos theta = (2/3) cos theta0."""
-    sol = simulate(sphere, 1.5, unilateral={"surface": +1}, rtol=1e-12, atol=1e-13,
-                   t_eval=np.linspace(0.0, 1.5, 151))
+    sol = simulate(sphere, 1.5, unilateral={"surface": +1}, rtol=1e-12, atol=1e-13, t_eval=np.linspace(0.0, 1.5, 151))
     assert sol.status == 0
     (rel,) = [e for e in sol.events if e.kind == "release"]
     cos_theta = rel.state["y"] / math.hypot(rel.state["x"], rel.state["y"])
@@ -87,8 +85,9 @@ def test_friction_limit_is_flagged_without_stopping():
     2/7 m g sin(alpha) <= mu m g cos(alpha) (Routh, Advanced Rigid Dynamics §240), so with
     mu = 0.1 the limit is exceeded at t = (atan(3.5 mu) - 0.1) / 0.1."""
     d = appell.derive(event_examples.ball_on_tilting_plane())
-    sol = simulate(d, 4.0, friction={"roll_x": ("contact", 0.1)}, rtol=1e-10, atol=1e-12,
-                   t_eval=np.linspace(0.0, 4.0, 41))
+    sol = simulate(
+        d, 4.0, friction={"roll_x": ("contact", 0.1)}, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 4.0, 41)
+    )
     assert sol.status == 0 and sol.t[-1] == 4.0
     (ev,) = [e for e in sol.events if e.kind == "friction"]
     # the multipliers depend on t alone here (rounding only): the event's root to ~1e-14 (measured)
@@ -175,8 +174,15 @@ def test_partition_switches_on_the_way_and_back_against_the_augmented_route():
     assert sol.log[0].startswith("t = 1:") and "switched" in sol.log[0] and "restored" in sol.log[1]
     model = numeric_model(d)
     y0 = appell.complete_initial(d).y
-    ref = solve_ivp(lambda tt, y: np.concatenate([y[3:], augmented_solve(model, tt, y[:3], y[3:]).accelerations]),
-                    (0.0, 2.0), y0, method="DOP853", t_eval=t, rtol=1e-11, atol=1e-12)
+    ref = solve_ivp(
+        lambda tt, y: np.concatenate([y[3:], augmented_solve(model, tt, y[:3], y[3:]).accelerations]),
+        (0.0, 2.0),
+        y0,
+        method="DOP853",
+        t_eval=t,
+        rtol=1e-11,
+        atol=1e-12,
+    )
     lam = np.array([augmented_solve(model, tt, ref.y[:3, i], ref.y[3:, i]).multipliers for i, tt in enumerate(t)])
     # two integrations (rtol 1e-10 and 1e-11) of the same motion, 2 s: they differ by a few rtol
     # (3e-10 of the scale, measured), not by the switches
@@ -198,5 +204,5 @@ def test_the_event_log_is_in_time_order(backend):
     times = [e.t for e in sol.events]
     assert sol.statistics.switches >= 2 and len(times) >= 2
     assert times == sorted(times)
-    logged = [float(line[4:line.index(":")]) for line in sol.log]
+    logged = [float(line[4 : line.index(":")]) for line in sol.log]
     assert logged == sorted(logged) and max(logged) <= sol.t[-1]

@@ -27,6 +27,7 @@ from appell import (
     derive,
     energy_balance,
     holonomic,
+    numeric_model,
 )
 from appell.core.equations import ReactionFormulas
 from appell.examples import catalog
@@ -36,7 +37,6 @@ from appell.io.report import _check_section as report_verdict_section
 from appell.numerics.crosscheck import Comparison, CrossCheckReport, multiplier_scale, sample_states
 from appell.numerics.numeric import NumericModel
 from appell.simulation.energy_balance import ENERGY_TOLERANCE
-from appell import numeric_model
 
 EPS = 1e-6  # the size of every mutation
 
@@ -52,7 +52,8 @@ def bead_on_rotating_rod(omega: float = 2.0, r0: float = 0.5) -> System:
     xd, yd = sp.symbols("x_dot y_dot")
     tt = sp.Symbol("t")
     return System(
-        name="bead_on_rod", coordinates=(x, y),
+        name="bead_on_rod",
+        coordinates=(x, y),
         parameters=(Parameter(m, 1.0), Parameter(Om, omega)),
         kinetic_energy=m / 2 * (xd**2 + yd**2),
         constraints=(holonomic("rod", -x * sp.sin(Om * tt) + y * sp.cos(Om * tt)),),
@@ -67,8 +68,12 @@ def damped_oscillator(m=2.0, k=8.0, c=0.4) -> System:
     x, xd = sp.symbols("x x_dot")
     M, K, C = sp.symbols("M K C")
     return System(
-        name="damped", coordinates=(x,), parameters=(Parameter(M, m), Parameter(K, k), Parameter(C, c)),
-        kinetic_energy=M / 2 * xd**2, potential_energy=K / 2 * x**2, generalized_forces=(-C * xd,),
+        name="damped",
+        coordinates=(x,),
+        parameters=(Parameter(M, m), Parameter(K, k), Parameter(C, c)),
+        kinetic_energy=M / 2 * xd**2,
+        potential_energy=K / 2 * x**2,
+        generalized_forces=(-C * xd,),
         initial={"x": 1.0, "x_dot": 0.0},
     )
 
@@ -119,8 +124,9 @@ def perturbed_formula(derivation):
     copy = dataclasses.replace(derivation)
     lam = sp.Matrix(derivation.reactions.multipliers)
     lam[0] = lam[0] * (1 + sp.Float(EPS))
-    copy.__dict__["reactions"] = ReactionFormulas(derivation.reactions.names, sp.ImmutableMatrix(lam),
-                                                  derivation.reactions.generalized)
+    copy.__dict__["reactions"] = ReactionFormulas(
+        derivation.reactions.names, sp.ImmutableMatrix(lam), derivation.reactions.generalized
+    )
     return copy
 
 
@@ -165,9 +171,12 @@ def test_check_says_when_nothing_can_be_cross_checked(tmp_path):
     to compare (no constraints), no kinetic energy for Lagrange's equations or an energy
     balance. check says so instead of comparing appell with itself."""
     model = tmp_path / "s_only.toml"
-    model.write_text('[model]\nname = "s_only"\ncoordinates = ["x"]\n[parameters]\nm = 2.0\nk = 3.0\n'
-                     '[mechanics]\nacceleration_energy = "m/2*x\'\'^2"\npotential_energy = "k/2*x^2"\n'
-                     '[initial]\nx = 1.0\n"x\'" = 0.0\n', encoding="utf-8")
+    model.write_text(
+        '[model]\nname = "s_only"\ncoordinates = ["x"]\n[parameters]\nm = 2.0\nk = 3.0\n'
+        '[mechanics]\nacceleration_energy = "m/2*x\'\'^2"\npotential_energy = "k/2*x^2"\n'
+        '[initial]\nx = 1.0\n"x\'" = 0.0\n',
+        encoding="utf-8",
+    )
     from appell import load_model
 
     d = derive(load_model(model))

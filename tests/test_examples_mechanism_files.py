@@ -18,11 +18,10 @@ import math
 import numpy as np
 import pytest
 
-from appell import derive, load_model
+from appell import derive, load_model, numeric_model
 from appell.examples import example_path
 from appell.examples.mechanism_examples import four_bar
 from test_mechanism import assert_four_bar_pin_forces_match_newton_euler
-from appell import numeric_model
 
 
 @pytest.fixture(scope="module")

@@ -23,8 +23,9 @@ HEAVY = ("sympy", "scipy", "xarray", "pandas", "matplotlib", "h5py", "dask", "ap
 
 def _run(code: str, **env) -> str:
     clean = {k: v for k, v in os.environ.items() if k != "APPELL_BACKEND"}
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
-                          env={**clean, **env})
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=600, env={**clean, **env}
+    )
     assert done.returncode == 0, done.stderr
     return done.stdout.strip().splitlines()[-1]
 
@@ -35,9 +36,11 @@ def test_import_appell_imports_no_heavy_library():
 
 
 def test_the_pipeline_names_import_no_data_or_plotting_library():
-    code = ("import sys\nfrom appell import derive, load_model, numeric_model, simulate, System\n"
-            "print([m for m in ('xarray', 'pandas', 'matplotlib', 'h5py', 'dask', 'appell.io.viewer') "
-            "if m in sys.modules])")
+    code = (
+        "import sys\nfrom appell import derive, load_model, numeric_model, simulate, System\n"
+        "print([m for m in ('xarray', 'pandas', 'matplotlib', 'h5py', 'dask', 'appell.io.viewer') "
+        "if m in sys.modules])"
+    )
     assert _run(code) == "[]"
 
 
@@ -86,8 +89,10 @@ def test_appell_backend_names_another_default(tmp_path):
 def test_the_command_lines_numpy_backend_stays_numpy():
     """``appell simulate --backend numpy`` (workflows.run_simulation) runs the NumPy model by
     name: with the default now 'auto', passing the bare derivation on compiled C instead."""
-    code = ("from appell import derive, load_model\nfrom appell.numerics import boundary\n"
-            "from appell.workflows import run_simulation\n"
-            "d = derive(load_model('pendulum'))\nrun_simulation(d, 0.01, backend='numpy')\n"
-            "print(boundary._kept(d, 'c') is None and boundary._kept(d, 'numpy') is not None)")
+    code = (
+        "from appell import derive, load_model\nfrom appell.numerics import boundary\n"
+        "from appell.workflows import run_simulation\n"
+        "d = derive(load_model('pendulum'))\nrun_simulation(d, 0.01, backend='numpy')\n"
+        "print(boundary._kept(d, 'c') is None and boundary._kept(d, 'numpy') is not None)"
+    )
     assert _run(code) == "True"

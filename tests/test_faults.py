@@ -29,9 +29,9 @@ import pytest
 from click.testing import CliRunner
 
 import appell
+from appell import files
 from appell.examples import example_path
 from appell.examples.catalog import CATALOG
-from appell import files
 from appell.io.cli import cli
 from appell.io.results import write_netcdf
 from processes import env_with_src
@@ -46,8 +46,14 @@ def run(*args):
 
 
 def run_process(args, timeout=180, **kw):
-    return subprocess.run([sys.executable, *map(str, args)], capture_output=True, text=True, timeout=timeout,
-                          env=kw.pop("env", env_with_src()), **kw)
+    return subprocess.run(
+        [sys.executable, *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=kw.pop("env", env_with_src()),
+        **kw,
+    )
 
 
 def enospc(*args, **kwargs):
@@ -83,9 +89,11 @@ def test_full_disk_fails_cleanly_and_keeps_the_old_file(tmp_path, monkeypatch, s
     monkeypatch.setattr(results, "write_bytes", enospc)
 
     if suffix == ".csv":
+
         def rows(self):
             yield ["t"]
             enospc()
+
         monkeypatch.setattr("appell.io.results.csv_rows", rows)
     result = run("simulate", "pendulum", "--t-end", "0.2", "--backend", "numpy", "--out", target)
     assert result.exit_code == 1, result.output
@@ -117,8 +125,11 @@ def _tmpfs_command(size_kb: int, directory: Path, inner: str) -> list[str] | Non
     for prefix in (["unshare", "-rm"], []):
         if prefix and shutil.which("unshare") is None:
             continue
-        check = subprocess.run(prefix + ["sh", "-c", f"mount -t tmpfs -o size=16k tmpfs {probe} && umount {probe}"],
-                               capture_output=True, timeout=30)
+        check = subprocess.run(
+            prefix + ["sh", "-c", f"mount -t tmpfs -o size=16k tmpfs {probe} && umount {probe}"],
+            capture_output=True,
+            timeout=30,
+        )
         if check.returncode == 0:
             mount = f"mount -t tmpfs -o size={size_kb}k tmpfs {directory}"
             umount = f"; rc=$?; cd /; umount {directory}; exit $rc" if not prefix else ""
@@ -133,8 +144,10 @@ def test_full_disk_on_a_real_tmpfs(tmp_path):
     disk = tmp_path / "disk"
     disk.mkdir()
     python = sys.executable
-    inner = (f"echo previous > car.h5 && PYTHONPATH={SRC} {python} -m appell.io.cli simulate car --t-end 2 "
-             f"--backend numpy --out car.h5; echo \"rc=$?\"; cat car.h5; ls -a")
+    inner = (
+        f"echo previous > car.h5 && PYTHONPATH={SRC} {python} -m appell.io.cli simulate car --t-end 2 "
+        f'--backend numpy --out car.h5; echo "rc=$?"; cat car.h5; ls -a'
+    )
     command = _tmpfs_command(12, disk, inner)
     if command is None:
         pytest.skip("cannot mount a tmpfs here (needs root or unprivileged user namespaces)")
@@ -303,10 +316,25 @@ def test_signal_during_a_write_removes_the_temporary_and_keeps_the_old_file(tmp_
     # its handler only where SIGINT is not ignored at start, and a suite started in the
     # background by a shell without job control inherits SIGINT ignored: give the child the
     # default disposition (the appell command installs its own handler, appell_entry)
-    proc = subprocess.Popen([sys.executable, str(script), "simulate", "pendulum", "--t-end", "0.1", "--backend",
-                             "numpy", "--out", str(target)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=env_with_src(),
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            str(script),
+            "simulate",
+            "pendulum",
+            "--t-end",
+            "0.1",
+            "--backend",
+            "numpy",
+            "--out",
+            str(target),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env_with_src(),
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     try:
         assert proc.stdout.readline().strip() == "writing"
         assert leftovers(tmp_path)  # the temporary file exists while writing
@@ -331,15 +359,25 @@ def test_hostile_model_name_stays_in_the_working_directory(tmp_path, monkeypatch
     assert result.exit_code == 0, result.output
     assert (work / "x_evil-report.html").exists()
     pytest.importorskip("dask.distributed")
-    result = run("sweep", model, "--param", "m=1", "--t-end", "0.2", "--samples", "5", "--workers", "1",
-                 "--backend", "numpy")
+    result = run(
+        "sweep", model, "--param", "m=1", "--t-end", "0.2", "--samples", "5", "--workers", "1", "--backend", "numpy"
+    )
     assert result.exit_code == 0, result.output
     assert (work / "x_evil-sweep.h5").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["model.toml", "work"]
 
 
-@pytest.mark.parametrize("name, expected", [("../x/evil", "x_evil"), ("/etc/passwd", "etc_passwd"), ("..", "model"),
-                                            (".hidden", "hidden"), ("a b\nc", "a_b_c"), ("Pendel_ä", "Pendel")])
+@pytest.mark.parametrize(
+    "name, expected",
+    [
+        ("../x/evil", "x_evil"),
+        ("/etc/passwd", "etc_passwd"),
+        ("..", "model"),
+        (".hidden", "hidden"),
+        ("a b\nc", "a_b_c"),
+        ("Pendel_ä", "Pendel"),
+    ],
+)
 def test_default_file_name_is_one_safe_component(name, expected):
     path = files.default_file_name(name, "-report.html")
     assert path == Path(expected + "-report.html") and len(path.parts) == 1
@@ -359,8 +397,13 @@ def test_non_ascii_model_name_and_symbols_in_netcdf(tmp_path):
     import sympy as sp
 
     th, thd = sp.symbols("θ θ_dot")
-    system = appell.System(coordinates=[th], parameters={sp.Symbol("k"): 1.0}, kinetic_energy=thd**2 / 2,
-                           potential_energy=sp.Symbol("k") * th**2 / 2, initial={"θ": 1.0, "θ_dot": 0.0})
+    system = appell.System(
+        coordinates=[th],
+        parameters={sp.Symbol("k"): 1.0},
+        kinetic_energy=thd**2 / 2,
+        potential_energy=sp.Symbol("k") * th**2 / 2,
+        initial={"θ": 1.0, "θ_dot": 0.0},
+    )
     from appell.simulation.simulate import simulate
 
     sol = simulate(appell.derive(system), 1.0, t_eval=[0.0, 1.0], progress=False)
@@ -431,8 +474,17 @@ def test_corrupt_cache_is_detected_and_rebuilt(tmp_path):
     proc = run_process(["-c", CORRUPTIONS, ctypes_library()], env=env_with_src(APPELL_CACHE_DIR=str(tmp_path / "c")))
     assert proc.returncode == 0, (proc.returncode, proc.stdout, proc.stderr)
     rows = {line.split()[0]: line.split()[1:] for line in proc.stdout.splitlines()}
-    assert list(rows) == ["first", "truncated", "truncated-again", "empty", "empty-again", "foreign",
-                          "foreign-again", "forged", "forged-again"]
+    assert list(rows) == [
+        "first",
+        "truncated",
+        "truncated-again",
+        "empty",
+        "empty-again",
+        "foreign",
+        "foreign-again",
+        "forged",
+        "forged-again",
+    ]
     for case, (fresh, tension) in rows.items():
         assert fresh == ("False" if case.endswith("-again") else "True"), case
         assert float(tension) == pytest.approx(G * 0.8, rel=1e-12), case  # one split solve: rounding only
@@ -459,8 +511,16 @@ def ctypes_library() -> str:
     for name in ("m", "c"):
         found = ctypes.util.find_library(name)
         if found:
-            for directory in ("/lib/x86_64-linux-gnu", "/usr/lib/x86_64-linux-gnu", "/lib64", "/usr/lib64", "/lib",
-                              "/usr/lib", "/lib/aarch64-linux-gnu", "/usr/lib/aarch64-linux-gnu"):
+            for directory in (
+                "/lib/x86_64-linux-gnu",
+                "/usr/lib/x86_64-linux-gnu",
+                "/lib64",
+                "/usr/lib64",
+                "/lib",
+                "/usr/lib",
+                "/lib/aarch64-linux-gnu",
+                "/usr/lib/aarch64-linux-gnu",
+            ):
                 if os.path.exists(os.path.join(directory, found)):
                     return os.path.join(directory, found)
     pytest.skip("no system shared library found to play a foreign one")
@@ -478,8 +538,12 @@ def test_concurrent_cold_cache_compiles_are_safe(tmp_path):
     the same tension, and one verified library per source is left."""
     cache = tmp_path / "cache"
     env = env_with_src(APPELL_CACHE_DIR=str(cache))
-    procs = [subprocess.Popen([sys.executable, "-c", CACHE_PROBE], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                              text=True, env=env) for _ in range(3)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", CACHE_PROBE], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+        )
+        for _ in range(3)
+    ]
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 0, 0], outs
     assert all(float(o.split()[1]) == pytest.approx(G * 0.8, rel=1e-12) for o, _ in outs)  # rounding only
@@ -520,10 +584,33 @@ def test_unwritable_cache_directory_falls_back_for_auto(monkeypatch, tmp_path):
 
 # -------------------------------------------------------------------------- Dask
 def _sweep_process(model, address, out, runs, timeout_s):
-    return subprocess.Popen([sys.executable, "-m", "appell.io.cli", "sweep", str(model), "--param",
-                             f"m=1:2:{runs}", "--t-end", "2", "--samples", "201", "--backend", "numpy",
-                             "--scheduler", address, "--worker-timeout", str(timeout_s), "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env_with_src())
+    return subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "appell.io.cli",
+            "sweep",
+            str(model),
+            "--param",
+            f"m=1:2:{runs}",
+            "--t-end",
+            "2",
+            "--samples",
+            "201",
+            "--backend",
+            "numpy",
+            "--scheduler",
+            address,
+            "--worker-timeout",
+            str(timeout_s),
+            "--out",
+            str(out),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env_with_src(),
+    )
 
 
 def _wait_for_runs(partial: Path, count: int, proc, timeout=180):
@@ -591,13 +678,16 @@ def test_summary_ignores_values_of_failed_runs():
     """A failed run whose last values blew up (3.15e6) is not the sweep's extreme."""
     from appell.simulation.sweep import RunRecord, _summary
 
-    runs = (RunRecord(0, {"m": 1.0}, 0, "reached the final time", 0.1),
-            RunRecord(1, {"m": 2.0}, -1, "the integrator failed", 0.1))
+    runs = (
+        RunRecord(0, {"m": 1.0}, 0, "reached the final time", 0.1),
+        RunRecord(1, {"m": 2.0}, -1, "the integrator failed", 0.1),
+    )
     groups = {"multipliers": {"rod": np.array([[1.0, 2.0], [3.15e6, np.nan]])}}
     summary = _summary(groups, runs)
     assert summary["multipliers"]["rod"]["max"] == 2.0 and summary["multipliers"]["rod"]["argmax_run"] == 0
-    assert summary["failed_runs"] == [{"run": 1, "parameters": {"m": 2.0}, "status": -1,
-                                       "message": "the integrator failed"}]
+    assert summary["failed_runs"] == [
+        {"run": 1, "parameters": {"m": 2.0}, "status": -1, "message": "the integrator failed"}
+    ]
     assert summary["successful_runs"] == 1
 
 
@@ -632,11 +722,13 @@ def test_bad_scheduler_addresses(junk_server, tmp_path):
     (it gave 'internal error ... MemoryError 3.07 EiB'); a closed port: ResourceError."""
     pytest.importorskip("dask.distributed")
     for bad in ("tcp://host", "http://x:1", "tcp://a:99999", "a b:1"):
-        result = run("sweep", "pendulum", "--param", "m=1", "--t-end", "0.1", "--scheduler", bad,
-                     "--out", tmp_path / "s.h5")
+        result = run(
+            "sweep", "pendulum", "--param", "m=1", "--t-end", "0.1", "--scheduler", bad, "--out", tmp_path / "s.h5"
+        )
         assert result.exit_code == 2 and "bad Dask scheduler address" in result.stderr, (bad, result.output)
-    result = run("sweep", "pendulum", "--param", "m=1", "--t-end", "0.1", "--scheduler", junk_server,
-                 "--out", tmp_path / "s.h5")
+    result = run(
+        "sweep", "pendulum", "--param", "m=1", "--t-end", "0.1", "--scheduler", junk_server, "--out", tmp_path / "s.h5"
+    )
     assert result.exit_code == 1, result.output
     assert "cannot connect to the Dask scheduler" in result.stderr and "internal error" not in result.stderr
     from appell.simulation.sweep import sweep
@@ -645,8 +737,15 @@ def test_bad_scheduler_addresses(junk_server, tmp_path):
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]  # closed once the block ends
     with pytest.raises(appell.ResourceError, match="cannot connect"):
-        sweep(CATALOG["pendulum"](), ["m=1"], 0.1, scheduler=f"tcp://127.0.0.1:{port}", connect_timeout=2,
-              progress=False, output=tmp_path / "s.h5")
+        sweep(
+            CATALOG["pendulum"](),
+            ["m=1"],
+            0.1,
+            scheduler=f"tcp://127.0.0.1:{port}",
+            connect_timeout=2,
+            progress=False,
+            output=tmp_path / "s.h5",
+        )
     assert list(tmp_path.iterdir()) == []  # no partial file without runs
 
 
@@ -660,7 +759,7 @@ def test_bom_at_the_start_of_a_model_file_is_accepted(tmp_path):
     with_bom.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
     assert appell.load_model(with_bom).name == "pendulum"
     broken = tmp_path / "broken.toml"
-    broken.write_bytes(b"\xef\xbb\xbf[model]\ncoordinates = [\"x\"]\n[mechanics]\nkinetic_energy = \"x'^\"\n")
+    broken.write_bytes(b'\xef\xbb\xbf[model]\ncoordinates = ["x"]\n[mechanics]\nkinetic_energy = "x\'^"\n')
     with pytest.raises(appell.ModelError, match=r"broken.toml:4"):
         appell.load_model(broken)
 
@@ -680,12 +779,15 @@ def _kept_partial(tmp_path, monkeypatch, system, **kw):
     return sweep_module, base
 
 
-@pytest.mark.parametrize("change, named", [
-    ("parameter", "the model's content"),      # --set L=1.5: another parameter value
-    ("model", "the model's content"),          # the model file edited: another potential
-    ("options", "the solver options"),         # another rtol
-    ("backend", "the numeric backend"),
-])
+@pytest.mark.parametrize(
+    "change, named",
+    [
+        ("parameter", "the model's content"),  # --set L=1.5: another parameter value
+        ("model", "the model's content"),  # the model file edited: another potential
+        ("options", "the solver options"),  # another rtol
+        ("backend", "the numeric backend"),
+    ],
+)
 def test_resume_refuses_runs_computed_from_anything_else_and_names_it(tmp_path, monkeypatch, change, named):
     """Issue 20: a resumed sweep took the kept runs whenever the model name, grid and output
     times matched, mixing runs of another --set value or of an edited model file silently
@@ -699,8 +801,9 @@ def test_resume_refuses_runs_computed_from_anything_else_and_names_it(tmp_path, 
     system, kw = pendulum, dict(base)
     if change == "parameter":
         L = next(p for p in pendulum.parameter_values if p.name == "L")
-        system = pendulum.replace(parameters=tuple(
-            appell.Parameter(p.symbol, 1.5 if p.symbol == L else p.value) for p in pendulum.parameters))
+        system = pendulum.replace(
+            parameters=tuple(appell.Parameter(p.symbol, 1.5 if p.symbol == L else p.value) for p in pendulum.parameters)
+        )
     elif change == "model":
         system = pendulum.replace(potential_energy=pendulum.potential_energy * sp.Rational(101, 100))
     elif change == "options":
@@ -723,11 +826,18 @@ def test_resume_of_the_same_sweep_in_a_new_process_takes_every_kept_run(tmp_path
     system = appell.load_model(example_path("pendulum"))
     _, base = _kept_partial(tmp_path, monkeypatch, system)
     header, kept = sweep_module.read_partial(tmp_path / "s.h5.partial")
-    code = ("import sys; from appell.simulation.sweep import model_fingerprint; import appell; "
-            f"print(model_fingerprint(appell.load_model({str(example_path('pendulum'))!r})))")
+    code = (
+        "import sys; from appell.simulation.sweep import model_fingerprint; import appell; "
+        f"print(model_fingerprint(appell.load_model({str(example_path('pendulum'))!r})))"
+    )
     for seed in ("1", "2"):
-        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                              env={**env_with_src(), "PYTHONHASHSEED": seed})
+        proc = subprocess.run(
+            [sys.executable, "-c", code],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            env={**env_with_src(), "PYTHONHASHSEED": seed},
+        )
         assert proc.stdout.strip() == header["content"], proc.stderr
 
     def nothing_to_compute(model, todo, *a, **k):

@@ -19,8 +19,8 @@ from appell.examples.cyclic_examples import (
     symmetric_top,
     turntable_particle,
 )
-from appell.reduction.first_integrals import augmented_system, check_first_integrals, integral_constraint
 from appell.model import FirstIntegral
+from appell.reduction.first_integrals import augmented_system, check_first_integrals, integral_constraint
 
 
 def test_spherical_pendulum_energy_and_momentum_are_integrals():
@@ -139,8 +139,9 @@ def _planar_swing():
     """The Cartesian spherical pendulum released at rest at 1 rad in the x-z plane: along
     this one motion y, y_dot and L_x = m (y z_dot - z y_dot) stay zero."""
     s = spherical_pendulum_cartesian()
-    return s.replace(initial={"x": float(np.sin(1.0)), "y": 0.0, "z": float(-np.cos(1.0)),
-                              "x_dot": 0.0, "y_dot": 0.0, "z_dot": 0.0})
+    return s.replace(
+        initial={"x": float(np.sin(1.0)), "y": 0.0, "z": float(-np.cos(1.0)), "x_dot": 0.0, "y_dot": 0.0, "z_dot": 0.0}
+    )
 
 
 def test_a_planar_swing_does_not_make_y_rate_and_L_x_integrals():
@@ -152,9 +153,12 @@ def test_a_planar_swing_does_not_make_y_rate_and_L_x_integrals():
     T = m |v|^2 / L - m g z / L (radial Newton equation)."""
     m, g, L = 1.0, 9.81, 1.0
     x, y, z, xd, yd, zd, M = sp.symbols("x y z x_dot y_dot z_dot m")
-    cands = [FirstIntegral("y_rate", yd), FirstIntegral("L_x", M * (y * zd - z * yd)),
-             FirstIntegral("L_z", M * (x * yd - y * xd)),
-             FirstIntegral("energy", M / 2 * (xd**2 + yd**2 + zd**2) + M * sp.Symbol("g") * z)]
+    cands = [
+        FirstIntegral("y_rate", yd),
+        FirstIntegral("L_x", M * (y * zd - z * yd)),
+        FirstIntegral("L_z", M * (x * yd - y * xd)),
+        FirstIntegral("energy", M / 2 * (xd**2 + yd**2 + zd**2) + M * sp.Symbol("g") * z),
+    ]
     rep = check_first_integrals(_planar_swing(), cands, symbolic=False)
     assert rep.integrals == ("L_z", "energy"), rep.to_text()
     for name in ("y_rate", "L_x"):

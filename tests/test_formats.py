@@ -22,8 +22,9 @@ def test_every_suffix_has_one_importer():
     assert importer_for("model.toml") is None
     assert len(formats.suffixes()) == len(set(formats.suffixes()))
     assert importer_for("gripper.sdf").name == "SDF"
-    assert described() == ("a model file (.toml), a robot description (.urdf), a MuJoCo model (.xml, .mjcf) or an "
-                           "SDFormat model (.sdf)")
+    assert described() == (
+        "a model file (.toml), a robot description (.urdf), a MuJoCo model (.xml, .mjcf) or an SDFormat model (.sdf)"
+    )
 
 
 def test_a_new_format_is_one_entry(tmp_path, monkeypatch):
@@ -56,8 +57,12 @@ def test_the_mechanism_table_reads_a_urdf_through_its_entry(tmp_path, monkeypatc
         seen.append(Path(path).name)
         return urdf.mechanism(path, floating_base)
 
-    patched = tuple(Importer(i.name, i.suffixes, i.what, i.system, spy if i is urdf else i.mechanism, i.key,
-                             i.floating_base, i.extra) for i in IMPORTERS)
+    patched = tuple(
+        Importer(
+            i.name, i.suffixes, i.what, i.system, spy if i is urdf else i.mechanism, i.key, i.floating_base, i.extra
+        )
+        for i in IMPORTERS
+    )
     monkeypatch.setattr(formats, "IMPORTERS", patched)
     (tmp_path / "arm.urdf").write_text((EXAMPLES / "arm.urdf").read_text())
     model = tmp_path / "on_a_table.toml"

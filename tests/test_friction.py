@@ -24,11 +24,16 @@ m, g, al, muk, mus, R, l = sp.symbols("m g alpha mu_k mu_s R l")
 
 def block(alpha, v0, mu_k=0.3, mu_s=0.5, mass=2.0):
     """A block on an incline of angle alpha: x down the slope, y the gap to the surface."""
-    return System(coordinates=(x, y), parameters={m: mass, g: G, al: alpha, muk: mu_k, mus: mu_s},
-                  kinetic_energy=m / 2 * (xd**2 + yd**2), potential_energy=m * g * (-x * sp.sin(al) + y * sp.cos(al)),
-                  constraints=(holonomic("floor", y),),
-                  frictions=(Friction("slide", slip=(xd,), normal="floor", mu_k=muk, mu_s=mus),),
-                  initial={"x": 0.0, "y": 0.0, "x_dot": v0, "y_dot": 0.0}, name="block")
+    return System(
+        coordinates=(x, y),
+        parameters={m: mass, g: G, al: alpha, muk: mu_k, mus: mu_s},
+        kinetic_energy=m / 2 * (xd**2 + yd**2),
+        potential_energy=m * g * (-x * sp.sin(al) + y * sp.cos(al)),
+        constraints=(holonomic("floor", y),),
+        frictions=(Friction("slide", slip=(xd,), normal="floor", mu_k=muk, mu_s=mus),),
+        initial={"x": 0.0, "y": 0.0, "x_dot": v0, "y_dot": 0.0},
+        name="block",
+    )
 
 
 def test_block_sliding_down_an_incline_closed_form():
@@ -91,8 +96,9 @@ def test_block_reverses_when_the_slope_is_too_steep_to_stick():
     # it is off by a dt1 relative to a (t - t1) >= 0.05 a (~6e-12)
     assert ev.kind == "slip" and ev.t == pytest.approx(t1, abs=1e-9)
     late = sol.t > t1
-    np.testing.assert_allclose(sol["x_dot"][late], G * (math.sin(alpha) - 0.3 * math.cos(alpha)) * (sol.t[late] - t1),
-                               rtol=1e-8)
+    np.testing.assert_allclose(
+        sol["x_dot"][late], G * (math.sin(alpha) - 0.3 * math.cos(alpha)) * (sol.t[late] - t1), rtol=1e-8
+    )
 
 
 def ball(alpha, mu_s=0.2, mu_k=0.15, v0=0.0, rolling_resistance=None):
@@ -104,12 +110,16 @@ def ball(alpha, mu_s=0.2, mu_k=0.15, v0=0.0, rolling_resistance=None):
         mur = sp.Symbol("mu_r")
         params[mur] = rolling_resistance
         frictions.append(Friction("rolling", slip=(thd,), normal="floor", mu_k=mur))
-    return System(coordinates=(x, y, th), parameters=params,
-                  kinetic_energy=m / 2 * (xd**2 + yd**2) + sp.Rational(1, 5) * m * R**2 * thd**2,
-                  potential_energy=m * g * (-x * sp.sin(al) + y * sp.cos(al)),
-                  constraints=(holonomic("floor", y),), frictions=tuple(frictions),
-                  initial={"x": 0.0, "y": 0.0, "theta": 0.0, "x_dot": v0, "y_dot": 0.0, "theta_dot": v0 / 0.1},
-                  name="ball")
+    return System(
+        coordinates=(x, y, th),
+        parameters=params,
+        kinetic_energy=m / 2 * (xd**2 + yd**2) + sp.Rational(1, 5) * m * R**2 * thd**2,
+        potential_energy=m * g * (-x * sp.sin(al) + y * sp.cos(al)),
+        constraints=(holonomic("floor", y),),
+        frictions=tuple(frictions),
+        initial={"x": 0.0, "y": 0.0, "theta": 0.0, "x_dot": v0, "y_dot": 0.0, "theta_dot": v0 / 0.1},
+        name="ball",
+    )
 
 
 def test_ball_rolls_without_slipping_up_to_tan_alpha_seven_halves_mu_s():
@@ -154,8 +164,13 @@ def test_viscous_friction_decays_the_speed_exponentially():
     """Elementary mechanics: a mass on a smooth floor with viscous friction -c x' moves
     with x' = v0 exp(-c t / m)."""
     c = sp.Symbol("c")
-    system = System(coordinates=(x,), parameters={m: 2.0, c: 0.7}, kinetic_energy=m / 2 * xd**2,
-                    frictions=(Friction("damper", slip=(xd,), viscous=c),), initial={"x": 0.0, "x_dot": 3.0})
+    system = System(
+        coordinates=(x,),
+        parameters={m: 2.0, c: 0.7},
+        kinetic_energy=m / 2 * xd**2,
+        frictions=(Friction("damper", slip=(xd,), viscous=c),),
+        initial={"x": 0.0, "x_dot": 3.0},
+    )
     sol = simulate(derive(system), 2.0, t_eval=np.linspace(0, 2, 11), rtol=1e-11)
     # the run at rtol 1e-11 over 2 s: ~8e-12 relative (measured; 2.3e-10 at the default rtol 1e-9)
     np.testing.assert_allclose(sol["x_dot"], 3.0 * np.exp(-0.7 * sol.t / 2.0), rtol=1e-9)
@@ -168,14 +183,17 @@ def turntable(omega_rate=1.0, mu_s=0.2, r=0.981):
     to the table at (x' + omega y, y' - omega x)."""
     ph, w_rate = sp.symbols("phi w_rate")
     om = sp.Symbol("phi_dot")
-    return System(coordinates=(x, y, z), parameters={m: 0.5, g: G, mus: mu_s, muk: 0.1, w_rate: omega_rate},
-                  programs={ph: w_rate * sp.Symbol("t")**2 / 2},
-                  kinetic_energy=m / 2 * (xd**2 + yd**2 + zd**2), potential_energy=m * g * z,
-                  constraints=(holonomic("floor", z),),
-                  frictions=(Friction("pad", slip=(xd + om * y, yd - om * x), normal="floor", mu_k=muk,
-                                      mu_s=mus),),
-                  initial={"x": r, "y": 0.0, "z": 0.0, "x_dot": 0.0, "y_dot": 0.0, "z_dot": 0.0},
-                  name="turntable_block")
+    return System(
+        coordinates=(x, y, z),
+        parameters={m: 0.5, g: G, mus: mu_s, muk: 0.1, w_rate: omega_rate},
+        programs={ph: w_rate * sp.Symbol("t") ** 2 / 2},
+        kinetic_energy=m / 2 * (xd**2 + yd**2 + zd**2),
+        potential_energy=m * g * z,
+        constraints=(holonomic("floor", z),),
+        frictions=(Friction("pad", slip=(xd + om * y, yd - om * x), normal="floor", mu_k=muk, mu_s=mus),),
+        initial={"x": r, "y": 0.0, "z": 0.0, "x_dot": 0.0, "y_dot": 0.0, "z_dot": 0.0},
+        name="turntable_block",
+    )
 
 
 def test_turntable_block_slips_where_the_isotropic_cone_is_left():
@@ -189,7 +207,7 @@ def test_turntable_block_slips_where_the_isotropic_cone_is_left():
     assert [e.name for e in slip] == ["pad"]
     # the force is m r sqrt(omega^4 + omega'^2) with r off by the run's error (rtol 1e-11: ~1e-11
     # relative, measured; 6e-10 at the default rtol 1e-9), which moves the slip by ~1e-13
-    assert slip[0].t == pytest.approx(3 ** 0.25, abs=1e-8)
+    assert slip[0].t == pytest.approx(3**0.25, abs=1e-8)
     assert abs(slip[0].t - math.sqrt(2)) > 0.09
     stuck = sol.t < slip[0].t
     force = np.hypot(sol["friction_pad_t1"], sol["friction_pad_t2"])
@@ -204,11 +222,15 @@ def rod(mu):
     """A uniform rod of half-length l (I = m l^2 / 3) whose lower end A slides on a rough
     floor: centre (x, y), theta its angle to the floor; A = (x - l cos theta, y - l sin theta),
     gap y - l sin theta, slip x' + l sin(theta) theta'."""
-    return System(coordinates=(x, y, th), parameters={m: 1.2, g: G, l: 0.5, muk: mu},
-                  kinetic_energy=m / 2 * (xd**2 + yd**2) + m * l**2 / 6 * thd**2, potential_energy=m * g * y,
-                  constraints=(holonomic("floor", y - l * sp.sin(th)),),
-                  frictions=(Friction("end", slip=(xd + l * sp.sin(th) * thd,), normal="floor", mu_k=muk),),
-                  name="painleve_rod")
+    return System(
+        coordinates=(x, y, th),
+        parameters={m: 1.2, g: G, l: 0.5, muk: mu},
+        kinetic_energy=m / 2 * (xd**2 + yd**2) + m * l**2 / 6 * thd**2,
+        potential_energy=m * g * y,
+        constraints=(holonomic("floor", y - l * sp.sin(th)),),
+        frictions=(Friction("end", slip=(xd + l * sp.sin(th) * thd,), normal="floor", mu_k=muk),),
+        name="painleve_rod",
+    )
 
 
 def painleve_normal(theta, theta_dot, mu, s, mass=1.2, half=0.5):
@@ -263,9 +285,16 @@ def test_painleve_rod_simulation_stops_at_the_paradox_instead_of_integrating_thr
     rigid-body normal force exists, and the run ends there with the Painlevé refusal
     naming the contact instead of integrating through."""
     theta0 = 0.6
-    system = rod(1.5).replace(initial={"x": 0.0, "y": 0.5 * math.sin(theta0), "theta": theta0,
-                                       "x_dot": -5.0 - 0.5 * math.sin(theta0), "y_dot": 0.5 * math.cos(theta0),
-                                       "theta_dot": 1.0})
+    system = rod(1.5).replace(
+        initial={
+            "x": 0.0,
+            "y": 0.5 * math.sin(theta0),
+            "theta": theta0,
+            "x_dot": -5.0 - 0.5 * math.sin(theta0),
+            "y_dot": 0.5 * math.cos(theta0),
+            "theta_dot": 1.0,
+        }
+    )
     sol = simulate(derive(system), 0.5, t_eval=np.linspace(0, 0.5, 101))
     assert sol.status == -1 and "Painlevé" in sol.message and "end" in sol.message
     theta, theta_dot = sol["theta"], sol["theta_dot"]
@@ -291,8 +320,7 @@ def test_friction_bad_input_is_refused_with_the_culprit_named():
     with pytest.raises(ModelError, match="non-negative"):
         Friction("f", slip=(xd,), normal="floor", mu_k=-0.3)
     with pytest.raises(ModelError, match="undeclared symbol.*nu"):
-        derive(block(0.3, 0.0).replace(frictions=(Friction("f", slip=(xd,), normal="floor",
-                                                           mu_k=sp.Symbol("nu")),)))
+        derive(block(0.3, 0.0).replace(frictions=(Friction("f", slip=(xd,), normal="floor", mu_k=sp.Symbol("nu")),)))
 
 
 def test_cross_check_friction_route_agrees_on_the_rod_and_fails_on_a_perturbed_normal(monkeypatch):
@@ -303,8 +331,18 @@ def test_cross_check_friction_route_agrees_on_the_rod_and_fails_on_a_perturbed_n
     import appell.numerics.friction as friction
     from appell import cross_check
 
-    d = derive(rod(0.5).replace(initial={"x": 0.0, "y": 0.5 * math.sin(0.5), "theta": 0.5, "x_dot": 1.0,
-                                         "y_dot": 0.5 * math.cos(0.5) * 0.3, "theta_dot": 0.3}))
+    d = derive(
+        rod(0.5).replace(
+            initial={
+                "x": 0.0,
+                "y": 0.5 * math.sin(0.5),
+                "theta": 0.5,
+                "x_dot": 1.0,
+                "y_dot": 0.5 * math.cos(0.5) * 0.3,
+                "theta_dot": 0.3,
+            }
+        )
+    )
     report = cross_check(d)
     (route,) = [c for c in report.comparisons if c.route == "friction"]
     # the routes agree to rounding (2e-16 relative, measured); the 1e-6 perturbation below shows
@@ -384,12 +422,15 @@ def test_model_file_friction_table_gives_the_incline_closed_form(tmp_path):
     assert result.exit_code == 0 and "the friction of slide adds Q_f" in result.output
 
 
-@pytest.mark.parametrize("change, message, line", [
-    ('normal = "floor"', 'normal = "wall"', "'wall' is not a constraint"),
-    ('slip = "x\'"', 'slip = ["x\'", "y\'", "x\'"]', "1 component"),
-    ('mu_k = "mu_k"', 'mu_k = "nu"', "undeclared symbol"),
-    ('mu_k = "mu_k"', 'mu_x = 0.3', "unknown key 'mu_x'"),
-])
+@pytest.mark.parametrize(
+    "change, message, line",
+    [
+        ('normal = "floor"', 'normal = "wall"', "'wall' is not a constraint"),
+        ('slip = "x\'"', 'slip = ["x\'", "y\'", "x\'"]', "1 component"),
+        ('mu_k = "mu_k"', 'mu_k = "nu"', "undeclared symbol"),
+        ('mu_k = "mu_k"', "mu_x = 0.3", "unknown key 'mu_x'"),
+    ],
+)
 def test_model_file_friction_errors_name_file_and_line(change, message, line):
     """Bad [[friction]] entries are refused with the model file's name and line."""
     from appell import loads_model
@@ -404,12 +445,18 @@ def ladder(mu_floor, mu_wall):
     """A uniform ladder (half-length l, I = m l^2 / 3) with its foot A = (x + l cos theta,
     y - l sin theta) on a rough floor and its top B = (x - l cos theta, y + l sin theta)
     against a rough wall x = 0: two unit gaps and two sliding contacts."""
-    return System(coordinates=(x, y, th), parameters={m: 10.0, g: G, l: 2.0, muk: mu_floor, mus: mu_wall},
-                  kinetic_energy=m / 2 * (xd**2 + yd**2) + m * l**2 / 6 * thd**2, potential_energy=m * g * y,
-                  constraints=(holonomic("floor", y - l * sp.sin(th)), holonomic("wall", x - l * sp.cos(th))),
-                  frictions=(Friction("foot", slip=(xd - l * sp.sin(th) * thd,), normal="floor", mu_k=muk),
-                             Friction("top", slip=(yd + l * sp.cos(th) * thd,), normal="wall", mu_k=mus)),
-                  name="ladder")
+    return System(
+        coordinates=(x, y, th),
+        parameters={m: 10.0, g: G, l: 2.0, muk: mu_floor, mus: mu_wall},
+        kinetic_energy=m / 2 * (xd**2 + yd**2) + m * l**2 / 6 * thd**2,
+        potential_energy=m * g * y,
+        constraints=(holonomic("floor", y - l * sp.sin(th)), holonomic("wall", x - l * sp.cos(th))),
+        frictions=(
+            Friction("foot", slip=(xd - l * sp.sin(th) * thd,), normal="floor", mu_k=muk),
+            Friction("top", slip=(yd + l * sp.cos(th) * thd,), normal="wall", mu_k=mus),
+        ),
+        name="ladder",
+    )
 
 
 def test_ladder_two_sliding_contacts_agree_with_the_augmented_route():
@@ -443,9 +490,11 @@ def test_servo_constraints_and_routh_reduction_refuse_frictions():
     from appell import Control, derive_controlled, routh_reduction
 
     u = sp.Symbol("u")
-    system = block(0.3, 1.0).replace(controls=(Control(u, "force"),),
-                                     generalized_forces=(u, 0),
-                                     servo_constraints=(holonomic("track", x - sp.Symbol("t")),))
+    system = block(0.3, 1.0).replace(
+        controls=(Control(u, "force"),),
+        generalized_forces=(u, 0),
+        servo_constraints=(holonomic("track", x - sp.Symbol("t")),),
+    )
     with pytest.raises(ModelError, match="frictions with servo constraints"):
         derive_controlled(system)
     with pytest.raises(ModelError, match="Routh reduction of a system with frictions"):
@@ -487,7 +536,7 @@ normal = "floor"
 mu_k = "mu"
 [initial]
 x = 0
-y = {start['y']!r}
+y = {start["y"]!r}
 theta = {theta!r}
 "x'" = -1
 "y'" = 0

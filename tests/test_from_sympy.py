@@ -13,9 +13,8 @@ import pytest
 import sympy as sp
 from sympy.physics import mechanics as me
 
-from appell import derive, from_sympy
+from appell import derive, from_sympy, numeric_model
 from appell.errors import ModelError
-from appell import numeric_model
 
 m, r, g = sp.symbols("m r g")
 VALUES = {m: 2.0, r: 0.5, g: 9.81}
@@ -78,8 +77,9 @@ def kane_auxiliary_speeds_reference(q, u):
     kane = me.KanesMethod(N, q_ind=[q1, q2, q3], u_ind=[u1, u2, u3], kd_eqs=kd, u_auxiliary=[u4, u5, u6])
     fr, frstar = kane.kanes_equations([body], [(Dmc, -m * g * Y.z), (C, f1 * L.x + f2 * L.y + f3 * L.z)])
     state = {**dict(zip((q1, q2, q3), q)), **dict(zip((u1, u2, u3), u)), u4: 0, u5: 0, u6: 0, **VALUES}
-    udot = np.linalg.solve(np.array(kane.mass_matrix.xreplace(state), float),
-                           np.array(kane.forcing.xreplace(state), float)).ravel()
+    udot = np.linalg.solve(
+        np.array(kane.mass_matrix.xreplace(state), float), np.array(kane.forcing.xreplace(state), float)
+    ).ravel()
     state.update(dict(zip((u1.diff(), u2.diff(), u3.diff()), udot)))
     force = sp.solve(list((fr + frstar)[3:, :].xreplace(state)), [f1, f2, f3])
     f_L = np.array([float(force[f]) for f in (f1, f2, f3)])
@@ -156,8 +156,9 @@ def double_pendulum_system():
     upper = me.RigidBody("upper", Uc, U, m1, (me.inertia(U, 0, 0, m1 * l1**2 / 12), Uc))
     lower = me.RigidBody("lower", Lc, L, m2, (me.inertia(L, 0, 0, m2 * l2**2 / 12), Lc))
     shoulder = me.PinJoint("shoulder", ceiling, upper, q1, u1, child_point=-l1 / 2 * U.x, joint_axis=N.z)
-    elbow = me.PinJoint("elbow", upper, lower, q2, u2, parent_point=l1 / 2 * U.x, child_point=-l2 / 2 * L.x,
-                        joint_axis=U.z)
+    elbow = me.PinJoint(
+        "elbow", upper, lower, q2, u2, parent_point=l1 / 2 * U.x, child_point=-l2 / 2 * L.x, joint_axis=U.z
+    )
     system = me.System.from_newtonian(ceiling)
     system.add_joints(shoulder, elbow)
     system.apply_uniform_gravity(-g * N.y)
@@ -185,8 +186,12 @@ def newton_euler_double_pendulum(q, w, m1, m2, l1, l2, grav):
     def moments(al1, al2):
         a1, a2 = acc(al1, al2)
         m_elbow = m2 * l2**2 / 12 * al2 + np.cross(c2 - p2, m2 * (a2 - gv))[2]
-        m_shoulder = (m1 * l1**2 / 12 * al1 + np.cross(c1, m1 * (a1 - gv))[2]
-                      + m2 * l2**2 / 12 * al2 + np.cross(c2, m2 * (a2 - gv))[2])
+        m_shoulder = (
+            m1 * l1**2 / 12 * al1
+            + np.cross(c1, m1 * (a1 - gv))[2]
+            + m2 * l2**2 / 12 * al2
+            + np.cross(c2, m2 * (a2 - gv))[2]
+        )
         return np.array([m_shoulder, m_elbow])
 
     b = moments(0.0, 0.0)
@@ -308,12 +313,18 @@ def _particle_on_a_line(load=None, mass=m):
     return system
 
 
-@pytest.mark.parametrize("load, mass, culprit", [
-    (lambda q: -sp.Function("F")(q), m, "force 1 at P uses the undefined function F(q)"),
-    (None, m * sp.Function("F")(sp.Symbol("k")), "mass of p uses the undefined function F(k)"),
-    (lambda q: -sp.Integral(g * sp.Symbol("s"), (sp.Symbol("s"), 0, q)), m,
-     "force 1 at P holds an unevaluated Integral: Integral(g*s, (s, 0, q))"),
-])
+@pytest.mark.parametrize(
+    "load, mass, culprit",
+    [
+        (lambda q: -sp.Function("F")(q), m, "force 1 at P uses the undefined function F(q)"),
+        (None, m * sp.Function("F")(sp.Symbol("k")), "mass of p uses the undefined function F(k)"),
+        (
+            lambda q: -sp.Integral(g * sp.Symbol("s"), (sp.Symbol("s"), 0, q)),
+            m,
+            "force 1 at P holds an unevaluated Integral: Integral(g*s, (s, 0, q))",
+        ),
+    ],
+)
 def test_from_sympy_refuses_what_cannot_be_evaluated_naming_the_expression(load, mass, culprit):
     """An undefined function or an unevaluated integral used to be accepted and then fail at the
     first evaluation with a NameError or a PrintMethodNotImplementedError."""

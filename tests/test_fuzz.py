@@ -75,10 +75,9 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the hostile-input helpers, also when run as a script
 
-from test_modelfile_hostile import EDITS, EXPR_ALPHABET, INJECTIONS, _document, edit  # noqa: E402
-
 from appell.examples import example_path  # noqa: E402
 from appell.io.modelfile.expressions import FUNCTIONS  # noqa: E402
+from test_modelfile_hostile import EDITS, EXPR_ALPHABET, INJECTIONS, _document, edit  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 #: bundled files added after the recorded full run (9b1fc31), left out so that each seed
@@ -157,14 +156,32 @@ _DELETE = object()
 
 
 #: entries that hold names or settings, not expressions
-_NOT_EXPRESSIONS = {"kind", "name", "type", "parent", "child", "body", "rotation", "unit", "description", "method",
-                    "stabilization", "reactions"}
+_NOT_EXPRESSIONS = {
+    "kind",
+    "name",
+    "type",
+    "parent",
+    "child",
+    "body",
+    "rotation",
+    "unit",
+    "description",
+    "method",
+    "stabilization",
+    "reactions",
+}
 
 
 def _expression_paths(doc) -> list[tuple]:
     """Paths of the expression strings of a parsed model file."""
-    return [p for p in _leaves(doc) if isinstance(_get(doc, p), str) and _NAME.search(_get(doc, p))
-            and p[0] not in ("model", "units", "simulation") and not set(map(str, p)) & _NOT_EXPRESSIONS]
+    return [
+        p
+        for p in _leaves(doc)
+        if isinstance(_get(doc, p), str)
+        and _NAME.search(_get(doc, p))
+        and p[0] not in ("model", "units", "simulation")
+        and not set(map(str, p)) & _NOT_EXPRESSIONS
+    ]
 
 
 def _names(doc) -> list[str]:
@@ -218,8 +235,28 @@ def _swell(rng: random.Random, expr: str, names, coordinates) -> str:
 
 
 def _odd_value(rng: random.Random):
-    return rng.choice([0, -1, 1e308, float("nan"), float("inf"), "", " ", True, [], {}, [0, 0, 0],
-                       "x'''", "1/0", "0^0", 10**30, -10**30, "nan", "1e309"])
+    return rng.choice(
+        [
+            0,
+            -1,
+            1e308,
+            float("nan"),
+            float("inf"),
+            "",
+            " ",
+            True,
+            [],
+            {},
+            [0, 0, 0],
+            "x'''",
+            "1/0",
+            "0^0",
+            10**30,
+            -(10**30),
+            "nan",
+            "1e309",
+        ]
+    )
 
 
 def mutate(seed: int) -> tuple[str, str, str]:
@@ -258,8 +295,11 @@ def mutate(seed: int) -> tuple[str, str, str]:
         if exprs:
             where = rng.choice(exprs)
             model = doc.get("model")
-            coordinates = [c for c in (model.get("coordinates", ()) if isinstance(model, dict) else ())
-                           if isinstance(c, str) and _NAME.fullmatch(c)]
+            coordinates = [
+                c
+                for c in (model.get("coordinates", ()) if isinstance(model, dict) else ())
+                if isinstance(c, str) and _NAME.fullmatch(c)
+            ]
             new = _swell(rng, _get(doc, where), names, coordinates)
             _set(doc, where, new)
             return path.stem, f"swell {'.'.join(map(str, where))} = {new!r}", _document(doc)
@@ -341,8 +381,11 @@ def _listing() -> dict:
 
 def _home_writes(home: Path) -> list[str]:
     """Files a run left in the case's HOME, but for the libraries' caches."""
-    return sorted(str(p.relative_to(home)) for p in home.rglob("*")
-                  if p.is_file() and not str(p.relative_to(home)).startswith(LIBRARY_CACHES))
+    return sorted(
+        str(p.relative_to(home))
+        for p in home.rglob("*")
+        if p.is_file() and not str(p.relative_to(home)).startswith(LIBRARY_CACHES)
+    )
 
 
 def run_command(command: str, path: Path, bound: float = BOUND) -> dict:
@@ -367,8 +410,13 @@ def run_command(command: str, path: Path, bound: float = BOUND) -> dict:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
-    return {"command": command, "code": code, "seconds": round(time.perf_counter() - start, 3),
-            "output": output, "exception": None if exc is None else repr(exc)}
+    return {
+        "command": command,
+        "code": code,
+        "seconds": round(time.perf_counter() - start, 3),
+        "output": output,
+        "exception": None if exc is None else repr(exc),
+    }
 
 
 def violations(run: dict) -> list[str]:
@@ -426,17 +474,22 @@ def run_case(seed: int, folder: Path, case_text: tuple[str, str, str] | None = N
 
 
 def failures(record: dict) -> list[str]:
-    return [f"seed {record['seed']} ({record['example']}, {record['mutation'][:300]}): {r['command']}: "
-            f"{', '.join(r['violations'])}\n    " + r["output"][-1500:].replace("\n", "\n    ")
-            for r in record["runs"] if r["violations"]]
+    return [
+        f"seed {record['seed']} ({record['example']}, {record['mutation'][:300]}): {r['command']}: "
+        f"{', '.join(r['violations'])}\n    " + r["output"][-1500:].replace("\n", "\n    ")
+        for r in record["runs"]
+        if r["violations"]
+    ]
 
 
 def _fuzz(seeds, folder: Path):
     found, start, seeds = [], time.perf_counter(), list(seeds)
     for seed in seeds:
         found.extend(failures(run_case(seed, folder)))
-    print(f"{len(seeds)} cases, {len(seeds) * len(COMMANDS)} runs in {time.perf_counter() - start:.0f} s: "
-          f"{len(found)} failing")
+    print(
+        f"{len(seeds)} cases, {len(seeds) * len(COMMANDS)} runs in {time.perf_counter() - start:.0f} s: "
+        f"{len(found)} failing"
+    )
     assert not found, f"{len(found)} failing run(s):\n" + "\n".join(found)
 
 
@@ -469,7 +522,9 @@ def _extreme(indices, folder: Path):
     found, cases = [], extreme_cases()
     for k in indices:
         path, name, value = cases[k]
-        record = run_case(100000 + k, folder, (path.stem, f"parameter {name} = {value!r}", extreme_text(path, name, value)))
+        record = run_case(
+            100000 + k, folder, (path.stem, f"parameter {name} = {value!r}", extreme_text(path, name, value))
+        )
         found.extend(failures(record))
     assert not found, f"{len(found)} failing run(s):\n" + "\n".join(found)
 
@@ -504,8 +559,9 @@ def test_extreme_parameter_values_quick(tmp_path):
 @pytest.mark.parametrize("case", sorted(EXTREME_FIXED))
 def test_an_extreme_case_the_run_found_behaves(case, tmp_path):
     example, name, value = case
-    record = run_case(0, tmp_path, (example, f"parameter {name} = {value!r}",
-                                    extreme_text(example_path(example), name, value)))
+    record = run_case(
+        0, tmp_path, (example, f"parameter {name} = {value!r}", extreme_text(example_path(example), name, value))
+    )
     assert not failures(record), "\n".join(failures(record))
     command, code, fragment = EXTREME_FIXED[case]
     run = next(r for r in record["runs"] if r["command"] == command)
@@ -525,8 +581,10 @@ def test_a_failed_cross_check_names_the_parameter_of_extreme_size():
 
     drive = load_derivation("differential_drive")
     door = load_derivation("door_two_hinges")
-    for report, clause in ((cross_check_controlled(drive, p={"m": 2.0**63}), "the parameter m = 9.22e+18"),
-                           (cross_check(door, p={"g": 1e-300}), "the parameter g = 1e-300")):
+    for report, clause in (
+        (cross_check_controlled(drive, p={"m": 2.0**63}), "the parameter m = 9.22e+18"),
+        (cross_check(door, p={"g": 1e-300}), "the parameter g = 1e-300"),
+    ):
         ok, line = verdict(report, None, 1e-9, 1e-9)
         assert not ok and f"{clause} is of extreme size beside the others" in line, line
         assert "rescale the model's units" in line
@@ -549,8 +607,11 @@ if __name__ == "__main__":  # python tests/test_fuzz.py START STOP results.jsonl
         for seed in range(start, min(stop, len(extreme_cases())) if extreme else stop):
             if extreme:
                 path, name, value = extreme_cases()[seed]
-                record = run_case(100000 + seed, Path(tmp), (path.stem, f"parameter {name} = {value!r}",
-                                                              extreme_text(path, name, value)))
+                record = run_case(
+                    100000 + seed,
+                    Path(tmp),
+                    (path.stem, f"parameter {name} = {value!r}", extreme_text(path, name, value)),
+                )
             else:
                 record = run_case(seed, Path(tmp))
             for run in record["runs"]:

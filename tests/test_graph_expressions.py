@@ -34,7 +34,7 @@ def _random_expression(rng: random.Random, depth: int = 4):
     if op == "mul":
         return a * _random_expression(rng, depth - 1)
     if op == "pow":
-        return (a ** 2 + 1) ** sp.Rational(1, 2)
+        return (a**2 + 1) ** sp.Rational(1, 2)
     return {"sin": sp.sin, "cos": sp.cos, "abs": sp.Abs}[op](a)
 
 
@@ -85,7 +85,7 @@ def test_block_cse_takes_sympys_cse_for_small_blocks_and_the_graph_for_large_one
     small = _shared_expressions(3)
     assert block_cse(small) == sp.cse(small)
     shared = [sp.sin(X0 + k) * sp.cos(Y + k) for k in range(CSE_NODES // 4)]  # ~5 nodes each
-    large = [sp.Add(*shared), sp.Add(*(e ** 2 for e in shared))]
+    large = [sp.Add(*shared), sp.Add(*(e**2 for e in shared))]
     assert block_cse(large) == graph_cse(large)
     f = sp.lambdify([X0, Y], large, modules="math", cse=block_cse)
     expected = [float(e.evalf(subs={X0: 0.3, Y: -0.2})) for e in large]

@@ -26,11 +26,11 @@ import sympy as sp
 from scipy.integrate import solve_ivp
 
 import appell
-from appell.simulation.simulate import METHODS
-from appell.symbols import free_symbols, graph_cse, lambdify
+from appell import numeric_model
 from appell.examples import example_path
 from appell.examples.iftomm_examples import A02_SIZES, a02_reference, n_four_bar_text
-from appell import numeric_model
+from appell.simulation.simulate import METHODS
+from appell.symbols import free_symbols, graph_cse, lambdify
 
 G = 9.81
 
@@ -43,8 +43,16 @@ def branch(n: int, t_end: float, t_eval=None):
     def flat(t, y):
         return math.sin(y[0])
 
-    sol = solve_ivp(lambda t, y: [y[1], -torque * math.cos(y[0]) / inertia], (0.0, t_end), [math.pi / 2, -1.0],
-                    t_eval=t_eval, events=flat, rtol=1e-13, atol=1e-13, method="DOP853")
+    sol = solve_ivp(
+        lambda t, y: [y[1], -torque * math.cos(y[0]) / inertia],
+        (0.0, t_end),
+        [math.pi / 2, -1.0],
+        t_eval=t_eval,
+        events=flat,
+        rtol=1e-13,
+        atol=1e-13,
+        method="DOP853",
+    )
     return sol.y, sol.t_events[0]
 
 
@@ -129,8 +137,9 @@ def test_benchmark_files_are_their_builders(name):
         _equal_at_random_points(x.expr, y.expr, rng, x.name)
     for x, y in zip(from_file.outputs, built.outputs):
         _equal_at_random_points(x.expr, y.expr, rng, x.name)
-    _equal_at_random_points(sp.sympify(from_file.potential_energy or 0), sp.sympify(built.potential_energy or 0), rng,
-                            "potential energy")
+    _equal_at_random_points(
+        sp.sympify(from_file.potential_energy or 0), sp.sympify(built.potential_energy or 0), rng, "potential energy"
+    )
     forces = [sp.Matrix(list(system.generalized_forces or [0] * len(system.speeds))) for system in (from_file, built)]
     _equal_at_random_points(*forces, rng, "generalized forces")
     assert [f.name for f in from_file.loads] == [f.name for f in built.loads]
@@ -142,7 +151,7 @@ def test_benchmark_files_are_their_builders(name):
                 _equal_at_random_points(u, v, rng, f"{x.name}.{field}")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def a02_derivation(n: int):
     """The derivation of the bundled A02 file with n four-bars, once per module."""
     return appell.derive(appell.load_model(example_path(f"iftomm_a02_n{n}")))
@@ -325,7 +334,7 @@ def test_bricard_against_the_augmented_system_integrated_by_scipy(bricard):
     times = sol.t[sol.t <= 3.0]
     ref = solve_ivp(rates, (0.0, 3.0), sol.y[:, 0], t_eval=times, rtol=1e-12, atol=1e-13, method="DOP853")
     assert ref.success
-    assert np.abs(ref.y[:5] - sol.y[:5, :times.size]).max() < 1e-8
+    assert np.abs(ref.y[:5] - sol.y[:5, : times.size]).max() < 1e-8
 
 
 def test_a_model_too_large_for_closed_forms_prints_the_equations_it_solves():
@@ -341,11 +350,15 @@ def test_a_model_too_large_for_closed_forms_prints_the_equations_it_solves():
     defs, rows = read_printed(text, _names(d))
     assert sum(label.startswith("(1.3)") for label, _, _ in rows) == len(d.kinematics.speeds)
     q = np.array([d.system.initial_values[s.name] for s in d.kinematics.coordinates]) + 0.3 * np.array(
-        [1.0 if s.name.startswith("R") else -1.0 for s in d.kinematics.coordinates])  # still a parallelogram
+        [1.0 if s.name.startswith("R") else -1.0 for s in d.kinematics.coordinates]
+    )  # still a parallelogram
     w = np.array([0.7 if s.name.startswith("R") else -0.7 for s in d.kinematics.coordinates])
     sol = numeric_model(d).solve(0.2, q, w)
-    values = {**_values(d, 0.2, q, w), **dict(zip(d.kinematics.accelerations, sol.accelerations)),
-              **{sp.Symbol(f"lambda_{n}"): v for n, v in zip(d.constraints.names, sol.multipliers)}}
+    values = {
+        **_values(d, 0.2, q, w),
+        **dict(zip(d.kinematics.accelerations, sol.accelerations)),
+        **{sp.Symbol(f"lambda_{n}"): v for n, v in zip(d.constraints.names, sol.multipliers)},
+    }
     scale = 1.0 + np.max(np.abs(sol.multipliers)) + np.max(np.abs(sol.accelerations))
     for label, lhs, rhs in rows:
         assert abs(_evaluate(defs, lhs - rhs, values)) <= 1e-9 * scale, label
@@ -393,9 +406,11 @@ def governor_lagrangian():
     V = g * slider * s
     Q = sp.zeros(4, 1)
     for sigma, beta, dbeta in ((1, b1, db1), (-1, b2, db2)):
+
         def point(r, sigma=sigma, beta=beta, dbeta=dbeta):
             x, z = sigma * (d / 2 + r * sp.cos(beta)), L - r * sp.sin(beta)
             return x, z, (sp.diff(x, beta) ** 2 + sp.diff(z, beta) ** 2) * dbeta**2 + dphi**2 * x**2
+
         (xc, zc, vc2), (_, zb, vb2) = point(L / 2), point(L)
         along = -dphi * sp.sin(beta)  # omega along the rod
         T += (bar * vc2 + mb * vb2 + axial * along**2 + transverse * (dphi**2 + dbeta**2 - along**2)) / 2
@@ -405,13 +420,19 @@ def governor_lagrangian():
         Q += -c * (grad.T * sp.Matrix(u))[0] * grad
     p = sp.Matrix([sp.diff(T, v) for v in u])
     rhs = sp.Matrix([sp.diff(T - V, v) for v in q]) - p.jacobian(q) * sp.Matrix(u) + Q
-    mass, force, momentum, energy = (sp.lambdify([q, u], e, "numpy", cse=True) for e in (p.jacobian(u), rhs, p[0], T + V))
+    mass, force, momentum, energy = (
+        sp.lambdify([q, u], e, "numpy", cse=True) for e in (p.jacobian(u), rhs, p[0], T + V)
+    )
 
     def accelerations(y):
         return np.linalg.solve(mass(y[:4], y[4:]), np.ravel(force(y[:4], y[4:])))
 
-    return ((lambda _, y: np.concatenate([y[4:], accelerations(y)])), (lambda y: momentum(y[:4], y[4:])), accelerations,
-            (lambda y: energy(y[:4], y[4:])))
+    return (
+        (lambda _, y: np.concatenate([y[4:], accelerations(y)])),
+        (lambda y: momentum(y[:4], y[4:])),
+        accelerations,
+        (lambda y: energy(y[:4], y[4:])),
+    )
 
 
 GOVERNOR_STATE = ("phi", "s", "beta1", "beta2", "phi_dot", "s_dot", "beta1_dot", "beta2_dot")

@@ -20,11 +20,10 @@ import pytest
 import sympy as sp
 from scipy.integrate import solve_ivp
 
-from appell import derive, load_model, simulate
+from appell import derive, load_model, numeric_model, simulate
 from appell.examples import example_path
 from appell.model import Parameter, System, holonomic
 from appell.numerics.linearise import motion_jacobian
-from appell import numeric_model
 
 
 @pytest.mark.parametrize("name", ["pendulum", "four_bar", "knife_edge", "rolling_disc", "car"])
@@ -41,8 +40,12 @@ def test_the_motion_jacobian_is_that_of_the_numeric_solve(name):
     y[nq:] += 0.3 * rng.standard_normal(y.size - nq)  # speeds off the constraints are still states
     jac = motion_jacobian(model)(0.2, y, p)
     steps = 1e-6 * np.maximum(1.0, np.abs(y))
-    central = np.column_stack([(model.evaluate(0.2, y + e, p).derivative - model.evaluate(0.2, y - e, p).derivative)
-                               / (2 * h) for h, e in zip(steps, np.diag(steps))])
+    central = np.column_stack(
+        [
+            (model.evaluate(0.2, y + e, p).derivative - model.evaluate(0.2, y - e, p).derivative) / (2 * h)
+            for h, e in zip(steps, np.diag(steps))
+        ]
+    )
     assert np.abs(jac - central).max() <= 1e-6 * max(1.0, np.abs(central).max())
 
 
@@ -59,22 +62,27 @@ def stiff_governor() -> System:
     r = sp.sqrt(x**2 + y**2)
     rdot = (x * xd + y * yd) / r
     return System(
-        name="stiff_governor", coordinates=(x, y, phi),
+        name="stiff_governor",
+        coordinates=(x, y, phi),
         parameters=(Parameter(m, M), Parameter(inertia, I), Parameter(k, K), Parameter(c, C), Parameter(rest, L)),
-        kinetic_energy=m / 2 * (xd**2 + yd**2) + inertia / 2 * phid**2, potential_energy=k / 2 * (r - rest) ** 2,
+        kinetic_energy=m / 2 * (xd**2 + yd**2) + inertia / 2 * phid**2,
+        potential_energy=k / 2 * (r - rest) ** 2,
         generalized_forces=(-c * rdot * x / r, -c * rdot * y / r, 0),
         constraints=(holonomic("rod", x * sp.sin(phi) - y * sp.cos(phi)),),
-        initial={"x": L, "y": 0.0, "phi": 0.0, "x_dot": 0.0, "y_dot": L * OMEGA, "phi_dot": OMEGA})
+        initial={"x": L, "y": 0.0, "phi": 0.0, "x_dot": 0.0, "y_dot": L * OMEGA, "phi_dot": OMEGA},
+    )
 
 
 def _reference(t_eval):
     """(I + m r^2) phi'' + 2 m r r' phi' = 0 and m r'' = m r phi'^2 - k (r - L) - c r'."""
+
     def rhs(_, z):
         phi, r, w, v = z
         return [w, v, -2 * M * r * v * w / (I + M * r**2), r * w**2 - K / M * (r - L) - C / M * v]
 
-    return solve_ivp(rhs, (0.0, t_eval[-1]), [0.0, L, OMEGA, 0.0], method="Radau", rtol=1e-12, atol=1e-14,
-                     t_eval=t_eval)
+    return solve_ivp(
+        rhs, (0.0, t_eval[-1]), [0.0, L, OMEGA, 0.0], method="Radau", rtol=1e-12, atol=1e-14, t_eval=t_eval
+    )
 
 
 @pytest.fixture(scope="module")

@@ -33,8 +33,12 @@ from appell.simulation.simulate import simulate
 
 BALL = example_path("appell_ball").read_text(encoding="utf-8")
 #: the ball's [initial] speeds as numbers written for omega = 2 (the file before issue 11)
-BALL_NUMERIC = BALL.replace('"xi\'" = "-omega*eta"', '"xi\'" = -0.2').replace('"eta\'" = "omega*xi"', '"eta\'" = 0.6') \
-    .replace('"u\'" = "-omega*eta"', '"u\'" = -0.2').replace('"v\'" = "omega*xi"', '"v\'" = 0.6')
+BALL_NUMERIC = (
+    BALL.replace('"xi\'" = "-omega*eta"', '"xi\'" = -0.2')
+    .replace('"eta\'" = "omega*xi"', '"eta\'" = 0.6')
+    .replace('"u\'" = "-omega*eta"', '"u\'" = -0.2')
+    .replace('"v\'" = "omega*xi"', '"v\'" = 0.6')
+)
 SPRING = example_path("spring_masses").read_text(encoding="utf-8")
 #: x1' as the number 0.1 - 0.1 m2/k for m2 = 2, k = 4
 SPRING_NUMERIC = SPRING.replace('"x1\'" = "1/10 - m2/(10*k)"', '"x1\'" = 0.05')
@@ -54,8 +58,9 @@ def read_csv(path):
 
 
 def line_of(text: str, name: str) -> str:
-    return next(line for line in text.splitlines() if line.strip().startswith(name + " ") or
-                line.strip().startswith(name + ":"))
+    return next(
+        line for line in text.splitlines() if line.strip().startswith(name + " ") or line.strip().startswith(name + ":")
+    )
 
 
 def test_files_under_test_were_rewritten():
@@ -91,7 +96,7 @@ def test_pendulum_off_the_rod_raises_naming_rod_and_its_residual():
         simulate(d, 1.0, initial={"x": 0.6, "y": -0.7, "x_dot": 0.0, "y_dot": 0.0})
     assert isinstance(err.value, ModelError) and err.value.exit_code == 2
     assert "rod" in str(err.value) and f"{0.075:.3e}" in str(err.value)
-    (name, level, value), = err.value.violations
+    ((name, level, value),) = err.value.violations
     # (1 - 0.36 - 0.49)/2 in doubles: rounding, amplified ~7x by the cancellation
     assert (name, level) == ("rod", "position") and value == pytest.approx(0.075, rel=1e-12)
     with pytest.raises(InitialValueError) as err:
@@ -138,8 +143,7 @@ def test_ball_complete_changes_the_speeds_and_keeps_the_circle(tmp_path):
     out = tmp_path / "ball.csv"
     result = run("simulate", model, "--set", "omega=3", "--t-end", "2", "--out", out, "--complete")
     assert result.exit_code == 0, result.output
-    for name, old, new in (("xi_dot", -0.2, -0.3), ("eta_dot", 0.6, 0.9), ("u_dot", -0.2, -0.3),
-                           ("v_dot", 0.6, 0.9)):
+    for name, old, new in (("xi_dot", -0.2, -0.3), ("eta_dot", 0.6, 0.9), ("u_dot", -0.2, -0.3), ("v_dot", 0.6, 0.9)):
         assert f"initial {name} — {old:g} -> {new:g} (given value changed" in result.stdout
     col = read_csv(out)
     # the servo constraints' drift over the run (~4e-15 measured)
@@ -158,8 +162,10 @@ def test_ball_complete_via_the_api_reports_each_change():
     changes = {e.name: e.detail for e in sol.events if e.kind == "initial"}
     assert set(changes) == {"xi_dot", "eta_dot", "p", "q"}
     assert changes["q"].startswith("0 -> -1 ") and changes["p"].startswith("0 -> -3 ")
-    assert any(line.endswith("initial value xi_dot: -0.2 -> -0.3 (given value changed to satisfy the "
-                             "constraints)") for line in sol.log)
+    assert any(
+        line.endswith("initial value xi_dot: -0.2 -> -0.3 (given value changed to satisfy the constraints)")
+        for line in sol.log
+    )
     # (xi' - u')/R, (v' - eta')/R: rounding only; the tracking error is the run's drift (~2e-15)
     assert sol.states["q"][0] == pytest.approx(-1.0, rel=1e-12) and sol.states["p"][0] == pytest.approx(-3.0, rel=1e-12)
     assert sol.max_tracking_error <= 1e-8
@@ -258,16 +264,18 @@ def test_python_system_accepts_initial_expressions():
     import sympy as sp
 
     x, y, v0, a, g = sp.symbols("x y v0 a g")
-    s = appell.System(coordinates=(x, y), parameters={v0: 2.0, a: math.pi / 3, g: 9.81},
-                      kinetic_energy=(sp.Symbol("x_dot") ** 2 + sp.Symbol("y_dot") ** 2) / 2,
-                      potential_energy=g * y,
-                      initial={"x": 0.0, "y": 0.0, "x_dot": v0 * sp.cos(a), "y_dot": v0 * sp.sin(a)})
+    s = appell.System(
+        coordinates=(x, y),
+        parameters={v0: 2.0, a: math.pi / 3, g: 9.81},
+        kinetic_energy=(sp.Symbol("x_dot") ** 2 + sp.Symbol("y_dot") ** 2) / 2,
+        potential_energy=g * y,
+        initial={"x": 0.0, "y": 0.0, "x_dot": v0 * sp.cos(a), "y_dot": v0 * sp.sin(a)},
+    )
     # sympy evaluates v0 cos(a) in doubles: rounding only (1 ulp)
     assert s.initial_values["x_dot"] == pytest.approx(1.0, rel=1e-12)
     assert s.with_parameters({"v0": 4.0}).initial_values["y_dot"] == pytest.approx(4 * math.sin(math.pi / 3), rel=1e-12)
     with pytest.raises(ModelError, match="x_dot"):
-        appell.System(coordinates=(x,), kinetic_energy=sp.Symbol("x_dot") ** 2,
-                      initial={"x": sp.Symbol("x_dot")})
+        appell.System(coordinates=(x,), kinetic_energy=sp.Symbol("x_dot") ** 2, initial={"x": sp.Symbol("x_dot")})
 
 
 BAD_INITIAL = """\
@@ -289,12 +297,15 @@ y = 0.0
 """
 
 
-@pytest.mark.parametrize("x, xd, message, line", [
-    ('"y"', "0.0", "may use only parameters", 12),                          # a coordinate in a coordinate
-    ("0.0", '"w*y\'"', "may use only parameters and the initial coordinates", 14),  # a speed in a speed
-    ("0.0", '"t*w"', "uses t", 14),
-    ('"sqrt(-w)"', "0.0", "cannot be evaluated", 12),
-])
+@pytest.mark.parametrize(
+    "x, xd, message, line",
+    [
+        ('"y"', "0.0", "may use only parameters", 12),  # a coordinate in a coordinate
+        ("0.0", '"w*y\'"', "may use only parameters and the initial coordinates", 14),  # a speed in a speed
+        ("0.0", '"t*w"', "uses t", 14),
+        ('"sqrt(-w)"', "0.0", "cannot be evaluated", 12),
+    ],
+)
 def test_bad_initial_expressions_are_located(x, xd, message, line):
     with pytest.raises(ModelError) as err:
         loads_model(BAD_INITIAL.format(x=x, xd=xd), source="bad.toml")

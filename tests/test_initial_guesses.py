@@ -27,8 +27,7 @@ LOOP_VALUES = ("B = ", "D = ", '"B\'" = ', '"D\'" = ')
 
 
 def _four_bar_without_loop_values(tmp_path, extra=""):
-    lines = [line for line in example_path("four_bar").read_text().splitlines()
-             if not line.startswith(LOOP_VALUES)]
+    lines = [line for line in example_path("four_bar").read_text().splitlines() if not line.startswith(LOOP_VALUES)]
     path = tmp_path / "four_bar_open.toml"
     path.write_text("\n".join(lines).replace("[initial]", "[initial]\n" + extra, 1) + "\n")
     return path
@@ -84,7 +83,7 @@ def test_the_command_line_simulates_such_a_file_without_complete(tmp_path):
 def test_a_given_value_that_violates_the_closure_is_still_refused(tmp_path):
     """Only D is a guess: one unknown cannot satisfy the two closure equations C_x, C_y,
     and the given B = 0.3 is not changed behind the user's back."""
-    system = load_model(_four_bar_without_loop_values(tmp_path, "B = 0.3\n\"B'\" = 0.0\n\"D'\" = 0.0\n"))
+    system = load_model(_four_bar_without_loop_values(tmp_path, 'B = 0.3\n"B\'" = 0.0\n"D\'" = 0.0\n'))
     assert set(system.initial_guesses) == {"D"}
     with pytest.raises(InitialValueError, match="C_x|C_y"):
         simulate(derive(system), t_end=0.05)
@@ -96,8 +95,12 @@ def test_a_value_set_on_the_command_line_is_given_not_guessed(tmp_path):
     solution = simulate(derive(system), t_end=0.01)
     start = {k: float(v[0]) for k, v in solution.states.items()}
     assert start["B"] == -0.5260888249335929
-    assert start["D"] == pytest.approx(_closed_form(1.0, 2.0)[0][1] if abs(_closed_form(1.0, 2.0)[0][0] - start["B"])
-                                       < 1e-9 else _closed_form(1.0, 2.0)[1][1], abs=1e-10)
+    assert start["D"] == pytest.approx(
+        _closed_form(1.0, 2.0)[0][1]
+        if abs(_closed_form(1.0, 2.0)[0][0] - start["B"]) < 1e-9
+        else _closed_form(1.0, 2.0)[1][1],
+        abs=1e-10,
+    )
 
 
 def test_the_python_builder_marks_its_unspecified_values_as_guesses():
@@ -111,7 +114,7 @@ def test_the_python_builder_marks_its_unspecified_values_as_guesses():
     body = mech.body("disc", 1.0, inertia=(0, 0, 0.1))
     mech.planar("plane", "ground", body)
     x, y, z = sp.symbols("x y z")
-    mech.point_on_surface("circle", (body, (0, 0, 0)), x**2 + (y - sp.Rational(1, 2))**2 - 1)
+    mech.point_on_surface("circle", (body, (0, 0, 0)), x**2 + (y - sp.Rational(1, 2)) ** 2 - 1)
     system = mech.system(initial={"plane_x": 0.6, "plane_x_dot": 0.8})
     assert {"plane_y", "plane_y_dot"} <= set(system.initial_guesses)
     assert "plane_x" not in system.initial_guesses

@@ -15,7 +15,6 @@ Closed forms (sources):
   with eigenvalue ``-k/d`` (the second mass's equation, builder docstring).
 """
 
-import appell
 import json
 
 import numpy as np
@@ -23,11 +22,11 @@ import pytest
 from click.testing import CliRunner
 from scipy.integrate import solve_ivp
 
-from appell import derive_controlled, simulate
+import appell
+from appell import derive_controlled, numeric_model, simulate
 from appell.control.internal_dynamics import internal_linearisation
 from appell.examples.servo_examples import appell_ball, cart_pole, spring_masses
 from appell.io.cli import cli
-from appell import numeric_model
 
 G, L = 9.81, 0.5  # the builder's g and l
 
@@ -110,8 +109,14 @@ def test_the_flagged_pole_falls_as_the_closed_form_pendulum_does(upright):
     the pole leaves its start (theta0 = 0.05) by more than a factor 10 within 1 s."""
     times = np.linspace(0.0, 1.0, 11)
     sol = simulate(upright, 1.0, t_eval=times, rtol=1e-10, atol=1e-12)
-    ref = solve_ivp(lambda t, y: [y[1], G / L * np.sin(y[0]) - _xd_ddot(t) / L * np.cos(y[0])],
-                    (0.0, 1.0), [0.05, 0.0], t_eval=times, rtol=1e-11, atol=1e-13)
+    ref = solve_ivp(
+        lambda t, y: [y[1], G / L * np.sin(y[0]) - _xd_ddot(t) / L * np.cos(y[0])],
+        (0.0, 1.0),
+        [0.05, 0.0],
+        t_eval=times,
+        rtol=1e-11,
+        atol=1e-13,
+    )
     # both runs at rtol <= 1e-10, errors grow as exp(sqrt(g/l) t), about 80 over 1 s
     assert np.allclose(sol["theta"], ref.y[0], rtol=1e-6, atol=1e-8)
     assert abs(sol["theta"][-1]) > 10 * 0.05
@@ -132,8 +137,11 @@ def test_cli_flags_the_unstable_internal_dynamics_in_every_command(tmp_path):
     assert lin["unstable"] and lin["coordinates"] == ["theta", "theta_dot"]
     # exact Jacobian (above); the JSON keeps 14 digits
     assert np.allclose(sorted(re for re, _ in lin["eigenvalues"]), [-omega, omega], rtol=1e-12)
-    for args in (["simulate", "cart_pole", "--t-end", "0.2"], ["check", "cart_pole"],
-                 ["report", "cart_pole", "-o", str(tmp_path / "pole.html"), "--t-end", "0.2"]):
+    for args in (
+        ["simulate", "cart_pole", "--t-end", "0.2"],
+        ["check", "cart_pole"],
+        ["report", "cart_pole", "-o", str(tmp_path / "pole.html"), "--t-end", "0.2"],
+    ):
         result = runner.invoke(cli, args)
         assert result.exit_code == 0, result.output
         assert "internal dynamics of 'cart_pole' are unstable" in result.stderr, args
@@ -166,8 +174,11 @@ def _central_internal_matrix(derivation, time, state, eta):
     return F[eta] @ Z
 
 
-@pytest.mark.parametrize("builder", [appell_ball, lambda: spring_masses(damping=True), cart_pole],
-                         ids=["appell_ball", "spring_masses_damped", "cart_pole"])
+@pytest.mark.parametrize(
+    "builder",
+    [appell_ball, lambda: spring_masses(damping=True), cart_pole],
+    ids=["appell_ball", "spring_masses_damped", "cart_pole"],
+)
 def test_exact_internal_jacobian_agrees_with_central_differences_of_the_closed_loop_solve(builder):
     """A_eta by the exact route (implicit function theorem on E(y, a, xi, lambda) = 0, complex
     step on the compiled blocks) against central differences of the whole numeric solve:

@@ -25,10 +25,10 @@ import pytest
 from click.testing import CliRunner
 
 import appell
+from appell import numeric_model
 from appell.errors import ModelError
 from appell.io.cli import cli
 from appell.simulation.inverse import inverse_dynamics
-from appell import numeric_model
 
 ARM = Path(__file__).resolve().parent.parent / "src" / "appell" / "examples" / "arm.urdf"
 
@@ -85,8 +85,12 @@ def test_a_closed_loop_matches_the_servo_constraint_route():
 
     system = slider_crank_drive()
     servo = appell.simulate(derive_controlled(system), 0.3, rtol=1e-11, atol=1e-12)
-    free = system.replace(generalized_forces=None, controls=(), servo_constraints=(),
-                          units=tuple((k, v) for k, v in system.units if k != "tau"))
+    free = system.replace(
+        generalized_forces=None,
+        controls=(),
+        servo_constraints=(),
+        units=tuple((k, v) for k, v in system.units if k != "tau"),
+    )
     d = appell.derive(free)
     names, speeds = numeric_model(d).coordinate_names, numeric_model(d).speed_names
     q = np.stack([servo[n] for n in names], 1)
@@ -239,7 +243,12 @@ def test_closed_chain_refusals_on_the_command_line_are_bad_input(tmp_path):
     dependent = _write_csv(tmp_path / "dependent.csv", {"t": t, "A": 1.0 + t, "D": 1.4 + t})
     result = runner.invoke(cli, ["inverse", "four_bar", "--trajectory", str(dependent), "--out", str(out)])
     assert result.exit_code == 2 and "not independent" in result.output
-    flagged = example_path("four_bar").read_text().replace("[[closures]]", """[[bodies]]
+    flagged = (
+        example_path("four_bar")
+        .read_text()
+        .replace(
+            "[[closures]]",
+            """[[bodies]]
 name = "flag"
 mass = 0.5
 inertia = [0, 0, 0.01]
@@ -252,20 +261,27 @@ parent = "ground"
 child = "flag"
 axis = [0, 0, 1]
 
-[[closures]]""", 1)
+[[closures]]""",
+            1,
+        )
+    )
     model = tmp_path / "flagged.toml"
     model.write_text(flagged)
-    both = _write_csv(tmp_path / "both.csv", {"t": t, "A": 1.0 + t, "F": 0.2 * t ** 2})
-    result = runner.invoke(cli, ["inverse", str(model), "--trajectory", str(both), "--drive", "A_dot",
-                                 "--out", str(out)])
+    both = _write_csv(tmp_path / "both.csv", {"t": t, "A": 1.0 + t, "F": 0.2 * t**2})
+    result = runner.invoke(
+        cli, ["inverse", str(model), "--trajectory", str(both), "--drive", "A_dot", "--out", str(out)]
+    )
     assert result.exit_code == 2 and "cannot produce the motion" in result.output and "F_dot" in result.output
     crank = _write_csv(tmp_path / "crank.csv", {"t": t, "A": 1.0 + t})
-    result = runner.invoke(cli, ["inverse", "four_bar", "--trajectory", str(crank), "--guess", "Z=1",
-                                 "--out", str(out)])
+    result = runner.invoke(
+        cli, ["inverse", "four_bar", "--trajectory", str(crank), "--guess", "Z=1", "--out", str(out)]
+    )
     assert result.exit_code == 2 and "--guess of unknown coordinate(s) Z" in result.output
     assert not out.exists()
-    result = runner.invoke(cli, ["inverse", "four_bar", "--trajectory", str(crank), "--guess", "B=-0.5",
-                                 "--guess", "D=1.4", "--out", str(out)])
+    result = runner.invoke(
+        cli,
+        ["inverse", "four_bar", "--trajectory", str(crank), "--guess", "B=-0.5", "--guess", "D=1.4", "--out", str(out)],
+    )
     assert result.exit_code == 0, result.output
 
 
@@ -292,14 +308,28 @@ def test_mjcf_actuators_as_controls_are_the_drives_and_mujoco_follows(tmp_path):
     crank = 0.4 * np.sin(2 * t)
     motion = _write_csv(tmp_path / "crank.csv", {"t": t, "A": crank})
     out = tmp_path / "ctrl.csv"
-    result = CliRunner().invoke(cli, ["inverse", str(model_file), "--trajectory", str(motion), "--mjcf",
-                                      "actuators=controls", "--drive", "drive", "--out", str(out)])
+    result = CliRunner().invoke(
+        cli,
+        [
+            "inverse",
+            str(model_file),
+            "--trajectory",
+            str(motion),
+            "--mjcf",
+            "actuators=controls",
+            "--drive",
+            "drive",
+            "--out",
+            str(out),
+        ],
+    )
     assert result.exit_code == 0, result.output
     got = _read_csv(out)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AppellNote)
-        twin = inverse_dynamics(loop_model(mjcf_system(model_file, actuators="controls")), t, {"A": crank},
-                                drives=["drive"])
+        twin = inverse_dynamics(
+            loop_model(mjcf_system(model_file, actuators="controls")), t, {"A": crank}, drives=["drive"]
+        )
     for name, values in twin.columns():
         assert np.allclose(got[name], values, rtol=1e-12, atol=1e-12), name
     m = mujoco.MjModel.from_xml_string(xml)

@@ -44,8 +44,9 @@ def _mujoco_kkt_held(m, d, tau, feet):
 
     for e in range(m.neq):
         b1, b2 = m.eq_obj1id[e], m.eq_obj2id[e]
-        (J1, c1), (J2, c2) = (rows(b, d.xpos[b] + d.xmat[b].reshape(3, 3) @ m.eq_data[e, k:k + 3], False)
-                              for b, k in ((b1, 0), (b2, 3)))
+        (J1, c1), (J2, c2) = (
+            rows(b, d.xpos[b] + d.xmat[b].reshape(3, 3) @ m.eq_data[e, k : k + 3], False) for b, k in ((b1, 0), (b2, 3))
+        )
         Js.append(J1 - J2)
         cs.append(c1 - c2)
     for body, r in feet:
@@ -57,7 +58,7 @@ def _mujoco_kkt_held(m, d, tau, feet):
     J, c = np.vstack(Js), np.concatenate(cs)
     K = np.block([[M, -J.T], [J, np.zeros((J.shape[0], J.shape[0]))]])
     x = np.linalg.lstsq(K, np.concatenate([tau - d.qfrc_bias, -c]), rcond=1e-13)[0]
-    return x[:m.nv], x[m.nv:]
+    return x[: m.nv], x[m.nv :]
 
 
 def _set_mujoco(m, d, res, k, names):
@@ -97,8 +98,9 @@ def test_stance_leg_with_a_flat_foot_reproduced_by_mujoco():
     t = np.linspace(0.0, 0.5, 26)
     res = inverse_dynamics(mech, t, biped_gait(t), contacts=[Contact("left_foot", FOOT, "weld")])
     assert res.undetermined == ()
-    assert sorted(res.drives) == sorted(f"{s}_{j}_dot" for s in ("left", "right")
-                                        for j in ("hip_roll", "hip_pitch", "knee", "crank"))
+    assert sorted(res.drives) == sorted(
+        f"{s}_{j}_dot" for s in ("left", "right") for j in ("hip_roll", "hip_pitch", "knee", "crank")
+    )
     m = mujoco.MjModel.from_xml_path(str(BIPED))
     d = mujoco.MjData(m)
     names = [n for n in res.motion if not n.endswith("_dot") and not n.endswith("_ddot")]
@@ -133,11 +135,22 @@ def test_double_support_is_solved_minimum_norm_with_the_open_parts_named():
     mech, _ = mjcf_mechanism(load_mjcf(BIPED), str(BIPED))
     t = np.linspace(0.0, 0.3, 16)
     motors = [f"{s}_{j}_dot" for s in ("left", "right") for j in ("hip_roll", "hip_pitch", "knee", "crank")]
-    stance = {"left_hip_roll": 0.05, "right_hip_roll": -0.08, "left_hip_pitch": -0.3, "right_hip_pitch": -0.3,
-              "left_knee": 0.6, "right_knee": 0.6}
-    res = inverse_dynamics(mech, t, {"left_crank": 0.1 * np.sin(np.pi * t), "right_crank": -0.05 * t},
-                           drives=motors, guess=stance,
-                           contacts=[Contact("left_foot", FOOT, "weld"), Contact("right_foot", FOOT, "weld")])
+    stance = {
+        "left_hip_roll": 0.05,
+        "right_hip_roll": -0.08,
+        "left_hip_pitch": -0.3,
+        "right_hip_pitch": -0.3,
+        "left_knee": 0.6,
+        "right_knee": 0.6,
+    }
+    res = inverse_dynamics(
+        mech,
+        t,
+        {"left_crank": 0.1 * np.sin(np.pi * t), "right_crank": -0.05 * t},
+        drives=motors,
+        guess=stance,
+        contacts=[Contact("left_foot", FOOT, "weld"), Contact("right_foot", FOOT, "weld")],
+    )
     # 8 drives + 21 rows for 23 speeds, of rank 23: six combinations left open
     assert len(res.undetermined) == 6
     named = {name for comb in res.undetermined for name in comb}
@@ -150,8 +163,9 @@ def test_double_support_is_solved_minimum_norm_with_the_open_parts_named():
         prescribed = _set_mujoco(m, d, res, k, names)
         acc, lam = _mujoco_kkt_held(m, d, _torques(m, res, k, names), feet)
         assert np.abs(acc - prescribed).max() <= 1e-9 * np.abs(prescribed).max()
-        ours = np.array([res.outputs[f"{f}_{s}_foot_contact_{x}"][k] for s in ("left", "right")
-                         for f in "FM" for x in "xyz"])
+        ours = np.array(
+            [res.outputs[f"{f}_{s}_foot_contact_{x}"][k] for s in ("left", "right") for f in "FM" for x in "xyz"]
+        )
         assert np.abs(lam[-12:] - ours).max() <= 1e-8 * np.abs(ours).max()
 
 
@@ -207,9 +221,23 @@ def test_the_command_line_holds_a_tool_by_an_mjcf_site(tmp_path):
     t = np.linspace(0.0, 0.4, 9)
     motion = _write_csv(tmp_path / "shoulder.csv", {"t": t, "shoulder-pitch": 0.3 + 0.2 * np.sin(2 * t)})
     out = tmp_path / "held.csv"
-    result = CliRunner().invoke(cli, ["inverse", str(model_file), "--trajectory", str(motion), "--contact",
-                                      "tool-tip", "--guess", "elbow-pitch=0.8", "--guess", "wrist-pitch=-0.4",
-                                      "--out", str(out)])
+    result = CliRunner().invoke(
+        cli,
+        [
+            "inverse",
+            str(model_file),
+            "--trajectory",
+            str(motion),
+            "--contact",
+            "tool-tip",
+            "--guess",
+            "elbow-pitch=0.8",
+            "--guess",
+            "wrist-pitch=-0.4",
+            "--out",
+            str(out),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert "completed from the loops: elbow-pitch, wrist-pitch" in result.output
     assert "undetermined (minimum-norm answer given): 1*tool-tip_contact_y" in result.output
@@ -242,8 +270,9 @@ def test_the_command_line_holds_a_tool_by_an_mjcf_site(tmp_path):
         force = np.array([got["F_tool-tip_contact_x"][k], got["F_tool-tip_contact_z"][k]])
         assert np.abs(x[3:] - force).max() <= 1e-9 * np.abs(force).max()
         assert got["F_tool-tip_contact_y"][k] == 0.0  # the minimum-norm choice of the open row
-    bad = CliRunner().invoke(cli, ["inverse", str(model_file), "--trajectory", str(motion),
-                                   "--contact", "tool-heel", "--out", str(out)])
+    bad = CliRunner().invoke(
+        cli, ["inverse", str(model_file), "--trajectory", str(motion), "--contact", "tool-heel", "--out", str(out)]
+    )
     assert bad.exit_code == 2 and "no body 'tool-heel'" in bad.output and "tool-tip" in bad.output
 
 
@@ -257,7 +286,9 @@ def test_a_refused_closed_chain_route_says_why(tmp_path):
     from appell.io.cli import cli
     from test_inverse import _write_csv
 
-    text = example_path("four_bar").read_text() + """
+    text = (
+        example_path("four_bar").read_text()
+        + """
 [[loads]]
 name = "push"
 type = "force"
@@ -265,6 +296,7 @@ body = "crank"
 point = [0.4, 0, 0]
 vector = [1, 0, 0]
 """
+    )
     model = tmp_path / "pushed.toml"
     model.write_text(text)
     t = np.linspace(0.0, 0.3, 8)
@@ -275,8 +307,9 @@ vector = [1, 0, 0]
     assert result.exit_code == 2, result.output
     assert "closed-chain route" in result.output and "push" in result.output
     assert "no column B, D" in result.output and not out.exists()
-    result = runner.invoke(cli, ["inverse", str(model), "--trajectory", str(crank), "--contact", "rocker",
-                                 "--out", str(out)])
+    result = runner.invoke(
+        cli, ["inverse", str(model), "--trajectory", str(crank), "--contact", "rocker", "--out", str(out)]
+    )
     assert result.exit_code == 2 and "--contact" in result.output and "push" in result.output
 
 
@@ -304,5 +337,6 @@ def test_contact_rows_alike_in_the_compiled_and_numpy_routes():
     for x, y in zip(blocks_f, blocks_s):
         assert np.allclose(x, y, rtol=1e-11, atol=1e-11)
     a = rng.normal(size=fast.n)
-    assert np.allclose(fast.wrench_array(w, a, lam, pieces_f), slow.wrench_array(w, a, lam, pieces_s),
-                       rtol=1e-10, atol=1e-10)
+    assert np.allclose(
+        fast.wrench_array(w, a, lam, pieces_f), slow.wrench_array(w, a, lam, pieces_s), rtol=1e-10, atol=1e-10
+    )

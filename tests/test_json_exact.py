@@ -7,17 +7,16 @@ the one read back by structural equality (``==`` and :func:`sympy.srepr`), not b
 simplification.
 """
 
-import appell
 import json
 
 import pytest
 import sympy as sp
+from click.testing import CliRunner
 
+import appell
 from appell import Parameter, System, derive, holonomic
 from appell.errors import ModelError
 from appell.examples import list_examples
-from click.testing import CliRunner
-
 from appell.io.cli import cli, derivation_json, derive_model, load_system
 from appell.io.printing import document_expressions, read_json
 
@@ -72,8 +71,9 @@ def _assert_round_trip(derivation):
 HEAVY = {"benchmark_bicycle"}
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in HEAVY else n
-                                  for n in list_examples()])
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=pytest.mark.slow) if n in HEAVY else n for n in list_examples()]
+)
 def test_every_bundled_example_reads_back_structurally_equal(name):
     """Every expression of every bundled example's JSON document == the derived object."""
     derivation = derive_model(load_system(name))
@@ -89,8 +89,14 @@ def _system_with_sympy_names():
     return System(
         name="sympy_names",
         coordinates=(x, y),
-        parameters=(Parameter(I, 2.0), Parameter(E, 3.0), Parameter(S, 0.5), Parameter(N, 1.5), Parameter(O, 0.7),
-                    Parameter(Q, 1.1)),
+        parameters=(
+            Parameter(I, 2.0),
+            Parameter(E, 3.0),
+            Parameter(S, 0.5),
+            Parameter(N, 1.5),
+            Parameter(O, 0.7),
+            Parameter(Q, 1.1),
+        ),
         kinetic_energy=I / 2 * xd**2 + S / 2 * yd**2,
         potential_energy=E * x**2 / 2 + N * sp.sin(y),
         constraints=(holonomic("link", O * x - Q * y),),
@@ -150,16 +156,19 @@ def test_factored_expressions_keep_their_structure():
     assert sp.srepr(sp.sympify(str(e)).subs(sp.I, I)) != sp.srepr(e)
 
 
-@pytest.mark.parametrize("tree, why", [
-    (["Symbol", "__import__"], "not in the symbol table"),
-    (["eval", ["Integer", "1"]], "unknown head"),
-    (["Integer", "1e5"], "not an integer literal"),
-    (["Integer", "9" * 5000], "not an integer literal"),
-    (["Rational", "2", "4"], "lowest terms"),
-    (["Float", 0, "zz", 0, 1, 53], "hexadecimal"),
-    (["Constant", "os"], "unknown constant"),
-    ("x", "must be a list"),
-])
+@pytest.mark.parametrize(
+    "tree, why",
+    [
+        (["Symbol", "__import__"], "not in the symbol table"),
+        (["eval", ["Integer", "1"]], "unknown head"),
+        (["Integer", "1e5"], "not an integer literal"),
+        (["Integer", "9" * 5000], "not an integer literal"),
+        (["Rational", "2", "4"], "lowest terms"),
+        (["Float", 0, "zz", 0, 1, 53], "hexadecimal"),
+        (["Constant", "os"], "unknown constant"),
+        ("x", "must be a list"),
+    ],
+)
 def test_read_json_refuses_malformed_trees(tree, why):
     """Hostile or broken documents raise ModelError naming the node; nothing is evaluated."""
     doc = {"symbols": {"x": {"role": "coordinate", "assumptions": {}}}, "exact": {"e": tree}}

@@ -27,13 +27,12 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
-from appell import ModelError, Parameter, System, derive
+from appell import ModelError, Parameter, System, derive, numeric_model
 from appell.examples import example_path
 from appell.examples.mechanism_examples import double_pendulum_joints, rolling_disc
 from appell.io.cli import cli, load_system
 from appell.numerics.linearise import linearise, steady_motion
 from appell.numerics.stability import stability_sweep
-from appell import numeric_model
 
 G, L = 9.81, 1.0
 
@@ -126,9 +125,16 @@ def spring_chain() -> System:
     x1, x2, m1, m2, k1, k2, c, F = sp.symbols("x1 x2 m1 m2 k1 k2 c F")
     x1d, x2d = sp.symbols("x1_dot x2_dot")
     return System(
-        name="spring_chain", coordinates=(x1, x2),
-        parameters=(Parameter(m1, 2.0), Parameter(m2, 3.0), Parameter(k1, 5.0), Parameter(k2, 7.0),
-                    Parameter(c, 0.4), Parameter(F, 0.0)),
+        name="spring_chain",
+        coordinates=(x1, x2),
+        parameters=(
+            Parameter(m1, 2.0),
+            Parameter(m2, 3.0),
+            Parameter(k1, 5.0),
+            Parameter(k2, 7.0),
+            Parameter(c, 0.4),
+            Parameter(F, 0.0),
+        ),
         kinetic_energy=m1 / 2 * x1d**2 + m2 / 2 * x2d**2,
         potential_energy=k1 / 2 * x1**2 + k2 / 2 * (x2 - x1) ** 2,
         generalized_forces=(0, -c * x2d + F),
@@ -145,8 +151,10 @@ def test_the_second_order_form_and_an_input_of_a_spring_chain():
     assert np.allclose(C, [[0, 0], [0, 0.4]], rtol=0, atol=1e-14)
     assert np.allclose(K, [[12.0, -7.0], [-7.0, 7.0]], rtol=0, atol=1e-13)
     assert np.allclose(Fu, [[0.0], [1.0]], rtol=0, atol=1e-14)
-    fd = (numeric_model(d).solve(0.0, [0, 0], [0, 0], {"F": 1e-3}).accelerations
-          - numeric_model(d).solve(0.0, [0, 0], [0, 0], {"F": -1e-3}).accelerations) / 2e-3
+    fd = (
+        numeric_model(d).solve(0.0, [0, 0], [0, 0], {"F": 1e-3}).accelerations
+        - numeric_model(d).solve(0.0, [0, 0], [0, 0], {"F": -1e-3}).accelerations
+    ) / 2e-3
     assert np.allclose(lm.B[2:, 0], fd, rtol=1e-12, atol=0)
     ss = lm.statespace()
     assert ss.A.shape == (4, 4) and ss.B.shape == (4, 1)
@@ -159,8 +167,11 @@ def test_a_model_with_a_non_analytic_function_is_differentiated_symbolically():
     the complex step does not apply): near x1 = 0 it is -d x1, a stiffness d added to K11."""
     x1, d_ = sp.Symbol("x1"), sp.Symbol("d")
     chain = spring_chain()
-    system = dataclasses.replace(chain, parameters=chain.parameters + (Parameter(d_, 2.0),),
-                                 generalized_forces=(-d_ * (sp.Abs(x1 + 1) - 1), chain.generalized_forces[1]))
+    system = dataclasses.replace(
+        chain,
+        parameters=chain.parameters + (Parameter(d_, 2.0),),
+        generalized_forces=(-d_ * (sp.Abs(x1 + 1) - 1), chain.generalized_forces[1]),
+    )
     lm = linearise(derive(system), {"x1": 0.0, "x2": 0.0})
     _, _, K, _ = lm.second_order()
     assert np.allclose(K, [[14.0, -7.0], [-7.0, 7.0]], rtol=0, atol=1e-13)
@@ -175,9 +186,9 @@ def sleeping_top() -> System:
     a, b, g_, I1, I3, M, gr, l = sp.symbols("alpha beta gamma I1 I3 M g l")
     ad, bd, gd = sp.symbols("alpha_dot beta_dot gamma_dot")
     return System(
-        name="sleeping_top", coordinates=(a, b, g_),
-        parameters=(Parameter(I1, 0.8), Parameter(I3, 0.4), Parameter(M, 1.0), Parameter(gr, 9.81),
-                    Parameter(l, 0.5)),
+        name="sleeping_top",
+        coordinates=(a, b, g_),
+        parameters=(Parameter(I1, 0.8), Parameter(I3, 0.4), Parameter(M, 1.0), Parameter(gr, 9.81), Parameter(l, 0.5)),
         kinetic_energy=I1 / 2 * (ad**2 * sp.cos(b) ** 2 + bd**2) + I3 / 2 * (gd + ad * sp.sin(b)) ** 2,
         potential_energy=M * gr * l * sp.cos(a) * sp.cos(b),
     )
@@ -192,8 +203,10 @@ def test_the_sleeping_top_spectrum_and_its_critical_spin():
     w = 12.0
     lm = linearise(d, {"gamma_dot": w}, ignore=["gamma"])
     root = math.sqrt(I3**2 * w**2 - 4 * I1 * Mgl)
-    expected = sorted([0.0] + [s * 1j * (I3 * w + r) / (2 * I1) for s in (1, -1) for r in (root, -root)],
-                      key=lambda z: (z.real, z.imag))
+    expected = sorted(
+        [0.0] + [s * 1j * (I3 * w + r) / (2 * I1) for s in (1, -1) for r in (root, -root)],
+        key=lambda z: (z.real, z.imag),
+    )
     got = sorted(lm.eigenvalues(), key=lambda z: (round(z.real, 8), z.imag))
     assert np.allclose(got, expected, rtol=0, atol=1e-11 * w)
     sweep = stability_sweep(d, "gamma_dot", np.linspace(4.0, 16.0, 13), ignore=["gamma"])
@@ -213,11 +226,18 @@ def test_the_rolling_disc_is_stable_above_its_critical_speed():
     r = 0.25
     free = ["float_x_dot", "float_y_dot", "float_z_dot", "float_z"]
     ignore = ["float_x", "float_y", "float_rz", "float_ry"]
-    point = steady_motion(d, {"alpha": 0.0, "float_z": r, "float_ry_dot": 6.0, "float_x_dot": -1.0}, free=free,
-                          ignore=ignore)
+    point = steady_motion(
+        d, {"alpha": 0.0, "float_z": r, "float_ry_dot": 6.0, "float_x_dot": -1.0}, free=free, ignore=ignore
+    )
     assert point["float_x_dot"] == pytest.approx(6.0 * r, rel=1e-12) and point["float_z"] == pytest.approx(r)
-    sweep = stability_sweep(d, "float_ry_dot", np.linspace(1.0, 8.0, 15),
-                            at={"alpha": 0.0, "float_z": r, "float_x_dot": 0.25}, free=free, ignore=ignore)
+    sweep = stability_sweep(
+        d,
+        "float_ry_dot",
+        np.linspace(1.0, 8.0, 15),
+        at={"alpha": 0.0, "float_z": r, "float_x_dot": 0.25},
+        free=free,
+        ignore=ignore,
+    )
     assert [c.direction for c in sweep.crossings] == [-1]
     assert sweep.crossings[0].value == pytest.approx(math.sqrt(9.81 / (3 * r)), rel=1e-8)
     assert sweep.crossings[0].kind == "real"
@@ -229,8 +249,20 @@ def test_appell_stability_writes_each_format(tmp_path):
     import xarray as xr
 
     files = [tmp_path / f"s.{k}" for k in ("json", "csv", "nc", "png")]
-    args = ["stability", "spherical_pendulum", "--vary", "theta=0.2:1.2:6", "--free", "phi'", "--ignore", "phi",
-            "--set", "theta'=0", "--set", "phi'=2"] + sum((["-o", str(f)] for f in files), [])
+    args = [
+        "stability",
+        "spherical_pendulum",
+        "--vary",
+        "theta=0.2:1.2:6",
+        "--free",
+        "phi'",
+        "--ignore",
+        "phi",
+        "--set",
+        "theta'=0",
+        "--set",
+        "phi'=2",
+    ] + sum((["-o", str(f)] for f in files), [])
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 0, result.output
     assert "stable at 6 of 6 values" in result.output
@@ -273,8 +305,12 @@ def test_a_hinge_axis_given_by_a_parameter():
     d = derive(mech.system(reactions=None))
     for beta in (0.4, 1.1):
         lm = linearise(d, {"hinge": 0.0, "beta": beta})
-        assert np.allclose(lm.eigenvalues(), [-1j * math.sqrt(G * math.sin(beta)), 1j * math.sqrt(G * math.sin(beta))],
-                           rtol=1e-12, atol=0)
+        assert np.allclose(
+            lm.eigenvalues(),
+            [-1j * math.sqrt(G * math.sin(beta)), 1j * math.sqrt(G * math.sin(beta))],
+            rtol=1e-12,
+            atol=0,
+        )
     body = mech.body("plate", 2.0, inertia=R.T * sp.Matrix([[1, 0, 0.2], [0, 2, 0], [0.2, 0, 3]]) * R)
     assert body.inertia.shape == (3, 3)
     with pytest.raises(ModelError, match="not of unit length"):

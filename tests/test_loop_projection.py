@@ -106,8 +106,13 @@ def test_pendulum_drift_is_projected_in_c_and_keeps_the_closed_forms(pendulum, m
     m v^2/L - m g y/L at every sample (to the residual inside a step, measured 7e-6), and
     the energy stays within 1e-3 of its start, where without projection it drifts to 5e-3
     (measured 1.9e-4 and 5.0e-3)."""
-    kw = dict(initial={"x": 0.0, "y": -1.0, "x_dot": 8.0, "y_dot": 0.0}, t_eval=np.linspace(0.0, 10.0, 2001),
-              rtol=1e-6, atol=1e-9, progress=False)
+    kw = dict(
+        initial={"x": 0.0, "y": -1.0, "x_dot": 8.0, "y_dot": 0.0},
+        t_eval=np.linspace(0.0, 10.0, 2001),
+        rtol=1e-6,
+        atol=1e-9,
+        progress=False,
+    )
     fast, python_fast, calls_fast = counted_run(monkeypatch, pendulum, True, 10.0, **kw)
     ref, python_ref, _ = counted_run(monkeypatch, pendulum, False, 10.0, **kw)
     assert fast.status == ref.status == 0
@@ -135,8 +140,9 @@ def test_a_budget_of_evaluations_stops_the_compiled_loop(monkeypatch):
     from appell.simulation.initial import complete_initial
 
     th = [0.1, -0.2, 0.25, 0.0]
-    y0 = complete_initial(chain, dict(zip(chain.state_names, [*th, 0.3, -0.1, 0.2, 0.0])),
-                          adjust=["theta4", "theta4_dot"], t=0.0).y
+    y0 = complete_initial(
+        chain, dict(zip(chain.state_names, [*th, 0.3, -0.1, 0.2, 0.0])), adjust=["theta4", "theta4_dot"], t=0.0
+    ).y
     sol = simulate(chain, 10.0, initial=y0, rtol=1e-9, atol=1e-12, max_evaluations=300, progress=False)
     assert sol.status == -1 and "max_evaluations = 300" in sol.message
     assert sol.t[-1] < 5.0 and 300 < sol.statistics.nfev <= 300 + 12
@@ -151,16 +157,17 @@ def singular_models(tmp_path_factory):
     folder = tmp_path_factory.mktemp("loop_singular")
     (folder / "cusp.toml").write_text(CUSP)
     (folder / "parallelogram.toml").write_text(parallelogram_text())
-    return {name: numeric_model(appell.derive(appell.load_model(folder / f"{name}.toml")), "c")
-            for name in ("cusp", "parallelogram")}
+    return {
+        name: numeric_model(appell.derive(appell.load_model(folder / f"{name}.toml")), "c")
+        for name in ("cusp", "parallelogram")
+    }
 
 
 def test_the_cusp_still_stops_at_its_tip_with_the_projections_in_c(singular_models, monkeypatch):
     """The particle on y^2 = x^3 (tests/test_singular_configurations.py; the tip at t* of a
     quadrature): at rtol 1e-6 the rod of the cusp drifts and is projected in C on the way,
     and the rank watch still stops the run before the tip, at the time of the Python path."""
-    fast, python_fast, _ = counted_run(monkeypatch, singular_models["cusp"], True, rtol=1e-6, atol=1e-9,
-                                       progress=False)
+    fast, python_fast, _ = counted_run(monkeypatch, singular_models["cusp"], True, rtol=1e-6, atol=1e-9, progress=False)
     ref, _, _ = counted_run(monkeypatch, singular_models["cusp"], False, rtol=1e-6, atol=1e-9, progress=False)
     assert fast.statistics.projections > python_fast
     for sol in (fast, ref):
@@ -174,10 +181,8 @@ def test_the_parallelogram_still_passes_its_change_points(singular_models, monke
     """The parallelogram four-bar (tests/test_singular_configurations.py): its three change
     points (the branch's ODE, SciPy) are passed at rtol 1e-6 as on the Python path (the one
     projection of this run falls on a step the watch hands to Python)."""
-    fast, _, _ = counted_run(monkeypatch, singular_models["parallelogram"], True, rtol=1e-6, atol=1e-9,
-                             progress=False)
-    ref, _, _ = counted_run(monkeypatch, singular_models["parallelogram"], False, rtol=1e-6, atol=1e-9,
-                            progress=False)
+    fast, _, _ = counted_run(monkeypatch, singular_models["parallelogram"], True, rtol=1e-6, atol=1e-9, progress=False)
+    ref, _, _ = counted_run(monkeypatch, singular_models["parallelogram"], False, rtol=1e-6, atol=1e-9, progress=False)
     assert fast.status == ref.status == 0
     assert fast.statistics.projections == ref.statistics.projections
     expected = change_point_times()
@@ -193,9 +198,14 @@ def two_spheres():
     are parallel."""
     x, y, z = sp.symbols("x y z")
     xd, yd, zd = sp.symbols("x_dot y_dot z_dot")
-    system = System(coordinates=(x, y, z), kinetic_energy=(xd**2 + yd**2 + zd**2) / 2,
-                    constraints=(holonomic("near", (x**2 + y**2 + z**2 - 1) / 2),
-                                 holonomic("far", ((x - 1) ** 2 + y**2 + z**2 - 1) / 2)))
+    system = System(
+        coordinates=(x, y, z),
+        kinetic_energy=(xd**2 + yd**2 + zd**2) / 2,
+        constraints=(
+            holonomic("near", (x**2 + y**2 + z**2 - 1) / 2),
+            holonomic("far", ((x - 1) ** 2 + y**2 + z**2 - 1) / 2),
+        ),
+    )
     return numeric_model(derive(system), "c")
 
 

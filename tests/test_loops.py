@@ -287,8 +287,14 @@ def test_floating_biped_with_four_leg_loops_against_mujoco():
         force = []
         for e in range(m.neq):
             loop = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_EQUALITY, e)
-            local = np.array([state.lam[model.constraint_names.index(f"{loop}_{x}")]
-                              if f"{loop}_{x}" in model.constraint_names else 0.0 for x in "xyz"])
+            local = np.array(
+                [
+                    state.lam[model.constraint_names.index(f"{loop}_{x}")]
+                    if f"{loop}_{x}" in model.constraint_names
+                    else 0.0
+                    for x in "xyz"
+                ]
+            )
             force.append(d.xmat[m.eq_obj1id[e]].reshape(3, 3) @ local)
         assert np.abs(np.concatenate(force) - lam).max() <= 1e-9 * np.abs(lam).max()
 
@@ -322,13 +328,13 @@ def _parity(mech, states, controls=0):
 
 def test_compiled_loop_route_equals_the_numpy_route():
     pytest.importorskip("mujoco")
-    from appell.numerics.codegen import find_compiler
     from appell.mechanism.mjcf import load_mjcf, mjcf_mechanism
+    from appell.numerics.codegen import find_compiler
 
     if find_compiler() is None:
         pytest.skip("no C compiler")
     rng = np.random.default_rng(23)
-    mech, _ = mjcf_mechanism(load_mjcf(BIPED), str(BIPED))   # point rows, a quaternion's norm row, motors
+    mech, _ = mjcf_mechanism(load_mjcf(BIPED), str(BIPED))  # point rows, a quaternion's norm row, motors
     states = []
     for _ in range(2):
         q, w = np.zeros(23), rng.normal(size=23)
@@ -387,4 +393,4 @@ def test_compiled_split_where_the_mass_matrix_alone_is_singular():
     rng = np.random.default_rng(29)
     _parity(mech, [(rng.uniform(-1, 1, 3), rng.normal(size=3)) for _ in range(2)])
     M = loop_model(mech, "numpy").blocks(np.zeros(3), np.zeros(3))[0]
-    assert abs(M[2, 2]) < 1e-14   # the rocker's own diagonal entry: nothing turns with it
+    assert abs(M[2, 2]) < 1e-14  # the rocker's own diagonal entry: nothing turns with it

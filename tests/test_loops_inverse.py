@@ -26,8 +26,7 @@ def test_four_bar_motor_torque_balances_the_expanded_equations():
     the torque and pin forces satisfy the expanded route's M a + h - Q = B tau + J^T lambda."""
     mech = four_bar_3d(motor=True)
     t = np.linspace(0.0, 1.0, 41)
-    res = inverse_dynamics(mech, t, {"A": 1.0 + 2 * np.pi * t + 0.3 * np.sin(3 * t)},
-                           guess={"B": 1.5, "D": 2.0})
+    res = inverse_dynamics(mech, t, {"A": 1.0 + 2 * np.pi * t + 0.3 * np.sin(3 * t)}, guess={"B": 1.5, "D": 2.0})
     system = four_bar_3d().system(initial={"A": 1.0, "B": 1.5, "D": 2.0})
     model = numeric_model(derive(system), "numpy")
     names = model.coordinate_names
@@ -90,7 +89,7 @@ def test_under_actuated_and_dependent_motions_are_refused():
     with pytest.raises(ModelError, match="leave 1 passive"):
         inverse_dynamics(flagged, t, {"A": 1.0 + t}, guess={"B": 1.5, "D": 2.0})
     with pytest.raises(ComputationError, match="cannot produce the motion"):
-        inverse_dynamics(mech, t, {"A": 1.0 + t ** 2}, guess={"B": 1.5, "D": 2.0}, drives=[])
+        inverse_dynamics(mech, t, {"A": 1.0 + t**2}, guess={"B": 1.5, "D": 2.0}, drives=[])
     with pytest.raises(ComputationError, match="do not close"):
         inverse_dynamics(mech, t, {"A": 1.0 + t}, guess={"B": 1.5, "D": 2.0}, max_iterations=0)
 

@@ -16,18 +16,22 @@ SCRIPT = ROOT / "scripts" / "test-matrix.sh"
 
 def matrix(*args, timeout=300):
     env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_CORETYPE", "APPELL_TEST_BACKEND")}
-    return subprocess.run(["bash", str(SCRIPT), *args], capture_output=True, text=True, timeout=timeout, env=env,
-                          cwd=ROOT)
+    return subprocess.run(
+        ["bash", str(SCRIPT), *args], capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT
+    )
 
 
 @pytest.mark.skipif(not Path("/proc/cpuinfo").exists(), reason="reads the CPU's instruction sets from /proc/cpuinfo")
 def test_matrix_prints_one_row_per_variant_and_passes():
-    done = matrix("--kernels", "Prescott", "--backends", "numpy c", "--",
-                  "tests/test_partition_singular.py", "-k", "one_by_one")
+    done = matrix(
+        "--kernels", "Prescott", "--backends", "numpy c", "--", "tests/test_partition_singular.py", "-k", "one_by_one"
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     rows = [line.split() for line in done.stdout.splitlines() if line.startswith("OPENBLAS_CORETYPE=")]
-    assert [(r[0], r[1]) for r in rows] == [("OPENBLAS_CORETYPE=Prescott", "numpy"),
-                                            ("OPENBLAS_CORETYPE=Prescott", "c")]
+    assert [(r[0], r[1]) for r in rows] == [
+        ("OPENBLAS_CORETYPE=Prescott", "numpy"),
+        ("OPENBLAS_CORETYPE=Prescott", "c"),
+    ]
     for r in rows:  # tests, passed, failed, skipped
         assert r[2] == r[3] == "1" and r[4] == "0", done.stdout
 
@@ -35,8 +39,16 @@ def test_matrix_prints_one_row_per_variant_and_passes():
 def test_matrix_fails_when_a_variant_fails_and_says_which():
     """A deliberately failing selection (an expression that matches no numerical test makes
     pytest exit 5) gives exit 1 and a row that says pytest stopped."""
-    done = matrix("--kernels", "unset", "--backends", "numpy", "--", "tests/test_partition_singular.py",
-                  "-k", "no_test_has_this_name")
+    done = matrix(
+        "--kernels",
+        "unset",
+        "--backends",
+        "numpy",
+        "--",
+        "tests/test_partition_singular.py",
+        "-k",
+        "no_test_has_this_name",
+    )
     assert done.returncode == 1
     assert "OPENBLAS_CORETYPE=unset" in done.stdout
 

@@ -11,11 +11,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import derive
+from appell import derive, numeric_model
 from appell.examples.catalog import nlink_pendulum
 from appell.examples.cyclic_examples import spherical_pendulum
 from appell.mechanism import Mechanism
-from appell import numeric_model
 
 
 def pendulum_mechanism(m=2.0, l=1.5, g=9.81):
@@ -75,6 +74,7 @@ MASSES = (1.0, 2.0, 1.5)
 
 def _four_bar_state(d, thA, wA):
     """A state on the constraints: B and D angles by Newton's method, speeds from J w = 0."""
+
     def closure(x):
         tB, tD = x
         tip = A_ * np.array([math.cos(thA), math.sin(thA)]) + B_ * np.array([math.cos(thA + tB), math.sin(thA + tB)])
@@ -178,8 +178,16 @@ def assert_four_bar_pin_forces_match_newton_euler(four_bar, thA, wA):
     # cond(A) < 10: residual and forces are off by ~1e-15 of the scale; 1e-9 is far above
     assert np.linalg.norm(A @ x - b) < 1e-9 * np.linalg.norm(b)
     scale = np.abs(x).max()
-    got = [out["F_A_x"], out["F_A_y"], out["F_B_x"], out["F_B_y"], sol.multipliers[0], sol.multipliers[1],
-           out["F_D_x"], out["F_D_y"]]
+    got = [
+        out["F_A_x"],
+        out["F_A_y"],
+        out["F_B_x"],
+        out["F_B_y"],
+        sol.multipliers[0],
+        sol.multipliers[1],
+        out["F_D_x"],
+        out["F_D_y"],
+    ]
     assert got == pytest.approx(list(x), abs=1e-9 * scale)
     for j in "ABD":  # hinges about z without actuators carry no moment about their axis
         assert out[f"M_{j}_z"] == pytest.approx(0.0, abs=1e-9 * scale)
@@ -214,10 +222,12 @@ def test_double_pendulum_reactions_match_pinocchio_rnea():
     j1 = model.addJoint(0, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.1, 0.0, 0.2])), "shoulder")
     model.appendBodyToJoint(j1, pin.Inertia(1.3, np.array([0.02, 0.01, -0.4]), np.array(I1, float)), pin.SE3.Identity())
     R = pin.rpy.rpyToMatrix(0.1, 0.2, 0.3)
-    j2 = model.addJoint(j1, pin.JointModelRevoluteUnaligned(np.array([0.6, 0.0, 0.8])),
-                        pin.SE3(R, np.array([0.0, 0.05, -0.8])), "elbow")
-    model.appendBodyToJoint(j2, pin.Inertia(0.8, np.array([0.05, -0.03, -0.3]), np.array(I2, float)),
-                            pin.SE3.Identity())
+    j2 = model.addJoint(
+        j1, pin.JointModelRevoluteUnaligned(np.array([0.6, 0.0, 0.8])), pin.SE3(R, np.array([0.0, 0.05, -0.8])), "elbow"
+    )
+    model.appendBodyToJoint(
+        j2, pin.Inertia(0.8, np.array([0.05, -0.03, -0.3]), np.array(I2, float)), pin.SE3.Identity()
+    )
     data = model.createData()
     rng = np.random.default_rng(7)
     for q, w in rng.uniform(-2.0, 2.0, size=(4, 2, 2)):
@@ -307,14 +317,17 @@ def test_spherical_pendulum_on_a_quaternion_joint_moves_as_the_examples_angle_mo
     t = np.linspace(0, 2.0, 21)
     s1 = simulate(derive(ref_sys), 2.0, t_eval=t)
     s2 = simulate(d, 2.0, t_eval=t)
-    ref_pos = L * np.array([np.sin(s1["theta"]) * np.cos(s1["phi"]), np.sin(s1["theta"]) * np.sin(s1["phi"]),
-                            -np.cos(s1["theta"])])
+    ref_pos = L * np.array(
+        [np.sin(s1["theta"]) * np.cos(s1["phi"]), np.sin(s1["theta"]) * np.sin(s1["phi"]), -np.cos(s1["theta"])]
+    )
     qs = np.array([s2[n] for n in names])
     pos = np.array([_rotation(qs[:, i]) @ np.array([0, 0, -L]) for i in range(t.size)]).T
     # two DOP853 runs at the default rtol 1e-9 over 2 s (growth ~7): ~7e-9 in position and in
     # the tension's relative value (1e-11 gives 2e-10); 1e-6 is 100x that
     assert np.abs(pos - ref_pos).max() < 1e-6
-    tension = m * L * (s1["theta_dot"] ** 2 + np.sin(s1["theta"]) ** 2 * s1["phi_dot"] ** 2) + m * g * np.cos(s1["theta"])
+    tension = m * L * (s1["theta_dot"] ** 2 + np.sin(s1["theta"]) ** 2 * s1["phi_dot"] ** 2) + m * g * np.cos(
+        s1["theta"]
+    )
     F = np.array([s2[f"F_ball_{a}"] for a in "xyz"])
     along = -(F * pos).sum(axis=0) / L  # towards the pivot
     assert along == pytest.approx(tension, rel=1e-6)

@@ -34,8 +34,9 @@ def _rotz(th):
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
-def _rack_and_pinion(alpha=0.0, beta=0.0, inertia=((0.001, 0, 0.0002), (0, 0.0012, 0), (0.0002, 0, 0.002)),
-                     rack_com=(0.01, 0.02, 0.005)):
+def _rack_and_pinion(
+    alpha=0.0, beta=0.0, inertia=((0.001, 0, 0.0002), (0, 0.0012, 0), (0.0002, 0, 0.002)), rack_com=(0.01, 0.02, 0.005)
+):
     mech = Mechanism("rack_pinion", gravity=(0, -G, 0))
     pinion = mech.body("pinion", 1.0, inertia=inertia)
     rack = mech.body("rack", 1.5, inertia=(0.01, 0.01, 0.01), com=rack_com)
@@ -86,8 +87,15 @@ def _newton_euler_rack_and_pinion(th, w, s, alpha, beta, Ib, rack_com, mp=1.0, m
     # the mesh: s'' = r th''
     A[12, 0], A[12, 1] = r, -1
     x = np.linalg.solve(A, b)
-    return {"acc": x[0:2], "W": x[2], "F_pin": x[3:6], "M_pin": np.array([x[6], x[7], 0]),
-            "F_guide": np.array([x[8], 0, x[9]]), "M_guide": x[10:13], "tooth": x[2] * tooth}
+    return {
+        "acc": x[0:2],
+        "W": x[2],
+        "F_pin": x[3:6],
+        "M_pin": np.array([x[6], x[7], 0]),
+        "F_guide": np.array([x[8], 0, x[9]]),
+        "M_guide": x[10:13],
+        "tooth": x[2] * tooth,
+    }
 
 
 @pytest.mark.parametrize("alpha, beta", [(0.0, 0.0), (math.radians(20), 0.0), (math.radians(20), math.radians(15))])
@@ -265,6 +273,7 @@ def test_a_torque_changing_sign_runs_through_the_radial_loads_kink():
     signed and the radial load ``|W_t| tan(phi)`` away from a's axis on both sides of the
     sign change (Shigley eqs. 13-39/13-40)."""
     import sympy as sp
+
     from appell import simulate
 
     alpha, beta, tau0, W, n, ra = math.radians(20), math.radians(10), 0.7, 2 * math.pi, 2.0, 0.05

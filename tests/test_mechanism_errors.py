@@ -30,9 +30,15 @@ def test_a_body_of_another_mechanism_is_refused():
         mech.revolute("j", "ground", x)
 
 
-@pytest.mark.parametrize("axis, message", [((0, 0, 2), "has length 2, not 1"), ((0, 0, 0), "the axis is zero"),
-                                           ((0, sp.Symbol("k"), 1), "not of unit length for every value of k"),
-                                           ((1, 0), "must be three numbers")])
+@pytest.mark.parametrize(
+    "axis, message",
+    [
+        ((0, 0, 2), "has length 2, not 1"),
+        ((0, 0, 0), "the axis is zero"),
+        ((0, sp.Symbol("k"), 1), "not of unit length for every value of k"),
+        ((1, 0), "must be three numbers"),
+    ],
+)
 def test_a_bad_axis_is_refused_naming_the_joint(axis, message):
     mech, a, _ = two_links()
     with pytest.raises(ModelError, match=f"revolute joint 'j'.*{message}"):

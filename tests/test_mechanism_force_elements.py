@@ -35,8 +35,11 @@ def test_bushing_holds_a_puck_in_its_own_axes():
     mech.bushing("mount", ("ground", (0, 0, 0)), (puck, (0, 0, 0)), K, C, Kr, Cr, rotation=(0, 0, math.pi / 2))
     q, w = [0.03, -0.02, 0.4], [0.5, -0.3, 1.2]
     sol, out = _outputs(derive(mech.system()), q, w)
-    acc = [(-K[1] * q[0] - C[1] * w[0]) / m, (-K[0] * q[1] - C[0] * w[1]) / m - G,
-           (-Kr[2] * math.sin(q[2]) - Cr[2] * w[2]) / I]
+    acc = [
+        (-K[1] * q[0] - C[1] * w[0]) / m,
+        (-K[0] * q[1] - C[0] * w[1]) / m - G,
+        (-Kr[2] * math.sin(q[2]) - Cr[2] * w[2]) / I,
+    ]
     # rounding only (a 3x3 solve of well-scaled terms)
     assert sol.accelerations == pytest.approx(acc, rel=1e-12)
     assert [out[f"F_plane_{a}"] for a in "xy"] == pytest.approx([0, 0], abs=1e-12)

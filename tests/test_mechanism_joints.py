@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import derive
+from appell import derive, numeric_model
 from appell.mechanism import Mechanism
 from appell.mechanism.rotations import euler_rotation, quaternion_rotation
-from appell import numeric_model
 
 G = 9.81
 
@@ -36,7 +35,8 @@ def test_prismatic_block_on_a_smooth_incline():
     n = np.array([math.sin(alpha), 0, math.cos(alpha)])
     assert [out[f"F_slide_{a}"] for a in "xyz"] == pytest.approx(m * G * math.cos(alpha) * n, abs=1e-12)
     assert [out[f"M_slide_{a}"] for a in "xyz"] == pytest.approx(
-        [0, m * G * h * math.cos(alpha) * math.sin(alpha), 0], abs=1e-12)
+        [0, m * G * h * math.cos(alpha) * math.sin(alpha), 0], abs=1e-12
+    )
 
 
 def test_weld_of_a_bob_on_a_compound_pendulum():
@@ -198,8 +198,9 @@ def test_actuator_torque_is_the_joint_moment_about_its_axis():
     th = 0.6
     sol, out = _outputs(derive(mech.system()), [th], [0.9])
     # rounding only (a 1x1 solve): a few eps; rel 1e-12 is ~5000 eps
-    assert sol.accelerations[0] == pytest.approx((tau + P * l * math.cos(th) - m * G * l * math.sin(th)) / (m * l**2),
-                                                 rel=1e-12)
+    assert sol.accelerations[0] == pytest.approx(
+        (tau + P * l * math.cos(th) - m * G * l * math.sin(th)) / (m * l**2), rel=1e-12
+    )
     assert out["M_pin_z"] == pytest.approx(tau, rel=1e-12)
 
 
@@ -229,8 +230,10 @@ def test_actuator_control_realises_a_servo_constraint_and_is_the_pin_moment():
     bob = mech.particle("bob", m)
     mech.revolute("pin", "ground", bob, child_origin=(0, l, 0))
     mech.actuator("motor", "pin")
-    s = mech.system(servo_constraints=[holonomic("track", sp.Symbol("pin") - 0.3 * sp.sin(2 * t))],
-                    initial={"pin": 0.0, "pin_dot": 0.6})
+    s = mech.system(
+        servo_constraints=[holonomic("track", sp.Symbol("pin") - 0.3 * sp.sin(2 * t))],
+        initial={"pin": 0.0, "pin_dot": 0.6},
+    )
     sol = simulate(derive_controlled(s), 1.0, t_eval=np.linspace(0, 1, 6))
     th, thdd = 0.3 * np.sin(2 * sol.t), -1.2 * np.sin(2 * sol.t)
     tau = m * l**2 * thdd + m * G * l * np.sin(th)

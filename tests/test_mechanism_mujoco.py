@@ -128,11 +128,11 @@ def mujoco_rigid(mj, data, qpos, qvel):
     else:
         for i in range(mj.ntendon):
             a, n = mj.ten_J_rowadr[i], mj.ten_J_rownnz[i]
-            J[i, mj.ten_J_colind[a:a + n]] = np.ravel(data.ten_J)[a:a + n]
+            J[i, mj.ten_J_colind[a : a + n]] = np.ravel(data.ten_J)[a : a + n]
     kkt = np.block([[M, J.T], [J, np.zeros((1, 1))]])
     rhs = np.concatenate([data.qfrc_passive - data.qfrc_bias, [0.0]])
     x = np.linalg.solve(kkt, rhs)
-    qacc, f = x[:mj.nv], -x[mj.nv]
+    qacc, f = x[: mj.nv], -x[mj.nv]
     # the same motion in MuJoCo with the tendon's force applied: joint forces from cfrc_int
     data.qfrc_applied[:] = J[0] * f
     mujoco.mj_forward(mj, data)

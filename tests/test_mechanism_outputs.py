@@ -4,7 +4,6 @@ closed-form rod tension m (g cos(theta) + l theta'^2) (radial Newton equation)."
 
 from __future__ import annotations
 
-import appell
 import csv
 import json
 import math
@@ -13,11 +12,11 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import ModelError, Output, System, derive, holonomic, simulate
+import appell
+from appell import ModelError, Output, System, derive, holonomic, numeric_model, simulate
 from appell.io.printing import derivation_text, read_json
-from appell.mechanism import Mechanism
-from appell import numeric_model
 from appell.io.results import write_csv, write_hdf5, write_netcdf
+from appell.mechanism import Mechanism
 
 M, L, G = 2.0, 1.5, 9.81
 
@@ -107,9 +106,14 @@ def test_output_of_a_cartesian_pendulum_uses_multipliers_and_accelerations():
     lambda_rod = m g cos(theta) at rest (pendulum.toml's closed form) doubled, and m x''."""
     x, y, xd, yd = sp.symbols("x y x_dot y_dot")
     m, Lr, g = sp.symbols("m L g")
-    s = System(coordinates=(x, y), parameters={m: 1.0, Lr: 1.0, g: 9.81}, kinetic_energy=m / 2 * (xd**2 + yd**2),
-               potential_energy=m * g * y, constraints=(holonomic("rod", (Lr**2 - x**2 - y**2) / (2 * Lr)),),
-               outputs=(Output("twice", 2 * sp.Symbol("lambda_rod"), "N"), Output("fx", m * sp.Symbol("x_ddot"))))
+    s = System(
+        coordinates=(x, y),
+        parameters={m: 1.0, Lr: 1.0, g: 9.81},
+        kinetic_energy=m / 2 * (xd**2 + yd**2),
+        potential_energy=m * g * y,
+        constraints=(holonomic("rod", (Lr**2 - x**2 - y**2) / (2 * Lr)),),
+        outputs=(Output("twice", 2 * sp.Symbol("lambda_rod"), "N"), Output("fx", m * sp.Symbol("x_ddot"))),
+    )
     out = numeric_model(derive(s)).outputs(0.0, [0.6, -0.8], [0.0, 0.0])
     # rounding only (a solve of condition ~3): a few eps; approx's default rel 1e-6 is ample
     assert out["twice"] == pytest.approx(2 * 9.81 * 0.8)

@@ -51,7 +51,8 @@ def test_reaction_in_the_childs_axes_about_its_mass_centre():
     F0, M0 = _reaction(_pendulum())
     mech = _pendulum()
     R = np.array(rpy_rotation([0.3, 0.2, 0.1]), dtype=float) @ np.array(
-        [[math.cos(Q[0]), -math.sin(Q[0]), 0], [math.sin(Q[0]), math.cos(Q[0]), 0], [0, 0, 1]])
+        [[math.cos(Q[0]), -math.sin(Q[0]), 0], [math.sin(Q[0]), math.cos(Q[0]), 0], [0, 0, 1]]
+    )
     O = np.array([0.1, 0.2, 0.3])
     C = O + R @ np.array([0.4, 0.05, 0.02])
     mech.reaction_output("pin", about=("link", (0.4, 0.05, 0.02)), axes="link")
@@ -63,7 +64,8 @@ def test_reaction_in_the_childs_axes_about_its_mass_centre():
 def test_reactions_in_the_child_axes_for_every_joint():
     F0, M0 = _reaction(_pendulum())
     R = np.array(rpy_rotation([0.3, 0.2, 0.1]), dtype=float) @ np.array(
-        [[math.cos(Q[0]), -math.sin(Q[0]), 0], [math.sin(Q[0]), math.cos(Q[0]), 0], [0, 0, 1]])
+        [[math.cos(Q[0]), -math.sin(Q[0]), 0], [math.sin(Q[0]), math.cos(Q[0]), 0], [0, 0, 1]]
+    )
     F, M = _reaction(_pendulum(), reactions_in="child")
     assert F == pytest.approx(R.T @ F0, abs=1e-12)
     assert M == pytest.approx(R.T @ M0, abs=1e-12)
@@ -112,13 +114,15 @@ def test_reaction_outputs_in_a_model_file(tmp_path):
     mech = _pendulum()
     mech.reaction_output("pin", on="parent", about=("ground", (0, 0, -0.05)), axes="joint")
     path = tmp_path / "pin.toml"
-    path.write_text(MODEL.replace("READS", '[mechanism.reaction.pin]\non = "parent"\nbody = "ground"\n'
-                                           'point = [0, 0, -0.05]\naxes = "joint"'))
+    path.write_text(
+        MODEL.replace(
+            "READS", '[mechanism.reaction.pin]\non = "parent"\nbody = "ground"\npoint = [0, 0, -0.05]\naxes = "joint"'
+        )
+    )
     assert reaction(load_model(path)) == pytest.approx(reaction(mech.system()), abs=1e-12)
     path.write_text(MODEL.replace("READS", 'reactions_in = "child"'))
     assert reaction(load_model(path)) == pytest.approx(reaction(_pendulum().system(reactions_in="child")), abs=1e-12)
-    assert reaction(load_model(path, reactions_in="ground")) == pytest.approx(reaction(_pendulum().system()),
-                                                                              abs=1e-12)
+    assert reaction(load_model(path, reactions_in="ground")) == pytest.approx(reaction(_pendulum().system()), abs=1e-12)
     path.write_text(MODEL.replace("READS", '[mechanism.reaction.pin]\nbody = "housing"\npoint = [0, 0, 0]'))
     with pytest.raises(ModelError, match="unknown body 'housing'") as info:
         load_model(path)
@@ -153,7 +157,9 @@ def test_the_command_lines_reactions_in_and_no_cache(tmp_path, monkeypatch):
     out = model.outputs(0.0, Q, W, solution=model.solve(0.0, Q, W))
     world = np.array([out[f"{s}_pin_{a}"] for s in "FM" for a in "xyz"])
     assert row("--no-cache", "--reactions-in", "ground") == pytest.approx(world, abs=1e-9)
-    assert not (tmp_path / "cache" / "derivations").exists() or not any((tmp_path / "cache" / "derivations").glob("*.json"))
+    assert not (tmp_path / "cache" / "derivations").exists() or not any(
+        (tmp_path / "cache" / "derivations").glob("*.json")
+    )
     child = row()  # the file's own choice, stored in the cache
     assert any((tmp_path / "cache" / "derivations").glob("*.json"))
     assert np.abs(child[:3] - world[:3]).max() > 1e-3  # another frame: other components

@@ -48,8 +48,7 @@ def test_hooke_joint_velocity_ratio_over_a_turn():
     first half turn of a free-running driveshaft (no load), from 1/cos(beta) to cos(beta)."""
     mech = _driveshaft()
     t = np.linspace(0.0, 3.0, 13)
-    sol = simulate(derive(mech.system(initial={"inp": 0.0, "inp_dot": 1.0, "u_r1": 0.0, "u_r2": BETA})), 3.0,
-                   t_eval=t)
+    sol = simulate(derive(mech.system(initial={"inp": 0.0, "inp_dot": 1.0, "u_r1": 0.0, "u_r2": BETA})), 3.0, t_eval=t)
     w2 = mech.frames()[mech.bodies[1]].w.dot(sp.Matrix(S2))
     speeds = [sp.Symbol(f"{n}_dot") for n in NAMES]
     omega2 = sp.lambdify([sp.Symbol(n) for n in NAMES] + speeds, w2)
@@ -64,8 +63,11 @@ def test_hooke_joint_velocity_ratio_over_a_turn():
 def turning():
     """Configurations of the free-running driveshaft at t = 0, 0.7, 1.3 s (on its closures)."""
     free = _driveshaft()
-    return simulate(derive(free.system(initial={"inp": 0.0, "inp_dot": 1.0, "u_r1": 0.0, "u_r2": BETA})), 1.3,
-                    t_eval=[0.0, 0.7, 1.3])
+    return simulate(
+        derive(free.system(initial={"inp": 0.0, "inp_dot": 1.0, "u_r1": 0.0, "u_r2": BETA})),
+        1.3,
+        t_eval=[0.0, 0.7, 1.3],
+    )
 
 
 @pytest.mark.parametrize("k", [0, 1, 2])

@@ -42,8 +42,14 @@ COMMAND = "from appell.io.cli import main\nsys.exit(main({args!r}, standalone=Fa
 
 
 def _run(hidden, body, cwd):
-    done = subprocess.run([sys.executable, "-c", RUN.format(hidden=list(hidden), body=textwrap.dedent(body))],
-                          capture_output=True, text=True, timeout=600, env=env_with_src(), cwd=cwd)
+    done = subprocess.run(
+        [sys.executable, "-c", RUN.format(hidden=list(hidden), body=textwrap.dedent(body))],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env_with_src(),
+        cwd=cwd,
+    )
     return done.returncode, done.stdout, done.stderr
 
 
@@ -55,9 +61,11 @@ def _refused(code, err, wanted):
     assert "internal error" not in err and "Traceback" not in err and "this is a bug" not in err, err
 
 
-@pytest.mark.parametrize("args", [["sweep", "pendulum", "--param", "m=1:2:2", "--t-end", "0.1"],
-                                  ["cluster", "--workers", "1", "--port", "0"]],
-                         ids=["sweep", "cluster"])
+@pytest.mark.parametrize(
+    "args",
+    [["sweep", "pendulum", "--param", "m=1:2:2", "--t-end", "0.1"], ["cluster", "--workers", "1", "--port", "0"]],
+    ids=["sweep", "cluster"],
+)
 def test_a_sweep_without_dask_names_the_extra(args, tmp_path):
     code, _, err = _run(["dask", "distributed"], COMMAND.format(args=args), tmp_path)
     _refused(code, err, "pip install 'appell[sweep]'")
@@ -86,8 +94,9 @@ def test_a_mujoco_model_without_mujoco_names_the_extra(tmp_path):
     assert "pip install 'appell[mjcf]'" in err
 
 
-@pytest.mark.parametrize("suffix, module, wanted", [(".h5", "h5py", "pip install h5py"),
-                                                    (".nc", "h5netcdf", "h5netcdf")])
+@pytest.mark.parametrize(
+    "suffix, module, wanted", [(".h5", "h5py", "pip install h5py"), (".nc", "h5netcdf", "h5netcdf")]
+)
 def test_a_writer_without_its_package_names_it(suffix, module, wanted, tmp_path):
     args = ["simulate", "pendulum", "--t-end", "0.1", "--backend", "numpy", "--out", f"motion{suffix}"]
     code, _, err = _run([module], COMMAND.format(args=args), tmp_path)

@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 import appell
-from appell.errors import AppellNote, ModelError
 from appell import numeric_model
+from appell.errors import AppellNote, ModelError
 
 mujoco = pytest.importorskip("mujoco")
 from appell.mechanism.mjcf import load_mjcf, mjcf_system  # noqa: E402
@@ -82,8 +82,14 @@ def test_an_open_chain_matches_mujoco_forward_dynamics_and_joint_forces(chain):
         mujoco.mj_forward(mj, data)
         mujoco.mj_rnePostConstraint(mj, data)
         quat_rate = 0.5 * quaternion_product(quat, np.concatenate([[0.0], qvel[3:6]]))
-        values = {"yaw": qpos[0], "shoulder": qpos[1], "extend": qpos[2], "yaw_dot": qvel[0],
-                  "shoulder_dot": qvel[1], "extend_dot": qvel[2]}
+        values = {
+            "yaw": qpos[0],
+            "shoulder": qpos[1],
+            "extend": qpos[2],
+            "yaw_dot": qvel[0],
+            "shoulder_dot": qvel[1],
+            "extend_dot": qvel[2],
+        }
         values.update({f"wrist_q{k}": quat[k] for k in range(4)})
         values.update({f"wrist_q{k}_dot": quat_rate[k] for k in range(4)})
         q = np.array([values[n] for n in model.coordinate_names])
@@ -115,8 +121,9 @@ def four_bar_xml() -> str:
     """The bundled four_bar (crank 0.4 m 1 kg, coupler 1 m 2 kg, rocker 0.8 m 1.5 kg, pivots
     1 m apart, gravity -y) assembled at its initial angles: MuJoCo's joint angles are zero
     there, and its connect equality finds the rocker's tip on the coupler's at that pose."""
-    from appell.examples import example_path
     import tomllib
+
+    from appell.examples import example_path
 
     start = tomllib.loads(example_path("four_bar").read_text())["initial"]
     A, B, D = start["A"], start["B"], start["D"]
@@ -124,7 +131,8 @@ def four_bar_xml() -> str:
     def inertial(m, l):
         return f'<inertial pos="{l / 2} 0 0" mass="{m}" diaginertia="1e-6 {m * l * l / 12} {m * l * l / 12}"/>'
 
-    return f"""
+    return (
+        f"""
 <mujoco model="four_bar_mjcf">
   <option gravity="0 -9.81 0"/>
   <worldbody>
@@ -143,7 +151,9 @@ def four_bar_xml() -> str:
   </worldbody>
   <equality><connect name="C" body1="coupler" body2="rocker" anchor="1 0 0"/></equality>
   <compiler angle="radian"/>
-</mujoco>""", (A, B, D)
+</mujoco>""",
+        (A, B, D),
+    )
 
 
 def test_a_four_bar_with_a_connect_equality_matches_appells_own_four_bar():
@@ -170,16 +180,19 @@ def test_a_four_bar_with_a_connect_equality_matches_appells_own_four_bar():
 
 
 def test_what_has_no_meaning_here_is_one_note_and_what_cannot_be_mapped_is_refused_by_name(tmp_path):
-    soft = CHAIN.replace('<default><geom contype="0" conaffinity="0"/></default>',
-                         '<default><joint damping="0.1"/></default>').replace('name="yaw"', 'name="yaw" range="-1 1" limited="true"')
+    soft = CHAIN.replace(
+        '<default><geom contype="0" conaffinity="0"/></default>', '<default><joint damping="0.1"/></default>'
+    ).replace('name="yaw"', 'name="yaw" range="-1 1" limited="true"')
     with pytest.warns(AppellNote) as notes:
         mjcf_system(soft)
     assert len(notes) == 1  # one grouped note
     text = str(notes[0].message)
     assert "contacts between geoms" in text and "joint limits" in text and "damping" not in text  # damping applied
-    spatial = CHAIN.replace("</worldbody>", '<site name="s1" pos="0 0 0"/></worldbody><tendon><spatial name="t" '
-                            'stiffness="3"><site site="s1"/><site site="s2"/></spatial></tendon>').replace(
-        '<joint name="wrist" type="ball"/>', '<joint name="wrist" type="ball"/><site name="s2"/>')
+    spatial = CHAIN.replace(
+        "</worldbody>",
+        '<site name="s1" pos="0 0 0"/></worldbody><tendon><spatial name="t" '
+        'stiffness="3"><site site="s1"/><site site="s2"/></spatial></tendon>',
+    ).replace('<joint name="wrist" type="ball"/>', '<joint name="wrist" type="ball"/><site name="s2"/>')
     with pytest.raises(ModelError, match=r"tendon 't' is a spatial tendon"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", AppellNote)
@@ -244,9 +257,14 @@ def test_a_weld_equality_holds_like_a_fixed_body():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AppellNote)  # contacts between geoms: named, not modelled
         fixed = mjcf_system(WELDED % (f'<body name="b" pos="0 0 -1">{BOB}</body>', "", ""))
-        welded = mjcf_system(WELDED % ("", f'<body name="b" pos="0 0 0"><freejoint name="f"/>{BOB}</body>',
-                                       '<equality><weld name="w" body1="a" body2="b" anchor="0.02 -0.01 0.03"/>'
-                                       '</equality>'))
+        welded = mjcf_system(
+            WELDED
+            % (
+                "",
+                f'<body name="b" pos="0 0 0"><freejoint name="f"/>{BOB}</body>',
+                '<equality><weld name="w" body1="a" body2="b" anchor="0.02 -0.01 0.03"/></equality>',
+            )
+        )
     assert {"w_x", "w_y", "w_z", "w_rx", "w_ry", "w_rz"} <= {c.name for c in welded.constraints}
     start = {"h": 0.4, "h_dot": -0.6}
     one = appell.simulate(appell.derive(fixed), 2.0, initial=start, rtol=1e-11, atol=1e-12)
@@ -260,8 +278,7 @@ def test_a_weld_equality_holds_like_a_fixed_body():
     # b's origin O and the anchor P are points of a, P - O = the anchor (b is not turned in a);
     # in world axes R_y(h) (O - P)
     c, s_ = np.cos(one["h"]), np.sin(one["h"])
-    R = np.stack([np.stack([c, 0 * c, s_], 1), np.stack([0 * c, 0 * c + 1, 0 * c], 1),
-                  np.stack([-s_, 0 * c, c], 1)], 1)
+    R = np.stack([np.stack([c, 0 * c, s_], 1), np.stack([0 * c, 0 * c + 1, 0 * c], 1), np.stack([-s_, 0 * c, c], 1)], 1)
     O_minus_P = np.einsum("nij,j->ni", R, -np.array([0.02, -0.01, 0.03]))
     # wrench of b on a about P: (-F, -M_O - (O - P) x F)
     expected = -M - np.cross(O_minus_P, F)

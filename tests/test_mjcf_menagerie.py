@@ -42,9 +42,17 @@ mujoco = pytest.importorskip("mujoco")
 from appell.mechanism.mjcf import _product, _quaternion, load_mjcf, mjcf_system, read_mjcf  # noqa: E402
 
 # ../shared beside the clone (CI), or where APPELL_SHARED points (a worktree elsewhere)
-MENAGERIE = next((base / "models" / "menagerie" for base in (Path(__file__).resolve().parents[2] / "shared",
-                                                              Path(os.environ.get("APPELL_SHARED", "/nonexistent")))
-                  if (base / "models" / "menagerie").is_dir()), Path("/nonexistent"))
+MENAGERIE = next(
+    (
+        base / "models" / "menagerie"
+        for base in (
+            Path(__file__).resolve().parents[2] / "shared",
+            Path(os.environ.get("APPELL_SHARED", "/nonexistent")),
+        )
+        if (base / "models" / "menagerie").is_dir()
+    ),
+    Path("/nonexistent"),
+)
 needs_files = pytest.mark.skipif(not MENAGERIE.is_dir(), reason="../shared/models/menagerie is not beside the clone")
 
 
@@ -107,7 +115,7 @@ def reference(mj, data):
     k = J.shape[0]
     kkt = np.block([[M, J.T], [J, np.zeros((k, k))]])
     sol = np.linalg.lstsq(kkt, np.concatenate([rhs, -Jdq]), rcond=1e-12)[0]
-    return sol[:mj.nv]
+    return sol[: mj.nv]
 
 
 def assemble(mj, data, qpos, rng):
@@ -143,10 +151,10 @@ def appell_qacc(read, accelerations: dict, qpos, nv):
         eps = 2.0 * product(quat * [1, -1, -1, -1], qdd)[1:]
         if j.kind == "free":
             R0 = np.asarray(j.rotation)
-            qacc[d:d + 3] = R0 @ [accelerations[n + "_dot"] for n in j.coordinates[:3]]
-            qacc[d + 3:d + 6] = eps
+            qacc[d : d + 3] = R0 @ [accelerations[n + "_dot"] for n in j.coordinates[:3]]
+            qacc[d + 3 : d + 6] = eps
         else:
-            qacc[d:d + 3] = eps
+            qacc[d : d + 3] = eps
     return qacc
 
 
@@ -160,8 +168,10 @@ def compare(path_or_xml, states=6, seed=5, spread=0.6, **options):
         warnings.simplefilter("ignore", AppellNote)  # contacts, limits ...: named in the note
         read = read_mjcf(mj, where, options.get("frictionloss", "refuse"), options.get("armature", "rotors"))
         amplitude, phase = rng.uniform(-2, 2, mj.nu), rng.uniform(0, 2 * np.pi, mj.nu)
-        ctrl = {original: float(c) * sp.sin(3 * t_ + float(p)) for (_, original, _), c, p in zip(read.actuators, amplitude,
-                                                                                              phase)}
+        ctrl = {
+            original: float(c) * sp.sin(3 * t_ + float(p))
+            for (_, original, _), c, p in zip(read.actuators, amplitude, phase)
+        }
         system = mjcf_system(path_or_xml, ctrl=ctrl, **options)
         model = numeric_model(appell.derive(system))
     mj.actuator_ctrllimited[:] = 0
@@ -191,8 +201,9 @@ def four_bar_with_passive_elements() -> str:
     """A planar four-bar (crank, coupler, rocker; pivots 0.9 m apart; closed by a connect at
     the assembled pose) with armature, damping, stiffness about a springref, a position
     actuator with gear and a general affine actuator on a fixed tendon."""
+
     def link(m, length):
-        return f'<inertial pos="{length / 2} 0 0" mass="{m}" diaginertia="1e-4 {m * length ** 2 / 12} {m * length ** 2 / 12}"/>'
+        return f'<inertial pos="{length / 2} 0 0" mass="{m}" diaginertia="1e-4 {m * length**2 / 12} {m * length**2 / 12}"/>'
 
     return f"""<mujoco model="four-bar passive">
   <compiler angle="radian"/>
@@ -227,8 +238,9 @@ def closed_four_bar() -> str:
     mujoco.mj_kinematics(mj, data)
     tip = data.xpos[2] + data.xmat[2].reshape(3, 3) @ [1.0, 0, 0]
     local = data.xmat[3].reshape(3, 3).T @ (tip - data.xpos[3])  # the same point on the rocker
-    return xml.replace("</mujoco>", '<equality><connect name="C" body1="coupler" body2="rocker" anchor="1 0 0"/>'
-                                    '</equality></mujoco>'), local
+    return xml.replace(
+        "</mujoco>", '<equality><connect name="C" body1="coupler" body2="rocker" anchor="1 0 0"/></equality></mujoco>'
+    ), local
 
 
 def test_a_four_bar_with_armature_damping_stiffness_and_actuators_matches_the_kkt_reference():
@@ -243,9 +255,17 @@ def test_a_four_bar_with_armature_damping_stiffness_and_actuators_matches_the_kk
 
 
 @needs_files
-@pytest.mark.parametrize("relative", ["kinova_gen3/gen3.xml", "unitree_go2/go2.xml",
-                                      "berkeley_humanoid/berkeley_humanoid.xml", "umi_gripper/umi_gripper.xml",
-                                      "ufactory_xarm7/xarm7.xml", "pndbotics_adam_lite/adam_lite.xml"])
+@pytest.mark.parametrize(
+    "relative",
+    [
+        "kinova_gen3/gen3.xml",
+        "unitree_go2/go2.xml",
+        "berkeley_humanoid/berkeley_humanoid.xml",
+        "umi_gripper/umi_gripper.xml",
+        "ufactory_xarm7/xarm7.xml",
+        "pndbotics_adam_lite/adam_lite.xml",
+    ],
+)
 def test_a_menagerie_file_as_shipped_matches_the_kkt_reference(relative):
     worst, system, read = compare(MENAGERIE / relative, states=4, frictionloss="ignore")
     assert worst < 1e-9, worst
@@ -284,9 +304,11 @@ def four_bar_sdf(local) -> str:
     import math
 
     def inertial(m, length):
-        moment = m * length ** 2 / 12
-        return (f"<inertial><pose>{length / 2} 0 0 0 0 0</pose><mass>{m}</mass><inertia><ixx>1e-4</ixx>"
-                f"<iyy>{moment}</iyy><izz>{moment}</izz><ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial>")
+        moment = m * length**2 / 12
+        return (
+            f"<inertial><pose>{length / 2} 0 0 0 0 0</pose><mass>{m}</mass><inertia><ixx>1e-4</ixx>"
+            f"<iyy>{moment}</iyy><izz>{moment}</izz><ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial>"
+        )
 
     cx, cy = 0.4 * math.cos(1.2), 0.4 * math.sin(1.2)
     return f"""<?xml version="1.0"?>
@@ -308,9 +330,12 @@ def test_an_sdf_four_bar_closed_by_a_loop_joint_matches_the_mujoco_reference():
     from appell.mechanism.sdf import sdf_system
 
     xml, local = closed_four_bar()
-    xml = xml.split("<tendon>")[0] + xml[xml.index("<equality>"):]
-    for attribute in ('armature="0.02" damping="0.3"', 'damping="0.05" stiffness="2" springref="0.3"',
-                      'armature="0.01" stiffness="1.5" springref="-0.4"'):
+    xml = xml.split("<tendon>")[0] + xml[xml.index("<equality>") :]
+    for attribute in (
+        'armature="0.02" damping="0.3"',
+        'damping="0.05" stiffness="2" springref="0.3"',
+        'armature="0.01" stiffness="1.5" springref="-0.4"',
+    ):
         xml = xml.replace(attribute, "")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AppellNote)
@@ -325,8 +350,9 @@ def test_an_sdf_four_bar_closed_by_a_loop_joint_matches_the_mujoco_reference():
         data.qpos[:], data.qvel[:] = qpos, qvel
         expected = reference(mj, data)
         values = dict(zip("ABD", qpos)) | {f"{n}_dot": v for n, v in zip("ABD", qvel)}
-        sol = model.solve(0.0, np.array([values[n] for n in model.coordinate_names]),
-                          np.array([values[n] for n in model.speed_names]))
+        sol = model.solve(
+            0.0, np.array([values[n] for n in model.coordinate_names]), np.array([values[n] for n in model.speed_names])
+        )
         got = dict(zip(model.speed_names, sol.accelerations))
         assert np.abs(np.array([got[f"{n}_dot"] for n in "ABD"]) - expected).max() <= 1e-9 * np.abs(expected).max()
 
@@ -375,8 +401,12 @@ def test_an_actuator_solved_for_a_prescribed_motion_makes_mujoco_follow_it():
             data.qpos[:] = qpos
             mujoco.mj_forward(mj, data)
             J, _ = equality_rows(mj, data)
-            gap = (data.xpos[2] + data.xmat[2].reshape(3, 3) @ mj.eq_data[0][0:3]
-                   - data.xpos[3] - data.xmat[3].reshape(3, 3) @ mj.eq_data[0][3:6])
+            gap = (
+                data.xpos[2]
+                + data.xmat[2].reshape(3, 3) @ mj.eq_data[0][0:3]
+                - data.xpos[3]
+                - data.xmat[3].reshape(3, 3) @ mj.eq_data[0][3:6]
+            )
             if np.abs(gap).max() < 1e-14:
                 break
             qpos[1:] -= np.linalg.lstsq(J[:, 1:], gap, rcond=None)[0]
@@ -414,14 +444,38 @@ def test_a_menagerie_humanoid_standing_on_both_feet_inverted_with_its_contact_fo
     assert base.kind == "free"
     t = np.linspace(0.0, 0.3, 7)
     x, y, z, q0, q1, q2, q3 = base.coordinates
-    motion = {"t": t, x: 0.02 * np.sin(np.pi * t), y: 0.01 * np.sin(np.pi * t), z: -0.03 * np.sin(np.pi * t),
-              q0: np.ones(t.size), q1: np.zeros(t.size), q2: np.zeros(t.size), q3: np.zeros(t.size)}
+    motion = {
+        "t": t,
+        x: 0.02 * np.sin(np.pi * t),
+        y: 0.01 * np.sin(np.pi * t),
+        z: -0.03 * np.sin(np.pi * t),
+        q0: np.ones(t.size),
+        q1: np.zeros(t.size),
+        q2: np.zeros(t.size),
+        q3: np.zeros(t.size),
+    }
     bent = {"LL_HFE": -0.3, "LL_KFE": 0.6, "LL_FFE": -0.3, "LR_HFE": 0.3, "LR_KFE": -0.6, "LR_FFE": 0.3}
     out = tmp_path / "standing.csv"
-    result = CliRunner().invoke(cli, ["inverse", str(path), "--trajectory", str(_write_csv(tmp_path / "torso.csv", motion)),
-                                      "--mjcf", "actuators=controls", "--mjcf", "frictionloss=ignore",
-                                      "--contact", "ll_faa:weld", "--contact", "lr_faa:weld", "--out", str(out)]
-                                + [f"--guess={k}={v}" for k, v in bent.items()])
+    result = CliRunner().invoke(
+        cli,
+        [
+            "inverse",
+            str(path),
+            "--trajectory",
+            str(_write_csv(tmp_path / "torso.csv", motion)),
+            "--mjcf",
+            "actuators=controls",
+            "--mjcf",
+            "frictionloss=ignore",
+            "--contact",
+            "ll_faa:weld",
+            "--contact",
+            "lr_faa:weld",
+            "--out",
+            str(out),
+        ]
+        + [f"--guess={k}={v}" for k, v in bent.items()],
+    )
     assert result.exit_code == 0, result.output
     assert result.output.count("undetermined (minimum-norm answer given)") == 6  # 12 controls + 12 rows, 18 dof
     got = _read_csv(out)

@@ -20,9 +20,18 @@ from test_inverse import _read_csv, _write_csv
 mujoco = pytest.importorskip("mujoco")
 
 #: the plain four-bar's names -> as a Menagerie file might spell them
-RENAMED = {"crank": "crank-link", "coupler": "coupler-link", "rocker": "rocker-link", "A": "crank-joint",
-           "B": "coupler-joint", "D": "rocker-joint", "C": "knee-loop", "drive": "crank-motor", "pull": "tendon-pull",
-           "sum": "sum-tendon"}
+RENAMED = {
+    "crank": "crank-link",
+    "coupler": "coupler-link",
+    "rocker": "rocker-link",
+    "A": "crank-joint",
+    "B": "coupler-joint",
+    "D": "rocker-joint",
+    "C": "knee-loop",
+    "drive": "crank-motor",
+    "pull": "tendon-pull",
+    "sum": "sum-tendon",
+}
 #: what appell maps them to (never to be seen in a table or message)
 MAPPED = {name.replace("-", "_") for name in RENAMED.values()}
 
@@ -44,14 +53,15 @@ def _as_shown(name: str) -> str:
     """A plain file's column as the hyphenated file's should read: each name between
     underscores (or the ends) renamed."""
     if name.startswith("drive_"):  # the column's prefix, not the actuator 'drive'
-        return "drive_" + _as_shown(name[len("drive_"):])
+        return "drive_" + _as_shown(name[len("drive_") :])
     return "_".join(RENAMED.get(part, part) for part in name.split("_")) if name != "t" else name
 
 
 def _check_no_identifier(text: str):
     for ident in MAPPED:
-        assert not re.search(rf"(?<![A-Za-z0-9-]){ident}(?![A-Za-z0-9])", text.replace("->", " ")
-                             .split("names mapped to identifiers")[0]), ident
+        assert not re.search(
+            rf"(?<![A-Za-z0-9-]){ident}(?![A-Za-z0-9])", text.replace("->", " ").split("names mapped to identifiers")[0]
+        ), ident
 
 
 def test_inverse_reads_and_shows_the_files_names(tmp_path):
@@ -63,8 +73,21 @@ def test_inverse_reads_and_shows_the_files_names(tmp_path):
     for model, column, drive in ((plain, "A", "drive"), (hyphen, "crank-joint", "crank-motor")):
         motion = _write_csv(tmp_path / f"{model.stem}-motion.csv", {"t": t, column: crank})
         out = tmp_path / f"{model.stem}-out.csv"
-        result = runner.invoke(cli, ["inverse", str(model), "--trajectory", str(motion), "--mjcf",
-                                     "actuators=controls", "--drive", drive, "--out", str(out)])
+        result = runner.invoke(
+            cli,
+            [
+                "inverse",
+                str(model),
+                "--trajectory",
+                str(motion),
+                "--mjcf",
+                "actuators=controls",
+                "--drive",
+                drive,
+                "--out",
+                str(out),
+            ],
+        )
         assert result.exit_code == 0, result.output
         outs[model.stem] = (_read_csv(out), result.output, out.read_text().splitlines()[0])
     ref, _, _ = outs["plain"]
@@ -78,8 +101,7 @@ def test_inverse_reads_and_shows_the_files_names(tmp_path):
         assert np.array_equal(got[_as_shown(name)], values), name
     # a message naming the model's coordinates names them as the file does
     motion = _write_csv(tmp_path / "both.csv", {"t": t, "crank-joint": crank, "rocker-joint": crank})
-    result = runner.invoke(cli, ["inverse", str(hyphen), "--trajectory", str(motion), "--out",
-                                 str(tmp_path / "x.csv")])
+    result = runner.invoke(cli, ["inverse", str(hyphen), "--trajectory", str(motion), "--out", str(tmp_path / "x.csv")])
     assert result.exit_code == 2 and "crank-joint, rocker-joint are not independent" in result.output
     _check_no_identifier(result.output)
 

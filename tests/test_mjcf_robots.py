@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 
 import appell
-from appell.errors import AppellNote
 from appell import numeric_model
+from appell.errors import AppellNote
 
 mujoco = pytest.importorskip("mujoco")
 from appell.mechanism.mjcf import load_mjcf, mjcf_system  # noqa: E402
@@ -40,8 +40,10 @@ def _robots_folder() -> Path | None:
 
 
 ROBOTS = _robots_folder()
-CASES = [("ur5", "ur_description/urdf/ur5_robot.urdf"),
-         ("double_pendulum", "double_pendulum_description/urdf/double_pendulum.urdf")]
+CASES = [
+    ("ur5", "ur_description/urdf/ur5_robot.urdf"),
+    ("double_pendulum", "double_pendulum_description/urdf/double_pendulum.urdf"),
+]
 
 
 def shipped_as_mjcf(urdf: Path, out: Path) -> Path:

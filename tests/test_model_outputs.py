@@ -45,12 +45,15 @@ def test_outputs_are_columns_with_their_units_and_closed_forms(tmp_path):
     np.testing.assert_allclose(sol["tangential"], -g * L * np.sin(theta), atol=1e-6)
 
 
-@pytest.mark.parametrize("text, message", [
-    ('[outputs]\nbad = "x + z"\n', "undeclared symbol\\(s\\) z"),
-    ('[outputs]\nlambda_x = "x"\n', "taken by a result column's prefix"),
-    ('[outputs]\nx = "y"\n', "taken by a coordinate"),
-    ('[outputs]\nq = { expr = "x", colour = "red" }\n', "colour"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ('[outputs]\nbad = "x + z"\n', "undeclared symbol\\(s\\) z"),
+        ('[outputs]\nlambda_x = "x"\n', "taken by a result column's prefix"),
+        ('[outputs]\nx = "y"\n', "taken by a coordinate"),
+        ('[outputs]\nq = { expr = "x", colour = "red" }\n', "colour"),
+    ],
+)
 def test_a_bad_output_names_its_line(tmp_path, text, message):
     with pytest.raises(ModelError, match=message) as err:
         _pendulum_with_outputs(tmp_path, "\n" + text)

@@ -13,12 +13,11 @@ import pytest
 import sympy as sp
 
 import appell
-from appell import ModelError, cross_check, derive, load_model, loads_model
+from appell import ModelError, cross_check, derive, load_model, loads_model, numeric_model
 from appell.examples import CATALOG, example_path, list_examples
 from appell.io.modelfile import ExpressionError, parse_expression
-from appell.simulation.options import SimulationOptions
-from appell import numeric_model
 from appell.io.results import write_hdf5
+from appell.simulation.options import SimulationOptions
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -44,8 +43,9 @@ def test_model_file_equals_builder(name):
     built = CATALOG[name]()
     assert from_file.name == built.name
     assert from_file.coordinates == built.coordinates and from_file.speeds == built.speeds
-    assert [(p.symbol, p.value, p.unit) for p in from_file.parameters] == \
-        [(p.symbol, p.value, p.unit) for p in built.parameters]
+    assert [(p.symbol, p.value, p.unit) for p in from_file.parameters] == [
+        (p.symbol, p.value, p.unit) for p in built.parameters
+    ]
     # the file's decimals and the builder's literals are the same doubles (measured equal)
     assert dict(from_file.initial) == pytest.approx(dict(built.initial), abs=1e-15)
     assert dict(from_file.units) == dict(built.units)
@@ -97,36 +97,39 @@ def test_simulation_settings_run_the_simulator():
 x, y, z, a, b, c = sp.symbols("x y z a b c")
 
 
-@pytest.mark.parametrize("text, expected", [
-    ("-x^2", -(x**2)),
-    ("-x**2", -(x**2)),
-    ("2^-1", sp.Rational(1, 2)),
-    ("a^b^c", a**(b**c)),
-    ("a/b/c", a / (b * c)),
-    ("a-b-c", a - b - c),
-    ("a - -b", a + b),
-    ("a*b^c", a * b**c),
-    ("(a+b)*c", (a + b) * c),
-    ("a+b*c", a + b * c),
-    ("2/5*m*R^2", sp.Rational(2, 5) * sp.Symbol("m") * sp.Symbol("R")**2),
-    ("1e-3*x", sp.Float("0.001") * x),
-    ("1.5E+2", sp.Float(150)),
-    (".5*x", sp.Float(0.5) * x),
-    ("sin(x)^2 + cos(x)^2", sp.sin(x)**2 + sp.cos(x)**2),
-    ("atan2(y, x)", sp.atan2(y, x)),
-    ("abs(x) + sign(y) + sqrt(z)", sp.Abs(x) + sp.sign(y) + sp.sqrt(z)),
-    ("min(x, y) - max(x, y, z)", sp.Min(x, y) - sp.Max(x, y, z)),
-    ("exp(log(x)) + tanh(y)", x + sp.tanh(y)),
-    ("pi*E", sp.pi * sp.E),
-    ("t", appell.t),
-    ("x'", sp.Symbol("x_dot")),
-    ("x''", sp.Symbol("x_ddot")),
-    ("x'''", sp.Symbol("x_d3")),
-    ("x_dot'", sp.Symbol("x_ddot")),
-    ("x_dot", sp.Symbol("x_dot")),
-    ("phi'^2", sp.Symbol("phi_dot")**2),
-    ("I + S + N", sp.Symbol("I") + sp.Symbol("S") + sp.Symbol("N")),  # plain symbols, not SymPy's
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("-x^2", -(x**2)),
+        ("-x**2", -(x**2)),
+        ("2^-1", sp.Rational(1, 2)),
+        ("a^b^c", a ** (b**c)),
+        ("a/b/c", a / (b * c)),
+        ("a-b-c", a - b - c),
+        ("a - -b", a + b),
+        ("a*b^c", a * b**c),
+        ("(a+b)*c", (a + b) * c),
+        ("a+b*c", a + b * c),
+        ("2/5*m*R^2", sp.Rational(2, 5) * sp.Symbol("m") * sp.Symbol("R") ** 2),
+        ("1e-3*x", sp.Float("0.001") * x),
+        ("1.5E+2", sp.Float(150)),
+        (".5*x", sp.Float(0.5) * x),
+        ("sin(x)^2 + cos(x)^2", sp.sin(x) ** 2 + sp.cos(x) ** 2),
+        ("atan2(y, x)", sp.atan2(y, x)),
+        ("abs(x) + sign(y) + sqrt(z)", sp.Abs(x) + sp.sign(y) + sp.sqrt(z)),
+        ("min(x, y) - max(x, y, z)", sp.Min(x, y) - sp.Max(x, y, z)),
+        ("exp(log(x)) + tanh(y)", x + sp.tanh(y)),
+        ("pi*E", sp.pi * sp.E),
+        ("t", appell.t),
+        ("x'", sp.Symbol("x_dot")),
+        ("x''", sp.Symbol("x_ddot")),
+        ("x'''", sp.Symbol("x_d3")),
+        ("x_dot'", sp.Symbol("x_ddot")),
+        ("x_dot", sp.Symbol("x_dot")),
+        ("phi'^2", sp.Symbol("phi_dot") ** 2),
+        ("I + S + N", sp.Symbol("I") + sp.Symbol("S") + sp.Symbol("N")),  # plain symbols, not SymPy's
+    ],
+)
 def test_grammar(text, expected):
     assert parse_expression(text) == expected
 
@@ -138,24 +141,26 @@ def test_derivative_notation_matches_appell_naming():
 
 
 def test_equation_form_is_lhs_minus_rhs():
-    assert parse_expression("y'' = c*x''^2", allow_equation=True) == \
-        sp.Symbol("y_ddot") - c * sp.Symbol("x_ddot")**2
+    assert parse_expression("y'' = c*x''^2", allow_equation=True) == sp.Symbol("y_ddot") - c * sp.Symbol("x_ddot") ** 2
     with pytest.raises(ExpressionError, match="'=' is not allowed"):
         parse_expression("x = y")
     with pytest.raises(ExpressionError, match="only one '='"):
         parse_expression("x = y = z", allow_equation=True)
 
 
-@pytest.mark.parametrize("text, token, column", [
-    ("x + * y", "*", 5),
-    ("2 x", "x", 3),
-    ("sin x", "sin", 1),
-    ("foo(x)", "foo", 1),
-    ("x $ y", "$", 3),
-    ("(x + y", "", 7),
-    ("x.y", ".", 2),
-    ("sin(x, y)", "sin", 1),
-])
+@pytest.mark.parametrize(
+    "text, token, column",
+    [
+        ("x + * y", "*", 5),
+        ("2 x", "x", 3),
+        ("sin x", "sin", 1),
+        ("foo(x)", "foo", 1),
+        ("x $ y", "$", 3),
+        ("(x + y", "", 7),
+        ("x.y", ".", 2),
+        ("sin(x, y)", "sin", 1),
+    ],
+)
 def test_parse_errors_locate_the_token(text, token, column):
     with pytest.raises(ExpressionError) as info:
         parse_expression(text)
@@ -204,11 +209,11 @@ def test_bad_token_has_file_line_column_and_caret():
 
 
 def test_error_in_multiline_string_and_array_names_the_right_line():
-    doc = BASE.replace('kinetic_energy = "m/2*(x\'^2 + y\'^2)"',
-                       'kinetic_energy = """\nm/2*(x\'^2 +\n y\'^2) # here"""')
+    doc = BASE.replace(
+        "kinetic_energy = \"m/2*(x'^2 + y'^2)\"", 'kinetic_energy = """\nm/2*(x\'^2 +\n y\'^2) # here"""'
+    )
     assert _error(doc).where == "model.toml:12"
-    doc = BASE.replace('potential_energy = "m*g*y"',
-                       'generalized_forces = [\n  "0",\n  "-m*g ! 2",\n]')
+    doc = BASE.replace('potential_energy = "m*g*y"', 'generalized_forces = [\n  "0",\n  "-m*g ! 2",\n]')
     err = _error(doc)
     assert err.where == "model.toml:13" and "generalized_forces[1]" in str(err)
 
@@ -227,7 +232,7 @@ def test_unknown_function_lists_the_allowed_ones():
 
 
 def test_invalid_toml_reports_its_line():
-    err = _error(BASE.replace('m = 1.0', 'm = 1.0 2'))
+    err = _error(BASE.replace("m = 1.0", "m = 1.0 2"))
     assert err.where == "model.toml:6" and "invalid TOML" in str(err)
 
 
@@ -309,8 +314,7 @@ def test_bodies_and_forces_equal_energy_form():
 def test_torque_on_rolling_ball_spins_it_up():
     """A torque tau about the normal: dw_z/dt = tau / (2/5 m R^2) (no other effect)."""
     text = example_path("rolling_ball").read_text()
-    text = text.replace('alpha = { value = 0.3, unit = "rad" }',
-                        'alpha = { value = 0.3, unit = "rad" }\ntau = 0.01')
+    text = text.replace('alpha = { value = 0.3, unit = "rad" }', 'alpha = { value = 0.3, unit = "rad" }\ntau = 0.01')
     text += '\n[[torques]]\nname = "motor"\nvector = [0, 0, "tau"]\nangular_velocity = ["wx", "wy", "wz"]\n'
     s = loads_model(text)
     d = derive(s)
@@ -396,8 +400,10 @@ def test_simulation_table_is_checked():
     assert err.where == "model.toml:20" and "'rood' is not a constraint" in str(err)
     err = _error(BASE + "\n[simulation]\noutput_step = 0.1\n")
     assert "needs t_end" in str(err)
-    s = loads_model(BASE + '\n[simulation]\nt_eval = [0, 0.5, "pi/2"]\nt_end = 2\nstabilization = "none"\n'
-                    '[simulation.unilateral]\nrod = -1\n[simulation.friction.rod]\nnormal = "rod"\nmu = 0.3\n')
+    s = loads_model(
+        BASE + '\n[simulation]\nt_eval = [0, 0.5, "pi/2"]\nt_end = 2\nstabilization = "none"\n'
+        '[simulation.unilateral]\nrod = -1\n[simulation.friction.rod]\nnormal = "rod"\nmu = 0.3\n'
+    )
     options = SimulationOptions.from_model(s)
     assert options.t_eval == (0.0, 0.5, pytest.approx(np.pi / 2))  # "pi/2" evaluated: rounding only
     assert options.stabilization is None
@@ -410,9 +416,13 @@ def test_samples_in_the_simulation_table():
     ``appell simulate --help`` says the option defaults to the model's value (issue 19 §6)."""
     options = SimulationOptions.from_model(loads_model(BASE + "\n[simulation]\nt0 = 1\nt_end = 2\nsamples = 11\n"))
     np.testing.assert_array_equal(options.t_eval, 1.0 + 0.1 * np.arange(11))  # linspace: exact at 1, 2
-    for bad, message in (("samples = 1", "integer from 2"), ("samples = 2.5", "integer from 2"),
-                         ("samples = true", "integer from 2"), ("samples = 5", "needs t_end"),
-                         ("t_end = 1\nsamples = 5\noutput_step = 0.1", "excludes t_eval and output_step")):
+    for bad, message in (
+        ("samples = 1", "integer from 2"),
+        ("samples = 2.5", "integer from 2"),
+        ("samples = true", "integer from 2"),
+        ("samples = 5", "needs t_end"),
+        ("t_end = 1\nsamples = 5\noutput_step = 0.1", "excludes t_eval and output_step"),
+    ):
         assert message in str(_error(BASE + "\n[simulation]\n" + bad + "\n"))
 
 

@@ -12,13 +12,12 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import derive, derive_controlled, load_model
+from appell import derive, derive_controlled, load_model, numeric_model
 from appell.examples import BUILDERS, example_path, list_examples
 from appell.examples.catalog import CATALOG
 from appell.examples.servo_examples import SERVO_EXAMPLES
 from appell.simulation.options import SimulationOptions
 from appell.simulation.simulate import simulate
-from appell import numeric_model
 
 #: the files this test module adds beside the catalog's (which tests/test_modelfile.py checks)
 NEW = sorted(set(BUILDERS) - set(CATALOG))
@@ -42,8 +41,9 @@ def _assert_same_declarations(from_file, built, name):
     assert from_file.description == built.description
     assert from_file.coordinates == built.coordinates
     assert from_file.speeds == built.speeds
-    assert [(p.symbol, p.value, p.unit, p.description) for p in from_file.parameters] == \
-        [(p.symbol, p.value, p.unit, p.description) for p in built.parameters]
+    assert [(p.symbol, p.value, p.unit, p.description) for p in from_file.parameters] == [
+        (p.symbol, p.value, p.unit, p.description) for p in built.parameters
+    ]
     # the file's decimals and the builder's literals are the same doubles (measured equal)
     assert dict(from_file.initial) == pytest.approx(dict(built.initial), abs=1e-15)
     assert set(dict(from_file.initial)) == set(dict(built.initial))
@@ -56,19 +56,22 @@ def _assert_same_declarations(from_file, built, name):
     for a, b in zip(from_file.programs, built.programs):
         assert _same(a.expr, b.expr), (a, b)
     assert [(c.symbol, c.kind) for c in from_file.controls] == [(c.symbol, c.kind) for c in built.controls]
-    for mine, theirs in ((from_file.constraints, built.constraints),
-                         (from_file.servo_constraints, built.servo_constraints)):
-        assert [(c.name, c.order, c.restitution, c.compliance) for c in mine] == \
-            [(c.name, c.order, c.restitution, c.compliance) for c in theirs]
+    for mine, theirs in (
+        (from_file.constraints, built.constraints),
+        (from_file.servo_constraints, built.servo_constraints),
+    ):
+        assert [(c.name, c.order, c.restitution, c.compliance) for c in mine] == [
+            (c.name, c.order, c.restitution, c.compliance) for c in theirs
+        ]
         for a, b in zip(mine, theirs):
             assert _same(a.expr, b.expr), (a.name, a.expr, b.expr)
             assert a.where.startswith(str(example_path(name)))
-    assert [(f.name, f.normal, f.mu_k, f.mu_s, f.viscous) for f in from_file.frictions] == \
-        [(f.name, f.normal, f.mu_k, f.mu_s, f.viscous) for f in built.frictions]
+    assert [(f.name, f.normal, f.mu_k, f.mu_s, f.viscous) for f in from_file.frictions] == [
+        (f.name, f.normal, f.mu_k, f.mu_s, f.viscous) for f in built.frictions
+    ]
     for a, b in zip(from_file.frictions, built.frictions):
         assert all(_same(u, v) for u, v in zip(a.slip, b.slip)), (a.name, a.slip, b.slip)
-    assert [(f.name, f.value) for f in from_file.first_integrals] == \
-        [(f.name, f.value) for f in built.first_integrals]
+    assert [(f.name, f.value) for f in from_file.first_integrals] == [(f.name, f.value) for f in built.first_integrals]
     for a, b in zip(from_file.first_integrals, built.first_integrals):
         assert _same(a.expr, b.expr), (a.name, a.expr, b.expr)
 
@@ -137,8 +140,10 @@ def test_appell_ball_file_is_the_papers_problem():
     # rounding only (the paper's closed forms at the start): a few eps of the values (up to 30)
     assert rates["xi"] == pytest.approx(-w * eta) and rates["eta"] == pytest.approx(w * xi)
     assert rates["u_dot"] == pytest.approx(-3.5 * w**2 * xi) and rates["v_dot"] == pytest.approx(-3.5 * w**2 * eta)
-    assert rates["q"] == pytest.approx(5 * w**2 * xi / (2 * R)) and rates["p"] == pytest.approx(-5 * w**2 * eta / (2 * R))
-    np.testing.assert_allclose(ev.multipliers, [-w**2 * xi, -w**2 * eta], atol=1e-12)
+    assert rates["q"] == pytest.approx(5 * w**2 * xi / (2 * R)) and rates["p"] == pytest.approx(
+        -5 * w**2 * eta / (2 * R)
+    )
+    np.testing.assert_allclose(ev.multipliers, [-(w**2) * xi, -(w**2) * eta], atol=1e-12)
 
 
 @pytest.mark.parametrize("name", PLAIN)
@@ -164,12 +169,20 @@ def test_every_bundled_example_starts_consistently(name):
     unilateral = SimulationOptions.from_model(system).unilateral or {}
     # a unilateral contact open at the start (the bouncing ball above its floor) starts released
     values = system.initial_values
-    opened = {c.name for c in system.constraints if c.name in unilateral and c.kind == "holonomic"
-              and unilateral[c.name] * float(c.expr.xreplace({**system.parameter_values,
-                                                              **{sp.Symbol(k): v for k, v in values.items()}})) > 1e-9}
+    opened = {
+        c.name
+        for c in system.constraints
+        if c.name in unilateral
+        and c.kind == "holonomic"
+        and unilateral[c.name]
+        * float(c.expr.xreplace({**system.parameter_values, **{sp.Symbol(k): v for k, v in values.items()}}))
+        > 1e-9
+    }
     if opened:
-        system = system.replace(constraints=tuple(c for c in system.constraints if c.name not in opened),
-                                units=tuple((k, u) for k, u in system.units if k not in opened))
+        system = system.replace(
+            constraints=tuple(c for c in system.constraints if c.name not in opened),
+            units=tuple((k, u) for k, u in system.units if k not in opened),
+        )
     d = derive_controlled(system) if system.servo_constraints else derive(system)
     state = complete_initial(d, adjust=())
     assert all(old is None for _, old, _ in state.changes), state.changes

@@ -20,10 +20,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from appell import derive, load_model, loads_model
+from appell import derive, load_model, loads_model, numeric_model
 from appell.errors import ModelError
 from appell.io.cli import cli
-from appell import numeric_model
 
 CIRCLE = """\
 [model]
@@ -140,19 +139,32 @@ def test_model_file_names_a_urdf_and_adds_an_actuator(driven):
         # rounding only (a 1x1 solve, then the hinge's formulas): a few eps of the scale
         assert sol.accelerations[0] == pytest.approx(thdd, rel=1e-10)
         # mass centre at (-L sin, 0, 1 - L cos): a_C from theta'' and theta'
-        a_c = L * np.array([-math.cos(th) * thdd + math.sin(th) * w**2, 0.0,
-                            math.sin(th) * thdd + math.cos(th) * w**2])
+        a_c = L * np.array([-math.cos(th) * thdd + math.sin(th) * w**2, 0.0, math.sin(th) * thdd + math.cos(th) * w**2])
         out = numeric.outputs(0.0, [th], [w], solution=sol)
-        np.testing.assert_allclose([out[f"F_shoulder_{x}"] for x in "xyz"], m * (a_c - np.array([0, 0, -g])),
-                                   rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(
+            [out[f"F_shoulder_{x}"] for x in "xyz"], m * (a_c - np.array([0, 0, -g])), rtol=1e-10, atol=1e-10
+        )
         assert out["M_shoulder_y"] == pytest.approx(tau, rel=1e-10)
 
 
 def test_urdf_file_on_the_command_line_with_set_and_reaction_columns(tmp_path):
     (tmp_path / "hinge.urdf").write_text(HINGE_URDF)
     out = tmp_path / "run.csv"
-    result = CliRunner().invoke(cli, ["simulate", str(tmp_path / "hinge.urdf"), "--set", "shoulder=0.4",
-                                      "--set", "shoulder'=1", "--t-end", "0.05", "--out", str(out)])
+    result = CliRunner().invoke(
+        cli,
+        [
+            "simulate",
+            str(tmp_path / "hinge.urdf"),
+            "--set",
+            "shoulder=0.4",
+            "--set",
+            "shoulder'=1",
+            "--t-end",
+            "0.05",
+            "--out",
+            str(out),
+        ],
+    )
     assert result.exit_code == 0, result.output
     rows = list(csv.DictReader(out.open()))
     assert float(rows[0]["shoulder"]) == 0.4 and float(rows[0]["shoulder_dot"]) == 1.0
@@ -160,11 +172,14 @@ def test_urdf_file_on_the_command_line_with_set_and_reaction_columns(tmp_path):
     m, L, Ic, g, th, w = 2.0, 0.5, 0.04, 9.81, 0.4, 1.0
     thdd = -m * g * L * math.sin(th) / (Ic + m * L**2)
     # the start row: a 1x1 solve, written by repr: rounding only (a few eps)
-    assert float(rows[0]["F_shoulder_z"]) == pytest.approx(m * (L * (math.sin(th) * thdd + math.cos(th) * w**2) + g),
-                                                           rel=1e-8)
+    assert float(rows[0]["F_shoulder_z"]) == pytest.approx(
+        m * (L * (math.sin(th) * thdd + math.cos(th) * w**2) + g), rel=1e-8
+    )
     derived = CliRunner().invoke(cli, ["derive", str(tmp_path / "hinge.urdf"), "--only", "outputs"])
     assert derived.exit_code == 0 and "F_shoulder_x" in derived.output
-    checked = CliRunner().invoke(cli, ["check", str(tmp_path / "hinge.urdf"), "--set", "shoulder=0.4", "--t-end", "0.5"])
+    checked = CliRunner().invoke(
+        cli, ["check", str(tmp_path / "hinge.urdf"), "--set", "shoulder=0.4", "--t-end", "0.5"]
+    )
     assert checked.exit_code == 0 and "passed" in checked.output, checked.output
 
 
@@ -176,20 +191,25 @@ def test_unknown_set_name_on_a_urdf_is_exit_code_2(tmp_path):
 
 def test_hostile_urdf_on_the_command_line_is_refused_with_file_and_line(tmp_path):
     path = tmp_path / "xxe.urdf"
-    path.write_text('<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY s SYSTEM "file:///etc/passwd">]>\n'
-                    '<robot name="r"><link name="&s;"/></robot>\n')
+    path.write_text(
+        '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY s SYSTEM "file:///etc/passwd">]>\n'
+        '<robot name="r"><link name="&s;"/></robot>\n'
+    )
     result = CliRunner().invoke(cli, ["derive", str(path)])
     assert result.exit_code == 2 and f"{path}:2" in result.output and "root:" not in result.output
 
 
-@pytest.mark.parametrize("change, message, line", [
-    (('urdf = "hinge.urdf"', 'urdf = "/etc/hinge.urdf"'), "is absolute", 5),
-    (('urdf = "hinge.urdf"', 'urdf = "missing.urdf"'), "no URDF file 'missing.urdf'", 5),
-    (('urdf = "hinge.urdf"', 'urdf = "hinge.txt"'), "does not end in .urdf", 5),
-    (('joint = "shoulder"', 'joint = "knee"'), "unknown joint 'knee'", 10),
-    (('value = "tau"', 'value = "tau +"'), "cannot read the expression", 14),
-    (('type = "actuator"', 'type = "motor"'), "unknown type 'motor'", 12),
-])
+@pytest.mark.parametrize(
+    "change, message, line",
+    [
+        (('urdf = "hinge.urdf"', 'urdf = "/etc/hinge.urdf"'), "is absolute", 5),
+        (('urdf = "hinge.urdf"', 'urdf = "missing.urdf"'), "no URDF file 'missing.urdf'", 5),
+        (('urdf = "hinge.urdf"', 'urdf = "hinge.txt"'), "does not end in .urdf", 5),
+        (('joint = "shoulder"', 'joint = "knee"'), "unknown joint 'knee'", 10),
+        (('value = "tau"', 'value = "tau +"'), "cannot read the expression", 14),
+        (('type = "actuator"', 'type = "motor"'), "unknown type 'motor'", 12),
+    ],
+)
 def test_mechanism_table_errors_name_file_and_line(driven, change, message, line):
     driven.write_text(DRIVEN.replace(*change))
     with pytest.raises(ModelError, match=message) as err:
@@ -229,7 +249,7 @@ def test_floating_joint_falls_freely_and_transmits_nothing():
     Newton's law in free fall gives x'' = y'' = 0, z'' = -g and no joint reaction."""
     from appell.mechanism.urdf import parse_urdf, urdf_system
 
-    text = FLOATING.split("  <joint name=\"rotor\"")[0] + "</robot>\n"
+    text = FLOATING.split('  <joint name="rotor"')[0] + "</robot>\n"
     system = urdf_system(parse_urdf(text, "drone.urdf"))
     names = [q.name for q in system.coordinates]
     assert names == ["base_x", "base_y", "base_z", "base_q0", "base_q1", "base_q2", "base_q3"]
@@ -264,8 +284,11 @@ def test_planar_urdf_joint_with_another_normal_is_refused_with_its_line():
 def test_massless_link_on_a_moving_joint_is_refused():
     from appell.mechanism.urdf import parse_urdf, urdf_mechanism
 
-    text = FLOATING.replace('<link name="body">\n    <inertial><mass value="1.2"/><inertia ixx="0.02" ixy="0" ixz="0" '
-                            'iyy="0.03" iyz="0" izz="0.04"/></inertial>\n  </link>', '<link name="body"/>')
+    text = FLOATING.replace(
+        '<link name="body">\n    <inertial><mass value="1.2"/><inertia ixx="0.02" ixy="0" ixz="0" '
+        'iyy="0.03" iyz="0" izz="0.04"/></inertial>\n  </link>',
+        '<link name="body"/>',
+    )
     with pytest.raises(ModelError, match="has no <inertial> but moves on joint 'base'"):
         urdf_mechanism(parse_urdf(text, "drone.urdf"))
 
@@ -301,15 +324,21 @@ def test_a_weld_closure_holds_like_a_fixed_joint():
     import appell
     from appell.io.modelfile import loads_model
 
-    fixed = loads_model(_WELD_BASE + """[[joints]]
+    fixed = loads_model(
+        _WELD_BASE
+        + """[[joints]]
 name = "j"
 type = "fixed"
 parent = "a"
 child = "b"
 origin = [0, 0, -0.6]
 rpy = [0.1, 0.2, 0.3]
-""", "fixed.toml")
-    welded = loads_model(_WELD_BASE + """[[joints]]
+""",
+        "fixed.toml",
+    )
+    welded = loads_model(
+        _WELD_BASE
+        + """[[joints]]
 name = "j"
 type = "free"
 parent = "ground"
@@ -324,7 +353,9 @@ point_a = [0, 0, -0.6]
 body_b = "b"
 point_b = [0, 0, 0]
 rpy = [0.1, 0.2, 0.3]
-""", "welded.toml")
+""",
+        "welded.toml",
+    )
     start = {"h": 0.3, "h_dot": 0.7}
     one = appell.simulate(appell.derive(fixed), 1.0, initial=start, rtol=1e-11, atol=1e-12)
     two = appell.simulate(appell.derive(welded), 1.0, initial=start, complete=True, rtol=1e-11, atol=1e-12)
@@ -360,16 +391,22 @@ def test_a_revolute_closure_holds_like_a_revolute_joint():
     from appell.errors import AppellNote
     from appell.io.modelfile import loads_model
 
-    joint = loads_model(_DOOR + """[[joints]]
+    joint = loads_model(
+        _DOOR
+        + """[[joints]]
 name = "j"
 type = "revolute"
 parent = "ground"
 child = "door"
 axis = [1, 0, 0]
-""", "joint.toml")
+""",
+        "joint.toml",
+    )
     with warnings.catch_warnings(record=True) as notes:
         warnings.simplefilter("always")
-        closed = loads_model(_DOOR + """[[joints]]
+        closed = loads_model(
+            _DOOR
+            + """[[joints]]
 name = "ball"
 type = "spherical"
 parent = "ground"
@@ -383,13 +420,18 @@ point_a = [0, 0, 0]
 body_b = "door"
 point_b = [0, 0, 0]
 axis = [1, 0, 0]
-""", "closed.toml")
+""",
+            "closed.toml",
+        )
     assert [c.name for c in closed.constraints] == ["hinge_r1", "hinge_r2"]
-    assert any(isinstance(n.message, AppellNote) and "hinge_x, hinge_y, hinge_z hold at every configuration"
-               in str(n.message) for n in notes)
+    assert any(
+        isinstance(n.message, AppellNote) and "hinge_x, hinge_y, hinge_z hold at every configuration" in str(n.message)
+        for n in notes
+    )
     one = appell.simulate(appell.derive(joint), 1.0, initial={"j": 0.3, "j_dot": 0.7}, rtol=1e-11, atol=1e-12)
-    two = appell.simulate(appell.derive(closed), 1.0, initial={"ball_rx": 0.3, "ball_rx_dot": 0.7}, complete=True,
-                          rtol=1e-11, atol=1e-12)
+    two = appell.simulate(
+        appell.derive(closed), 1.0, initial={"ball_rx": 0.3, "ball_rx_dot": 0.7}, complete=True, rtol=1e-11, atol=1e-12
+    )
     assert np.max(np.abs(one["j"] - two["ball_rx"])) < 1e-9
     assert np.max(np.abs(two["ball_ry"])) < 1e-9 and np.max(np.abs(two["ball_rz"])) < 1e-9
     for a in "xyz":
@@ -424,15 +466,21 @@ def test_a_planar_loop_closed_by_a_revolute_closure_is_the_connect_in_xy():
     assert [(c.name, c.expr) for c in system.constraints] == [(c.name, c.expr) for c in plain.constraints]
 
 
-@pytest.mark.parametrize("extra, says", [
-    ('[mechanism.points]\ntip = { body = "lid", point = [0, 1, 0] }', "unknown body 'lid'"),
-    ('[mechanism.points]\ntip = { body = "door", spot = [0, 1, 0] }', "unknown key 'spot'"),
-    ("[mechanism]\nenergy = 1", "must be true or false"),
-])
+@pytest.mark.parametrize(
+    "extra, says",
+    [
+        ('[mechanism.points]\ntip = { body = "lid", point = [0, 1, 0] }', "unknown body 'lid'"),
+        ('[mechanism.points]\ntip = { body = "door", spot = [0, 1, 0] }', "unknown key 'spot'"),
+        ("[mechanism]\nenergy = 1", "must be true or false"),
+    ],
+)
 def test_points_and_energy_mistakes_name_the_line(extra, says):
     table, _, rest = extra.partition("\n")
-    text = _DOOR.replace("[mechanism]\n", "[mechanism]\n" + rest + "\n") if table == "[mechanism]" else \
-        _DOOR + '[[joints]]\nname = "j"\ntype = "revolute"\nparent = "ground"\nchild = "door"\n' + extra + "\n"
+    text = (
+        _DOOR.replace("[mechanism]\n", "[mechanism]\n" + rest + "\n")
+        if table == "[mechanism]"
+        else _DOOR + '[[joints]]\nname = "j"\ntype = "revolute"\nparent = "ground"\nchild = "door"\n' + extra + "\n"
+    )
     with pytest.raises(ModelError) as info:
         loads_model(text, "door.toml")
     assert says in info.value.message

@@ -52,7 +52,8 @@ origin = [1.0, 0, 0]
 "J{k in 1..N}" = "rad"
 """
 
-WRITTEN_OUT = """
+WRITTEN_OUT = (
+    """
 [model]
 name = "chain"
 
@@ -62,26 +63,36 @@ gravity = [0, "-g", 0]
 [parameters]
 g = 9.81
 m = 1.0
-""" + "".join(f"""
+"""
+    + "".join(
+        f"""
 [[bodies]]
 name = "link{i}"
 mass = "m*{i}"
 inertia = [0, 0, 0.1]
 com = [0.5, 0, 0]
-""" for i in (1, 2, 3)) + """
+"""
+        for i in (1, 2, 3)
+    )
+    + """
 [[joints]]
 name = "J1"
 type = "revolute"
 parent = "ground"
 child = "link1"
-""" + "".join(f"""
+"""
+    + "".join(
+        f"""
 [[joints]]
 name = "J{i}"
 type = "revolute"
 parent = "link{i - 1}"
 child = "link{i}"
 origin = [1.0, 0, 0]
-""" for i in (2, 3)) + """
+"""
+        for i in (2, 3)
+    )
+    + """
 [initial]
 J1 = 0.1
 J2 = 0.2
@@ -95,6 +106,7 @@ J1 = "rad"
 J2 = "rad"
 J3 = "rad"
 """
+)
 
 
 def test_a_repeated_chain_is_the_chain_written_out():
@@ -117,19 +129,26 @@ def line_of(text: str, needle: str) -> int:
     return next(i for i, line in enumerate(text.splitlines(), start=1) if needle in line)
 
 
-@pytest.mark.parametrize("old, new, says, at", [
-    ('for = "i in 2..N"', 'for = "i from 2 to N"', "cannot read 'i from 2 to N' as a range", "i from 2 to N"),
-    ('for = "i in 2..N"', 'for = "i in 2..M"', "unknown name 'M' (known here: N)", "i in 2..M"),
-    ('parent = "link{i-1}"', 'parent = "link{j-1}"', "unknown name 'j' (known here: N, i)", "link{j-1}"),
-    ('parent = "link{i-1}"', 'parent = "link{i/2}"', "only whole numbers, names", "link{i/2}"),
-    ('parent = "link{i-1}"', 'parent = "link{__import__(\'os\').getpid()}"', "not a whole-number expression",
-     "__import__"),
-    ('"J{i in 1..N}\'" = 0.0', '"J{i in 1..N}\'" = "{i//0}"', "division by zero", '"J{i in 1..N}\'"'),
-    ("N = 3", "N = 3.5", "counts.N: must be a whole number", "N = 3.5"),
-    ("N = 3", "N = 3\ni = 1", "the variable 'i' is also a count", 'for = "i in 1..N"'),
-    ("[units]", '[units]\nJ2 = "rad"', "units.J2: given twice", '"J{k in 1..N}"'),
-    ("N = 3", "N = 100000", "more than 20000 entries", 'for = "i in 1..N"'),
-])
+@pytest.mark.parametrize(
+    "old, new, says, at",
+    [
+        ('for = "i in 2..N"', 'for = "i from 2 to N"', "cannot read 'i from 2 to N' as a range", "i from 2 to N"),
+        ('for = "i in 2..N"', 'for = "i in 2..M"', "unknown name 'M' (known here: N)", "i in 2..M"),
+        ('parent = "link{i-1}"', 'parent = "link{j-1}"', "unknown name 'j' (known here: N, i)", "link{j-1}"),
+        ('parent = "link{i-1}"', 'parent = "link{i/2}"', "only whole numbers, names", "link{i/2}"),
+        (
+            'parent = "link{i-1}"',
+            "parent = \"link{__import__('os').getpid()}\"",
+            "not a whole-number expression",
+            "__import__",
+        ),
+        ('"J{i in 1..N}\'" = 0.0', '"J{i in 1..N}\'" = "{i//0}"', "division by zero", '"J{i in 1..N}\'"'),
+        ("N = 3", "N = 3.5", "counts.N: must be a whole number", "N = 3.5"),
+        ("N = 3", "N = 3\ni = 1", "the variable 'i' is also a count", 'for = "i in 1..N"'),
+        ("[units]", '[units]\nJ2 = "rad"', "units.J2: given twice", '"J{k in 1..N}"'),
+        ("N = 3", "N = 100000", "more than 20000 entries", 'for = "i in 1..N"'),
+    ],
+)
 def test_mistakes_name_the_file_and_line(old, new, says, at):
     text = CHAIN.replace(old, new, 1)
     assert text != CHAIN

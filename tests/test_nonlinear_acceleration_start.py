@@ -9,15 +9,13 @@ parallel to ``Q = (F, -m g)``; the root reached from the unconstrained accelerat
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 import sympy as sp
 
-from appell import derive
+from appell import derive, numeric_model
 from appell.errors import SingularConfigurationError
 from appell.model import Parameter, System, acceleration_constraint
-from appell import numeric_model
 
 M, G, F, A0 = 2.0, 9.81, 3.0, 4.0
 

@@ -39,9 +39,18 @@ def test_the_wheel_carries_the_licence_and_its_metadata(tmp_path):
     shutil.copytree(ROOT / "src", tree / "src", ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
     dist = tmp_path / "dist"
     dist.mkdir()
-    done = subprocess.run([sys.executable, "-c", "import sys; from setuptools import build_meta as b; "
-                           "print(b.build_wheel(sys.argv[1]))", str(dist)],
-                          cwd=tree, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from setuptools import build_meta as b; print(b.build_wheel(sys.argv[1]))",
+            str(dist),
+        ],
+        cwd=tree,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     wheel = dist / done.stdout.strip().splitlines()[-1]
     with zipfile.ZipFile(wheel) as zf:
@@ -77,12 +86,17 @@ def _env(tree: Path, mode: str) -> list[str]:
     """Source env.sh in ``mode`` with a stub interpreter; the pip installs it asked for."""
     log = tree / ".venv" / "calls.log"
     log.unlink(missing_ok=True)
-    done = subprocess.run(["bash", "-c", f'source scripts/env.sh {mode} && command -v python'], cwd=tree,
-                          capture_output=True, text=True, timeout=60, env={**os.environ, "PATH": os.environ["PATH"]})
+    done = subprocess.run(
+        ["bash", "-c", f"source scripts/env.sh {mode} && command -v python"],
+        cwd=tree,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env={**os.environ, "PATH": os.environ["PATH"]},
+    )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == str(tree / ".venv" / "bin" / "python")  # the environment comes first on PATH
-    return [line for line in log.read_text().splitlines() if "install" in line and "-e" in line] \
-        if log.exists() else []
+    return [line for line in log.read_text().splitlines() if "install" in line and "-e" in line] if log.exists() else []
 
 
 def test_env_script_installs_the_runtime_for_the_main_command_and_test_tools_for_tests(tmp_path):

@@ -56,8 +56,10 @@ def test_car_reactions_are_the_papers_formulas(car):
     lam = _by_lhs(printed, "(1.5)")
     s = _symbols(*lam.values())
     F, M, phi, th, xdd, ydd = (s[n] for n in ("F", "M", "phi", "theta", "x_ddot", "y_ddot"))
-    paper = {"lambda_rear": F * sp.cot(th) - M * (xdd * sp.cos(phi + th) + ydd * sp.sin(phi + th)) / sp.sin(th),
-             "lambda_front": (M * (xdd * sp.cos(phi) + ydd * sp.sin(phi)) - F) / sp.sin(th)}
+    paper = {
+        "lambda_rear": F * sp.cot(th) - M * (xdd * sp.cos(phi + th) + ydd * sp.sin(phi + th)) / sp.sin(th),
+        "lambda_front": (M * (xdd * sp.cos(phi) + ydd * sp.sin(phi)) - F) / sp.sin(th),
+    }
     assert set(lam) == set(paper)
     for name, formula in paper.items():
         assert _same(lam[name], formula), name
@@ -78,16 +80,27 @@ def test_car_motion_is_the_papers_on_the_constraints(car):
     s = _symbols(phidd)
     F, M, J, a, b, phi, th = (s[n] for n in ("F", "M", "J", "a", "b", "phi", "theta"))
     xd, yd, phid, thd = (s[n] for n in ("x_dot", "y_dot", "phi_dot", "theta_dot"))
-    on = sp.solve([xd * sp.sin(phi) - yd * sp.cos(phi) + b * phid,
-                   xd * sp.sin(phi + th) - yd * sp.cos(phi + th) - a * sp.cos(th) * phid], [xd, yd], dict=True)[0]
+    on = sp.solve(
+        [
+            xd * sp.sin(phi) - yd * sp.cos(phi) + b * phid,
+            xd * sp.sin(phi + th) - yd * sp.cos(phi + th) - a * sp.cos(th) * phid,
+        ],
+        [xd, yd],
+        dict=True,
+    )[0]
     lo = a + b
-    paper = sp.cos(th) * (F * lo * sp.sin(th) ** 2 + M * lo**2 * phid * thd) / (
-        sp.sin(th) * (J * sp.sin(th) ** 2 + M * (lo**2 * sp.cos(th) ** 2 + b**2 * sp.sin(th) ** 2)))
+    paper = (
+        sp.cos(th)
+        * (F * lo * sp.sin(th) ** 2 + M * lo**2 * phid * thd)
+        / (sp.sin(th) * (J * sp.sin(th) ** 2 + M * (lo**2 * sp.cos(th) ** 2 + b**2 * sp.sin(th) ** 2)))
+    )
     diff = phidd.xreplace(on) - paper
     rng = np.random.default_rng(1)
     for _ in range(5):
-        point = {sym: sp.Float(v, 40) for sym, v in zip(sorted(diff.free_symbols, key=str),
-                                                         rng.uniform(0.3, 1.3, len(diff.free_symbols)))}
+        point = {
+            sym: sp.Float(v, 40)
+            for sym, v in zip(sorted(diff.free_symbols, key=str), rng.uniform(0.3, 1.3, len(diff.free_symbols)))
+        }
         assert abs(diff.xreplace(point).evalf(40)) < 1e-30
     assert sp.count_ops(phidd) <= 5 * sp.count_ops(paper)  # measured 141 against the paper's 31
 
@@ -182,8 +195,12 @@ def _state_values(d, rng):
     q = q0 + 0.05 * rng.standard_normal(q0.size)
     w = 0.5 * rng.standard_normal(len(kin.speeds))
     tt = 0.3
-    vals = {T: tt, **dict(zip(kin.coordinates, q)), **dict(zip(kin.speeds, w)),
-            **{p.symbol: p.value for p in system.parameters}}
+    vals = {
+        T: tt,
+        **dict(zip(kin.coordinates, q)),
+        **dict(zip(kin.speeds, w)),
+        **{p.symbol: p.value for p in system.parameters},
+    }
     for sym, expr in program_substitutions(system).items():
         vals[sym] = float(expr.xreplace(vals))
     return tt, q, w, vals

@@ -20,8 +20,15 @@ import numpy as np
 import pytest
 
 from appell import inverse_dynamics
-from appell.examples.parallel_examples import (DELTA, FIVE_BAR, STEWART, _stewart_points, delta_robot, five_bar,
-                                               stewart_platform)
+from appell.examples.parallel_examples import (
+    DELTA,
+    FIVE_BAR,
+    STEWART,
+    _stewart_points,
+    delta_robot,
+    five_bar,
+    stewart_platform,
+)
 from appell.numerics.loops import loop_model
 
 G = 9.81
@@ -63,8 +70,9 @@ def _five_bar_newton_euler(theta, omega, tau_A, tau_E):
             a_com = a_start[i] + al[i] * np.array([-r[1], r[0]]) - omega[i] ** 2 * r
             F1, P1, F2, P2 = forces[i]
             out += list(masses[i] * a_com - F1 - F2 - masses[i] * np.array([0.0, -G]))
-            out.append(masses[i] * lengths[i] ** 2 / 12 * al[i] - _cross2(P1 - com, F1) - _cross2(P2 - com, F2)
-                       - torques[i])
+            out.append(
+                masses[i] * lengths[i] ** 2 / 12 * al[i] - _cross2(P1 - com, F1) - _cross2(P2 - com, F2) - torques[i]
+            )
         aC_left = aB + al[1] * np.array([-(C - B)[1], (C - B)[0]]) - omega[1] ** 2 * (C - B)
         aC_right = aD + al[3] * np.array([-(C - D)[1], (C - D)[0]]) - omega[3] ** 2 * (C - D)
         out += list(aC_left - aC_right)
@@ -128,8 +136,12 @@ def _delta_potential(theta):
     z_end = -la * np.sin(theta)
     reach = p["base"] + la * np.cos(theta) - p["platform"]
     z_p = z_end - np.sqrt(lr**2 - reach**2)
-    return G * (3 * p["m_arm"] * z_end / 2 + 6 * p["m_yoke"] * z_end + 6 * p["m_rod"] * (z_end + z_p) / 2
-                + p["m_platform"] * z_p)
+    return G * (
+        3 * p["m_arm"] * z_end / 2
+        + 6 * p["m_yoke"] * z_end
+        + 6 * p["m_rod"] * (z_end + z_p) / 2
+        + p["m_platform"] * z_p
+    )
 
 
 @pytest.mark.parametrize("theta", [0.0, 0.35, -0.2])
@@ -179,8 +191,9 @@ def test_stewart_platform_holding_a_pose_by_virtual_work():
     mech = stewart_platform()
     pose = np.array([0.02, -0.03, 0.05, 0.1, -0.05, 0.2])
     t = np.linspace(0.0, 0.03, 4)
-    res = inverse_dynamics(mech, t, {name: np.full(t.size, v) for name, v in
-                                     zip(("P_x", "P_y", "P_z", "P_rx", "P_ry", "P_rz"), pose)})
+    res = inverse_dynamics(
+        mech, t, {name: np.full(t.size, v) for name, v in zip(("P_x", "P_y", "P_z", "P_rx", "P_ry", "P_rz"), pose)}
+    )
     assert sorted(res.drives) == [f"leg_{k}" for k in range(1, 7)]
     h = 1e-7
     dL, dV = np.zeros((6, 6)), np.zeros(6)

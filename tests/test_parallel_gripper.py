@@ -18,10 +18,9 @@ import numpy as np
 import pytest
 
 mujoco = pytest.importorskip("mujoco")
-from test_mjcf_menagerie import assemble, equality_rows  # noqa: E402
-
 from appell import loop_model  # noqa: E402
 from appell.mechanism.mjcf import load_mjcf, mjcf_system, read_mjcf  # noqa: E402
+from test_mjcf_menagerie import assemble, equality_rows  # noqa: E402
 
 GRIPPER = Path(__file__).resolve().parents[1] / "src" / "appell" / "examples" / "parallel_gripper.xml"
 
@@ -36,7 +35,7 @@ def kkt(mj, data):
     J, Jdq = equality_rows(mj, data)
     k = J.shape[0]
     sol = np.linalg.lstsq(np.block([[M, J.T], [J, np.zeros((k, k))]]), np.concatenate([rhs, -Jdq]), rcond=1e-12)[0]
-    return sol[:mj.nv], -sol[mj.nv:], J
+    return sol[: mj.nv], -sol[mj.nv :], J
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +83,9 @@ def test_gripper_accelerations_and_loop_forces_against_mujoco(gripper):
         scale = np.abs(acc).max()
         got = np.zeros(mj.nv)
         for j in range(mj.njnt):
-            got[mj.jnt_dofadr[j]] = state.a[model.coordinate_names.index(mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, j))]
+            got[mj.jnt_dofadr[j]] = state.a[
+                model.coordinate_names.index(mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_JOINT, j))
+            ]
         assert np.abs(got - acc).max() <= 1e-9 * scale
         # each connect's force on body1 (world axes): appell's rows along world x and z, MuJoCo's x, y, z
         big = np.abs(lam).max()
@@ -92,7 +93,7 @@ def test_gripper_accelerations_and_loop_forces_against_mujoco(gripper):
             rows = [(k, row) for k, row in model.loop_rows if names[k].startswith(loop)]
             assert {row.kind for _, row in rows} == {"point"}
             force = sum(state.lam[k] * np.array([float(x) for x in row.axis_a]) for k, row in rows)
-            assert np.abs(force - lam[3 * e:3 * e + 3]).max() <= 1e-9 * big
+            assert np.abs(force - lam[3 * e : 3 * e + 3]).max() <= 1e-9 * big
         assert abs(state.lam[names.index("fingers")] - lam[6]) <= 1e-9 * big
         # a rotor's multiplier is the torque that turns it: armature * the driver's acceleration
         for side in ("left", "right"):

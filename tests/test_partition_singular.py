@@ -16,20 +16,19 @@ and along whole trajectories, with both numeric backends (issue 11 §1):
 
 from __future__ import annotations
 
-import appell
 import math
 
 import numpy as np
 import pytest
 import sympy as sp
 
-from appell import Event, derive, simulate
+import appell
+from appell import Event, derive, numeric_model, simulate
 from appell.errors import SingularConfigurationError
 from appell.examples import catalog
 from appell.io.printing import singular_where
 from appell.model import Parameter, System, holonomic
 from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, compile_model, partition_condition
-from appell import numeric_model
 
 BACKENDS = ("numpy", "c")
 #: single solves at and 1e-12 from the singular instants: there kappa > KEEP_CONDITION, so the
@@ -266,8 +265,15 @@ def test_pendulum_loop_tension_along_the_motion_and_at_an_event(pendulum, backen
     the partition switch is logged."""
     model = _model(pendulum, backend)
     horizontal = Event("horizontal", lambda tt, yy, mult: yy[1])
-    sol = simulate(model, 2.0, initial={"x": 0.0, "y": -1.0, "x_dot": 8.0, "y_dot": 0.0},
-                   events=[horizontal], t_eval=np.linspace(0, 2, 2001), rtol=1e-12, atol=1e-14)
+    sol = simulate(
+        model,
+        2.0,
+        initial={"x": 0.0, "y": -1.0, "x_dot": 8.0, "y_dot": 0.0},
+        events=[horizontal],
+        t_eval=np.linspace(0, 2, 2001),
+        rtol=1e-12,
+        atol=1e-14,
+    )
     assert sol.status == 0, sol.message
     st = sol.states
     tension, _ = pendulum_exact(st["x"], st["y"], st["x_dot"], st["y_dot"])

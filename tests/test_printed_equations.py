@@ -13,7 +13,6 @@ sign convention, method.md §2, gives the opposite sign).
 
 from __future__ import annotations
 
-import appell
 import re
 
 import numpy as np
@@ -22,13 +21,13 @@ import sympy as sp
 from click.testing import CliRunner
 from sympy.parsing.sympy_parser import parse_expr
 
-from appell import cross_check, derive
+import appell
+from appell import cross_check, derive, numeric_model
 from appell.examples import BUILDERS
 from appell.io.cli import cli, derive_model, is_controlled
 from appell.io.printing import derivation_text
 from appell.numerics.numeric import program_substitutions
 from appell.symbols import t as T
-from appell import numeric_model
 
 ANDREWS_ACC = [14222.4439199541138705911625887, -10666.8329399655854029433719415, 0, 0, 0, 0, 0]
 ANDREWS_LAMBDA = [98.5668703962410896057654982170, -6.12268834425566265503114393122, 0, 0, 0, 0]
@@ -81,7 +80,9 @@ def read_printed(text: str, names):
         elif section and section.split(":")[0] in ("motion", "reactions (1.5)", "controls"):
             m = ROW.match(line)
             assert m, line
-            rows.append((m.group(1), parse_expr(m.group(2), local_dict=table), parse_expr(m.group(3), local_dict=table)))
+            rows.append(
+                (m.group(1), parse_expr(m.group(2), local_dict=table), parse_expr(m.group(3), local_dict=table))
+            )
     return defs, rows
 
 
@@ -97,8 +98,12 @@ def _names(derivation):
 
 def _values(derivation, t, q, w):
     kin, system = derivation.kinematics, derivation.system
-    vals = {T: t, **dict(zip(kin.coordinates, q)), **dict(zip(kin.speeds, w)),
-            **{p.symbol: p.value for p in system.parameters}}
+    vals = {
+        T: t,
+        **dict(zip(kin.coordinates, q)),
+        **dict(zip(kin.speeds, w)),
+        **{p.symbol: p.value for p in system.parameters},
+    }
     for sym, expr in program_substitutions(system).items():
         vals[sym] = float(expr.xreplace(vals))
     return vals
@@ -204,9 +209,15 @@ def test_appell_ball_control_law_prints_the_closed_form():
     text = derivation_text(d, ["controls"])
     defs, rows = read_printed(text, _names(d))
     omega, xi, eta = 2.0, 0.3, -0.2
-    vals = {sp.Symbol("omega"): omega, sp.Symbol("M"): 1.0, sp.Symbol("R"): 0.1,
-            sp.Symbol("xi"): xi, sp.Symbol("eta"): eta, sp.Symbol("xi_dot"): -omega * eta,
-            sp.Symbol("eta_dot"): omega * xi}
+    vals = {
+        sp.Symbol("omega"): omega,
+        sp.Symbol("M"): 1.0,
+        sp.Symbol("R"): 0.1,
+        sp.Symbol("xi"): xi,
+        sp.Symbol("eta"): eta,
+        sp.Symbol("xi_dot"): -omega * eta,
+        sp.Symbol("eta_dot"): omega * xi,
+    }
     laws = {str(lhs): _evaluate(defs, rhs, vals) for label, lhs, rhs in rows if label == "(control)"}
     # the printed law at an exact state: rounding only
     assert laws["u_ddot"] == pytest.approx(-3.5 * omega**2 * xi, rel=1e-12)
@@ -234,8 +245,7 @@ def test_printed_control_laws_evaluate_to_the_numeric_controls(name):
     controls``, read back from the text, equal the controls of the numeric closed loop
     (dynamic conditions (2.3) solved at the state) at the model's initial state."""
     d = derive_model(BUILDERS[name]())
-    defs, rows = read_printed(derivation_text(d, ["controls"]), _names(d) + [
-        s for s in numeric_model(d).state_names])
+    defs, rows = read_printed(derivation_text(d, ["controls"]), _names(d) + [s for s in numeric_model(d).state_names])
     model = numeric_model(d)
     y = model.initial_state()
     t0 = 0.0
@@ -251,4 +261,3 @@ def test_printed_control_laws_evaluate_to_the_numeric_controls(name):
         printed = _evaluate(defs, laws[name_], values)
         # the printed law against the (2.3) solve at the same state: rounding times its condition
         assert printed == pytest.approx(value, rel=1e-9, abs=1e-9 * (1 + abs(value))), name_
-

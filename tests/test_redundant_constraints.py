@@ -13,9 +13,8 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import ModelError, Parameter, System, cross_check, derive, holonomic, simulate
+from appell import ModelError, Parameter, System, cross_check, derive, holonomic, numeric_model, simulate
 from appell.examples.support_examples import door_two_hinges, shaft_three_bearings, table_four_legs
-from appell import numeric_model
 
 G = 9.81
 
@@ -58,8 +57,11 @@ def test_table_redundancy_is_reported_with_rank_names_and_null_space():
 def test_table_symmetric_load_each_leg_carries_a_quarter():
     """Mass centre at the plate's centre: each leg m g / 4 (symmetry)."""
     s = table_four_legs()
-    s = s.replace(parameters=tuple(p if p.symbol.name not in ("x_c", "y_c") else Parameter(p.symbol, 0.0, p.unit)
-                                   for p in s.parameters))
+    s = s.replace(
+        parameters=tuple(
+            p if p.symbol.name not in ("x_c", "y_c") else Parameter(p.symbol, 0.0, p.unit) for p in s.parameters
+        )
+    )
     lam, _ = _at_start(derive(s))
     # the split and the null-space step, J of condition 2.5: rounding only (measured 7e-15 N)
     assert np.allclose(list(lam.values()), 20.0 * G / 4, rtol=0, atol=1e-12)
@@ -84,15 +86,23 @@ def test_table_equal_compliance_is_the_plane_fit_and_unequal_compliance_is_not()
     = m g (1, x_c, y_c), solved here by hand (independent of the library's null space)."""
     lam_eq, _ = _at_start(derive(table_four_legs(compliance=1e-6)))
     # equal weights: the minimum-norm step again, rounding only (measured 1.4e-14 N)
-    assert np.allclose([lam_eq[f"leg_{i}"] for i in range(1, 5)], _plane_fit(20.0, 0.15, 0.05, CORNERS),
-                       rtol=0, atol=1e-9)
+    assert np.allclose(
+        [lam_eq[f"leg_{i}"] for i in range(1, 5)], _plane_fit(20.0, 0.15, 0.05, CORNERS), rtol=0, atol=1e-9
+    )
     s = table_four_legs()
     c = [1e-6, 2e-6, 1e-6, 4e-6]
     s = s.replace(constraints=tuple(holonomic(k.name, k.expr, compliance=ci) for k, ci in zip(s.constraints, c)))
     lam, _ = _at_start(derive(s))
     k = [1 / ci for ci in c]
-    A = np.array([[sum(ki * f(x, y) * g(x, y) for ki, (x, y) in zip(k, CORNERS)) for f in (
-        lambda x, y: 1, lambda x, y: x, lambda x, y: y)] for g in (lambda x, y: 1, lambda x, y: x, lambda x, y: y)])
+    A = np.array(
+        [
+            [
+                sum(ki * f(x, y) * g(x, y) for ki, (x, y) in zip(k, CORNERS))
+                for f in (lambda x, y: 1, lambda x, y: x, lambda x, y: y)
+            ]
+            for g in (lambda x, y: 1, lambda x, y: x, lambda x, y: y)
+        ]
+    )
     coef = np.linalg.solve(A, 20.0 * G * np.array([1.0, 0.15, 0.05]))
     expected = [ki * (coef[0] + coef[1] * x + coef[2] * y) for ki, (x, y) in zip(k, CORNERS)]
     got = [lam[f"leg_{i}"] for i in range(1, 5)]
@@ -182,16 +192,20 @@ def _sliding_table():
     x, z, th = sp.symbols("x z theta")
     xd, zd, thd = sp.symbols("x_dot z_dot theta_dot")
     m, g, L, al, I = sp.symbols("m g L alpha I")
-    legs = [holonomic(f"leg_{i + 1}", z - xi * sp.sin(th) - L - sp.tan(al) * (x + xi * sp.cos(th)))
-            for i, xi in enumerate((-0.5, 0.1, 0.7))]
+    legs = [
+        holonomic(f"leg_{i + 1}", z - xi * sp.sin(th) - L - sp.tan(al) * (x + xi * sp.cos(th)))
+        for i, xi in enumerate((-0.5, 0.1, 0.7))
+    ]
     a0 = 0.3
-    return System(name="sliding_table", coordinates=(x, z, th),
-                  parameters=(Parameter(m, 5.0), Parameter(g, G), Parameter(L, 0.8), Parameter(al, a0),
-                              Parameter(I, 0.4)),
-                  kinetic_energy=m / 2 * (xd**2 + zd**2) + I / 2 * thd**2, potential_energy=m * g * z,
-                  constraints=tuple(legs),
-                  initial={"x": 0.0, "z": 0.8, "theta": -a0, "x_dot": 0.2, "z_dot": 0.2 * np.tan(a0),
-                           "theta_dot": 0.0}), a0
+    return System(
+        name="sliding_table",
+        coordinates=(x, z, th),
+        parameters=(Parameter(m, 5.0), Parameter(g, G), Parameter(L, 0.8), Parameter(al, a0), Parameter(I, 0.4)),
+        kinetic_energy=m / 2 * (xd**2 + zd**2) + I / 2 * thd**2,
+        potential_energy=m * g * z,
+        constraints=tuple(legs),
+        initial={"x": 0.0, "z": 0.8, "theta": -a0, "x_dot": 0.2, "z_dot": 0.2 * np.tan(a0), "theta_dot": 0.0},
+    ), a0
 
 
 @pytest.mark.parametrize("backend", ["numpy", "c"])
@@ -237,8 +251,10 @@ def test_cli_refuses_inconsistent_legs_in_a_model_file_with_exit_2(tmp_path):
     from appell.examples import example_path
 
     text = example_path("table_four_legs").read_text()
-    text = text.replace('expr = "z - a*sin(theta) - b*sin(phi)*cos(theta) - L"',
-                        'expr = "z - a*sin(theta) - b*sin(phi)*cos(theta) - 0.74"')
+    text = text.replace(
+        'expr = "z - a*sin(theta) - b*sin(phi)*cos(theta) - L"',
+        'expr = "z - a*sin(theta) - b*sin(phi)*cos(theta) - 0.74"',
+    )
     path = tmp_path / "short_leg.toml"
     path.write_text(text)
     out = _cli("derive", str(path))
@@ -263,8 +279,7 @@ def test_completing_a_start_uses_the_independent_legs_and_the_redundant_one_then
     from appell import complete_initial
 
     d = derive(table_four_legs())
-    state = complete_initial(d, {"z": 0.76, "phi": 0.01, "theta": 0.0, "z_dot": 0.0, "phi_dot": 0.0,
-                                 "theta_dot": 0.0})
+    state = complete_initial(d, {"z": 0.76, "phi": 0.01, "theta": 0.0, "z_dot": 0.0, "phi_dot": 0.0, "theta_dot": 0.0})
     # Newton stops at residual 1e-12 (complete_initial's tol; the legs move by dz, unit gain)
     # and converges quadratically, so it ends far below (measured 1e-17)
     assert state.values["z"] == pytest.approx(0.75, abs=1e-12)
@@ -277,8 +292,9 @@ def test_sliding_table_with_baumgarte_stabilization_keeps_the_redundant_leg():
     """Baumgarte's bias of every constraint reaches the independent ones (the redundant
     one's holds by itself): the run matches the incline's closed form as with projection."""
     system, a0 = _sliding_table()
-    sol = simulate(derive(system), 1.0, stabilization="baumgarte", rtol=1e-10, atol=1e-12,
-                   t_eval=np.linspace(0.0, 1.0, 11))
+    sol = simulate(
+        derive(system), 1.0, stabilization="baumgarte", rtol=1e-10, atol=1e-12, t_eval=np.linspace(0.0, 1.0, 11)
+    )
     t = np.asarray(sol.t)
     # constant accelerations, the bias vanishing on the constraints: rounding only (measured
     # 7e-13 and 3e-13)

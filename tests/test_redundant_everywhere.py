@@ -27,11 +27,20 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import Parameter, System, cross_check, derive, holonomic, linearise, numeric_model, simulate
-from appell import stability_sweep, steady_motion
+from appell import (
+    Parameter,
+    System,
+    cross_check,
+    derive,
+    holonomic,
+    linearise,
+    numeric_model,
+    simulate,
+    stability_sweep,
+    steady_motion,
+)
 from appell.examples.support_examples import door_two_hinges, table_four_legs
 from appell.numerics.crosscheck import on_constraints, onto_constraints, sample_states, solve_indeterminate
-
 from test_redundant_linearise import G, L, M, twin_rods
 
 #: roller positions along the bar from its mass centre, and the bar's values
@@ -44,12 +53,15 @@ def bar_on_three_rollers():
     mass centre and a spring k along x: rank 2 of 3, one degree of freedom (x)."""
     x, y, th, xd, yd, thd = sp.symbols("x y theta x_dot y_dot theta_dot")
     m, i, k, g, p = sp.symbols("m I_G k g P")
-    return System(name="bar_on_three_rollers", coordinates=(x, y, th),
-                  parameters=tuple(Parameter(s, BAR[s.name]) for s in (m, i, k, g, p)),
-                  kinetic_energy=m / 2 * (xd**2 + yd**2) + i / 2 * thd**2,
-                  potential_energy=(m * g + p) * y + k / 2 * x**2,
-                  constraints=tuple(holonomic(f"roller_{j + 1}", y + a * sp.sin(th)) for j, a in enumerate(ROLLERS)),
-                  initial={"x": 0.1, "y": 0.0, "theta": 0.0, "x_dot": 0.0})
+    return System(
+        name="bar_on_three_rollers",
+        coordinates=(x, y, th),
+        parameters=tuple(Parameter(s, BAR[s.name]) for s in (m, i, k, g, p)),
+        kinetic_energy=m / 2 * (xd**2 + yd**2) + i / 2 * thd**2,
+        potential_energy=(m * g + p) * y + k / 2 * x**2,
+        constraints=tuple(holonomic(f"roller_{j + 1}", y + a * sp.sin(th)) for j, a in enumerate(ROLLERS)),
+        initial={"x": 0.1, "y": 0.0, "theta": 0.0, "x_dot": 0.0},
+    )
 
 
 def _beam_on_equal_supports(load):
@@ -60,11 +72,13 @@ def _beam_on_equal_supports(load):
     return alpha + beta * a
 
 
-EXAMPLES = {"door_two_hinges": (door_two_hinges, ("top_z", "bottom_z")),
-            "table_four_legs": (table_four_legs, ("leg_1", "leg_2", "leg_3", "leg_4")),
-            "table_on_elastic_legs": (lambda: table_four_legs(compliance=1e-6), ("leg_1", "leg_2", "leg_3", "leg_4")),
-            "twin_rods": (twin_rods, ("rod_a", "rod_b")),
-            "bar_on_three_rollers": (bar_on_three_rollers, ("roller_1", "roller_2", "roller_3"))}
+EXAMPLES = {
+    "door_two_hinges": (door_two_hinges, ("top_z", "bottom_z")),
+    "table_four_legs": (table_four_legs, ("leg_1", "leg_2", "leg_3", "leg_4")),
+    "table_on_elastic_legs": (lambda: table_four_legs(compliance=1e-6), ("leg_1", "leg_2", "leg_3", "leg_4")),
+    "twin_rods": (twin_rods, ("rod_a", "rod_b")),
+    "bar_on_three_rollers": (bar_on_three_rollers, ("roller_1", "roller_2", "roller_3")),
+}
 
 
 @pytest.mark.parametrize("name", sorted(EXAMPLES))
@@ -117,8 +131,10 @@ def test_twin_rods_simulated_by_the_compiled_model_carry_the_pendulums_tension()
     s = twin_rods()
     s = s.replace(initial=(("x", L * np.sin(0.8)), ("y", -L * np.cos(0.8)), ("x_dot", 0.0)))
     d = derive(s)
-    runs = {backend: simulate(numeric_model(d, backend), 2.0, rtol=1e-11, atol=1e-12, t_eval=np.linspace(0, 2, 41))
-            for backend in ("numpy", "c")}
+    runs = {
+        backend: simulate(numeric_model(d, backend), 2.0, rtol=1e-11, atol=1e-12, t_eval=np.linspace(0, 2, 41))
+        for backend in ("numpy", "c")
+    }
     F = 5.0
     for sol in runs.values():
         x, y, xd, yd = (sol[n] for n in ("x", "y", "x_dot", "y_dot"))
@@ -219,5 +235,6 @@ def test_rendered_report_of_the_table_names_every_leg_and_the_undetermined_direc
     d = derive(table_four_legs())
     text = _text(render_report(d, None, cross_check(d), simulation_note="left out"))
     assert "undetermined split among: leg_1, leg_2, leg_3, leg_4" in text
-    assert re.search(r"\+0\.5 leg_1 -0\.5 leg_2 \+0\.5 leg_3 -0\.5 leg_4|-0\.5 leg_1 \+0\.5 leg_2 -0\.5 leg_3 \+0\.5 leg_4",
-                     text), text[:3000]
+    assert re.search(
+        r"\+0\.5 leg_1 -0\.5 leg_2 \+0\.5 leg_3 -0\.5 leg_4|-0\.5 leg_1 \+0\.5 leg_2 -0\.5 leg_3 \+0\.5 leg_4", text
+    ), text[:3000]

@@ -24,11 +24,15 @@ def twin_rods(force=5.0):
     x, y, xd, yd = sp.symbols("x y x_dot y_dot")
     m, l, g, F = sp.symbols("m L g F")
     rod = (l**2 - x**2 - y**2) / (2 * l)
-    return System(name="twin_rods", coordinates=(x, y),
-                  parameters=(Parameter(m, M), Parameter(l, L), Parameter(g, G), Parameter(F, force)),
-                  kinetic_energy=m / 2 * (xd**2 + yd**2), potential_energy=m * g * y - F * x,
-                  constraints=(holonomic("rod_a", rod), holonomic("rod_b", 2 * rod)),
-                  initial={"x": 0.0, "y": -L, "x_dot": 0.0})
+    return System(
+        name="twin_rods",
+        coordinates=(x, y),
+        parameters=(Parameter(m, M), Parameter(l, L), Parameter(g, G), Parameter(F, force)),
+        kinetic_energy=m / 2 * (xd**2 + yd**2),
+        potential_energy=m * g * y - F * x,
+        constraints=(holonomic("rod_a", rod), holonomic("rod_b", 2 * rod)),
+        initial={"x": 0.0, "y": -L, "x_dot": 0.0},
+    )
 
 
 def test_linearise_steady_motion_and_sweep_with_a_redundant_rod_match_the_closed_form():
@@ -40,8 +44,9 @@ def test_linearise_steady_motion_and_sweep_with_a_redundant_rod_match_the_closed
     assert abs(point["x"] - L * np.sin(theta)) < 1e-9 and abs(point["y"] + L * np.cos(theta)) < 1e-9
     lin = linearise(d, point, inputs=["F"])
     T = np.hypot(M * G, F)
-    np.testing.assert_allclose(np.sort(lin.eigenvalues().imag), [-np.sqrt(T / (M * L)), np.sqrt(T / (M * L))],
-                               rtol=1e-10)
+    np.testing.assert_allclose(
+        np.sort(lin.eigenvalues().imag), [-np.sqrt(T / (M * L)), np.sqrt(T / (M * L))], rtol=1e-10
+    )
     assert lin.outputs == ("lambda_rod_a", "lambda_rod_b")
     dlam_dF = lin.D[:, 0]
     assert abs(dlam_dF[0] + 2 * dlam_dF[1] - F / T) < 1e-8

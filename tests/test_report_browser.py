@@ -69,8 +69,10 @@ def test_mathematics_and_plots_render_in_chromium(car_report, tmp_path):
 
 def test_screenshot_is_not_blank(car_report, tmp_path):
     shot = tmp_path / "report.png"
-    done = chromium(["--window-size=1200,2400", "--virtual-time-budget=10000", f"--screenshot={shot}",
-                     car_report.as_uri()], tmp_path)
+    done = chromium(
+        ["--window-size=1200,2400", "--virtual-time-budget=10000", f"--screenshot={shot}", car_report.as_uri()],
+        tmp_path,
+    )
     assert done.returncode == 0 and shot.exists(), done.stderr[-2000:]
     import matplotlib.image
 

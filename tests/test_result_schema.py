@@ -20,16 +20,20 @@ import pytest
 import xarray as xr
 
 from appell import load_model, simulate, sweep
-from appell.core.derive import derive
 from appell.control.servo import derive_controlled
+from appell.core.derive import derive
 from appell.examples import example_path
 from appell.io.results import write_csv, write_hdf5, write_netcdf
 
 EXAMPLES = Path(example_path("pendulum")).parent
 
 #: (example, a parameter to sweep over one value, seconds simulated)
-CASES = [("arm.urdf", None, 0.05), ("block_on_incline", "mu_k", 0.4), ("cart_pole", "g", 0.05),
-         ("table_four_legs", None, 0.05)]
+CASES = [
+    ("arm.urdf", None, 0.05),
+    ("block_on_incline", "mu_k", 0.4),
+    ("cart_pole", "g", 0.05),
+    ("table_four_legs", None, 0.05),
+]
 
 
 def _derivation(name):
@@ -61,8 +65,12 @@ def test_every_column_is_in_csv_hdf5_and_netcdf(case, tmp_path):
     for c in columns[1:]:
         np.testing.assert_array_equal(data[c.name].values, np.asarray(c.values, float), err_msg=c.name)
     name = sol.metadata.name
-    expected = {"arm": {"output"}, "block_on_incline": {"friction"}, "cart_pole": {"control"},
-                "table_four_legs": {"multiplier"}}.get(name, set())
+    expected = {
+        "arm": {"output"},
+        "block_on_incline": {"friction"},
+        "cart_pole": {"control"},
+        "table_four_legs": {"multiplier"},
+    }.get(name, set())
     assert expected <= kinds, (name, kinds)
 
 
@@ -76,13 +84,28 @@ def test_a_sweep_keeps_every_column_of_every_run(case, tmp_path):
         pytest.skip("no parameter to sweep")
     values = [params[name], params[name] * 1.1]
     out = tmp_path / "s.h5"
-    res = sweep(derivation, [f"{name}={values[0]!r},{values[1]!r}"], t_end, output=out, t_eval=sol.t,
-                n_workers=1, processes=False, backend="numpy", progress=False)
+    res = sweep(
+        derivation,
+        [f"{name}={values[0]!r},{values[1]!r}"],
+        t_end,
+        output=out,
+        t_eval=sol.t,
+        n_workers=1,
+        processes=False,
+        backend="numpy",
+        progress=False,
+    )
     assert all(r.status >= 0 for r in res.runs), [r.message for r in res.runs]
     other = simulate(derivation, t_end, t_eval=sol.t, params={name: values[1]})
     with h5py.File(out, "r") as f:
         for run, reference in ((0, sol), (1, other)):
             for c in reference.grouped()[1:]:
                 stored = f[f"{c.group}/{c.key}"][run]
-                np.testing.assert_allclose(stored, np.asarray(c.values, float), rtol=1e-9, atol=1e-12,
-                                           equal_nan=True, err_msg=f"run {run}: {c.name}")
+                np.testing.assert_allclose(
+                    stored,
+                    np.asarray(c.values, float),
+                    rtol=1e-9,
+                    atol=1e-12,
+                    equal_nan=True,
+                    err_msg=f"run {run}: {c.name}",
+                )

@@ -28,12 +28,11 @@ import xarray as xr
 from click.testing import CliRunner
 
 import appell
-from appell import Solution, load_model, simulate
+from appell import Solution, load_model, numeric_model, simulate
 from appell.examples import example_path
 from appell.io.cli import cli
-from appell.simulation.solution import EventRecord, ModelMetadata, SolverStatistics
-from appell import numeric_model
 from appell.io.results import write_csv, write_hdf5, write_netcdf
+from appell.simulation.solution import EventRecord, ModelMetadata, SolverStatistics
 
 G, TH0 = 9.81, math.pi / 3
 
@@ -92,8 +91,8 @@ def test_controlled_accelerations_match_appells_problem():
     assert sol.acceleration_names == ("xi_ddot", "eta_ddot", "p_dot", "q_dot", "r_dot")
     # the servo constraints fix these at every recorded state: rounding only (measured 2e-15
     # and 6e-14)
-    np.testing.assert_allclose(sol["xi_ddot"], -omega**2 * xi, atol=1e-8)
-    np.testing.assert_allclose(sol["eta_ddot"], -omega**2 * eta, atol=1e-8)
+    np.testing.assert_allclose(sol["xi_ddot"], -(omega**2) * xi, atol=1e-8)
+    np.testing.assert_allclose(sol["eta_ddot"], -(omega**2) * eta, atol=1e-8)
     np.testing.assert_allclose(sol["q_dot"], 5 * omega**2 * xi / (2 * R), atol=1e-7)
     np.testing.assert_allclose(sol["p_dot"], -5 * omega**2 * eta / (2 * R), atol=1e-7)
     np.testing.assert_allclose(sol["r_dot"], 0.0, atol=1e-9)
@@ -173,7 +172,7 @@ def test_repr_is_a_short_summary_with_the_reaction_extremes(pendulum):
     text = repr(sol)
     assert text == str(sol) and len(text) < 1000 and "array(" not in text
     assert "reached the final time" in text and "t from 0 s to 5 s" in text
-    (name, unit, lo, t_lo, hi, t_hi), = sol.extremes()
+    ((name, unit, lo, t_lo, hi, t_hi),) = sol.extremes()
     assert (name, unit) == ("lambda_rod", "N")
     # at rest, m g cos th0: the split at the start, rounding only (measured 1.5e-15 relative)
     assert lo == pytest.approx(G * math.cos(TH0), rel=1e-9) and t_lo == 0.0
@@ -188,10 +187,22 @@ def test_repr_is_a_short_summary_with_the_reaction_extremes(pendulum):
 def test_summary_lists_only_the_first_events():
     t = np.array([0.0, 1.0])
     events = tuple(EventRecord("user", f"e{i}", 0.5) for i in range(25))
-    sol = Solution(t=t, states={"q": t, "q_dot": t}, coordinate_names=("q",), speed_names=("q_dot",),
-                   multipliers={}, controls={}, position_residuals={}, velocity_residuals={}, status=0,
-                   message="done", statistics=SolverStatistics(), events=events, log=(),
-                   metadata=ModelMetadata("toy"))
+    sol = Solution(
+        t=t,
+        states={"q": t, "q_dot": t},
+        coordinate_names=("q",),
+        speed_names=("q_dot",),
+        multipliers={},
+        controls={},
+        position_residuals={},
+        velocity_residuals={},
+        status=0,
+        message="done",
+        statistics=SolverStatistics(),
+        events=events,
+        log=(),
+        metadata=ModelMetadata("toy"),
+    )
     assert "and 15 more events" in repr(sol) and repr(sol).count("event:") == 10
 
 
@@ -209,8 +220,13 @@ def test_plot_keeps_the_users_backend_and_labels_every_axis(pendulum_solution, s
     assert matplotlib.get_backend() == "svg"
     assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     labels = [ax.get_ylabel() for ax in fig.axes]
-    assert labels == ["coordinates [m]", "speeds [m/s]", "accelerations [m/s^2]",
-                      "reactions (multipliers lambda) [N]", "|constraint residuals|"]
+    assert labels == [
+        "coordinates [m]",
+        "speeds [m/s]",
+        "accelerations [m/s^2]",
+        "reactions (multipliers lambda) [N]",
+        "|constraint residuals|",
+    ]
     assert fig.axes[-1].get_yscale() == "log" and fig.axes[-1].get_xlabel() == "t [s]"
     assert all(ax.get_shared_x_axes().joined(fig.axes[0], ax) for ax in fig.axes)
     assert [t.get_text() for t in fig.axes[3].get_legend().get_texts()] == ["lambda_rod [N]"]
@@ -221,10 +237,22 @@ def test_plot_keeps_the_users_backend_and_labels_every_axis(pendulum_solution, s
 def test_plot_has_no_offset_notation():
     """Coordinates near 1000 m varying by millimetres: matplotlib's default shows '+1e3' offsets."""
     t = np.linspace(0.0, 1.0, 11)
-    sol = Solution(t=t, states={"q": 1000.0 + 1e-3 * t, "q_dot": np.full(11, 1e-3)}, coordinate_names=("q",),
-                   speed_names=("q_dot",), multipliers={}, controls={}, position_residuals={},
-                   velocity_residuals={}, status=0, message="done", statistics=SolverStatistics(), events=(),
-                   log=(), metadata=ModelMetadata("toy", units={"q": "m"}))
+    sol = Solution(
+        t=t,
+        states={"q": 1000.0 + 1e-3 * t, "q_dot": np.full(11, 1e-3)},
+        coordinate_names=("q",),
+        speed_names=("q_dot",),
+        multipliers={},
+        controls={},
+        position_residuals={},
+        velocity_residuals={},
+        status=0,
+        message="done",
+        statistics=SolverStatistics(),
+        events=(),
+        log=(),
+        metadata=ModelMetadata("toy", units={"q": "m"}),
+    )
     fig = sol.plot()
     fig.draw_without_rendering()  # lays out the tick labels (and would set any offset text)
     assert [ax.yaxis.get_offset_text().get_text() for ax in fig.axes] == ["", ""]
@@ -234,8 +262,11 @@ def test_plot_has_no_offset_notation():
 def test_cli_plot_writes_the_solutions_figure(pendulum, tmp_path):
     """appell simulate --plot: the same figure as Solution.plot of the same run."""
     path = tmp_path / "cli.png"
-    result = CliRunner().invoke(cli, ["simulate", "pendulum", "--t-end", "0.5", "--backend", "numpy", "--plot", str(path)],
-                                catch_exceptions=False)
+    result = CliRunner().invoke(
+        cli,
+        ["simulate", "pendulum", "--t-end", "0.5", "--backend", "numpy", "--plot", str(path)],
+        catch_exceptions=False,
+    )
     assert result.exit_code == 0, result.output
     sol = simulate(pendulum, 0.5, complete=True)  # the command line completes the initial values
     assert sol.plot(tmp_path / "api.png") and path.read_bytes() == (tmp_path / "api.png").read_bytes()

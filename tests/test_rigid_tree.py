@@ -26,13 +26,12 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell import derive
+from appell import derive, numeric_model
 from appell.core.energy import TreeInertiaBlocks
 from appell.mechanism.urdf import urdf_system
 from appell.numerics.outputs import compile_outputs
 from appell.numerics.rigid_tree import folded_nodes, rigid_subtrees
 from appell.rigid_tree import RECURSIVE_FROM
-from appell import numeric_model
 
 ARM = Path(__file__).resolve().parent.parent / "src" / "appell" / "examples" / "arm.urdf"
 
@@ -116,35 +115,47 @@ def test_forward_in_one_call_equals_the_solve_and_the_full_wrench_pass(arm):
         sol = compiled.solve(0.0, q, w)
         a, lam, wrench = compiled.forward(0.0, q, w)
         np.testing.assert_allclose(a, sol.accelerations, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(wrench, compiled.joint_wrenches(0.0, q, w, sol.accelerations), rtol=1e-12,
-                                   atol=1e-12)
+        np.testing.assert_allclose(
+            wrench, compiled.joint_wrenches(0.0, q, w, sol.accelerations), rtol=1e-12, atol=1e-12
+        )
         assert np.abs(wrench[-1]).max() > 0.1  # the tool's joint carries its weight
 
 
 def _link(name, mass, com, rpy="0 0 0"):
-    return (f'<link name="{name}"><inertial><origin xyz="{com}" rpy="{rpy}"/><mass value="{mass}"/>'
-            '<inertia ixx="0.01" ixy="0.001" ixz="-0.002" iyy="0.02" iyz="0.0005" izz="0.015"/></inertial></link>')
+    return (
+        f'<link name="{name}"><inertial><origin xyz="{com}" rpy="{rpy}"/><mass value="{mass}"/>'
+        '<inertia ixx="0.01" ixy="0.001" ixz="-0.002" iyy="0.02" iyz="0.0005" izz="0.015"/></inertial></link>'
+    )
 
 
 def _joint(name, kind, parent, child, xyz, rpy="0 0 0", axis="0 0 1"):
-    return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
-            f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="{axis}"/></joint>')
+    return (
+        f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+        f'<origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="{axis}"/></joint>'
+    )
 
 
 #: two mounts in a row between the shoulder and the elbow (each on a fixed joint, the elbow's
 #: arm moving below them), a sensor on the first mount and a tool on the forearm
-MOUNTS = "\n".join([
-    '<robot name="mounts">', '<link name="base"/>',
-    _link("upper", 2.0, "0.02 0.01 0.2", "0.1 -0.2 0.3"), _link("mount", 0.5, "0.01 0 0.03"),
-    _link("flange", 0.3, "0 0.02 0.01", "0.3 0 0"), _link("sensor", 0.2, "0.03 0 0"),
-    _link("fore", 1.2, "0.15 0 0.01"), _link("tool", 0.4, "0 0 0.05"),
-    _joint("shoulder", "continuous", "base", "upper", "0 0 0.1"),
-    _joint("mount_joint", "fixed", "upper", "mount", "0 0.05 0.4", "1.2 0.1 0.2"),
-    _joint("flange_joint", "fixed", "mount", "flange", "0.02 0 0.05", "0 0.4 -0.3"),
-    _joint("sensor_joint", "fixed", "mount", "sensor", "0.1 0 0", "0 0 0.5"),
-    _joint("elbow", "continuous", "flange", "fore", "0 0 0.06", "0.2 0 0", "0 1 0"),
-    _joint("tool_joint", "fixed", "fore", "tool", "0.3 0 0", "0 0.3 0"),
-    "</robot>"])
+MOUNTS = "\n".join(
+    [
+        '<robot name="mounts">',
+        '<link name="base"/>',
+        _link("upper", 2.0, "0.02 0.01 0.2", "0.1 -0.2 0.3"),
+        _link("mount", 0.5, "0.01 0 0.03"),
+        _link("flange", 0.3, "0 0.02 0.01", "0.3 0 0"),
+        _link("sensor", 0.2, "0.03 0 0"),
+        _link("fore", 1.2, "0.15 0 0.01"),
+        _link("tool", 0.4, "0 0 0.05"),
+        _joint("shoulder", "continuous", "base", "upper", "0 0 0.1"),
+        _joint("mount_joint", "fixed", "upper", "mount", "0 0.05 0.4", "1.2 0.1 0.2"),
+        _joint("flange_joint", "fixed", "mount", "flange", "0.02 0 0.05", "0 0.4 -0.3"),
+        _joint("sensor_joint", "fixed", "mount", "sensor", "0.1 0 0", "0 0 0.5"),
+        _joint("elbow", "continuous", "flange", "fore", "0 0 0.06", "0.2 0 0", "0 1 0"),
+        _joint("tool_joint", "fixed", "fore", "tool", "0.3 0 0", "0 0.3 0"),
+        "</robot>",
+    ]
+)
 
 
 def test_mounts_between_joints_fold_into_the_body_above(tmp_path):
@@ -215,8 +226,9 @@ def test_floating_base_recursions_in_numpy_and_c_agree():
         sol = numeric.solve(0.0, q, w, p)
         a, _, wrench = compiled.forward(0.0, q, w)
         np.testing.assert_allclose(a, sol.accelerations, rtol=1e-11, atol=1e-11)
-        np.testing.assert_allclose(wrench, compiled.joint_wrenches(0.0, q, w, sol.accelerations), rtol=1e-11,
-                                   atol=1e-11)
+        np.testing.assert_allclose(
+            wrench, compiled.joint_wrenches(0.0, q, w, sol.accelerations), rtol=1e-11, atol=1e-11
+        )
 
 
 def test_expanded_blocks_on_demand_hold_gravity_in_h(arm):
@@ -288,9 +300,12 @@ def test_printed_recursion_holds_at_the_numeric_solution():
     q, w = rng.uniform(-1, 1, 4), rng.uniform(-1, 1, 4)
     sol = numeric.solve(0.0, q, w)
     outputs = numeric.outputs(0.0, q, w, solution=sol)
-    values = {**dict(zip(system.coordinates, q)), **dict(zip(system.speeds, w)),
-              **dict(zip(derivation.kinematics.accelerations, sol.accelerations)),
-              **{p.symbol: p.value for p in system.parameters}}
+    values = {
+        **dict(zip(system.coordinates, q)),
+        **dict(zip(system.speeds, w)),
+        **dict(zip(derivation.kinematics.accelerations, sol.accelerations)),
+        **{p.symbol: p.value for p in system.parameters},
+    }
     checked = {"(1.3)": 0, "(output)": 0}
     for f in rows:
         rhs = float(sp.sympify(f.rhs).xreplace(values))

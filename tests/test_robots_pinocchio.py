@@ -24,10 +24,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from appell import derive
+from appell import derive, numeric_model
 from appell.errors import ModelError
 from appell.mechanism.urdf import urdf_system
-from appell import numeric_model
 
 pin = pytest.importorskip("pinocchio", reason="Pinocchio is not installed (pip install pin, in appell[test])")
 
@@ -120,8 +119,9 @@ def test_motion_and_every_joint_wrench_equal_pinocchio(fixed_robot):
             expected[names.index("panda_finger_joint1")] = -lam
             np.testing.assert_allclose(tau, expected[order], atol=1e-9, err_msg=name)
         else:
-            np.testing.assert_allclose(pin.aba(model, data, qp, w[order], np.zeros(model.nv)), a[order],
-                                       rtol=1e-9, atol=1e-9, err_msg=name)
+            np.testing.assert_allclose(
+                pin.aba(model, data, qp, w[order], np.zeros(model.nv)), a[order], rtol=1e-9, atol=1e-9, err_msg=name
+            )
             np.testing.assert_allclose(tau, 0.0, atol=1e-9, err_msg=name)
         out = numeric_model(derivation).outputs(0.0, q, w, solution=sol)
         # the same reactions in one C call (node order), and with the accelerations in one call
@@ -174,9 +174,13 @@ def test_solo12_floating_base_against_the_free_flyer():
         _, pitch, roll = q[3:6]
         yaw_rate, pitch_rate, roll_rate = w[3:6]
         # the body's angular velocity of R = Rz Ry Rx (closed form; SymPy's in test_urdf_pinocchio)
-        omega = np.array([roll_rate - yaw_rate * np.sin(pitch),
-                          pitch_rate * np.cos(roll) + yaw_rate * np.cos(pitch) * np.sin(roll),
-                          -pitch_rate * np.sin(roll) + yaw_rate * np.cos(pitch) * np.cos(roll)])
+        omega = np.array(
+            [
+                roll_rate - yaw_rate * np.sin(pitch),
+                pitch_rate * np.cos(roll) + yaw_rate * np.cos(pitch) * np.sin(roll),
+                -pitch_rate * np.sin(roll) + yaw_rate * np.cos(pitch) * np.cos(roll),
+            ]
+        )
         v_lin = R.T @ w[:3]
         quat = pin.Quaternion(R).coeffs()
         qp = np.concatenate([q[:3], quat, q[6:][order]])

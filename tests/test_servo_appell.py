@@ -7,19 +7,18 @@ lambda1 = -M w^2 xi, lambda2 = -M w^2 eta; dynamic conditions 2u'' + 7 w^2 xi = 
 2v'' + 7 w^2 eta = 0.
 """
 
-import appell
 import json
 
 import numpy as np
 import pytest
 import sympy as sp
 
-from appell import ModelError
-from appell.numerics.dynamics import Dynamics
-from appell.examples.servo_examples import appell_ball
+import appell
+from appell import ModelError, numeric_model
 from appell.control.servo import derive_controlled
 from appell.control.servo_numeric import augmented_controlled_solve, cross_check_controlled
-from appell import numeric_model
+from appell.examples.servo_examples import appell_ball
+from appell.numerics.dynamics import Dynamics
 
 M, R, W = 1.0, 0.1, 2.0
 xi, eta, omega = sp.symbols("xi eta omega")
@@ -67,8 +66,10 @@ def test_control_laws_and_reactions_symbolic(derivation):
     assert sp.simplify(laws["v"] + sp.Rational(7, 2) * omega**2 * eta) == 0
     # reactions (2.5) along the motion: substitute the controls found
     u2, v2 = sp.symbols("u_ddot v_ddot")
-    lam = {k: on_circle(v.subs({u2: derivation.control_laws["u"], v2: derivation.control_laws["v"]}))
-           for k, v in derivation.reactions.as_dict().items()}
+    lam = {
+        k: on_circle(v.subs({u2: derivation.control_laws["u"], v2: derivation.control_laws["v"]}))
+        for k, v in derivation.reactions.as_dict().items()
+    }
     Msym = sp.Symbol("M")
     assert sp.simplify(lam["roll_x"] + Msym * omega**2 * xi) == 0
     assert sp.simplify(lam["roll_y"] + Msym * omega**2 * eta) == 0
@@ -91,7 +92,7 @@ def test_numeric_controls_accelerations_reactions(derivation):
         np.testing.assert_allclose(ev.controls, [-3.5 * W**2 * x, -3.5 * W**2 * y], rtol=1e-12, atol=1e-12)
         a = ev.derivative[2:7]  # xi'', eta'', p', q', r'
         np.testing.assert_allclose(a[2:], [-5 * W**2 * y / (2 * R), 5 * W**2 * x / (2 * R), 0.0], atol=1e-10)
-        np.testing.assert_allclose(a[:2], [-W**2 * x, -W**2 * y], atol=1e-12)
+        np.testing.assert_allclose(a[:2], [-(W**2) * x, -(W**2) * y], atol=1e-12)
         np.testing.assert_allclose(ev.multipliers, [-M * W**2 * x, -M * W**2 * y], atol=1e-12)
         # kinematic controls in the state: d/dt u = u', d/dt u' = u'' (copies: exact)
         np.testing.assert_allclose(ev.derivative[7:], [state[8], ev.controls[0], state[10], ev.controls[1]])

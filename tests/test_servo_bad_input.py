@@ -6,8 +6,8 @@ import pytest
 import sympy as sp
 
 from appell import Control, ModelError, System, acceleration_constraint, holonomic, nonholonomic
-from appell.examples.servo_examples import appell_ball
 from appell.control.servo import derive_controlled
+from appell.examples.servo_examples import appell_ball
 
 x, y = sp.symbols("x y")
 xd, yd = sp.symbols("x_dot y_dot")
@@ -15,8 +15,13 @@ F, m = sp.symbols("F m")
 
 
 def particle(**kw):
-    base = dict(coordinates=(x, y), parameters={m: 1.0}, kinetic_energy=m / 2 * (xd**2 + yd**2),
-                generalized_forces=(F, 0), controls=(Control(F, "force"),))
+    base = dict(
+        coordinates=(x, y),
+        parameters={m: 1.0},
+        kinetic_energy=m / 2 * (xd**2 + yd**2),
+        generalized_forces=(F, 0),
+        controls=(Control(F, "force"),),
+    )
     base.update(kw)
     return System(**base)
 
@@ -36,8 +41,11 @@ def test_fewer_servo_constraints_than_controls():
 
 
 def test_servo_constraint_contradicting_a_real_one():
-    sysm = particle(constraints=(nonholonomic("guide", xd - 1),), servo_constraints=(nonholonomic("speed", xd - 2),),
-                    generalized_forces=(0, F))
+    sysm = particle(
+        constraints=(nonholonomic("guide", xd - 1),),
+        servo_constraints=(nonholonomic("speed", xd - 2),),
+        generalized_forces=(0, F),
+    )
     with pytest.raises(ModelError, match="contradictory or redundant") as exc:
         derive_controlled(sysm)
     assert "guide" in str(exc.value) and "speed" in str(exc.value)
@@ -58,8 +66,11 @@ def test_servo_constraint_on_a_control_only():
     """A servo constraint that fixes a kinematic control directly restricts no acceleration
     of the system: the joint partition cannot take it; the hint says to use a program."""
     u = sp.Symbol("u")
-    sysm = particle(controls=(Control(u, "kinematic"),), generalized_forces=(0, 0),
-                    servo_constraints=(acceleration_constraint("plate", sp.Symbol("u_ddot") - 1),))
+    sysm = particle(
+        controls=(Control(u, "kinematic"),),
+        generalized_forces=(0, 0),
+        servo_constraints=(acceleration_constraint("plate", sp.Symbol("u_ddot") - 1),),
+    )
     with pytest.raises(ModelError, match="plate") as exc:
         derive_controlled(sysm)
     assert "program" in str(exc.value)
@@ -78,7 +89,7 @@ def test_controls_without_servo_constraints_in_a_model_file_name_the_control_and
 
     text = example_path("spring_masses").read_text(encoding="utf-8")
     start = text.index("[servo_constraints.track]")
-    text = text[:start] + text[text.index("[initial]"):]
+    text = text[:start] + text[text.index("[initial]") :]
     line = next(i for i, row in enumerate(text.splitlines(), 1) if row.startswith("[controls]"))
     with pytest.raises(ModelError) as exc:
         loads_model(text, "spring.toml")
@@ -116,10 +127,16 @@ def test_a_controlled_coordinate_without_inertia_is_named():
     from appell import loads_model
     from appell.examples import example_path
 
-    text = example_path("spring_masses").read_text(encoding="utf-8").replace(
-        "kinetic_energy = \"m1/2*x1'^2 + m2/2*y'^2\"", "kinetic_energy = \"m2/2*y'^2\"")
-    with pytest.raises(ModelError, match=r"C\^T M C of the controlled system 'spring_masses' is singular: "
-                                         r"it has a zero row for x1_ddot"):
+    text = (
+        example_path("spring_masses")
+        .read_text(encoding="utf-8")
+        .replace("kinetic_energy = \"m1/2*x1'^2 + m2/2*y'^2\"", 'kinetic_energy = "m2/2*y\'^2"')
+    )
+    with pytest.raises(
+        ModelError,
+        match=r"C\^T M C of the controlled system 'spring_masses' is singular: "
+        r"it has a zero row for x1_ddot",
+    ):
         derive_controlled(loads_model(text, "spring.toml"))
 
 

@@ -24,12 +24,11 @@ import sympy as sp
 from click.testing import CliRunner
 
 import appell
-from appell import Control, ModelError, System, derive_controlled, holonomic, simulate
+from appell import Control, ModelError, System, derive_controlled, holonomic, numeric_model, simulate
 from appell.control.servo_numeric import augmented_controlled_solve, cross_check_controlled
 from appell.examples.drive_examples import differential_drive, slider_crank_drive
 from appell.io.cli import cli
 from appell.symbols import t as time
-from appell import numeric_model
 
 # ------------------------------------------------------------------ slider-crank, by hand
 CRANK = {"r": 0.1, "l": 0.35, "m_c": 2.0, "m_r": 1.5, "m_s": 1.0, "g": 9.81, "P": 50.0, "omega": 10.0}
@@ -51,8 +50,13 @@ def _slider_crank_kinematics():
         return sp.diff(e, th) * w
 
     # E = T + V of crank (uniform bar about its centre), rod (uniform bar) and slider
-    T = (mc / 2 * (dt(G1).dot(dt(G1))) + mc * r**2 / 24 * w**2
-         + mr / 2 * (dt(G2).dot(dt(G2))) + mr * l**2 / 24 * dt(phi) ** 2 + ms / 2 * dt(x) ** 2)
+    T = (
+        mc / 2 * (dt(G1).dot(dt(G1)))
+        + mc * r**2 / 24 * w**2
+        + mr / 2 * (dt(G2).dot(dt(G2)))
+        + mr * l**2 / 24 * dt(phi) ** 2
+        + ms / 2 * dt(x) ** 2
+    )
     V = g * (mc * G1[1] + mr * G2[1])
     E = T + V
     tau = (dt(E) + P * dt(x)) / w  # dE/dt = tau omega - P x'
@@ -152,8 +156,14 @@ def test_slider_crank_torque_formula_matches_the_energy_balance(crank):
     params = {sp.Symbol(k): v for k, v in CRANK.items()}
     for theta in (0.3, 1.4, 2.9, 4.0, 5.5):
         phi, phid, _, x, xd, *_ = KINEMATICS(theta)
-        state = {sp.Symbol("theta"): theta, sp.Symbol("phi"): phi, sp.Symbol("theta_dot"): CRANK["omega"],
-                 sp.Symbol("phi_dot"): phid, sp.Symbol("x"): x, sp.Symbol("x_dot"): xd}
+        state = {
+            sp.Symbol("theta"): theta,
+            sp.Symbol("phi"): phi,
+            sp.Symbol("theta_dot"): CRANK["omega"],
+            sp.Symbol("phi_dot"): phid,
+            sp.Symbol("x"): x,
+            sp.Symbol("x_dot"): xd,
+        }
         value = float(law.xreplace({**params, **state}))
         # two exact expressions evaluated in double precision at the same state: rounding only
         assert value == pytest.approx(float(energy_balance_torque(theta)), rel=1e-10, abs=1e-10)
@@ -187,9 +197,16 @@ def test_slider_crank_split_agrees_with_the_augmented_system_with_control_unknow
 # ------------------------------------------------------------------ particle x = sin t
 def driven_particle(m=2.0):
     x, xd, mm, F = sp.symbols("x x_dot m F")
-    return System(name="driven_particle", coordinates=(x,), parameters={mm: m}, kinetic_energy=mm / 2 * xd**2,
-                  generalized_forces=(F,), controls=(Control(F, "force"),),
-                  servo_constraints=(holonomic("track", x - sp.sin(time)),), initial={"x": 0.0, "x_dot": 1.0})
+    return System(
+        name="driven_particle",
+        coordinates=(x,),
+        parameters={mm: m},
+        kinetic_energy=mm / 2 * xd**2,
+        generalized_forces=(F,),
+        controls=(Control(F, "force"),),
+        servo_constraints=(holonomic("track", x - sp.sin(time)),),
+        initial={"x": 0.0, "x_dot": 1.0},
+    )
 
 
 def test_particle_driven_along_sin_t_needs_force_minus_m_sin_t():
@@ -221,8 +238,14 @@ def steady_circle(p=ROBOT):
     diff = p["d"] * lat / p["b"]
     Fr, Fl = (total + diff) / 2, (total - diff) / 2
     wr, wl = (p["v"] + p["b"] * W) / p["R"], (p["v"] - p["b"] * W) / p["R"]
-    return {"tau_r": p["R"] * Fr + p["c_w"] * wr, "tau_l": p["R"] * Fl + p["c_w"] * wl,
-            "lateral": lat, "roll_r": Fr, "roll_l": Fl, "Omega": W}
+    return {
+        "tau_r": p["R"] * Fr + p["c_w"] * wr,
+        "tau_l": p["R"] * Fl + p["c_w"] * wl,
+        "lateral": lat,
+        "roll_r": Fr,
+        "roll_l": Fl,
+        "Omega": W,
+    }
 
 
 @pytest.fixture(scope="module")
@@ -250,8 +273,13 @@ def test_robot_control_laws_on_the_steady_circle_are_the_free_body_torques(robot
     psi = sp.Symbol("psi")
     v, rho, b, R = (sp.Symbol(k) for k in ("v", "rho", "b", "R"))
     W = v / rho
-    steady = {sp.Symbol("x_dot"): v * sp.cos(psi), sp.Symbol("y_dot"): v * sp.sin(psi), sp.Symbol("psi_dot"): W,
-              sp.Symbol("theta_r_dot"): (v + b * W) / R, sp.Symbol("theta_l_dot"): (v - b * W) / R}
+    steady = {
+        sp.Symbol("x_dot"): v * sp.cos(psi),
+        sp.Symbol("y_dot"): v * sp.sin(psi),
+        sp.Symbol("psi_dot"): W,
+        sp.Symbol("theta_r_dot"): (v + b * W) / R,
+        sp.Symbol("theta_l_dot"): (v - b * W) / R,
+    }
     ref = steady_circle({k: sp.Symbol(k) for k in ROBOT})
     for name in ("tau_r", "tau_l"):
         assert sp.simplify(robot.control_laws[name].xreplace(steady) - ref[name]) == 0, name

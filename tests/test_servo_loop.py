@@ -10,10 +10,10 @@ The two masses (flat case) follow y = y_d = 0.1 sin t.
 
 import numpy as np
 
-from appell.examples.servo_examples import appell_ball, spring_masses
 from appell.control.servo import derive_controlled
-from appell.simulation.simulate import simulate
+from appell.examples.servo_examples import appell_ball, spring_masses
 from appell.io.results import write_csv
+from appell.simulation.simulate import simulate
 
 W, M = 2.0, 1.0
 
@@ -55,9 +55,8 @@ def test_overhead_crane_closed_loop():
     """Start on the flat-output manifold (state from the load's path, see
     test_servo_underactuated.crane_state) and integrate with the controls found: the load
     stays on x_L = 0.5 sin(t/2), z_L = -2 + 0.2 cos t."""
-    from test_servo_underactuated import crane_state
-
     from appell.examples.servo_examples import overhead_crane
+    from test_servo_underactuated import crane_state
 
     d = derive_controlled(overhead_crane())
     sol = simulate(d, 4.0, initial=crane_state(0.0)[0], rtol=1e-10, atol=1e-12, t_eval=np.linspace(0, 4, 41))

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from appell.examples.servo_examples import overhead_crane, spring_masses
+from appell import numeric_model
 from appell.control.servo import derive_controlled
 from appell.control.servo_numeric import cross_check_controlled
+from appell.examples.servo_examples import overhead_crane, spring_masses
 from appell.symbols import t
-from appell import numeric_model
 
 m1, m2, k, d = sp.symbols("m1 m2 k d")
 x1, y, x1d, yd = sp.symbols("x1 y x1_dot y_dot")
@@ -57,8 +57,7 @@ def test_spring_relative_degree_and_law(flat):
     law = flat.control_laws["u"]
     # internal constraints by hand: y = y_d, x1 = y_d + m2 y_d''/k (second mass's equation)
     x1_hand = Y + m2 * sp.diff(Y, t, 2) / k
-    on = {x1: as_program_symbols(x1_hand), y: yd_syms[0],
-          x1d: as_program_symbols(sp.diff(x1_hand, t)), yd: yd_syms[1]}
+    on = {x1: as_program_symbols(x1_hand), y: yd_syms[0], x1d: as_program_symbols(sp.diff(x1_hand, t)), yd: yd_syms[1]}
     closed = (m1 + m2) * yd_syms[2] + m1 * m2 / k * yd_syms[4]
     assert sp.simplify(law.subs(on) - closed) == 0
 
@@ -96,8 +95,15 @@ def test_damper_closed_loop_tracks(damped):
     from scipy.integrate import solve_ivp
 
     model = numeric_model(damped)
-    sol = solve_ivp(lambda tt, s: model.evaluate(tt, s).derivative, (0, 4), model.initial_state(),
-                    method="DOP853", rtol=1e-10, atol=1e-12, dense_output=True)
+    sol = solve_ivp(
+        lambda tt, s: model.evaluate(tt, s).derivative,
+        (0, 4),
+        model.initial_state(),
+        method="DOP853",
+        rtol=1e-10,
+        atol=1e-12,
+        dense_output=True,
+    )
     assert sol.success
     tt = np.linspace(0, 4, 41)
     err = np.max(np.abs(sol.sol(tt)[1] - 0.1 * np.sin(tt)))

@@ -12,11 +12,10 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import appell
-from appell import ModelError, simulate
+from appell import ModelError, numeric_model, simulate
+from appell.examples import catalog
 from appell.numerics.crosscheck import augmented_solve
 from appell.numerics.dynamics import Dynamics
-from appell.examples import catalog
-from appell import numeric_model
 
 
 @pytest.fixture(scope="module")
@@ -27,8 +26,7 @@ def pendulum():
 def test_pendulum_tension_over_20_seconds(pendulum):
     """Cartesian pendulum released at rest at theta0 = 60 deg: energy conservation and the
     radial equation give the rod tension m g (3 cos theta - 2 cos theta0)."""
-    sol = simulate(pendulum, 20.0, t_eval=np.linspace(0.0, 20.0, 1001), rtol=1e-11, atol=1e-12,
-                   projection_tol=1e-11)
+    sol = simulate(pendulum, 20.0, t_eval=np.linspace(0.0, 20.0, 1001), rtol=1e-11, atol=1e-12, projection_tol=1e-11)
     assert sol.status == 0 and sol.t[-1] == 20.0
     m, g, L = 1.0, 9.81, 1.0
     cos_theta = -sol.states["y"] / L
@@ -157,8 +155,16 @@ class ProtocolOnly:
 
     def __init__(self, model):
         self._m = model
-        for k in ("name", "state_names", "coordinate_names", "speed_names", "constraint_names",
-                  "control_names", "parameter_names", "default_parameters"):
+        for k in (
+            "name",
+            "state_names",
+            "coordinate_names",
+            "speed_names",
+            "constraint_names",
+            "control_names",
+            "parameter_names",
+            "default_parameters",
+        ):
             setattr(self, k, getattr(model, k))
 
     def params(self, p=None):
@@ -187,8 +193,7 @@ def test_any_dynamics_is_integrated(pendulum):
 def test_inconsistent_initial_values_are_refused(pendulum):
     with pytest.raises(ModelError, match="rod"):
         simulate(pendulum, 1.0, initial={"x": 0.5, "y": -0.5, "x_dot": 0.0, "y_dot": 0.0})
-    sol = simulate(pendulum, 0.5, initial={"x": 0.6, "x_dot": 0.0, "y_dot": 0.0}, complete=True,
-                   t_eval=[0.0, 0.5])
+    sol = simulate(pendulum, 0.5, initial={"x": 0.6, "x_dot": 0.0, "y_dot": 0.0}, complete=True, t_eval=[0.0, 0.5])
     # Newton on x^2 + y^2 = L^2 converges quadratically: rounding only (measured exact)
     assert sol.states["y"][0] == pytest.approx(-0.8, rel=1e-14)
 

@@ -31,10 +31,10 @@ from click.testing import CliRunner
 from scipy.integrate import quad, solve_ivp
 
 import appell
+from appell import numeric_model
 from appell.examples import example_path
 from appell.io.cli import cli
 from appell.simulation.singular import SINGULAR_LEVEL
-from appell import numeric_model
 
 G = 9.81
 
@@ -66,11 +66,12 @@ def parallelogram_text() -> str:
     import re
 
     text = example_path("four_bar").read_text()
-    crank = 'mass = 1.0\ninertia = [0, 0, 0.020833333333333332]\ncom = [0.25, 0, 0]'
-    text = text.replace('mass = 1.0\ninertia = [0, 0, 0.013333333333333336]\ncom = [0.2, 0, 0]', crank)
-    text = text.replace('mass = 1.5\ninertia = [0, 0, 0.08000000000000002]\ncom = [0.4, 0, 0]', crank)
-    text = text.replace("origin = [0.4, 0, 0]", "origin = [0.5, 0, 0]").replace("point_b = [0.8, 0, 0]",
-                                                                              "point_b = [0.5, 0, 0]")
+    crank = "mass = 1.0\ninertia = [0, 0, 0.020833333333333332]\ncom = [0.25, 0, 0]"
+    text = text.replace("mass = 1.0\ninertia = [0, 0, 0.013333333333333336]\ncom = [0.2, 0, 0]", crank)
+    text = text.replace("mass = 1.5\ninertia = [0, 0, 0.08000000000000002]\ncom = [0.4, 0, 0]", crank)
+    text = text.replace("origin = [0.4, 0, 0]", "origin = [0.5, 0, 0]").replace(
+        "point_b = [0.8, 0, 0]", "point_b = [0.5, 0, 0]"
+    )
     start = '[initial]\nA = 1.0\nB = -1.0\nD = 1.0\n"A\'" = 2.0\n"B\'" = -2.0\n"D\'" = 2.0\n\n[simulation]'
     text = re.sub(r"\[initial\].*?\[simulation\]", start, text, flags=re.S).replace("t_end = 3.0", "t_end = 2.0")
     assert text.count("0.020833333333333332") == 2 and "point_b = [0.5, 0, 0]" in text
@@ -90,8 +91,16 @@ def _branch(t_eval=None):
     def flat(t, y):
         return np.sin(y[0])
 
-    return solve_ivp(lambda t, y: [y[1], -torque * np.cos(y[0]) / inertia], (0, 2), [1.0, 2.0], events=flat,
-                     t_eval=t_eval, rtol=1e-13, atol=1e-13, method="DOP853")
+    return solve_ivp(
+        lambda t, y: [y[1], -torque * np.cos(y[0]) / inertia],
+        (0, 2),
+        [1.0, 2.0],
+        events=flat,
+        t_eval=t_eval,
+        rtol=1e-13,
+        atol=1e-13,
+        method="DOP853",
+    )
 
 
 def change_point_time() -> float:
@@ -111,7 +120,9 @@ def models(tmp_path_factory):
     folder = tmp_path_factory.mktemp("singular")
     (folder / "cusp.toml").write_text(CUSP)
     (folder / "parallelogram.toml").write_text(parallelogram_text())
-    derivations = {name: appell.derive(appell.load_model(folder / f"{name}.toml")) for name in ("cusp", "parallelogram")}
+    derivations = {
+        name: appell.derive(appell.load_model(folder / f"{name}.toml")) for name in ("cusp", "parallelogram")
+    }
     return folder, derivations
 
 
@@ -176,8 +187,9 @@ def test_the_command_line_refuses_with_the_time_and_keeps_the_motion_up_to_it(mo
         result = CliRunner().invoke(cli, ["simulate", str(folder / "cusp.toml"), "--out", str(out)])
         assert result.exit_code == 1
         lines = result.stderr.strip().splitlines()
-        assert lines[0].startswith("error: the simulation of 'cusp' failed: the motion reaches a singular "
-                                   "configuration at t = ")
+        assert lines[0].startswith(
+            "error: the simulation of 'cusp' failed: the motion reaches a singular configuration at t = "
+        )
         assert "cusp" in lines[0] and "cannot be passed" in lines[0] and "--t-end below" in lines[1]
         assert f"is in {tmp_path / (out.stem + '.failed' + out.suffix)}" in lines[1]
         assert not out.exists()
@@ -219,11 +231,15 @@ def test_a_kinetic_energy_that_degenerates_mid_run_is_named_where_the_integrator
     th' = sqrt(2 g L (cos th - cos th0)) / (L |cos th + sin th|), unbounded there, reached at
     t* = int_{-pi/4}^{pi/3} L |cos th + sin th| / sqrt(2 g L (cos th - cos th0)) dth
     (quadrature). The run fails there and says why, naming the speeds x_dot - y_dot."""
-    text = example_path("pendulum").read_text().replace('kinetic_energy = "m/2*(x\'^2 + y\'^2)"',
-                                                        'kinetic_energy = "m/2*(x\' + y\')^2"')
+    text = (
+        example_path("pendulum")
+        .read_text()
+        .replace("kinetic_energy = \"m/2*(x'^2 + y'^2)\"", "kinetic_energy = \"m/2*(x' + y')^2\"")
+    )
     assert "(x' + y')^2" in text
-    t_star, _ = quad(lambda th: abs(np.cos(th) + np.sin(th)) / np.sqrt(2 * G * (np.cos(th) - 0.5)),
-                     -np.pi / 4, np.pi / 3, limit=200)
+    t_star, _ = quad(
+        lambda th: abs(np.cos(th) + np.sin(th)) / np.sqrt(2 * G * (np.cos(th) - 0.5)), -np.pi / 4, np.pi / 3, limit=200
+    )
     derivation = appell.derive(appell.loads_model(text))
     for model in (derivation, numeric_model(derivation, "c")):
         sol = appell.simulate(model, 2.0)

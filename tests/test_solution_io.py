@@ -11,8 +11,8 @@ import pytest
 import appell
 from appell import Solution, simulate
 from appell.examples import catalog
-from appell.simulation.solution import EventRecord, ModelMetadata, SolverStatistics
 from appell.io.results import write_csv, write_hdf5
+from appell.simulation.solution import EventRecord, ModelMetadata, SolverStatistics
 
 
 @pytest.fixture(scope="module")
@@ -26,14 +26,27 @@ def synthetic():
     t = np.array([0.0, 0.5, 1.0])
     nan = np.full(3, np.nan)
     return Solution(
-        t=t, states={"q": t**2, "q_dot": 2 * t}, coordinate_names=("q",), speed_names=("q_dot",),
-        multipliers={"hol": t + 1, "first": t + 2, "second": t + 3}, controls={"u": -t},
+        t=t,
+        states={"q": t**2, "q_dot": 2 * t},
+        coordinate_names=("q",),
+        speed_names=("q_dot",),
+        multipliers={"hol": t + 1, "first": t + 2, "second": t + 3},
+        controls={"u": -t},
         position_residuals={"hol": t * 1e-12, "first": nan, "second": nan},
         velocity_residuals={"hol": t * 2e-12, "first": t * 3e-12, "second": nan},
-        status=0, message="reached the final time", statistics=SolverStatistics(10, 2, 1, 0, 1),
-        events=(EventRecord("user", "e", 0.25, "test"),), log=("t = 0.25: user e",),
-        metadata=ModelMetadata("toy", (("m", 2.0, "kg", "mass"),), ("hol", "first", "second"),
-                               ("holonomic", "first-order", "second-order"), "0.1.0", {"method": "DOP853"}),
+        status=0,
+        message="reached the final time",
+        statistics=SolverStatistics(10, 2, 1, 0, 1),
+        events=(EventRecord("user", "e", 0.25, "test"),),
+        log=("t = 0.25: user e",),
+        metadata=ModelMetadata(
+            "toy",
+            (("m", 2.0, "kg", "mass"),),
+            ("hol", "first", "second"),
+            ("holonomic", "first-order", "second-order"),
+            "0.1.0",
+            {"method": "DOP853"},
+        ),
     )
 
 
@@ -41,8 +54,22 @@ def test_csv_columns_in_the_documented_order(car_solution, tmp_path):
     path = write_csv(car_solution, tmp_path / "car.csv")
     with open(path, newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["t", "x", "y", "phi", "x_dot", "y_dot", "phi_dot", "x_ddot", "y_ddot", "phi_ddot",
-                       "lambda_rear", "lambda_front", "residual_rear", "residual_front"]
+    assert rows[0] == [
+        "t",
+        "x",
+        "y",
+        "phi",
+        "x_dot",
+        "y_dot",
+        "phi_dot",
+        "x_ddot",
+        "y_ddot",
+        "phi_ddot",
+        "lambda_rear",
+        "lambda_front",
+        "residual_rear",
+        "residual_front",
+    ]
     data = np.array(rows[1:], dtype=float)
     assert data.shape == (21, 14)
     assert np.array_equal(data[:, 0], car_solution.t)  # repr round-trips exactly
@@ -56,8 +83,18 @@ def test_csv_controls_and_second_order_residual(tmp_path):
     sol = synthetic()
     with open(write_csv(sol, tmp_path / "toy.csv"), newline="") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["t", "q", "q_dot", "lambda_hol", "lambda_first", "lambda_second", "control_u",
-                       "residual_hol", "residual_first", "residual_second"]
+    assert rows[0] == [
+        "t",
+        "q",
+        "q_dot",
+        "lambda_hol",
+        "lambda_first",
+        "lambda_second",
+        "control_u",
+        "residual_hol",
+        "residual_first",
+        "residual_second",
+    ]
     assert rows[2][6] == repr(-0.5)
     assert float(rows[3][7]) == 1e-12  # holonomic: position residual F
     assert float(rows[3][8]) == 3e-12  # first order: velocity residual phi

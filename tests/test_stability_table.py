@@ -76,12 +76,15 @@ def test_the_command_line_and_the_report_use_it(tmp_path):
     assert f"{CRITICAL:.12g}" in page
 
 
-@pytest.mark.parametrize("table, culprit", [
-    ('vary = "omega=1:5:9"', "'omega' is not a parameter, coordinate or speed"),
-    ('vary = "Omega=5:1:9"', "increasing"),
-    ('vary = "Omega=1:5:9"\nfree = ["y"]', "'y' is not a coordinate or speed"),
-    ('vary = "Omega=1:5:9"\nstep = 2', "unknown key 'step'"),
-])
+@pytest.mark.parametrize(
+    "table, culprit",
+    [
+        ('vary = "omega=1:5:9"', "'omega' is not a parameter, coordinate or speed"),
+        ('vary = "Omega=5:1:9"', "increasing"),
+        ('vary = "Omega=1:5:9"\nfree = ["y"]', "'y' is not a coordinate or speed"),
+        ('vary = "Omega=1:5:9"\nstep = 2', "unknown key 'step'"),
+    ],
+)
 def test_a_bad_table_is_refused_at_its_line(table, culprit):
     text = HOOP.replace('vary = "Omega=1:5:9"', table)
     with pytest.raises(ModelError, match=culprit) as info:

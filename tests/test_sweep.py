@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+
 from appell import numeric_model
 
 pytest.importorskip("dask.distributed")
@@ -14,8 +15,8 @@ pytest.importorskip("appell.simulation.simulate")
 
 import appell  # noqa: E402
 from appell.examples.catalog import CATALOG  # noqa: E402
-from appell.simulation.sweep import parameter_grid, parse_spec, sweep  # noqa: E402
 from appell.io.results import write_netcdf
+from appell.simulation.sweep import parameter_grid, parse_spec, sweep  # noqa: E402
 
 
 def test_specs():
@@ -35,8 +36,17 @@ def test_tiny_sweep(tmp_path):
     m g (3 cos th - 2 cos 60 deg) (catalog.pendulum), 2 m g at the bottom, so the largest is
     at the largest m and g; runs with m = 0 (singular mass matrix) fail and are recorded."""
     out = tmp_path / "sweep.h5"
-    res = sweep(CATALOG["pendulum"](), ["m=0:2:3", "g=5,9.81"], 1.2, output=out, samples=61,
-                n_workers=2, processes=False, backend="numpy", progress=False)
+    res = sweep(
+        CATALOG["pendulum"](),
+        ["m=0:2:3", "g=5,9.81"],
+        1.2,
+        output=out,
+        samples=61,
+        n_workers=2,
+        processes=False,
+        backend="numpy",
+        progress=False,
+    )
     assert out.exists() and (tmp_path / "sweep.h5.summary.json").exists()
     assert len(res.runs) == 6
     statuses = {tuple(r.parameters.values()): r.status for r in res.runs}
@@ -66,8 +76,17 @@ def test_a_sweep_leaves_no_default_dask_client_behind(tmp_path):
     default ('Requested dask.distributed scheduler but no Client active' before)."""
     import dask
 
-    sweep(CATALOG["pendulum"](), ["m=1,2"], 0.2, output=tmp_path / "s.h5", samples=11,
-          n_workers=1, processes=False, backend="numpy", progress=False)
+    sweep(
+        CATALOG["pendulum"](),
+        ["m=1,2"],
+        0.2,
+        output=tmp_path / "s.h5",
+        samples=11,
+        n_workers=1,
+        processes=False,
+        backend="numpy",
+        progress=False,
+    )
     assert dask.config.get("scheduler", None) != "dask.distributed"
     sol = appell.simulate(appell.derive(CATALOG["pendulum"]()), 0.1, t_eval=[0.0, 0.1], progress=False)
     write_netcdf(sol, tmp_path / "after.nc")
@@ -94,7 +113,12 @@ def test_chunks_hold_every_run_once_in_order_and_end_with_single_runs():
             assert all(a >= b for a, b in zip(sizes, sizes[1:])) and all(sizes)
             if runs:
                 assert sizes[-1] == 1 and len(tasks) >= min(runs, slots)
-    assert [len(t) for t in chunks(list(range(64)), 2)][:4] == [8, 7, 7, 6]  # ceil(64/8), ceil(56/8), ceil(49/8), ceil(42/8)
+    assert [len(t) for t in chunks(list(range(64)), 2)][:4] == [
+        8,
+        7,
+        7,
+        6,
+    ]  # ceil(64/8), ceil(56/8), ceil(49/8), ceil(42/8)
 
 
 def _car():
@@ -131,8 +155,17 @@ def test_real_dask_processes_lose_a_busy_worker_and_every_run_is_recorded_once(d
 
     def run():
         try:
-            box["result"] = sweep(derivation, specs, t_end, t_eval=t_eval, output=out, backend="c",
-                                  scheduler=dask_processes.address, progress=False, **opts)
+            box["result"] = sweep(
+                derivation,
+                specs,
+                t_end,
+                t_eval=t_eval,
+                output=out,
+                backend="c",
+                scheduler=dask_processes.address,
+                progress=False,
+                **opts,
+            )
         except BaseException as exc:  # noqa: BLE001 (reported by the main thread)
             box["error"] = exc
 
@@ -196,15 +229,16 @@ def test_a_kept_cluster_builds_each_model_once_per_worker_and_ships_numpy_models
     grid_specs = ["F=700,900", "M=1100,1300"]
     with sweep_cluster(scheduler=dask_processes.address) as client:
         pids = client.run(os.getpid)
-        first = sweep(derivation, grid_specs, t_end, output=tmp_path / "a.h5", backend="c", client=client,
-                      progress=False, **opts)
+        first = sweep(
+            derivation, grid_specs, t_end, output=tmp_path / "a.h5", backend="c", client=client, progress=False, **opts
+        )
         after_first = _built_models(client)
-        sweep(derivation, grid_specs, t_end, output=tmp_path / "b.h5", backend="c", client=client,
-              progress=False, **opts)
+        sweep(
+            derivation, grid_specs, t_end, output=tmp_path / "b.h5", backend="c", client=client, progress=False, **opts
+        )
         assert _built_models(client) == after_first and len(next(iter(after_first.values()))) == 1
         numpy_model = numeric_model(derivation)
-        third = sweep(numpy_model, grid_specs, t_end, output=tmp_path / "c.h5", client=client, progress=False,
-                      **opts)
+        third = sweep(numpy_model, grid_specs, t_end, output=tmp_path / "c.h5", client=client, progress=False, **opts)
         assert len(next(iter(_built_models(client).values()))) == 2
         assert client.run(os.getpid) == pids
         _derivations_pickle_after_numeric_use_and_run_on_the_worker(client, derivation)
@@ -223,8 +257,15 @@ def test_a_kept_cluster_builds_each_model_once_per_worker_and_ships_numpy_models
 
 def test_sweep_refuses_a_client_together_with_a_scheduler(tmp_path):
     with pytest.raises(appell.ModelError, match="not both"):
-        sweep(CATALOG["pendulum"](), ["m=1"], 0.1, client=object(), scheduler="tcp://127.0.0.1:8786",
-              output=tmp_path / "s.h5", progress=False)
+        sweep(
+            CATALOG["pendulum"](),
+            ["m=1"],
+            0.1,
+            client=object(),
+            scheduler="tcp://127.0.0.1:8786",
+            output=tmp_path / "s.h5",
+            progress=False,
+        )
     with pytest.raises(appell.ModelError, match="Client"):
         sweep(CATALOG["pendulum"](), ["m=1"], 0.1, client=object(), output=tmp_path / "s.h5", progress=False)
 
@@ -245,15 +286,37 @@ def test_appell_cluster_serves_sweeps_until_ctrl_c(tmp_path):
 
     dask_cli()  # skipped without distributed
     log = open(tmp_path / "cluster.log", "w")  # Dask's log: a pipe left unread could fill and stall it
-    proc = subprocess.Popen([sys.executable, "-m", "appell.io.cli", "cluster", "--workers", "1", "--port", "0"],
-                            stdout=subprocess.PIPE, stderr=log, text=True, env=env_with_src())
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "appell.io.cli", "cluster", "--workers", "1", "--port", "0"],
+        stdout=subprocess.PIPE,
+        stderr=log,
+        text=True,
+        env=env_with_src(),
+    )
     try:
         line = proc.stdout.readline()
         found = re.search(r"Dask scheduler at (\S+) with 1 worker", line)
         assert found, (line, proc.poll())
         out = tmp_path / "s.h5"
-        result = CliRunner().invoke(cli, ["sweep", "pendulum", "--param", "m=1,2", "--t-end", "1.2", "--samples", "61",
-                                          "--backend", "numpy", "--scheduler", found.group(1), "--out", str(out)])
+        result = CliRunner().invoke(
+            cli,
+            [
+                "sweep",
+                "pendulum",
+                "--param",
+                "m=1,2",
+                "--t-end",
+                "1.2",
+                "--samples",
+                "61",
+                "--backend",
+                "numpy",
+                "--scheduler",
+                found.group(1),
+                "--out",
+                str(out),
+            ],
+        )
         assert result.exit_code == 0, result.output
         summary = json.loads(out.with_name("s.h5.summary.json").read_text())
         # the largest sample, 1.8 ms from the bottom at t = K(1/4)/sqrt(g/L) = 0.538 s, is
@@ -268,7 +331,6 @@ def test_appell_cluster_serves_sweeps_until_ctrl_c(tmp_path):
             proc.kill()
             proc.communicate()
         log.close()
-
 
 
 def _derivations_pickle_after_numeric_use_and_run_on_the_worker(client, car):

@@ -32,13 +32,12 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
-from appell import ModelError, derive, loads_model
+from appell import ModelError, derive, loads_model, numeric_model
 from appell.core import simplification as S
 from appell.core.kinematics import derivative
 from appell.examples import example_path
 from appell.io.cli import cli
 from appell.io.printing import read_json
-from appell import numeric_model
 
 #: seconds a command may run before the guard stops the test (a hang guard, not a benchmark)
 GUARD = 60
@@ -116,28 +115,40 @@ def chain(depth):
             d *= math.exp(v) if n == "exp" else math.cos(v)
             v = math.exp(v) if n == "exp" else math.sin(v)
         return v, d
+
     return text, closed
 
 
 def power(n):
-    return (f"(sin(x) + cos(x) + 1)^{n}",
-            lambda x: n * (math.sin(x) + math.cos(x) + 1) ** (n - 1) * (math.cos(x) - math.sin(x)))
+    return (
+        f"(sin(x) + cos(x) + 1)^{n}",
+        lambda x: n * (math.sin(x) + math.cos(x) + 1) ** (n - 1) * (math.cos(x) - math.sin(x)),
+    )
 
 
 def product(k):
     factors = [f"(x + {i})" for i in range(1, k + 1)]
-    return "*".join(factors), lambda x: math.prod(x + i for i in range(1, k + 1)) * sum(1 / (x + i)
-                                                                                        for i in range(1, k + 1))
+    return "*".join(
+        factors
+    ), lambda x: math.prod(x + i for i in range(1, k + 1)) * sum(1 / (x + i) for i in range(1, k + 1))
 
 
-@pytest.mark.parametrize("potential, gradient", [
-    power(9), power(30), power(100), (chain(30)[0], lambda x: chain(30)[1](x)[1]), product(40),
-], ids=["power9", "power30", "power100", "chain30", "product40"])
+@pytest.mark.parametrize(
+    "potential, gradient",
+    [
+        power(9),
+        power(30),
+        power(100),
+        (chain(30)[0], lambda x: chain(30)[1](x)[1]),
+        product(40),
+    ],
+    ids=["power9", "power30", "power100", "chain30", "product40"],
+)
 def test_a_swelling_potential_derives_to_m_x_ddot_equal_minus_its_gradient(tmp_path, potential, gradient):
     doc = derived_json(tmp_path, PARTICLE.format(T="m/2*x'^2", V=potential))
     x = 0.3
-    mass, = doc["reduced_mass_matrix"][0]
-    force, = doc["reduced_forcing"]
+    (mass,) = doc["reduced_mass_matrix"][0]
+    (force,) = doc["reduced_forcing"]
     expected = -gradient(x)
     assert value(mass, x=x, m=2.0) == pytest.approx(2.0, rel=1e-12)
     # the formula evaluated in double precision against the chain rule in double precision:
@@ -148,17 +159,21 @@ def test_a_swelling_potential_derives_to_m_x_ddot_equal_minus_its_gradient(tmp_p
 def test_a_kinetic_energy_with_a_large_power_derives_to_its_closed_form(tmp_path):
     doc = derived_json(tmp_path, PARTICLE.format(T="m/2*(1 + x^2)^30*x'^2", V="0"))
     x, w = 0.3, 0.7
-    mass, = doc["reduced_mass_matrix"][0]
-    force, = doc["reduced_forcing"]
+    (mass,) = doc["reduced_mass_matrix"][0]
+    (force,) = doc["reduced_forcing"]
     acc = value(force, x=x, x_dot=w, m=2.0) / value(mass, x=x, m=2.0)
     assert acc == pytest.approx(-30 * x / (1 + x * x) * w * w, rel=1e-10)
 
 
-@pytest.mark.parametrize("factor, phi", [
-    ("(sin(x) + cos(y) + 1)^50", lambda x, y: (math.sin(x) + math.cos(y) + 1) ** 50),
-    (chain(40)[0], lambda x, y: chain(40)[1](x)[0]),
-    (product(10)[0], lambda x, y: math.prod(x + i for i in range(1, 11))),
-], ids=["power50", "chain40", "product10"])
+@pytest.mark.parametrize(
+    "factor, phi",
+    [
+        ("(sin(x) + cos(y) + 1)^50", lambda x, y: (math.sin(x) + math.cos(y) + 1) ** 50),
+        (chain(40)[0], lambda x, y: chain(40)[1](x)[0]),
+        (product(10)[0], lambda x, y: math.prod(x + i for i in range(1, 11))),
+    ],
+    ids=["power50", "chain40", "product10"],
+)
 def test_a_swelling_constraint_keeps_the_motion_and_divides_the_reaction(tmp_path, factor, phi):
     """The pendulum's rod F = 0 written as F phi = 0: at the release the accelerations are
     the pendulum's and lambda is the tension divided by phi (module docstring)."""
@@ -175,12 +190,18 @@ def test_a_swelling_constraint_keeps_the_motion_and_divides_the_reaction(tmp_pat
     assert np.allclose(sol.accelerations, [ax, ay], rtol=1e-9, atol=1e-12)
 
 
-@pytest.mark.parametrize("where, text, name", [
-    ("constraint", PENDULUM.replace(ROD, f'expr = "(L^2 - x^2 - y^2)/(2*L)*{product(150)[0]}"'),
-     "holonomic constraint 'rod'"),
-    ("potential", PARTICLE.format(T="m/2*x'^2", V=product(400)[0]), "potential_energy"),
-    ("kinetic", PARTICLE.format(T=f"m/2*x'^2*{product(300)[0]}", V="0"), "kinetic_energy"),
-])
+@pytest.mark.parametrize(
+    "where, text, name",
+    [
+        (
+            "constraint",
+            PENDULUM.replace(ROD, f'expr = "(L^2 - x^2 - y^2)/(2*L)*{product(150)[0]}"'),
+            "holonomic constraint 'rod'",
+        ),
+        ("potential", PARTICLE.format(T="m/2*x'^2", V=product(400)[0]), "potential_energy"),
+        ("kinetic", PARTICLE.format(T=f"m/2*x'^2*{product(300)[0]}", V="0"), "kinetic_energy"),
+    ],
+)
 def test_a_derivative_beyond_the_bound_is_refused_naming_the_expression(tmp_path, where, text, name):
     for command in ("derive", "check"):
         result = run(tmp_path, text, command)
@@ -249,8 +270,9 @@ def test_determinant_and_adjugate_over_the_bound_keep_their_value():
     point = {x: 0.3, y: -0.4, z: 0.7}
     Mn = np.array(M.xreplace(point).evalf(), dtype=float)
     assert float(det.xreplace(point)) == pytest.approx(np.linalg.det(Mn), rel=1e-12)
-    assert np.allclose(np.array(adj.xreplace(point).evalf(), dtype=float), np.linalg.det(Mn) * np.linalg.inv(Mn),
-                       rtol=1e-12)
+    assert np.allclose(
+        np.array(adj.xreplace(point).evalf(), dtype=float), np.linalg.det(Mn) * np.linalg.inv(Mn), rtol=1e-12
+    )
     small = sp.Matrix([[x, y], [z, x * y]])
     assert S.determinant(small) == small.det(method="bareiss")
 
@@ -261,8 +283,8 @@ def test_the_derivative_estimate_bounds_the_derivative():
         sp.Mul(*[x + i for i in range(1, 12)]),
         (sp.sin(x) + sp.cos(y) + 1) ** 20 * (x - y),
         sp.exp(sp.sin(sp.exp(sp.sin(x * y)))),
-        sp.atan(x / y) + sp.sqrt(1 - x ** 2) * sp.asin(x) + sp.log(x ** 2 + y ** 2) * sp.tan(z * x),
-        sp.Abs(x * y + sp.sin(z)) * sp.sign(x) + sp.Max(x, y ** 2),
+        sp.atan(x / y) + sp.sqrt(1 - x**2) * sp.asin(x) + sp.log(x**2 + y**2) * sp.tan(z * x),
+        sp.Abs(x * y + sp.sin(z)) * sp.sign(x) + sp.Max(x, y**2),
     ]
     for e in cases:
         actual = sum(S.tree_size(derivative(e, s)) + 2 for s in (x, y, z) if derivative(e, s) != 0)

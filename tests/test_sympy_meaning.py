@@ -57,15 +57,21 @@ def rolling_disc(fixed_point_at_contact: bool):
     return system
 
 
-STATES = [np.array([0.3, 0.4, 0.1, 0.5, -1.0, 0.7]), np.array([-1.1, 0.0, 2.0, -0.3, 2.5, 0.4]),
-          np.array([0.7, -0.9, -0.4, 1.2, 0.3, -0.8])]
+STATES = [
+    np.array([0.3, 0.4, 0.1, 0.5, -1.0, 0.7]),
+    np.array([-1.1, 0.0, 2.0, -0.3, 2.5, 0.4]),
+    np.array([0.7, -0.9, -0.4, 1.2, 0.3, -0.8]),
+]
 
 
 def test_disc_set_by_v2pt_theory_from_a_contact_point_is_refused_naming_the_point():
     """System(N, C): the centre's position from C differentiates to a velocity other than the
     one set (C is no material point at rest): refused, naming Dmc and both velocities."""
-    with pytest.raises(ModelError, match=r"point Dmc: the velocity set in SymPy, \[.*u2.*\], is not the time "
-                                         r"derivative of its position from the fixed point C"):
+    with pytest.raises(
+        ModelError,
+        match=r"point Dmc: the velocity set in SymPy, \[.*u2.*\], is not the time "
+        r"derivative of its position from the fixed point C",
+    ):
         from_sympy(rolling_disc(True), parameters=DISC)
 
 
@@ -104,8 +110,11 @@ def test_linearise_the_upright_rolling_disc_matches_sympy_linearize():
     eigenvalues are those of SymPy's KanesMethod.linearize on the same object (the lean
     mode's pair, 1e-10)."""
     system = rolling_disc(False)
-    lin = linearise(derive(from_sympy(system, parameters=DISC)),
-                    at={"q1": 0, "q2": 0, "q3": 0, "u1": 0, "u2": 3.0, "u3": 0}, ignore="cyclic")
+    lin = linearise(
+        derive(from_sympy(system, parameters=DISC)),
+        at={"q1": 0, "q2": 0, "q3": 0, "u1": 0, "u2": 3.0, "u3": 0},
+        ignore="cyclic",
+    )
     system.form_eoms()
     q, u = list(system.q), list(system.u)
     op = {**dict(zip(q + u, [0, 0, 0, 0, 3.0, 0])), **{x.diff(): 0 for x in u}}
@@ -156,15 +165,19 @@ def test_consistent_set_velocities_keep_the_positions_and_match_sympy():
 
 def test_a_wrong_set_velocity_is_refused_naming_the_point_and_both_velocities():
     system, values = particle_on_cart("wrong")
-    with pytest.raises(ModelError, match=r"point bob: the velocity set in SymPy, \[l\*uq \+ ux, 0, 0\], is not the "
-                                         r"time derivative of its position .*\[.*l\*uq\*cos\(q\).*\]"):
+    with pytest.raises(
+        ModelError,
+        match=r"point bob: the velocity set in SymPy, \[l\*uq \+ ux, 0, 0\], is not the "
+        r"time derivative of its position .*\[.*l\*uq\*cos\(q\).*\]",
+    ):
         from_sympy(system, parameters=values)
     # taken as set, appell's equations are SymPy's (which uses the set velocity)
     numeric = numeric_model(derive(from_sympy(system, parameters=values, positions="ignore")))
     system.form_eoms()
     state = [0.2, 0.5, -0.3, 1.1]
-    np.testing.assert_allclose(numeric.solve(0.0, state[:2], state[2:]).accelerations,
-                               sympy_accelerations(system, values, state), atol=1e-12)
+    np.testing.assert_allclose(
+        numeric.solve(0.0, state[:2], state[2:]).accelerations, sympy_accelerations(system, values, state), atol=1e-12
+    )
 
 
 def test_an_angular_velocity_that_contradicts_the_orientation_is_refused_naming_the_frame():
@@ -179,8 +192,11 @@ def test_an_angular_velocity_that_contradicts_the_orientation_is_refused_naming_
     system.add_speeds(u)
     system.add_kdes(q.diff() - u)
     system.add_bodies(me.RigidBody("wheel", O, A, m, (me.inertia(A, 1, 1, 1), O)))
-    with pytest.raises(ModelError, match=r"frame A: the angular velocity set in SymPy, \[0, 0, 2\*u\], is not the "
-                                         r"one of its orientation in N, \[0, 0, u\]"):
+    with pytest.raises(
+        ModelError,
+        match=r"frame A: the angular velocity set in SymPy, \[0, 0, 2\*u\], is not the "
+        r"one of its orientation in N, \[0, 0, u\]",
+    ):
         from_sympy(system, parameters={m: 1.0})
 
 
@@ -222,8 +238,9 @@ def test_a_frame_without_orientation_gets_its_cyclic_angle_and_matches_sympy():
     system.form_eoms()
     for q1, angle, u1, u2 in ([0.3, 0.0, 1.2, -4.0], [-1.0, 2.5, -0.6, 7.0]):
         sol = numeric.solve(0.0, [q1, angle], [u1, u2])
-        np.testing.assert_allclose(sol.accelerations, sympy_accelerations(system, values, [q1, u1, u2]),
-                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            sol.accelerations, sympy_accelerations(system, values, [q1, u1, u2]), rtol=0, atol=1e-12
+        )
 
 
 def test_a_frame_without_orientation_whose_angle_is_not_cyclic_is_refused_naming_it():
@@ -243,9 +260,16 @@ def test_kanes_method_object_imports_with_its_dependent_speeds():
     O.set_vel(N, 0)
     P = O.locatenew("P", x * N.x + y * N.y)
     P.set_vel(N, ux * N.x + uy * N.y)
-    kane = me.KanesMethod(N, q_ind=[x], u_ind=[ux], kd_eqs=[x.diff() - ux, y.diff() - uy], q_dependent=[y],
-                          configuration_constraints=[x**2 + y**2 - l**2], u_dependent=[uy],
-                          velocity_constraints=[x * ux + y * uy])
+    kane = me.KanesMethod(
+        N,
+        q_ind=[x],
+        u_ind=[ux],
+        kd_eqs=[x.diff() - ux, y.diff() - uy],
+        q_dependent=[y],
+        configuration_constraints=[x**2 + y**2 - l**2],
+        u_dependent=[uy],
+        velocity_constraints=[x * ux + y * uy],
+    )
     kane.kanes_equations([me.Particle("bob", P, m)], [(P, -m * g * N.y)])
     values = {m: 1.3, l: 0.8, g: 9.81}
     model = from_sympy(kane, parameters=values)
@@ -305,8 +329,9 @@ def test_pydy_system_objects():
     system.add_loads(me.Force(system.bodies[0].masscenter, force * system.frame.x))
     system.form_eoms()
     km = system.eom_method
-    sysobj = pydy_system.System(km, constants=values, specifieds={force: 2.5},
-                                initial_conditions={km.q[1]: 0.3, km.u[0]: -0.2})
+    sysobj = pydy_system.System(
+        km, constants=values, specifieds={force: 2.5}, initial_conditions={km.q[1]: 0.3, km.u[0]: -0.2}
+    )
     model = from_sympy(sysobj)
     assert dict(model.initial) == {"q": 0.3, "ux": -0.2}
     assert {p.symbol.name: p.value for p in model.parameters} == {"M": 3.0, "mb": 0.7, "l": 0.9, "g": 9.81, "F": 2.5}
@@ -335,10 +360,10 @@ def test_whipple_bicycle_of_sympys_test_kane3_matches_kanes_method():
     from sympy.physics.mechanics.tests import test_kane3
 
     source = inspect.getsource(test_kane3)
-    body = source[source.index("def test_bicycle():"):]
-    body = body[body.index("\n") + 1: body.index("    A, B, _ = KM.linearize(")]
+    body = source[source.index("def test_bicycle():") :]
+    body = body[body.index("\n") + 1 : body.index("    A, B, _ = KM.linearize(")]
     ns: dict = {}
-    exec(source[:source.index("@slow")] + textwrap.dedent(body), ns)  # noqa: S102 (SymPy's own test source)
+    exec(source[: source.index("@slow")] + textwrap.dedent(body), ns)  # noqa: S102 (SymPy's own test source)
     KM, val = ns["KM"], ns["val_dict"]
     params = {k: float(v) for k, v in val.items() if isinstance(k, sp.Symbol)}
     model = from_sympy(KM, parameters=params)
@@ -352,8 +377,10 @@ def test_whipple_bicycle_of_sympys_test_kane3_matches_kanes_method():
     velocity = (KM._k_nh * KM.u + KM._f_nh).xreplace(params).xreplace(qs).xreplace(us)
     us.update({k: float(v) for k, v in sp.solve(list(velocity), [dyn["u1"], dyn["u4"], dyn["u6"]]).items()})
     subs = {**qs, **us, **params}
-    theirs = np.linalg.solve(np.array(KM.mass_matrix.xreplace(subs).evalf(), float),
-                             np.array(KM.forcing.xreplace(subs).evalf(), float).ravel())
+    theirs = np.linalg.solve(
+        np.array(KM.mass_matrix.xreplace(subs).evalf(), float),
+        np.array(KM.forcing.xreplace(subs).evalf(), float).ravel(),
+    )
     named = {s.func.__name__: v for s, v in {**qs, **us}.items()} | {"WR_angle": 0.0, "WF_angle": 0.0}
     sol = numeric.solve(0.0, [named[s.name] for s in model.coordinates], [named[s.name] for s in model.speeds])
     ours = dict(zip([s.name for s in model.speeds], sol.accelerations))

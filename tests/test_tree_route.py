@@ -81,8 +81,9 @@ def test_accelerations_and_joint_wrenches_equal_pinocchio(robot):
             expected[names.index("panda_finger_joint1")] = -lam
             np.testing.assert_allclose(tau, expected[order], atol=1e-9)
         else:
-            np.testing.assert_allclose(pin.aba(model, data, q[order], w[order], np.zeros(model.nv)), a[order],
-                                       rtol=1e-10, atol=1e-10)
+            np.testing.assert_allclose(
+                pin.aba(model, data, q[order], w[order], np.zeros(model.nv)), a[order], rtol=1e-10, atol=1e-10
+            )
             np.testing.assert_allclose(tau, 0.0, atol=1e-9)
         pin.forwardKinematics(model, data, q[order])
         for jid in range(1, model.njoints):
@@ -171,7 +172,9 @@ def test_a_floating_humanoid_equals_the_mechanism_route():
         route = tree_route(path, floating_base=True)
         reference = TreeRoute(*importer_for(path).mechanism(path, True)[:1], path.stem)
     assert isinstance(route, NumericTreeRoute)
-    assert route.coordinate_names == reference.coordinate_names and set(route.output_names) == set(reference.output_names)
+    assert route.coordinate_names == reference.coordinate_names and set(route.output_names) == set(
+        reference.output_names
+    )
     rng = np.random.default_rng(38)
     for _ in range(3):
         q, w, tau = rng.uniform(-1, 1, route.n), rng.uniform(-2, 2, route.n), rng.uniform(-50, 50, route.n)
@@ -186,14 +189,16 @@ def test_a_floating_humanoid_equals_the_mechanism_route():
 def test_the_numeric_route_does_not_import_sympy():
     """A URDF's first numbers in a fresh process: SymPy is never imported (issue 46 §4)."""
     paths = [str(ARM)] + ([str(ROBOTS / FIXED["panda"])] if ROBOTS is not None else [])
-    code = ("import sys, warnings\nwarnings.simplefilter('ignore')\nimport numpy as np\n"
-            "from appell.numerics.tree_route import tree_route\n"
-            "for path in sys.argv[1:]:\n"
-            "    route = tree_route(path)\n"
-            "    a, out = route.forward(0.0, np.full(route.n, 0.3), np.full(route.n, 0.2))\n"
-            "    assert np.all(np.isfinite(a)) and out, path\n"
-            "    print(type(route).__name__)\n"
-            "print('sympy' in sys.modules)\n")
+    code = (
+        "import sys, warnings\nwarnings.simplefilter('ignore')\nimport numpy as np\n"
+        "from appell.numerics.tree_route import tree_route\n"
+        "for path in sys.argv[1:]:\n"
+        "    route = tree_route(path)\n"
+        "    a, out = route.forward(0.0, np.full(route.n, 0.3), np.full(route.n, 0.2))\n"
+        "    assert np.all(np.isfinite(a)) and out, path\n"
+        "    print(type(route).__name__)\n"
+        "print('sympy' in sys.modules)\n"
+    )
     done = subprocess.run([sys.executable, "-c", code, *paths], capture_output=True, text=True, check=True)
     assert done.stdout.split() == ["NumericTreeRoute"] * len(paths) + ["False"], done.stdout + done.stderr
 
@@ -208,8 +213,10 @@ def test_a_simulation_of_the_numeric_route_equals_the_compiled_one():
         warnings.simplefilter("ignore", AppellNote)
         compiled = appell.numeric_model(appell.derive_file(ARM), "c")
     y0 = np.concatenate(_state(route, 7))
-    runs = [appell.simulate(model, 0.5, initial=y0, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0, 0.5, 11))
-            for model in (route, compiled)]
+    runs = [
+        appell.simulate(model, 0.5, initial=y0, rtol=1e-10, atol=1e-12, t_eval=np.linspace(0, 0.5, 11))
+        for model in (route, compiled)
+    ]
     assert [run.status for run in runs] == [0, 0]
     for name in route.state_names:
         np.testing.assert_allclose(runs[0].states[name], runs[1].states[name], rtol=0, atol=1e-8, err_msg=name)

@@ -15,8 +15,10 @@ from appell.mechanism.urdf import parse_urdf, read_urdf
 
 EXAMPLE = Path(__file__).resolve().parent.parent / "src" / "appell" / "examples" / "arm.urdf"
 
-LINK = '<link name="{}"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>' \
-       '</inertial></link>'
+LINK = (
+    '<link name="{}"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>'
+    "</inertial></link>"
+)
 
 
 def _robot(body: str) -> str:
@@ -35,8 +37,10 @@ def test_billion_laughs_is_refused_before_any_expansion():
 def test_external_entity_cannot_read_another_file(tmp_path):
     """An external entity pointing at /etc/passwd is refused; the error quotes nothing of it."""
     path = tmp_path / "xxe.urdf"
-    path.write_text('<?xml version="1.0"?>\n<!DOCTYPE robot [<!ENTITY secret SYSTEM "file:///etc/passwd">]>\n'
-                    '<robot name="r"><link name="&secret;"/></robot>\n')
+    path.write_text(
+        '<?xml version="1.0"?>\n<!DOCTYPE robot [<!ENTITY secret SYSTEM "file:///etc/passwd">]>\n'
+        '<robot name="r"><link name="&secret;"/></robot>\n'
+    )
     with pytest.raises(ModelError, match="document type declaration") as err:
         read_urdf(path)
     assert err.value.where == f"{path}:2"
@@ -50,39 +54,61 @@ def test_undeclared_entity_is_an_xml_error_with_its_line():
 
 
 def test_missing_mass_names_link_file_and_line():
-    text = _robot('<link name="a">\n  <inertial>\n    <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>\n'
-                  '  </inertial>\n</link>')
+    text = _robot(
+        '<link name="a">\n  <inertial>\n    <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>\n'
+        "  </inertial>\n</link>"
+    )
     with pytest.raises(ModelError, match="link 'a': <inertial> has no <mass>") as err:
         parse_urdf(text, "m.urdf")
     assert err.value.where == "m.urdf:4"
 
 
-@pytest.mark.parametrize("attribute, message", [
-    ('xyz="0 0 1x"', "'1x' is not a number"),
-    ('xyz="0 0"', "must be 3 number"),
-    ('xyz="0 nan 0"', "'nan' is not a finite number"),
-])
+@pytest.mark.parametrize(
+    "attribute, message",
+    [
+        ('xyz="0 0 1x"', "'1x' is not a number"),
+        ('xyz="0 0"', "must be 3 number"),
+        ('xyz="0 nan 0"', "'nan' is not a finite number"),
+    ],
+)
 def test_malformed_numbers_are_reported_with_their_line(attribute, message):
-    text = _robot(LINK.format("a") + "\n" + LINK.format("b") + '\n<joint name="j" type="continuous">\n'
-                  '  <parent link="a"/><child link="b"/>\n'
-                  f'  <origin {attribute}/>\n</joint>')
+    text = _robot(
+        LINK.format("a") + "\n" + LINK.format("b") + '\n<joint name="j" type="continuous">\n'
+        '  <parent link="a"/><child link="b"/>\n'
+        f"  <origin {attribute}/>\n</joint>"
+    )
     with pytest.raises(ModelError, match=message) as err:
         parse_urdf(text, "n.urdf")
     assert err.value.where == "n.urdf:7"
 
 
-@pytest.mark.parametrize("body, message, line", [
-    (LINK.format("a") + "\n" + LINK.format("b") + '\n<joint name="j" type="screw"><parent link="a"/>'
-     '<child link="b"/></joint>', "type 'screw'", 5),
-    (LINK.format("a") + "\n" + LINK.format("b") + '\n<joint name="j" type="fixed"><parent link="a"/>'
-     '<child link="c"/></joint>', "names the link 'c'", 5),
-    (LINK.format("a") + "\n" + LINK.format("b"), "2 trees", 4),
-    (LINK.format("a") + "\n" + LINK.format("a"), "defined twice", 4),
-    ('<xacro:macro name="m"/>', "xacro macro", 3),
-    (LINK.format("a") + "\n" + LINK.format("b") + '\n<joint name="j" type="revolute"><parent link="a"/>'
-     '<child link="b"/></joint>', "has no <limit>", 5),
-    ('<link name="a"><inertial><mass value="-1"/></inertial></link>', "must be positive", 3),
-])
+@pytest.mark.parametrize(
+    "body, message, line",
+    [
+        (
+            LINK.format("a") + "\n" + LINK.format("b") + '\n<joint name="j" type="screw"><parent link="a"/>'
+            '<child link="b"/></joint>',
+            "type 'screw'",
+            5,
+        ),
+        (
+            LINK.format("a") + "\n" + LINK.format("b") + '\n<joint name="j" type="fixed"><parent link="a"/>'
+            '<child link="c"/></joint>',
+            "names the link 'c'",
+            5,
+        ),
+        (LINK.format("a") + "\n" + LINK.format("b"), "2 trees", 4),
+        (LINK.format("a") + "\n" + LINK.format("a"), "defined twice", 4),
+        ('<xacro:macro name="m"/>', "xacro macro", 3),
+        (
+            LINK.format("a") + "\n" + LINK.format("b") + '\n<joint name="j" type="revolute"><parent link="a"/>'
+            '<child link="b"/></joint>',
+            "has no <limit>",
+            5,
+        ),
+        ('<link name="a"><inertial><mass value="-1"/></inertial></link>', "must be positive", 3),
+    ],
+)
 def test_structural_errors_name_the_culprit(body, message, line):
     with pytest.raises(ModelError, match=message) as err:
         parse_urdf(_robot(body), "s.urdf")
@@ -90,9 +116,14 @@ def test_structural_errors_name_the_culprit(body, message, line):
 
 
 def test_loop_of_links_is_refused_with_a_hint_to_use_closures():
-    body = "\n".join(LINK.format(n) for n in "abc") + "\n" + "\n".join(
-        f'<joint name="{n}" type="continuous"><parent link="{p}"/><child link="{c}"/></joint>'
-        for n, p, c in (("j1", "a", "b"), ("j2", "b", "c"), ("j3", "c", "b")))
+    body = (
+        "\n".join(LINK.format(n) for n in "abc")
+        + "\n"
+        + "\n".join(
+            f'<joint name="{n}" type="continuous"><parent link="{p}"/><child link="{c}"/></joint>'
+            for n, p, c in (("j1", "a", "b"), ("j2", "b", "c"), ("j3", "c", "b"))
+        )
+    )
     with pytest.raises(ModelError, match="child of two joints") as err:
         parse_urdf(_robot(body), "loop.urdf")
     assert "closures" in err.value.hint
@@ -136,38 +167,47 @@ def test_arm_description_keeps_origins_axes_and_inertias():
 # Hostile or non-physical content: refused with the link or joint, the file and the line,
 # and what to do; never a traceback, never minutes of work.
 
+
 def _chain(*names: str, inner: dict | None = None) -> str:
     """A base and one link per joint: link ``l<k>`` on line ``4 + 2k``, joint ``names[k]``
     (continuous, about y, child ``l<k>``) on line ``5 + 2k``; ``inner`` adds elements to joints."""
     lines, parent = [LINK.format("base")], "base"
     for k, name in enumerate(names):
-        lines += [LINK.format(f"l{k}"), f'<joint name="{name}" type="continuous"><parent link="{parent}"/>'
-                                        f'<child link="l{k}"/><axis xyz="0 1 0"/>{(inner or {}).get(name, "")}</joint>']
+        lines += [
+            LINK.format(f"l{k}"),
+            f'<joint name="{name}" type="continuous"><parent link="{parent}"/>'
+            f'<child link="l{k}"/><axis xyz="0 1 0"/>{(inner or {}).get(name, "")}</joint>',
+        ]
         parent = f"l{k}"
     return _robot("\n".join(lines))
 
 
 def _arm(mass: str, inertia: str) -> str:
     """Link ``arm`` with ``<inertial>`` and ``<mass>`` on line 5 and ``<inertia>`` on line 6."""
-    return _robot(LINK.format("base") + '\n<link name="arm">\n  <inertial><mass value="' + mass + '"/>\n'
-                  f'  <inertia {inertia}/></inertial>\n</link>\n'
-                  '<joint name="j" type="continuous"><parent link="base"/><child link="arm"/></joint>')
+    return _robot(
+        LINK.format("base") + '\n<link name="arm">\n  <inertial><mass value="' + mass + '"/>\n'
+        f"  <inertia {inertia}/></inertial>\n</link>\n"
+        '<joint name="j" type="continuous"><parent link="base"/><child link="arm"/></joint>'
+    )
 
 
 def _inertia(xx, yy, zz, xy=0, xz=0, yz=0) -> str:
     return f'ixx="{xx}" ixy="{xy}" ixz="{xz}" iyy="{yy}" iyz="{yz}" izz="{zz}"'
 
 
-@pytest.mark.parametrize("mass, inertia, message, line", [
-    ("1", _inertia(1, 1, 1, xy=2), r"not positive semi-definite \(a principal moment is -1\)", 5),
-    ("1", _inertia(1, 1, 3), "principal moments 1, 1, 3 violate the triangle inequality", 5),
-    # the diagonal alone passes; the products of inertia make the principal moments 0.5, 0.5, 2
-    ("1", _inertia(1, 1, 1, 0.5, 0.5, 0.5), "principal moments 0.5, 0.5, 2 violate the triangle", 5),
-    ("-1", _inertia(1, 1, 1), "mass -1.0 must be positive", 5),
-    ("0", _inertia(1, 1, 1), "mass 0 with a non-zero inertia", 5),
-    ("inf", _inertia(1, 1, 1), "'inf' is not a finite number", 5),
-    ("1", _inertia(1, "nan", 1), "'nan' is not a finite number", 6),
-])
+@pytest.mark.parametrize(
+    "mass, inertia, message, line",
+    [
+        ("1", _inertia(1, 1, 1, xy=2), r"not positive semi-definite \(a principal moment is -1\)", 5),
+        ("1", _inertia(1, 1, 3), "principal moments 1, 1, 3 violate the triangle inequality", 5),
+        # the diagonal alone passes; the products of inertia make the principal moments 0.5, 0.5, 2
+        ("1", _inertia(1, 1, 1, 0.5, 0.5, 0.5), "principal moments 0.5, 0.5, 2 violate the triangle", 5),
+        ("-1", _inertia(1, 1, 1), "mass -1.0 must be positive", 5),
+        ("0", _inertia(1, 1, 1), "mass 0 with a non-zero inertia", 5),
+        ("inf", _inertia(1, 1, 1), "'inf' is not a finite number", 5),
+        ("1", _inertia(1, "nan", 1), "'nan' is not a finite number", 6),
+    ],
+)
 def test_non_physical_mass_or_inertia_names_the_link(mass, inertia, message, line):
     with pytest.raises(ModelError, match=message) as err:
         parse_urdf(_arm(mass, inertia), "i.urdf")
@@ -190,9 +230,11 @@ def test_mass_zero_and_inertia_zero_is_a_massless_frame():
     with nothing beyond it, it is refused as a massless link."""
     from appell.mechanism.urdf import urdf_system
 
-    frame = '<link name="tool"><inertial><mass value="0"/><inertia ' + _inertia(0, 0, 0) + '/></inertial></link>'
-    text = _chain("j").replace("\n</robot>", f'\n{frame}\n<joint name="tcp" type="fixed"><parent link="l0"/>'
-                                             '<child link="tool"/></joint>\n</robot>')
+    frame = '<link name="tool"><inertial><mass value="0"/><inertia ' + _inertia(0, 0, 0) + "/></inertial></link>"
+    text = _chain("j").replace(
+        "\n</robot>",
+        f'\n{frame}\n<joint name="tcp" type="fixed"><parent link="l0"/><child link="tool"/></joint>\n</robot>',
+    )
     robot = parse_urdf(text, "f.urdf")
     assert robot.link("tool").inertial is None
     assert [q.name for q in urdf_system(robot).coordinates] == ["j"]
@@ -207,17 +249,20 @@ def test_the_root_links_inertia_is_not_used_nor_checked():
     assert parse_urdf(text, "r.urdf").root == "base"
 
 
-@pytest.mark.parametrize("name, message", [
-    ("sin", "joint name 'sin' is reserved"),
-    ("pi", "joint name 'pi' is reserved"),
-    ("E", "joint name 'E' is reserved"),
-    ("t", "joint name 't' is reserved"),
-    ("a__b", "joint name 'a__b' is not valid"),
-    ("7up", r"joint '7up' \(named '_7up' in appell\): joint name '_7up' is not valid"),
-    ("\u00e9lan", "joint name '_lan' is not valid"),
-    ("lambda_c", "names starting with lambda_, control_, residual_ are those of result columns"),
-    ("residual_c", "are those of result columns"),
-])
+@pytest.mark.parametrize(
+    "name, message",
+    [
+        ("sin", "joint name 'sin' is reserved"),
+        ("pi", "joint name 'pi' is reserved"),
+        ("E", "joint name 'E' is reserved"),
+        ("t", "joint name 't' is reserved"),
+        ("a__b", "joint name 'a__b' is not valid"),
+        ("7up", r"joint '7up' \(named '_7up' in appell\): joint name '_7up' is not valid"),
+        ("\u00e9lan", "joint name '_lan' is not valid"),
+        ("lambda_c", "names starting with lambda_, control_, residual_ are those of result columns"),
+        ("residual_c", "are those of result columns"),
+    ],
+)
 def test_reserved_and_invalid_joint_names_are_refused(name, message):
     from appell.mechanism.urdf import urdf_system
 
@@ -227,12 +272,15 @@ def test_reserved_and_invalid_joint_names_are_refused(name, message):
     assert "rename the joint" in err.value.hint
 
 
-@pytest.mark.parametrize("first, second, message", [
-    ("x", "x_dot", "the name 'x_dot' is used twice: as a coordinate and as a speed"),
-    ("x_dot", "x", "the name 'x_dot' is used twice"),
-    ("x", "x_ddot", "'x_ddot' is reserved: it is the name of the second time derivative of the coordinate 'x'"),
-    ("a", "F_a_x", "its column 'F_a_x' is the reaction column of joint 'a'"),
-])
+@pytest.mark.parametrize(
+    "first, second, message",
+    [
+        ("x", "x_dot", "the name 'x_dot' is used twice: as a coordinate and as a speed"),
+        ("x_dot", "x", "the name 'x_dot' is used twice"),
+        ("x", "x_ddot", "'x_ddot' is reserved: it is the name of the second time derivative of the coordinate 'x'"),
+        ("a", "F_a_x", "its column 'F_a_x' is the reaction column of joint 'a'"),
+    ],
+)
 def test_a_joint_named_like_another_joints_derived_names_is_refused(first, second, message):
     from appell.mechanism.urdf import urdf_system
 
@@ -281,9 +329,11 @@ def test_a_ten_million_character_name_is_refused_at_once(place):
     start of the name and its length, not the name."""
     long = "q" * 10_000_000
     text = _chain("a")
-    text = {"joint": text.replace('name="a"', f'name="{long}"'),
-            "link": text.replace('<link name="l0">', f'<link name="{long}">'),
-            "parent": text.replace('<parent link="base"/>', f'<parent link="{long}"/>')}[place]
+    text = {
+        "joint": text.replace('name="a"', f'name="{long}"'),
+        "link": text.replace('<link name="l0">', f'<link name="{long}">'),
+        "parent": text.replace('<parent link="base"/>', f'<parent link="{long}"/>'),
+    }[place]
     with pytest.raises(ModelError, match="a name has at most 64 characters") as err:
         parse_urdf(text, "long.urdf")
     assert "(10000000 characters)" in err.value.message and len(str(err.value)) < 400
@@ -303,10 +353,13 @@ def test_slashes_quotes_and_spaces_in_names_become_underscores():
     assert all(n.isascii() and n.isidentifier() for n in names), names
 
 
-@pytest.mark.parametrize("text, message, line", [
-    (_chain("a b", "a/b"), "joint 'a/b' and joint 'a b' have the same appell name 'a_b'", 7),
-    (_chain("a").replace('"l0"', '"arm /L"'), r"link 'arm /L' \(named 'arm__L' in appell\)", 4),
-])
+@pytest.mark.parametrize(
+    "text, message, line",
+    [
+        (_chain("a b", "a/b"), "joint 'a/b' and joint 'a b' have the same appell name 'a_b'", 7),
+        (_chain("a").replace('"l0"', '"arm /L"'), r"link 'arm /L' \(named 'arm__L' in appell\)", 4),
+    ],
+)
 def test_names_that_would_clash_or_double_an_underscore_are_refused(text, message, line):
     from appell.mechanism.urdf import urdf_system
 
@@ -315,25 +368,31 @@ def test_names_that_would_clash_or_double_an_underscore_are_refused(text, messag
     assert err.value.where == f"c.urdf:{line}"
 
 
-@pytest.mark.parametrize("old, new, line", [
-    ('<joint name="a"', '<joint name="a&#1;b"', 5),     # a control character in a joint name
-    ('<link name="l0"', '<link name="l&#0;"', 4),        # NUL in a link name
-    ('<link name="l0"', '<link name="l\x00"', 4),        # a raw NUL byte
-])
+@pytest.mark.parametrize(
+    "old, new, line",
+    [
+        ('<joint name="a"', '<joint name="a&#1;b"', 5),  # a control character in a joint name
+        ('<link name="l0"', '<link name="l&#0;"', 4),  # NUL in a link name
+        ('<link name="l0"', '<link name="l\x00"', 4),  # a raw NUL byte
+    ],
+)
 def test_control_characters_in_names_are_invalid_xml(old, new, line):
     with pytest.raises(ModelError, match="invalid XML") as err:
         parse_urdf(_chain("a").replace(old, new), "x.urdf")
     assert err.value.where == f"x.urdf:{line}"
 
 
-@pytest.mark.parametrize("inner, message, line", [
-    ({"a": '<mimic joint="b"/>', "b": '<mimic joint="a"/>'}, "the mimic joints 'a' -> 'b' -> 'a' form a cycle", 5),
-    ({"b": '<mimic joint="c"/>', "c": '<mimic joint="b"/>'}, "the mimic joints 'b' -> 'c' -> 'b' form a cycle", 7),
-    ({"a": '<mimic joint="a"/>'}, "joint 'a' mimics itself", 5),
-    ({"b": '<mimic joint="zz"/>'}, "joint 'b' mimics 'zz', which is not a joint of the file", 7),
-    ({"b": '<mimic joint="a" multiplier="nan"/>'}, r"'b': <mimic multiplier='nan'>: 'nan' is not a finite", 7),
-    ({"b": '<mimic joint="a" offset="-inf"/>'}, r"'b': <mimic offset='-inf'>: '-inf' is not a finite", 7),
-])
+@pytest.mark.parametrize(
+    "inner, message, line",
+    [
+        ({"a": '<mimic joint="b"/>', "b": '<mimic joint="a"/>'}, "the mimic joints 'a' -> 'b' -> 'a' form a cycle", 5),
+        ({"b": '<mimic joint="c"/>', "c": '<mimic joint="b"/>'}, "the mimic joints 'b' -> 'c' -> 'b' form a cycle", 7),
+        ({"a": '<mimic joint="a"/>'}, "joint 'a' mimics itself", 5),
+        ({"b": '<mimic joint="zz"/>'}, "joint 'b' mimics 'zz', which is not a joint of the file", 7),
+        ({"b": '<mimic joint="a" multiplier="nan"/>'}, r"'b': <mimic multiplier='nan'>: 'nan' is not a finite", 7),
+        ({"b": '<mimic joint="a" offset="-inf"/>'}, r"'b': <mimic offset='-inf'>: '-inf' is not a finite", 7),
+    ],
+)
 def test_broken_mimics_name_the_joints(inner, message, line):
     with pytest.raises(ModelError, match=message) as err:
         parse_urdf(_chain("a", "b", "c", inner=inner), "m.urdf")
@@ -346,8 +405,9 @@ def test_a_mimic_of_a_fixed_joint_is_refused_and_a_chain_of_mimics_is_two_constr
     chain = _chain("a", "b", "c", inner={"b": '<mimic joint="a" multiplier="2"/>', "c": '<mimic joint="b"/>'})
     _, constraints = urdf_mechanism(parse_urdf(chain, "m.urdf"))
     assert [(c.name, str(c.expr)) for c in constraints] == [("b_mimic", "-2.0*a + b"), ("c_mimic", "-1.0*b + c")]
-    text = _chain("a", "b", inner={"b": '<mimic joint="a"/>'}).replace('name="a" type="continuous"',
-                                                                       'name="a" type="fixed"')
+    text = _chain("a", "b", inner={"b": '<mimic joint="a"/>'}).replace(
+        'name="a" type="continuous"', 'name="a" type="fixed"'
+    )
     with pytest.raises(ModelError, match="joint 'b' mimics 'a', but 'a' is a fixed joint") as err:
         urdf_mechanism(parse_urdf(text, "m.urdf"))
     assert err.value.where == "m.urdf:7"
@@ -359,21 +419,26 @@ def test_a_mimic_on_a_fixed_joint_is_not_applied_with_a_note():
     from appell.errors import AppellNote
     from appell.mechanism.urdf import urdf_mechanism
 
-    text = _chain("a", "b", inner={"b": '<mimic joint="a"/>'}).replace('name="b" type="continuous"',
-                                                                       'name="b" type="fixed"')
+    text = _chain("a", "b", inner={"b": '<mimic joint="a"/>'}).replace(
+        'name="b" type="continuous"', 'name="b" type="fixed"'
+    )
     assert 'name="b" type="fixed"' in text
     with pytest.warns(AppellNote, match=r"<mimic> on 1 fixed joint \(b\) not applied"):
         mech, constraints = urdf_mechanism(parse_urdf(text, "m.urdf"))
     assert constraints == () and [j.name for j in mech.joints if j.kind != "fixed"] == ["a"]
 
 
-LATIN1 = ('<?xml version="1.0" encoding="{}"?>\n<!-- Gelenk f\u00fcr den Arm -->\n<robot name="caf\u00e9">\n'
-          '<link name="bas\u00e9"/>\n' + LINK.format("arm") + '\n'
-          '<joint name="j" type="continuous"><parent link="bas\u00e9"/><child link="arm"/></joint>\n</robot>\n')
+LATIN1 = (
+    '<?xml version="1.0" encoding="{}"?>\n<!-- Gelenk f\u00fcr den Arm -->\n<robot name="caf\u00e9">\n'
+    '<link name="bas\u00e9"/>\n' + LINK.format("arm") + "\n"
+    '<joint name="j" type="continuous"><parent link="bas\u00e9"/><child link="arm"/></joint>\n</robot>\n'
+)
 
 
-@pytest.mark.parametrize("declared, codec", [("ISO-8859-1", "latin-1"), ("UTF-16", "utf-16"),
-                                             ("windows-1252", "cp1252"), ("UTF-8", "utf-8-sig")])
+@pytest.mark.parametrize(
+    "declared, codec",
+    [("ISO-8859-1", "latin-1"), ("UTF-16", "utf-16"), ("windows-1252", "cp1252"), ("UTF-8", "utf-8-sig")],
+)
 def test_a_declared_encoding_is_honoured(tmp_path, declared, codec):
     """The file is read as bytes and expat decodes it as its declaration (and BOM) says."""
     path = tmp_path / "enc.urdf"
@@ -383,13 +448,16 @@ def test_a_declared_encoding_is_honoured(tmp_path, declared, codec):
     assert [j.name for j in robot.joints] == ["j"]
 
 
-@pytest.mark.parametrize("data, message, line", [
-    (LATIN1.format("klingon").encode("latin-1"), r"encoding that is not read \(unknown encoding: klingon\)", 1),
-    (b'<?xml version="1.0" encoding="Shift_JIS"?>\n<robot name="r"/>\n', "encoding that is not read", 1),
-    (LATIN1.format("UTF-8").encode("latin-1"), r"invalid XML: not well-formed \(invalid token\)", 2),
-    (_robot(LINK.format("a")).encode() + b"<!-- \xff\xfe -->\n", r"not well-formed \(invalid token\)", 5),
-    (LATIN1.format("UTF-16").encode("utf-8"), "encoding specified in XML declaration is incorrect", 1),
-])
+@pytest.mark.parametrize(
+    "data, message, line",
+    [
+        (LATIN1.format("klingon").encode("latin-1"), r"encoding that is not read \(unknown encoding: klingon\)", 1),
+        (b'<?xml version="1.0" encoding="Shift_JIS"?>\n<robot name="r"/>\n', "encoding that is not read", 1),
+        (LATIN1.format("UTF-8").encode("latin-1"), r"invalid XML: not well-formed \(invalid token\)", 2),
+        (_robot(LINK.format("a")).encode() + b"<!-- \xff\xfe -->\n", r"not well-formed \(invalid token\)", 5),
+        (LATIN1.format("UTF-16").encode("utf-8"), "encoding specified in XML declaration is incorrect", 1),
+    ],
+)
 def test_an_unreadable_encoding_or_invalid_bytes_are_refused_with_the_line(tmp_path, data, message, line):
     path = tmp_path / "bad.urdf"
     path.write_bytes(data)
@@ -398,16 +466,19 @@ def test_an_unreadable_encoding_or_invalid_bytes_are_refused_with_the_line(tmp_p
     assert err.value.where == f"{path}:{line}" and "UTF-8" in err.value.hint
 
 
-@pytest.mark.parametrize("content, line", [
-    (_arm("1", _inertia(1, 1, 3)).encode(), 5),
-    (_chain("a", "sin").encode(), 7),
-    (_chain("x", "x_dot").encode(), 7),
-    (_chain("q" * 10_000_000).encode(), 5),
-    (_chain("a").replace('"l0"', '"l&#1;"').encode(), 4),
-    (_chain("a", "b", inner={"a": '<mimic joint="b"/>', "b": '<mimic joint="a"/>'}).encode(), 5),
-    (LATIN1.format("klingon").encode("latin-1"), 1),
-    (b'<?xml version="1.0"?>\n<robot name="\xff"/>\n', 2),
-])
+@pytest.mark.parametrize(
+    "content, line",
+    [
+        (_arm("1", _inertia(1, 1, 3)).encode(), 5),
+        (_chain("a", "sin").encode(), 7),
+        (_chain("x", "x_dot").encode(), 7),
+        (_chain("q" * 10_000_000).encode(), 5),
+        (_chain("a").replace('"l0"', '"l&#1;"').encode(), 4),
+        (_chain("a", "b", inner={"a": '<mimic joint="b"/>', "b": '<mimic joint="a"/>'}).encode(), 5),
+        (LATIN1.format("klingon").encode("latin-1"), 1),
+        (b'<?xml version="1.0"?>\n<robot name="\xff"/>\n', 2),
+    ],
+)
 def test_the_command_line_prints_one_error_line_with_a_hint_and_exits_2(tmp_path, content, line):
     from click.testing import CliRunner
 
@@ -435,23 +506,31 @@ def test_what_a_urdf_holds_beyond_the_mechanism_is_noted_not_refused(tmp_path):
     from appell.io.cli import cli
     from appell.mechanism.urdf import urdf_system
 
-    text = _chain("j").replace("\n</robot>", """
+    text = (
+        _chain("j")
+        .replace(
+            "\n</robot>",
+            """
 <transmission name="t1"><type>transmission_interface/SimpleTransmission</type></transmission>
 <transmission name="t2"><type>transmission_interface/SimpleTransmission</type></transmission>
 <gazebo reference="l0"><mu1>0.2</mu1></gazebo>
 <material name="blue"><color rgba="0 0 1 1"/></material>
-</robot>""").replace("</joint>", '<dynamics damping="0.3" friction="0"/></joint>', 1)
+</robot>""",
+        )
+        .replace("</joint>", '<dynamics damping="0.3" friction="0"/></joint>', 1)
+    )
     path = tmp_path / "noted.urdf"
     path.write_text(text)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         urdf_system(path)
     notes = [str(w.message) for w in caught if issubclass(w.category, AppellNote)]
-    assert notes == [f"{path}: 1 joint <dynamics> (damping, friction) not applied: add them as [[loads]] or "
-                     "actuator torques in a model file",
-                     f"{path}: 2 <transmission> elements not read (actuator models; apply joint torques with "
-                     "actuators instead)",
-                     f"{path}: 1 <gazebo> element not read (simulator plug-ins and surface properties)"]
+    assert notes == [
+        f"{path}: 1 joint <dynamics> (damping, friction) not applied: add them as [[loads]] or "
+        "actuator torques in a model file",
+        f"{path}: 2 <transmission> elements not read (actuator models; apply joint torques with actuators instead)",
+        f"{path}: 1 <gazebo> element not read (simulator plug-ins and surface properties)",
+    ]
     result = CliRunner().invoke(cli, ["derive", str(path)])
     assert result.exit_code == 0, result.output
     assert result.stderr.count("note: ") == 3 and "2 <transmission> elements" in result.stderr

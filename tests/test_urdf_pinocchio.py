@@ -18,9 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from appell import derive
+from appell import derive, numeric_model
 from appell.mechanism.urdf import read_urdf, urdf_system
-from appell import numeric_model
 
 pin = pytest.importorskip("pinocchio", reason="Pinocchio is not installed (pip install pin, in appell[test])")
 
@@ -53,8 +52,9 @@ def _states(n, count=3, seed=11):
 def test_arm_coordinates_carry_the_joint_names():
     system = urdf_system(ARM)
     assert [q.name for q in system.coordinates] == ["shoulder", "elbow", "slide", "wrist"]
-    assert {o.name for o in system.outputs} == {f"{k}_{j}_{x}" for k in "FM" for x in "xyz"
-                                                for j in ("shoulder", "elbow", "slide", "wrist", "tool_mount")}
+    assert {o.name for o in system.outputs} == {
+        f"{k}_{j}_{x}" for k in "FM" for x in "xyz" for j in ("shoulder", "elbow", "slide", "wrist", "tool_mount")
+    }
 
 
 def test_arm_motion_matches_pinocchio_aba(arm):
@@ -163,8 +163,10 @@ def test_a_floating_base_moves_as_pinocchios_free_flyer(floating_arm):
         order = [joints.index(model.names[j]) for j in range(2, model.njoints)]
         quat = pin.Quaternion(R).coeffs()  # x, y, z, w
         qj = q[6:]
-        joint_q = [[np.cos(qj[k]), np.sin(qj[k])] if model.joints[j].nq == 2 else [qj[k]]  # continuous: cos, sin
-                   for j, k in zip(range(2, model.njoints), order)]
+        joint_q = [
+            [np.cos(qj[k]), np.sin(qj[k])] if model.joints[j].nq == 2 else [qj[k]]  # continuous: cos, sin
+            for j, k in zip(range(2, model.njoints), order)
+        ]
         qp = np.concatenate([q[:3], quat] + [np.array(x) for x in joint_q])
         v = np.concatenate([v_lin, omega, w[6:][order]])
         expected = np.concatenate([R.T @ a[:3] - np.cross(omega, v_lin), omega_dot, a[6:][order]])
@@ -241,8 +243,9 @@ def test_a_floating_base_is_the_root_with_every_link_fixed_to_it(tmp_path):
         hip = model.getJointId("hip")
         Rj = data.oMi[hip].rotation
         for kind, f in (("F", data.f[hip].linear), ("M", data.f[hip].angular)):
-            np.testing.assert_allclose(Rj.T @ np.array([out[f"{kind}_hip_{x}"] for x in "xyz"]), f, rtol=1e-8,
-                                       atol=1e-8)
+            np.testing.assert_allclose(
+                Rj.T @ np.array([out[f"{kind}_hip_{x}"] for x in "xyz"]), f, rtol=1e-8, atol=1e-8
+            )
 
 
 def test_floating_base_from_a_model_file_and_the_command_line(tmp_path):

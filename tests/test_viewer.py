@@ -31,7 +31,6 @@ from appell.io.viewer.scene import quaternions
 from appell.view import equivalent_box
 
 
-
 @pytest.fixture(scope="module")
 def four_bar():
     system = load_model(example_path("four_bar"))
@@ -77,8 +76,7 @@ def test_four_bar_frames_follow_the_closed_form(four_bar):
     F = np.array(arrows["F_B"]["v"]).reshape(-1, 3)
     assert np.allclose(F[:, 0], solution["F_B_x"], rtol=1e-4, atol=1e-4 * np.max(np.abs(solution["F_B_x"])))
     C = np.array(arrows["C"]["v"]).reshape(-1, 3)  # the rocker's force on the coupler at C
-    assert np.allclose(C[:, :2], np.stack([solution["lambda_C_x"], solution["lambda_C_y"]], 1), rtol=1e-4,
-                       atol=1e-3)
+    assert np.allclose(C[:, :2], np.stack([solution["lambda_C_x"], solution["lambda_C_y"]], 1), rtol=1e-4, atol=1e-3)
     at = np.array(arrows["C"]["at"]).reshape(-1, 3)  # C = B + (cos(A+B), sin(A+B))
     AB = A + solution["B"]
     assert np.max(np.abs(at[:, 0] - 0.4 * np.cos(A) - np.cos(AB))) < 1e-4
@@ -130,17 +128,20 @@ def test_springs_bushings_and_force_pairs_are_drawn_with_their_forces():
     cart. Closed forms from the solution's own coordinate x: the spring's force on the cart
     -k (x, 0, 0) at the cart's origin, the bushing's -K (x, 0, 0) at (x, 0.1, 0), the pair's
     force and its torque (the arrow ``pair_moment``), each drawn on the cart (not the ground)."""
-    from appell.mechanism import Mechanism
     import sympy as sp
+
+    from appell.mechanism import Mechanism
 
     mech = Mechanism("drawn_loads", gravity=None)
     cart = mech.body("cart", 2.0, inertia=(0.1, 0.1, 0.1))
     mech.prismatic("slide", "ground", cart, axis=(1, 0, 0))
     mech.spring("spring", ("ground", (0, 0, 0)), (cart, (0, 0, 0)), 20.0)
-    mech.bushing("bush", ("ground", (0, 0.1, 0)), (cart, (0, 0.1, 0)), (5.0, 5.0, 5.0),
-                 rotational_stiffness=(1.0, 1.0, 1.0))
-    mech.force_pair("pair", ("ground", (0, 0, 0)), (cart, (0.2, 0, 0)), force=(0, 0, 2 * sp.sin(sp.Symbol("t"))),
-                    torque=(0, 0, 0.5))
+    mech.bushing(
+        "bush", ("ground", (0, 0.1, 0)), (cart, (0, 0.1, 0)), (5.0, 5.0, 5.0), rotational_stiffness=(1.0, 1.0, 1.0)
+    )
+    mech.force_pair(
+        "pair", ("ground", (0, 0, 0)), (cart, (0.2, 0, 0)), force=(0, 0, 2 * sp.sin(sp.Symbol("t"))), torque=(0, 0, 0.5)
+    )
     system = mech.system(initial={"slide": 0.1})
     solution = appell.simulate(appell.derive(system), t_end=1.0)
     scene = scene_data(system, solution)
@@ -149,10 +150,12 @@ def test_springs_bushings_and_force_pairs_are_drawn_with_their_forces():
     x, t = solution["slide"][rows], solution.t[rows]
     zero = np.zeros_like(x)
     arrows = {a["name"]: a for a in scene["arrows"]}
-    expected = {"spring": (np.stack([-20 * x, zero, zero], 1), np.stack([x, zero, zero], 1)),
-                "bush": (np.stack([-5 * x, zero, zero], 1), np.stack([x, zero + 0.1, zero], 1)),
-                "pair": (np.stack([zero, zero, 2 * np.sin(t)], 1), np.stack([x + 0.2, zero, zero], 1)),
-                "pair_moment": (np.stack([zero, zero, zero + 0.5], 1), np.stack([x + 0.2, zero, zero], 1))}
+    expected = {
+        "spring": (np.stack([-20 * x, zero, zero], 1), np.stack([x, zero, zero], 1)),
+        "bush": (np.stack([-5 * x, zero, zero], 1), np.stack([x, zero + 0.1, zero], 1)),
+        "pair": (np.stack([zero, zero, 2 * np.sin(t)], 1), np.stack([x + 0.2, zero, zero], 1)),
+        "pair_moment": (np.stack([zero, zero, zero + 0.5], 1), np.stack([x + 0.2, zero, zero], 1)),
+    }
     for name, (v, at) in expected.items():
         # the page's numbers have 5 significant figures
         assert np.allclose(np.array(arrows[name]["v"]).reshape(-1, 3), v, rtol=1e-4, atol=1e-5), name
@@ -196,8 +199,10 @@ def test_view_table_errors_name_file_and_line():
     with pytest.raises(ModelError) as err:
         loads_model(bad_symbol, "slider.toml")
     assert "undeclared symbol(s) y" in err.value.message and err.value.where.startswith("slider.toml:")
-    bad_shape = _PLANE + '[view]\n[[view.bodies]]\nname = "b"\nposition = ["x", 0, 0]\n' \
-                         'shapes = [{ type = "cone", size = [1] }]\n'
+    bad_shape = (
+        _PLANE + '[view]\n[[view.bodies]]\nname = "b"\nposition = ["x", 0, 0]\n'
+        'shapes = [{ type = "cone", size = [1] }]\n'
+    )
     with pytest.raises(ModelError) as err:
         loads_model(bad_shape, "slider.toml")
     assert "'cone' is not a shape" in err.value.message
@@ -205,8 +210,11 @@ def test_view_table_errors_name_file_and_line():
     with pytest.raises(ModelError) as err:
         loads_model(unknown, "slider.toml")
     assert "unknown key 'colour'" in err.value.message and err.value.where == "slider.toml:12"
-    good = loads_model(_PLANE + '[view]\n[[view.bodies]]\nname = "b"\nposition = ["x", 0, 0]\n'
-                                'shapes = [{ type = "box", size = [0.2, 0.1, 0.1] }]\n', "slider.toml")
+    good = loads_model(
+        _PLANE + '[view]\n[[view.bodies]]\nname = "b"\nposition = ["x", 0, 0]\n'
+        'shapes = [{ type = "box", size = [0.2, 0.1, 0.1] }]\n',
+        "slider.toml",
+    )
     assert good.view.bodies[0].shapes[0].size == (0.2, 0.1, 0.1)
 
 
@@ -239,8 +247,9 @@ def test_urdf_visuals_are_drawn_where_their_link_went(tmp_path):
     assert ("cylinder", (0.05, 0.5), "#0000ff") in kinds
     box = next(s for s in arm.shapes if s.kind == "box")  # the massless tool merged into the arm
     assert box.colour == "#ff0000" and np.allclose(box.origin, (0, 0, 0.6))
-    assert np.allclose(np.array(box.rotation).reshape(3, 3), Rotation.from_euler("y", np.pi / 2).as_matrix(),
-                       atol=1e-12)
+    assert np.allclose(
+        np.array(box.rotation).reshape(3, 3), Rotation.from_euler("y", np.pi / 2).as_matrix(), atol=1e-12
+    )
     assert len(arm.shapes) == 2, "the mesh is never opened"
 
 

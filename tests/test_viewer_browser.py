@@ -16,7 +16,6 @@ import appell
 from appell.examples import example_path
 from appell.io.modelfile import load_model
 from appell.io.viewer import view_motion
-
 from browser import CHROMIUM, SKIP_REASON, chromium
 
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)
@@ -50,8 +49,10 @@ def _two_screenshots(motion, times, tmp_path):
     shots = []
     for k, t in enumerate(times):
         shot = tmp_path / f"shot{k}.png"
-        done = chromium(["--window-size=1000,760", "--virtual-time-budget=2000", f"--screenshot={shot}",
-                         f"{page.as_uri()}#t={t}"], tmp_path)
+        done = chromium(
+            ["--window-size=1000,760", "--virtual-time-budget=2000", f"--screenshot={shot}", f"{page.as_uri()}#t={t}"],
+            tmp_path,
+        )
         assert done.returncode == 0 and shot.exists(), done.stderr[-2000:]
         shots.append(_mechanism_pixels(shot)[60:620])  # the canvas, below the title
     return shots
@@ -60,8 +61,9 @@ def _two_screenshots(motion, times, tmp_path):
 def _bicycle():
     system = load_model(example_path("benchmark_bicycle"))
     given = {k: v for k, v in system.initial if k not in system.initial_guesses}
-    solution = appell.simulate(appell.derive(system), t_end=2.0, initial={**given, "rear_rx_dot": 0.5},
-                               complete=True)  # a roll rate: the bicycle weaves
+    solution = appell.simulate(
+        appell.derive(system), t_end=2.0, initial={**given, "rear_rx_dot": 0.5}, complete=True
+    )  # a roll rate: the bicycle weaves
     return system, solution
 
 

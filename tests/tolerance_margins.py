@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 try:  # pytest >= 9
     from _pytest import approx as python_api
 except ImportError:  # pytest 8
@@ -106,6 +107,8 @@ def pytest_terminal_summary(terminalreporter):
                 fh.write(f"{test}\t{place}\t{use:.3e}\n")
     close = sorted(((use, test, place) for (test, place), use in _records.items() if use > limit), reverse=True)
     tr = terminalreporter
-    tr.section(f"tolerance margins: {len(_records)} comparisons, {len(close)} use more than {limit:g} of their tolerance")
+    tr.section(
+        f"tolerance margins: {len(_records)} comparisons, {len(close)} use more than {limit:g} of their tolerance"
+    )
     for use, test, place in close:
         tr.write_line(f"{use:9.3g}  {place:40s} {test}")

@@ -26,8 +26,8 @@ PAGE, SPAN, SAMPLES = "gallery", 5.0, 301
 def example_figure(name: str) -> tuple[str, list[str]]:
     """``(caption, PNG data URIs)`` of the bundled example ``name`` (no image when it has no
     initial values)."""
-    from appell.workflows import command_options, derive_model, load_system, run_simulation
     from appell.io.report import solution_figures
+    from appell.workflows import command_options, derive_model, load_system, run_simulation
 
     system = load_system(name)
     if not system.initial and not system.settings:
@@ -38,10 +38,15 @@ def example_figure(name: str) -> tuple[str, list[str]]:
     solution = run_simulation(derivation, t_end, "numpy", {"samples": SAMPLES}, progress=False)
     figures = dict(solution_figures(solution, panels=("reactions", "controls", "coordinates")))
     shown = [k for k in ("reactions", "controls") if k in figures] or ["coordinates"]
-    what = {"reactions": "reactions (multipliers lambda)", "controls": "controls",
-            "coordinates": "coordinates (the model has no constraint reactions)"}
-    caption = (f"{name}: {' and '.join(what[k] for k in shown)} from t = {options.t0:g} to {t_end:g}, "
-               f"simulated with the model file's settings ({solution.message}).")
+    what = {
+        "reactions": "reactions (multipliers lambda)",
+        "controls": "controls",
+        "coordinates": "coordinates (the model has no constraint reactions)",
+    }
+    caption = (
+        f"{name}: {' and '.join(what[k] for k in shown)} from t = {options.t0:g} to {t_end:g}, "
+        f"simulated with the model file's settings ({solution.message})."
+    )
     return caption, [figures[k] for k in shown]
 
 
@@ -69,8 +74,9 @@ class GalleryFigures(SphinxTransform):
                     section += nodes.paragraph("", caption, classes=["gallery-note"])
                     continue
                 images = [nodes.image(uri=uri, alt=f"{name}: figure {k + 1}") for k, uri in enumerate(uris)]
-                section += nodes.figure("", *images, nodes.caption("", caption), classes=["gallery-figure"],
-                                        ids=[f"figure-{name}"])
+                section += nodes.figure(
+                    "", *images, nodes.caption("", caption), classes=["gallery-figure"], ids=[f"figure-{name}"]
+                )
 
 
 def setup(app):

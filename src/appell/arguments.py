@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 import sympy as sp
@@ -22,8 +22,9 @@ from appell.errors import ModelError
 __all__ = ["number", "count", "vector", "times", "mapping"]
 
 
-def number(value, name: str, *, positive: bool = False, nonnegative: bool = False, finite: bool = True,
-           hint: str | None = None) -> float:
+def number(
+    value, name: str, *, positive: bool = False, nonnegative: bool = False, finite: bool = True, hint: str | None = None
+) -> float:
     """``value`` as a float: a real number (not a bool, not a string), finite unless
     ``finite=False`` (then +inf is allowed, never NaN), and > 0 or >= 0 when asked."""
     if isinstance(value, np.ndarray) and value.ndim == 0:
@@ -56,8 +57,7 @@ def count(value, name: str, *, minimum: int = 1, maximum: int | None = None) -> 
     return k
 
 
-def vector(value, name: str, length: int | None = None, *, nonnegative: bool = False,
-           names=None) -> np.ndarray:
+def vector(value, name: str, length: int | None = None, *, nonnegative: bool = False, names=None) -> np.ndarray:
     """``value`` as a 1-D float array of finite numbers (of ``length`` entries when given;
     ``names`` label the entries in the message)."""
     try:

@@ -54,7 +54,8 @@ def import_optional(module: str, *, extra: str, feature: str):
         missing = getattr(exc, "name", None) or module.split(".")[0]
         raise MissingDependencyError(
             f"{feature} needs the optional package {missing.split('.')[0]!r}, which is not installed",
-            hint=f"install it with: pip install 'appell[{extra}]'") from None
+            hint=f"install it with: pip install 'appell[{extra}]'",
+        ) from None
 
 
 class AppellNote(UserWarning):

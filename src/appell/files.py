@@ -33,8 +33,13 @@ from appell.errors import ModelError
 
 __all__ = ["atomic_path", "output_target", "default_file_name", "remove_stale_temporaries", "write_hdf5", "write_bytes"]
 
-_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-          (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISSOCK, "a socket"))
+_KINDS = (
+    (stat.S_ISDIR, "a directory"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISSOCK, "a socket"),
+)
 
 
 def output_target(path) -> tuple[Path, int | None]:
@@ -54,8 +59,10 @@ def output_target(path) -> tuple[Path, int | None]:
     if not stat.S_ISREG(st.st_mode):
         kind = next((name for test, name in _KINDS if test(st.st_mode)), "not a regular file")
         shown = f"{path}" if target == path else f"{path} (-> {target})"
-        raise ModelError(f"{shown} is {kind}; appell writes its results only to regular files",
-                         hint="give the path of a new or regular file")
+        raise ModelError(
+            f"{shown} is {kind}; appell writes its results only to regular files",
+            hint="give the path of a new or regular file",
+        )
     return target, stat.S_IMODE(st.st_mode)
 
 
@@ -120,8 +127,11 @@ def atomic_path(path, suffix: str | None = None):
     directory = target.parent if str(target.parent) else Path(".")
     remove_stale_temporaries(target)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f"{_temporary_prefix(target)}{os.getpid()}-",
-                                   suffix=suffix if suffix is not None else target.suffix, dir=directory)
+        fd, tmp = tempfile.mkstemp(
+            prefix=f"{_temporary_prefix(target)}{os.getpid()}-",
+            suffix=suffix if suffix is not None else target.suffix,
+            dir=directory,
+        )
     except OSError as exc:
         raise _with_path(exc, Path(path)) from exc
     os.close(fd)

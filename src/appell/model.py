@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import sympy as sp
 
@@ -181,9 +181,7 @@ class AppliedTorque:
 
     def __post_init__(self):
         object.__setattr__(self, "vector", _vector(self.vector, f"torque {self.name!r}"))
-        object.__setattr__(
-            self, "angular_velocity", _vector(self.angular_velocity, f"torque {self.name!r}")
-        )
+        object.__setattr__(self, "angular_velocity", _vector(self.angular_velocity, f"torque {self.name!r}"))
 
 
 #: constraint orders: holonomic F(t,q)=0, first order phi(t,q,w)=0, second order f(t,q,w,a)=0
@@ -226,20 +224,33 @@ class Constraint:
         object.__setattr__(self, "expr", _expr(self.expr, f"constraint {self.name!r}"))
         e = self.restitution
         if isinstance(e, bool) or not isinstance(e, numbers.Real) or not 0.0 <= float(e) <= 1.0:
-            raise ModelError(f"constraint {self.name!r}: the restitution coefficient must be a number "
-                             f"from 0 to 1, got {e!r}", where=self.where,
-                             hint="0 is a plastic impact, 1 an elastic one")
+            raise ModelError(
+                f"constraint {self.name!r}: the restitution coefficient must be a number from 0 to 1, got {e!r}",
+                where=self.where,
+                hint="0 is a plastic impact, 1 an elastic one",
+            )
         if e and self.order != 0:
-            raise ModelError(f"constraint {self.name!r}: a restitution coefficient needs a holonomic constraint "
-                             f"(a contact whose gap F can close), not a {ORDERS[self.order]} one", where=self.where)
+            raise ModelError(
+                f"constraint {self.name!r}: a restitution coefficient needs a holonomic constraint "
+                f"(a contact whose gap F can close), not a {ORDERS[self.order]} one",
+                where=self.where,
+            )
         object.__setattr__(self, "restitution", float(e))
         c = self.compliance
         if c is not None:
-            if isinstance(c, bool) or not isinstance(c, numbers.Real) or not float(c) > 0.0 or c != c or c == float("inf"):
-                raise ModelError(f"constraint {self.name!r}: the compliance must be a positive finite number, "
-                                 f"got {c!r}", where=self.where,
-                                 hint="the constraint's deflection per unit of its multiplier (e.g. m/N for a leg "
-                                      "written as a height)")
+            if (
+                isinstance(c, bool)
+                or not isinstance(c, numbers.Real)
+                or not float(c) > 0.0
+                or c != c
+                or c == float("inf")
+            ):
+                raise ModelError(
+                    f"constraint {self.name!r}: the compliance must be a positive finite number, got {c!r}",
+                    where=self.where,
+                    hint="the constraint's deflection per unit of its multiplier (e.g. m/N for a leg "
+                    "written as a height)",
+                )
             object.__setattr__(self, "compliance", float(c))
 
     @property
@@ -247,8 +258,9 @@ class Constraint:
         return ORDERS[self.order]
 
 
-def holonomic(name: str, expr, where: str | None = None, restitution: float = 0.0,
-              compliance: float | None = None) -> Constraint:
+def holonomic(
+    name: str, expr, where: str | None = None, restitution: float = 0.0, compliance: float | None = None
+) -> Constraint:
     """Holonomic constraint ``F(t, q) = 0``; ``restitution`` Newton's coefficient e of the
     impact when, simulated as unilateral, its gap closes again; ``compliance`` its
     elasticity for statically indeterminate supports (:class:`Constraint`)."""
@@ -361,29 +373,38 @@ class Friction:
         try:
             slip = _vector(slip, f"slip velocity of friction {self.name!r}", None)
         except (sp.SympifyError, TypeError, ValueError) as exc:
-            raise ModelError(f"friction {self.name!r}: the slip velocity is not a list of expressions",
-                             where=self.where) from exc
+            raise ModelError(
+                f"friction {self.name!r}: the slip velocity is not a list of expressions", where=self.where
+            ) from exc
         if slip.shape[0] not in (1, 2):
-            raise ModelError(f"friction {self.name!r}: the slip velocity must have 1 component (a line contact, "
-                             f"a joint) or 2 (a contact in a plane), got {slip.shape[0]}", where=self.where)
+            raise ModelError(
+                f"friction {self.name!r}: the slip velocity must have 1 component (a line contact, "
+                f"a joint) or 2 (a contact in a plane), got {slip.shape[0]}",
+                where=self.where,
+            )
         object.__setattr__(self, "slip", slip)
         for attr in ("mu_k", "viscous") + (("mu_s",) if self.mu_s is not None else ()):
             value = _expr(getattr(self, attr), f"{attr} of friction {self.name!r}")
             if value.is_number and (value.is_real is not True or value < 0):
-                raise ModelError(f"friction {self.name!r}: {attr} = {value} must be a non-negative number",
-                                 where=self.where)
+                raise ModelError(
+                    f"friction {self.name!r}: {attr} = {value} must be a non-negative number", where=self.where
+                )
             object.__setattr__(self, attr, value)
         if self.mu_s is None:
             object.__setattr__(self, "mu_s", self.mu_k)
         coulomb = not (self.mu_k == 0 and self.mu_s == 0)
         if coulomb and self.normal is None:
-            raise ModelError(f"friction {self.name!r}: Coulomb friction (mu_k, mu_s) needs the normal constraint "
-                             "whose multiplier is the normal force", where=self.where,
-                             hint="give normal = the name of the contact's ideal (unit-normalised gap) constraint, "
-                                  "or only viscous = c for viscous friction")
+            raise ModelError(
+                f"friction {self.name!r}: Coulomb friction (mu_k, mu_s) needs the normal constraint "
+                "whose multiplier is the normal force",
+                where=self.where,
+                hint="give normal = the name of the contact's ideal (unit-normalised gap) constraint, "
+                "or only viscous = c for viscous friction",
+            )
         if self.normal is not None and not (isinstance(self.normal, str) and self.normal.isidentifier()):
-            raise ModelError(f"friction {self.name!r}: normal must be a constraint name, got {self.normal!r}",
-                             where=self.where)
+            raise ModelError(
+                f"friction {self.name!r}: normal must be a constraint name, got {self.normal!r}", where=self.where
+            )
 
     @property
     def coulomb(self) -> bool:
@@ -536,8 +557,10 @@ class System:
         guesses = tuple(dict.fromkeys(str(n) for n in self.initial_guesses))
         stray = [n for n in guesses if n not in given]
         if stray:
-            raise ModelError(f"initial_guesses names {', '.join(stray)}, which have no initial value",
-                             hint="a starting guess is an initial value (give it in initial=) marked as a guess")
+            raise ModelError(
+                f"initial_guesses names {', '.join(stray)}, which have no initial value",
+                hint="a starting guess is an initial value (give it in initial=) marked as a guess",
+            )
         s(self, "initial_guesses", guesses)
         settings = self.settings.items() if isinstance(self.settings, Mapping) else self.settings
         s(self, "settings", tuple((str(k), v) for k, v in settings))
@@ -555,15 +578,20 @@ class System:
         s(self, "outputs", _tuple(self.outputs, lambda k, v: Output(str(k), v)))
         if any(not isinstance(o, Output) for o in self.outputs):
             bad = next(o for o in self.outputs if not isinstance(o, Output))
-            raise ModelError(f"outputs must be appell.Output items, got {bad!r}",
-                             hint="write Output(name, expr, unit) or pass {name: expr}")
+            raise ModelError(
+                f"outputs must be appell.Output items, got {bad!r}",
+                hint="write Output(name, expr, unit) or pass {name: expr}",
+            )
         _check_output_names(self)
         names = declared_names(self)
         kinds = declared_kinds(names)
         clash = next(filter(None, (name_clash(name, kind, kinds) for name, kind in names)), None)
         if clash:
-            raise ModelError(clash, hint="rename it: derivative names (x_dot, x_ddot, x_d3, ...) of coordinates, "
-                                         "speeds, programs and controls are reserved")
+            raise ModelError(
+                clash,
+                hint="rename it: derivative names (x_dot, x_ddot, x_d3, ...) of coordinates, "
+                "speeds, programs and controls are reserved",
+            )
 
     # ------------------------------------------------------------------ views
     @property
@@ -596,41 +624,48 @@ class System:
             out[key] = unit
         return out
 
-    def replace(self, **changes) -> "System":
+    def replace(self, **changes) -> System:
         """A copy with some fields changed (the original is untouched)."""
         from dataclasses import replace
 
         return replace(self, **changes)
 
-    def with_parameters(self, values: Mapping) -> "System":
+    def with_parameters(self, values: Mapping) -> System:
         """A copy with new default parameter values ``{name: value}``."""
         values = {str(k): v for k, v in values.items()}
         unknown = set(values) - {p.symbol.name for p in self.parameters}
         if unknown:
             raise ModelError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
         params = tuple(
-            Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description)
-            for p in self.parameters
+            Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description) for p in self.parameters
         )
         return self.replace(parameters=params, initial=tuple(self.initial_definitions.items()))
 
 
-def _check_output_names(system: "System") -> None:
+def _check_output_names(system: System) -> None:
     """Output names are unique and clash with no result column: states, accelerations,
     ``t``, ``lambda_*``, ``control_*``, ``residual_*``, declared names."""
     seen = set()
-    taken = ({"t"} | {s.name for s in system.coordinates + system.speeds + system.accelerations}
-             | {p.symbol.name for p in system.parameters} | {p.symbol.name for p in system.programs}
-             | {c.name for c in system.controls})
+    taken = (
+        {"t"}
+        | {s.name for s in system.coordinates + system.speeds + system.accelerations}
+        | {p.symbol.name for p in system.parameters}
+        | {p.symbol.name for p in system.programs}
+        | {c.name for c in system.controls}
+    )
     for o in system.outputs:
         if o.name in seen:
             raise ModelError(f"output name {o.name!r} is used twice", hint="give every output its own name")
         seen.add(o.name)
         if o.name in taken or o.name.startswith(("lambda_", "control_", "residual_")):
-            raise ModelError(f"output name {o.name!r} clashes with a result column or a declared name",
-                             hint="names lambda_*, control_*, residual_*, t and the names of states, "
-                                  "accelerations, parameters, programs and controls are taken")
-def _check_frictions(system: "System") -> None:
+            raise ModelError(
+                f"output name {o.name!r} clashes with a result column or a declared name",
+                hint="names lambda_*, control_*, residual_*, t and the names of states, "
+                "accelerations, parameters, programs and controls are taken",
+            )
+
+
+def _check_frictions(system: System) -> None:
     """Friction items: :class:`Friction` instances, unique names that clash with no
     constraint, normals naming a constraint of the system that is holonomic or first order."""
     orders = {c.name: c.order for c in system.constraints}
@@ -639,12 +674,16 @@ def _check_frictions(system: "System") -> None:
         if not isinstance(f, Friction):
             raise ModelError(f"frictions must be appell.model.Friction items, got {type(f).__name__}")
         if f.name in seen or f.name in orders:
-            raise ModelError(f"friction name {f.name!r} is used twice (frictions and constraints share names)",
-                             where=f.where)
+            raise ModelError(
+                f"friction name {f.name!r} is used twice (frictions and constraints share names)", where=f.where
+            )
         seen.add(f.name)
         if f.normal is not None and f.normal not in orders:
-            raise ModelError(f"friction {f.name!r}: normal {f.normal!r} is not a constraint of the system",
-                             where=f.where, hint="constraints: " + (", ".join(orders) or "none"))
+            raise ModelError(
+                f"friction {f.name!r}: normal {f.normal!r} is not a constraint of the system",
+                where=f.where,
+                hint="constraints: " + (", ".join(orders) or "none"),
+            )
 
 
 def initial_value(name: str, expr: sp.Expr, known: Mapping[sp.Symbol, float]) -> float:
@@ -661,11 +700,13 @@ def initial_value(name: str, expr: sp.Expr, known: Mapping[sp.Symbol, float]) ->
         if value == value and abs(value) != float("inf"):
             return value
         reason = "the value is not finite"
-    raise ModelError(f"initial value of {name} = {expr} cannot be evaluated: {reason}",
-                     hint="check the expression and the parameter values it uses")
+    raise ModelError(
+        f"initial value of {name} = {expr} cannot be evaluated: {reason}",
+        hint="check the expression and the parameter values it uses",
+    )
 
 
-def _initial_values(system: "System") -> tuple[tuple, tuple]:
+def _initial_values(system: System) -> tuple[tuple, tuple]:
     """``(initial, initial_expressions)`` of a System being built.
 
     A number is taken as it is; a SymPy expression with symbols is evaluated: one of a
@@ -687,8 +728,10 @@ def _initial_values(system: "System") -> tuple[tuple, tuple]:
             try:
                 numbers[name] = float(value)
             except (TypeError, ValueError):
-                raise ModelError(f"initial value of {name} is not a number or an expression: {value!r}",
-                                 hint="give a number, or a SymPy expression in the parameters") from None
+                raise ModelError(
+                    f"initial value of {name} is not a number or an expression: {value!r}",
+                    hint="give a number, or a SymPy expression in the parameters",
+                ) from None
     values: dict[str, float] = {}
     kept: dict[str, sp.Expr] = {}
     for level in ("position", "rate"):
@@ -702,17 +745,21 @@ def _initial_values(system: "System") -> tuple[tuple, tuple]:
             if expr is None:
                 values[name] = numbers[name]
                 old = stored.get(name)
-                if old is not None and old.free_symbols <= set(known) and \
-                        initial_value(name, old, known) == numbers[name]:
+                if (
+                    old is not None
+                    and old.free_symbols <= set(known)
+                    and initial_value(name, old, known) == numbers[name]
+                ):
                     kept[name] = old
                 continue
             bad = sorted((s.name for s in expr.free_symbols if s not in known), key=str)
             if bad:
                 allowed = "parameters" if level == "position" else "parameters and initial coordinates"
-                raise ModelError(f"initial value of {name} = {expr} uses {', '.join(bad)}, which are not "
-                                 f"{allowed} with values",
-                                 hint="a coordinate's initial value may use parameters; a speed's may also use "
-                                      "the initial values of the coordinates")
+                raise ModelError(
+                    f"initial value of {name} = {expr} uses {', '.join(bad)}, which are not {allowed} with values",
+                    hint="a coordinate's initial value may use parameters; a speed's may also use "
+                    "the initial values of the coordinates",
+                )
             values[name] = initial_value(name, expr, known)
             kept[name] = expr
     order = [name for name, _ in items]
@@ -722,9 +769,13 @@ def _initial_values(system: "System") -> tuple[tuple, tuple]:
 def declared_names(system: System) -> list[tuple[str, str]]:
     """``(name, kind)`` of every name a system declares, in the order of the model file:
     coordinates, speeds, parameters, programs, controls."""
-    return ([(q.name, "coordinate") for q in system.coordinates] + [(w.name, "speed") for w in system.speeds]
-            + [(p.symbol.name, "parameter") for p in system.parameters]
-            + [(p.symbol.name, "program") for p in system.programs] + [(c.name, "control") for c in system.controls])
+    return (
+        [(q.name, "coordinate") for q in system.coordinates]
+        + [(w.name, "speed") for w in system.speeds]
+        + [(p.symbol.name, "parameter") for p in system.parameters]
+        + [(p.symbol.name, "program") for p in system.programs]
+        + [(c.name, "control") for c in system.controls]
+    )
 
 
 def declared_kinds(pairs) -> dict[str, list[str]]:
@@ -758,8 +809,10 @@ def name_clash(name: str, kind: str, declared: Mapping[str, Sequence[str]]) -> s
     owner = next((k for k in kinds.get(base, ()) if k != "parameter"), None) if order >= 1 else None
     if owner is None:
         return None
-    return (f"{kind} name {name!r} is reserved: it is the name of the "
-            f"{_ORDINAL.get(order, f'order-{order}')} time derivative of the {owner} {base!r}")
+    return (
+        f"{kind} name {name!r} is reserved: it is the name of the "
+        f"{_ORDINAL.get(order, f'order-{order}')} time derivative of the {owner} {base!r}"
+    )
 
 
 _ORDINAL = {1: "first", 2: "second", 3: "third"}

@@ -9,8 +9,25 @@ import re
 #: the longest name of a symbol (coordinate, parameter, constraint, body, joint), in characters
 MAX_NAME = 64
 #: the functions an expression may call (appell.io.modelfile.expressions gives their meaning)
-FUNCTION_NAMES = ("sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log",
-                  "sqrt", "abs", "sign", "min", "max")
+FUNCTION_NAMES = (
+    "sin",
+    "cos",
+    "tan",
+    "asin",
+    "acos",
+    "atan",
+    "atan2",
+    "sinh",
+    "cosh",
+    "tanh",
+    "exp",
+    "log",
+    "sqrt",
+    "abs",
+    "sign",
+    "min",
+    "max",
+)
 #: the named constants of expressions
 CONSTANT_NAMES = ("pi", "E")
 #: names a model may not declare: functions, constants and time
@@ -31,5 +48,7 @@ def name_problem(name: str) -> str | None:
 
 
 #: the hint that goes with an invalid name
-NAME_HINT = (f"names start with an ASCII letter, continue with letters, digits or '_', contain no '__' and have "
-             f"at most {MAX_NAME} characters")
+NAME_HINT = (
+    f"names start with an ASCII letter, continue with letters, digits or '_', contain no '__' and have "
+    f"at most {MAX_NAME} characters"
+)

@@ -69,8 +69,9 @@ def _renamed(names, table) -> list[str]:
     characters than letters and digits, or its ends replaced by its value (the longest first)."""
     if not table:
         return [str(n) for n in names]
-    pattern = re.compile(r"(?<![A-Za-z0-9])(" + "|".join(map(re.escape, sorted(table, key=len, reverse=True)))
-                         + r")(?![A-Za-z0-9])")
+    pattern = re.compile(
+        r"(?<![A-Za-z0-9])(" + "|".join(map(re.escape, sorted(table, key=len, reverse=True))) + r")(?![A-Za-z0-9])"
+    )
     return [pattern.sub(lambda m: table[m.group(1)], str(n)) for n in names]
 
 
@@ -193,8 +194,11 @@ def matmul(A, B) -> sp.Matrix:
     A, B = sp.Matrix(A), sp.Matrix(B)
     if A.cols != B.rows:
         raise sp.ShapeError(f"matrices of shapes {A.shape} and {B.shape} cannot be multiplied")
-    return sp.Matrix(A.rows, B.cols, lambda i, j: sp.Add(*[A[i, k] * B[k, j] for k in range(A.cols)
-                                                           if A[i, k] != 0 and B[k, j] != 0]))
+    return sp.Matrix(
+        A.rows,
+        B.cols,
+        lambda i, j: sp.Add(*[A[i, k] * B[k, j] for k in range(A.cols) if A[i, k] != 0 and B[k, j] != 0]),
+    )
 
 
 def _rebuilt(node, args):
@@ -244,10 +248,22 @@ def lambdify(args, exprs, modules: str = "math", cse=None):
     from sympy.printing.pycode import MpmathPrinter, PythonCodePrinter
 
     printer = {"math": PythonCodePrinter, "numpy": NumPyPrinter, "mpmath": MpmathPrinter}[modules]
-    settings = {"fully_qualified_modules": False, "inline": True, "allow_unknown_functions": True,
-                "user_functions": {}, "order": "none"}
-    return sp.lambdify(args, exprs, modules=modules, printer=printer(settings), cse=cse if cse is not None else False,
-                       docstring_limit=0, use_imps=False)
+    settings = {
+        "fully_qualified_modules": False,
+        "inline": True,
+        "allow_unknown_functions": True,
+        "user_functions": {},
+        "order": "none",
+    }
+    return sp.lambdify(
+        args,
+        exprs,
+        modules=modules,
+        printer=printer(settings),
+        cse=cse if cse is not None else False,
+        docstring_limit=0,
+        use_imps=False,
+    )
 
 
 #: the distinct compound subexpressions up to which :func:`block_cse` takes SymPy's ``cse``
@@ -283,7 +299,7 @@ def graph_cse(exprs, symbols=None):
         for e in given:
             if isinstance(e, sp.MatrixBase):
                 size = e.rows * e.cols
-                out.append(sp.Matrix(e.rows, e.cols, reduced[at:at + size]))
+                out.append(sp.Matrix(e.rows, e.cols, reduced[at : at + size]))
                 at += size
             else:
                 out.append(reduced[at])
@@ -321,8 +337,9 @@ def graph_cse(exprs, symbols=None):
     for node in unique:
         args = [new.get(a, a) for a in node.args]
         value = _rebuilt(node, args) if any(x is not y for x, y in zip(args, node.args)) else node
-        if uses.get(node, 0) > 1 and not (value.is_Mul and len(value.args) == 2 and value.args[0] == -1
-                                           and value.args[1].is_Atom):
+        if uses.get(node, 0) > 1 and not (
+            value.is_Mul and len(value.args) == 2 and value.args[0] == -1 and value.args[1].is_Atom
+        ):
             sym = next(names)
             replacements.append((sym, value))
             new[node] = sym
@@ -405,7 +422,7 @@ class GraphDerivative:
             return sp.Add(*d)
         if node.is_Mul:
             args = node.args
-            return sp.Add(*[sp.Mul(*(args[:i] + (da,) + args[i + 1:])) for i, da in enumerate(d) if da != 0])
+            return sp.Add(*[sp.Mul(*(args[:i] + (da,) + args[i + 1 :])) for i, da in enumerate(d) if da != 0])
         if node.is_Pow:
             base, exp = node.args
             dbase, dexp = d
@@ -414,8 +431,26 @@ class GraphDerivative:
 
 
 #: applied functions differentiated by their ``fdiff`` in :class:`GraphDerivative`
-_SMOOTH_FUNCTIONS = (sp.sin, sp.cos, sp.tan, sp.cot, sp.exp, sp.log, sp.sinh, sp.cosh, sp.tanh, sp.asin, sp.acos,
-                     sp.atan, sp.atan2, sp.asinh, sp.acosh, sp.atanh, sp.sec, sp.csc)
+_SMOOTH_FUNCTIONS = (
+    sp.sin,
+    sp.cos,
+    sp.tan,
+    sp.cot,
+    sp.exp,
+    sp.log,
+    sp.sinh,
+    sp.cosh,
+    sp.tanh,
+    sp.asin,
+    sp.acos,
+    sp.atan,
+    sp.atan2,
+    sp.asinh,
+    sp.acosh,
+    sp.atanh,
+    sp.sec,
+    sp.csc,
+)
 
 
 def _by_rules(node) -> bool:

@@ -68,7 +68,11 @@ class Shape:
             raise ModelError("a mesh shape, and only a mesh, gives its triangles (vertices, faces)")
         if self.mesh is not None:
             vertices, faces = (tuple(float(v) for v in self.mesh[0]), tuple(int(f) for f in self.mesh[1]))
-            if len(vertices) % 3 or len(faces) % 3 or (faces and not 0 <= min(faces) <= max(faces) < len(vertices) // 3):
+            if (
+                len(vertices) % 3
+                or len(faces) % 3
+                or (faces and not 0 <= min(faces) <= max(faces) < len(vertices) // 3)
+            ):
                 raise ModelError("a mesh is 3 coordinates per vertex and 3 vertex indices per triangle")
             object.__setattr__(self, "mesh", (vertices, faces))
         object.__setattr__(self, "size", size)
@@ -190,4 +194,4 @@ def equivalent_box(mass: float, inertia) -> tuple[float, float, float] | None:
     sq = (6 * (iy + iz - ix) / mass, 6 * (iz + ix - iy) / mass, 6 * (ix + iy - iz) / mass)
     if min(sq) <= 1e-2 * max(sq):
         return None
-    return tuple(s ** 0.5 for s in sq)
+    return tuple(s**0.5 for s in sq)

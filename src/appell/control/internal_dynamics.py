@@ -48,10 +48,10 @@ import sympy as sp
 
 from appell.core.partition import pivoted_columns
 from appell.errors import ComputationError, ModelError
+from appell.numerics.boundary import numeric_model
 from appell.numerics.linearise import ExactJacobians
 from appell.numerics.numeric import lambdify_blocks, program_substitutions
 from appell.symbols import derivative_symbol, t
-from appell.numerics.boundary import numeric_model
 
 __all__ = ["InternalLinearisation", "internal_linearisation", "manifold_function"]
 
@@ -96,32 +96,47 @@ class InternalLinearisation:
             if abs(z.imag) <= 1e-12 * max(1.0, abs(z)):
                 return f"{z.real:.6g}"
             return f"{z.real:.6g}{'+' if z.imag >= 0 else '-'}{abs(z.imag):.6g}i"
+
         return ", ".join(one(z) for z in self.eigenvalues)
 
     def to_text(self) -> str:
         """Two lines: what was linearised and where, and the verdict."""
-        where = f"t = {self.time:g}" + (f", off the manifold by {self.manifold_residual:.2e}"
-                                       if self.manifold_residual > 1e-8 else "")
-        verdict = (f"UNSTABLE (growth rate {self.growth_rate:.6g})" if self.unstable else
-                   "stable" if self.growth_rate < -self.tolerance else "not unstable to first order (marginal)")
-        return (f"  linearised at the initial state ({where}) in {', '.join(self.coordinates)}:\n"
-                f"  eigenvalues {self._eigen_text()}: {verdict}")
+        where = f"t = {self.time:g}" + (
+            f", off the manifold by {self.manifold_residual:.2e}" if self.manifold_residual > 1e-8 else ""
+        )
+        verdict = (
+            f"UNSTABLE (growth rate {self.growth_rate:.6g})"
+            if self.unstable
+            else "stable"
+            if self.growth_rate < -self.tolerance
+            else "not unstable to first order (marginal)"
+        )
+        return (
+            f"  linearised at the initial state ({where}) in {', '.join(self.coordinates)}:\n"
+            f"  eigenvalues {self._eigen_text()}: {verdict}"
+        )
 
     def warning(self) -> str | None:
         """The warning for an unstable internal dynamics (None when not unstable)."""
         if not self.unstable:
             return None
-        return (f"the internal dynamics of {self.system!r} are unstable at the initial state "
-                f"(eigenvalues {self._eigen_text()}; growth rate {self.growth_rate:.4g}): the servo constraints "
-                f"are tracked while {', '.join(self.coordinates)} move away exponentially, e-fold time "
-                f"{1 / self.growth_rate:.3g}")
+        return (
+            f"the internal dynamics of {self.system!r} are unstable at the initial state "
+            f"(eigenvalues {self._eigen_text()}; growth rate {self.growth_rate:.4g}): the servo constraints "
+            f"are tracked while {', '.join(self.coordinates)} move away exponentially, e-fold time "
+            f"{1 / self.growth_rate:.3g}"
+        )
 
     def to_json(self) -> dict:
         """JSON-ready: eigenvalues as ``[re, im]`` pairs, the verdict, where it was taken."""
-        return {"time": self.time, "coordinates": list(self.coordinates),
-                "eigenvalues": [[float(z.real), float(z.imag)] for z in self.eigenvalues],
-                "unstable": self.unstable, "growth_rate": self.growth_rate,
-                "manifold_residual": self.manifold_residual}
+        return {
+            "time": self.time,
+            "coordinates": list(self.coordinates),
+            "eigenvalues": [[float(z.real), float(z.imag)] for z in self.eigenvalues],
+            "unstable": self.unstable,
+            "growth_rate": self.growth_rate,
+            "manifold_residual": self.manifold_residual,
+        }
 
 
 def _arguments(derivation):
@@ -140,8 +155,13 @@ def _arguments(derivation):
 def _manifold_rows(derivation) -> sp.Matrix:
     """The residuals ``G`` that vanish on the manifold (module docstring), one column."""
     blk = derivation.blocks
-    rows = [e for cons in (blk.real, blk.servo) for level in (cons.position_residual, cons.velocity_residual)
-            for e in level if e is not None]
+    rows = [
+        e
+        for cons in (blk.real, blk.servo)
+        for level in (cons.position_residual, cons.velocity_residual)
+        for e in level
+        if e is not None
+    ]
     rows += [r for cond in derivation.conditions for r in cond.state_relations]
     return sp.Matrix(rows) if rows else sp.zeros(0, 1)
 
@@ -155,7 +175,7 @@ def manifold_function(derivation):
 
     def G(time, y, p):
         y = np.asarray(y, float)
-        return np.asarray(compiled(float(time), y[:nq], y[nq:nq + n], y[nq + n:], p)[0], float).reshape(-1)
+        return np.asarray(compiled(float(time), y[:nq], y[nq : nq + n], y[nq + n :], p)[0], float).reshape(-1)
 
     return G
 
@@ -175,23 +195,29 @@ def _motion_jacobians(derivation) -> ExactJacobians:
 
     k = xi.shape[0]
     Jf, Kf, cf = mat(real.jacobian, s, n), mat(blk.real_control_jacobian, s, k), mat(real.bias, s, 1)
-    rows = [sp.Matrix(blk.inertia.mass_matrix) * a + sp.Matrix(blk.control_matrix) * xi
-            + sp.Matrix(blk.forcing_bias) - Jf.T * lam, Jf * a + Kf * xi + cf]
+    rows = [
+        sp.Matrix(blk.inertia.mass_matrix) * a
+        + sp.Matrix(blk.control_matrix) * xi
+        + sp.Matrix(blk.forcing_bias)
+        - Jf.T * lam,
+        Jf * a + Kf * xi + cf,
+    ]
     if derivation.underactuated:
         rows.append(sp.Matrix([c.expression for c in derivation.conditions]))
     else:
         r = servo.count
-        rows.append(mat(servo.jacobian, r, n) * a + mat(blk.servo_control_jacobian, r, k) * xi
-                    + mat(servo.bias, r, 1))
+        rows.append(mat(servo.jacobian, r, n) * a + mat(blk.servo_control_jacobian, r, k) * xi + mat(servo.bias, r, 1))
     E = sp.Matrix.vstack(*rows)
     groups = [q, w, uc, list(a), list(xi), list(lam), params]
     directions = [range(len(q)), range(n), range(len(uc)), range(n), range(k), range(s), ()]
-    return ExactJacobians(groups, [E, sp.Matrix(kin.coordinate_rates), _manifold_rows(derivation)], directions,
-                          subs, "internal dynamics")
+    return ExactJacobians(
+        groups, [E, sp.Matrix(kin.coordinate_rates), _manifold_rows(derivation)], directions, subs, "internal dynamics"
+    )
 
 
-def internal_linearisation(derivation, time=None, state=None, p=None,
-                           tolerance: float = TOLERANCE) -> InternalLinearisation | None:
+def internal_linearisation(
+    derivation, time=None, state=None, p=None, tolerance: float = TOLERANCE
+) -> InternalLinearisation | None:
     """Linearise the internal dynamics of a controlled derivation at ``(time, state)``
     (default: the model's initial state at its start time ``t0``, else 0); None when the
     internal dimension is 0. See the module docstring for the equations.
@@ -200,8 +226,10 @@ def internal_linearisation(derivation, time=None, state=None, p=None,
     be evaluated at the state.
     """
     if not hasattr(derivation, "internal_dimension"):
-        raise ModelError("internal dynamics belong to a system with servo constraints (derive_controlled)",
-                         hint="linearise an ordinary derivation with appell.linearise")
+        raise ModelError(
+            "internal dynamics belong to a system with servo constraints (derive_controlled)",
+            hint="linearise an ordinary derivation with appell.linearise",
+        )
     if derivation.internal_dimension == 0:
         return None
     model = numeric_model(derivation)
@@ -212,20 +240,20 @@ def internal_linearisation(derivation, time=None, state=None, p=None,
     q, w, uc = model.split_state(y0)
     nq, n, nc = q.size, w.size, uc.size
     sol = model.solve(time, y0, pv)
-    E, rates, G = _motion_jacobians(derivation)(time, q, w, uc, sol.accelerations, sol.controls,
-                                                  sol.multipliers, pv)
+    E, rates, G = _motion_jacobians(derivation)(time, q, w, uc, sol.accelerations, sol.controls, sol.multipliers, pv)
     ny = nq + n + nc
     Ey, Ez, Gy = E[:, :ny], E[:, ny:], G[:, :ny]
     try:
-        zy = (-np.linalg.solve(Ez, Ey) if Ez.shape[0] == Ez.shape[1]
-              else -np.linalg.lstsq(Ez, Ey, rcond=None)[0])
+        zy = -np.linalg.solve(Ez, Ey) if Ez.shape[0] == Ez.shape[1] else -np.linalg.lstsq(Ez, Ey, rcond=None)[0]
     except np.linalg.LinAlgError as exc:
-        raise ComputationError(f"the internal dynamics of {derivation.system.name!r} cannot be linearised at "
-                               f"t = {time:g}: the controlled split is singular there") from exc
+        raise ComputationError(
+            f"the internal dynamics of {derivation.system.name!r} cannot be linearised at "
+            f"t = {time:g}: the controlled split is singular there"
+        ) from exc
     # F_y = d(K w + k, a, u_dot, u_ddot)/dy
     Fy = np.zeros((ny, ny))
     Fy[:nq] = rates[:, :ny]
-    Fy[nq:nq + n] = zy[:n]
+    Fy[nq : nq + n] = zy[:n]
     kin = list(model.kinematic_controls)
     Fy[nq + n + np.arange(0, nc, 2), nq + n + np.arange(1, nc, 2)] = 1.0
     Fy[nq + n + np.arange(1, nc, 2)] = zy[n:][kin]
@@ -240,13 +268,26 @@ def internal_linearisation(derivation, time=None, state=None, p=None,
         Z[dependent, :] = -np.linalg.lstsq(Gy[:, dependent], Gy[:, eta], rcond=None)[0]
     A_eta = Fy[eta, :] @ Z
     if not np.all(np.isfinite(A_eta)):
-        raise ComputationError(f"the internal dynamics of {derivation.system.name!r} cannot be linearised "
-                               f"at t = {time:g}: the closed-loop motion is not finite at the state")
+        raise ComputationError(
+            f"the internal dynamics of {derivation.system.name!r} cannot be linearised "
+            f"at t = {time:g}: the closed-loop motion is not finite at the state"
+        )
     values = np.linalg.eigvals(A_eta)
     values = values[np.lexsort((-values.imag, -values.real))]
     # |G| from the model's compiled residuals: the real constraints', the servo constraints'
     # and the state relations' (the rows of G)
-    residual = float(np.nanmax(np.abs(np.concatenate([*model.state_residuals(time, y0, pv),
-                                                      *model.start_residuals(time, y0, pv), [0.0]]))))
-    return InternalLinearisation(derivation.system.name, float(time), y0, tuple(model.state_names[j] for j in eta),
-                                 A_eta, values, tolerance, residual)
+    residual = float(
+        np.nanmax(
+            np.abs(np.concatenate([*model.state_residuals(time, y0, pv), *model.start_residuals(time, y0, pv), [0.0]]))
+        )
+    )
+    return InternalLinearisation(
+        derivation.system.name,
+        float(time),
+        y0,
+        tuple(model.state_names[j] for j in eta),
+        A_eta,
+        values,
+        tolerance,
+        residual,
+    )

@@ -31,22 +31,22 @@ does not appear, :mod:`appell.control.underactuated` differentiates the conditio
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Sequence
 
 import numpy as np
 import sympy as sp
 
+from appell.control.underactuated import MAX_DIFFERENTIATIONS, ServoCondition, realise_conditions, servo_manifold
 from appell.core.constraints import ConstraintBlocks, second_order_blocks
 from appell.core.energy import InertiaBlocks, inertia_blocks, linear_split
 from appell.core.equations import Derived, ReactionFormulas, ReducedEquations, admissible_basis, column
-from appell.core.simplification import tidy
-from appell.errors import ModelError
 from appell.core.kinematics import Kinematics, kinematics_of
-from appell.model import System
 from appell.core.partition import Partition, choose_partition, generic_values, pivoted_columns, redundant_rows
-from appell.control.underactuated import MAX_DIFFERENTIATIONS, ServoCondition, realise_conditions, servo_manifold
+from appell.core.simplification import tidy
 from appell.core.validation import validate
+from appell.errors import ModelError
+from appell.model import System
 from appell.numerics.boundary import cached, numeric_model
 
 __all__ = ["ControlledBlocks", "ControlledDerivation", "controlled_blocks", "derive_controlled"]
@@ -122,14 +122,18 @@ def controlled_blocks(system: System, kin: Kinematics) -> ControlledBlocks:
     # entries are small here: tidying them keeps the compositions below small too
     inertia = InertiaBlocks(tidy(inertia.mass_matrix), inertia.inertial_forces, inertia.generalized_forces)
     real, servo = (replace(b, jacobian=tidy(b.jacobian), bias=tidy(b.bias)) for b in (real, servo))
-    return ControlledBlocks(unknowns, inertia, tidy(N), tidy(e), real, servo,
-                            sp.ImmutableMatrix(Kf), sp.ImmutableMatrix(Kg))
+    return ControlledBlocks(
+        unknowns, inertia, tidy(N), tidy(e), real, servo, sp.ImmutableMatrix(Kf), sp.ImmutableMatrix(Kg)
+    )
 
 
 def _numeric(m: sp.Matrix, seed: int) -> np.ndarray:
     vals = generic_values(m.free_symbols, seed)
-    return np.array(m.xreplace(vals).evalf(), dtype=complex).real.reshape(m.shape) if m.shape[0] * m.shape[1] else \
-        np.zeros(m.shape)
+    return (
+        np.array(m.xreplace(vals).evalf(), dtype=complex).real.reshape(m.shape)
+        if m.shape[0] * m.shape[1]
+        else np.zeros(m.shape)
+    )
 
 
 def _rank(m: sp.Matrix) -> tuple[int, np.ndarray]:
@@ -283,16 +287,22 @@ def _solve_reduced(system, Mr, rhs, a_nu):
         sol = None
     if sol is None or any(e.has(sp.zoo, sp.nan) for e in sol):
         empty = [x.name for x, row in zip(a_nu, Mr.tolist()) if all(e == 0 for e in row)]
-        which = (f"it has a zero row for {', '.join(empty)}: that motion has no inertia in any state"
-                 if empty else "no combination of the independent accelerations is determined")
-        raise ModelError(f"the reduced mass matrix C^T M C of the controlled system {system.name!r} is singular: "
-                         f"{which}", hint="give every coordinate that moves under the servo constraints inertia "
-                                          "(a mass or a moment of inertia in the kinetic energy), or constrain it")
+        which = (
+            f"it has a zero row for {', '.join(empty)}: that motion has no inertia in any state"
+            if empty
+            else "no combination of the independent accelerations is determined"
+        )
+        raise ModelError(
+            f"the reduced mass matrix C^T M C of the controlled system {system.name!r} is singular: {which}",
+            hint="give every coordinate that moves under the servo constraints inertia "
+            "(a mass or a moment of inertia in the kinetic energy), or constrain it",
+        )
     return sol
 
 
-def derive_controlled(system: System, dependent: Sequence | None = None,
-                      max_differentiations: int = MAX_DIFFERENTIATIONS) -> ControlledDerivation:
+def derive_controlled(
+    system: System, dependent: Sequence | None = None, max_differentiations: int = MAX_DIFFERENTIATIONS
+) -> ControlledDerivation:
     """Dynamic conditions (2.3), reduced equations (2.4), reactions (2.5) and control laws.
 
     Parameters
@@ -304,12 +314,15 @@ def derive_controlled(system: System, dependent: Sequence | None = None,
     """
     validate(system)
     if not system.servo_constraints:
-        raise ModelError(f"system {system.name!r} has no servo constraints",
-                         hint="use appell.derive for a system without controls")
+        raise ModelError(
+            f"system {system.name!r} has no servo constraints", hint="use appell.derive for a system without controls"
+        )
     if system.frictions:
-        raise ModelError(f"system {system.name!r}: frictions with servo constraints are not supported (the "
-                         "dynamic conditions (2.3) would leave the friction out)",
-                         hint="leave out the [[friction]] items, or the servo constraints")
+        raise ModelError(
+            f"system {system.name!r}: frictions with servo constraints are not supported (the "
+            "dynamic conditions (2.3) would leave the friction out)",
+            hint="leave out the [[friction]] items, or the servo constraints",
+        )
     kin = kinematics_of(system)
     blocks = controlled_blocks(system, kin)
     check_controllability(system, blocks)
@@ -348,19 +361,24 @@ def derive_controlled(system: System, dependent: Sequence | None = None,
     on_motion = {x: v for x, v in zip(a_nu, sol_nu)}
     a_motion = a_sub.xreplace(on_motion)
     reduced = ReducedEquations(
-        independent=tuple(a_nu), dependent=tuple(a[h] for h in dep), projector=sp.ImmutableMatrix(C),
+        independent=tuple(a_nu),
+        dependent=tuple(a[h] for h in dep),
+        projector=sp.ImmutableMatrix(C),
         equations=sp.ImmutableMatrix(eqs),
         dependent_solution=sp.ImmutableMatrix([a_sub[h] for h in dep]),
-        mass_matrix=sp.ImmutableMatrix(Mr), forcing=sp.ImmutableMatrix(rhs),
+        mass_matrix=sp.ImmutableMatrix(Mr),
+        forcing=sp.ImmutableMatrix(rhs),
     )
-    reactions = ReactionFormulas(blocks.real.names, sp.ImmutableMatrix(lam),
-                                 sp.ImmutableMatrix(sp.Matrix(blocks.real.jacobian).T * lam))
+    reactions = ReactionFormulas(
+        blocks.real.names, sp.ImmutableMatrix(lam), sp.ImmutableMatrix(sp.Matrix(blocks.real.jacobian).T * lam)
+    )
 
     # the controls: (2.3) with a_nu from (2.4); differentiate where no control appears
     phi = sp.Matrix(conditions).xreplace(on_motion)
     orders = tuple(c_.order for c_ in system.servo_constraints)
-    conds = realise_conditions(tuple(phi), blocks.servo.names, orders, blocks.unknowns, kin,
-                               dict(zip(a, a_motion)), max_differentiations)
+    conds = realise_conditions(
+        tuple(phi), blocks.servo.names, orders, blocks.unknowns, kin, dict(zip(a, a_motion)), max_differentiations
+    )
     A = sp.Matrix([[sp.diff(cd.expression, x) for x in blocks.unknowns] for cd in conds])
     b = sp.Matrix([cd.expression for cd in conds]).xreplace({x: 0 for x in blocks.unknowns})
     laws = tidy(A.LUsolve(-b))
@@ -377,11 +395,19 @@ def derive_controlled(system: System, dependent: Sequence | None = None,
     fixed = sum(2 if o == 0 else 1 if o == 1 else 0 for o in blocks.real.orders)
     internal_dim = _state_dimension(system, kin) - fixed - sum(cd.relative_degree for cd in conds)
     return ControlledDerivation(
-        system=system, kinematics=kin, blocks=blocks, partition=partition, real_partition=real_partition,
+        system=system,
+        kinematics=kin,
+        blocks=blocks,
+        partition=partition,
+        real_partition=real_partition,
         substituted_accelerations=sp.ImmutableMatrix(a_sub),
         dynamic_conditions=dict(zip(blocks.servo.names, conditions)),
-        reduced=reduced, reactions=reactions, motion_accelerations=dict(zip(a, a_motion)),
-        conditions=conds, control_laws=control_laws, internal_dynamics=internal,
+        reduced=reduced,
+        reactions=reactions,
+        motion_accelerations=dict(zip(a, a_motion)),
+        conditions=conds,
+        control_laws=control_laws,
+        internal_dynamics=internal,
         internal_dimension=max(internal_dim, 0),
     )
 
@@ -392,8 +418,11 @@ def _controlled_model(derivation: ControlledDerivation, backend: str | None = No
     :class:`appell.control.servo_numeric.ControlledModel` (NumPy only: the C backend compiles
     plain derivations)."""
     if backend not in (None, "numpy", "auto"):
-        raise ModelError(f"the backend {backend!r} compiles plain derivations; a controlled system "
-                         f"({derivation.system.name!r}) runs on NumPy", hint="choose the backend 'numpy' or 'auto'")
+        raise ModelError(
+            f"the backend {backend!r} compiles plain derivations; a controlled system "
+            f"({derivation.system.name!r}) runs on NumPy",
+            hint="choose the backend 'numpy' or 'auto'",
+        )
     from appell.control.servo_numeric import compile_controlled
 
     return cached(derivation, "numpy", lambda: compile_controlled(derivation))

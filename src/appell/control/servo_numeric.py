@@ -25,23 +25,36 @@ The independent route :func:`augmented_controlled_solve` solves
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Callable, Mapping
 
 import numpy as np
 import sympy as sp
 
-from appell.numerics.dynamics import Evaluation
 from appell.errors import ComputationError, ModelError
-from appell.numerics.crosscheck import relative_difference
-from appell.numerics.inertia import extreme_parameters
-from appell.numerics.numeric import (check_finite, lambdify_blocks, program_substitutions, split_basis, split_solve,
-                                     usable_partition)
-from appell.symbols import derivative_symbol, t
 from appell.numerics.boundary import numeric_model
+from appell.numerics.crosscheck import relative_difference
+from appell.numerics.dynamics import Evaluation
+from appell.numerics.inertia import extreme_parameters
+from appell.numerics.numeric import (
+    check_finite,
+    lambdify_blocks,
+    program_substitutions,
+    split_basis,
+    split_solve,
+    usable_partition,
+)
+from appell.symbols import derivative_symbol, t
 
-__all__ = ["ControlledCrossCheck", "ControlledModel", "ControlledSolution", "augmented_controlled_solve",
-           "compile_controlled", "cross_check_controlled", "sample_controlled_states"]
+__all__ = [
+    "ControlledCrossCheck",
+    "ControlledModel",
+    "ControlledSolution",
+    "augmented_controlled_solve",
+    "compile_controlled",
+    "cross_check_controlled",
+    "sample_controlled_states",
+]
 
 
 @dataclass(frozen=True)
@@ -101,7 +114,7 @@ class ControlledModel:
         """``(q, w, uc)`` with ``uc = (u_1, u_1_dot, ...)`` of the kinematic controls."""
         y = np.asarray(y, float)
         nq, n = len(self.coordinate_names), len(self.speed_names)
-        return y[:nq], y[nq:nq + n], y[nq + n:]
+        return y[:nq], y[nq : nq + n], y[nq + n :]
 
     def initial_state(self) -> np.ndarray:
         """The state from ``system.initial`` (missing entries are 0)."""
@@ -113,17 +126,40 @@ class ControlledModel:
         out = self.blocks(float(t), q, w, uc, pv)
         n, k = len(w), len(self.control_names)
         M, N, e, Jf, Kf, cf, Jg, Kg, cg = (np.asarray(x, float) for x in out)
-        blocks = (M.reshape(n, n), N.reshape(n, k), e.reshape(n), Jf.reshape(-1, n), Kf.reshape(-1, k),
-                  cf.reshape(-1), Jg.reshape(-1, n), Kg.reshape(-1, k), cg.reshape(-1))
+        blocks = (
+            M.reshape(n, n),
+            N.reshape(n, k),
+            e.reshape(n),
+            Jf.reshape(-1, n),
+            Kf.reshape(-1, k),
+            cf.reshape(-1),
+            Jg.reshape(-1, n),
+            Kg.reshape(-1, k),
+            cg.reshape(-1),
+        )
         if not all(np.isfinite(b).all() for b in blocks):
             w_, c_, g_, u_ = self.speed_names, self.constraint_names, self.servo_names, self.control_names
-            check_finite(t, tuple(zip(
-                ("mass matrix M", "control matrix N (the controls' generalized forces)",
-                 "force vector h - Q (inertial minus applied generalized forces)", "constraint Jacobian df/da",
-                 "constraint Jacobian df/du in the controls", "constraint term c (of f = J a + c)",
-                 "servo-constraint Jacobian dg/da", "servo-constraint Jacobian dg/du in the controls",
-                 "servo-constraint term (of g = J a + K u + c)"),
-                blocks, (w_, w_, w_, c_, c_, c_, g_, g_, g_), (w_, u_, None, w_, u_, None, w_, u_, None))))
+            check_finite(
+                t,
+                tuple(
+                    zip(
+                        (
+                            "mass matrix M",
+                            "control matrix N (the controls' generalized forces)",
+                            "force vector h - Q (inertial minus applied generalized forces)",
+                            "constraint Jacobian df/da",
+                            "constraint Jacobian df/du in the controls",
+                            "constraint term c (of f = J a + c)",
+                            "servo-constraint Jacobian dg/da",
+                            "servo-constraint Jacobian dg/du in the controls",
+                            "servo-constraint term (of g = J a + K u + c)",
+                        ),
+                        blocks,
+                        (w_, w_, w_, c_, c_, c_, g_, g_, g_),
+                        (w_, u_, None, w_, u_, None, w_, u_, None),
+                    )
+                ),
+            )
         return blocks
 
     def start_blocks(self, t, y, p=None):
@@ -144,8 +180,7 @@ class ControlledModel:
 
     def _joint_controls(self, M, N, e, J, K, c, s):
         """Steps (2.3) + (2.4) of the module docstring, for ``(a_nu, xi)``."""
-        dep, _, _ = usable_partition(J, self.derivation.partition.dependent,
-                                     self.constraint_names + self.servo_names)
+        dep, _, _ = usable_partition(J, self.derivation.partition.dependent, self.constraint_names + self.servo_names)
         C, Jh, dep, ind = split_basis(J, dep)
         n, k = M.shape[0], N.shape[1]
         D = np.zeros((n, k))
@@ -159,9 +194,11 @@ class ControlledModel:
         try:
             z = np.linalg.solve(rows, rhs)
         except np.linalg.LinAlgError as exc:
-            raise ComputationError("the dynamic conditions (2.3) are singular in the controls at this state",
-                                   hint="the controls cannot realise the servo constraints here") from exc
-        return z[len(ind):]
+            raise ComputationError(
+                "the dynamic conditions (2.3) are singular in the controls at this state",
+                hint="the controls cannot realise the servo constraints here",
+            ) from exc
+        return z[len(ind) :]
 
     def solve(self, t, y, p=None) -> ControlledSolution:
         """Controls (2.3), accelerations of the real system under them and reactions (2.5);
@@ -170,10 +207,10 @@ class ControlledModel:
             return self._solve(t, y, p)
         except np.linalg.LinAlgError as exc:
             raise ComputationError(
-                f"the controlled split (2.3)-(2.5) of {self.name!r} is singular at t = {float(t):.10g} "
-                f"(NumPy: {exc})",
+                f"the controlled split (2.3)-(2.5) of {self.name!r} is singular at t = {float(t):.10g} (NumPy: {exc})",
                 hint="the mass matrix, a dependent block of the constraints or the dynamic conditions lose rank "
-                     "there: give every motion inertia, or stop the run before this state") from exc
+                "there: give every motion inertia, or stop the run before this state",
+            ) from exc
 
     def _solve(self, t, y, p=None) -> ControlledSolution:
         pv = self.params(p)
@@ -186,11 +223,11 @@ class ControlledModel:
             try:
                 xi = np.linalg.solve(np.asarray(A, float).reshape(k, k), -np.asarray(b, float).reshape(k))
             except np.linalg.LinAlgError as exc:
-                raise ComputationError("the control law is singular at this state",
-                                       hint="the relative degree is not defined here") from exc
+                raise ComputationError(
+                    "the control law is singular at this state", hint="the relative degree is not defined here"
+                ) from exc
         else:
-            xi = self._joint_controls(M, N, e, np.vstack([Jf, Jg]), np.vstack([Kf, Kg]),
-                                      np.concatenate([cf, cg]), s)
+            xi = self._joint_controls(M, N, e, np.vstack([Jf, Jg]), np.vstack([Kf, Kg]), np.concatenate([cf, cg]), s)
         dep, switched = tuple(self.derivation.real_partition.dependent), False
         if s:
             dep, _, switched = usable_partition(Jf, dep, self.constraint_names)
@@ -216,8 +253,9 @@ class ControlledModel:
         duc = np.empty(uc.size)
         duc[0::2] = uc[1::2]
         duc[1::2] = sol.controls[list(self.kinematic_controls)]
-        return Evaluation(np.concatenate([dq, sol.accelerations, duc]), sol.multipliers, sol.controls,
-                          sol.dependent, sol.switched)
+        return Evaluation(
+            np.concatenate([dq, sol.accelerations, duc]), sol.multipliers, sol.controls, sol.dependent, sol.switched
+        )
 
     def _residuals(self, t, y, p):
         q, w, uc = self.split_state(y)
@@ -284,9 +322,11 @@ def _finite_solution(model, t, pv, parts) -> None:
             from appell.numerics.inertia import extreme_parameters
 
             extreme = extreme_parameters(model.parameter_names, pv)
-            raise ComputationError(f"the {what} of {model.name!r} overflow the floating range at t = {float(t):.10g}"
-                                   + (f": {extreme}" if extreme else ""),
-                                   hint="give the parameters values of ordinary size, or rescale the model's units")
+            raise ComputationError(
+                f"the {what} of {model.name!r} overflow the floating range at t = {float(t):.10g}"
+                + (f": {extreme}" if extreme else ""),
+                hint="give the parameters values of ordinary size, or rescale the model's units",
+            )
 
 
 def augmented_controlled_solve(model: ControlledModel, t, y, p=None) -> ControlledSolution:
@@ -308,11 +348,13 @@ def augmented_controlled_solve(model: ControlledModel, t, y, p=None) -> Controll
         from appell.numerics.inertia import extreme_parameters
 
         extreme = extreme_parameters(model.parameter_names, pv)
-        raise ComputationError(f"the augmented system [M N -J_f^T; J_f K_f 0; J_g K_g 0] of the cross-check is "
-                               f"singular at t = {float(t):.10g}" + (f": {extreme}" if extreme else ""),
-                               hint="give the parameters values of ordinary size (or rescale the model's units); "
-                                    "a singular configuration or servo constraint otherwise") from None
-    return ControlledSolution(x[n:n + k], x[:n], x[n + k:], np.zeros(r), ())
+        raise ComputationError(
+            f"the augmented system [M N -J_f^T; J_f K_f 0; J_g K_g 0] of the cross-check is "
+            f"singular at t = {float(t):.10g}" + (f": {extreme}" if extreme else ""),
+            hint="give the parameters values of ordinary size (or rescale the model's units); "
+            "a singular configuration or servo constraint otherwise",
+        ) from None
+    return ControlledSolution(x[n : n + k], x[:n], x[n + k :], np.zeros(r), ())
 
 
 def compile_controlled(derivation) -> ControlledModel:
@@ -333,11 +375,21 @@ def compile_controlled(derivation) -> ControlledModel:
 
     real, servo = blk.real, blk.servo
     s, r = real.count, servo.count
-    blocks = lambdify_blocks(args, [
-        blk.inertia.mass_matrix, blk.control_matrix, blk.forcing_bias,
-        mat(real.jacobian, s, n), mat(blk.real_control_jacobian, s, k), mat(real.bias, s, 1),
-        mat(servo.jacobian, r, n), mat(blk.servo_control_jacobian, r, k), mat(servo.bias, r, 1),
-    ], subs)
+    blocks = lambdify_blocks(
+        args,
+        [
+            blk.inertia.mass_matrix,
+            blk.control_matrix,
+            blk.forcing_bias,
+            mat(real.jacobian, s, n),
+            mat(blk.real_control_jacobian, s, k),
+            mat(real.bias, s, 1),
+            mat(servo.jacobian, r, n),
+            mat(blk.servo_control_jacobian, r, k),
+            mat(servo.bias, r, 1),
+        ],
+        subs,
+    )
     xi = list(blk.unknowns)
     conds = sp.Matrix([c.expression for c in derivation.conditions])
     A = conds.jacobian(sp.Matrix(xi))
@@ -348,8 +400,16 @@ def compile_controlled(derivation) -> ControlledModel:
     def level(items, count):
         return sp.Matrix([e if e is not None else 0 for e in items]) if count else sp.zeros(0, 1)
 
-    residuals = lambdify_blocks(args, [level(real.position_residual, s), level(real.velocity_residual, s),
-                                       level(servo.position_residual, r), level(servo.velocity_residual, r)], subs)
+    residuals = lambdify_blocks(
+        args,
+        [
+            level(real.position_residual, s),
+            level(real.velocity_residual, s),
+            level(servo.position_residual, r),
+            level(servo.velocity_residual, r),
+        ],
+        subs,
+    )
     rates_of_state = set(kin.speeds) | set(uc[1::2])
     relation_of, relation_exprs = [], []
     for c in derivation.conditions:
@@ -361,17 +421,32 @@ def compile_controlled(derivation) -> ControlledModel:
     coords = tuple(q.name for q in kin.coordinates)
     speeds = tuple(w.name for w in kin.speeds)
     return ControlledModel(
-        derivation=derivation, name=system.name,
+        derivation=derivation,
+        name=system.name,
         state_names=coords + speeds + tuple(s_.name for s_ in uc),
-        coordinate_names=coords, speed_names=speeds, constraint_names=real.names, servo_names=servo.names,
-        control_names=tuple(c.name for c in system.controls), parameter_names=tuple(p_.name for p_ in params),
+        coordinate_names=coords,
+        speed_names=speeds,
+        constraint_names=real.names,
+        servo_names=servo.names,
+        control_names=tuple(c.name for c in system.controls),
+        parameter_names=tuple(p_.name for p_ in params),
         default_parameters=np.array([p_.value for p_ in system.parameters], dtype=float),
-        kinematic_controls=kin_idx, blocks=blocks, conditions=conditions, rates=rates, residuals=residuals,
-        has_position=(np.array([e is not None for e in real.position_residual], bool),
-                      np.array([e is not None for e in servo.position_residual], bool)),
-        has_velocity=(np.array([e is not None for e in real.velocity_residual], bool),
-                      np.array([e is not None for e in servo.velocity_residual], bool)),
-        underactuated=derivation.underactuated, relations=relations, relation_of=tuple(relation_of),
+        kinematic_controls=kin_idx,
+        blocks=blocks,
+        conditions=conditions,
+        rates=rates,
+        residuals=residuals,
+        has_position=(
+            np.array([e is not None for e in real.position_residual], bool),
+            np.array([e is not None for e in servo.position_residual], bool),
+        ),
+        has_velocity=(
+            np.array([e is not None for e in real.velocity_residual], bool),
+            np.array([e is not None for e in servo.velocity_residual], bool),
+        ),
+        underactuated=derivation.underactuated,
+        relations=relations,
+        relation_of=tuple(relation_of),
         relation_velocity=tuple(bool(e.free_symbols & rates_of_state) for e in relation_exprs),
     )
 
@@ -412,15 +487,28 @@ class ControlledCrossCheck:
     def verdict(self, tol: float = 1e-9) -> str:
         """One line: passed, or failed naming the lines above ``tol`` (a NaN fails) and the
         parameters of extreme size where there are any."""
-        bad = [f"{k} {v:.3e}" for k, v in (("controls", self.controls), ("accelerations", self.accelerations),
-                                            ("multipliers", self.multipliers)) if not v <= tol]
+        bad = [
+            f"{k} {v:.3e}"
+            for k, v in (
+                ("controls", self.controls),
+                ("accelerations", self.accelerations),
+                ("multipliers", self.multipliers),
+            )
+            if not v <= tol
+        ]
         if np.isfinite(self.tracking) and self.tracking > TRACKING_TOLERANCE:
             bad.append(f"tracking error {self.tracking:.3e} (accepted up to {TRACKING_TOLERANCE:g})")
         if not bad:
             return f"passed: every relative difference is at most the tolerance {tol:g}"
-        return (f"cross-check of the controlled system [{self.route}] failed (tolerance {tol:g}): " + ", ".join(bad)
-                + (f"; {self.extreme} (give the parameters values of ordinary size, or rescale the model's units)"
-                   if self.extreme else ""))
+        return (
+            f"cross-check of the controlled system [{self.route}] failed (tolerance {tol:g}): "
+            + ", ".join(bad)
+            + (
+                f"; {self.extreme} (give the parameters values of ordinary size, or rescale the model's units)"
+                if self.extreme
+                else ""
+            )
+        )
 
     def __str__(self) -> str:
         lines = [
@@ -431,8 +519,10 @@ class ControlledCrossCheck:
             f"  servo multipliers (2.3) at the solution  {self.servo_multipliers:.3e}",
         ]
         if np.isfinite(self.tracking):
-            lines.append(f"  closed loop over {TRACKING_CHECK:g} s: largest tracking error {self.tracking:.3e} "
-                         f"(accepted up to {TRACKING_TOLERANCE:g})")
+            lines.append(
+                f"  closed loop over {TRACKING_CHECK:g} s: largest tracking error {self.tracking:.3e} "
+                f"(accepted up to {TRACKING_TOLERANCE:g})"
+            )
         elif self.tracking_note:
             lines.append(f"  closed loop over {TRACKING_CHECK:g} s: not judged: {self.tracking_note}")
         return "\n".join(lines)
@@ -451,8 +541,10 @@ def sample_controlled_states(model: ControlledModel, count: int = 5, seed: int =
     rng = np.random.default_rng(seed)
     init = model.derivation.system.initial_values
     base = np.array([init.get(n, rng.uniform(0.3, 1.0)) for n in model.state_names])
-    return [(0.0 if k == 0 else float(rng.uniform(0, 2)), base + (0.0 if k == 0 else 0.2) * rng.uniform(-1, 1, base.size))
-            for k in range(count)]
+    return [
+        (0.0 if k == 0 else float(rng.uniform(0, 2)), base + (0.0 if k == 0 else 0.2) * rng.uniform(-1, 1, base.size))
+        for k in range(count)
+    ]
 
 
 def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCheck:
@@ -468,11 +560,15 @@ def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCh
         for tt, y in states:
             s1 = model.solve(tt, y, pv)
             s2 = augmented_controlled_solve(model, tt, y, pv)
-            dc, da, dl = max(dc, relative_difference(s1.controls, s2.controls)), max(da, relative_difference(s1.accelerations, s2.accelerations)), \
-                max(dl, relative_difference(s1.multipliers, s2.multipliers))
+            dc, da, dl = (
+                max(dc, relative_difference(s1.controls, s2.controls)),
+                max(da, relative_difference(s1.accelerations, s2.accelerations)),
+                max(dl, relative_difference(s1.multipliers, s2.multipliers)),
+            )
             ds = max(ds, float(np.max(np.abs(s1.servo_multipliers), initial=0.0)))
-        return ControlledCrossCheck("augmented", dc, da, dl, ds, len(states),
-                                    extreme=extreme_parameters(model.parameter_names, pv))
+        return ControlledCrossCheck(
+            "augmented", dc, da, dl, ds, len(states), extreme=extreme_parameters(model.parameter_names, pv)
+        )
     system = derivation.system
     subs_prog = program_substitutions(system, orders=12)
     syms = [sp.Symbol(n) for n in model.state_names]
@@ -480,23 +576,41 @@ def cross_check_controlled(derivation, states=None, p=None) -> ControlledCrossCh
     prm = {sp.Symbol(n): v for n, v in zip(model.parameter_names, pv)}
     for tt, y in states:
         vals = {**prm, **dict(zip(syms, y)), time: tt}
-        ref = [_real(e.xreplace(vals).evalf(), f"the control law of {name!r}", tt, y, model.state_names)
-               for name, e in zip(derivation.control_laws, laws)]
+        ref = [
+            _real(e.xreplace(vals).evalf(), f"the control law of {name!r}", tt, y, model.state_names)
+            for name, e in zip(derivation.control_laws, laws)
+        ]
         dc = max(dc, relative_difference(model.solve(tt, y, pv).controls, ref))
     tracking, note = float("nan"), ""
     if system.initial:
         from appell.simulation.simulate import simulate
 
-        run = simulate(model, TRACKING_CHECK, params=pv, rtol=1e-10, atol=1e-12,
-                       t_eval=np.linspace(0, TRACKING_CHECK, 201), max_evaluations=TRACKING_EVALUATIONS)
+        run = simulate(
+            model,
+            TRACKING_CHECK,
+            params=pv,
+            rtol=1e-10,
+            atol=1e-12,
+            t_eval=np.linspace(0, TRACKING_CHECK, 201),
+            max_evaluations=TRACKING_EVALUATIONS,
+        )
         if run.success:
             tracking = run.max_tracking_error
         elif run.statistics.nfev > TRACKING_EVALUATIONS:
             note = run.message
         else:
             tracking = float("inf")
-    return ControlledCrossCheck("symbolic", dc, 0.0, 0.0, float("nan"), len(states), tracking, note,
-                                extreme_parameters(model.parameter_names, pv))
+    return ControlledCrossCheck(
+        "symbolic",
+        dc,
+        0.0,
+        0.0,
+        float("nan"),
+        len(states),
+        tracking,
+        note,
+        extreme_parameters(model.parameter_names, pv),
+    )
 
 
 def _real(value, what: str, t, y, names) -> float:
@@ -505,6 +619,8 @@ def _real(value, what: str, t, y, names) -> float:
     z = complex(value) if value.is_number else complex("nan")
     if z.imag != 0.0 or not np.isfinite(z.real):
         state = ", ".join(f"{n} = {v:.6g}" for n, v in zip(names, y))
-        raise ModelError(f"{what} is not a finite real number at t = {t:.6g}, {state} (value {value})",
-                         hint="check the model's expressions for roots or logarithms of negative values there")
+        raise ModelError(
+            f"{what} is not a finite real number at t = {t:.6g}, {state} (value {value})",
+            hint="check the model's expressions for roots or logarithms of negative values there",
+        )
     return z.real

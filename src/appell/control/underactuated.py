@@ -26,11 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from appell.errors import ModelError
 from appell.core.kinematics import Kinematics
-from appell.model import System
 from appell.core.partition import generic_values, pivoted_columns
 from appell.core.simplification import within_bound
+from appell.errors import ModelError
+from appell.model import System
 
 __all__ = ["MAX_DIFFERENTIATIONS", "ServoCondition", "realise_conditions", "servo_manifold"]
 
@@ -92,8 +92,15 @@ def _separate(rows, A: sp.Matrix, An: np.ndarray) -> tuple[list, list[int]]:
     return new, dependent
 
 
-def realise_conditions(conditions, names, orders, unknowns, kin: Kinematics, motion_accelerations: dict,
-                       max_differentiations: int = MAX_DIFFERENTIATIONS) -> tuple[ServoCondition, ...]:
+def realise_conditions(
+    conditions,
+    names,
+    orders,
+    unknowns,
+    kin: Kinematics,
+    motion_accelerations: dict,
+    max_differentiations: int = MAX_DIFFERENTIATIONS,
+) -> tuple[ServoCondition, ...]:
     """Differentiate the dynamic conditions until the control Jacobian is nonsingular.
 
     ``conditions`` are (2.3) with (2.4) substituted, ``motion_accelerations`` maps each

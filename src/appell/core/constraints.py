@@ -61,10 +61,12 @@ class ConstraintBlocks:
         where a constraint has no such level (what the numeric models compile)."""
         if not self.count:
             return sp.zeros(0, 1), sp.zeros(0, 1)
-        return (sp.Matrix([e if e is not None else 0 for e in self.position_residual]),
-                sp.Matrix([e if e is not None else 0 for e in self.velocity_residual]))
+        return (
+            sp.Matrix([e if e is not None else 0 for e in self.position_residual]),
+            sp.Matrix([e if e is not None else 0 for e in self.velocity_residual]),
+        )
 
-    def subset(self, rows) -> "ConstraintBlocks":
+    def subset(self, rows) -> ConstraintBlocks:
         """The blocks of the constraints ``rows`` only (in that order)."""
         rows = list(rows)
         n = self.jacobian.shape[1]
@@ -126,9 +128,12 @@ def second_order_blocks(constraints: tuple[Constraint, ...], kin: Kinematics, ex
                 raise ModelError(
                     f"first-order constraint {c.name!r} involves no speed of the system",
                     where=c.where,
-                    hint=(f"it only restricts {', '.join(given)}, which the system does not move: "
-                          "a control fixed by itself should be a program" if given
-                          else "a constraint on coordinates only is holonomic; declare it so"),
+                    hint=(
+                        f"it only restricts {', '.join(given)}, which the system does not move: "
+                        "a control fixed by itself should be a program"
+                        if given
+                        else "a constraint on coordinates only is holonomic; declare it so"
+                    ),
                 )
             pos.append(None)
             vel.append(e)

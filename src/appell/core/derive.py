@@ -23,7 +23,7 @@ and after it, in their own folders::
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import sympy as sp
 
@@ -31,11 +31,11 @@ from appell.core.constraints import second_order_blocks
 from appell.core.energy import inertia_blocks
 from appell.core.equations import Derivation
 from appell.core.kinematics import kinematics_of
-from appell.errors import ModelError
-from appell.model import System
 from appell.core.partition import choose_partition
 from appell.core.redundancy import check_consistency, find_redundancy, split_outputs
 from appell.core.validation import validate
+from appell.errors import ModelError
+from appell.model import System
 
 
 def derive(system: System, dependent: Sequence | None = None) -> Derivation:
@@ -63,7 +63,7 @@ def derive(system: System, dependent: Sequence | None = None) -> Derivation:
             f"system {system.name!r} has servo constraints ({servo}) realised by controls ({controls}): "
             "derive does not impose them",
             hint="use appell.derive_controlled(system) for the dynamic conditions (2.3), the controls and the "
-                 "reactions (2.5); the command line does so by itself",
+            "reactions (2.5); the command line does so by itself",
         )
     kin = kinematics_of(system)
     inertia = inertia_blocks(system, kin)

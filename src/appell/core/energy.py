@@ -131,8 +131,11 @@ class ParticleInertiaBlocks(_BlocksOnDemand):
         return f"ParticleInertiaBlocks({len(self.particles)} particles, n = {self._n})"
 
     def __eq__(self, other):
-        return (isinstance(other, ParticleInertiaBlocks) and self.particles == other.particles
-                and self.generalized_forces == other.generalized_forces)
+        return (
+            isinstance(other, ParticleInertiaBlocks)
+            and self.particles == other.particles
+            and self.generalized_forces == other.generalized_forces
+        )
 
     def __hash__(self):
         return hash((self.particles, self.generalized_forces))
@@ -149,8 +152,11 @@ def usable_tree(system: System, kin: Kinematics):
     tree = system.tree
     if tree is None or system.kinetic_energy is not None or system.acceleration_energy is not None:
         return None
-    if tree.route == "expanded" or tree.route == "auto" and (len(kin.speeds) < RECURSIVE_FROM
-                                                             or tree.depth < RECURSIVE_DEPTH):
+    if (
+        tree.route == "expanded"
+        or tree.route == "auto"
+        and (len(kin.speeds) < RECURSIVE_FROM or tree.depth < RECURSIVE_DEPTH)
+    ):
         return None
     if tuple(kin.coordinate_rates) != tuple(kin.speeds) or not system.bodies:
         return None
@@ -248,15 +254,22 @@ def inertia_blocks(system: System, kin: Kinematics) -> InertiaBlocks:
         gravity = system.potential_energy == tree.potential
         Q = generalized_forces(system, kin, potential=not gravity)
         return TreeInertiaBlocks(sp.ImmutableMatrix(Q), tree, gravity, system, kin)
-    only_particles = (system.kinetic_energy is None and system.acceleration_energy is None and system.bodies
-                      and not any(isinstance(body, RigidBody) for body in system.bodies))
+    only_particles = (
+        system.kinetic_energy is None
+        and system.acceleration_energy is None
+        and system.bodies
+        and not any(isinstance(body, RigidBody) for body in system.bodies)
+    )
     if only_particles:
         particles = tuple(_particle_term(body, kin) for body in system.bodies)
     else:
         M, h, particles = _expanded_blocks(system, kin)
     # a load at a body's position moves with the body's J_v, known already
-    known = {sp.ImmutableMatrix(body.position): pt.jacobian for body, pt in zip(system.bodies, particles)
-             if body.velocity is None}
+    known = {
+        sp.ImmutableMatrix(body.position): pt.jacobian
+        for body, pt in zip(system.bodies, particles)
+        if body.velocity is None
+    }
     Q = sp.ImmutableMatrix(generalized_forces(system, kin, jacobians=known))
     return ParticleInertiaBlocks(Q, particles, len(kin.speeds)) if only_particles else InertiaBlocks(M, h, Q)
 
@@ -288,8 +301,9 @@ def _expanded_blocks(system: System, kin: Kinematics):
             )
         T = system.kinetic_energy
         with naming("kinetic_energy"):
-            refuse_derivative(T, list(kin.speeds) + list(kin.coordinates),
-                              what="its derivatives in the speeds and coordinates")
+            refuse_derivative(
+                T, list(kin.speeds) + list(kin.coordinates), what="its derivatives in the speeds and coordinates"
+            )
             p = jacobian([T], w).T
             A, b = linear_split(kin.diff(p), a)
         M += A

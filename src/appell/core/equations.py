@@ -26,8 +26,8 @@ import sympy as sp
 from appell.core.constraints import ConstraintBlocks
 from appell.core.energy import InertiaBlocks
 from appell.core.kinematics import Kinematics
-from appell.core.simplification import adjugate, determinant, tidy
 from appell.core.partition import Partition
+from appell.core.simplification import adjugate, determinant, tidy
 from appell.model import System
 from appell.symbols import matmul
 
@@ -42,10 +42,12 @@ def formulas_unavailable(partition) -> str | None:
     s = len(partition.dependent)
     if s <= INVERSE_LIMIT:
         return None
-    return (f"the closed forms (1.4) and (1.5) are not formed: the dependent block J_h is {s} x {s} (more than "
-            f"{INVERSE_LIMIT}), whose symbolic inverse would swell past use; the motion, the reactions and the "
-            "outputs come from the numeric split of the blocks M, h - Q, J, c at each state (printed: the "
-            "equations (1.3) M a + h = Q + J^T lambda and f = J a + c = 0 that it solves)")
+    return (
+        f"the closed forms (1.4) and (1.5) are not formed: the dependent block J_h is {s} x {s} (more than "
+        f"{INVERSE_LIMIT}), whose symbolic inverse would swell past use; the motion, the reactions and the "
+        "outputs come from the numeric split of the blocks M, h - Q, J, c at each state (printed: the "
+        "equations (1.3) M a + h = Q + J^T lambda and f = J a + c = 0 that it solves)"
+    )
 
 
 def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
@@ -63,9 +65,11 @@ def block_inverse(Jh: sp.Matrix) -> sp.Matrix:
     if Jh.shape[0] > INVERSE_LIMIT:
         from appell.errors import FormulaUnavailable
 
-        raise FormulaUnavailable(f"the dependent block J_h is {Jh.shape[0]} x {Jh.shape[0]}: its inverse is not "
-                                 f"formed symbolically (more than {INVERSE_LIMIT} rows)",
-                                 hint="the numbers come from the numeric split (appell simulate, check)")
+        raise FormulaUnavailable(
+            f"the dependent block J_h is {Jh.shape[0]} x {Jh.shape[0]}: its inverse is not "
+            f"formed symbolically (more than {INVERSE_LIMIT} rows)",
+            hint="the numbers come from the numeric split (appell simulate, check)",
+        )
     det = tidy(determinant(Jh, method="bareiss"))
     return adjugate(Jh, method="bareiss") / det
 
@@ -114,8 +118,9 @@ def column(items) -> sp.Matrix:
     return sp.Matrix(items) if items else sp.zeros(0, 1)
 
 
-def admissible_basis(J: sp.Matrix, partition: Partition, Jh_inv: sp.Matrix | None = None
-                     ) -> tuple[sp.Matrix, sp.Matrix]:
+def admissible_basis(
+    J: sp.Matrix, partition: Partition, Jh_inv: sp.Matrix | None = None
+) -> tuple[sp.Matrix, sp.Matrix]:
     """``C`` (n x p) and ``J_h^{-1}`` for a partition (symbolic); ``Jh_inv`` if already formed."""
     n = J.shape[1]
     Jnu = J[:, list(partition.independent)]
@@ -131,8 +136,9 @@ def admissible_basis(J: sp.Matrix, partition: Partition, Jh_inv: sp.Matrix | Non
     return C, Jh_inv
 
 
-def reduced_equations(inertia: InertiaBlocks, cons: ConstraintBlocks, partition: Partition,
-                      accelerations, Jh_inv: sp.Matrix | None = None) -> ReducedEquations:
+def reduced_equations(
+    inertia: InertiaBlocks, cons: ConstraintBlocks, partition: Partition, accelerations, Jh_inv: sp.Matrix | None = None
+) -> ReducedEquations:
     """Equations (1.4): ``C^T (M a + h - Q) = 0``; eliminated form for linear constraints.
     ``Jh_inv``: the dependent block's inverse, if already formed (:func:`block_inverse`)."""
     a = sp.Matrix(accelerations)
@@ -151,8 +157,9 @@ def reduced_equations(inertia: InertiaBlocks, cons: ConstraintBlocks, partition:
         dep_sol = sp.Matrix([a_full[h] for h in partition.dependent])
         M = sp.Matrix(inertia.mass_matrix)
         mass = matmul(C.T, matmul(M, C))
-        forcing = -matmul(C.T, matmul(M, d) + sp.Matrix(inertia.inertial_forces)
-                          - sp.Matrix(inertia.generalized_forces))
+        forcing = -matmul(
+            C.T, matmul(M, d) + sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
+        )
     return ReducedEquations(
         independent=tuple(accelerations[i] for i in partition.independent),
         dependent=tuple(accelerations[i] for i in partition.dependent),
@@ -164,8 +171,9 @@ def reduced_equations(inertia: InertiaBlocks, cons: ConstraintBlocks, partition:
     )
 
 
-def reaction_formulas(inertia: InertiaBlocks, cons: ConstraintBlocks, partition: Partition,
-                      accelerations, Jh_inv: sp.Matrix | None = None) -> ReactionFormulas:
+def reaction_formulas(
+    inertia: InertiaBlocks, cons: ConstraintBlocks, partition: Partition, accelerations, Jh_inv: sp.Matrix | None = None
+) -> ReactionFormulas:
     """Equations (1.5): ``lambda = J_h^{-T} E_h`` and ``R = J^T lambda``. ``Jh_inv``: the
     dependent block's inverse, if already formed (:func:`block_inverse`)."""
     a = sp.Matrix(accelerations)
@@ -231,19 +239,22 @@ class Derivation(Derived):
     @cached_property
     def reduced(self) -> ReducedEquations:
         """Reduced equations of motion, eq. (1.4)."""
-        return reduced_equations(self.inertia, self.constraints, self.partition, self.accelerations,
-                                 self.dependent_inverse)
+        return reduced_equations(
+            self.inertia, self.constraints, self.partition, self.accelerations, self.dependent_inverse
+        )
 
     @cached_property
     def reactions(self) -> ReactionFormulas:
         """Multiplier formulas, eq. (1.5)."""
-        return reaction_formulas(self.inertia, self.constraints, self.partition, self.accelerations,
-                                 self.dependent_inverse)
+        return reaction_formulas(
+            self.inertia, self.constraints, self.partition, self.accelerations, self.dependent_inverse
+        )
 
-    def with_partition(self, dependent) -> "Derivation":
+    def with_partition(self, dependent) -> Derivation:
         """The same derivation with another choice of dependent accelerations (checked)."""
         from appell.core.partition import choose_partition
 
-        p = choose_partition(sp.Matrix(self.constraints.jacobian), self.constraints.names,
-                             self.accelerations, dependent)
+        p = choose_partition(
+            sp.Matrix(self.constraints.jacobian), self.constraints.names, self.accelerations, dependent
+        )
         return Derivation(self.system, self.kinematics, self.inertia, self.constraints, p, self.redundancy)

@@ -104,8 +104,11 @@ def derivative(expr, symbol):
     expr = sp.sympify(expr)
     if not contains([expr], NONSMOOTH):
         return GRAPH_DERIVATIVE(expr, symbol)
-    real = {s: sp.Dummy(s.name, real=True) for s in expr.free_symbols | {symbol}
-            if isinstance(s, sp.Symbol) and not s.is_real}
+    real = {
+        s: sp.Dummy(s.name, real=True)
+        for s in expr.free_symbols | {symbol}
+        if isinstance(s, sp.Symbol) and not s.is_real
+    }
     out = expr.xreplace(real).diff(real.get(symbol, symbol)).xreplace({v: k for k, v in real.items()})
     return out.replace(lambda e: isinstance(e, sp.DiracDelta), lambda e: sp.S.Zero) if out.has(sp.DiracDelta) else out
 

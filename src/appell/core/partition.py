@@ -8,8 +8,8 @@ means redundant or contradictory constraints, and QR with pivoting on ``J^T`` na
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 import sympy as sp
@@ -102,7 +102,8 @@ def numeric_jacobian(J: sp.Matrix, seed: int = 0, names: Sequence[str] | None = 
         f"the constraint Jacobian df/da is not a finite real matrix at {GENERIC_TRIES} generic states "
         f"(every symbol between 0.3 and 1.3), where appell decides its rank: {which}",
         hint="a constraint takes a root or logarithm of a negative value, divides by zero or overflows there; "
-             "write it so that it is real and finite near such values (e.g. sqrt(x^2 + 1) rather than sqrt(x - 5))")
+        "write it so that it is real and finite near such values (e.g. sqrt(x^2 + 1) rather than sqrt(x - 5))",
+    )
 
 
 def _evaluate(J, symbols, fn, vals) -> np.ndarray | None:
@@ -149,7 +150,8 @@ def pivoted_columns(Jn: np.ndarray) -> tuple[np.ndarray, int]:
             "the constraint Jacobian df/da (or a block formed from it) is infinite or undefined at a generic "
             "state, where appell decides its rank: values beyond the floating-point range",
             hint="rescale the units or the parameters, or write the constraints so that their values stay "
-                 "moderate (F = 0 rather than F^100 = 0)")
+            "moderate (F = 0 rather than F^100 = 0)",
+        )
     import scipy.linalg as sla  # here: a derivation read from the cache needs no SciPy
 
     _, R, piv = sla.qr(Jn, pivoting=True, mode="economic")
@@ -207,8 +209,14 @@ def redundant_rows(Jn: np.ndarray) -> list[int]:
     return sorted(int(i) for i in piv[rank:])
 
 
-def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence[sp.Symbol],
-                     dependent: Sequence | None = None, seed: int = 0, at: dict | None = None) -> Partition:
+def choose_partition(
+    J: sp.Matrix,
+    names: Sequence[str],
+    accelerations: Sequence[sp.Symbol],
+    dependent: Sequence | None = None,
+    seed: int = 0,
+    at: dict | None = None,
+) -> Partition:
     """Choose (or check) the dependent accelerations for constraint Jacobian ``J``.
 
     ``dependent`` may give the user's choice as acceleration symbols, names or indices;
@@ -240,9 +248,7 @@ def choose_partition(J: sp.Matrix, names: Sequence[str], accelerations: Sequence
                 f"{len(set(idx))} dependent accelerations chosen for {s} constraints",
                 hint=f"name exactly {s} distinct accelerations",
             )
-        ok = any(
-            pivoted_columns(Jn[:, idx])[1] == s for Jn in (J1, J2)
-        )
+        ok = any(pivoted_columns(Jn[:, idx])[1] == s for Jn in (J1, J2))
         if not ok:
             auto = choose_partition(J, names, accelerations, None, seed)
             raise ModelError(

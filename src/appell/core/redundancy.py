@@ -38,8 +38,16 @@ import sympy as sp
 
 from appell.core.constraints import ConstraintBlocks
 from appell.core.kinematics import jacobian
-from appell.core.partition import (RANK_CONDITION, generic_values, jacobian_at, numeric_jacobian, partition_condition,
-                                   pivoted_columns, row_normalised, row_scales)
+from appell.core.partition import (
+    RANK_CONDITION,
+    generic_values,
+    jacobian_at,
+    numeric_jacobian,
+    partition_condition,
+    pivoted_columns,
+    row_normalised,
+    row_scales,
+)
 from appell.errors import ModelError
 from appell.symbols import free_symbols, graph_cse, lambdify
 
@@ -115,10 +123,14 @@ class Redundancy:
     def split(self) -> str:
         """Which multipliers appell reports, in words."""
         if self.elastic:
-            return ("compatible elastic solution: minimises sum c_i lambda_i^2 under J^T lambda = M a + h - Q "
-                    "(lambda = C^-1 J dq, J^T C^-1 J dq = R), with the constraints' compliances")
-        return ("minimum-norm solution of J^T lambda = M a + h - Q in the row-scaled norm |D^-1 lambda|_2 "
-                "(each row of J scaled to a largest entry of one)")
+            return (
+                "compatible elastic solution: minimises sum c_i lambda_i^2 under J^T lambda = M a + h - Q "
+                "(lambda = C^-1 J dq, J^T C^-1 J dq = R), with the constraints' compliances"
+            )
+        return (
+            "minimum-norm solution of J^T lambda = M a + h - Q in the row-scaled norm |D^-1 lambda|_2 "
+            "(each row of J scaled to a largest entry of one)"
+        )
 
     def summary(self) -> list[str]:
         """The report as lines of text (printed by ``appell derive``, ``check``, ``report``)."""
@@ -126,14 +138,20 @@ class Redundancy:
         lines = [
             f"redundant constraints (statically indeterminate): rank J = {self.rank} of {s} constraints; "
             f"dim null(J^T) = {self.dimension}"
-            + (" wherever the constraints hold (an overconstrained loop: J has full rank off them)"
-               if self.on_manifold else ""),
+            + (
+                " wherever the constraints hold (an overconstrained loop: J has full rank off them)"
+                if self.on_manifold
+                else ""
+            ),
             "  motion from: " + ", ".join(self.named("independent")),
             "  satisfied automatically: " + ", ".join(self.named("redundant")),
-            "  undetermined split among: " + ", ".join(self.named("involved"))
-            + "; rigid-body mechanics fixes only J^T lambda, not how it is shared" if self.involved else
-            "  undetermined split among: none; the redundant rows of J vanish here (the gradient of "
-            + ", ".join(self.named("redundant")) + " is zero): their multipliers exert nothing and are reported as 0",
+            "  undetermined split among: "
+            + ", ".join(self.named("involved"))
+            + "; rigid-body mechanics fixes only J^T lambda, not how it is shared"
+            if self.involved
+            else "  undetermined split among: none; the redundant rows of J vanish here (the gradient of "
+            + ", ".join(self.named("redundant"))
+            + " is zero): their multipliers exert nothing and are reported as 0",
         ]
         if self.named("determined"):
             lines.append("  determined: " + ", ".join(self.named("determined")))
@@ -142,8 +160,11 @@ class Redundancy:
             lines.append("  outputs determined: " + (", ".join(self.outputs_determined) or "none"))
         where = "at the initial state" if self.at_start else "at a generic state"
         for k in range(self.dimension):
-            terms = " ".join(f"{v:+.6g} {n}" for v, n in zip(self.null_space[:, k], self.names)
-                             if abs(v) > INVOLVED_TOL * np.abs(self.null_space[:, k]).max())
+            terms = " ".join(
+                f"{v:+.6g} {n}"
+                for v, n in zip(self.null_space[:, k], self.names)
+                if abs(v) > INVOLVED_TOL * np.abs(self.null_space[:, k]).max()
+            )
             if terms:
                 lines.append(f"  undetermined direction {k + 1} ({where}): lambda + mu * ({terms})")
         lines.append("  reported multipliers: " + self.split)
@@ -152,11 +173,17 @@ class Redundancy:
     def as_dict(self) -> dict:
         """JSON-ready description."""
         return {
-            "rank": self.rank, "constraints": list(self.names), "dimension": self.dimension,
-            "independent": list(self.named("independent")), "redundant": list(self.named("redundant")),
-            "undetermined": list(self.named("involved")), "determined": list(self.named("determined")),
-            "null_space": self.null_space.tolist(), "split": "elastic" if self.elastic else "minimum-norm",
-            "statement": self.split, "on_manifold": self.on_manifold,
+            "rank": self.rank,
+            "constraints": list(self.names),
+            "dimension": self.dimension,
+            "independent": list(self.named("independent")),
+            "redundant": list(self.named("redundant")),
+            "undetermined": list(self.named("involved")),
+            "determined": list(self.named("determined")),
+            "null_space": self.null_space.tolist(),
+            "split": "elastic" if self.elastic else "minimum-norm",
+            "statement": self.split,
+            "on_manifold": self.on_manifold,
             "outputs_undetermined": list(self.outputs_undetermined),
             "outputs_determined": list(self.outputs_determined),
         }
@@ -177,7 +204,7 @@ def independent_rows(J: np.ndarray) -> list[int]:
         piv, rank = pivoted_columns(row_normalised(sub))
         if rank < len(trial):
             continue
-        if partition_condition(sub, sorted(int(j) for j in piv[:len(trial)]))[0] >= RANK_CONDITION:
+        if partition_condition(sub, sorted(int(j) for j in piv[: len(trial)]))[0] >= RANK_CONDITION:
             continue
         keep.append(i)
     return keep
@@ -191,8 +218,9 @@ def null_space(J: np.ndarray, rank: int) -> np.ndarray:
     return D[:, None] * U[:, rank:]
 
 
-def multipliers_with_redundancy(J: np.ndarray, rows, lam_rows: np.ndarray, weights: np.ndarray | None = None
-                                ) -> np.ndarray:
+def multipliers_with_redundancy(
+    J: np.ndarray, rows, lam_rows: np.ndarray, weights: np.ndarray | None = None
+) -> np.ndarray:
     """All ``s`` multipliers from those of the independent ``rows``.
 
     ``lambda_p`` (``lam_rows`` on ``rows``, zero elsewhere) solves ``J^T lambda = R``;
@@ -238,11 +266,13 @@ def _refuse_vanishing_rows(J: sp.Matrix, Jn: np.ndarray, at: dict, names) -> Non
                 f"the gradient of constraint {name!r} vanishes at the initial state, where it holds: its "
                 "reaction is not defined there (a constraint written as a power F^k = 0, k > 1, has a zero "
                 "gradient wherever it holds)",
-                hint=f"write {name!r} as F = 0, or start away from the point where its gradient vanishes")
+                hint=f"write {name!r} as F = 0, or start away from the point where its gradient vanishes",
+            )
 
 
-def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None, seed: int = 0,
-                    coordinates=()) -> Redundancy | None:
+def find_redundancy(
+    cons: ConstraintBlocks, constraints, at: dict | None = None, seed: int = 0, coordinates=()
+) -> Redundancy | None:
     """The :class:`Redundancy` of the constraint blocks, or None when ``J`` has full row rank.
 
     ``constraints`` are the model's :class:`~appell.model.Constraint` objects (for their
@@ -279,11 +309,15 @@ def find_redundancy(cons: ConstraintBlocks, constraints, at: dict | None = None,
         raise ModelError(
             "compliances split the reactions of redundant constraints only when every constraint of the "
             f"undetermined set has one: {', '.join(given)} have a compliance, {', '.join(missing)} have none",
-            hint="give a compliance to " + ", ".join(missing) + " as well, or to none of "
-                 + ", ".join(cons.names[i] for i in involved) + " (minimum-norm split)",
+            hint="give a compliance to "
+            + ", ".join(missing)
+            + " as well, or to none of "
+            + ", ".join(cons.names[i] for i in involved)
+            + " (minimum-norm split)",
         )
-    return Redundancy(cons, tuple(rows), tuple(i for i in range(s) if i not in rows), N, involved,
-                      compliance, at_start, on_manifold)
+    return Redundancy(
+        cons, tuple(rows), tuple(i for i in range(s) if i not in rows), N, involved, compliance, at_start, on_manifold
+    )
 
 
 def split_outputs(red: Redundancy, outputs, at: dict, seed: int = 0) -> Redundancy:
@@ -314,8 +348,11 @@ def split_outputs(red: Redundancy, outputs, at: dict, seed: int = 0) -> Redundan
     moved = np.abs(G @ red.null_space)
     size = np.linalg.norm(G, axis=1)[:, None] * np.linalg.norm(red.null_space, axis=0)[None, :]
     loose = np.any(moved > 1e-8 * np.where(size > 0.0, size, 1.0), axis=1)
-    return dataclasses.replace(red, outputs_undetermined=tuple(o.name for o, u in zip(outputs, loose) if u),
-                               outputs_determined=tuple(o.name for o, u in zip(outputs, loose) if not u))
+    return dataclasses.replace(
+        red,
+        outputs_undetermined=tuple(o.name for o, u in zip(outputs, loose) if u),
+        outputs_determined=tuple(o.name for o, u in zip(outputs, loose) if not u),
+    )
 
 
 def _multiplier_gradients(exprs, symbols, values, lam, step: float = 1e-4):
@@ -382,7 +419,7 @@ def rank_on_manifold(cons: ConstraintBlocks, J: sp.Matrix, coordinates, at: dict
     if not np.all(np.isfinite(f0)) or np.abs(f0).max() > 1e-8 * size:
         return None
     _, sv, Vt = np.linalg.svd(dF0)
-    free = Vt[int(np.sum(sv > 1e-9 * sv[0])):] if sv.size and sv[0] > 0 else Vt
+    free = Vt[int(np.sum(sv > 1e-9 * sv[0])) :] if sv.size and sv[0] > 0 else Vt
     if not len(free):
         return None
     rng = np.random.default_rng(seed)
@@ -461,8 +498,8 @@ def check_consistency(red: Redundancy, kin, at: dict, seed: int = 0) -> None:
         raise ModelError(
             "redundant constraints are inconsistent: no state satisfies all of them; " + "; ".join(lines),
             hint="a redundant constraint must follow from the others (e.g. four table legs of lengths with "
-                 "L1 + L3 = L2 + L4 under a rigid plate); correct its expression or parameters, or remove "
-                 + ", ".join(cons.names[i] for i, _, _ in bad),
+            "L1 + L3 = L2 + L4 under a rigid plate); correct its expression or parameters, or remove "
+            + ", ".join(cons.names[i] for i, _, _ in bad),
         )
 
 
@@ -470,8 +507,10 @@ def _inconsistent(cons, others, compiled, q, w, x, v, fixed) -> list:
     """``(row, level, residual)`` of the redundant rows that fail at the projected state."""
     bad = []
     for i in others:
-        for level, expr, wrt, scale in (("position", cons.position_residual[i], q, x),
-                                        ("velocity", cons.velocity_residual[i], w, v)):
+        for level, expr, wrt, scale in (
+            ("position", cons.position_residual[i], q, x),
+            ("velocity", cons.velocity_residual[i], w, v),
+        ):
             if expr is None:
                 continue
             fn = compiled([expr], wrt, q + w)

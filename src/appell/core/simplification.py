@@ -121,8 +121,10 @@ def _postorder(root, memo: dict, combine, skip=None):
 def symbols_below(root) -> dict:
     """Each subexpression's free symbols (a frozenset), every distinct subexpression once: what
     SymPy's ``free_symbols`` walks again at every call."""
+
     def combine(e, parts):
         return frozenset(e.free_symbols) if not e.args else frozenset().union(*parts)
+
     memo: dict = {}
     _postorder(root, memo, combine)
     return memo
@@ -187,6 +189,7 @@ def _expanded(e, parts, limit) -> tuple[int, int, int]:
 def _node_counts(expr, limit) -> dict:
     """Tree size of every subexpression of ``expr`` (shared ones counted at every use);
     raises :class:`_Over` past ``limit``."""
+
     def combine(e, parts):
         n = 1 + sum(parts)
         if n > limit:
@@ -331,7 +334,8 @@ def refuse_derivative(expr, symbols, rates=None, what: str = "its time derivativ
     chains of functions (:func:`_compounding`) keep the tree estimate alone: their repeated
     derivatives (a servo condition differentiated twice or three times) compound."""
     if derivative_nodes(expr, symbols, rates) > NODE_LIMIT and (
-            derivative_work(expr, symbols) > WORK_LIMIT or _compounding(expr)):
+        derivative_work(expr, symbols) > WORK_LIMIT or _compounding(expr)
+    ):
         raise ExpressionSwell(
             f"{what} would exceed {NODE_LIMIT:,} nodes (terms, factors and functions; the expression "
             f"itself has {tree_size(expr):,}): the derivation stops here instead of running without bound",
@@ -340,10 +344,12 @@ def refuse_derivative(expr, symbols, rates=None, what: str = "its time derivativ
 
 
 #: what to do about an expression that swells (the hint of :class:`ExpressionSwell`)
-SWELL_HINT = ("write the expression in a shorter form: multiply out or factor it yourself, avoid long products "
-              "of sums and deep chains of functions, or introduce an extra coordinate for a repeated "
-              "subexpression with a holonomic constraint that defines it; a large mechanism can be derived "
-              "anyway from Python by raising appell.core.simplification.NODE_LIMIT")
+SWELL_HINT = (
+    "write the expression in a shorter form: multiply out or factor it yourself, avoid long products "
+    "of sums and deep chains of functions, or introduce an extra coordinate for a repeated "
+    "subexpression with a holonomic constraint that defines it; a large mechanism can be derived "
+    "anyway from Python by raising appell.core.simplification.NODE_LIMIT"
+)
 
 
 #: integer powers from this degree, and chains of functions from this depth, compound under
@@ -395,8 +401,11 @@ def refuse_result(expr, what: str = "its time derivative") -> None:
     """Raise :class:`ExpressionSwell` when ``expr``, just formed by a required step, has more
     than :data:`NODE_LIMIT` distinct subexpressions (:func:`graph_size`, with an early stop)."""
     if graph_size(expr) > NODE_LIMIT:
-        raise ExpressionSwell(f"{what} has more than {NODE_LIMIT:,} nodes (terms, factors and functions): the "
-                              "derivation stops here instead of running without bound", hint=SWELL_HINT)
+        raise ExpressionSwell(
+            f"{what} has more than {NODE_LIMIT:,} nodes (terms, factors and functions): the "
+            "derivation stops here instead of running without bound",
+            hint=SWELL_HINT,
+        )
 
 
 @contextmanager
@@ -546,7 +555,7 @@ def _pythagoras(expr):
             for f in sp.Mul.make_args(term):
                 if f.is_Pow and f.exp == 2 and isinstance(f.base, sp.sin):
                     partner = term / f * sp.cos(f.base.args[0]) ** 2
-                    if partner in terms[:i] + terms[i + 1:]:
+                    if partner in terms[:i] + terms[i + 1 :]:
                         terms.remove(term)
                         terms.remove(partner)
                         return fold(sp.Add(*terms, term / f)) if terms else term / f

@@ -58,8 +58,10 @@ def _check(expr, allowed: set, where: str, extra_hint: str = ""):
 def validate(system: System) -> None:
     """Raise :class:`ModelError` for the first undeclared symbol found."""
     if not isinstance(system, System):
-        raise ModelError(f"expected an appell.System, got {type(system).__name__}",
-                         hint="build one with appell.System(...) or read a model file with appell.load_model")
+        raise ModelError(
+            f"expected an appell.System, got {type(system).__name__}",
+            hint="build one with appell.System(...) or read a model file with appell.load_model",
+        )
     lv = declared_symbols(system)
     for p in system.programs:
         _check(p.expr, lv["time"], f"program {p.symbol.name}", "a program depends on t and parameters only")
@@ -96,8 +98,10 @@ def _check_bodies(system, lv) -> None:
             if v is not None:
                 items += [(e, f"{attr} of body {b.name!r}") for e in v]
         if isinstance(b, RigidBody):
-            items += [(e, f"inertia or angular velocity of body {b.name!r}")
-                      for e in list(b.inertia) + list(b.angular_velocity)]
+            items += [
+                (e, f"inertia or angular velocity of body {b.name!r}")
+                for e in list(b.inertia) + list(b.angular_velocity)
+            ]
     _check_all(items, lv["state"])
 
 
@@ -130,8 +134,12 @@ def _check_frictions(system, lv) -> None:
             for e in f.slip:
                 _check(e, lv["state"], f"slip velocity of friction {f.name!r}")
             for attr in ("mu_k", "mu_s", "viscous"):
-                _check(getattr(f, attr), params, f"{attr} of friction {f.name!r}",
-                       "a friction coefficient depends on parameters only")
+                _check(
+                    getattr(f, attr),
+                    params,
+                    f"{attr} of friction {f.name!r}",
+                    "a friction coefficient depends on parameters only",
+                )
         except ModelError as exc:
             if f.where:
                 exc.where = f.where
@@ -144,16 +152,25 @@ def _check_rest(system, lv) -> None:
     allowed = lv["acceleration"] | {sp.Symbol(f"lambda_{c.name}") for c in system.constraints}
     if not free_symbols(*(o.expr for o in system.outputs)) <= allowed:  # then name the first culprit
         for o in system.outputs:
-            _check(o.expr, allowed, f"output {o.name!r}",
-                   "an output may also use accelerations <speed>_dot, multipliers lambda_<constraint> and controls")
-    known = {s.name for s in system.coordinates + system.speeds} | {c.name for c in system.constraints} | {
-        c.name for c in system.controls} | {n for c in system.controls if c.kind == "kinematic"
-                                            for n in (derivative_symbol(c.symbol).name,)} | {
-        o.name for o in system.outputs}
+            _check(
+                o.expr,
+                allowed,
+                f"output {o.name!r}",
+                "an output may also use accelerations <speed>_dot, multipliers lambda_<constraint> and controls",
+            )
+    known = (
+        {s.name for s in system.coordinates + system.speeds}
+        | {c.name for c in system.constraints}
+        | {c.name for c in system.controls}
+        | {n for c in system.controls if c.kind == "kinematic" for n in (derivative_symbol(c.symbol).name,)}
+        | {o.name for o in system.outputs}
+    )
     unknown = sorted(k for k, _ in system.units if k not in known)
     if unknown:
-        raise ModelError(f"units given for unknown name(s) {', '.join(unknown)}",
-                         hint="units are for coordinates, speeds, constraints (their multipliers), controls and outputs")
+        raise ModelError(
+            f"units given for unknown name(s) {', '.join(unknown)}",
+            hint="units are for coordinates, speeds, constraints (their multipliers), controls and outputs",
+        )
     missing = {p.symbol for p in system.parameters if p.value is None}
     if missing:
         raise ModelError(f"parameter(s) without value: {', '.join(sorted(map(str, missing)))}")

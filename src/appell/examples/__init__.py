@@ -6,8 +6,16 @@ The builders (SymPy) are imported on first use of their names (:data:`BUILDERS`,
 from pathlib import Path as _Path
 
 #: the builders of :mod:`.catalog`, imported on first use
-_CATALOG_NAMES = ("CATALOG", "car", "chaplygin_sleigh", "cone_particle", "cubic_acceleration", "knife_edge", "pendulum",
-                  "rolling_ball")
+_CATALOG_NAMES = (
+    "CATALOG",
+    "car",
+    "chaplygin_sleigh",
+    "cone_particle",
+    "cubic_acceleration",
+    "knife_edge",
+    "pendulum",
+    "rolling_ball",
+)
 
 
 def __getattr__(name):
@@ -24,23 +32,43 @@ def __getattr__(name):
 
 def _builders() -> dict:
     """name -> builder (a callable returning the System) for every bundled model file."""
-    from .cyclic_examples import (spherical_pendulum, spherical_pendulum_cartesian, spherical_pendulum_rod,
-                                  symmetric_top, turntable_particle)
     from .benchmark_examples import BENCHMARK_EXAMPLES
+    from .catalog import CATALOG
+    from .cyclic_examples import (
+        spherical_pendulum,
+        spherical_pendulum_cartesian,
+        spherical_pendulum_rod,
+        symmetric_top,
+        turntable_particle,
+    )
     from .drive_examples import DRIVE_EXAMPLES
     from .event_examples import EVENT_EXAMPLES
-    from .catalog import CATALOG
     from .machine_examples import driveshaft, steering_gear
     from .mechanism_examples import benchmark_bicycle, four_bar, rolling_disc
     from .servo_examples import SERVO_EXAMPLES
     from .support_examples import SUPPORT_EXAMPLES
 
-    cyclic = (spherical_pendulum, spherical_pendulum_rod, spherical_pendulum_cartesian, symmetric_top,
-              turntable_particle)
-    return {**CATALOG, **SERVO_EXAMPLES, **{f.__name__: f for f in cyclic}, **EVENT_EXAMPLES, **BENCHMARK_EXAMPLES,
-            **DRIVE_EXAMPLES, **SUPPORT_EXAMPLES,
-            "four_bar": four_bar, "rolling_disc": rolling_disc, "benchmark_bicycle": benchmark_bicycle,
-            "driveshaft": driveshaft, "steering_gear": steering_gear}
+    cyclic = (
+        spherical_pendulum,
+        spherical_pendulum_rod,
+        spherical_pendulum_cartesian,
+        symmetric_top,
+        turntable_particle,
+    )
+    return {
+        **CATALOG,
+        **SERVO_EXAMPLES,
+        **{f.__name__: f for f in cyclic},
+        **EVENT_EXAMPLES,
+        **BENCHMARK_EXAMPLES,
+        **DRIVE_EXAMPLES,
+        **SUPPORT_EXAMPLES,
+        "four_bar": four_bar,
+        "rolling_disc": rolling_disc,
+        "benchmark_bicycle": benchmark_bicycle,
+        "driveshaft": driveshaft,
+        "steering_gear": steering_gear,
+    }
 
 
 def list_examples() -> list[str]:
@@ -67,9 +95,24 @@ def example_path(name: str) -> _Path:
             return path
     from appell.errors import ModelError
 
-    raise ModelError(f"no bundled example {name!r}",
-                     hint="examples: " + ", ".join(list_examples()) + "; benchmarks: " + ", ".join(list_benchmarks()))
+    raise ModelError(
+        f"no bundled example {name!r}",
+        hint="examples: " + ", ".join(list_examples()) + "; benchmarks: " + ", ".join(list_benchmarks()),
+    )
 
 
-__all__ = ["BENCHMARKS", "BUILDERS", "CATALOG", "car", "chaplygin_sleigh", "cone_particle", "cubic_acceleration",
-           "example_path", "knife_edge", "list_benchmarks", "list_examples", "pendulum", "rolling_ball"]
+__all__ = [
+    "BENCHMARKS",
+    "BUILDERS",
+    "CATALOG",
+    "car",
+    "chaplygin_sleigh",
+    "cone_particle",
+    "cubic_acceleration",
+    "example_path",
+    "knife_edge",
+    "list_benchmarks",
+    "list_examples",
+    "pendulum",
+    "rolling_ball",
+]

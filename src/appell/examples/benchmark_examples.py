@@ -16,20 +16,58 @@ from appell.model import Parameter, System, holonomic
 
 #: the parameters of the test set (SI units)
 ANDREWS_PARAMETERS = {
-    "m1": .04325, "m2": .00365, "m3": .02373, "m4": .00706, "m5": .07050, "m6": .00706, "m7": .05498,
-    "xa": -.06934, "ya": -.00227, "xb": -.03635, "yb": .03273, "xc": .014, "yc": .072, "c0": 4530.0,
-    "I1": 2.194e-6, "I2": 4.410e-7, "I3": 5.255e-6, "I4": 5.667e-7, "I5": 1.169e-5, "I6": 5.667e-7,
-    "I7": 1.912e-5, "d": 28e-3, "da": 11.5e-3, "e": 2e-2, "ea": 1.421e-2, "rr": 7e-3, "ra": 9.2e-4,
-    "l0": 7.785e-2, "ss": 35e-3, "sa": 1.874e-2, "sb": 1.043e-2, "sc": 1.8e-2, "sd": 2e-2, "ta": 2.308e-2,
-    "tb": 9.16e-3, "u": 4e-2, "ua": 1.228e-2, "ub": 4.49e-3, "zf": 2e-2, "zt": 4e-2, "fa": 1.421e-2,
+    "m1": 0.04325,
+    "m2": 0.00365,
+    "m3": 0.02373,
+    "m4": 0.00706,
+    "m5": 0.07050,
+    "m6": 0.00706,
+    "m7": 0.05498,
+    "xa": -0.06934,
+    "ya": -0.00227,
+    "xb": -0.03635,
+    "yb": 0.03273,
+    "xc": 0.014,
+    "yc": 0.072,
+    "c0": 4530.0,
+    "I1": 2.194e-6,
+    "I2": 4.410e-7,
+    "I3": 5.255e-6,
+    "I4": 5.667e-7,
+    "I5": 1.169e-5,
+    "I6": 5.667e-7,
+    "I7": 1.912e-5,
+    "d": 28e-3,
+    "da": 11.5e-3,
+    "e": 2e-2,
+    "ea": 1.421e-2,
+    "rr": 7e-3,
+    "ra": 9.2e-4,
+    "l0": 7.785e-2,
+    "ss": 35e-3,
+    "sa": 1.874e-2,
+    "sb": 1.043e-2,
+    "sc": 1.8e-2,
+    "sd": 2e-2,
+    "ta": 2.308e-2,
+    "tb": 9.16e-3,
+    "u": 4e-2,
+    "ua": 1.228e-2,
+    "ub": 4.49e-3,
+    "zf": 2e-2,
+    "zt": 4e-2,
+    "fa": 1.421e-2,
     "mom": 33e-3,
 }
 
 #: consistent initial angles of the test set (at rest)
 ANDREWS_INITIAL = {
-    "beta": -0.0617138900142764496358948458001, "Theta": 0.0,
-    "gamma": 0.455279819163070380255912382449, "Phi": 0.222668390165885884674473185609,
-    "delta": 0.487364979543842550225598953530, "Omega": -0.222668390165885884674473185609,
+    "beta": -0.0617138900142764496358948458001,
+    "Theta": 0.0,
+    "gamma": 0.455279819163070380255912382449,
+    "Phi": 0.222668390165885884674473185609,
+    "delta": 0.487364979543842550225598953530,
+    "Omega": -0.222668390165885884674473185609,
     "epsilon": 1.23054744454982119249735015568,
 }
 
@@ -62,17 +100,17 @@ def andrews_squeezer() -> System:
     M[1, 0] = M[0, 1] = m2 * (da**2 - da * rr * sp.cos(Th)) + I2
     M[1, 1] = m2 * da**2 + I2
     M[2, 2] = m3 * (sa**2 + sb**2) + I3
-    M[3, 3] = m4 * (e - ea)**2 + I4
-    M[4, 3] = M[3, 4] = m4 * ((e - ea)**2 + zt * (e - ea) * sp.sin(Ph)) + I4
-    M[4, 4] = m4 * (zt**2 + 2 * zt * (e - ea) * sp.sin(Ph) + (e - ea)**2) + m5 * (ta**2 + tb**2) + I4 + I5
-    M[5, 5] = m6 * (zf - fa)**2 + I6
-    M[6, 5] = M[5, 6] = m6 * ((zf - fa)**2 - u * (zf - fa) * sp.sin(Om)) + I6
-    M[6, 6] = m6 * ((zf - fa)**2 - 2 * u * (zf - fa) * sp.sin(Om) + u**2) + m7 * (ua**2 + ub**2) + I6 + I7
+    M[3, 3] = m4 * (e - ea) ** 2 + I4
+    M[4, 3] = M[3, 4] = m4 * ((e - ea) ** 2 + zt * (e - ea) * sp.sin(Ph)) + I4
+    M[4, 4] = m4 * (zt**2 + 2 * zt * (e - ea) * sp.sin(Ph) + (e - ea) ** 2) + m5 * (ta**2 + tb**2) + I4 + I5
+    M[5, 5] = m6 * (zf - fa) ** 2 + I6
+    M[6, 5] = M[5, 6] = m6 * ((zf - fa) ** 2 - u * (zf - fa) * sp.sin(Om)) + I6
+    M[6, 6] = m6 * ((zf - fa) ** 2 - 2 * u * (zf - fa) * sp.sin(Om) + u**2) + m7 * (ua**2 + ub**2) + I6 + I7
     v = sp.Matrix(qd)
     # the spring between the point (xd, yd) of body 3 and the fixed point C
     xd = sd * sp.cos(ga) + sc * sp.sin(ga) + xb
     yd = sd * sp.sin(ga) - sc * sp.cos(ga) + yb
-    L = sp.sqrt((xd - xc)**2 + (yd - yc)**2)
+    L = sp.sqrt((xd - xc) ** 2 + (yd - yc) ** 2)
     F = -c0 * (L - l0) / L
     spring = F * (xd - xc) * (sc * sp.cos(ga) - sd * sp.sin(ga)) + F * (yd - yc) * (sd * sp.cos(ga) + sc * sp.sin(ga))
     x0 = rr * sp.cos(be) - d * sp.cos(be + Th)

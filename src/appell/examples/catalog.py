@@ -50,8 +50,16 @@ def car() -> System:
             nonholonomic("front", xd * sp.sin(phi + theta) - yd * sp.cos(phi + theta) - a * sp.cos(theta) * phid),
         ),
         initial={"x": 0.0, "y": 0.0, "phi": 0.3, "phi_dot": 0.1},
-        units={"x": "m", "y": "m", "phi": "rad", "x_dot": "m/s", "y_dot": "m/s", "phi_dot": "rad/s",
-               "rear": "N", "front": "N"},
+        units={
+            "x": "m",
+            "y": "m",
+            "phi": "rad",
+            "x_dot": "m/s",
+            "y_dot": "m/s",
+            "phi_dot": "rad/s",
+            "rear": "N",
+            "front": "N",
+        },
     )
 
 
@@ -94,8 +102,11 @@ def knife_edge() -> System:
         description="knife edge sliding on an inclined plane",
         coordinates=(x, y, phi),
         parameters=(
-            Parameter(m, 1.0, "kg"), Parameter(g, 9.81, "m/s^2"), Parameter(alpha, 0.5, "rad"),
-            Parameter(I, 0.1, "kg*m^2"), Parameter(Omega, 1.5, "rad/s"),
+            Parameter(m, 1.0, "kg"),
+            Parameter(g, 9.81, "m/s^2"),
+            Parameter(alpha, 0.5, "rad"),
+            Parameter(I, 0.1, "kg*m^2"),
+            Parameter(Omega, 1.5, "rad/s"),
         ),
         kinetic_energy=m / 2 * (xd**2 + yd**2) + I / 2 * phid**2,
         potential_energy=-m * g * sp.sin(alpha) * x,
@@ -161,7 +172,11 @@ def rolling_ball() -> System:
     vx, vy, vz, wx, wy, wz = sp.symbols("vx vy vz wx wy wz")
     m, R, g, alpha = sp.symbols("m R g alpha")
     ball = RigidBody(
-        "ball", m, velocity=(vx, vy, vz), inertia=(2 * m * R**2 / 5,) * 3, angular_velocity=(wx, wy, wz),
+        "ball",
+        m,
+        velocity=(vx, vy, vz),
+        inertia=(2 * m * R**2 / 5,) * 3,
+        angular_velocity=(wx, wy, wz),
     )
     return System(
         name="rolling_ball",
@@ -169,8 +184,12 @@ def rolling_ball() -> System:
         coordinates=(x, y, z),
         speeds=(vx, vy, vz, wx, wy, wz),
         kinematics={x: vx, y: vy, z: vz},
-        parameters=(Parameter(m, 1.0, "kg"), Parameter(R, 0.1, "m"), Parameter(g, 9.81, "m/s^2"),
-                    Parameter(alpha, 0.3, "rad")),
+        parameters=(
+            Parameter(m, 1.0, "kg"),
+            Parameter(R, 0.1, "m"),
+            Parameter(g, 9.81, "m/s^2"),
+            Parameter(alpha, 0.3, "rad"),
+        ),
         bodies=(ball,),
         potential_energy=m * g * (-x * sp.sin(alpha) + z * sp.cos(alpha)),
         constraints=(
@@ -179,8 +198,20 @@ def rolling_ball() -> System:
             nonholonomic("roll_y", vy + R * wx),
         ),
         initial={"x": 0.0, "y": 0.0, "z": 0.1, "vx": 0.0, "vy": 0.5, "vz": 0.0, "wx": -5.0, "wy": 0.0, "wz": 2.0},
-        units={"x": "m", "y": "m", "z": "m", "vx": "m/s", "vy": "m/s", "vz": "m/s",
-               "wx": "rad/s", "wy": "rad/s", "wz": "rad/s", "contact": "N", "roll_x": "N", "roll_y": "N"},
+        units={
+            "x": "m",
+            "y": "m",
+            "z": "m",
+            "vx": "m/s",
+            "vy": "m/s",
+            "vz": "m/s",
+            "wx": "rad/s",
+            "wy": "rad/s",
+            "wz": "rad/s",
+            "contact": "N",
+            "roll_x": "N",
+            "roll_y": "N",
+        },
     )
 
 
@@ -199,8 +230,12 @@ def cubic_acceleration() -> System:
         name="cubic_acceleration",
         description="particle with a second-order constraint quadratic in the accelerations",
         coordinates=(x, y),
-        parameters=(Parameter(m, 1.0, "kg"), Parameter(g, 9.81, "m/s^2"), Parameter(c, 0.2, "s^2/m"),
-                    Parameter(F, 5.0, "N")),
+        parameters=(
+            Parameter(m, 1.0, "kg"),
+            Parameter(g, 9.81, "m/s^2"),
+            Parameter(c, 0.2, "s^2/m"),
+            Parameter(F, 5.0, "N"),
+        ),
         kinetic_energy=m / 2 * (xd**2 + yd**2),
         generalized_forces=(F, -m * g),
         constraints=(acceleration_constraint("guide", ydd - c * xdd**2),),

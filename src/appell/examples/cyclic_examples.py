@@ -111,8 +111,12 @@ def spherical_pendulum_cartesian() -> System:
         ),
         # theta = 1, phi = 0, theta_dot = 0.2, phi_dot = 1.5 with L = 1 (same motion as above)
         initial={
-            "x": float(s), "y": 0.0, "z": float(-c),
-            "x_dot": float(c * thd0), "y_dot": float(s * phd0), "z_dot": float(s * thd0),
+            "x": float(s),
+            "y": 0.0,
+            "z": float(-c),
+            "x_dot": float(c * thd0),
+            "y_dot": float(s * phd0),
+            "z_dot": float(s * thd0),
         },
     )
 

@@ -15,8 +15,7 @@ import sympy as sp
 from appell.model import AppliedForce, Control, Parameter, Particle, RigidBody, System, holonomic, nonholonomic
 from appell.symbols import t
 
-__all__ = ["slider_crank_drive", "differential_drive", "programmed_pendulum", "DRIVE_EXAMPLES",
-           "DRIVEN_SERVO_EXAMPLES"]
+__all__ = ["slider_crank_drive", "differential_drive", "programmed_pendulum", "DRIVE_EXAMPLES", "DRIVEN_SERVO_EXAMPLES"]
 
 
 def slider_crank_drive() -> System:
@@ -48,10 +47,20 @@ def slider_crank_drive() -> System:
     thd, phd = sp.symbols("theta_dot phi_dot")
     z = sp.Integer(0)
     A = (xO + r * sp.cos(th), yO + r * sp.sin(th))
-    crank = RigidBody("crank", mc, position=(xO + r / 2 * sp.cos(th), yO + r / 2 * sp.sin(th), 0),
-                      inertia=(0, 0, mc * r**2 / 12), angular_velocity=(0, 0, thd))
-    rod = RigidBody("rod", mr, position=(A[0] + l / 2 * sp.cos(ph), A[1] + l / 2 * sp.sin(ph), 0),
-                    inertia=(0, 0, mr * l**2 / 12), angular_velocity=(0, 0, phd))
+    crank = RigidBody(
+        "crank",
+        mc,
+        position=(xO + r / 2 * sp.cos(th), yO + r / 2 * sp.sin(th), 0),
+        inertia=(0, 0, mc * r**2 / 12),
+        angular_velocity=(0, 0, thd),
+    )
+    rod = RigidBody(
+        "rod",
+        mr,
+        position=(A[0] + l / 2 * sp.cos(ph), A[1] + l / 2 * sp.sin(ph), 0),
+        inertia=(0, 0, mr * l**2 / 12),
+        angular_velocity=(0, 0, phd),
+    )
     slider = Particle("slider", ms, position=(x, y, 0))
     r0, l0, w0 = 0.1, 0.35, 10.0
     return System(
@@ -83,11 +92,34 @@ def slider_crank_drive() -> System:
         servo_constraints=(nonholonomic("crank_speed", thd - omega),),
         # top dead centre theta = 0: phi = 0, x = r + l; rates from the loop, phi' = -r omega / l
         # (expressions of the parameters, so that --set r=.. or omega=.. keeps the start consistent)
-        initial={"x_O": 0.0, "y_O": 0.0, "theta": 0.0, "phi": 0.0, "x": r + l, "y": 0.0,
-                 "x_O_dot": 0.0, "y_O_dot": 0.0, "theta_dot": omega, "phi_dot": -r * omega / l, "x_dot": 0.0,
-                 "y_dot": 0.0},
-        units={"x_O": "m", "y_O": "m", "theta": "rad", "phi": "rad", "x": "m", "y": "m",
-               "bearing_x": "N", "bearing_y": "N", "pin_x": "N", "pin_y": "N", "guide": "N", "tau": "N*m"},
+        initial={
+            "x_O": 0.0,
+            "y_O": 0.0,
+            "theta": 0.0,
+            "phi": 0.0,
+            "x": r + l,
+            "y": 0.0,
+            "x_O_dot": 0.0,
+            "y_O_dot": 0.0,
+            "theta_dot": omega,
+            "phi_dot": -r * omega / l,
+            "x_dot": 0.0,
+            "y_dot": 0.0,
+        },
+        units={
+            "x_O": "m",
+            "y_O": "m",
+            "theta": "rad",
+            "phi": "rad",
+            "x": "m",
+            "y": "m",
+            "bearing_x": "N",
+            "bearing_y": "N",
+            "pin_x": "N",
+            "pin_y": "N",
+            "guide": "N",
+            "tau": "N*m",
+        },
     )
 
 
@@ -116,8 +148,13 @@ def differential_drive() -> System:
     m, IG, Iw, R, b, d, cw, v, rho = sp.symbols("m I_G I_w R b d c_w v rho")
     tr, tl = sp.symbols("tau_r tau_l")
     forward = xd * sp.cos(psi) + yd * sp.sin(psi)
-    chassis = RigidBody("chassis", m, position=(x + d * sp.cos(psi), y + d * sp.sin(psi), 0),
-                        inertia=(0, 0, IG), angular_velocity=(0, 0, psid))
+    chassis = RigidBody(
+        "chassis",
+        m,
+        position=(x + d * sp.cos(psi), y + d * sp.sin(psi), 0),
+        inertia=(0, 0, IG),
+        angular_velocity=(0, 0, psid),
+    )
     v0, rho0, R0, b0 = 0.5, 2.0, 0.05, 0.2
     wr, wl = (v0 + b0 * v0 / rho0) / R0, (v0 - b0 * v0 / rho0) / R0
     return System(
@@ -145,10 +182,30 @@ def differential_drive() -> System:
         ),
         controls=(Control(tr, "force"), Control(tl, "force")),
         servo_constraints=(nonholonomic("speed", forward - v), nonholonomic("turn", psid - v / rho)),
-        initial={"x": 0.0, "y": 0.0, "psi": 0.0, "theta_r": 0.0, "theta_l": 0.0, "x_dot": v0, "y_dot": 0.0,
-                 "psi_dot": v0 / rho0, "theta_r_dot": wr, "theta_l_dot": wl},
-        units={"x": "m", "y": "m", "psi": "rad", "theta_r": "rad", "theta_l": "rad", "lateral": "N",
-               "roll_r": "N", "roll_l": "N", "tau_r": "N*m", "tau_l": "N*m"},
+        initial={
+            "x": 0.0,
+            "y": 0.0,
+            "psi": 0.0,
+            "theta_r": 0.0,
+            "theta_l": 0.0,
+            "x_dot": v0,
+            "y_dot": 0.0,
+            "psi_dot": v0 / rho0,
+            "theta_r_dot": wr,
+            "theta_l_dot": wl,
+        },
+        units={
+            "x": "m",
+            "y": "m",
+            "psi": "rad",
+            "theta_r": "rad",
+            "theta_l": "rad",
+            "lateral": "N",
+            "roll_r": "N",
+            "roll_l": "N",
+            "tau_r": "N*m",
+            "tau_l": "N*m",
+        },
     )
 
 
@@ -171,9 +228,13 @@ def programmed_pendulum() -> System:
         name="programmed_pendulum",
         description="pendulum whose angle is programmed (0 degrees of freedom): rod tension and driving force",
         coordinates=(x, y),
-        parameters=(Parameter(m, 1.0, "kg"), Parameter(L, L0, "m"), Parameter(g, 9.81, "m/s^2"),
-                    Parameter(th0, a0, "rad", "amplitude of the programmed angle"),
-                    Parameter(Om, W0, "rad/s", "frequency of the programmed angle")),
+        parameters=(
+            Parameter(m, 1.0, "kg"),
+            Parameter(L, L0, "m"),
+            Parameter(g, 9.81, "m/s^2"),
+            Parameter(th0, a0, "rad", "amplitude of the programmed angle"),
+            Parameter(Om, W0, "rad/s", "frequency of the programmed angle"),
+        ),
         programs={th: th0 * sp.sin(Om * t)},
         kinetic_energy=m / 2 * (xd**2 + yd**2),
         potential_energy=m * g * y,

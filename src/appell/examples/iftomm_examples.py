@@ -101,32 +101,93 @@ def n_four_bar_text(n: int) -> str:
     """The model file of :func:`n_four_bar` (``iftomm_a02_n<n>.toml``), each kind of body,
     joint, closure and value written once for all ``i`` (docs/model-format.md, Repeated
     entries): the files differ in ``N`` only."""
-    out = [f"# {_a02_description(n)}: the model file of",
-           f"# appell.examples.iftomm_examples.n_four_bar({n}), written by n_four_bar_text({n}).",
-           "# Rockers rocker0..rocker{N} hinged to the ground at x = 0..N (joints R<i>, absolute angles),",
-           "# couplers coupler0..coupler{N-1} hinged at the rockers' tips (joints C<j>, relative angles),",
-           "# loops closed by 'connect' L<j>: lambda_L<j>_x, _y the force of rocker j+1 on coupler j.",
-           "# All rods 1 m, 1 kg, uniform; gravity 9.81 along -y; the first rocker's tip starts at 1 m/s",
-           "# along +x. tests/test_iftomm.py checks the motion against the one-degree-of-freedom",
-           "# parallelogram branch and the pin forces against a free-body solution.",
-           "", "[model]", f'name = "{_a02_name(n)}"', f'description = "{_a02_description(n)}"', "",
-           "[counts]", f"N = {n}                      # the number of four-bars", "",
-           "[mechanism]", f"gravity = [0, -{G}, 0]", ""]
+    out = [
+        f"# {_a02_description(n)}: the model file of",
+        f"# appell.examples.iftomm_examples.n_four_bar({n}), written by n_four_bar_text({n}).",
+        "# Rockers rocker0..rocker{N} hinged to the ground at x = 0..N (joints R<i>, absolute angles),",
+        "# couplers coupler0..coupler{N-1} hinged at the rockers' tips (joints C<j>, relative angles),",
+        "# loops closed by 'connect' L<j>: lambda_L<j>_x, _y the force of rocker j+1 on coupler j.",
+        "# All rods 1 m, 1 kg, uniform; gravity 9.81 along -y; the first rocker's tip starts at 1 m/s",
+        "# along +x. tests/test_iftomm.py checks the motion against the one-degree-of-freedom",
+        "# parallelogram branch and the pin forces against a free-body solution.",
+        "",
+        "[model]",
+        f'name = "{_a02_name(n)}"',
+        f'description = "{_a02_description(n)}"',
+        "",
+        "[counts]",
+        f"N = {n}                      # the number of four-bars",
+        "",
+        "[mechanism]",
+        f"gravity = [0, -{G}, 0]",
+        "",
+    ]
     for kind, last in (("rocker", "N"), ("coupler", "N-1")):
-        out += ["[[bodies]]", f'for = "i in 0..{last}"', f'name = "{kind}{{i}}"', "mass = 1.0",
-                f"inertia = [0, 0, {1 / 12!r}]", "com = [0.5, 0, 0]", ""]
-    out += ["[[joints]]", 'for = "i in 0..N"', 'name = "R{i}"', 'type = "revolute"', 'parent = "ground"',
-            'child = "rocker{i}"', 'origin = ["{i}", 0, 0]', "axis = [0, 0, 1]", ""]
-    out += ["[[joints]]", 'for = "j in 0..N-1"', 'name = "C{j}"', 'type = "revolute"', 'parent = "rocker{j}"',
-            'child = "coupler{j}"', "origin = [1.0, 0, 0]", "axis = [0, 0, 1]", ""]
-    out += ["[[closures]]", 'for = "j in 0..N-1"', 'name = "L{j}"', 'type = "connect"', 'body_a = "coupler{j}"',
-            "point_a = [1.0, 0, 0]", 'body_b = "rocker{j+1}"', "point_b = [1.0, 0, 0]", 'directions = "xy"', ""]
+        out += [
+            "[[bodies]]",
+            f'for = "i in 0..{last}"',
+            f'name = "{kind}{{i}}"',
+            "mass = 1.0",
+            f"inertia = [0, 0, {1 / 12!r}]",
+            "com = [0.5, 0, 0]",
+            "",
+        ]
+    out += [
+        "[[joints]]",
+        'for = "i in 0..N"',
+        'name = "R{i}"',
+        'type = "revolute"',
+        'parent = "ground"',
+        'child = "rocker{i}"',
+        'origin = ["{i}", 0, 0]',
+        "axis = [0, 0, 1]",
+        "",
+    ]
+    out += [
+        "[[joints]]",
+        'for = "j in 0..N-1"',
+        'name = "C{j}"',
+        'type = "revolute"',
+        'parent = "rocker{j}"',
+        'child = "coupler{j}"',
+        "origin = [1.0, 0, 0]",
+        "axis = [0, 0, 1]",
+        "",
+    ]
+    out += [
+        "[[closures]]",
+        'for = "j in 0..N-1"',
+        'name = "L{j}"',
+        'type = "connect"',
+        'body_a = "coupler{j}"',
+        "point_a = [1.0, 0, 0]",
+        'body_b = "rocker{j+1}"',
+        "point_b = [1.0, 0, 0]",
+        'directions = "xy"',
+        "",
+    ]
     start = _a02_initial(1)
-    out += ["[initial]", f'"R{{i in 0..N}}" = {start["R0"]!r}', f'"R{{i in 0..N}}\'" = {start["R0_dot"]!r}',
-            f'"C{{j in 0..N-1}}" = {start["C0"]!r}', f'"C{{j in 0..N-1}}\'" = {start["C0_dot"]!r}']
-    out += ["", "[simulation]", "t_end = 20.0", "rtol = 1e-12", "atol = 1e-14", "output_step = 0.01", "",
-            "[units]", '"R{i in 0..N}" = "rad"', '"C{j in 0..N-1}" = "rad"', '"L{j in 0..N-1}_x" = "N"',
-            '"L{j in 0..N-1}_y" = "N"']
+    out += [
+        "[initial]",
+        f'"R{{i in 0..N}}" = {start["R0"]!r}',
+        f'"R{{i in 0..N}}\'" = {start["R0_dot"]!r}',
+        f'"C{{j in 0..N-1}}" = {start["C0"]!r}',
+        f'"C{{j in 0..N-1}}\'" = {start["C0_dot"]!r}',
+    ]
+    out += [
+        "",
+        "[simulation]",
+        "t_end = 20.0",
+        "rtol = 1e-12",
+        "atol = 1e-14",
+        "output_step = 0.01",
+        "",
+        "[units]",
+        '"R{i in 0..N}" = "rad"',
+        '"C{j in 0..N-1}" = "rad"',
+        '"L{j in 0..N-1}_x" = "N"',
+        '"L{j in 0..N-1}_y" = "N"',
+    ]
     return "\n".join(out) + "\n"
 
 
@@ -152,8 +213,15 @@ def bricard() -> System:
     side = 0.1
     transverse, axial = (1.0 + side**2) / 12, 2 * side**2 / 12
     directions = [tuple(b - a for a, b in zip(BRICARD_POINTS[k], BRICARD_POINTS[k + 1])) for k in range(5)]
-    rods = [mech.body(f"rod{k + 1}", 1.0, inertia=tuple(axial if d else transverse for d in direction),
-                      com=tuple(0.5 * d for d in direction)) for k, direction in enumerate(directions)]
+    rods = [
+        mech.body(
+            f"rod{k + 1}",
+            1.0,
+            inertia=tuple(axial if d else transverse for d in direction),
+            com=tuple(0.5 * d for d in direction),
+        )
+        for k, direction in enumerate(directions)
+    ]
     parent, origin = "ground", (0, 0, 0)
     for k in range(5):
         mech.revolute(f"H{k + 1}", parent, rods[k], axis=BRICARD_AXES[k], origin=origin)
@@ -161,18 +229,25 @@ def bricard() -> System:
     end = directions[4]
     mech.connect("H6", (rods[4], end), ("ground", BRICARD_POINTS[5]), directions="xyz")
     along = tuple(e + a for e, a in zip(end, BRICARD_AXES[5]))
-    mech.connect("H6_axis", (rods[4], along), ("ground", tuple(p + a for p, a in zip(BRICARD_POINTS[5], BRICARD_AXES[5]))),
-                 directions="yz")
+    mech.connect(
+        "H6_axis",
+        (rods[4], along),
+        ("ground", tuple(p + a for p, a in zip(BRICARD_POINTS[5], BRICARD_AXES[5]))),
+        directions="yz",
+    )
     units = {f"H{k}": "rad" for k in range(1, 6)}
     units.update({name: "N" for name in ("H6_x", "H6_y", "H6_z", "H6_axis_y", "H6_axis_z")})
     # each hinge's force and moment in the axes of its rod, where the hinge axis stays put
-    return mech.system(initial={f"H{k}": 0.0 for k in range(1, 6)}, units=units,
-                       frame={f"H{k}": f"rod{k}" for k in range(1, 6)})
+    return mech.system(
+        initial={f"H{k}": 0.0 for k in range(1, 6)}, units=units, frame={f"H{k}": f"rod{k}" for k in range(1, 6)}
+    )
 
 
 def _bricard_description() -> str:
-    return ("Bricard's mechanism (IFToMM A04 geometry): an overconstrained loop of five rods and six hinges "
-            "with one degree of freedom")
+    return (
+        "Bricard's mechanism (IFToMM A04 geometry): an overconstrained loop of five rods and six hinges "
+        "with one degree of freedom"
+    )
 
 
 def flyball_governor() -> System:
@@ -181,19 +256,26 @@ def flyball_governor() -> System:
     ``beta2`` below the horizontal (rod 2 hinged in a frame turned half a turn about z), the
     balls fixed at the rods' ends; spring-dampers ``spring1``, ``spring2``; the energies and
     the balls' positions ``ball1_x`` .. ``ball2_z`` as outputs."""
-    mech = Mechanism("iftomm_a05_governor", gravity=(0, 0, -sp.Symbol("g")),
-                     description="IFToMM benchmark A05: the stiff flyball governor (Gonzalez et al. 2006)")
-    p = {name: mech.parameter(name, value, unit, description) for name, value, unit, description in (
-        ("L", 1.0, "m", "length of the shaft and of each rod"),
-        ("w", 0.01, "m", "side of the shaft's and the rods' square section"),
-        ("a", 0.1, "m", "side of the slider"),
-        ("d", 0.1, "m", "distance between the hinges A and B"),
-        ("rho", 3000.0, "kg/m^3", "density of shaft, rods and slider"),
-        ("m_ball", 5.0, "kg", "point mass at each rod's end"),
-        ("k", 8e5, "N/m", "spring stiffness"),
-        ("c", 4e4, "N*s/m", "spring damping"),
-        ("l0", 0.5, "m", "spring rest length"),
-        ("g", G, "m/s^2", None))}
+    mech = Mechanism(
+        "iftomm_a05_governor",
+        gravity=(0, 0, -sp.Symbol("g")),
+        description="IFToMM benchmark A05: the stiff flyball governor (Gonzalez et al. 2006)",
+    )
+    p = {
+        name: mech.parameter(name, value, unit, description)
+        for name, value, unit, description in (
+            ("L", 1.0, "m", "length of the shaft and of each rod"),
+            ("w", 0.01, "m", "side of the shaft's and the rods' square section"),
+            ("a", 0.1, "m", "side of the slider"),
+            ("d", 0.1, "m", "distance between the hinges A and B"),
+            ("rho", 3000.0, "kg/m^3", "density of shaft, rods and slider"),
+            ("m_ball", 5.0, "kg", "point mass at each rod's end"),
+            ("k", 8e5, "N/m", "spring stiffness"),
+            ("c", 4e4, "N*s/m", "spring damping"),
+            ("l0", 0.5, "m", "spring rest length"),
+            ("g", G, "m/s^2", None),
+        )
+    }
     L, w, a, d, rho = (p[n] for n in ("L", "w", "a", "d", "rho"))
     bar = rho * L * w**2  # the mass of the shaft and of each rod
     transverse, axial = bar * (L**2 + w**2) / 12, bar * w**2 / 6
@@ -211,11 +293,22 @@ def flyball_governor() -> System:
         mech.spring(f"spring{i}", (slider, (side, 0, 0)), (rod, (L / 2, 0, 0)), p["k"], p["l0"], p["c"])
     for i, rod in enumerate(rods, start=1):
         mech.watch_point(f"ball{i}", (rod, (L, 0, 0)))
-    initial = {"phi": 0.0, "phi_dot": 2 * math.pi, "s": 0.5, "s_dot": 0.0,
-               "beta1": math.pi / 6, "beta1_dot": 0.0, "beta2": math.pi / 6, "beta2_dot": 0.0}
+    initial = {
+        "phi": 0.0,
+        "phi_dot": 2 * math.pi,
+        "s": 0.5,
+        "s_dot": 0.0,
+        "beta1": math.pi / 6,
+        "beta1_dot": 0.0,
+        "beta2": math.pi / 6,
+        "beta2_dot": 0.0,
+    }
     units = {"phi": "rad", "s": "m", "beta1": "rad", "beta2": "rad"}
     return mech.system(initial=initial, units=units, energy=True)
 
 
-IFTOMM_EXAMPLES = {**{_a02_name(n): (lambda n=n: n_four_bar(n)) for n in A02_SIZES}, "bricard": bricard,
-                   "iftomm_a05_governor": flyball_governor}
+IFTOMM_EXAMPLES = {
+    **{_a02_name(n): (lambda n=n: n_four_bar(n)) for n in A02_SIZES},
+    "bricard": bricard,
+    "iftomm_a05_governor": flyball_governor,
+}

@@ -27,10 +27,15 @@ BETA, LENGTH, OUT = 0.35, 0.6, 0.4  # shaft angle (rad), intermediate and output
 def driveshaft_mechanism() -> Mechanism:
     """The :class:`~appell.mechanism.Mechanism` of :func:`driveshaft` (its frames give each
     shaft's spin)."""
-    mech = Mechanism("driveshaft", gravity=None,
-                     description="driveshaft on two universal joints (Z arrangement): velocity ratios and joint loads")
-    shafts = [mech.body(name, m, inertia=(m * 0.03**2 / 2, m * l**2 / 12, m * l**2 / 12), com=(l / 2, 0, 0))
-              for name, m, l in (("input_shaft", 2.0, 0.3), ("intermediate", 3.0, LENGTH), ("output_shaft", 2.0, OUT))]
+    mech = Mechanism(
+        "driveshaft",
+        gravity=None,
+        description="driveshaft on two universal joints (Z arrangement): velocity ratios and joint loads",
+    )
+    shafts = [
+        mech.body(name, m, inertia=(m * 0.03**2 / 2, m * l**2 / 12, m * l**2 / 12), com=(l / 2, 0, 0))
+        for name, m, l in (("input_shaft", 2.0, 0.3), ("intermediate", 3.0, LENGTH), ("output_shaft", 2.0, OUT))
+    ]
     mech.revolute("input", "ground", shafts[0], axis=(1, 0, 0))
     mech.drive("input_drive", "input", speed=2 * sp.pi)
     mech.universal("u1", shafts[0], shafts[1], axes=((0, 1, 0), (0, 0, 1)))
@@ -53,11 +58,17 @@ def driveshaft() -> System:
     ``(cos(r1) cos(r2) phi' + sin(r2) r1') / phi'`` (the x row of ``R_rel^T omega_1 + omega_rel``
     with ``R_rel = Ry(r1) Rz(r2)``)."""
     r1, r2, rate, r1_rate = sp.symbols("u1_r1 u1_r2 input_dot u1_r1_dot")
-    ratio = Output("ratio_intermediate", (sp.cos(r1) * sp.cos(r2) * rate + sp.sin(r2) * r1_rate) / rate, None,
-                   "the intermediate shaft's speed over the input's")
+    ratio = Output(
+        "ratio_intermediate",
+        (sp.cos(r1) * sp.cos(r2) * rate + sp.sin(r2) * r1_rate) / rate,
+        None,
+        "the intermediate shaft's speed over the input's",
+    )
     return driveshaft_mechanism().system(
         initial={"input": 0.0, "input_dot": 2 * math.pi, "u1_r1": 0.0, "u1_r2": BETA, "u2_r1": -BETA, "u2_r2": 0.0},
-        outputs=[ratio], settings={"t_end": 1.0})
+        outputs=[ratio],
+        settings={"t_end": 1.0},
+    )
 
 
 def steering_gear() -> System:
@@ -68,8 +79,11 @@ def steering_gear() -> System:
     spring ``tyres`` (k = 20 kN/m, c = 200 N s/m) standing for the tyres' aligning forces.
     Outputs: the bearing load ``F_column_*``, the guide's ``F_guide_*``, the tooth force
     ``F_mesh_*`` on the rack and the steering torque ``column_drive_effort``."""
-    mech = Mechanism("steering_gear", gravity=(0, 0, -9.81),
-                     description="rack-and-pinion steering gear: tooth, bearing and guide loads along a manoeuvre")
+    mech = Mechanism(
+        "steering_gear",
+        gravity=(0, 0, -9.81),
+        description="rack-and-pinion steering gear: tooth, bearing and guide loads along a manoeuvre",
+    )
     pinion = mech.body("pinion", 0.3, inertia=(2e-4, 2e-4, 1e-5))
     rack = mech.body("rack", 2.0, inertia=(1e-4, 0.05, 0.05))
     mech.revolute("column", "ground", pinion, axis=(0, 0, 1))
@@ -77,5 +91,6 @@ def steering_gear() -> System:
     mech.prismatic("guide", "ground", rack, axis=(1, 0, 0), origin=(0, -0.012, 0))
     mech.rack_pinion("mesh", "column", "guide", 0.008, pressure_angle=math.radians(20), helix_angle=math.radians(15))
     mech.spring("tyres", ("ground", (0, -0.012, 0)), (rack, (0, 0, 0)), 20000.0, 0, damping=200.0)
-    return mech.system(initial={"column": 0.0, "column_dot": 3.0, "guide": 0.0, "guide_dot": 0.024},
-                       settings={"t_end": 3.0})
+    return mech.system(
+        initial={"column": 0.0, "column_dot": 3.0, "guide": 0.0, "guide_dot": 0.024}, settings={"t_end": 3.0}
+    )

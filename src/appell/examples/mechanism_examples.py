@@ -23,18 +23,23 @@ def four_bar() -> System:
     ``connect`` in x and y, whose multipliers ``lambda_C_x``, ``lambda_C_y`` are the force of
     the rocker on the coupler. Starts with the crank at 1 rad turning at 2 rad/s, the other
     angles and rates on the loop (:func:`_four_bar_start`)."""
-    mech = Mechanism("four_bar", gravity=(0, -9.81, 0),
-                     description="four-bar linkage; pin forces and moments as outputs")
+    mech = Mechanism(
+        "four_bar", gravity=(0, -9.81, 0), description="four-bar linkage; pin forces and moments as outputs"
+    )
     lengths, masses = (0.4, 1.0, 0.8), (1.0, 2.0, 1.5)
-    crank, coupler, rocker = (mech.body(name, m, inertia=(0, 0, m * l**2 / 12), com=(l / 2, 0, 0))
-                              for name, l, m in zip(("crank", "coupler", "rocker"), lengths, masses))
+    crank, coupler, rocker = (
+        mech.body(name, m, inertia=(0, 0, m * l**2 / 12), com=(l / 2, 0, 0))
+        for name, l, m in zip(("crank", "coupler", "rocker"), lengths, masses)
+    )
     mech.revolute("A", "ground", crank)
     mech.revolute("B", crank, coupler, origin=(lengths[0], 0, 0))
     mech.revolute("D", "ground", rocker, origin=(1.0, 0, 0))
     mech.connect("C", (coupler, (lengths[1], 0, 0)), (rocker, (lengths[2], 0, 0)), directions="xy")
     B, D, B_dot, D_dot = _four_bar_start(1.0, 2.0, *lengths, 1.0)
-    return mech.system(initial={"A": 1.0, "B": B, "D": D, "A_dot": 2.0, "B_dot": B_dot, "D_dot": D_dot},
-                       units={"A": "rad", "B": "rad", "D": "rad", "C_x": "N", "C_y": "N"})
+    return mech.system(
+        initial={"A": 1.0, "B": B, "D": D, "A_dot": 2.0, "B_dot": B_dot, "D_dot": D_dot},
+        units={"A": "rad", "B": "rad", "D": "rad", "C_x": "N", "C_y": "N"},
+    )
 
 
 def _four_bar_start(theta, rate, a, b, c, d):
@@ -64,14 +69,18 @@ def double_pendulum_joints() -> System:
     """A double pendulum of two uniform rods (1 m, 1 kg each) on hinges about z, gravity
     along -y, released at rest from 90 and 0 degrees; outputs the force and moment at the
     shoulder and the elbow, the elbow's in the axes of the lower rod."""
-    mech = Mechanism("double_pendulum_joints", gravity=(0, -9.81, 0),
-                     description="double pendulum; joint forces and moments as outputs")
+    mech = Mechanism(
+        "double_pendulum_joints",
+        gravity=(0, -9.81, 0),
+        description="double pendulum; joint forces and moments as outputs",
+    )
     upper = mech.body("upper", 1.0, inertia=(0, 0, 1 / 12), com=(0, -0.5, 0))
     lower = mech.body("lower", 1.0, inertia=(0, 0, 1 / 12), com=(0, -0.5, 0))
     mech.revolute("shoulder", "ground", upper)
     mech.revolute("elbow", upper, lower, origin=(0, -1.0, 0))
-    return mech.system(initial={"shoulder": math.pi / 2}, frame={"elbow": "lower"},
-                       units={"shoulder": "rad", "elbow": "rad"})
+    return mech.system(
+        initial={"shoulder": math.pi / 2}, frame={"elbow": "lower"}, units={"shoulder": "rad", "elbow": "rad"}
+    )
 
 
 def rolling_disc() -> System:
@@ -85,8 +94,11 @@ def rolling_disc() -> System:
     (up the slope); on a level plane (alpha = 0) rolling straight at any speed: no
     acceleration, normal m g, no friction."""
     g, alpha = sp.symbols("g alpha")
-    mech = Mechanism("rolling_disc", gravity=(g * sp.sin(alpha), 0, -g * sp.cos(alpha)),
-                     description="thin disc rolling without slip on an inclined plane; contact forces as multipliers")
+    mech = Mechanism(
+        "rolling_disc",
+        gravity=(g * sp.sin(alpha), 0, -g * sp.cos(alpha)),
+        description="thin disc rolling without slip on an inclined plane; contact forces as multipliers",
+    )
     m = mech.parameter("m", 1.5, "kg", "mass of the disc")
     r = mech.parameter("r", 0.25, "m", "radius of the disc")
     mech.parameter("g", 9.81, "m/s^2", "gravity")
@@ -94,9 +106,11 @@ def rolling_disc() -> System:
     disc = mech.body("disc", m, inertia=(m * r**2 / 4, m * r**2 / 2, m * r**2 / 4))
     mech.free("float", "ground", disc, rotation="zxy")
     mech.rolling_disc("contact", disc, r, axis=(0, 1, 0))
-    return mech.system(initial={"float_z": 0.25}, reactions=None,
-                       units={"float_x": "m", "float_y": "m", "float_z": "m", "contact_n": "N", "contact_t1": "N",
-                              "contact_t2": "N"})
+    return mech.system(
+        initial={"float_z": 0.25},
+        reactions=None,
+        units={"float_x": "m", "float_y": "m", "float_z": "m", "contact_n": "N", "contact_t1": "N", "contact_t2": "N"},
+    )
 
 
 def benchmark_bicycle() -> System:
@@ -124,8 +138,11 @@ def benchmark_bicycle() -> System:
     straight running at speed v (``rear_spin_dot = -v / rR``) linearises to
     ``M q'' + v C1 q' + (g K0 + v^2 K2) q = 0`` in q = (roll, steer) (tests/test_bicycle.py).
     """
-    mech = Mechanism("benchmark_bicycle", gravity=None,
-                     description="Whipple-Carvallo bicycle, benchmark parameters (Meijaard et al. 2007, Table 1)")
+    mech = Mechanism(
+        "benchmark_bicycle",
+        gravity=None,
+        description="Whipple-Carvallo bicycle, benchmark parameters (Meijaard et al. 2007, Table 1)",
+    )
     g = mech.parameter("g", 9.81, "m/s^2", "gravity")
     w = mech.parameter("w", 1.02, "m", "wheelbase")
     c = mech.parameter("c", 0.08, "m", "trail")
@@ -138,8 +155,12 @@ def benchmark_bicycle() -> System:
     rear = mech.body("rear_wheel", 2.0, inertia=(0.0603, 0.12, 0.0603))
     # the steer joint's origin: the steer axis at the height of the front wheel's centre
     sx = w + c - r_front * sp.tan(lam)
-    fork = mech.body("fork", 4.0, inertia=[[0.05892, 0, -0.00756], [0, 0.06, 0], [-0.00756, 0, 0.00708]],
-                     com=(0.9 - sx, 0, r_front - 0.7))
+    fork = mech.body(
+        "fork",
+        4.0,
+        inertia=[[0.05892, 0, -0.00756], [0, 0.06, 0], [-0.00756, 0, 0.00708]],
+        com=(0.9 - sx, 0, r_front - 0.7),
+    )
     front = mech.body("front_wheel", 3.0, inertia=(0.1405, 0.28, 0.1405))
     mech.free("rear", "ground", frame, rotation="zxy")
     mech.revolute("rear_spin", frame, rear, axis=(0, 1, 0))
@@ -147,10 +168,16 @@ def benchmark_bicycle() -> System:
     mech.revolute("front_spin", fork, front, axis=(0, 1, 0), origin=(r_front * sp.tan(lam) - c, 0, 0))
     mech.rolling_disc("rear_contact", rear, r_rear, axis=(0, 1, 0), normal=(0, 0, -1))
     mech.rolling_disc("front_contact", front, r_front, axis=(0, 1, 0), normal=(0, 0, -1))
-    return mech.system(initial={"rear_z": -r_rear, "rear_x_dot": v, "rear_spin_dot": -v / r_rear,
-                                "front_spin_dot": -v / r_front}, reactions=None)
+    return mech.system(
+        initial={"rear_z": -r_rear, "rear_x_dot": v, "rear_spin_dot": -v / r_rear, "front_spin_dot": -v / r_front},
+        reactions=None,
+    )
 
 
 #: name -> builder
-MECHANISM_EXAMPLES = {"four_bar": four_bar, "double_pendulum_joints": double_pendulum_joints,
-                      "rolling_disc": rolling_disc, "benchmark_bicycle": benchmark_bicycle}
+MECHANISM_EXAMPLES = {
+    "four_bar": four_bar,
+    "double_pendulum_joints": double_pendulum_joints,
+    "rolling_disc": rolling_disc,
+    "benchmark_bicycle": benchmark_bicycle,
+}

@@ -36,8 +36,7 @@ def five_bar() -> Mechanism:
     lean = math.asin(d / 2 / ld)  # the distal links' angle from the vertical at the start
 
     def rod(name, length, mass):
-        return mech.body(name, mass, inertia=(0, mass * length**2 / 12, mass * length**2 / 12),
-                         com=(length / 2, 0, 0))
+        return mech.body(name, mass, inertia=(0, mass * length**2 / 12, mass * length**2 / 12), com=(length / 2, 0, 0))
 
     left, right = rod("left_proximal", lp, p["m_proximal"]), rod("right_proximal", lp, p["m_proximal"])
     left_d, right_d = rod("left_distal", ld, p["m_distal"]), rod("right_distal", ld, p["m_distal"])
@@ -52,8 +51,17 @@ def five_bar() -> Mechanism:
 
 
 #: the delta robot: base radius, arm, rod and platform radius, half the parallelogram's width
-DELTA = {"base": 0.2, "arm": 0.25, "rod": 0.5, "platform": 0.06, "half_width": 0.04,
-         "m_arm": 0.3, "m_rod": 0.05, "m_platform": 0.4, "m_yoke": 0.01}
+DELTA = {
+    "base": 0.2,
+    "arm": 0.25,
+    "rod": 0.5,
+    "platform": 0.06,
+    "half_width": 0.04,
+    "m_arm": 0.3,
+    "m_rod": 0.05,
+    "m_platform": 0.4,
+    "m_yoke": 0.01,
+}
 
 
 def delta_robot() -> Mechanism:
@@ -74,17 +82,22 @@ def delta_robot() -> Mechanism:
     for i in range(3):
         phi = 2 * math.pi * i / 3
         c, s = math.cos(phi), math.sin(phi)
-        arm = mech.body(f"arm{i + 1}", m_arm, inertia=(1e-4, m_arm * la**2 / 12, m_arm * la**2 / 12),
-                        com=(la / 2, 0, 0))
+        arm = mech.body(
+            f"arm{i + 1}", m_arm, inertia=(1e-4, m_arm * la**2 / 12, m_arm * la**2 / 12), com=(la / 2, 0, 0)
+        )
         # the arm's frame: x radial, y tangent (the motor's axis), z up
-        mech.revolute(f"M{i + 1}", "ground", arm, axis=(0, 1, 0), origin=(p["base"] * c, p["base"] * s, 0),
-                      rpy=(0, 0, phi))
+        mech.revolute(
+            f"M{i + 1}", "ground", arm, axis=(0, 1, 0), origin=(p["base"] * c, p["base"] * s, 0), rpy=(0, 0, phi)
+        )
         mech.actuator(f"motor_{i + 1}", f"M{i + 1}")
         for side, y in (("a", p["half_width"]), ("b", -p["half_width"])):
             yoke = mech.body(f"yoke{i + 1}{side}", p["m_yoke"], inertia=(1e-6, 1e-6, 1e-6))
-            rod = mech.body(f"rod{i + 1}{side}", p["m_rod"], inertia=(p["m_rod"] * lr**2 / 12,
-                                                                     p["m_rod"] * lr**2 / 12, 1e-6),
-                            com=(0, 0, -lr / 2))
+            rod = mech.body(
+                f"rod{i + 1}{side}",
+                p["m_rod"],
+                inertia=(p["m_rod"] * lr**2 / 12, p["m_rod"] * lr**2 / 12, 1e-6),
+                com=(0, 0, -lr / 2),
+            )
             # the rod along -z of its frame, leaning inward to the platform at the start
             mech.revolute(f"U{i + 1}{side}1", arm, yoke, axis=(0, 1, 0), origin=(la, y, 0), rpy=(0, lean, 0))
             mech.revolute(f"U{i + 1}{side}2", yoke, rod, axis=(1, 0, 0))
@@ -94,8 +107,16 @@ def delta_robot() -> Mechanism:
 
 #: the Stewart-Gough platform: base and platform radii, the half angle between a pair's
 #: attachments, the legs' length at zero extension
-STEWART = {"base": 0.5, "platform": 0.3, "base_half": math.radians(10), "platform_half": math.radians(50),
-           "height": 0.6, "m_platform": 5.0, "m_cylinder": 0.8, "m_piston": 0.4}
+STEWART = {
+    "base": 0.5,
+    "platform": 0.3,
+    "base_half": math.radians(10),
+    "platform_half": math.radians(50),
+    "height": 0.6,
+    "m_platform": 5.0,
+    "m_cylinder": 0.8,
+    "m_piston": 0.4,
+}
 
 
 def _stewart_points():

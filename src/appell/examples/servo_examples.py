@@ -52,8 +52,19 @@ def appell_ball() -> System:
         ),
         # xi', eta' from the servo constraints; u', v' from the rolling constraints (p = q = 0);
         # written in omega and the initial position, so the start stays on the circle for any omega
-        initial={"xi": x0, "eta": y0, "xi_dot": -omega * eta, "eta_dot": omega * xi, "p": 0.0, "q": 0.0,
-                 "r": 0.0, "u": 0.0, "v": 0.0, "u_dot": -omega * eta, "v_dot": omega * xi},
+        initial={
+            "xi": x0,
+            "eta": y0,
+            "xi_dot": -omega * eta,
+            "eta_dot": omega * xi,
+            "p": 0.0,
+            "q": 0.0,
+            "r": 0.0,
+            "u": 0.0,
+            "v": 0.0,
+            "u_dot": -omega * eta,
+            "v_dot": omega * xi,
+        },
     )
 
 
@@ -79,8 +90,7 @@ def spring_masses(damping: bool = False) -> System:
     # first mass sits where m2 y_d'' = k (x1 - y): x1 = 0, and its derivative gives
     # x1' = 0.1 - 0.1 m2/k (in the parameters: consistent for any m2, k); with the damper
     # x1 = 0 and d (y_d' - x1') = k x1 - m2 y_d'' gives x1' = 0.1
-    init = {"x1": 0.0, "y": 0.0, "y_dot": 0.1,
-            "x1_dot": sp.Rational(1, 10) - m2 / (10 * k) if not damping else 0.1}
+    init = {"x1": 0.0, "y": 0.0, "y_dot": 0.1, "x1_dot": sp.Rational(1, 10) - m2 / (10 * k) if not damping else 0.1}
     return System(
         name="spring_masses_damped" if damping else "spring_masses",
         description="two masses and a spring (and damper); force on the first, the second tracks y_d(t)",
@@ -129,8 +139,14 @@ def overhead_crane() -> System:
         # at t = 0 from the load's path alone (the rope along (x_L'', z_L'' + g)): theta = 0,
         # l = 1.8, x_T = 0; tan(theta) = -x_L''/(z_L'' + g) differentiated: theta' = 1/(16 (g - 1/5)),
         # and x_T' = x_L' - l theta' (in g: consistent for any g)
-        initial={"x_T": 0.0, "l": 1.8, "theta": 0.0, "x_T_dot": sp.Rational(1, 4) - l / (16 * (g - sp.Rational(1, 5))),
-                 "l_dot": 0.0, "theta_dot": 1 / (16 * (g - sp.Rational(1, 5)))},
+        initial={
+            "x_T": 0.0,
+            "l": 1.8,
+            "theta": 0.0,
+            "x_T_dot": sp.Rational(1, 4) - l / (16 * (g - sp.Rational(1, 5))),
+            "l_dot": 0.0,
+            "theta_dot": 1 / (16 * (g - sp.Rational(1, 5))),
+        },
     )
 
 
@@ -153,11 +169,18 @@ def cart_pole(upright: bool = True) -> System:
     up = 1 if upright else -1
     return System(
         name="cart_pole" if upright else "cart_pendulum",
-        description=("cart-pole: the cart follows a prescribed motion, the upright pendulum's internal "
-                     "dynamics are unstable") if upright else "cart with a hanging pendulum following a prescribed motion",
+        description=(
+            "cart-pole: the cart follows a prescribed motion, the upright pendulum's internal dynamics are unstable"
+        )
+        if upright
+        else "cart with a hanging pendulum following a prescribed motion",
         coordinates=(x, th),
-        parameters=(Parameter(mc, 1.0, "kg"), Parameter(m, 0.2, "kg"), Parameter(l, 0.5, "m"),
-                    Parameter(g, 9.81, "m/s^2")),
+        parameters=(
+            Parameter(mc, 1.0, "kg"),
+            Parameter(m, 0.2, "kg"),
+            Parameter(l, 0.5, "m"),
+            Parameter(g, 9.81, "m/s^2"),
+        ),
         programs={xd_: sp.sin(t) / 2},
         bodies=(
             Particle("cart", mc, position=(x, 0, 0)),

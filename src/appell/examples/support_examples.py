@@ -45,18 +45,19 @@ def table_four_legs(compliance: float | None = None) -> System:
         description="rigid table on four legs: one redundant support, minimum-norm leg forces",
         coordinates=(z, phi, theta),
         parameters=(
-            Parameter(m, 20.0, "kg", "plate mass"), Parameter(g, 9.81, "m/s^2"),
+            Parameter(m, 20.0, "kg", "plate mass"),
+            Parameter(g, 9.81, "m/s^2"),
             Parameter(a, 0.6, "m", "half length (legs at x = +-a)"),
             Parameter(b, 0.4, "m", "half width (legs at y = +-b)"),
             Parameter(L, 0.75, "m", "leg length"),
             Parameter(xc, 0.15, "m", "mass centre, x in the plate"),
             Parameter(yc, 0.05, "m", "mass centre, y in the plate"),
-            Parameter(Ix, 1.2, "kg*m^2", "roll inertia"), Parameter(Iy, 2.5, "kg*m^2", "pitch inertia"),
+            Parameter(Ix, 1.2, "kg*m^2", "roll inertia"),
+            Parameter(Iy, 2.5, "kg*m^2", "pitch inertia"),
         ),
         kinetic_energy=m / 2 * zd**2 + Ix / 2 * phid**2 + Iy / 2 * thetad**2,
         potential_energy=m * g * height(xc, yc),
-        constraints=tuple(holonomic(name, height(x, y) - L, compliance=compliance)
-                          for name, (x, y) in corners.items()),
+        constraints=tuple(holonomic(name, height(x, y) - L, compliance=compliance) for name, (x, y) in corners.items()),
         initial={"z": 0.75, "phi": 0.0, "theta": 0.0, "z_dot": 0.0, "phi_dot": 0.0, "theta_dot": 0.0},
         units={"z": "m", "phi": "rad", "theta": "rad", **{name: "N" for name in corners}},
     )
@@ -87,7 +88,8 @@ def door_two_hinges() -> System:
         description="door on two hinges: vertical split undetermined, horizontal couple m g d / h",
         coordinates=(x, z, th),
         parameters=(
-            Parameter(m, 30.0, "kg", "door mass"), Parameter(g, 9.81, "m/s^2"),
+            Parameter(m, 30.0, "kg", "door mass"),
+            Parameter(g, 9.81, "m/s^2"),
             Parameter(h, 1.6, "m", "distance between the hinges"),
             Parameter(d, 0.45, "m", "mass centre's distance from the hinge line"),
             Parameter(I, 8.0, "kg*m^2", "moment of inertia about the mass centre"),
@@ -115,14 +117,16 @@ def shaft_three_bearings(rigid: bool = False) -> System:
     yd, psid = sp.symbols("y_dot psi_dot")
     m, g, xG, I = sp.symbols("m g x_G I_G")
     stations = {"bearing_1": (0.0, 2e-8), "bearing_2": (0.5, 1e-8), "bearing_3": (1.2, 4e-8)}
-    cons = tuple(holonomic(name, y + x * sp.sin(psi), compliance=None if rigid else c)
-                 for name, (x, c) in stations.items())
+    cons = tuple(
+        holonomic(name, y + x * sp.sin(psi), compliance=None if rigid else c) for name, (x, c) in stations.items()
+    )
     return System(
         name="shaft_three_bearings" + ("_rigid" if rigid else ""),
         description="rigid shaft in three elastic bearings: compatible elastic bearing loads",
         coordinates=(y, psi),
         parameters=(
-            Parameter(m, 40.0, "kg", "shaft mass"), Parameter(g, 9.81, "m/s^2"),
+            Parameter(m, 40.0, "kg", "shaft mass"),
+            Parameter(g, 9.81, "m/s^2"),
             Parameter(xG, 0.7, "m", "mass centre along the shaft"),
             Parameter(I, 5.0, "kg*m^2", "moment of inertia about the mass centre"),
         ),
@@ -134,5 +138,8 @@ def shaft_three_bearings(rigid: bool = False) -> System:
     )
 
 
-SUPPORT_EXAMPLES = {"table_four_legs": table_four_legs, "door_two_hinges": door_two_hinges,
-                    "shaft_three_bearings": shaft_three_bearings}
+SUPPORT_EXAMPLES = {
+    "table_four_legs": table_four_legs,
+    "door_two_hinges": door_two_hinges,
+    "shaft_three_bearings": shaft_three_bearings,
+}

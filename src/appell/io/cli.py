@@ -53,8 +53,18 @@ from appell_interrupts import interrupt_received, rescue_interrupts
 
 # the workflows (derivation_json, command_options, export_solution, ...) are appell.workflows'; this
 # module still answers their names (its __getattr__), as before they moved there
-__all__ = ["main", "cli", "load_system", "derive_model", "run_simulation", "parse_assignments", "output_file",
-           "EXIT_OK", "EXIT_FAILURE", "EXIT_BAD_INPUT"]
+__all__ = [
+    "main",
+    "cli",
+    "load_system",
+    "derive_model",
+    "run_simulation",
+    "parse_assignments",
+    "output_file",
+    "EXIT_OK",
+    "EXIT_FAILURE",
+    "EXIT_BAD_INPUT",
+]
 
 EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
 #: exit codes of a command stopped by Ctrl-C (SIGINT) or SIGTERM: 128 + the signal number
@@ -71,8 +81,14 @@ def load_system(model: str, overrides=None, floating_base: bool = False):
     (and the command's ``--reactions-in``)."""
     ctx = click.get_current_context(silent=True)
     meta = ctx.meta if ctx is not None else {}
-    return workflows.load_system(model, overrides, floating_base, echo=click.echo,
-                                 reactions_in=meta.get("appell.reactions_in"), reader=meta.get("appell.mjcf"))
+    return workflows.load_system(
+        model,
+        overrides,
+        floating_base,
+        echo=click.echo,
+        reactions_in=meta.get("appell.reactions_in"),
+        reader=meta.get("appell.mjcf"),
+    )
 
 
 def __getattr__(name):  # the workflows' names, as before they moved there (from appell.io.cli import ...)
@@ -126,8 +142,9 @@ class _AppellGroup(click.Group):
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
         try:
-            rv = super().main(args=args, prog_name=prog_name or "appell", complete_var=complete_var,
-                              standalone_mode=False, **extra)
+            rv = super().main(
+                args=args, prog_name=prog_name or "appell", complete_var=complete_var, standalone_mode=False, **extra
+            )
         except _NO_ARGS_IS_HELP as exc:  # click >= 8.2: a bare 'appell' prints the help
             click.echo(exc.ctx.get_help())
             code = EXIT_BAD_INPUT
@@ -150,13 +167,16 @@ class _AppellGroup(click.Group):
         except AppellError as exc:
             code = _report_error(str(exc), None, getattr(exc, "exit_code", EXIT_FAILURE))
         except (FileNotFoundError, IsADirectoryError, PermissionError, NotADirectoryError) as exc:
-            code = _report_error(f"{exc.strerror or exc}: {exc.filename}" if exc.filename else str(exc), None,
-                                 EXIT_BAD_INPUT)
+            code = _report_error(
+                f"{exc.strerror or exc}: {exc.filename}" if exc.filename else str(exc), None, EXIT_BAD_INPUT
+            )
         except OSError as exc:  # the environment (a full disk, a read-only file system, I/O), not a bug
             reason = (exc.strerror or str(exc)).strip()
-            code = _report_error(f"{exc.filename}: {reason}" if exc.filename else reason,
-                                 "the operating system refused (see the reason above); the previous output "
-                                 "files are unchanged", EXIT_FAILURE)
+            code = _report_error(
+                f"{exc.filename}: {reason}" if exc.filename else reason,
+                "the operating system refused (see the reason above); the previous output files are unchanged",
+                EXIT_FAILURE,
+            )
         except MemoryError:
             code = _out_of_memory()
         except KeyboardInterrupt:
@@ -177,7 +197,6 @@ class _AppellGroup(click.Group):
         if standalone_mode:
             sys.exit(code)
         return code
-
 
     def invoke(self, ctx):
         """The command; Ctrl-C inside it leaves as :class:`Interrupted`, past click's own
@@ -221,16 +240,20 @@ def _internal_error(exc: Exception) -> int:
     hint, the traceback only with ``APPELL_DEBUG=1``."""
     if os.environ.get("APPELL_DEBUG"):
         raise exc
-    return _report_error(f"internal error: {type(exc).__name__}: {exc}",
-                         "this is a bug in appell; rerun with APPELL_DEBUG=1 for the traceback "
-                         "and report it with the model file", EXIT_FAILURE)
+    return _report_error(
+        f"internal error: {type(exc).__name__}: {exc}",
+        "this is a bug in appell; rerun with APPELL_DEBUG=1 for the traceback and report it with the model file",
+        EXIT_FAILURE,
+    )
 
 
 def _out_of_memory() -> int:
     """The report of a :class:`MemoryError` (an allocation refused while the command ran)."""
-    return _report_error("out of memory: the machine (or the process's limit, ulimit -v) refused an allocation",
-                         "try a smaller problem: fewer output times (--samples, --output-step), a shorter "
-                         "--t-end, fewer sweep runs", EXIT_FAILURE)
+    return _report_error(
+        "out of memory: the machine (or the process's limit, ulimit -v) refused an allocation",
+        "try a smaller problem: fewer output times (--samples, --output-step), a shorter --t-end, fewer sweep runs",
+        EXIT_FAILURE,
+    )
 
 
 def _report_error(message: str, hint: str | None, code: int) -> int:
@@ -244,45 +267,79 @@ def _report_error(message: str, hint: str | None, code: int) -> int:
 # ---------------------------------------------------------------- the options
 _CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
 _model_argument = click.argument("model", metavar="MODEL")
-_backend_option = click.option("--backend", type=click.Choice(["auto", "c", "numpy"]), default="auto", show_default=True,
-                               help="Numeric code: C compiled and cached on first use (auto: C when a compiler "
-                                    "is found, else NumPy), or NumPy.")
-_set_option = click.option("--set", "assignments", multiple=True, metavar="NAME=VALUE",
-                           help="Override a parameter or an initial value (repeatable), e.g. --set M=1500 --set \"phi'=0.2\".")
-_floating_option = click.option("--floating-base", "floating_base", is_flag=True,
-                                help="A .urdf robot's root link moves on a free joint 'root_joint' (a quadruped, "
-                                     "a humanoid): world translations and yaw, pitch, roll, the motion of Pinocchio's free flyer.")
+_backend_option = click.option(
+    "--backend",
+    type=click.Choice(["auto", "c", "numpy"]),
+    default="auto",
+    show_default=True,
+    help="Numeric code: C compiled and cached on first use (auto: C when a compiler is found, else NumPy), or NumPy.",
+)
+_set_option = click.option(
+    "--set",
+    "assignments",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help='Override a parameter or an initial value (repeatable), e.g. --set M=1500 --set "phi\'=0.2".',
+)
+_floating_option = click.option(
+    "--floating-base",
+    "floating_base",
+    is_flag=True,
+    help="A .urdf robot's root link moves on a free joint 'root_joint' (a quadruped, "
+    "a humanoid): world translations and yaw, pitch, roll, the motion of Pinocchio's free flyer.",
+)
 
 
 def _keep(key):
     """A click callback keeping an option's value in the command's context (``ctx.meta``), for
     :func:`_derivation`: the options every model command has, without a parameter each."""
+
     def callback(ctx, param, value):
         ctx.meta[key] = value
         return value
+
     return callback
 
 
-_cache_option = click.option("--no-cache", "no_cache", is_flag=True, expose_value=False,
-                             callback=_keep("appell.no_cache"),
-                             help="Derive the model again instead of reading the derivation stored by an earlier run "
-                                  "(the derivation cache, $APPELL_CACHE_DIR), and store nothing.")
-_reactions_option = click.option("--reactions-in", "reactions_in", default=None, metavar="AXES", expose_value=False,
-                                 callback=_keep("appell.reactions_in"),
-                                 help="Axes of the joint reactions of a [mechanism] model: world (ground), joint, "
-                                      "child, parent or a body's name (default: the model file's reactions_in, else "
-                                      "world).")
-_mjcf_option = click.option("--mjcf", "mjcf", multiple=True, metavar="NAME=VALUE", expose_value=False,
-                            callback=lambda ctx, param, value: ctx.meta.__setitem__(
-                                "appell.mjcf", parse_assignments(value, "'--mjcf'")),
-                            help="How a MuJoCo model (.xml) is read (repeatable): frictionloss=ignore (leave MuJoCo's "
-                                 "dry friction out; else refused), armature=rotors|energy, actuators=programs|controls "
-                                 "(ctrl 0, or unknowns for inverse dynamics and servo constraints).")
+_cache_option = click.option(
+    "--no-cache",
+    "no_cache",
+    is_flag=True,
+    expose_value=False,
+    callback=_keep("appell.no_cache"),
+    help="Derive the model again instead of reading the derivation stored by an earlier run "
+    "(the derivation cache, $APPELL_CACHE_DIR), and store nothing.",
+)
+_reactions_option = click.option(
+    "--reactions-in",
+    "reactions_in",
+    default=None,
+    metavar="AXES",
+    expose_value=False,
+    callback=_keep("appell.reactions_in"),
+    help="Axes of the joint reactions of a [mechanism] model: world (ground), joint, "
+    "child, parent or a body's name (default: the model file's reactions_in, else "
+    "world).",
+)
+_mjcf_option = click.option(
+    "--mjcf",
+    "mjcf",
+    multiple=True,
+    metavar="NAME=VALUE",
+    expose_value=False,
+    callback=lambda ctx, param, value: ctx.meta.__setitem__("appell.mjcf", parse_assignments(value, "'--mjcf'")),
+    help="How a MuJoCo model (.xml) is read (repeatable): frictionloss=ignore (leave MuJoCo's "
+    "dry friction out; else refused), armature=rotors|energy, actuators=programs|controls "
+    "(ctrl 0, or unknowns for inverse dynamics and servo constraints).",
+)
 
 
-_expand_option = click.option("--expand", is_flag=True,
-                               help="Print each reaction also in the state (t, q, w), with the accelerations of the "
-                                    "reduced equations substituted (long); by default its (1.5) formula names them.")
+_expand_option = click.option(
+    "--expand",
+    is_flag=True,
+    help="Print each reaction also in the state (t, q, w), with the accelerations of the "
+    "reduced equations substituted (long); by default its (1.5) formula names them.",
+)
 
 
 def _model_options(command):
@@ -295,19 +352,34 @@ def _derivation(model, assignments, floating_base, dependent=None, formulas: boo
     """The derivation of MODEL with the command's ``--set`` / ``--floating-base`` /
     ``--no-cache`` / ``--reactions-in`` (:func:`appell.workflows.load_derivation`)."""
     meta = click.get_current_context().meta
-    return workflows.load_derivation(model, parse_assignments(assignments), floating_base, dependent, formulas,
-                                     cache=False if meta.get("appell.no_cache") else None,
-                                     reactions_in=meta.get("appell.reactions_in"), echo=click.echo,
-                                     reader=meta.get("appell.mjcf"))
+    return workflows.load_derivation(
+        model,
+        parse_assignments(assignments),
+        floating_base,
+        dependent,
+        formulas,
+        cache=False if meta.get("appell.no_cache") else None,
+        reactions_in=meta.get("appell.reactions_in"),
+        echo=click.echo,
+        reader=meta.get("appell.mjcf"),
+    )
 
 
-_complete_option = click.option("--complete", is_flag=True,
-                                help="Change given initial values that violate a constraint (servo constraints "
-                                     "included) so that it holds, and print each change; without it such a start "
-                                     "is refused (exit 2).")
-_adjust_option = click.option("--adjust", "adjust", multiple=True, metavar="NAME",
-                              help="An initial value to compute from the constraints instead of taking it as given "
-                                   "(repeatable, e.g. --adjust \"xi'\"); implies --complete with these values only.")
+_complete_option = click.option(
+    "--complete",
+    is_flag=True,
+    help="Change given initial values that violate a constraint (servo constraints "
+    "included) so that it holds, and print each change; without it such a start "
+    "is refused (exit 2).",
+)
+_adjust_option = click.option(
+    "--adjust",
+    "adjust",
+    multiple=True,
+    metavar="NAME",
+    help="An initial value to compute from the constraints instead of taking it as given "
+    '(repeatable, e.g. --adjust "xi\'"); implies --complete with these values only.',
+)
 
 
 class _Positive(click.ParamType):
@@ -386,25 +458,67 @@ def _solver_options(command):
         return lambda: text + table.format(of(*_defaults()))
 
     def option(*names, text, of=None, **kwargs):
-        return click.option(*names, cls=_Option, default=None, help_of=default(text, of) if of else None,
-                            help=None if of else text, **kwargs)
+        return click.option(
+            *names,
+            cls=_Option,
+            default=None,
+            help_of=default(text, of) if of else None,
+            help=None if of else text,
+            **kwargs,
+        )
 
     options = [
         option("--method", type=_Choice(_methods), text="Integration method", of=lambda d, n: d.method),
-        option("--rtol", type=positive, metavar="R", text="Relative tolerance of the integrator",
-               of=lambda d, n: f"{d.rtol:g}".replace("e-0", "e-")),
-        option("--atol", type=positive, metavar="A", text="Absolute tolerance of the integrator",
-               of=lambda d, n: f"{d.atol:g}".replace("e-0", "e-")),
-        option("--max-step", "max_step", type=_Positive(infinite=True), metavar="H", text="Largest integration step",
-               of=lambda d, n: "unbounded"),
-        option("--t0", "t0", type=float, metavar="T", text="Start time; the initial values hold at t0",
-               of=lambda d, n: f"{d.t0:g}"),
-        option("--samples", type=click.IntRange(min=2), metavar="N",
-               text="N equally spaced output times from t0 to t_end", of=lambda d, n: n),
-        option("--output-step", "output_step", type=positive, metavar="H",
-               text="Output times t0, t0 + H, ... and t_end (excludes --samples)."),
-        option("--stabilization", type=click.Choice(["projection", "baumgarte", "none"]),
-               text="Constraint drift control", of=lambda d, n: d.stabilization),
+        option(
+            "--rtol",
+            type=positive,
+            metavar="R",
+            text="Relative tolerance of the integrator",
+            of=lambda d, n: f"{d.rtol:g}".replace("e-0", "e-"),
+        ),
+        option(
+            "--atol",
+            type=positive,
+            metavar="A",
+            text="Absolute tolerance of the integrator",
+            of=lambda d, n: f"{d.atol:g}".replace("e-0", "e-"),
+        ),
+        option(
+            "--max-step",
+            "max_step",
+            type=_Positive(infinite=True),
+            metavar="H",
+            text="Largest integration step",
+            of=lambda d, n: "unbounded",
+        ),
+        option(
+            "--t0",
+            "t0",
+            type=float,
+            metavar="T",
+            text="Start time; the initial values hold at t0",
+            of=lambda d, n: f"{d.t0:g}",
+        ),
+        option(
+            "--samples",
+            type=click.IntRange(min=2),
+            metavar="N",
+            text="N equally spaced output times from t0 to t_end",
+            of=lambda d, n: n,
+        ),
+        option(
+            "--output-step",
+            "output_step",
+            type=positive,
+            metavar="H",
+            text="Output times t0, t0 + H, ... and t_end (excludes --samples).",
+        ),
+        option(
+            "--stabilization",
+            type=click.Choice(["projection", "baumgarte", "none"]),
+            text="Constraint drift control",
+            of=lambda d, n: d.stabilization,
+        ),
     ]
 
     @functools.wraps(command)
@@ -431,18 +545,35 @@ def cli():
 
 @cli.command(name="derive", context_settings=_CONTEXT)
 @_model_argument
-@click.option("--format", "fmt", type=click.Choice(["text", "latex", "json"]), default="text", show_default=True,
-              help="Output format; JSON gives each expression as text and exactly (read it with "
-                   "appell.io.printing.read_json).")
-@click.option("--dependent", multiple=True, metavar="NAME",
-              help="A dependent acceleration of the partition (repeat once per constraint), e.g. x_ddot or x''.")
-@click.option("--routh", is_flag=True,
-              help="First reduce over the cyclic coordinates (Routh, method.md §5): print the cyclic "
-                   "velocities (3.4), T*, V and L* = T* - V, then the reduced system's equations.")
-@click.option("--only", "only", multiple=True, type=click.Choice(["motion", "reactions", "outputs", "controls"]),
-              help="Print only these items (repeatable): motion (the accelerations of (1.4) and f = 0), "
-                   "reactions ((1.5), also solved in t, q, w), outputs (e.g. joint forces and moments, "
-                   "in t, q, w, a and the multipliers) or controls (control laws and (2.3)).")
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["text", "latex", "json"]),
+    default="text",
+    show_default=True,
+    help="Output format; JSON gives each expression as text and exactly (read it with appell.io.printing.read_json).",
+)
+@click.option(
+    "--dependent",
+    multiple=True,
+    metavar="NAME",
+    help="A dependent acceleration of the partition (repeat once per constraint), e.g. x_ddot or x''.",
+)
+@click.option(
+    "--routh",
+    is_flag=True,
+    help="First reduce over the cyclic coordinates (Routh, method.md §5): print the cyclic "
+    "velocities (3.4), T*, V and L* = T* - V, then the reduced system's equations.",
+)
+@click.option(
+    "--only",
+    "only",
+    multiple=True,
+    type=click.Choice(["motion", "reactions", "outputs", "controls"]),
+    help="Print only these items (repeatable): motion (the accelerations of (1.4) and f = 0), "
+    "reactions ((1.5), also solved in t, q, w), outputs (e.g. joint forces and moments, "
+    "in t, q, w, a and the multipliers) or controls (control laws and (2.3)).",
+)
 @_expand_option
 @_model_options
 def derive_command(model, fmt, dependent, routh, assignments, floating_base, only, expand):
@@ -464,13 +595,30 @@ def derive_command(model, fmt, dependent, routh, assignments, floating_base, onl
 
 @cli.command(name="simulate", context_settings=_CONTEXT)
 @_model_argument
-@click.option("--t-end", type=float, default=None, metavar="T",
-              help="Final time (default: the model's [simulation] t_end, else 10). "
-                   "Equal to the start time: the single row at the initial state.")
-@click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE",
-              help="Write the motion to FILE.csv, FILE.h5 or FILE.nc (by suffix).")
-@click.option("--plot", "plot", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE",
-              help="Plot coordinates, reactions, controls and residuals to FILE (e.g. .png, .pdf, .svg).")
+@click.option(
+    "--t-end",
+    type=float,
+    default=None,
+    metavar="T",
+    help="Final time (default: the model's [simulation] t_end, else 10). "
+    "Equal to the start time: the single row at the initial state.",
+)
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(dir_okay=False, writable=True),
+    default=None,
+    metavar="FILE",
+    help="Write the motion to FILE.csv, FILE.h5 or FILE.nc (by suffix).",
+)
+@click.option(
+    "--plot",
+    "plot",
+    type=click.Path(dir_okay=False, writable=True),
+    default=None,
+    metavar="FILE",
+    help="Plot coordinates, reactions, controls and residuals to FILE (e.g. .png, .pdf, .svg).",
+)
 @_solver_options
 @_backend_option
 @_model_options
@@ -491,8 +639,10 @@ def simulate_command(model, t_end, out, plot, backend, assignments, floating_bas
     """
     out_path = Path(out) if out else None
     if out_path is not None and out_path.suffix.lower() not in OUTPUT_FORMATS:
-        raise click.BadParameter(f"unknown output format {out_path.suffix or '(no suffix)'!r}; "
-                                 f"use one of {', '.join(OUTPUT_FORMATS)}", param_hint="'--out'")
+        raise click.BadParameter(
+            f"unknown output format {out_path.suffix or '(no suffix)'!r}; use one of {', '.join(OUTPUT_FORMATS)}",
+            param_hint="'--out'",
+        )
     for target in (out_path, Path(plot) if plot else None):
         if target is not None:
             output_file(target, "'--out/--plot'")
@@ -506,15 +656,30 @@ def simulate_command(model, t_end, out, plot, backend, assignments, floating_bas
 
 @cli.command(name="animate", context_settings=_CONTEXT)
 @_model_argument
-@click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE",
-              help="FILE.html (the interactive 3-D view, self-contained), FILE.gif or FILE.mp4 (a movie; "
-                   "MP4 needs ffmpeg). Default: <model name>-motion.html.")
-@click.option("--t-end", type=float, default=None, metavar="T",
-              help="Final time (default: the model's [simulation] t_end, else 10).")
-@click.option("--fps", type=click.IntRange(1, 120), default=25, show_default=True,
-              help="Frames per second of a movie.")
-@click.option("--frames", type=click.IntRange(2, 5000), default=300, show_default=True,
-              help="Most frames of a movie (spread evenly over the motion).")
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(dir_okay=False, writable=True),
+    default=None,
+    metavar="FILE",
+    help="FILE.html (the interactive 3-D view, self-contained), FILE.gif or FILE.mp4 (a movie; "
+    "MP4 needs ffmpeg). Default: <model name>-motion.html.",
+)
+@click.option(
+    "--t-end",
+    type=float,
+    default=None,
+    metavar="T",
+    help="Final time (default: the model's [simulation] t_end, else 10).",
+)
+@click.option("--fps", type=click.IntRange(1, 120), default=25, show_default=True, help="Frames per second of a movie.")
+@click.option(
+    "--frames",
+    type=click.IntRange(2, 5000),
+    default=300,
+    show_default=True,
+    help="Most frames of a movie (spread evenly over the motion).",
+)
 @_solver_options
 @_backend_option
 @_model_options
@@ -531,8 +696,10 @@ def animate_command(model, out, t_end, fps, frames, backend, assignments, floati
     """
     path = Path(out) if out else None
     if path is not None and path.suffix.lower() not in (".html", ".htm", ".gif", ".mp4"):
-        raise click.BadParameter(f"cannot tell what to write from {path.suffix or '(no suffix)'!r}; name the "
-                                 "file .html, .gif or .mp4", param_hint="'--out'")
+        raise click.BadParameter(
+            f"cannot tell what to write from {path.suffix or '(no suffix)'!r}; name the file .html, .gif or .mp4",
+            param_hint="'--out'",
+        )
     if path is not None:
         output_file(path, "'--out'")
     workflows.check_movie_writer(path)  # before the simulation, not after it
@@ -543,25 +710,52 @@ def animate_command(model, out, t_end, fps, frames, backend, assignments, floati
 
 @cli.command(name="inverse", context_settings=_CONTEXT)
 @_model_argument
-@click.option("--trajectory", "trajectory", type=click.Path(exists=True, dir_okay=False), required=True,
-              metavar="FILE.csv", help="The motion: a column t and one per coordinate (by name; of a closed "
-                                       "chain only the actuated or other independent ones, the passive ones "
-                                       "follow from the loops); speeds (<q>_dot) and accelerations (<q>_ddot) "
-                                       "where known, else derived by a cubic spline.")
-@click.option("--drive", "drives", multiple=True, metavar="SPEED",
-              help="A driven speed or actuator (repeat); default every speed of a model without constraints, the "
-                   "actuators (else the given coordinates' speeds) of a closed chain.")
-@click.option("--guess", "guess", multiple=True, metavar="NAME=VALUE",
-              help="A closed chain's passive coordinate near its value at the first time (repeat): the start of "
-                   "the loops' assembly (default: the model's initial values).")
-@click.option("--contact", "contacts", multiple=True, metavar="NAME[:point|:weld]",
-              help="A foot or tool held on the ground along the motion (repeat): a body, or an MJCF body or site, "
-                   "held at its place at the first time; ':point' holds the point (default), ':weld' the "
-                   "orientation too (a flat foot). Its force (and moment) are solved with the drives: "
-                   "F_<name>_contact_x .. M_<name>_contact_z.")
-@click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE.csv",
-              help="Where to write t, the motion, drive_<speed>, lambda_<constraint> and the joint forces and "
-                   "moments (default: <model name>-inverse.csv).")
+@click.option(
+    "--trajectory",
+    "trajectory",
+    type=click.Path(exists=True, dir_okay=False),
+    required=True,
+    metavar="FILE.csv",
+    help="The motion: a column t and one per coordinate (by name; of a closed "
+    "chain only the actuated or other independent ones, the passive ones "
+    "follow from the loops); speeds (<q>_dot) and accelerations (<q>_ddot) "
+    "where known, else derived by a cubic spline.",
+)
+@click.option(
+    "--drive",
+    "drives",
+    multiple=True,
+    metavar="SPEED",
+    help="A driven speed or actuator (repeat); default every speed of a model without constraints, the "
+    "actuators (else the given coordinates' speeds) of a closed chain.",
+)
+@click.option(
+    "--guess",
+    "guess",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="A closed chain's passive coordinate near its value at the first time (repeat): the start of "
+    "the loops' assembly (default: the model's initial values).",
+)
+@click.option(
+    "--contact",
+    "contacts",
+    multiple=True,
+    metavar="NAME[:point|:weld]",
+    help="A foot or tool held on the ground along the motion (repeat): a body, or an MJCF body or site, "
+    "held at its place at the first time; ':point' holds the point (default), ':weld' the "
+    "orientation too (a flat foot). Its force (and moment) are solved with the drives: "
+    "F_<name>_contact_x .. M_<name>_contact_z.",
+)
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(dir_okay=False, writable=True),
+    default=None,
+    metavar="FILE.csv",
+    help="Where to write t, the motion, drive_<speed>, lambda_<constraint> and the joint forces and "
+    "moments (default: <model name>-inverse.csv).",
+)
 @_model_options
 def inverse_command(model, trajectory, drives, guess, contacts, out, assignments, floating_base):
     """Inverse dynamics: the drive forces (torques) along the driven speeds, every reaction
@@ -579,23 +773,44 @@ def inverse_command(model, trajectory, drives, guess, contacts, out, assignments
     table = workflows.read_trajectory(Path(trajectory))  # a bad file is bad input before the derivation
     path = output_file(Path(out), "'--out'") if out else None
     meta = click.get_current_context().meta
-    source = workflows.load_inverse_source(model, parse_assignments(assignments), floating_base,
-                                           cache=False if meta.get("appell.no_cache") else None,
-                                           reactions_in=meta.get("appell.reactions_in"),
-                                           reader=meta.get("appell.mjcf"), echo=click.echo, contacts=contacts)
-    workflows.run_inverse(source, trajectory, drives, path, echo=click.echo, table=table,
-                          guess=parse_assignments(guess, "'--guess'"))
+    source = workflows.load_inverse_source(
+        model,
+        parse_assignments(assignments),
+        floating_base,
+        cache=False if meta.get("appell.no_cache") else None,
+        reactions_in=meta.get("appell.reactions_in"),
+        reader=meta.get("appell.mjcf"),
+        echo=click.echo,
+        contacts=contacts,
+    )
+    workflows.run_inverse(
+        source, trajectory, drives, path, echo=click.echo, table=table, guess=parse_assignments(guess, "'--guess'")
+    )
 
 
 @cli.command(name="check", context_settings=_CONTEXT)
 @_model_argument
-@click.option("--tolerance", type=float, default=1e-9, show_default=True,
-              help="Largest normalised difference accepted on any cross-check line.")
-@click.option("--energy-tolerance", type=float, default=None, metavar="TOL",
-              help="Largest relative residual of the energy balance accepted [default: 1e-9].")
-@click.option("--t-end", type=float, default=None, metavar="T",
-              help="Final time of the motion whose energy balance is checked (default: the model's "
-                   "[simulation] t_end, else 10).")
+@click.option(
+    "--tolerance",
+    type=float,
+    default=1e-9,
+    show_default=True,
+    help="Largest normalised difference accepted on any cross-check line.",
+)
+@click.option(
+    "--energy-tolerance",
+    type=float,
+    default=None,
+    metavar="TOL",
+    help="Largest relative residual of the energy balance accepted [default: 1e-9].",
+)
+@click.option(
+    "--t-end",
+    type=float,
+    default=None,
+    metavar="T",
+    help="Final time of the motion whose energy balance is checked (default: the model's [simulation] t_end, else 10).",
+)
 @_model_options
 def check_command(model, tolerance, energy_tolerance, t_end, assignments, floating_base):
     """Check the split (1.4)/(1.5) against independent routes, and the energy balance.
@@ -617,21 +832,39 @@ def check_command(model, tolerance, energy_tolerance, t_end, assignments, floati
 
 @cli.command(name="report", context_settings=_CONTEXT)
 @_model_argument
-@click.option("-o", "--output", "output", type=click.Path(dir_okay=False, writable=True), default=None,
-              metavar="FILE.html", help="The page to write (default: <model name>-report.html).")
-@click.option("--t-end", type=float, default=None, metavar="T",
-              help="Final time of the simulation shown (default: the model's [simulation] t_end, else 10).")
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(dir_okay=False, writable=True),
+    default=None,
+    metavar="FILE.html",
+    help="The page to write (default: <model name>-report.html).",
+)
+@click.option(
+    "--t-end",
+    type=float,
+    default=None,
+    metavar="T",
+    help="Final time of the simulation shown (default: the model's [simulation] t_end, else 10).",
+)
 @click.option("--no-simulation", is_flag=True, help="Leave out the simulation and its plots.")
-@click.option("--data/--no-data", "data", default=True, show_default=True,
-              help="Write the motion's columns beside the page (FILE.csv) and link them from it.")
+@click.option(
+    "--data/--no-data",
+    "data",
+    default=True,
+    show_default=True,
+    help="Write the motion's columns beside the page (FILE.csv) and link them from it.",
+)
 @_solver_options
 @_backend_option
 @_model_options
 @_complete_option
 @_adjust_option
 @_expand_option
-def report_command(model, output, t_end, no_simulation, data, backend, assignments, floating_base, complete, adjust,
-                   solver, expand):
+def report_command(
+    model, output, t_end, no_simulation, data, backend, assignments, floating_base, complete, adjust, solver, expand
+):
     """Write one self-contained HTML page: the model, its equations as mathematics, the
     motion in 3-D with its forces, plots of coordinates, reactions and controls (with a
     shared time cursor), and the cross-check; the motion's data beside it (FILE.csv).
@@ -643,35 +876,76 @@ def report_command(model, output, t_end, no_simulation, data, backend, assignmen
     if output is not None:
         output_file(Path(output), "'-o'")
     derivation = _derivation(model, assignments, floating_base)
-    workflows.report_model(derivation, output, t_end, not no_simulation, data, backend, _solver(solver),
-                           echo=click.echo, expand=expand, **workflows.completion(complete, adjust))
+    workflows.report_model(
+        derivation,
+        output,
+        t_end,
+        not no_simulation,
+        data,
+        backend,
+        _solver(solver),
+        echo=click.echo,
+        expand=expand,
+        **workflows.completion(complete, adjust),
+    )
 
 
 @cli.command(name="sweep", context_settings=_CONTEXT)
 @_model_argument
-@click.option("--param", "specs", multiple=True, required=True, metavar="NAME=START:STOP:NUM",
-              help="A parameter axis (repeatable): NUM values from START to STOP, or NAME=V1,V2,...; "
-                   "the runs are the Cartesian product of the axes.")
-@click.option("--t-end", type=float, default=None, metavar="T",
-              help="Final time of every run (default: the model's [simulation] t_end, else 10).")
-@click.option("--out", "out", type=click.Path(dir_okay=False, writable=True), default=None, metavar="FILE.h5",
-              help="Results dataset (default: <model name>-sweep.h5); the summary goes beside it as "
-                   "FILE.h5.summary.json.")
+@click.option(
+    "--param",
+    "specs",
+    multiple=True,
+    required=True,
+    metavar="NAME=START:STOP:NUM",
+    help="A parameter axis (repeatable): NUM values from START to STOP, or NAME=V1,V2,...; "
+    "the runs are the Cartesian product of the axes.",
+)
+@click.option(
+    "--t-end",
+    type=float,
+    default=None,
+    metavar="T",
+    help="Final time of every run (default: the model's [simulation] t_end, else 10).",
+)
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(dir_okay=False, writable=True),
+    default=None,
+    metavar="FILE.h5",
+    help="Results dataset (default: <model name>-sweep.h5); the summary goes beside it as FILE.h5.summary.json.",
+)
 @_solver_options
-@click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="Dask scheduler address (tcp://host:8786): one kept by 'appell cluster' or 'dask scheduler', "
-                   "on this machine or many; default a local cluster started for this sweep.")
-@click.option("--workers", type=click.IntRange(min=1), default=None,
-              help="Workers of the local cluster (default: one per core).")
-@click.option("--worker-timeout", type=click.FloatRange(min=0, min_open=True), default=60.0, show_default=True,
-              metavar="SECONDS", help="Give up the runs not yet done when the cluster has had no worker for this long.")
-@click.option("--resume", is_flag=True,
-              help="Take the runs kept in FILE.h5.partial by an earlier, interrupted sweep (same model, grid "
-                   "and times) and compute only the others.")
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="Dask scheduler address (tcp://host:8786): one kept by 'appell cluster' or 'dask scheduler', "
+    "on this machine or many; default a local cluster started for this sweep.",
+)
+@click.option(
+    "--workers", type=click.IntRange(min=1), default=None, help="Workers of the local cluster (default: one per core)."
+)
+@click.option(
+    "--worker-timeout",
+    type=click.FloatRange(min=0, min_open=True),
+    default=60.0,
+    show_default=True,
+    metavar="SECONDS",
+    help="Give up the runs not yet done when the cluster has had no worker for this long.",
+)
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Take the runs kept in FILE.h5.partial by an earlier, interrupted sweep (same model, grid "
+    "and times) and compute only the others.",
+)
 @_backend_option
 @_model_options
-def sweep_command(model, specs, t_end, out, scheduler, workers, worker_timeout, resume, backend, assignments,
-                  floating_base, solver):
+def sweep_command(
+    model, specs, t_end, out, scheduler, workers, worker_timeout, resume, backend, assignments, floating_base, solver
+):
     """Simulate MODEL over a grid of parameter values, in parallel on Dask.
 
     Writes one HDF5 dataset with every run (states, reactions, controls, status) and a
@@ -683,25 +957,55 @@ def sweep_command(model, specs, t_end, out, scheduler, workers, worker_timeout, 
     system = load_system(model, parse_assignments(assignments), floating_base)
     if out:
         output_file(Path(out), "'--out'")
-    workflows.sweep_model(system, specs, t_end, out, scheduler=scheduler, workers=workers,
-                             worker_timeout=worker_timeout, resume=resume, backend=backend, solver=_solver(solver),
-                             progress=sys.stderr.isatty(), echo=click.echo)
+    workflows.sweep_model(
+        system,
+        specs,
+        t_end,
+        out,
+        scheduler=scheduler,
+        workers=workers,
+        worker_timeout=worker_timeout,
+        resume=resume,
+        backend=backend,
+        solver=_solver(solver),
+        progress=sys.stderr.isatty(),
+        echo=click.echo,
+    )
 
 
 @cli.command(name="stability", context_settings=_CONTEXT)
 @_model_argument
-@click.option("--vary", "spec", default=None, metavar="NAME=START:STOP:NUM",
-              help="The varied name: a parameter, or a coordinate or speed of the point (x' for a speed); "
-                   "NUM values from START to STOP, or NAME=V1,V2,... (default: the model's [stability] vary).")
-@click.option("--free", multiple=True, metavar="NAME",
-              help="A coordinate or speed solved for a steady motion at each value (repeatable); none: the "
-                   "point is the model's initial values as they are.")
-@click.option("--ignore", multiple=True, metavar="NAME",
-              help="A coordinate left out of the linear model (repeatable; a cyclic one of a steady motion), "
-                   "or 'cyclic' for every coordinate nothing depends on.")
-@click.option("-o", "--out", "outputs", multiple=True, type=click.Path(dir_okay=False, writable=True),
-              metavar="FILE", help="Write the eigenvalues (repeatable): .json, .csv, .nc (netCDF), or a plot "
-                                   ".png, .svg, .pdf.")
+@click.option(
+    "--vary",
+    "spec",
+    default=None,
+    metavar="NAME=START:STOP:NUM",
+    help="The varied name: a parameter, or a coordinate or speed of the point (x' for a speed); "
+    "NUM values from START to STOP, or NAME=V1,V2,... (default: the model's [stability] vary).",
+)
+@click.option(
+    "--free",
+    multiple=True,
+    metavar="NAME",
+    help="A coordinate or speed solved for a steady motion at each value (repeatable); none: the "
+    "point is the model's initial values as they are.",
+)
+@click.option(
+    "--ignore",
+    multiple=True,
+    metavar="NAME",
+    help="A coordinate left out of the linear model (repeatable; a cyclic one of a steady motion), "
+    "or 'cyclic' for every coordinate nothing depends on.",
+)
+@click.option(
+    "-o",
+    "--out",
+    "outputs",
+    multiple=True,
+    type=click.Path(dir_okay=False, writable=True),
+    metavar="FILE",
+    help="Write the eigenvalues (repeatable): .json, .csv, .nc (netCDF), or a plot .png, .svg, .pdf.",
+)
 @_model_options
 def stability_command(model, spec, free, ignore, outputs, assignments, floating_base):
     """Eigenvalues of the linear model against a parameter or a speed, with the critical
@@ -718,14 +1022,17 @@ def stability_command(model, spec, free, ignore, outputs, assignments, floating_
     kinds = {Path(o).suffix.lower() for o in outputs}
     unknown = kinds - {".json", ".csv", ".nc", ".png", ".svg", ".pdf"}
     if unknown:
-        raise click.BadParameter(f"unknown output kind {', '.join(sorted(unknown))}: use .json, .csv, .nc, .png, "
-                                 ".svg or .pdf", param_hint="'-o'")
+        raise click.BadParameter(
+            f"unknown output kind {', '.join(sorted(unknown))}: use .json, .csv, .nc, .png, .svg or .pdf",
+            param_hint="'-o'",
+        )
     for o in outputs:
         output_target(o)
     system = load_system(model, parse_assignments(assignments), floating_base)
     if spec is None and not workflows.stability_table(system):
-        raise click.UsageError("give --vary NAME=START:STOP:NUM, or a [stability] table in the model file "
-                               "(vary = \"NAME=START:STOP:NUM\")")
+        raise click.UsageError(
+            'give --vary NAME=START:STOP:NUM, or a [stability] table in the model file (vary = "NAME=START:STOP:NUM")'
+        )
     derivation = derive_model(system)
     result = workflows.stability_analysis(derivation, spec, free, ignore)
     click.echo(result.table())
@@ -735,12 +1042,21 @@ def stability_command(model, spec, free, ignore, outputs, assignments, floating_
 
 
 @cli.command(name="cluster", context_settings=_CONTEXT)
-@click.option("--workers", type=click.IntRange(min=1), default=None,
-              help="Worker processes, one thread each (default: one per core).")
-@click.option("--host", default="127.0.0.1", show_default=True,
-              help="Interface the scheduler listens on (0.0.0.0: all, for workers and sweeps on other machines).")
-@click.option("--port", type=click.IntRange(0, 65535), default=8786, show_default=True,
-              help="Scheduler port (0: a free one).")
+@click.option(
+    "--workers",
+    type=click.IntRange(min=1),
+    default=None,
+    help="Worker processes, one thread each (default: one per core).",
+)
+@click.option(
+    "--host",
+    default="127.0.0.1",
+    show_default=True,
+    help="Interface the scheduler listens on (0.0.0.0: all, for workers and sweeps on other machines).",
+)
+@click.option(
+    "--port", type=click.IntRange(0, 65535), default=8786, show_default=True, help="Scheduler port (0: a free one)."
+)
 def cluster_command(workers, host, port):
     """Keep a local Dask cluster running for several sweeps, until Ctrl-C.
 
@@ -754,8 +1070,14 @@ def cluster_command(workers, host, port):
 
 @cli.command(name="examples", context_settings=_CONTEXT)
 @click.argument("name", required=False)
-@click.option("--to", "to", type=click.Path(file_okay=False), default=None, metavar="DIR",
-              help="Copy the example's model file into DIR.")
+@click.option(
+    "--to",
+    "to",
+    type=click.Path(file_okay=False),
+    default=None,
+    metavar="DIR",
+    help="Copy the example's model file into DIR.",
+)
 def examples_command(name, to):
     """List the bundled examples, show one model file, or copy it out with --to."""
     from appell.examples import example_path

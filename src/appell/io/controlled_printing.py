@@ -18,9 +18,12 @@ def _sections(derivation, neat: bool = False):
     (:func:`appell.core.simplification.readable`, the terms collected by the accelerations,
     the controls' unknowns and the multipliers, then by the parameters), for people."""
     a_nu, a_h = derivation.partition.names(derivation.accelerations)
-    focus = (tuple(derivation.kinematics.accelerations) + tuple(c.unknown for c in derivation.system.controls)
-             + tuple(sp.Symbol(f"lambda_{k}") for k in derivation.reactions.as_dict()),
-             tuple(p.symbol for p in derivation.system.parameters))
+    focus = (
+        tuple(derivation.kinematics.accelerations)
+        + tuple(c.unknown for c in derivation.system.controls)
+        + tuple(sp.Symbol(f"lambda_{k}") for k in derivation.reactions.as_dict()),
+        tuple(p.symbol for p in derivation.system.parameters),
+    )
 
     def shown(body: dict) -> dict:
         return {k: readable(v, *focus) for k, v in body.items()} if neat else body
@@ -35,27 +38,37 @@ def _sections(derivation, neat: bool = False):
 
 def controlled_text(derivation) -> str:
     """Plain-text report of (2.3), (2.4), (2.5), the control laws and relative degrees."""
-    lines = [f"controlled system {derivation.system.name!r}: controls "
-             + ", ".join(f"{c.name} ({c.kind}, unknown {c.unknown})" for c in derivation.system.controls),
-             "  real constraints: " + (", ".join(derivation.blocks.real.names) or "none"),
-             "  servo constraints: " + ", ".join(derivation.blocks.servo.names)]
+    lines = [
+        f"controlled system {derivation.system.name!r}: controls "
+        + ", ".join(f"{c.name} ({c.kind}, unknown {c.unknown})" for c in derivation.system.controls),
+        "  real constraints: " + (", ".join(derivation.blocks.real.names) or "none"),
+        "  servo constraints: " + ", ".join(derivation.blocks.servo.names),
+    ]
     for title, body in _sections(derivation, neat=True):
         if title == "partition":
-            lines.append(f"  independent accelerations: {', '.join(body[0]) or 'none'}; "
-                         f"dependent: {', '.join(body[1])}")
+            lines.append(
+                f"  independent accelerations: {', '.join(body[0]) or 'none'}; dependent: {', '.join(body[1])}"
+            )
             continue
         if title == "internal dynamics":
             continue
         if not body and title.startswith("(2.4)"):
             lines.append(f"{title}:")
-            lines.append("  none: no free acceleration (p = 0); the real and servo constraints prescribe "
-                         "the motion, the controls realise it (inverse dynamics)")
+            lines.append(
+                "  none: no free acceleration (p = 0); the real and servo constraints prescribe "
+                "the motion, the controls realise it (inverse dynamics)"
+            )
             continue
         lines.append(f"{title}:" + ("" if body else " none"))
         for k, v in body.items():
             lines.append(f"  {k}: {v} {'= 0' if not title.startswith(('(2.5)', 'controls')) else ''}".rstrip())
-    lines.append("relative degree: " + ", ".join(
-        f"{c.name} {c.relative_degree} ({c.differentiations} differentiation(s) of (2.3))" for c in derivation.conditions))
+    lines.append(
+        "relative degree: "
+        + ", ".join(
+            f"{c.name} {c.relative_degree} ({c.differentiations} differentiation(s) of (2.3))"
+            for c in derivation.conditions
+        )
+    )
     lines.append(f"internal dimension: {derivation.internal_dimension}")
     lines += _internal_lines(derivation)
     return "\n".join(lines)
@@ -65,8 +78,10 @@ def _internal_lines(derivation) -> list[str]:
     """What is left of the motion once the controls realise the servo constraints."""
     if derivation.internal_dimension == 0:
         return ["internal dynamics: none (the servo and real constraints fix the motion)"]
-    lines = [f"internal dynamics: the motion (2.4) on the servo manifold, dimension {derivation.internal_dimension}"
-             + (", with the state relations" if derivation.internal_dynamics else "")]
+    lines = [
+        f"internal dynamics: the motion (2.4) on the servo manifold, dimension {derivation.internal_dimension}"
+        + (", with the state relations" if derivation.internal_dynamics else "")
+    ]
     lines += [f"  {k}: {v} = 0" for k, v in derivation.internal_dynamics.items()]
     return lines
 
@@ -98,9 +113,15 @@ def controlled_expressions(derivation) -> dict:
     """The JSON document with SymPy expressions still in it (:func:`appell.io.printing.to_json` makes it JSON)."""
     a_nu, a_h = derivation.partition.names(derivation.accelerations)
     kin, system = derivation.kinematics, derivation.system
-    out = {"system": system.name, "name": system.name, "independent": a_nu, "dependent": a_h,
-           "coordinates": [s.name for s in kin.coordinates], "speeds": [s.name for s in kin.speeds],
-           "accelerations": [s.name for s in kin.accelerations]}
+    out = {
+        "system": system.name,
+        "name": system.name,
+        "independent": a_nu,
+        "dependent": a_h,
+        "coordinates": [s.name for s in kin.coordinates],
+        "speeds": [s.name for s in kin.speeds],
+        "accelerations": [s.name for s in kin.accelerations],
+    }
     for title, body in _sections(derivation):
         if title != "partition":
             key = title.split(") ")[-1].replace(" ", "_")

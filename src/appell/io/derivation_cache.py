@@ -147,8 +147,13 @@ class _Encoder:
         if isinstance(v, sp.MatrixBase):
             if type(v) not in (sp.ImmutableDenseMatrix, sp.MutableDenseMatrix):
                 raise Unstorable(type(v).__name__)
-            return {"$": "M", "m": type(v) is sp.ImmutableDenseMatrix, "r": v.rows, "c": v.cols,
-                    "v": [self.expr(x) for x in v]}
+            return {
+                "$": "M",
+                "m": type(v) is sp.ImmutableDenseMatrix,
+                "r": v.rows,
+                "c": v.cols,
+                "v": [self.expr(x) for x in v],
+            }
         if isinstance(v, sp.Basic):
             return {"$": "e", "v": self.expr(v)}
         if type(v) is tuple:
@@ -161,11 +166,14 @@ class _Encoder:
             return {"$": "fs" if type(v) is frozenset else "set", "v": [self.value(x) for x in v]}
         if type(v) is np.ndarray and v.dtype.kind in "fib" and v.dtype.isnative:
             flat = v.ravel().tolist()
-            return {"$": "a", "t": v.dtype.str, "s": list(v.shape),
-                    "v": [x.hex() for x in flat] if v.dtype.kind == "f" else flat}
+            return {
+                "$": "a",
+                "t": v.dtype.str,
+                "s": list(v.shape),
+                "v": [x.hex() for x in flat] if v.dtype.kind == "f" else flat,
+            }
         if isinstance(v, np.generic) and v.dtype.kind in "fib":
-            return {"$": "a", "t": v.dtype.str, "s": None,
-                    "v": [float(v).hex()] if v.dtype.kind == "f" else [v.item()]}
+            return {"$": "a", "t": v.dtype.str, "s": None, "v": [float(v).hex()] if v.dtype.kind == "f" else [v.item()]}
         cls = type(v)
         name = f"{cls.__module__}:{cls.__qualname__}"
         if not _own(cls):
@@ -188,8 +196,11 @@ def _stored_fields(cls) -> list[str]:
     into a property is computed, not stored)."""
     import inspect
 
-    return [f.name for f in dataclasses.fields(cls)
-            if not hasattr(type(inspect.getattr_static(cls, f.name, None)), "__set__")]
+    return [
+        f.name
+        for f in dataclasses.fields(cls)
+        if not hasattr(type(inspect.getattr_static(cls, f.name, None)), "__set__")
+    ]
 
 
 def _own(cls) -> bool:
@@ -206,8 +217,11 @@ def encode(derivation) -> dict:
 
 class _Decoder:
     def __init__(self, doc: dict):
-        if not isinstance(doc, dict) or not isinstance(doc.get("symbols"), dict) \
-                or not isinstance(doc.get("nodes"), list):
+        if (
+            not isinstance(doc, dict)
+            or not isinstance(doc.get("symbols"), dict)
+            or not isinstance(doc.get("nodes"), list)
+        ):
             raise ValueError("not a derivation document")
         self.symbols = {name: symbol_from_table(name, a) for name, a in doc["symbols"].items()}
         self.nodes: list = []
@@ -218,8 +232,9 @@ class _Decoder:
                 self.nodes.append(expression_from_tree(tree, self.symbols, shared=self.nodes))
 
     def _ref(self, r):
-        if not (isinstance(r, list) and len(r) == 2 and r[0] == "Ref" and type(r[1]) is int
-                and 0 <= r[1] < len(self.nodes)):
+        if not (
+            isinstance(r, list) and len(r) == 2 and r[0] == "Ref" and type(r[1]) is int and 0 <= r[1] < len(self.nodes)
+        ):
             raise ValueError(f"a bad reference {r!r}")
         return self.nodes[r[1]]
 
@@ -252,8 +267,7 @@ class _Decoder:
             return np.array(items, dtype=dtype).reshape([int(n) for n in v["s"]])
         if tag == "M":
             rows, cols = v["r"], v["c"]
-            if type(rows) is not int or type(cols) is not int or not isinstance(body, list) \
-                    or len(body) != rows * cols:
+            if type(rows) is not int or type(cols) is not int or not isinstance(body, list) or len(body) != rows * cols:
                 raise ValueError("a bad matrix")
             cls = sp.ImmutableDenseMatrix if v.get("m") else sp.MutableDenseMatrix
             return cls(rows, cols, [self._node(k) for k in body])
@@ -281,8 +295,12 @@ class _Decoder:
             if extra and not hasattr(obj, "__dict__"):
                 raise ValueError(f"{v.get('c')} keeps no computed values")
             for name, x in extra.items():
-                if not isinstance(name, str) or not name.isidentifier() or name in names \
-                        or hasattr(type(getattr(cls, name, None)), "__set__"):
+                if (
+                    not isinstance(name, str)
+                    or not name.isidentifier()
+                    or name in names
+                    or hasattr(type(getattr(cls, name, None)), "__set__")
+                ):
                     raise ValueError(f"{name!r} is not a computed value of {v.get('c')}")
                 obj.__dict__[name] = self.value(x, depth + 1)
             return obj
@@ -331,14 +349,22 @@ def _named_files(path: Path, raw: bytes) -> list[Path]:
     return found
 
 
-def entry_key(path: Path, overrides=None, floating_base: bool = False, dependent=None,
-              reactions_in: str | None = None, reader=None) -> str:
+def entry_key(
+    path: Path,
+    overrides=None,
+    floating_base: bool = False,
+    dependent=None,
+    reactions_in: str | None = None,
+    reader=None,
+) -> str:
     """The SHA-256 key of a model file's derivation (see the module's docstring)."""
     from appell import __version__
 
     digest = hashlib.sha256()
-    digest.update(f"{_MAGIC} {FORMAT} appell {__version__} {source_digest()} sympy {sp.__version__} "
-                  f"python {sys.version_info[:3]}\n".encode())
+    digest.update(
+        f"{_MAGIC} {FORMAT} appell {__version__} {source_digest()} sympy {sp.__version__} "
+        f"python {sys.version_info[:3]}\n".encode()
+    )
     seen, todo = set(), [path]
     while todo:
         file = todo.pop(0).resolve()
@@ -349,9 +375,12 @@ def entry_key(path: Path, overrides=None, floating_base: bool = False, dependent
         digest.update(f"file {len(raw)}\n".encode() + raw)
         todo.extend(_named_files(file, raw))
     given = sorted((str(k), repr(v)) for k, v in dict(overrides or {}).items())
-    digest.update(repr((given, bool(floating_base), None if dependent is None else [str(d) for d in dependent],
-                        reactions_in) + ((sorted((str(k), str(v)) for k, v in dict(reader).items()),)
-                                         if reader else ())).encode())
+    digest.update(
+        repr(
+            (given, bool(floating_base), None if dependent is None else [str(d) for d in dependent], reactions_in)
+            + ((sorted((str(k), str(v)) for k, v in dict(reader).items()),) if reader else ())
+        ).encode()
+    )
     return digest.hexdigest()[:32]
 
 
@@ -424,12 +453,14 @@ def write_entry(root: Path, file: Path, key: str, derivation, notes=(), checked:
     file gave (given again when it is read) and whether :func:`derive_file`'s check passed;
     False when it cannot be stored."""
     try:
-        body = json.dumps({**encode(derivation), "notes": list(notes), "checked": bool(checked)},
-                          separators=(",", ":")).encode()
+        body = json.dumps(
+            {**encode(derivation), "notes": list(notes), "checked": bool(checked)}, separators=(",", ":")
+        ).encode()
     except Unstorable:
         return False
-    header = json.dumps({"magic": _MAGIC, "format": FORMAT, "key": key,
-                         "sha256": hashlib.sha256(body).hexdigest()}).encode()
+    header = json.dumps(
+        {"magic": _MAGIC, "format": FORMAT, "key": key, "sha256": hashlib.sha256(body).hexdigest()}
+    ).encode()
     fd, tmp = tempfile.mkstemp(prefix=f"{key}_", suffix=".tmp", dir=root)
     try:
         with os.fdopen(fd, "wb") as fh:
@@ -474,8 +505,18 @@ def _derive(system, dependent):
     return derive(system, dependent=dependent)
 
 
-def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=None, cache: bool | None = None,
-                formulas: bool = False, reactions_in: str | None = None, reader=None, check=None):
+def derive_file(
+    path,
+    overrides=None,
+    *,
+    floating_base: bool = False,
+    dependent=None,
+    cache: bool | None = None,
+    formulas: bool = False,
+    reactions_in: str | None = None,
+    reader=None,
+    check=None,
+):
     """The derivation of the model file ``path`` (a bundled example's name too, as
     :func:`~appell.io.modelfile.load_model` takes), read from the derivation cache when the
     same input was derived before (see the module's docstring), else loaded, derived and
@@ -504,8 +545,7 @@ def derive_file(path, overrides=None, *, floating_base: bool = False, dependent=
 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", AppellNote)
-            system = load_model(path, overrides, floating_base=floating_base, reactions_in=reactions_in,
-                                reader=reader)
+            system = load_model(path, overrides, floating_base=floating_base, reactions_in=reactions_in, reader=reader)
         for w in caught:  # given as they came, and kept with the entry
             if issubclass(w.category, AppellNote):
                 notes.append(str(w.message))

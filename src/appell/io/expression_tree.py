@@ -31,8 +31,15 @@ import sympy as sp
 
 from appell.errors import ModelError
 
-__all__ = ["HEADS", "CONSTANTS", "MAX_DEPTH", "expression_tree", "expression_from_tree", "symbol_assumptions",
-           "symbol_from_table"]
+__all__ = [
+    "HEADS",
+    "CONSTANTS",
+    "MAX_DEPTH",
+    "expression_tree",
+    "expression_from_tree",
+    "symbol_assumptions",
+    "symbol_from_table",
+]
 
 #: deepest tree read (real derivations stay far below)
 MAX_DEPTH = 200
@@ -41,9 +48,18 @@ MAX_DIGITS = 4000
 
 #: constants by name
 CONSTANTS: dict[str, sp.Basic] = {
-    "pi": sp.pi, "E": sp.E, "I": sp.I, "oo": sp.oo, "-oo": -sp.oo, "zoo": sp.zoo, "nan": sp.nan,
-    "EulerGamma": sp.EulerGamma, "Catalan": sp.Catalan, "GoldenRatio": sp.GoldenRatio,
-    "true": sp.true, "false": sp.false,
+    "pi": sp.pi,
+    "E": sp.E,
+    "I": sp.I,
+    "oo": sp.oo,
+    "-oo": -sp.oo,
+    "zoo": sp.zoo,
+    "nan": sp.nan,
+    "EulerGamma": sp.EulerGamma,
+    "Catalan": sp.Catalan,
+    "GoldenRatio": sp.GoldenRatio,
+    "true": sp.true,
+    "false": sp.false,
 }
 
 _FUNCTION_NAMES = (
@@ -54,9 +70,13 @@ _FUNCTION_NAMES = (
 ).split()
 
 #: node heads -> SymPy classes (the only classes a tree can build)
-HEADS: dict[str, type] = {"Add": sp.Add, "Mul": sp.Mul, "Pow": sp.Pow,
-                          "ExprCondPair": sp.functions.elementary.piecewise.ExprCondPair,
-                          **{name: getattr(sp, name) for name in _FUNCTION_NAMES}}
+HEADS: dict[str, type] = {
+    "Add": sp.Add,
+    "Mul": sp.Mul,
+    "Pow": sp.Pow,
+    "ExprCondPair": sp.functions.elementary.piecewise.ExprCondPair,
+    **{name: getattr(sp, name) for name in _FUNCTION_NAMES},
+}
 _HEAD_OF = {cls: name for name, cls in HEADS.items()}
 _CONSTANT_OF = {v: k for k, v in CONSTANTS.items()}
 
@@ -74,10 +94,12 @@ def symbol_from_table(name: str, assumptions) -> sp.Symbol:
     """``Symbol(name, **assumptions)``, checked; :class:`ModelError` for a bad entry."""
     if not isinstance(name, str) or not name:
         raise ModelError(f"symbol table: {name!r} is not a symbol name")
-    if not isinstance(assumptions, dict) or not all(isinstance(k, str) and isinstance(v, bool)
-                                                    for k, v in assumptions.items()):
-        raise ModelError(f"symbol table: the assumptions of {name!r} must map names to true/false",
-                         hint='e.g. {"positive": true}')
+    if not isinstance(assumptions, dict) or not all(
+        isinstance(k, str) and isinstance(v, bool) for k, v in assumptions.items()
+    ):
+        raise ModelError(
+            f"symbol table: the assumptions of {name!r} must map names to true/false", hint='e.g. {"positive": true}'
+        )
     try:
         return sp.Symbol(name, **assumptions)
     except (ValueError, TypeError, AttributeError, KeyError) as exc:
@@ -99,8 +121,9 @@ def expression_tree(expr, refs: dict | None = None, inline: bool = False) -> lis
         return ["Ref", refs[e]]
     if e.is_Symbol:
         if isinstance(e, sp.Dummy) or type(e) is not sp.Symbol:
-            raise ModelError(f"cannot write {type(e).__name__} {e} exactly: only plain symbols have a name",
-                             hint=_WRITE_HINT)
+            raise ModelError(
+                f"cannot write {type(e).__name__} {e} exactly: only plain symbols have a name", hint=_WRITE_HINT
+            )
         return ["Symbol", e.name]
     if e in _CONSTANT_OF and type(e) is type(CONSTANTS[_CONSTANT_OF[e]]):
         return ["Constant", _CONSTANT_OF[e]]
@@ -113,21 +136,25 @@ def expression_tree(expr, refs: dict | None = None, inline: bool = False) -> lis
         return ["Float", int(sign), format(int(man), "x"), int(exp), int(bits), int(e._prec)]
     head = _HEAD_OF.get(type(e))
     if head is None:
-        raise ModelError(f"cannot write {type(e).__name__} ({e.func}) exactly: not one of the heads of "
-                         "appell.io.expression_tree.HEADS", hint=_WRITE_HINT)
+        raise ModelError(
+            f"cannot write {type(e).__name__} ({e.func}) exactly: not one of the heads of "
+            "appell.io.expression_tree.HEADS",
+            hint=_WRITE_HINT,
+        )
     return [head, *(expression_tree(a, refs) for a in e.args)]
 
 
 def _fail(node, why: str):
     text = repr(node)
-    raise ModelError(f"not an exact appell expression: {why} in {text[:120]}{'...' if len(text) > 120 else ''}",
-                     hint="write the document with appell (appell derive --format json) and read it with "
-                          "appell.io.printing.read_json")
+    raise ModelError(
+        f"not an exact appell expression: {why} in {text[:120]}{'...' if len(text) > 120 else ''}",
+        hint="write the document with appell (appell derive --format json) and read it with "
+        "appell.io.printing.read_json",
+    )
 
 
 def _integer(node, text):
-    if not isinstance(text, str) or not (text.lstrip("-").isdigit() and text.isascii()) \
-            or len(text) > MAX_DIGITS:
+    if not isinstance(text, str) or not (text.lstrip("-").isdigit() and text.isascii()) or len(text) > MAX_DIGITS:
         _fail(node, f"{text!r} is not an integer literal")
     return int(text)
 
@@ -142,8 +169,12 @@ def expression_from_tree(tree, symbols: dict, _depth: int = 0, shared: list | No
         _fail(tree, "a node must be a list [head, ...]")
     head, args = tree[0], tree[1:]
     if head == "Ref":
-        if len(args) != 1 or not isinstance(args[0], int) or isinstance(args[0], bool) \
-                or not 0 <= args[0] < len(shared or ()):
+        if (
+            len(args) != 1
+            or not isinstance(args[0], int)
+            or isinstance(args[0], bool)
+            or not 0 <= args[0] < len(shared or ())
+        ):
             _fail(tree, "a reference to no earlier shared subexpression")
         return shared[args[0]]
     if head == "Symbol":
@@ -166,16 +197,26 @@ def expression_from_tree(tree, symbols: dict, _depth: int = 0, shared: list | No
             _fail(tree, "a Rational must be in lowest terms with denominator > 1")
         return sp.Rational(p, q)
     if head == "Float":
-        if len(args) != 5 or not all(isinstance(x, int) and not isinstance(x, bool) for x in args[:1] + args[2:]) \
-                or args[0] not in (0, 1) or not isinstance(args[1], str) or not args[4] > 1:
+        if (
+            len(args) != 5
+            or not all(isinstance(x, int) and not isinstance(x, bool) for x in args[:1] + args[2:])
+            or args[0] not in (0, 1)
+            or not isinstance(args[1], str)
+            or not args[4] > 1
+        ):
             _fail(tree, "a Float is [sign, hex mantissa, exponent, bits, precision]")
         sign, man, exp, bits, prec = args
         try:
             mantissa = int(man, 16)
         except ValueError:
             _fail(tree, f"{man!r} is not a hexadecimal mantissa")
-        if len(man) > MAX_DIGITS or abs(exp) > 10**7 or prec > 10**5 or bits != mantissa.bit_length() \
-                and (mantissa or exp):
+        if (
+            len(man) > MAX_DIGITS
+            or abs(exp) > 10**7
+            or prec > 10**5
+            or bits != mantissa.bit_length()
+            and (mantissa or exp)
+        ):
             _fail(tree, "a Float out of range")
         return sp.Float((sign, man, exp, bits), precision=prec)
     cls = HEADS.get(head)

@@ -14,17 +14,18 @@ from pathlib import Path
 
 import sympy as sp
 
-from appell.core.equations import is_controlled
-from appell.core.equations import formulas_unavailable
+from appell.core.equations import formulas_unavailable, is_controlled
 from appell.core.simplification import adjugate, determinant, graph_size, readable, tidy, tree_size
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
-from appell.symbols import block_cse, derivative_symbol, free_symbols, graph_xreplace, latex, matmul, t as time  # noqa: F401 (latex is re-exported)
-
+from appell.symbols import block_cse, derivative_symbol, free_symbols, graph_xreplace, latex, matmul  # noqa: F401 (latex is re-exported)
+from appell.symbols import t as time
 
 #: shown where no acceleration is free (p = 0): (1.4) has no rows
-NO_FREE_ACCELERATION = ("no free acceleration (0 degrees of freedom): the constraints prescribe the motion; "
-                        "(1.4) is empty and (1.5) gives the reactions along the prescribed motion")
+NO_FREE_ACCELERATION = (
+    "no free acceleration (0 degrees of freedom): the constraints prescribe the motion; "
+    "(1.4) is empty and (1.5) gives the reactions along the prescribed motion"
+)
 
 
 #: items that ``appell derive --only`` can select
@@ -139,8 +140,9 @@ def tree_formulas(derivation) -> list[Formula]:
 
         v, acc = _names("v", B, SPATIAL), _names("a", B, SPATIAL)
         v_expr = to_body(vP) + vJ
-        cross = sp.Matrix.vstack(_skew_cross(v[:3, :], vJ[:3, :]),
-                                 _skew_cross(v[:3, :], vJ[3:, :]) + _skew_cross(v[3:, :], vJ[:3, :]))
+        cross = sp.Matrix.vstack(
+            _skew_cross(v[:3, :], vJ[:3, :]), _skew_cross(v[:3, :], vJ[3:, :]) + _skew_cross(v[3:, :], vJ[:3, :])
+        )
         a_expr = to_body(aP) + (S * own_a if node.speeds else sp.zeros(6, 1)) + sp.Matrix(node.bias) + cross
         rows += [Formula("(RNEA)", v[k], v_expr[k], "motion") for k in range(6)]
         rows += [Formula("(RNEA)", acc[k], a_expr[k], "motion") for k in range(6)]
@@ -157,8 +159,9 @@ def tree_formulas(derivation) -> list[Formula]:
             return sp.Matrix.vstack(Ic * x[:3, :] + m * _skew_cross(c, u), m * u)
 
         Iv = inertia(v)
-        f_expr = inertia(acc) + sp.Matrix.vstack(_skew_cross(v[:3, :], Iv[:3, :]) + _skew_cross(v[3:, :], Iv[3:, :]),
-                                                 _skew_cross(v[:3, :], Iv[3:, :]))
+        f_expr = inertia(acc) + sp.Matrix.vstack(
+            _skew_cross(v[:3, :], Iv[:3, :]) + _skew_cross(v[3:, :], Iv[3:, :]), _skew_cross(v[:3, :], Iv[3:, :])
+        )
         for ch in children.get(b, []):
             C = tree.nodes[ch].body
             Rc = sp.Matrix(3, 3, [sp.Symbol(f"R_{C}_{i}{j}") for i in "xyz" for j in "xyz"])
@@ -197,8 +200,10 @@ def tree_formulas(derivation) -> list[Formula]:
             Ra = world[index[wr.axes]]
             F, M = Ra.T * F, Ra.T * M
         by_tree.update(zip(wr.names, list(F) + list(M)))
-    rows += [Formula("(output)", sp.Symbol(o.name), by_tree.get(o.name, o.expr), "outputs")
-             for o in derivation.system.outputs]
+    rows += [
+        Formula("(output)", sp.Symbol(o.name), by_tree.get(o.name, o.expr), "outputs")
+        for o in derivation.system.outputs
+    ]
     return rows
 
 
@@ -227,8 +232,12 @@ def equation_formulas(derivation, expand: bool = True) -> list[Formula]:
         inertia, cons = derivation.inertia, derivation.constraints
         a = sp.Matrix(derivation.accelerations)
         lam = sp.Matrix([sp.Symbol(f"lambda_{n}") for n in cons.names])
-        blocks = {"M": sp.Matrix(inertia.mass_matrix), "h": sp.Matrix(inertia.inertial_forces),
-                  "Q": sp.Matrix(inertia.generalized_forces), "J": sp.Matrix(cons.jacobian)}
+        blocks = {
+            "M": sp.Matrix(inertia.mass_matrix),
+            "h": sp.Matrix(inertia.inertial_forces),
+            "Q": sp.Matrix(inertia.generalized_forces),
+            "J": sp.Matrix(cons.jacobian),
+        }
         taken = {s.name for s in free_symbols(*[e for m in blocks.values() for e in m])}
         named = {k: _named(k, m, taken) for k, m in blocks.items()}
         definitions = []
@@ -237,8 +246,7 @@ def equation_formulas(derivation, expand: bool = True) -> list[Formula]:
             blocks = {k: v[0] for k, v in named.items()}
         lhs = blocks["M"] * a + blocks["h"]
         rhs = blocks["Q"] + (blocks["J"].T * lam if cons.count else sp.zeros(len(a), 1))
-        rows = [Formula(f"(1.3) [{w}]", lhs[i], rhs[i], "motion")
-                for i, w in enumerate(derivation.kinematics.speeds)]
+        rows = [Formula(f"(1.3) [{w}]", lhs[i], rhs[i], "motion") for i, w in enumerate(derivation.kinematics.speeds)]
         rows += [Formula(f"(f_{n} = 0)", f, sp.S.Zero, "motion") for n, f in zip(cons.names, cons.second_order)]
         rows += [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
         return rows + definitions
@@ -256,21 +264,27 @@ def equation_formulas(derivation, expand: bool = True) -> list[Formula]:
     if red.dependent_solution is not None:
         rows += [Formula("(f = 0)", a, e, "motion") for a, e in zip(red.dependent, red.dependent_solution)]
     elif not controlled:
-        rows += [Formula(f"(f_{n} = 0)", f, sp.S.Zero, "motion")
-                 for n, f in zip(derivation.constraints.names, derivation.constraints.second_order)]
+        rows += [
+            Formula(f"(f_{n} = 0)", f, sp.S.Zero, "motion")
+            for n, f in zip(derivation.constraints.names, derivation.constraints.second_order)
+        ]
     lam_tag = "(2.5)" if controlled else "(1.5)"
     lam = derivation.reactions.as_dict()
     rows += [Formula(lam_tag, sp.Symbol(f"lambda_{n}"), e, "reactions") for n, e in lam.items()]
     if expand and solved is not None and red.dependent_solution is not None and lam:
         a_nu = dict(zip(red.independent, solved))
         acc = {**a_nu, **dict(zip(red.dependent, graph_xreplace(list(red.dependent_solution), a_nu)))}
-        rows += [Formula("(t, q, w)", sp.Symbol(f"lambda_{n}"), e, "reactions")
-                 for n, e in zip(lam, graph_xreplace(list(lam.values()), acc))]
+        rows += [
+            Formula("(t, q, w)", sp.Symbol(f"lambda_{n}"), e, "reactions")
+            for n, e in zip(lam, graph_xreplace(list(lam.values()), acc))
+        ]
     rows += [Formula("(output)", sp.Symbol(o.name), o.expr, "outputs") for o in derivation.system.outputs]
     if controlled:
         controls = {c.name: c.unknown for c in derivation.system.controls}
-        rows += [Formula("(control)", controls.get(k, sp.Symbol(k)), v, "controls")
-                 for k, v in derivation.control_laws.items()]
+        rows += [
+            Formula("(control)", controls.get(k, sp.Symbol(k)), v, "controls")
+            for k, v in derivation.control_laws.items()
+        ]
         rows += [Formula(f"(2.3) [{k}]", v, sp.S.Zero, "controls") for k, v in derivation.dynamic_conditions.items()]
     return rows
 
@@ -288,8 +302,10 @@ def _focus(derivation) -> tuple[tuple, tuple]:
     multipliers, then (within each coefficient) the model's parameters."""
     lam = tuple(sp.Symbol(f"lambda_{c.name}") for c in derivation.system.constraints)
     unknowns = tuple(c.unknown for c in getattr(derivation.system, "controls", ()))
-    return (tuple(derivation.kinematics.accelerations) + unknowns + lam,
-            tuple(p.symbol for p in derivation.system.parameters))
+    return (
+        tuple(derivation.kinematics.accelerations) + unknowns + lam,
+        tuple(p.symbol for p in derivation.system.parameters),
+    )
 
 
 def _closed(row: Formula, focus) -> Formula | None:
@@ -364,11 +380,18 @@ def printed_equations(derivation, only=None, expand: bool = False) -> PrintedEqu
     focus = _focus(derivation)
     every = equation_formulas(derivation, expand)
     notes = ()
-    if not expand and any(f.label == "(1.4)" for f in every) and any(f.label == "(f = 0)" for f in every) \
-            and any(f.label == "(1.5)" for f in every) and (only is None or "reactions" in only):
+    if (
+        not expand
+        and any(f.label == "(1.4)" for f in every)
+        and any(f.label == "(f = 0)" for f in every)
+        and any(f.label == "(1.5)" for f in every)
+        and (only is None or "reactions" in only)
+    ):
         names = ", ".join(str(a) for a in derivation.kinematics.accelerations)
-        notes = (f"in the state (t, q, w): each reaction is its (1.5) with {names} from the reduced equations and f = 0 "
-                 "(printed substituted on request: expand=True)",)
+        notes = (
+            f"in the state (t, q, w): each reaction is its (1.5) with {names} from the reduced equations and f = 0 "
+            "(printed substituted on request: expand=True)",
+        )
     rows = _reduced_rows(derivation, [f for f in every if only is None or f.item in only], focus)
     closed = {i: c for i, c in ((i, _closed(f, focus)) for i, f in enumerate(rows)) if c is not None}
     large = [f for i, f in enumerate(rows) if i not in closed]
@@ -384,14 +407,17 @@ def _shared(rows: list[Formula]):
     """``(definitions, formulas)`` of ``rows`` with their shared subexpressions named once."""
     exprs = [e for f in rows for e in (f.lhs, f.rhs)]
     taken = {s.name for s in free_symbols(*exprs)}
-    prefix = next(p for p in ("c", "k", "z", "_c")  # not a model's name (the bicycle's trail c)
-                  if not any(n == p or (n.startswith(p) and n[len(p):].isdigit()) for n in taken))
+    prefix = next(
+        p
+        for p in ("c", "k", "z", "_c")  # not a model's name (the bicycle's trail c)
+        if not any(n == p or (n.startswith(p) and n[len(p) :].isdigit()) for n in taken)
+    )
     defs, reduced = block_cse(exprs, symbols=sp.numbered_symbols(prefix, start=1), order="none")
     defs, reduced = _inline_single_uses(defs, reduced)
     renumber = {sym: sp.Symbol(f"{prefix}{k}") for k, (sym, _) in enumerate(defs, start=1)}
     renamed = graph_xreplace([e for _, e in defs] + list(reduced), renumber, evaluate=False)
     neat = tidy if len(defs) <= TIDY_DEFINITIONS else (lambda e: e)
-    defs, reduced = tuple((renumber[sym], neat(e)) for (sym, _), e in zip(defs, renamed)), renamed[len(defs):]
+    defs, reduced = tuple((renumber[sym], neat(e)) for (sym, _), e in zip(defs, renamed)), renamed[len(defs) :]
     return defs, [Formula(f.label, tidy(reduced[2 * i]), tidy(reduced[2 * i + 1]), f.item) for i, f in enumerate(rows)]
 
 
@@ -417,9 +443,11 @@ def _inline_single_uses(defs, exprs):
 
 
 #: what the printed reaction formulas are when constraints are redundant
-REDUNDANT_FORMULAS = ("the formulas (1.5) below are those of the independent constraints with the redundant "
-                      "ones' multipliers zero (one admissible split); the numbers appell reports add to them the "
-                      "null-space component of the split stated above")
+REDUNDANT_FORMULAS = (
+    "the formulas (1.5) below are those of the independent constraints with the redundant "
+    "ones' multipliers zero (one admissible split); the numbers appell reports add to them the "
+    "null-space component of the split stated above"
+)
 
 
 def derivation_text(derivation, only=None, expand: bool = False) -> str:
@@ -439,8 +467,10 @@ def derivation_text(derivation, only=None, expand: bool = False) -> str:
         for q, r in zip(kin.coordinates, kin.coordinate_rates):
             lines.append(f"    d{q}/dt = {r}")
     if sysm.parameters:
-        lines.append("  parameters   " + ", ".join(
-            f"{p.symbol} = {p.value:g}" + (f" {p.unit}" if p.unit else "") for p in sysm.parameters))
+        lines.append(
+            "  parameters   "
+            + ", ".join(f"{p.symbol} = {p.value:g}" + (f" {p.unit}" if p.unit else "") for p in sysm.parameters)
+        )
     for p in sysm.programs:
         lines.append(f"  program      {p.symbol}(t) = {p.expr}")
     for c in sysm.constraints:
@@ -456,14 +486,20 @@ def derivation_text(derivation, only=None, expand: bool = False) -> str:
         lines.append("  " + REDUNDANT_FORMULAS)
     printed = printed_equations(derivation, only, expand)
     if not is_controlled(derivation) and derivation.inertia.tree is not None:
-        motion = ("motion: the joints' terms, the recursive Newton-Euler passes over spatial vectors (body axes), "
-                  "the equations (1.3) with the multipliers and f = 0, solved at each state by the numeric split")
+        motion = (
+            "motion: the joints' terms, the recursive Newton-Euler passes over spatial vectors (body axes), "
+            "the equations (1.3) with the multipliers and f = 0, solved at each state by the numeric split"
+        )
     elif not is_controlled(derivation) and formulas_unavailable(derivation.partition) is not None:
         motion = "motion: the equations (1.3) with the multipliers and f = 0, solved at each state by the numeric split"
     else:
         motion = "motion: accelerations (1.4) and f = 0"
-    titles = {"motion": motion, "reactions": "reactions (1.5)",
-              "outputs": "outputs (from t, q, w, a and the multipliers)", "controls": "controls"}
+    titles = {
+        "motion": motion,
+        "reactions": "reactions (1.5)",
+        "outputs": "outputs (from t, q, w, a and the multipliers)",
+        "controls": "controls",
+    }
     for item in ITEMS:
         rows = [f for f in printed.formulas if f.item == item]
         if rows:
@@ -492,8 +528,11 @@ def singular_where(derivation) -> str | None:
     det = part.determinant
     if det is None:
         return "formulas singular where det J_h = 0 (the block is too large to print its determinant)"
-    state = set(derivation.kinematics.coordinates) | set(derivation.kinematics.speeds) | {
-        p.symbol for p in derivation.system.programs}
+    state = (
+        set(derivation.kinematics.coordinates)
+        | set(derivation.kinematics.speeds)
+        | {p.symbol for p in derivation.system.programs}
+    )
     zeros = []
     for f in sp.Mul.make_args(sp.factor_terms(det)):
         base = f.base if f.is_Pow and f.exp.is_number else f
@@ -523,8 +562,10 @@ def derivation_document(derivation) -> dict:
     unavailable = formulas_unavailable(derivation.partition)
     tree = derivation.inertia.tree
     if unavailable is None and tree is not None:
-        unavailable = ("the recursive route (bodies on a joint tree): M and h are computed by the recursions, "
-                       "never expanded; the printed equations give the passes and (1.3) row by row")
+        unavailable = (
+            "the recursive route (bodies on a joint tree): M and h are computed by the recursions, "
+            "never expanded; the printed equations give the passes and (1.3) row by row"
+        )
     red = derivation.reduced if unavailable is None else None
     lam = derivation.reactions if unavailable is None else None
     return {
@@ -542,14 +583,17 @@ def derivation_document(derivation) -> dict:
         "reduced_forcing": list(red.forcing) if red is not None and red.forcing is not None else None,
         "dependent_accelerations": (
             {a.name: tidy(e) for a, e in zip(red.dependent, red.dependent_solution)}
-            if red is not None and red.dependent_solution is not None else {}
+            if red is not None and red.dependent_solution is not None
+            else {}
         ),
         "multipliers": {n: tidy(e) for n, e in lam.as_dict().items()} if lam is not None else None,
         "formulas_unavailable": unavailable,
         "redundancy": None if getattr(derivation, "redundancy", None) is None else derivation.redundancy.as_dict(),
         "generalized_reactions": list(lam.generalized) if lam is not None else None,
-        "outputs": {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
-                    for o in derivation.system.outputs},
+        "outputs": {
+            o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
+            for o in derivation.system.outputs
+        },
         "blocks": {
             "mass_matrix": derivation.inertia.mass_matrix if tree is None else None,
             "inertial_forces": list(derivation.inertia.inertial_forces) if tree is None else None,
@@ -598,8 +642,11 @@ class _Shared:
                     stack.append((a, False))
         self.nodes = [e for e in dict.fromkeys(order) if e.args and uses.get(e, 0) > 1]
         self.index = {e: k for k, e in enumerate(self.nodes)}
-        prefix = next(p for p in ("s", "_s", "__s") if not any(n == p or (n.startswith(p) and n[len(p):].isdigit())
-                                                            for n in taken))
+        prefix = next(
+            p
+            for p in ("s", "_s", "__s")
+            if not any(n == p or (n.startswith(p) and n[len(p) :].isdigit()) for n in taken)
+        )
         self.names = {e: sp.Symbol(f"{prefix}{k + 1}") for k, e in enumerate(self.nodes)}
         self._short: dict = {}
 
@@ -730,8 +777,10 @@ def json_document(document: dict, derivation) -> dict:
     table = {}
     for s in symbols:
         if s.name in table:
-            raise ModelError(f"two different symbols are named {s.name!r} (different assumptions)",
-                             hint="give every symbol of the model one name and one set of assumptions")
+            raise ModelError(
+                f"two different symbols are named {s.name!r} (different assumptions)",
+                hint="give every symbol of the model one name and one set of assumptions",
+            )
         table[s.name] = {"role": roles.get(s, "symbol"), "assumptions": symbol_assumptions(s)}
     shared = None
     if any(tree_size(e, JSON_TREE_LIMIT) > JSON_TREE_LIMIT for e in exprs):
@@ -827,8 +876,10 @@ def read_json(source) -> dict:
         except (json.JSONDecodeError, RecursionError, UnicodeDecodeError) as exc:
             raise ModelError(f"not a JSON document: {exc}") from exc
     if not isinstance(doc, dict) or not isinstance(doc.get("symbols"), dict) or not isinstance(doc.get("exact"), dict):
-        raise ModelError("not an appell JSON document with exact expressions: 'symbols' or 'exact' is missing",
-                         hint="write it with appell derive --format json (appell >= the version that added them)")
+        raise ModelError(
+            "not an appell JSON document with exact expressions: 'symbols' or 'exact' is missing",
+            hint="write it with appell derive --format json (appell >= the version that added them)",
+        )
     table = {}
     for name, entry in doc["symbols"].items():
         if not isinstance(entry, dict):

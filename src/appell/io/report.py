@@ -32,9 +32,9 @@ import datetime as _dt
 import html
 import io
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import sympy as sp
@@ -43,8 +43,15 @@ from appell.core.equations import is_controlled
 from appell.files import atomic_path
 from appell.io.printing import ITEMS, REDUNDANT_FORMULAS, latex, printed_equations
 
-__all__ = ["EquationRow", "equation_groups", "mathml", "render_report", "write_report", "solution_figures",
-           "solution_plots"]
+__all__ = [
+    "EquationRow",
+    "equation_groups",
+    "mathml",
+    "render_report",
+    "write_report",
+    "solution_figures",
+    "solution_plots",
+]
 
 
 @dataclass(frozen=True)
@@ -86,40 +93,70 @@ def equation_groups(derivation, expand: bool = False) -> list[tuple[str, list[Eq
     shared = [EquationRow("", sym, e) for sym, e in printed.blocks + printed.definitions]
     if is_controlled(derivation):
         controls = rows["controls"]
-        groups.append(("Dynamic conditions (2.3) — the equations of the controls",
-                       [EquationRow(f.label, f.lhs, f.rhs) for f in controls if f.label.startswith("(2.3)")]))
-        groups.append(("Reduced equations of motion (2.4)", [EquationRow(f.label, f.lhs, f.rhs) for f in rows["motion"]]))
+        groups.append(
+            (
+                "Dynamic conditions (2.3) — the equations of the controls",
+                [EquationRow(f.label, f.lhs, f.rhs) for f in controls if f.label.startswith("(2.3)")],
+            )
+        )
+        groups.append(
+            ("Reduced equations of motion (2.4)", [EquationRow(f.label, f.lhs, f.rhs) for f in rows["motion"]])
+        )
         reactions = [EquationRow(f.label, f.lhs, f.rhs) for f in rows["reactions"]]
         if reactions:
             groups.append(("Reactions of the real constraints (2.5)", reactions))
-        groups.append(("Control laws", [EquationRow("control", f.lhs, f.rhs) for f in controls
-                                        if f.label == "(control)"]))
-        internal = [EquationRow("internal", sp.sympify(e), sp.S.Zero)
-                    for e in getattr(derivation, "internal_dynamics", {}).values()]
+        groups.append(
+            ("Control laws", [EquationRow("control", f.lhs, f.rhs) for f in controls if f.label == "(control)"])
+        )
+        internal = [
+            EquationRow("internal", sp.sympify(e), sp.S.Zero)
+            for e in getattr(derivation, "internal_dynamics", {}).values()
+        ]
         if internal:
             groups.append(("Internal dynamics left by the servo constraints", internal))
         return groups + _shared_group(shared)
-    groups.append(("Motion: the accelerations of (1.4) — free of multipliers — and f = 0",
-                   [EquationRow(f.label, f.lhs, f.rhs) for f in rows["motion"]]))
+    groups.append(
+        (
+            "Motion: the accelerations of (1.4) — free of multipliers — and f = 0",
+            [EquationRow(f.label, f.lhs, f.rhs) for f in rows["motion"]],
+        )
+    )
     by_formula = [EquationRow(f.label, f.lhs, f.rhs) for f in rows["reactions"] if f.label == "(1.5)"]
     by_state = [EquationRow(f.label, f.lhs, f.rhs) for f in rows["reactions"] if f.label != "(1.5)"]
     if by_formula:
         groups.append(("Reactions (1.5) — one formula per constraint multiplier", by_formula))
     if by_state:
-        groups.append(("Each reaction in terms of the state (t, q, w), the accelerations of (1.4) put in",
-                       by_state))
+        groups.append(("Each reaction in terms of the state (t, q, w), the accelerations of (1.4) put in", by_state))
     elif printed.notes:
-        groups.append(("Each reaction in terms of the state (t, q, w): its (1.5) with the accelerations of (1.4) "
-                       "and f = 0 above (shown substituted with expand=True)", []))
+        groups.append(
+            (
+                "Each reaction in terms of the state (t, q, w): its (1.5) with the accelerations of (1.4) "
+                "and f = 0 above (shown substituted with expand=True)",
+                [],
+            )
+        )
     if rows["outputs"]:
-        groups.append(("Outputs (e.g. joint forces and moments) from t, q, w, the accelerations and the multipliers",
-                       [EquationRow(f.label, f.lhs, f.rhs) for f in rows["outputs"]]))
+        groups.append(
+            (
+                "Outputs (e.g. joint forces and moments) from t, q, w, the accelerations and the multipliers",
+                [EquationRow(f.label, f.lhs, f.rhs) for f in rows["outputs"]],
+            )
+        )
     return groups + _shared_group(shared)
 
 
 def _shared_group(shared: list[EquationRow]) -> list[tuple[str, list[EquationRow]]]:
-    return [("Named blocks (the reduced mass matrix M_r, forcing f_r) and shared subexpressions of the longer "
-             "formulas above, each defined once", shared)] if shared else []
+    return (
+        [
+            (
+                "Named blocks (the reduced mass matrix M_r, forcing f_r) and shared subexpressions of the longer "
+                "formulas above, each defined once",
+                shared,
+            )
+        ]
+        if shared
+        else []
+    )
 
 
 # ------------------------------------------------------------------ mathematics
@@ -289,99 +326,159 @@ def _model_section(system, kinematics) -> str:
     if system.description:
         parts.append(f"<p>{_e(system.description)}</p>")
     if system.parameters:
-        rows = [(_inline(p.symbol), _e(f"{p.value:g}"), _e(p.unit or "—"), _e(p.description or ""))
-                for p in system.parameters]
+        rows = [
+            (_inline(p.symbol), _e(f"{p.value:g}"), _e(p.unit or "—"), _e(p.description or ""))
+            for p in system.parameters
+        ]
         parts.append("<h3>Parameters</h3>" + _table(("parameter", "value", "unit", "description"), rows))
     view = getattr(system, "view", None)
     if view is not None and any(b.mass is not None for b in view.bodies):
-        rows = [(_e(b.name), _e("particle" if b.particle else "rigid body"), _e(b.mass or "—"),
-                 _e(f"[{', '.join(f'{x:g}' for x in b.com)}]"), _e(b.inertia or "—")) for b in view.bodies]
-        parts.append("<h3>Bodies</h3>" + _table(("body", "kind", "mass", "mass centre (body frame)",
-                                                  "inertia about the mass centre (body axes)"), rows))
+        rows = [
+            (
+                _e(b.name),
+                _e("particle" if b.particle else "rigid body"),
+                _e(b.mass or "—"),
+                _e(f"[{', '.join(f'{x:g}' for x in b.com)}]"),
+                _e(b.inertia or "—"),
+            )
+            for b in view.bodies
+        ]
+        parts.append(
+            "<h3>Bodies</h3>"
+            + _table(
+                ("body", "kind", "mass", "mass centre (body frame)", "inertia about the mass centre (body axes)"), rows
+            )
+        )
     if view is not None and view.joints:
-        rows = [(_e(j.name), _e(j.kind), _e(f"{j.parent} → {j.child}"), _e(j.origin), _e(j.axis or "—"),
-                 _e(j.coordinates or "—")) for j in view.joints]
-        parts.append("<h3>Joints</h3>" + _table(("joint", "type", "parent → child", "origin (parent frame)",
-                                                  "axis (joint frame)", "coordinates"), rows))
+        rows = [
+            (
+                _e(j.name),
+                _e(j.kind),
+                _e(f"{j.parent} → {j.child}"),
+                _e(j.origin),
+                _e(j.axis or "—"),
+                _e(j.coordinates or "—"),
+            )
+            for j in view.joints
+        ]
+        parts.append(
+            "<h3>Joints</h3>"
+            + _table(
+                ("joint", "type", "parent → child", "origin (parent frame)", "axis (joint frame)", "coordinates"), rows
+            )
+        )
     reactions = _reaction_rows(system.outputs)
     if reactions:
-        parts.append("<h3>Reactions: where each is read</h3>" + _table(
-            ("outputs", "force and moment of … on … about …", "axes", "unit"), reactions))
+        parts.append(
+            "<h3>Reactions: where each is read</h3>"
+            + _table(("outputs", "force and moment of … on … about …", "axes", "unit"), reactions)
+        )
     q = list(kinematics.coordinates)
     w = list(kinematics.speeds)
     rows = [("coordinates q", ", ".join(_inline(s) for s in q)), ("speeds w", ", ".join(_inline(s) for s in w))]
-    relations = [(sp.Symbol(f"{s.name}_dot"), r) for s, r in zip(q, kinematics.coordinate_rates)
-                 if r != sp.Symbol(f"{s.name}_dot")]
+    relations = [
+        (sp.Symbol(f"{s.name}_dot"), r)
+        for s, r in zip(q, kinematics.coordinate_rates)
+        if r != sp.Symbol(f"{s.name}_dot")
+    ]
     if relations:
         rows.append(("kinematic relations", "<br>".join(_inline(sp.Eq(d, r, evaluate=False)) for d, r in relations)))
     for prog in system.programs:
         rows.append((f"program {_e(prog.symbol)}(t)", _inline(sp.Eq(prog.symbol, prog.expr, evaluate=False))))
     units = system.unit_of
     if system.initial:
-        rows.append(("initial values", _e(", ".join(
-            f"{k} = {v:g}" + (f" {units[k]}" if k in units else "") for k, v in system.initial))))
+        rows.append(
+            (
+                "initial values",
+                _e(", ".join(f"{k} = {v:g}" + (f" {units[k]}" if k in units else "") for k, v in system.initial)),
+            )
+        )
     parts.append("<h3>Coordinates and speeds</h3>" + _table(None, rows))
     if system.constraints:
-        rows = [(_e(c.name), _e(c.kind), _inline(sp.Eq(c.expr, 0, evaluate=False)),
-                 _inline(sp.Symbol(f"lambda_{c.name}")) + _e(f" [{units[f'lambda_{c.name}']}]"
-                                                             if f"lambda_{c.name}" in units else ""))
-                for c in system.constraints]
+        rows = [
+            (
+                _e(c.name),
+                _e(c.kind),
+                _inline(sp.Eq(c.expr, 0, evaluate=False)),
+                _inline(sp.Symbol(f"lambda_{c.name}"))
+                + _e(f" [{units[f'lambda_{c.name}']}]" if f"lambda_{c.name}" in units else ""),
+            )
+            for c in system.constraints
+        ]
         parts.append("<h3>Constraints (ideal)</h3>" + _table(("name", "kind", "constraint", "multiplier"), rows))
     if system.controls:
         rows = [(_e(c.name), _e(c.kind), _inline(c.unknown)) for c in system.controls]
         parts.append("<h3>Controls</h3>" + _table(("control", "kind", "unknown"), rows))
     if system.servo_constraints:
         rows = [(_e(c.name), _e(c.kind), _inline(sp.Eq(c.expr, 0, evaluate=False))) for c in system.servo_constraints]
-        parts.append("<h3>Servo constraints (realised by the controls)</h3>"
-                     + _table(("name", "kind", "constraint"), rows))
+        parts.append(
+            "<h3>Servo constraints (realised by the controls)</h3>" + _table(("name", "kind", "constraint"), rows)
+        )
     if system.first_integrals:
-        rows = [(_e(f.name), _inline(f.expr), _e("—" if f.value is None else f"{f.value:g}"))
-                for f in system.first_integrals]
+        rows = [
+            (_e(f.name), _inline(f.expr), _e("—" if f.value is None else f"{f.value:g}"))
+            for f in system.first_integrals
+        ]
         parts.append("<h3>First integrals</h3>" + _table(("name", "expression", "value"), rows))
     return "\n".join(parts)
 
 
 def _equation_section(derivation, expand: bool = False) -> str:
     ind, dep = derivation.partition.names(derivation.accelerations)
-    parts = ["<h2 id='equations'>Equations</h2>",
-             f"<p>Independent accelerations: {', '.join(_inline(sp.Symbol(n)) for n in ind) or '—'}; "
-             f"dependent accelerations: {', '.join(_inline(sp.Symbol(n)) for n in dep) or '—'} "
-             "(condition (1.2): the block of the constraint Jacobian on the dependent accelerations is "
-             "nonsingular).</p>"]
+    parts = [
+        "<h2 id='equations'>Equations</h2>",
+        f"<p>Independent accelerations: {', '.join(_inline(sp.Symbol(n)) for n in ind) or '—'}; "
+        f"dependent accelerations: {', '.join(_inline(sp.Symbol(n)) for n in dep) or '—'} "
+        "(condition (1.2): the block of the constraint Jacobian on the dependent accelerations is "
+        "nonsingular).</p>",
+    ]
     red = getattr(derivation, "redundancy", None)
     if red is not None:  # statically indeterminate supports
         lines = red.summary()
-        parts.append("<h3>Redundant constraints (statically indeterminate)</h3><p>" + _e(lines[0]) + "</p><ul>"
-                     + "".join(f"<li>{_e(line.strip())}</li>" for line in lines[1:]) + "</ul>"
-                     "<p>" + _e(REDUNDANT_FORMULAS) + ".</p>")
+        parts.append(
+            "<h3>Redundant constraints (statically indeterminate)</h3><p>"
+            + _e(lines[0])
+            + "</p><ul>"
+            + "".join(f"<li>{_e(line.strip())}</li>" for line in lines[1:])
+            + "</ul>"
+            "<p>" + _e(REDUNDANT_FORMULAS) + ".</p>"
+        )
     if not ind:
-        parts.append("<p>No acceleration is free (p = 0): the constraints"
-                     + (" and the servo constraints" if is_controlled(derivation) else "")
-                     + " prescribe the motion; the formulas below give "
-                     + ("the controls and " if is_controlled(derivation) else "")
-                     + "every reaction along it.</p>")
+        parts.append(
+            "<p>No acceleration is free (p = 0): the constraints"
+            + (" and the servo constraints" if is_controlled(derivation) else "")
+            + " prescribe the motion; the formulas below give "
+            + ("the controls and " if is_controlled(derivation) else "")
+            + "every reaction along it.</p>"
+        )
     for title, rows in equation_groups(derivation, expand):
         parts.append(f"<h3>{_e(title)}</h3>")
         if not rows and not title.startswith("Each reaction"):
             parts.append("<p class='muted'>none</p>")
         for row in rows:
-            parts.append(f"<div class='eq'><div class='label'>{_e(row.label)}</div>"
-                         f"<div class='body'>{_formula(row.latex, row.text)}</div></div>")
+            parts.append(
+                f"<div class='eq'><div class='label'>{_e(row.label)}</div>"
+                f"<div class='body'>{_formula(row.latex, row.text)}</div></div>"
+            )
     return "\n".join(parts)
 
 
 def _simulation_section(solution, system=None, data_file: str | None = None) -> str:
     parts = ["<h2 id='simulation'>Simulation</h2>", f"<pre>{_e(solution.summary())}</pre>"]
     if data_file:
-        parts.append(f"<p>Every column of the motion (states, accelerations, reactions, controls, residuals): "
-                     f"<a href=\"{_e(data_file)}\" download>{_e(data_file)}</a></p>")
+        parts.append(
+            f"<p>Every column of the motion (states, accelerations, reactions, controls, residuals): "
+            f'<a href="{_e(data_file)}" download>{_e(data_file)}</a></p>'
+        )
     if solution.log:
         parts.append("<details><summary>log</summary><pre>" + _e("\n".join(solution.log)) + "</pre></details>")
     parts.append(_motion_view(system, solution))
     for key, uri, (t0, t1, x0, x1) in solution_plots(solution):
-        parts.append(f"<figure><div class='appell-plot' data-t0='{t0:.9g}' data-t1='{t1:.9g}' data-x0='{x0:.6f}' "
-                     f"data-x1='{x1:.6f}'><img src=\"{uri}\" alt=\"plot of the {_e(key)} over time\">"
-                     f"<div class='appell-cursor'></div></div><figcaption>{_e(key)}</figcaption></figure>")
+        parts.append(
+            f"<figure><div class='appell-plot' data-t0='{t0:.9g}' data-t1='{t1:.9g}' data-x0='{x0:.6f}' "
+            f'data-x1=\'{x1:.6f}\'><img src="{uri}" alt="plot of the {_e(key)} over time">'
+            f"<div class='appell-cursor'></div></div><figcaption>{_e(key)}</figcaption></figure>"
+        )
     return "\n".join(parts)
 
 
@@ -396,8 +493,10 @@ def _motion_view(system, solution) -> str:
         scene = scene_data(system, solution)
     except (AppellError, ValueError, TypeError, ZeroDivisionError) as exc:
         return f"<p class='muted'>The motion cannot be drawn: {_e(exc)}</p>"
-    return ("<h3 id='motion'>The motion</h3><p class='muted'>Drag to turn, scroll to zoom; the cursor on every "
-            "plot follows the time, and a click on a plot shows that time.</p>" + viewer_fragment(scene))
+    return (
+        "<h3 id='motion'>The motion</h3><p class='muted'>Drag to turn, scroll to zoom; the cursor on every "
+        "plot follows the time, and a click on a plot shows that time.</p>" + viewer_fragment(scene)
+    )
 
 
 def _check_section(check, tolerance: float, energy=None, energy_tolerance: float | None = None) -> str:
@@ -421,35 +520,53 @@ def _check_section(check, tolerance: float, energy=None, energy_tolerance: float
             for key, value in c.lines.items():
                 flag = "" if value <= tolerance else " <span class='fail'>exceeds</span>"
                 rows.append((_e(c.route), _e(c.description + note), _e(key), f"{value:.3e}{flag}"))
-        text = ("nothing was cross-checked" if not check.checked else
-                f"the split route against independent routes at {check.states} states")
-        parts.append(f"<p>{_e(text)}: {verdict} (tolerance {tolerance:g} on every line"
-                     + (f", {energy_tolerance:g} on the energy balance" if energy is not None and energy.formed else "")
-                     + f"). Normalisation: {_e(NORMALISATION)}.</p>")
+        text = (
+            "nothing was cross-checked"
+            if not check.checked
+            else f"the split route against independent routes at {check.states} states"
+        )
+        parts.append(
+            f"<p>{_e(text)}: {verdict} (tolerance {tolerance:g} on every line"
+            + (f", {energy_tolerance:g} on the energy balance" if energy is not None and energy.formed else "")
+            + f"). Normalisation: {_e(NORMALISATION)}.</p>"
+        )
         if rows:
             parts.append(_table(("route", "against", "quantity", "largest normalised difference"), rows))
         for route, reason in check.unavailable.items():
             parts.append(f"<p class='muted'>{_e(route)}: not available — {_e(reason)}</p>")
     else:
-        rows = [("controls", f"{check.controls:.3e}"), ("accelerations", f"{check.accelerations:.3e}"),
-                ("multipliers", f"{check.multipliers:.3e}")]
+        rows = [
+            ("controls", f"{check.controls:.3e}"),
+            ("accelerations", f"{check.accelerations:.3e}"),
+            ("multipliers", f"{check.multipliers:.3e}"),
+        ]
         if np.isfinite(check.servo_multipliers):
             rows.append(("servo multipliers (2.3) at the solution (absolute)", f"{check.servo_multipliers:.3e}"))
         route = getattr(check, "route", "augmented")
-        what = ("the independent augmented multiplier system with the controls as unknowns"
-                if route == "augmented" else f"the {_e(route)} route")
-        parts.append(f"<p>The split route against {what} at {check.states} states: {verdict} "
-                     f"(tolerance {tolerance:g} on the largest relative difference).</p>")
+        what = (
+            "the independent augmented multiplier system with the controls as unknowns"
+            if route == "augmented"
+            else f"the {_e(route)} route"
+        )
+        parts.append(
+            f"<p>The split route against {what} at {check.states} states: {verdict} "
+            f"(tolerance {tolerance:g} on the largest relative difference).</p>"
+        )
         parts.append(_table(("quantity", "largest relative difference"), rows))
     parts.append(f"<pre class='muted'>{_e(str(check))}</pre>")
     if energy is not None:
         parts.append("<h3>Energy balance</h3>")
         if energy.formed:
-            state = "<span class='pass'>holds</span>" if energy.passed(energy_tolerance) else \
-                "<span class='fail'>fails</span>"
-            parts.append(f"<p>E(t) − E(0) against the work of the applied forces and of the reactions along the "
-                         f"motion from the initial values: {state} (relative residual {energy.relative:.3e}, "
-                         f"tolerance {energy_tolerance:g}).</p>")
+            state = (
+                "<span class='pass'>holds</span>"
+                if energy.passed(energy_tolerance)
+                else "<span class='fail'>fails</span>"
+            )
+            parts.append(
+                f"<p>E(t) − E(0) against the work of the applied forces and of the reactions along the "
+                f"motion from the initial values: {state} (relative residual {energy.relative:.3e}, "
+                f"tolerance {energy_tolerance:g}).</p>"
+            )
         parts.append(f"<pre class='muted'>{_e(str(energy))}</pre>")
     return "\n".join(parts)
 
@@ -457,56 +574,98 @@ def _check_section(check, tolerance: float, energy=None, energy_tolerance: float
 def _integrals_section(report) -> str:
     """The verdict on each candidate first integral (:mod:`appell.reduction.first_integrals`)."""
     rows = [(_e(c.name), _e(c.verdict), _e(c.route), _e(c.message)) for c in report.checks]
-    verdict = (f"Reducible by {len(report.integrals)} first integral(s): {', '.join(report.integrals)}."
-               if report.reducible else "Not reducible: no candidate is a first integral.")
-    return ("<h2 id='integrals'>First integrals (method.md §5)</h2>"
-            "<p>Each candidate is added as a constraint; its multiplier (1.5) vanishes on the motion "
-            "exactly when it is a first integral.</p>"
-            + _table(("candidate", "verdict", "shown", "detail"), rows) + f"<p>{_e(verdict)}</p>")
+    verdict = (
+        f"Reducible by {len(report.integrals)} first integral(s): {', '.join(report.integrals)}."
+        if report.reducible
+        else "Not reducible: no candidate is a first integral."
+    )
+    return (
+        "<h2 id='integrals'>First integrals (method.md §5)</h2>"
+        "<p>Each candidate is added as a constraint; its multiplier (1.5) vanishes on the motion "
+        "exactly when it is a first integral.</p>"
+        + _table(("candidate", "verdict", "shown", "detail"), rows)
+        + f"<p>{_e(verdict)}</p>"
+    )
 
 
 def _internal_section(linearisation) -> str:
     """The internal dynamics linearised at the initial state
     (:class:`~appell.control.internal_dynamics.InternalLinearisation`), with a warning when unstable."""
-    values = ", ".join(f"{z.real:.6g}" + (f" {'+' if z.imag >= 0 else '−'} {abs(z.imag):.6g}i" if z.imag else "")
-                       for z in linearisation.eigenvalues)
+    values = ", ".join(
+        f"{z.real:.6g}" + (f" {'+' if z.imag >= 0 else '−'} {abs(z.imag):.6g}i" if z.imag else "")
+        for z in linearisation.eigenvalues
+    )
     warning = linearisation.warning()
-    verdict = (f"<p class='fail'>Unstable: {_e(warning)}.</p>" if warning
-               else "<p class='pass'>Not unstable to first order.</p>")
-    return ("<h2 id='internal'>Internal dynamics</h2>"
-            f"<p>What is left of the motion once the controls realise the servo constraints, linearised at "
-            f"t = {linearisation.time:g} in {_e(', '.join(linearisation.coordinates))} "
-            f"(Jacobian of the closed-loop motion on the servo manifold): eigenvalues {_e(values)}.</p>" + verdict)
+    verdict = (
+        f"<p class='fail'>Unstable: {_e(warning)}.</p>"
+        if warning
+        else "<p class='pass'>Not unstable to first order.</p>"
+    )
+    return (
+        "<h2 id='internal'>Internal dynamics</h2>"
+        f"<p>What is left of the motion once the controls realise the servo constraints, linearised at "
+        f"t = {linearisation.time:g} in {_e(', '.join(linearisation.coordinates))} "
+        f"(Jacobian of the closed-loop motion on the servo manifold): eigenvalues {_e(values)}.</p>" + verdict
+    )
 
 
 def _stability_section(sweep) -> str:
     """The eigenvalues of a :class:`~appell.numerics.stability.StabilitySweep` against its
     parameter (plot), the crossings where a mode turns unstable or stable (table) and the
     stable range."""
-    rows = [[_e(f"{c.value:.12g}"), _e(f"{c.mode}: {sweep.names[c.mode]}"),
-             "unstable" if c.direction > 0 else "stable", _e(c.kind),
-             _e(f"{abs(c.imag):.6g}") if c.kind == "oscillatory" else ""] for c in sweep.crossings]
+    rows = [
+        [
+            _e(f"{c.value:.12g}"),
+            _e(f"{c.mode}: {sweep.names[c.mode]}"),
+            "unstable" if c.direction > 0 else "stable",
+            _e(c.kind),
+            _e(f"{abs(c.imag):.6g}") if c.kind == "oscillatory" else "",
+        ]
+        for c in sweep.crossings
+    ]
     stable = sweep.stable()
     inside = sweep.values[stable]
-    verdict = (f"Stable at {int(stable.sum())} of {stable.size} values" +
-               (f" (from {inside.min():g} to {inside.max():g})." if inside.size else ".")) if stable.any() \
+    verdict = (
+        (
+            f"Stable at {int(stable.sum())} of {stable.size} values"
+            + (f" (from {inside.min():g} to {inside.max():g})." if inside.size else ".")
+        )
+        if stable.any()
         else "Unstable at every value."
+    )
     figure = _png_data_uri(sweep.plot())
-    return ("<h2 id='stability'>Stability</h2>"
-            f"<p>Eigenvalues of the linear model (<code>appell.linearise</code>, states "
-            f"{_e(', '.join(sweep.states))}) at {sweep.values.size} values of {_e(sweep.name)} from "
-            f"{sweep.values[0]:g} to {sweep.values[-1]:g} (the model's [stability] table), modes tracked "
-            "across the values; each crossing of a real part through zero located by root finding.</p>"
-            f"<figure><img alt='eigenvalues against {_e(sweep.name)}' src='{figure}'></figure>"
-            + (_table([f"{sweep.name}", "mode", "becomes", "kind", "frequency [rad/s]"], rows) if rows
-               else "<p>No mode changes stability over the range.</p>")
-            + f"<p>{_e(verdict)}</p>")
+    return (
+        "<h2 id='stability'>Stability</h2>"
+        f"<p>Eigenvalues of the linear model (<code>appell.linearise</code>, states "
+        f"{_e(', '.join(sweep.states))}) at {sweep.values.size} values of {_e(sweep.name)} from "
+        f"{sweep.values[0]:g} to {sweep.values[-1]:g} (the model's [stability] table), modes tracked "
+        "across the values; each crossing of a real part through zero located by root finding.</p>"
+        f"<figure><img alt='eigenvalues against {_e(sweep.name)}' src='{figure}'></figure>"
+        + (
+            _table([f"{sweep.name}", "mode", "becomes", "kind", "frequency [rad/s]"], rows)
+            if rows
+            else "<p>No mode changes stability over the range.</p>"
+        )
+        + f"<p>{_e(verdict)}</p>"
+    )
 
 
-def render_report(derivation, solution=None, check=None, *, title: str | None = None,
-                  tolerance: float = 1e-9, simulation_note: str | None = None, integrals=None,
-                  internal=None, energy=None, energy_tolerance: float | None = None, stability=None,
-                  data_file: str | None = None, expand: bool = False) -> str:
+def render_report(
+    derivation,
+    solution=None,
+    check=None,
+    *,
+    title: str | None = None,
+    tolerance: float = 1e-9,
+    simulation_note: str | None = None,
+    integrals=None,
+    internal=None,
+    energy=None,
+    energy_tolerance: float | None = None,
+    stability=None,
+    data_file: str | None = None,
+    expand: bool = False,
+) -> str:
     """The HTML page (a string) for ``derivation`` (a :class:`~appell.core.equations.Derivation`
     or a controlled derivation of :mod:`appell.control.servo`), with the plots of ``solution``
     (:class:`~appell.simulation.solution.Solution`) and the table of ``check``
@@ -547,20 +706,25 @@ def render_report(derivation, solution=None, check=None, *, title: str | None = 
         sections.append(_integrals_section(integrals))
         nav.append("<a href='#integrals'>first integrals</a>")
     stamp = _dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
-    return "\n".join([
-        "<!DOCTYPE html>",
-        "<html lang='en'><head><meta charset='utf-8'>",
-        "<meta name='viewport' content='width=device-width, initial-scale=1'>",
-        f"<title>{_e(title)}</title>",
-        f"<style>{_STYLE}</style>",
-        f"<script>{_RENDER_CHECK}</script>",
-        "</head><body>",
-        f"<h1>{_e(title)}</h1>",
-        f"<p class='muted'>Do Shan's method (Gibbs–Appell equations split into motion and reactions). "
-        f"Generated by appell {_e(__version__)} on {_e(stamp)}. " + " · ".join(nav) + "</p>",
-        *sections,
-        "</body></html>",
-    ]) + "\n"
+    return (
+        "\n".join(
+            [
+                "<!DOCTYPE html>",
+                "<html lang='en'><head><meta charset='utf-8'>",
+                "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+                f"<title>{_e(title)}</title>",
+                f"<style>{_STYLE}</style>",
+                f"<script>{_RENDER_CHECK}</script>",
+                "</head><body>",
+                f"<h1>{_e(title)}</h1>",
+                f"<p class='muted'>Do Shan's method (Gibbs–Appell equations split into motion and reactions). "
+                f"Generated by appell {_e(__version__)} on {_e(stamp)}. " + " · ".join(nav) + "</p>",
+                *sections,
+                "</body></html>",
+            ]
+        )
+        + "\n"
+    )
 
 
 def write_report(path, derivation, solution=None, check=None, **options) -> Path:

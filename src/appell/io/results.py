@@ -13,8 +13,8 @@ file nor a changed target). The columns, their units, names and groups are the s
 from __future__ import annotations
 
 import csv
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -60,8 +60,10 @@ def write_netcdf(solution, path, units: Mapping[str, str] | None = None) -> Path
     try:
         import h5netcdf  # noqa: F401  (xarray's engine for netCDF-4)
     except ImportError as exc:
-        raise ComputationError("netCDF output needs the package h5netcdf, which is not installed",
-                               hint="pip install h5netcdf (or pip install appell, which brings it)") from exc
+        raise ComputationError(
+            "netCDF output needs the package h5netcdf, which is not installed",
+            hint="pip install h5netcdf (or pip install appell, which brings it)",
+        ) from exc
     from appell.symbols import shown_names
 
     ds = solution.to_xarray(units)
@@ -125,8 +127,9 @@ def write_hdf5(solution, path, units: Mapping[str, str] | None = None) -> Path:
             pg.attrs[f"{name}.description"] = desc or ""
 
         def put(c):
-            ds = f.require_group(c.group or "/").create_dataset(str(shown([c.key])[0]),
-                                                                     data=np.asarray(c.values, float))
+            ds = f.require_group(c.group or "/").create_dataset(
+                str(shown([c.key])[0]), data=np.asarray(c.values, float)
+            )
             ds.attrs["units"] = c.units
             ds.attrs["description"] = c.long_name
             return ds

@@ -8,8 +8,10 @@ import importlib
 
 #: where each name of the package is defined: imported on first use (PEP 562), so that reading
 #: a robot file (:mod:`appell.mechanism.urdf`) needs no SymPy
-_WHERE = {**dict.fromkeys(("GROUND", "Body", "Frame", "Joint", "Mechanism"), "appell.mechanism.builder"),
-          **dict.fromkeys(("KINDS", "JointMotion", "joint_motion"), "appell.mechanism.joints")}
+_WHERE = {
+    **dict.fromkeys(("GROUND", "Body", "Frame", "Joint", "Mechanism"), "appell.mechanism.builder"),
+    **dict.fromkeys(("KINDS", "JointMotion", "joint_motion"), "appell.mechanism.joints"),
+}
 
 __all__ = ["GROUND", "Body", "Frame", "Joint", "JointMotion", "KINDS", "Mechanism", "joint_motion", "rotations"]
 

@@ -38,8 +38,8 @@ import sympy as sp
 
 from appell.errors import ModelError
 from appell.mechanism.parts import Body, Frame, Joint, LoopParts, _cross, _dt, _text
-from appell.rigid_tree import LoopRow, RigidTree, TreeNode, Wrench
 from appell.model import Control, Output, Parameter, Particle, RigidBody, System, holonomic
+from appell.rigid_tree import LoopRow, RigidTree, TreeNode, Wrench
 from appell.symbols import derivative_symbol
 from appell.view import Shape, View, ViewArrow, ViewBody, ViewJoint, equivalent_box
 
@@ -64,6 +64,7 @@ def gap_in(mech, ba, ra, bb, rb) -> sp.Matrix:
     """``R_a^T (p_a - p_b)``, the gap of two body points along body_a's axes, from the
     joints of the loop alone (the frames of their nearest common ancestor ``L``:
     ``R_La^T (p_a^L - p_b^L)``), so that a loop carried by a long chain stays short."""
+
     def ancestors(b):
         out = [b]
         while b is not mech.ground:
@@ -82,16 +83,19 @@ def joint_order(mech) -> list[Joint]:
     parent_joint = {j.child: j for j in mech.joints}
     for b in mech.bodies:
         if b not in parent_joint:
-            raise ModelError(f"body {b.name!r} is not connected to the ground",
-                             hint=f"join it to a body of the tree (mech.revolute(..., child={b.name!r}), "
-                                  f"or mech.free(...) for a floating body)")
+            raise ModelError(
+                f"body {b.name!r} is not connected to the ground",
+                hint=f"join it to a body of the tree (mech.revolute(..., child={b.name!r}), "
+                f"or mech.free(...) for a floating body)",
+            )
     order, placed = [], {mech.ground}
     pending = list(mech.joints)
     while pending:
         ready = [j for j in pending if j.parent in placed]
         if not ready:  # unreachable: cycles are refused when joints are added
-            raise ModelError("the joints do not form a tree rooted at the ground: "
-                             + ", ".join(j.name for j in pending))
+            raise ModelError(
+                "the joints do not form a tree rooted at the ground: " + ", ".join(j.name for j in pending)
+            )
         for j in ready:
             order.append(j)
             placed.add(j.child)
@@ -163,15 +167,38 @@ def rigid_tree(mech, coordinates, potential=sp.S.Zero, positions=None, wrenches=
         if any(q not in index for q in qs):
             return None
         place[body] = len(nodes)
-        nodes.append(TreeNode(body.name, j.name, place[j.parent], tuple(index[q] for q in qs),
-                              sp.ImmutableMatrix(rotation), sp.ImmutableMatrix(translation),
-                              sp.ImmutableMatrix(S), sp.ImmutableMatrix(bias), body.mass,
-                              sp.ImmutableMatrix(body.com), sp.ImmutableMatrix(body.inertia),
-                              sp.ImmutableMatrix(j.child_origin), positions.get(body)))
+        nodes.append(
+            TreeNode(
+                body.name,
+                j.name,
+                place[j.parent],
+                tuple(index[q] for q in qs),
+                sp.ImmutableMatrix(rotation),
+                sp.ImmutableMatrix(translation),
+                sp.ImmutableMatrix(S),
+                sp.ImmutableMatrix(bias),
+                body.mass,
+                sp.ImmutableMatrix(body.com),
+                sp.ImmutableMatrix(body.inertia),
+                sp.ImmutableMatrix(j.child_origin),
+                positions.get(body),
+            )
+        )
     g = mech.gravity if mech.gravity is not None else sp.zeros(3, 1)
-    rows = tuple(LoopRow(name, name.rsplit("_", 1)[0], kind, place[ba], sp.ImmutableMatrix(ra), sp.ImmutableMatrix(ua),
-                         place[bb], sp.ImmutableMatrix(rb), sp.ImmutableMatrix(ub))
-                 for name, kind, ba, ra, ua, bb, rb, ub in loops)
+    rows = tuple(
+        LoopRow(
+            name,
+            name.rsplit("_", 1)[0],
+            kind,
+            place[ba],
+            sp.ImmutableMatrix(ra),
+            sp.ImmutableMatrix(ua),
+            place[bb],
+            sp.ImmutableMatrix(rb),
+            sp.ImmutableMatrix(ub),
+        )
+        for name, kind, ba, ra, ua, bb, rb, ub in loops
+    )
     return RigidTree(tuple(nodes), sp.ImmutableMatrix(g), potential, tuple(wrenches), loops=rows)
 
 
@@ -183,14 +210,19 @@ def loop_parts(mech) -> LoopParts:
     forces and controls. A :class:`ModelError` names a contact or load it does not take."""
     other = [c.name for c in mech._closures if not c.rows] + [name for name, _ in mech._forces]
     if other:
-        raise ModelError(f"mechanism {mech.name!r}: the closed-chain route takes joints, loop closures and "
-                         f"actuators only, not {', '.join(other)}", hint="use mech.system() and appell.derive")
+        raise ModelError(
+            f"mechanism {mech.name!r}: the closed-chain route takes joints, loop closures and "
+            f"actuators only, not {', '.join(other)}",
+            hint="use mech.system() and appell.derive",
+        )
     coords = [q for j in mech.joints for q in j.coordinates]
     loops = [row for c in mech._closures for row in c.rows]
     tree = rigid_tree(mech, coords, loops=loops)
     if tree is None:
-        raise ModelError(f"mechanism {mech.name!r}: a joint's motion depends on time or another joint",
-                         hint="use mech.system() and appell.derive")
+        raise ModelError(
+            f"mechanism {mech.name!r}: a joint's motion depends on time or another joint",
+            hint="use mech.system() and appell.derive",
+        )
     constraints = tuple((n, e) for j in joint_order(mech) for n, e in j.motion.constraints)
     constraints += tuple((row[0], None) for row in loops)
     Q = [sp.S.Zero] * len(coords)
@@ -200,8 +232,7 @@ def loop_parts(mech) -> LoopParts:
     start = {q.name: 0.0 for q in coords}
     for j in joint_order(mech):
         start.update(dict(j.motion.defaults))
-    return LoopParts(mech.name, tuple(coords), tree, constraints, tuple(Q), controls, tuple(mech.parameters),
-                     start)
+    return LoopParts(mech.name, tuple(coords), tree, constraints, tuple(Q), controls, tuple(mech.parameters), start)
 
 
 def subtree(mech, joint: Joint) -> list[Body]:
@@ -249,10 +280,26 @@ def joint_reactions(mech, frames, actions) -> dict[Joint, tuple[sp.Matrix, sp.Ma
     return out
 
 
-def system(mech, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
-           constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
-           moment_unit="N*m", energy: bool = False, reactions_in=None, joint_forces=None, rotor_energy=None,
-           programs=()) -> System:
+def system(
+    mech,
+    parameters=None,
+    initial=None,
+    reactions="all",
+    frame=None,
+    settings=(),
+    units=None,
+    constraints=(),
+    controls=(),
+    servo_constraints=(),
+    outputs=(),
+    force_unit="N",
+    moment_unit="N*m",
+    energy: bool = False,
+    reactions_in=None,
+    joint_forces=None,
+    rotor_energy=None,
+    programs=(),
+) -> System:
     """The :class:`appell.System` of ``mech`` (the arguments as
     :meth:`appell.mechanism.builder.Mechanism.system` states them), in stages: the bodies and
     their gravity potential, the loads, the joints' and closures' constraints, the generalized
@@ -270,19 +317,30 @@ def system(mech, parameters=None, initial=None, reactions="all", frame=None, set
     if reactions_in is not None:
         for j in mech.joints:  # a name that is not a body fails here, before any work
             mech._axes_of(j, reactions_in, "reactions_in")
-    reaction_groups = list(_reaction_outputs(mech, reactions, frame, frames, actions, force_unit, moment_unit,
-                                             reactions_in))
+    reaction_groups = list(
+        _reaction_outputs(mech, reactions, frame, frames, actions, force_unit, moment_unit, reactions_in)
+    )
     reaction_outputs = [o for _, _, outs in reaction_groups for o in outs]
     reaction_outputs += _tooth_outputs(mech, reactions, contact_forces, force_unit, frames)
-    reaction_outputs += [Output(f"{n}_effort", sp.Symbol(f"lambda_{n}"), moment_unit if turn else force_unit,
-                                f"{'torque' if turn else 'force'} of drive {n} along its coordinate")
-                         for n, turn in mech._drives if reactions is not None]
+    reaction_outputs += [
+        Output(
+            f"{n}_effort",
+            sp.Symbol(f"lambda_{n}"),
+            moment_unit if turn else force_unit,
+            f"{'torque' if turn else 'force'} of drive {n} along its coordinate",
+        )
+        for n, turn in mech._drives
+        if reactions is not None
+    ]
     acted = {act.body for act in actions}
     drawn = {o.name for _, body, outs in reaction_groups if body != "read" for o in outs}  # the view's arrows
-    wrenches = tuple(Wrench(j.child.name, None if body is None else body.name, tuple(o.name for o in outs),
-                            tuple(o.expr for o in outs))
-                     for j, body, outs in reaction_groups
-                     if body != "read" and not any(b in acted for b in subtree(mech, j)))
+    wrenches = tuple(
+        Wrench(
+            j.child.name, None if body is None else body.name, tuple(o.name for o in outs), tuple(o.expr for o in outs)
+        )
+        for j, body, outs in reaction_groups
+        if body != "read" and not any(b in acted for b in subtree(mech, j))
+    )
     outs = reaction_outputs + _point_outputs(mech, frames)
     if energy:
         outs += _energy_outputs(mech, frames, bodies, V)
@@ -290,15 +348,28 @@ def system(mech, parameters=None, initial=None, reactions="all", frame=None, set
     start, guesses = _start(order, coords, initial)
     if not bodies:
         raise ModelError(f"mechanism {mech.name!r} has no bodies", hint="add one with mech.body(...)")
-    return System(coordinates=tuple(coords), parameters=tuple(params), bodies=tuple(bodies), potential_energy=V,
-                  kinetic_energy=None if rotor_energy is None else sp.sympify(rotor_energy),
-                  generalized_forces=tuple(Q) if any(e != 0 for e in Q) else None, loads=tuple(loads),
-                  constraints=tuple(cons) + tuple(constraints), controls=tuple(ctl) + tuple(controls),
-                  programs=tuple(programs), servo_constraints=tuple(servo_constraints), initial=start, initial_guesses=guesses,
-                  name=mech.name,
-                  description=mech.description, settings=settings, units=units or (), outputs=tuple(outs),
-                  view=_view(mech, frames, contact_forces + drawn_loads, drawn, frame, params),
-                  tree=rigid_tree(mech, coords, V, positions, wrenches, loops))
+    return System(
+        coordinates=tuple(coords),
+        parameters=tuple(params),
+        bodies=tuple(bodies),
+        potential_energy=V,
+        kinetic_energy=None if rotor_energy is None else sp.sympify(rotor_energy),
+        generalized_forces=tuple(Q) if any(e != 0 for e in Q) else None,
+        loads=tuple(loads),
+        constraints=tuple(cons) + tuple(constraints),
+        controls=tuple(ctl) + tuple(controls),
+        programs=tuple(programs),
+        servo_constraints=tuple(servo_constraints),
+        initial=start,
+        initial_guesses=guesses,
+        name=mech.name,
+        description=mech.description,
+        settings=settings,
+        units=units or (),
+        outputs=tuple(outs),
+        view=_view(mech, frames, contact_forces + drawn_loads, drawn, frame, params),
+        tree=rigid_tree(mech, coords, V, positions, wrenches, loops),
+    )
 
 
 def _bodies(mech, frames):
@@ -317,8 +388,9 @@ def _bodies(mech, frames):
         if b.particle:
             bodies.append(Particle(b.name, b.mass, position=rC, velocity=vC))
         else:
-            bodies.append(RigidBody(b.name, b.mass, position=rC, velocity=vC, inertia=b.inertia,
-                                    angular_velocity=f.omega))
+            bodies.append(
+                RigidBody(b.name, b.mass, position=rC, velocity=vC, inertia=b.inertia, angular_velocity=f.omega)
+            )
         if mech.gravity is not None:
             V -= b.mass * mech.gravity.dot(rC)
     return bodies, V, positions
@@ -367,8 +439,10 @@ def _generalized_forces(mech, coords, joint_forces):
     for qname, value in (joint_forces or {}).items():
         k = next((i for i, q in enumerate(coords) if q.name == str(qname)), None)
         if k is None:
-            raise ModelError(f"mechanism {mech.name!r}: joint force on unknown coordinate {qname!r}",
-                             hint="coordinates: " + ", ".join(q.name for q in coords))
+            raise ModelError(
+                f"mechanism {mech.name!r}: joint force on unknown coordinate {qname!r}",
+                hint="coordinates: " + ", ".join(q.name for q in coords),
+            )
         Q[k] += sp.sympify(value)
     return Q, ctl
 
@@ -380,8 +454,10 @@ def _parameters(mech, parameters) -> list[Parameter]:
         known = {p.symbol.name for p in params}
         unknown = sorted(str(k) for k in parameters if str(k) not in known)
         if unknown:
-            raise ModelError(f"mechanism {mech.name!r}: unknown parameter(s) {', '.join(unknown)}",
-                             hint="parameters: " + ", ".join(sorted(known)))
+            raise ModelError(
+                f"mechanism {mech.name!r}: unknown parameter(s) {', '.join(unknown)}",
+                hint="parameters: " + ", ".join(sorted(known)),
+            )
         values = {str(k): v for k, v in parameters.items()}
         params = [Parameter(p.symbol, values.get(p.symbol.name, p.value), p.unit, p.description) for p in params]
     return params
@@ -392,8 +468,10 @@ def _point_outputs(mech, frames) -> list[Output]:
     outs = []
     for pname, body, r in mech._points:
         position = frames[body].point(r)[0]
-        outs += [Output(f"{pname}_{a}", position[i], "m", f"world {a} of point {pname!r} of body {body.name!r}")
-                 for i, a in enumerate("xyz")]
+        outs += [
+            Output(f"{pname}_{a}", position[i], "m", f"world {a} of point {pname!r} of body {body.name!r}")
+            for i, a in enumerate("xyz")
+        ]
     return outs
 
 
@@ -409,9 +487,11 @@ def _energy_outputs(mech, frames, bodies, V) -> list[Output]:
     for ba, ra, bb, rb, k, l0 in mech._springs:
         d = frames[ba].point(ra)[0] - frames[bb].point(rb)[0]
         potential += k * (sp.sqrt(d.dot(d)) - l0) ** 2 / 2
-    return [Output("energy_kinetic", kinetic, "J", "kinetic energy of the bodies"),
-            Output("energy_potential", potential, "J", "potential energy of gravity and the springs"),
-            Output("energy", kinetic + potential, "J", "kinetic + potential energy")]
+    return [
+        Output("energy_kinetic", kinetic, "J", "kinetic energy of the bodies"),
+        Output("energy_potential", potential, "J", "potential energy of gravity and the springs"),
+        Output("energy", kinetic + potential, "J", "kinetic + potential energy"),
+    ]
 
 
 def _start(order, coords, initial):
@@ -465,9 +545,20 @@ def _view(mech, frames, contact_forces, reaction_names, frame, params) -> View:
             box = equivalent_box(mass[0], moments)
             if box is not None:
                 shapes.append(Shape("box", box, com, tuple(axes_.ravel()), solid=False))
-        bodies.append(ViewBody(b.name, tuple(f.p), None if b.particle else tuple(f.R), tuple(shapes),
-                               tuple(links), com, b.particle, _text(b.mass),
-                               None if b.particle else _text(b.inertia), links[0] if links else None))
+        bodies.append(
+            ViewBody(
+                b.name,
+                tuple(f.p),
+                None if b.particle else tuple(f.R),
+                tuple(shapes),
+                tuple(links),
+                com,
+                b.particle,
+                _text(b.mass),
+                None if b.particle else _text(b.inertia),
+                links[0] if links else None,
+            )
+        )
     arrows = []
     for j in mech.joints:
         fc = frames[j.child]
@@ -494,11 +585,23 @@ def _view(mech, frames, contact_forces, reaction_names, frame, params) -> View:
         m, axis = j.motion, ""
         if len(m.coordinates) == 1:
             q = m.coordinates[0]
-            k = m.angular_velocity.diff(derivative_symbol(q)) if j.kind in ("revolute", "screw") else \
-                m.translation.diff(q)
+            k = (
+                m.angular_velocity.diff(derivative_symbol(q))
+                if j.kind in ("revolute", "screw")
+                else m.translation.diff(q)
+            )
             axis = _text(k)
-        joints.append(ViewJoint(j.name, j.kind, j.parent.name, j.child.name, _text(j.origin), axis,
-                                ", ".join(q.name for q in m.coordinates)))
+        joints.append(
+            ViewJoint(
+                j.name,
+                j.kind,
+                j.parent.name,
+                j.child.name,
+                _text(j.origin),
+                axis,
+                ", ".join(q.name for q in m.coordinates),
+            )
+        )
     up = (0.0, 0.0, 1.0)
     if mech.gravity is not None:
         g = numbers(mech.gravity)
@@ -522,9 +625,15 @@ def _tooth_outputs(mech, reactions, contact_forces, force_unit, frames) -> list[
             body, where = mech._tooth_axes.get(name), "world axes"
             if body is not None:
                 f, where = frames[body].R.T * f, f"axes of body {body.name!r}"
-            outs += [Output(f"F_{name}_{axis}", e, force_unit,
-                            f"tooth force on {on.name} of coupling {name} at the pitch point, {axis} ({where})")
-                     for axis, e in zip("xyz", f)]
+            outs += [
+                Output(
+                    f"F_{name}_{axis}",
+                    e,
+                    force_unit,
+                    f"tooth force on {on.name} of coupling {name} at the pitch point, {axis} ({where})",
+                )
+                for axis, e in zip("xyz", f)
+            ]
     return outs
 
 
@@ -534,8 +643,11 @@ def _reaction_outputs(mech, reactions, frame, frames, actions, force_unit, momen
     where it is read, so that the recursive route leaves it to its formulas."""
     if reactions is None:
         return
-    joints = mech.joints if reactions == "all" else [mech._joint(n, "reactions") for n in reactions
-                                                     if n not in mech._couplings]
+    joints = (
+        mech.joints
+        if reactions == "all"
+        else [mech._joint(n, "reactions") for n in reactions if n not in mech._couplings]
+    )
     axes = {}
     for k, v in (frame or {}).items():
         axes[mech._joint(k, "frame").name] = mech._body(v, f"frame of joint {k!r}")
@@ -551,11 +663,20 @@ def _reaction_outputs(mech, reactions, frame, frames, actions, force_unit, momen
             R = frames[body].R
             F, M = R.T * F, R.T * M
             where = f"axes of body {body.name!r}"
-        yield j, (body if body is not mech.ground else None), [
-            Output(f"{sym}_{j.name}_{axis}", e, unit,
-                   f"{what} of {j.parent.name} on {j.child.name} at joint {j.name}'s origin, {axis} ({where})")
-            for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment"))
-            for axis, e in zip("xyz", vec)]
+        yield (
+            j,
+            (body if body is not mech.ground else None),
+            [
+                Output(
+                    f"{sym}_{j.name}_{axis}",
+                    e,
+                    unit,
+                    f"{what} of {j.parent.name} on {j.child.name} at joint {j.name}'s origin, {axis} ({where})",
+                )
+                for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment"))
+                for axis, e in zip("xyz", vec)
+            ],
+        )
 
 
 def _read(mech, j: Joint, F, M, frames, reactions_in, force_unit, moment_unit) -> list[Output]:
@@ -585,6 +706,8 @@ def _read(mech, j: Joint, F, M, frames, reactions_in, force_unit, moment_unit) -
         where = f"axes of body {target.name!r}"
     if where != "world axes":
         F, M = R.T * F, R.T * M
-    return [Output(f"{sym}_{j.name}_{axis}", e, unit, f"{what} of {who} about {at}, {axis} ({where})")
-            for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment"))
-            for axis, e in zip("xyz", vec)]
+    return [
+        Output(f"{sym}_{j.name}_{axis}", e, unit, f"{what} of {who} about {at}, {axis} ({where})")
+        for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment"))
+        for axis, e in zip("xyz", vec)
+    ]

@@ -16,11 +16,35 @@ from appell.errors import AppellNote, ModelError
 from appell.mechanism import assembly
 from appell.mechanism.couplings import gear_mesh, rack_mesh
 from appell.mechanism.joints import joint_motion
-from appell.mechanism.parts import (GROUND, Body, Frame, Joint, LoopParts, _Action, _alignment_rows, _Closure, _cross,
-                                    _loop_points, _matrix, _orientation, _point_rows, _real, _text, _z_onto)
+from appell.mechanism.parts import (
+    GROUND,
+    Body,
+    Frame,
+    Joint,
+    LoopParts,
+    _Action,
+    _alignment_rows,
+    _Closure,
+    _cross,
+    _loop_points,
+    _matrix,
+    _orientation,
+    _point_rows,
+    _real,
+    _text,
+    _z_onto,
+)
 from appell.mechanism.rotations import identically_zero, unit_axis
+from appell.model import (
+    AppliedForce,
+    AppliedTorque,
+    Parameter,
+    System,
+    acceleration_constraint,
+    holonomic,
+    nonholonomic,
+)
 from appell.rigid_tree import RigidTree
-from appell.model import (AppliedForce, AppliedTorque, Parameter, System, acceleration_constraint, holonomic, nonholonomic)
 from appell.symbols import derivative_symbol
 from appell.view import SHAPES
 
@@ -63,8 +87,10 @@ class Mechanism:
         if not isinstance(name, str) or not name.isidentifier() or keyword.iskeyword(name):
             raise ModelError(f"{kind} name {name!r} must be an identifier (letters, digits, underscores)")
         if name in self._names:
-            raise ModelError(f"{kind} name {name!r} is already used by a {self._names[name]}",
-                             hint="give every body, joint, closure and load its own name")
+            raise ModelError(
+                f"{kind} name {name!r} is already used by a {self._names[name]}",
+                hint="give every body, joint, closure and load its own name",
+            )
         self._names[name] = kind
         return name
 
@@ -74,19 +100,25 @@ class Mechanism:
                 return self.ground
             found = next((b for b in self.bodies if b.name == body), None)
             if found is None:
-                raise ModelError(f"{what}: unknown body {body!r}",
-                                 hint="bodies: " + ", ".join([GROUND] + [b.name for b in self.bodies]))
+                raise ModelError(
+                    f"{what}: unknown body {body!r}",
+                    hint="bodies: " + ", ".join([GROUND] + [b.name for b in self.bodies]),
+                )
             return found
         if body is self.ground or any(body is b for b in self.bodies):
             return body
-        raise ModelError(f"{what}: {body!r} is not a body of mechanism {self.name!r}",
-                         hint="create it with mech.body(...) or mech.particle(...) of this mechanism")
+        raise ModelError(
+            f"{what}: {body!r} is not a body of mechanism {self.name!r}",
+            hint="create it with mech.body(...) or mech.particle(...) of this mechanism",
+        )
 
     def _joint(self, joint, what: str) -> Joint:
         name = joint.name if isinstance(joint, Joint) else joint
         found = next((j for j in self.joints if j.name == name), None)
         if found is None:
-            raise ModelError(f"{what}: unknown joint {name!r}", hint="joints: " + ", ".join(j.name for j in self.joints))
+            raise ModelError(
+                f"{what}: unknown joint {name!r}", hint="joints: " + ", ".join(j.name for j in self.joints)
+            )
         return found
 
     # ------------------------------------------------------------ parts
@@ -133,8 +165,9 @@ class Mechanism:
         self.bodies[-1] = b
         return b
 
-    def shape(self, body, kind: str, size, origin=(0, 0, 0), rpy=(0, 0, 0), colour: str | None = None,
-              mesh=None) -> None:
+    def shape(
+        self, body, kind: str, size, origin=(0, 0, 0), rpy=(0, 0, 0), colour: str | None = None, mesh=None
+    ) -> None:
         """Geometry of ``body`` for the picture of the motion (:class:`appell.view.Shape`: a
         ``'box'`` of edges ``size``, a ``'sphere'`` of radius ``size``, a ``'cylinder'`` or
         ``'capsule'`` of ``(radius, length)`` along its z axis), placed at ``origin`` turned by
@@ -150,8 +183,19 @@ class Mechanism:
         rot = _orientation(rpy, f"shape of body {b.name!r}: rpy")
         self._shapes.append((b, kind, size, _matrix(origin, f"shape of body {b.name!r}: origin"), rot, colour, mesh))
 
-    def _add_joint(self, kind, name, parent, child, axis=None, origin=(0, 0, 0), rpy=(0, 0, 0),
-                   child_origin=(0, 0, 0), coordinate=None, rotation="xyz") -> Joint:
+    def _add_joint(
+        self,
+        kind,
+        name,
+        parent,
+        child,
+        axis=None,
+        origin=(0, 0, 0),
+        rpy=(0, 0, 0),
+        child_origin=(0, 0, 0),
+        coordinate=None,
+        rotation="xyz",
+    ) -> Joint:
         what = f"{kind} joint {name!r}"
         parent, child = self._body(parent, what), self._body(child, what)
         if child is self.ground:
@@ -160,29 +204,37 @@ class Mechanism:
             raise ModelError(f"{what}: parent and child are the same body {child.name!r}")
         old = next((j for j in self.joints if j.child is child), None)
         if old is not None:
-            raise ModelError(f"{what}: body {child.name!r} already hangs on joint {old.name!r}; a second joint "
-                             "would close a loop of joints",
-                             hint="close loops with mech.connect(name, (body_a, point_a), (body_b, point_b))")
+            raise ModelError(
+                f"{what}: body {child.name!r} already hangs on joint {old.name!r}; a second joint "
+                "would close a loop of joints",
+                hint="close loops with mech.connect(name, (body_a, point_a), (body_b, point_b))",
+            )
         up = parent
         while up is not self.ground:
             j = next((j for j in self.joints if j.child is up), None)
             if j is None:
                 break
             if j.parent is child:
-                raise ModelError(f"{what}: joining {parent.name!r} to {child.name!r} makes a cycle of joints",
-                                 hint="the joints form a tree; close loops with mech.connect")
+                raise ModelError(
+                    f"{what}: joining {parent.name!r} to {child.name!r} makes a cycle of joints",
+                    hint="the joints form a tree; close loops with mech.connect",
+                )
             up = j.parent
         if kind == "universal":
             k = tuple(unit_axis(a, f"{what}: axis {i}") for i, a in enumerate(axis, start=1))
             if not identically_zero(k[0].dot(k[1])):
-                raise ModelError(f"{what}: the axes {_text(k[0])} and {_text(k[1])} are not perpendicular "
-                                 f"(cos = {_text(k[0].dot(k[1]))})",
-                                 hint="a Hooke joint's cross has perpendicular arms, e.g. axes (1, 0, 0) and (0, 1, 0)")
+                raise ModelError(
+                    f"{what}: the axes {_text(k[0])} and {_text(k[1])} are not perpendicular "
+                    f"(cos = {_text(k[0].dot(k[1]))})",
+                    hint="a Hooke joint's cross has perpendicular arms, e.g. axes (1, 0, 0) and (0, 1, 0)",
+                )
         elif kind == "screw":
             k = (unit_axis(axis[0], what), _real(axis[1], f"{what}: pitch"))
             if k[1].is_number and k[1] == 0:
-                raise ModelError(f"{what}: the pitch is 0", hint="a screw of pitch 0 is a revolute joint; give the "
-                                 "advance per turn, e.g. pitch=0.005")
+                raise ModelError(
+                    f"{what}: the pitch is 0",
+                    hint="a screw of pitch 0 is a revolute joint; give the advance per turn, e.g. pitch=0.005",
+                )
         else:
             k = unit_axis(axis, what) if axis is not None else None
         motion = joint_motion(name, kind, k, coordinate, rotation)
@@ -193,20 +245,45 @@ class Mechanism:
         for q in motion.coordinates:
             if q.name != name:
                 self._claim(q.name, "coordinate")
-        j = Joint(name, kind, parent, child, _matrix(origin, f"origin of {what}"),
-                  _orientation(rpy, f"rpy of {what}"), _matrix(child_origin, f"child_origin of {what}"),
-                  motion)
+        j = Joint(
+            name,
+            kind,
+            parent,
+            child,
+            _matrix(origin, f"origin of {what}"),
+            _orientation(rpy, f"rpy of {what}"),
+            _matrix(child_origin, f"child_origin of {what}"),
+            motion,
+        )
         self.joints.append(j)
         return j
 
-    def revolute(self, name, parent, child, axis=(0, 0, 1), origin=(0, 0, 0), rpy=(0, 0, 0),
-                 child_origin=(0, 0, 0), coordinate=None) -> Joint:
+    def revolute(
+        self,
+        name,
+        parent,
+        child,
+        axis=(0, 0, 1),
+        origin=(0, 0, 0),
+        rpy=(0, 0, 0),
+        child_origin=(0, 0, 0),
+        coordinate=None,
+    ) -> Joint:
         """A hinge about the unit ``axis`` (joint frame); coordinate ``coordinate`` (default the
         joint's name), speed ``<coordinate>_dot``."""
         return self._add_joint("revolute", name, parent, child, axis, origin, rpy, child_origin, coordinate)
 
-    def prismatic(self, name, parent, child, axis=(1, 0, 0), origin=(0, 0, 0), rpy=(0, 0, 0),
-                  child_origin=(0, 0, 0), coordinate=None) -> Joint:
+    def prismatic(
+        self,
+        name,
+        parent,
+        child,
+        axis=(1, 0, 0),
+        origin=(0, 0, 0),
+        rpy=(0, 0, 0),
+        child_origin=(0, 0, 0),
+        coordinate=None,
+    ) -> Joint:
         """A slider along the unit ``axis`` (joint frame); coordinate default the joint's name."""
         return self._add_joint("prismatic", name, parent, child, axis, origin, rpy, child_origin, coordinate)
 
@@ -214,19 +291,39 @@ class Mechanism:
         """A weld: no relative motion (its reaction is still reported)."""
         return self._add_joint("fixed", name, parent, child, None, origin, rpy, child_origin)
 
-    def cylindrical(self, name, parent, child, axis=(0, 0, 1), origin=(0, 0, 0), rpy=(0, 0, 0),
-                    child_origin=(0, 0, 0), coordinates=None) -> Joint:
+    def cylindrical(
+        self,
+        name,
+        parent,
+        child,
+        axis=(0, 0, 1),
+        origin=(0, 0, 0),
+        rpy=(0, 0, 0),
+        child_origin=(0, 0, 0),
+        coordinates=None,
+    ) -> Joint:
         """Slide along and turn about the unit ``axis``: coordinates ``<name>_z``, ``<name>_rz``."""
         return self._add_joint("cylindrical", name, parent, child, axis, origin, rpy, child_origin, coordinates)
 
-    def planar(self, name, parent, child, origin=(0, 0, 0), rpy=(0, 0, 0), child_origin=(0, 0, 0),
-               coordinates=None) -> Joint:
+    def planar(
+        self, name, parent, child, origin=(0, 0, 0), rpy=(0, 0, 0), child_origin=(0, 0, 0), coordinates=None
+    ) -> Joint:
         """Motion in the joint frame's x-y plane: ``<name>_x``, ``<name>_y`` (translation, joint
         axes), then ``<name>_rz`` (rotation about z)."""
         return self._add_joint("planar", name, parent, child, None, origin, rpy, child_origin, coordinates)
 
-    def screw(self, name, parent, child, pitch, axis=(0, 0, 1), origin=(0, 0, 0), rpy=(0, 0, 0),
-              child_origin=(0, 0, 0), coordinate=None) -> Joint:
+    def screw(
+        self,
+        name,
+        parent,
+        child,
+        pitch,
+        axis=(0, 0, 1),
+        origin=(0, 0, 0),
+        rpy=(0, 0, 0),
+        child_origin=(0, 0, 0),
+        coordinate=None,
+    ) -> Joint:
         """A screw (a lead screw and its nut): the child turns by the coordinate ``q`` about the
         unit ``axis`` and advances ``pitch q / (2 pi)`` along it (``pitch``: the advance per
         turn, negative for a left-hand thread). Ideal threads do no work: the reaction's
@@ -234,28 +331,56 @@ class Mechanism:
         (``Q`` an actuator's torque on the coordinate)."""
         return self._add_joint("screw", name, parent, child, (axis, pitch), origin, rpy, child_origin, coordinate)
 
-    def universal(self, name, parent, child, axes=((1, 0, 0), (0, 1, 0)), origin=(0, 0, 0), rpy=(0, 0, 0),
-                  child_origin=(0, 0, 0), coordinates=None) -> Joint:
+    def universal(
+        self,
+        name,
+        parent,
+        child,
+        axes=((1, 0, 0), (0, 1, 0)),
+        origin=(0, 0, 0),
+        rpy=(0, 0, 0),
+        child_origin=(0, 0, 0),
+        coordinates=None,
+    ) -> Joint:
         """A universal (Hooke, Cardan) joint: the child turns by ``<name>_r1`` about the unit
         ``axes[0]`` (joint frame, fixed in the parent) and by ``<name>_r2`` about ``axes[1]``
         (the cross's other arm, normal to the first, fixed in the child):
         ``R_m = R(k1, q1) R(k2, q2)`` (:mod:`appell.mechanism.joints`). Two coordinates; its
         reaction has four working rows (the force, and the moment normal to both arms)."""
         if not isinstance(axes, (tuple, list)) or len(axes) != 2:
-            raise ModelError(f"universal joint {name!r}: axes must be two unit vectors, got {axes!r}",
-                             hint="e.g. axes=((1, 0, 0), (0, 1, 0))")
+            raise ModelError(
+                f"universal joint {name!r}: axes must be two unit vectors, got {axes!r}",
+                hint="e.g. axes=((1, 0, 0), (0, 1, 0))",
+            )
         return self._add_joint("universal", name, parent, child, tuple(axes), origin, rpy, child_origin, coordinates)
 
-    def spherical(self, name, parent, child, origin=(0, 0, 0), rpy=(0, 0, 0), child_origin=(0, 0, 0),
-                  rotation="xyz", coordinates=None) -> Joint:
+    def spherical(
+        self,
+        name,
+        parent,
+        child,
+        origin=(0, 0, 0),
+        rpy=(0, 0, 0),
+        child_origin=(0, 0, 0),
+        rotation="xyz",
+        coordinates=None,
+    ) -> Joint:
         """A ball joint: an intrinsic Euler sequence (``'xyz'``, ``'zyx'``, ``'zxz'``, ...;
         coordinates ``<name>_rx``, ...) or ``'quaternion'`` (``<name>_q0..q3`` with the
         unit-norm holonomic constraint ``<name>_unit``)."""
-        return self._add_joint("spherical", name, parent, child, None, origin, rpy, child_origin, coordinates,
-                               rotation)
+        return self._add_joint("spherical", name, parent, child, None, origin, rpy, child_origin, coordinates, rotation)
 
-    def free(self, name, parent, child, origin=(0, 0, 0), rpy=(0, 0, 0), child_origin=(0, 0, 0),
-             rotation="quaternion", coordinates=None) -> Joint:
+    def free(
+        self,
+        name,
+        parent,
+        child,
+        origin=(0, 0, 0),
+        rpy=(0, 0, 0),
+        child_origin=(0, 0, 0),
+        rotation="quaternion",
+        coordinates=None,
+    ) -> Joint:
         """Six degrees of freedom: translation ``<name>_x, _y, _z`` (joint axes) then a
         rotation as in :meth:`spherical` (default a quaternion)."""
         return self._add_joint("free", name, parent, child, None, origin, rpy, child_origin, coordinates, rotation)
@@ -286,9 +411,16 @@ class Mechanism:
             raise ModelError(f"{what}: directions {directions!r} must be distinct letters of 'xyz'")
 
         def build(frames):
-            return _point_rows(name, ba, frames[ba].point(ra)[0], bb, frames[bb].point(rb)[0], dirs,
-                               axes=frames[ba].R if axes == "a" else None,
-                               gap=assembly.gap_in(self, ba, ra, bb, rb) if axes == "a" else None)
+            return _point_rows(
+                name,
+                ba,
+                frames[ba].point(ra)[0],
+                bb,
+                frames[bb].point(rb)[0],
+                dirs,
+                axes=frames[ba].R if axes == "a" else None,
+                gap=assembly.gap_in(self, ba, ra, bb, rb) if axes == "a" else None,
+            )
 
         rows = _loop_points(name, ba, ra, bb, rb, dirs, "point_a" if axes == "a" else "point")
         self._closures.append(_Closure(name, build, rows=rows))
@@ -317,13 +449,19 @@ class Mechanism:
             pa, pb = fa.point(ra)[0], fb.point(rb)[0]
             A, B = fa.R * R_ab, fb.R
             cons, acts = _point_rows(name, ba, pa, bb, pb)
-            more, turn = _alignment_rows([(f"{name}_r{d}", A[:, j], B[:, k])
-                                          for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1)))], ba, pa, bb, pb)
+            more, turn = _alignment_rows(
+                [(f"{name}_r{d}", A[:, j], B[:, k]) for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1)))],
+                ba,
+                pa,
+                bb,
+                pb,
+            )
             return cons + more, acts + turn
 
         rows = _loop_points(name, ba, ra, bb, rb, "xyz") + tuple(
             (f"{name}_r{d}", "align", ba, ra, R_ab[:, j], bb, rb, sp.eye(3)[:, k])
-            for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1))))
+            for d, (j, k) in zip("xyz", ((1, 2), (2, 0), (0, 1)))
+        )
         self._closures.append(_Closure(name, build, rows=rows))
 
     def watch_point(self, name, point):
@@ -368,16 +506,23 @@ class Mechanism:
             pa, pb = fa.point(ra)[0], fb.point(rb)[0]
             along, idle = fa.R * u, []
             cons, acts = _point_rows(name, ba, pa, bb, pb, idle=idle)
-            more, turn = _alignment_rows([(f"{name}_r1", along, fb.R * b1), (f"{name}_r2", along, fb.R * b2)],
-                                         ba, pa, bb, pb, idle=idle)
+            more, turn = _alignment_rows(
+                [(f"{name}_r1", along, fb.R * b1), (f"{name}_r2", along, fb.R * b2)], ba, pa, bb, pb, idle=idle
+            )
             cons, acts = cons + more, acts + turn
             if idle:
-                warnings.warn(AppellNote(f"{what}: {', '.join(idle)} hold at every configuration (a planar loop) "
-                                         "and are left out"), stacklevel=2)
+                warnings.warn(
+                    AppellNote(
+                        f"{what}: {', '.join(idle)} hold at every configuration (a planar loop) and are left out"
+                    ),
+                    stacklevel=2,
+                )
             return cons, acts
 
         rows = _loop_points(name, ba, ra, bb, rb, "xyz") + (
-            (f"{name}_r1", "align", ba, ra, u, bb, rb, b1), (f"{name}_r2", "align", ba, ra, u, bb, rb, b2))
+            (f"{name}_r1", "align", ba, ra, u, bb, rb, b1),
+            (f"{name}_r2", "align", ba, ra, u, bb, rb, b2),
+        )
         self._closures.append(_Closure(name, build, rows=rows))
 
     def point_on_surface(self, name, point, surface):
@@ -424,10 +569,14 @@ class Mechanism:
             d, z = contact(f, n)
             vP = f.v + _cross(f.w, d)
             P = f.p + d
-            cons = [holonomic(f"{name}_n", n.dot(f.p) + z - height), nonholonomic(f"{name}_t1", t1.dot(vP)),
-                    nonholonomic(f"{name}_t2", t2.dot(vP))]
-            acts = [_Action(body, P, v * sp.Symbol(f"lambda_{c.name}"), sp.zeros(3, 1))
-                    for v, c in zip((n, t1, t2), cons)]
+            cons = [
+                holonomic(f"{name}_n", n.dot(f.p) + z - height),
+                nonholonomic(f"{name}_t1", t1.dot(vP)),
+                nonholonomic(f"{name}_t2", t2.dot(vP)),
+            ]
+            acts = [
+                _Action(body, P, v * sp.Symbol(f"lambda_{c.name}"), sp.zeros(3, 1)) for v, c in zip((n, t1, t2), cons)
+            ]
             return cons, acts
 
         self._closures.append(_Closure(name, build))
@@ -526,8 +675,13 @@ class Mechanism:
         :mod:`appell.mechanism.couplings`. ``lambda_<name>`` is the tangential tooth force on
         the gear of ``joint_a``; each joint's reaction is its bearing load."""
         what = f"gear {name!r}"
-        self._mesh(name, joint_a, joint_b, lambda ja, jb: gear_mesh(what, ja, jb, ratio, bool(internal),
-                                                                     pressure_angle, helix_angle), what)
+        self._mesh(
+            name,
+            joint_a,
+            joint_b,
+            lambda ja, jb: gear_mesh(what, ja, jb, ratio, bool(internal), pressure_angle, helix_angle),
+            what,
+        )
 
     def rack_pinion(self, name, pinion, rack, radius, pressure_angle=0, helix_angle=0):
         """A pinion on the revolute joint ``pinion`` (pitch radius ``radius``) drives a rack on
@@ -538,8 +692,9 @@ class Mechanism:
         ``lambda_<name>`` is the tangential tooth force on the pinion; the rack joint's
         reaction is the guide's load."""
         what = f"rack and pinion {name!r}"
-        self._mesh(name, pinion, rack, lambda ja, jb: rack_mesh(what, ja, jb, radius, pressure_angle, helix_angle),
-                   what)
+        self._mesh(
+            name, pinion, rack, lambda ja, jb: rack_mesh(what, ja, jb, radius, pressure_angle, helix_angle), what
+        )
 
     def distance(self, name, a, b, length):
         """The points ``a = (body_a, r_a)`` and ``b = (body_b, r_b)`` keep the distance
@@ -555,8 +710,10 @@ class Mechanism:
             raise ModelError(f"{what}: both points are on body {ba.name!r}", hint="join two different bodies")
         L = _real(length, f"{what}: length")
         if L.is_number and not L > 0:
-            raise ModelError(f"{what}: the length is {L}; a distance must be positive",
-                             hint="join coinciding points with connect(...)")
+            raise ModelError(
+                f"{what}: the length is {L}; a distance must be positive",
+                hint="join coinciding points with connect(...)",
+            )
         self._marks += [(ba, ra), (bb, rb)]
 
         def build(frames):
@@ -564,8 +721,10 @@ class Mechanism:
             d = pa - pb
             length_now = sp.sqrt(d.dot(d))
             f = d / length_now * sp.Symbol(f"lambda_{name}")
-            return [holonomic(name, length_now - L)], [_Action(ba, pa, f, sp.zeros(3, 1)),
-                                                       _Action(bb, pb, -f, sp.zeros(3, 1))]
+            return [holonomic(name, length_now - L)], [
+                _Action(ba, pa, f, sp.zeros(3, 1)),
+                _Action(bb, pb, -f, sp.zeros(3, 1)),
+            ]
 
         self._closures.append(_Closure(name, build))
 
@@ -579,11 +738,17 @@ class Mechanism:
         joint's reaction includes it)."""
         self._claim(name, "drive")
         what = f"drive {name!r}"
-        given = [(k, v) for k, v in (("position", position), ("speed", speed), ("acceleration", acceleration))
-                 if v is not None]
+        given = [
+            (k, v)
+            for k, v in (("position", position), ("speed", speed), ("acceleration", acceleration))
+            if v is not None
+        ]
         if len(given) != 1:
-            raise ModelError(f"{what}: give exactly one of position, speed, acceleration (got "
-                             f"{', '.join(k for k, _ in given) or 'none'})", hint="e.g. speed='v*t'")
+            raise ModelError(
+                f"{what}: give exactly one of position, speed, acceleration (got "
+                f"{', '.join(k for k, _ in given) or 'none'})",
+                hint="e.g. speed='v*t'",
+            )
         kind, value = given[0]
         j = self._joint(joint, what)
         q = self._coordinate(j, coordinate, what)
@@ -601,13 +766,17 @@ class Mechanism:
     def _coordinate(self, j: Joint, coordinate, what: str) -> sp.Symbol:
         if coordinate is None:
             if len(j.coordinates) != 1:
-                raise ModelError(f"{what}: joint {j.name!r} has {len(j.coordinates)} coordinates",
-                                 hint="name one: coordinate=" + " or ".join(repr(q.name) for q in j.coordinates))
+                raise ModelError(
+                    f"{what}: joint {j.name!r} has {len(j.coordinates)} coordinates",
+                    hint="name one: coordinate=" + " or ".join(repr(q.name) for q in j.coordinates),
+                )
             return j.coordinates[0]
         q = next((s for s in j.coordinates if s.name == str(coordinate)), None)
         if q is None:
-            raise ModelError(f"{what}: joint {j.name!r} has no coordinate {coordinate!r}",
-                             hint="coordinates: " + ", ".join(s.name for s in j.coordinates))
+            raise ModelError(
+                f"{what}: joint {j.name!r} has no coordinate {coordinate!r}",
+                hint="coordinates: " + ", ".join(s.name for s in j.coordinates),
+            )
         return q
 
     # ------------------------------------------------------------ loads
@@ -661,8 +830,10 @@ class Mechanism:
                 length = sp.sqrt(d.dot(d))
                 tension = k * (length - l0) + c * d.dot(va - vb) / length
                 f = -tension * d / length  # on a
-            loads = [AppliedForce(f, position=pa, velocity=va, name=f"{name}_a"),
-                     AppliedForce(-f, position=pb, velocity=vb, name=f"{name}_b")]
+            loads = [
+                AppliedForce(f, position=pa, velocity=va, name=f"{name}_a"),
+                AppliedForce(-f, position=pb, velocity=vb, name=f"{name}_b"),
+            ]
             return loads, [_Action(ba, pa, f, sp.zeros(3, 1)), _Action(bb, pb, -f, sp.zeros(3, 1))]
 
         self._forces.append((name, build))
@@ -682,8 +853,10 @@ class Mechanism:
         if isinstance(joint, str) and joint in self._couplings:
             what = f"reaction output of coupling {joint!r}"
             if on != "child" or about is not None:
-                raise ModelError(f"{what}: a tooth force is read on its second body at the pitch point",
-                                 hint="give only axes ('world' or a body's name)")
+                raise ModelError(
+                    f"{what}: a tooth force is read on its second body at the pitch point",
+                    hint="give only axes ('world' or a body's name)",
+                )
             try:
                 body = None if axes in ("world", "ground", None) else self._body(axes, what)
             except ModelError as exc:
@@ -693,8 +866,10 @@ class Mechanism:
         j = self._joint(joint, "reaction output")
         what = f"reaction output of joint {j.name!r}"
         if on not in ("child", "parent"):
-            raise ModelError(f"{what}: on={on!r} must be 'child' or 'parent'",
-                             hint=f"the reaction on {j.child.name!r} (child) or on {j.parent.name!r} (parent)")
+            raise ModelError(
+                f"{what}: on={on!r} must be 'child' or 'parent'",
+                hint=f"the reaction on {j.child.name!r} (child) or on {j.parent.name!r} (parent)",
+            )
         marker = None if about is None else self._point(about, f"{what}: about")
         self._axes_of(j, axes, what)
         self._reading[j.name] = (on, marker, axes)
@@ -712,8 +887,9 @@ class Mechanism:
         try:
             body = self._body(axes, what)
         except ModelError as exc:
-            raise ModelError(f"{exc.message}; axes are 'world', 'joint', 'child', 'parent' or a body",
-                             hint=exc.hint) from None
+            raise ModelError(
+                f"{exc.message}; axes are 'world', 'joint', 'child', 'parent' or a body", hint=exc.hint
+            ) from None
         return None if body is self.ground else body
 
     def _pair_loads(self, name, ba, ra, bb, rb, frames, f_b, tau_b):
@@ -724,8 +900,10 @@ class Mechanism:
         pa, va, _ = fa.point(ra)
         pb, vb, _ = fb.point(rb)
         tau_a = -tau_b - _cross(pb - pa, f_b)
-        loads = [AppliedForce(f_b, position=pb, velocity=vb, name=f"{name}_b"),
-                 AppliedForce(-f_b, position=pa, velocity=va, name=f"{name}_a")]
+        loads = [
+            AppliedForce(f_b, position=pb, velocity=vb, name=f"{name}_b"),
+            AppliedForce(-f_b, position=pa, velocity=va, name=f"{name}_a"),
+        ]
         acts = [_Action(bb, pb, f_b, tau_b), _Action(ba, pa, -f_b, tau_a)]
         for body, frame, tau in ((bb, fb, tau_b), (ba, fa, tau_a)):
             if any(x != 0 for x in tau) and body is not self.ground:
@@ -755,8 +933,17 @@ class Mechanism:
 
         self._forces.append((name, build))
 
-    def bushing(self, name, a, b, stiffness, damping=(0, 0, 0), rotational_stiffness=(0, 0, 0),
-                rotational_damping=(0, 0, 0), rotation=None):
+    def bushing(
+        self,
+        name,
+        a,
+        b,
+        stiffness,
+        damping=(0, 0, 0),
+        rotational_stiffness=(0, 0, 0),
+        rotational_damping=(0, 0, 0),
+        rotation=None,
+    ):
         """A bushing: a six-component linear spring-damper between the frame ``A`` at the
         marker ``a = (body_a, r_a)`` (axes ``R_A = R_a R_0``, ``rotation``: ``R_0``, 3x3 or
         roll-pitch-yaw, default the body's axes) and the frame ``B`` at the marker ``b`` on
@@ -777,12 +964,21 @@ class Mechanism:
 
         def gains(value, key):
             m = sp.Matrix(value)
-            return sp.diag(*_matrix(value, f"{what}: {key}")) if m.shape in ((3, 1), (1, 3)) else \
-                _matrix(value, f"{what}: {key}", shape=(3, 3))
+            return (
+                sp.diag(*_matrix(value, f"{what}: {key}"))
+                if m.shape in ((3, 1), (1, 3))
+                else _matrix(value, f"{what}: {key}", shape=(3, 3))
+            )
 
-        K, C, Kr, Cr = (gains(v, k) for v, k in ((stiffness, "stiffness"), (damping, "damping"),
-                                                  (rotational_stiffness, "rotational_stiffness"),
-                                                  (rotational_damping, "rotational_damping")))
+        K, C, Kr, Cr = (
+            gains(v, k)
+            for v, k in (
+                (stiffness, "stiffness"),
+                (damping, "damping"),
+                (rotational_stiffness, "rotational_stiffness"),
+                (rotational_damping, "rotational_damping"),
+            )
+        )
         R0 = sp.eye(3) if rotation is None else _orientation(rotation, f"{what}: rotation")
 
         def build(frames):
@@ -835,10 +1031,26 @@ class Mechanism:
         joint at the joint origin (:func:`appell.mechanism.assembly.joint_reactions`)."""
         return assembly.joint_reactions(self, frames, actions)
 
-    def system(self, parameters=None, initial=None, reactions="all", frame=None, settings=(), units=None,
-               constraints=(), controls=(), servo_constraints=(), outputs=(), force_unit="N",
-               moment_unit="N*m", energy: bool = False, reactions_in=None, joint_forces=None, rotor_energy=None,
-               programs=()) -> System:
+    def system(
+        self,
+        parameters=None,
+        initial=None,
+        reactions="all",
+        frame=None,
+        settings=(),
+        units=None,
+        constraints=(),
+        controls=(),
+        servo_constraints=(),
+        outputs=(),
+        force_unit="N",
+        moment_unit="N*m",
+        energy: bool = False,
+        reactions_in=None,
+        joint_forces=None,
+        rotor_energy=None,
+        programs=(),
+    ) -> System:
         """The :class:`appell.System` of the mechanism.
 
         Parameters
@@ -872,8 +1084,23 @@ class Mechanism:
         programs : :class:`~appell.model.Program` items (given functions of time, e.g. an
             actuator's control signal), added as given.
         """
-        return assembly.system(self, parameters=parameters, initial=initial, reactions=reactions, frame=frame,
-                               settings=settings, units=units, constraints=constraints, controls=controls,
-                               servo_constraints=servo_constraints, outputs=outputs, force_unit=force_unit,
-                               moment_unit=moment_unit, energy=energy, reactions_in=reactions_in,
-                               joint_forces=joint_forces, rotor_energy=rotor_energy, programs=programs)
+        return assembly.system(
+            self,
+            parameters=parameters,
+            initial=initial,
+            reactions=reactions,
+            frame=frame,
+            settings=settings,
+            units=units,
+            constraints=constraints,
+            controls=controls,
+            servo_constraints=servo_constraints,
+            outputs=outputs,
+            force_unit=force_unit,
+            moment_unit=moment_unit,
+            energy=energy,
+            reactions_in=reactions_in,
+            joint_forces=joint_forces,
+            rotor_energy=rotor_energy,
+            programs=programs,
+        )

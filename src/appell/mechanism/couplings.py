@@ -63,7 +63,9 @@ class Mesh:
         """``f_A = lambda t - |lambda| tan(alpha) e + lambda tan(beta) k`` (housing axes): the
         radial part always separates the gears, so it is not smooth where ``lambda`` changes
         sign (module docstring)."""
-        return self.tangent * lam - self.radial * (sp.Abs(lam) * self.tan_pressure) + self.axial * (lam * self.tan_helix)
+        return (
+            self.tangent * lam - self.radial * (sp.Abs(lam) * self.tan_pressure) + self.axial * (lam * self.tan_helix)
+        )
 
 
 def _number(value, what):
@@ -74,13 +76,18 @@ def _number(value, what):
 def _axis(joint, kind: str, what: str) -> sp.Matrix:
     """The unit axis of a one-coordinate joint in its parent's axes: ``R0 k``."""
     if joint.kind != kind:
-        raise ModelError(f"{what}: joint {joint.name!r} is a {joint.kind} joint, not a {kind} one",
-                         hint="a gear couples two revolute joints; a rack and pinion a revolute and a prismatic one")
+        raise ModelError(
+            f"{what}: joint {joint.name!r} is a {joint.kind} joint, not a {kind} one",
+            hint="a gear couples two revolute joints; a rack and pinion a revolute and a prismatic one",
+        )
     (q,) = joint.coordinates
     m = joint.motion
     qd = derivative_symbol(q)
-    k = m.angular_velocity.applyfunc(lambda e: e.diff(qd)) if kind == "revolute" else \
-        m.translation.applyfunc(lambda e: e.diff(q))
+    k = (
+        m.angular_velocity.applyfunc(lambda e: e.diff(qd))
+        if kind == "revolute"
+        else m.translation.applyfunc(lambda e: e.diff(q))
+    )
     return joint.rotation * k
 
 
@@ -89,16 +96,20 @@ def _angle(value, what: str, name: str) -> sp.Expr:
     value = sp.sympify(value)
     x = _number(value, what)
     if x is not None and not abs(x) < 1.5:  # 86 degrees: no tooth works there
-        raise ModelError(f"{what}: the {name} angle {x:g} rad is out of range",
-                         hint=f"give the {name} angle in radians, e.g. 0.349 (20 degrees)")
+        raise ModelError(
+            f"{what}: the {name} angle {x:g} rad is out of range",
+            hint=f"give the {name} angle in radians, e.g. 0.349 (20 degrees)",
+        )
     return sp.tan(value)
 
 
 def _housing(ja, jb, what: str):
     if ja.parent is not jb.parent:
-        raise ModelError(f"{what}: joints {ja.name!r} (on {ja.parent.name!r}) and {jb.name!r} (on "
-                         f"{jb.parent.name!r}) are not mounted in the same body",
-                         hint="mount both joints in one housing body (or the ground)")
+        raise ModelError(
+            f"{what}: joints {ja.name!r} (on {ja.parent.name!r}) and {jb.name!r} (on "
+            f"{jb.parent.name!r}) are not mounted in the same body",
+            hint="mount both joints in one housing body (or the ground)",
+        )
     if ja.child is jb.child:
         raise ModelError(f"{what}: joints {ja.name!r} and {jb.name!r} carry the same body")
     return ja.parent
@@ -122,26 +133,44 @@ def gear_mesh(what: str, ja, jb, ratio, internal: bool, pressure_angle, helix_an
     ratio = sp.sympify(ratio)
     x = _number(ratio, what)
     if x is not None and not x > 0:
-        raise ModelError(f"{what}: the gear ratio is {ratio}; a gear ratio r_b/r_a must be positive",
-                         hint="give ratio = teeth of the second gear / teeth of the first, e.g. 2.5")
+        raise ModelError(
+            f"{what}: the gear ratio is {ratio}; a gear ratio r_b/r_a must be positive",
+            hint="give ratio = teeth of the second gear / teeth of the first, e.g. 2.5",
+        )
     if x is not None and internal and not x > 1:
-        raise ModelError(f"{what}: an internal (ring) gear has more teeth than its pinion, got ratio {ratio}",
-                         hint="ratio = ring teeth / pinion teeth > 1")
+        raise ModelError(
+            f"{what}: an internal (ring) gear has more teeth than its pinion, got ratio {ratio}",
+            hint="ratio = ring teeth / pinion teeth > 1",
+        )
     if any(not identically_zero(c) for c in ka.cross(kb)):
-        raise ModelError(f"{what}: the axes of {ja.name!r} and {jb.name!r} are not parallel",
-                         hint="a spur or helical gear pair turns about parallel axes")
+        raise ModelError(
+            f"{what}: the axes of {ja.name!r} and {jb.name!r} are not parallel",
+            hint="a spur or helical gear pair turns about parallel axes",
+        )
     w = jb.origin - ja.origin
     w = w - ka * ka.dot(w)
-    e, d = _unit(w, what, f"the axes of {ja.name!r} and {jb.name!r} coincide (no centre distance)",
-                 "place the joints' origins one centre distance apart")
+    e, d = _unit(
+        w,
+        what,
+        f"the axes of {ja.name!r} and {jb.name!r} coincide (no centre distance)",
+        "place the joints' origins one centre distance apart",
+    )
     if internal:
         e, ra = -e, d / (ratio - 1)
     else:
         ra = d / (1 + ratio)
     P = ja.origin + e * ra
     t = ka.cross(e)
-    return Mesh(P, t, e, ka, ra, t.dot(kb.cross(P - jb.origin)), _angle(pressure_angle, what, "pressure"),
-                _angle(helix_angle, what, "helix"))
+    return Mesh(
+        P,
+        t,
+        e,
+        ka,
+        ra,
+        t.dot(kb.cross(P - jb.origin)),
+        _angle(pressure_angle, what, "pressure"),
+        _angle(helix_angle, what, "helix"),
+    )
 
 
 def rack_mesh(what: str, pinion, rack, radius, pressure_angle, helix_angle) -> Mesh:
@@ -153,16 +182,25 @@ def rack_mesh(what: str, pinion, rack, radius, pressure_angle, helix_angle) -> M
     radius = sp.sympify(radius)
     x = _number(radius, what)
     if x is not None and not x > 0:
-        raise ModelError(f"{what}: the pitch radius is {radius}; it must be positive",
-                         hint="give the pinion's pitch radius, e.g. radius = 0.02")
+        raise ModelError(
+            f"{what}: the pitch radius is {radius}; it must be positive",
+            hint="give the pinion's pitch radius, e.g. radius = 0.02",
+        )
     if not identically_zero(k.dot(u)):
-        raise ModelError(f"{what}: the rack {rack.name!r} does not move normal to the axis of {pinion.name!r}",
-                         hint="the rack slides normal to the pinion's axis")
+        raise ModelError(
+            f"{what}: the rack {rack.name!r} does not move normal to the axis of {pinion.name!r}",
+            hint="the rack slides normal to the pinion's axis",
+        )
     w = rack.origin - pinion.origin
     w = w - k * k.dot(w) - u * u.dot(w)
-    e, _ = _unit(w, what, f"the line of the rack {rack.name!r} passes through the axis of {pinion.name!r}",
-                 "place the rack joint's origin beside the pinion, on the rack's pitch side")
+    e, _ = _unit(
+        w,
+        what,
+        f"the line of the rack {rack.name!r} passes through the axis of {pinion.name!r}",
+        "place the rack joint's origin beside the pinion, on the rack's pitch side",
+    )
     P = pinion.origin + e * radius
     t = k.cross(e)
-    return Mesh(P, t, e, k, radius, t.dot(u), _angle(pressure_angle, what, "pressure"),
-                _angle(helix_angle, what, "helix"))
+    return Mesh(
+        P, t, e, k, radius, t.dot(u), _angle(pressure_angle, what, "pressure"), _angle(helix_angle, what, "helix")
+    )

@@ -10,9 +10,9 @@ package is missing costs nothing until it is used.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 __all__ = ["Importer", "IMPORTERS", "importer_for", "suffixes", "described"]
 
@@ -62,10 +62,15 @@ class Importer:
 
 
 IMPORTERS: tuple[Importer, ...] = (
-    Importer("URDF", (".urdf",), "a robot description", _urdf_system, _urdf_mechanism, key="urdf",
-             floating_base=True),
-    Importer("MJCF", (".xml", ".mjcf"), "a MuJoCo model", _mjcf_system, extra="mjcf",
-             options=("frictionloss", "armature", "actuators")),
+    Importer("URDF", (".urdf",), "a robot description", _urdf_system, _urdf_mechanism, key="urdf", floating_base=True),
+    Importer(
+        "MJCF",
+        (".xml", ".mjcf"),
+        "a MuJoCo model",
+        _mjcf_system,
+        extra="mjcf",
+        options=("frictionloss", "armature", "actuators"),
+    ),
     Importer("SDF", (".sdf",), "an SDFormat model", _sdf_system),
 )
 

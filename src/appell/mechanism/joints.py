@@ -26,8 +26,14 @@ from dataclasses import dataclass
 import sympy as sp
 
 from appell.errors import ModelError
-from appell.mechanism.rotations import (axis_rotation, basic_rotation, check_sequence, euler_rotation,
-                                        quaternion_rates, quaternion_rotation)
+from appell.mechanism.rotations import (
+    axis_rotation,
+    basic_rotation,
+    check_sequence,
+    euler_rotation,
+    quaternion_rates,
+    quaternion_rotation,
+)
 from appell.symbols import derivative_symbol
 
 #: the kinds of joints and their number of coordinates (quaternions: 4)
@@ -60,8 +66,10 @@ def _names(joint: str, default: tuple[str, ...], given, what: str) -> tuple[sp.S
     else:
         names = tuple(str(g) for g in given)
     if len(names) != len(default):
-        raise ModelError(f"joint {joint!r}: a {what} joint has {len(default)} coordinate(s), "
-                         f"got the names {names!r}", hint=f"e.g. coordinates={default!r}")
+        raise ModelError(
+            f"joint {joint!r}: a {what} joint has {len(default)} coordinate(s), got the names {names!r}",
+            hint=f"e.g. coordinates={default!r}",
+        )
     for n in names:
         if not n.isidentifier():
             raise ModelError(f"joint {joint!r}: coordinate name {n!r} is not an identifier")
@@ -75,11 +83,19 @@ def rotation_motion(joint: str, rotation: str, names) -> tuple[tuple, sp.Matrix,
     if rotation == "quaternion":
         q = _names(joint, tuple(f"{joint}_q{k}" for k in range(4)), names, "quaternion")
         unit = (sum(s**2 for s in q) - 1) / 2
-        return q, quaternion_rotation(q), quaternion_rates(q) * _rates(q), ((f"{joint}_unit", unit),), \
-            ((q[0].name, 1.0),)
+        return (
+            q,
+            quaternion_rotation(q),
+            quaternion_rates(q) * _rates(q),
+            ((f"{joint}_unit", unit),),
+            ((q[0].name, 1.0),),
+        )
     seq = check_sequence(rotation, f"joint {joint!r}")
-    default = tuple(f"{joint}_r{a}" for a in seq) if len(set(seq)) == 3 else \
-        tuple(f"{joint}_r{a}{k}" for k, a in enumerate(seq, start=1))
+    default = (
+        tuple(f"{joint}_r{a}" for a in seq)
+        if len(set(seq)) == 3
+        else tuple(f"{joint}_r{a}{k}" for k, a in enumerate(seq, start=1))
+    )
     q = _names(joint, default, names, f"spherical ({seq})")
     R, E = euler_rotation(seq, q)
     return q, R, E * _rates(q), (), ()
@@ -103,8 +119,9 @@ def joint_motion(joint: str, kind: str, axis: sp.Matrix | None, coordinate=None,
         return JointMotion((s, phi), axis_rotation(axis, phi), axis * s, axis * derivative_symbol(phi))
     if kind == "planar":
         x, y, phi = _names(joint, (f"{joint}_x", f"{joint}_y", f"{joint}_rz"), coordinate, kind)
-        return JointMotion((x, y, phi), basic_rotation("z", phi), sp.Matrix([x, y, 0]),
-                           sp.Matrix([0, 0, derivative_symbol(phi)]))
+        return JointMotion(
+            (x, y, phi), basic_rotation("z", phi), sp.Matrix([x, y, 0]), sp.Matrix([0, 0, derivative_symbol(phi)])
+        )
     if kind == "screw":  # axis = (k, pitch): a turn q advances pitch q / (2 pi) along k
         k, pitch = axis
         (q,) = _names(joint, (joint,), coordinate, kind)
@@ -113,8 +130,9 @@ def joint_motion(joint: str, kind: str, axis: sp.Matrix | None, coordinate=None,
         k1, k2 = axis
         q1, q2 = _names(joint, (f"{joint}_r1", f"{joint}_r2"), coordinate, kind)
         R2 = axis_rotation(k2, q2)
-        return JointMotion((q1, q2), axis_rotation(k1, q1) * R2, zero,
-                           R2.T * k1 * derivative_symbol(q1) + k2 * derivative_symbol(q2))
+        return JointMotion(
+            (q1, q2), axis_rotation(k1, q1) * R2, zero, R2.T * k1 * derivative_symbol(q1) + k2 * derivative_symbol(q2)
+        )
     if kind == "spherical":
         q, R, w, cons, defaults = rotation_motion(joint, rotation, coordinate)
         return JointMotion(q, R, zero, w, cons, defaults)

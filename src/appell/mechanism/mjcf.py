@@ -56,10 +56,10 @@ site or body transmissions, flex equalities) is refused with the element named.
 
 from __future__ import annotations
 
+import dataclasses
 import keyword
 import re
 import warnings
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -89,16 +89,22 @@ def load_mjcf(source) -> object:
             raise ModelError(f"{path}: no such MuJoCo model file")
         return mujoco.MjModel.from_xml_path(str(path))
     except ValueError as exc:
-        raise ModelError(f"MuJoCo could not read the model: {str(exc).strip()}",
-                         where=None if text.lstrip().startswith("<") else str(source),
-                         hint="check the file with MuJoCo's own tools (python -m mujoco.viewer)") from exc
+        raise ModelError(
+            f"MuJoCo could not read the model: {str(exc).strip()}",
+            where=None if text.lstrip().startswith("<") else str(source),
+            hint="check the file with MuJoCo's own tools (python -m mujoco.viewer)",
+        ) from exc
 
 
 def _rotation(quat) -> np.ndarray:
     w, x, y, z = (float(v) for v in quat)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def _orientation(R: np.ndarray) -> list[list[float]]:
@@ -143,10 +149,12 @@ def _geoms(mujoco, model, mech, place) -> None:
     cylinders and boxes in MuJoCo's half sizes, meshes as the triangles MuJoCo's compiler
     read (up to :data:`MAX_MESH_FACES` in all, then the box around each); planes (the
     floor), ellipsoids and height fields are left to the view's default drawing."""
-    kinds = {int(mujoco.mjtGeom.mjGEOM_SPHERE): ("sphere", lambda s: (s[0],)),
-             int(mujoco.mjtGeom.mjGEOM_CAPSULE): ("capsule", lambda s: (s[0], 2 * s[1])),
-             int(mujoco.mjtGeom.mjGEOM_CYLINDER): ("cylinder", lambda s: (s[0], 2 * s[1])),
-             int(mujoco.mjtGeom.mjGEOM_BOX): ("box", lambda s: (2 * s[0], 2 * s[1], 2 * s[2]))}
+    kinds = {
+        int(mujoco.mjtGeom.mjGEOM_SPHERE): ("sphere", lambda s: (s[0],)),
+        int(mujoco.mjtGeom.mjGEOM_CAPSULE): ("capsule", lambda s: (s[0], 2 * s[1])),
+        int(mujoco.mjtGeom.mjGEOM_CYLINDER): ("cylinder", lambda s: (s[0], 2 * s[1])),
+        int(mujoco.mjtGeom.mjGEOM_BOX): ("box", lambda s: (2 * s[0], 2 * s[1], 2 * s[2])),
+    }
     faces_left = MAX_MESH_FACES
     for g in range(model.ngeom):
         b, kind = int(model.geom_bodyid[g]), int(model.geom_type[g])
@@ -157,26 +165,40 @@ def _geoms(mujoco, model, mech, place) -> None:
         rgba = np.asarray(model.geom_rgba[g], float)
         if rgba[3] <= 0:  # an invisible geom
             continue
-        colour = None if np.allclose(rgba, (0.5, 0.5, 0.5, 1.0)) else \
-            "#" + "".join(f"{round(255 * min(max(x, 0.0), 1.0)):02x}" for x in rgba[:3])  # MuJoCo's grey: the body's
+        colour = (
+            None
+            if np.allclose(rgba, (0.5, 0.5, 0.5, 1.0))
+            else "#" + "".join(f"{round(255 * min(max(x, 0.0), 1.0)):02x}" for x in rgba[:3])
+        )  # MuJoCo's grey: the body's
         R_g = R_off @ _rotation(model.geom_quat[g])
-        where = dict(origin=tuple(float(v) for v in p_off + R_off @ model.geom_pos[g]), rpy=_orientation(R_g),
-                     colour=colour)
+        where = dict(
+            origin=tuple(float(v) for v in p_off + R_off @ model.geom_pos[g]), rpy=_orientation(R_g), colour=colour
+        )
         if mesh:  # the triangles MuJoCo's compiler read, in the mesh's frame (the geom's)
             m = int(model.geom_dataid[g])
             v0, nv = int(model.mesh_vertadr[m]), int(model.mesh_vertnum[m])
             f0, nf = int(model.mesh_faceadr[m]), int(model.mesh_facenum[m])
-            vertices = np.asarray(model.mesh_vert[v0:v0 + nv], float)
+            vertices = np.asarray(model.mesh_vert[v0 : v0 + nv], float)
             if nf <= faces_left:
                 faces_left -= nf
-                mech.shape(body, "mesh", (), mesh=(vertices.ravel().tolist(),
-                                                   np.asarray(model.mesh_face[f0:f0 + nf]).ravel().tolist()),
-                           **where)
+                mech.shape(
+                    body,
+                    "mesh",
+                    (),
+                    mesh=(vertices.ravel().tolist(), np.asarray(model.mesh_face[f0 : f0 + nf]).ravel().tolist()),
+                    **where,
+                )
             else:  # past the page's budget: the box around it
                 lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-                centre = p_off + R_off @ (np.asarray(model.geom_pos[g]) + _rotation(model.geom_quat[g]) @ ((lo + hi) / 2))
-                mech.shape(body, "box", tuple(float(x) for x in np.maximum(hi - lo, 1e-6)),
-                           **{**where, "origin": tuple(float(x) for x in centre)})
+                centre = p_off + R_off @ (
+                    np.asarray(model.geom_pos[g]) + _rotation(model.geom_quat[g]) @ ((lo + hi) / 2)
+                )
+                mech.shape(
+                    body,
+                    "box",
+                    tuple(float(x) for x in np.maximum(hi - lo, 1e-6)),
+                    **{**where, "origin": tuple(float(x) for x in centre)},
+                )
             continue
         name, size = kinds[kind]
         mech.shape(body, name, tuple(float(v) for v in size(np.asarray(model.geom_size[g], float))), **where)
@@ -221,8 +243,12 @@ class _Names:
 
 
 #: the coordinates and constraints a joint of each kind adds beside its name
-_DERIVED = {"free": ("_x", "_y", "_z", "_q0", "_q1", "_q2", "_q3", "_unit"),
-            "ball": ("_q0", "_q1", "_q2", "_q3", "_unit"), "hinge": (), "slide": ()}
+_DERIVED = {
+    "free": ("_x", "_y", "_z", "_q0", "_q1", "_q2", "_q3", "_unit"),
+    "ball": ("_q0", "_q1", "_q2", "_q3", "_unit"),
+    "hinge": (),
+    "slide": (),
+}
 
 
 @dataclass(frozen=True)
@@ -270,7 +296,9 @@ class MjcfModel:
         free joint's translation is ``R0^T (qpos[0:3] - p0)`` along its frame at ``qpos0``,
         its quaternion ``q0* qpos[3:7]``."""
         qpos = np.asarray(qpos, float)
-        qvel = np.zeros(max((j.dofadr + 6 for j in self.joints), default=0)) if qvel is None else np.asarray(qvel, float)
+        qvel = (
+            np.zeros(max((j.dofadr + 6 for j in self.joints), default=0)) if qvel is None else np.asarray(qvel, float)
+        )
         out = {}
         for j in self.joints:
             a, d = j.qposadr, j.dofadr
@@ -282,15 +310,15 @@ class MjcfModel:
                 continue
             if j.kind == "free":
                 R0 = np.asarray(j.rotation)
-                x = R0.T @ (qpos[a:a + 3] - np.asarray(j.origin))
-                v = R0.T @ qvel[d:d + 3]
+                x = R0.T @ (qpos[a : a + 3] - np.asarray(j.origin))
+                v = R0.T @ qvel[d : d + 3]
                 for k in range(3):
                     out[j.coordinates[k]] = float(x[k])
                     out[j.coordinates[k] + "_dot"] = float(v[k])
-                quat = _product(_conjugate(_quaternion(R0)), qpos[a + 3:a + 7])
-                omega, names = qvel[d + 3:d + 6], j.coordinates[3:]
+                quat = _product(_conjugate(_quaternion(R0)), qpos[a + 3 : a + 7])
+                omega, names = qvel[d + 3 : d + 6], j.coordinates[3:]
             else:
-                quat, omega, names = qpos[a:a + 4], qvel[d:d + 3], j.coordinates
+                quat, omega, names = qpos[a : a + 4], qvel[d : d + 3], j.coordinates
             rate = 0.5 * _product(quat, np.concatenate([[0.0], omega]))
             for k in range(4):
                 out[names[k]] = float(quat[k])
@@ -324,15 +352,19 @@ def _rate(expr, coordinates) -> sp.Expr:
 
 
 #: what has no meaning for the rigid-body motion appell computes, each with what tells it
-_IGNORED = (("contacts between geoms", lambda m: m.ngeom and np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0))),
-            ("joint limits", lambda m: np.any(np.asarray(m.jnt_limited) != 0)),
-            ("tendon limits", lambda m: m.ntendon and np.any(np.asarray(m.tendon_limited) != 0)),
-            ("soft-constraint parameters (solref, solimp) of the equalities (held rigid here)", lambda m: m.neq),
-            ("sensors", lambda m: m.nsensor),
-            ("cameras, lights and visual settings", lambda m: m.ncam or m.nlight),
-            ("keyframes", lambda m: m.nkey),
-            ("fluid forces (density, viscosity, wind)",
-             lambda m: float(m.opt.density) != 0 or float(m.opt.viscosity) != 0 or np.any(np.asarray(m.opt.wind) != 0)))
+_IGNORED = (
+    ("contacts between geoms", lambda m: m.ngeom and np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0))),
+    ("joint limits", lambda m: np.any(np.asarray(m.jnt_limited) != 0)),
+    ("tendon limits", lambda m: m.ntendon and np.any(np.asarray(m.tendon_limited) != 0)),
+    ("soft-constraint parameters (solref, solimp) of the equalities (held rigid here)", lambda m: m.neq),
+    ("sensors", lambda m: m.nsensor),
+    ("cameras, lights and visual settings", lambda m: m.ncam or m.nlight),
+    ("keyframes", lambda m: m.nkey),
+    (
+        "fluid forces (density, viscosity, wind)",
+        lambda m: float(m.opt.density) != 0 or float(m.opt.viscosity) != 0 or np.any(np.asarray(m.opt.wind) != 0),
+    ),
+)
 
 
 def _flag(model, name: str) -> bool:
@@ -363,8 +395,12 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
 
     if frictionloss not in ("refuse", "ignore"):
         raise ModelError(f"frictionloss must be 'refuse' or 'ignore', got {frictionloss!r}")
-    kinds = {int(mujoco.mjtJoint.mjJNT_HINGE): "hinge", int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
-             int(mujoco.mjtJoint.mjJNT_BALL): "ball", int(mujoco.mjtJoint.mjJNT_FREE): "free"}
+    kinds = {
+        int(mujoco.mjtJoint.mjJNT_HINGE): "hinge",
+        int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
+        int(mujoco.mjtJoint.mjJNT_BALL): "ball",
+        int(mujoco.mjtJoint.mjJNT_FREE): "free",
+    }
     bodies = _names(model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
     joint_names = _names(model, mujoco.mjtObj.mjOBJ_JOINT, model.njnt)
     title = bytes(model.names).split(b"\x00")[0].decode(errors="replace")  # the <mujoco model="..."> name
@@ -378,7 +414,9 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
     jname = {}
     for j in range(model.njnt):
         b = int(model.jnt_bodyid[j])
-        jname[j] = names.claim("joint", joint_names[j], f"{bodies[b] or f'body{b}'}_joint", _DERIVED[kinds[int(model.jnt_type[j])]])
+        jname[j] = names.claim(
+            "joint", joint_names[j], f"{bodies[b] or f'body{b}'}_joint", _DERIVED[kinds[int(model.jnt_type[j])]]
+        )
     bname = {b: names.claim("body", bodies[b], f"body{b}") for b in range(1, model.nbody)}
     place = {0: (mech.ground, np.eye(3), np.zeros(3))}  # MuJoCo body -> (appell body, R, p of its frame in it)
     made_joints: dict[int, object] = {}
@@ -403,12 +441,18 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
             R_i = _rotation(model.body_iquat[b])
             tensor = R_i @ np.diag(model.body_inertia[b]) @ R_i.T
             tensor = (tensor + tensor.T) / 2  # symmetric also in floating point (a turned inertial frame)
-            return mech.body(name, mass, inertia=sp.Matrix(tensor).applyfunc(lambda v: sp.Float(float(v))),
-                             com=tuple(float(v) for v in model.body_ipos[b]))
+            return mech.body(
+                name,
+                mass,
+                inertia=sp.Matrix(tensor).applyfunc(lambda v: sp.Float(float(v))),
+                com=tuple(float(v) for v in model.body_ipos[b]),
+            )
 
         if not ids:
             body = massive()
-            mech.fixed(names.claim("weld", None, f"{name}_weld"), parent, body, origin=tuple(p_b), rpy=_orientation(R_b))
+            mech.fixed(
+                names.claim("weld", None, f"{name}_weld"), parent, body, origin=tuple(p_b), rpy=_orientation(R_b)
+            )
             place[b] = (body, np.eye(3), np.zeros(3))
             continue
         for k, j in enumerate(ids):  # several joints: each moves the frame the one before left
@@ -432,9 +476,18 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
             else:
                 made = mech.free(jname[j], parent, child, rotation="quaternion", **common)
             made_joints[j] = made
-            read_joints.append(MjcfJoint(joint_names[j] or jname[j], jname[j], kind, int(model.jnt_qposadr[j]),
-                                         int(model.jnt_dofadr[j]), tuple(q.name for q in made.coordinates),
-                                         origin, tuple(map(tuple, np.asarray(R0, float)))))
+            read_joints.append(
+                MjcfJoint(
+                    joint_names[j] or jname[j],
+                    jname[j],
+                    kind,
+                    int(model.jnt_qposadr[j]),
+                    int(model.jnt_dofadr[j]),
+                    tuple(q.name for q in made.coordinates),
+                    origin,
+                    tuple(map(tuple, np.asarray(R0, float))),
+                )
+            )
             parent = child
         place[b] = (parent, np.eye(3), np.zeros(3))
     _geoms(mujoco, model, mech, place)
@@ -459,7 +512,11 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
                     forces[q.name] = forces.get(q.name, sp.S.Zero) - value * row * share
 
     for j, made in made_joints.items():
-        kind, d, n = kinds[int(model.jnt_type[j])], int(model.jnt_dofadr[j]), {"free": 6, "ball": 3}.get(kinds[int(model.jnt_type[j])], 1)
+        kind, d, n = (
+            kinds[int(model.jnt_type[j])],
+            int(model.jnt_dofadr[j]),
+            {"free": 6, "ball": 3}.get(kinds[int(model.jnt_type[j])], 1),
+        )
         qs = made.coordinates
         shown = names.shown(jname[j])
         if kind in ("hinge", "slide"):
@@ -471,26 +528,29 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
                 rows = list(R0 * sp.Matrix([derivative_symbol(q) for q in qs[:3]])) + omega
             else:
                 rows = omega
-        armature = [float(v) for v in model.dof_armature[d:d + n]]
+        armature = [float(v) for v in model.dof_armature[d : d + n]]
         if armature_as == "rotors" and kind in ("hinge", "slide") and armature[0] != 0:
             # a rotor of inertia a on a fixed axis, turned by the joint's coordinate: T = a w^2/2 exactly,
             # and the joint tree (the recursions) keeps it
             r_body = mech.body(names.claim("rotor", None, f"{jname[j]}_rotor_body"), 1.0, inertia=(armature[0],) * 3)
             r_joint = mech.revolute(names.claim("rotor", None, f"{jname[j]}_rotor"), mech.ground, r_body)
             rotors[jname[j]] = r_joint.coordinates[0].name
-            constraints.append(holonomic(names.claim("armature", None, f"{jname[j]}_armature"),
-                                         r_joint.coordinates[0] - qs[0]))
+            constraints.append(
+                holonomic(names.claim("armature", None, f"{jname[j]}_armature"), r_joint.coordinates[0] - qs[0])
+            )
         else:
             rotor += sum((a * r**2 / 2 for a, r in zip(armature, rows) if a != 0), sp.S.Zero)
         if not dampers_off:
-            add(rows, qs, [float(v) for v in model.dof_damping[d:d + n]])
-        if np.any(np.asarray(model.dof_frictionloss[d:d + n]) != 0):
+            add(rows, qs, [float(v) for v in model.dof_damping[d : d + n]])
+        if np.any(np.asarray(model.dof_frictionloss[d : d + n]) != 0):
             friction.append(f"joint {shown}")
         k = float(model.jnt_stiffness[j])
         if k != 0 and not springs_off:
             if kind not in ("hinge", "slide"):
-                raise ModelError(f"{source}: joint {shown} is a {kind} joint with stiffness {k:g}",
-                                 hint="appell applies the stiffness of hinge and slide joints only")
+                raise ModelError(
+                    f"{source}: joint {shown} is a {kind} joint with stiffness {k:g}",
+                    hint="appell applies the stiffness of hinge and slide joints only",
+                )
             a = int(model.jnt_qposadr[j])
             qpos = qs[0] + float(model.qpos0[a])
             forces[qs[0].name] = forces.get(qs[0].name, sp.S.Zero) - k * (qpos - float(model.qpos_spring[a]))
@@ -517,8 +577,10 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
         a = float(getattr(model, "tendon_armature", np.zeros(model.ntendon))[i])
         if L is None:
             if k or c or a:
-                raise ModelError(f"{source}: {shown} is a spatial tendon with stiffness, damping or armature",
-                                 hint="appell maps fixed tendons (joint couplings) only")
+                raise ModelError(
+                    f"{source}: {shown} is a spatial tendon with stiffness, damping or armature",
+                    hint="appell maps fixed tendons (joint couplings) only",
+                )
             continue
         coords = sorted(L.free_symbols, key=lambda s: s.name)
         rate = _rate(L, coords)
@@ -535,10 +597,12 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
         if float(model.tendon_frictionloss[i]) != 0:
             friction.append(shown)
     if friction and frictionloss == "refuse":
-        raise ModelError(f"{source}: frictionloss on {', '.join(friction)}: MuJoCo's dry friction with a constant "
-                         "bound has no counterpart in appell (its Coulomb friction needs a normal force)",
-                         hint="read with frictionloss='ignore' to leave it out (named in a note); on the command "
-                              "line: --mjcf frictionloss=ignore")
+        raise ModelError(
+            f"{source}: frictionloss on {', '.join(friction)}: MuJoCo's dry friction with a constant "
+            "bound has no counterpart in appell (its Coulomb friction needs a normal force)",
+            hint="read with frictionloss='ignore' to leave it out (named in a note); on the command "
+            "line: --mjcf frictionloss=ignore",
+        )
     if friction:
         ignored.append(f"frictionloss (on {len(friction)} joints and tendons)")
 
@@ -549,26 +613,34 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
         shown_name = actuator_names[i] or f"actuator{i}"
         where = f"{source}: actuator {shown_name!r}"
         if int(model.actuator_dyntype[i]) != int(mujoco.mjtDyn.mjDYN_NONE):
-            raise ModelError(f"{where} has activation dynamics ({mujoco.mjtDyn(int(model.actuator_dyntype[i])).name})",
-                             hint="appell maps actuators without activation states (motor, position, velocity, "
-                                  "general with dyntype none)")
-        if int(model.actuator_gaintype[i]) != int(mujoco.mjtGain.mjGAIN_FIXED) or \
-                int(model.actuator_biastype[i]) not in (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE)):
-            raise ModelError(f"{where}: gain or bias of a kind appell does not map",
-                             hint="fixed gain and affine bias are mapped")
+            raise ModelError(
+                f"{where} has activation dynamics ({mujoco.mjtDyn(int(model.actuator_dyntype[i])).name})",
+                hint="appell maps actuators without activation states (motor, position, velocity, "
+                "general with dyntype none)",
+            )
+        if int(model.actuator_gaintype[i]) != int(mujoco.mjtGain.mjGAIN_FIXED) or int(
+            model.actuator_biastype[i]
+        ) not in (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE)):
+            raise ModelError(
+                f"{where}: gain or bias of a kind appell does not map", hint="fixed gain and affine bias are mapped"
+            )
         trn, obj = int(model.actuator_trntype[i]), int(model.actuator_trnid[i][0])
         gear = float(model.actuator_gear[i][0])
         if trn in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)):
             if obj not in made_joints or kinds[int(model.jnt_type[obj])] not in ("hinge", "slide"):
-                raise ModelError(f"{where} drives a joint appell maps with several coordinates",
-                                 hint="actuators on hinge and slide joints and on fixed tendons are mapped")
+                raise ModelError(
+                    f"{where} drives a joint appell maps with several coordinates",
+                    hint="actuators on hinge and slide joints and on fixed tendons are mapped",
+                )
             q = made_joints[obj].coordinates[0]
             L = q + float(model.qpos0[int(model.jnt_qposadr[obj])])
         elif trn == int(mujoco.mjtTrn.mjTRN_TENDON) and length.get(obj) is not None:
             L = length[obj]
         else:
-            raise ModelError(f"{where} has a transmission appell does not map ({mujoco.mjtTrn(trn).name})",
-                             hint="actuators on hinge and slide joints and on fixed tendons are mapped")
+            raise ModelError(
+                f"{where} has a transmission appell does not map ({mujoco.mjtTrn(trn).name})",
+                hint="actuators on hinge and slide joints and on fixed tendons are mapped",
+            )
         coords = sorted(L.free_symbols, key=lambda s: s.name)
         u = sp.Symbol(names.claim("actuator", actuator_names[i], f"actuator{i}"))
         gain, bias = float(model.actuator_gainprm[i][0]), [float(v) for v in model.actuator_biasprm[i][:3]]
@@ -579,15 +651,20 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
             forces[q.name] = forces.get(q.name, sp.S.Zero) + gear * sp.diff(L, q) * force
         limited = bool(model.actuator_ctrllimited[i])
         ranged = ranged or limited or bool(model.actuator_forcelimited[i])
-        actuators.append((u.name, shown_name, tuple(float(v) for v in model.actuator_ctrlrange[i]) if limited else None))
+        actuators.append(
+            (u.name, shown_name, tuple(float(v) for v in model.actuator_ctrlrange[i]) if limited else None)
+        )
     if ranged or np.any(np.asarray(getattr(model, "jnt_actfrclimited", [0])) != 0):
         ignored.append("control and force ranges of the actuators (not enforced: the controls are inputs)")
     if np.any(np.asarray(model.body_gravcomp) != 0):
         for b in np.nonzero(np.asarray(model.body_gravcomp))[0]:
             body, R_off, p_off = place[int(b)]
             share = float(model.body_gravcomp[b]) * float(model.body_mass[b])
-            mech.force(names.claim("gravcomp", None, f"{bname[int(b)]}_gravcomp"),
-                       (body, tuple(p_off + R_off @ model.body_ipos[b])), tuple(-share * g for g in gravity))
+            mech.force(
+                names.claim("gravcomp", None, f"{bname[int(b)]}_gravcomp"),
+                (body, tuple(p_off + R_off @ model.body_ipos[b])),
+                tuple(-share * g for g in gravity),
+            )
 
     # ---- equalities
     equality_names = _names(model, mujoco.mjtObj.mjOBJ_EQUALITY, model.neq)
@@ -618,24 +695,33 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
                 if in_body != "xyz" and place[b1][0] is not mech.ground and np.allclose(place[b1][1], np.eye(3)):
                     directions, axes = in_body, "a"
             if directions != "xyz":
-                ignored.append(f"the rows of connect {shown} along {', '.join(a for a in 'xyz' if a not in directions)} "
-                               "(it holds by itself there: a planar loop)")
+                ignored.append(
+                    f"the rows of connect {shown} along {', '.join(a for a in 'xyz' if a not in directions)} "
+                    "(it holds by itself there: a planar loop)"
+                )
             if directions:
                 mech.connect(ename, (a1, r1), (a2, r2), directions=directions, axes=axes)
         elif kind == mujoco.mjtEq.mjEQ_JOINT:
             j1, j2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
-            if j1 not in made_joints or len(made_joints[j1].coordinates) != 1 or \
-                    (j2 >= 0 and len(made_joints[j2].coordinates) != 1):
-                raise ModelError(f"{source}: joint equality {shown} couples joints appell cannot map",
-                                 hint="joint equalities of hinge and slide joints are mapped")
+            if (
+                j1 not in made_joints
+                or len(made_joints[j1].coordinates) != 1
+                or (j2 >= 0 and len(made_joints[j2].coordinates) != 1)
+            ):
+                raise ModelError(
+                    f"{source}: joint equality {shown} couples joints appell cannot map",
+                    hint="joint equalities of hinge and slide joints are mapped",
+                )
             x = made_joints[j2].coordinates[0] if j2 >= 0 else sp.S.Zero
             poly = sum(float(c) * x**k for k, c in enumerate(data[:5]))
             constraints.append(holonomic(ename, made_joints[j1].coordinates[0] - poly))
         elif kind == mujoco.mjtEq.mjEQ_TENDON:
             t1, t2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
             if length.get(t1) is None or (t2 >= 0 and length.get(t2) is None):
-                raise ModelError(f"{source}: tendon equality {shown} couples a spatial tendon",
-                                 hint="tendon equalities of fixed tendons are mapped")
+                raise ModelError(
+                    f"{source}: tendon equality {shown} couples a spatial tendon",
+                    hint="tendon equalities of fixed tendons are mapped",
+                )
 
             def deviation(i):
                 return length[i] - float(model.tendon_length0[i])
@@ -648,20 +734,29 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
                 raise ModelError(f"{source}: weld {shown} between sites", hint="give body1/body2 and an anchor")
             (a1, _, R1, _, _), (a2, _, R2, _, _) = point(e, 1, data[0:3]), point(e, 2, data[0:3])
             b1, b2 = place[int(model.eq_obj1id[e])], place[int(model.eq_obj2id[e])]
-            mech.weld(ename, (a1, tuple(b1[2] + b1[1] @ data[3:6])), (a2, tuple(b2[2] + b2[1] @ data[0:3])),
-                      rotation=(R1 @ _rotation(data[6:10]) @ R2.T).tolist())
+            mech.weld(
+                ename,
+                (a1, tuple(b1[2] + b1[1] @ data[3:6])),
+                (a2, tuple(b2[2] + b2[1] @ data[0:3])),
+                rotation=(R1 @ _rotation(data[6:10]) @ R2.T).tolist(),
+            )
         else:
-            raise ModelError(f"{source}: equality {shown} is of a kind appell does not map "
-                             f"({mujoco.mjtEq(kind).name})",
-                             hint="connect, weld, joint and fixed-tendon equalities are mapped (flex equalities "
-                                  "are not)")
+            raise ModelError(
+                f"{source}: equality {shown} is of a kind appell does not map ({mujoco.mjtEq(kind).name})",
+                hint="connect, weld, joint and fixed-tendon equalities are mapped (flex equalities are not)",
+            )
     if merged:
         ignored.append(f"massless bodies merged into their parents: {', '.join(merged)}")
     if names.table:
-        ignored.append("names mapped to identifiers: " + ", ".join(f"{kind} {orig!r} -> {ident}" for ident, (kind, orig)
-                                                                 in names.table.items()))
-    note = f"{source}: not applied (no meaning for the rigid-body motion) or mapped: " + "; ".join(ignored) \
-        if ignored else None
+        ignored.append(
+            "names mapped to identifiers: "
+            + ", ".join(f"{kind} {orig!r} -> {ident}" for ident, (kind, orig) in names.table.items())
+        )
+    note = (
+        f"{source}: not applied (no meaning for the rigid-body motion) or mapped: " + "; ".join(ignored)
+        if ignored
+        else None
+    )
     points = {}  # where each MJCF body's frame and each site is on appell's bodies (merged bodies included)
     for b in range(1, model.nbody):
         body, _, p_b = place[b]
@@ -670,9 +765,19 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
         body, R_b, p_b = place[int(model.site_bodyid[k])]
         if site and site not in points and body is not mech.ground:
             points[site] = (body.name, tuple(float(x) for x in p_b + R_b @ np.asarray(model.site_pos[k], float)))
-    out = MjcfModel(mech, tuple(constraints), {k: v for k, v in forces.items() if v != 0}, rotor,
-                    tuple(actuators), tuple(read_joints), dict(names.table), note, rotors, points,
-                    tuple(names.kept))
+    out = MjcfModel(
+        mech,
+        tuple(constraints),
+        {k: v for k, v in forces.items() if v != 0},
+        rotor,
+        tuple(actuators),
+        tuple(read_joints),
+        dict(names.table),
+        note,
+        rotors,
+        points,
+        tuple(names.kept),
+    )
     out.__dict__["qpos0"] = np.asarray(model.qpos0, float).copy()
     return out
 
@@ -696,8 +801,9 @@ def mjcf_mechanism(model, source: str = "<mjcf>", frictionloss: str = "refuse"):
     return read.mechanism, list(read.constraints)
 
 
-def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: str = "refuse",
-                armature: str = "rotors", **options):
+def mjcf_system(
+    source, ctrl=None, actuators: str = "programs", frictionloss: str = "refuse", armature: str = "rotors", **options
+):
     """The :class:`~appell.model.System` of a MuJoCo model file (or XML string), every joint's
     force and moment as outputs (``options`` go to :meth:`Mechanism.system`).
 
@@ -724,8 +830,10 @@ def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: st
     known = {n for a in read.actuators for n in a[:2]}
     unknown = sorted(str(k) for k in given if str(k) not in known)
     if unknown:
-        raise ModelError(f"{where}: ctrl for unknown actuator(s) {', '.join(unknown)}",
-                         hint="actuators: " + ", ".join(a[1] for a in read.actuators))
+        raise ModelError(
+            f"{where}: ctrl for unknown actuator(s) {', '.join(unknown)}",
+            hint="actuators: " + ", ".join(a[1] for a in read.actuators),
+        )
     programs, controls = [], []
     for ident, original, _ in read.actuators:
         if actuators == "controls" and ident not in given and original not in given:
@@ -733,17 +841,26 @@ def mjcf_system(source, ctrl=None, actuators: str = "programs", frictionloss: st
             continue
         value = given.get(original, given.get(ident, 0.0))
         if isinstance(value, str) or not isinstance(value, (int, float, sp.Basic)):
-            raise ModelError(f"{where}: ctrl of actuator {original!r} must be a number or a SymPy expression in t, "
-                             f"got {type(value).__name__}", hint="e.g. 0.5*sympy.sin(2*appell.symbols.t)")
+            raise ModelError(
+                f"{where}: ctrl of actuator {original!r} must be a number or a SymPy expression in t, "
+                f"got {type(value).__name__}",
+                hint="e.g. 0.5*sympy.sin(2*appell.symbols.t)",
+            )
         expr = sp.sympify(value)
         if not expr.free_symbols <= {t}:
-            raise ModelError(f"{where}: ctrl of actuator {original!r} depends on {sorted(map(str, expr.free_symbols - {t}))}",
-                             hint="a program is a function of time t alone")
+            raise ModelError(
+                f"{where}: ctrl of actuator {original!r} depends on {sorted(map(str, expr.free_symbols - {t}))}",
+                hint="a program is a function of time t alone",
+            )
         programs.append(Program(sp.Symbol(ident), expr))
-    system = read.mechanism.system(constraints=tuple(read.constraints), joint_forces=read.joint_forces,
-                                   rotor_energy=read.rotor_energy if read.rotor_energy != 0 else None,
-                                   programs=tuple(programs), controls=tuple(options.pop("controls", ())) + tuple(controls),
-                                   **options)
+    system = read.mechanism.system(
+        constraints=tuple(read.constraints),
+        joint_forces=read.joint_forces,
+        rotor_energy=read.rotor_energy if read.rotor_energy != 0 else None,
+        programs=tuple(programs),
+        controls=tuple(options.pop("controls", ())) + tuple(controls),
+        **options,
+    )
     if read.names:  # every table and message shows MuJoCo's names (System.names); the names read
         # unchanged map to themselves, so that a longer one is not read as a renamed shorter one
         table = {**{k: k for k in read.kept}, **{ident: original for ident, (_, original) in read.names.items()}}

@@ -17,8 +17,8 @@ import sympy as sp
 from appell.errors import ModelError
 from appell.mechanism.joints import JointMotion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew
-from appell.rigid_tree import RigidTree
 from appell.model import holonomic
+from appell.rigid_tree import RigidTree
 from appell.symbols import derivative_symbol, t
 
 GROUND = "ground"
@@ -43,9 +43,11 @@ def _real(expr, what: str) -> sp.Expr:
         except (TypeError, ValueError, OverflowError):
             finite = False
         if not finite:
-            raise ModelError(f"{what}: {node} is not a finite real number",
-                             hint="give real values within the floating-point range (about 1.8e308); rescale the "
-                                  "units or the parameters where a value is that large")
+            raise ModelError(
+                f"{what}: {node} is not a finite real number",
+                hint="give real values within the floating-point range (about 1.8e308); rescale the "
+                "units or the parameters where a value is that large",
+            )
     return expr
 
 
@@ -60,8 +62,9 @@ def _matrix(value, what: str, shape=(3, 1)) -> sp.Matrix:
     if shape == (3, 1) and m.shape == (1, 3):
         m = m.T
     if m.shape != shape:
-        raise ModelError(f"{what} must have {shape[0]}{'x' + str(shape[1]) if shape[1] > 1 else ''} "
-                         f"components, got {value!r}")
+        raise ModelError(
+            f"{what} must have {shape[0]}{'x' + str(shape[1]) if shape[1] > 1 else ''} components, got {value!r}"
+        )
     return m
 
 
@@ -69,14 +72,19 @@ def _orientation(value, what: str) -> sp.Matrix:
     """The rotation of ``value``: roll, pitch, yaw (URDF's ``Rz Ry Rx``), or the 3x3 rotation
     matrix itself (so that a frame composed from others keeps every digit: read back as
     angles near a pitch of 90 degrees, roll and yaw would lose them)."""
-    if isinstance(value, sp.MatrixBase) and value.shape == (3, 3) or (
-            isinstance(value, (list, tuple)) and len(value) == 3 and all(isinstance(r, (list, tuple)) for r in value)):
+    if (
+        isinstance(value, sp.MatrixBase)
+        and value.shape == (3, 3)
+        or (isinstance(value, (list, tuple)) and len(value) == 3 and all(isinstance(r, (list, tuple)) for r in value))
+    ):
         R = _matrix(value, what, shape=(3, 3))
         if not R.free_symbols:
             error = np.abs(np.array(R.T * R - sp.eye(3), dtype=float)).max()
             if error > 1e-9 or float(R.det()) < 0:
-                raise ModelError(f"{what}: the 3x3 matrix is not a rotation (R^T R - I up to {error:.2g}, "
-                                 f"det {float(R.det()):.6g})", hint="give roll, pitch, yaw or a proper rotation matrix")
+                raise ModelError(
+                    f"{what}: the 3x3 matrix is not a rotation (R^T R - I up to {error:.2g}, det {float(R.det()):.6g})",
+                    hint="give roll, pitch, yaw or a proper rotation matrix",
+                )
         return R
     return rpy_rotation(_matrix(value, what))
 
@@ -219,9 +227,15 @@ def _point_rows(name, ba, pa, bb, pb, directions="xyz", idle=None, axes=None, ga
         cons.append(c)
         # along a turning body_a's axis the row's virtual work has the moment e x (p_a - p_b) on body_a
         # (R_a (u x R_a^T (p_a - p_b))), zero where the points coincide
-        turn = sp.zeros(3, 1) if axes is None else axes * _cross(
-            sp.Matrix([1 if d == x else 0 for x in "xyz"]),
-            axes.T * (pa - pb) if gap is None else sp.Matrix(gap)) * lam
+        turn = (
+            sp.zeros(3, 1)
+            if axes is None
+            else axes
+            * _cross(
+                sp.Matrix([1 if d == x else 0 for x in "xyz"]), axes.T * (pa - pb) if gap is None else sp.Matrix(gap)
+            )
+            * lam
+        )
         acts += [_Action(ba, pa, e * lam, turn), _Action(bb, pb, -e * lam, sp.zeros(3, 1))]
     return cons, acts
 
@@ -248,8 +262,10 @@ def _loop_points(name, ba, ra, bb, rb, directions, kind="point") -> tuple:
     """The point rows of a loop closure as :class:`_Closure` records them: along world
     directions (``kind='point'``) or along body_a's axes (``'point_a'``, the unit vector
     ``e_d`` fixed in body_a)."""
-    return tuple((f"{name}_{d}", kind, ba, ra, sp.Matrix([1 if d == x else 0 for x in "xyz"]), bb, rb,
-                  sp.zeros(3, 1)) for d in directions)
+    return tuple(
+        (f"{name}_{d}", kind, ba, ra, sp.Matrix([1 if d == x else 0 for x in "xyz"]), bb, rb, sp.zeros(3, 1))
+        for d in directions
+    )
 
 
 @dataclass(frozen=True)

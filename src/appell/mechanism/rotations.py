@@ -51,23 +51,28 @@ def unit_axis(axis, what: str) -> sp.Matrix:
     try:
         k = sp.Matrix([sp.nsimplify(sp.sympify(a, strict=True), rational=True) for a in axis])
     except (TypeError, ValueError, sp.SympifyError):
-        raise ModelError(f"{what}: the axis {axis!r} is not three numbers",
-                         hint="give the axis as three numbers, e.g. (0, 0, 1)") from None
+        raise ModelError(
+            f"{what}: the axis {axis!r} is not three numbers", hint="give the axis as three numbers, e.g. (0, 0, 1)"
+        ) from None
     if k.shape != (3, 1):
         raise ModelError(f"{what}: the axis {axis!r} must be three numbers", hint="e.g. axis=(0, 0, 1)")
     norm2 = sum(e**2 for e in k)
     if any(not e.is_number for e in k):
         # an axis given by parameters (a head angle): of unit length for every value
         if not all(isinstance(s, sp.Symbol) for s in norm2.free_symbols) or not identically_zero(norm2 - 1):
-            raise ModelError(f"{what}: the axis {tuple(axis)} is not of unit length for every value of "
-                             f"{', '.join(sorted(str(s) for s in norm2.free_symbols))}",
-                             hint="give three numbers, or a unit vector such as (sin(b), 0, cos(b))")
+            raise ModelError(
+                f"{what}: the axis {tuple(axis)} is not of unit length for every value of "
+                f"{', '.join(sorted(str(s) for s in norm2.free_symbols))}",
+                hint="give three numbers, or a unit vector such as (sin(b), 0, cos(b))",
+            )
         return k
     if norm2 == 0:
         raise ModelError(f"{what}: the axis is zero", hint="give a unit vector, e.g. axis=(0, 0, 1)")
     if abs(float(norm2) - 1.0) > 1e-9:
-        raise ModelError(f"{what}: the axis {tuple(axis)} has length {float(norm2) ** 0.5:.6g}, not 1",
-                         hint="normalise it (divide by its length)")
+        raise ModelError(
+            f"{what}: the axis {tuple(axis)} has length {float(norm2) ** 0.5:.6g}, not 1",
+            hint="normalise it (divide by its length)",
+        )
     return k
 
 
@@ -99,11 +104,17 @@ def rpy_rotation(rpy) -> sp.Matrix:
 
 
 def check_sequence(sequence: str, what: str) -> str:
-    if not isinstance(sequence, str) or len(sequence) != 3 or any(c not in AXES for c in sequence) or \
-            sequence[0] == sequence[1] or sequence[1] == sequence[2]:
-        raise ModelError(f"{what}: rotation {sequence!r} is not an Euler sequence",
-                         hint="give three axes with no two neighbours equal, e.g. 'xyz', 'zyx', 'zxz', "
-                              "or 'quaternion'")
+    if (
+        not isinstance(sequence, str)
+        or len(sequence) != 3
+        or any(c not in AXES for c in sequence)
+        or sequence[0] == sequence[1]
+        or sequence[1] == sequence[2]
+    ):
+        raise ModelError(
+            f"{what}: rotation {sequence!r} is not an Euler sequence",
+            hint="give three axes with no two neighbours equal, e.g. 'xyz', 'zyx', 'zxz', or 'quaternion'",
+        )
     return sequence
 
 
@@ -122,10 +133,13 @@ def euler_rotation(sequence: str, angles) -> tuple[sp.Matrix, sp.Matrix]:
 def quaternion_rotation(q) -> sp.Matrix:
     """``R(q)`` of a quaternion (scalar first), quadratic in q (a rotation where q.q = 1)."""
     q0, q1, q2, q3 = q
-    return sp.Matrix([
-        [q0**2 + q1**2 - q2**2 - q3**2, 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2)],
-        [2 * (q1 * q2 + q0 * q3), q0**2 - q1**2 + q2**2 - q3**2, 2 * (q2 * q3 - q0 * q1)],
-        [2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), q0**2 - q1**2 - q2**2 + q3**2]])
+    return sp.Matrix(
+        [
+            [q0**2 + q1**2 - q2**2 - q3**2, 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2)],
+            [2 * (q1 * q2 + q0 * q3), q0**2 - q1**2 + q2**2 - q3**2, 2 * (q2 * q3 - q0 * q1)],
+            [2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), q0**2 - q1**2 - q2**2 + q3**2],
+        ]
+    )
 
 
 def quaternion_rates(q) -> sp.Matrix:

@@ -47,9 +47,13 @@ JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "ball")
 
 def _rpy(r, p, y) -> np.ndarray:
     cr, sr, cp, sp_, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    return np.array([[cy * cp, cy * sp_ * sr - sy * cr, cy * sp_ * cr + sy * sr],
-                     [sy * cp, sy * sp_ * sr + cy * cr, sy * sp_ * cr - cy * sr],
-                     [-sp_, cp * sr, cp * cr]])
+    return np.array(
+        [
+            [cy * cp, cy * sp_ * sr - sy * cr, cy * sp_ * cr + sy * sr],
+            [sy * cp, sy * sp_ * sr + cy * cr, sy * sp_ * cr - cy * sr],
+            [-sp_, cp * sr, cp * cr],
+        ]
+    )
 
 
 def _numbers(element, count, source, what, default=None) -> tuple[float, ...]:
@@ -60,8 +64,11 @@ def _numbers(element, count, source, what, default=None) -> tuple[float, ...]:
     text = (element.attrib.get("_text") or "").split()
     where = f"{source}:{element.line}"
     if len(text) != count:
-        raise ModelError(f"{what}: <{element.tag}> must be {count} number(s), got {len(text)}", where=where,
-                         hint=f"write {count} finite numbers separated by spaces")
+        raise ModelError(
+            f"{what}: <{element.tag}> must be {count} number(s), got {len(text)}",
+            where=where,
+            hint=f"write {count} finite numbers separated by spaces",
+        )
     try:
         values = tuple(float(v) for v in text)
     except ValueError:
@@ -77,8 +84,11 @@ def _pose(element, source, what):
     if pose is None:
         return np.eye(3), np.zeros(3)
     if pose.attrib.get("relative_to") or pose.attrib.get("frame"):
-        raise ModelError(f"{what}: <pose relative_to=...> is not read", where=f"{source}:{pose.line}",
-                         hint="give the pose in the default frame (the model's for a link, the child's for a joint)")
+        raise ModelError(
+            f"{what}: <pose relative_to=...> is not read",
+            where=f"{source}:{pose.line}",
+            hint="give the pose in the default frame (the model's for a link, the child's for a joint)",
+        )
     x, y, z, r, p, yw = _numbers(pose, 6, source, what)
     return _rpy(r, p, yw), np.array([x, y, z])
 
@@ -91,8 +101,11 @@ def read_sdf_text(text: str | bytes, source: str = "<sdf>"):
     try:
         _xml_tree(text, source)  # the checks (declarations, encoding, depth) with their messages
     except ModelError as exc:
-        raise ModelError(str(exc.args[0]).replace("URDF", "SDF"), where=getattr(exc, "where", source),
-                         hint=getattr(exc, "hint", None)) from None
+        raise ModelError(
+            str(exc.args[0]).replace("URDF", "SDF"),
+            where=getattr(exc, "where", source),
+            hint=getattr(exc, "hint", None),
+        ) from None
     from appell.mechanism.urdf import _Element
 
     parser = xml.parsers.expat.ParserCreate()
@@ -124,7 +137,9 @@ def _model(tree, source):
     holder = world if world is not None else tree
     model = holder.find("model")
     if model is None:
-        raise ModelError("no <model> in the SDF file", where=source, hint="an SDF robot is a <model> with links and joints")
+        raise ModelError(
+            "no <model> in the SDF file", where=source, hint="an SDF robot is a <model> with links and joints"
+        )
     gravity = (0.0, 0.0, -9.8)
     if world is not None and world.find("gravity") is not None:
         gravity = _numbers(world.find("gravity"), 3, source, "world gravity")
@@ -168,14 +183,20 @@ def _joints_by_parent(joints, links, source, ignored) -> dict[str, list]:
             raise ModelError("<joint> without a name", where=where)
         kind = j.attrib.get("type")
         if kind not in JOINT_TYPES:
-            raise ModelError(f"joint {jname!r}: type {kind!r} is not read", where=where,
-                             hint="joint types read: " + ", ".join(JOINT_TYPES))
+            raise ModelError(
+                f"joint {jname!r}: type {kind!r} is not read",
+                where=where,
+                hint="joint types read: " + ", ".join(JOINT_TYPES),
+            )
         for tag in ("parent", "child"):
             element = j.find(tag)
             value = element.attrib["_text"].strip() if element is not None else ""
             if value != "world" and value not in links:
-                raise ModelError(f"joint {jname!r}: its {tag} {value!r} is not a link of the model", where=where,
-                                 hint="links: " + ", ".join(links))
+                raise ModelError(
+                    f"joint {jname!r}: its {tag} {value!r} is not a link of the model",
+                    where=where,
+                    hint="links: " + ", ".join(links),
+                )
         parent = j.find("parent").attrib["_text"].strip()
         by_parent.setdefault(parent, []).append(j)
         if j.find("physics") is not None or (j.find("axis") is not None and j.find("axis").find("limit") is not None):
@@ -191,13 +212,22 @@ def _axis_of(j, source):
         return (0.0, 0.0, 1.0)
     xyz = axis.find("xyz")
     if axis.find("use_parent_model_frame") is not None or (xyz is not None and xyz.attrib.get("expressed_in")):
-        raise ModelError(f"joint {j.attrib['name']!r}: an axis expressed in another frame is not read", where=where,
-                         hint="give <xyz> in the joint frame (SDF's default)")
+        raise ModelError(
+            f"joint {j.attrib['name']!r}: an axis expressed in another frame is not read",
+            where=where,
+            hint="give <xyz> in the joint frame (SDF's default)",
+        )
     dynamics = axis.find("dynamics")
-    if dynamics is not None and dynamics.find("friction") is not None and \
-            float(dynamics.find("friction").attrib["_text"] or 0) != 0:
-        raise ModelError(f"joint {j.attrib['name']!r} has dry friction, which appell does not apply here",
-                         where=where, hint="remove <friction> (appell's Coulomb friction needs a normal force)")
+    if (
+        dynamics is not None
+        and dynamics.find("friction") is not None
+        and float(dynamics.find("friction").attrib["_text"] or 0) != 0
+    ):
+        raise ModelError(
+            f"joint {j.attrib['name']!r} has dry friction, which appell does not apply here",
+            where=where,
+            hint="remove <friction> (appell's Coulomb friction needs a normal force)",
+        )
     return _numbers(xyz, 3, source, f"axis of joint {j.attrib['name']!r}", (0.0, 0.0, 1.0))
 
 
@@ -231,10 +261,13 @@ class _Placing:
                 mass = _numbers(inertial.find("mass"), 1, source, f"mass of link {lname!r}")[0]
             moments = inertial.find("inertia")
             if moments is not None:
-                v = {k: _numbers(moments.find(k), 1, source, f"{k} of link {lname!r}", (0.0,))[0]
-                     for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
-                I = np.array([[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]],
-                              [v["ixz"], v["iyz"], v["izz"]]])
+                v = {
+                    k: _numbers(moments.find(k), 1, source, f"{k} of link {lname!r}", (0.0,))[0]
+                    for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+                }
+                I = np.array(
+                    [[v["ixx"], v["ixy"], v["ixz"]], [v["ixy"], v["iyy"], v["iyz"]], [v["ixz"], v["iyz"], v["izz"]]]
+                )
             I, com = R_I @ I @ R_I.T, p_I
         I = R_T @ I @ R_T.T
         ident = _appell_name(lname, "link", f"{source}:{link.line}")
@@ -242,8 +275,12 @@ class _Placing:
         if mass == 0 and not np.any(I):
             self.body[lname] = self.mech.massless(ident)
         else:
-            self.body[lname] = self.mech.body(ident, mass, inertia=sp.Matrix((I + I.T) / 2).applyfunc(sp.Float),
-                                              com=tuple(float(c) for c in p_T + R_T @ com))
+            self.body[lname] = self.mech.body(
+                ident,
+                mass,
+                inertia=sp.Matrix((I + I.T) / 2).applyfunc(sp.Float),
+                com=tuple(float(c) for c in p_T + R_T @ com),
+            )
         return self.body[lname]
 
     def joint_frame(self, j):
@@ -303,7 +340,9 @@ def _place_tree(placing, queue, by_parent, forces) -> list:
                 q = made.coordinates[0]
                 d = _numbers(dynamics.find("damping"), 1, source, f"damping of {jname!r}", (0.0,))[0]
                 s = _numbers(dynamics.find("spring_stiffness"), 1, source, f"stiffness of {jname!r}", (0.0,))[0]
-                ref = _numbers(dynamics.find("spring_reference"), 1, source, f"spring reference of {jname!r}", (0.0,))[0]
+                ref = _numbers(dynamics.find("spring_reference"), 1, source, f"spring reference of {jname!r}", (0.0,))[
+                    0
+                ]
                 value = -d * derivative_symbol(q) - s * (q - ref)
                 if value != 0:
                     forces[q.name] = value
@@ -330,8 +369,11 @@ def _close_loops(placing, loops) -> None:
             R_parent, _ = _in_frame(placing.F[parent], R_J, p_J)
             mech.weld(jname, a, b, rotation=(R_parent @ R_child.T).tolist())
         else:
-            raise ModelError(f"joint {j.attrib['name']!r} closes a loop as a {kind} joint, which is not read",
-                             where=where, hint="loops are closed by revolute, continuous, ball or fixed joints")
+            raise ModelError(
+                f"joint {j.attrib['name']!r} closes a loop as a {kind} joint, which is not read",
+                where=where,
+                hint="loops are closed by revolute, continuous, ball or fixed joints",
+            )
 
 
 def sdf_mechanism(source, text=None):
@@ -344,7 +386,7 @@ def sdf_mechanism(source, text=None):
     source = str(source)
     model, gravity = _model(read_sdf_text(text, source), source)
     name = _appell_name(model.attrib.get("name") or "sdf_model", "model", f"{source}:{model.line}")
-    static = (model.find("static") is not None and model.find("static").attrib["_text"].strip() in ("true", "1"))
+    static = model.find("static") is not None and model.find("static").attrib["_text"].strip() in ("true", "1")
     mech = Mechanism(name, gravity=gravity)
     links, ignored = _links(model, source), []
     joints = model.findall("joint")
@@ -356,8 +398,10 @@ def sdf_mechanism(source, text=None):
     loops = _place_tree(placing, ["world"] + roots, by_parent, forces)
     _close_loops(placing, loops)
     if ignored:
-        warnings.warn(AppellNote(f"{source}: not applied (no meaning for the rigid-body motion): "
-                                 + "; ".join(ignored)), stacklevel=2)
+        warnings.warn(
+            AppellNote(f"{source}: not applied (no meaning for the rigid-body motion): " + "; ".join(ignored)),
+            stacklevel=2,
+        )
     return mech, forces
 
 

@@ -179,9 +179,12 @@ def disagreement(states: ConsistentStates, first: sp.Matrix, second: sp.Matrix, 
 
 def refuse_disagreement(kind: str, name: str, set_value, derived, how: str, err: float, hint: str):
     """The ModelError of a set velocity that is not the derivative of the position."""
-    raise ModelError(f"{kind} {name}: the velocity set in SymPy, {_short(set_value)}, is not the time derivative "
-                     f"of its {how}, {_short(derived)} (they differ by {err:.2g} relative, at random states "
-                     "that satisfy the constraints)", hint=hint)
+    raise ModelError(
+        f"{kind} {name}: the velocity set in SymPy, {_short(set_value)}, is not the time derivative "
+        f"of its {how}, {_short(derived)} (they differ by {err:.2g} relative, at random states "
+        "that satisfy the constraints)",
+        hint=hint,
+    )
 
 
 def _short(vec, limit: int = 200) -> str:

@@ -35,13 +35,17 @@ def as_system(obj, parameters, initial):
 
     specified = {}
     if type(obj).__name__ == "System" and type(obj).__module__.startswith("pydy"):
-        parameters = {**{str(k): v for k, v in (obj.constants or {}).items()},
-                      **{str(k): v for k, v in (parameters or {}).items()}}
+        parameters = {
+            **{str(k): v for k, v in (obj.constants or {}).items()},
+            **{str(k): v for k, v in (parameters or {}).items()},
+        }
         for k, v in (obj.specifieds or {}).items():
             if not isinstance(v, (int, float, np.floating, np.integer)):
-                raise ModelError(f"the PyDy specified {k} is given as {type(v).__name__}: appell needs a constant "
-                                 "value, or the input as a load in the model",
-                                 hint="give the input as a force or torque expression in the model")
+                raise ModelError(
+                    f"the PyDy specified {k} is given as {type(v).__name__}: appell needs a constant "
+                    "value, or the input as a load in the model",
+                    hint="give the input as a force or torque expression in the model",
+                )
             name = k.func.__name__ if isinstance(k, AppliedUndef) else str(k)
             parameters[name] = float(v)
             if isinstance(k, AppliedUndef):
@@ -68,11 +72,15 @@ def _from_kane(kane):
     from sympy.physics import mechanics as me
 
     if kane._uaux is not None and len(kane._uaux):
-        raise ModelError("the KanesMethod has auxiliary speeds " + ", ".join(str(u) for u in kane._uaux),
-                         hint="leave them out: appell gives every constraint reaction by its own formula")
+        raise ModelError(
+            "the KanesMethod has auxiliary speeds " + ", ".join(str(u) for u in kane._uaux),
+            hint="leave them out: appell gives every constraint reaction by its own formula",
+        )
     if not kane.bodies and not kane.loads:
-        raise ModelError("the KanesMethod holds no bodies: call kanes_equations(bodies, loads) first, or pass "
-                         "bodies= and forcelist= to its constructor")
+        raise ModelError(
+            "the KanesMethod holds no bodies: call kanes_equations(bodies, loads) first, or pass "
+            "bodies= and forcelist= to its constructor"
+        )
     system = _fresh_system(kane._inertial)
     qdep, udep = list(kane._qdep), list(kane._udep)
     system.add_coordinates(*[q for q in kane.q if q not in qdep])
@@ -82,8 +90,11 @@ def _from_kane(kane):
     if udep:
         system.add_speeds(*udep, independent=False)
     qdot = sp.Matrix([q.diff(me.dynamicsymbols._t) for q in kane.q])
-    kdes = kane._k_kqdot_implicit * qdot + kane._k_ku_implicit * kane.u + kane._f_k_implicit \
-        if hasattr(kane, "_k_kqdot_implicit") else sp.Matrix([qd - kane.kindiffdict()[qd] for qd in qdot])
+    kdes = (
+        kane._k_kqdot_implicit * qdot + kane._k_ku_implicit * kane.u + kane._f_k_implicit
+        if hasattr(kane, "_k_kqdot_implicit")
+        else sp.Matrix([qd - kane.kindiffdict()[qd] for qd in qdot])
+    )
     system.add_kdes(*kdes)
     hol = list(kane._f_h) if kane._f_h is not None else []
     if hol:
@@ -145,7 +156,7 @@ def _from_lagrange(lm):
     hol = list(lm._hol_coneqs)
     if hol:
         system.add_holonomic_constraints(*hol)
-    nonhol = list(lm.coneqs[len(hol):])
+    nonhol = list(lm.coneqs[len(hol) :])
     if nonhol:
         system.add_nonholonomic_constraints(*nonhol)
     system.add_loads(*[_load(ld) for ld in (lm.loads or [])])

@@ -37,15 +37,24 @@ still reported).
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
 from appell.mechanism.sympy_meaning import ConsistentStates, disagreement, refuse_disagreement, solve_linear
-from appell.model import (AppliedForce, AppliedTorque, Output, Parameter, Particle, RigidBody, System, holonomic,
-                          nonholonomic)
+from appell.model import (
+    AppliedForce,
+    AppliedTorque,
+    Output,
+    Parameter,
+    Particle,
+    RigidBody,
+    System,
+    holonomic,
+    nonholonomic,
+)
 from appell.symbols import derivative_symbol, t
 
 __all__ = ["from_sympy"]
@@ -80,8 +89,10 @@ class _Renamer:
         self.t = t = me.dynamicsymbols._t
         for s in q:
             if not _is_dynamic(s):
-                raise ModelError(f"coordinate {s} is not a dynamic symbol q(t)",
-                                 hint="make coordinates with sympy.physics.mechanics.dynamicsymbols")
+                raise ModelError(
+                    f"coordinate {s} is not a dynamic symbol q(t)",
+                    hint="make coordinates with sympy.physics.mechanics.dynamicsymbols",
+                )
         self.coordinates = tuple(sp.Symbol(s.func.__name__) for s in q)
         names, speeds, derivative_speeds = {}, [], {}
         for s in u:
@@ -91,8 +102,10 @@ class _Renamer:
             elif _is_dynamic(s):
                 sym = sp.Symbol(s.func.__name__)
             else:
-                raise ModelError(f"speed {s} is neither a dynamic symbol u(t) nor a coordinate's derivative",
-                                 hint="make speeds with dynamicsymbols")
+                raise ModelError(
+                    f"speed {s} is neither a dynamic symbol u(t) nor a coordinate's derivative",
+                    hint="make speeds with dynamicsymbols",
+                )
             speeds.append(sym)
             names[s] = sym
         self.speeds = tuple(speeds)
@@ -100,27 +113,30 @@ class _Renamer:
         unknown = [qi.diff(t) for qi in q if qi not in derivative_speeds]
         kdes = sp.Matrix([e for e in kdes if e != 0])
         if len(kdes) != len(unknown):
-            raise ModelError(f"{len(kdes)} kinematic differential equations for {len(unknown)} coordinate "
-                             f"derivatives ({', '.join(str(x) for x in unknown)})",
-                             hint="give one kinematic differential equation per coordinate whose speed is not "
-                                  "its derivative (System.add_kdes)")
+            raise ModelError(
+                f"{len(kdes)} kinematic differential equations for {len(unknown)} coordinate "
+                f"derivatives ({', '.join(str(x) for x in unknown)})",
+                hint="give one kinematic differential equation per coordinate whose speed is not "
+                "its derivative (System.add_kdes)",
+            )
         solved: dict = {}
         if unknown:
             A = kdes.jacobian(unknown)
             if any(c.has(*unknown) for c in A):
-                raise ModelError("the kinematic differential equations are not linear in the coordinates' "
-                                 "derivatives")
+                raise ModelError("the kinematic differential equations are not linear in the coordinates' derivatives")
             b = kdes.subs({x: 0 for x in unknown})
             try:
                 values = solve_linear(A, -b)
             except (ValueError, ZeroDivisionError):
-                raise ModelError("the kinematic differential equations cannot be solved for "
-                                 f"{', '.join(str(x) for x in unknown)}") from None
+                raise ModelError(
+                    f"the kinematic differential equations cannot be solved for {', '.join(str(x) for x in unknown)}"
+                ) from None
             solved = {x: v for x, v in zip(unknown, values)}
             bad = [x for x, v in solved.items() if v.has(sp.Derivative) or v.has(sp.nan, sp.zoo)]
             if bad:
-                raise ModelError(f"the kinematic differential equations do not give {bad[0]} in the "
-                                 "coordinates and speeds")
+                raise ModelError(
+                    f"the kinematic differential equations do not give {bad[0]} in the coordinates and speeds"
+                )
         self.kinematics = solved
         self.second = {x.diff(t): sp.diff(v, t).xreplace(solved) for x, v in solved.items()}
         self.dynamic_coordinates = list(q)
@@ -147,23 +163,28 @@ class _Renamer:
 
     def rates(self) -> list:
         """``q'`` of every coordinate in plain symbols."""
-        return [self.plain(self.kinematics[qd], f"kinematics of {q}") if qd in self.kinematics else self.plain_map[qd]
-                for q, qd in zip(self.coordinates, (s.diff(self.t) for s in self.dynamic_coordinates))]
+        return [
+            self.plain(self.kinematics[qd], f"kinematics of {q}") if qd in self.kinematics else self.plain_map[qd]
+            for q, qd in zip(self.coordinates, (s.diff(self.t) for s in self.dynamic_coordinates))
+        ]
 
     def plain(self, expr, what: str) -> sp.Expr:
         expr = sp.sympify(expr)
         expr = expr.xreplace(self.second).xreplace(self.kinematics).xreplace(self.plain_map)
         # symbols with assumptions (symbols("m", positive=True)) -> the plain symbols appell declares
-        assumed = {s: sp.Symbol(s.name) for s in expr.free_symbols
-                   if isinstance(s, sp.Symbol) and s != sp.Symbol(s.name)}
+        assumed = {
+            s: sp.Symbol(s.name) for s in expr.free_symbols if isinstance(s, sp.Symbol) and s != sp.Symbol(s.name)
+        }
         if assumed:
             expr = expr.xreplace(assumed)
         left = expr.atoms(sp.Derivative) | {f for f in expr.atoms(sp.Function) if _is_dynamic(f)}
         if left:
             culprit = sorted(left, key=str)[0]
-            raise ModelError(f"{what} depends on {culprit}, which is not a coordinate or speed of the system",
-                             hint="give every function of time as a coordinate (with its speed and kinematic "
-                                  "differential equation), or replace it by a symbol")
+            raise ModelError(
+                f"{what} depends on {culprit}, which is not a coordinate or speed of the system",
+                hint="give every function of time as a coordinate (with its speed and kinematic "
+                "differential equation), or replace it by a symbol",
+            )
         _check_evaluable(expr, what)
         return expr
 
@@ -184,20 +205,24 @@ def _check_evaluable(expr, what: str) -> None:
 
     undefined = sorted(expr.atoms(AppliedUndef), key=str)
     if undefined:
-        raise ModelError(f"{what} uses the undefined function {undefined[0]} ({undefined[0].func.__name__} has no "
-                         "formula): appell cannot evaluate it",
-                         hint="replace it by its expression in the coordinates, speeds and parameters (or by a "
-                              "parameter symbol) before from_sympy")
+        raise ModelError(
+            f"{what} uses the undefined function {undefined[0]} ({undefined[0].func.__name__} has no "
+            "formula): appell cannot evaluate it",
+            hint="replace it by its expression in the coordinates, speeds and parameters (or by a "
+            "parameter symbol) before from_sympy",
+        )
     pending = sorted(expr.atoms(*_UNEVALUATED), key=str)
     if pending:
         kind = type(pending[0]).__name__
-        raise ModelError(f"{what} holds an unevaluated {kind}: {pending[0]}",
-                         hint=f"evaluate it first (.doit(), or integrate by hand) so that {what} is a closed-form "
-                              "expression")
+        raise ModelError(
+            f"{what} holds an unevaluated {kind}: {pending[0]}",
+            hint=f"evaluate it first (.doit(), or integrate by hand) so that {what} is a closed-form expression",
+        )
     bad = next((v for v in (sp.I, sp.zoo, sp.nan, sp.oo, -sp.oo) if expr.has(v)), None)
     if bad is not None:
-        raise ModelError(f"{what} is not a finite real expression (it contains {bad}): {expr}",
-                         hint="give real, finite values")
+        raise ModelError(
+            f"{what} is not a finite real expression (it contains {bad}): {expr}", hint="give real, finite values"
+        )
 
 
 class _Reader:
@@ -213,16 +238,20 @@ class _Reader:
         if positions not in ("check", "ignore"):
             raise ModelError(f"positions={positions!r}: give 'check' or 'ignore'")
         self.N, self.O, self.ren, self.positions = system.frame, system.fixed_point, ren, positions
-        self.values = {sp.Symbol(str(k)): v for k, v in (values or {}).items()
-                       if isinstance(v, (int, float)) and not isinstance(v, bool)}
+        self.values = {
+            sp.Symbol(str(k)): v
+            for k, v in (values or {}).items()
+            if isinstance(v, (int, float)) and not isinstance(v, bool)
+        }
         self.hol, self.nonhol = hol, nonhol
         self._states = None
 
     def states(self) -> ConsistentStates:
         if self._states is None:
             ren = self.ren
-            self._states = ConsistentStates(ren.coordinates, ren.speeds, ren.rates(), self.hol, self.nonhol,
-                                            self.values)
+            self._states = ConsistentStates(
+                ren.coordinates, ren.speeds, ren.rates(), self.hol, self.nonhol, self.values
+            )
         return self._states
 
     def point(self, point, what: str):
@@ -239,8 +268,10 @@ class _Reader:
             velocity = None
         if velocity is None:
             if position is None:
-                raise ModelError(f"{what}: the point {point} has neither a position from the fixed point {O} nor a "
-                                 f"velocity in {N}", hint="locate it with set_pos or give its velocity with set_vel")
+                raise ModelError(
+                    f"{what}: the point {point} has neither a position from the fixed point {O} nor a velocity in {N}",
+                    hint="locate it with set_pos or give its velocity with set_vel",
+                )
             return position, None
         velocity = ren.vector(velocity, N, what)
         if position is None:
@@ -251,12 +282,19 @@ class _Reader:
             return position, None
         if self.positions == "ignore":
             return None, velocity
-        refuse_disagreement("point", str(point), velocity, derived, f"position from the fixed point {O}", err,
-                            hint=f"SymPy uses the velocity that was set; appell would differentiate the position. "
-                                 f"If {O} is no point fixed in {N} (a contact point, say), wrap the model as "
-                                 f"System({N}) with a fixed point of its own, or pass positions='ignore' to take the "
-                                 "set velocities (the positions are then left out: no Lagrange cross-check, no "
-                                 "animation)")
+        refuse_disagreement(
+            "point",
+            str(point),
+            velocity,
+            derived,
+            f"position from the fixed point {O}",
+            err,
+            hint=f"SymPy uses the velocity that was set; appell would differentiate the position. "
+            f"If {O} is no point fixed in {N} (a contact point, say), wrap the model as "
+            f"System({N}) with a fixed point of its own, or pass positions='ignore' to take the "
+            "set velocities (the positions are then left out: no Lagrange cross-check, no "
+            "animation)",
+        )
 
     def frame(self, frame, what: str):
         """``(frame, omega, None)``: the frame whose components are used and the angular velocity
@@ -270,8 +308,9 @@ class _Reader:
         w = ren.vector(omega, frame, what)
         R = sp.Matrix.hstack(*[e.to_matrix(N) for e in (frame.x, frame.y, frame.z)])
         err = None  # skew(omega) = R^T R' at the states, numerically (the symbolic product swells)
-        for wv, Rv, Rd in self.states().values_of([w, R.applyfunc(lambda e: ren.plain(e, what)),
-                                                   R.diff(ren.t).applyfunc(lambda e: ren.plain(e, what))]):
+        for wv, Rv, Rd in self.states().values_of(
+            [w, R.applyfunc(lambda e: ren.plain(e, what)), R.diff(ren.t).applyfunc(lambda e: ren.plain(e, what))]
+        ):
             W = Rv.reshape(3, 3).T @ Rd.reshape(3, 3)
             wv, derived = wv.reshape(-1), np.array([W[2, 1], W[0, 2], W[1, 0]])
             if np.all(np.isfinite(wv)) and np.all(np.isfinite(derived)):
@@ -279,11 +318,13 @@ class _Reader:
                 err = e if e > 1e-9 and (err is None or e > err) else err
         if err is not None:
             derived = _omega_from_orientation(frame, N, ren, what)
-            raise ModelError(f"frame {frame}: the angular velocity set in SymPy, {list(w)}, is not the one of its "
-                             f"orientation in {N}, {list(derived)} (they differ by {err:.2g} relative, at random "
-                             "states that satisfy the constraints; components along the frame)",
-                             hint="make the kinematic differential equations relate the speeds to the orientation "
-                                  "angles' derivatives (add_kdes), or correct set_ang_vel")
+            raise ModelError(
+                f"frame {frame}: the angular velocity set in SymPy, {list(w)}, is not the one of its "
+                f"orientation in {N}, {list(derived)} (they differ by {err:.2g} relative, at random "
+                "states that satisfy the constraints; components along the frame)",
+                hint="make the kinematic differential equations relate the speeds to the orientation "
+                "angles' derivatives (add_kdes), or correct set_ang_vel",
+            )
         return frame, w, None
 
 
@@ -314,9 +355,16 @@ def _body_name(body) -> str:
     return name if name.isidentifier() else "".join(c if c.isalnum() else "_" for c in name)
 
 
-def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | None = None, *,
-               name: str = "sympy_system", constraint_names: Sequence[str] | None = None,
-               reactions: str | Sequence[str] | None = "all", positions: str = "check") -> System:
+def from_sympy(
+    system,
+    parameters: Mapping | None = None,
+    initial: Mapping | None = None,
+    *,
+    name: str = "sympy_system",
+    constraint_names: Sequence[str] | None = None,
+    reactions: str | Sequence[str] | None = "all",
+    positions: str = "check",
+) -> System:
     """The appell :class:`~appell.model.System` of a SymPy mechanics ``system`` — a
     ``sympy.physics.mechanics.System``, a ``KanesMethod`` or ``LagrangesMethod`` (after its
     equations were formed, so that it holds its bodies and loads), or a PyDy ``System``
@@ -343,28 +391,42 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
 
     system, parameters, initial, lagrangian, specified = as_system(system, parameters, initial)
     if not isinstance(system, me.System):
-        raise ModelError(f"from_sympy needs a sympy.physics.mechanics System, KanesMethod or LagrangesMethod, "
-                         f"got {type(system).__name__}")
+        raise ModelError(
+            f"from_sympy needs a sympy.physics.mechanics System, KanesMethod or LagrangesMethod, "
+            f"got {type(system).__name__}"
+        )
     if len(system.u_aux):
-        raise ModelError("the SymPy system has auxiliary speeds " + ", ".join(str(u) for u in system.u_aux),
-                         hint="leave them out: appell gives every constraint and joint reaction by its own formula")
+        raise ModelError(
+            "the SymPy system has auxiliary speeds " + ", ".join(str(u) for u in system.u_aux),
+            hint="leave them out: appell gives every constraint and joint reaction by its own formula",
+        )
     if system._vel_constrs is not None:  # set explicitly instead of derived from the constraints
-        raise ModelError("the SymPy system has explicitly set velocity constraints",
-                         hint="give them as nonholonomic constraints (add_nonholonomic_constraints)")
+        raise ModelError(
+            "the SymPy system has explicitly set velocity constraints",
+            hint="give them as nonholonomic constraints (add_nonholonomic_constraints)",
+        )
     N = system.frame
     ren = _Renamer(list(system.q), list(system.u), list(system.kdes))
     ren.plain_map.update(specified)  # a PyDy system's constant specifieds: parameters
 
     hol, nonhol = list(system.holonomic_constraints), list(system.nonholonomic_constraints)
-    names = list(constraint_names) if constraint_names is not None else (
-        [f"holonomic_{k}" for k in range(1, len(hol) + 1)] + [f"nonholonomic_{k}" for k in range(1, len(nonhol) + 1)])
+    names = (
+        list(constraint_names)
+        if constraint_names is not None
+        else (
+            [f"holonomic_{k}" for k in range(1, len(hol) + 1)]
+            + [f"nonholonomic_{k}" for k in range(1, len(nonhol) + 1)]
+        )
+    )
     if len(names) != len(hol) + len(nonhol):
-        raise ModelError(f"{len(names)} constraint names for {len(hol)} holonomic and {len(nonhol)} nonholonomic "
-                         "constraints", hint="name the holonomic constraints first, then the nonholonomic ones")
+        raise ModelError(
+            f"{len(names)} constraint names for {len(hol)} holonomic and {len(nonhol)} nonholonomic constraints",
+            hint="name the holonomic constraints first, then the nonholonomic ones",
+        )
     hol_plain = [ren.plain(e, f"holonomic constraint {n}") for n, e in zip(names, hol)]
-    nonhol_plain = [ren.plain(e, f"nonholonomic constraint {n}") for n, e in zip(names[len(hol):], nonhol)]
+    nonhol_plain = [ren.plain(e, f"nonholonomic constraint {n}") for n, e in zip(names[len(hol) :], nonhol)]
     constraints = [holonomic(n, e) for n, e in zip(names, hol_plain)]
-    constraints += [nonholonomic(n, e) for n, e in zip(names[len(hol):], nonhol_plain)]
+    constraints += [nonholonomic(n, e) for n, e in zip(names[len(hol) :], nonhol_plain)]
     reader = _Reader(system, ren, positions, parameters, hol_plain, nonhol_plain)
 
     bodies, statics = [], set()
@@ -407,10 +469,19 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
             loads.append(AppliedForce(ren.vector(load.vector, N, what), position, velocity, name=f"force_{k}"))
         else:
             what = f"torque {k} on {load.frame}"
-            loads.append(AppliedTorque(ren.vector(load.vector, N, what),
-                                       ren.vector(load.frame.ang_vel_in(N), N, what), name=f"torque_{k}"))
-    potential = sum((ren.plain(b.potential_energy, f"potential energy of {b.name}")
-                     for b in system.bodies if b not in statics), sp.S.Zero) if lagrangian is None else sp.S.Zero
+            loads.append(
+                AppliedTorque(
+                    ren.vector(load.vector, N, what), ren.vector(load.frame.ang_vel_in(N), N, what), name=f"torque_{k}"
+                )
+            )
+    potential = (
+        sum(
+            (ren.plain(b.potential_energy, f"potential energy of {b.name}") for b in system.bodies if b not in statics),
+            sp.S.Zero,
+        )
+        if lagrangian is None
+        else sp.S.Zero
+    )
     kinetic = None
     if lagrangian is not None:  # L = T - V: T the part that moves with the speeds, -V the rest
         L = ren.plain(lagrangian, "the Lagrangian")
@@ -426,17 +497,30 @@ def from_sympy(system, parameters: Mapping | None = None, initial: Mapping | Non
     values = {str(k): v for k, v in (parameters or {}).items()}
     missing = sorted(s.name for s in used - known if s.name not in values)
     if missing:
-        raise ModelError(f"no value for the parameter(s) {', '.join(missing)}",
-                         hint="pass parameters={symbol: value, ...} to from_sympy")
+        raise ModelError(
+            f"no value for the parameter(s) {', '.join(missing)}",
+            hint="pass parameters={symbol: value, ...} to from_sympy",
+        )
     params = tuple(Parameter(sp.Symbol(k), v) for k, v in values.items())
     init = {}
     for key, value in (initial or {}).items():
         init[_initial_name(key, ren)] = value
     kinematics = dict(zip(ren.coordinates, ren.rates()))
-    return System(coordinates=ren.coordinates, speeds=ren.speeds, kinematics=kinematics, parameters=params,
-                  bodies=tuple(bodies), loads=tuple(loads), potential_energy=potential, kinetic_energy=kinetic,
-                  constraints=tuple(constraints), initial=init, name=name,
-                  description="imported from a sympy.physics.mechanics System", outputs=tuple(outputs))
+    return System(
+        coordinates=ren.coordinates,
+        speeds=ren.speeds,
+        kinematics=kinematics,
+        parameters=params,
+        bodies=tuple(bodies),
+        loads=tuple(loads),
+        potential_energy=potential,
+        kinetic_energy=kinetic,
+        constraints=tuple(constraints),
+        initial=init,
+        name=name,
+        description="imported from a sympy.physics.mechanics System",
+        outputs=tuple(outputs),
+    )
 
 
 def _unoriented(body, reader: _Reader, what: str):
@@ -447,40 +531,57 @@ def _unoriented(body, reader: _Reader, what: str):
     given in ``F``, symmetric about ``e``); else a refusal naming ``W``."""
     me = _mechanics()
     ren, N, W = reader.ren, reader.N, body.frame
-    hint = (f"orient {W} (for example {W}.orient_axis(F, axis, angle)) and add the angle as a coordinate with its "
-            "kinematic differential equation")
+    hint = (
+        f"orient {W} (for example {W}.orient_axis(F, axis, angle)) and add the angle as a coordinate with its "
+        "kinematic differential equation"
+    )
     bases = [F for F in W._ang_vel_dict if F is not W and _oriented(F, N)]
     if not bases:
-        raise ModelError(f"{what}: the frame {W} has no orientation in {N} and no angular velocity relative to a "
-                         "frame that has one", hint=hint)
+        raise ModelError(
+            f"{what}: the frame {W} has no orientation in {N} and no angular velocity relative to a frame that has one",
+            hint=hint,
+        )
     F = bases[0]
     rel = W.ang_vel_in(F).to_matrix(F)
     nonzero = [k for k in range(3) if rel[k] != 0]
     if not nonzero:
-        raise ModelError(f"{what}: the frame {W} has no orientation in {N} and does not turn relative to {F}",
-                         hint=hint)
+        raise ModelError(
+            f"{what}: the frame {W} has no orientation in {N} and does not turn relative to {F}", hint=hint
+        )
     k0 = nonzero[0]
     axis = sp.Matrix([sp.simplify(rel[k] / rel[k0]) for k in range(3)])
     if any(_is_dynamic(f) for f in axis.atoms(sp.Function)) or axis.has(sp.Derivative):
-        raise ModelError(f"{what}: the frame {W} has no orientation in {N}, and its rotation relative to {F} is not "
-                         f"about a fixed axis ({list(rel)} along {F})", hint=hint)
+        raise ModelError(
+            f"{what}: the frame {W} has no orientation in {N}, and its rotation relative to {F} is not "
+            f"about a fixed axis ({list(rel)} along {F})",
+            hint=hint,
+        )
     norm = sp.sqrt(sum(a**2 for a in axis))
     e = axis / norm
     rate = rel[k0] / e[k0]
     try:
         inertia_F = body.central_inertia.to_matrix(F).applyfunc(lambda c: ren.plain(c, f"inertia of {body.name}"))
     except ValueError:
-        raise ModelError(f"{what}: the frame {W} has no orientation in {N}, and the inertia is not expressed in a "
-                         "frame that has one", hint=hint) from None
+        raise ModelError(
+            f"{what}: the frame {W} has no orientation in {N}, and the inertia is not expressed in a "
+            "frame that has one",
+            hint=hint,
+        ) from None
     E = sp.Matrix([[0, -e[2], e[1]], [e[2], 0, -e[0]], [-e[1], e[0], 0]])
     if any(sp.simplify(c) != 0 for c in inertia_F * E - E * inertia_F):
-        raise ModelError(f"{what}: the frame {W} has an angular velocity but no orientation in {N}, and its rotation "
-                         f"angle about {list(e)} (along {F}) is not cyclic: the inertia {inertia_F.tolist()} is not "
-                         "symmetric about that axis", hint=hint)
+        raise ModelError(
+            f"{what}: the frame {W} has an angular velocity but no orientation in {N}, and its rotation "
+            f"angle about {list(e)} (along {F}) is not cyclic: the inertia {inertia_F.tolist()} is not "
+            "symmetric about that axis",
+            hint=hint,
+        )
     angle = me.dynamicsymbols(f"{_body_name(W)}_angle")
     if sp.Symbol(angle.func.__name__) in ren.coordinates + ren.speeds:
-        raise ModelError(f"{what}: the rotation angle of the frame {W} would be named {angle.func.__name__}, "
-                         "which the system uses already", hint=hint)
+        raise ModelError(
+            f"{what}: the rotation angle of the frame {W} would be named {angle.func.__name__}, "
+            "which the system uses already",
+            hint=hint,
+        )
     ren.add_coordinate(angle, rate)
     B = F.orientnew(f"{W}_rotated", "Axis", (angle, e[0] * F.x + e[1] * F.y + e[2] * F.z))
     omega = ren.vector(W.ang_vel_in(N), B, what)
@@ -550,8 +651,10 @@ def _initial_name(key, ren: _Renamer) -> str:
             return plain.name
         if isinstance(key, sp.Symbol):
             return key.name
-    raise ModelError(f"initial value for {key!r}: not a coordinate or speed of the system",
-                     hint="key initial values by the dynamic symbols q(t), u(t) or their names")
+    raise ModelError(
+        f"initial value for {key!r}: not a coordinate or speed of the system",
+        hint="key initial values by the dynamic symbols q(t), u(t) or their names",
+    )
 
 
 def _owner(point, bodies) -> set:
@@ -573,11 +676,13 @@ def _owner(point, bodies) -> set:
 def _joint_reactions(system, reactions, ren: _Renamer, statics) -> tuple:
     me = _mechanics()
     if len(system.holonomic_constraints) or len(system.nonholonomic_constraints):
-        raise ModelError("joint reactions of a SymPy system with holonomic or nonholonomic constraints are not "
-                         "determined by a Newton-Euler balance: the constraints do not say at which points "
-                         "they act",
-                         hint="pass reactions=None (each constraint's multiplier is still reported), or build "
-                              "the model with appell.mechanism, whose closures act at points")
+        raise ModelError(
+            "joint reactions of a SymPy system with holonomic or nonholonomic constraints are not "
+            "determined by a Newton-Euler balance: the constraints do not say at which points "
+            "they act",
+            hint="pass reactions=None (each constraint's multiplier is still reported), or build "
+            "the model with appell.mechanism, whose closures act at points",
+        )
     joints = {j.name: j for j in system.joints}
     wanted = list(joints) if reactions == "all" else list(reactions)
     unknown = [n for n in wanted if n not in joints]
@@ -617,9 +722,11 @@ def _joint_reactions(system, reactions, ren: _Renamer, statics) -> tuple:
                 owners = _owner(load.point, moving)
                 inside = {o in subtree for o in owners}
                 if len(inside) != 1:
-                    raise ModelError(f"joint {jname}: cannot tell on which body the force at {load.point} acts "
-                                     f"({'no body holds it fixed' if not owners else 'it is fixed in bodies on both sides of the joint'})",
-                                     hint="apply it at a point fixed in one body, or pass reactions=None")
+                    raise ModelError(
+                        f"joint {jname}: cannot tell on which body the force at {load.point} acts "
+                        f"({'no body holds it fixed' if not owners else 'it is fixed in bodies on both sides of the joint'})",
+                        hint="apply it at a point fixed in one body, or pass reactions=None",
+                    )
                 if inside.pop():
                     force -= load.vector
                     moment -= load.point.pos_from(P).cross(load.vector)
@@ -630,7 +737,13 @@ def _joint_reactions(system, reactions, ren: _Renamer, statics) -> tuple:
         for kind, vec, unit in (("F", force, "N"), ("M", moment, "N*m")):
             comps = vec.to_matrix(N)
             for axis, comp in zip(_AXES, comps):
-                outputs.append(Output(f"{kind}_{label}_{axis}", ren.plain(comp, f"reaction of joint {jname}"), unit,
-                                      f"{'force' if kind == 'F' else 'moment about the joint point'} of the parent "
-                                      f"on the child at joint {jname}, along {N}.{axis}"))
+                outputs.append(
+                    Output(
+                        f"{kind}_{label}_{axis}",
+                        ren.plain(comp, f"reaction of joint {jname}"),
+                        unit,
+                        f"{'force' if kind == 'F' else 'moment about the joint point'} of the parent "
+                        f"on the child at joint {jname}, along {N}.{axis}",
+                    )
+                )
     return tuple(outputs)

@@ -61,8 +61,21 @@ from appell.mechanism.urdf_tree import (
 from appell.names import MAX_NAME
 
 __all__ = [
-    "UrdfVisual", "UrdfInertial", "UrdfLink", "UrdfJoint", "UrdfMimic", "UrdfRobot", "parse_urdf",
-    "read_urdf", "urdf_mechanism", "urdf_system", "urdf_units", "JOINT_TYPES", "MAX_URDF_SIZE", "MAX_NAME"]
+    "UrdfVisual",
+    "UrdfInertial",
+    "UrdfLink",
+    "UrdfJoint",
+    "UrdfMimic",
+    "UrdfRobot",
+    "parse_urdf",
+    "read_urdf",
+    "urdf_mechanism",
+    "urdf_system",
+    "urdf_units",
+    "JOINT_TYPES",
+    "MAX_URDF_SIZE",
+    "MAX_NAME",
+]
 
 #: joint types read; ``continuous`` is a revolute joint without limits
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -90,10 +103,10 @@ class _Element:
     line: int
     children: list = field(default_factory=list)
 
-    def find(self, tag: str) -> "_Element | None":
+    def find(self, tag: str) -> _Element | None:
         return next((c for c in self.children if c.tag == tag), None)
 
-    def findall(self, tag: str) -> list["_Element"]:
+    def findall(self, tag: str) -> list[_Element]:
         return [c for c in self.children if c.tag == tag]
 
 
@@ -214,10 +227,13 @@ def _xml_tree(text: str | bytes, source: str) -> _Element:
 
     def refuse(what):
         def handler(*_args):
-            raise ModelError(f"the URDF contains {what}, which is not read (entities could expand without bound "
-                             f"or read other files)", where=f"{source}:{parser.CurrentLineNumber}",
-                             hint="remove the <!DOCTYPE ...> and <!ENTITY ...> declarations; "
-                                  "URDF needs none")
+            raise ModelError(
+                f"the URDF contains {what}, which is not read (entities could expand without bound "
+                f"or read other files)",
+                where=f"{source}:{parser.CurrentLineNumber}",
+                hint="remove the <!DOCTYPE ...> and <!ENTITY ...> declarations; URDF needs none",
+            )
+
         return handler
 
     def start(tag, attrib):
@@ -239,22 +255,36 @@ def _xml_tree(text: str | bytes, source: str) -> _Element:
         parser.SetParamEntityParsing(xml.parsers.expat.XML_PARAM_ENTITY_PARSING_NEVER)
         parser.Parse(text, True)
     except xml.parsers.expat.ExpatError as exc:
-        raise ModelError(f"invalid XML: {xml.parsers.expat.ErrorString(exc.code)}", where=f"{source}:{exc.lineno}",
-                         hint=_ENCODING_HINT if exc.code in _ENCODING_ERRORS else
-                         "correct the XML on this line (control characters, even as &#...;, are not XML)") from None
+        raise ModelError(
+            f"invalid XML: {xml.parsers.expat.ErrorString(exc.code)}",
+            where=f"{source}:{exc.lineno}",
+            hint=_ENCODING_HINT
+            if exc.code in _ENCODING_ERRORS
+            else "correct the XML on this line (control characters, even as &#...;, are not XML)",
+        ) from None
     except (LookupError, ValueError) as exc:  # Python's codecs: an unknown or multi-byte declared encoding
-        raise ModelError(f"the XML declaration names an encoding that is not read ({exc})",
-                         where=f"{source}:{parser.CurrentLineNumber}", hint=_ENCODING_HINT) from None
+        raise ModelError(
+            f"the XML declaration names an encoding that is not read ({exc})",
+            where=f"{source}:{parser.CurrentLineNumber}",
+            hint=_ENCODING_HINT,
+        ) from None
     if not root:
         raise ModelError("the URDF has no elements", where=source)
     return root[0]
 
 
-_ENCODING_ERRORS = {xml.parsers.expat.errors.codes[m] for m in (
-    xml.parsers.expat.errors.XML_ERROR_INVALID_TOKEN, xml.parsers.expat.errors.XML_ERROR_INCORRECT_ENCODING,
-    xml.parsers.expat.errors.XML_ERROR_UNKNOWN_ENCODING)}
-_ENCODING_HINT = ("save the file as UTF-8 (with no encoding, or encoding=\"UTF-8\", in <?xml ...?>); "
-                  "files in another encoding must declare it, e.g. <?xml version=\"1.0\" encoding=\"ISO-8859-1\"?>")
+_ENCODING_ERRORS = {
+    xml.parsers.expat.errors.codes[m]
+    for m in (
+        xml.parsers.expat.errors.XML_ERROR_INVALID_TOKEN,
+        xml.parsers.expat.errors.XML_ERROR_INCORRECT_ENCODING,
+        xml.parsers.expat.errors.XML_ERROR_UNKNOWN_ENCODING,
+    )
+}
+_ENCODING_HINT = (
+    'save the file as UTF-8 (with no encoding, or encoding="UTF-8", in <?xml ...?>); '
+    'files in another encoding must declare it, e.g. <?xml version="1.0" encoding="ISO-8859-1"?>'
+)
 
 
 # ------------------------------------------------------------------ attributes
@@ -264,24 +294,30 @@ def _numbers(element: _Element, key: str, count: int, default, source: str, *, n
     what = f"{owner}<{element.tag} {key}={_show(text) if text is not None else ''}>"
     if text is None:
         if default is None:
-            raise ModelError(f"{owner}<{element.tag}> has no {key}=", where=f"{source}:{element.line}",
-                             hint=f"give {key}=\"...\" with {count} number(s)")
+            raise ModelError(
+                f"{owner}<{element.tag}> has no {key}=",
+                where=f"{source}:{element.line}",
+                hint=f'give {key}="..." with {count} number(s)',
+            )
         return default
     parts = text.split()
-    hint = f"write {key}=\"...\" as {count} finite number(s) separated by spaces"
+    hint = f'write {key}="..." as {count} finite number(s) separated by spaces'
     if len(parts) != count:
-        raise ModelError(f"{what} must be {count} number(s), got {len(parts)}", where=f"{source}:{element.line}",
-                         hint=hint)
+        raise ModelError(
+            f"{what} must be {count} number(s), got {len(parts)}", where=f"{source}:{element.line}", hint=hint
+        )
     values = []
     for part in parts:
         try:
             value = float(part)
         except ValueError:
-            raise ModelError(f"{what}: {_show(part)} is not a number", where=f"{source}:{element.line}",
-                             hint=hint) from None
+            raise ModelError(
+                f"{what}: {_show(part)} is not a number", where=f"{source}:{element.line}", hint=hint
+            ) from None
         if not math.isfinite(value):
-            raise ModelError(f"{what}: {_show(part)} is not a finite number", where=f"{source}:{element.line}",
-                             hint=hint)
+            raise ModelError(
+                f"{what}: {_show(part)} is not a finite number", where=f"{source}:{element.line}", hint=hint
+            )
         values.append(value)
     return tuple(values)
 
@@ -297,13 +333,17 @@ def _name(element: _Element, source: str, key: str = "name", owner: str = "") ->
     name = element.attrib.get(key)
     where = f"{source}:{element.line}"
     if not name:
-        raise ModelError(f"{owner}<{element.tag}> without a {key}" if key == "name"
-                         else f"{owner}<{element.tag}> without {key}=", where=where,
-                         hint=f"give <{element.tag} {key}=\"...\">")
+        raise ModelError(
+            f"{owner}<{element.tag}> without a {key}" if key == "name" else f"{owner}<{element.tag}> without {key}=",
+            where=where,
+            hint=f'give <{element.tag} {key}="...">',
+        )
     if len(name) > MAX_NAME:
-        raise ModelError(f"{owner}<{element.tag} {key}={_show(name)}>: a name has at most {MAX_NAME} characters",
-                         where=where, hint=f"shorten the name to at most {MAX_NAME} characters (the limit of "
-                                           f"model files)")
+        raise ModelError(
+            f"{owner}<{element.tag} {key}={_show(name)}>: a name has at most {MAX_NAME} characters",
+            where=where,
+            hint=f"shorten the name to at most {MAX_NAME} characters (the limit of model files)",
+        )
     return name
 
 
@@ -311,8 +351,10 @@ def _origin(element: _Element, source: str, name: str):
     origin = element.find("origin")
     if origin is None:
         return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
-    return (_numbers(origin, "xyz", 3, (0.0, 0.0, 0.0), source, name=name),
-            _numbers(origin, "rpy", 3, (0.0, 0.0, 0.0), source, name=name))
+    return (
+        _numbers(origin, "xyz", 3, (0.0, 0.0, 0.0), source, name=name),
+        _numbers(origin, "rpy", 3, (0.0, 0.0, 0.0), source, name=name),
+    )
 
 
 # ------------------------------------------------------------------------ links
@@ -327,23 +369,33 @@ def _inertial(link: _Element, name: str, source: str) -> UrdfInertial | None:
     xyz, rpy = _origin(inertial, source, name)
     mass = inertial.find("mass")
     if mass is None:
-        raise ModelError(f"link {name!r}: <inertial> has no <mass>", where=f"{source}:{inertial.line}",
-                         hint='add <mass value="..."/>, or remove <inertial> for a massless link')
+        raise ModelError(
+            f"link {name!r}: <inertial> has no <mass>",
+            where=f"{source}:{inertial.line}",
+            hint='add <mass value="..."/>, or remove <inertial> for a massless link',
+        )
     m = _number(mass, "value", source, name=name)
     if m < 0:
-        raise ModelError(f"link {name!r}: mass {m} must be positive", where=f"{source}:{mass.line}",
-                         hint="give the link's mass in kg; for a massless link remove <inertial> (or give "
-                              "mass 0 and inertia 0)")
+        raise ModelError(
+            f"link {name!r}: mass {m} must be positive",
+            where=f"{source}:{mass.line}",
+            hint="give the link's mass in kg; for a massless link remove <inertial> (or give mass 0 and inertia 0)",
+        )
     tensor = inertial.find("inertia")
     if tensor is None:
-        raise ModelError(f"link {name!r}: <inertial> has no <inertia>", where=f"{source}:{inertial.line}",
-                         hint='add <inertia ixx=".." ixy=".." ixz=".." iyy=".." iyz=".." izz=".."/>')
+        raise ModelError(
+            f"link {name!r}: <inertial> has no <inertia>",
+            where=f"{source}:{inertial.line}",
+            hint='add <inertia ixx=".." ixy=".." ixz=".." iyy=".." iyz=".." izz=".."/>',
+        )
     components = tuple(_number(tensor, k, source, name=name) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"))
     if m == 0:
         if any(components):
-            raise ModelError(f"link {name!r}: mass 0 with a non-zero inertia", where=f"{source}:{mass.line}",
-                             hint="give the link's mass; a massless link has mass 0 and all inertia entries 0 "
-                                  "(or no <inertial>)")
+            raise ModelError(
+                f"link {name!r}: mass 0 with a non-zero inertia",
+                where=f"{source}:{mass.line}",
+                hint="give the link's mass; a massless link has mass 0 and all inertia entries 0 (or no <inertial>)",
+            )
         return None
     return UrdfInertial(xyz, rpy, m, components, inertial.line)
 
@@ -381,8 +433,11 @@ def _visuals(link: _Element, name: str, source: str, materials: dict[str, str]) 
     out = []
     for visual in link.findall("visual"):
         geometry = visual.find("geometry")
-        shape = next((c for c in geometry.children if c.tag in ("box", "cylinder", "sphere")), None) \
-            if geometry is not None else None
+        shape = (
+            next((c for c in geometry.children if c.tag in ("box", "cylinder", "sphere")), None)
+            if geometry is not None
+            else None
+        )
         if shape is None:
             continue
         try:
@@ -410,13 +465,18 @@ def _check_inertia(link: UrdfLink, source: str):
     tol = max(_INERTIA_TOL * abs(float(np.trace(tensor))), _INERTIA_FLOOR)
     if moments[0] >= -tol and moments[2] <= moments[0] + moments[1] + tol:
         return
-    why = (f"it is not positive semi-definite (a principal moment is {moments[0]:.6g})" if moments[0] < -tol else
-           f"its principal moments {moments[0]:.6g}, {moments[1]:.6g}, {moments[2]:.6g} violate the triangle "
-           f"inequality (each must be at most the sum of the other two: A + B >= C)")
-    raise ModelError(f"link {link.name!r}: the inertia is not that of a body: {why}",
-                     where=f"{source}:{link.inertial.line}",
-                     hint="correct <inertia> (the products ixy, ixz, iyz count too); for a negligible body give "
-                          "a small diagonal inertia, for a massless frame mass 0 and inertia 0")
+    why = (
+        f"it is not positive semi-definite (a principal moment is {moments[0]:.6g})"
+        if moments[0] < -tol
+        else f"its principal moments {moments[0]:.6g}, {moments[1]:.6g}, {moments[2]:.6g} violate the triangle "
+        f"inequality (each must be at most the sum of the other two: A + B >= C)"
+    )
+    raise ModelError(
+        f"link {link.name!r}: the inertia is not that of a body: {why}",
+        where=f"{source}:{link.inertial.line}",
+        hint="correct <inertia> (the products ixy, ixz, iyz count too); for a negligible body give "
+        "a small diagonal inertia, for a massless frame mass 0 and inertia 0",
+    )
 
 
 # ----------------------------------------------------------------------- joints
@@ -424,13 +484,15 @@ def _joint(element: _Element, source: str) -> UrdfJoint:
     name = _name(element, source)
     kind = element.attrib.get("type")
     if kind not in JOINT_TYPES:
-        raise ModelError(f"joint {name!r} has type {_show(kind) if kind else None}; the types read are "
-                         f"{', '.join(JOINT_TYPES)}", where=f"{source}:{element.line}")
+        raise ModelError(
+            f"joint {name!r} has type {_show(kind) if kind else None}; the types read are {', '.join(JOINT_TYPES)}",
+            where=f"{source}:{element.line}",
+        )
     ends = []
     for tag in ("parent", "child"):
         e = element.find(tag)
         if e is None:
-            raise ModelError(f"joint {name!r} has no <{tag} link=\"...\"/>", where=f"{source}:{element.line}")
+            raise ModelError(f'joint {name!r} has no <{tag} link="..."/>', where=f"{source}:{element.line}")
         ends.append(_name(e, source, "link", f"joint {name!r}: "))
     xyz, rpy = _origin(element, source, name)
     axis_element = element.find("axis")
@@ -442,17 +504,25 @@ def _joint(element: _Element, source: str) -> UrdfJoint:
     limit = element.find("limit")
     limits = None
     if limit is not None:
-        limits = tuple(_number(limit, k, source, name=name) if k in limit.attrib else None
-                       for k in ("lower", "upper", "effort", "velocity"))
+        limits = tuple(
+            _number(limit, k, source, name=name) if k in limit.attrib else None
+            for k in ("lower", "upper", "effort", "velocity")
+        )
     if kind == "revolute" and limit is None:
-        raise ModelError(f"revolute joint {name!r} has no <limit>", where=f"{source}:{element.line}",
-                         hint="URDF requires <limit> on revolute joints; use type=\"continuous\" for none")
+        raise ModelError(
+            f"revolute joint {name!r} has no <limit>",
+            where=f"{source}:{element.line}",
+            hint='URDF requires <limit> on revolute joints; use type="continuous" for none',
+        )
     mimic_element = element.find("mimic")
     mimic = None
     if mimic_element is not None:
         other = _name(mimic_element, source, "joint", f"joint {name!r}: ")
-        mimic = UrdfMimic(other, _number(mimic_element, "multiplier", source, 1.0, name),
-                          _number(mimic_element, "offset", source, 0.0, name))
+        mimic = UrdfMimic(
+            other,
+            _number(mimic_element, "multiplier", source, 1.0, name),
+            _number(mimic_element, "offset", source, 0.0, name),
+        )
     return UrdfJoint(name, kind, ends[0], ends[1], xyz, rpy, axis, limits, mimic, element.line)
 
 
@@ -478,12 +548,18 @@ def parse_urdf(text: str | bytes, source: str = "<urdf>") -> UrdfRobot:
         raise ModelError(f"the root element is <{_show(tree.tag)}>, not <robot>", where=f"{source}:{tree.line}")
     xacro = next((e for e in _walk(tree) if e.tag.startswith("xacro:")), None)
     if xacro is not None:
-        raise ModelError(f"<{_show(xacro.tag)}> is a xacro macro, not URDF", where=f"{source}:{xacro.line}",
-                         hint="expand the file first: xacro robot.urdf.xacro > robot.urdf")
+        raise ModelError(
+            f"<{_show(xacro.tag)}> is a xacro macro, not URDF",
+            where=f"{source}:{xacro.line}",
+            hint="expand the file first: xacro robot.urdf.xacro > robot.urdf",
+        )
     robot_name = _name(tree, source) if "name" in tree.attrib else "robot"
     materials = _materials(tree)
-    links = tuple(UrdfLink(name, _inertial(e, name, source), e.line, _visuals(e, name, source, materials))
-                  for e in tree.findall("link") for name in (_name(e, source),))
+    links = tuple(
+        UrdfLink(name, _inertial(e, name, source), e.line, _visuals(e, name, source, materials))
+        for e in tree.findall("link")
+        for name in (_name(e, source),)
+    )
     joints = tuple(_joint(e, source) for e in tree.findall("joint"))
     _check_tree(links, joints, source)
     children = {j.child for j in joints}
@@ -491,16 +567,20 @@ def parse_urdf(text: str | bytes, source: str = "<urdf>") -> UrdfRobot:
     if len(roots) != 1:
         raise ModelError(
             f"the links form {len(roots)} trees (roots: {', '.join(r.name for r in roots) or 'none'}); "
-            f"a URDF robot has one root link", where=f"{source}:{roots[1].line if len(roots) > 1 else tree.line}",
-            hint="join the trees by joints (a fixed joint for a rigid connection)")
+            f"a URDF robot has one root link",
+            where=f"{source}:{roots[1].line if len(roots) > 1 else tree.line}",
+            hint="join the trees by joints (a fixed joint for a rigid connection)",
+        )
     robot = UrdfRobot(robot_name, links, joints, roots[0].name, source, _not_read(tree))
     reached = robot.joints_from_root()
     if len(reached) != len(joints):
         reached = {j.name for j in reached}
         loop = next(j for j in joints if j.name not in reached)
-        raise ModelError(f"joint {loop.name!r} is part of a closed loop of links; URDF describes trees",
-                         where=f"{source}:{loop.line}",
-                         hint="close loops in a model file: [[closures]] next to [mechanism] urdf = ...")
+        raise ModelError(
+            f"joint {loop.name!r} is part of a closed loop of links; URDF describes trees",
+            where=f"{source}:{loop.line}",
+            hint="close loops in a model file: [[closures]] next to [mechanism] urdf = ...",
+        )
     for link in links:
         if link.inertial is not None and link.name != robot.root:
             _check_inertia(link, source)
@@ -521,15 +601,23 @@ def _not_read(tree: _Element) -> tuple[str, ...]:
     for element in tree.children:
         if element.tag not in _SILENT:
             counts[element.tag] = counts.get(element.tag, 0) + 1
-    damped = [j for j in tree.findall("joint") for d in j.findall("dynamics")
-              if any(_float_or_zero(d.attrib.get(k)) != 0.0 for k in ("damping", "friction"))]
+    damped = [
+        j
+        for j in tree.findall("joint")
+        for d in j.findall("dynamics")
+        if any(_float_or_zero(d.attrib.get(k)) != 0.0 for k in ("damping", "friction"))
+    ]
     out = []
     if damped:
-        out.append(f"{len(damped)} joint <dynamics> (damping, friction) not applied: add them as [[loads]] "
-                   f"or actuator torques in a model file")
+        out.append(
+            f"{len(damped)} joint <dynamics> (damping, friction) not applied: add them as [[loads]] "
+            f"or actuator torques in a model file"
+        )
     for tag, n in counts.items():
-        what = {"transmission": "actuator models; apply joint torques with actuators instead",
-                "gazebo": "simulator plug-ins and surface properties"}.get(tag, "not part of the mechanism")
+        what = {
+            "transmission": "actuator models; apply joint torques with actuators instead",
+            "gazebo": "simulator plug-ins and surface properties",
+        }.get(tag, "not part of the mechanism")
         name = tag if re.fullmatch(r"[A-Za-z_][\w:.-]{0,40}", tag) else _show(tag)
         out.append(f"{n} <{name}> element{'s' if n > 1 else ''} not read ({what})")
     return tuple(out)
@@ -556,8 +644,9 @@ def _check_mimics(joints, source):
         where = f"{source}:{j.line}"
         other = by_name.get(j.mimic.joint)
         if other is None:
-            raise ModelError(f"joint {j.name!r} mimics {j.mimic.joint!r}, which is not a joint of the file",
-                             where=where, hint=hint)
+            raise ModelError(
+                f"joint {j.name!r} mimics {j.mimic.joint!r}, which is not a joint of the file", where=where, hint=hint
+            )
         if other is j:
             raise ModelError(f"joint {j.name!r} mimics itself", where=where, hint=hint)
     done: set[str] = set()
@@ -569,11 +658,13 @@ def _check_mimics(joints, source):
             k = by_name[k.mimic.joint] if k.mimic is not None else None
         names = [w.name for w in walk]
         if k is not None and k.name in names:  # back on this walk: a cycle
-            cycle = walk[names.index(k.name):] + [k]
-            raise ModelError(f"the mimic joints {' -> '.join(repr(c.name) for c in cycle)} form a cycle",
-                             where=f"{source}:{k.line}",
-                             hint="a cycle of mimics fixes or contradicts its joints; let one of them move freely "
-                                  "(remove its <mimic>)")
+            cycle = walk[names.index(k.name) :] + [k]
+            raise ModelError(
+                f"the mimic joints {' -> '.join(repr(c.name) for c in cycle)} form a cycle",
+                where=f"{source}:{k.line}",
+                hint="a cycle of mimics fixes or contradicts its joints; let one of them move freely "
+                "(remove its <mimic>)",
+            )
 
 
 def _walk(element: _Element):
@@ -589,8 +680,10 @@ def _lines_by_name(items, what: str, source) -> dict[str, int]:
     lines: dict[str, int] = {}
     for item in items:
         if item.name in lines:
-            raise ModelError(f"{what} {item.name!r} is defined twice (lines {lines[item.name]} and {item.line})",
-                             where=f"{source}:{item.line}")
+            raise ModelError(
+                f"{what} {item.name!r} is defined twice (lines {lines[item.name]} and {item.line})",
+                where=f"{source}:{item.line}",
+            )
         lines[item.name] = item.line
     return lines
 
@@ -602,14 +695,18 @@ def _check_tree(links, joints, source):
     for j in joints:
         for end in (j.parent, j.child):
             if end not in seen:
-                raise ModelError(f"joint {j.name!r} names the link {end!r}, which is not defined",
-                                 where=f"{source}:{j.line}")
+                raise ModelError(
+                    f"joint {j.name!r} names the link {end!r}, which is not defined", where=f"{source}:{j.line}"
+                )
         if j.parent == j.child:
             raise ModelError(f"joint {j.name!r} joins link {j.child!r} to itself", where=f"{source}:{j.line}")
         if j.child in parent_of:
-            raise ModelError(f"link {j.child!r} is the child of two joints ({parent_of[j.child]!r} and {j.name!r}); "
-                             f"URDF describes trees", where=f"{source}:{j.line}",
-                             hint="close loops in a model file: [[closures]] next to [mechanism] urdf = ...")
+            raise ModelError(
+                f"link {j.child!r} is the child of two joints ({parent_of[j.child]!r} and {j.name!r}); "
+                f"URDF describes trees",
+                where=f"{source}:{j.line}",
+                hint="close loops in a model file: [[closures]] next to [mechanism] urdf = ...",
+            )
         parent_of[j.child] = j.name
 
 
@@ -637,23 +734,29 @@ def _check_coordinates(mech, lines: dict[str, int], src: str):
     from appell.symbols import derivative_name
 
     coordinates = [(q.name, j.name) for j in mech.joints for q in j.coordinates]
-    kinds = declared_kinds([(q, "coordinate") for q, _ in coordinates]
-                           + [(derivative_name(q, 1), "speed") for q, _ in coordinates]
-                           + [(p.symbol.name, "parameter") for p in mech.parameters])
+    kinds = declared_kinds(
+        [(q, "coordinate") for q, _ in coordinates]
+        + [(derivative_name(q, 1), "speed") for q, _ in coordinates]
+        + [(p.symbol.name, "parameter") for p in mech.parameters]
+    )
     outputs = {f"{f}_{j.name}_{x}": j.name for j in mech.joints for f in "FM" for x in "xyz"}
     for q, joint in reversed(coordinates):  # a name used twice is blamed on the later joint
         where = f"{src}:{lines[joint]}"
         clash = name_clash(q, "coordinate", kinds)
         if clash:
-            raise ModelError(f"joint {joint!r}: {clash}", where=where,
-                             hint="rename the joint in the URDF: the derivative names (x_dot, x_ddot, x_d3, ...) of "
-                                  "the joints' coordinates are taken")
+            raise ModelError(
+                f"joint {joint!r}: {clash}",
+                where=where,
+                hint="rename the joint in the URDF: the derivative names (x_dot, x_ddot, x_d3, ...) of "
+                "the joints' coordinates are taken",
+            )
         for name in (q, derivative_name(q, 1), derivative_name(q, 2)):
             if name in outputs:
-                raise ModelError(f"joint {joint!r}: its column {name!r} is the reaction column of joint "
-                                 f"{outputs[name]!r}", where=where,
-                                 hint="rename the joint in the URDF: F_<joint>_x ... M_<joint>_z are the joints' "
-                                      "reactions")
+                raise ModelError(
+                    f"joint {joint!r}: its column {name!r} is the reaction column of joint {outputs[name]!r}",
+                    where=where,
+                    hint="rename the joint in the URDF: F_<joint>_x ... M_<joint>_z are the joints' reactions",
+                )
 
 
 def _rotation(rpy):
@@ -709,8 +812,11 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
     for j in robot.joints:
         joint_names[j.name] = ident = _identifier(j.name)
         if ident in first:
-            raise ModelError(f"joint {j.name!r} and joint {first[ident]!r} have the same appell name {ident!r}",
-                             where=f"{src}:{j.line}", hint="rename one of them in the URDF")
+            raise ModelError(
+                f"joint {j.name!r} and joint {first[ident]!r} have the same appell name {ident!r}",
+                where=f"{src}:{j.line}",
+                hint="rename one of them in the URDF",
+            )
         first[ident] = j.name
     taken = set(joint_names.values()) | {"g", GROUND}
     lines: dict[str, int] = {}  # mechanism joint -> its line
@@ -724,12 +830,18 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
         mass, com, inertia = composite_inertial(robot, cluster)
         root_line = links[robot.root].line
         if mass == 0.0:
-            raise ModelError(f"floating base: the root link {robot.root!r} and the links fixed to it have no mass",
-                             where=f"{src}:{root_line}", hint="give the base an <inertial> with its mass")
+            raise ModelError(
+                f"floating base: the root link {robot.root!r} and the links fixed to it have no mass",
+                where=f"{src}:{root_line}",
+                hint="give the base an <inertial> with its mass",
+            )
         name = _appell_name(robot.root, "link", f"{src}:{root_line}")
         if name in taken or ROOT_JOINT in taken:
-            raise ModelError(f"floating base: the name {name if name in taken else ROOT_JOINT!r} is taken",
-                             where=f"{src}:{root_line}", hint="rename the link or joint of that name")
+            raise ModelError(
+                f"floating base: the name {name if name in taken else ROOT_JOINT!r} is taken",
+                where=f"{src}:{root_line}",
+                hint="rename the link or joint of that name",
+            )
         taken |= {name, ROOT_JOINT}
         base = mech.body(name, mass, inertia=sp.Matrix(inertia), com=tuple(com.tolist()))
         mech.free(ROOT_JOINT, mech.ground, base, rotation=FLOATING_ROTATION)
@@ -753,19 +865,25 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
                 place[link.name] = (body, R, sp.Matrix(xyz))
                 continue
             if any(k.parent == link.name for k in robot.joints):
-                raise ModelError(f"link {link.name!r} has no <inertial> but moves on joint {joint.name!r}",
-                                 where=f"{src}:{link.line}",
-                                 hint="give it an <inertial> with its mass and inertia (a massless link, without "
-                                      "<inertial> or of mass 0, between moving joints is not supported)")
-            raise ModelError(f"link {link.name!r} has no <inertial>: nothing moves with joint {joint.name!r}",
-                             where=f"{src}:{link.line}", hint="give the link an <inertial> with a positive mass "
-                                                              "(mass 0 is a massless link), or remove the joint")
+                raise ModelError(
+                    f"link {link.name!r} has no <inertial> but moves on joint {joint.name!r}",
+                    where=f"{src}:{link.line}",
+                    hint="give it an <inertial> with its mass and inertia (a massless link, without "
+                    "<inertial> or of mass 0, between moving joints is not supported)",
+                )
+            raise ModelError(
+                f"link {link.name!r} has no <inertial>: nothing moves with joint {joint.name!r}",
+                where=f"{src}:{link.line}",
+                hint="give the link an <inertial> with a positive mass "
+                "(mass 0 is a massless link), or remove the joint",
+            )
         name = _appell_name(link.name, "link", f"{src}:{link.line}")
         if name in taken:
             name = f"{name}_link"
         if name in taken:
-            raise ModelError(f"link {link.name!r}: its name is taken", where=f"{src}:{link.line}",
-                             hint="rename the link")
+            raise ModelError(
+                f"link {link.name!r}: its name is taken", where=f"{src}:{link.line}", hint="rename the link"
+            )
         taken.add(name)
         inertial = link.inertial
         Ri = _rotation(inertial.rpy)
@@ -786,9 +904,11 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
                 mech.free(jname, body, child, **kw)
             else:  # planar: motion in the plane normal to the axis
                 if any(abs(a - b) > 1e-12 for a, b in zip(joint.axis, (0.0, 0.0, 1.0))):
-                    raise ModelError(f"planar joint {joint.name!r}: only the plane normal z = (0 0 1) is read, "
-                                     f"got axis {joint.axis}", hint="rotate the joint frame with the origin's rpy "
-                                                                    "so that the plane normal is z")
+                    raise ModelError(
+                        f"planar joint {joint.name!r}: only the plane normal z = (0 0 1) is read, "
+                        f"got axis {joint.axis}",
+                        hint="rotate the joint frame with the origin's rpy so that the plane normal is z",
+                    )
                 mech.planar(jname, body, child, **kw)
         except ModelError as exc:
             raise ModelError(exc.message, where=exc.where or where, hint=exc.hint) from None
@@ -813,12 +933,20 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
             other = by_name[joint.mimic.joint]
             for k in (joint, other):
                 if k.type not in _ONE_DOF:
-                    raise ModelError(f"joint {joint.name!r} mimics {other.name!r}, but {k.name!r} is a {k.type} "
-                                     f"joint, not a revolute, continuous or prismatic one",
-                                     where=f"{src}:{joint.line}", hint=_MIMIC_HINT)
+                    raise ModelError(
+                        f"joint {joint.name!r} mimics {other.name!r}, but {k.name!r} is a {k.type} "
+                        f"joint, not a revolute, continuous or prismatic one",
+                        where=f"{src}:{joint.line}",
+                        hint=_MIMIC_HINT,
+                    )
             q, q_m = sp.Symbol(moving_name[joint.name]), sp.Symbol(moving_name[joint.mimic.joint])
-            constraints.append(holonomic(f"{moving_name[joint.name]}_mimic",
-                                         q - joint.mimic.multiplier * q_m - joint.mimic.offset, where=f"{src}:{joint.line}"))
+            constraints.append(
+                holonomic(
+                    f"{moving_name[joint.name]}_mimic",
+                    q - joint.mimic.multiplier * q_m - joint.mimic.offset,
+                    where=f"{src}:{joint.line}",
+                )
+            )
     return mech, tuple(constraints)
 
 
@@ -834,8 +962,9 @@ def urdf_units(robot: UrdfRobot) -> dict[str, str]:
     return units
 
 
-def urdf_system(source, *, gravity: float = 9.81, reactions="all", initial=None, floating_base: bool = False,
-                **system_options):
+def urdf_system(
+    source, *, gravity: float = 9.81, reactions="all", initial=None, floating_base: bool = False, **system_options
+):
     """The :class:`appell.System` of a URDF file (path) or :class:`UrdfRobot`: the
     :func:`urdf_mechanism` with every joint's reaction as outputs (``reactions``, as in
     :meth:`Mechanism.system <appell.mechanism.Mechanism.system>`); ``initial`` values by
@@ -846,7 +975,12 @@ def urdf_system(source, *, gravity: float = 9.81, reactions="all", initial=None,
     mech, constraints = urdf_mechanism(robot, gravity, floating_base=floating_base)
     units = {**urdf_units(robot), **dict(system_options.pop("units", None) or {})}
     try:
-        return mech.system(initial=initial, reactions=reactions, units=units,
-                           constraints=constraints + tuple(system_options.pop("constraints", ())), **system_options)
+        return mech.system(
+            initial=initial,
+            reactions=reactions,
+            units=units,
+            constraints=constraints + tuple(system_options.pop("constraints", ())),
+            **system_options,
+        )
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or robot.source, hint=exc.hint) from None

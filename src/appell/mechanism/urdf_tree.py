@@ -61,11 +61,16 @@ def _appell_name(name: str, what: str, where: str) -> str:
     shown = f"{what} {name!r}" + (f" (named {ident!r} in appell)" if ident != name else "")
     problem = name_problem(ident)
     if problem is not None:
-        hint = f"rename the {what} in the URDF" + (f": {NAME_HINT} (as in model files)" if problem == "not valid" else "")
+        hint = f"rename the {what} in the URDF" + (
+            f": {NAME_HINT} (as in model files)" if problem == "not valid" else ""
+        )
         raise ModelError(f"{shown}: {what} name {ident!r} is {problem}", where=where, hint=hint)
     if ident.startswith(_RESULT_PREFIXES):
-        raise ModelError(f"{shown}: names starting with {', '.join(_RESULT_PREFIXES)} are those of result columns",
-                         where=where, hint=f"rename the {what} in the URDF")
+        raise ModelError(
+            f"{shown}: names starting with {', '.join(_RESULT_PREFIXES)} are those of result columns",
+            where=where,
+            hint=f"rename the {what} in the URDF",
+        )
     return ident
 
 
@@ -83,8 +88,10 @@ def reading_notes(robot) -> list[str]:
     notes = [f"{robot.source}: {sentence}" for sentence in robot.not_read]
     idle = [j.name for j in robot.joints if j.mimic is not None and j.type == "fixed"]
     if idle:
-        notes.append(f"{robot.source}: <mimic> on {len(idle)} fixed joint{'s' if len(idle) > 1 else ''} "
-                     f"({', '.join(idle[:3])}{', ...' if len(idle) > 3 else ''}) not applied: a fixed joint does not move")
+        notes.append(
+            f"{robot.source}: <mimic> on {len(idle)} fixed joint{'s' if len(idle) > 1 else ''} "
+            f"({', '.join(idle[:3])}{', ...' if len(idle) > 3 else ''}) not applied: a fixed joint does not move"
+        )
     return notes
 
 
@@ -95,8 +102,13 @@ class NotNumeric(Exception):
 def rpy_matrix(rpy) -> np.ndarray:
     """URDF ``rpy = (roll, pitch, yaw)``: ``Rz(yaw) Ry(pitch) Rx(roll)`` in floating point."""
     (cr, cp, cy), (sr, sp_, sy) = np.cos(rpy), np.sin(rpy)
-    return np.array([[cy * cp, cy * sp_ * sr - sy * cr, cy * sp_ * cr + sy * sr],
-                     [sy * cp, sy * sp_ * sr + cy * cr, sy * sp_ * cr - cy * sr], [-sp_, cp * sr, cp * cr]])
+    return np.array(
+        [
+            [cy * cp, cy * sp_ * sr - sy * cr, cy * sp_ * cr + sy * sr],
+            [sy * cp, sy * sp_ * sr + cy * cr, sy * sp_ * cr - cy * sr],
+            [-sp_, cp * sr, cp * cr],
+        ]
+    )
 
 
 def root_cluster(robot) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -176,8 +188,14 @@ def urdf_tree(robot, floating_base: bool = False) -> UrdfTree:
 
     src = robot.source
     types = {j.name: j.type for j in robot.joints}
-    odd = [j.name for j in robot.joints if j.type in ("floating", "planar") or j.mimic is not None
-           and j.type != "fixed" and (j.type not in _ONE_DOF or types.get(j.mimic.joint) not in _ONE_DOF)]
+    odd = [
+        j.name
+        for j in robot.joints
+        if j.type in ("floating", "planar")
+        or j.mimic is not None
+        and j.type != "fixed"
+        and (j.type not in _ONE_DOF or types.get(j.mimic.joint) not in _ONE_DOF)
+    ]
     if odd:
         raise NotNumeric(f"joints {', '.join(odd[:3])} (floating, planar, or a mimic of a multi-coordinate joint)")
     nodes: list[TreeNode] = []
@@ -189,12 +207,24 @@ def urdf_tree(robot, floating_base: bool = False) -> UrdfTree:
         if mass == 0.0:
             raise NotNumeric("a massless floating base")
         _appell_name(robot.root, "link", f"{src}:{robot.link(robot.root).line}")
-        for k, (kind, axis) in enumerate([("prismatic", 0), ("prismatic", 1), ("prismatic", 2),
-                                          ("revolute", 2), ("revolute", 1), ("revolute", 0)]):
+        for k, (kind, axis) in enumerate(
+            [("prismatic", 0), ("prismatic", 1), ("prismatic", 2), ("revolute", 2), ("revolute", 1), ("revolute", 0)]
+        ):
             last = k == 5
-            nodes.append(TreeNode(k - 1, kind, np.eye(3), zero, _AXES[axis], f"{ROOT_JOINT}_{'r' * (k > 2)}{'xyz'[axis]}",
-                                  mass if last else 0.0, com if last else zero, inertia if last else none,
-                                  ROOT_JOINT if last else None))
+            nodes.append(
+                TreeNode(
+                    k - 1,
+                    kind,
+                    np.eye(3),
+                    zero,
+                    _AXES[axis],
+                    f"{ROOT_JOINT}_{'r' * (k > 2)}{'xyz'[axis]}",
+                    mass if last else 0.0,
+                    com if last else zero,
+                    inertia if last else none,
+                    ROOT_JOINT if last else None,
+                )
+            )
         place.update((link, (5, R, p)) for link, (R, p) in cluster.items())
     names = {}
     for joint in robot.joints_from_root():
@@ -213,17 +243,35 @@ def urdf_tree(robot, floating_base: bool = False) -> UrdfTree:
         inertial = link.inertial
         Ri = rpy_matrix(inertial.rpy)
         inertia = Ri @ np.array(inertial.inertia_matrix) @ Ri.T
-        nodes.append(TreeNode(node, "fixed" if joint.type == "fixed" else
-                              "prismatic" if joint.type == "prismatic" else "revolute", R0, o, np.array(joint.axis),
-                              None if joint.type == "fixed" else jname, inertial.mass, np.array(inertial.xyz),
-                              (inertia + inertia.T) / 2, jname))
+        nodes.append(
+            TreeNode(
+                node,
+                "fixed" if joint.type == "fixed" else "prismatic" if joint.type == "prismatic" else "revolute",
+                R0,
+                o,
+                np.array(joint.axis),
+                None if joint.type == "fixed" else jname,
+                inertial.mass,
+                np.array(inertial.xyz),
+                (inertia + inertia.T) / 2,
+                jname,
+            )
+        )
         place[link.name] = (len(nodes) - 1, np.eye(3), zero)
     if len(set(names.values())) != len(names):
         raise ModelError(f"{src}: two joints have the same appell name", hint="rename one of them in the URDF")
     coordinates = [node.coordinate for node in nodes if node.coordinate is not None]
-    mimics = tuple((f"{names[j.name]}_mimic", coordinates.index(names[j.name]), coordinates.index(names[j.mimic.joint]),
-                    j.mimic.multiplier, j.mimic.offset) for j in robot.joints
-                   if j.mimic is not None and j.type != "fixed")
+    mimics = tuple(
+        (
+            f"{names[j.name]}_mimic",
+            coordinates.index(names[j.name]),
+            coordinates.index(names[j.mimic.joint]),
+            j.mimic.multiplier,
+            j.mimic.offset,
+        )
+        for j in robot.joints
+        if j.mimic is not None and j.type != "fixed"
+    )
     for note in reading_notes(robot):
         warnings.warn(AppellNote(note), stacklevel=2)
     return UrdfTree(_identifier(robot.name), tuple(nodes), mimics)

@@ -72,9 +72,11 @@ def forget(derivation=None) -> None:
 def numeric_model(derivation, backend: str | None = None):
     """The numeric model of ``derivation`` for ``backend`` ('numpy', 'c', 'auto'; None:
     :data:`DEFAULT_BACKEND`), built once and kept (see the module's docstring)."""
-    raise ModelError(f"numeric_model needs a derivation (from appell.derive or appell.derive_controlled), "
-                     f"not {type(derivation).__name__}",
-                     hint="derive the system first: numeric_model(appell.derive(system))")
+    raise ModelError(
+        f"numeric_model needs a derivation (from appell.derive or appell.derive_controlled), "
+        f"not {type(derivation).__name__}",
+        hint="derive the system first: numeric_model(appell.derive(system))",
+    )
 
 
 @numeric_model.register

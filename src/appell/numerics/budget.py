@@ -39,9 +39,17 @@ class EvaluationBudget:
     """Counts the evaluations of an integration over ``[t0, t_end]``; call it with the time
     of each evaluation (module docstring). ``what`` names the check in the message."""
 
-    def __init__(self, what: str, t0: float, t_end: float, limit: int, seconds: float | None = None,
-                 hint: str = "check a shorter span (appell check --t-end T), or look for forces or potentials "
-                             "that are far too large", first: int = PROJECT_EVERY):
+    def __init__(
+        self,
+        what: str,
+        t0: float,
+        t_end: float,
+        limit: int,
+        seconds: float | None = None,
+        hint: str = "check a shorter span (appell check --t-end T), or look for forces or potentials "
+        "that are far too large",
+        first: int = PROJECT_EVERY,
+    ):
         self.what, self.t0, self.t_end, self.limit, self.hint = what, float(t0), float(t_end), int(limit), hint
         #: evaluations before the first projection: an implicit method's start on a stiff motion
         #: takes steps far shorter than its later ones, and a projection there says nothing
@@ -59,14 +67,17 @@ class EvaluationBudget:
                 raise ComputationError(
                     f"{self.what} would need {pace} evaluations over [{self.t0:g}, {self.t_end:g}], more than "
                     f"its budget of {self.limit} (stopped at t = {self.reached:.6g} after {self.calls}); the "
-                    f"motion is too fast or stiff for this span", hint=self.hint)
+                    f"motion is too fast or stiff for this span",
+                    hint=self.hint,
+                )
             spent = time.perf_counter() - self.start
             if self.seconds is not None and spent > self.seconds:
                 raise ComputationError(
                     f"{self.what} has run {spent:.0f} s, more than its budget of {self.seconds:g} s (stopped at "
                     f"t = {self.reached:.6g} of [{self.t0:g}, {self.t_end:g}] after {self.calls} evaluations, "
                     f"at a pace of {self.projected():.2g} for the span); each evaluation is slow here",
-                    hint=self.hint)
+                    hint=self.hint,
+                )
 
     def projected(self) -> float:
         """Evaluations the whole span would take at the pace so far."""

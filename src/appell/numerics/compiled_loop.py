@@ -106,8 +106,12 @@ def loop_library():
 def supports(model) -> bool:
     """Whether the compiled loop can integrate ``model``: a compiled model whose constraints
     are linear in the accelerations (one C call gives ``dy/dt`` and the multipliers)."""
-    return (isinstance(model, CompiledNumericModel) and model.constraint_function is None
-            and model._lib is not None and hasattr(model._lib, "appell_evaluate"))
+    return (
+        isinstance(model, CompiledNumericModel)
+        and model.constraint_function is None
+        and model._lib is not None
+        and hasattr(model._lib, "appell_evaluate")
+    )
 
 
 class Outputs:
@@ -135,9 +139,11 @@ class CompiledLoop:
 
     def __init__(self, model, p=None, fallback=None, baumgarte=None):
         if not supports(model):
-            raise ComputationError(f"the compiled loop needs a compiled model with constraints linear in the "
-                                   f"accelerations; {getattr(model, 'name', model)!r} is not one",
-                                   hint="use backend 'c', or a SciPy method")
+            raise ComputationError(
+                f"the compiled loop needs a compiled model with constraints linear in the "
+                f"accelerations; {getattr(model, 'name', model)!r} is not one",
+                hint="use backend 'c', or a SciPy method",
+            )
         self.model = model
         self.lib = lib = loop_library()
         self.nq, self.n, self.s = len(model.coordinate_names), len(model.speed_names), len(model.constraint_names)
@@ -155,10 +161,18 @@ class CompiledLoop:
         self._finalizer = weakref.finalize(self, lib.appell_loop_free, ctx)
         mlib = model._lib
         alpha, beta = (0.0, 0.0) if baumgarte is None else (float(baumgarte[0]), float(baumgarte[1]))
-        lib.appell_loop_model(ctx, ctypes.cast(mlib.appell_evaluate, _P).value,
-                              ctypes.cast(mlib.appell_residuals, _P).value, self._callback,
-                              self.p.ctypes.data, self.dep.ctypes.data, KEEP_CONDITION,
-                              int(baumgarte is not None), alpha, beta)
+        lib.appell_loop_model(
+            ctx,
+            ctypes.cast(mlib.appell_evaluate, _P).value,
+            ctypes.cast(mlib.appell_residuals, _P).value,
+            self._callback,
+            self.p.ctypes.data,
+            self.dep.ctypes.data,
+            KEEP_CONDITION,
+            int(baumgarte is not None),
+            alpha,
+            beta,
+        )
         self.state = np.empty(6 + self.ny)
         self._scratch: Outputs | None = None
         self.projects = PROJECT_IN_LOOP
@@ -199,8 +213,13 @@ class CompiledLoop:
         self.scale = np.ascontiguousarray(scale, dtype=float)
         if self.scale.shape != (self.s,):
             raise ValueError(f"the watch needs {self.s} row scales, got shape {self.scale.shape}")
-        if self.lib.appell_loop_watch(self.ctx, ctypes.cast(self.model._lib.appell_blocks, _P).value,
-                                      self.scale.ctypes.data, float(level), float(dip)):
+        if self.lib.appell_loop_watch(
+            self.ctx,
+            ctypes.cast(self.model._lib.appell_blocks, _P).value,
+            self.scale.ctypes.data,
+            float(level),
+            float(dip),
+        ):
             raise MemoryError("the compiled loop could not allocate the work arrays of its rank watch")
 
     def raise_failure(self, t: float):
@@ -220,9 +239,16 @@ class CompiledLoop:
         """Let the loop record at ``t_eval`` into ``out`` (row k for ``t_eval[k]``)."""
         self._t_eval = np.ascontiguousarray(t_eval, dtype=float)
         self._out = out
-        self.lib.appell_loop_outputs(self.ctx, self._t_eval.ctypes.data, self._t_eval.size, out.y.ctypes.data,
-                                     out.acc.ctypes.data, out.lam.ctypes.data, out.F.ctypes.data,
-                                     out.phi.ctypes.data)
+        self.lib.appell_loop_outputs(
+            self.ctx,
+            self._t_eval.ctypes.data,
+            self._t_eval.size,
+            out.y.ctypes.data,
+            out.acc.ctypes.data,
+            out.lam.ctypes.data,
+            out.F.ctypes.data,
+            out.phi.ctypes.data,
+        )
 
     def evaluate_many(self, ts, ys):
         """The model at the states ``ys`` (m x ny) at times ``ts`` (m) in one C call:
@@ -232,8 +258,16 @@ class CompiledLoop:
         ts = np.ascontiguousarray(ts, dtype=float).reshape(-1)
         ys = np.ascontiguousarray(ys, dtype=float).reshape(ts.size, self.ny)
         out = Outputs(self.model, ts.size)
-        self.lib.appell_loop_outputs(self.ctx, ts.ctypes.data, ts.size, out.y.ctypes.data, out.acc.ctypes.data,
-                                     out.lam.ctypes.data, out.F.ctypes.data, out.phi.ctypes.data)
+        self.lib.appell_loop_outputs(
+            self.ctx,
+            ts.ctypes.data,
+            ts.size,
+            out.y.ctypes.data,
+            out.acc.ctypes.data,
+            out.lam.ctypes.data,
+            out.F.ctypes.data,
+            out.phi.ctypes.data,
+        )
         try:
             if self.lib.appell_loop_evaluate_many(self.ctx, ts.size, ts.ctypes.data, ys.ctypes.data):
                 self.raise_failure(float(ts[0]))
@@ -242,7 +276,7 @@ class CompiledLoop:
                 self.bind_outputs(self._t_eval, self._out)
         return out.rows(0, ts.size)[1:]
 
-    def solver(self, t0, y0, t_bound, rtol, atol, max_step=np.inf, first_step=None) -> "LoopSolver":
+    def solver(self, t0, y0, t_bound, rtol, atol, max_step=np.inf, first_step=None) -> LoopSolver:
         """A :class:`LoopSolver` started at ``(t0, y0)``."""
         return LoopSolver(self, t0, y0, t_bound, rtol, atol, max_step, first_step)
 
@@ -260,8 +294,9 @@ class LoopSolver:
         base = loop.state
         loop.lib.appell_loop_state(loop.ctx, base.ctypes.data)
         self._counted = (base[4], base[5])
-        if loop.lib.appell_loop_start(loop.ctx, float(t0), y0.ctypes.data, self.t_bound, float(rtol), float(atol),
-                                      float(max_step), first):
+        if loop.lib.appell_loop_start(
+            loop.ctx, float(t0), y0.ctypes.data, self.t_bound, float(rtol), float(atol), float(max_step), first
+        ):
             loop.raise_failure(float(t0))
         self.status = "running" if t0 < t_bound else "finished"
         self.nfev = self.steps = 0
@@ -310,8 +345,9 @@ class LoopSolver:
     def _advance(self, single, projection_tol, k, evaluations):
         self._k.value = int(k)
         limit = -1 if evaluations is None else int(self.loop.state[4]) + max(int(evaluations), 0)
-        r = self.loop.lib.appell_loop_advance(self.loop.ctx, int(single), float(projection_tol), limit,
-                                              ctypes.byref(self._k))
+        r = self.loop.lib.appell_loop_advance(
+            self.loop.ctx, int(single), float(projection_tol), limit, ctypes.byref(self._k)
+        )
         self._read()
         if r == -2:
             self.loop.raise_failure(self.t)

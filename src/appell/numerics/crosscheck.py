@@ -49,28 +49,30 @@ these over the states; the verdict fails when any line exceeds the tolerance.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 import numpy as np
 
 from appell.core.equations import is_controlled
 from appell.core.partition import row_scales
 from appell.errors import ComputationError, FormulaUnavailable, ModelError
+from appell.numerics.boundary import numeric_model
 from appell.numerics.inertia import check_inertia, extreme_parameters
 from appell.numerics.numeric import NumericModel, StateSolution, newton
-from appell.numerics.boundary import numeric_model
 
-NORMALISATION = ("accelerations relative to max(max|a|, F/max|M|); each multiplier relative to "
-                 "max(max_j |lambda_j|, F/max|J|) at its state, F = max(|M a|, |h - Q|) (the acceleration the largest "
-                 "generalized force gives the largest inertia, the multiplier that balances it)")
+NORMALISATION = (
+    "accelerations relative to max(max|a|, F/max|M|); each multiplier relative to "
+    "max(max_j |lambda_j|, F/max|J|) at its state, F = max(|M a|, |h - Q|) (the acceleration the largest "
+    "generalized force gives the largest inertia, the multiplier that balances it)"
+)
 
 ROUTES = {
     "augmented": "the augmented multiplier system [M -J^T; J 0][a; lambda] = [Q - h; -c] (same blocks, solved at once)",
     "formulas": "the reaction formulas (1.5) as `derive` prints them, at the accelerations of the augmented system",
     "lagrange": "Lagrange's equations from T, the blocks M, h, Q, J, c formed again by differentiation",
     "friction": "the augmented system with the same friction law, every Coulomb contact sliding, solved at once "
-                "by Newton's method (no partition, no linear system in the normals)",
+    "by Newton's method (no partition, no linear system in the normals)",
 }
 
 
@@ -186,10 +188,12 @@ def augmented_solve(model: NumericModel, t, q, w, p=None) -> StateSolution:
         a, lam, Ja, its = solve_augmented(M, hQ, J, c, _model_constraint_function(model, t, q, w, pv))
     except np.linalg.LinAlgError:
         extreme = extreme_parameters(model.parameter_names, pv)
-        raise ComputationError(f"the augmented system [M -J^T; J 0] of the cross-check is singular at t = "
-                               f"{float(t):.10g}" + (f": {extreme}" if extreme else ""),
-                               hint="give the parameters values of ordinary size (or rescale the model's units); "
-                                    "else a singular configuration of the constraints") from None
+        raise ComputationError(
+            f"the augmented system [M -J^T; J 0] of the cross-check is singular at t = "
+            f"{float(t):.10g}" + (f": {extreme}" if extreme else ""),
+            hint="give the parameters values of ordinary size (or rescale the model's units); "
+            "else a singular configuration of the constraints",
+        ) from None
     return StateSolution(a, lam, Ja.T @ lam, (), False, its)
 
 
@@ -311,16 +315,23 @@ class CrossCheckReport:
             return "nothing was cross-checked: " + "; ".join(self.unavailable.values())
         bad = self.failures(tol)
         if bad:
-            return (f"failed (tolerance {tol:g}): "
-                    + ", ".join(f"{k} [{r}] {v:.3e}" for r, k, v in bad)
-                    + (f"; {self.extreme} (give the parameters values of ordinary size, or rescale the model's "
-                       "units)" if self.extreme else ""))
+            return (
+                f"failed (tolerance {tol:g}): "
+                + ", ".join(f"{k} [{r}] {v:.3e}" for r, k, v in bad)
+                + (
+                    f"; {self.extreme} (give the parameters values of ordinary size, or rescale the model's units)"
+                    if self.extreme
+                    else ""
+                )
+            )
         value, key, route = self.largest
         return f"passed: every line is at most the tolerance {tol:g} (largest {key} [{route}] {value:.3e})"
 
     def __str__(self) -> str:
-        lines = [f"cross-check of the split route (1.4)/(1.5) at {self.states} states",
-                 f"  normalisation: {NORMALISATION}"]
+        lines = [
+            f"cross-check of the split route (1.4)/(1.5) at {self.states} states",
+            f"  normalisation: {NORMALISATION}",
+        ]
         for c in self.comparisons:
             extra = f"; {c.skipped} state(s) skipped: {c.note}" if c.skipped else ""
             lines.append(f"  [{c.route}] against {c.description} ({c.states} states{extra}):")
@@ -407,14 +418,25 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
             J, c = model.full_blocks(t, q, w, pv)[:2]
             a_r, lam_r = solve_indeterminate(M, hQ, J, c, model.weights, red.rank)
             ref = StateSolution(_cleared(a_r, M, hQ), lam_r, J.T @ lam_r, ())
-            sol = StateSolution(_cleared(sol.accelerations, M, hQ), sol.multipliers, sol.generalized_reactions,
-                                sol.dependent, sol.switched)
+            sol = StateSolution(
+                _cleared(sol.accelerations, M, hQ),
+                sol.multipliers,
+                sol.generalized_reactions,
+                sol.dependent,
+                sol.switched,
+            )
         elif names:
             ref = augmented_solve(model, t, q, w, pv)
         if names:
             scale = multiplier_scale(M, hQ, J, ref.accelerations, ref.multipliers)
-            aug.add(sol.accelerations, ref.accelerations, sol.multipliers, ref.multipliers, scale,
-                    acceleration_floor(M, hQ, ref.accelerations))
+            aug.add(
+                sol.accelerations,
+                ref.accelerations,
+                sol.multipliers,
+                ref.multipliers,
+                scale,
+                acceleration_floor(M, hQ, ref.accelerations),
+            )
             lam_f = None
             if not sol.switched and "formulas" not in unavailable:
                 try:
@@ -426,8 +448,9 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
             else:
                 formulas.add(None, None, lam_f, ref.multipliers, scale)
         if route is not None:
-            a_l, lam_l = _lagrange_solve(route, t, q, w, pv, False if red is None else model.weights,
-                                         None if red is None else red.rank)
+            a_l, lam_l = _lagrange_solve(
+                route, t, q, w, pv, False if red is None else model.weights, None if red is None else red.rank
+            )
             if red is not None:
                 a_l = _cleared(a_l, M, hQ)
             scale = multiplier_scale(M, hQ, J, a_l, lam_l)
@@ -435,16 +458,18 @@ def cross_check(derivation, states=None, p=None, model: NumericModel | None = No
     comparisons = []
     if names:
         comparisons.append(aug.comparison("augmented"))
-        comparisons.append(formulas.comparison(
-            "formulas", "the derivation's partition is singular there (the numeric solve switched)"))
+        comparisons.append(
+            formulas.comparison("formulas", "the derivation's partition is singular there (the numeric solve switched)")
+        )
     else:
         unavailable["augmented"] = "no constraints: the augmented system is the split itself (M a = Q - h)"
     if route is not None:
         comparisons.append(lag.comparison("lagrange"))
     if getattr(derivation.system, "frictions", ()):
         comparisons.append(_friction_comparison(derivation, states, pv, names))
-    return CrossCheckReport(len(states), tuple(comparisons), unavailable, names,
-                            extreme_parameters(model.parameter_names, pv))
+    return CrossCheckReport(
+        len(states), tuple(comparisons), unavailable, names, extreme_parameters(model.parameter_names, pv)
+    )
 
 
 def _lagrange_solve(route, t, q, w, pv, weights=False, rank=None):
@@ -455,16 +480,20 @@ def _lagrange_solve(route, t, q, w, pv, weights=False, rank=None):
     M, hQ, J, c = M.reshape(n, n), hQ.reshape(n), J.reshape(-1, n), c.reshape(-1)
     fJ = None
     if route.constraint_function is not None:
+
         def fJ(a):
             f, Ja = route.constraint_function(float(t), q, w, a, pv)
             return np.asarray(f, float).reshape(-1), np.asarray(Ja, float).reshape(-1, n)
+
     try:
         if weights is not False:  # redundant constraints (see solve_indeterminate)
             return solve_indeterminate(M, hQ, J, c, weights, rank)
         a, lam, _, _ = solve_augmented(M, hQ, J, c, fJ)
     except np.linalg.LinAlgError as exc:
-        raise ComputationError("Lagrange's equations are singular at a sampled state",
-                               hint="the kinetic energy is not positive definite there") from exc
+        raise ComputationError(
+            "Lagrange's equations are singular at a sampled state",
+            hint="the kinetic energy is not positive definite there",
+        ) from exc
     return a, lam
 
 
@@ -483,6 +512,7 @@ def _friction_comparison(derivation, states, pv, names) -> Comparison:
             lines.skipped += 1
             continue
         M, hQ, J, c = model.evaluate_blocks(t, q, w, pv)
-        lines.add(sol.accelerations, a, sol.multipliers, lam, multiplier_scale(M, hQ, J, a, lam),
-                  acceleration_floor(M, hQ, a))
+        lines.add(
+            sol.accelerations, a, sol.multipliers, lam, multiplier_scale(M, hQ, J, a, lam), acceleration_floor(M, hQ, a)
+        )
     return lines.comparison("friction", "a slip speed vanishes there, or the Painlevé refusal applies")

@@ -89,8 +89,19 @@ def delegating(to: str, names):
 
 
 #: the members of :class:`Dynamics`
-DYNAMICS_MEMBERS = ("name", "state_names", "coordinate_names", "speed_names", "constraint_names", "control_names",
-                    "parameter_names", "default_parameters", "params", "evaluate", "state_residuals")
+DYNAMICS_MEMBERS = (
+    "name",
+    "state_names",
+    "coordinate_names",
+    "speed_names",
+    "constraint_names",
+    "control_names",
+    "parameter_names",
+    "default_parameters",
+    "params",
+    "evaluate",
+    "state_residuals",
+)
 
 
 def system_of(model):
@@ -103,6 +114,7 @@ def system_of(model):
 # What the simulator and the start's completion use when a model offers it; each is a
 # protocol checked with ``isinstance`` (never an attribute probe). A model that wraps another
 # (RedundantModel, FrictionModel) defines the members it offers itself.
+
 
 @runtime_checkable
 class FromDerivation(Protocol):

@@ -39,17 +39,27 @@ def caller(build, compiler):
     include = sysconfig.get_paths().get("include")
     if compiler is not None and include and (Path(include) / "Python.h").exists():
         try:
-            path = build(SOURCE.read_text(), list(compiler) + ["-I", include, "-I", numpy.get_include(),
-                                                        # the cache is keyed by the command: a NumPy of another
-                                                        # version builds its own extension
-                                                        f"-DAPPELL_NUMPY={numpy.__version__}"])
+            path = build(
+                SOURCE.read_text(),
+                list(compiler)
+                + [
+                    "-I",
+                    include,
+                    "-I",
+                    numpy.get_include(),
+                    # the cache is keyed by the command: a NumPy of another
+                    # version builds its own extension
+                    f"-DAPPELL_NUMPY={numpy.__version__}",
+                ],
+            )
             loader = importlib.machinery.ExtensionFileLoader("_appell_fastcall", str(path))
             spec = importlib.util.spec_from_file_location("_appell_fastcall", str(path), loader=loader)
             module = importlib.util.module_from_spec(spec)
             loader.exec_module(module)
         except (ComputationError, OSError, ImportError) as exc:
-            warnings.warn(f"the fast-call extension could not be built ({exc}); using ctypes", RuntimeWarning,
-                          stacklevel=2)
+            warnings.warn(
+                f"the fast-call extension could not be built ({exc}); using ctypes", RuntimeWarning, stacklevel=2
+            )
             module = None
     _MODULE.append(module)
     return module

@@ -39,13 +39,28 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from appell.errors import ComputationError, ModelError, PainleveError
-from appell.numerics.dynamics import Evaluation, delegating
-from appell.numerics.numeric import NumericModel, StateSolution, _args, compile_model, lambdify_blocks, \
-    partition_in_use, program_substitutions, split_solve
 from appell.numerics.boundary import numeric_model
+from appell.numerics.dynamics import Evaluation, delegating
+from appell.numerics.numeric import (
+    NumericModel,
+    StateSolution,
+    _args,
+    compile_model,
+    lambdify_blocks,
+    partition_in_use,
+    program_substitutions,
+    split_solve,
+)
 
-__all__ = ["augmented_friction_solve", "FrictionEvaluation", "FrictionLaws", "FrictionModel", "friction_model", "PAINLEVE_TOLERANCE",
-           "stick_names"]
+__all__ = [
+    "augmented_friction_solve",
+    "FrictionEvaluation",
+    "FrictionLaws",
+    "FrictionModel",
+    "friction_model",
+    "PAINLEVE_TOLERANCE",
+    "stick_names",
+]
 
 #: the determinant of ``I - A diag(sigma)`` (one contact: the coefficient of ``N``
 #: relative to its frictionless value) at or below which a sliding contact is refused
@@ -94,22 +109,30 @@ class FrictionLaws:
         for item in self.items:
             clash = [n for n in stick_names(item) if n in names]
             if clash:
-                raise ModelError(f"friction {item.name!r}: the name {clash[0]!r} of its sticking constraint is "
-                                 "already a constraint's name", where=item.where, hint="rename the friction")
+                raise ModelError(
+                    f"friction {item.name!r}: the name {clash[0]!r} of its sticking constraint is "
+                    "already a constraint's name",
+                    where=item.where,
+                    hint="rename the friction",
+                )
         if any(o == 2 for o in derivation.constraints.orders) and not derivation.constraints.linear:
-            raise ModelError("friction with constraints nonlinear in the accelerations is not supported",
-                             hint="write those constraints at velocity or position level")
+            raise ModelError(
+                "friction with constraints nonlinear in the accelerations is not supported",
+                hint="write those constraints at velocity or position level",
+            )
         kin = derivation.kinematics
         v = sp.Matrix([e for item in self.items for e in item.slip])
         G = v.jacobian(sp.Matrix(kin.speeds))
         coef = sp.Matrix([[item.mu_k, item.mu_s, item.viscous] for item in self.items])
-        self.function = lambdify_blocks(_args(derivation), [v, G, coef], program_substitutions(system),
-                                        what="slip velocities of the frictions")
+        self.function = lambdify_blocks(
+            _args(derivation), [v, G, coef], program_substitutions(system), what="slip velocities of the frictions"
+        )
         sizes = [item.slip.shape[0] for item in self.items]
         starts = np.cumsum([0] + sizes)
         self.slices = tuple(slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:]))
         self.columns = tuple(c for item in self.items for c in item.components) + tuple(
-            f"{item.name}_slipping" for item in self.items)
+            f"{item.name}_slipping" for item in self.items
+        )
         self._models: dict = {}
 
     def at(self, t, q, w, p):
@@ -117,8 +140,11 @@ class FrictionLaws:
         the speeds and one row ``(mu_k, mu_s, c)`` per item."""
         v, G, coef = self.function(float(t), q, w, p)
         n = len(w)
-        return (np.asarray(v, float).reshape(-1), np.asarray(G, float).reshape(-1, n),
-                np.asarray(coef, float).reshape(len(self.items), 3))
+        return (
+            np.asarray(v, float).reshape(-1),
+            np.asarray(G, float).reshape(-1, n),
+            np.asarray(coef, float).reshape(len(self.items), 3),
+        )
 
     def base(self, released=frozenset(), sticking=frozenset()) -> NumericModel:
         """The ideal model of a mode: the system's constraints without ``released``, with
@@ -132,28 +158,50 @@ class FrictionLaws:
 
             system = self.system
             kept = tuple(c for c in system.constraints if c.name not in key[0])
-            stick = tuple(nonholonomic(n, e, where=item.where) for item in self.items if item.name in key[1]
-                          for n, e in zip(stick_names(item), item.slip))
+            stick = tuple(
+                nonholonomic(n, e, where=item.where)
+                for item in self.items
+                if item.name in key[1]
+                for n, e in zip(stick_names(item), item.slip)
+            )
             units = tuple((k, u) for k, u in system.units if k not in key[0])
             d = derive(system.replace(constraints=kept + stick, units=units, frictions=()))
             self._models[key] = compile_model(d)
         return self._models[key]
 
-    def mode(self, released=(), sticking=(), directions=None, signs=None) -> "FrictionModel":
+    def mode(self, released=(), sticking=(), directions=None, signs=None) -> FrictionModel:
         """The :class:`FrictionModel` of a mode; sticking contacts whose normal is released
         slide (freely) instead."""
         released = frozenset(released)
-        sticking = frozenset(i.name for i in self.items
-                             if i.name in set(sticking) and i.coulomb and i.normal not in released)
-        return FrictionModel(self, self.base(released, sticking), released, sticking, dict(directions or {}),
-                             signs)
+        sticking = frozenset(
+            i.name for i in self.items if i.name in set(sticking) and i.coulomb and i.normal not in released
+        )
+        return FrictionModel(self, self.base(released, sticking), released, sticking, dict(directions or {}), signs)
 
 
 #: what a friction mode takes from its ideal model
-_DELEGATED = ("evaluate_blocks", "residual_jacobians", "state_residuals", "split_state", "params",
-              "checked_state", "coordinate_rates", "constraint_residuals", "parameters", "default_parameters",
-              "has_position", "has_velocity", "name", "coordinate_names", "speed_names", "state_names",
-              "constraint_names", "control_names", "parameter_names", "derivation")
+_DELEGATED = (
+    "evaluate_blocks",
+    "residual_jacobians",
+    "state_residuals",
+    "split_state",
+    "params",
+    "checked_state",
+    "coordinate_rates",
+    "constraint_residuals",
+    "parameters",
+    "default_parameters",
+    "has_position",
+    "has_velocity",
+    "name",
+    "coordinate_names",
+    "speed_names",
+    "state_names",
+    "constraint_names",
+    "control_names",
+    "parameter_names",
+    "derivation",
+)
 
 
 @delegating("base", _DELEGATED)
@@ -181,8 +229,9 @@ class FrictionModel:
 
     def sliding(self) -> tuple:
         """The Coulomb contacts that slide in this mode (normal engaged, not sticking)."""
-        return tuple(i for i in self.laws.items if i.coulomb and i.name not in self.sticking
-                     and self.normal_index(i) is not None)
+        return tuple(
+            i for i in self.laws.items if i.coulomb and i.name not in self.sticking and self.normal_index(i) is not None
+        )
 
     def slip_velocities(self, t, y, p=None) -> dict:
         """``{item: v_k}`` at ``(t, y)``."""
@@ -251,8 +300,19 @@ class FrictionModel:
             forces[item.name] = F
         flat = np.concatenate([forces[i.name] for i in laws.items] + [flags])
         sol = StateSolution(a, lam, J.T @ lam, tuple(dep), switched)
-        return sol, FrictionEvaluation(np.zeros(0), lam, np.zeros(0), tuple(dep), switched, flat, normals,
-                                       forces, slips, signs, signed if sliding else {})
+        return sol, FrictionEvaluation(
+            np.zeros(0),
+            lam,
+            np.zeros(0),
+            tuple(dep),
+            switched,
+            flat,
+            normals,
+            forces,
+            slips,
+            signs,
+            signed if sliding else {},
+        )
 
     def _direction(self, item, vk, t) -> np.ndarray:
         speed = float(np.linalg.norm(vk))
@@ -263,7 +323,8 @@ class FrictionModel:
                 raise ComputationError(
                     f"friction {item.name!r} slides with zero slip speed and no slip direction at t = {float(t):.10g}",
                     hint="a contact at rest sticks or starts to slip: simulate decides (appell.simulate), "
-                         "or give the mode's direction")
+                    "or give the mode's direction",
+                )
             return vk / speed
         return np.asarray(stored, float)
 
@@ -273,9 +334,19 @@ class FrictionModel:
         pv = self.base.params(p)
         sol, fe = self.solve(t, q, w, pv, dependent, bias)
         dq = self.base.coordinate_rates(t, q, w, pv)
-        return FrictionEvaluation(np.concatenate([dq, sol.accelerations]), sol.multipliers, np.zeros(0),
-                                  sol.dependent, sol.switched, fe.friction, fe.normals, fe.forces, fe.slips,
-                                  fe.signs, fe.signed_normals)
+        return FrictionEvaluation(
+            np.concatenate([dq, sol.accelerations]),
+            sol.multipliers,
+            np.zeros(0),
+            sol.dependent,
+            sol.switched,
+            fe.friction,
+            fe.normals,
+            fe.forces,
+            fe.slips,
+            fe.signs,
+            fe.signed_normals,
+        )
 
 
 def _painleve_checked(A, N0, sigma, sliding, t) -> tuple[np.ndarray, np.ndarray]:
@@ -306,7 +377,8 @@ def _painleve_checked(A, N0, sigma, sliding, t) -> tuple[np.ndarray, np.ndarray]
         f"it causes, the coefficient of the normal force in its own formula (1.5) vanishes or changes sign "
         f"(det(I - A sigma) = {det:.6g}), so rigid-body mechanics gives no (or no unique) normal force",
         hint="the motion cannot go on as rigid sliding here (Painlevé): lower mu_k, model the contact as "
-             "compliant, or end the run before this state")
+        "compliant, or end the run before this state",
+    )
 
 
 def augmented_friction_solve(model: FrictionModel, t, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
@@ -330,9 +402,14 @@ def augmented_friction_solve(model: FrictionModel, t, q, w, p=None) -> tuple[np.
     fixed = np.zeros(n)
     for k, sl in enumerate(laws.slices):
         fixed -= coef[k, 2] * (G[sl].T @ v[sl])
-    unit = [(model.normal_index(i), -coef[index[i.name], 0]
-             * (G[laws.slices[index[i.name]]].T @ model._direction(i, v[laws.slices[index[i.name]]], t)))
-            for i in model.sliding()]
+    unit = [
+        (
+            model.normal_index(i),
+            -coef[index[i.name], 0]
+            * (G[laws.slices[index[i.name]]].T @ model._direction(i, v[laws.slices[index[i.name]]], t)),
+        )
+        for i in model.sliding()
+    ]
 
     def residual(xv):
         a, lam = xv[:n], xv[n:]

@@ -56,8 +56,10 @@ def check_body_masses(system, t, q, w, p, parameter_names) -> None:
             continue  # depends on a program or a control: nothing to say here
         if not mass > 0:
             shown = f" ({body.mass} = {mass:g})" if body.mass.free_symbols else ""
-            raise ModelError(f"body {body.name!r} has mass {mass:g}{shown}; a mass must be positive",
-                             hint="give the body a positive mass (check the parameter values and --set)")
+            raise ModelError(
+                f"body {body.name!r} has mass {mass:g}{shown}; a mass must be positive",
+                hint="give the body a positive mass (check the parameter values and --set)",
+            )
 
 
 #: a parameter's magnitude outside [EXTREME_SMALL, EXTREME_LARGE] (and not zero) is named when
@@ -68,12 +70,17 @@ EXTREME_SMALL, EXTREME_LARGE = 1e-12, 1e12
 def extreme_parameters(names, p) -> str:
     """A clause naming the parameters of extreme magnitude (empty when none): beside the others,
     a value of 9.2e18 or 1e-300 leaves matrices singular to double precision."""
-    found = [f"{n} = {v:.3g}" for n, v in zip(names, np.asarray(p, float).reshape(-1))
-             if np.isfinite(v) and v != 0.0 and not EXTREME_SMALL <= abs(v) <= EXTREME_LARGE]
+    found = [
+        f"{n} = {v:.3g}"
+        for n, v in zip(names, np.asarray(p, float).reshape(-1))
+        if np.isfinite(v) and v != 0.0 and not EXTREME_SMALL <= abs(v) <= EXTREME_LARGE
+    ]
     if not found:
         return ""
-    return (f"the parameter{'s' if len(found) > 1 else ''} {', '.join(found)} "
-            f"{'are' if len(found) > 1 else 'is'} of extreme size beside the others")
+    return (
+        f"the parameter{'s' if len(found) > 1 else ''} {', '.join(found)} "
+        f"{'are' if len(found) > 1 else 'is'} of extreme size beside the others"
+    )
 
 
 def check_inertia(model, t, y, p) -> None:
@@ -87,7 +94,7 @@ def check_inertia(model, t, y, p) -> None:
         return
     nq, n = len(model.coordinate_names), len(model.speed_names)
     y = np.asarray(y, float)
-    q, w = y[:nq], y[nq:nq + n]
+    q, w = y[:nq], y[nq : nq + n]
     p = np.asarray(p, float)
     check_body_masses(system, t, q, w, p, model.parameter_names)
     blocks = getattr(model, "evaluate_blocks", None)
@@ -96,25 +103,33 @@ def check_inertia(model, t, y, p) -> None:
     M, _, J, _ = blocks(t, q, w, p)
     M = 0.5 * (np.asarray(M, float) + np.asarray(M, float).T)
     if not np.all(np.isfinite(M)):
-        raise ModelError(f"the {_energy_name(system)} cannot be evaluated at the start (t = {t:g}): "
-                         "its mass matrix has entries that are not finite",
-                         hint="check the parameter values and the initial state")
+        raise ModelError(
+            f"the {_energy_name(system)} cannot be evaluated at the start (t = {t:g}): "
+            "its mass matrix has entries that are not finite",
+            hint="check the parameter values and the initial state",
+        )
     eig, vec = np.linalg.eigh(M)
     scale = float(np.max(np.abs(eig)))
     names = list(model.speed_names)
     where = f"at the start (t = {t:g})"
     if scale == 0.0:
-        raise ModelError(f"the {_energy_name(system)} is zero {where}: nothing has inertia",
-                         hint="give the bodies positive masses (check the parameter values and --set)")
+        raise ModelError(
+            f"the {_energy_name(system)} is zero {where}: nothing has inertia",
+            hint="give the bodies positive masses (check the parameter values and --set)",
+        )
     extreme = extreme_parameters(model.parameter_names, p)
     if extreme and abs(eig[0]) <= ZERO_EIGENVALUE * scale:
-        raise ModelError(f"the mass matrix is singular to double precision {where} (eigenvalues from "
-                         f"{eig[0]:.3g} to {eig[-1]:.3g}): {extreme}",
-                         hint="give that parameter a value of ordinary size, or rescale the model's units")
+        raise ModelError(
+            f"the mass matrix is singular to double precision {where} (eigenvalues from "
+            f"{eig[0]:.3g} to {eig[-1]:.3g}): {extreme}",
+            hint="give that parameter a value of ordinary size, or rescale the model's units",
+        )
     if eig[0] < -ZERO_EIGENVALUE * scale:
-        raise ModelError(f"the {_energy_name(system)} is not positive definite {where}: it is negative "
-                         f"along {_direction(vec[:, 0], names)} (mass-matrix eigenvalue {eig[0]:.3g})",
-                         hint="a mass or a moment of inertia is negative; check the parameter values")
+        raise ModelError(
+            f"the {_energy_name(system)} is not positive definite {where}: it is negative "
+            f"along {_direction(vec[:, 0], names)} (mass-matrix eigenvalue {eig[0]:.3g})",
+            hint="a mass or a moment of inertia is negative; check the parameter values",
+        )
     if getattr(model, "constraint_function", None) is not None:
         return  # J depends on the accelerations: the admissible directions are not known here
     J = np.asarray(J, float).reshape(-1, n)
@@ -128,9 +143,13 @@ def check_inertia(model, t, y, p) -> None:
         return
     reduced, rvec = np.linalg.eigh(basis.T @ M @ basis)
     if reduced[0] <= ZERO_EIGENVALUE * scale and extreme:
-        raise ModelError(f"the reduced mass matrix is singular to double precision {where}: {extreme}",
-                         hint="give that parameter a value of ordinary size, or rescale the model's units")
+        raise ModelError(
+            f"the reduced mass matrix is singular to double precision {where}: {extreme}",
+            hint="give that parameter a value of ordinary size, or rescale the model's units",
+        )
     if reduced[0] <= ZERO_EIGENVALUE * scale:
-        raise ModelError(f"the {_energy_name(system)} is not positive definite {where}: it is zero for the "
-                         f"admissible motion along {_direction(basis @ rvec[:, 0], names)}",
-                         hint="give that motion inertia (a zero mass or moment of inertia?), or constrain it")
+        raise ModelError(
+            f"the {_energy_name(system)} is not positive definite {where}: it is zero for the "
+            f"admissible motion along {_direction(basis @ rvec[:, 0], names)}",
+            hint="give that motion inertia (a zero mass or moment of inertia?), or constrain it",
+        )

@@ -33,8 +33,8 @@ Lagrange's equations (:func:`lagrange_route`), for true coordinates (``w = dq/dt
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import sympy as sp
 
@@ -42,8 +42,14 @@ from appell.model import AppliedForce, AppliedTorque, RigidBody
 from appell.numerics.numeric import lambdify_blocks, program_substitutions
 from appell.symbols import GraphDerivative, derivative_symbol, free_symbols, graph_xreplace, matmul, t
 
-__all__ = ["MechanicalEnergy", "LagrangeRoute", "mechanical_energy", "energy_unavailable",
-           "lagrange_unavailable", "lagrange_route"]
+__all__ = [
+    "MechanicalEnergy",
+    "LagrangeRoute",
+    "mechanical_energy",
+    "energy_unavailable",
+    "lagrange_unavailable",
+    "lagrange_route",
+]
 
 
 @dataclass(frozen=True)
@@ -62,8 +68,10 @@ class MechanicalEnergy:
 def energy_unavailable(system) -> str | None:
     """Why the kinetic energy of ``system`` cannot be formed, or None when it can."""
     if system.acceleration_energy is not None:
-        return ("the mechanics is given by an acceleration energy S: no kinetic energy T (and no energy E) "
-                "can be formed from it")
+        return (
+            "the mechanics is given by an acceleration energy S: no kinetic energy T (and no energy E) "
+            "can be formed from it"
+        )
     if getattr(system, "servo_constraints", ()) or getattr(system, "controls", ()):
         return "the system has controls: their power is not separated from the applied forces"
     return None
@@ -74,14 +82,17 @@ def lagrange_unavailable(system) -> str | None:
     reason = energy_unavailable(system)
     if reason:
         return reason
-    if any(w != derivative_symbol(q) or e != w
-           for q, w, (_, e) in zip(system.coordinates, system.speeds, system.kinematics)) \
-            or len(system.speeds) != len(system.coordinates):
+    if any(
+        w != derivative_symbol(q) or e != w
+        for q, w, (_, e) in zip(system.coordinates, system.speeds, system.kinematics)
+    ) or len(system.speeds) != len(system.coordinates):
         return "the speeds are quasi-velocities: Lagrange's equations need w = dq/dt"
     only = [b.name for b in system.bodies if b.position is None]
     if only:
-        return (f"body {only[0]!r} is given by its velocity alone: Lagrange's equations need its position "
-                "(its velocity as a time derivative)")
+        return (
+            f"body {only[0]!r} is given by its velocity alone: Lagrange's equations need its position "
+            "(its velocity as a time derivative)"
+        )
     return None
 
 
@@ -114,8 +125,7 @@ def mechanical_energy(system, d: GraphDerivative | None = None) -> MechanicalEne
             om = sp.Matrix(body.angular_velocity).xreplace(subs)
             T += matmul(matmul(om.T, body.inertia), om)[0] / 2
     n = len(w)
-    Q = sp.Matrix(system.generalized_forces).xreplace(subs) if system.generalized_forces is not None \
-        else sp.zeros(n, 1)
+    Q = sp.Matrix(system.generalized_forces).xreplace(subs) if system.generalized_forces is not None else sp.zeros(n, 1)
     for load in system.loads:
         if isinstance(load, AppliedForce):
             v = _velocity(load.position, load.velocity, rates, q, subs, d)
@@ -123,9 +133,13 @@ def mechanical_energy(system, d: GraphDerivative | None = None) -> MechanicalEne
         elif isinstance(load, AppliedTorque):
             om = sp.Matrix(load.angular_velocity).xreplace(subs)
             Q += matmul(_jacobian(om, w, d).T, sp.Matrix(load.vector).xreplace(subs))
-    return MechanicalEnergy(sp.sympify(T), sp.sympify(system.potential_energy).xreplace(subs),
-                            sp.ImmutableMatrix(Q), sp.ImmutableMatrix(rates),
-                            tuple(b.name for b in system.bodies if b.position is None))
+    return MechanicalEnergy(
+        sp.sympify(T),
+        sp.sympify(system.potential_energy).xreplace(subs),
+        sp.ImmutableMatrix(Q),
+        sp.ImmutableMatrix(rates),
+        tuple(b.name for b in system.bodies if b.position is None),
+    )
 
 
 @dataclass(frozen=True)
@@ -146,8 +160,7 @@ def _constraint_rows(system, subs, d: GraphDerivative):
     q, qd, qdd = list(system.coordinates), list(system.speeds), list(system.accelerations)
 
     def along(e):  # d/dt of an expression in (t, q, qdot), free of qddot
-        return (sp.Add(*[d(e, x) * r for x, r in zip(q, qd)]) + d(e, t)
-                + sp.Add(*[d(e, x) * r for x, r in zip(qd, qdd)]))
+        return sp.Add(*[d(e, x) * r for x, r in zip(q, qd)]) + d(e, t) + sp.Add(*[d(e, x) * r for x, r in zip(qd, qdd)])
 
     rows = []
     for c in system.constraints:
@@ -181,10 +194,11 @@ def lagrange_route(derivation) -> LagrangeRoute:
     args = [t, list(q), list(qd), params]
     linear = not (free_symbols(*J) & set(qdd))
     at_rest = graph_xreplace(list(J) + list(f), zero)  # J and f at a = 0, one walk
-    J0, c = sp.Matrix(J.rows, J.cols, at_rest[:len(J)]), sp.Matrix(f.rows, 1, at_rest[len(J):])
+    J0, c = sp.Matrix(J.rows, J.cols, at_rest[: len(J)]), sp.Matrix(f.rows, 1, at_rest[len(J) :])
     blocks = lambdify_blocks(args, [M, h - Q, J0, c], what="blocks of Lagrange's equations")
     cfun = None
     if not linear:
-        cfun = lambdify_blocks([t, list(q), list(qd), list(qdd), params], [f, J],
-                               what="constraints of Lagrange's equations")
+        cfun = lambdify_blocks(
+            [t, list(q), list(qd), list(qdd), params], [f, J], what="constraints of Lagrange's equations"
+        )
     return LagrangeRoute(blocks, cfun)

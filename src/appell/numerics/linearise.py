@@ -43,8 +43,8 @@ coordinates may move); :func:`linearise` checks it (:data:`STEADY_TOLERANCE`) an
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 import scipy.linalg as sla
@@ -54,9 +54,9 @@ from appell._cache import Cache
 from appell.core.equations import is_controlled
 from appell.core.kinematics import jacobian
 from appell.errors import ComputationError, ModelError, import_optional
+from appell.numerics.boundary import numeric_model
 from appell.numerics.numeric import lambdify_blocks, partition_in_use, program_substitutions, split_solve
 from appell.symbols import block_cse, contains, free_symbols, lambdify, matmul, t
-from appell.numerics.boundary import numeric_model
 
 __all__ = ["ExactJacobians", "LinearModel", "linearise", "motion_jacobian", "steady_motion", "STEADY_TOLERANCE"]
 
@@ -114,35 +114,61 @@ class LinearModel:
     def control(self):
         """The model as python-control's ``ss`` (when python-control is installed)."""
         control = import_optional("control", extra="control", feature="LinearModel.control() (python-control)")
-        return control.ss(self.A, self.B, self.C, self.D, states=list(self.states), inputs=list(self.inputs),
-                          outputs=list(self.outputs))
+        return control.ss(
+            self.A,
+            self.B,
+            self.C,
+            self.D,
+            states=list(self.states),
+            inputs=list(self.inputs),
+            outputs=list(self.outputs),
+        )
 
     def second_order(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(M, C, K, F)`` of ``M q'' + C q' + K q = F u`` in the independent coordinates,
         where their rates are the independent speeds (``A = [[0, I], [-M^-1 K, -M^-1 C]]``);
         a :class:`ModelError` otherwise (quasi-velocities)."""
         m = self.coordinates
-        if 2 * m != self.A.shape[0] or not np.allclose(self.A[:m, :m], 0.0, atol=1e-12) or not np.allclose(
-                self.A[:m, m:], np.eye(m), atol=1e-12):
-            raise ModelError("the second-order form needs the independent speeds to be the rates of the "
-                             "independent coordinates (dq_i/dt = w_i)",
-                             hint="use A, B of the first-order form")
+        if (
+            2 * m != self.A.shape[0]
+            or not np.allclose(self.A[:m, :m], 0.0, atol=1e-12)
+            or not np.allclose(self.A[:m, m:], np.eye(m), atol=1e-12)
+        ):
+            raise ModelError(
+                "the second-order form needs the independent speeds to be the rates of the "
+                "independent coordinates (dq_i/dt = w_i)",
+                hint="use A, B of the first-order form",
+            )
         M = self.mass
         return M, -M @ self.A[m:, m:], -M @ self.A[m:, :m], M @ self.B[m:, :]
 
     def __str__(self) -> str:
-        lines = [f"linear model about t = {self.point.get('t', 0.0):g}: states {', '.join(self.states)}"
-                 + (f" (ignored: {', '.join(self.ignored)})" if self.ignored else "")]
+        lines = [
+            f"linear model about t = {self.point.get('t', 0.0):g}: states {', '.join(self.states)}"
+            + (f" (ignored: {', '.join(self.ignored)})" if self.ignored else "")
+        ]
         for value, names in self.modes():
-            kind = ("stable" if value.real < -1e-9 else "unstable" if value.real > 1e-9 else "marginal")
+            kind = "stable" if value.real < -1e-9 else "unstable" if value.real > 1e-9 else "marginal"
             lines.append(f"  {value.real:+.10g} {value.imag:+.10g}i   {kind:8s}  {names}")
         return "\n".join(lines)
 
 
 #: functions without a complex-analytic extension: a model that uses one is differentiated
 #: symbolically instead of by the complex step
-NON_ANALYTIC = (sp.Abs, sp.sign, sp.Heaviside, sp.Max, sp.Min, sp.floor, sp.ceiling, sp.re, sp.im, sp.arg,
-                sp.Piecewise, sp.conjugate)
+NON_ANALYTIC = (
+    sp.Abs,
+    sp.sign,
+    sp.Heaviside,
+    sp.Max,
+    sp.Min,
+    sp.floor,
+    sp.ceiling,
+    sp.re,
+    sp.im,
+    sp.arg,
+    sp.Piecewise,
+    sp.conjugate,
+)
 #: the complex step: ``f'(x) v = Im f(x + i h v) / h`` exactly to rounding for any ``h``
 #: small enough that ``h^2`` terms vanish beside ``f`` (no subtraction, so no cancellation)
 STEP = 1e-100
@@ -165,8 +191,14 @@ class ExactJacobians:
     symbolic Jacobians took five minutes to form and compile, its blocks seconds.
     """
 
-    def __init__(self, groups: Sequence[Sequence[sp.Symbol]], vectors: Sequence[sp.Matrix],
-                 directions: Sequence[Sequence[int]], subs: Mapping, what: str):
+    def __init__(
+        self,
+        groups: Sequence[Sequence[sp.Symbol]],
+        vectors: Sequence[sp.Matrix],
+        directions: Sequence[Sequence[int]],
+        subs: Mapping,
+        what: str,
+    ):
         self.rows = [m.shape[0] for m in vectors]
         self.directions = [list(d) for d in directions]
         cuts = np.cumsum([0] + [len(d) for d in self.directions])
@@ -208,7 +240,12 @@ class _Sensitivities:
     ``lambda``), exact to rounding (:class:`ExactJacobians`)."""
 
     def __init__(self, derivation, inputs: Sequence[sp.Symbol]):
-        system, kin, inertia, cons = derivation.system, derivation.kinematics, derivation.inertia, derivation.constraints
+        system, kin, inertia, cons = (
+            derivation.system,
+            derivation.kinematics,
+            derivation.inertia,
+            derivation.constraints,
+        )
         if not cons.linear:
             raise ModelError("linearise needs constraints linear in the accelerations (f = J a + c)")
         q, w, a = list(kin.coordinates), list(kin.speeds), list(kin.accelerations)
@@ -217,8 +254,12 @@ class _Sensitivities:
         n, s = len(w), cons.count
         J = sp.Matrix(cons.jacobian) if s else sp.zeros(0, n)
         c = sp.Matrix(cons.bias) if s else sp.zeros(0, 1)
-        R = matmul(inertia.mass_matrix, a) + sp.Matrix(inertia.inertial_forces) \
-            - sp.Matrix(inertia.generalized_forces) - (matmul(J.T, lam) if s else sp.zeros(n, 1))
+        R = (
+            matmul(inertia.mass_matrix, a)
+            + sp.Matrix(inertia.inertial_forces)
+            - sp.Matrix(inertia.generalized_forces)
+            - (matmul(J.T, lam) if s else sp.zeros(n, 1))
+        )
         S = matmul(J, a) + c if s else sp.zeros(0, 1)
         rates = sp.Matrix(kin.coordinate_rates)
         F = sp.Matrix([e for e in cons.position_residual if e is not None])
@@ -229,10 +270,20 @@ class _Sensitivities:
         self.free = [free_symbols(*m) for m in (R, S, rates, F, phi)]
         # along q, w and the inputs; along a and lambda for the outputs alone (R and S are
         # linear in them: M and -J^T, evaluated by the split)
-        directions = [range(len(q)), range(n), range(n) if nz else (), range(s) if nz else (),
-                      [params.index(u) for u in inputs]]
-        self.jacobians = ExactJacobians([q, w, a, lam, params], [R, S, rates, F, phi, outs], directions,
-                                        program_substitutions(system), "linearisation")
+        directions = [
+            range(len(q)),
+            range(n),
+            range(n) if nz else (),
+            range(s) if nz else (),
+            [params.index(u) for u in inputs],
+        ]
+        self.jacobians = ExactJacobians(
+            [q, w, a, lam, params],
+            [R, S, rates, F, phi, outs],
+            directions,
+            program_substitutions(system),
+            "linearisation",
+        )
 
     def __call__(self, tt, q, w, a, lam, pv):
         nq, n, s, nF, nphi, nz, nu = self.shapes
@@ -240,8 +291,21 @@ class _Sensitivities:
         cq, cw, ca, cl, cu = self.jacobians.columns
         y = slice(cq.start, cw.stop)
         za, zl = (z[:, ca], z[:, cl]) if nz else (np.zeros((0, n)), np.zeros((0, s)))
-        return [R[:, y], S[:, y], rates[:, y], R[:, cu], S[:, cu], rates[:, cu], F[:, cq], phi[:, cq], phi[:, cw],
-                z[:, y], za, zl, z[:, cu]]
+        return [
+            R[:, y],
+            S[:, y],
+            rates[:, y],
+            R[:, cu],
+            S[:, cu],
+            rates[:, cu],
+            F[:, cq],
+            phi[:, cq],
+            phi[:, cw],
+            z[:, y],
+            za,
+            zl,
+            z[:, cu],
+        ]
 
 
 #: how many derivations keep their compiled sensitivities (least recently used dropped first)
@@ -273,14 +337,19 @@ def _solved_sensitivities(model, sens: _Sensitivities, tt, q, w, pv):
     Ry, Sy, _, Ru, Su = jacobians[:5]
     blocks = M, _, J, _ = model.evaluate_blocks(tt, q, w, pv)
     try:
-        dep, Jh_inv, _, kappa = (partition_in_use(J, model.derivation.partition.dependent, model.constraint_names)
-                                 if s else ((), None, False, 1.0))
+        dep, Jh_inv, _, kappa = (
+            partition_in_use(J, model.derivation.partition.dependent, model.constraint_names)
+            if s
+            else ((), None, False, 1.0)
+        )
         # (da, dlambda) for every column of the (R, S) sensitivities at once: (1.4), (1.5)
         ay, ly = split_solve(M, Ry.reshape(n, nq + n), J, Sy.reshape(s, nq + n), dep, Jh_inv, kappa)
         au, lu = split_solve(M, Ru.reshape(n, nu), J, Su.reshape(s, nu), dep, Jh_inv, kappa)
     except np.linalg.LinAlgError as exc:
-        raise ComputationError(f"the split is singular at t = {float(tt):.10g}: no linear model",
-                               hint="a singular configuration or a singular partition") from exc
+        raise ComputationError(
+            f"the split is singular at t = {float(tt):.10g}: no linear model",
+            hint="a singular configuration or a singular partition",
+        ) from exc
     split = (ay.reshape(n, nq + n), ly.reshape(s, nq + n), au.reshape(n, nu), lu.reshape(s, nu))
     return sol, jacobians, blocks, split
 
@@ -305,8 +374,9 @@ def motion_jacobian(model):
     return jac
 
 
-def _independent(matrix: np.ndarray, candidates: list[int], named: Sequence[int] | None, what: str,
-                 keep: Sequence[int] = ()) -> tuple[list[int], list[int]]:
+def _independent(
+    matrix: np.ndarray, candidates: list[int], named: Sequence[int] | None, what: str, keep: Sequence[int] = ()
+) -> tuple[list[int], list[int]]:
     """``(independent, dependent)`` columns of ``matrix`` among ``candidates``: dependent
     ones by pivoted QR (as many as rows, never one of ``keep``), or the complement of ``named``."""
     rows = matrix.shape[0]
@@ -315,17 +385,21 @@ def _independent(matrix: np.ndarray, candidates: list[int], named: Sequence[int]
     if named is not None:
         dep = [i for i in candidates if i not in named]
         if len(dep) != rows or np.linalg.matrix_rank(matrix[:, dep]) < rows:
-            raise ModelError(f"the {what} named as independent leave {len(dep)} dependent ones, which do not "
-                             f"solve the {rows} constraint rows here",
-                             hint="name others, or leave the choice to appell")
+            raise ModelError(
+                f"the {what} named as independent leave {len(dep)} dependent ones, which do not "
+                f"solve the {rows} constraint rows here",
+                hint="name others, or leave the choice to appell",
+            )
         return [i for i in candidates if i in named], dep
     pool = [i for i in candidates if i not in keep]
     sub = matrix[:, pool]
     _, r, piv = sla.qr(sub, pivoting=True, mode="economic")
     diag = np.abs(np.diag(r))
     if diag.size < rows or diag[rows - 1] <= 1e-10 * max(diag[0], 1e-300):
-        raise ModelError(f"the constraints lose rank at this point ({what}): no chart of independent {what}",
-                         hint="a singular configuration: linearise elsewhere")
+        raise ModelError(
+            f"the constraints lose rank at this point ({what}): no chart of independent {what}",
+            hint="a singular configuration: linearise elsewhere",
+        )
     dep = sorted(pool[i] for i in piv[:rows])
     return [i for i in candidates if i not in dep], dep
 
@@ -345,9 +419,15 @@ def _state(derivation, at: Mapping[str, float] | None, p=None):
         elif key == "t" or key in model.coordinate_names or key in model.speed_names:
             values[key] = float(v)
         else:
-            raise ModelError(f"unknown name {key!r} in the point",
-                             hint="coordinates: " + ", ".join(model.coordinate_names) + "; speeds: "
-                                  + ", ".join(model.speed_names) + "; parameters: " + ", ".join(sorted(pnames)))
+            raise ModelError(
+                f"unknown name {key!r} in the point",
+                hint="coordinates: "
+                + ", ".join(model.coordinate_names)
+                + "; speeds: "
+                + ", ".join(model.speed_names)
+                + "; parameters: "
+                + ", ".join(sorted(pnames)),
+            )
     params.update({str(k): v for k, v in dict(p or {}).items()})
     q = np.array([values.get(n, 0.0) for n in model.coordinate_names], float)
     w = np.array([values.get(n, 0.0) for n in model.speed_names], float)
@@ -378,8 +458,10 @@ def _ignored(derivation, sens: _Sensitivities, ignore) -> tuple[list[int], list[
         elif name in speeds:
             out_w.append(speeds.index(name))
         else:
-            raise ModelError(f"{name!r} in ignore is not a coordinate or a speed",
-                             hint="coordinates: " + ", ".join(names) + "; speeds: " + ", ".join(speeds))
+            raise ModelError(
+                f"{name!r} in ignore is not a coordinate or a speed",
+                hint="coordinates: " + ", ".join(names) + "; speeds: " + ", ".join(speeds),
+            )
     return out, out_w
 
 
@@ -409,11 +491,18 @@ def _cyclic_states(full: np.ndarray, qi: list[int], found: Sequence[int]) -> lis
     return sorted(cyclic)
 
 
-def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequence[str] = (),
-              outputs: Sequence[str] | None = None, params: Mapping | None = None,
-              ignore: Sequence[str] | str | None = None,
-              coordinates: Sequence[str] | None = None, speeds: Sequence[str] | None = None,
-              check: bool = True) -> LinearModel:
+def linearise(
+    derivation,
+    at: Mapping[str, float] | None = None,
+    *,
+    inputs: Sequence[str] = (),
+    outputs: Sequence[str] | None = None,
+    params: Mapping | None = None,
+    ignore: Sequence[str] | str | None = None,
+    coordinates: Sequence[str] | None = None,
+    speeds: Sequence[str] | None = None,
+    check: bool = True,
+) -> LinearModel:
     """The linear model about the point ``at`` (module docstring).
 
     ``at``: ``{name: value}`` of time ``t``, coordinates, speeds and parameters (the
@@ -427,13 +516,17 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     motion (``|P G| > STEADY_TOLERANCE (1 + |y|)``).
     """
     if is_controlled(derivation):
-        raise ModelError("linearise works on derivations without servo constraints",
-                         hint="the internal dynamics of a servo-controlled system: appell check prints them")
+        raise ModelError(
+            "linearise works on derivations without servo constraints",
+            hint="the internal dynamics of a servo-controlled system: appell check prints them",
+        )
     model = numeric_model(derivation)
     pnames = [s.name for s in model.parameters]
     bad = [u for u in inputs if u not in pnames]
     if bad:
-        raise ModelError(f"inputs must be parameters: {', '.join(bad)} is not one", hint="parameters: " + ", ".join(pnames))
+        raise ModelError(
+            f"inputs must be parameters: {', '.join(bad)} is not one", hint="parameters: " + ", ".join(pnames)
+        )
     sens = _sensitivities(derivation, tuple(inputs))
     tt, q, w, pv = _state(derivation, at, params)
     nq, n, s, nF, nphi, nz, nu = sens.shapes
@@ -479,18 +572,21 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
     steady = float(np.abs(G[[rows[k] for k in keep]]).max(initial=0.0))
     if check and steady > STEADY_TOLERANCE * (1.0 + float(np.abs(np.concatenate([q, w])).max(initial=0.0))):
         moving = [(cnames + [f"{x}'" for x in snames])[rows[k]] for k in keep if abs(G[rows[k]]) > STEADY_TOLERANCE]
-        raise ModelError(f"the point is neither an equilibrium nor a steady motion: {', '.join(moving)} change "
-                         f"there (largest rate {steady:.3g})",
-                         hint="find one with appell.steady_motion, or leave the moving coordinates out (ignore=)")
+        raise ModelError(
+            f"the point is neither an equilibrium nor a steady motion: {', '.join(moving)} change "
+            f"there (largest rate {steady:.3g})",
+            hint="find one with appell.steady_motion, or leave the moving coordinates out (ignore=)",
+        )
     if drop:
         coupling = np.abs(full[np.ix_(keep, drop)]).max(axis=0, initial=0.0)
         worst = int(np.argmax(coupling))
         if coupling[worst] > DECOUPLED * max(1.0, np.abs(full[np.ix_(keep, keep)]).max(initial=0.0)):
             name = ([cnames[i] for i in ignored] + [snames[i] for i in ignored_w])[worst]
-            raise ModelError(f"{name} cannot be left out here: the other states depend on it to first order "
-                             f"(coupling {coupling[worst]:.3g})",
-                             hint="keep it in the linear model (ignore only coordinates nothing depends on, "
-                                  "or 'cyclic')")
+            raise ModelError(
+                f"{name} cannot be left out here: the other states depend on it to first order "
+                f"(coupling {coupling[worst]:.3g})",
+                hint="keep it in the linear model (ignore only coordinates nothing depends on, or 'cyclic')",
+            )
     A = full[np.ix_(keep, keep)]
     B = Gu[rows, :][keep]
     T, rows = T[:, keep], [rows[k] for k in keep]
@@ -512,11 +608,26 @@ def linearise(derivation, at: Mapping[str, float] | None = None, *, inputs: Sequ
         keep = [every.index(o) for o in outputs]
         C, D = C[keep], D[keep]
     outputs = tuple(every if outputs is None else outputs)
-    point = {"t": tt, **dict(zip(cnames, map(float, q))), **dict(zip(snames, map(float, w))),
-             **dict(zip(pnames, map(float, pv)))}
-    return LinearModel(A, B, C, D, states, tuple(inputs), outputs,
-                       tuple(cnames[i] for i in ignored) + tuple(snames[i] for i in ignored_w), point,
-                       Tw.T @ M @ Tw, steady, coordinates=len(qi))
+    point = {
+        "t": tt,
+        **dict(zip(cnames, map(float, q))),
+        **dict(zip(snames, map(float, w))),
+        **dict(zip(pnames, map(float, pv))),
+    }
+    return LinearModel(
+        A,
+        B,
+        C,
+        D,
+        states,
+        tuple(inputs),
+        outputs,
+        tuple(cnames[i] for i in ignored) + tuple(snames[i] for i in ignored_w),
+        point,
+        Tw.T @ M @ Tw,
+        steady,
+        coordinates=len(qi),
+    )
 
 
 #: relative step of the central differences of the redundant split in the state
@@ -570,9 +681,15 @@ def _known(name: str, names: list[str], what: str) -> str:
     return name
 
 
-def steady_motion(derivation, guess: Mapping[str, float] | None = None, *, free: Sequence[str],
-                  ignore: Sequence[str] | str | None = None, params: Mapping | None = None,
-                  tol: float = 1e-10) -> dict[str, float]:
+def steady_motion(
+    derivation,
+    guess: Mapping[str, float] | None = None,
+    *,
+    free: Sequence[str],
+    ignore: Sequence[str] | str | None = None,
+    params: Mapping | None = None,
+    tol: float = 1e-10,
+) -> dict[str, float]:
     """An equilibrium or steady motion near ``guess``: the values of the names in ``free``
     (coordinates, speeds) for which every acceleration vanishes, every coordinate not in
     ``ignore`` is at rest and the constraints hold; the other state entries keep their
@@ -612,15 +729,22 @@ def steady_motion(derivation, guess: Mapping[str, float] | None = None, *, free:
         return np.concatenate([rates[keep], sol.accelerations, F[np.isfinite(F)], phi[np.isfinite(phi)]])
 
     try:
-        fit = least_squares(residual, y0[idx], xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm"
-                            if len(residual(y0[idx])) >= len(idx) else "trf")
+        fit = least_squares(
+            residual,
+            y0[idx],
+            xtol=1e-15,
+            ftol=1e-15,
+            gtol=1e-15,
+            method="lm" if len(residual(y0[idx])) >= len(idx) else "trf",
+        )
     except (np.linalg.LinAlgError, ValueError) as exc:
         raise ComputationError(f"no steady motion found near the guess: {exc}") from exc
     worst = float(np.abs(fit.fun).max(initial=0.0))
     if worst > tol * (1.0 + float(np.abs(fit.x).max(initial=0.0))):
-        raise ComputationError(f"no steady motion found near the guess: the residual stays at {worst:.3g}",
-                               hint="start from another guess, or free other coordinates or speeds")
+        raise ComputationError(
+            f"no steady motion found near the guess: the residual stays at {worst:.3g}",
+            hint="start from another guess, or free other coordinates or speeds",
+        )
     y = y0.copy()
     y[idx] = fit.x
-    return {"t": tt, **dict(zip(names, map(float, y))),
-            **{s.name: float(v) for s, v in zip(model.parameters, pv)}}
+    return {"t": tt, **dict(zip(names, map(float, y))), **{s.name: float(v) for s, v in zip(model.parameters, pv)}}

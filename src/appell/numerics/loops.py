@@ -40,7 +40,14 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import ComputationError, ModelError
-from appell.numerics.rigid_tree import TreeArrays, _compiled, _spatial_inertia, point_matrices, tree_layout, tree_matrices
+from appell.numerics.rigid_tree import (
+    TreeArrays,
+    _compiled,
+    _spatial_inertia,
+    point_matrices,
+    tree_layout,
+    tree_matrices,
+)
 from appell.symbols import derivative_symbol, t
 
 __all__ = ["LoopModel", "LoopState", "loop_model"]
@@ -86,6 +93,12 @@ class LoopModel:
     loop closures (module docstring). ``evaluate(q, w, u=None, t=0, p=None)`` gives
     :class:`LoopState`; :meth:`blocks` the blocks ``M, h - Q, J, c`` at a state."""
 
+    #: the feet or tools held on the ground whose rows the model holds
+    #: (:func:`appell.simulation.inverse.contact_model` sets them)
+    contacts: tuple = ()
+    #: identifier -> the model file's own spelling of a name (``System.names``), for the output
+    names: dict = {}  # replaced per instance, never mutated
+
     def __init__(self, parts, backend: str = "auto"):
         tree = parts.tree
         coords = list(parts.coordinates)
@@ -114,20 +127,31 @@ class LoopModel:
         qdot = sp.Matrix(speeds)
         for _, nm, expr in others:
             if expr is None or sp.sympify(expr).has(t) or sp.sympify(expr).free_symbols & set(speeds):
-                raise ModelError(f"constraint {nm!r} is not a loop closure nor a time-free holonomic row: the "
-                                 "closed-chain route does not take it", hint="use appell.derive(system)")
+                raise ModelError(
+                    f"constraint {nm!r} is not a loop closure nor a time-free holonomic row: the "
+                    "closed-chain route does not take it",
+                    hint="use appell.derive(system)",
+                )
             grad = sp.Matrix([expr]).jacobian(coords)
             J_o.append(list(grad))
             c_o.append((grad.jacobian(coords) * qdot).T.dot(qdot) if coords else 0)
         self.other_rows = [k for k, _, _ in others]
-        self.other_blocks = (sp.Matrix(J_o) if J_o else sp.zeros(0, n), sp.Matrix(c_o) if c_o else sp.zeros(0, 1),
-                             sp.Matrix([e for _, _, e in others]) if others else sp.zeros(0, 1))
-        self.position_rows = _compiled([coords, [p.symbol for p in parts.parameters]],
-                                       [sp.Matrix([e for _, _, e in others] or [0])])
-        data = [sp.Matrix([x for _, row in self.loop_rows for x in (*row.point_a, *row.axis_a, *row.point_b,
-                                                                     *row.axis_b)] or [0])]
-        self.more = _compiled(args, [sp.Matrix(parts.forces or [0] * n), sp.Matrix(J_o or [[0] * n]),
-                                     sp.Matrix(c_o or [0])] + data)
+        self.other_blocks = (
+            sp.Matrix(J_o) if J_o else sp.zeros(0, n),
+            sp.Matrix(c_o) if c_o else sp.zeros(0, 1),
+            sp.Matrix([e for _, _, e in others]) if others else sp.zeros(0, 1),
+        )
+        self.position_rows = _compiled(
+            [coords, [p.symbol for p in parts.parameters]], [sp.Matrix([e for _, _, e in others] or [0])]
+        )
+        data = [
+            sp.Matrix(
+                [x for _, row in self.loop_rows for x in (*row.point_a, *row.axis_a, *row.point_b, *row.axis_b)] or [0]
+            )
+        ]
+        self.more = _compiled(
+            args, [sp.Matrix(parts.forces or [0] * n), sp.Matrix(J_o or [[0] * n]), sp.Matrix(c_o or [0])] + data
+        )
         # the speeds on each node's path from the ground
         path: list[list[int]] = []
         for node in tree.nodes:
@@ -146,10 +170,14 @@ class LoopModel:
             except (ComputationError, OSError) as exc:  # a failed compilation: NumPy for 'auto'
                 if backend == "c":
                     raise
-                warnings.warn(f"{exc}; the closed-chain route of {self.name!r} uses NumPy", RuntimeWarning, stacklevel=3)
+                warnings.warn(
+                    f"{exc}; the closed-chain route of {self.name!r} uses NumPy", RuntimeWarning, stacklevel=3
+                )
             if self.compiled is None and backend == "c":
-                raise ModelError("the C backend needs a C compiler, and none was found",
-                                 hint="install cc or set $APPELL_CC, or choose the backend 'auto' or 'numpy'")
+                raise ModelError(
+                    "the C backend needs a C compiler, and none was found",
+                    hint="install cc or set $APPELL_CC, or choose the backend 'auto' or 'numpy'",
+                )
         self.backend = "numpy" if self.compiled is None else "c"
 
     # ------------------------------------------------------------------ the pieces
@@ -184,8 +212,9 @@ class LoopModel:
                 Rw[b], pw[b] = R, r
                 v[b] = vJ
             vb = v[b]
-            acc[b] += arrays.c[0, b] + np.concatenate([_skew_cross(vb[:3], vJ[:3]),
-                                                       _skew_cross(vb[:3], vJ[3:]) + _skew_cross(vb[3:], vJ[:3])])
+            acc[b] += arrays.c[0, b] + np.concatenate(
+                [_skew_cross(vb[:3], vJ[:3]), _skew_cross(vb[:3], vJ[3:]) + _skew_cross(vb[3:], vJ[:3])]
+            )
             for k in ks:
                 motion[k, :3] = Rw[b] @ S[k, :3]
                 motion[k, 3:] = Rw[b] @ S[k, 3:]
@@ -318,8 +347,9 @@ class LoopModel:
                 n = _skew_cross(u, vv)
                 J[i] = n @ (Ja - Jb)
                 Phi[i] = u @ vv
-                c[i] = n @ (al_a - al_b) + (oa - ob) @ (_skew_cross(_skew_cross(oa, u), vv)
-                                                        + _skew_cross(u, _skew_cross(ob, vv)))
+                c[i] = n @ (al_a - al_b) + (oa - ob) @ (
+                    _skew_cross(_skew_cross(oa, u), vv) + _skew_cross(u, _skew_cross(ob, vv))
+                )
                 actions.append(((row.body_a, ra, np.zeros(3), n), (row.body_b, rb, np.zeros(3), -n)))
         return J, c, actions, Phi
 
@@ -446,11 +476,11 @@ def echelon_null_space(A, names, tol=RANK_TOLERANCE) -> tuple:
         return ()
     _, sv, Vt = np.linalg.svd(A, full_matrices=True)
     scale = sv[0] if sv.size and sv[0] > 0 else 1.0
-    N = Vt[int(np.sum(sv > tol * scale)):]
+    N = Vt[int(np.sum(sv > tol * scale)) :]
     if not N.shape[0]:
         return ()
     _, _, piv = qr(N, pivoting=True)
-    N = np.linalg.solve(N[:, piv[:N.shape[0]]], N)
+    N = np.linalg.solve(N[:, piv[: N.shape[0]]], N)
     return tuple({names[k]: float(x) for k, x in enumerate(row) if abs(x) > 1e-12} for row in N)
 
 
@@ -508,20 +538,35 @@ def _system_parts(system):
     if system.kinetic_energy is not None or system.acceleration_energy is not None:
         raise ModelError(f"system {system.name!r} states its own energy: the loop route takes the tree's bodies")
     if system.loads:
-        raise ModelError(f"system {system.name!r} has loads ({', '.join(ld.name for ld in system.loads)}): "
-                         "the closed-chain route takes joint forces only", hint="use appell.derive(system)")
+        raise ModelError(
+            f"system {system.name!r} has loads ({', '.join(ld.name for ld in system.loads)}): "
+            "the closed-chain route takes joint forces only",
+            hint="use appell.derive(system)",
+        )
     if system.servo_constraints or any(c.kind != "force" for c in system.controls):
-        raise ModelError(f"system {system.name!r} has servo constraints or kinematic controls: the closed-chain "
-                         "route takes force controls only", hint="use appell.derive_controlled(system)")
+        raise ModelError(
+            f"system {system.name!r} has servo constraints or kinematic controls: the closed-chain "
+            "route takes force controls only",
+            hint="use appell.derive_controlled(system)",
+        )
     if sp.sympify(system.potential_energy) != tree.potential:
         raise ModelError(f"system {system.name!r}: a potential energy beside gravity", hint="use appell.derive")
     loops = {row.name for row in tree.loops}
-    constraints = tuple((c.name, None if c.name in loops else (c.expr if c.kind == "holonomic" else None))
-                        for c in system.constraints)
+    constraints = tuple(
+        (c.name, None if c.name in loops else (c.expr if c.kind == "holonomic" else None)) for c in system.constraints
+    )
     n = len(system.coordinates)
     Q = tuple(system.generalized_forces) if system.generalized_forces is not None else (sp.S.Zero,) * n
     if system.programs:  # programs (an MJCF actuator's ctrl) in the joint forces: their expressions in t
         rule = {prog.symbol: prog.expr for prog in system.programs}
         Q = tuple(sp.sympify(f).xreplace(rule) for f in Q)
-    return LoopParts(system.name, tuple(system.coordinates), tree, constraints, Q,
-                     tuple(c.symbol for c in system.controls), tuple(system.parameters), dict(system.initial))
+    return LoopParts(
+        system.name,
+        tuple(system.coordinates),
+        tree,
+        constraints,
+        Q,
+        tuple(c.symbol for c in system.controls),
+        tuple(system.parameters),
+        dict(system.initial),
+    )

@@ -17,21 +17,26 @@ Constraints nonlinear in ``a`` are solved by Newton's method on
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
 
 import numpy as np
 import sympy as sp
 
-from appell.numerics.dynamics import Evaluation
-from appell.numerics.rigid_tree import TreeBlocks, tree_matrices
 from appell.arguments import number, vector
 from appell.core.equations import Derivation, formulas_unavailable
+from appell.core.partition import (
+    KEEP_CONDITION,
+    RANK_CONDITION,
+    REFINE_CONDITION,
+    partition_condition,
+    pivoted_columns,
+    row_scales,
+)
 from appell.errors import ComputationError, FormulaUnavailable, ModelError, SingularConfigurationError
-from appell.core.partition import (KEEP_CONDITION, RANK_CONDITION, REFINE_CONDITION, partition_condition,
-                                   pivoted_columns, row_scales)
+from appell.numerics.dynamics import Evaluation
+from appell.numerics.rigid_tree import TreeBlocks, tree_matrices
 from appell.symbols import block_cse, derivative_symbol, lambdify, t
-
 
 #: a row of df/da at the solution of a constraint nonlinear in a smaller than this fraction
 #: of its size at Newton's start counts as vanishing (the multiplier is then undetermined)
@@ -76,17 +81,20 @@ class ScalarBlocks:
             values = np.array(self.function(*args), dtype=float)
         except OverflowError as exc:
             reason = exc.args[-1] if exc.args else exc
-            raise ComputationError(f"the {self.what} cannot be evaluated {_at(args)}: a value overflows the "
-                                   f"floating range ({reason}){self._extreme(args)}", hint=RANGE_HINT) from exc
+            raise ComputationError(
+                f"the {self.what} cannot be evaluated {_at(args)}: a value overflows the "
+                f"floating range ({reason}){self._extreme(args)}",
+                hint=RANGE_HINT,
+            ) from exc
         except (ValueError, ZeroDivisionError, TypeError) as exc:
             raise ComputationError(
                 f"the {self.what} cannot be evaluated {_at(args)}: {exc}",
                 hint="the state left the domain of the model's expressions (a square root of a negative "
-                     "number, a division by zero); check the parameter values, the initial values and the time span",
+                "number, a division by zero); check the parameter values, the initial values and the time span",
             ) from exc
         out, start = [], 0
         for rows, cols in self.shapes:
-            out.append(values[start:start + rows * cols].reshape(rows, cols))
+            out.append(values[start : start + rows * cols].reshape(rows, cols))
             start += rows * cols
         return out
 
@@ -96,11 +104,19 @@ class ScalarBlocks:
         from appell.numerics.inertia import EXTREME_LARGE, EXTREME_SMALL
 
         flat = [v for a in args for v in (a if isinstance(a, (list, tuple)) else [a])]
-        found = [f"{n} = {float(v):.3g}" for n, v in zip(self.names, flat)
-                 if isinstance(v, (int, float)) and np.isfinite(v) and v != 0.0
-                 and not EXTREME_SMALL <= abs(v) <= EXTREME_LARGE]
-        return (f": {', '.join(found)} {'are' if len(found) > 1 else 'is'} of extreme size beside the others"
-                if found else "")
+        found = [
+            f"{n} = {float(v):.3g}"
+            for n, v in zip(self.names, flat)
+            if isinstance(v, (int, float))
+            and np.isfinite(v)
+            and v != 0.0
+            and not EXTREME_SMALL <= abs(v) <= EXTREME_LARGE
+        ]
+        return (
+            f": {', '.join(found)} {'are' if len(found) > 1 else 'is'} of extreme size beside the others"
+            if found
+            else ""
+        )
 
 
 def _at(args) -> str:
@@ -140,12 +156,16 @@ def lambdify_blocks(args, outputs, subs: Mapping | None = None, what: str = "mod
 
 
 #: the hint of a block with an infinite entry
-RANGE_HINT = ("values out of floating range (beyond about 1.8e308): rescale the units or the parameters "
-              "(e.g. mm -> m, kN -> N), or check the expressions and the state for an overflow")
+RANGE_HINT = (
+    "values out of floating range (beyond about 1.8e308): rescale the units or the parameters "
+    "(e.g. mm -> m, kN -> N), or check the expressions and the state for an overflow"
+)
 #: the hint of a block with an undefined entry (NaN)
-UNDEFINED_HINT = ("the state left the domain of the model's expressions (a square root of a negative number, "
-                  "0/0, inf - inf) or a value overflowed: check the expressions, the initial values and the time "
-                  "span, and rescale the units or the parameters if values are that large")
+UNDEFINED_HINT = (
+    "the state left the domain of the model's expressions (a square root of a negative number, "
+    "0/0, inf - inf) or a value overflowed: check the expressions, the initial values and the time "
+    "span, and rescale the units or the parameters if values are that large"
+)
 
 
 def check_finite(t, blocks) -> None:
@@ -165,9 +185,11 @@ def check_finite(t, blocks) -> None:
         if columns is not None:
             place += f", column {columns[j] if j < len(columns) else j + 1}"
         undefined = bool(np.isnan(values[i, j]))
-        raise ComputationError(f"the {what} is not finite at t = {float(t):.10g}: {place} is "
-                               f"{'undefined (NaN)' if undefined else values[i, j]}",
-                               hint=UNDEFINED_HINT if undefined else RANGE_HINT)
+        raise ComputationError(
+            f"the {what} is not finite at t = {float(t):.10g}: {place} is "
+            f"{'undefined (NaN)' if undefined else values[i, j]}",
+            hint=UNDEFINED_HINT if undefined else RANGE_HINT,
+        )
 
 
 @dataclass(frozen=True)
@@ -263,7 +285,7 @@ def _best_partition(J: np.ndarray, names) -> tuple[tuple[int, ...], np.ndarray, 
             "the reaction direction df/da of constraint(s) " + ", ".join(zero) + " vanishes at this state: "
             "no partition (1.2) exists and the reaction is undetermined",
             hint="the configuration is singular for these constraints; start elsewhere, shorten the time span, "
-                 "or rewrite the constraint so that its gradient does not vanish",
+            "or rewrite the constraint so that its gradient does not vanish",
         )
     Jn = J * D[:, None]
     piv, rank = pivoted_columns(Jn)
@@ -279,7 +301,7 @@ def _best_partition(J: np.ndarray, names) -> tuple[tuple[int, ...], np.ndarray, 
             "the constraint Jacobian lost rank at this state: no nonsingular partition (1.2) exists, "
             "so the reactions of " + ", ".join(bad) + " are not determined",
             hint="constraints " + ", ".join(bad) + " are dependent here (a singular configuration "
-                 "of the mechanism); start elsewhere or stop the run before this state",
+            "of the mechanism); start elsewhere or stop the run before this state",
         )
     return dep, inv, kappa
 
@@ -353,10 +375,14 @@ class NumericModel:
         q, w = np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(w, dtype=float)
         kin = self.derivation.kinematics
         if q.shape != (len(kin.coordinates),) or w.shape != (len(kin.speeds),):
-            raise ModelError(f"a state of {self.name!r} has {len(kin.coordinates)} coordinates and "
-                             f"{len(kin.speeds)} speeds, got q of shape {q.shape} and w of shape {w.shape}",
-                             hint="coordinates: " + ", ".join(s.name for s in kin.coordinates)
-                                  + "; speeds: " + ", ".join(s.name for s in kin.speeds))
+            raise ModelError(
+                f"a state of {self.name!r} has {len(kin.coordinates)} coordinates and "
+                f"{len(kin.speeds)} speeds, got q of shape {q.shape} and w of shape {w.shape}",
+                hint="coordinates: "
+                + ", ".join(s.name for s in kin.coordinates)
+                + "; speeds: "
+                + ", ".join(s.name for s in kin.speeds),
+            )
         return q, w
 
     def checked_dependent(self, dependent) -> tuple[int, ...]:
@@ -368,8 +394,10 @@ class NumericModel:
         except (TypeError, ValueError):
             dep, given = (), -1
         if given != s or len(set(dep)) != s or any(not 0 <= i < n for i in dep):
-            raise ModelError(f"dependent must be {s} distinct acceleration indices in 0..{n - 1}, "
-                             f"one per constraint, got {dependent!r}")
+            raise ModelError(
+                f"dependent must be {s} distinct acceleration indices in 0..{n - 1}, "
+                f"one per constraint, got {dependent!r}"
+            )
         return dep
 
     def evaluate_blocks(self, t, q, w, p=None):
@@ -384,10 +412,15 @@ class NumericModel:
         J, c = np.asarray(J, float).reshape(-1, n), np.asarray(c, float).reshape(-1)
         if not (np.isfinite(M).all() and np.isfinite(hQ).all() and np.isfinite(J).all() and np.isfinite(c).all()):
             speeds, names = self.speed_names, self.constraint_names
-            check_finite(t, (("mass matrix M", M, speeds, speeds),
-                             ("force vector h - Q (inertial minus applied generalized forces)", hQ, speeds, None),
-                             ("constraint Jacobian df/da", J, names, speeds),
-                             ("constraint term c (of f = J a + c)", c, names, None)))
+            check_finite(
+                t,
+                (
+                    ("mass matrix M", M, speeds, speeds),
+                    ("force vector h - Q (inertial minus applied generalized forces)", hQ, speeds, None),
+                    ("constraint Jacobian df/da", J, names, speeds),
+                    ("constraint term c (of f = J a + c)", c, names, None),
+                ),
+            )
         return M, hQ, J, c
 
     def coordinate_rates(self, t, q, w, p=None) -> np.ndarray:
@@ -470,7 +503,7 @@ class NumericModel:
                 f"{exc.message} at t = {float(t):.10g}; residual of the start: "
                 + ", ".join(f"{n} {v:.3g}" for n, v in zip(names, f_end)),
                 hint=f"constraint {names[worst]!r} may have no real solution for the accelerations at this "
-                     "state; check its expression and the initial values",
+                "state; check its expression and the initial values",
             ) from exc
         f, J = fJ(a)
         # a reaction direction that (nearly) vanishes at the solution leaves its multiplier
@@ -484,7 +517,7 @@ class NumericModel:
                 f"the reaction direction df/da of constraint(s) {', '.join(bad)} vanishes at the solution "
                 f"a = {np.array2string(a, precision=6)} (t = {float(t):.10g}): the multiplier is not determined",
                 hint="the constraint's gradient in the accelerations is zero where it holds, so its reaction "
-                     "has no direction there; prescribe the motion another way (its components, say)",
+                "has no direction there; prescribe the motion another way (its components, say)",
             )
         dep, Jh_inv, moved = usable_partition(J, dep, names)
         lam = Jh_inv.T @ (M @ a + hQ)[list(dep)]
@@ -532,8 +565,9 @@ class NumericModel:
         pv = self.params(p)
         sol = self.solve(t, q, w, pv, dependent, bias)
         dq = self.coordinate_rates(t, q, w, pv)
-        return Evaluation(np.concatenate([dq, sol.accelerations]), sol.multipliers, np.zeros(0),
-                          sol.dependent, sol.switched)
+        return Evaluation(
+            np.concatenate([dq, sol.accelerations]), sol.multipliers, np.zeros(0), sol.dependent, sol.switched
+        )
 
     def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`constraint_residuals` on the state vector (:class:`Dynamics`)."""
@@ -574,14 +608,18 @@ class NumericModel:
         sol = self.solve(t, q, w, pv) if solution is None else solution
         fn = self._formula.get("outputs")
         if fn is None:
-            fn = self._formula["outputs"] = compile_outputs(self.derivation.system,
-                                                           program_substitutions(self.derivation.system))
+            fn = self._formula["outputs"] = compile_outputs(
+                self.derivation.system, program_substitutions(self.derivation.system)
+            )
         kin = self.derivation.kinematics
-        columns = {"t": float(t), **{s.name: v for s, v in zip(kin.coordinates, q)},
-                   **{s.name: v for s, v in zip(kin.speeds, w)},
-                   **{s.name: v for s, v in zip(kin.accelerations, sol.accelerations)},
-                   **{f"lambda_{n}": v for n, v in zip(self.constraint_names, sol.multipliers)},
-                   **dict(zip(self.parameter_names, pv))}
+        columns = {
+            "t": float(t),
+            **{s.name: v for s, v in zip(kin.coordinates, q)},
+            **{s.name: v for s, v in zip(kin.speeds, w)},
+            **{s.name: v for s, v in zip(kin.accelerations, sol.accelerations)},
+            **{f"lambda_{n}": v for n, v in zip(self.constraint_names, sol.multipliers)},
+            **dict(zip(self.parameter_names, pv)),
+        }
         return {k: float(v) for k, v in fn(columns).items()}
 
     def reaction_formulas(self, t, q, w, a, p=None) -> np.ndarray:
@@ -592,8 +630,7 @@ class NumericModel:
             reason = formulas_unavailable(d.partition)
             if reason is not None:
                 raise FormulaUnavailable(reason)
-            fn = lambdify_blocks(_args(d, with_acc=True), [d.reactions.multipliers],
-                                 program_substitutions(d.system))
+            fn = lambdify_blocks(_args(d, with_acc=True), [d.reactions.multipliers], program_substitutions(d.system))
             self._formula["lambda"] = fn
         return np.asarray(fn(float(t), q, w, a, self.params(p))[0], float).reshape(-1)
 
@@ -623,7 +660,8 @@ def singular_inertia(model, t, M, J) -> ComputationError:
         f"the reduced mass matrix C^T M C of {model.name!r} is singular at t = {float(t):.10g}: the motion"
         f"{direction} has no inertia there, so its acceleration is not determined",
         hint="give every admissible motion inertia (a mass or a moment of inertia that vanishes there?), or "
-             "constrain it; stop the run before this state")
+        "constrain it; stop the run before this state",
+    )
 
 
 def split_solve(M, hQ, J, c, dep, Jh_inv=None, kappa=None):
@@ -694,10 +732,12 @@ def compile_model(derivation) -> NumericModel:
     c = sp.Matrix(cons.bias) if cons.count else sp.zeros(0, 1)
     J0 = J if cons.linear else J.xreplace({a: 0 for a in derivation.accelerations})
     if inertia.tree is not None:  # bodies on a joint tree: M and h by recursions, never expanded
-        blocks = TreeBlocks(inertia.tree, n,
-                            lambdify_blocks(_args(derivation), tree_matrices(inertia.tree, n, inertia.gravity), subs,
-                                            "joints' terms"),
-                            lambdify_blocks(_args(derivation), [inertia.generalized_forces, J0, c], subs))
+        blocks = TreeBlocks(
+            inertia.tree,
+            n,
+            lambdify_blocks(_args(derivation), tree_matrices(inertia.tree, n, inertia.gravity), subs, "joints' terms"),
+            lambdify_blocks(_args(derivation), [inertia.generalized_forces, J0, c], subs),
+        )
     else:
         hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
         blocks = lambdify_blocks(_args(derivation), [inertia.mass_matrix, hQ, J0, c], subs)

@@ -11,8 +11,8 @@ controls.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Callable, Mapping
 
 import numpy as np
 import sympy as sp
@@ -39,10 +39,12 @@ class OutputFunction:
             return {}
         missing = [a for a in self.arguments if a not in columns]
         if missing:
-            raise ModelError(f"the outputs {', '.join(self.names)} need the column(s) {', '.join(missing)}, "
-                             "which this run does not record",
-                             hint="outputs are evaluated from the states, accelerations, multipliers and controls "
-                                  "of the system they were declared on")
+            raise ModelError(
+                f"the outputs {', '.join(self.names)} need the column(s) {', '.join(missing)}, "
+                "which this run does not record",
+                hint="outputs are evaluated from the states, accelerations, multipliers and controls "
+                "of the system they were declared on",
+            )
         args = [np.asarray(columns[a], float) for a in self.arguments]
         shape = np.broadcast_shapes(*(a.shape for a in args)) if args else ()
         with np.errstate(all="ignore"):
@@ -133,8 +135,13 @@ def _with_tree(system, cols, args, rest, function, tree):
         shape = values[0].shape
         out = dict(zip(rest_names, function(*(values[k] for k in own)) if rest_names else ()))
         rows = np.stack([values[at[cols[s]]].ravel() for s in states], axis=1)
-        found = tree.rows(rows[:, 0], rows[:, 1:1 + nq], rows[:, 1 + nq:1 + nq + n],
-                          rows[:, 1 + nq + n:1 + nq + 2 * n], rows[:, 1 + nq + 2 * n:])
+        found = tree.rows(
+            rows[:, 0],
+            rows[:, 1 : 1 + nq],
+            rows[:, 1 + nq : 1 + nq + n],
+            rows[:, 1 + nq + n : 1 + nq + 2 * n],
+            rows[:, 1 + nq + 2 * n :],
+        )
         out.update({name: v.reshape(shape) for name, v in found.items()})
         return [out[name] for name in order]
 

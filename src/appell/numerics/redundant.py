@@ -21,7 +21,6 @@ from appell.errors import SingularConfigurationError
 from appell.numerics.dynamics import DYNAMICS_MEMBERS, Evaluation, delegating
 from appell.numerics.numeric import StateSolution, _args, lambdify_blocks, program_substitutions
 
-
 #: smallest singular value of the kept rows (row-normalised), relative to the largest, under
 #: which a model redundant on its constraint manifold takes its motion from all rows
 KEPT_CONDITION = 1e-3
@@ -49,17 +48,24 @@ class RedundantModel:
         n, s = len(kin.speeds), cons.count
         zero_a = {a: 0 for a in kin.accelerations}
         pos, vel = cons.residual_matrices()
-        self._full = lambdify_blocks(_args(d), [sp.Matrix(cons.jacobian).xreplace(zero_a), sp.Matrix(cons.bias),
-                                                pos, vel,
-                                                pos.jacobian(sp.Matrix(kin.coordinates)),
-                                                vel.jacobian(sp.Matrix(kin.speeds))],
-                                     subs, what="blocks of the redundant constraints")
+        self._full = lambdify_blocks(
+            _args(d),
+            [
+                sp.Matrix(cons.jacobian).xreplace(zero_a),
+                sp.Matrix(cons.bias),
+                pos,
+                vel,
+                pos.jacobian(sp.Matrix(kin.coordinates)),
+                vel.jacobian(sp.Matrix(kin.speeds)),
+            ],
+            subs,
+            what="blocks of the redundant constraints",
+        )
         self._shape = (s, n, len(kin.coordinates))
         self.has_position = np.array([e is not None for e in cons.position_residual], dtype=bool)
         self.has_velocity = np.array([e is not None for e in cons.velocity_residual], dtype=bool)
         comp = redundancy.compliance
-        self.weights = (np.array([c if c is not None else 0.0 for c in comp], float)
-                        if redundancy.elastic else None)
+        self.weights = np.array([c if c is not None else 0.0 for c in comp], float) if redundancy.elastic else None
 
     def __getattr__(self, name):
         if name == "inner" or name.startswith("__"):
@@ -80,11 +86,15 @@ class RedundantModel:
         """``J`` (s x n) and ``c`` of all constraints, their position and velocity
         residuals and the residuals' Jacobians ``dF/dq``, ``dphi/dw``."""
         s, n, nq = self._shape
-        J, c, pos, vel, jq, jw = self._full(float(t), np.asarray(q, float), np.asarray(w, float),
-                                            self.inner.params(p))
-        return (np.asarray(J, float).reshape(s, n), np.asarray(c, float).reshape(s), np.asarray(pos, float).reshape(s),
-                np.asarray(vel, float).reshape(s), np.asarray(jq, float).reshape(s, nq),
-                np.asarray(jw, float).reshape(s, n))
+        J, c, pos, vel, jq, jw = self._full(float(t), np.asarray(q, float), np.asarray(w, float), self.inner.params(p))
+        return (
+            np.asarray(J, float).reshape(s, n),
+            np.asarray(c, float).reshape(s),
+            np.asarray(pos, float).reshape(s),
+            np.asarray(vel, float).reshape(s),
+            np.asarray(jq, float).reshape(s, nq),
+            np.asarray(jw, float).reshape(s, n),
+        )
 
     def all_multipliers(self, t, q, w, lam_independent, p=None) -> np.ndarray:
         """The ``s`` multipliers from those of the independent constraints
@@ -112,8 +122,9 @@ class RedundantModel:
                 raise
             return self.all_rows(t, q, w, pv, bias)
         lam = multipliers_with_redundancy(J, self.redundancy.independent, sol.multipliers, self.weights)
-        return StateSolution(sol.accelerations, lam, sol.generalized_reactions, sol.dependent, sol.switched,
-                             sol.newton_iterations)
+        return StateSolution(
+            sol.accelerations, lam, sol.generalized_reactions, sol.dependent, sol.switched, sol.newton_iterations
+        )
 
     def evaluate(self, t, y, p=None, dependent=None, bias=None) -> Evaluation:
         """:class:`~appell.numerics.dynamics.Dynamics` evaluation with every multiplier."""
@@ -121,8 +132,13 @@ class RedundantModel:
         q, w = self.inner.split_state(y)
         if self._may_use_all_rows():  # a loop redundant on its manifold: solve picks the route
             sol = self.solve(t, q, w, pv, dependent, bias)
-            return Evaluation(np.concatenate([self.inner.coordinate_rates(t, q, w, pv), sol.accelerations]),
-                              sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
+            return Evaluation(
+                np.concatenate([self.inner.coordinate_rates(t, q, w, pv), sol.accelerations]),
+                sol.multipliers,
+                np.zeros(0),
+                sol.dependent,
+                sol.switched,
+            )
         ev = self.inner.evaluate(t, y, pv, dependent, self._bias(bias))
         lam = self.all_multipliers(t, q, w, ev.multipliers, pv)
         return Evaluation(ev.derivative, lam, ev.controls, ev.dependent, ev.switched)

@@ -30,8 +30,21 @@ if TYPE_CHECKING:
 # SymPy (for the per-joint expressions) is imported by the functions that form them: the
 # recursions themselves are NumPy alone (the numeric tree route, appell.numerics.tree_route)
 
-__all__ = ["tree_layout", "constant_joints", "rigid_subtrees", "folded_nodes", "speed_parents", "tree_matrices", "point_matrices", "TreeArrays", "TreeBlocks", "rnea", "crba", "wrenches",
-           "TreeWrenches"]
+__all__ = [
+    "tree_layout",
+    "constant_joints",
+    "rigid_subtrees",
+    "folded_nodes",
+    "speed_parents",
+    "tree_matrices",
+    "point_matrices",
+    "TreeArrays",
+    "TreeBlocks",
+    "rnea",
+    "crba",
+    "wrenches",
+    "TreeWrenches",
+]
 
 
 def tree_layout(tree, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -49,9 +62,12 @@ def constant_joints(tree, constants) -> list[bool]:
     coordinate, no time)."""
     import sympy as sp
 
-    return [not node.speeds and all(e == 0 for e in node.bias)
-            and (sp.Matrix(node.rotation).free_symbols | sp.Matrix(node.translation).free_symbols) <= set(constants)
-            for node in tree.nodes]
+    return [
+        not node.speeds
+        and all(e == 0 for e in node.bias)
+        and (sp.Matrix(node.rotation).free_symbols | sp.Matrix(node.translation).free_symbols) <= set(constants)
+        for node in tree.nodes
+    ]
 
 
 def rigid_subtrees(tree, constants) -> list[bool]:
@@ -114,7 +130,7 @@ def tree_matrices(tree, n: int, gravity: bool = False) -> list[sp.Matrix]:
         I = node.inertia
         inert += [node.mass, *node.com, I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]]
         for col, k in enumerate(node.speeds):
-            S[6 * k:6 * k + 6] = list(node.motion[:, col])
+            S[6 * k : 6 * k + 6] = list(node.motion[:, col])
     base = [0, 0, 0] + (list(-sp.Matrix(tree.gravity)) if gravity else [0, 0, 0])
     return [sp.Matrix(m) for m in (rot, trans, S, bias, inert, base)]
 
@@ -165,8 +181,14 @@ def _transform(R, r) -> np.ndarray:
 
 # spatial algebra on a leading axis of states: vectors (T, 3) and (T, 6), rotations (T, 3, 3)
 def _cross(a, b):
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], -1)
+    return np.stack(
+        [
+            a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+            a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+        ],
+        -1,
+    )
 
 
 def _to_body(R, r, m):
@@ -226,8 +248,14 @@ def _passes(arrays: TreeArrays, parent, node_of, w, a, base):
 def rnea(arrays: TreeArrays, parent, node_of, w, a, base=None) -> np.ndarray:
     """``M a + h`` of one state (with ``base``, the base's spatial acceleration, zero by default)."""
     base = np.zeros(6) if base is None else base
-    f = _passes(arrays, parent, node_of, np.reshape(w, (1, -1)).astype(float), np.reshape(a, (1, -1)).astype(float),
-                np.reshape(base, (1, 6)))[0]
+    f = _passes(
+        arrays,
+        parent,
+        node_of,
+        np.reshape(w, (1, -1)).astype(float),
+        np.reshape(a, (1, -1)).astype(float),
+        np.reshape(base, (1, 6)),
+    )[0]
     return np.einsum("ki,ki->k", arrays.S[0], f[node_of])
 
 
@@ -305,8 +333,9 @@ class TreeWrenches:
         self.terms = _compiled(arguments, tree_matrices(tree, n))
         self.points = _compiled(arguments, point_matrices(tree))
         index = {node.body: b for b, node in enumerate(tree.nodes)}
-        self.records = [(index[wr.body], None if wr.axes is None else index.get(wr.axes), wr.names)
-                        for wr in tree.wrenches]
+        self.records = [
+            (index[wr.body], None if wr.axes is None else index.get(wr.axes), wr.names) for wr in tree.wrenches
+        ]
 
     @property
     def names(self) -> tuple[str, ...]:

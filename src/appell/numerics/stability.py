@@ -14,8 +14,8 @@ by Brent's method on the real part of the eigenvalue nearest the tracked one
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
@@ -67,21 +67,35 @@ class StabilitySweep:
         import xarray as xr
 
         return xr.Dataset(
-            {"real": ((self.name, "mode"), self.eigenvalues.real), "imag": ((self.name, "mode"), self.eigenvalues.imag)},
-            coords={self.name: self.values, "mode": np.arange(self.eigenvalues.shape[1]),
-                    "dominant_states": ("mode", list(self.names))},
-            attrs={"states": ", ".join(self.states),
-                   "crossings": "; ".join(f"mode {c.mode} at {self.name} = {c.value:.12g} ({c.kind})"
-                                          for c in self.crossings)})
+            {
+                "real": ((self.name, "mode"), self.eigenvalues.real),
+                "imag": ((self.name, "mode"), self.eigenvalues.imag),
+            },
+            coords={
+                self.name: self.values,
+                "mode": np.arange(self.eigenvalues.shape[1]),
+                "dominant_states": ("mode", list(self.names)),
+            },
+            attrs={
+                "states": ", ".join(self.states),
+                "crossings": "; ".join(
+                    f"mode {c.mode} at {self.name} = {c.value:.12g} ({c.kind})" for c in self.crossings
+                ),
+            },
+        )
 
     def table(self) -> str:
         """The crossings and the stable ranges as text."""
-        lines = [f"eigenvalues against {self.name} ({self.values[0]:g} .. {self.values[-1]:g}, "
-                 f"{self.values.size} values; states {', '.join(self.states)})"]
+        lines = [
+            f"eigenvalues against {self.name} ({self.values[0]:g} .. {self.values[-1]:g}, "
+            f"{self.values.size} values; states {', '.join(self.states)})"
+        ]
         for c in self.crossings:
             turn = "unstable" if c.direction > 0 else "stable"
-            lines.append(f"  mode {c.mode} ({self.names[c.mode]}) becomes {turn} at {self.name} = {c.value:.12g} "
-                         f"({c.kind}{f', frequency {abs(c.imag):.6g} rad/s' if c.kind == 'oscillatory' else ''})")
+            lines.append(
+                f"  mode {c.mode} ({self.names[c.mode]}) becomes {turn} at {self.name} = {c.value:.12g} "
+                f"({c.kind}{f', frequency {abs(c.imag):.6g} rad/s' if c.kind == 'oscillatory' else ''})"
+            )
         stable = self.stable()
         if stable.any():
             lines.append(f"  stable at {int(stable.sum())} of {stable.size} values")
@@ -130,10 +144,20 @@ def _track(previous: np.ndarray, before: np.ndarray | None, current: np.ndarray)
     return current[cols]
 
 
-def stability_sweep(derivation, name: str, values: Sequence[float], *, at: Mapping[str, float] | None = None,
-                    free: Sequence[str] = (), ignore=None, params: Mapping | None = None,
-                    coordinates=None, speeds=None, xtol: float = 1e-12, progress: bool | None = None
-                    ) -> StabilitySweep:
+def stability_sweep(
+    derivation,
+    name: str,
+    values: Sequence[float],
+    *,
+    at: Mapping[str, float] | None = None,
+    free: Sequence[str] = (),
+    ignore=None,
+    params: Mapping | None = None,
+    coordinates=None,
+    speeds=None,
+    xtol: float = 1e-12,
+    progress: bool | None = None,
+) -> StabilitySweep:
     """Eigenvalues of :func:`~appell.numerics.linearise.linearise` at each of ``values`` of
     ``name`` (module docstring). ``at``: the point (over the system's initial values; those
     the system writes in the parameter ``name``, such as ``rear_x' = v``, follow it);
@@ -164,8 +188,7 @@ def stability_sweep(derivation, name: str, values: Sequence[float], *, at: Mappi
                 known[sp.Symbol(k)] = here[k]
         if free:
             here = steady_motion(derivation, here, free=free, ignore=ignore, params=params)
-        return linearise(derivation, here, params=params, ignore=ignore, coordinates=coordinates,
-                         speeds=speeds), here
+        return linearise(derivation, here, params=params, ignore=ignore, coordinates=coordinates, speeds=speeds), here
 
     from tqdm import tqdm
 
@@ -250,9 +273,18 @@ def _crossings(model_at, point, values, eigenvalues, xtol) -> tuple[Crossing, ..
                         hi = mid
                 v = 0.5 * (lo + hi)
             mode, ev = spectrum(v)  # one linear model at the crossing for its frequency and scale
-            found.append(Crossing(j, float(v), float(mode.imag), 1 if c1 == 1 else -1,
-                                  float(np.abs(ev).max(initial=0.0))))
+            found.append(
+                Crossing(j, float(v), float(mode.imag), 1 if c1 == 1 else -1, float(np.abs(ev).max(initial=0.0)))
+            )
     # a complex pair crosses together: keep the member with the positive imaginary part
-    pairs = [c for c in found if not (c.imag < 0 and any(
-        o is not c and o.imag > 0 and abs(o.value - c.value) <= 1e3 * xtol * (1 + abs(c.value)) for o in found))]
+    pairs = [
+        c
+        for c in found
+        if not (
+            c.imag < 0
+            and any(
+                o is not c and o.imag > 0 and abs(o.value - c.value) <= 1e3 * xtol * (1 + abs(c.value)) for o in found
+            )
+        )
+    ]
     return tuple(sorted(pairs, key=lambda c: c.value))

@@ -66,14 +66,18 @@ class TreeRoute:
 
         self.name = name or getattr(mechanism, "name", "")
         if getattr(mechanism, "_closures", ()):
-            raise ModelError(f"{self.name}: the numeric tree route takes open trees; this mechanism has closed "
-                             "loops", hint="derive it (appell.derive) for the constrained route")
+            raise ModelError(
+                f"{self.name}: the numeric tree route takes open trees; this mechanism has closed loops",
+                hint="derive it (appell.derive) for the constrained route",
+            )
         coords = [q for j in mechanism.joints for q in j.coordinates]
         tree = mechanism.rigid_tree(coords)
         if tree is None:
-            raise ModelError(f"{self.name}: a joint moves with time or with another joint's coordinates; the "
-                             "numeric tree route takes joints moved by their own coordinates only",
-                             hint="derive it (appell.derive)")
+            raise ModelError(
+                f"{self.name}: a joint moves with time or with another joint's coordinates; the "
+                "numeric tree route takes joints moved by their own coordinates only",
+                hint="derive it (appell.derive)",
+            )
         self.coordinates = tuple(coords)
         self.speeds = tuple(derivative_symbol(q) for q in coords)
         self.n = len(coords)
@@ -82,7 +86,9 @@ class TreeRoute:
         self.default_parameters = np.array([float(p.value) for p in params], float)
         args = [t, sp.Matrix(self.coordinates), sp.Matrix(self.speeds), sp.Matrix([p.symbol for p in params])]
         self.constraint_names = tuple(c.name for c in constraints)
-        matrices = tree_matrices(tree, self.n, gravity=True) + point_matrices(tree) + self._constraint_terms(constraints)
+        matrices = (
+            tree_matrices(tree, self.n, gravity=True) + point_matrices(tree) + self._constraint_terms(constraints)
+        )
         sizes = [len(m) for m in matrices]
         # without shared subexpressions: the per-joint terms are small, and finding them took
         # longer (0.65 s against 0.27 s the Panda's) than it saves on the first numbers
@@ -102,8 +108,10 @@ class TreeRoute:
         allowed = set(self.coordinates) | {p for p in sp.symbols(self.parameter_names)}
         F = sp.Matrix([c.expr for c in constraints])
         if any(getattr(c, "order", 0) != 0 for c in constraints) or not F.free_symbols <= allowed:
-            raise ModelError(f"{self.name}: the numeric tree route takes holonomic constraints in the joints' "
-                             "coordinates only", hint="derive it (appell.derive)")
+            raise ModelError(
+                f"{self.name}: the numeric tree route takes holonomic constraints in the joints' coordinates only",
+                hint="derive it (appell.derive)",
+            )
         J = F.jacobian(list(self.coordinates))
         c = (J * sp.Matrix(self.speeds)).jacobian(list(self.coordinates)) * sp.Matrix(self.speeds)
         return [sp.Matrix(list(J)), c]
@@ -120,8 +128,10 @@ class TreeRoute:
         p = self.default_parameters if p is None else np.asarray(p, float)
         q, w = np.asarray(q, float).reshape(-1), np.asarray(w, float).reshape(-1)
         if q.shape != (self.n,) or w.shape != (self.n,):
-            raise ModelError(f"{self.name}: q and w need {self.n} values each (got {q.size}, {w.size})",
-                             hint="in the order of coordinate_names and speed_names")
+            raise ModelError(
+                f"{self.name}: q and w need {self.n} values each (got {q.size}, {w.size})",
+                hint="in the order of coordinate_names and speed_names",
+            )
         flat = np.array(self._function(float(time), q.tolist(), w.tolist(), p.tolist()), float)
         rot, trans, S, bias, inert, base, gravity, points, J, c = np.split(flat, self._cuts)
         self._constraint = (J.reshape(-1, self.n), c)
@@ -131,7 +141,9 @@ class TreeRoute:
         """``(M, h)``: the mass matrix (CRBA) and the forces ``h`` of ``M a + h = tau`` (RNEA at
         ``a = 0``, gravity included)."""
         arrays, base, _, _, q, w = self._terms(time, q, w, p)
-        return crba(arrays, self.parent, self.node_of), rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
+        return crba(arrays, self.parent, self.node_of), rnea(
+            arrays, self.parent, self.node_of, w, np.zeros(self.n), base
+        )
 
     def accelerations(self, time, q, w, tau=None, p=None) -> np.ndarray:
         """``a`` of ``M a = tau - h`` (``tau``: the joint forces, zero by default)."""
@@ -151,9 +163,11 @@ class TreeRoute:
         try:
             x = np.linalg.solve(K, np.concatenate([rhs, -c]))
         except np.linalg.LinAlgError:
-            raise ModelError(f"{self.name}: the mass matrix (or the constraints) are singular at this state",
-                             hint="a body without mass or inertia on a joint, or dependent constraints") from None
-        a, lam = x[:self.n], x[self.n:]
+            raise ModelError(
+                f"{self.name}: the mass matrix (or the constraints) are singular at this state",
+                hint="a body without mass or inertia on a joint, or dependent constraints",
+            ) from None
+        a, lam = x[: self.n], x[self.n :]
         W, _ = wrenches(arrays, self.parent, self.node_of, w[None], a[None], gravity[None], points[None])
         out = dict(zip(self.output_names, W[0].reshape(-1).tolist()))
         out.update((f"lambda_{name}", float(v)) for name, v in zip(self.constraint_names, lam))
@@ -202,8 +216,10 @@ def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
             U[i] = IA[i] @ S[k]
             D[i] = S[k] @ U[i]
             if not D[i] > 0.0:
-                raise ModelError("a joint carries no inertia (a zero pivot of the articulated-body algorithm)",
-                                 hint="give the bodies it moves a mass and inertia")
+                raise ModelError(
+                    "a joint carries no inertia (a zero pivot of the articulated-body algorithm)",
+                    hint="give the bodies it moves a mass and inertia",
+                )
             u[i] = tau[k] - S[k] @ pA[i]
             Ia = IA[i] - np.outer(U[i], U[i]) / D[i]
         pa = pA[i] + Ia @ c[i] + U[i] * (u[i] / D[i])
@@ -245,11 +261,24 @@ class NumericTreeRoute:
             if node.coordinate is not None:
                 k = self.speed[b] = self.coordinate_names.index(node.coordinate)
                 start = 0 if node.kind == "revolute" else 3  # [axis; 0] or [0; axis]: the joint's axes are the body's
-                self.S[k, start:start + 3] = node.axis
+                self.S[k, start : start + 3] = node.axis
         self.node_of = np.array([int(np.flatnonzero(self.speed == k)[0]) for k in range(n)], dtype=np.int64)
         self._nodes = nodes
-        self._inert = np.array([[node.mass, *node.com, node.inertia[0, 0], node.inertia[1, 1], node.inertia[2, 2],
-                                 node.inertia[0, 1], node.inertia[0, 2], node.inertia[1, 2]] for node in nodes])
+        self._inert = np.array(
+            [
+                [
+                    node.mass,
+                    *node.com,
+                    node.inertia[0, 0],
+                    node.inertia[1, 1],
+                    node.inertia[2, 2],
+                    node.inertia[0, 1],
+                    node.inertia[0, 2],
+                    node.inertia[1, 2],
+                ]
+                for node in nodes
+            ]
+        )
         self._spatial = np.array([_spatial_inertia(node.mass, node.com, node.inertia) for node in nodes])
         self.joint_names = tuple(node.reaction for node in nodes if node.reaction is not None)
         self._reporting = [b for b, node in enumerate(nodes) if node.reaction is not None]
@@ -265,8 +294,10 @@ class NumericTreeRoute:
         p = self.default_parameters if p is None else np.asarray(p, float).reshape(-1)
         q, w = np.asarray(q, float).reshape(-1), np.asarray(w, float).reshape(-1)
         if q.shape != (self.n,) or w.shape != (self.n,):
-            raise ModelError(f"{self.name}: q and w need {self.n} values each (got {q.size}, {w.size})",
-                             hint="in the order of coordinate_names and speed_names")
+            raise ModelError(
+                f"{self.name}: q and w need {self.n} values each (got {q.size}, {w.size})",
+                hint="in the order of coordinate_names and speed_names",
+            )
         nb = len(self._nodes)
         R, r = np.empty((nb, 3, 3)), np.empty((nb, 3))
         for b, node in enumerate(self._nodes):
@@ -288,7 +319,9 @@ class NumericTreeRoute:
         """``(M, h)`` (CRBA and RNEA, :mod:`appell.numerics.rigid_tree`), gravity in ``h``."""
         arrays, q, w, gravity = self._arrays(q, w, p)
         base = np.concatenate([np.zeros(3), -gravity])
-        return crba(arrays, self.parent, self.node_of), rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
+        return crba(arrays, self.parent, self.node_of), rnea(
+            arrays, self.parent, self.node_of, w, np.zeros(self.n), base
+        )
 
     def accelerations(self, time, q, w, tau=None, p=None) -> np.ndarray:
         """``a`` of ``M a = tau - h`` (with the mimic rows, :meth:`forward`)."""
@@ -300,8 +333,12 @@ class NumericTreeRoute:
         X, a = self._aba(arrays, w, tau, np.concatenate([np.zeros(3), -gravity]))
         lam = np.zeros(len(self._J))
         if len(self._J):
-            MJ = np.array([aba(X, self._spatial, self.parent, self.speed, self.S, np.zeros(self.n), row, np.zeros(6))
-                           for row in self._J]).T
+            MJ = np.array(
+                [
+                    aba(X, self._spatial, self.parent, self.speed, self.S, np.zeros(self.n), row, np.zeros(6))
+                    for row in self._J
+                ]
+            ).T
             try:
                 lam = np.linalg.solve(self._J @ MJ, -self._J @ a)
             except np.linalg.LinAlgError:
@@ -313,8 +350,9 @@ class NumericTreeRoute:
         """The accelerations and every joint's reaction ``{output name: value}`` at one state,
         and the mimic rows' multipliers ``lambda_<name>`` of ``M a + h = tau + J^T lambda``."""
         arrays, w, gravity, a, lam = self._solve(q, w, tau, p)
-        W, _ = wrenches(arrays, self.parent, self.node_of, w[None], a[None], gravity[None],
-                        np.zeros((1, 3 * len(self._nodes))))
+        W, _ = wrenches(
+            arrays, self.parent, self.node_of, w[None], a[None], gravity[None], np.zeros((1, 3 * len(self._nodes)))
+        )
         out = dict(zip(self.output_names, W[0, self._reporting].reshape(-1).tolist()))
         out.update((f"lambda_{name}", float(v)) for name, v in zip(self.constraint_names, lam))
         return a, out
@@ -342,13 +380,13 @@ class NumericTreeRoute:
         from appell.numerics.dynamics import Evaluation
 
         y = np.asarray(y, float)
-        _, w, _, a, lam = self._solve(y[:self.n], y[self.n:], None, p)
+        _, w, _, a, lam = self._solve(y[: self.n], y[self.n :], None, p)
         return Evaluation(np.concatenate([w, a]), lam, np.zeros(0))
 
     def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
         """The mimic rows ``a - m b - offset`` and their rates ``J w``."""
         y = np.asarray(y, float)
-        return self._J @ y[:self.n] - self._offsets, self._J @ y[self.n:]
+        return self._J @ y[: self.n] - self._offsets, self._J @ y[self.n :]
 
     def residual_jacobians(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
         """``(dF/dq, dphi/dw) = (J, J)``: the mimic rows are linear."""
@@ -373,7 +411,9 @@ def tree_route(source, *, floating_base: bool = False) -> TreeRoute:
 
     importer = importer_for(path)
     if importer is None or importer.mechanism is None:
-        raise ModelError(f"{path}: the numeric tree route reads a robot file (URDF or MJCF)",
-                         hint="for a model file, derive it: appell.derive(appell.load_model(path))")
+        raise ModelError(
+            f"{path}: the numeric tree route reads a robot file (URDF or MJCF)",
+            hint="for a model file, derive it: appell.derive(appell.load_model(path))",
+        )
     mechanism, constraints = importer.mechanism(path, floating_base)
     return TreeRoute(mechanism, path.stem, constraints)

@@ -52,21 +52,21 @@ a skew form that does no work; with one positional coordinate it vanishes. So
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
 from appell.core.energy import generalized_forces
 from appell.core.equations import block_inverse
-from appell.core.simplification import readable, tidy
-from appell.errors import ComputationError, ModelError
 from appell.core.kinematics import kinematics_of
-from appell.model import Parameter, System
-from appell.symbols import derivative_symbol, t
+from appell.core.simplification import readable, tidy
 from appell.core.validation import validate
+from appell.errors import ComputationError, ModelError
+from appell.model import Parameter, System
 from appell.numerics.boundary import numeric_model
+from appell.symbols import derivative_symbol, t
 
 __all__ = ["RouthReduction", "cyclic_coordinates", "routh_reduction"]
 
@@ -247,7 +247,7 @@ class RouthReduction:
         p = np.array([pp.value for pp in self.system.parameters], float)
 
         def rhs(time, y):
-            q, w = y[:m], y[m:2 * m]
+            q, w = y[:m], y[m : 2 * m]
             a = num.accelerations(time, q, w)
             rate = np.asarray(self._rate(q, w, p), float).reshape(-1)
             return np.concatenate([w, a, rate])
@@ -255,7 +255,7 @@ class RouthReduction:
         sol = solve_ivp(rhs, t_span, np.asarray(y0, float), method=method, t_eval=t_eval, rtol=rtol, atol=atol)
         if not sol.success:
             raise ComputationError(f"integration of the reduced system {self.system.name!r} failed: {sol.message}")
-        return sol.t, sol.y[: 2 * m].T, sol.y[2 * m: 2 * m + k].T
+        return sol.t, sol.y[: 2 * m].T, sol.y[2 * m : 2 * m + k].T
 
 
 def _momentum_symbol(q: sp.Symbol, taken: set) -> sp.Symbol:
@@ -265,8 +265,7 @@ def _momentum_symbol(q: sp.Symbol, taken: set) -> sp.Symbol:
     return s
 
 
-def routh_reduction(system: System, cyclic: Sequence | None = None,
-                    momenta: Mapping | None = None) -> RouthReduction:
+def routh_reduction(system: System, cyclic: Sequence | None = None, momenta: Mapping | None = None) -> RouthReduction:
     """Routh's reduction of ``system`` over its cyclic coordinates (method.md §5, (3.4)).
 
     Parameters
@@ -298,9 +297,11 @@ def routh_reduction(system: System, cyclic: Sequence | None = None,
     if not cyc:
         raise ModelError(f"system {system.name!r} has no cyclic coordinate to eliminate")
     if system.frictions:
-        raise ModelError(f"system {system.name!r}: Routh reduction of a system with frictions is not supported "
-                         "(the reduced system would leave the friction out)",
-                         hint="simulate the full system: appell.simulate(appell.derive(system))")
+        raise ModelError(
+            f"system {system.name!r}: Routh reduction of a system with frictions is not supported "
+            "(the reduced system would leave the friction out)",
+            hint="simulate the full system: appell.simulate(appell.derive(system))",
+        )
     coords = system.coordinates
     ic = [coords.index(q) for q in cyc]
     ip = [i for i in range(len(coords)) if i not in ic]
@@ -329,10 +330,12 @@ def routh_reduction(system: System, cyclic: Sequence | None = None,
     gamma = B_cp.T * h  # gamma_j = sum_alpha B_{alpha j} h_alpha
     V = amended + (gamma.T * wp)[0]
     qp = list(pos)
-    Q_gyr = sp.ImmutableMatrix([
-        tidy(sum((sp.diff(gamma[i], qp[j]) - sp.diff(gamma[j], qp[i])) * wp[j] for j in range(len(ip))))
-        for i in range(len(ip))
-    ])
+    Q_gyr = sp.ImmutableMatrix(
+        [
+            tidy(sum((sp.diff(gamma[i], qp[j]) - sp.diff(gamma[j], qp[i])) * wp[j] for j in range(len(ip))))
+            for i in range(len(ip))
+        ]
+    )
 
     # momentum values: given, or p_alpha = dT/dq_dot_alpha at the initial state
     values = _momentum_values(system, cyc, hs, momenta)
@@ -347,7 +350,7 @@ def routh_reduction(system: System, cyclic: Sequence | None = None,
     reduced = System(
         name=f"{system.name}_routh",
         description=f"{system.name} reduced over the cyclic coordinate(s) "
-                    f"{', '.join(q.name for q in cyc)} (Routh, method.md §5)",
+        f"{', '.join(q.name for q in cyc)} (Routh, method.md §5)",
         coordinates=pos,
         parameters=params,
         programs=system.programs,
@@ -357,8 +360,9 @@ def routh_reduction(system: System, cyclic: Sequence | None = None,
         constraints=system.constraints,
         initial={k: v for k, v in init.items() if k in keep},
     )
-    rate = sp.lambdify([list(pos), list(wp), [p.symbol for p in params]], [cyc_vel], modules="numpy", cse=True,
-                       use_imps=False)
+    rate = sp.lambdify(
+        [list(pos), list(wp), [p.symbol for p in params]], [cyc_vel], modules="numpy", cse=True, use_imps=False
+    )
     return RouthReduction(
         full=system,
         system=reduced,

@@ -57,20 +57,20 @@ Verdict, per candidate and on its own augmented system:
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 import sympy as sp
 
-from appell.errors import ComputationError, ModelError
-from appell.model import Constraint, FirstIntegral, System, holonomic, nonholonomic
 from appell.core.partition import generic_values, numeric_jacobian
 from appell.core.simplification import within_bound
+from appell.core.validation import validate
+from appell.errors import ComputationError, ModelError
+from appell.model import Constraint, FirstIntegral, System, holonomic, nonholonomic
+from appell.numerics.boundary import numeric_model
 from appell.numerics.budget import EvaluationBudget
 from appell.symbols import t
-from appell.core.validation import validate
-from appell.numerics.boundary import numeric_model
 
 __all__ = [
     "FirstIntegralCheck",
@@ -171,8 +171,10 @@ class FirstIntegralReport:
             lines.append(f"  {c.name}: {c.verdict} ({c.route}) — {c.message}")
         others = [c.name for c in self.checks if not c.is_integral]
         if self.reducible:
-            lines.append(f"  reducible: yes, by {len(self.integrals)} first integral(s): {', '.join(self.integrals)}"
-                         + (f"; not integrals: {', '.join(others)}" if others else ""))
+            lines.append(
+                f"  reducible: yes, by {len(self.integrals)} first integral(s): {', '.join(self.integrals)}"
+                + (f"; not integrals: {', '.join(others)}" if others else "")
+            )
         else:
             lines.append("  reducible: no (no candidate is a first integral)")
         return "\n".join(lines)
@@ -203,8 +205,7 @@ def _has_speed(expr) -> bool:
 def augmented_system(system: System, integral: FirstIntegral) -> System:
     """``system`` with the candidate added as its last constraint (method.md §5)."""
     con = integral_constraint(integral, [c.name for c in system.constraints + system.servo_constraints])
-    return system.replace(constraints=system.constraints + (con,), first_integrals=(),
-                          name=f"{system.name}+{con.name}")
+    return system.replace(constraints=system.constraints + (con,), first_integrals=(), name=f"{system.name}+{con.name}")
 
 
 def _augmented_partition(original, aug_J: sp.Matrix, n: int):
@@ -275,16 +276,23 @@ def _integrate_motion(numeric, q0, w0, times, t0: float = 0.0, rtol: float = 1e-
     from scipy.integrate import solve_ivp
 
     nq = len(q0)
-    budget = EvaluationBudget("the first integrals' drift run", t0, float(times[-1]), DRIFT_EVALUATIONS, 10.0,
-                              hint="look for forces, energies or candidate integrals that are far too large")
+    budget = EvaluationBudget(
+        "the first integrals' drift run",
+        t0,
+        float(times[-1]),
+        DRIFT_EVALUATIONS,
+        10.0,
+        hint="look for forces, energies or candidate integrals that are far too large",
+    )
 
     def rhs(time, y):
         budget(time)
         q, w = y[:nq], y[nq:]
         return np.concatenate([numeric.coordinate_rates(time, q, w), numeric.accelerations(time, q, w)])
 
-    sol = solve_ivp(rhs, (t0, float(times[-1])), np.concatenate([q0, w0]), method="DOP853",
-                    t_eval=times, rtol=rtol, atol=atol)
+    sol = solve_ivp(
+        rhs, (t0, float(times[-1])), np.concatenate([q0, w0]), method="DOP853", t_eval=times, rtol=rtol, atol=atol
+    )
     if not sol.success:
         raise ComputationError(f"integration of the motion failed: {sol.message}")
     return sol.t, sol.y[:nq].T, sol.y[nq:].T
@@ -329,10 +337,17 @@ def consistent_states(derivation, count: int, *, seed: int = 0, t_span: float = 
     return states, failed
 
 
-def check_first_integrals(system: System, integrals: Sequence[FirstIntegral] | None = None, *,
-                          samples: int = 40, t_final: float = 10.0, trajectory_points: int = 40,
-                          tolerance: float = RELATIVE_TOLERANCE, symbolic: bool = True,
-                          seed: int = 0) -> FirstIntegralReport:
+def check_first_integrals(
+    system: System,
+    integrals: Sequence[FirstIntegral] | None = None,
+    *,
+    samples: int = 40,
+    t_final: float = 10.0,
+    trajectory_points: int = 40,
+    tolerance: float = RELATIVE_TOLERANCE,
+    symbolic: bool = True,
+    seed: int = 0,
+) -> FirstIntegralReport:
     """Test candidate first integrals by their multipliers (1.5) (method.md §5).
 
     Parameters
@@ -357,8 +372,10 @@ def check_first_integrals(system: System, integrals: Sequence[FirstIntegral] | N
 
     cands = tuple(system.first_integrals if integrals is None else integrals)
     if not cands:
-        raise ModelError(f"system {system.name!r} has no candidate first integral",
-                         hint="give first_integrals=(FirstIntegral(name, expr), ...)")
+        raise ModelError(
+            f"system {system.name!r} has no candidate first integral",
+            hint="give first_integrals=(FirstIntegral(name, expr), ...)",
+        )
     validate(system.replace(first_integrals=cands))
     base = derive(system.replace(first_integrals=()))
     num = numeric_model(base)
@@ -387,8 +404,11 @@ class _Rate:
         q, w = sp.Matrix(system.coordinates), sp.Matrix(system.speeds)
         g = sp.sympify(g).xreplace(program_substitutions(system))
         args = [t, list(q), list(w), [p.symbol for p in system.parameters]]
-        self.fn = lambdify_blocks(args, [sp.Matrix([g, sp.diff(g, t)]), sp.Matrix([g]).jacobian(q),
-                                         sp.Matrix([g]).jacobian(w)], what="first-integral candidate")
+        self.fn = lambdify_blocks(
+            args,
+            [sp.Matrix([g, sp.diff(g, t)]), sp.Matrix([g]).jacobian(q), sp.Matrix([g]).jacobian(w)],
+            what="first-integral candidate",
+        )
 
     def value(self, tt, q, w, pv) -> float:
         return float(self.fn(tt, q, w, pv)[0][0, 0])
@@ -433,9 +453,18 @@ def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic
                 mu_motion = mu.xreplace(dict(zip(aug.accelerations, acc)))
                 if _vanishes_identically(mu_motion) is True:
                     return FirstIntegralCheck(
-                        multiplier=mu, multiplier_on_motion=mu_motion, verdict="integral", route="symbolic",
-                        largest_multiplier=0.0, largest_relative=0.0, where=None, states=0, skipped=0,
-                        message="the multiplier (1.5) vanishes identically on the motion", **common)
+                        multiplier=mu,
+                        multiplier_on_motion=mu_motion,
+                        verdict="integral",
+                        route="symbolic",
+                        largest_multiplier=0.0,
+                        largest_relative=0.0,
+                        where=None,
+                        states=0,
+                        skipped=0,
+                        message="the multiplier (1.5) vanishes identically on the motion",
+                        **common,
+                    )
 
     worst_rel, at_where, largest, where, used, skipped = 0.0, 0.0, 0.0, None, 0, failed
     worst_state = None
@@ -451,8 +480,10 @@ def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic
         if where is None or rel > worst_rel:
             worst_rel, at_where, where, worst_state = rel, r, _state_dict(system, tt, q, w), (tt, q, w)
     if used == 0:
-        raise ComputationError(f"first integral {fi.name!r}: no random state could be brought onto the constraints",
-                               hint="give initial values that satisfy the constraints")
+        raise ComputationError(
+            f"first integral {fi.name!r}: no random state could be brought onto the constraints",
+            hint="give initial values that satisfy the constraints",
+        )
     mu_value = float("nan")
     if aug is not None and worst_state is not None:
         try:
@@ -460,12 +491,25 @@ def _check_one(system, base, fi, trajectory, states, failed, tolerance, symbolic
         except (ComputationError, np.linalg.LinAlgError):
             mu_value = float("nan")
     ok = worst_rel <= tolerance
-    msg = (f"largest |dg/dt| along the motion {largest:.3g} (relative {worst_rel:.2g}) over {used} random states "
-           f"consistent with the constraints" + (f", {skipped} skipped" if skipped else "")
-           + (f"; |mu| = {mu_value:.3g} there" if aug is not None else
-              "; redundant with the constraints (no multiplier)")
-           + f"; drift of g along one trajectory {drift:.2g}")
+    msg = (
+        f"largest |dg/dt| along the motion {largest:.3g} (relative {worst_rel:.2g}) over {used} random states "
+        f"consistent with the constraints"
+        + (f", {skipped} skipped" if skipped else "")
+        + (f"; |mu| = {mu_value:.3g} there" if aug is not None else "; redundant with the constraints (no multiplier)")
+        + f"; drift of g along one trajectory {drift:.2g}"
+    )
     return FirstIntegralCheck(
-        multiplier=mu, multiplier_on_motion=mu_motion, verdict="integral" if ok else "not an integral",
-        route="numeric", largest_multiplier=mu_value, largest_relative=worst_rel, where=where,
-        states=used, skipped=skipped, message=msg, largest_rate=largest, rate_at_where=at_where, **common)
+        multiplier=mu,
+        multiplier_on_motion=mu_motion,
+        verdict="integral" if ok else "not an integral",
+        route="numeric",
+        largest_multiplier=mu_value,
+        largest_relative=worst_rel,
+        where=where,
+        states=used,
+        skipped=skipped,
+        message=msg,
+        largest_rate=largest,
+        rate_at_where=at_where,
+        **common,
+    )

@@ -47,16 +47,17 @@ work shows.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping, cast
+from typing import cast
 
 import numpy as np
 import sympy as sp
 
 from appell.core.equations import is_controlled
 from appell.errors import ComputationError, ModelError
-from appell.numerics.budget import EvaluationBudget
 from appell.numerics.boundary import numeric_model
+from appell.numerics.budget import EvaluationBudget
 
 __all__ = ["ENERGY_TOLERANCE", "EnergyBalance", "energy_balance", "energy_form"]
 
@@ -84,7 +85,7 @@ MAX_EVALUATIONS_IMPLICIT, FIRST_PROJECTION_IMPLICIT = 150_000, 5_000
 
 FORMS = {
     "jacobi": "H = (dT/dw).w - T + V (= T + V when T is quadratic in w and free of t), "
-              "dH/dt = Q_nc.w + R.w - dT/dt|explicit + dV/dt|explicit",
+    "dH/dt = Q_nc.w + R.w - dT/dt|explicit + dV/dt|explicit",
     "power": "E = T + V, dE/dt = Q_nc.w + R.w + (dV/dq) k + dV/dt|explicit",
 }
 
@@ -135,16 +136,19 @@ class EnergyBalance:
     def __str__(self) -> str:
         if not self.formed:
             return f"energy balance: not formed: {self.reason}"
-        return "\n".join([
-            f"energy balance along the motion from the initial values, t = {self.t0:g} .. {self.t_end:g} "
-            f"({self.method}, rtol 1e-11, {self.samples} times compared):",
-            f"  {FORMS[cast(str, self.form)]}",
-            f"  energy change {self.energy_change:.6e} = work of applied forces {self.work_applied:.6e} "
-            f"+ of reactions {self.work_reactions:.6e} + of explicit time dependence {self.work_explicit:.6e} "
-            f"+ residual",
-            f"  largest residual |H(t) - H(t0) - W(t)| {self.residual:.3e} at t = {self.where:g}, relative to "
-            f"{self.scale:.3e} (max kinetic part + max |V - V(t0)| + integral of |power|): {self.relative:.3e}",
-        ] + ([f"  {self.cut}"] if self.cut else []))
+        return "\n".join(
+            [
+                f"energy balance along the motion from the initial values, t = {self.t0:g} .. {self.t_end:g} "
+                f"({self.method}, rtol 1e-11, {self.samples} times compared):",
+                f"  {FORMS[cast(str, self.form)]}",
+                f"  energy change {self.energy_change:.6e} = work of applied forces {self.work_applied:.6e} "
+                f"+ of reactions {self.work_reactions:.6e} + of explicit time dependence {self.work_explicit:.6e} "
+                f"+ residual",
+                f"  largest residual |H(t) - H(t0) - W(t)| {self.residual:.3e} at t = {self.where:g}, relative to "
+                f"{self.scale:.3e} (max kinetic part + max |V - V(t0)| + integral of |power|): {self.relative:.3e}",
+            ]
+            + ([f"  {self.cut}"] if self.cut else [])
+        )
 
 
 def energy_form(derivation) -> tuple[str | None, str]:
@@ -156,8 +160,10 @@ def energy_form(derivation) -> tuple[str | None, str]:
     if is_controlled(derivation):
         return None, "the system has controls: their power is not separated from the applied forces"
     if system.frictions:
-        return None, ("the system has non-ideal frictions, whose work this balance does not integrate (the "
-                      "cross-check's friction route checks the split with friction)")
+        return None, (
+            "the system has non-ideal frictions, whose work this balance does not integrate (the "
+            "cross-check's friction route checks the split with friction)"
+        )
     reason = energy_unavailable(system)
     if reason:
         return None, reason
@@ -168,13 +174,17 @@ def energy_form(derivation) -> tuple[str | None, str]:
     zero = {s: 0 for s in w}
     T = energy.kinetic
     if not vanishes(T.xreplace(zero)) or not vanishes(sp.Matrix([T]).jacobian(sp.Matrix(w)).xreplace(zero)):
-        return None, ("the velocities of the bodies have terms free of the speeds (rheonomic quasi-velocities): "
-                      "no energy identity is formed for them")
+        return None, (
+            "the velocities of the bodies have terms free of the speeds (rheonomic quasi-velocities): "
+            "no energy identity is formed for them"
+        )
     # w.(M a + h) = dT/dt needs body velocities linear in w: T homogeneous of degree 2 in w,
     # w.dT/dw = 2 T (Euler)
     if not vanishes((sp.Matrix([T]).jacobian(sp.Matrix(w)) * sp.Matrix(w))[0] - 2 * T):
-        return None, ("the velocities of the bodies are not linear in the speeds (quasi-velocities): "
-                      "no energy identity is formed for them")
+        return None, (
+            "the velocities of the bodies are not linear in the speeds (quasi-velocities): "
+            "no energy identity is formed for them"
+        )
     return "power", ""
 
 
@@ -199,8 +209,9 @@ class _Balance:
         else:
             kinetic = T
         args = [t, list(q), list(w), [p.symbol for p in system.parameters]]
-        self.fn = lambdify_blocks(args, [sp.Matrix([kinetic]), sp.Matrix([V]), energy.applied,
-                                         sp.Matrix([explicit])], what="energy balance")
+        self.fn = lambdify_blocks(
+            args, [sp.Matrix([kinetic]), sp.Matrix([V]), energy.applied, sp.Matrix([explicit])], what="energy balance"
+        )
 
     def __call__(self, t, q, w, pv):
         kin, V, Q, P = self.fn(float(t), q, w, pv)
@@ -224,9 +235,19 @@ def stiffness(motion, t, y, p) -> float:
     return float(max(rates.max(initial=0.0), 0.0))
 
 
-def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mapping | None = None, params=None,
-                   model=None, samples: int = 201, rtol: float = 1e-11, atol: float = 1e-12,
-                   method: str = "DOP853") -> EnergyBalance:
+def energy_balance(
+    derivation,
+    t_end: float,
+    *,
+    t0: float = 0.0,
+    initial: Mapping | None = None,
+    params=None,
+    model=None,
+    samples: int = 201,
+    rtol: float = 1e-11,
+    atol: float = 1e-12,
+    method: str = "DOP853",
+) -> EnergyBalance:
     """The energy balance of the motion of ``derivation`` from ``initial`` (default the
     system's initial values, dependent ones completed by
     :func:`~appell.simulation.initial.complete_initial`) over ``[t0, t_end]``, compared at
@@ -260,7 +281,7 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     balance = _Balance(derivation, form)
     motion = motion_jacobian(model) if method in ("auto", "Radau") else None  # formed once for both uses
     if method == "auto":
-        method = "Radau" if stiffness(motion, t0, y0[:nq + n], pv) * (t_end - t0) > STIFF_DECAYS else "DOP853"
+        method = "Radau" if stiffness(motion, t0, y0[: nq + n], pv) * (t_end - t0) > STIFF_DECAYS else "DOP853"
 
     def powers(tt, q, w):
         sol = model.solve(tt, q, w, pv)
@@ -269,17 +290,28 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
 
     # the count of evaluations is a hard budget (a motion too fast or stiff for the span); the
     # seconds end the span where they run out, with a note (evaluations slow here)
-    budget = (EvaluationBudget("the energy balance's integration", t0, t_end, MAX_EVALUATIONS, None)
-              if method == "DOP853" else
-              EvaluationBudget("the energy balance's integration", t0, t_end, MAX_EVALUATIONS_IMPLICIT, None,
-                               first=FIRST_PROJECTION_IMPLICIT))
+    budget = (
+        EvaluationBudget("the energy balance's integration", t0, t_end, MAX_EVALUATIONS, None)
+        if method == "DOP853"
+        else EvaluationBudget(
+            "the energy balance's integration",
+            t0,
+            t_end,
+            MAX_EVALUATIONS_IMPLICIT,
+            None,
+            first=FIRST_PROJECTION_IMPLICIT,
+        )
+    )
 
-    names = ([f"{x}'" for x in model.coordinate_names] + [f"{w}'" for w in model.speed_names]
-             + ["the power of the applied forces", "the power of the reactions", "the explicit power", "the work"])
+    names = (
+        [f"{x}'" for x in model.coordinate_names]
+        + [f"{w}'" for w in model.speed_names]
+        + ["the power of the applied forces", "the power of the reactions", "the explicit power", "the work"]
+    )
 
     def rhs(tt, y):
         budget(tt)
-        q, w = y[:nq], y[nq:nq + n]
+        q, w = y[:nq], y[nq : nq + n]
         with np.errstate(over="ignore", invalid="ignore"):  # an overflow is named just below
             a, p_app, p_reac, p_expl = powers(tt, q, w)
             dq = model.coordinate_rates(tt, q, w, pv)
@@ -300,39 +332,46 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     if method == "Radau":  # the motion's exact Jacobian (finite differences would push a cyclic
         # angle out of the expressions' domain); the works are quadratures, left out of Newton's
         if motion is not None:
+
             def jacobian(tt, y):
                 full = np.zeros((y.size, y.size))
-                full[:nq + n, :nq + n] = motion(tt, y[:nq + n], pv)
+                full[: nq + n, : nq + n] = motion(tt, y[: nq + n], pv)
                 return full
 
             options["jac"] = jacobian
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # ranges are checked in rhs
-        run = solve_ivp(rhs, (t0, t_end), start, method=method, t_eval=times, rtol=rtol, atol=tolerances,
-                        events=events, **options)
+        run = solve_ivp(
+            rhs, (t0, t_end), start, method=method, t_eval=times, rtol=rtol, atol=tolerances, events=events, **options
+        )
     cut = ""
     ended = [k for k in range(len(events)) if run.t_events[k].size]
     if run.status == 1 and ended:
         k = ended[0]
         stop = float(run.t_events[k][0])
         if k == 0:
-            cut = (f"the balance ends at t = {stop:.6g}, where its integration had run {MAX_SECONDS:g} s (each "
-                   "evaluation is slow here); the span before it is compared")
+            cut = (
+                f"the balance ends at t = {stop:.6g}, where its integration had run {MAX_SECONDS:g} s (each "
+                "evaluation is slow here); the span before it is compared"
+            )
         else:
-            cut = (f"the balance ends at t = {stop:.6g}, near a singular configuration of the constraints (their "
-                   "Jacobian loses rank), which its plain integration cannot pass; simulate passes it")
+            cut = (
+                f"the balance ends at t = {stop:.6g}, near a singular configuration of the constraints (their "
+                "Jacobian loses rank), which its plain integration cannot pass; simulate passes it"
+            )
         keep = run.t < stop  # the samples before it, and the state where it stopped
         run.t = np.append(run.t[keep], stop)
         run.y = np.column_stack([run.y[:, keep], run.y_events[k][0]])
         if run.t.size < 2:
             return EnergyBalance(None, "the motion starts at a singular configuration of the constraints")
     if not run.success:
-        raise ComputationError(f"the energy balance's integration failed: {run.message}",
-                               hint="try a shorter span (--t-end)")
+        raise ComputationError(
+            f"the energy balance's integration failed: {run.message}", hint="try a shorter span (--t-end)"
+        )
     H, V = np.empty(run.t.size), np.empty(run.t.size)
     for i, tt in enumerate(run.t):
-        kin, V[i], _, _ = balance(tt, run.y[:nq, i], run.y[nq:nq + n, i], pv)
+        kin, V[i], _, _ = balance(tt, run.y[:nq, i], run.y[nq : nq + n, i], pv)
         H[i] = kin + V[i]
-    W_app, W_reac, W_expl, A = run.y[nq + n:]
+    W_app, W_reac, W_expl, A = run.y[nq + n :]
     r = np.abs(H - H[0] - (W_app + W_reac + W_expl))
     scale = float(np.max(np.abs(H - V)) + np.max(np.abs(V - V[0])) + A[-1])
     worst = int(np.argmax(r))
@@ -341,9 +380,23 @@ def energy_balance(derivation, t_end: float, *, t0: float = 0.0, initial: Mappin
     floor = atol * scale0
     excess = max(float(r[worst]) - floor, 0.0)
     relative = 0.0 if excess == 0.0 else (excess / scale if scale > 0 else float("inf"))
-    return EnergyBalance(form, "", t0, float(run.t[-1]) if cut else t_end, int(run.t.size), float(H[-1] - H[0]),
-                         float(W_app[-1]), float(W_reac[-1]), float(W_expl[-1]), float(r[worst]), scale, relative,
-                         float(run.t[worst]), cut, method)
+    return EnergyBalance(
+        form,
+        "",
+        t0,
+        float(run.t[-1]) if cut else t_end,
+        int(run.t.size),
+        float(H[-1] - H[0]),
+        float(W_app[-1]),
+        float(W_reac[-1]),
+        float(W_expl[-1]),
+        float(r[worst]),
+        scale,
+        relative,
+        float(run.t[worst]),
+        cut,
+        method,
+    )
 
 
 #: largest magnitude of a state derivative or an energy the balance integrates: the
@@ -361,10 +414,12 @@ def _check_range(t, values, names, model, pv) -> None:
 
     k = int(np.argmax(bad))
     extreme = extreme_parameters(model.parameter_names, pv)
-    raise ComputationError(f"the energy balance cannot integrate: {names[k]} is {values[k]:.3g} at t = {float(t):.10g}, "
-                           "beyond the floating range that the integration's error norms can square (1e150)"
-                           + (f" ({extreme})" if extreme else ""),
-                           hint="give the parameters values of ordinary size, or rescale the model's units")
+    raise ComputationError(
+        f"the energy balance cannot integrate: {names[k]} is {values[k]:.3g} at t = {float(t):.10g}, "
+        "beyond the floating range that the integration's error norms can square (1e150)"
+        + (f" ({extreme})" if extreme else ""),
+        hint="give the parameters values of ordinary size, or rescale the model's units",
+    )
 
 
 class _Deadline:

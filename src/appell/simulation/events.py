@@ -24,8 +24,8 @@ located by Brent's method on the integrator's dense output (to ``1e-13`` in time
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 import sympy as sp
@@ -124,8 +124,9 @@ def gap_constraints(root, unilateral, t, y, p) -> tuple[str, ...]:
     return tuple(c for c in dict(unilateral or {}) if c in names and not np.isnan(F[names.index(c)]))
 
 
-def watches_for(model, unilateral=None, on_release="continue", friction=None, events=(), root=None,
-                offsets=None) -> list[Watch]:
+def watches_for(
+    model, unilateral=None, on_release="continue", friction=None, events=(), root=None, offsets=None
+) -> list[Watch]:
     """The :class:`Watch` list for a model; release and friction entries naming
     constraints the model lacks (released) are left out. ``root`` the model with every
     constraint: its holonomic unilateral constraints that ``model`` lacks are watched for
@@ -137,8 +138,16 @@ def watches_for(model, unilateral=None, on_release="continue", friction=None, ev
             continue
         sign = float(np.sign(sign))
         lam = _multiplier(model, c)
-        out.append(Watch("release", c, lambda t, y, ev, p, lam=lam, s=sign: s * lam(ev), -1,
-                         "stop" if on_release == "stop" else "release", (c,)))
+        out.append(
+            Watch(
+                "release",
+                c,
+                lambda t, y, ev, p, lam=lam, s=sign: s * lam(ev),
+                -1,
+                "stop" if on_release == "stop" else "release",
+                (c,),
+            )
+        )
     if root is not None:
         offsets = dict(offsets or {})
         kinds = getattr(root, "has_position", None)
@@ -150,8 +159,16 @@ def watches_for(model, unilateral=None, on_release="continue", friction=None, ev
         if ct not in names or cn not in names:
             continue
         lt, ln = _multiplier(model, ct), _multiplier(model, cn)
-        out.append(Watch("friction", ct, lambda t, y, ev, p, lt=lt, ln=ln, mu=float(mu): mu * ln(ev) - abs(lt(ev)),
-                         0, "record", (ct, cn)))
+        out.append(
+            Watch(
+                "friction",
+                ct,
+                lambda t, y, ev, p, lt=lt, ln=ln, mu=float(mu): mu * ln(ev) - abs(lt(ev)),
+                0,
+                "record",
+                (ct, cn),
+            )
+        )
     for e in events:
         if not isinstance(e, Event):
             e = Event(getattr(e, "__name__", str(e)), e)
@@ -163,6 +180,7 @@ def watches_for(model, unilateral=None, on_release="continue", friction=None, ev
 
             def g(t, y, ev, p, fn=fn, cons=cons):
                 return float(fn(t, y, dict(zip(cons, (float(v) for v in ev.multipliers)))))
+
         out.append(Watch("user", e.name, g, int(np.sign(e.direction)), "stop" if e.terminal else "record"))
     return out
 
@@ -200,6 +218,7 @@ def locate(watches, g, g_new, t: float, t_new: float, dense, evaluate, p) -> lis
     then located from there; where none is found it closes at ``t`` itself."""
     hits = []
     for i, w in enumerate(watches):
+
         def gi(s, w=w):
             ys = dense(s)
             return w.g(s, ys, None if w.kind == "contact" else evaluate(s, ys), p)

@@ -28,8 +28,8 @@ changes sign and it is released). A contact that rebounds faster stays released.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -61,12 +61,15 @@ class Impact:
     def describe(self, name: str) -> str:
         """The impact of contact ``name`` in words (for the event log)."""
         e, what = self.restitution[name], "engages again" if name in self.engaged else "bounces (stays released)"
-        return (f"the gap closes at speed {-self.approach[name]:.6g}: impulse Lambda_{name} = "
-                f"{self.impulses[name]:.6g}, rebound speed {self.rebound[name]:.6g} (e = {e:g}); {what}")
+        return (
+            f"the gap closes at speed {-self.approach[name]:.6g}: impulse Lambda_{name} = "
+            f"{self.impulses[name]:.6g}, rebound speed {self.rebound[name]:.6g} (e = {e:g}); {what}"
+        )
 
 
-def impact(model, t: float, y, p, contacts: Mapping[str, tuple[float, float]], engaged: Sequence[str],
-           rest_speed: float) -> Impact:
+def impact(
+    model, t: float, y, p, contacts: Mapping[str, tuple[float, float]], engaged: Sequence[str], rest_speed: float
+) -> Impact:
     """The impact at ``(t, y)`` of ``contacts`` ``{name: (sign s, restitution e)}`` while the
     constraints ``engaged`` stay engaged (module docstring).
 
@@ -93,15 +96,16 @@ def impact(model, t: float, y, p, contacts: Mapping[str, tuple[float, float]], e
     r = np.zeros(len(rows))
     r[: len(hits)] = [-(1.0 + e[c]) * phi[names.index(c)] for c in hits]
     if not (np.all(np.isfinite(M)) and np.all(np.isfinite(J)) and np.all(np.isfinite(phi[rows]))):
-        raise ComputationError(f"the impact of {', '.join(hits)} at t = {t:.10g} met a non-finite mass matrix, "
-                               "constraint Jacobian or constraint velocity")
+        raise ComputationError(
+            f"the impact of {', '.join(hits)} at t = {t:.10g} met a non-finite mass matrix, "
+            "constraint Jacobian or constraint velocity"
+        )
     dep = choose_dependent(J, hits + kept)
     dw, lam = split_solve(M, np.zeros(len(w)), J, -r, dep)
     y_after = y.copy()
     nq = len(q)
-    y_after[nq:nq + len(w)] = w + dw
+    y_after[nq : nq + len(w)] = w + dw
     _, phi_after = model.state_residuals(t, y_after, p)
     after = {c: float(contacts[c][0] * phi_after[names.index(c)]) for c in hits}
     impulses = {c: float(v) for c, v in zip(hits + kept, lam)}
-    return Impact(float(t), y, y_after, impulses, before, after, e, resting,
-                  tuple(c for c in hits if c not in resting))
+    return Impact(float(t), y, y_after, impulses, before, after, e, resting, tuple(c for c in hits if c not in resting))

@@ -23,24 +23,38 @@ Both accept a :class:`~appell.core.equations.Derivation` (its compiled
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Mapping, Sequence
 
 import numpy as np
 
 from appell.arguments import number
-from appell.errors import ComputationError, InitialValueError, ModelError
-from appell.symbols import derivative_name, split_derivative_name
 from appell.core.equations import Derived
+from appell.errors import ComputationError, InitialValueError, ModelError
 from appell.numerics.boundary import numeric_model
-from appell.numerics.dynamics import (DYNAMICS_MEMBERS, Dynamics, ResidualJacobians, ServoTracking, SplitBlocks,
-                                      system_of)
+from appell.numerics.dynamics import (
+    DYNAMICS_MEMBERS,
+    Dynamics,
+    ResidualJacobians,
+    ServoTracking,
+    SplitBlocks,
+    system_of,
+)
 from appell.numerics.inertia import extreme_parameters
 from appell.numerics.redundant import RedundantModel
+from appell.symbols import derivative_name, split_derivative_name
 
-__all__ = ["InitialState", "check_initial", "complete_initial", "dynamics_of", "residual_jacobians",
-           "check_blocks_at_start", "COMPLETION_HINT", "CHECK_TOLERANCE"]
+__all__ = [
+    "InitialState",
+    "check_initial",
+    "complete_initial",
+    "dynamics_of",
+    "residual_jacobians",
+    "check_blocks_at_start",
+    "COMPLETION_HINT",
+    "CHECK_TOLERANCE",
+]
 
 #: largest admissible ``|F|`` and ``|phi|`` of a start (absolute)
 CHECK_TOLERANCE = 1e-9
@@ -89,9 +103,14 @@ class InitialState:
     def describe_changes(self) -> list[tuple[str, str]]:
         """``(name, 'given -> new (why)')`` per computed or changed value, e.g.
         ``('xi_dot', '-0.2 -> -0.3 (given value changed to satisfy the constraints)')``."""
-        return [(name, f"{'(not given)' if old is None else f'{old:.10g}'} -> {new:.10g} "
-                       f"({'computed' if old is None else 'given value changed to satisfy the constraints'})")
-                for name, old, new in self.changes]
+        return [
+            (
+                name,
+                f"{'(not given)' if old is None else f'{old:.10g}'} -> {new:.10g} "
+                f"({'computed' if old is None else 'given value changed to satisfy the constraints'})",
+            )
+            for name, old, new in self.changes
+        ]
 
 
 def dynamics_of(model_or_derivation):
@@ -149,7 +168,7 @@ def _label(model, name: str) -> str:
     servo_names = tuple(model.servo_names)
     if name in servo_names:
         return f"{name} (servo constraint)"
-    for (servo, k), full in zip(model.relation_of, _constraint_names(model)[1][len(servo_names):]):
+    for (servo, k), full in zip(model.relation_of, _constraint_names(model)[1][len(servo_names) :]):
         if full == name:
             return f"{name} (time derivative {k} of servo constraint {servo}, its dynamic condition (2.3))"
     return name
@@ -160,7 +179,7 @@ def _state_levels(model) -> tuple[tuple[str, ...], tuple[str, ...]]:
     extra state (a kinematic control ``u`` and its rate ``u_dot``) by its name."""
     names = tuple(model.state_names)
     positions, rates = list(model.coordinate_names), list(model.speed_names)
-    for name in names[len(positions) + len(rates):]:
+    for name in names[len(positions) + len(rates) :]:
         base, order = split_derivative_name(name)
         (rates if order >= 1 and derivative_name(base, order - 1) in names else positions).append(name)
     return tuple(positions), tuple(rates)
@@ -171,8 +190,9 @@ def _names_values(values) -> dict[str, float]:
     try:
         values = dict(values)
     except (TypeError, ValueError):
-        raise ModelError(f"initial values must be a mapping {{state name: value}}, got {type(values).__name__}") \
-            from None
+        raise ModelError(
+            f"initial values must be a mapping {{state name: value}}, got {type(values).__name__}"
+        ) from None
     return {str(k): number(v, f"initial value of {k}") for k, v in values.items()}
 
 
@@ -237,8 +257,9 @@ def missing_values(derivation, values=None, params=None) -> list[str]:
     return list(_state_vector(model, values)[1])
 
 
-def check_initial(derivation, values=None, tol: float = CHECK_TOLERANCE, *, t: float = 0.0,
-                  params=None) -> InitialState:
+def check_initial(
+    derivation, values=None, tol: float = CHECK_TOLERANCE, *, t: float = 0.0, params=None
+) -> InitialState:
     """Check that initial values satisfy every constraint at position and velocity level.
 
     Parameters
@@ -277,8 +298,9 @@ def check_initial(derivation, values=None, tol: float = CHECK_TOLERANCE, *, t: f
         )
     pos, vel = _residual_table(model, t, y, p)
     _finite_residuals(model, t, list(pos.items()) + list(vel.items()))
-    violations = [(n, "position", r) for n, r in pos.items() if not abs(r) <= tol] + \
-        [(n, "velocity", r) for n, r in vel.items() if not abs(r) <= tol]
+    violations = [(n, "position", r) for n, r in pos.items() if not abs(r) <= tol] + [
+        (n, "velocity", r) for n, r in vel.items() if not abs(r) <= tol
+    ]
     if not violations:
         check_blocks_at_start(model, t, y, p)
     if violations:
@@ -286,7 +308,8 @@ def check_initial(derivation, values=None, tol: float = CHECK_TOLERANCE, *, t: f
         raise InitialValueError(
             f"initial values of model {model.name!r} violate {names} (tolerance {tol:g}):\n"
             + describe_residuals(model, pos, vel, tol),
-            violations=violations, hint=COMPLETION_HINT,
+            violations=violations,
+            hint=COMPLETION_HINT,
         )
     return InitialState(float(t), y, tuple(model.state_names), MappingProxyType(pos), MappingProxyType(vel))
 
@@ -298,9 +321,11 @@ def _finite_residuals(model, t, residuals) -> None:
 
     bad = [name for name, r in residuals if np.isinf(r)]
     if bad:
-        raise ModelError(f"model {model.name!r} cannot start: the residual of "
-                         f"{', '.join(_label(model, n) for n in dict.fromkeys(bad))} is not finite at t = {t:g}",
-                         hint=RANGE_HINT)
+        raise ModelError(
+            f"model {model.name!r} cannot start: the residual of "
+            f"{', '.join(_label(model, n) for n in dict.fromkeys(bad))} is not finite at t = {t:g}",
+            hint=RANGE_HINT,
+        )
 
 
 def check_blocks_at_start(model, t, y, p) -> None:
@@ -313,7 +338,7 @@ def check_blocks_at_start(model, t, y, p) -> None:
     y = np.asarray(y, float)
     try:
         if isinstance(model, SplitBlocks):
-            model.evaluate_blocks(t, y[:nq], y[nq:nq + n], p)
+            model.evaluate_blocks(t, y[:nq], y[nq : nq + n], p)
         elif isinstance(model, ServoTracking):
             model.start_blocks(t, y, p)
     except ComputationError as exc:
@@ -335,7 +360,7 @@ def _newton_block(residual, jacobian, x0, what: str, tol: float, maxiter: int):
             raise ModelError(
                 f"cannot complete {what}: the Jacobian of the constraints with respect to them is singular",
                 hint="these unknowns do not determine the constraints here; choose others with adjust=[...] "
-                     "(appell simulate --adjust NAME) or give a different starting guess",
+                "(appell simulate --adjust NAME) or give a different starting guess",
             ) from exc
         x = x + dx
         r = residual(x)
@@ -347,7 +372,7 @@ def _newton_block(residual, jacobian, x0, what: str, tol: float, maxiter: int):
         f"Newton's method completing {what} did not converge in {maxiter} iterations "
         f"(largest residual {np.max(np.abs(r)):.3e})",
         hint="give a starting guess closer to a solution (guess={...}) or check that the constraints "
-             "have a real solution for the given values",
+        "have a real solution for the given values",
     )
 
 
@@ -356,8 +381,11 @@ def _level_jacobian(model, t, y, p, level: int, columns: Sequence[int], rows: np
     the model's compiled Jacobian when it covers them, else central differences."""
     nq, n = len(model.coordinate_names), len(model.speed_names)
     first, stop = (0, nq) if level == 0 else (nq, nq + n)
-    if isinstance(model, ResidualJacobians) and not _constraint_names(model)[1] \
-            and all(first <= c < stop for c in columns):
+    if (
+        isinstance(model, ResidualJacobians)
+        and not _constraint_names(model)[1]
+        and all(first <= c < stop for c in columns)
+    ):
         J = np.asarray(model.residual_jacobians(t, y, p)[level], float)
         return J[np.ix_(rows, np.asarray(columns, dtype=int) - first)]
     total = len(sum(_constraint_names(model), ()))
@@ -367,8 +395,15 @@ def _level_jacobian(model, t, y, p, level: int, columns: Sequence[int], rows: np
     return J.reshape(total, len(columns))[rows]
 
 
-def _choose_unknowns(J: np.ndarray, forced: Sequence[int], candidates: Sequence[int], count: int,
-                     names: Sequence[str], constraints: Sequence[str], kind: str) -> list[int]:
+def _choose_unknowns(
+    J: np.ndarray,
+    forced: Sequence[int],
+    candidates: Sequence[int],
+    count: int,
+    names: Sequence[str],
+    constraints: Sequence[str],
+    kind: str,
+) -> list[int]:
     """Add to the ``forced`` columns of ``J`` (rows: constraints, columns: state entries)
     ``count - len(forced)`` of ``candidates``, by QR with column pivoting of the
     candidates' columns projected off the forced ones: the best-conditioned choice."""
@@ -387,7 +422,7 @@ def _choose_unknowns(J: np.ndarray, forced: Sequence[int], candidates: Sequence[
             f"cannot complete the {kind}-level constraints {', '.join(constraints)}: no choice of "
             f"{kind}-level values determines them here (the constraints are dependent at this state)",
             hint="give consistent values, or name the values to compute with adjust=[...] "
-                 "(appell simulate --adjust NAME)",
+            "(appell simulate --adjust NAME)",
         )
     return list(forced) + [candidates[i] for i in piv[:need]]
 
@@ -395,6 +430,7 @@ def _choose_unknowns(J: np.ndarray, forced: Sequence[int], candidates: Sequence[
 def _solve_level(model, t, y, p, level: int, idx: list[int], rows, what: str, tol: float, maxiter: int) -> None:
     """Set ``y[idx]`` so that the ``rows`` of the level's residuals vanish (Newton's method,
     :func:`_newton_block`); raises as it does."""
+
     def residual(x):
         y[idx] = x
         return np.asarray(_residuals(model, t, y, p)[level], float)[rows]
@@ -409,14 +445,23 @@ def _solve_level(model, t, y, p, level: int, idx: list[int], rows, what: str, to
         extreme = extreme_parameters(model.parameter_names, model.params(p))
         if not extreme:
             raise
-        raise ComputationError(f"{exc.message}: {extreme}",
-                               hint="give the parameters values of ordinary size (or rescale the model's units); "
-                                    f"else {exc.hint}") from None
+        raise ComputationError(
+            f"{exc.message}: {extreme}",
+            hint=f"give the parameters values of ordinary size (or rescale the model's units); else {exc.hint}",
+        ) from None
 
 
-def complete_initial(derivation, values=None, adjust: Sequence[str] | None = None, *, t: float = 0.0,
-                     params=None, guess: Mapping | None = None, tol: float = 1e-12,
-                     maxiter: int = 50) -> InitialState:
+def complete_initial(
+    derivation,
+    values=None,
+    adjust: Sequence[str] | None = None,
+    *,
+    t: float = 0.0,
+    params=None,
+    guess: Mapping | None = None,
+    tol: float = 1e-12,
+    maxiter: int = 50,
+) -> InitialState:
     """Complete the initial values so that every constraint (servo constraints included) holds.
 
     Unknowns: the state names without a value in ``values`` (default the system's initial
@@ -506,8 +551,15 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
             # starting guesses first (System.initial_guesses): a given value changes only where they cannot
             J = _level_jacobian(model, t, y, p, level, forced + soft, rows)
             try:
-                cols = _choose_unknowns(J, list(range(len(forced))), list(range(len(forced), J.shape[1])), len(rows),
-                                        names, [constraints[r] for r in rows], kind)
+                cols = _choose_unknowns(
+                    J,
+                    list(range(len(forced))),
+                    list(range(len(forced), J.shape[1])),
+                    len(rows),
+                    names,
+                    [constraints[r] for r in rows],
+                    kind,
+                )
                 forced = [(forced + soft)[c] for c in cols]
             except ModelError:
                 if not automatic:
@@ -518,13 +570,20 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
                 f"cannot complete the {kind}-level values {', '.join(names[i] for i in forced)}: {len(forced)} "
                 f"unknown(s) but {len(rows)} {kind}-level constraint(s) ({cons}) to determine them",
                 hint=f"give values so that exactly {len(rows)} {kind}-level value(s) remain unknown, or name "
-                     "them with adjust=[...] (appell simulate --adjust NAME)",
+                "them with adjust=[...] (appell simulate --adjust NAME)",
             )
         if automatic and len(forced) < len(rows) and (forced or over):
             candidates = [names.index(n) for n in level_names if names.index(n) not in forced]
             J = _level_jacobian(model, t, y, p, level, forced + candidates, rows)
-            cols = _choose_unknowns(J, list(range(len(forced))), list(range(len(forced), J.shape[1])), len(rows),
-                                    names, [constraints[r] for r in rows], kind)
+            cols = _choose_unknowns(
+                J,
+                list(range(len(forced))),
+                list(range(len(forced), J.shape[1])),
+                len(rows),
+                names,
+                [constraints[r] for r in rows],
+                kind,
+            )
             forced = [(forced + candidates)[c] for c in cols]
         if not forced:
             continue
@@ -534,7 +593,11 @@ def complete_initial(derivation, values=None, adjust: Sequence[str] | None = Non
 
     state = check_initial(model, dict(zip(names, y)), max(tol, CHECK_TOLERANCE), t=t, params=p)
     new = state.values
-    changes = tuple((n, None if n in guesses else values.get(n), new[n]) for n in completed
-                    if n not in values or new[n] != values[n])
-    return InitialState(state.t, state.y, state.names, state.position_residuals, state.velocity_residuals,
-                        tuple(completed), changes)
+    changes = tuple(
+        (n, None if n in guesses else values.get(n), new[n])
+        for n in completed
+        if n not in values or new[n] != values[n]
+    )
+    return InitialState(
+        state.t, state.y, state.names, state.position_residuals, state.velocity_residuals, tuple(completed), changes
+    )

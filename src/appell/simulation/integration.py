@@ -31,8 +31,15 @@ IMPLICIT = (si.Radau, si.BDF, si.LSODA)
 
 #: integrators by name (SciPy's OdeSolver classes); "DOP853" on a compiled model runs the
 #: compiled loop (:mod:`appell.numerics.compiled_loop`), "DOP853-scipy" always SciPy's class
-METHODS = {"DOP853": si.DOP853, "DOP853-scipy": si.DOP853, "RK45": si.RK45, "RK23": si.RK23, "Radau": si.Radau,
-           "BDF": si.BDF, "LSODA": si.LSODA}
+METHODS = {
+    "DOP853": si.DOP853,
+    "DOP853-scipy": si.DOP853,
+    "RK45": si.RK45,
+    "RK23": si.RK23,
+    "Radau": si.Radau,
+    "BDF": si.BDF,
+    "LSODA": si.LSODA,
+}
 
 
 def solver_class(method):
@@ -72,9 +79,11 @@ def _out_of_range(model, t, derivative, p) -> None:
     names = [f"{n}'" for n in model.state_names]  # the Dynamics protocol's members
     what = names[k] if k < len(names) else f"entry {k + 1} of the state's derivative"
     extreme = extreme_parameters(model.parameter_names, p) if p is not None else ""
-    raise ComputationError(f"{what} is {derivative[k]:.3g} at t = {float(t):.10g}, beyond the floating range that "
-                           "the integrator's error norms can square (1e150)" + (f" ({extreme})" if extreme else ""),
-                           hint="give the parameters values of ordinary size, or rescale the model's units")
+    raise ComputationError(
+        f"{what} is {derivative[k]:.3g} at t = {float(t):.10g}, beyond the floating range that "
+        "the integrator's error norms can square (1e150)" + (f" ({extreme})" if extreme else ""),
+        hint="give the parameters values of ordinary size, or rescale the model's units",
+    )
 
 
 @dataclass(frozen=True)

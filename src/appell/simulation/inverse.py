@@ -18,14 +18,14 @@ satisfy the constraints; its largest velocity-level residual is reported.
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 
 from appell.errors import ComputationError, ModelError
-from appell.symbols import derivative_name
 from appell.numerics.boundary import numeric_model
+from appell.symbols import derivative_name
 
 __all__ = ["Contact", "InverseDynamics", "inverse_dynamics", "closed_chain_inverse", "contact_model"]
 
@@ -53,7 +53,7 @@ class Contact:
     rotation: tuple | None = None
 
     @classmethod
-    def of(cls, item) -> "Contact":
+    def of(cls, item) -> Contact:
         """A :class:`Contact` from itself, ``"body"``, ``"body:point"``, ``"body:weld"``, a
         tuple ``(body, point[, kind])`` or a mapping of the fields."""
         if isinstance(item, Contact):
@@ -65,8 +65,9 @@ class Contact:
             return cls(**dict(item))
         if isinstance(item, (tuple, list)) and 1 <= len(item) <= 3:
             return cls(*item)
-        raise ModelError(f"contact {item!r}: give a body name ('foot', 'foot:weld'), (body, point[, kind]) or "
-                         "appell.Contact(...)")
+        raise ModelError(
+            f"contact {item!r}: give a body name ('foot', 'foot:weld'), (body, point[, kind]) or appell.Contact(...)"
+        )
 
     @property
     def rows(self) -> tuple[str, ...]:
@@ -96,8 +97,13 @@ class InverseDynamics:
     def columns(self) -> list[tuple[str, np.ndarray]]:
         """``(name, values)`` in the order of a result file: t, the motion, ``drive_<speed>``,
         ``lambda_<constraint>``, the outputs."""
-        return ([("t", self.t)] + list(self.motion.items()) + [(f"drive_{k}", v) for k, v in self.drives.items()]
-                + [(f"lambda_{k}", v) for k, v in self.multipliers.items()] + list(self.outputs.items()))
+        return (
+            [("t", self.t)]
+            + list(self.motion.items())
+            + [(f"drive_{k}", v) for k, v in self.drives.items()]
+            + [(f"lambda_{k}", v) for k, v in self.multipliers.items()]
+            + list(self.outputs.items())
+        )
 
     def to_csv(self, path, names=None):
         """Write :meth:`columns` as CSV, atomically; ``names`` (``{identifier: name in the
@@ -123,14 +129,18 @@ def _loop_parts(source):
     from appell.numerics.loops import LoopModel
 
     if isinstance(source, LoopModel):
-        raise ModelError("contacts are added to a mechanism or its system, not to a LoopModel built already",
-                         hint="pass the Mechanism or System to inverse_dynamics(..., contacts=[...])")
+        raise ModelError(
+            "contacts are added to a mechanism or its system, not to a LoopModel built already",
+            hint="pass the Mechanism or System to inverse_dynamics(..., contacts=[...])",
+        )
     try:
         return _parts_of(source)
     except ModelError as exc:
-        raise ModelError(f"contacts are loop rows of the closed-chain route, which does not take this model: "
-                         f"{exc.message}", hint="hold the foot by a closure of the model (a weld or connect to the "
-                                                "ground) and give the motion of every coordinate") from None
+        raise ModelError(
+            f"contacts are loop rows of the closed-chain route, which does not take this model: {exc.message}",
+            hint="hold the foot by a closure of the model (a weld or connect to the "
+            "ground) and give the motion of every coordinate",
+        ) from None
 
 
 def _parts_of(source):
@@ -140,8 +150,10 @@ def _parts_of(source):
         return source.loop_parts()
     system = getattr(source, "system", source)
     if getattr(system, "tree", None) is None:
-        raise ModelError(f"system {getattr(system, 'name', '?')!r} has no joint tree: contacts are loop rows of a "
-                         "mechanism's tree", hint="build it with appell.Mechanism (or read a URDF or MJCF file)")
+        raise ModelError(
+            f"system {getattr(system, 'name', '?')!r} has no joint tree: contacts are loop rows of a mechanism's tree",
+            hint="build it with appell.Mechanism (or read a URDF or MJCF file)",
+        )
     return _system_parts(system)
 
 
@@ -171,15 +183,22 @@ def contact_model(source, contacts, points: Mapping | None = None, backend: str 
     parts = _loop_parts(source)
     tree = parts.tree
     nodes = {node.body: k for k, node in enumerate(tree.nodes)}
-    taken = ({q.name for q in parts.coordinates} | {p.symbol.name for p in parts.parameters}
-             | {name for name, _ in parts.constraints})
-    rows, params, held = [], [], []
+    taken = (
+        {q.name for q in parts.coordinates}
+        | {p.symbol.name for p in parts.parameters}
+        | {name for name, _ in parts.constraints}
+    )
+    rows: list = []
+    params: list = []
+    held: list = []
     zero = sp.ImmutableMatrix([0, 0, 0])
     for item in contacts:
         c = Contact.of(item)
         if c.kind not in ("point", "weld"):
-            raise ModelError(f"contact {c.body!r}: kind {c.kind!r} is not 'point' (a point contact) or 'weld' "
-                             "(a flat foot, the orientation held)")
+            raise ModelError(
+                f"contact {c.body!r}: kind {c.kind!r} is not 'point' (a point contact) or 'weld' "
+                "(a flat foot, the orientation held)"
+            )
         what = f"contact {c.name or c.body!r}"
         try:
             r = np.asarray(c.point, float).reshape(3)
@@ -190,32 +209,71 @@ def contact_model(source, contacts, points: Mapping | None = None, backend: str 
             body, offset = points[body]
             r = r + np.asarray(offset, float).reshape(3)
         if body not in nodes:
-            raise ModelError(f"{what}: no body {c.body!r} on the joint tree",
-                             hint="bodies: " + ", ".join(nodes) + (("; sites: " + ", ".join(points)) if points else ""))
+            raise ModelError(
+                f"{what}: no body {c.body!r} on the joint tree",
+                hint="bodies: " + ", ".join(nodes) + (("; sites: " + ", ".join(points)) if points else ""),
+            )
         name = c.name or re.sub(r"\W+", "_", c.body, flags=re.ASCII).strip("_") + "_contact"
         mine = [name + sfx for sfx in c.rows] + [f"{name}_at_{x}" for x in "xyz"]
         mine += [f"{name}_A{i}{j}" for i in "123" for j in "123"] if c.kind == "weld" else []
         clash = sorted(taken & set(mine))
         if clash or not name.isidentifier():
-            raise ModelError(f"{what}: the name {name!r} " + (f"gives {', '.join(clash)}, taken already" if clash
-                                                               else "is not an identifier"),
-                             hint="give the contact another name (Contact(..., name=...))")
+            raise ModelError(
+                f"{what}: the name {name!r} "
+                + (f"gives {', '.join(clash)}, taken already" if clash else "is not an identifier"),
+                hint="give the contact another name (Contact(..., name=...))",
+            )
         taken |= set(mine)
         base = len(parts.parameters) + len(params)
         at = [sp.Symbol(f"{name}_at_{x}") for x in "xyz"]
         A = sp.Matrix(3, 3, [sp.Symbol(f"{name}_A{i}{j}") for i in "123" for j in "123"]) if c.kind == "weld" else None
         params += [Parameter(s_, 0.0) for s_ in at] + ([Parameter(s_, 0.0) for s_ in A] if A is not None else [])
         k, point = nodes[body], sp.ImmutableMatrix([float(x) for x in r])
-        rows += [LoopRow(f"{name}_{d}", name, "point", k, point, sp.ImmutableMatrix(sp.eye(3)[:, i]), -1,
-                         sp.ImmutableMatrix(at), zero) for i, d in enumerate("xyz")]
+        rows += [
+            LoopRow(
+                f"{name}_{d}",
+                name,
+                "point",
+                k,
+                point,
+                sp.ImmutableMatrix(sp.eye(3)[:, i]),
+                -1,
+                sp.ImmutableMatrix(at),
+                zero,
+            )
+            for i, d in enumerate("xyz")
+        ]
         if A is not None:
-            rows += [LoopRow(f"{name}_r{d}", name, "align", k, point, sp.ImmutableMatrix(sp.eye(3)[:, j]), -1, zero,
-                             sp.ImmutableMatrix(A[:, m])) for d, (j, m) in zip("xyz", ((1, 2), (2, 0), (0, 1)))]
-        held.append((dataclasses.replace(c, name=name), k, r, list(range(base, base + 3)),
-                     list(range(base + 3, base + 12)) if A is not None else None))
+            rows += [
+                LoopRow(
+                    f"{name}_r{d}",
+                    name,
+                    "align",
+                    k,
+                    point,
+                    sp.ImmutableMatrix(sp.eye(3)[:, j]),
+                    -1,
+                    zero,
+                    sp.ImmutableMatrix(A[:, m]),
+                )
+                for d, (j, m) in zip("xyz", ((1, 2), (2, 0), (0, 1)))
+            ]
+        held.append(
+            (
+                dataclasses.replace(c, name=name),
+                k,
+                r,
+                list(range(base, base + 3)),
+                list(range(base + 3, base + 12)) if A is not None else None,
+            )
+        )
     tree = dataclasses.replace(tree, loops=tuple(tree.loops) + tuple(rows))
-    parts = dataclasses.replace(parts, tree=tree, constraints=tuple(parts.constraints) + tuple((r_.name, None) for r_ in rows),
-                                parameters=tuple(parts.parameters) + tuple(params))
+    parts = dataclasses.replace(
+        parts,
+        tree=tree,
+        constraints=tuple(parts.constraints) + tuple((r_.name, None) for r_ in rows),
+        parameters=tuple(parts.parameters) + tuple(params),
+    )
     model = LoopModel(parts, backend)
     model.contacts = tuple(held)
     return model
@@ -266,8 +324,9 @@ def _spline(t, q, order):
     return CubicSpline(t, q, axis=0)(t, order)
 
 
-def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | None = None,
-                     p=None, **options) -> InverseDynamics:
+def inverse_dynamics(
+    derivation, t, q, w=None, a=None, drives: Sequence[str] | None = None, p=None, **options
+) -> InverseDynamics:
     """Drive forces, multipliers and outputs of ``derivation`` along the motion ``q``
     (rows: times ``t``, columns: coordinates in the model's order) with speeds ``w`` and
     accelerations ``a`` (same shapes; derived from ``q`` by a cubic spline when not given);
@@ -294,19 +353,25 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
     if t.size < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise ModelError("the motion's times must be finite and increasing")
     if (w is None or a is None) and t.size < 4:
-        raise ModelError("deriving speeds and accelerations from the coordinates needs at least 4 times",
-                         hint="give the speeds and accelerations, or more rows")
+        raise ModelError(
+            "deriving speeds and accelerations from the coordinates needs at least 4 times",
+            hint="give the speeds and accelerations, or more rows",
+        )
     if list(speeds) != [derivative_name(nm, 1) for nm in names] and (w is None or a is None):
-        raise ModelError("the model's speeds are not its coordinates' derivatives: give its speeds and "
-                         "accelerations", hint="columns " + ", ".join(speeds))
+        raise ModelError(
+            "the model's speeds are not its coordinates' derivatives: give its speeds and accelerations",
+            hint="columns " + ", ".join(speeds),
+        )
     w = _spline(t, q, 1) if w is None else np.asarray(w, float).reshape(t.size, -1)
     a = _spline(t, w, 1) if a is None else np.asarray(a, float).reshape(t.size, -1)
     cons = model.constraint_names
     if drives is None:
         if cons:
-            raise ModelError(f"the model has constraints ({', '.join(cons)}): name the driven speeds",
-                             hint="give drives=[...] (appell inverse --drive NAME), as many as the degrees of "
-                                  "freedom the constraints leave")
+            raise ModelError(
+                f"the model has constraints ({', '.join(cons)}): name the driven speeds",
+                hint="give drives=[...] (appell inverse --drive NAME), as many as the degrees of "
+                "freedom the constraints leave",
+            )
         drives = list(speeds)
     drives = [str(d) for d in drives]
     unknown = [d for d in drives if d not in speeds]
@@ -314,9 +379,11 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
         raise ModelError(f"unknown drive(s) {', '.join(unknown)}", hint="speeds: " + ", ".join(speeds))
     n, s = len(speeds), len(cons)
     if len(drives) + s != n:
-        raise ModelError(f"{len(drives)} drive(s) and {s} constraint(s) for {n} speeds: the motion determines "
-                         f"{n} forces, so {n - s} drive(s) are needed", hint="name as many drives as the "
-                         "constraints leave degrees of freedom")
+        raise ModelError(
+            f"{len(drives)} drive(s) and {s} constraint(s) for {n} speeds: the motion determines "
+            f"{n} forces, so {n - s} drive(s) are needed",
+            hint="name as many drives as the constraints leave degrees of freedom",
+        )
     B = np.zeros((n, len(drives)))
     for k, d in enumerate(drives):
         B[speeds.index(d), k] = 1.0
@@ -327,24 +394,39 @@ def inverse_dynamics(derivation, t, q, w=None, a=None, drives: Sequence[str] | N
         M, hQ, J, c = model.evaluate_blocks(t[k], q[k], w[k], pv)
         A = np.hstack([B, J.T]) if s else B
         if np.linalg.matrix_rank(A) < n:
-            raise ComputationError(f"at t = {t[k]:.10g} the drives {', '.join(drives)} and the constraints do not "
-                                   "determine the forces (the drives move along the constraints' reactions)",
-                                   hint="drive other speeds")
+            raise ComputationError(
+                f"at t = {t[k]:.10g} the drives {', '.join(drives)} and the constraints do not "
+                "determine the forces (the drives move along the constraints' reactions)",
+                hint="drive other speeds",
+            )
         x = np.linalg.solve(A, M @ a[k] + hQ)
-        tau[k], lam[k] = x[:len(drives)], x[len(drives):]
+        tau[k], lam[k] = x[: len(drives)], x[len(drives) :]
         if s:
-            residual = max(residual, float(np.nanmax(np.abs(model.constraint_residuals(t[k], q[k], w[k], pv)[1]),
-                                                     initial=0.0)))
+            residual = max(
+                residual, float(np.nanmax(np.abs(model.constraint_residuals(t[k], q[k], w[k], pv)[1]), initial=0.0))
+            )
     from appell.simulation.recording import acceleration_name, recorded_outputs
 
-    motion = {**{nm: q[:, i] for i, nm in enumerate(names)}, **{nm: w[:, i] for i, nm in enumerate(speeds)},
-              **{acceleration_name(nm): a[:, i] for i, nm in enumerate(speeds)}}
-    columns = {"t": t, **motion, **{f"lambda_{c}": lam[:, k] for k, c in enumerate(cons)},
-               **dict(zip(model.parameter_names, (float(v) for v in pv)))}
+    motion = {
+        **{nm: q[:, i] for i, nm in enumerate(names)},
+        **{nm: w[:, i] for i, nm in enumerate(speeds)},
+        **{acceleration_name(nm): a[:, i] for i, nm in enumerate(speeds)},
+    }
+    columns = {
+        "t": t,
+        **motion,
+        **{f"lambda_{c}": lam[:, k] for k, c in enumerate(cons)},
+        **dict(zip(model.parameter_names, (float(v) for v in pv))),
+    }
     outputs = recorded_outputs(derivation.system, columns)  # every row at once
-    return InverseDynamics(t, motion, {d: tau[:, k] for k, d in enumerate(drives)},
-                           {c: lam[:, k] for k, c in enumerate(cons)},
-                           dict(outputs), residual)
+    return InverseDynamics(
+        t,
+        motion,
+        {d: tau[:, k] for k, d in enumerate(drives)},
+        {c: lam[:, k] for k, c in enumerate(cons)},
+        dict(outputs),
+        residual,
+    )
 
 
 def _given_columns(values, names, what, size):
@@ -377,14 +459,21 @@ def _independent(J, ind, passive, names, own=()):
     floating base's unit quaternion given whole, is theirs to hold and left out)."""
     if own and passive:
         J = np.delete(J, [k for k in own if not np.any(J[k, passive])], axis=0)
-    rank, rank_p = (np.linalg.matrix_rank(M_, tol=1e-9 * max(np.abs(J).max(initial=0.0), 1e-300))
-                    for M_ in (J, J[:, passive]))
+    rank, rank_p = (
+        np.linalg.matrix_rank(M_, tol=1e-9 * max(np.abs(J).max(initial=0.0), 1e-300)) for M_ in (J, J[:, passive])
+    )
     if rank_p < rank:
-        raise ModelError(f"the given coordinates {', '.join(names[i] for i in ind)} are not independent: the "
-                         "loop closures relate them", hint="give fewer, or other, coordinates")
+        raise ModelError(
+            f"the given coordinates {', '.join(names[i] for i in ind)} are not independent: the "
+            "loop closures relate them",
+            hint="give fewer, or other, coordinates",
+        )
     if len(passive) > rank_p:
-        raise ModelError(f"the loop closures leave {len(passive) - rank_p} passive coordinate(s) free: give "
-                         f"{len(passive) - rank_p} more", hint="passive: " + ", ".join(names[i] for i in passive))
+        raise ModelError(
+            f"the loop closures leave {len(passive) - rank_p} passive coordinate(s) free: give "
+            f"{len(passive) - rank_p} more",
+            hint="passive: " + ", ".join(names[i] for i in passive),
+        )
 
 
 def _passive_solve(Jp, rhs):
@@ -425,10 +514,20 @@ def _assemble(model, q, ind, passive, target, pv, tol, max_iterations, depth=0):
     return _assemble(model, mid, ind, passive, target, pv, tol, max_iterations, depth + 1)
 
 
-def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | None = None, p=None,
-                         guess: Mapping[str, float] | None = None, tol: float = 1e-11,
-                         max_iterations: int = 50, contacts: Sequence | None = None,
-                         points: Mapping | None = None) -> InverseDynamics:
+def closed_chain_inverse(
+    model,
+    t,
+    q,
+    w=None,
+    a=None,
+    drives: Sequence[str] | None = None,
+    p=None,
+    guess: Mapping[str, float] | None = None,
+    tol: float = 1e-11,
+    max_iterations: int = 50,
+    contacts: Sequence | None = None,
+    points: Mapping | None = None,
+) -> InverseDynamics:
     """Inverse dynamics of a closed chain along a motion given for its independent coordinates.
 
     ``model``: an :class:`appell.Mechanism` or its :class:`~appell.numerics.loops.LoopModel`;
@@ -470,22 +569,31 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
     if not isinstance(q, Mapping):
         q = np.asarray(q, float).reshape(t.size, -1)
         if q.shape[1] != len(names):
-            raise ModelError(f"the motion gives {q.shape[1]} coordinates, the model has {len(names)}",
-                             hint="give the independent ones by name: q={name: values}")
+            raise ModelError(
+                f"the motion gives {q.shape[1]} coordinates, the model has {len(names)}",
+                hint="give the independent ones by name: q={name: values}",
+            )
         q = {nm: q[:, k] for k, nm in enumerate(names)}
     given = _given_columns(q, (names, speeds), "the motion", t.size)
     if not given:
         raise ModelError("the motion gives no coordinate", hint="q={name: values} for the independent coordinates")
     if (w is None or a is None) and t.size < 4:
-        raise ModelError("deriving speeds and accelerations from the coordinates needs at least 4 times",
-                         hint="give the speeds and accelerations, or more rows")
+        raise ModelError(
+            "deriving speeds and accelerations from the coordinates needs at least 4 times",
+            hint="give the speeds and accelerations, or more rows",
+        )
     ind = sorted(given)
     qi = np.column_stack([given[k] for k in ind])
-    wi = _spline(t, qi, 1) if w is None else np.column_stack([_given_columns(w, (names, speeds), "the speeds",
-                                                                             t.size)[k] for k in ind])
-    ai = _spline(t, wi, 1) if a is None else np.column_stack([_given_columns(a, (names, speeds),
-                                                                             "the accelerations", t.size)[k]
-                                                              for k in ind])
+    wi = (
+        _spline(t, qi, 1)
+        if w is None
+        else np.column_stack([_given_columns(w, (names, speeds), "the speeds", t.size)[k] for k in ind])
+    )
+    ai = (
+        _spline(t, wi, 1)
+        if a is None
+        else np.column_stack([_given_columns(a, (names, speeds), "the accelerations", t.size)[k] for k in ind])
+    )
     passive = [k for k in range(len(names)) if k not in given]
     pv = model.parameter_values if p is None else np.asarray(p, float)
     cons = model.constraint_names
@@ -505,12 +613,14 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
             u[model.control_names.index(d)] = 1.0
             B[:, j] = model._evaluate_terms(0.0, np.zeros(n), np.zeros(n), pv, u)[4] - Q0
         else:
-            raise ModelError(f"unknown drive {d!r}", hint="actuators: " + (", ".join(model.control_names) or "none")
-                             + "; speeds: " + ", ".join(speeds))
+            raise ModelError(
+                f"unknown drive {d!r}",
+                hint="actuators: " + (", ".join(model.control_names) or "none") + "; speeds: " + ", ".join(speeds),
+            )
     start = {**model.start, **{str(k): float(v) for k, v in (guess or {}).items()}}
     qk = np.array([start.get(nm, 0.0) for nm in names], float)
     if held:  # the contacts held where they are at the first time
-        pv = np.concatenate([pv, model.parameter_values[pv.size:]])  # a given p without the contacts' places
+        pv = np.concatenate([pv, model.parameter_values[pv.size :]])  # a given p without the contacts' places
         qk[ind] = qi[0]
         qk, pv = _plant(model, held, qk, passive, pv, tol, max_iterations)
     Q_all, W_all, A_all = np.zeros((t.size, n)), np.zeros((t.size, n)), np.zeros((t.size, n))
@@ -528,10 +638,11 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
             if k == 0:
                 _independent(J, ind, passive, names, model.other_rows)
             worst = cons[int(np.argmax(np.abs(Phi)))]
-            raise ComputationError(f"at t = {t[k]:.10g} the loops do not close: {worst!r} keeps a residual "
-                                   f"{np.abs(Phi).max():.3g} after Newton's method",
-                                   hint="the given coordinates leave no assembly, or start the passive ones nearer "
-                                        "(guess={name: value})")
+            raise ComputationError(
+                f"at t = {t[k]:.10g} the loops do not close: {worst!r} keeps a residual "
+                f"{np.abs(Phi).max():.3g} after Newton's method",
+                hint="the given coordinates leave no assembly, or start the passive ones nearer (guess={name: value})",
+            )
         if k == 0 and s:
             _independent(J, ind, passive, names, model.other_rows)
         wk = np.zeros(n)
@@ -549,25 +660,42 @@ def closed_chain_inverse(model, t, q, w=None, a=None, drives: Sequence[str] | No
         x = np.linalg.lstsq(A, rhs, rcond=1e-10)[0]
         off = A @ x - rhs
         if np.abs(off).max() > 1e-8 * max(1.0, np.abs(rhs).max()):
-            worst = [speeds[i] for i in np.argsort(-np.abs(off))[:3] if abs(off[i]) > 1e-8 * max(1.0, np.abs(rhs).max())]
-            raise ComputationError(f"at t = {t[k]:.10g} the drives {', '.join(drives)} cannot produce the motion: "
-                                   f"the forces along {', '.join(worst)} stay out of balance (under-actuated)",
-                                   hint="drive more speeds, or prescribe a motion the passive chain can follow")
+            worst = [
+                speeds[i] for i in np.argsort(-np.abs(off))[:3] if abs(off[i]) > 1e-8 * max(1.0, np.abs(rhs).max())
+            ]
+            raise ComputationError(
+                f"at t = {t[k]:.10g} the drives {', '.join(drives)} cannot produce the motion: "
+                f"the forces along {', '.join(worst)} stay out of balance (under-actuated)",
+                hint="drive more speeds, or prescribe a motion the passive chain can follow",
+            )
         if k == 0:
             undetermined = _combinations(A, list(drives) + list(cons), 1e-10)
-        tau[k], lam[k] = x[:len(drives)], x[len(drives):]
+        tau[k], lam[k] = x[: len(drives)], x[len(drives) :]
         wrench_all[k] = model.wrench_array(wk, ak, lam[k], pieces)
         if undetermined and k in (0, t.size - 1):  # the joints on the open rows' loops: checked at both ends
             in_lam = tuple({c: v for c, v in comb.items() if c in cons} for comb in undetermined)
             open_joints |= set(model.open_wrenches(wk, ak, lam[k], pieces, in_lam, wrench_all[k]))
         Q_all[k], W_all[k], A_all[k] = qk, wk, ak
-    wrench = {f"{f}_{joint}_{x}": wrench_all[:, b, i] for b, joint in enumerate(model.joints)
-              for i, (f, x) in enumerate((f, x) for f in "FM" for x in "xyz")}
+    wrench = {
+        f"{f}_{joint}_{x}": wrench_all[:, b, i]
+        for b, joint in enumerate(model.joints)
+        for i, (f, x) in enumerate((f, x) for f in "FM" for x in "xyz")
+    }
     from appell.simulation.recording import acceleration_name
 
-    motion = {**{nm: Q_all[:, i] for i, nm in enumerate(names)}, **{nm: W_all[:, i] for i, nm in enumerate(speeds)},
-              **{acceleration_name(nm): A_all[:, i] for i, nm in enumerate(speeds)}}
+    motion = {
+        **{nm: Q_all[:, i] for i, nm in enumerate(names)},
+        **{nm: W_all[:, i] for i, nm in enumerate(speeds)},
+        **{acceleration_name(nm): A_all[:, i] for i, nm in enumerate(speeds)},
+    }
     wrench.update(_contact_wrenches(held, lam, list(cons), pv))
-    return InverseDynamics(t, motion, {d: tau[:, j] for j, d in enumerate(drives)},
-                           {c: lam[:, j] for j, c in enumerate(cons)}, wrench, residual, undetermined,
-                           tuple(j for j in model.joints if j in open_joints))
+    return InverseDynamics(
+        t,
+        motion,
+        {d: tau[:, j] for j, d in enumerate(drives)},
+        {c: lam[:, j] for j, c in enumerate(cons)},
+        wrench,
+        residual,
+        undetermined,
+        tuple(j for j in model.joints if j in open_joints),
+    )

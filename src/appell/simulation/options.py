@@ -24,8 +24,8 @@ naming the setting. The events of a run are checked by :func:`check_events`.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 import numpy as np
 import sympy as sp
@@ -74,15 +74,20 @@ class SimulationOptions:
     stabilization: str | None = field(default="projection", metadata=_toml("'projection', 'baumgarte' or 'none'"))
     baumgarte: tuple = field(default=(10.0, 10.0), metadata=_toml("array [alpha, beta] of non-negative numbers"))
     projection_tol: float = field(default=1e-10, metadata=_toml("positive number"))
-    project_output: bool = field(default=False, metadata=_toml(
-        "boolean: also project output states taken from inside a step"))
-    unilateral: Mapping | None = field(default=None, metadata=_toml(
-        "table: constraint name = 1 or -1 (the sign its multiplier keeps)"))
+    project_output: bool = field(
+        default=False, metadata=_toml("boolean: also project output states taken from inside a step")
+    )
+    unilateral: Mapping | None = field(
+        default=None, metadata=_toml("table: constraint name = 1 or -1 (the sign its multiplier keeps)")
+    )
     on_release: str = field(default="continue", metadata=_toml("'continue' or 'stop'"))
-    friction: Mapping | None = field(default=None, metadata=_toml(
-        "table: tangential constraint = { normal = constraint name, mu = number }"))
-    rest_speed: float = field(default=1e-6, metadata=_toml(
-        "positive number: a contact whose rebound speed would be at most this engages again"))
+    friction: Mapping | None = field(
+        default=None, metadata=_toml("table: tangential constraint = { normal = constraint name, mu = number }")
+    )
+    rest_speed: float = field(
+        default=1e-6,
+        metadata=_toml("positive number: a contact whose rebound speed would be at most this engages again"),
+    )
     complete: bool = field(default=False, metadata=_toml("boolean: complete the dependent initial values"))
     #: with ``complete``, which given values may change: None (automatic), names, or () (none)
     adjust: object = None
@@ -130,8 +135,9 @@ class SimulationOptions:
         as for any function."""
         unknown = sorted(set(given) - set(self.names()))
         if unknown:
-            raise TypeError(f"unknown simulation option(s) {', '.join(unknown)}; the options are "
-                            + ", ".join(self.names()))
+            raise TypeError(
+                f"unknown simulation option(s) {', '.join(unknown)}; the options are " + ", ".join(self.names())
+            )
         if samples is not None and output_step is not None:
             raise ModelError("give samples or output_step, not both")
         t0, t_end = given.pop("t0", None), given.pop("t_end", None)
@@ -163,15 +169,19 @@ class SimulationOptions:
             grid = grid if grid[-1] == final else np.append(grid, final)
         if grid is not None and not len(grid):
             grid = None
-        return dataclasses.replace(self, t0=float(start), t_end=float(final),
-                                   t_eval=None if grid is None else np.asarray(grid, float))
+        return dataclasses.replace(
+            self, t0=float(start), t_end=float(final), t_eval=None if grid is None else np.asarray(grid, float)
+        )
 
     def changes(self, but=()) -> dict:
         """``{name: value}`` of the settings that differ from the defaults (those in ``but``
         left out): the keyword arguments that give these options to ``simulate``."""
         default = SimulationOptions()
-        return {name: getattr(self, name) for name in self.names()
-                if name not in but and not _same(getattr(self, name), getattr(default, name))}
+        return {
+            name: getattr(self, name)
+            for name in self.names()
+            if name not in but and not _same(getattr(self, name), getattr(default, name))
+        }
 
     # ------------------------------------------------------------ checking
     def output_times(self) -> np.ndarray:
@@ -199,12 +209,15 @@ class SimulationOptions:
             atol = vector(self.atol, "atol", len(model.state_names), nonnegative=True, names=list(model.state_names))
         max_step = number(self.max_step, "max_step", positive=True, finite=False)
         if (t_end - t0) / max_step > MAX_STEPS:
-            raise ModelError(f"max_step = {max_step:g} would take more than {MAX_STEPS:.0e} steps to reach t_end",
-                             hint="give a larger max_step or a shorter time span")
+            raise ModelError(
+                f"max_step = {max_step:g} would take more than {MAX_STEPS:.0e} steps to reach t_end",
+                hint="give a larger max_step or a shorter time span",
+            )
         projection_tol = number(self.projection_tol, "projection_tol", positive=True)
         if self.stabilization not in STABILIZATIONS:
-            raise ModelError(f"unknown stabilization {self.stabilization!r}",
-                             hint="use 'projection', 'baumgarte' or None")
+            raise ModelError(
+                f"unknown stabilization {self.stabilization!r}", hint="use 'projection', 'baumgarte' or None"
+            )
         gains = (0.0, 0.0)
         if self.stabilization == "baumgarte":
             if isinstance(self.baumgarte, (str, bytes)):
@@ -219,8 +232,18 @@ class SimulationOptions:
             if isinstance(spec, (tuple, list)) and len(spec) == 2:
                 number(spec[1], f"friction coefficient of {name!r}", nonnegative=True)
         rest_speed = number(self.rest_speed, "rest_speed", positive=True)
-        return dataclasses.replace(self, t0=t0, t_end=t_end, t_eval=t_eval, rtol=rtol, atol=atol, max_step=max_step,
-                                   projection_tol=projection_tol, baumgarte=gains, rest_speed=rest_speed)
+        return dataclasses.replace(
+            self,
+            t0=t0,
+            t_end=t_end,
+            t_eval=t_eval,
+            rtol=rtol,
+            atol=atol,
+            max_step=max_step,
+            projection_tol=projection_tol,
+            baumgarte=gains,
+            rest_speed=rest_speed,
+        )
 
 
 def _same(a, b) -> bool:

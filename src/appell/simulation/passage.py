@@ -101,12 +101,14 @@ class Passage:
     multipliers_singular: np.ndarray
 
     def describe(self) -> str:
-        return (f"singular configuration passed at t = {self.t_singular:.10g}: df/da loses rank {self.rank_loss} "
-                f"there, the motion goes on on the branch continuous in positions and velocities (projection "
-                f"corrections {self.correction[0]:.1e} of the distance moved, {self.correction[1]:.1e} of the "
-                f"speeds); the reactions along constraint(s) {', '.join(self.constraints)} are undetermined at "
-                f"that instant (this event gives the minimum-norm ones); from t = {self.t_before:.10g} to "
-                f"{self.t_after:.10g} the accelerations and reactions are interpolated across the point")
+        return (
+            f"singular configuration passed at t = {self.t_singular:.10g}: df/da loses rank {self.rank_loss} "
+            f"there, the motion goes on on the branch continuous in positions and velocities (projection "
+            f"corrections {self.correction[0]:.1e} of the distance moved, {self.correction[1]:.1e} of the "
+            f"speeds); the reactions along constraint(s) {', '.join(self.constraints)} are undetermined at "
+            f"that instant (this event gives the minimum-norm ones); from t = {self.t_before:.10g} to "
+            f"{self.t_after:.10g} the accelerations and reactions are interpolated across the point"
+        )
 
 
 def _hermite(times, ys, fs, t0, s):
@@ -233,8 +235,9 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
     def g_pred(t):
         return rank.measure(t, predict(t)[0])
 
-    found = minimize_scalar(lambda u: g_pred(t_a + u * width), bounds=(0.0, 3.0), method="bounded",
-                            options={"xatol": 1e-10})
+    found = minimize_scalar(
+        lambda u: g_pred(t_a + u * width), bounds=(0.0, 3.0), method="bounded", options={"xatol": 1e-10}
+    )
     t_star = t_a + float(found.x) * width
     if found.fun >= 0.5 * level or not 0.0 < found.x < 3.0:
         raise PassageRefused("the predicted motion does not reach the singular point")
@@ -246,8 +249,10 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
     try:
         y_b = project(model, t_b, y_pred, p, tol=PROJECT_TOL)
     except ComputationError as exc:
-        raise PassageRefused(f"no branch continues the motion continuously: the motion predicted past the point "
-                             f"cannot be brought back onto the constraints ({exc.message})") from exc
+        raise PassageRefused(
+            f"no branch continues the motion continuously: the motion predicted past the point "
+            f"cannot be brought back onto the constraints ({exc.message})"
+        ) from exc
     moved = max(float(np.abs(y_pred[:nq] - y_a[:nq]).max(initial=0.0)), 1e-300)
     speed = max(float(np.abs(y_pred[nq:]).max(initial=0.0)), float(np.abs(y_a[nq:]).max(initial=0.0)), 1e-300)
     dq = float(np.abs(y_b[:nq] - y_pred[:nq]).max(initial=0.0)) / moved
@@ -255,7 +260,8 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
     if dq > BRANCH_TOL or dw > BRANCH_TOL:
         raise PassageRefused(
             f"no branch continues the motion continuously: the motion predicted past the point lies off the "
-            f"constraints by {dq:.2g} of the distance moved and {dw:.2g} of the speeds")
+            f"constraints by {dq:.2g} of the distance moved and {dw:.2g} of the speeds"
+        )
     g_b = rank.measure(t_b, y_b)
     if g_b < 0.25 * level:
         raise PassageRefused(f"beyond the point the constraint Jacobian stays nearly singular (g = {g_b:.2g})")
@@ -275,8 +281,13 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
         y_from = project(model, t_from, y_from, p, tol=PROJECT_TOL)
         right.append((t_from, y_from))
         evaluations.append(evaluate(t_from, y_from))
-    states = _hermite([t_a - s, t_a, t_b, t_b + s], [ys[-2], y_a, y_b, right[1][1]],
-                      [fs[-2], fs[-1], f_b, np.asarray(evaluations[5].derivative, float)], t_a, s)
+    states = _hermite(
+        [t_a - s, t_a, t_b, t_b + s],
+        [ys[-2], y_a, y_b, right[1][1]],
+        [fs[-2], fs[-1], f_b, np.asarray(evaluations[5].derivative, float)],
+        t_a,
+        s,
+    )
     times = np.array(nodes + [tk for tk, _ in right])
     tau = (times - t_a) / s
     accelerations = KroghInterpolator(tau, np.array([np.asarray(ev.derivative, float)[nq:] for ev in evaluations]))
@@ -292,7 +303,7 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
     Js = rank.jacobian(t_star, y_star) * rank.scale[:, None]
     U, sv, _ = np.linalg.svd(Js)
     lost = max(int(np.sum(sv < 0.5 * level)), 1)
-    weight = np.abs(U[:, len(sv) - lost:]).max(axis=1)
+    weight = np.abs(U[:, len(sv) - lost :]).max(axis=1)
     names = tuple(n for n, v in zip(rank.names, weight) if v > 1e-3 * weight.max()) or rank.names
     lam_star = minimum_norm_reactions(model, rank.scale, t_star, y_star, rates_star[nq:], p, level)
     at_instant = 1e-12 * max(1.0, abs(t_star))
@@ -304,8 +315,9 @@ def _pass(rank, model, t_star, evaluate, start, project, p, level):
             return y, a, lam_star
         return y, a, regular((t - t_a) / s) + residue / (t - t_star)
 
-    return Passage(t_star, float(t_a), float(t_b), y_b, gap, names, lost, (dq, dw), float(t_r), approach,
-                   y_star, lam_star)
+    return Passage(
+        t_star, float(t_a), float(t_b), y_b, gap, names, lost, (dq, dw), float(t_r), approach, y_star, lam_star
+    )
 
 
 def minimum_norm_reactions(model, scale, t, y, a, p, level: float) -> np.ndarray:
@@ -314,7 +326,7 @@ def minimum_norm_reactions(model, scale, t, y, a, p, level: float) -> np.ndarray
     the singular values under ``level`` (of the start-scaled ``J``) left out."""
     nq, n = len(model.coordinate_names), len(model.speed_names)
     y = np.asarray(y, float)
-    M, hQ, J, _ = model.evaluate_blocks(t, y[:nq], y[nq:nq + n], p)
+    M, hQ, J, _ = model.evaluate_blocks(t, y[:nq], y[nq : nq + n], p)
     Js = np.asarray(J, float) * scale[:, None]
     U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
     keep = sv >= level

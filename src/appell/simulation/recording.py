@@ -36,9 +36,13 @@ class Mode:
     directions: dict = field(default_factory=dict)
     signs: dict = field(default_factory=dict)
 
-    def releasing(self, names) -> "Mode":
-        return Mode(self.released + tuple(n for n in names if n not in self.released), self.sticking,
-                    self.directions, self.signs)
+    def releasing(self, names) -> Mode:
+        return Mode(
+            self.released + tuple(n for n in names if n not in self.released),
+            self.sticking,
+            self.directions,
+            self.signs,
+        )
 
 
 class Run:
@@ -101,7 +105,8 @@ class Run:
             if count > limit:
                 raise ComputationError(
                     f"contact {c!r} met {count} impacts at t = {t:.10g} without time passing",
-                    hint="the contact chatters: raise rest_speed so that it engages, or check its sign")
+                    hint="the contact chatters: raise rest_speed so that it engages, or check its sign",
+                )
 
     def evaluate(self, model, t, y):
         """The model at (t, y) (with the Baumgarte bias); every change of the partition in
@@ -113,7 +118,9 @@ class Run:
             alpha, beta = b
             F, phi = model.state_residuals(t, y, self.p)
             with np.errstate(over="ignore", invalid="ignore"):  # a non-finite bias is named by the solve
-                bias = 2.0 * alpha * np.nan_to_num(np.asarray(phi, float)) + beta**2 * np.nan_to_num(np.asarray(F, float))
+                bias = 2.0 * alpha * np.nan_to_num(np.asarray(phi, float)) + beta**2 * np.nan_to_num(
+                    np.asarray(F, float)
+                )
             ev = model.evaluate(t, y, self.p, bias=bias)
         if model is not self.partition_of:  # a new model (a release): its partition is not a switch
             self.partition_of, self.dependent = model, tuple(ev.dependent)
@@ -131,16 +138,28 @@ class Run:
         exceeds ``projection_tol``."""
         F, phi = model.state_residuals(t, y, self.p)
         if ev is None and self.settings["project_output"]:
-            worst = max(np.nanmax(np.abs(np.asarray(F, float)), initial=0.0),
-                        np.nanmax(np.abs(np.asarray(phi, float)), initial=0.0))
+            worst = max(
+                np.nanmax(np.abs(np.asarray(F, float)), initial=0.0),
+                np.nanmax(np.abs(np.asarray(phi, float)), initial=0.0),
+            )
             if worst > self.settings["projection_tol"]:
                 y = project(model, t, y, self.p)
                 F, phi = model.state_residuals(t, y, self.p)
         ev = self.evaluate(model, t, y) if ev is None else ev
         track = model.tracking_residuals(t, y, self.p) if self.tracking_names else ()
         fric = [np.asarray(ev.friction, float)] if self.laws is not None else None
-        self.add_block(model, [t], [y], [np.asarray(ev.derivative, float)[self.speed_part]], [ev.multipliers],
-                       [ev.controls], [F], [phi], [track], fric)
+        self.add_block(
+            model,
+            [t],
+            [y],
+            [np.asarray(ev.derivative, float)[self.speed_part]],
+            [ev.multipliers],
+            [ev.controls],
+            [F],
+            [phi],
+            [track],
+            fric,
+        )
         self.note_partition(model, t, ev)
 
     def record_many(self, model, ts, dense):
@@ -184,11 +203,19 @@ class Run:
         track = np.zeros((m, len(self.tracking_names))) if track is None else track
         width = len(self.laws.columns) if self.laws is not None else 0
         friction = np.zeros((m, width)) if friction is None else friction
-        self.blocks.append((np.asarray(ts, float).reshape(m), np.asarray(ys, float).reshape(m, -1),
-                            np.asarray(acc, float).reshape(m, -1), by_name(lam, 0.0),
-                            np.asarray(ctl, float).reshape(m, -1), by_name(F, np.nan), by_name(phi, np.nan),
-                            np.asarray(track, float).reshape(m, len(self.tracking_names)),
-                            np.asarray(friction, float).reshape(m, width)))
+        self.blocks.append(
+            (
+                np.asarray(ts, float).reshape(m),
+                np.asarray(ys, float).reshape(m, -1),
+                np.asarray(acc, float).reshape(m, -1),
+                by_name(lam, 0.0),
+                np.asarray(ctl, float).reshape(m, -1),
+                by_name(F, np.nan),
+                by_name(phi, np.nan),
+                np.asarray(track, float).reshape(m, len(self.tracking_names)),
+                np.asarray(friction, float).reshape(m, width),
+            )
+        )
 
     def forget_after(self, t: float) -> None:
         """Drop the recorded rows after ``t``: a singular point is recognised one step late
@@ -211,8 +238,12 @@ class Run:
         if key not in self.loops:
             self.loops[key] = None
             if supports(model):
-                self.loops[key] = CompiledLoop(model, self.p, fallback=lambda t, y: self.evaluate(model, t, y),
-                                               baumgarte=self.settings.get("baumgarte"))
+                self.loops[key] = CompiledLoop(
+                    model,
+                    self.p,
+                    fallback=lambda t, y: self.evaluate(model, t, y),
+                    baumgarte=self.settings.get("baumgarte"),
+                )
         return self.loops[key]
 
     def loop_outputs(self, model, t_eval):
@@ -270,8 +301,17 @@ class Run:
     def solution(self, model, status, message) -> Solution:
         root = self.root
         friction_columns = self.laws.columns if self.laws is not None else ()
-        widths = (1, len(root.state_names), len(root.speed_names), len(self.names), len(root.control_names),
-                  len(self.names), len(self.names), len(self.tracking_names), len(friction_columns))
+        widths = (
+            1,
+            len(root.state_names),
+            len(root.speed_names),
+            len(self.names),
+            len(root.control_names),
+            len(self.names),
+            len(self.names),
+            len(self.tracking_names),
+            len(friction_columns),
+        )
         if self.blocks:
             cols = [np.concatenate([b[i] for b in self.blocks]) for i in range(len(widths))]
         else:
@@ -282,27 +322,35 @@ class Run:
         # in time order: a switch met at a stage of a step is logged before the step's outputs
         events = sorted(self.events, key=lambda e: e.t)
         log = [line for _, _, line in sorted((_log_time(line), i, line) for i, line in enumerate(self.log))]
-        columns = {"t": t, **{n: ys[:, i] for i, n in enumerate(root.state_names)},
-                   **{acceleration_name(n): acc[:, i] for i, n in enumerate(root.speed_names)},
-                   **{f"lambda_{n}": lam[:, i] for i, n in enumerate(self.names)},
-                   **{f"control_{n}": ctl[:, i] for i, n in enumerate(root.control_names)},
-                   **dict(zip(root.parameter_names, (float(v) for v in self.p)))}
+        columns = {
+            "t": t,
+            **{n: ys[:, i] for i, n in enumerate(root.state_names)},
+            **{acceleration_name(n): acc[:, i] for i, n in enumerate(root.speed_names)},
+            **{f"lambda_{n}": lam[:, i] for i, n in enumerate(self.names)},
+            **{f"control_{n}": ctl[:, i] for i, n in enumerate(root.control_names)},
+            **dict(zip(root.parameter_names, (float(v) for v in self.p))),
+        }
         outputs = recorded_outputs(self.system, columns)
         return Solution(
             t=t,
             states={n: ys[:, i] for i, n in enumerate(root.state_names)},
-            coordinate_names=tuple(root.coordinate_names), speed_names=tuple(root.speed_names),
+            coordinate_names=tuple(root.coordinate_names),
+            speed_names=tuple(root.speed_names),
             accelerations={acceleration_name(n): acc[:, i] for i, n in enumerate(root.speed_names)},
             multipliers={n: lam[:, i] for i, n in enumerate(self.names)},
             controls={n: ctl[:, i] for i, n in enumerate(root.control_names)},
             position_residuals={n: F[:, i] for i, n in enumerate(self.names)},
             velocity_residuals={n: phi[:, i] for i, n in enumerate(self.names)},
             tracking={n: track[:, i] for i, n in enumerate(self.tracking_names)},
-            outputs=outputs, output_descriptions={o.name: o.description for o in (self.system.outputs if self.system else ())},
+            outputs=outputs,
+            output_descriptions={o.name: o.description for o in (self.system.outputs if self.system else ())},
             friction={n: fr[:, i] for i, n in enumerate(friction_columns)},
-            status=status, message=message, statistics=stats, events=tuple(events), log=tuple(log),
-            metadata=metadata(root, self.system, self.p, self.kinds,
-                               {k: str(v) for k, v in self.settings.items()}),
+            status=status,
+            message=message,
+            statistics=stats,
+            events=tuple(events),
+            log=tuple(log),
+            metadata=metadata(root, self.system, self.p, self.kinds, {k: str(v) for k, v in self.settings.items()}),
         )
 
 
@@ -310,7 +358,7 @@ def _log_time(line: str) -> float:
     """The time of a log line ``"t = <time>: ..."`` (-inf for another line: it keeps its place first)."""
     if line.startswith("t = "):
         try:
-            return float(line[4:line.index(":")])
+            return float(line[4 : line.index(":")])
         except ValueError:
             pass
     return -np.inf
@@ -348,10 +396,16 @@ def metadata(model, system, p, kinds, settings) -> ModelMetadata:
     if system is not None:
         units = {prm.symbol.name: (prm.unit or "", prm.description or "") for prm in system.parameters}
     params = tuple((n, float(v), *units.get(n, ("", ""))) for n, v in zip(model.parameter_names, p))
-    return ModelMetadata(model.name, params, tuple(model.constraint_names), kinds,
-                         getattr(appell, "__version__", ""), settings,
-                         system.unit_of if system is not None else {},
-                         dict(getattr(system, "names", ()) or ()))
+    return ModelMetadata(
+        model.name,
+        params,
+        tuple(model.constraint_names),
+        kinds,
+        getattr(appell, "__version__", ""),
+        settings,
+        system.unit_of if system is not None else {},
+        dict(getattr(system, "names", ()) or ()),
+    )
 
 
 def record_passage(run, model, passed, t_eval, p) -> int:
@@ -376,8 +430,15 @@ def record_passage(run, model, passed, t_eval, p) -> int:
         yk, a, lam = passed.gap(tk)
         F, phi = model.state_residuals(tk, yk, p)
         run.add_block(model, [tk], [yk], [a], [lam], np.zeros((1, nc)), [F], [phi])
-    run.event_record(model, "singular", ", ".join(passed.constraints), passed.t_singular, passed.y_singular,
-                     SimpleNamespace(multipliers=passed.multipliers_singular), passed.describe())
+    run.event_record(
+        model,
+        "singular",
+        ", ".join(passed.constraints),
+        passed.t_singular,
+        passed.y_singular,
+        SimpleNamespace(multipliers=passed.multipliers_singular),
+        passed.describe(),
+    )
     return after
 
 

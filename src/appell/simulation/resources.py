@@ -97,8 +97,10 @@ def check_memory(rows: int, columns: int, what: str, *, row_by_row: bool = True,
         raise ResourceError(
             f"out of memory: {what} would need about {_size(need)} ({int(rows):,} rows of {int(columns)} "
             f"columns), more than the {_size(have)} available ({source})",
-            hint=hint or "record fewer output times (--samples, --output-step, [simulation] t_eval) or a shorter "
-                         "span (--t-end), or run where more memory is available")
+            hint=hint
+            or "record fewer output times (--samples, --output-step, [simulation] t_eval) or a shorter "
+            "span (--t-end), or run where more memory is available",
+        )
     return need
 
 
@@ -111,10 +113,18 @@ def check_run_memory(model, rows: int, compiled: bool = False) -> int:
     system = system_of(model)
     outputs = len(system.outputs) if system is not None else 0
     servo = len(model.servo_names) if isinstance(model, ServoTracking) else 0
-    columns = (1 + len(model.state_names) + len(model.speed_names) + 3 * len(model.constraint_names)
-               + len(model.control_names) + servo + outputs)
-    return check_memory(rows, columns, f"recording {model.name!r} at {int(rows):,} output times",
-                        row_by_row=not compiled)
+    columns = (
+        1
+        + len(model.state_names)
+        + len(model.speed_names)
+        + 3 * len(model.constraint_names)
+        + len(model.control_names)
+        + servo
+        + outputs
+    )
+    return check_memory(
+        rows, columns, f"recording {model.name!r} at {int(rows):,} output times", row_by_row=not compiled
+    )
 
 
 def _size(n: int) -> str:

@@ -67,8 +67,8 @@ from __future__ import annotations
 
 import inspect
 import sys
+from collections.abc import Mapping
 from dataclasses import replace
-from typing import Mapping
 
 import numpy as np
 
@@ -96,8 +96,16 @@ __all__ = ["simulate", "project", "METHODS"]
 KINDS = {0: "holonomic", 1: "first-order", 2: "second-order"}
 
 
-def simulate(model_or_derivation, t_end: float | None = None, *, options: SimulationOptions | None = None,
-             events=(), params=None, initial=None, **settings) -> Solution:
+def simulate(
+    model_or_derivation,
+    t_end: float | None = None,
+    *,
+    options: SimulationOptions | None = None,
+    events=(),
+    params=None,
+    initial=None,
+    **settings,
+) -> Solution:
     """Integrate the motion and record states, accelerations, multipliers, controls and residuals.
 
     The settings of the run are one :class:`~appell.simulation.options.SimulationOptions`:
@@ -212,8 +220,16 @@ def simulate(model_or_derivation, t_end: float | None = None, *, options: Simula
                     run.restarts += 1
                     continue
                 g_new = [w.g(step.t, step.y, ev_new, motion.p) for w in watches]
-                hits = locate(watches, g, g_new, t, step.t, step.dense,
-                              lambda s, ys, active=active: run.evaluate(active, s, ys), motion.p)
+                hits = locate(
+                    watches,
+                    g,
+                    g_new,
+                    t,
+                    step.t,
+                    step.dense,
+                    lambda s, ys, active=active: run.evaluate(active, s, ys),
+                    motion.p,
+                )
             except AppellError as exc:
                 status, message = -1, f"the model could not be evaluated near t = {step.t:.10g}: {exc}"
                 break
@@ -255,20 +271,30 @@ class _Motion:
 
     def __init__(self, model, system, opts: SimulationOptions, events: tuple, params):
         if opts.stabilization == "baumgarte" and "bias" not in inspect.signature(model.evaluate).parameters:
-            raise ModelError(f"model {model.name!r} does not accept a constraint bias: Baumgarte stabilization "
-                             "is not available for it", hint="use stabilization='projection'")
+            raise ModelError(
+                f"model {model.name!r} does not accept a constraint bias: Baumgarte stabilization "
+                "is not available for it",
+                hint="use stabilization='projection'",
+            )
         solver_cls = solver_class(opts.method)
         check_event_names(model, opts.unilateral, opts.friction)
         if opts.unilateral and opts.on_release == "continue" and system is None:
-            raise ModelError("releasing a unilateral constraint needs the system to derive again",
-                             hint="pass a Derivation, or on_release='stop'")
+            raise ModelError(
+                "releasing a unilateral constraint needs the system to derive again",
+                hint="pass a Derivation, or on_release='stop'",
+            )
         self.model, self.system, self.opts = model, system, opts
         self.p = vector(model.params(params), "params", len(model.parameter_names), names=list(model.parameter_names))
         self.names = tuple(model.constraint_names)
-        settings = {"method": getattr(solver_cls, "__name__", str(opts.method)), "rtol": opts.rtol, "atol": opts.atol,
-                    "max_step": opts.max_step, "stabilization": opts.stabilization,
-                    "projection_tol": opts.projection_tol,
-                    "project_output": bool(opts.project_output and opts.stabilization == "projection")}
+        settings = {
+            "method": getattr(solver_cls, "__name__", str(opts.method)),
+            "rtol": opts.rtol,
+            "atol": opts.atol,
+            "max_step": opts.max_step,
+            "stabilization": opts.stabilization,
+            "projection_tol": opts.projection_tol,
+            "project_output": bool(opts.project_output and opts.stabilization == "projection"),
+        }
         if opts.stabilization == "baumgarte":
             settings["baumgarte"] = tuple(float(v) for v in opts.baumgarte)
         self.signs = {c: float(np.sign(s)) for c, s in dict(opts.unilateral or {}).items()}
@@ -282,8 +308,13 @@ class _Motion:
         if compiled and supports(model):
             settings["method"] = "DOP853 (compiled loop)"
         self.integ = Integration(self.run, solver_cls, opts, compiled)
-        self.watch_args = dict(unilateral=opts.unilateral, on_release=opts.on_release, friction=opts.friction,
-                               events=events, root=model if system is not None else None)
+        self.watch_args = dict(
+            unilateral=opts.unilateral,
+            on_release=opts.on_release,
+            friction=opts.friction,
+            events=events,
+            root=model if system is not None else None,
+        )
         self.restitution = {c.name: c.restitution for c in system.constraints} if system is not None else {}
         self.offsets: dict[str, float] = {}
 
@@ -310,8 +341,9 @@ class _Motion:
             for c in sticking:
                 run.events.append(EventRecord("stick", c, t0, "at rest and inside its friction cone at the start"))
             for c in started:
-                run.events.append(EventRecord("slip", c, t0, "at rest but outside its friction cone at the start: "
-                                                             "it starts to slide"))
+                run.events.append(
+                    EventRecord("slip", c, t0, "at rest but outside its friction cone at the start: it starts to slide")
+                )
         return init.y
 
     def friction_at_start(self, active, watches, g, t, y, ev) -> None:
@@ -357,8 +389,10 @@ class _Motion:
         budget = self.opts.max_evaluations
         if budget is None or self.run.nfev <= budget:
             return ""
-        return (f"stopped at t = {t:.10g} of {self.opts.t_end:g} after {self.run.nfev} evaluations, over the "
-                f"budget max_evaluations = {budget}: the motion is too fast or stiff for this span")
+        return (
+            f"stopped at t = {t:.10g} of {self.opts.t_end:g} after {self.run.nfev} evaluations, over the "
+            f"budget max_evaluations = {budget}: the motion is too fast or stiff for this span"
+        )
 
     def projected(self, active, watches, t, y, ev, g):
         """With projection, the state at a step's end projected onto the constraints where a
@@ -382,7 +416,7 @@ class _Motion:
         inside = int(np.searchsorted(t_eval, t, side="right"))
         if inside > k:
             at_end = t_eval[inside - 1] == t
-            run.record_many(active, t_eval[k:inside - 1 if at_end else inside], dense)
+            run.record_many(active, t_eval[k : inside - 1 if at_end else inside], dense)
             if at_end:
                 run.record(active, t, y, ev)
             k = inside
@@ -407,8 +441,11 @@ class _Motion:
                 evs = self.run.evaluate(active, ts, ys)
                 detail = ""
                 if w.kind == "friction":
-                    detail = ("|lambda_t| rises above mu lambda_n (friction limit exceeded)" if g[i] > 0
-                              else "|lambda_t| falls below mu lambda_n (within the friction limit)")
+                    detail = (
+                        "|lambda_t| rises above mu lambda_n (friction limit exceeded)"
+                        if g[i] > 0
+                        else "|lambda_t| falls below mu lambda_n (within the friction limit)"
+                    )
                 self.run.event_record(active, w.kind, w.name, ts, ys, evs, detail)
 
     def on_event(self, active, stop, hits, k, dense):
@@ -424,12 +461,20 @@ class _Motion:
         run.record_many(active, self.opts.t_eval[k:before], dense)
         k = max(k, before)
         if w.kind == "release":
-            run.event_record(active, w.kind, w.name, ts, ys, evs,
-                             f"lambda_{w.name} reaches zero: the unilateral constraint is released")
+            run.event_record(
+                active,
+                w.kind,
+                w.name,
+                ts,
+                ys,
+                evs,
+                f"lambda_{w.name} reaches zero: the unilateral constraint is released",
+            )
         elif w.kind != "contact" and w.action != "mode":
             run.event_record(active, w.kind, w.name, ts, ys, evs, "terminal event")
-        handler = {"stop": self._stop, "impact": self._impact, "mode": self._mode_change,
-                   "release": self._release}[w.action]
+        handler = {"stop": self._stop, "impact": self._impact, "mode": self._mode_change, "release": self._release}[
+            w.action
+        ]
         try:
             return (k, *handler(active, w, ts, ys, evs, hits))
         except AppellError as exc:
@@ -442,14 +487,18 @@ class _Motion:
     def _impact(self, active, w, ts, ys, evs, hits):
         """Contacts closing at ``ts``: the impact law (:mod:`appell.simulation.impact`)."""
         run, same = self.run, 1e-12 * max(1.0, abs(ts))
-        contacts = {h[2].name: (self.signs[h[2].name], self.restitution.get(h[2].name, 0.0))
-                    for h in hits if h[2].action == "impact" and h[0] - ts <= same}
+        contacts = {
+            h[2].name: (self.signs[h[2].name], self.restitution.get(h[2].name, 0.0))
+            for h in hits
+            if h[2].action == "impact" and h[0] - ts <= same
+        }
         run.chatter(contacts, ts)
         imp = impact(run.impact_model(), ts, ys, self.p, contacts, active.constraint_names, self.opts.rest_speed)
         after = dict(zip(self.model.state_names, (float(v) for v in imp.y_after)))
         for c in contacts:
-            run.event_record(active, "impact", c, ts, ys, evs, imp.describe(c), impulses=imp.impulses,
-                             state_after=after)
+            run.event_record(
+                active, "impact", c, ts, ys, evs, imp.describe(c), impulses=imp.impulses, state_after=after
+            )
         run.mode = replace(run.mode, released=tuple(c for c in run.mode.released if c not in imp.engaged))
         if imp.engaged:
             run.log.append(f"t = {ts:.10g}: constraint(s) {', '.join(imp.engaged)} engaged again")
@@ -483,8 +532,9 @@ class _Motion:
             refusal = "appell passes singular configurations only in runs without watched events and controls"
         else:
             try:
-                passed = pass_through(integ.rank, singular, lambda t_, y_: run.evaluate(active, t_, y_),
-                                      integ.sub_solver, project, self.p)
+                passed = pass_through(
+                    integ.rank, singular, lambda t_, y_: run.evaluate(active, t_, y_), integ.sub_solver, project, self.p
+                )
             except PassageRefused as exc:
                 refusal = str(exc)
         if passed is not None:
@@ -497,8 +547,9 @@ class _Motion:
         run.record_many(active, t_eval[k:before], dense)
         run.forget_after(singular.t)
         why = f"; it cannot be passed: {refusal}" if refusal else ""
-        run.events.append(EventRecord("singular", ", ".join(singular.constraints), singular.t,
-                                      singular.describe() + why))
+        run.events.append(
+            EventRecord("singular", ", ".join(singular.constraints), singular.t, singular.describe() + why)
+        )
         bar.at(singular.t)
         return max(k, before), t, None, (-1, singular.describe() + why)
 
@@ -534,8 +585,9 @@ def _kinds(model, y0, t0, p) -> tuple[str, ...]:
     if orders is not None and len(orders) == len(model.constraint_names):
         return tuple(KINDS[o] for o in orders)
     F, phi = model.state_residuals(t0, y0, p)
-    return tuple("holonomic" if not np.isnan(a) else "first-order" if not np.isnan(b) else "second-order"
-                 for a, b in zip(F, phi))
+    return tuple(
+        "holonomic" if not np.isnan(a) else "first-order" if not np.isnan(b) else "second-order" for a, b in zip(F, phi)
+    )
 
 
 def _initial_state(model, initial, complete, adjust, t0, p):
@@ -543,8 +595,9 @@ def _initial_state(model, initial, complete, adjust, t0, p):
     if isinstance(initial, InitialState):  # from check_initial / complete_initial
         initial = initial.values
     if initial is not None and not isinstance(initial, Mapping):
-        arr = vector(initial, f"the initial state of {model.name!r}", len(model.state_names),
-                     names=list(model.state_names))
+        arr = vector(
+            initial, f"the initial state of {model.name!r}", len(model.state_names), names=list(model.state_names)
+        )
         initial = dict(zip(model.state_names, arr))
     elif initial is not None:
         initial = {k: number(v, f"initial value of {k}") for k, v in initial.items()}

@@ -69,10 +69,12 @@ class SingularPoint:
     constraints: tuple[str, ...]
 
     def describe(self) -> str:
-        return (f"the motion reaches a singular configuration at t = {self.t:.10g}: the constraint Jacobian "
-                f"df/da loses rank (its smallest singular value falls to {self.g:.2g} of its size at the start), "
-                f"constraint(s) {', '.join(self.constraints)} become dependent there. Beyond this point the "
-                "equations do not determine on which branch the motion goes on, nor these reactions")
+        return (
+            f"the motion reaches a singular configuration at t = {self.t:.10g}: the constraint Jacobian "
+            f"df/da loses rank (its smallest singular value falls to {self.g:.2g} of its size at the start), "
+            f"constraint(s) {', '.join(self.constraints)} become dependent there. Beyond this point the "
+            "equations do not determine on which branch the motion goes on, nor these reactions"
+        )
 
 
 class RankWatch:
@@ -119,7 +121,7 @@ class RankWatch:
 
     def jacobian(self, t, y) -> np.ndarray:
         y = np.asarray(y, float)
-        return np.asarray(self.blocks(t, y[:self.nq], y[self.nq:self.nq + self.nw], self.p)[2], float)
+        return np.asarray(self.blocks(t, y[: self.nq], y[self.nq : self.nq + self.nw], self.p)[2], float)
 
     def measure_jacobian(self, J) -> float:
         Js = J * self.scale[:, None]
@@ -166,8 +168,12 @@ class RankWatch:
             def g(s, dense_=dense_):
                 return self.measure(s, dense_(s))
 
-            res = minimize_scalar(g, bounds=(lo, hi), method="bounded",
-                                  options={"xatol": 1e-14 * max(1.0, abs(hi)) + 1e-3 * (hi - lo) * SINGULAR_LEVEL})
+            res = minimize_scalar(
+                g,
+                bounds=(lo, hi),
+                method="bounded",
+                options={"xatol": 1e-14 * max(1.0, abs(hi)) + 1e-3 * (hi - lo) * SINGULAR_LEVEL},
+            )
             if res.fun < best[0]:
                 best = (float(res.fun), float(res.x), dense_)
         g_min, t_min, dense_ = best
@@ -201,7 +207,7 @@ def explain_failure(model, t, y, p) -> str | None:
     y = np.asarray(y, float)
     nq, names = len(model.coordinate_names), list(model.speed_names)
     try:
-        M, _, J, _ = blocks(t, y[:nq], y[nq:nq + len(names)], p)
+        M, _, J, _ = blocks(t, y[:nq], y[nq : nq + len(names)], p)
     except Exception:  # noqa: BLE001 -- an explanation is optional; the failure is reported anyway
         return None
     M, J = np.asarray(M, float), np.asarray(J, float)
@@ -222,6 +228,8 @@ def explain_failure(model, t, y, p) -> str | None:
     v = N @ vec[:, 0]
     v = v / np.abs(v).max()
     combination = " + ".join(f"{c:.3g} {n}" for c, n in zip(v, names) if abs(c) > 1e-6)
-    return (f"there the kinetic energy of the motions the constraints allow is degenerate: the reduced mass "
-            f"matrix is singular (smallest eigenvalue {ev[0]:.3g} beside {size:.3g} of M) along the speeds "
-            f"{combination}, so the accelerations are unbounded; check the kinetic energy and the masses")
+    return (
+        f"there the kinetic energy of the motions the constraints allow is degenerate: the reduced mass "
+        f"matrix is singular (smallest eigenvalue {ev[0]:.3g} beside {size:.3g} of M) along the speeds "
+        f"{combination}, so the accelerations are unbounded; check the kinetic energy and the masses"
+    )

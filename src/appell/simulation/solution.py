@@ -31,18 +31,27 @@ the model, parameters, solver settings, statistics and status as global attribut
 from __future__ import annotations
 
 import html
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Mapping
 
 import numpy as np
 
 from appell.errors import ModelError
 from appell.files import atomic_path
 
-__all__ = ["EventRecord", "SolverStatistics", "ModelMetadata", "Column", "Solution", "UNSPECIFIED", "per_second",
-           "draw_panel", "atomic_path"]
+__all__ = [
+    "EventRecord",
+    "SolverStatistics",
+    "ModelMetadata",
+    "Column",
+    "Solution",
+    "UNSPECIFIED",
+    "per_second",
+    "draw_panel",
+    "atomic_path",
+]
 
 
 @dataclass(frozen=True)
@@ -116,8 +125,18 @@ def _frozen_arrays(mapping) -> Mapping[str, np.ndarray]:
 UNSPECIFIED = "unspecified"
 
 #: the groups of a grouped result file (HDF5, a sweep), in file order; "" is the root (t)
-GROUPS = ("", "states", "accelerations", "multipliers", "outputs", "controls", "friction", "residuals/position",
-          "residuals/velocity", "residuals/servo")
+GROUPS = (
+    "",
+    "states",
+    "accelerations",
+    "multipliers",
+    "outputs",
+    "controls",
+    "friction",
+    "residuals/position",
+    "residuals/velocity",
+    "residuals/servo",
+)
 #: groups written even when empty (readers of earlier files expect them)
 ALWAYS = ("states", "accelerations", "multipliers", "controls", "residuals/position", "residuals/velocity")
 
@@ -210,8 +229,17 @@ class Solution:
         t = np.array(self.t, dtype=float)
         t.setflags(write=False)
         object.__setattr__(self, "t", t)
-        for name in ("states", "multipliers", "controls", "position_residuals", "velocity_residuals", "tracking",
-                     "accelerations", "outputs", "friction"):
+        for name in (
+            "states",
+            "multipliers",
+            "controls",
+            "position_residuals",
+            "velocity_residuals",
+            "tracking",
+            "accelerations",
+            "outputs",
+            "friction",
+        ):
             object.__setattr__(self, name, _frozen_arrays(getattr(self, name)))
         object.__setattr__(self, "output_descriptions", MappingProxyType(dict(self.output_descriptions)))
         object.__setattr__(self, "events", tuple(self.events))
@@ -250,10 +278,9 @@ class Solution:
             return self.accelerations[name]
         if name in self.outputs:
             return self.outputs[name]
-        for prefix, table in (("lambda_", self.multipliers), ("control_", self.controls),
-                              ("friction_", self.friction)):
-            if name.startswith(prefix) and name[len(prefix):] in table:
-                return table[name[len(prefix):]]
+        for prefix, table in (("lambda_", self.multipliers), ("control_", self.controls), ("friction_", self.friction)):
+            if name.startswith(prefix) and name[len(prefix) :] in table:
+                return table[name[len(prefix) :]]
         if name.startswith("residual_") and name[9:] in self.residuals:
             return self.residuals[name[9:]]
         if name.startswith("residual_") and name[9:] in self.tracking:
@@ -313,27 +340,48 @@ class Solution:
             of = f" (time derivative of the speed {speed_of[n]})" if n in speed_of else ""
             cols.append(Column(n, a, "acceleration", f"acceleration {n}{of}", unit(n), "accelerations", n))
         for n, a in self.multipliers.items():
-            cols.append(Column(f"lambda_{n}", a, "multiplier",
-                               f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)", unit(f"lambda_{n}"),
-                               "multipliers", n))
+            cols.append(
+                Column(
+                    f"lambda_{n}",
+                    a,
+                    "multiplier",
+                    f"multiplier lambda_{n} of constraint {n} (reaction R = J^T lambda)",
+                    unit(f"lambda_{n}"),
+                    "multipliers",
+                    n,
+                )
+            )
         for n, a in self.outputs.items():
             cols.append(Column(n, a, "output", self.output_descriptions.get(n) or f"output {n}", unit(n), "outputs", n))
         for n, a in self.controls.items():
             cols.append(Column(f"control_{n}", a, "control", f"control {n}", unit(f"control_{n}"), "controls", n))
         for n, a in self.friction.items():
-            what = (f"state of friction {n[:-9]}: 1 slipping, 0 sticking" if n.endswith("_slipping") else
-                    f"friction force component {n} (generalized force (dv_t/dw)^T F_t)")
+            what = (
+                f"state of friction {n[:-9]}: 1 slipping, 0 sticking"
+                if n.endswith("_slipping")
+                else f"friction force component {n} (generalized force (dv_t/dw)^T F_t)"
+            )
             cols.append(Column(f"friction_{n}", a, "friction", what, unit(f"friction_{n}"), "friction", n))
         kinds = dict(zip(self.metadata.constraint_names, self.metadata.constraint_kinds))
         for n, a in self.residuals.items():
-            what = {"holonomic": f"position residual F of the holonomic constraint {n}",
-                    "first-order": f"velocity residual phi of the first-order constraint {n}"}.get(
-                kinds.get(n), f"second-order constraint {n}: no position or velocity residual (NaN)")
+            what = {
+                "holonomic": f"position residual F of the holonomic constraint {n}",
+                "first-order": f"velocity residual phi of the first-order constraint {n}",
+            }.get(kinds.get(n), f"second-order constraint {n}: no position or velocity residual (NaN)")
             group = "residuals/velocity" if kinds.get(n) == "first-order" else "residuals/position"
             cols.append(Column(f"residual_{n}", a, "residual", what, unit(f"residual_{n}"), group, n))
         for n, a in self.tracking.items():
-            cols.append(Column(f"residual_{n}", a, "residual", f"tracking error of the servo constraint {n} "
-                               "at its own level", unit(f"residual_{n}"), "residuals/servo", n))
+            cols.append(
+                Column(
+                    f"residual_{n}",
+                    a,
+                    "residual",
+                    f"tracking error of the servo constraint {n} at its own level",
+                    unit(f"residual_{n}"),
+                    "residuals/servo",
+                    n,
+                )
+            )
         return cols
 
     def grouped(self, units: Mapping[str, str] | None = None) -> list[Column]:
@@ -343,13 +391,24 @@ class Solution:
         layout of :func:`appell.io.results.write_hdf5` and of a sweep's file (:data:`GROUPS`)."""
         cols = self.column_info(units)
         placed = {(c.group, c.key) for c in cols}
-        for group, table, level in (("residuals/position", self.position_residuals, "position residual F"),
-                                    ("residuals/velocity", self.velocity_residuals, "velocity residual phi")):
+        for group, table, level in (
+            ("residuals/position", self.position_residuals, "position residual F"),
+            ("residuals/velocity", self.velocity_residuals, "velocity residual phi"),
+        ):
             for n, a in table.items():
                 if (group, n) not in placed:
                     units_of = next((c.units for c in cols if c.name == f"residual_{n}"), UNSPECIFIED)
-                    cols.append(Column(f"residual_{n}", a, "residual",
-                                       f"{level} of constraint {n} (NaN: no such level)", units_of, group, n))
+                    cols.append(
+                        Column(
+                            f"residual_{n}",
+                            a,
+                            "residual",
+                            f"{level} of constraint {n} (NaN: no such level)",
+                            units_of,
+                            group,
+                            n,
+                        )
+                    )
         return sorted(cols, key=lambda c: GROUPS.index(c.group))
 
     def columns(self) -> list[tuple[str, np.ndarray]]:
@@ -366,10 +425,16 @@ class Solution:
         import pandas as pd
 
         cols = self.column_info(units)
-        df = pd.DataFrame({c.name: np.array(c.values, float) for c in cols[1:]},
-                          index=pd.Index(np.array(self.t, float), name="t"))
-        df.attrs.update(units={c.name: c.units for c in cols}, long_names={c.name: c.long_name for c in cols},
-                        model=self.metadata.name, status=int(self.status), message=self.message)
+        df = pd.DataFrame(
+            {c.name: np.array(c.values, float) for c in cols[1:]}, index=pd.Index(np.array(self.t, float), name="t")
+        )
+        df.attrs.update(
+            units={c.name: c.units for c in cols},
+            long_names={c.name: c.long_name for c in cols},
+            model=self.metadata.name,
+            status=int(self.status),
+            message=self.message,
+        )
         return df
 
     def attributes(self) -> dict:
@@ -381,16 +446,16 @@ class Solution:
 
         md = self.metadata
         version = md.appell_version or "unknown version"
-        now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+        now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
         attrs = {
             "Conventions": "CF-1.10",
             "title": f"appell simulation of {md.name}",
             "source": f"appell {version}: Gibbs-Appell equations split by Do Shan's method",
             "history": f"{now} created by appell {version}",
             "references": "Do Shan, On determining constraint reaction forces, "
-                          "Prikladnaya Matematika i Mekhanika, 1974",
+            "Prikladnaya Matematika i Mekhanika, 1974",
             "comment": "lambda_<constraint>: multiplier of the constraint, reaction R = J^T lambda; "
-                       "residual_<constraint>: its residual at its own level",
+            "residual_<constraint>: its residual at its own level",
             "model": md.name,
             "status": int(self.status),
             "message": self.message,
@@ -428,11 +493,15 @@ class Solution:
         cols = self.column_info(units)
         clash = [c.name for c in cols[1:] if c.name == "time"]
         if clash:
-            raise ModelError("a result column is named 'time', the name of the time coordinate",
-                             hint="rename that coordinate, speed, constraint or control")
+            raise ModelError(
+                "a result column is named 'time', the name of the time coordinate",
+                hint="rename that coordinate, speed, constraint or control",
+            )
         time = cols[0]
-        data = {c.name: ("time", np.array(c.values, float), {"units": c.units, "long_name": c.long_name,
-                                                           "kind": c.kind}) for c in cols[1:]}
+        data = {
+            c.name: ("time", np.array(c.values, float), {"units": c.units, "long_name": c.long_name, "kind": c.kind})
+            for c in cols[1:]
+        }
         coords = {"time": ("time", np.array(time.values, float), {"units": time.units, "long_name": "time"})}
         return xr.Dataset(data, coords=coords, attrs=self.attributes())
 
@@ -445,16 +514,29 @@ class Solution:
         of :class:`~appell.model.Friction` items) and ``residuals`` (absolute values, log
         scale; second-order constraints have none)."""
         cols = self.column_info()
-        kinds = [("coordinates", "coordinates", "coordinate"), ("speeds", "speeds", "speed"),
-                 ("states", "other states", "state")]
+        kinds = [
+            ("coordinates", "coordinates", "coordinate"),
+            ("speeds", "speeds", "speed"),
+            ("states", "other states", "state"),
+        ]
         if accelerations:
             kinds.append(("accelerations", "accelerations", "acceleration"))
-        kinds += [("reactions", "reactions (multipliers lambda)", "multiplier"), ("outputs", "outputs", "output"),
-                  ("controls", "controls", "control"), ("friction", "friction forces", "friction"), ("residuals", "|constraint residuals|", "residual")]
+        kinds += [
+            ("reactions", "reactions (multipliers lambda)", "multiplier"),
+            ("outputs", "outputs", "output"),
+            ("controls", "controls", "control"),
+            ("friction", "friction forces", "friction"),
+            ("residuals", "|constraint residuals|", "residual"),
+        ]
         out = []
         for key, label, kind in kinds:
-            series = [c for c in cols if c.kind == kind and (kind != "residual" or np.any(np.isfinite(c.values)))
-                      and not c.name.endswith("_slipping")]
+            series = [
+                c
+                for c in cols
+                if c.kind == kind
+                and (kind != "residual" or np.any(np.isfinite(c.values)))
+                and not c.name.endswith("_slipping")
+            ]
             if series or key == "coordinates":
                 out.append((key, label, series, kind == "residual"))
         return out
@@ -508,16 +590,21 @@ class Solution:
         s = self.statistics
         lines = [
             f"simulation of {self.metadata.name!r}: {self.message} (status {self.status})",
-            f"  t from {self.t[0]:g} s to {self.t[-1]:g} s, {self.t.size} output times" if self.t.size
+            f"  t from {self.t[0]:g} s to {self.t[-1]:g} s, {self.t.size} output times"
+            if self.t.size
             else "  no output",
             f"  {s.steps} steps, {s.nfev} evaluations, {s.projections} projections, {s.switches} partition switches",
         ]
         for name, unit, lo, t_lo, hi, t_hi in self.extremes():
             u = "" if unit == UNSPECIFIED else f" {unit}"
-            lines.append(f"  {name}: no values" if np.isnan(lo) else
-                         f"  {name}: min {lo:.6g}{u} (t = {t_lo:g} s), max {hi:.6g}{u} (t = {t_hi:g} s)")
-        lines.append(f"  largest residuals: position {self.max_position_residual:.3e}, "
-                     f"velocity {self.max_velocity_residual:.3e}")
+            lines.append(
+                f"  {name}: no values"
+                if np.isnan(lo)
+                else f"  {name}: min {lo:.6g}{u} (t = {t_lo:g} s), max {hi:.6g}{u} (t = {t_hi:g} s)"
+            )
+        lines.append(
+            f"  largest residuals: position {self.max_position_residual:.3e}, velocity {self.max_velocity_residual:.3e}"
+        )
         if self.tracking:
             lines.append(f"  largest tracking error of the servo constraints: {self.max_tracking_error:.3e}")
         lines += [f"  event: {e}" for e in self.events[:SUMMARY_EVENTS]]
@@ -535,7 +622,8 @@ class Solution:
         e = html.escape
         s = self.statistics
         rows = [
-            ("model", self.metadata.name), ("status", f"{self.status} — {self.message}"),
+            ("model", self.metadata.name),
+            ("status", f"{self.status} — {self.message}"),
             ("t", f"{self.t[0]:g} … {self.t[-1]:g} s ({self.t.size} points)" if self.t.size else "—"),
             ("steps / evaluations", f"{s.steps} / {s.nfev}"),
             ("projections / switches", f"{s.projections} / {s.switches}"),
@@ -551,8 +639,11 @@ class Solution:
         ext = self.extremes()
         if ext and self.t.size:
             head = "<tr><th>reaction / control</th><th>unit</th><th>min</th><th>at t</th><th>max</th><th>at t</th></tr>"
-            cells = "".join(f"<tr><td>{e(n)}</td><td>{e(u)}</td><td>{lo:.6g}</td><td>{tl:g}</td><td>{hi:.6g}</td>"
-                            f"<td>{th:g}</td></tr>" for n, u, lo, tl, hi, th in ext)
+            cells = "".join(
+                f"<tr><td>{e(n)}</td><td>{e(u)}</td><td>{lo:.6g}</td><td>{tl:g}</td><td>{hi:.6g}</td>"
+                f"<td>{th:g}</td></tr>"
+                for n, u, lo, tl, hi, th in ext
+            )
             out += f"<table>{head}{cells}</table>"
         return out
 

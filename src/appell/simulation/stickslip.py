@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from appell.simulation.events import Watch
 from appell.numerics.dynamics import FrictionModes
+from appell.simulation.events import Watch
 
 __all__ = ["STICK_SPEED", "Transition", "initial_mode", "stick_slip_watches", "transition"]
 
@@ -109,6 +109,7 @@ def stick_slip_watches(model) -> list[Watch]:
     out = []
     for k, item in enumerate(model.frictions if isinstance(model, FrictionModes) else ()):
         if item.name in model.sticking:
+
             def g(t, y, ev, p, k=k, name=item.name):
                 return _mu_s(model, t, y, p, name) * float(ev.normals[k]) - float(np.linalg.norm(ev.forces[name]))
 
@@ -121,8 +122,15 @@ def stick_slip_watches(model) -> list[Watch]:
 
             out.append(Watch("stick", item.name, g, -1, "mode"))
             if item.name in model.signs:  # the normal force passes through zero: its sign is renewed
-                out.append(Watch("normal", item.name, lambda t, y, ev, p, name=item.name, sg=model.signs[item.name]:
-                                 sg * ev.signed_normals[name], -1, "mode"))
+                out.append(
+                    Watch(
+                        "normal",
+                        item.name,
+                        lambda t, y, ev, p, name=item.name, sg=model.signs[item.name]: sg * ev.signed_normals[name],
+                        -1,
+                        "mode",
+                    )
+                )
     return out
 
 
@@ -139,9 +147,14 @@ def transition(laws, model, kind, name, t, y, p, project) -> Transition:
         sticking.discard(name)
         directions[name] = _slip_direction(ev.forces[name])
         k = [i.name for i in model.frictions].index(name)
-        return Transition(frozenset(sticking), directions, np.asarray(y, float), "slip",
-                          f"|F_t| = {np.linalg.norm(ev.forces[name]):.6g} reaches mu_s |N| = "
-                          f"{_mu_s(model, t, y, p, name) * ev.normals[k]:.6g}: the contact starts to slide")
+        return Transition(
+            frozenset(sticking),
+            directions,
+            np.asarray(y, float),
+            "slip",
+            f"|F_t| = {np.linalg.norm(ev.forces[name]):.6g} reaches mu_s |N| = "
+            f"{_mu_s(model, t, y, p, name) * ev.normals[k]:.6g}: the contact starts to slide",
+        )
     v = model.slip_velocities(t, y, p)[name]
     speed = float(np.linalg.norm(v))
     if speed > STOP_SPEED:
@@ -153,10 +166,19 @@ def transition(laws, model, kind, name, t, y, p, project) -> Transition:
     k = [i.name for i in model.frictions].index(name)
     F, limit = float(np.linalg.norm(ev.forces[name])), _mu_s(model, t, y, p, name) * float(ev.normals[k])
     if F <= limit * (1.0 + CONE_SLACK):
-        return Transition(frozenset(sticking | {name}), directions, y_stuck, "stick",
-                          f"the slip speed returns to zero and |F_t| = {F:.6g} <= mu_s |N| = {limit:.6g}: "
-                          "the contact sticks")
+        return Transition(
+            frozenset(sticking | {name}),
+            directions,
+            y_stuck,
+            "stick",
+            f"the slip speed returns to zero and |F_t| = {F:.6g} <= mu_s |N| = {limit:.6g}: the contact sticks",
+        )
     directions[name] = _slip_direction(ev.forces[name])
-    return Transition(frozenset(sticking), directions, y_stuck, "slip",
-                      f"the slip speed returns to zero but sticking needs |F_t| = {F:.6g} > mu_s |N| = "
-                      f"{limit:.6g}: the contact slides on in the direction opposite to that force")
+    return Transition(
+        frozenset(sticking),
+        directions,
+        y_stuck,
+        "slip",
+        f"the slip speed returns to zero but sticking needs |F_t| = {F:.6g} > mu_s |N| = "
+        f"{limit:.6g}: the contact slides on in the direction opposite to that force",
+    )

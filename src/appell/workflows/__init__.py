@@ -39,26 +39,74 @@ Each group of workflows is a module of this package, every name importable from 
 
 from __future__ import annotations
 
-from appell.workflows.load import (check_inertia_at_start, derive_model, internal_stability, load_derivation,
-                                   load_system, resolve_model)
+from appell.workflows.check import check_model, cross_check_model, first_integrals, span_energy_balance, verdict
 from appell.workflows.derive import derivation_json, show_derivation
-from appell.workflows.simulate import (OUTPUT_FORMATS, SOLVER_OPTIONS, check_movie_writer,
-                                       check_output_memory, command_options, completion, export_solution,
-                                       failed_path, keep_failed_motion, run_simulation, save_motion,
-                                       save_simulation, solver_line)
-from appell.workflows.inverse import closed_chain_model, load_inverse_source, read_trajectory, run_inverse
-from appell.workflows.check import (check_model, cross_check_model, first_integrals, span_energy_balance,
-                                    verdict)
-from appell.workflows.stability import stability_analysis, stability_table, write_stability
-from appell.workflows.report import report_model
-from appell.workflows.sweep import keep_cluster, sweep_model
 from appell.workflows.examples import copy_example, example_listing
+from appell.workflows.inverse import closed_chain_model, load_inverse_source, read_trajectory, run_inverse
+from appell.workflows.load import (
+    check_inertia_at_start,
+    derive_model,
+    internal_stability,
+    load_derivation,
+    load_system,
+    resolve_model,
+)
+from appell.workflows.report import report_model
+from appell.workflows.simulate import (
+    OUTPUT_FORMATS,
+    SOLVER_OPTIONS,
+    check_movie_writer,
+    check_output_memory,
+    command_options,
+    completion,
+    export_solution,
+    failed_path,
+    keep_failed_motion,
+    run_simulation,
+    save_motion,
+    save_simulation,
+    solver_line,
+)
+from appell.workflows.stability import stability_analysis, stability_table, write_stability
+from appell.workflows.sweep import keep_cluster, sweep_model
 
 __all__ = [
-    "OUTPUT_FORMATS", "SOLVER_OPTIONS", "check_inertia_at_start", "check_model", "check_movie_writer",
-    "check_output_memory", "command_options", "completion", "copy_example", "cross_check_model", "derivation_json",
-    "derive_model", "example_listing", "export_solution", "failed_path", "first_integrals", "internal_stability",
-    "keep_cluster", "keep_failed_motion", "closed_chain_model", "load_derivation", "load_inverse_source", "load_system", "read_trajectory", "report_model", "resolve_model",
-    "run_inverse", "run_simulation", "save_motion", "save_simulation", "show_derivation", "solver_line",
-    "span_energy_balance", "stability_analysis", "stability_table", "sweep_model", "verdict", "write_stability",
+    "OUTPUT_FORMATS",
+    "SOLVER_OPTIONS",
+    "check_inertia_at_start",
+    "check_model",
+    "check_movie_writer",
+    "check_output_memory",
+    "command_options",
+    "completion",
+    "copy_example",
+    "cross_check_model",
+    "derivation_json",
+    "derive_model",
+    "example_listing",
+    "export_solution",
+    "failed_path",
+    "first_integrals",
+    "internal_stability",
+    "keep_cluster",
+    "keep_failed_motion",
+    "closed_chain_model",
+    "load_derivation",
+    "load_inverse_source",
+    "load_system",
+    "read_trajectory",
+    "report_model",
+    "resolve_model",
+    "run_inverse",
+    "run_simulation",
+    "save_motion",
+    "save_simulation",
+    "show_derivation",
+    "solver_line",
+    "span_energy_balance",
+    "stability_analysis",
+    "stability_table",
+    "sweep_model",
+    "verdict",
+    "write_stability",
 ]

@@ -53,8 +53,11 @@ def verdict(check_report, energy, tolerance: float, energy_tolerance: float) -> 
     """``(passed, one line)`` over every line of the cross-check and the energy balance."""
     failed = []
     if not check_report.passed(tolerance):
-        failed.append(check_report.verdict(tolerance) if hasattr(check_report, "verdict")
-                      else f"cross-check: a relative difference exceeds {tolerance:g}")
+        failed.append(
+            check_report.verdict(tolerance)
+            if hasattr(check_report, "verdict")
+            else f"cross-check: a relative difference exceeds {tolerance:g}"
+        )
     if energy is not None and not energy.passed(energy_tolerance):
         failed.append(energy.verdict(energy_tolerance))
     if failed:
@@ -68,8 +71,7 @@ def verdict(check_report, energy, tolerance: float, energy_tolerance: float) -> 
     return True, "passed: " + " and ".join(parts)
 
 
-def check_model(derivation, tolerance: float = 1e-9, energy_tolerance: float | None = None, t_end=None,
-                echo=None):
+def check_model(derivation, tolerance: float = 1e-9, energy_tolerance: float | None = None, t_end=None, echo=None):
     """``appell check``: the cross-check (:func:`cross_check_model`), the internal dynamics of a
     controlled system, the energy balance over the simulation span (:func:`span_energy_balance`)
     and the verdict on each candidate first integral, printed; raises
@@ -93,7 +95,8 @@ def check_model(derivation, tolerance: float = 1e-9, energy_tolerance: float | N
         echo(integrals.to_text())
     ok, line = verdict(report, energy, tolerance, energy_tolerance)
     if not ok:
-        raise ComputationError(f"check failed: {line}",
-                               hint="a route or the energy balance disagrees with the split; see the lines above")
+        raise ComputationError(
+            f"check failed: {line}", hint="a route or the energy balance disagrees with the split; see the lines above"
+        )
     echo(line)
     return report, energy

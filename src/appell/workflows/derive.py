@@ -25,8 +25,10 @@ def derivation_json(derivation, reduction=None) -> dict:
 
     system = derivation.system
     out = document_expressions(derivation)
-    out.setdefault("outputs", {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description}
-                               for o in system.outputs})
+    out.setdefault(
+        "outputs",
+        {o.name: {"expression": o.expr, "unit": o.unit, "description": o.description} for o in system.outputs},
+    )
     linearisation, _ = internal_stability(derivation)
     if linearisation is not None:
         out["internal_linearisation"] = linearisation.to_json()
@@ -67,8 +69,12 @@ def show_derivation(derivation, fmt: str = "text", reduction=None, only=None, ec
             echo(linearisation.to_text())
     frictions = derivation.system.frictions
     if frictions:
-        echo("note: the equations above are those of the ideal constraints; the friction of "
-             + ", ".join(f.name for f in frictions) + " adds Q_f = (dv_t/dw)^T F_t to Q (sliding: "
-             "F_t = -mu_k |N| v_t/|v_t| - c v_t, N by its formula (1.5); sticking: v_t = 0), applied by "
-             "simulate and check (docs/friction.md)", err=True)
+        echo(
+            "note: the equations above are those of the ideal constraints; the friction of "
+            + ", ".join(f.name for f in frictions)
+            + " adds Q_f = (dv_t/dw)^T F_t to Q (sliding: "
+            "F_t = -mu_k |N| v_t/|v_t| - c v_t, N by its formula (1.5); sticking: v_t = 0), applied by "
+            "simulate and check (docs/friction.md)",
+            err=True,
+        )
     _warn_internal(linearisation, note, echo)

@@ -63,8 +63,16 @@ def closed_chain_model(system, reasons: list | None = None):
         return None
 
 
-def load_inverse_source(model: str, overrides=None, floating_base: bool = False, cache: bool | None = None,
-                        reactions_in: str | None = None, reader=None, echo=None, contacts=()):
+def load_inverse_source(
+    model: str,
+    overrides=None,
+    floating_base: bool = False,
+    cache: bool | None = None,
+    reactions_in: str | None = None,
+    reader=None,
+    echo=None,
+    contacts=(),
+):
     """What ``appell inverse`` works on: the :func:`closed_chain_model` of a closed chain (no
     derivation: the tree's recursions and the loops' rows), else the derivation
     (:func:`load_derivation`), with a note saying why where the closed-chain route refused a
@@ -75,8 +83,14 @@ def load_inverse_source(model: str, overrides=None, floating_base: bool = False,
     are printed once."""
     echo = echo or _print
     notes, reasons = [], []
-    system = load_system(model, overrides, floating_base, echo=lambda text, err=False: notes.append(text),
-                         reactions_in=reactions_in, reader=reader)
+    system = load_system(
+        model,
+        overrides,
+        floating_base,
+        echo=lambda text, err=False: notes.append(text),
+        reactions_in=reactions_in,
+        reader=reader,
+    )
     if contacts:
         from appell.mechanism.formats import importer_for
         from appell.simulation.inverse import contact_model
@@ -93,14 +107,24 @@ def load_inverse_source(model: str, overrides=None, floating_base: bool = False,
     else:
         closed = closed_chain_model(system, reasons)
     if closed is not None:  # the file's own spelling, for run_inverse (a contact's name from its body or site)
-        closed.names = {**dict(system.names), **{c.name.removesuffix("_contact"): c.body for c, *_ in
-                                                 getattr(closed, "contacts", ()) if not c.body.isidentifier()}}
+        closed.names = {
+            **dict(system.names),
+            **{
+                c.name.removesuffix("_contact"): c.body
+                for c, *_ in getattr(closed, "contacts", ())
+                if not c.body.isidentifier()
+            },
+        }
     if closed is None:
         for reason in reasons:
-            echo(f"note: the closed-chain route, which completes the passive coordinates from the given ones, "
-                 f"does not take this model: {reason}; the motion must give every coordinate", err=True)
-        return load_derivation(model, overrides, floating_base, cache=cache, reactions_in=reactions_in,
-                               reader=reader, echo=echo)
+            echo(
+                f"note: the closed-chain route, which completes the passive coordinates from the given ones, "
+                f"does not take this model: {reason}; the motion must give every coordinate",
+                err=True,
+            )
+        return load_derivation(
+            model, overrides, floating_base, cache=cache, reactions_in=reactions_in, reader=reader, echo=echo
+        )
     for text in notes:
         echo(text, err=True)
     return closed
@@ -118,9 +142,10 @@ def _closed_chain_inverse(model, trajectory, table, drives, guess, echo):
     names, speeds = list(model.coordinate_names), list(model.speed_names)
     given = [n for n in names if n in table]
     if "t" not in table or not given:
-        raise ModelError(f"{trajectory}: the motion needs a column t and one per given coordinate",
-                         hint="columns: t and the actuated (or other independent) coordinates among "
-                              + ", ".join(names))
+        raise ModelError(
+            f"{trajectory}: the motion needs a column t and one per given coordinate",
+            hint="columns: t and the actuated (or other independent) coordinates among " + ", ".join(names),
+        )
     rates = [speeds[names.index(n)] for n in given]
 
     def column(names_):
@@ -136,10 +161,13 @@ def _closed_chain_inverse(model, trajectory, table, drives, guess, echo):
         raise ModelError(f"--guess: {exc}", hint="give NAME=NUMBER, a passive coordinate's start") from None
     unknown = sorted(set(values) - set(names))
     if unknown:
-        raise ModelError(f"--guess of unknown coordinate(s) {', '.join(unknown)}", hint="coordinates: " + ", ".join(names))
+        raise ModelError(
+            f"--guess of unknown coordinate(s) {', '.join(unknown)}", hint="coordinates: " + ", ".join(names)
+        )
     try:
-        result = inverse_dynamics(model, table["t"], {n: table[n] for n in given}, w, a,
-                                  drives=list(drives) or None, guess=values or None)
+        result = inverse_dynamics(
+            model, table["t"], {n: table[n] for n in given}, w, a, drives=list(drives) or None, guess=values or None
+        )
     except ComputationError as exc:  # the motion given cannot be followed: the file's fault, not appell's
         raise ModelError(exc.message, where=str(trajectory), hint=exc.hint) from None
     passive = [n for n in names if n not in given]
@@ -166,8 +194,11 @@ def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=No
 
     echo = echo or _print
     table = read_trajectory(Path(trajectory)) if table is None else table
-    names = dict(getattr(derivation, "names", {}) if hasattr(derivation, "loop_rows")  # load_inverse_source's
-                 else getattr(getattr(derivation, "system", None), "names", ()))
+    names = dict(
+        getattr(derivation, "names", {})
+        if hasattr(derivation, "loop_rows")  # load_inverse_source's
+        else getattr(getattr(derivation, "system", None), "names", ())
+    )
     if not names:
         return _run_inverse(derivation, trajectory, drives, out, echo, table, guess)
     # a file whose names are not identifiers (MJCF's 'left-hip-roll'): read and shown as it spells them
@@ -181,8 +212,9 @@ def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=No
     try:
         return _run_inverse(derivation, trajectory, drives, out, shown, table, guess, names)
     except (ModelError, ComputationError) as exc:
-        raise type(exc)(shown_names([exc.message], names)[0], where=exc.where,
-                        hint=exc.hint and shown_names([exc.hint], names)[0]) from None
+        raise type(exc)(
+            shown_names([exc.message], names)[0], where=exc.where, hint=exc.hint and shown_names([exc.hint], names)[0]
+        ) from None
 
 
 def _run_inverse(derivation, trajectory, drives, out, echo, table, guess, names=None):
@@ -197,16 +229,25 @@ def _run_inverse(derivation, trajectory, drives, out, echo, table, guess, names=
         result, given = _closed_chain_inverse(derivation, trajectory, table, drives, guess, echo)
         return _write_inverse(result, derivation.name, out, given, echo, names)
     if guess:
-        raise ModelError("--guess applies to a closed chain (a mechanism whose loops the motion completes)",
-                         hint="this model's motion gives every coordinate; leave --guess out")
+        raise ModelError(
+            "--guess applies to a closed chain (a mechanism whose loops the motion completes)",
+            hint="this model's motion gives every coordinate; leave --guess out",
+        )
     numeric = numeric_model(derivation)
     missing = [n for n in ("t",) + tuple(numeric.coordinate_names) if n not in table]
     if missing:
         closed = getattr(getattr(derivation.system, "tree", None), "loops", ())
-        raise ModelError(f"{trajectory}: no column {', '.join(missing)}",
-                         hint="columns: t and the coordinates " + ", ".join(numeric.coordinate_names)
-                         + ("; the closed-chain route, which completes the passive ones from the loops, does not "
-                            "take this model (the note above says why)" if closed else ""))
+        raise ModelError(
+            f"{trajectory}: no column {', '.join(missing)}",
+            hint="columns: t and the coordinates "
+            + ", ".join(numeric.coordinate_names)
+            + (
+                "; the closed-chain route, which completes the passive ones from the loops, does not "
+                "take this model (the note above says why)"
+                if closed
+                else ""
+            ),
+        )
     q = np.stack([table[n] for n in numeric.coordinate_names], axis=1)
 
     def given(names):

@@ -40,13 +40,18 @@ def resolve_model(model: str) -> Path:
         from appell.mechanism.formats import described
 
         raise ModelError(f"{model}: not a file", hint=f"give the path of {described()}")
-    raise ModelError(f"{model}: no such model file",
-                     hint="give the path of a model file, or a bundled example: " + ", ".join(list_examples())
-                     + "; or a benchmark: " + ", ".join(list_benchmarks()))
+    raise ModelError(
+        f"{model}: no such model file",
+        hint="give the path of a model file, or a bundled example: "
+        + ", ".join(list_examples())
+        + "; or a benchmark: "
+        + ", ".join(list_benchmarks()),
+    )
 
 
-def load_system(model: str, overrides=None, floating_base: bool = False, echo=None, reactions_in: str | None = None,
-                reader=None):
+def load_system(
+    model: str, overrides=None, floating_base: bool = False, echo=None, reactions_in: str | None = None, reader=None
+):
     """Load a model file (or bundled example) with parameter / initial-value ``overrides``
     (``{name: value text}``, as ``--set NAME=VALUE``); ``floating_base`` puts a ``.urdf``
     robot's root link on a free joint; ``reactions_in`` the axes of the joint reactions of a
@@ -57,8 +62,13 @@ def load_system(model: str, overrides=None, floating_base: bool = False, echo=No
     from appell.io.modelfile import load_model
 
     with _notes_as_lines(echo or _print):
-        return load_model(resolve_model(model), overrides=overrides or None, floating_base=floating_base,
-                          reactions_in=reactions_in, reader=reader)
+        return load_model(
+            resolve_model(model),
+            overrides=overrides or None,
+            floating_base=floating_base,
+            reactions_in=reactions_in,
+            reader=reader,
+        )
 
 
 @contextlib.contextmanager
@@ -82,8 +92,17 @@ def _notes_as_lines(echo):
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
-def load_derivation(model: str, overrides=None, floating_base: bool = False, dependent=None, formulas: bool = False,
-                    cache: bool | None = None, reactions_in: str | None = None, echo=None, reader=None):
+def load_derivation(
+    model: str,
+    overrides=None,
+    floating_base: bool = False,
+    dependent=None,
+    formulas: bool = False,
+    cache: bool | None = None,
+    reactions_in: str | None = None,
+    echo=None,
+    reader=None,
+):
     """:func:`load_system` and :func:`derive_model` in one step, through the derivation cache
     (:func:`appell.io.derivation_cache.derive_file`: a model file derived before is read back,
     not derived again; ``cache=False`` or ``$APPELL_NO_CACHE=1`` derives every time).
@@ -100,9 +119,17 @@ def load_derivation(model: str, overrides=None, floating_base: bool = False, dep
     dependent = [canonical_name(d) for d in dependent] if dependent else None
     with _notes_as_lines(echo), status(f"deriving {path.stem}"):
         # the inertia check runs before an entry is stored, not again on one stored after it
-        return derive_file(path, overrides or None, floating_base=floating_base, dependent=dependent,
-                           cache=cache, formulas=formulas, reactions_in=reactions_in, reader=reader,
-                           check=_check_at_start)
+        return derive_file(
+            path,
+            overrides or None,
+            floating_base=floating_base,
+            dependent=dependent,
+            cache=cache,
+            formulas=formulas,
+            reactions_in=reactions_in,
+            reader=reader,
+            check=_check_at_start,
+        )
 
 
 def _check_at_start(derivation) -> None:
@@ -130,8 +157,11 @@ def derive_model(system, dependent=None, formulas: bool = False):
 
             derivation = derive(system, dependent=dependent)
             check_inertia_at_start(derivation)
-        if formulas and (_is_controlled(derivation) or formulas_unavailable(derivation.partition) is None
-                         and derivation.inertia.tree is None):
+        if formulas and (
+            _is_controlled(derivation)
+            or formulas_unavailable(derivation.partition) is None
+            and derivation.inertia.tree is None
+        ):
             derivation.reduced, derivation.reactions  # noqa: B018 (computed and cached here)
     return derivation
 
@@ -166,10 +196,12 @@ def check_inertia_at_start(derivation) -> None:
         return
     empty = [a.name for a, row in zip(reduced.independent, matrix.tolist()) if all(e == 0 for e in row)]
     if empty:
-        raise ModelError(f"the reduced mass matrix C^T M C of {system.name!r} has a zero row for "
-                         f"{', '.join(empty)}: that motion has no inertia in any state, so its acceleration is "
-                         "not determined",
-                         hint="give it inertia (a mass or a moment of inertia in the kinetic energy), or constrain it")
+        raise ModelError(
+            f"the reduced mass matrix C^T M C of {system.name!r} has a zero row for "
+            f"{', '.join(empty)}: that motion has no inertia in any state, so its acceleration is "
+            "not determined",
+            hint="give it inertia (a mass or a moment of inertia in the kinetic energy), or constrain it",
+        )
 
 
 def internal_stability(derivation, solution=None):

@@ -1,5 +1,4 @@
-"""``appell report``: one self-contained HTML page (:func:`report_model`).
-"""
+"""``appell report``: one self-contained HTML page (:func:`report_model`)."""
 
 from __future__ import annotations
 
@@ -13,8 +12,18 @@ from appell.workflows.simulate import run_simulation
 from appell.workflows.stability import stability_analysis
 
 
-def report_model(derivation, output=None, t_end=None, simulation: bool = True, data: bool = True,
-                 backend: str = "auto", solver=None, echo=None, expand: bool = False, **options) -> Path:
+def report_model(
+    derivation,
+    output=None,
+    t_end=None,
+    simulation: bool = True,
+    data: bool = True,
+    backend: str = "auto",
+    solver=None,
+    echo=None,
+    expand: bool = False,
+    **options,
+) -> Path:
     """``appell report``: the cross-check (with the C code compiled meanwhile), the simulation
     (:func:`run_simulation` with ``solver`` and ``options``) unless left out or impossible,
     the energy balance and the ``[stability]`` table, written as one HTML page (default
@@ -55,9 +64,19 @@ def report_model(derivation, output=None, t_end=None, simulation: bool = True, d
     if data_path is not None:
         output_target(data_path)
         write_csv(solution, data_path)
-    write_report(path, derivation, solution, check_report, simulation_note=note,
-                 integrals=first_integrals(derivation), internal=linearisation, energy=energy, stability=sweep,
-                 data_file=data_path.name if data_path is not None else None, expand=expand)
+    write_report(
+        path,
+        derivation,
+        solution,
+        check_report,
+        simulation_note=note,
+        integrals=first_integrals(derivation),
+        internal=linearisation,
+        energy=energy,
+        stability=sweep,
+        data_file=data_path.name if data_path is not None else None,
+        expand=expand,
+    )
     if data_path is not None:
         echo(f"wrote {data_path}")
     echo(f"wrote {path}")

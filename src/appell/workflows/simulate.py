@@ -13,7 +13,6 @@ from appell.errors import ComputationError, ModelError
 from appell.files import default_file_name, output_target
 from appell.workflows.load import _echo_redundancy, _is_controlled, _print, _warn_internal, internal_stability
 
-
 #: file suffix -> export format of ``appell simulate --out`` (:func:`export_solution`)
 OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"}
 
@@ -82,14 +81,17 @@ def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy
     solution = simulate(model, options=opts)
     if solution.status < 0:
         singular = [e for e in solution.events if e.kind == "singular"]
-        hint = ("try another integration method or tighter tolerances ([simulation] method, rtol, atol), "
-                "or a shorter --t-end")
+        hint = (
+            "try another integration method or tighter tolerances ([simulation] method, rtol, atol), "
+            "or a shorter --t-end"
+        )
         if singular:
-            hint = (f"end the run before it (--t-end below {singular[-1].t:.6g}) or change the geometry or the "
-                    "start so that the motion avoids this position: appell passes a singular position only where "
-                    "one branch continues the motion with continuous positions and velocities")
-        error = ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}",
-                                 hint=hint)
+            hint = (
+                f"end the run before it (--t-end below {singular[-1].t:.6g}) or change the geometry or the "
+                "start so that the motion avoids this position: appell passes a singular position only where "
+                "one branch continues the motion with continuous positions and velocities"
+            )
+        error = ComputationError(f"the simulation of {derivation.system.name!r} failed: {solution.message}", hint=hint)
         error.solution = solution  # the motion up to the failure, for the output files
         raise error
     return solution
@@ -119,8 +121,11 @@ def solver_line(solution) -> str:
     if settings.get("stabilization") in (None, "None"):
         settings["stabilization"] = "none"
     names = [k for k in ("rtol", "atol", "max_step", "stabilization") if k in settings]
-    return (f"solver: {settings.get('method', '?')}, " + ", ".join(f"{k} {settings[k]}" for k in names)
-            + f"; {stats.steps} steps, {stats.nfev} evaluations, {stats.projections} projections")
+    return (
+        f"solver: {settings.get('method', '?')}, "
+        + ", ".join(f"{k} {settings[k]}" for k in names)
+        + f"; {stats.steps} steps, {stats.nfev} evaluations, {stats.projections} projections"
+    )
 
 
 def export_solution(solution, path: Path) -> Path:
@@ -131,7 +136,6 @@ def export_solution(solution, path: Path) -> Path:
     :class:`~appell.errors.MissingDependencyError` naming the package, not an internal error.
     """
     from appell.errors import MissingDependencyError
-
     from appell.io.results import write_csv, write_hdf5, write_netcdf
 
     kind = OUTPUT_FORMATS[path.suffix.lower()]
@@ -139,9 +143,10 @@ def export_solution(solution, path: Path) -> Path:
         return {"csv": write_csv, "hdf5": write_hdf5, "netcdf": write_netcdf}[kind](solution, path)
     except ModuleNotFoundError as exc:
         package = (exc.name or "").split(".")[0] or str(exc)
-        raise MissingDependencyError(f"writing {path.suffix} files ({kind}) needs the package {package!r}, "
-                                     "which is not installed",
-                                     hint=f"install it with: pip install {package}, or write .csv") from None
+        raise MissingDependencyError(
+            f"writing {path.suffix} files ({kind}) needs the package {package!r}, which is not installed",
+            hint=f"install it with: pip install {package}, or write .csv",
+        ) from None
 
 
 def failed_path(path: Path) -> Path:
@@ -166,11 +171,12 @@ def keep_failed_motion(exc, out_path: Path | None, plot) -> Exception:
         target = failed_path(Path(plot))
         solution.plot(target)
         written.append(str(target))
-    kept = (f"the motion up to t = {solution.t[-1]:.10g}, where it failed, is in {' and '.join(written)}"
-            + (" (status -1 and the message in its attributes)" if out_path is not None
-               and OUTPUT_FORMATS[out_path.suffix.lower()] != "csv" else ""))
-    return ComputationError(exc.message, where=exc.where,
-                            hint="; ".join(h for h in (exc.hint, kept) if h))
+    kept = f"the motion up to t = {solution.t[-1]:.10g}, where it failed, is in {' and '.join(written)}" + (
+        " (status -1 and the message in its attributes)"
+        if out_path is not None and OUTPUT_FORMATS[out_path.suffix.lower()] != "csv"
+        else ""
+    )
+    return ComputationError(exc.message, where=exc.where, hint="; ".join(h for h in (exc.hint, kept) if h))
 
 
 def completion(complete: bool = False, adjust=()) -> dict:
@@ -211,8 +217,10 @@ def check_movie_writer(path: Path | None) -> None:
     from appell.errors import MissingDependencyError
 
     if not animation.writers.is_available("ffmpeg"):
-        raise MissingDependencyError("writing an MP4 video needs ffmpeg, which is not installed",
-                                     hint="install ffmpeg (Debian: apt-get install ffmpeg), or write a .gif or .html")
+        raise MissingDependencyError(
+            "writing an MP4 video needs ffmpeg, which is not installed",
+            hint="install ffmpeg (Debian: apt-get install ffmpeg), or write a .gif or .html",
+        )
 
 
 def save_motion(derivation, solution, path=None, fps: int = 25, frames: int = 300, echo=None) -> Path:
@@ -234,8 +242,9 @@ def save_motion(derivation, solution, path=None, fps: int = 25, frames: int = 30
         from appell.io.progress import is_terminal
 
         count = min(len(motion.scene["t"]), frames)
-        with tqdm(total=count, desc="appell: frames", unit="frame", disable=not is_terminal(sys.stderr),
-                  leave=False) as bar:
+        with tqdm(
+            total=count, desc="appell: frames", unit="frame", disable=not is_terminal(sys.stderr), leave=False
+        ) as bar:
             motion.save(path, fps=fps, max_frames=frames, progress=bar.update)
     else:
         motion.save(path)

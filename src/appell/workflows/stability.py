@@ -34,8 +34,9 @@ def stability_analysis(derivation, spec=None, free=(), ignore=()):
     name, values = parse_spec(spec)
     name = canonical_name(name)
     ignored = "cyclic" if ignore == ("cyclic",) else tuple(canonical_name(i) for i in ignore) or None
-    return stability_sweep(derivation, name, values, free=tuple(canonical_name(f) for f in free),
-                           ignore=ignored, progress=None)
+    return stability_sweep(
+        derivation, name, values, free=tuple(canonical_name(f) for f in free), ignore=ignored, progress=None
+    )
 
 
 def write_stability(result, path: Path) -> None:
@@ -49,18 +50,34 @@ def write_stability(result, path: Path) -> None:
     if kind == ".nc":
         data = result.to_xarray().to_netcdf(engine="h5netcdf")
     elif kind == ".json":
-        data = json.dumps({
-            "name": result.name, "values": result.values.tolist(), "states": list(result.states),
-            "modes": list(result.names), "real": result.eigenvalues.real.tolist(),
-            "imag": result.eigenvalues.imag.tolist(),
-            "crossings": [{"mode": c.mode, "value": c.value, "imag": c.imag, "kind": c.kind,
-                           "becomes": "unstable" if c.direction > 0 else "stable"} for c in result.crossings],
-        }, indent=1).encode()
+        data = json.dumps(
+            {
+                "name": result.name,
+                "values": result.values.tolist(),
+                "states": list(result.states),
+                "modes": list(result.names),
+                "real": result.eigenvalues.real.tolist(),
+                "imag": result.eigenvalues.imag.tolist(),
+                "crossings": [
+                    {
+                        "mode": c.mode,
+                        "value": c.value,
+                        "imag": c.imag,
+                        "kind": c.kind,
+                        "becomes": "unstable" if c.direction > 0 else "stable",
+                    }
+                    for c in result.crossings
+                ],
+            },
+            indent=1,
+        ).encode()
     else:
         m = result.eigenvalues.shape[1]
         head = ",".join([result.name] + [f"real_{j},imag_{j}" for j in range(m)])
-        rows = [",".join([repr(float(v))] + [f"{float(e.real)!r},{float(e.imag)!r}" for e in row])
-                for v, row in zip(result.values, result.eigenvalues)]
+        rows = [
+            ",".join([repr(float(v))] + [f"{float(e.real)!r},{float(e.imag)!r}" for e in row])
+            for v, row in zip(result.values, result.eigenvalues)
+        ]
         data = ("\n".join([head] + rows) + "\n").encode()
     with atomic_path(path) as tmp:
         write_bytes(tmp, data)

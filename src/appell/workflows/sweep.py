@@ -13,8 +13,21 @@ from appell.workflows.load import _print
 from appell.workflows.simulate import command_options
 
 
-def sweep_model(system, specs, t_end=None, out=None, *, scheduler=None, workers=None, worker_timeout: float = 60.0,
-                resume: bool = False, backend: str = "auto", solver=None, progress: bool | None = None, echo=None):
+def sweep_model(
+    system,
+    specs,
+    t_end=None,
+    out=None,
+    *,
+    scheduler=None,
+    workers=None,
+    worker_timeout: float = 60.0,
+    resume: bool = False,
+    backend: str = "auto",
+    solver=None,
+    progress: bool | None = None,
+    echo=None,
+):
     """``appell sweep``: :func:`appell.simulation.sweep.sweep` of ``system`` over the grid of
     ``specs`` with the model's ``[simulation]`` settings and the command's ``solver`` options
     (:func:`command_options`), written to ``out`` (default ``<model name>-sweep.h5``); the
@@ -24,8 +37,10 @@ def sweep_model(system, specs, t_end=None, out=None, *, scheduler=None, workers=
 
     echo = echo or _print
     if system.servo_constraints:
-        raise ModelError("sweeps of models with servo constraints are not supported yet",
-                         hint="sweep the plain constrained system, or loop over appell simulate --set")
+        raise ModelError(
+            "sweeps of models with servo constraints are not supported yet",
+            hint="sweep the plain constrained system, or loop over appell simulate --set",
+        )
     parameter_grid(specs)  # bad specs are bad input, before a cluster starts
     opts = command_options(system, t_end, **(solver or {}))
     if opts.complete:  # missing values are computed; a run whose given values violate a constraint fails
@@ -33,15 +48,31 @@ def sweep_model(system, specs, t_end=None, out=None, *, scheduler=None, workers=
     path = Path(out) if out else default_file_name(system.name, "-sweep.h5")
     output_target(path)
     progress = sys.stderr.isatty() if progress is None else progress
-    result = sweep(system, list(specs), opts.t_end, output=path, t_eval=opts.output_times(), scheduler=scheduler,
-                   n_workers=workers, backend=backend, progress=progress, worker_timeout=worker_timeout,
-                   resume=resume, **opts.changes(but=("t_end", "t_eval")))
+    result = sweep(
+        system,
+        list(specs),
+        opts.t_end,
+        output=path,
+        t_eval=opts.output_times(),
+        scheduler=scheduler,
+        n_workers=workers,
+        backend=backend,
+        progress=progress,
+        worker_timeout=worker_timeout,
+        resume=resume,
+        **opts.changes(but=("t_end", "t_eval")),
+    )
     echo(result.summary_text())
     if result.failed:
-        which = ("every run" if len(result.failed) == len(result.runs)
-                 else f"{len(result.failed)} of {len(result.runs)} runs")
-        raise ComputationError(f"{which} of the sweep failed (listed above); the summary uses the successful runs only",
-                               hint="the dataset records every run with its status and message")
+        which = (
+            "every run"
+            if len(result.failed) == len(result.runs)
+            else f"{len(result.failed)} of {len(result.runs)} runs"
+        )
+        raise ComputationError(
+            f"{which} of the sweep failed (listed above); the summary uses the successful runs only",
+            hint="the dataset records every run with its status and message",
+        )
     return result
 
 
@@ -55,8 +86,10 @@ def keep_cluster(workers=None, host: str = "127.0.0.1", port: int = 8786, echo=N
     echo = echo or _print
     with sweep_cluster(workers, host=host, port=port) as client:
         address = client.scheduler.address
-        echo(f"Dask scheduler at {address} with {len(client.scheduler_info()['workers'])} worker(s); "
-             f"run sweeps with: appell sweep MODEL --param ... --scheduler {address}; Ctrl-C stops it")
+        echo(
+            f"Dask scheduler at {address} with {len(client.scheduler_info()['workers'])} worker(s); "
+            f"run sweeps with: appell sweep MODEL --param ... --scheduler {address}; Ctrl-C stops it"
+        )
         sys.stdout.flush()
         try:
             while True:

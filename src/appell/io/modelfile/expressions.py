@@ -140,7 +140,7 @@ def caret_line(text: str, column: int) -> str:
     line = text[start:end]
     if len(line) > 120:  # keep the caret readable on very long lines
         lo = max(0, column - 1 - start - 60)
-        line = ("..." if lo else "") + line[lo:lo + 120]
+        line = ("..." if lo else "") + line[lo : lo + 120]
         pad = column - 1 - start - lo + (3 if lo else 0)
     else:
         pad = column - 1 - start
@@ -189,7 +189,9 @@ def _tokenize(text: str) -> list[_Token]:
         if ch in " \t\r\n":
             i += 1
             continue
-        if ch.isascii() and (ch.isdigit() or (ch == "." and i + 1 < n and text[i + 1].isascii() and text[i + 1].isdigit())):
+        if ch.isascii() and (
+            ch.isdigit() or (ch == "." and i + 1 < n and text[i + 1].isascii() and text[i + 1].isdigit())
+        ):
             j = i
             while j < n and text[j].isascii() and text[j].isdigit():
                 j += 1
@@ -207,10 +209,13 @@ def _tokenize(text: str) -> list[_Token]:
                     j = k
             if j < n and (text[j].isascii() and (text[j].isalpha() or text[j] == "_")):
                 raise ExpressionError(
-                    f"malformed number {text[i:j + 1]!r}; separate a number from a name with '*' (write 2*x)",
-                    text, col, text[i:j + 1])
+                    f"malformed number {text[i : j + 1]!r}; separate a number from a name with '*' (write 2*x)",
+                    text,
+                    col,
+                    text[i : j + 1],
+                )
             if j < n and text[j] == ".":
-                raise ExpressionError(f"malformed number {text[i:j + 1]!r}", text, col, text[i:j + 1])
+                raise ExpressionError(f"malformed number {text[i : j + 1]!r}", text, col, text[i : j + 1])
             if j - i > MAX_LITERAL:
                 raise ExpressionError(f"number literal longer than {MAX_LITERAL} characters", text, col, text[i:j])
             tokens.append(_Token("NUMBER", text[i:j], col))
@@ -223,11 +228,16 @@ def _tokenize(text: str) -> list[_Token]:
             name = text[i:j]
             if "__" in name or name.startswith("_"):
                 raise ExpressionError(
-                    f"name {name!r} is not allowed: names start with a letter and contain no '__'", text, col, name)
+                    f"name {name!r} is not allowed: names start with a letter and contain no '__'", text, col, name
+                )
             if keyword.iskeyword(name):
                 raise ExpressionError(
                     f"{name!r} is a Python keyword; expressions contain only numbers, names, "
-                    "operators and function calls", text, col, name)
+                    "operators and function calls",
+                    text,
+                    col,
+                    name,
+                )
             if len(name) > MAX_NAME:
                 raise ExpressionError(f"name longer than {MAX_NAME} characters", text, col, name[:20] + "...")
             primes = 0
@@ -235,8 +245,7 @@ def _tokenize(text: str) -> list[_Token]:
                 primes += 1
                 j += 1
             if j < n and text[j] == ".":
-                raise ExpressionError(
-                    f"attribute access ('.' after {name!r}) is not allowed", text, j + 1, ".")
+                raise ExpressionError(f"attribute access ('.' after {name!r}) is not allowed", text, j + 1, ".")
             tokens.append(_Token("NAME", name, col, primes))
             i = j
             continue
@@ -253,18 +262,28 @@ def _tokenize(text: str) -> list[_Token]:
         if ch == "'" and tokens and tokens[-1].text == ")":
             raise ExpressionError(
                 "a prime (') can follow a name only; write the derivative of a sum term by term "
-                "(x' + y', not (x + y)')", text, col, ch)
+                "(x' + y', not (x + y)')",
+                text,
+                col,
+                ch,
+            )
         if ch == "'":
             raise ExpressionError(
                 "a prime (') must follow a name directly, as in x' or x''; "
-                "strings are not part of the expression syntax", text, col, ch)
+                "strings are not part of the expression syntax",
+                text,
+                col,
+                ch,
+            )
         if ch == ".":
-            raise ExpressionError("'.' is allowed only inside numbers; attribute access is not allowed",
-                                  text, col, ch)
+            raise ExpressionError("'.' is allowed only inside numbers; attribute access is not allowed", text, col, ch)
         hint = _HINTS.get(ch)
         if hint is None:
-            hint = ("only ASCII letters, digits, spaces and + - * / ^ ( ) , ' = are allowed"
-                    if ch.isprintable() else "non-printable character")
+            hint = (
+                "only ASCII letters, digits, spaces and + - * / ^ ( ) , ' = are allowed"
+                if ch.isprintable()
+                else "non-printable character"
+            )
         raise ExpressionError(f"character {ch!r} is not allowed: {hint}", text, col, ch)
     tokens.append(_Token("END", "", n + 1))
     return tokens
@@ -279,10 +298,18 @@ def _check_number(x, text: str, tok: _Token):
     if isinstance(x, sp.Rational) and _bits(x) > MAX_NUMBER_BITS:
         raise ExpressionError(
             f"a number in this expression exceeds {MAX_NUMBER_BITS} bits (about 1000 digits); "
-            "rescale the model's units", text, tok.column, tok.text)
+            "rescale the model's units",
+            text,
+            tok.column,
+            tok.text,
+        )
     if isinstance(x, sp.Float) and not math.isfinite(float(x)):
-        raise ExpressionError("a number in this expression is outside the floating-point range; "
-                              "rescale the model's units", text, tok.column, tok.text)
+        raise ExpressionError(
+            "a number in this expression is outside the floating-point range; rescale the model's units",
+            text,
+            tok.column,
+            tok.text,
+        )
 
 
 def _check_result(expr, text: str, tok: _Token):
@@ -296,7 +323,11 @@ def _check_result(expr, text: str, tok: _Token):
             if isinstance(e, sp.Number) and abs(e) > MAX_EXPONENT:
                 raise ExpressionError(
                     f"the expression builds a power with exponent {_short(e)}; "
-                    f"exponents are limited to {MAX_EXPONENT} in magnitude", text, tok.column, tok.text)
+                    f"exponents are limited to {MAX_EXPONENT} in magnitude",
+                    text,
+                    tok.column,
+                    tok.text,
+                )
         elif isinstance(node, sp.Mul):
             c = node.args[0]
             if isinstance(c, sp.Number):
@@ -316,21 +347,38 @@ def _power(base, exponent, text: str, tok: _Token):
         if abs(exponent) > MAX_EXPONENT:
             raise ExpressionError(
                 f"exponent {_short(exponent)} is too large; exponents are limited to {MAX_EXPONENT} in magnitude",
-                text, tok.column, tok.text)
+                text,
+                tok.column,
+                tok.text,
+            )
         coeff = base.as_coeff_Mul()[0] if isinstance(base, sp.Mul) else base
         if isinstance(coeff, sp.Rational) and _bits(coeff) * abs(float(exponent)) > MAX_NUMBER_BITS:
             raise ExpressionError(
                 f"the power gives a number of more than {MAX_NUMBER_BITS} bits (about 1000 digits); "
-                "rescale the model's units", text, tok.column, tok.text)
-        if isinstance(exponent, sp.Rational) and not exponent.is_Integer and isinstance(coeff, sp.Rational) \
-                and _bits(coeff) > MAX_ROOT_BITS:  # SymPy factors the radicand: keep it small
+                "rescale the model's units",
+                text,
+                tok.column,
+                tok.text,
+            )
+        if (
+            isinstance(exponent, sp.Rational)
+            and not exponent.is_Integer
+            and isinstance(coeff, sp.Rational)
+            and _bits(coeff) > MAX_ROOT_BITS
+        ):  # SymPy factors the radicand: keep it small
             raise ExpressionError(
                 f"roots of numbers beyond {MAX_ROOT_BITS} bits (about 150 digits) are not supported; "
-                "rescale the model's units", text, tok.column, tok.text)
-        if isinstance(base, sp.Pow) and isinstance(base.exp, sp.Number) \
-                and abs(float(base.exp) * float(exponent)) > MAX_EXPONENT:
-            raise ExpressionError(
-                f"the power gives an exponent beyond {MAX_EXPONENT}", text, tok.column, tok.text)
+                "rescale the model's units",
+                text,
+                tok.column,
+                tok.text,
+            )
+        if (
+            isinstance(base, sp.Pow)
+            and isinstance(base.exp, sp.Number)
+            and abs(float(base.exp) * float(exponent)) > MAX_EXPONENT
+        ):
+            raise ExpressionError(f"the power gives an exponent beyond {MAX_EXPONENT}", text, tok.column, tok.text)
     result = sp.Pow(base, exponent)
     _check_result(result, text, tok)
     return result
@@ -533,7 +581,11 @@ def parse_expression(text: str, *, allow_equation: bool = False) -> sp.Expr:
     if len(text) > MAX_LENGTH:
         raise ExpressionError(
             f"the expression has {len(text)} characters; at most {MAX_LENGTH} are allowed "
-            "(split it using parameters or several terms)", text[:200], 1, text[:10])
+            "(split it using parameters or several terms)",
+            text[:200],
+            1,
+            text[:10],
+        )
     if not text.strip():
         raise ExpressionError("the expression is empty", text, 1)
     parser = _Parser(text, allow_equation)
@@ -545,21 +597,39 @@ def parse_expression(text: str, *, allow_equation: bool = False) -> sp.Expr:
         raise ExpressionError(f"the expression is nested too deeply (limit {MAX_DEPTH})", text, 1) from None
     except Exception as exc:  # SymPy refused to build a node (e.g. max() of a complex number)
         tok = parser.tokens[min(parser.pos, len(parser.tokens) - 1)]
-        message = str(exc) if isinstance(exc, _NotReal) else \
-            f"SymPy cannot build this expression: {type(exc).__name__}: {exc}"
+        message = (
+            str(exc)
+            if isinstance(exc, _NotReal)
+            else f"SymPy cannot build this expression: {type(exc).__name__}: {exc}"
+        )
         raise ExpressionError(message, text, tok.column, tok.text) from None
     if expr.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
         raise ExpressionError(
             f"the expression is infinite or undefined ({_short(expr)}); check for a division by zero",
-            text, 1, text[:10])
+            text,
+            1,
+            text[:10],
+        )
     return expr
 
 
 _FLOAT_FUNCTIONS = {
-    sp.sin: math.sin, sp.cos: math.cos, sp.tan: math.tan, sp.asin: math.asin, sp.acos: math.acos,
-    sp.atan: math.atan, sp.atan2: math.atan2, sp.sinh: math.sinh, sp.cosh: math.cosh, sp.tanh: math.tanh,
-    sp.exp: math.exp, sp.log: math.log, sp.Abs: abs, sp.sign: lambda x: float(x > 0) - float(x < 0),
-    sp.Min: min, sp.Max: max,
+    sp.sin: math.sin,
+    sp.cos: math.cos,
+    sp.tan: math.tan,
+    sp.asin: math.asin,
+    sp.acos: math.acos,
+    sp.atan: math.atan,
+    sp.atan2: math.atan2,
+    sp.sinh: math.sinh,
+    sp.cosh: math.cosh,
+    sp.tanh: math.tanh,
+    sp.exp: math.exp,
+    sp.log: math.log,
+    sp.Abs: abs,
+    sp.sign: lambda x: float(x > 0) - float(x < 0),
+    sp.Min: min,
+    sp.Max: max,
 }
 
 

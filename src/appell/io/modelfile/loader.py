@@ -16,12 +16,13 @@ from __future__ import annotations
 import math
 import re
 import tomllib
+from collections.abc import Mapping
 from os import PathLike
 from pathlib import Path
-from typing import Mapping
 
 import sympy as sp
 
+from appell.core.validation import validate
 from appell.errors import ModelError
 from appell.model import (
     Program,
@@ -30,13 +31,32 @@ from appell.model import (
     name_clash,
 )
 from appell.symbols import canonical_name, derivative_name
-from appell.core.validation import validate
-from .repeat import expand as expand_repeats
-from .view_table import read_view
+
 from .reader import _Reader
-from .tables import (CONSTRAINT_KINDS, SIMULATION_KEYS, TABLES, _check_controls, _check_declared, _constraints,
-                     _controls, _initial, _outputs, _simulation, _stability, _units, _model, _parameters,
-                     _named_expressions, _mechanics, _bodies, _loads, _first_integrals, _frictions)
+from .repeat import expand as expand_repeats
+from .tables import (
+    CONSTRAINT_KINDS,
+    SIMULATION_KEYS,
+    TABLES,
+    _bodies,
+    _check_controls,
+    _check_declared,
+    _constraints,
+    _controls,
+    _first_integrals,
+    _frictions,
+    _initial,
+    _loads,
+    _mechanics,
+    _model,
+    _named_expressions,
+    _outputs,
+    _parameters,
+    _simulation,
+    _stability,
+    _units,
+)
+from .view_table import read_view
 
 __all__ = ["load_model", "loads_model", "TABLES", "SIMULATION_KEYS", "CONSTRAINT_KINDS", "MAX_FILE_SIZE"]
 
@@ -63,8 +83,15 @@ def _build_mechanism(r: _Reader, doc: dict, reactions_in: str | None = None) -> 
     servo = _constraints(r, top, "servo_constraints")
     _check_controls(r, controls, servo)
     try:
-        system = mech.system(reactions=reactions, frame=frame, energy=energy, constraints=tuple(extra) + tuple(constraints),
-                             controls=tuple(controls), servo_constraints=tuple(servo), reactions_in=reactions_in)
+        system = mech.system(
+            reactions=reactions,
+            frame=frame,
+            energy=energy,
+            constraints=tuple(extra) + tuple(constraints),
+            controls=tuple(controls),
+            servo_constraints=tuple(servo),
+            reactions_in=reactions_in,
+        )
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.where(("mechanism",)), hint=exc.hint) from None
     states = [s.name for s in system.coordinates + system.speeds]
@@ -74,13 +101,27 @@ def _build_mechanism(r: _Reader, doc: dict, reactions_in: str | None = None) -> 
     initial = {**system.initial_definitions, **given}
     guesses = tuple(n for n in system.initial_guesses if n not in given)
     settings = _simulation(r, top, [c.name for c in system.constraints]) + _stability(r, top, system)
-    units = {**dict(system.units), **dict(_units(r, top, allowed + [c.name for c in system.constraints + system.servo_constraints]
-                                                  + [c.name for c in system.controls]))}
+    units = {
+        **dict(system.units),
+        **dict(
+            _units(
+                r,
+                top,
+                allowed
+                + [c.name for c in system.constraints + system.servo_constraints]
+                + [c.name for c in system.controls],
+            )
+        ),
+    }
     model = top.get("model", {})
     try:
-        system = system.replace(initial=tuple(initial.items()), initial_guesses=guesses, settings=settings,
-                                units=tuple(units.items()),
-                                description=r.string(("model", "description"), model.get("description", system.description)))
+        system = system.replace(
+            initial=tuple(initial.items()),
+            initial_guesses=guesses,
+            settings=settings,
+            units=tuple(units.items()),
+            description=r.string(("model", "description"), model.get("description", system.description)),
+        )
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or r.source, hint=exc.hint) from None
     return _validated(r, _outputs(r, top, system))
@@ -101,8 +142,11 @@ def _build(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
     if isinstance(doc, dict) and "mechanism" in doc:
         return _build_mechanism(r, doc, reactions_in)
     if reactions_in is not None:
-        raise ModelError("reactions_in applies to a model file with a [mechanism] table", where=r.source,
-                         hint="the joint reactions of a [mechanism] are read along the axes it names")
+        raise ModelError(
+            "reactions_in applies to a model file with a [mechanism] table",
+            where=r.source,
+            hint="the joint reactions of a [mechanism] are read along the axes it names",
+        )
     top = r.table((), doc, tuple(TABLES))
     name, description, coordinates, speeds = _model(r, top)
     parameters = _parameters(r, top)
@@ -119,38 +163,56 @@ def _build(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
     declared: dict[str, str] = {}
     for key, what, path in declarations:
         if key in declared:
-            raise r.error(path, f"{key!r} is declared twice (as {declared[key]} and as {what})",
-                          hint="every name must be declared once")
+            raise r.error(
+                path,
+                f"{key!r} is declared twice (as {declared[key]} and as {what})",
+                hint="every name must be declared once",
+            )
         declared[key] = what
 
     default_speeds = [derivative_name(q, 1) for q in coordinates]
     speed_names = speeds if speeds is not None else default_speeds
-    kinds = declared_kinds([(q, "coordinate") for q in coordinates] + [(w, "speed") for w in speed_names]
-                           + [(key, what) for key, what, _ in declarations[len(coordinates) + len(speeds or ()):]])
+    kinds = declared_kinds(
+        [(q, "coordinate") for q in coordinates]
+        + [(w, "speed") for w in speed_names]
+        + [(key, what) for key, what, _ in declarations[len(coordinates) + len(speeds or ()) :]]
+    )
     for key, what, path in declarations:
         clash = name_clash(key, what, kinds)
         if clash:
-            raise r.error(path, clash, hint="choose another name: derivative names (x_dot, x_ddot, x_d3, ...) "
-                                            "of coordinates, speeds, programs and controls are reserved")
+            raise r.error(
+                path,
+                clash,
+                hint="choose another name: derivative names (x_dot, x_ddot, x_d3, ...) "
+                "of coordinates, speeds, programs and controls are reserved",
+            )
     kinematics = None
     if "kinematics" in top:
         pairs = _named_expressions(r, top, "kinematics", "state", "coordinate")
         for key, _ in pairs:
             if key not in coordinates:
-                raise r.error(("kinematics", key), f"{key!r} is not a coordinate",
-                              hint=f"coordinates: {', '.join(coordinates)}")
+                raise r.error(
+                    ("kinematics", key), f"{key!r} is not a coordinate", hint=f"coordinates: {', '.join(coordinates)}"
+                )
         missing = [q for q in coordinates if q not in dict(pairs)]
         if missing:
-            raise r.error(("kinematics",), f"no kinematic relation for {', '.join(missing)}",
-                          hint="give dq/dt for every coordinate, e.g. x = \"vx\"")
+            raise r.error(
+                ("kinematics",),
+                f"no kinematic relation for {', '.join(missing)}",
+                hint='give dq/dt for every coordinate, e.g. x = "vx"',
+            )
         kinematics = tuple((sp.Symbol(q), dict(pairs)[q]) for q in coordinates)
     elif speeds is not None and speeds != default_speeds:
-        raise r.error(("model", "speeds"), "speeds differ from the coordinates' derivatives but there is "
-                      "no [kinematics] table", hint="add [kinematics] with dq/dt in terms of the speeds, e.g. x = \"vx\"")
+        raise r.error(
+            ("model", "speeds"),
+            "speeds differ from the coordinates' derivatives but there is no [kinematics] table",
+            hint='add [kinematics] with dq/dt in terms of the speeds, e.g. x = "vx"',
+        )
 
     kinematic_controls = [c.name for c in controls if c.kind == "kinematic"]
-    allowed_initial = list(coordinates) + list(speed_names) + [
-        n for c in kinematic_controls for n in (c, derivative_name(c, 1))]
+    allowed_initial = (
+        list(coordinates) + list(speed_names) + [n for c in kinematic_controls for n in (c, derivative_name(c, 1))]
+    )
     initial = _initial(r, top, allowed_initial, list(coordinates) + kinematic_controls, parameters)
     mechanics = _mechanics(r, top, len(speed_names))
     bodies = _bodies(r, top)
@@ -164,13 +226,19 @@ def _build(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
     units = _units(r, top, allowed_initial + [c.name for c in constraints] + [c.name for c in controls])
 
     if not bodies and "kinetic_energy" not in mechanics and "acceleration_energy" not in mechanics:
-        raise r.error(("mechanics",), "the model has no mechanics",
-                      hint="give [mechanics] kinetic_energy or acceleration_energy, or [[bodies]]")
+        raise r.error(
+            ("mechanics",),
+            "the model has no mechanics",
+            hint="give [mechanics] kinetic_energy or acceleration_energy, or [[bodies]]",
+        )
     names = [c.name for c in constraints + servo]
     for c in servo:
         if names.count(c.name) > 1:
-            raise r.error(("servo_constraints", c.name), f"constraint name {c.name!r} is used twice",
-                          hint="constraints and servo constraints share one namespace")
+            raise r.error(
+                ("servo_constraints", c.name),
+                f"constraint name {c.name!r} is used twice",
+                hint="constraints and servo constraints share one namespace",
+            )
     try:
         system = System(
             coordinates=tuple(sp.Symbol(q) for q in coordinates),
@@ -210,7 +278,8 @@ def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
         return system
     parameters = {p.symbol.name for p in system.parameters}
     state = [s.name for s in system.coordinates + system.speeds] + [
-        n for c in system.controls if c.kind == "kinematic" for n in (c.name, derivative_name(c.name, 1))]
+        n for c in system.controls if c.kind == "kinematic" for n in (c.name, derivative_name(c.name, 1))
+    ]
     new_parameters: dict[str, float] = {}
     initial = system.initial_definitions  # initial expressions are evaluated again below
     overrides_named = set()
@@ -229,19 +298,23 @@ def _apply_overrides(system: System, overrides: Mapping, source: str) -> System:
             initial[name] = number
         else:
             raise ModelError(
-                f"override {key!r}: not a parameter, coordinate or speed of {system.name!r}", where=source,
-                hint=f"parameters: {', '.join(sorted(parameters)) or '(none)'}; "
-                     f"initial values: {', '.join(state)}")
+                f"override {key!r}: not a parameter, coordinate or speed of {system.name!r}",
+                where=source,
+                hint=f"parameters: {', '.join(sorted(parameters)) or '(none)'}; initial values: {', '.join(state)}",
+            )
     try:  # a value set here is given, no longer a starting guess
-        system = system.replace(initial=tuple(initial.items()),
-                                initial_guesses=tuple(n for n in system.initial_guesses if n not in overrides_named))
+        system = system.replace(
+            initial=tuple(initial.items()),
+            initial_guesses=tuple(n for n in system.initial_guesses if n not in overrides_named),
+        )
         return system.with_parameters(new_parameters) if new_parameters else system
     except ModelError as exc:
         raise ModelError(exc.message, where=exc.where or source, hint=exc.hint) from None
 
 
-def loads_model(text: str, source: str = "<string>", overrides: Mapping | None = None, *,
-                reactions_in: str | None = None) -> System:
+def loads_model(
+    text: str, source: str = "<string>", overrides: Mapping | None = None, *, reactions_in: str | None = None
+) -> System:
     """Build a :class:`System` from the text of a model file (TOML, docs/model-format.md).
 
     ``source`` names the text in error messages (``"<source>:<line>"``). ``overrides``
@@ -255,7 +328,7 @@ def loads_model(text: str, source: str = "<string>", overrides: Mapping | None =
     if len(text) > MAX_FILE_SIZE:
         raise ModelError(f"the model has {len(text)} characters; at most {MAX_FILE_SIZE} are read", where=source)
     if text.startswith(BOM):  # editors on Windows start UTF-8 files with a byte-order mark
-        text = text[len(BOM):]
+        text = text[len(BOM) :]
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -264,8 +337,11 @@ def loads_model(text: str, source: str = "<string>", overrides: Mapping | None =
         message = _TOML_POSITION.sub("", str(exc)).strip()
         if m:
             message += f" (column {m.group(2)})"
-        raise ModelError(f"invalid TOML: {message}", where=where,
-                         hint="check quotes, brackets and '=' on this line (https://toml.io)") from None
+        raise ModelError(
+            f"invalid TOML: {message}",
+            where=where,
+            hint="check quotes, brackets and '=' on this line (https://toml.io)",
+        ) from None
     except RecursionError:
         raise ModelError("invalid TOML: arrays or tables nested too deeply", where=source) from None
     except ValueError as exc:  # tomllib reports some invalid values (dates) this way
@@ -277,8 +353,14 @@ def loads_model(text: str, source: str = "<string>", overrides: Mapping | None =
     return _apply_overrides(system, overrides, source)
 
 
-def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floating_base: bool = False,
-               reactions_in: str | None = None, reader: Mapping | None = None) -> System:
+def load_model(
+    path: str | PathLike,
+    overrides: Mapping | None = None,
+    *,
+    floating_base: bool = False,
+    reactions_in: str | None = None,
+    reader: Mapping | None = None,
+) -> System:
     """Read a model file (TOML, docs/model-format.md) into a :class:`System`.
 
     ``overrides`` ``{name: value}`` replaces parameter values or initial values (as
@@ -302,46 +384,71 @@ def load_model(path: str | PathLike, overrides: Mapping | None = None, *, floati
         if path.name in list_examples() or path.name in list_benchmarks():
             path = example_path(path.name)
         else:
-            raise ModelError(f"{path}: no such model file, nor a bundled example",
-                             hint="give the path of a model file (.toml), or a bundled example: "
-                                  + ", ".join(list_examples()) + "; or a benchmark: " + ", ".join(list_benchmarks()))
+            raise ModelError(
+                f"{path}: no such model file, nor a bundled example",
+                hint="give the path of a model file (.toml), or a bundled example: "
+                + ", ".join(list_examples())
+                + "; or a benchmark: "
+                + ", ".join(list_benchmarks()),
+            )
     from appell.mechanism.formats import importer_for
 
     importer = importer_for(path)  # a robot description, a MuJoCo model: appell.mechanism.formats
     if importer is not None:
         if floating_base and not importer.floating_base:
-            raise ModelError(f"--floating-base (floating_base=True) does not apply to {importer.what} "
-                             f"({importer.name}), which gives its free joints itself", where=str(path))
+            raise ModelError(
+                f"--floating-base (floating_base=True) does not apply to {importer.what} "
+                f"({importer.name}), which gives its free joints itself",
+                where=str(path),
+            )
         if reactions_in not in (None, "world", "ground"):
-            raise ModelError(f"reactions_in={reactions_in!r} does not apply to {importer.what} ({importer.name}), "
-                             "whose reactions are along the world axes", where=str(path),
-                             hint="read the robot from a model file (urdf = \"...\" in [mechanism]) to choose the axes")
+            raise ModelError(
+                f"reactions_in={reactions_in!r} does not apply to {importer.what} ({importer.name}), "
+                "whose reactions are along the world axes",
+                where=str(path),
+                hint='read the robot from a model file (urdf = "..." in [mechanism]) to choose the axes',
+            )
         if reader and not importer.options:
-            raise ModelError(f"reader options ({', '.join(map(str, reader))}) do not apply to {importer.what} "
-                             f"({importer.name})", where=str(path), hint="--mjcf applies to a MuJoCo model (.xml)")
+            raise ModelError(
+                f"reader options ({', '.join(map(str, reader))}) do not apply to {importer.what} ({importer.name})",
+                where=str(path),
+                hint="--mjcf applies to a MuJoCo model (.xml)",
+            )
         unknown = sorted(str(k) for k in dict(reader or {}) if str(k) not in importer.options)
         if unknown:
-            raise ModelError(f"unknown reader option(s) {', '.join(unknown)} of {importer.what} ({importer.name})",
-                             where=str(path), hint="options: " + ", ".join(importer.options))
-        return _apply_overrides(importer.system(path, floating_base, **{str(k): str(v) for k, v in
-                                                                        dict(reader or {}).items()}),
-                                overrides, str(path))
+            raise ModelError(
+                f"unknown reader option(s) {', '.join(unknown)} of {importer.what} ({importer.name})",
+                where=str(path),
+                hint="options: " + ", ".join(importer.options),
+            )
+        return _apply_overrides(
+            importer.system(path, floating_base, **{str(k): str(v) for k, v in dict(reader or {}).items()}),
+            overrides,
+            str(path),
+        )
     if reader:
-        raise ModelError(f"reader options ({', '.join(map(str, reader))}) apply to a MuJoCo model (.xml), not to "
-                         "a model file", where=str(path))
+        raise ModelError(
+            f"reader options ({', '.join(map(str, reader))}) apply to a MuJoCo model (.xml), not to a model file",
+            where=str(path),
+        )
     if floating_base:
-        raise ModelError("--floating-base (floating_base=True) applies to a .urdf robot", where=str(path),
-                         hint="in a model file that reads a URDF, write floating_base = true in [mechanism]")
+        raise ModelError(
+            "--floating-base (floating_base=True) applies to a .urdf robot",
+            where=str(path),
+            hint="in a model file that reads a URDF, write floating_base = true in [mechanism]",
+        )
     try:
         raw = path.read_bytes()
     except OSError as exc:
         raise ModelError(f"cannot read the model file: {exc.strerror or exc}", where=str(path)) from None
     if len(raw) > 4 * MAX_FILE_SIZE:
-        raise ModelError(f"the model file has {len(raw)} bytes; at most {MAX_FILE_SIZE} characters are read",
-                         where=str(path))
+        raise ModelError(
+            f"the model file has {len(raw)} bytes; at most {MAX_FILE_SIZE} characters are read", where=str(path)
+        )
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise ModelError(f"the model file is not UTF-8 text ({exc.reason} at byte {exc.start})",
-                         where=str(path)) from None
+        raise ModelError(
+            f"the model file is not UTF-8 text ({exc.reason} at byte {exc.start})", where=str(path)
+        ) from None
     return loads_model(text, source=str(path), overrides=overrides, reactions_in=reactions_in)

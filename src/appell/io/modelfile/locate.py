@@ -85,7 +85,7 @@ class _Scanner:
                 start = self.i
                 while self.peek() in _BARE and self.peek():
                     self.i += 1
-                parts.append(self.s[start:self.i])
+                parts.append(self.s[start : self.i])
             self.skip_space(False)
             if self.peek() == ".":
                 self.advance()
@@ -110,7 +110,7 @@ class _Scanner:
             raise ValueError("nested too deeply")
         if c in ('"', "'"):
             line = self.line
-            if self.s.startswith(c * 3, self.i) and self.s[self.i + 3:self.i + 5].lstrip("\r")[:1] == "\n":
+            if self.s.startswith(c * 3, self.i) and self.s[self.i + 3 : self.i + 5].lstrip("\r")[:1] == "\n":
                 line += 1  # TOML drops a newline right after the opening delimiter
             self.content[path] = line
             self.skip_string()
@@ -197,7 +197,7 @@ def _unescape(raw: str) -> str:
         return raw
 
 
-def source_map(text: str) -> "SourceMap":
+def source_map(text: str) -> SourceMap:
     """Lines of every key and string value of a valid TOML document (best effort)."""
     scanner = _Scanner(text)
     try:

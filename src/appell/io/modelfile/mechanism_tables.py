@@ -18,17 +18,65 @@ import sympy as sp
 from appell.errors import ModelError
 from appell.model import Parameter
 
-MECHANISM_KEYS = ("urdf", "floating_base", "gravity", "reactions", "frame", "points", "energy", "reactions_in",
-                  "reaction")
+MECHANISM_KEYS = (
+    "urdf",
+    "floating_base",
+    "gravity",
+    "reactions",
+    "frame",
+    "points",
+    "energy",
+    "reactions_in",
+    "reaction",
+)
 REACTION_KEYS = ("on", "body", "point", "axes")
-MECHANISM_TABLES = ("model", "mechanism", "parameters", "bodies", "joints", "closures", "loads", "initial",
-                    "constraints", "controls", "servo_constraints", "simulation", "stability", "units", "outputs")
+MECHANISM_TABLES = (
+    "model",
+    "mechanism",
+    "parameters",
+    "bodies",
+    "joints",
+    "closures",
+    "loads",
+    "initial",
+    "constraints",
+    "controls",
+    "servo_constraints",
+    "simulation",
+    "stability",
+    "units",
+    "outputs",
+)
 BODY_KEYS = ("name", "mass", "inertia", "com", "particle")
-JOINT_TYPES = {"revolute": "revolute", "continuous": "revolute", "prismatic": "prismatic", "fixed": "fixed",
-               "cylindrical": "cylindrical", "planar": "planar", "spherical": "spherical", "free": "free",
-               "universal": "universal", "screw": "screw"}
-JOINT_KEYS = ("name", "type", "parent", "child", "axis", "axes", "pitch", "origin", "rpy", "child_origin", "coordinate",
-              "coordinates", "rotation", "drive", "drive_type")
+JOINT_TYPES = {
+    "revolute": "revolute",
+    "continuous": "revolute",
+    "prismatic": "prismatic",
+    "fixed": "fixed",
+    "cylindrical": "cylindrical",
+    "planar": "planar",
+    "spherical": "spherical",
+    "free": "free",
+    "universal": "universal",
+    "screw": "screw",
+}
+JOINT_KEYS = (
+    "name",
+    "type",
+    "parent",
+    "child",
+    "axis",
+    "axes",
+    "pitch",
+    "origin",
+    "rpy",
+    "child_origin",
+    "coordinate",
+    "coordinates",
+    "rotation",
+    "drive",
+    "drive_type",
+)
 DRIVE_TYPES = ("position", "speed", "acceleration")
 CLOSURE_KEYS = {
     "connect": ("name", "type", "body_a", "point_a", "body_b", "point_b", "directions"),
@@ -43,20 +91,50 @@ CLOSURE_KEYS = {
     "rack_pinion": ("name", "type", "pinion", "rack", "radius", "pressure_angle", "helix_angle"),
 }
 #: keys of a closure that may be left out
-CLOSURE_OPTIONAL = ("directions", "axis", "axis_b", "normal", "height", "rpy", "internal", "pressure_angle",
-                    "helix_angle")
+CLOSURE_OPTIONAL = (
+    "directions",
+    "axis",
+    "axis_b",
+    "normal",
+    "height",
+    "rpy",
+    "internal",
+    "pressure_angle",
+    "helix_angle",
+)
 LOAD_KEYS = {
     "force": ("name", "type", "body", "point", "vector"),
     "torque": ("name", "type", "body", "vector"),
     "spring": ("name", "type", "body_a", "point_a", "body_b", "point_b", "stiffness", "rest_length", "damping"),
     "actuator": ("name", "type", "joint", "value", "coordinate"),
-    "bushing": ("name", "type", "body_a", "point_a", "body_b", "point_b", "stiffness", "damping",
-                "rotational_stiffness", "rotational_damping", "rpy"),
+    "bushing": (
+        "name",
+        "type",
+        "body_a",
+        "point_a",
+        "body_b",
+        "point_b",
+        "stiffness",
+        "damping",
+        "rotational_stiffness",
+        "rotational_damping",
+        "rpy",
+    ),
     "force_pair": ("name", "type", "body_a", "point_a", "body_b", "point_b", "force", "torque", "axes"),
 }
 #: keys of a load that may be left out
-LOAD_OPTIONAL = ("rest_length", "damping", "value", "coordinate", "rotational_stiffness", "rotational_damping", "rpy",
-                 "force", "torque", "axes")
+LOAD_OPTIONAL = (
+    "rest_length",
+    "damping",
+    "value",
+    "coordinate",
+    "rotational_stiffness",
+    "rotational_damping",
+    "rpy",
+    "force",
+    "torque",
+    "axes",
+)
 
 
 def urdf_path(r, value, base: Path) -> Path:
@@ -67,8 +145,11 @@ def urdf_path(r, value, base: Path) -> Path:
     text = r.string(path, value)
     p = Path(text)
     if p.is_absolute() or text.startswith("~"):
-        raise r.error(path, f"the URDF path {text!r} is absolute",
-                      hint="give the path relative to the model file, e.g. urdf = \"arm.urdf\"")
+        raise r.error(
+            path,
+            f"the URDF path {text!r} is absolute",
+            hint='give the path relative to the model file, e.g. urdf = "arm.urdf"',
+        )
     from appell.mechanism.formats import importer_for
 
     importer = importer_for(p)
@@ -76,8 +157,11 @@ def urdf_path(r, value, base: Path) -> Path:
         raise r.error(path, f"{text!r} does not end in .urdf", hint="name the robot's .urdf file")
     full = base / p
     if not full.is_file():
-        raise r.error(path, f"no URDF file {text!r} next to the model file (looked for {full})",
-                      hint="paths are relative to the folder of the model file")
+        raise r.error(
+            path,
+            f"no URDF file {text!r} next to the model file (looked for {full})",
+            hint="paths are relative to the folder of the model file",
+        )
     return full
 
 
@@ -118,11 +202,14 @@ def _drive(r, path, item, jname, mech):
     """A joint's ``drive = "expression in t"`` (``drive_type``: ``position``, the default,
     ``speed`` or ``acceleration``): :meth:`Mechanism.drive` named ``<joint>_drive``."""
     if "drive" not in item:
-        raise r.error(path + ("drive_type",), "drive_type without drive", hint="e.g. drive = \"v*t\"")
+        raise r.error(path + ("drive_type",), "drive_type without drive", hint='e.g. drive = "v*t"')
     kind = r.string(path + ("drive_type",), item["drive_type"]) if "drive_type" in item else "position"
     if kind not in DRIVE_TYPES:
-        raise r.error(path + ("drive_type",), f"unknown drive_type {kind!r}",
-                      hint="drive_type is one of " + ", ".join(map(repr, DRIVE_TYPES)))
+        raise r.error(
+            path + ("drive_type",),
+            f"unknown drive_type {kind!r}",
+            hint="drive_type is one of " + ", ".join(map(repr, DRIVE_TYPES)),
+        )
     value = r.expr(path + ("drive",), item["drive"], "time")
     _call(r, path + ("drive",), mech.drive, f"{jname}_drive", jname, **{kind: value})
     mech.locate(f"{jname}_drive", r.where(path + ("drive",)))
@@ -135,8 +222,11 @@ def _pair(r, path, item, kind, lname, mech):
     a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
     b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
     if kind == "bushing":
-        kw = {k: _vector(r, path + (k,), item[k], "forces") for k in
-              ("stiffness", "damping", "rotational_stiffness", "rotational_damping") if k in item}
+        kw = {
+            k: _vector(r, path + (k,), item[k], "forces")
+            for k in ("stiffness", "damping", "rotational_stiffness", "rotational_damping")
+            if k in item
+        }
         if "rpy" in item:
             kw["rotation"] = _vector(r, path + ("rpy",), item["rpy"])
         _call(r, path, mech.bushing, lname, a, b, **kw)
@@ -157,8 +247,16 @@ def _mesh(r, path, item, kind, cname, mech):
         if not isinstance(internal, bool):
             raise r.error(path + ("internal",), "must be true or false", hint="internal = true for a ring gear")
         joints = (r.string(path + ("joint_a",), item["joint_a"]), r.string(path + ("joint_b",), item["joint_b"]))
-        _call(r, path, mech.gear, cname, *joints, r.expr(path + ("ratio",), item["ratio"], "state"),
-              internal=internal, **kw)
+        _call(
+            r,
+            path,
+            mech.gear,
+            cname,
+            *joints,
+            r.expr(path + ("ratio",), item["ratio"], "state"),
+            internal=internal,
+            **kw,
+        )
     else:
         joints = (r.string(path + ("pinion",), item["pinion"]), r.string(path + ("rack",), item["rack"]))
         _call(r, path, mech.rack_pinion, cname, *joints, r.expr(path + ("radius",), item["radius"], "state"), **kw)
@@ -195,11 +293,17 @@ def _mechanism_base(r, top: dict, base: Path):
     extra = ()
     floating = section.get("floating_base", False)
     if not isinstance(floating, bool):
-        raise r.error(("mechanism", "floating_base"), "must be true or false",
-                      hint="floating_base = true puts the URDF's root link on a free joint")
+        raise r.error(
+            ("mechanism", "floating_base"),
+            "must be true or false",
+            hint="floating_base = true puts the URDF's root link on a free joint",
+        )
     if floating and "urdf" not in section:
-        raise r.error(("mechanism", "floating_base"), "floating_base applies to a robot read from urdf = ...",
-                      hint="without a URDF, join the base to the ground by a [[joints]] entry of type 'free'")
+        raise r.error(
+            ("mechanism", "floating_base"),
+            "floating_base applies to a robot read from urdf = ...",
+            hint="without a URDF, join the base to the ground by a [[joints]] entry of type 'free'",
+        )
     if "urdf" in section:
         urdf = urdf_path(r, section["urdf"], base)
         mech, extra = importer_for(urdf).mechanism(urdf, floating)
@@ -294,7 +398,7 @@ def _joints(r, top: dict, mech) -> None:
                 raise r.error(path, "missing key 'pitch'", hint="a screw's advance per turn, e.g. pitch = 0.005")
             kw["pitch"] = r.expr(path + ("pitch",), item["pitch"], "state")
         elif "pitch" in item:
-            raise r.error(path + ("pitch",), f"a {kind} joint has no pitch", hint="pitch belongs to type = \"screw\"")
+            raise r.error(path + ("pitch",), f"a {kind} joint has no pitch", hint='pitch belongs to type = "screw"')
         method = getattr(mech, JOINT_TYPES[kind])
         _call(r, path, method, jname, parent, child, **kw)
         if "drive" in item or "drive_type" in item:
@@ -306,21 +410,37 @@ def _closures(r, top: dict, mech) -> None:
     for i, item in enumerate(_items(r, top, "closures")):
         path = ("closures", i)
         kind = _kind(r, path, item, tuple(CLOSURE_KEYS))
-        r.table(path, item, CLOSURE_KEYS[kind], required=("name",) + tuple(
-            k for k in CLOSURE_KEYS[kind][2:] if k not in CLOSURE_OPTIONAL))
+        r.table(
+            path,
+            item,
+            CLOSURE_KEYS[kind],
+            required=("name",) + tuple(k for k in CLOSURE_KEYS[kind][2:] if k not in CLOSURE_OPTIONAL),
+        )
         cname = r.name(path + ("name",), item["name"], "closure")
         if kind in ("gear", "rack_pinion"):
             _mesh(r, path, item, kind, cname, mech)
             continue
         if kind == "distance":
-            a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
-            b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
+            a = (
+                _body_ref(r, path + ("body_a",), item["body_a"], mech),
+                _vector(r, path + ("point_a",), item["point_a"]),
+            )
+            b = (
+                _body_ref(r, path + ("body_b",), item["body_b"], mech),
+                _vector(r, path + ("point_b",), item["point_b"]),
+            )
             _call(r, path, mech.distance, cname, a, b, r.expr(path + ("length",), item["length"], "time"))
             mech.locate(cname, r.where(path + ("name",)))
             continue
         if kind in ("connect", "weld", "revolute"):
-            a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
-            b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
+            a = (
+                _body_ref(r, path + ("body_a",), item["body_a"], mech),
+                _vector(r, path + ("point_a",), item["point_a"]),
+            )
+            b = (
+                _body_ref(r, path + ("body_b",), item["body_b"], mech),
+                _vector(r, path + ("point_b",), item["point_b"]),
+            )
             if kind == "weld":  # body_b turned by rpy (roll, pitch, yaw) in body_a's axes
                 from appell.mechanism.rotations import rpy_rotation
 
@@ -328,7 +448,9 @@ def _closures(r, top: dict, mech) -> None:
                 _call(r, path, mech.weld, cname, a, b, rpy_rotation(sp.Matrix(rpy)))
             elif kind == "revolute":  # a hinge: the points together, the axis of body_a along axis_b of body_b
                 if "axis" not in item:
-                    raise r.error(path, "missing key 'axis'", hint="give the hinge axis in body_a's axes, e.g. axis = [0, 0, 1]")
+                    raise r.error(
+                        path, "missing key 'axis'", hint="give the hinge axis in body_a's axes, e.g. axis = [0, 0, 1]"
+                    )
                 axis = _vector(r, path + ("axis",), item["axis"])
                 axis_b = _vector(r, path + ("axis_b",), item["axis_b"]) if "axis_b" in item else None
                 _call(r, path, mech.hinge, cname, a, b, axis, axis_b)
@@ -360,8 +482,12 @@ def _loads(r, top: dict, mech) -> None:
     for i, item in enumerate(_items(r, top, "loads")):
         path = ("loads", i)
         kind = _kind(r, path, item, tuple(LOAD_KEYS))
-        r.table(path, item, LOAD_KEYS[kind], required=("name",) + tuple(
-            k for k in LOAD_KEYS[kind][2:] if k not in LOAD_OPTIONAL))
+        r.table(
+            path,
+            item,
+            LOAD_KEYS[kind],
+            required=("name",) + tuple(k for k in LOAD_KEYS[kind][2:] if k not in LOAD_OPTIONAL),
+        )
         lname = r.name(path + ("name",), item["name"], "load")
         if kind in ("bushing", "force_pair"):
             _pair(r, path, item, kind, lname, mech)
@@ -370,13 +496,26 @@ def _loads(r, top: dict, mech) -> None:
             point = (_body_ref(r, path + ("body",), item["body"], mech), _vector(r, path + ("point",), item["point"]))
             _call(r, path, mech.force, lname, point, _vector(r, path + ("vector",), item["vector"], "forces"))
         elif kind == "torque":
-            _call(r, path, mech.torque, lname, _body_ref(r, path + ("body",), item["body"], mech),
-                  _vector(r, path + ("vector",), item["vector"], "forces"))
+            _call(
+                r,
+                path,
+                mech.torque,
+                lname,
+                _body_ref(r, path + ("body",), item["body"], mech),
+                _vector(r, path + ("vector",), item["vector"], "forces"),
+            )
         elif kind == "spring":
-            a = (_body_ref(r, path + ("body_a",), item["body_a"], mech), _vector(r, path + ("point_a",), item["point_a"]))
-            b = (_body_ref(r, path + ("body_b",), item["body_b"], mech), _vector(r, path + ("point_b",), item["point_b"]))
-            values = {k: r.expr(path + (k,), item[k], "forces") for k in ("stiffness", "rest_length", "damping")
-                      if k in item}
+            a = (
+                _body_ref(r, path + ("body_a",), item["body_a"], mech),
+                _vector(r, path + ("point_a",), item["point_a"]),
+            )
+            b = (
+                _body_ref(r, path + ("body_b",), item["body_b"], mech),
+                _vector(r, path + ("point_b",), item["point_b"]),
+            )
+            values = {
+                k: r.expr(path + (k,), item[k], "forces") for k in ("stiffness", "rest_length", "damping") if k in item
+            }
             _call(r, path, mech.spring, lname, a, b, **values)
         else:
             joint = r.string(path + ("joint",), item["joint"])
@@ -395,8 +534,10 @@ def _mechanism_outputs(r, section: dict, mech):
         reactions = r.names(("mechanism", "reactions"), reactions, "joint")
     frame = None
     if "frame" in section:
-        frame = {k: r.string(("mechanism", "frame", k), v)
-                 for k, v in r.table(("mechanism", "frame"), section["frame"], r.ANY).items()}
+        frame = {
+            k: r.string(("mechanism", "frame", k), v)
+            for k, v in r.table(("mechanism", "frame"), section["frame"], r.ANY).items()
+        }
     for key, value in r.table(("mechanism", "points"), section.get("points", {}), r.ANY).items():
         path = ("mechanism", "points", key)
         r.name(path, key, "point")
@@ -409,7 +550,7 @@ def _mechanism_outputs(r, section: dict, mech):
         path = ("mechanism", "reaction", key)
         r.table(path, value, REACTION_KEYS)
         if ("body" in value) != ("point" in value):
-            raise r.error(path, "a marker needs both body and point", hint="e.g. body = \"housing\", point = [0, 0, 0.1]")
+            raise r.error(path, "a marker needs both body and point", hint='e.g. body = "housing", point = [0, 0, 0.1]')
         about = None
         if "body" in value:
             about = (r.string(path + ("body",), value["body"]), _vector(r, path + ("point",), value["point"]))
@@ -417,6 +558,9 @@ def _mechanism_outputs(r, section: dict, mech):
         _call(r, path, mech.reaction_output, key, about=about, **kw)
     energy = section.get("energy", False)
     if not isinstance(energy, bool):
-        raise r.error(("mechanism", "energy"), "must be true or false",
-                      hint="energy = true adds the outputs energy_kinetic, energy_potential and energy")
+        raise r.error(
+            ("mechanism", "energy"),
+            "must be true or false",
+            hint="energy = true adds the outputs energy_kinetic, energy_potential and energy",
+        )
     return reactions, frame, energy

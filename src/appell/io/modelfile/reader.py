@@ -14,21 +14,31 @@ import sympy as sp
 
 from appell.errors import ModelError
 from appell.symbols import MAX_NAME, NAME_HINT, name_problem
-from .expressions import (FUNCTIONS, ExpressionError, caret_line, constant_problem, constant_value,
-                          parse_expression)
-from .locate import source_map
 
+from .expressions import FUNCTIONS, ExpressionError, caret_line, constant_problem, constant_value, parse_expression
+from .locate import source_map
 
 #: the largest finite float: a model's numbers and constants must stay within it
 _FLOAT_MAX = 1.7976931348623157e308
 #: the hint of a value that is complex or beyond the floating-point range
-VALUE_HINT = ("a model's values are real numbers within the floating-point range (about 1.8e308): check the "
-              "expression, and rescale the units or the parameters where a value is that large")
+VALUE_HINT = (
+    "a model's values are real numbers within the floating-point range (about 1.8e308): check the "
+    "expression, and rescale the units or the parameters where a value is that large"
+)
 #: arrays of tables -> what one item is (named in messages: "closures[0] (closure 'C').point_a")
-_ITEMS = {"bodies": "body", "joints": "joint", "closures": "closure", "loads": "load", "forces": "force",
-          "torques": "torque", "friction": "friction"}
-_EXPRESSION_HINT = ("expressions use numbers, names, x' (derivative), + - * / ^, parentheses and "
-                    f"the functions {', '.join(FUNCTIONS)}; see docs/model-format.md")
+_ITEMS = {
+    "bodies": "body",
+    "joints": "joint",
+    "closures": "closure",
+    "loads": "load",
+    "forces": "force",
+    "torques": "torque",
+    "friction": "friction",
+}
+_EXPRESSION_HINT = (
+    "expressions use numbers, names, x' (derivative), + - * / ^, parentheses and "
+    f"the functions {', '.join(FUNCTIONS)}; see docs/model-format.md"
+)
 
 
 def _dotted(path: tuple) -> str:
@@ -63,8 +73,11 @@ class _Reader:
         return f"{self.source}:{line}" if line else self.source
 
     def error(self, path: tuple, message: str, hint: str | None = None, line: int | None = None) -> ModelError:
-        return ModelError(f"{_dotted(path)}{self.item_name(path)}: {message}" if path else message,
-                          where=self.where(path, line), hint=hint)
+        return ModelError(
+            f"{_dotted(path)}{self.item_name(path)}: {message}" if path else message,
+            where=self.where(path, line),
+            hint=hint,
+        )
 
     def item_name(self, path: tuple) -> str:
         """`` (closure 'C')`` for a path inside a named item of an array of tables
@@ -80,14 +93,18 @@ class _Reader:
     # ----------------------------------------------------------------- tables
     def table(self, path: tuple, value, allowed, required=()) -> dict:
         if not isinstance(value, dict):
-            raise self.error(path, f"must be a table, got {_kind(value)}",
-                             hint=f"write [{_dotted(path)}] followed by key = value lines")
+            raise self.error(
+                path,
+                f"must be a table, got {_kind(value)}",
+                hint=f"write [{_dotted(path)}] followed by key = value lines",
+            )
         for key in value:
             if key not in allowed:
                 close = difflib.get_close_matches(key, list(allowed), n=1)
                 guess = f"did you mean {close[0]!r}? " if close else ""
-                raise self.error(path + (key,), f"unknown key {key!r}",
-                                 hint=f"{guess}allowed keys here: {', '.join(allowed)}")
+                raise self.error(
+                    path + (key,), f"unknown key {key!r}", hint=f"{guess}allowed keys here: {', '.join(allowed)}"
+                )
         for key in required:
             if key not in value:
                 raise self.error(path, f"missing key {key!r}", hint=f"add {key} = ... to [{_dotted(path)}]")
@@ -103,14 +120,18 @@ class _Reader:
         problem = name_problem(value)
         if problem is not None:
             shown = value if len(value) <= MAX_NAME else value[:MAX_NAME] + "..."
-            raise self.error(path, f"{what} name {shown!r} is {problem}",
-                             hint=NAME_HINT if problem == "not valid" else "choose another name")
+            raise self.error(
+                path,
+                f"{what} name {shown!r} is {problem}",
+                hint=NAME_HINT if problem == "not valid" else "choose another name",
+            )
         return value
 
     def names(self, path: tuple, value, what: str) -> list[str]:
         if not isinstance(value, list):
-            raise self.error(path, f"must be an array of names, got {_kind(value)}",
-                             hint=f'write {path[-1]} = ["x", "y"]')
+            raise self.error(
+                path, f"must be an array of names, got {_kind(value)}", hint=f'write {path[-1]} = ["x", "y"]'
+            )
         return [self.name(path + (i,), v, what) for i, v in enumerate(value)]
 
     # ------------------------------------------------------------ expressions
@@ -120,8 +141,9 @@ class _Reader:
             if isinstance(value, float) and not math.isfinite(value):
                 raise self.error(path, f"{value} is not a finite number", hint=VALUE_HINT)
             if isinstance(value, int) and (abs(value).bit_length() > 3322 or abs(value) > _FLOAT_MAX):
-                raise self.error(path, f"the number is outside the floating-point range (at most {_FLOAT_MAX:.4g})",
-                                 hint=VALUE_HINT)
+                raise self.error(
+                    path, f"the number is outside the floating-point range (at most {_FLOAT_MAX:.4g})", hint=VALUE_HINT
+                )
             result = sp.Integer(value) if isinstance(value, int) else sp.Float(value)
         elif isinstance(value, str):
             try:
@@ -132,11 +154,11 @@ class _Reader:
                 message = f"cannot read the expression: {exc.message}"
                 if exc.token:
                     message += f"; offending token {exc.token!r} at column {exc.column}"
-                raise self.error(path, f"{message}\n{caret_line(exc.text, exc.column)}",
-                                 hint=_EXPRESSION_HINT, line=line) from None
+                raise self.error(
+                    path, f"{message}\n{caret_line(exc.text, exc.column)}", hint=_EXPRESSION_HINT, line=line
+                ) from None
         else:
-            raise self.error(path, f"must be an expression (a string such as \"m*g*y\") or a number, "
-                                   f"got {_kind(value)}")
+            raise self.error(path, f'must be an expression (a string such as "m*g*y") or a number, got {_kind(value)}')
         problem = constant_problem(result, value if isinstance(value, str) else None)
         if problem is not None:  # sqrt(-1), log(-1), exp(1000): complex or beyond the floating range
             raise self.error(path, problem, hint=VALUE_HINT, line=self.map.content_line(path))
@@ -147,15 +169,21 @@ class _Reader:
     def vector(self, path: tuple, value, level: str, length: int = 3) -> tuple:
         if not isinstance(value, list) or len(value) != length:
             got = f"{len(value)} components" if isinstance(value, list) else _kind(value)
-            raise self.error(path, f"must be an array of {length} expressions, got {got}",
-                             hint='write e.g. ["x", "0", "-L*cos(phi)"]' if length == 3 else None)
+            raise self.error(
+                path,
+                f"must be an array of {length} expressions, got {got}",
+                hint='write e.g. ["x", "0", "-L*cos(phi)"]' if length == 3 else None,
+            )
         return tuple(self.expr(path + (i,), v, level) for i, v in enumerate(value))
 
     def array_of_tables(self, doc: dict, key: str) -> list:
         value = doc.get(key, [])
         if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise self.error((key,), f"must be an array of tables, got {_kind(value)}",
-                             hint=f"write each item as [[{key}]] followed by its keys")
+            raise self.error(
+                (key,),
+                f"must be an array of tables, got {_kind(value)}",
+                hint=f"write each item as [[{key}]] followed by its keys",
+            )
         return value
 
     def inertia(self, path: tuple, value):
@@ -170,8 +198,9 @@ class _Reader:
         """A number, or a string holding a constant expression such as ``"sin(pi/3)"``."""
         if _is_number(value):
             if isinstance(value, int) and abs(value) > _FLOAT_MAX:
-                raise self.error(path, f"the number is outside the floating-point range (at most {_FLOAT_MAX:.4g})",
-                                 hint=VALUE_HINT)
+                raise self.error(
+                    path, f"the number is outside the floating-point range (at most {_FLOAT_MAX:.4g})", hint=VALUE_HINT
+                )
             if not math.isfinite(float(value)):
                 raise self.error(path, f"{value} is not a finite number", hint=VALUE_HINT)
             return float(value)
@@ -180,7 +209,7 @@ class _Reader:
             try:
                 return constant_value(expr)
             except ValueError as exc:
-                raise self.error(path, f"{exc}", hint="give a number or a constant expression such as \"pi/3\"") from None
+                raise self.error(path, f"{exc}", hint='give a number or a constant expression such as "pi/3"') from None
         raise self.error(path, f"must be a number, got {_kind(value)}")
 
 

@@ -38,7 +38,7 @@ from __future__ import annotations
 import ast
 import operator
 import re
-from typing import Callable
+from collections.abc import Callable
 
 from appell.errors import ModelError
 
@@ -48,13 +48,20 @@ __all__ = ["expand", "MAX_COPIES"]
 MAX_COPIES = 20_000
 #: the largest whole number a placeholder or a range bound may reach
 _MAX_VALUE = 10**9
-_HINT = ('write for = "i in 0..N" (both ends included) with whole numbers or counts of [counts], and '
-         'placeholders such as "{i}" or "{i+1}" in the entry\'s strings (docs/model-format.md, Repeated entries)')
+_HINT = (
+    'write for = "i in 0..N" (both ends included) with whole numbers or counts of [counts], and '
+    'placeholders such as "{i}" or "{i+1}" in the entry\'s strings (docs/model-format.md, Repeated entries)'
+)
 _RANGE = re.compile(r"^\s*([A-Za-z_][A-Za-z_0-9]*)\s+in\s+(.+?)\s*\.\.\s*(.+?)\s*$")
 _KEY_RANGE = re.compile(r"\{\s*([A-Za-z_][A-Za-z_0-9]*)\s+in\s+([^{}]+?)\s*\.\.\s*([^{}]+?)\s*\}")
 _PLACEHOLDER = re.compile(r"\{([^{}]*)\}")
-_OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.FloorDiv: operator.floordiv,
-        ast.Mod: operator.mod}
+_OPS = {
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.FloorDiv: operator.floordiv,
+    ast.Mod: operator.mod,
+}
 
 
 class _Bad(ValueError):
@@ -89,8 +96,10 @@ def _whole(text: str, names: dict[str, int]) -> int:
                 raise _Bad(f"division by zero in {text.strip()!r}")
             result = _OPS[type(node.op)](left, right)
         else:
-            raise _Bad(f"{text.strip()!r} is not a whole-number expression: only whole numbers, names, "
-                       "+ - * // % and parentheses are allowed")
+            raise _Bad(
+                f"{text.strip()!r} is not a whole-number expression: only whole numbers, names, "
+                "+ - * // % and parentheses are allowed"
+            )
         if abs(result) > _MAX_VALUE:
             raise _Bad(f"{text.strip()!r} reaches {result}, beyond {_MAX_VALUE}")
         return result
@@ -123,15 +132,22 @@ def _substitute(value, names: dict[str, int], path: tuple = ()):
 def _counts(doc: dict, where: Callable[[tuple], str]) -> dict[str, int]:
     counts = doc.get("counts", {})
     if not isinstance(counts, dict):
-        raise ModelError("counts: must be a table of whole numbers, e.g. [counts] with N = 40",
-                         where=where(("counts",)), hint=_HINT)
+        raise ModelError(
+            "counts: must be a table of whole numbers, e.g. [counts] with N = 40", where=where(("counts",)), hint=_HINT
+        )
     for name, value in counts.items():
         if not re.fullmatch(r"[A-Za-z_][A-Za-z_0-9]*", name):
-            raise ModelError(f"counts.{name}: a count's name is a letter or _ followed by letters, digits or _",
-                             where=where(("counts", name)), hint=_HINT)
+            raise ModelError(
+                f"counts.{name}: a count's name is a letter or _ followed by letters, digits or _",
+                where=where(("counts", name)),
+                hint=_HINT,
+            )
         if type(value) is not int or abs(value) > _MAX_VALUE:
-            raise ModelError(f"counts.{name}: must be a whole number (at most {_MAX_VALUE} in size), got {value!r}",
-                             where=where(("counts", name)), hint=_HINT)
+            raise ModelError(
+                f"counts.{name}: must be a whole number (at most {_MAX_VALUE} in size), got {value!r}",
+                where=where(("counts", name)),
+                hint=_HINT,
+            )
     return counts
 
 
@@ -149,8 +165,9 @@ def expand(doc: dict, where: Callable[[tuple], str]) -> tuple[dict, dict[tuple, 
         nonlocal copies
         copies += n
         if copies > MAX_COPIES:
-            raise _Bad(f"repetition writes more than {MAX_COPIES} entries and keys; check the ranges' bounds and "
-                       "the counts")
+            raise _Bad(
+                f"repetition writes more than {MAX_COPIES} entries and keys; check the ranges' bounds and the counts"
+            )
 
     for table, value in doc.items():
         if table == "counts":
@@ -166,8 +183,11 @@ def expand(doc: dict, where: Callable[[tuple], str]) -> tuple[dict, dict[tuple, 
                 spec = item["for"]
                 m = _RANGE.match(spec) if isinstance(spec, str) else None
                 if m is None:
-                    raise ModelError(f"{table}[{index}].for: cannot read {spec!r} as a range", where=where(path + ("for",)),
-                                     hint=_HINT)
+                    raise ModelError(
+                        f"{table}[{index}].for: cannot read {spec!r} as a range",
+                        where=where(path + ("for",)),
+                        hint=_HINT,
+                    )
                 body = {k: v for k, v in item.items() if k != "for"}
                 try:
                     try:
@@ -180,8 +200,9 @@ def expand(doc: dict, where: Callable[[tuple], str]) -> tuple[dict, dict[tuple, 
                         aliases[(table, len(items))] = path
                         items.append(_substitute(body, {**counts, m.group(1): i}))
                 except _Bad as exc:
-                    raise ModelError(f"{table}[{index}] (for = {spec!r}): {exc}", where=where(path + exc.path),
-                                     hint=_HINT) from None
+                    raise ModelError(
+                        f"{table}[{index}] (for = {spec!r}): {exc}", where=where(path + exc.path), hint=_HINT
+                    ) from None
             out[table] = items
         elif isinstance(value, dict) and any(_KEY_RANGE.search(k) for k in value):
             table_out: dict = {}
@@ -197,16 +218,18 @@ def expand(doc: dict, where: Callable[[tuple], str]) -> tuple[dict, dict[tuple, 
                         keys = []
                         for i in rows:
                             names = {**counts, m.group(1): i}
-                            new = _substitute(key[:m.start()] + str(i) + key[m.end():], names)
+                            new = _substitute(key[: m.start()] + str(i) + key[m.end() :], names)
                             keys.append((new, _substitute(item, names)))
                             aliases[(table, new)] = (table, key)
                     except _Bad as exc:
                         raise ModelError(f"{table}.{key}: {exc}", where=where((table, key)), hint=_HINT) from None
                 for new, v in keys:
                     if new in table_out:
-                        raise ModelError(f"{table}.{new}: given twice (by {aliases[(table, new)][1]!r} and an earlier key)",
-                                         where=where(aliases[(table, new)]),
-                                         hint="each name may be given once: narrow the range or drop the other key")
+                        raise ModelError(
+                            f"{table}.{new}: given twice (by {aliases[(table, new)][1]!r} and an earlier key)",
+                            where=where(aliases[(table, new)]),
+                            hint="each name may be given once: narrow the range or drop the other key",
+                        )
                     table_out[new] = v
             out[table] = table_out
         else:

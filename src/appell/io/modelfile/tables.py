@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from appell.core.validation import declared_symbols
 from appell.errors import ModelError
 from appell.model import (
     AppliedForce,
@@ -28,9 +29,8 @@ from appell.model import (
     System,
     initial_value,
 )
-from appell.symbols import canonical_name, split_derivative_name
-from appell.core.validation import declared_symbols
 from appell.simulation.options import SimulationOptions
+from appell.symbols import canonical_name, split_derivative_name
 
 from .reader import _Any, _kind, _Reader
 
@@ -51,15 +51,15 @@ TABLES = {
     "first_integrals": "[first_integrals.NAME] expr, value",
     "friction": "[[friction]] name, slip, normal, mu_k, mu_s, viscous (non-ideal contact laws)",
     "simulation": "run settings",
-    "stability": "vary = \"NAME=START:STOP:NUM\", free = [...], ignore = [...]: the stability sweep of "
-                 "'appell stability' and of the report",
+    "stability": 'vary = "NAME=START:STOP:NUM", free = [...], ignore = [...]: the stability sweep of '
+    "'appell stability' and of the report",
     "units": "NAME = unit of a coordinate, speed, constraint's multiplier or control (recorded in result files)",
     "outputs": "NAME = expression (or {expr, unit, description}) in t, coordinates, speeds, accelerations, "
-               "lambda_<constraint>, controls and parameters: a column of every result (an energy, a point)",
+    "lambda_<constraint>, controls and parameters: a column of every result (an energy, a point)",
     "view": "what the picture of the motion draws: [[view.bodies]] (position, angle or rotation, shapes, links), "
-            "[[view.arrows]] (at, vector, kind), [[view.trails]] (point), up, ground",
+    "[[view.arrows]] (at, vector, kind), [[view.trails]] (point), up, ground",
     "mechanism": "bodies joined by joints (urdf, gravity, reactions, frame) with [[bodies]], [[joints]], "
-                 "[[closures]], [[loads]]",
+    "[[closures]], [[loads]]",
 }
 
 MODEL_KEYS = ("name", "description", "coordinates", "speeds")
@@ -86,8 +86,9 @@ RELEASES = ("continue", "stop")
 
 def _model(r: _Reader, doc: dict):
     if "model" not in doc:
-        raise r.error((), "the [model] table is missing",
-                      hint='start the file with [model] and coordinates = ["x", ...]')
+        raise r.error(
+            (), "the [model] table is missing", hint='start the file with [model] and coordinates = ["x", ...]'
+        )
     section = r.table(("model",), doc["model"], MODEL_KEYS, required=("coordinates",))
     name = r.string(("model", "name"), section.get("name", Path(r.source).stem or "system"))
     description = r.string(("model", "description"), section.get("description", ""))
@@ -122,8 +123,9 @@ def _named_expressions(r: _Reader, doc: dict, table: str, level: str, what: str)
     return out
 
 
-def _initial(r: _Reader, doc: dict, allowed: list[str], positions: list[str],
-             parameters: list[Parameter]) -> dict[str, float | sp.Expr]:
+def _initial(
+    r: _Reader, doc: dict, allowed: list[str], positions: list[str], parameters: list[Parameter]
+) -> dict[str, float | sp.Expr]:
     """``[initial]``: a number, a constant expression, or an expression in the parameters
     (coordinates and kinematic control positions) or in the parameters and the initial
     coordinates (speeds and control rates), e.g. ``"xi'" = "-omega*eta"``. Such an
@@ -134,8 +136,11 @@ def _initial(r: _Reader, doc: dict, allowed: list[str], positions: list[str],
         path = ("initial", key)
         name = canonical_name(key)
         if name not in allowed:
-            raise r.error(path, f"{key!r} is not a coordinate or speed of the model",
-                          hint=f"initial values can be given for: {', '.join(allowed)}")
+            raise r.error(
+                path,
+                f"{key!r} is not a coordinate or speed of the model",
+                hint=f"initial values can be given for: {', '.join(allowed)}",
+            )
         if name in out:
             raise r.error(path, f"initial value of {name!r} given twice")
         expr = r.expr(path, value) if isinstance(value, str) else None
@@ -153,11 +158,13 @@ def _initial(r: _Reader, doc: dict, allowed: list[str], positions: list[str],
             bad = sorted((s_.name for s_ in value.free_symbols if s_ not in known), key=str)
             if bad:
                 allowed_names = "parameters" if level == "position" else "parameters and the initial coordinates"
-                raise r.error(paths[name], f"the initial value uses {', '.join(bad)}; it may use only "
-                                           f"{allowed_names}",
-                              hint="a coordinate's initial value may use parameters; a speed's may also use the "
-                                   "initial values of the coordinates (given in [initial])",
-                              line=r.map.content_line(paths[name]))
+                raise r.error(
+                    paths[name],
+                    f"the initial value uses {', '.join(bad)}; it may use only {allowed_names}",
+                    hint="a coordinate's initial value may use parameters; a speed's may also use the "
+                    "initial values of the coordinates (given in [initial])",
+                    line=r.map.content_line(paths[name]),
+                )
             try:
                 values[name] = initial_value(name, value, known)
             except ModelError as exc:
@@ -171,8 +178,11 @@ def _mechanics(r: _Reader, doc: dict, n_speeds: int) -> dict:
     if "mechanics" not in doc:
         return out
     m = r.table(("mechanics",), doc["mechanics"], MECHANICS_KEYS)
-    for key, level in (("kinetic_energy", "state"), ("acceleration_energy", "acceleration"),
-                       ("potential_energy", "state")):
+    for key, level in (
+        ("kinetic_energy", "state"),
+        ("acceleration_energy", "acceleration"),
+        ("potential_energy", "state"),
+    ):
         if key in m:
             out[key] = r.expr(("mechanics", key), m[key], level)
     if "generalized_forces" in m:
@@ -180,8 +190,11 @@ def _mechanics(r: _Reader, doc: dict, n_speeds: int) -> dict:
         value = m["generalized_forces"]
         if not isinstance(value, list) or len(value) != n_speeds:
             got = f"{len(value)} expressions" if isinstance(value, list) else _kind(value)
-            raise r.error(path, f"must be an array of {n_speeds} expressions (one per speed), got {got}",
-                          hint="give one generalized force per speed, in the order of the speeds")
+            raise r.error(
+                path,
+                f"must be an array of {n_speeds} expressions (one per speed), got {got}",
+                hint="give one generalized force per speed, in the order of the speeds",
+            )
         out["generalized_forces"] = tuple(r.expr(path + (i,), v, "forces") for i, v in enumerate(value))
     return out
 
@@ -193,8 +206,11 @@ def _bodies(r: _Reader, doc: dict) -> list[Particle]:
         r.table(path, body, BODY_KEYS, required=("mass",))
         name = r.string(path + ("name",), body.get("name", f"body{i + 1}"))
         if "position" not in body and "velocity" not in body:
-            raise r.error(path, f"body {name!r} needs a position or a velocity",
-                          hint="add position = [x, y, z] (in t, q) or velocity = [...] (in t, q, speeds)")
+            raise r.error(
+                path,
+                f"body {name!r} needs a position or a velocity",
+                hint="add position = [x, y, z] (in t, q) or velocity = [...] (in t, q, speeds)",
+            )
         kw = {"mass": r.expr(path + ("mass",), body["mass"], "state")}
         for key in ("position", "velocity", "angular_velocity"):
             if key in body:
@@ -202,8 +218,9 @@ def _bodies(r: _Reader, doc: dict) -> list[Particle]:
         if "inertia" in body:
             kw["inertia"] = r.inertia(path + ("inertia",), body["inertia"])
         try:
-            out.append(RigidBody(name, **kw) if "inertia" in body or "angular_velocity" in body
-                       else Particle(name, **kw))
+            out.append(
+                RigidBody(name, **kw) if "inertia" in body or "angular_velocity" in body else Particle(name, **kw)
+            )
         except ModelError as exc:
             raise r.error(path, exc.message, hint=exc.hint) from None
     return out
@@ -218,15 +235,24 @@ def _loads(r: _Reader, doc: dict) -> list:
         if ("position" in force) == ("velocity" in force):
             raise r.error(path, f"force {name!r} needs exactly one of position and velocity (of its point)")
         point = "position" if "position" in force else "velocity"
-        out.append(AppliedForce(r.vector(path + ("vector",), force["vector"], "forces"),
-                                name=name, **{point: r.vector(path + (point,), force[point], "forces")}))
+        out.append(
+            AppliedForce(
+                r.vector(path + ("vector",), force["vector"], "forces"),
+                name=name,
+                **{point: r.vector(path + (point,), force[point], "forces")},
+            )
+        )
     for i, torque in enumerate(r.array_of_tables(doc, "torques")):
         path = ("torques", i)
         r.table(path, torque, TORQUE_KEYS, required=("vector", "angular_velocity"))
         name = r.string(path + ("name",), torque.get("name", f"torque{i + 1}"))
-        out.append(AppliedTorque(r.vector(path + ("vector",), torque["vector"], "forces"),
-                                 r.vector(path + ("angular_velocity",), torque["angular_velocity"], "forces"),
-                                 name=name))
+        out.append(
+            AppliedTorque(
+                r.vector(path + ("vector",), torque["vector"], "forces"),
+                r.vector(path + ("angular_velocity",), torque["angular_velocity"], "forces"),
+                name=name,
+            )
+        )
     return out
 
 
@@ -235,31 +261,55 @@ def _constraints(r: _Reader, doc: dict, table: str) -> list[Constraint]:
     for key, value in r.table((table,), doc.get(table, {}), _Any()).items():
         path = (table, key)
         r.name(path, key, "constraint")
-        r.table(path, value, CONSTRAINT_KEYS + (("restitution", "compliance") if table == "constraints" else ()),
-                required=("kind", "expr"))
+        r.table(
+            path,
+            value,
+            CONSTRAINT_KEYS + (("restitution", "compliance") if table == "constraints" else ()),
+            required=("kind", "expr"),
+        )
         kind = r.string(path + ("kind",), value["kind"])
         if kind not in CONSTRAINT_KINDS:
-            raise r.error(path + ("kind",), f"unknown constraint kind {kind!r}",
-                          hint=f"kind is one of {', '.join(map(repr, CONSTRAINT_KINDS))}")
+            raise r.error(
+                path + ("kind",),
+                f"unknown constraint kind {kind!r}",
+                hint=f"kind is one of {', '.join(map(repr, CONSTRAINT_KINDS))}",
+            )
         expr = r.expr(path + ("expr",), value["expr"], "acceleration", equation=True)
         restitution = 0.0
         if "restitution" in value:
             restitution = r.constant(path + ("restitution",), value["restitution"])
             if not 0.0 <= restitution <= 1.0:
-                raise r.error(path + ("restitution",), f"must lie from 0 to 1, got {restitution}",
-                              hint="Newton's restitution coefficient: 0 a plastic impact, 1 an elastic one")
+                raise r.error(
+                    path + ("restitution",),
+                    f"must lie from 0 to 1, got {restitution}",
+                    hint="Newton's restitution coefficient: 0 a plastic impact, 1 an elastic one",
+                )
             if kind != "holonomic" and restitution:
-                raise r.error(path + ("restitution",), f"a restitution coefficient needs a holonomic constraint, "
-                              f"not a {kind} one", hint="only a contact whose gap F(t, q) can close has impacts")
+                raise r.error(
+                    path + ("restitution",),
+                    f"a restitution coefficient needs a holonomic constraint, not a {kind} one",
+                    hint="only a contact whose gap F(t, q) can close has impacts",
+                )
         compliance = None
         if "compliance" in value:
             compliance = r.constant(path + ("compliance",), value["compliance"])
             if not compliance > 0.0:
-                raise r.error(path + ("compliance",), f"must be positive, got {compliance}",
-                              hint="the constraint's deflection per unit of its multiplier, used to split the "
-                                   "reactions of redundant (statically indeterminate) constraints")
-        out.append(Constraint(key, expr, CONSTRAINT_KINDS[kind], where=r.where(path + ("expr",)),
-                              restitution=restitution, compliance=compliance))
+                raise r.error(
+                    path + ("compliance",),
+                    f"must be positive, got {compliance}",
+                    hint="the constraint's deflection per unit of its multiplier, used to split the "
+                    "reactions of redundant (statically indeterminate) constraints",
+                )
+        out.append(
+            Constraint(
+                key,
+                expr,
+                CONSTRAINT_KINDS[kind],
+                where=r.where(path + ("expr",)),
+                restitution=restitution,
+                compliance=compliance,
+            )
+        )
     return out
 
 
@@ -275,8 +325,10 @@ def _frictions(r: _Reader, doc: dict, constraint_names: list[str]) -> list[Frict
         slip = item["slip"]
         if isinstance(slip, list):
             if len(slip) not in (1, 2):
-                raise r.error(path + ("slip",), f"must have 1 component (a line contact, a joint) or 2 (a contact "
-                                                f"in a plane), got {len(slip)}")
+                raise r.error(
+                    path + ("slip",),
+                    f"must have 1 component (a line contact, a joint) or 2 (a contact in a plane), got {len(slip)}",
+                )
             slip = tuple(r.expr(path + ("slip", k), v, "state") for k, v in enumerate(slip))
         else:
             slip = (r.expr(path + ("slip",), slip, "state"),)
@@ -284,8 +336,11 @@ def _frictions(r: _Reader, doc: dict, constraint_names: list[str]) -> list[Frict
         if "normal" in item:
             normal = r.name(path + ("normal",), item["normal"], "constraint")
             if normal not in constraint_names:
-                raise r.error(path + ("normal",), f"{normal!r} is not a constraint of the model",
-                              hint=f"constraints: {', '.join(constraint_names) or '(none)'}")
+                raise r.error(
+                    path + ("normal",),
+                    f"{normal!r} is not a constraint of the model",
+                    hint=f"constraints: {', '.join(constraint_names) or '(none)'}",
+                )
         coefficients = {k: r.expr(path + (k,), item[k], "time") for k in ("mu_k", "mu_s", "viscous") if k in item}
         try:
             out.append(Friction(name, slip, normal, where=r.where(path + ("name",)), **coefficients))
@@ -300,8 +355,11 @@ def _controls(r: _Reader, doc: dict) -> list[Control]:
         path = ("controls", key)
         r.name(path, key, "control")
         if value not in ("kinematic", "force"):
-            raise r.error(path, f"control kind must be 'kinematic' or 'force', got {value!r}",
-                          hint=f'write {key} = "kinematic" (a driven coordinate) or {key} = "force" (an actuator)')
+            raise r.error(
+                path,
+                f"control kind must be 'kinematic' or 'force', got {value!r}",
+                hint=f'write {key} = "kinematic" (a driven coordinate) or {key} = "force" (an actuator)',
+            )
         out.append(Control(sp.Symbol(key), value))
     return out
 
@@ -312,11 +370,14 @@ def _check_controls(r: _Reader, controls: list[Control], servo: list[Constraint]
     used to reach the numeric code undefined: ``NameError``)."""
     if controls and not servo:
         names = ", ".join(c.name for c in controls)
-        raise r.error(("controls",), f"control{'s' if len(controls) > 1 else ''} {names} "
-                                     f"{'are' if len(controls) > 1 else 'is'} declared but no servo constraint is "
-                                     f"given: nothing determines {'their values' if len(controls) > 1 else 'its value'}",
-                      hint="add the servo constraint it realises ([servo_constraints.NAME] with kind and expr), or "
-                           "remove [controls] and give the force or the motion as an expression of t and the state")
+        raise r.error(
+            ("controls",),
+            f"control{'s' if len(controls) > 1 else ''} {names} "
+            f"{'are' if len(controls) > 1 else 'is'} declared but no servo constraint is "
+            f"given: nothing determines {'their values' if len(controls) > 1 else 'its value'}",
+            hint="add the servo constraint it realises ([servo_constraints.NAME] with kind and expr), or "
+            "remove [controls] and give the force or the motion as an expression of t and the state",
+        )
 
 
 def _first_integrals(r: _Reader, doc: dict) -> list[FirstIntegral]:
@@ -341,17 +402,27 @@ def _outputs(r: _Reader, doc: dict, system: System) -> System:
     output, and not a result prefix (``lambda_``, ``control_``, ``residual_``, ``friction_``)."""
     if "outputs" not in doc:
         return system
-    taken = {s.name for s in (*system.coordinates, *system.speeds, *system.accelerations)} | {
-        p.symbol.name for p in system.parameters} | {o.name for o in system.outputs} | {"t"}
+    taken = (
+        {s.name for s in (*system.coordinates, *system.speeds, *system.accelerations)}
+        | {p.symbol.name for p in system.parameters}
+        | {o.name for o in system.outputs}
+        | {"t"}
+    )
     out = []
     for key, value in r.table(("outputs",), doc["outputs"], _Any()).items():
         path = ("outputs", key)
         r.name(path, key, "output")
         if key in taken or key.startswith(RESERVED_PREFIXES):
-            raise r.error(path, f"output name {key!r} is taken by "
-                                + ("a result column's prefix" if key.startswith(RESERVED_PREFIXES)
-                                   else "a coordinate, speed, acceleration, parameter or output"),
-                          hint="choose another name")
+            raise r.error(
+                path,
+                f"output name {key!r} is taken by "
+                + (
+                    "a result column's prefix"
+                    if key.startswith(RESERVED_PREFIXES)
+                    else "a coordinate, speed, acceleration, parameter or output"
+                ),
+                hint="choose another name",
+            )
         taken.add(key)
         unit = description = None
         if isinstance(value, dict):
@@ -372,7 +443,7 @@ def _outputs(r: _Reader, doc: dict, system: System) -> System:
 STABILITY_KEYS = {
     "vary": "NAME=START:STOP:NUM (or NAME=V1,V2,...): the parameter, coordinate or speed swept",
     "free": "array of coordinates and speeds solved for a steady motion at each value",
-    "ignore": "array of coordinates (and speeds) left out of the linear model, or \"cyclic\"",
+    "ignore": 'array of coordinates (and speeds) left out of the linear model, or "cyclic"',
 }
 
 
@@ -432,14 +503,20 @@ def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
     def choice(key, allowed):
         value = r.string(("simulation", key), section[key])
         if value not in allowed:
-            raise r.error(("simulation", key), f"{value!r} is not allowed",
-                          hint=f"{key} is one of {', '.join(map(repr, allowed))}")
+            raise r.error(
+                ("simulation", key),
+                f"{value!r} is not allowed",
+                hint=f"{key} is one of {', '.join(map(repr, allowed))}",
+            )
         return value
 
     def constraint(path, name):
         if name not in constraint_names:
-            raise r.error(path, f"{name!r} is not a constraint of the model",
-                          hint=f"constraints: {', '.join(constraint_names) or '(none)'}")
+            raise r.error(
+                path,
+                f"{name!r} is not a constraint of the model",
+                hint=f"constraints: {', '.join(constraint_names) or '(none)'}",
+            )
         return name
 
     for key in section:
@@ -451,8 +528,11 @@ def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
             out[key] = positive(key)
         elif key == "samples":
             if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 10_000_000:
-                raise r.error(path, f"must be an integer from 2 to 10000000, got {value!r}",
-                              hint="samples = 501 gives 501 equally spaced output times from t0 to t_end")
+                raise r.error(
+                    path,
+                    f"must be an integer from 2 to 10000000, got {value!r}",
+                    hint="samples = 501 gives 501 equally spaced output times from t0 to t_end",
+                )
             out[key] = value
         elif key == "method":
             out[key] = r.string(path, value)
@@ -523,14 +603,18 @@ def _units(r: _Reader, doc: dict, allowed: list[str]) -> tuple[tuple[str, str], 
         return ()
     section = doc["units"]
     if not isinstance(section, dict):
-        raise r.error(("units",), f"must be a table, got {_kind(section)}",
-                      hint='write [units] followed by NAME = "unit" lines')
+        raise r.error(
+            ("units",), f"must be a table, got {_kind(section)}", hint='write [units] followed by NAME = "unit" lines'
+        )
     out = []
     for key, value in section.items():
         name = canonical_name(key)
         if name not in allowed:
-            raise r.error(("units", key), f"{key!r} is not a coordinate, speed, constraint or control",
-                          hint=f"units can be given for: {', '.join(allowed)}")
+            raise r.error(
+                ("units", key),
+                f"{key!r} is not a coordinate, speed, constraint or control",
+                hint=f"units can be given for: {', '.join(allowed)}",
+            )
         out.append((name, r.string(("units", key), value)))
     return tuple(out)
 
@@ -539,25 +623,36 @@ def _check_declared(r: _Reader, system: System):
     """Every symbol of every expression is declared at its level (as in validation.validate)."""
     levels = declared_symbols(system)
     levels["outputs"] = levels["acceleration"] | {sp.Symbol(f"lambda_{c.name}") for c in system.constraints}
-    levels["view"] = levels["outputs"] | {sp.Symbol(o.name) for o in system.outputs} | {
-        s for path, (expr, level) in r.symbols.items() if level == "view" for s in expr.free_symbols
-        if any(s.name.startswith(f"friction_{f.name}_") for f in system.frictions)}  # friction forces
+    levels["view"] = (
+        levels["outputs"]
+        | {sp.Symbol(o.name) for o in system.outputs}
+        | {
+            s
+            for path, (expr, level) in r.symbols.items()
+            if level == "view"
+            for s in expr.free_symbols
+            if any(s.name.startswith(f"friction_{f.name}_") for f in system.frictions)
+        }
+    )  # friction forces
     for path, (expr, level) in r.symbols.items():
         bad = sorted((s for s in expr.free_symbols if s not in levels[level]), key=str)
         if bad:
             names = ", ".join(s.name for s in bad)
-            hint = "declare them under [parameters] (with values), [model] coordinates or speeds, [programs] or [controls]"
+            hint = (
+                "declare them under [parameters] (with values), [model] coordinates or speeds, [programs] or [controls]"
+            )
             if level == "time":
                 hint = "a program depends on t and parameters only"
             elif level == "state" and any(split_derivative_name(s.name)[1] >= 1 for s in bad):
                 hint += "; accelerations may appear only in the acceleration energy and constraints"
             elif level == "view":
-                hint = ("a view uses t, coordinates, speeds, accelerations (x''), lambda_<constraint>, controls, "
-                        "outputs, friction_<law>_<column>, parameters and programs")
+                hint = (
+                    "a view uses t, coordinates, speeds, accelerations (x''), lambda_<constraint>, controls, "
+                    "outputs, friction_<law>_<column>, parameters and programs"
+                )
             elif level == "outputs":
-                hint = ("an output uses t, coordinates, speeds, accelerations (x''), lambda_<constraint>, controls, "
-                        "parameters and programs")
-            raise r.error(path, f"undeclared symbol(s) {names}", hint=hint,
-                          line=r.map.content_line(path))
-
-
+                hint = (
+                    "an output uses t, coordinates, speeds, accelerations (x''), lambda_<constraint>, controls, "
+                    "parameters and programs"
+                )
+            raise r.error(path, f"undeclared symbol(s) {names}", hint=hint, line=r.map.content_line(path))

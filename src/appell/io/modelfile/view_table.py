@@ -107,20 +107,31 @@ def read_view(r, doc: dict, system):
         links = body.get("links", [])
         if not isinstance(links, list):
             raise r.error(path + ("links",), "must be an array of points [x, y, z]")
-        bodies.append(ViewBody(
-            name, r.vector(path + ("position",), body["position"], LEVEL), _rotation(r, path, body),
-            tuple(_shape(r, path + ("shapes", k), s) for k, s in enumerate(shapes)),
-            tuple(_numbers(r, path + ("links", k), p) for k, p in enumerate(links)),
-            _numbers(r, path + ("com",), body["com"]) if "com" in body else (0.0, 0.0, 0.0),
-            particle="angle" not in body and "rotation" not in body and not shapes and not links))
+        bodies.append(
+            ViewBody(
+                name,
+                r.vector(path + ("position",), body["position"], LEVEL),
+                _rotation(r, path, body),
+                tuple(_shape(r, path + ("shapes", k), s) for k, s in enumerate(shapes)),
+                tuple(_numbers(r, path + ("links", k), p) for k, p in enumerate(links)),
+                _numbers(r, path + ("com",), body["com"]) if "com" in body else (0.0, 0.0, 0.0),
+                particle="angle" not in body and "rotation" not in body and not shapes and not links,
+            )
+        )
     for i, arrow in enumerate(top.get("arrows", [])):
         path = ("view", "arrows", i)
         r.table(path, arrow, ARROW_KEYS, required=("name", "at", "vector"))
         kind = r.string(path + ("kind",), arrow.get("kind", "force"))
         if kind not in ("force", "moment"):
             raise r.error(path + ("kind",), f"{kind!r} is neither 'force' nor 'moment'")
-        arrows.append(ViewArrow(r.string(path + ("name",), arrow["name"]), r.vector(path + ("at",), arrow["at"], LEVEL),
-                                r.vector(path + ("vector",), arrow["vector"], LEVEL), kind))
+        arrows.append(
+            ViewArrow(
+                r.string(path + ("name",), arrow["name"]),
+                r.vector(path + ("at",), arrow["at"], LEVEL),
+                r.vector(path + ("vector",), arrow["vector"], LEVEL),
+                kind,
+            )
+        )
     for i, trail in enumerate(top.get("trails", [])):
         path = ("view", "trails", i)
         r.table(path, trail, TRAIL_KEYS, required=("name", "point"))

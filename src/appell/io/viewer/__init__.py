@@ -30,8 +30,10 @@ class MotionView:
 
     def _repr_html_(self) -> str:
         # an iframe keeps the page's scripts and styles away from the notebook's
-        return (f"<iframe srcdoc=\"{_html.escape(self.page())}\" style=\"width: 100%; height: 640px; border: 0\" "
-                f"title=\"the motion of {_html.escape(str(self.scene.get('name', '')))}\"></iframe>")
+        return (
+            f'<iframe srcdoc="{_html.escape(self.page())}" style="width: 100%; height: 640px; border: 0" '
+            f'title="the motion of {_html.escape(str(self.scene.get("name", "")))}"></iframe>'
+        )
 
     def save(self, path, fps: int = 25, max_frames: int = 300, progress=None) -> Path:
         """Write the view to ``path``: ``.html`` the interactive page, ``.gif`` or ``.mp4``
@@ -45,8 +47,10 @@ class MotionView:
         elif suffix in MOVIE_SUFFIXES:
             write_movie(self.scene, path, fps=fps, max_frames=max_frames, progress=progress)
         else:
-            raise ModelError(f"{path}: cannot tell what to write from the suffix {suffix or '(none)'!r}",
-                             hint="name the file .html (the interactive page), .gif or .mp4 (a movie)")
+            raise ModelError(
+                f"{path}: cannot tell what to write from the suffix {suffix or '(none)'!r}",
+                hint="name the file .html (the interactive page), .gif or .mp4 (a movie)",
+            )
         return path
 
 

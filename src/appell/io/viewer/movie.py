@@ -20,8 +20,7 @@ from appell.files import atomic_path
 __all__ = ["write_movie", "MOVIE_SUFFIXES"]
 
 MOVIE_SUFFIXES = (".gif", ".mp4")
-PALETTE = ["#4e79a7", "#f28e2b", "#59a14f", "#b07aa1", "#76b7b2", "#edc948", "#ff9da7", "#9c755f", "#bab0ac",
-           "#e15759"]
+PALETTE = ["#4e79a7", "#f28e2b", "#59a14f", "#b07aa1", "#76b7b2", "#edc948", "#ff9da7", "#9c755f", "#bab0ac", "#e15759"]
 KIND_COLOUR = {"force": "#d62728", "moment": "#1f77b4"}
 
 
@@ -49,9 +48,13 @@ def _axes_of(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _rotation(q) -> np.ndarray:
     w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 def _surface(shape) -> np.ndarray:
@@ -70,9 +73,13 @@ def _surface(shape) -> np.ndarray:
         else:
             half = size[1] / 2 + (r if kind == "capsule" else 0.0)
             rim = np.stack([r * np.cos(ang), r * np.sin(ang), np.zeros_like(ang)], axis=1)
-            pts = np.concatenate([rim + [0, 0, half if kind == "cylinder" else size[1] / 2],
-                                  rim - [0, 0, half if kind == "cylinder" else size[1] / 2]]
-                                 + ([np.array([[0, 0, half], [0, 0, -half]])] if kind == "capsule" else []))
+            pts = np.concatenate(
+                [
+                    rim + [0, 0, half if kind == "cylinder" else size[1] / 2],
+                    rim - [0, 0, half if kind == "cylinder" else size[1] / 2],
+                ]
+                + ([np.array([[0, 0, half], [0, 0, -half]])] if kind == "capsule" else [])
+            )
     R = np.array(shape["rotation"]).reshape(3, 3)
     return np.array(shape["origin"]) + pts @ R.T
 
@@ -117,58 +124,79 @@ class _Frames:
         ax.clear()
         ax.set_axis_off()
         ax.set_aspect("equal")
-        centre = np.array(sc["centre"][3 * k:3 * k + 3]) if self.follow else self.centre
+        centre = np.array(sc["centre"][3 * k : 3 * k + 3]) if self.follow else self.centre
         c2 = self.project(centre)[0]
         ax.set_xlim(c2[0] - 1.6 * self.half, c2[0] + 1.6 * self.half)
         ax.set_ylim(c2[1] - self.half, c2[1] + self.half)
         items = []  # (depth, draw)
         for i, b in enumerate(sc["bodies"]):
             colour = PALETTE[i % len(PALETTE)]
-            p = np.array(b["p"][3 * k:3 * k + 3])
-            R = _rotation(b["q"][4 * k:4 * k + 4])
+            p = np.array(b["p"][3 * k : 3 * k + 3])
+            R = _rotation(b["q"][4 * k : 4 * k + 4])
             world = lambda x: p + np.asarray(x) @ R.T  # noqa: E731, B023 (used in this iteration)
             solid = [s for s in b["shapes"] if s.get("solid", True)]
             for s in b["shapes"]:
                 pts = world(_surface(s))
                 poly = _outline(self.project(pts))
-                fill = (s["colour"] if s["colour"] and s.get("solid", True) else colour)
+                fill = s["colour"] if s["colour"] and s.get("solid", True) else colour
                 alpha = 0.9 if s.get("solid", True) else 0.25
-                items.append((float(np.mean(pts @ self.view)),
-                              lambda poly=poly, fill=fill, alpha=alpha: ax.fill(
-                                  poly[:, 0], poly[:, 1], color=fill, alpha=alpha, lw=0.5, ec="#333333")))
+                items.append(
+                    (
+                        float(np.mean(pts @ self.view)),
+                        lambda poly=poly, fill=fill, alpha=alpha: ax.fill(
+                            poly[:, 0], poly[:, 1], color=fill, alpha=alpha, lw=0.5, ec="#333333"
+                        ),
+                    )
+                )
             if solid:
                 continue
             if b["particle"]:
                 q2 = self.project(p)[0]
-                items.append((float(p @ self.view), lambda q2=q2, colour=colour: ax.plot(
-                    q2[0], q2[1], "o", color=colour, ms=9)))
+                items.append(
+                    (float(p @ self.view), lambda q2=q2, colour=colour: ax.plot(q2[0], q2[1], "o", color=colour, ms=9))
+                )
                 continue
             links = np.array(b["links"] or [[0.0, 0.0, 0.0]])
             ends = links[1:] if len(links) > 1 else np.array([b["com"]])
             a = world(links[0])
             for e in ends:
                 seg = self.project(np.array([a, world(e)]))
-                items.append((float(np.mean(np.array([a, world(e)]) @ self.view)),
-                              lambda seg=seg, colour=colour: ax.plot(seg[:, 0], seg[:, 1], "-", color=colour, lw=4,
-                                                                     solid_capstyle="round")))
+                items.append(
+                    (
+                        float(np.mean(np.array([a, world(e)]) @ self.view)),
+                        lambda seg=seg, colour=colour: ax.plot(
+                            seg[:, 0], seg[:, 1], "-", color=colour, lw=4, solid_capstyle="round"
+                        ),
+                    )
+                )
             com = self.project(world(b["com"]))[0]
-            items.append((float(world(b["com"]) @ self.view) + 1e-9, lambda com=com, colour=colour: ax.plot(
-                com[0], com[1], "o", color=colour, ms=7, mec="#333333")))
+            items.append(
+                (
+                    float(world(b["com"]) @ self.view) + 1e-9,
+                    lambda com=com, colour=colour: ax.plot(com[0], com[1], "o", color=colour, ms=7, mec="#333333"),
+                )
+            )
         for _, draw in sorted(items, key=lambda item: item[0]):
             draw()
         for tr in sc["trails"]:
-            pts = np.array(tr["p"]).reshape(-1, 3)[:k + 1]
+            pts = np.array(tr["p"]).reshape(-1, 3)[: k + 1]
             xy = self.project(pts)
             ax.plot(xy[:, 0], xy[:, 1], "-", color="#555555", lw=1)
         for a in sc["arrows"]:
             scale = sc["scale"][a["kind"]]
-            v = np.array(a["v"][3 * k:3 * k + 3])
+            v = np.array(a["v"][3 * k : 3 * k + 3])
             if scale <= 0 or np.linalg.norm(v) * self.reference / scale <= 1e-6 * self.size:
                 continue
-            at = self.project(np.array(a["at"][3 * k:3 * k + 3]))[0]
+            at = self.project(np.array(a["at"][3 * k : 3 * k + 3]))[0]
             d = self.project(v * self.reference / scale)[0]
-            ax.annotate("", xy=at + d, xytext=at, arrowprops=dict(
-                arrowstyle="<|-|>" if a["kind"] == "moment" else "-|>", color=KIND_COLOUR[a["kind"]], lw=2))
+            ax.annotate(
+                "",
+                xy=at + d,
+                xytext=at,
+                arrowprops=dict(
+                    arrowstyle="<|-|>" if a["kind"] == "moment" else "-|>", color=KIND_COLOUR[a["kind"]], lw=2
+                ),
+            )
         ax.set_title(f"{sc.get('name', '')}   t = {sc['t'][k]:.3f} s", fontsize=10)
 
 
@@ -184,11 +212,15 @@ def write_movie(scene: dict, path, fps: int = 25, max_frames: int = 300, dpi: in
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in MOVIE_SUFFIXES:
-        raise ModelError(f"{path}: a movie is written as {' or '.join(MOVIE_SUFFIXES)}",
-                         hint="or write the interactive page with an .html name")
+        raise ModelError(
+            f"{path}: a movie is written as {' or '.join(MOVIE_SUFFIXES)}",
+            hint="or write the interactive page with an .html name",
+        )
     if suffix == ".mp4" and not animation.writers.is_available("ffmpeg"):
-        raise MissingDependencyError("writing an MP4 video needs ffmpeg, which is not installed",
-                                     hint="install ffmpeg (Debian: apt-get install ffmpeg), or write a .gif or .html")
+        raise MissingDependencyError(
+            "writing an MP4 video needs ffmpeg, which is not installed",
+            hint="install ffmpeg (Debian: apt-get install ffmpeg), or write a .gif or .html",
+        )
     n = len(scene["t"])
     frames = np.unique(np.round(np.linspace(0, n - 1, min(n, max_frames))).astype(int))
     fig = Figure(figsize=(6.4, 4.0), dpi=dpi)

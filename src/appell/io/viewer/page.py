@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import html
 import json
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 
 __all__ = ["viewer_fragment", "viewer_page", "viewer_assets", "CURSOR_SCRIPT", "VIEWER_STYLE"]
@@ -63,12 +63,11 @@ CURSOR_SCRIPT = """
 """
 
 
-@lru_cache(maxsize=None)
+@cache
 def viewer_assets() -> tuple[str, str]:
     """``(three.js, viewer.js)``: the two scripts, read from the package."""
     folder = resources.files("appell.io.viewer")
-    return ((folder / "three.min.js").read_text(encoding="utf-8"),
-            (folder / "viewer.js").read_text(encoding="utf-8"))
+    return ((folder / "three.min.js").read_text(encoding="utf-8"), (folder / "viewer.js").read_text(encoding="utf-8"))
 
 
 def _script(source: str) -> str:
@@ -83,9 +82,11 @@ def viewer_fragment(scene: dict, element_id: str = "appell-view", scripts: bool 
     if scripts:
         three, viewer = viewer_assets()
         parts += [f"<style>{VIEWER_STYLE}</style>", _script(three), _script(CURSOR_SCRIPT)]
-    parts += [f"<script type='application/json' id='{html.escape(element_id)}-data'>{data}</script>",
-              f"<div class='appell-viewer' id='{html.escape(element_id)}' data-scene='{html.escape(element_id)}-data' "
-              f"role='img' aria-label='the motion of {html.escape(str(scene.get('name', 'the model')))}'></div>"]
+    parts += [
+        f"<script type='application/json' id='{html.escape(element_id)}-data'>{data}</script>",
+        f"<div class='appell-viewer' id='{html.escape(element_id)}' data-scene='{html.escape(element_id)}-data' "
+        f"role='img' aria-label='the motion of {html.escape(str(scene.get('name', 'the model')))}'></div>",
+    ]
     if scripts:
         parts.append(_script(viewer_assets()[1]))
     return "\n".join(parts)
@@ -94,12 +95,19 @@ def viewer_fragment(scene: dict, element_id: str = "appell-view", scripts: bool 
 def viewer_page(scene: dict, title: str | None = None) -> str:
     """A self-contained page with one viewer of ``scene`` (``appell animate --out x.html``)."""
     title = title or f"appell: the motion of {scene.get('name', 'the model')}"
-    return "\n".join([
-        "<!DOCTYPE html>", "<html lang='en'><head><meta charset='utf-8'>",
-        "<meta name='viewport' content='width=device-width, initial-scale=1'>",
-        f"<title>{html.escape(title)}</title>",
-        "<style>body { font-family: system-ui, sans-serif; max-width: 64rem; margin: 1rem auto; padding: 0 1rem; }"
-        "</style></head><body>",
-        f"<h1 style='font-size:1.3rem'>{html.escape(title)}</h1>",
-        viewer_fragment(scene),
-        "</body></html>"]) + "\n"
+    return (
+        "\n".join(
+            [
+                "<!DOCTYPE html>",
+                "<html lang='en'><head><meta charset='utf-8'>",
+                "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+                f"<title>{html.escape(title)}</title>",
+                "<style>body { font-family: system-ui, sans-serif; max-width: 64rem; margin: 1rem auto; padding: 0 1rem; }"
+                "</style></head><body>",
+                f"<h1 style='font-size:1.3rem'>{html.escape(title)}</h1>",
+                viewer_fragment(scene),
+                "</body></html>",
+            ]
+        )
+        + "\n"
+    )

@@ -30,12 +30,13 @@ space, with a note saying so: never a blank canvas.
 from __future__ import annotations
 
 import math
+
 import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
-from appell.view import View, ViewBody
 from appell.symbols import lambdify
+from appell.view import View, ViewBody
 
 __all__ = ["scene_data", "frame_indices", "quaternions", "default_view"]
 
@@ -85,16 +86,23 @@ def default_view(system) -> tuple[View, str | None]:
     """The view of a system that declares none, and a note saying what it shows: its bodies
     (:class:`~appell.model.Particle`, :class:`~appell.model.RigidBody`) with a position, as
     spheres; else the point ``(q1, q2, q3)`` of its first coordinates."""
-    bodies = [ViewBody(b.name, tuple(b.position), particle=True) for b in system.bodies
-              if getattr(b, "position", None) is not None]
+    bodies = [
+        ViewBody(b.name, tuple(b.position), particle=True)
+        for b in system.bodies
+        if getattr(b, "position", None) is not None
+    ]
     if bodies:
-        return View(tuple(bodies), ground=False), ("the model gives no geometry: its bodies are drawn as spheres "
-                                                   "at their mass centres (add a [view] table for more)")
+        return View(tuple(bodies), ground=False), (
+            "the model gives no geometry: its bodies are drawn as spheres "
+            "at their mass centres (add a [view] table for more)"
+        )
     q = list(system.coordinates[:3]) + [sp.S.Zero] * (3 - min(3, len(system.coordinates)))
     names = ", ".join(s.name for s in system.coordinates[:3])
-    return (View((ViewBody("state", tuple(q), particle=True),), trails=(("state", tuple(q)),), ground=False),
-            f"the model gives no geometry: the view shows the point ({names}) in configuration space "
-            "(add a [view] table to draw the mechanism)")
+    return (
+        View((ViewBody("state", tuple(q), particle=True),), trails=(("state", tuple(q)),), ground=False),
+        f"the model gives no geometry: the view shows the point ({names}) in configuration space "
+        "(add a [view] table to draw the mechanism)",
+    )
 
 
 def _columns_of(system, solution, symbols) -> dict:
@@ -116,9 +124,11 @@ def _columns_of(system, solution, symbols) -> dict:
                 value = next(p.value for p in system.parameters if p.symbol.name == named[s])
                 out[s] = np.full(solution.t.shape, float(value))
                 continue
-            raise ModelError(f"the view uses {s.name!r}, which is not a column of the motion",
-                             hint="a view's expressions may use t, coordinates, speeds, accelerations, "
-                                  "lambda_<constraint>, control_<control>, outputs and parameters") from None
+            raise ModelError(
+                f"the view uses {s.name!r}, which is not a column of the motion",
+                hint="a view's expressions may use t, coordinates, speeds, accelerations, "
+                "lambda_<constraint>, control_<control>, outputs and parameters",
+            ) from None
     return out
 
 
@@ -144,8 +154,14 @@ def _reach(shape) -> float:
 
 
 def _shape(s) -> dict:
-    out = {"kind": s.kind, "size": list(s.size), "origin": list(s.origin), "rotation": list(s.rotation),
-           "colour": s.colour, "solid": s.solid}
+    out = {
+        "kind": s.kind,
+        "size": list(s.size),
+        "origin": list(s.origin),
+        "rotation": list(s.rotation),
+        "colour": s.colour,
+        "solid": s.solid,
+    }
     if s.mesh is not None:
         out["vertices"] = _flat(np.array(s.mesh[0]))
         out["faces"] = list(s.mesh[1])
@@ -164,7 +180,8 @@ def _corners(shapes) -> tuple:
                 out.append(tuple(np.array(s.origin) + R @ np.where(signs, hi, lo)))
             continue
         half = {"box": [x / 2 for x in s.size], "sphere": [s.size[0]] * 3}.get(
-            s.kind, [s.size[0], s.size[0], s.size[1] / 2 + (s.size[0] if s.kind == "capsule" else 0)])
+            s.kind, [s.size[0], s.size[0], s.size[1] / 2 + (s.size[0] if s.kind == "capsule" else 0)]
+        )
         R = np.array(s.rotation).reshape(3, 3)
         for signs in np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).T.reshape(-1, 3):
             out.append(tuple(np.array(s.origin) + R @ (signs * half)))
@@ -199,17 +216,31 @@ def scene_data(system, solution, view: View | None = None, max_frames: int = MAX
         q = quaternions(R)
         for r in (b.links or ((0.0, 0.0, 0.0),)) + (b.com,) + _corners(b.shapes):
             points.append(p + np.einsum("nij,j->ni", R, np.array(r)))
-        bodies.append({
-            "name": b.name, "particle": b.particle, "p": _flat(p), "q": _flat(q, 6),
-            "shapes": [_shape(s) for s in b.shapes],
-            "links": [list(x) for x in b.links], "com": list(b.com),
-            "joint": list(b.joint) if b.joint is not None and not b.particle else None})
+        bodies.append(
+            {
+                "name": b.name,
+                "particle": b.particle,
+                "p": _flat(p),
+                "q": _flat(q, 6),
+                "shapes": [_shape(s) for s in b.shapes],
+                "links": [list(x) for x in b.links],
+                "com": list(b.com),
+                "joint": list(b.joint) if b.joint is not None and not b.particle else None,
+            }
+        )
     arrows = []
     for a in view.arrows:
         at, v = _finite(take(3)), _finite(take(3))
         points.append(at)
-        arrows.append({"name": a.name, "kind": a.kind, "at": _flat(at), "v": _flat(v),
-                       "largest": float(np.max(np.linalg.norm(v, axis=1))) if n else 0.0})
+        arrows.append(
+            {
+                "name": a.name,
+                "kind": a.kind,
+                "at": _flat(at),
+                "v": _flat(v),
+                "largest": float(np.max(np.linalg.norm(v, axis=1))) if n else 0.0,
+            }
+        )
     trails = []
     for name, _ in view.trails:
         p = _finite(take(3))
@@ -229,21 +260,43 @@ def scene_data(system, solution, view: View | None = None, max_frames: int = MAX
     plane = _plane(points, size)
     # a typical body's length (bars from its joint to the others, to its mass centre, its
     # shapes): the thickness of bars and pins, so that a long path keeps them slim
-    lengths = [max([float(np.linalg.norm(np.subtract(x, b.links[0] if b.links else (0, 0, 0))))
-                    for x in (b.links or ()) + (b.com,)] + [_reach(sh) for sh in b.shapes] + [0.0])
-               for b in view.bodies if not b.particle]
+    lengths = [
+        max(
+            [
+                float(np.linalg.norm(np.subtract(x, b.links[0] if b.links else (0, 0, 0))))
+                for x in (b.links or ()) + (b.com,)
+            ]
+            + [_reach(sh) for sh in b.shapes]
+            + [0.0]
+        )
+        for b in view.bodies
+        if not b.particle
+    ]
     lengths = [x for x in lengths if x > 1e-9 * size]
     detail = float(np.median(lengths)) if lengths else 0.1 * extent
     follow = size > FOLLOW * extent
     scale = {k: max([a["largest"] for a in arrows if a["kind"] == k], default=0.0) for k in ("force", "moment")}
     if scale["moment"] <= ROUNDING * (scale["force"] * size + scale["moment"]):
         scale["moment"] = 0.0  # moments of rounding size (a planar hinge's): not drawn
-    return {"t": _flat(solution.t[rows], 7), "bodies": bodies, "arrows": arrows, "trails": trails,
-            "states": _contact_states(solution, rows),
-            "up": list(view.up), "ground": view.ground, "plane": plane,
-            "bounds": [lo.tolist(), hi.tolist()], "size": size, "extent": extent, "detail": min(detail, extent), "follow": follow,
-            "centre": _flat(centres) if follow else None, "scale": scale, "note": note,
-            "name": solution.metadata.name}
+    return {
+        "t": _flat(solution.t[rows], 7),
+        "bodies": bodies,
+        "arrows": arrows,
+        "trails": trails,
+        "states": _contact_states(solution, rows),
+        "up": list(view.up),
+        "ground": view.ground,
+        "plane": plane,
+        "bounds": [lo.tolist(), hi.tolist()],
+        "size": size,
+        "extent": extent,
+        "detail": min(detail, extent),
+        "follow": follow,
+        "centre": _flat(centres) if follow else None,
+        "scale": scale,
+        "note": note,
+        "name": solution.metadata.name,
+    }
 
 
 def _contact_states(solution, rows) -> list[dict]:
@@ -253,8 +306,13 @@ def _contact_states(solution, rows) -> list[dict]:
     out = []
     for name, values in solution.friction.items():
         if name.endswith("_slipping"):
-            out.append({"name": name[:-9], "labels": ["sticks", "slips"],
-                        "values": [int(v > 0.5) for v in np.nan_to_num(values[rows])]})
+            out.append(
+                {
+                    "name": name[:-9],
+                    "labels": ["sticks", "slips"],
+                    "values": [int(v > 0.5) for v in np.nan_to_num(values[rows])],
+                }
+            )
     for name, values in solution.position_residuals.items():
         gone = np.isnan(values[rows])
         if gone.any() and not gone.all():

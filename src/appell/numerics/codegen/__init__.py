@@ -48,17 +48,59 @@ run. Loaded with :mod:`ctypes`. Without a compiler ``backend='auto'`` uses the N
 functions instead, with a warning, and ``backend='c'`` is refused.
 """
 
-from appell.numerics.codegen.build import (CACHE_ENV, CFLAGS, COMPILER_ENV, KEY_SYMBOL, LIBRARY_FORMAT, O1_ABOVE,
-                                           O3_UP_TO,
-                                           build_library, cache_dir, compile_workers, find_compiler, load_library,
-                                           optimisation)
+from appell.numerics.codegen.build import (
+    CACHE_ENV,
+    CFLAGS,
+    COMPILER_ENV,
+    KEY_SYMBOL,
+    LIBRARY_FORMAT,
+    O1_ABOVE,
+    O3_UP_TO,
+    build_library,
+    cache_dir,
+    compile_workers,
+    find_compiler,
+    load_library,
+    optimisation,
+)
 from appell.numerics.codegen.model import BACKENDS, CompiledNumericModel, caller, compile_c
-from appell.numerics.codegen.printer import HEADER_END, SPLIT_STATEMENTS, UNIT_MARK, c_comment, c_function, common_factor
+from appell.numerics.codegen.printer import (
+    HEADER_END,
+    SPLIT_STATEMENTS,
+    UNIT_MARK,
+    c_comment,
+    c_function,
+    common_factor,
+)
 from appell.numerics.codegen.source import c_source, source_units
 from appell.numerics.codegen.tree import ParticleTree, particle_tree
 
-__all__ = ["BACKENDS", "CACHE_ENV", "CFLAGS", "COMPILER_ENV", "HEADER_END", "KEY_SYMBOL", "LIBRARY_FORMAT", "O1_ABOVE",
-           "O3_UP_TO",
-           "SPLIT_STATEMENTS", "UNIT_MARK", "CompiledNumericModel", "ParticleTree", "build_library", "c_comment",
-           "c_function", "c_source", "cache_dir", "caller", "common_factor", "compile_c", "compile_workers",
-           "find_compiler", "load_library", "optimisation", "particle_tree", "source_units"]
+__all__ = [
+    "BACKENDS",
+    "CACHE_ENV",
+    "CFLAGS",
+    "COMPILER_ENV",
+    "HEADER_END",
+    "KEY_SYMBOL",
+    "LIBRARY_FORMAT",
+    "O1_ABOVE",
+    "O3_UP_TO",
+    "SPLIT_STATEMENTS",
+    "UNIT_MARK",
+    "CompiledNumericModel",
+    "ParticleTree",
+    "build_library",
+    "c_comment",
+    "c_function",
+    "c_source",
+    "cache_dir",
+    "caller",
+    "common_factor",
+    "compile_c",
+    "compile_workers",
+    "find_compiler",
+    "load_library",
+    "optimisation",
+    "particle_tree",
+    "source_units",
+]

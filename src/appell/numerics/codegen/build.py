@@ -15,11 +15,9 @@ import tempfile
 import warnings
 from pathlib import Path
 
-
 from appell._cache import Cache
 from appell.errors import ComputationError
 from appell.numerics.codegen.source import source_units
-
 
 CACHE_ENV = "APPELL_CACHE_DIR"
 COMPILER_ENV = "APPELL_CC"
@@ -112,8 +110,12 @@ def build_library(source: str, compiler: list[str] | None = None, *, force: bool
         if not force and _verified(lib):
             return lib, False
         if lib.exists() and not force:
-            warnings.warn(f"the cached library {lib} does not match its checksum (truncated, empty or foreign); "
-                          "compiling it again", RuntimeWarning, stacklevel=3)
+            warnings.warn(
+                f"the cached library {lib} does not match its checksum (truncated, empty or foreign); "
+                "compiling it again",
+                RuntimeWarning,
+                stacklevel=3,
+            )
         _discard(lib)
         _compile(source, compiler, root, key, lib)
     return lib, True
@@ -160,8 +162,10 @@ def _run_compilers(commands: list[list[str]]) -> None:
         if proc.returncode != 0 and failure is None:
             failure = err
     if failure is not None:
-        raise ComputationError(f"C compilation failed: {failure.strip()[:2000]}",
-                               hint="use backend='numpy', or set $APPELL_CC to a working C compiler")
+        raise ComputationError(
+            f"C compilation failed: {failure.strip()[:2000]}",
+            hint="use backend='numpy', or set $APPELL_CC to a working C compiler",
+        )
 
 
 def _compile(source: str, compiler: list[str], root: Path, key: str, lib: Path) -> None:
@@ -178,14 +182,20 @@ def _compile(source: str, compiler: list[str], root: Path, key: str, lib: Path) 
         return name
 
     try:
-        src_tmp, key_tmp, lib_tmp, sum_tmp = temporary(".c"), temporary("_key.c"), temporary(".so.tmp"), temporary(".sha")
+        src_tmp, key_tmp, lib_tmp, sum_tmp = (
+            temporary(".c"),
+            temporary("_key.c"),
+            temporary(".so.tmp"),
+            temporary(".sha"),
+        )
         Path(src_tmp).write_text(source)
         Path(key_tmp).write_text(f'const char {KEY_SYMBOL}[] = "{key}";\n')
         units = source_units(source)
         if len(units) == 1:
             flags = [optimisation(source), *CFLAGS[1:]]
-            proc = subprocess.run(compiler + flags + ["-o", lib_tmp, src_tmp, key_tmp, "-lm"],
-                                  capture_output=True, text=True)
+            proc = subprocess.run(
+                compiler + flags + ["-o", lib_tmp, src_tmp, key_tmp, "-lm"], capture_output=True, text=True
+            )
             if proc.returncode != 0:
                 raise ComputationError(
                     f"C compilation failed ({' '.join(compiler)}): {proc.stderr.strip()[:2000]}",
@@ -241,8 +251,11 @@ def load_library(path: Path, source: str, compiler: list[str]) -> tuple[ctypes.C
         found = None
     if found == key:
         return _LOADED.put((str(path), checksum), lib), path, False
-    warnings.warn(f"the cached library {path} is not the one compiled for this model (key {found!r}); "
-                  "compiling it again", RuntimeWarning, stacklevel=3)
+    warnings.warn(
+        f"the cached library {path} is not the one compiled for this model (key {found!r}); compiling it again",
+        RuntimeWarning,
+        stacklevel=3,
+    )
     path, _ = build_library(source, compiler, force=True)
     # the dynamic loader caches libraries by name: load the new one through a fresh name
     fd, fresh = tempfile.mkstemp(prefix=f"appell_{key}_load_", suffix=".so", dir=path.parent)
@@ -254,8 +267,8 @@ def load_library(path: Path, source: str, compiler: list[str]) -> tuple[ctypes.C
         os.unlink(fresh)
     found = _library_key(lib, key)
     if found != key:
-        raise ComputationError(f"the compiled library {path} does not carry its key {key!r}",
-                               hint="remove the cache directory ($APPELL_CACHE_DIR) and try again")
+        raise ComputationError(
+            f"the compiled library {path} does not carry its key {key!r}",
+            hint="remove the cache directory ($APPELL_CACHE_DIR) and try again",
+        )
     return _LOADED.put((str(path), _checksum_path(path).read_text().strip()), lib), path, True
-
-

@@ -59,8 +59,12 @@ def loop_c_source(model, parts) -> str:
     from appell.symbols import derivative_symbol
 
     syms = {t: sp.Symbol("t")}
-    for arr, names in (("q", coords), ("w", [derivative_symbol(q) for q in coords]), ("a", list(parts.controls)),
-                       ("p", [p.symbol for p in parts.parameters])):
+    for arr, names in (
+        ("q", coords),
+        ("w", [derivative_symbol(q) for q in coords]),
+        ("a", list(parts.controls)),
+        ("p", [p.symbol for p in parts.parameters]),
+    ):
         syms.update({s: sp.Symbol(f"{arr}[{i}]") for i, s in enumerate(names)})
     nb, s = len(tree.nodes), len(model.other_rows)
     speeds = [k for node in tree.nodes for k in node.speeds]
@@ -68,8 +72,11 @@ def loop_c_source(model, parts) -> str:
     rows = [row for _, row in model.loop_rows]
     before, sparse = _tree_order(model, first)
     J_o, c_o, phi_o = model.other_blocks
-    data = sp.Matrix([x for row in rows for x in (*row.point_a, *row.axis_a, *row.point_b, *row.axis_b)]) \
-        if rows else sp.zeros(0, 1)
+    data = (
+        sp.Matrix([x for row in rows for x in (*row.point_a, *row.axis_a, *row.point_b, *row.axis_b)])
+        if rows
+        else sp.zeros(0, 1)
+    )
     parts_c = [
         f"/* appell: generated C for the closed chain {c_comment(model.name)}; n = {n}, {len(rows)} loop rows */",
         "#include <math.h>\n#include <string.h>",
@@ -78,19 +85,28 @@ def loop_c_source(model, parts) -> str:
         f"\n#define SPARSE_SPLIT {int(sparse and n > 0)}"
         "\n#define DIM(k) ((k) > 0 ? (k) : 1)",
         HEADER_END,
-        _array("PARENT", model.parent, "NB"), _array("UP", model.parent, "NB"), _array("NODE_OF", model.node_of, "N"),
-        _array("SPEEDS", speeds, "N"), _array("FIRST", first, "NB + 1"), _array("LAMBDA", before, "DIM(N)"),
+        _array("PARENT", model.parent, "NB"),
+        _array("UP", model.parent, "NB"),
+        _array("NODE_OF", model.node_of, "N"),
+        _array("SPEEDS", speeds, "N"),
+        _array("FIRST", first, "NB + 1"),
+        _array("LAMBDA", before, "DIM(N)"),
         "static const unsigned char RIGID[NB] = {0}, FOLD[NB] = {0}, SKIP[NB] = {0};",
         _array("LROW", [k for k, _ in model.loop_rows], "DIM(NL)"),
         _array("LKIND", [{"point": 0, "align": 1, "point_a": 2}[row.kind] for row in rows], "DIM(NL)"),
         _array("LBODY_A", [row.body_a for row in rows], "DIM(NL)"),
         _array("LBODY_B", [row.body_b for row in rows], "DIM(NL)"),
         _array("OROW", model.other_rows, "DIM(S)"),
-        c_function("appell_rigid_terms", tree_matrices(tree, n, gravity=True) + [sp.Matrix(parts.forces or [0] * n),
-                                                                                 J_o, c_o], syms),
+        c_function(
+            "appell_rigid_terms",
+            tree_matrices(tree, n, gravity=True) + [sp.Matrix(parts.forces or [0] * n), J_o, c_o],
+            syms,
+        ),
         c_function("appell_rigid_points", point_matrices(tree), syms),
         c_function("appell_loop_data", [data, phi_o], syms),
-        _c_file("rigid.c"), _c_file("loops.c")]
+        _c_file("rigid.c"),
+        _c_file("loops.c"),
+    ]
     return joined_parts(parts_c)
 
 
@@ -103,7 +119,7 @@ class CompiledLoops:
     def __init__(self, lib, path, n, nc, nb, nu, npar):
         self.library_path = path
         self._lib = lib
-        sizes = (n, n, nu, npar)   # q, w, u (the accelerations' slot), p
+        sizes = (n, n, nu, npar)  # q, w, u (the accelerations' slot), p
         for name in ("appell_loop_evaluate", "appell_loop_blocks", "appell_loop_positions", "appell_loop_wrenches"):
             fn = getattr(lib, name)
             fn.restype = None
@@ -131,7 +147,7 @@ class CompiledLoops:
         work = self._wrench_scratch
         inputs = work.inputs
         inputs[0][:], inputs[1][:], inputs[2][:], inputs[3][:] = q, w, u, p
-        inputs[4][:self.n], inputs[4][self.n:] = a, lam
+        inputs[4][: self.n], inputs[4][self.n :] = a, lam
         self._wrench_call(float(t0), *work.in_addr, *work.out_addr)
         return work.outputs[0].copy()
 
@@ -144,5 +160,12 @@ def compile_loops(model, parts) -> CompiledLoops | None:
     source = loop_c_source(model, parts)
     path, _ = build_library(source, compiler)
     lib, path, _ = load_library(path, source, compiler)
-    return CompiledLoops(lib, path, model.n, len(model.constraint_names), len(model.tree.nodes),
-                         len(model.control_names), len(model.parameter_names))
+    return CompiledLoops(
+        lib,
+        path,
+        model.n,
+        len(model.constraint_names),
+        len(model.tree.nodes),
+        len(model.control_names),
+        len(model.parameter_names),
+    )

@@ -14,14 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from appell._cache import Cache
-from appell.numerics.dynamics import Evaluation
-from appell.numerics import fastcall
 from appell.errors import ComputationError, ModelError, ResourceError
-from appell.numerics.numeric import KEEP_CONDITION, NumericModel, StateSolution, compile_model
-from appell.numerics.redundant import with_redundancy
+from appell.numerics import fastcall
 from appell.numerics.codegen.build import CACHE_ENV, COMPILER_ENV, build_library, cache_dir, find_compiler, load_library
 from appell.numerics.codegen.source import c_source
-
+from appell.numerics.dynamics import Evaluation
+from appell.numerics.numeric import KEEP_CONDITION, NumericModel, StateSolution, compile_model
+from appell.numerics.redundant import with_redundancy
 
 BACKENDS = ("numpy", "c", "auto")
 
@@ -34,6 +33,7 @@ _EMPTY.flags.writeable = False
 def caller():
     """The fast-call extension (:mod:`appell.numerics.fastcall`), built into the cache on first
     use, or None (ctypes is used then)."""
+
     def build(source, command):
         path, _ = build_library(source, command)
         return load_library(path, source, command)[1]
@@ -112,8 +112,10 @@ class CompiledNumericModel(NumericModel):
         the parent's action on the subtree (RNEA's inward force, ``rigid.c``); the loads and
         constraint forces acting on the subtree are not in it. One C call."""
         if self._wrenches is None:
-            raise ModelError("joint_wrenches needs bodies on a joint tree (a mechanism or a URDF robot)",
-                             hint="use the outputs F_<joint>_x ... of Mechanism.system(reactions=...)")
+            raise ModelError(
+                "joint_wrenches needs bodies on a joint tree (a mechanism or a URDF robot)",
+                hint="use the outputs F_<joint>_x ... of Mechanism.system(reactions=...)",
+            )
         return self._wrenches(t, q, w, a, self.default_parameters if p is None else p)[0]
 
     def __post_init__(self):
@@ -126,11 +128,17 @@ class CompiledNumericModel(NumericModel):
         self._formula["no_level"] = (np.flatnonzero(~self.has_position), np.flatnonzero(~self.has_velocity))
         lib, fast = self._lib, caller()
         if lib is not None and hasattr(lib, "appell_evaluate"):
-            self._formula["evaluate"] = (lib.appell_evaluate if fast is None else
-                                         partial(fast.evaluate, ctypes.cast(lib.appell_evaluate, _P).value))
+            self._formula["evaluate"] = (
+                lib.appell_evaluate
+                if fast is None
+                else partial(fast.evaluate, ctypes.cast(lib.appell_evaluate, _P).value)
+            )
         if lib is not None:
-            self._formula["residuals"] = (lib.appell_residuals if fast is None else
-                                          partial(fast.expr, ctypes.cast(lib.appell_residuals, _P).value))
+            self._formula["residuals"] = (
+                lib.appell_residuals
+                if fast is None
+                else partial(fast.expr, ctypes.cast(lib.appell_residuals, _P).value)
+            )
 
     def _param_address(self, pv: np.ndarray) -> tuple[np.ndarray, int]:
         if pv is self.default_parameters:
@@ -153,11 +161,24 @@ class CompiledNumericModel(NumericModel):
         q, w = self.checked_state(q, w)
         n, s = len(w), len(self._default_dep)
         bv = None if bias is None else _bias(bias, s)
-        dep = self._default_dep if dependent is None else np.ascontiguousarray(self.checked_dependent(dependent),
-                                                                                 dtype=np.intc)
+        dep = (
+            self._default_dep
+            if dependent is None
+            else np.ascontiguousarray(self.checked_dependent(dependent), dtype=np.intc)
+        )
         a, lam, R = np.empty(n), np.empty(s), np.empty(n)
-        status = self._lib.appell_solve(float(t), _ptr(q), _ptr(w), _ptr(pv), None if bv is None else _ptr(bv),
-                                        _ptr(dep), KEEP_CONDITION, _ptr(a), _ptr(lam), _ptr(R))
+        status = self._lib.appell_solve(
+            float(t),
+            _ptr(q),
+            _ptr(w),
+            _ptr(pv),
+            None if bv is None else _ptr(bv),
+            _ptr(dep),
+            KEEP_CONDITION,
+            _ptr(a),
+            _ptr(lam),
+            _ptr(R),
+        )
         if status != 0:
             return self._fallback_solve(t, q, w, pv, dependent, bias)
         return StateSolution(a, lam, R, tuple(int(i) for i in dep), False)
@@ -174,8 +195,13 @@ class CompiledNumericModel(NumericModel):
             q, w = self.split_state(y)
             pv = self.params(p)
             sol = self.solve(t, q, w, pv, dependent, bias)
-            return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
-                              sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
+            return Evaluation(
+                np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
+                sol.multipliers,
+                np.zeros(0),
+                sol.dependent,
+                sol.switched,
+            )
         scratch = self._formula["evaluate_scratch"]
         if not _fill(scratch.inputs[0], y):
             y = _vec(y)
@@ -183,16 +209,27 @@ class CompiledNumericModel(NumericModel):
             raise ModelError(f"the state of {self.name!r} has {len(self.state_names)} entries, got shape {y.shape}")
         pv, paddr = self._param_address(self.params(p))
         bv = None if bias is None else _bias(bias, len(self._default_dep))
-        status = self._formula["evaluate"](float(t), scratch.in_addr[0], paddr, None if bv is None else _ptr(bv),
-                                           self._formula["addr"][1], KEEP_CONDITION, *scratch.out_addr)
+        status = self._formula["evaluate"](
+            float(t),
+            scratch.in_addr[0],
+            paddr,
+            None if bv is None else _ptr(bv),
+            self._formula["addr"][1],
+            KEEP_CONDITION,
+            *scratch.out_addr,
+        )
         if status != 0:
             q, w = self.split_state(scratch.inputs[0].copy())
             sol = self._fallback_solve(t, q, w, pv, None, bias)
-            return Evaluation(np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
-                              sol.multipliers, np.zeros(0), sol.dependent, sol.switched)
+            return Evaluation(
+                np.concatenate([self.coordinate_rates(t, q, w, pv), sol.accelerations]),
+                sol.multipliers,
+                np.zeros(0),
+                sol.dependent,
+                sol.switched,
+            )
         dy, lam = scratch.outputs
         return Evaluation(dy.copy(), lam.copy(), _EMPTY, self._formula["dep"], False)
-
 
     def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`~appell.numerics.numeric.NumericModel.state_residuals` in one C call on the
@@ -202,8 +239,9 @@ class CompiledNumericModel(NumericModel):
             return super().state_residuals(t, y, p)
         _, paddr = self._param_address(self.params(p))
         y_addr = scratch.in_addr[0]
-        self._formula["residuals"](float(t), y_addr, y_addr + 8 * len(self.coordinate_names), None, paddr,
-                                   *scratch.out_addr)
+        self._formula["residuals"](
+            float(t), y_addr, y_addr + 8 * len(self.coordinate_names), None, paddr, *scratch.out_addr
+        )
         F, phi = scratch.outputs[0].copy(), scratch.outputs[1].copy()
         no_position, no_velocity = self._formula["no_level"]
         if no_position.size:
@@ -242,6 +280,7 @@ def _wrap(fn, shapes, sizes, with_acc=False):
         aa = _vec(a) if a is not None else None
         fn(float(t), _ptr(q), _ptr(w), None if aa is None else _ptr(aa), _ptr(p), *[_ptr(o) for o in outs])
         return outs
+
     return call
 
 
@@ -258,6 +297,7 @@ def _forward_call(fn, sizes, outputs):
         def slow(t, q, w, p):
             a, lam, wrench = call(t, q, w, p)
             return (a, lam, wrench) if not len(a) or np.isfinite(a[0]) else None
+
         return slow
     address, run = ctypes.cast(fn, _P).value, fast.forward
     counts = (*sizes, s, nb)
@@ -270,6 +310,7 @@ def _forward_call(fn, sizes, outputs):
             except (TypeError, ValueError):
                 return None
         return out if type(out) is tuple else None
+
     return forward
 
 
@@ -335,11 +376,14 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
     compiler = find_compiler()
     if compiler is None:
         if backend == "c":
-            raise ModelError("the C backend needs a C compiler, and none was found",
-                             hint=f"install cc or set ${COMPILER_ENV}, or choose the backend 'auto' (C when a "
-                                  "compiler is found, else NumPy) or 'numpy'")
-        warnings.warn(f"no C compiler found (set ${COMPILER_ENV} or $CC); using the NumPy backend",
-                      RuntimeWarning, stacklevel=2)
+            raise ModelError(
+                "the C backend needs a C compiler, and none was found",
+                hint=f"install cc or set ${COMPILER_ENV}, or choose the backend 'auto' (C when a "
+                "compiler is found, else NumPy) or 'numpy'",
+            )
+        warnings.warn(
+            f"no C compiler found (set ${COMPILER_ENV} or $CC); using the NumPy backend", RuntimeWarning, stacklevel=2
+        )
         return with_redundancy(compile_model(derivation))
     source = _source_for(derivation)
     try:
@@ -349,9 +393,10 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
     except (ComputationError, OSError) as exc:
         if backend == "c":
             if isinstance(exc, OSError):
-                raise ResourceError(f"cannot use the compiled-code cache {cache_dir()}: {exc.strerror or exc}",
-                                    hint=f"set ${CACHE_ENV} to a writable directory, or use the backend "
-                                         "'numpy'") from exc
+                raise ResourceError(
+                    f"cannot use the compiled-code cache {cache_dir()}: {exc.strerror or exc}",
+                    hint=f"set ${CACHE_ENV} to a writable directory, or use the backend 'numpy'",
+                ) from exc
             raise
         warnings.warn(f"{exc}; using the NumPy backend", RuntimeWarning, stacklevel=2)
         return with_redundancy(compile_model(derivation))
@@ -386,20 +431,22 @@ def compile_c(derivation, backend: str = "c") -> NumericModel:
             lib.appell_forward.restype = None
             forward = _forward_call(lib.appell_forward, (nq, n, npar), (s, nb))
     system = derivation.system
-    return with_redundancy(CompiledNumericModel(
-        derivation=derivation,
-        parameters=tuple(p.symbol for p in system.parameters),
-        default_parameters=np.array([p.value for p in system.parameters], dtype=float),
-        blocks=_wrap(lib.appell_blocks, [(n, n), (n,), (s, n), (s,)], (nq, n, npar)),
-        constraint_function=cfun,
-        rates=_wrap(lib.appell_rates, [(nq,)], (nq, n, npar)),
-        residuals=_wrap(lib.appell_residuals, [(s,), (s,)], (nq, n, npar)),
-        has_position=np.array([e is not None for e in cons.position_residual], dtype=bool),
-        has_velocity=np.array([e is not None for e in cons.velocity_residual], dtype=bool),
-        library_path=path,
-        freshly_compiled=fresh,
-        _lib=lib,
-        _default_dep=np.ascontiguousarray(derivation.partition.dependent, dtype=np.intc),
-        _wrenches=wrenches,
-        _forward=forward,
-    ))
+    return with_redundancy(
+        CompiledNumericModel(
+            derivation=derivation,
+            parameters=tuple(p.symbol for p in system.parameters),
+            default_parameters=np.array([p.value for p in system.parameters], dtype=float),
+            blocks=_wrap(lib.appell_blocks, [(n, n), (n,), (s, n), (s,)], (nq, n, npar)),
+            constraint_function=cfun,
+            rates=_wrap(lib.appell_rates, [(nq,)], (nq, n, npar)),
+            residuals=_wrap(lib.appell_residuals, [(s,), (s,)], (nq, n, npar)),
+            has_position=np.array([e is not None for e in cons.position_residual], dtype=bool),
+            has_velocity=np.array([e is not None for e in cons.velocity_residual], dtype=bool),
+            library_path=path,
+            freshly_compiled=fresh,
+            _lib=lib,
+            _default_dep=np.ascontiguousarray(derivation.partition.dependent, dtype=np.intc),
+            _wrenches=wrenches,
+            _forward=forward,
+        )
+    )

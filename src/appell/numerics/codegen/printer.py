@@ -32,8 +32,12 @@ def _symbol_map(derivation) -> dict:
     """Model symbols -> C array entries ``q[i]``, ``w[i]``, ``a[i]``, ``p[i]``."""
     kin = derivation.kinematics
     out = {t: sp.Symbol("t")}
-    for arr, syms in (("q", kin.coordinates), ("w", kin.speeds), ("a", kin.accelerations),
-                      ("p", [p.symbol for p in derivation.system.parameters])):
+    for arr, syms in (
+        ("q", kin.coordinates),
+        ("w", kin.speeds),
+        ("a", kin.accelerations),
+        ("p", [p.symbol for p in derivation.system.parameters]),
+    ):
         for i, s in enumerate(syms):
             out[s] = sp.Symbol(f"{arr}[{i}]")
     return out
@@ -69,8 +73,10 @@ def c_function(name: str, outputs, subs: dict, split: int | None = None) -> str:
         )
     replacements, reduced = block_cse(mats, symbols=sp.numbered_symbols("x"), order="none")
     outs = ", ".join(f"double *restrict o{k}" for k in range(len(mats)))
-    args = f"double t, const double *restrict q, const double *restrict w, const double *restrict a, " \
-           f"const double *restrict p{', ' + outs if outs else ''}"
+    args = (
+        f"double t, const double *restrict q, const double *restrict w, const double *restrict a, "
+        f"const double *restrict p{', ' + outs if outs else ''}"
+    )
     count = len(replacements) + sum(len(m) for m in reduced)
     if count <= split:
         lines = [f"void {name}({args})", "{", "    (void)t; (void)q; (void)w; (void)a; (void)p;"]
@@ -83,8 +89,9 @@ def c_function(name: str, outputs, subs: dict, split: int | None = None) -> str:
         return "\n".join(lines)
     slot = {sym: sp.Symbol(f"x[{k}]") for k, (sym, _) in enumerate(replacements)}
     statements = [f"    x[{k}] = {_PRINTER.doprint(expr.xreplace(slot))};" for k, (_, expr) in enumerate(replacements)]
-    statements += [f"    o{k}[{i}] = {_PRINTER.doprint(e.xreplace(slot))};"
-                   for k, m in enumerate(reduced) for i, e in enumerate(m)]
+    statements += [
+        f"    o{k}[{i}] = {_PRINTER.doprint(e.xreplace(slot))};" for k, m in enumerate(reduced) for i, e in enumerate(m)
+    ]
     part_args = args.replace("const double *restrict p", "const double *restrict p, double *restrict x")
     names = [f"{name}_part{k}" for k in range(0, (len(statements) + split - 1) // split)]
     out_names = ", ".join(f"o{k}" for k in range(len(mats)))
@@ -94,8 +101,15 @@ def c_function(name: str, outputs, subs: dict, split: int | None = None) -> str:
     head.append("}")
     units = []
     for k, part in enumerate(names):
-        units += ["", UNIT_MARK, f"void {part}({part_args})", "{", "    (void)t; (void)q; (void)w; (void)a; (void)p; (void)x;",
-                  *statements[k * split:(k + 1) * split], "}"]
+        units += [
+            "",
+            UNIT_MARK,
+            f"void {part}({part_args})",
+            "{",
+            "    (void)t; (void)q; (void)w; (void)a; (void)p; (void)x;",
+            *statements[k * split : (k + 1) * split],
+            "}",
+        ]
     return "\n".join(head + units)
 
 
@@ -116,7 +130,6 @@ def common_factor(expr):
     return sp.Mul(*common.elements()) * sp.Add(*[term / sp.Mul(*common.elements()) for term in terms])
 
 
-
 def c_comment(text: str, limit: int = 200) -> str:
     """``text`` made safe inside a C comment of generated code: letters, digits and ``_ .,:-+``
     kept, every other character (``*/`` that would end the comment, a newline, a non-ASCII
@@ -124,4 +137,3 @@ def c_comment(text: str, limit: int = 200) -> str:
     from an untrusted file and must never become code."""
     safe = "".join(ch if (ch.isascii() and ch.isalnum()) or ch in "_ .,:-+" else "?" for ch in str(text))
     return safe if len(safe) <= limit else safe[:limit] + "..."
-

@@ -10,11 +10,17 @@ from importlib import resources
 import numpy as np
 import sympy as sp
 
-from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, program_substitutions
 from appell.numerics.codegen.printer import HEADER_END, UNIT_MARK, _symbol_map, c_comment, c_function, common_factor
 from appell.numerics.codegen.tree import _tree_recursions, particle_tree
-from appell.numerics.rigid_tree import (folded_nodes, point_matrices, rigid_subtrees, speed_parents, tree_layout,
-                                        tree_matrices)
+from appell.numerics.numeric import KEEP_CONDITION, REFINE_CONDITION, program_substitutions
+from appell.numerics.rigid_tree import (
+    folded_nodes,
+    point_matrices,
+    rigid_subtrees,
+    speed_parents,
+    tree_layout,
+    tree_matrices,
+)
 
 
 def _c_file(name: str) -> str:
@@ -62,22 +68,25 @@ def c_source(derivation) -> str:
             up.append(p if p < 0 or not fold[p] else up[p])
         matrices = [prepared(m) for m in tree_matrices(rigid, n, inertia.gravity)]
         constant = matrices[4].free_symbols <= constants  # the inertias: parameters alone
-        parts += [f"/* rigid bodies on a joint tree: {c_comment(', '.join(rigid.bodies))} */",
-                  f"#include <string.h>\n#define NB {len(rigid.nodes)}\n#define NP {len(derivation.system.parameters)}"
-                  f"\n#define CONSTANT_INERTIA {int(constant)}",
-                  "static const int PARENT[NB] = {" + ", ".join(map(str, parent)) + "};",
-                  "static const int UP[NB] = {" + ", ".join(map(str, up)) + "};",
-                  "static const int NODE_OF[N] = {" + ", ".join(map(str, node_of)) + "};",
-                  "static const int SPEEDS[N] = {" + (", ".join(map(str, speeds)) or "0") + "};",
-                  "static const int FIRST[NB + 1] = {" + ", ".join(map(str, first)) + "};",
-                  *_ancestor_lists(speed_parents(rigid)),
-                  "static const unsigned char RIGID[NB] = {" + ", ".join(str(int(f)) for f in fixed) + "};",
-                  "static const unsigned char FOLD[NB] = {" + ", ".join(str(int(f)) for f in fold) + "};",
-                  "static const unsigned char SKIP[NB] = {" + ", ".join(str(int(a or b)) for a, b in zip(fixed, fold)) + "};",
-                  c_function("appell_rigid_terms", matrices + [prepared(inertia.generalized_forces), prepared(J0),
-                                                              prepared(c)], syms),
-                  c_function("appell_rigid_points", [prepared(m) for m in point_matrices(rigid)], syms),
-                  _c_file("rigid.c")]
+        parts += [
+            f"/* rigid bodies on a joint tree: {c_comment(', '.join(rigid.bodies))} */",
+            f"#include <string.h>\n#define NB {len(rigid.nodes)}\n#define NP {len(derivation.system.parameters)}"
+            f"\n#define CONSTANT_INERTIA {int(constant)}",
+            "static const int PARENT[NB] = {" + ", ".join(map(str, parent)) + "};",
+            "static const int UP[NB] = {" + ", ".join(map(str, up)) + "};",
+            "static const int NODE_OF[N] = {" + ", ".join(map(str, node_of)) + "};",
+            "static const int SPEEDS[N] = {" + (", ".join(map(str, speeds)) or "0") + "};",
+            "static const int FIRST[NB + 1] = {" + ", ".join(map(str, first)) + "};",
+            *_ancestor_lists(speed_parents(rigid)),
+            "static const unsigned char RIGID[NB] = {" + ", ".join(str(int(f)) for f in fixed) + "};",
+            "static const unsigned char FOLD[NB] = {" + ", ".join(str(int(f)) for f in fold) + "};",
+            "static const unsigned char SKIP[NB] = {" + ", ".join(str(int(a or b)) for a, b in zip(fixed, fold)) + "};",
+            c_function(
+                "appell_rigid_terms", matrices + [prepared(inertia.generalized_forces), prepared(J0), prepared(c)], syms
+            ),
+            c_function("appell_rigid_points", [prepared(m) for m in point_matrices(rigid)], syms),
+            _c_file("rigid.c"),
+        ]
     elif tree is None:
         hQ = sp.Matrix(inertia.inertial_forces) - sp.Matrix(inertia.generalized_forces)
         parts.append(c_function("appell_blocks", [prepared(m) for m in (inertia.mass_matrix, hQ, J0, c)], syms))
@@ -87,18 +96,38 @@ def c_source(derivation) -> str:
         axis = sp.Matrix([m[r] for m in tree.axis for r in rows])
         bias = sp.Matrix([m[r] for m in tree.relative_bias for r in rows])
         Q = sp.Matrix(inertia.generalized_forces).applyfunc(common_factor)
-        parts += [f"/* point masses on a tree: {c_comment(', '.join(tree.names))} */",
-                  f"#define NB {len(tree.names)}\n#define TD {len(rows)}",
-                  c_function("appell_tree_terms", [prepared(axis), prepared(bias), prepared(sp.Matrix(tree.mass)),
-                                                   prepared(Q), prepared(J0), prepared(c)], syms)]
-    parts += [c_function("appell_rates", [prepared(kin.coordinate_rates)], syms),
-              c_function("appell_residuals", [prepared(pos), prepared(vel)], syms)]
+        parts += [
+            f"/* point masses on a tree: {c_comment(', '.join(tree.names))} */",
+            f"#define NB {len(tree.names)}\n#define TD {len(rows)}",
+            c_function(
+                "appell_tree_terms",
+                [
+                    prepared(axis),
+                    prepared(bias),
+                    prepared(sp.Matrix(tree.mass)),
+                    prepared(Q),
+                    prepared(J0),
+                    prepared(c),
+                ],
+                syms,
+            ),
+        ]
+    parts += [
+        c_function("appell_rates", [prepared(kin.coordinate_rates)], syms),
+        c_function("appell_residuals", [prepared(pos), prepared(vel)], syms),
+    ]
     if cons.linear:
-        parts += [_c_file("solver.c"), _c_file("dense_entries.c") if tree is None else _tree_recursions(tree, len(rows), s) + _c_file("tree.c"), _c_file("evaluate.c")]
+        parts += [
+            _c_file("solver.c"),
+            _c_file("dense_entries.c") if tree is None else _tree_recursions(tree, len(rows), s) + _c_file("tree.c"),
+            _c_file("evaluate.c"),
+        ]
         if rigid is not None:
             dep = ", ".join(str(int(i)) for i in derivation.partition.dependent) or "0"
-            parts += [f"#define KEEP_CONDITION {KEEP_CONDITION!r}\nstatic const int DEP0[DIM(S)] = {{{dep}}};",
-                      _c_file("rigid_forward.c")]
+            parts += [
+                f"#define KEEP_CONDITION {KEEP_CONDITION!r}\nstatic const int DEP0[DIM(S)] = {{{dep}}};",
+                _c_file("rigid_forward.c"),
+            ]
     else:
         parts.append(c_function("appell_constraint", [prepared(cons.second_order), prepared(J)], syms))
     return joined_parts(parts)
@@ -127,8 +156,10 @@ def _ancestor_lists(parents: list[int]) -> list[str]:
             chain.append(j)
             j = parents[j]
         at.append(len(chain))
-    return ["static const int CHAIN[DIM(" + str(len(chain)) + ")] = {" + (", ".join(map(str, chain)) or "0") + "};",
-            "static const int CHAIN_AT[N + 1] = {" + ", ".join(map(str, at)) + "};"]
+    return [
+        "static const int CHAIN[DIM(" + str(len(chain)) + ")] = {" + (", ".join(map(str, chain)) or "0") + "};",
+        "static const int CHAIN_AT[N + 1] = {" + ", ".join(map(str, at)) + "};",
+    ]
 
 
 def source_units(source: str) -> list[str]:
@@ -138,7 +169,5 @@ def source_units(source: str) -> list[str]:
     chunks = source.split(UNIT_MARK)
     if len(chunks) == 1:
         return [source]
-    header = source[:source.index(HEADER_END) + len(HEADER_END)] + "\n"
+    header = source[: source.index(HEADER_END) + len(HEADER_END)] + "\n"
     return [chunks[0]] + [header + chunk for chunk in chunks[1:]]
-
-

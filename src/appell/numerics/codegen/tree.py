@@ -8,7 +8,6 @@ from dataclasses import dataclass
 import sympy as sp
 
 
-
 def _sum(terms) -> str:
     return " + ".join(terms) if terms else "0.0"
 
@@ -40,14 +39,20 @@ def _tree_recursions(tree: ParticleTree, td: int, s: int) -> str:
     def cb(b, i):
         return f"cb[{td * b + i}]"
 
-    out = ["/* M^{-1} (rhs_k - h_k), k = 0..S, along the tree (see _tree_recursions) */",
-           "static int tree_solve(const double *restrict U, const double *restrict cb, const double *restrict m,",
-           "                      const double *restrict rhs, double *restrict x)", "{", "    int bad = 0;"]
+    out = [
+        "/* M^{-1} (rhs_k - h_k), k = 0..S, along the tree (see _tree_recursions) */",
+        "static int tree_solve(const double *restrict U, const double *restrict cb, const double *restrict m,",
+        "                      const double *restrict rhs, double *restrict x)",
+        "{",
+        "    int bad = 0;",
+    ]
     for b in reversed(range(nb)):
         own, par = tree.owned[b], tree.parent[b]
         for i in R:
             for j in range(i, td):
-                out.append(f"    const double {A(b, i, j)} = {_sum(([f'm[{b}]'] if i == j else []) + [f'Ia{c}_{i}{j}' for c in kids[b]])};")
+                out.append(
+                    f"    const double {A(b, i, j)} = {_sum(([f'm[{b}]'] if i == j else []) + [f'Ia{c}_{i}{j}' for c in kids[b]])};"
+                )
         if own >= 0:
             for i in R:
                 out.append(f"    const double iu{b}_{i} = {_sum([f'{A(b, i, j)} * {U(b, j)}' for j in R])};")
@@ -61,7 +66,9 @@ def _tree_recursions(tree: ParticleTree, td: int, s: int) -> str:
                     out.append(f"    const double Ia{b}_{i}{j} = {A(b, i, j)}{red};")
         for r in range(s + 1):
             for i in R:
-                terms = [f"pa{r}_{c}_{i}" for c in kids[b]] + ([f"{A(b, i, j)} * {cb(b, j)}" for j in R] if r == 0 else [])
+                terms = [f"pa{r}_{c}_{i}" for c in kids[b]] + (
+                    [f"{A(b, i, j)} * {cb(b, j)}" for j in R] if r == 0 else []
+                )
                 out.append(f"    const double p{r}_{b}_{i} = {_sum(terms)};")
             if own >= 0:
                 dot = _sum([f"{U(b, i)} * p{r}_{b}_{i}" for i in R])
@@ -80,22 +87,34 @@ def _tree_recursions(tree: ParticleTree, td: int, s: int) -> str:
                 out.append(f"    x[{r}*N + {own}] = k{r}_{b};")
             if kids[b]:
                 for i in R:
-                    terms = ([f"ac{r}_{par}_{i}"] if par >= 0 else []) + ([cb(b, i)] if r == 0 else []) + \
-                            ([f"{U(b, i)} * k{r}_{b}"] if own >= 0 else [])
+                    terms = (
+                        ([f"ac{r}_{par}_{i}"] if par >= 0 else [])
+                        + ([cb(b, i)] if r == 0 else [])
+                        + ([f"{U(b, i)} * k{r}_{b}"] if own >= 0 else [])
+                    )
                     out.append(f"    const double ac{r}_{b}_{i} = {_sum(terms)};")
-    out += ["    return bad;", "}", "",
-            "/* E = M a + h - tau along the tree (see _tree_recursions) */",
-            "static void tree_residual(const double *restrict U, const double *restrict cb, const double *restrict m,",
-            "                          const double *restrict tau, const double *restrict a, double *restrict E)", "{"]
+    out += [
+        "    return bad;",
+        "}",
+        "",
+        "/* E = M a + h - tau along the tree (see _tree_recursions) */",
+        "static void tree_residual(const double *restrict U, const double *restrict cb, const double *restrict m,",
+        "                          const double *restrict tau, const double *restrict a, double *restrict E)",
+        "{",
+    ]
     for b in range(nb):
         own, par = tree.owned[b], tree.parent[b]
         for i in R:
-            terms = ([f"ac_{par}_{i}"] if par >= 0 else []) + [cb(b, i)] + ([f"{U(b, i)} * a[{own}]"] if own >= 0 else [])
+            terms = (
+                ([f"ac_{par}_{i}"] if par >= 0 else []) + [cb(b, i)] + ([f"{U(b, i)} * a[{own}]"] if own >= 0 else [])
+            )
             out.append(f"    const double ac_{b}_{i} = {_sum(terms)};")
     for b in reversed(range(nb)):
         own = tree.owned[b]
         for i in R:
-            out.append(f"    const double F{b}_{i} = {_sum([f'm[{b}] * ac_{b}_{i}'] + [f'F{c}_{i}' for c in kids[b]])};")
+            out.append(
+                f"    const double F{b}_{i} = {_sum([f'm[{b}] * ac_{b}_{i}'] + [f'F{c}_{i}' for c in kids[b]])};"
+            )
         if own >= 0:
             out.append(f"    E[{own}] = {_sum([f'{U(b, i)} * F{b}_{i}' for i in R])} - tau[{own}];")
     out.append("}")
@@ -134,8 +153,7 @@ def particle_tree(inertia, n: int) -> ParticleTree | None:
     particles = inertia.particles
     if not particles:
         return None
-    supports = [frozenset(k for k in range(n) if any(pt.jacobian[r, k] != 0 for r in range(3)))
-                for pt in particles]
+    supports = [frozenset(k for k in range(n) if any(pt.jacobian[r, k] != 0 for r in range(3))) for pt in particles]
     order = sorted(range(len(particles)), key=lambda b: (len(supports[b]), b))
     placed, parent, owned = [], [], []
     owner: dict[int, int] = {}
@@ -144,8 +162,9 @@ def particle_tree(inertia, n: int) -> ParticleTree | None:
         found = -1
         for node in sorted(range(len(placed)), key=lambda k: -len(supports[placed[k]])):
             pb = placed[node]
-            if supports[pb] <= supports[b] and all(particles[pb].jacobian[r, k] == Jb[r, k]
-                                                   for k in supports[pb] for r in range(3)):
+            if supports[pb] <= supports[b] and all(
+                particles[pb].jacobian[r, k] == Jb[r, k] for k in supports[pb] for r in range(3)
+            ):
                 found = node
                 break
         own = supports[b] - (supports[placed[found]] if found >= 0 else frozenset())
@@ -160,9 +179,15 @@ def particle_tree(inertia, n: int) -> ParticleTree | None:
         return None
     zero = sp.ImmutableMatrix.zeros(3, 1)
     axis = tuple(sp.ImmutableMatrix(particles[b].jacobian[:, k]) if k >= 0 else zero for b, k in zip(placed, owned))
-    bias = tuple(sp.ImmutableMatrix(particles[b].bias - (particles[placed[pa]].bias if pa >= 0 else zero))
-                 for b, pa in zip(placed, parent))
-    return ParticleTree(tuple(particles[b].name for b in placed), tuple(parent), tuple(owned),
-                        tuple(particles[b].mass for b in placed), axis, bias)
-
-
+    bias = tuple(
+        sp.ImmutableMatrix(particles[b].bias - (particles[placed[pa]].bias if pa >= 0 else zero))
+        for b, pa in zip(placed, parent)
+    )
+    return ParticleTree(
+        tuple(particles[b].name for b in placed),
+        tuple(parent),
+        tuple(owned),
+        tuple(particles[b].mass for b in placed),
+        axis,
+        bias,
+    )

@@ -45,8 +45,8 @@ driver, :func:`sweep`.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -57,36 +57,106 @@ from appell.model import System
 from appell.numerics.dynamics import system_of
 from appell.simulation.resources import check_memory
 from appell.simulation.sweep.cluster import (
-    _compute_on, _distributed, _workers_without_interrupts, check_scheduler_address, sweep_cluster,
+    _compute_on,
+    _distributed,
+    _workers_without_interrupts,
+    check_scheduler_address,
+    sweep_cluster,
 )
 from appell.simulation.sweep.journal import RESUME_KEYS, _PartialFile, _resumed, model_fingerprint, read_partial
 from appell.simulation.sweep.runs import (
-    MAX_RUNS, MAX_SAMPLES, RAISED, RunRecord, SweepResult, _assemble, _names, _prepare, _summary, _write_hdf5,
-    chunks, parameter_grid, parse_spec,
+    _MODELS,  # noqa: F401 (the models kept on a worker: tests read them here)
+    MAX_RUNS,
+    MAX_SAMPLES,
+    RAISED,
+    RunRecord,
+    SweepResult,
+    _assemble,
+    _names,
+    _prepare,
+    _summary,
+    _write_hdf5,
+    chunks,
+    parameter_grid,
+    parse_spec,
 )
-from appell.simulation.sweep.runs import _MODELS  # noqa: F401 (the models kept on a worker: tests read them here)
 
-__all__ = ["MAX_RUNS", "MAX_SAMPLES", "RAISED", "RESUME_KEYS", "RunRecord", "SweepResult", "check_scheduler_address",
-           "chunks", "model_fingerprint", "parameter_grid", "parse_spec", "read_partial", "sweep", "sweep_cluster"]
+__all__ = [
+    "MAX_RUNS",
+    "MAX_SAMPLES",
+    "RAISED",
+    "RESUME_KEYS",
+    "RunRecord",
+    "SweepResult",
+    "check_scheduler_address",
+    "chunks",
+    "model_fingerprint",
+    "parameter_grid",
+    "parse_spec",
+    "read_partial",
+    "sweep",
+    "sweep_cluster",
+]
 
 
-def _compute(shipment, todo, t_end, t_eval, simulate_options, on_result, *, client, scheduler, n_workers,
-             processes, progress, worker_timeout, connect_timeout):
+def _compute(
+    shipment,
+    todo,
+    t_end,
+    t_eval,
+    simulate_options,
+    on_result,
+    *,
+    client,
+    scheduler,
+    n_workers,
+    processes,
+    progress,
+    worker_timeout,
+    connect_timeout,
+):
     """Run the grid points ``todo`` (``[(index, parameters), ...]``) on Dask: on ``client``
     (kept by the caller), else on a new local cluster or the scheduler at ``scheduler``
     (closed afterwards). The runs go in tasks of several grid points (:func:`chunks`, from
     the number of worker threads); every finished run goes to ``on_result``."""
     own = client is None
     with _workers_without_interrupts(own and processes and scheduler is None):
-        _compute_on(shipment, todo, t_end, t_eval, simulate_options, on_result, client=client, scheduler=scheduler,
-                    n_workers=n_workers, processes=processes, progress=progress, worker_timeout=worker_timeout,
-                    connect_timeout=connect_timeout)
+        _compute_on(
+            shipment,
+            todo,
+            t_end,
+            t_eval,
+            simulate_options,
+            on_result,
+            client=client,
+            scheduler=scheduler,
+            n_workers=n_workers,
+            processes=processes,
+            progress=progress,
+            worker_timeout=worker_timeout,
+            connect_timeout=connect_timeout,
+        )
 
 
-def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples: int = 501,
-          scheduler: str | None = None, n_workers: int | None = None, processes: bool = True, client=None,
-          backend: str = "auto", progress: bool = True, worker_timeout: float = 60.0, connect_timeout: float = 30.0,
-          resume: bool = False, **simulate_options) -> SweepResult:
+def sweep(
+    model,
+    specs,
+    t_end: float,
+    *,
+    output="sweep.h5",
+    t_eval=None,
+    samples: int = 501,
+    scheduler: str | None = None,
+    n_workers: int | None = None,
+    processes: bool = True,
+    client=None,
+    backend: str = "auto",
+    progress: bool = True,
+    worker_timeout: float = 60.0,
+    connect_timeout: float = 30.0,
+    resume: bool = False,
+    **simulate_options,
+) -> SweepResult:
     """Simulate ``model`` at every point of a parameter grid, in parallel on Dask.
 
     Parameters
@@ -141,19 +211,25 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     if scheduler is not None:
         scheduler = check_scheduler_address(scheduler)
     if client is not None and (scheduler is not None or n_workers is not None):
-        raise ModelError("give a sweep either a client or a scheduler address / a number of workers, not both",
-                         hint="the client's cluster runs the sweep as it is")
+        raise ModelError(
+            "give a sweep either a client or a scheduler address / a number of workers, not both",
+            hint="the client's cluster runs the sweep as it is",
+        )
     if client is not None and not all(hasattr(client, a) for a in ("submit", "scheduler_info")):
-        raise ModelError(f"client must be a dask.distributed Client, got {type(client).__name__}",
-                         hint="use 'with appell.sweep_cluster() as client: ...'")
+        raise ModelError(
+            f"client must be a dask.distributed Client, got {type(client).__name__}",
+            hint="use 'with appell.sweep_cluster() as client: ...'",
+        )
     grid = parameter_grid(specs)
     if not grid:
         raise ModelError("the sweep grid is empty")
     _, _, _, pnames = _names(model)
     unknown = sorted(set(grid[0]) - set(pnames))
     if unknown:
-        raise ModelError(f"sweep over unknown parameter(s) {', '.join(unknown)}",
-                         hint="parameters of the model: " + ", ".join(pnames))
+        raise ModelError(
+            f"sweep over unknown parameter(s) {', '.join(unknown)}",
+            hint="parameters of the model: " + ", ".join(pnames),
+        )
     t_eval = np.linspace(0.0, t_end, samples) if t_eval is None else times(t_eval, "t_eval", 0.0, t_end)
     states, multipliers, controls, _ = _names(model)
     # every column kept: states and their accelerations, per constraint its multiplier and two
@@ -161,13 +237,21 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     system = model if isinstance(model, System) else getattr(model, "system", None) or system_of(model)
     outputs = len(system.outputs) if isinstance(system, System) else 0
     columns = 1 + 2 * len(states or ()) + 3 * len(multipliers or ()) + len(controls or ()) + outputs
-    check_memory(len(grid) * len(t_eval), columns, f"the sweep's {len(grid):,} runs at {len(t_eval):,} output times",
-                 row_by_row=False, hint="sweep fewer runs or record fewer output times (--samples, t_eval)")
+    check_memory(
+        len(grid) * len(t_eval),
+        columns,
+        f"the sweep's {len(grid):,} runs at {len(t_eval):,} output times",
+        row_by_row=False,
+        hint="sweep fewer runs or record fewer output times (--samples, t_eval)",
+    )
     path = Path(output)
     output_target(path)  # a device, a FIFO, a directory: refused before the runs
     name = getattr(model, "name", None) or getattr(getattr(model, "system", None), "name", "model")
-    spec_text = json.dumps(list(specs) if not isinstance(specs, Mapping) else
-                           {k: list(map(float, np.asarray(v, float).reshape(-1))) for k, v in specs.items()})
+    spec_text = json.dumps(
+        list(specs)
+        if not isinstance(specs, Mapping)
+        else {k: list(map(float, np.asarray(v, float).reshape(-1))) for k, v in specs.items()}
+    )
     import appell
 
     if isinstance(model, System):  # derived once: for the fingerprint and for the runs
@@ -175,9 +259,16 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
 
         model = derive(model)
     options = json.dumps({k: simulate_options[k] for k in sorted(simulate_options)}, default=repr)
-    header = {"appell_sweep_partial": 1, "model": str(name), "specs": spec_text, "t": t_eval,
-              "content": model_fingerprint(model), "options": options, "backend": backend,
-              "appell": appell.__version__}
+    header = {
+        "appell_sweep_partial": 1,
+        "model": str(name),
+        "specs": spec_text,
+        "t": t_eval,
+        "content": model_fingerprint(model),
+        "options": options,
+        "backend": backend,
+        "appell": appell.__version__,
+    }
     partial_path = path.with_name(path.name + ".partial")
     earlier = _resumed(partial_path, header, len(grid)) if resume else []
     done = {r["index"] for r in earlier}
@@ -193,9 +284,21 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
 
     try:
         if todo:
-            _compute(shipment, todo, float(t_end), t_eval, simulate_options, on_result, client=client,
-                     scheduler=scheduler, n_workers=n_workers, processes=processes, progress=progress,
-                     worker_timeout=worker_timeout, connect_timeout=connect_timeout)
+            _compute(
+                shipment,
+                todo,
+                float(t_end),
+                t_eval,
+                simulate_options,
+                on_result,
+                client=client,
+                scheduler=scheduler,
+                n_workers=n_workers,
+                processes=processes,
+                progress=progress,
+                worker_timeout=worker_timeout,
+                connect_timeout=connect_timeout,
+            )
     except BaseException:  # interrupted, or no cluster: keep the finished runs for --resume
         if partial.kept:
             partial.close()
@@ -210,15 +313,32 @@ def sweep(model, specs, t_end: float, *, output="sweep.h5", t_eval=None, samples
     result = SweepResult(path, runs, summary)
     summary_path = path.with_name(path.name + ".summary.json")
     try:
-        _write_hdf5(path, t_eval, runs, groups, summary,
-                    {"model": str(name), "specs": spec_text, "t_end": float(t_end), "backend": backend})
+        _write_hdf5(
+            path,
+            t_eval,
+            runs,
+            groups,
+            summary,
+            {"model": str(name), "specs": spec_text, "t_end": float(t_end), "backend": backend},
+        )
         with atomic_path(summary_path, suffix=".tmp") as tmp:
-            tmp.write_text(json.dumps({"runs": [r.__dict__ | {"message": r.message.splitlines()[0] if r.message else ""}
-                                                for r in runs], **summary}, indent=1, default=str))
+            tmp.write_text(
+                json.dumps(
+                    {
+                        "runs": [
+                            r.__dict__ | {"message": r.message.splitlines()[0] if r.message else ""} for r in runs
+                        ],
+                        **summary,
+                    },
+                    indent=1,
+                    default=str,
+                )
+            )
     except OSError as exc:
-        error = ResourceError(f"cannot write the sweep's results to {exc.filename or path}: "
-                              f"{exc.strerror or exc}",
-                              hint=partial.describe())
+        error = ResourceError(
+            f"cannot write the sweep's results to {exc.filename or path}: {exc.strerror or exc}",
+            hint=partial.describe(),
+        )
         error.result = result
         raise error from exc
     partial.remove()

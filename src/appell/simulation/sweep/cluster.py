@@ -17,7 +17,6 @@ from appell.arguments import count, number
 from appell.errors import ModelError, ResourceError
 from appell.simulation.sweep.runs import RAISED, _prepare_worker, _run_chunk, chunks
 
-
 #: Dask scheduler addresses: ``protocol://host:port`` or ``host:port``
 _ADDRESS = re.compile(r"^(?:(?:tcp|tls|ws|wss|ucx)://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(\d{1,5})$")
 
@@ -33,10 +32,15 @@ def _distributed():
 def check_scheduler_address(scheduler: str) -> str:
     """``scheduler`` if it looks like a Dask scheduler address (``tcp://host:port``, also
     ``tls://``, ``ws://``, ``ucx://`` or a bare ``host:port``), else a ModelError."""
-    if not isinstance(scheduler, str) or not (m := _ADDRESS.match(scheduler.strip())) or \
-            not 0 < int(m.group(1)) < 65536:
-        raise ModelError(f"bad Dask scheduler address {scheduler!r}",
-                         hint="give the address 'dask scheduler' prints, e.g. tcp://192.168.1.10:8786")
+    if (
+        not isinstance(scheduler, str)
+        or not (m := _ADDRESS.match(scheduler.strip()))
+        or not 0 < int(m.group(1)) < 65536
+    ):
+        raise ModelError(
+            f"bad Dask scheduler address {scheduler!r}",
+            hint="give the address 'dask scheduler' prints, e.g. tcp://192.168.1.10:8786",
+        )
     return scheduler.strip()
 
 
@@ -46,9 +50,11 @@ def _connect(scheduler: str, timeout: float):
     try:
         return Client(scheduler, timeout=timeout, set_as_default=False)
     except Exception as exc:  # noqa: BLE001 (refused, timed out, or not a Dask scheduler at all)
-        raise ResourceError(f"cannot connect to the Dask scheduler at {scheduler}: {type(exc).__name__}: {exc}",
-                            hint="start one with 'dask scheduler' and give the address it prints, or leave out "
-                                 "the scheduler to run on a local cluster") from None
+        raise ResourceError(
+            f"cannot connect to the Dask scheduler at {scheduler}: {type(exc).__name__}: {exc}",
+            hint="start one with 'dask scheduler' and give the address it prints, or leave out "
+            "the scheduler to run on a local cluster",
+        ) from None
 
 
 def _cancelled(exc: BaseException) -> bool:
@@ -107,8 +113,11 @@ def _gather(client, futures, tasks, on_result, worker_timeout: float, bar=None):
             except BaseException as exc:  # noqa: BLE001 (a lost worker, a cancelled run: record it)
                 if not isinstance(exc, Exception) and not _cancelled(exc):
                     raise
-                lost = "lost with the Dask workers (killed, or their machine gone): " \
-                    if _cancelled(exc) or type(exc).__name__ == "KilledWorker" else ""
+                lost = (
+                    "lost with the Dask workers (killed, or their machine gone): "
+                    if _cancelled(exc) or type(exc).__name__ == "KilledWorker"
+                    else ""
+                )
                 results = [_failed(i, f"{lost}{type(exc).__name__}: {exc}") for i in pending[fut]]
             pending.pop(fut)
             fut.release()
@@ -154,9 +163,15 @@ def _start_cluster(n_workers, processes, scheduler, connect_timeout, host=None, 
         with _interrupt_after():  # a cluster half started cannot be closed cleanly
             # Dask's warnings (a worker restarted, a task cancelled) stay off the terminal: the
             # sweep records every run's fate itself
-            cluster = distributed.LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=processes,
-                                               dashboard_address=None, host=host, scheduler_port=port,
-                                               silence_logs=logging.ERROR)
+            cluster = distributed.LocalCluster(
+                n_workers=n_workers,
+                threads_per_worker=1,
+                processes=processes,
+                dashboard_address=None,
+                host=host,
+                scheduler_port=port,
+                silence_logs=logging.ERROR,
+            )
             client = distributed.Client(cluster, set_as_default=False)
         return client, cluster
     except BaseException as exc:
@@ -167,8 +182,10 @@ def _start_cluster(n_workers, processes, scheduler, connect_timeout, host=None, 
         if cluster is not None:
             cluster.close()
         if isinstance(exc, OSError):  # the port is taken, the host is not this machine's
-            raise ResourceError(f"cannot start a Dask scheduler on {host or '127.0.0.1'}:{port}: "
-                                f"{exc.strerror or exc}", hint="choose another port (0: a free one) or host") from None
+            raise ResourceError(
+                f"cannot start a Dask scheduler on {host or '127.0.0.1'}:{port}: {exc.strerror or exc}",
+                hint="choose another port (0: a free one) or host",
+            ) from None
         raise
 
 
@@ -224,13 +241,17 @@ def _workers_without_interrupts(local: bool):
     import threading
 
     _distributed()  # a missing dask: the extra to install, before anything starts
-    if not local or "forkserver" not in multiprocessing.get_all_start_methods() \
-            or threading.current_thread() is not threading.main_thread():
+    if (
+        not local
+        or "forkserver" not in multiprocessing.get_all_start_methods()
+        or threading.current_thread() is not threading.main_thread()
+    ):
         yield
         return
+    from multiprocessing import forkserver
+
     import dask
     from distributed.utils import get_mp_context
-    from multiprocessing import forkserver
 
     with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
         get_mp_context()  # Dask's preload of the fork server (its imports, done once there)
@@ -261,8 +282,15 @@ def _quiet_dask() -> None:
 
 
 @contextlib.contextmanager
-def sweep_cluster(n_workers: int | None = None, *, scheduler: str | None = None, processes: bool = True,
-                  host: str | None = None, port: int = 0, connect_timeout: float = 30.0):
+def sweep_cluster(
+    n_workers: int | None = None,
+    *,
+    scheduler: str | None = None,
+    processes: bool = True,
+    host: str | None = None,
+    port: int = 0,
+    connect_timeout: float = 30.0,
+):
     """A Dask client kept for several sweeps: ``with sweep_cluster(2) as client:
     sweep(..., client=client)``.
 
@@ -293,8 +321,22 @@ def sweep_cluster(n_workers: int | None = None, *, scheduler: str | None = None,
                 cluster.close()
 
 
-def _compute_on(shipment, todo, t_end, t_eval, simulate_options, on_result, *, client, scheduler, n_workers,
-                processes, progress, worker_timeout, connect_timeout):
+def _compute_on(
+    shipment,
+    todo,
+    t_end,
+    t_eval,
+    simulate_options,
+    on_result,
+    *,
+    client,
+    scheduler,
+    n_workers,
+    processes,
+    progress,
+    worker_timeout,
+    connect_timeout,
+):
     """:func:`_compute` (its docstring), inside its handling of Ctrl-C for the workers."""
     own = client is None
     cluster = None
@@ -305,9 +347,19 @@ def _compute_on(shipment, todo, t_end, t_eval, simulate_options, on_result, *, c
     try:
         _, threads = _worker_count(client)
         tasks = chunks(todo, threads or os.cpu_count() or 1)
-        futures = [client.submit(_run_chunk, shipment, chunk, t_end, t_eval, simulate_options,
-                                 key=f"appell-runs-{chunk[0][0]}-{chunk[-1][0]}-{token}", pure=False)
-                   for chunk in tasks]
+        futures = [
+            client.submit(
+                _run_chunk,
+                shipment,
+                chunk,
+                t_end,
+                t_eval,
+                simulate_options,
+                key=f"appell-runs-{chunk[0][0]}-{chunk[-1][0]}-{token}",
+                pure=False,
+            )
+            for chunk in tasks
+        ]
         if progress:
             from tqdm.auto import tqdm
 

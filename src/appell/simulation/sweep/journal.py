@@ -15,7 +15,7 @@ import numpy as np
 
 from appell.errors import ModelError
 from appell.model import System
-from appell.simulation.sweep.runs import RAISED, _EARLIER_GROUPS
+from appell.simulation.sweep.runs import _EARLIER_GROUPS, RAISED
 
 
 class _PartialFile:
@@ -77,8 +77,10 @@ class _PartialFile:
         """Where the finished runs are kept (a partial file without runs is removed)."""
         if self.kept and self.path.exists():
             cut = f" (it could not take more: {self.error.strerror or self.error})" if self.error else ""
-            return (f"the {self.kept} finished run(s) are kept in {self.path}{cut}; free space (or choose "
-                    "another --out) and run the sweep again with --resume (resume=True) to compute only the others")
+            return (
+                f"the {self.kept} finished run(s) are kept in {self.path}{cut}; free space (or choose "
+                "another --out) and run the sweep again with --resume (resume=True) to compute only the others"
+            )
         self.remove()
         return "no finished run could be kept on disk; free space (or choose another --out) and run it again"
 
@@ -102,8 +104,9 @@ def read_partial(path) -> tuple[dict, list[dict]]:
                 if group in obj:
                     obj[group] = {k: np.asarray(v, float) for k, v in obj[group].items()}
             if isinstance(obj.get("groups"), dict):
-                obj["groups"] = {g: {k: np.asarray(v, float) for k, v in items.items()}
-                                 for g, items in obj["groups"].items()}
+                obj["groups"] = {
+                    g: {k: np.asarray(v, float) for k, v in items.items()} for g, items in obj["groups"].items()
+                }
             if "t" in obj:
                 obj["t"] = np.asarray(obj["t"], float)
             runs.append(obj)
@@ -121,9 +124,15 @@ def _json_default(value):
 
 
 #: what a kept run depends on, as the partial file's header names it (checked by --resume)
-RESUME_KEYS = (("model", "the model's name"), ("content", "the model's content (equations, parameter values, "
-               "initial values, programs, outputs)"), ("specs", "the parameter grid"), ("t", "the output times"),
-               ("options", "the solver options"), ("backend", "the numeric backend"), ("appell", "appell's version"))
+RESUME_KEYS = (
+    ("model", "the model's name"),
+    ("content", "the model's content (equations, parameter values, initial values, programs, outputs)"),
+    ("specs", "the parameter grid"),
+    ("t", "the output times"),
+    ("options", "the solver options"),
+    ("backend", "the numeric backend"),
+    ("appell", "appell's version"),
+)
 
 
 def model_fingerprint(model) -> str | None:
@@ -163,11 +172,15 @@ def model_fingerprint(model) -> str | None:
         blocks.append(sp.Matrix([[node.parent] for node in inertia.tree.nodes]))
     else:
         blocks = [inertia.mass_matrix, inertia.inertial_forces]
-    text = [graph.text(sp.Matrix(m)) for m in (*blocks, inertia.generalized_forces,
-                                                 derivation.kinematics.coordinate_rates)]
+    text = [
+        graph.text(sp.Matrix(m)) for m in (*blocks, inertia.generalized_forces, derivation.kinematics.coordinate_rates)
+    ]
     if cons.count:
-        text += [graph.text(sp.Matrix(cons.jacobian)), graph.text(sp.Matrix(cons.bias)),
-                 graph.text(sp.Matrix(cons.second_order))]
+        text += [
+            graph.text(sp.Matrix(cons.jacobian)),
+            graph.text(sp.Matrix(cons.bias)),
+            graph.text(sp.Matrix(cons.second_order)),
+        ]
         text += [graph.text(e) for e in tuple(cons.position_residual) + tuple(cons.velocity_residual)]
     text.append(repr(tuple(cons.names)))
     text.append(repr([(p.symbol.name, float(p.value)) for p in system.parameters]))
@@ -237,19 +250,26 @@ def _resumed(path: Path, header: dict, runs: int) -> list[dict]:
         return []
     old_header, old = read_partial(path)
     if header.get("content") is None:
-        raise ModelError(f"cannot resume from {path}: the model's content cannot be fingerprinted (it does not "
-                         "pickle), so the kept runs cannot be shown to come from the same model",
-                         hint="run without resume (the file is then replaced), or remove it")
+        raise ModelError(
+            f"cannot resume from {path}: the model's content cannot be fingerprinted (it does not "
+            "pickle), so the kept runs cannot be shown to come from the same model",
+            hint="run without resume (the file is then replaced), or remove it",
+        )
     differ = []
     for key, what in RESUME_KEYS:
         mine, theirs = header.get(key), old_header.get(key)
-        same = (np.array_equal(np.asarray(theirs if theirs is not None else [], float), np.asarray(mine, float))
-                if key == "t" else mine == theirs)
+        same = (
+            np.array_equal(np.asarray(theirs if theirs is not None else [], float), np.asarray(mine, float))
+            if key == "t"
+            else mine == theirs
+        )
         if not same:
             differ.append(what)
     if differ:
-        raise ModelError(f"{path} holds the runs of another sweep: " + "; ".join(differ) + " differ from this one's",
-                         hint="run without resume (the file is then replaced), or remove it")
+        raise ModelError(
+            f"{path} holds the runs of another sweep: " + "; ".join(differ) + " differ from this one's",
+            hint="run without resume (the file is then replaced), or remove it",
+        )
     kept = {}
     for r in old:
         if isinstance(r.get("index"), int) and 0 <= r["index"] < runs and r.get("status", RAISED) >= 0:

@@ -12,9 +12,9 @@ import os
 import time
 import traceback
 import uuid
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -24,7 +24,6 @@ from appell.errors import ModelError
 from appell.files import write_hdf5
 from appell.model import System
 from appell.numerics.boundary import numeric_model
-
 
 #: run status for a run that raised (simulate's own codes are 0, 1 and -1)
 RAISED = -2
@@ -55,8 +54,10 @@ def parse_spec(spec: str) -> tuple[str, np.ndarray]:
             raise ValueError
         return name, out
     except ValueError:
-        raise ModelError(f"bad sweep spec {spec!r}: values must be finite numbers and NUM a positive integer",
-                         hint="e.g. m=0.5:2:4 or L=1,1.5,2") from None
+        raise ModelError(
+            f"bad sweep spec {spec!r}: values must be finite numbers and NUM a positive integer",
+            hint="e.g. m=0.5:2:4 or L=1,1.5,2",
+        ) from None
 
 
 def parameter_grid(specs: Sequence[str] | Mapping[str, Sequence[float]]) -> list[dict[str, float]]:
@@ -64,8 +65,10 @@ def parameter_grid(specs: Sequence[str] | Mapping[str, Sequence[float]]) -> list
     if isinstance(specs, (str, bytes)):
         specs = [specs]
     if not isinstance(specs, Mapping) and not hasattr(specs, "__iter__"):
-        raise ModelError(f"sweep specs must be a list of 'NAME=...' strings or a mapping {{name: values}}, "
-                         f"got {type(specs).__name__}")
+        raise ModelError(
+            f"sweep specs must be a list of 'NAME=...' strings or a mapping {{name: values}}, "
+            f"got {type(specs).__name__}"
+        )
     if isinstance(specs, Mapping):
         from appell.arguments import vector
 
@@ -110,8 +113,10 @@ class SweepResult:
 
     def summary_text(self) -> str:
         """The summary as a short table."""
-        lines = [f"{len(self.runs)} runs -> {self.path}",
-                 "status counts: " + ", ".join(f"{k}: {v}" for k, v in self.summary["status_counts"].items())]
+        lines = [
+            f"{len(self.runs)} runs -> {self.path}",
+            "status counts: " + ", ".join(f"{k}: {v}" for k, v in self.summary["status_counts"].items()),
+        ]
         ok = len(self.runs) - len(self.failed)
         if self.summary["multipliers"]:
             lines.append(f"extreme reactions over the {ok} successful run(s):")
@@ -119,8 +124,10 @@ class SweepResult:
             if s["max"] is None:
                 lines.append(f"lambda_{name}: no finite values")
                 continue
-            lines.append(f"lambda_{name}: max {s['max']:.6g} at {s['argmax_parameters']}, "
-                         f"min {s['min']:.6g} at {s['argmin_parameters']}")
+            lines.append(
+                f"lambda_{name}: max {s['max']:.6g} at {s['argmax_parameters']}, "
+                f"min {s['min']:.6g} at {s['argmin_parameters']}"
+            )
         if self.failed:
             lines.append(f"{len(self.failed)} failed run(s):")
         for r in self.failed:
@@ -179,11 +186,21 @@ def _run_one(shipment, index, params, t_end, t_eval, options) -> dict:
         groups: dict = {}
         for c in sol.grouped()[1:]:  # every column of the result, as the run's own HDF5 file has it
             groups.setdefault(c.group, {})[c.key] = np.asarray(c.values)
-        return {"index": index, "status": int(sol.status), "message": str(sol.message), "t": np.asarray(sol.t),
-                "groups": groups, "wall_time": time.perf_counter() - start}
+        return {
+            "index": index,
+            "status": int(sol.status),
+            "message": str(sol.message),
+            "t": np.asarray(sol.t),
+            "groups": groups,
+            "wall_time": time.perf_counter() - start,
+        }
     except Exception as exc:  # noqa: BLE001 (a failed run is recorded, not fatal)
-        return {"index": index, "status": RAISED, "message": f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}",
-                "wall_time": time.perf_counter() - start}
+        return {
+            "index": index,
+            "status": RAISED,
+            "message": f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}",
+            "wall_time": time.perf_counter() - start,
+        }
 
 
 def _run_chunk(shipment, chunk, t_end, t_eval, options) -> list[dict]:
@@ -207,7 +224,7 @@ def chunks(todo: Sequence, slots: int, per_slot: int = 4) -> list[list]:
     out, start, slots = [], 0, max(1, int(slots))
     while start < len(todo):
         size = max(1, math.ceil((len(todo) - start) / (per_slot * slots)))
-        out.append(list(todo[start:start + size]))
+        out.append(list(todo[start : start + size]))
         start += size
     return out
 
@@ -218,12 +235,20 @@ def _names(payload):
     from appell.numerics.dynamics import Dynamics
 
     if isinstance(payload, Dynamics):
-        return (tuple(payload.state_names), tuple(payload.constraint_names), tuple(payload.control_names),
-                tuple(payload.parameter_names))
+        return (
+            tuple(payload.state_names),
+            tuple(payload.constraint_names),
+            tuple(payload.control_names),
+            tuple(payload.parameter_names),
+        )
     system = payload if isinstance(payload, System) else payload.system
     kin_names = tuple(s.name for s in system.coordinates) + tuple(s.name for s in system.speeds)
-    return None if system.controls else kin_names, tuple(c.name for c in system.constraints), None, \
-        tuple(p.symbol.name for p in system.parameters)
+    return (
+        None if system.controls else kin_names,
+        tuple(c.name for c in system.constraints),
+        None,
+        tuple(p.symbol.name for p in system.parameters),
+    )
 
 
 #: the groups of a partial file written before every column was kept (resumed as they are)
@@ -253,7 +278,9 @@ def _assemble(results, runs_params, t_eval):
             continue
         # a run that ended early has fewer output times: match them to t_eval
         idx = np.searchsorted(t_eval, r["t"])
-        ok = (idx < T) & np.isclose(t_eval[np.minimum(idx, T - 1)], r["t"], rtol=0, atol=1e-12 * max(1.0, abs(t_eval[-1])))
+        ok = (idx < T) & np.isclose(
+            t_eval[np.minimum(idx, T - 1)], r["t"], rtol=0, atol=1e-12 * max(1.0, abs(t_eval[-1]))
+        )
         for g, items in _groups_of(r).items():
             for k, v in items.items():
                 groups[g][k][r["index"], idx[ok]] = np.asarray(v)[ok]
@@ -263,10 +290,21 @@ def _assemble(results, runs_params, t_eval):
 
 def _summary(groups, runs) -> dict:
     """Status counts, the failed runs, and the extreme multipliers over the successful runs."""
-    out = {"multipliers": {}, "status_counts": {}, "successful_runs": sum(r.status >= 0 for r in runs),
-           "failed_runs": [{"run": r.index, "parameters": r.parameters, "status": r.status,
-                            "message": r.message.splitlines()[0] if r.message else ""}
-                           for r in runs if r.status < 0]}
+    out = {
+        "multipliers": {},
+        "status_counts": {},
+        "successful_runs": sum(r.status >= 0 for r in runs),
+        "failed_runs": [
+            {
+                "run": r.index,
+                "parameters": r.parameters,
+                "status": r.status,
+                "message": r.message.splitlines()[0] if r.message else "",
+            }
+            for r in runs
+            if r.status < 0
+        ],
+    }
     for r in runs:
         out["status_counts"][r.status] = out["status_counts"].get(r.status, 0) + 1
     ok = np.array([r.status >= 0 for r in runs], dtype=bool).reshape(-1, 1)
@@ -280,8 +318,12 @@ def _summary(groups, runs) -> dict:
         imax = np.unravel_index(np.argmax(hi), arr.shape)
         imin = np.unravel_index(np.argmin(lo), arr.shape)
         out["multipliers"][name] = {
-            "max": float(arr[imax]), "argmax_parameters": runs[imax[0]].parameters, "argmax_run": int(imax[0]),
-            "min": float(arr[imin]), "argmin_parameters": runs[imin[0]].parameters, "argmin_run": int(imin[0]),
+            "max": float(arr[imax]),
+            "argmax_parameters": runs[imax[0]].parameters,
+            "argmax_run": int(imax[0]),
+            "min": float(arr[imin]),
+            "argmin_parameters": runs[imin[0]].parameters,
+            "argmin_run": int(imin[0]),
             "max_abs": float(max(abs(arr[imax]), abs(arr[imin]))),
         }
     return out
