@@ -511,8 +511,13 @@ def vanishes(expr) -> bool:
 
 
 #: a printed line of up to this many operations (``count_ops``) is tried in the bounded set
-#: of equivalent forms of :func:`readable`; a larger one is printed as derived
+#: of equivalent forms of :func:`readable`; a larger one is printed as derived unless its
+#: form in cosines (:func:`_in_cosines`) is within half of it
 READABLE_OPS = 160
+#: largest tree (nodes, :func:`tree_size`) :func:`readable` works on: a larger line is printed
+#: as derived. The rolling disc's reduced forcing is up to 643 nodes (384 operations) and 43
+#: operations in cosines; the benchmark bicycle's lines are far over it
+READABLE_NODES = 1000
 #: CPU seconds a line's forms may take (:func:`readable`): past it the forms not yet begun
 #: are skipped (a line of the slider-crank's controls took seconds through ``factor_terms``)
 READABLE_SECONDS = 0.3
@@ -574,6 +579,17 @@ def _trig_rules(expr):
     return sp.factor_terms(TR2i(TR10i(_pythagoras(expr))))
 
 
+def _in_cosines(expr):
+    """``expr`` with every ``sin(u)^2`` put as ``1 - cos(u)^2`` (Fu's ``TR5``), the quotient
+    cancelled, twice (the first ``cancel`` multiplies out new squares), and common factors
+    pulled out: the rolling disc's reduced mass matrix and forcing, written by its contact
+    through ``sqrt(1 - sin(lean)^2)``, shrink from hundreds of operations to tens."""
+    from sympy.simplify.fu import TR5
+
+    once = sp.cancel(TR5(expr))
+    return sp.factor_terms(sp.cancel(TR5(sp.expand(once))))
+
+
 def _linear_parts(expr, focus):
     """``(coefficients, rest)`` of ``expr = sum_k coefficient_k focus_k + rest`` when ``expr``
     is linear in the ``focus`` symbols it holds, else None."""
@@ -602,8 +618,11 @@ def readable(expr, focus=(), parameters=()):
     out: ``M/sin(theta)``), a few of Fu's trigonometric rules (:func:`_trig_rules`), ``cancel``
     within :data:`TIDY_LIMIT`, and the terms collected by the ``focus`` symbols
     (accelerations, multipliers) and, within each coefficient, by the ``parameters`` it is
-    linear in (the traction ``F``, the mass ``M``), each coefficient so shortened. Only lines
-    of at most :data:`READABLE_OPS` operations are tried, for at most :data:`READABLE_SECONDS`
+    linear in (the traction ``F``, the mass ``M``), each coefficient so shortened, and the form
+    in cosines (:func:`_in_cosines`). Only lines of at most :data:`READABLE_NODES` tree nodes
+    are tried, those over :data:`READABLE_OPS` operations only where their form in cosines is
+    within half of it (the rolling disc's reduced forcing: 415 operations, 43 in cosines);
+    they are tried for at most :data:`READABLE_SECONDS`
     (the forms not begun by then are skipped); each candidate that may expand is
     formed only within the bound (:func:`expanded_size`), and ``simplify`` is not among them
     (it took seconds a line and chose no shorter form on the bundled examples). The chosen
@@ -616,8 +635,16 @@ def readable(expr, focus=(), parameters=()):
     done = _READABLE.get(key)
     if done is not None:
         return done
-    if tree_size(expr, 4 * READABLE_OPS) > 4 * READABLE_OPS or sp.count_ops(expr) > READABLE_OPS:
+    if tree_size(expr, READABLE_NODES) > READABLE_NODES:
         return expr
+    derived = expr
+    if sp.count_ops(expr) > READABLE_OPS:  # a long line: its form in cosines, if that is short
+        if not expr.has(sp.sin, sp.cos) or expanded_size(expr, SWELL_LIMIT) > SWELL_LIMIT:
+            return expr
+        expr = _in_cosines(expr)
+        if sp.count_ops(expr) > READABLE_OPS // 2:  # (a line printed closed is at most half of it)
+            _READABLE[key] = derived
+            return derived
 
     deadline = time.process_time() + READABLE_SECONDS
 
@@ -644,7 +671,14 @@ def readable(expr, focus=(), parameters=()):
         forms.append(shorten(expr))
     if time.process_time() <= deadline and expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT:
         forms.append(sp.factor_terms(sp.cancel(expr)))
+    if (
+        expr is derived
+        and expr.has(sp.sin, sp.cos)
+        and time.process_time() <= deadline
+        and expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT
+    ):
+        forms.append(_in_cosines(expr))
     best = min(forms, key=sp.count_ops)
-    if best != expr and not same_values(best, expr):
-        best = expr
+    if best != derived and not same_values(best, derived):
+        best = derived
     return _READABLE.put(key, best)

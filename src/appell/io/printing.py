@@ -15,7 +15,16 @@ from pathlib import Path
 import sympy as sp
 
 from appell.core.equations import formulas_unavailable, is_controlled
-from appell.core.simplification import adjugate, determinant, graph_size, readable, tidy, tree_size
+from appell.core.simplification import (
+    READABLE_NODES,
+    adjugate,
+    determinant,
+    graph_size,
+    no_intermediate_simplification,
+    readable,
+    tidy,
+    tree_size,
+)
 from appell.errors import ModelError
 from appell.io.expression_tree import expression_from_tree, expression_tree, symbol_assumptions, symbol_from_table
 from appell.symbols import block_cse, derivative_symbol, free_symbols, graph_xreplace, latex, matmul  # noqa: F401 (latex is re-exported)
@@ -102,15 +111,19 @@ def tree_formulas(derivation) -> list[Formula]:
     :class:`appell.rigid_tree.RigidTree`), at full size through named quantities, never the
     expanded mass matrix: for each body ``B`` on its joint, its rotation ``R_B`` (body to
     parent axes) and origin ``r_B`` in its joint's coordinates, then the passes over spatial
-    vectors ``[omega; v]`` (body axes) and forces ``[n; f]`` (Featherstone's RNEA)::
+    vectors ``[omega; v]`` (body axes) and forces ``[n; f]`` (Featherstone's RNEA), each
+    named by what it is -- the body's angular velocity ``omega_B``, the velocity of its
+    origin ``v_B``, its spatial acceleration ``a_B`` and the wrench its joint ``J`` carries,
+    ``f_J``::
 
-        v_B = X_B v_P + S_B w_B                 X m = [R^T m_w; R^T (m_v + m_w x r)]
+        [omega_B; v_B] = X_B [omega_P; v_P] + S_B w_B     X m = [R^T m_w; R^T (m_v + m_w x r)]
         a_B = X_B a_P + S_B a_B + c_B + v_B x S_B w_B      (the ground: a = [0; -g])
-        f_B = I_B a_B + v_B x* I_B v_B + sum over children C of X_C^T f_C
+        f_J = I_B a_B + v_B x* I_B v_B + sum over the children's joints K of X_K^T f_K
 
-    then (1.3) row by row, ``S_k . f_B(k) = Q_k + (J^T lambda)_k``, and ``f = 0``; the joint
-    reactions among the outputs are ``f_B`` in world axes at the joint's point
-    (``W_B = W_P R_B``), the others as written."""
+    then (1.3) row by row, ``S_k . f_J(k) = Q_k + (J^T lambda)_k``, and ``f = 0``; the joint
+    reactions among the outputs are ``f_J`` in world axes at the joint's point
+    (``W_B = W_P R_B``), the others as written. A quantity that is a number (a fixed joint's
+    rotation, the ground's zero velocity) is put into the rows that use it, not printed."""
     tree = derivation.inertia.tree
     kin, cons = derivation.kinematics, derivation.constraints
     w, a = list(kin.speeds), list(kin.accelerations)
@@ -138,7 +151,8 @@ def tree_formulas(derivation) -> list[Formula]:
         def to_body(m, R=R, r=r):
             return sp.Matrix.vstack(R.T * m[:3, :], R.T * (m[3:, :] + _skew_cross(m[:3, :], r)))
 
-        v, acc = _names("v", B, SPATIAL), _names("a", B, SPATIAL)
+        v = sp.Matrix.vstack(_names("omega", B, "xyz"), _names("v", B, "xyz"))
+        acc = _names("a", B, SPATIAL)
         v_expr = to_body(vP) + vJ
         cross = sp.Matrix.vstack(
             _skew_cross(v[:3, :], vJ[:3, :]), _skew_cross(v[:3, :], vJ[3:, :]) + _skew_cross(v[3:, :], vJ[:3, :])
@@ -168,7 +182,7 @@ def tree_formulas(derivation) -> list[Formula]:
             rc, fc = _names("r", C, "xyz"), forces[ch]
             lin = Rc * fc[3:, :]
             f_expr += sp.Matrix.vstack(Rc * fc[:3, :] + _skew_cross(rc, lin), lin)
-        f = _names("f", B, ("nx", "ny", "nz", "x", "y", "z"))
+        f = _names("f", node.joint, ("nx", "ny", "nz", "x", "y", "z"))
         rows += [Formula("(RNEA)", f[k], f_expr[k], "motion") for k in range(6)]
         forces[b] = f
     lam = sp.Matrix([sp.Symbol(f"lambda_{n}") for n in cons.names])
@@ -204,7 +218,21 @@ def tree_formulas(derivation) -> list[Formula]:
         Formula("(output)", sp.Symbol(o.name), by_tree.get(o.name, o.expr), "outputs")
         for o in derivation.system.outputs
     ]
-    return rows
+    return _numbers_put_in(rows)
+
+
+def _numbers_put_in(rows: list[Formula]) -> list[Formula]:
+    """``rows`` in order, each naming row (:data:`NAMING`) whose value is a number left out
+    and that number put into the rows after it (``R_base_xx = 1``, ``omega_base_x = 0``)."""
+    known: dict = {}
+    out = []
+    for f in rows:
+        lhs, rhs = (sp.sympify(e).xreplace(known) if known else e for e in (f.lhs, f.rhs))
+        if f.label.startswith(NAMING) and f.lhs.is_Symbol and rhs.is_number:
+            known[f.lhs] = rhs
+            continue
+        out.append(Formula(f.label, lhs, rhs, f.item))
+    return out
 
 
 def equation_formulas(derivation, expand: bool = True) -> list[Formula]:
@@ -224,7 +252,8 @@ def equation_formulas(derivation, expand: bool = True) -> list[Formula]:
     """
     controlled = is_controlled(derivation)
     if not controlled and derivation.inertia.tree is not None:
-        return tree_formulas(derivation)
+        with no_intermediate_simplification():  # (SymPy's cancel of each 3 x 3 product took seconds)
+            return tree_formulas(derivation)
     if not controlled and formulas_unavailable(derivation.partition) is not None:
         # the equations the numeric split solves, by named blocks: (1.3) M a + h = Q + J^T lambda
         # row by row, and f = J a + c = 0 (never the symbolic inverse of the large J_h)
@@ -311,7 +340,7 @@ def _focus(derivation) -> tuple[tuple, tuple]:
 def _closed(row: Formula, focus) -> Formula | None:
     """``row`` in the shortest of its equivalent forms (:func:`~appell.core.simplification.readable`)
     when it is a short line (:data:`LINE_OPS`), else None."""
-    if row.label.startswith(NAMING) or any(tree_size(e, 4 * LINE_OPS) > 4 * LINE_OPS for e in (row.lhs, row.rhs)):
+    if row.label.startswith(NAMING) or any(tree_size(e, READABLE_NODES) > READABLE_NODES for e in (row.lhs, row.rhs)):
         return None  # (count_ops walks every use of a shared subexpression: the bicycle's take minutes)
     lhs, rhs = readable(row.lhs, *focus), readable(row.rhs, *focus)
     if sp.count_ops(lhs) + sp.count_ops(rhs) > LINE_OPS:
@@ -395,7 +424,8 @@ def printed_equations(derivation, only=None, expand: bool = False) -> PrintedEqu
     rows = _reduced_rows(derivation, [f for f in every if only is None or f.item in only], focus)
     closed = {i: c for i, c in ((i, _closed(f, focus)) for i, f in enumerate(rows)) if c is not None}
     large = [f for i, f in enumerate(rows) if i not in closed]
-    defs, formulas = _shared(large) if large else ((), [])
+    on_tree = not is_controlled(derivation) and derivation.inertia.tree is not None
+    defs, formulas = _shared(large, neat=not on_tree) if large else ((), [])
     by_row = iter(formulas)
     out = [closed[i] if i in closed else next(by_row) for i in range(len(rows))]
     blocks = tuple((f.lhs, f.rhs) for f in out if f.label == BLOCK)
@@ -403,8 +433,11 @@ def printed_equations(derivation, only=None, expand: bool = False) -> PrintedEqu
     return PrintedEquations(defs, tuple(out), notes, blocks)
 
 
-def _shared(rows: list[Formula]):
-    """``(definitions, formulas)`` of ``rows`` with their shared subexpressions named once."""
+def _shared(rows: list[Formula], neat: bool = True):
+    """``(definitions, formulas)`` of ``rows`` with their shared subexpressions named once;
+    ``neat``: each tidied (:func:`~appell.core.simplification.tidy`; not the recursive route's
+    rows, sums of products of named quantities that ``simplify`` would not shorten: the
+    bundled arm's 341 took 45 s)."""
     exprs = [e for f in rows for e in (f.lhs, f.rhs)]
     taken = {s.name for s in free_symbols(*exprs)}
     prefix = next(
@@ -416,9 +449,12 @@ def _shared(rows: list[Formula]):
     defs, reduced = _inline_single_uses(defs, reduced)
     renumber = {sym: sp.Symbol(f"{prefix}{k}") for k, (sym, _) in enumerate(defs, start=1)}
     renamed = graph_xreplace([e for _, e in defs] + list(reduced), renumber, evaluate=False)
-    neat = tidy if len(defs) <= TIDY_DEFINITIONS else (lambda e: e)
-    defs, reduced = tuple((renumber[sym], neat(e)) for (sym, _), e in zip(defs, renamed)), renamed[len(defs) :]
-    return defs, [Formula(f.label, tidy(reduced[2 * i]), tidy(reduced[2 * i + 1]), f.item) for i, f in enumerate(rows)]
+    tidied = tidy if neat and len(defs) <= TIDY_DEFINITIONS else (lambda e: e)
+    defs, reduced = tuple((renumber[sym], tidied(e)) for (sym, _), e in zip(defs, renamed)), renamed[len(defs) :]
+    tidied = tidy if neat else (lambda e: e)
+    return defs, [
+        Formula(f.label, tidied(reduced[2 * i]), tidied(reduced[2 * i + 1]), f.item) for i, f in enumerate(rows)
+    ]
 
 
 def _inline_single_uses(defs, exprs):

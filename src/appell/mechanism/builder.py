@@ -48,6 +48,29 @@ from appell.rigid_tree import RigidTree
 from appell.symbols import derivative_symbol
 from appell.view import SHAPES
 
+#: largest expression (``count_ops``) a rolling contact passes through ``trigsimp``: the
+#: rolling disc's are at most 43 operations (a few tenths of a second each); the benchmark
+#: bicycle's front wheel's reach 1,829 (42 s), which are left as formed
+SHORT_OPS = 60
+
+
+def _rates_short(e):
+    """``e``, linear in rates that no function holds (a body's angular velocity in world axes,
+    ``R w_body``), with each rate's coefficient through ``trigsimp`` when that is shorter: the
+    rolling disc's 43 operations a component become 7. Exact: the coefficients are products of
+    sines and cosines, which ``trigsimp`` rewrites by identities (``sin^2 + cos^2 = 1``).
+    Only for ``e`` of at most :data:`SHORT_OPS` operations."""
+    if sp.count_ops(e) > SHORT_OPS:
+        return e
+    expanded = sp.expand(e)
+    inside = set().union(set(), *(g.free_symbols for g in expanded.atoms(sp.Function)))
+    rates = sorted(expanded.free_symbols - inside, key=str)
+    parts = sp.collect(expanded, rates, evaluate=False) if rates else {}
+    if not parts or any(k != 1 and k not in rates for k in parts):
+        return e
+    short = sp.Add(*(k * sp.trigsimp(v) for k, v in parts.items()))
+    return short if sp.count_ops(short) < sp.count_ops(e) else e
+
 
 class Mechanism:
     """A multibody mechanism: bodies joined by joints into a tree rooted at :attr:`ground`
@@ -567,7 +590,7 @@ class Mechanism:
         def build(frames):
             f = frames[body]
             d, z = contact(f, n)
-            vP = f.v + _cross(f.w, d)
+            vP = f.v + _cross(f.w.applyfunc(_rates_short), d)
             P = f.p + d
             cons = [
                 holonomic(f"{name}_n", n.dot(f.p) + z - height),
@@ -611,7 +634,11 @@ class Mechanism:
             a = f.R * k
             s = n.dot(a)
             u = n - a * s
-            root = sp.sqrt(u.dot(u))  # = sqrt(1 - s^2) where |a| = 1; a norm, real at any point
+            square = u.dot(u)  # = 1 - s^2 where |a| = 1 (the rotation's entries say so: a shorter root)
+            norm = a.dot(a)
+            if sp.count_ops(norm) <= SHORT_OPS and sp.trigsimp(norm) == 1:
+                square = 1 - s**2
+            root = sp.sqrt(square)  # a norm, real at any point
             return -r * u / root, -r * (1 - s**2) / root
 
         self._rolling(name, b, contact, normal, height, what)
