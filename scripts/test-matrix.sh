@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The numerical part of the test suite (pytest -m numerical: closed forms, published values,
 # independent routes) under each BLAS kernel this CPU supports and with both numeric
-# backends, then a table of passes and failures per variant (issue 26). A test whose
+# backends, then a table of passes and failures per variant (issue 26). Each variant runs in
+# scripts/test.sh's two passes (scripts/passes.sh: $APPELL_TEST_WORKERS workers, default 2,
+# then the serial modules alone), all variants with one derivation and compiled-code cache. A test whose
 # tolerance holds only under one machine's rounding fails here where it is written.
 #
 # Usage: bash scripts/test-matrix.sh [--kernels "unset Haswell Nehalem Prescott"]
@@ -21,7 +23,8 @@ while [ $# -gt 0 ]; do
     case "$1" in
         --kernels) kernels="$2"; shift 2 ;;
         --backends) backends="$2"; shift 2 ;;
-        --margins) margins="-p tolerance_margins"; shift ;;
+        # the plugin counts in its own process: one process per pass, no pytest-xdist workers
+        --margins) margins="-p tolerance_margins"; export APPELL_TEST_WORKERS=1; shift ;;
         --) shift; extra=("$@"); break ;;
         *) echo "unknown option $1 (see the head of $0)" >&2; exit 2 ;;
     esac
@@ -42,6 +45,10 @@ supported() {
 
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
+source scripts/passes.sh
+# one derivation and compiled-code cache for every variant (the kernel and the backend change
+# the numbers, not the derivation nor the C source): scripts/passes.sh, shared_cache
+shared_cache "$out/cache"
 rows=()
 status=0
 for kernel in $kernels; do
@@ -52,28 +59,34 @@ for kernel in $kernels; do
             continue
         fi
         echo "== $name" >&2
-        xml="$out/${kernel}-${backend}.xml"
+        xml="$out/${kernel}-${backend}"
         start=$(date +%s)
-        blas=(-u OPENBLAS_CORETYPE)
-        if [ "$kernel" != "unset" ]; then blas=(OPENBLAS_CORETYPE="$kernel"); fi
-        set +e
-        env "${blas[@]}" APPELL_TEST_BACKEND="$backend" PYTHONPATH=tests \
-            python -m pytest -m numerical -p no:cacheprovider $margins --junitxml="$xml" "${extra[@]}" >&2
-        rc=$?
-        set -e
+        # the two passes of scripts/test.sh (scripts/passes.sh): the serial modules on their own
+        rc=0
+        (if [ "$kernel" = unset ]; then unset OPENBLAS_CORETYPE; else export OPENBLAS_CORETYPE="$kernel"; fi
+         export APPELL_TEST_BACKEND="$backend" PYTHONPATH=tests
+         run_passes "$xml" -m numerical -p no:cacheprovider $margins "${extra[@]}") >&2 || rc=$?
         secs=$(( $(date +%s) - start ))
         if [ "$rc" -ne 0 ]; then status=1; fi
         rows+=("$(python - "$xml" "$kernel" "$backend" "$secs" "$rc" <<'EOF'
 import sys
 import xml.etree.ElementTree as ET
 
-path, kernel, backend, secs, rc = sys.argv[1:]
-try:
-    suite = ET.parse(path).getroot()
+prefix, kernel, backend, secs, rc = sys.argv[1:]
+counts = [0, 0, 0, 0]  # tests, failures, errors, skipped over the two passes' reports
+read = 0
+for part in ("parallel", "serial"):
+    try:
+        suite = ET.parse(f"{prefix}-{part}.xml").getroot()
+    except (OSError, ET.ParseError):
+        continue
     suite = suite if suite.tag == "testsuite" else suite.find("testsuite")
-    n, f, e, s = (int(suite.get(k, 0)) for k in ("tests", "failures", "errors", "skipped"))
+    counts = [c + int(suite.get(k, 0)) for c, k in zip(counts, ("tests", "failures", "errors", "skipped"))]
+    read += 1
+n, f, e, s = counts
+if read:
     print(f"{'OPENBLAS_CORETYPE=' + kernel:32s} {backend:8s} {n:6d} {n - f - e - s:7d} {f + e:7d} {s:8d} {secs:>7s}s")
-except (OSError, ET.ParseError):
+else:
     print(f"{'OPENBLAS_CORETYPE=' + kernel:32s} {backend:8s} pytest exited {rc} before writing its report")
 EOF
 )")

@@ -5,8 +5,10 @@ separate processes (tests/test_faults.py, tests/test_sweep.py)."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -95,6 +97,7 @@ NOT_NUMERICAL = {
     "test_packaging.py",
     "test_report_browser.py",
     "test_servo_bad_input.py",
+    "test_suite_setup.py",
     "test_sweep.py",
     "test_urdf_hostile.py",
 }
@@ -121,6 +124,34 @@ def pytest_configure(config):
     if BACKEND not in ("numpy", "c"):
         raise pytest.UsageError(f"APPELL_TEST_BACKEND must be 'numpy' or 'c', got {BACKEND!r}")
     _use_backend(BACKEND)
+    config.stash[_OWN_CACHE] = _shared_cache()
+
+
+#: the cache folder this process made (:func:`_shared_cache`), removed when pytest ends
+_OWN_CACHE = pytest.StashKey[str | None]()
+
+
+def _shared_cache() -> str | None:
+    """One derivation and compiled-code cache for the whole run (``$APPELL_CACHE_DIR``):
+    unless the caller set it (scripts/test.sh for both its passes, .ci/run for the suite and
+    the BLAS variant), a new temporary folder, made by the first pytest process of the run
+    (the pytest-xdist workers and every child process inherit the variable), so that each
+    bundled example is derived and compiled once per run, not once per process, and the run
+    starts from an empty cache and leaves the user's ~/.cache/appell alone. The tests of
+    the caches themselves point the variable at folders of their own. Returns the folder
+    made here, or None."""
+    if os.environ.get("APPELL_CACHE_DIR"):
+        return None
+    path = tempfile.mkdtemp(prefix="appell-test-cache.")
+    os.environ["APPELL_CACHE_DIR"] = path
+    return path
+
+
+def pytest_unconfigure(config):
+    own = config.stash.get(_OWN_CACHE, None)
+    if own:
+        os.environ.pop("APPELL_CACHE_DIR", None)
+        shutil.rmtree(own, ignore_errors=True)
 
 
 def _use_backend(backend: str):
@@ -173,14 +204,55 @@ HEAVY = {
     "test_derivation_cache.py",
     "test_mjcf_menagerie.py",
     "test_paper_forms.py",
+    "test_inverse_contacts.py",
+    "test_printed_recursion.py",
+    "test_parallel_gripper.py",
 }
 QUICK = os.environ.get("APPELL_QUICK") == "1"
+#: the order in which the parallel pass hands modules to its workers (scripts/passes.sh gives
+#: pytest-xdist ``--no-loadscope-reorder``, whose default hands out the modules with the most
+#: tests first, the long ones with few tests last): the longest first, so that the last module
+#: to finish is a short one and no worker waits alone at the end; the other modules follow in
+#: their usual order. test_docs_offline.py leads: its Sphinx build (:func:`docs_build`, every
+#: bundled example run for the gallery) is the longest single step (137 s of a whole run's
+#: 761 s on a loaded machine, 2026-11-29, when it came last of these).
+LONGEST_FIRST = (
+    "test_docs_offline.py",
+    "test_docs.py",
+    "test_cli.py",
+    "test_iftomm.py",
+    "test_api_cli_agree.py",
+    "test_matrix_script.py",
+    "test_modelfile_examples.py",
+    "test_printed_equations.py",
+    "test_json_exact.py",
+    "test_derivation_cache.py",
+    "test_inverse.py",
+    "test_symbolic_bounds.py",
+    "test_servo_drive.py",
+    "test_bicycle.py",
+    "test_mjcf_menagerie.py",
+    "test_viewer_browser.py",
+    "test_evidence.py",
+    "test_report_browser.py",
+    "test_result_schema.py",
+    "test_mjcf.py",
+    "test_urdf_pinocchio.py",
+    "test_implicit_jacobian.py",
+    "test_cli_solver.py",
+    "test_tree_route.py",
+    "test_paper_forms.py",
+    "test_inverse_contacts.py",
+    "test_printed_recursion.py",
+    "test_parallel_gripper.py",
+)
 
 
 def pytest_ignore_collect(collection_path, config):
     """In a pass of scripts/test.sh (:data:`PART`), the other pass's modules are not even
     imported (collecting all 1,500 tests to deselect most of them took the serial pass 10 s);
-    ``--quick`` skips the heavy ones likewise. None: pytest decides as usual."""
+    ``--quick`` skips the heavy ones likewise, and ``-m numerical`` the modules of
+    :data:`NOT_NUMERICAL`. None: pytest decides as usual."""
     name = collection_path.name
     if not (name.startswith("test_") and name.endswith(".py")):
         return None
@@ -188,13 +260,23 @@ def pytest_ignore_collect(collection_path, config):
         return True
     if QUICK and name in HEAVY | SERIAL:
         return True
+    if name in NOT_NUMERICAL and config.getoption("markexpr", "") == "numerical":
+        return True  # the matrix's variants (pytest -m numerical) would deselect every test of it
     return None
 
 
 def pytest_collection_modifyitems(config, items):
     if PART not in ("", "parallel", "serial"):
         raise pytest.UsageError(f"APPELL_TEST_PART must be 'parallel' or 'serial', got {PART!r}")
-    # the modules of the other pass, and --quick's heavy ones, are not collected (pytest_ignore_collect)
+    # the modules of the other pass, and --quick's heavy ones, are not collected (pytest_ignore_collect),
+    # but a module named on the command line is collected anyway: its tests run in their own pass only
+    if PART:
+        other = [item for item in items if (item.path.name in SERIAL) != (PART == "serial")]
+        if other:
+            config.hook.pytest_deselected(items=other)
+            items[:] = [item for item in items if (item.path.name in SERIAL) == (PART == "serial")]
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: each module's own order kept
     skip_slow = pytest.mark.skip(reason="a long run: set APPELL_SLOW=1 to run it")
     for item in items:
         if item.path.name not in NOT_NUMERICAL:

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import appell
-from appell.io.cli import derive_model, load_system, run_simulation
+from appell.io.cli import run_simulation
+from bundled import bundled_derivation
 
 MISSING_SPEED = """
 [model]
@@ -42,7 +43,7 @@ def _same(a, b):
 
 @pytest.mark.parametrize("name", ["pendulum", "four_bar", "car", "block_on_incline", "cart_pole"])
 def test_the_api_and_the_command_line_give_the_same_motion(name):
-    derivation = derive_model(load_system(name))
+    derivation = bundled_derivation(name)
     _same(appell.simulate(derivation, 0.3), run_simulation(derivation, 0.3))
 
 
@@ -139,8 +140,7 @@ def test_every_command_and_its_twin_agree(name, tmp_path, monkeypatch):
     called from Python: the same printed lines, the same file byte for byte, the same exit code
     (1 where the workflow raises ComputationError, the same message), and the motion of the
     plain ``appell.simulate`` column by column."""
-    quiet = lambda *a, **k: None  # noqa: E731
-    derivation = workflows.derive_model(workflows.load_system(name, echo=quiet), formulas=True)
+    derivation = bundled_derivation(name, formulas=True)  # what load_derivation gives the commands
     monkeypatch.setattr("appell.workflows.load_derivation", lambda *a, **k: derivation)
     # derive
     code, stdout, stderr = _command("derive", name, "--format", "json")

@@ -16,9 +16,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from appell import derive, linearise, load_model, stability_sweep, steady_motion
-from appell.examples import example_path
+from appell import derive, linearise, stability_sweep, steady_motion
 from appell.examples.mechanism_examples import benchmark_bicycle
+from bundled import bundled_derivation
 
 M_PUB = np.array([[80.81722, 2.31941332208709], [2.31941332208709, 0.29784188199686]])
 C1_PUB = np.array([[0.0, 33.86641391492494], [-0.85035641456978, 1.68540397397560]])
@@ -66,7 +66,7 @@ def upright(d, v):
 def bicycle_file():
     """The bundled model file, its geometry given by parameters (the steer axis by the
     parameter lam) and its initial values other than the speeds computed from the contacts."""
-    return derive(load_model(example_path("benchmark_bicycle")))
+    return bundled_derivation("benchmark_bicycle")  # through the run's cache (tests/bundled.py)
 
 
 @pytest.mark.parametrize("source", ["builder", "model file"])

@@ -465,7 +465,8 @@ def test_ctrl_c_while_simulating_from_the_import_on(tmp_path, delay):
 
 @pytest.mark.parametrize("delay", [0.3, 2.0])
 def test_ctrl_c_while_deriving(delay):
-    code, err = interrupted(["derive", "rolling_disc"], delay)
+    # --no-cache: derived now, whatever the run's derivation cache holds (tests/conftest.py)
+    code, err = interrupted(["derive", "rolling_disc", "--no-cache"], delay)
     assert_interrupted(code, err)
 
 

@@ -18,15 +18,15 @@ import math
 import numpy as np
 import pytest
 
-from appell import derive, load_model, numeric_model
-from appell.examples import example_path
+from appell import derive, numeric_model
 from appell.examples.mechanism_examples import four_bar
+from bundled import bundled_derivation
 from test_mechanism import assert_four_bar_pin_forces_match_newton_euler
 
 
 @pytest.fixture(scope="module")
 def four_bar_file():
-    return derive(load_model(example_path("four_bar")))
+    return bundled_derivation("four_bar")  # through the run's cache (tests/bundled.py)
 
 
 def _start(d):
@@ -59,7 +59,7 @@ def test_four_bar_file_pin_forces_match_a_free_body_newton_euler_solution(four_b
 
 @pytest.fixture(scope="module")
 def disc():
-    d = derive(load_model(example_path("rolling_disc")))
+    d = bundled_derivation("rolling_disc")  # through the run's cache (tests/bundled.py)
     params = {p.symbol.name: p.value for p in d.system.parameters}
     return d, params
 

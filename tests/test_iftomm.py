@@ -31,6 +31,7 @@ from appell.examples import example_path
 from appell.examples.iftomm_examples import A02_SIZES, a02_reference, n_four_bar_text
 from appell.simulation.simulate import METHODS
 from appell.symbols import free_symbols, graph_cse, lambdify
+from bundled import bundled_derivation
 
 G = 9.81
 
@@ -153,8 +154,9 @@ def test_benchmark_files_are_their_builders(name):
 
 @functools.cache
 def a02_derivation(n: int):
-    """The derivation of the bundled A02 file with n four-bars, once per module."""
-    return appell.derive(appell.load_model(example_path(f"iftomm_a02_n{n}")))
+    """The derivation of the bundled A02 file with n four-bars, once per module, through the
+    run's cache (tests/bundled.py)."""
+    return bundled_derivation(f"iftomm_a02_n{n}")
 
 
 def run_a02(n: int, **options):
@@ -254,7 +256,7 @@ def test_a02_forty_four_bars():
 def test_a02_every_method_and_the_numpy_backend_pass_on_the_branch():
     """N = 1 for 3 s (two flat passages) with SciPy's DOP853, RK45 and Radau on the NumPy
     backend: each passes on the branch."""
-    derivation = appell.derive(appell.load_model(example_path("iftomm_a02_n1")))
+    derivation = a02_derivation(1)
     for method in ("DOP853", "RK45", "Radau"):
         sol = appell.simulate(derivation, 3.0, method=method, rtol=1e-10, atol=1e-12)
         check_a02(1, sol, 3.0, angle_tol=1e-6)
@@ -266,7 +268,7 @@ HINGE_AXIS_MOMENTS = ("M_H1_y", "M_H2_z", "M_H3_x", "M_H4_y", "M_H5_z")
 
 @pytest.fixture(scope="module")
 def bricard():
-    derivation = appell.derive(appell.load_model(example_path("bricard")))
+    derivation = bundled_derivation("bricard")  # through the run's cache (tests/bundled.py)
     return derivation, appell.simulate(derivation)
 
 
@@ -374,7 +376,7 @@ def test_a01_pendulum_against_the_closed_form():
     m g, the energy within 1e-10 of m g L."""
     from scipy.special import ellipj, ellipk
 
-    sol = appell.simulate(appell.derive(appell.load_model("iftomm_a01_pendulum")))
+    sol = appell.simulate(bundled_derivation("iftomm_a01_pendulum"))  # tests/bundled.py
     assert sol.status == 0, sol.message
     t = sol["t"]
     k, w = math.sin(math.pi / 4), math.sqrt(G / 1.0)
@@ -447,7 +449,7 @@ def governor():
     with np.errstate(over="ignore"):  # SciPy's finite-difference Jacobian tries huge steps in phi
         ref = solve_ivp(rates, (0.0, 10.0), y0, method="Radau", rtol=1e-11, atol=1e-13, dense_output=True)
     assert ref.success
-    return appell.derive(appell.load_model("iftomm_a05_governor")), ref, momentum, accelerations, energy
+    return bundled_derivation("iftomm_a05_governor"), ref, momentum, accelerations, energy  # tests/bundled.py
 
 
 def test_a05_governor_against_an_independent_lagrangian(governor):

@@ -20,17 +20,17 @@ import pytest
 import sympy as sp
 from scipy.integrate import solve_ivp
 
-from appell import derive, load_model, numeric_model, simulate
-from appell.examples import example_path
+from appell import derive, numeric_model, simulate
 from appell.model import Parameter, System, holonomic
 from appell.numerics.linearise import motion_jacobian
+from bundled import bundled_derivation
 
 
 @pytest.mark.parametrize("name", ["pendulum", "four_bar", "knife_edge", "rolling_disc", "car"])
 def test_the_motion_jacobian_is_that_of_the_numeric_solve(name):
     """Central differences (relative step 1e-6, ~1e-9 relative error) of the model's own
     ``evaluate`` at a state moved off the start (speeds on the constraints)."""
-    d = derive(load_model(example_path(name)))
+    d = bundled_derivation(name)  # through the run's cache (tests/bundled.py)
     model = numeric_model(d)
     p = model.params()
     start = d.system.initial_values

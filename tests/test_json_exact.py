@@ -17,8 +17,9 @@ import appell
 from appell import Parameter, System, derive, holonomic
 from appell.errors import ModelError
 from appell.examples import list_examples
-from appell.io.cli import cli, derivation_json, derive_model, load_system
+from appell.io.cli import cli, derivation_json, load_system
 from appell.io.printing import document_expressions, read_json
+from bundled import bundled_derivation
 
 
 def _expressions(node, path=()):
@@ -76,7 +77,7 @@ HEAVY = {"benchmark_bicycle"}
 )
 def test_every_bundled_example_reads_back_structurally_equal(name):
     """Every expression of every bundled example's JSON document == the derived object."""
-    derivation = derive_model(load_system(name))
+    derivation = bundled_derivation(name)  # tests/bundled.py
     assert _assert_round_trip(derivation) > 0
 
 

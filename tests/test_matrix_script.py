@@ -14,8 +14,10 @@ ROOT = Path(__file__).resolve().parent.parent
 SCRIPT = ROOT / "scripts" / "test-matrix.sh"
 
 
-def matrix(*args, timeout=300):
+def matrix(*args, timeout=300, workers="2"):
+    """The script with ``$APPELL_TEST_WORKERS`` = ``workers`` (its first pass's pytest-xdist workers)."""
     env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_CORETYPE", "APPELL_TEST_BACKEND")}
+    env["APPELL_TEST_WORKERS"] = workers
     return subprocess.run(
         ["bash", str(SCRIPT), *args], capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT
     )
@@ -48,7 +50,8 @@ def test_matrix_fails_when_a_variant_fails_and_says_which():
         "tests/test_partition_singular.py",
         "-k",
         "no_test_has_this_name",
-    )
+        workers="1",
+    )  # one process: the workers' start is not the point here
     assert done.returncode == 1
     assert "OPENBLAS_CORETYPE=unset" in done.stdout
 

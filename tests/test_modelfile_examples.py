@@ -18,6 +18,7 @@ from appell.examples.catalog import CATALOG
 from appell.examples.servo_examples import SERVO_EXAMPLES
 from appell.simulation.options import SimulationOptions
 from appell.simulation.simulate import simulate
+from bundled import bundled_derivation
 
 #: the files this test module adds beside the catalog's (which tests/test_modelfile.py checks)
 NEW = sorted(set(BUILDERS) - set(CATALOG))
@@ -87,7 +88,8 @@ def test_model_file_equals_builder(name):
     built = BUILDERS[name]()
     _assert_same_declarations(from_file, built, name)
 
-    d_file, d_built = derive(from_file), derive(built)
+    # the file's derivation through the run's cache (tests/bundled.py), the builder's derived here
+    d_file, d_built = bundled_derivation(name), derive(built)
     init = dict(built.initial)
     rng = np.random.default_rng(11)
     for _ in range(4):
@@ -107,7 +109,7 @@ def test_servo_model_file_equals_builder(name):
     built = BUILDERS[name]()
     _assert_same_declarations(from_file, built, name)
 
-    m_file, m_built = numeric_model(derive_controlled(from_file)), numeric_model(derive_controlled(built))
+    m_file, m_built = numeric_model(bundled_derivation(name)), numeric_model(derive_controlled(built))
     assert m_file.state_names == m_built.state_names
     assert m_file.control_names == m_built.control_names
     init = dict(built.initial)
@@ -153,7 +155,7 @@ def test_simulation_table_runs(name):
     options = SimulationOptions.from_model(system)
     assert dict(system.settings)["t_end"] == options.t_end
     t_end = min(options.t_end, 0.2)
-    solution = simulate(derive(system), t_end, options=options)  # its output times cut to the span
+    solution = simulate(bundled_derivation(name), t_end, options=options)  # its output times cut to the span
     assert solution.status == 0, solution.message
     assert solution.t[-1] == pytest.approx(t_end)  # the run ends at t_end (to rounding)
 
@@ -183,7 +185,10 @@ def test_every_bundled_example_starts_consistently(name):
             constraints=tuple(c for c in system.constraints if c.name not in opened),
             units=tuple((k, u) for k, u in system.units if k not in opened),
         )
-    d = derive_controlled(system) if system.servo_constraints else derive(system)
+    if opened:
+        d = derive_controlled(system) if system.servo_constraints else derive(system)
+    else:  # the file's own system: its derivation through the run's cache (tests/bundled.py)
+        d = bundled_derivation(name)
     state = complete_initial(d, adjust=())
     assert all(old is None for _, old, _ in state.changes), state.changes
     # CHECK_TOLERANCE (1e-9) is what simulate accepts; the files' values give <= 3e-16

@@ -17,6 +17,7 @@ from appell.examples import example_path
 from appell.io.modelfile import load_model
 from appell.io.viewer import view_motion
 from browser import CHROMIUM, SKIP_REASON, chromium
+from bundled import bundled_derivation
 
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)
 
@@ -24,13 +25,13 @@ pytestmark = pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)
 @pytest.fixture(scope="module")
 def four_bar():
     system = load_model(example_path("four_bar"))
-    return system, appell.simulate(appell.derive(system), t_end=1.5)
+    return system, appell.simulate(bundled_derivation("four_bar"), t_end=1.5)  # tests/bundled.py
 
 
 @pytest.fixture(scope="module")
 def car():
     system = load_model(example_path("car"))
-    return system, appell.simulate(appell.derive(system))
+    return system, appell.simulate(bundled_derivation("car"))  # tests/bundled.py
 
 
 # ------------------------------------------------------------------ Chromium
@@ -62,14 +63,14 @@ def _bicycle():
     system = load_model(example_path("benchmark_bicycle"))
     given = {k: v for k, v in system.initial if k not in system.initial_guesses}
     solution = appell.simulate(
-        appell.derive(system), t_end=2.0, initial={**given, "rear_rx_dot": 0.5}, complete=True
+        bundled_derivation("benchmark_bicycle"), t_end=2.0, initial={**given, "rear_rx_dot": 0.5}, complete=True
     )  # a roll rate: the bicycle weaves
     return system, solution
 
 
 def _arm():
-    system = load_model(example_path("four_bar").parent / "arm.urdf")
-    return system, appell.simulate(appell.derive(system), t_end=0.5)
+    path = example_path("four_bar").parent / "arm.urdf"
+    return load_model(path), appell.simulate(bundled_derivation(path), t_end=0.5)  # tests/bundled.py
 
 
 @pytest.mark.parametrize("model", ["car", "four_bar", "arm", "bicycle"])
