@@ -519,6 +519,14 @@ def _solver_options(command):
             text="Constraint drift control",
             of=lambda d, n: d.stabilization,
         ),
+        option(
+            "--setting",
+            "settings",
+            multiple=True,
+            metavar="KEY=VALUE",
+            text="Any key of a model file's [simulation] table, its value in TOML (e.g. --setting rest_speed=1e-5, "
+            "--setting unilateral={contact=1}); repeatable; the flags above win.",
+        ),
     ]
 
     @functools.wraps(command)
