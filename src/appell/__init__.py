@@ -82,6 +82,7 @@ if TYPE_CHECKING:  # the names of _LAZY as a type checker sees them (tests/test_
     from appell.io.modelfile import load_model, loads_model
     from appell.io.printing import display_latex, read_json, to_json, to_latex, to_text  # noqa: F401 (display_latex: not in __all__)
     from appell.io.report import render_report, write_report
+    from appell.io.results import write_csv, write_hdf5, write_netcdf
     from appell.io.viewer import MotionView, view_motion
     from appell.mechanism.sympy_system import from_sympy
     from appell.model import (
@@ -113,7 +114,7 @@ if TYPE_CHECKING:  # the names of _LAZY as a type checker sees them (tests/test_
     from appell.simulation.energy_balance import EnergyBalance, energy_balance
     from appell.simulation.events import Event
     from appell.simulation.initial import InitialState, check_initial, complete_initial
-    from appell.simulation.inverse import InverseDynamics, inverse_dynamics
+    from appell.simulation.inverse import Contact, InverseDynamics, inverse_dynamics
     from appell.simulation.simulate import simulate
     from appell.simulation.solution import Solution
     from appell.simulation.sweep import SweepResult, parameter_grid, sweep, sweep_cluster

@@ -643,8 +643,7 @@ def readable(expr, focus=(), parameters=()):
             return expr
         expr = _in_cosines(expr)
         if sp.count_ops(expr) > READABLE_OPS // 2:  # (a line printed closed is at most half of it)
-            _READABLE[key] = derived
-            return derived
+            return _READABLE.put(key, derived)
 
     deadline = time.process_time() + READABLE_SECONDS
 
