@@ -158,11 +158,15 @@ def appell_qacc(read, accelerations: dict, qpos, nv):
     return qacc
 
 
-def compare(path_or_xml, states=6, seed=5, spread=0.6, **options):
+def compare(path_or_xml, states=6, seed=5, spread=0.6, mujoco_without=(), **options):
     """appell's accelerations vs the reference at ``states`` random states; the largest
-    relative difference."""
+    relative difference. ``mujoco_without``: MuJoCo options set to 0 in the reference
+    (``"density"``, ``"viscosity"``: the fluid forces appell names in its note and does not
+    apply)."""
     rng = np.random.default_rng(seed)
     mj = load_mjcf(path_or_xml)
+    for name in mujoco_without:
+        setattr(mj.opt, name, 0.0)
     where = str(path_or_xml) if not str(path_or_xml).lstrip().startswith("<") else "<mjcf>"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AppellNote)  # contacts, limits ...: named in the note
@@ -513,3 +517,92 @@ def test_a_menagerie_humanoid_standing_on_both_feet_inverted_with_its_contact_fo
         assert np.abs(lam[-12:] - ours).max() <= 1e-9 * np.abs(ours).max()
     total = float(m.body_mass.sum()) * 9.81
     assert got["F_ll_faa_contact_z"][0] + got["F_lr_faa_contact_z"][0] == pytest.approx(total, rel=0.05)
+
+
+def site_thrusters() -> str:
+    """Two links on hinges (the second carried by a massless mount, so the site's body is
+    merged) with sites turned in their bodies, driven through site transmissions with 6-D
+    gears: a motor and a general actuator with a constant affine bias."""
+    return """<mujoco model="site thrusters">
+  <option gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="base" pos="0 0 1" euler="0.3 0 0">
+      <joint name="h1" axis="0 1 0"/>
+      <inertial pos="0.2 0 0" mass="1.2" diaginertia="0.01 0.02 0.03"/>
+      <site name="s1" pos="0.3 0.05 0" euler="0.4 -0.2 0.9"/>
+      <body name="mount" pos="0.4 0 0">
+        <body name="tip" euler="0 0.5 0">
+          <joint name="h2" axis="1 0 0"/>
+          <joint name="h3" axis="0 0 1" pos="0.1 0 0"/>
+          <inertial pos="0.1 0.02 0" mass="0.7" diaginertia="0.004 0.005 0.006"/>
+          <site name="s2" pos="0.2 -0.1 0.05" euler="-0.7 0.1 0.3"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor name="m1" site="s1" gear="0.3 -1 2 0.1 0.2 -0.3"/>
+    <general name="g2" site="s2" gear="1 0.5 -0.4 -0.2 0 0.05" gainprm="2" biastype="affine" biasprm="0.7"/>
+  </actuator>
+</mujoco>"""
+
+
+def test_site_transmissions_with_turned_sites_match_the_kkt_reference():
+    """Source of truth: MuJoCo's ``qfrc_actuator`` of a site transmission (``J_site^T`` of the
+    gear along the site's axes), in the reference of the module docstring."""
+    worst, _, read = compare(site_thrusters(), states=6)
+    assert [a[1] for a in read.actuators] == ["m1", "g2"]
+    assert worst < 1e-9, worst
+
+
+def test_a_site_transmission_with_a_refsite_is_refused_by_name():
+    xml = site_thrusters().replace('<motor name="m1" site="s1"', '<motor name="m1" site="s1" refsite="s2"')
+    with pytest.raises(ModelError, match=r"actuator 'm1'.*refsite"):
+        mjcf_system(xml)
+
+
+@needs_files
+def test_the_skydio_quadrotor_thrusts_as_in_mujoco():
+    """Skydio X2 as shipped: a free body driven by four ``motor`` actuators on sites with
+    6-D gears (thrust along the site's z and a yaw torque). Source of truth: MuJoCo itself,
+    ``mj_forward``'s ``qacc`` (the file has no equality and no contact between its geoms, all
+    on one body: ``nefc == 0``, so ``qacc = M^-1 (qfrc_actuator + qfrc_passive - qfrc_bias)``),
+    with the fluid forces switched off (``density``, ``viscosity``: named in appell's note,
+    not applied); and MuJoCo's ``qfrc_actuator`` equals ``M (a(u) - a(0))`` of appell's
+    accelerations with the controls ``u`` and without (``M``: ``mj_fullM``)."""
+    path = MENAGERIE / "skydio_x2" / "x2.xml"
+    worst, _, read = compare(path, states=5, mujoco_without=("density", "viscosity"))
+    assert worst < 1e-9, worst
+    assert [a[1] for a in read.actuators] == ["thrust1", "thrust2", "thrust3", "thrust4"]
+    mj = load_mjcf(path)
+    mj.opt.density = mj.opt.viscosity = 0.0
+    data = mujoco.MjData(mj)
+    u = np.array([3.1, 4.7, 2.2, 5.9])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        driven, free = (
+            numeric_model(
+                appell.derive(mjcf_system(path, ctrl=dict(zip(("thrust1", "thrust2", "thrust3", "thrust4"), c))))
+            )
+            for c in (u, np.zeros(4))
+        )
+    rng = np.random.default_rng(11)
+    for _ in range(4):
+        qpos = mj.qpos0 + rng.uniform(-0.6, 0.6, mj.nq)
+        mujoco.mj_normalizeQuat(mj, qpos)
+        qvel = rng.uniform(-1.5, 1.5, mj.nv)
+        data.qpos[:], data.qvel[:], data.ctrl[:] = qpos, qvel, u
+        mujoco.mj_forward(mj, data)
+        assert data.nefc == 0
+        values = read.state(qpos, qvel)
+        qacc = []
+        for model in (driven, free):
+            q = np.array([values[n] for n in model.coordinate_names])
+            w = np.array([values[n] for n in model.speed_names])
+            sol = model.solve(0.0, q, w)
+            qacc.append(appell_qacc(read, dict(zip(model.speed_names, sol.accelerations)), qpos, mj.nv))
+        assert np.abs(qacc[0] - data.qacc).max() <= 1e-9 * np.abs(data.qacc).max()
+        M = np.zeros((mj.nv, mj.nv))
+        mujoco.mj_fullM(mj, data, M)  # MuJoCo 4: (model, data, dst)
+        generalized = M @ (qacc[0] - qacc[1])
+        assert np.abs(generalized - data.qfrc_actuator).max() <= 1e-9 * np.abs(data.qfrc_actuator).max()
