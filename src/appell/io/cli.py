@@ -32,6 +32,10 @@ a regular file); 130 interrupted (Ctrl-C); 143 terminated (SIGTERM). Errors are 
 ``error: <message>`` (and a hint) on stderr, never as a traceback, and no output file
 (nor a temporary one) is left behind.
 
+The click group's handling of errors and exit codes is :mod:`appell.io.cli_group`; the
+options several commands share (``--set``, the integrator's options, ...) are
+:mod:`appell.io.cli_options`; a command's own options are here, on the command.
+
 Only click, the standard library and the light top of :mod:`appell.workflows` are imported
 with this module (``appell --help`` and ``appell examples`` need no SymPy): what a workflow
 needs is imported when it runs.
@@ -39,8 +43,6 @@ needs is imported when it runs.
 
 from __future__ import annotations
 
-import functools
-import os
 import signal
 import sys
 from pathlib import Path
@@ -48,8 +50,30 @@ from pathlib import Path
 import click
 
 from appell import workflows
-from appell.errors import AppellError, ComputationError, ModelError
-from appell_interrupts import interrupt_received, rescue_interrupts
+from appell.errors import ComputationError
+from appell.io.cli_group import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILURE,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_TERMINATED,
+    Interrupted,
+    Terminated,
+    _AppellGroup,
+    _terminate,
+)
+from appell.io.cli_options import (
+    _CONTEXT,
+    _adjust_option,
+    _backend_option,
+    _complete_option,
+    _expand_option,
+    _model_argument,
+    _model_options,
+    _solver_options,
+    parse_assignments,
+)
+from appell_interrupts import rescue_interrupts
 
 # the workflows (derivation_json, command_options, export_solution, ...) are appell.workflows'; this
 # module still answers their names (its __getattr__), as before they moved there
@@ -64,11 +88,11 @@ __all__ = [
     "EXIT_OK",
     "EXIT_FAILURE",
     "EXIT_BAD_INPUT",
+    "EXIT_INTERRUPTED",
+    "EXIT_TERMINATED",
+    "Interrupted",
+    "Terminated",
 ]
-
-EXIT_OK, EXIT_FAILURE, EXIT_BAD_INPUT = 0, 1, 2
-#: exit codes of a command stopped by Ctrl-C (SIGINT) or SIGTERM: 128 + the signal number
-EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
 
 #: the workflows (light to import: what they need is imported when they run); the steps every command
 #: takes are names of this module too (a test replaces one to see the command go through it)
@@ -101,18 +125,6 @@ def __getattr__(name):  # the workflows' names, as before they moved there (from
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def parse_assignments(items, option: str = "'--set'") -> dict[str, str]:
-    """``["m=2", "x'=0.1"]`` -> ``{"m": "2", "x'": "0.1"}`` (values checked by the loader)."""
-    out = {}
-    for item in items or ():
-        name, sep, value = item.partition("=")
-        name, value = name.strip(), value.strip()
-        if not sep or not name or not value:
-            raise click.BadParameter(f"{item!r} is not NAME=VALUE", param_hint=option)
-        out[name] = value
-    return out
-
-
 def output_file(path: Path, option: str) -> Path:
     """``path`` checked before any work is done: its folder exists (else a bad ``option``)
     and it is a file a write may replace (:func:`appell.files.output_target`: a device, a
@@ -132,222 +144,6 @@ def _solver(solver: dict) -> dict:
     return solver
 
 
-# ---------------------------------------------------------------- errors and exit codes
-# ---------------------------------------------------------------- the commands
-_NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
-
-
-class _AppellGroup(click.Group):
-    """Turns every error into ``error: ...`` on stderr and the exit codes of the module."""
-
-    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
-        try:
-            rv = super().main(
-                args=args, prog_name=prog_name or "appell", complete_var=complete_var, standalone_mode=False, **extra
-            )
-        except _NO_ARGS_IS_HELP as exc:  # click >= 8.2: a bare 'appell' prints the help
-            click.echo(exc.ctx.get_help())
-            code = EXIT_BAD_INPUT
-        except click.UsageError as exc:
-            hint = f"run '{exc.ctx.command_path} --help'" if exc.ctx is not None else "run 'appell --help'"
-            code = _report_error(exc.format_message(), hint, EXIT_BAD_INPUT)
-        except click.exceptions.Exit as exc:
-            code = exc.exit_code
-        except Interrupted:
-            code = _interrupted()
-        except click.Abort as exc:  # click turns Ctrl-C into Abort (while it reads the arguments)
-            interrupted = isinstance(exc.__context__, KeyboardInterrupt)
-            code = _interrupted() if interrupted else _report_error("aborted", None, EXIT_FAILURE)
-        except Terminated:
-            code = _report_error("terminated (SIGTERM)", None, EXIT_TERMINATED)
-        except click.ClickException as exc:
-            code = _report_error(exc.format_message(), None, EXIT_BAD_INPUT)
-        except ModelError as exc:
-            code = _report_error(str(exc), None, EXIT_BAD_INPUT)
-        except AppellError as exc:
-            code = _report_error(str(exc), None, getattr(exc, "exit_code", EXIT_FAILURE))
-        except (FileNotFoundError, IsADirectoryError, PermissionError, NotADirectoryError) as exc:
-            code = _report_error(
-                f"{exc.strerror or exc}: {exc.filename}" if exc.filename else str(exc), None, EXIT_BAD_INPUT
-            )
-        except OSError as exc:  # the environment (a full disk, a read-only file system, I/O), not a bug
-            reason = (exc.strerror or str(exc)).strip()
-            code = _report_error(
-                f"{exc.filename}: {reason}" if exc.filename else reason,
-                "the operating system refused (see the reason above); the previous output files are unchanged",
-                EXIT_FAILURE,
-            )
-        except MemoryError:
-            code = _out_of_memory()
-        except KeyboardInterrupt:
-            code = _interrupted()
-        except SystemError as exc:  # an extension module that failed to allocate, else a bug
-            if interrupt_received():
-                code = _interrupted()
-            elif not isinstance(exc.__cause__ or exc.__context__, MemoryError):
-                code = _internal_error(exc)
-            else:
-                code = _out_of_memory()
-        except Exception as exc:  # a bug, not the user's input: no traceback unless asked for
-            # unless a Ctrl-C came first (raised inside a C extension's import, it arrives as an
-            # ImportError: appell_interrupts.interrupt_received)
-            code = _interrupted() if interrupt_received() else _internal_error(exc)
-        else:
-            code = rv if isinstance(rv, int) else EXIT_OK
-        if standalone_mode:
-            sys.exit(code)
-        return code
-
-    def invoke(self, ctx):
-        """The command; Ctrl-C inside it leaves as :class:`Interrupted`, past click's own
-        handling (which writes a blank line on stderr before its Abort)."""
-        try:
-            return super().invoke(ctx)
-        except KeyboardInterrupt as exc:
-            raise Interrupted() from exc
-
-
-class Interrupted(BaseException):
-    """Ctrl-C (SIGINT) inside a command (:meth:`_AppellGroup.invoke`); exit :data:`EXIT_INTERRUPTED`."""
-
-
-def _interrupted() -> int:
-    """``error: interrupted``, the one line of a command stopped by Ctrl-C (on a terminal
-    after a line break that closes the terminal's ``^C``)."""
-    if _is_terminal(sys.stderr):
-        click.echo("", err=True)
-    return _report_error("interrupted", None, EXIT_INTERRUPTED)
-
-
-def _is_terminal(stream) -> bool:
-    try:
-        return bool(stream.isatty())
-    except (AttributeError, ValueError, OSError):
-        return False
-
-
-class Terminated(BaseException):
-    """Raised in the main thread by SIGTERM (see :func:`main`), so that a write under way
-    removes its temporary file before the command exits with :data:`EXIT_TERMINATED`."""
-
-
-def _terminate(signum, frame):
-    raise Terminated()
-
-
-def _internal_error(exc: Exception) -> int:
-    """The report of an exception appell did not raise on purpose (a bug): one line and a
-    hint, the traceback only with ``APPELL_DEBUG=1``."""
-    if os.environ.get("APPELL_DEBUG"):
-        raise exc
-    return _report_error(
-        f"internal error: {type(exc).__name__}: {exc}",
-        "this is a bug in appell; rerun with APPELL_DEBUG=1 for the traceback and report it with the model file",
-        EXIT_FAILURE,
-    )
-
-
-def _out_of_memory() -> int:
-    """The report of a :class:`MemoryError` (an allocation refused while the command ran)."""
-    return _report_error(
-        "out of memory: the machine (or the process's limit, ulimit -v) refused an allocation",
-        "try a smaller problem: fewer output times (--samples, --output-step), a shorter --t-end, fewer sweep runs",
-        EXIT_FAILURE,
-    )
-
-
-def _report_error(message: str, hint: str | None, code: int) -> int:
-    text = message.strip()
-    click.echo(f"error: {text}", err=True)
-    if hint:
-        click.echo(f"  hint: {hint}", err=True)
-    return code
-
-
-# ---------------------------------------------------------------- the options
-_CONTEXT = {"help_option_names": ["-h", "--help"], "max_content_width": 100}
-_model_argument = click.argument("model", metavar="MODEL")
-_backend_option = click.option(
-    "--backend",
-    type=click.Choice(["auto", "c", "numpy"]),
-    default="auto",
-    show_default=True,
-    help="Numeric code: C compiled and cached on first use (auto: C when a compiler is found, else NumPy), or NumPy.",
-)
-_set_option = click.option(
-    "--set",
-    "assignments",
-    multiple=True,
-    metavar="NAME=VALUE",
-    help='Override a parameter or an initial value (repeatable), e.g. --set M=1500 --set "phi\'=0.2".',
-)
-_floating_option = click.option(
-    "--floating-base",
-    "floating_base",
-    is_flag=True,
-    help="A .urdf robot's root link moves on a free joint 'root_joint' (a quadruped, "
-    "a humanoid): world translations and yaw, pitch, roll, the motion of Pinocchio's free flyer.",
-)
-
-
-def _keep(key):
-    """A click callback keeping an option's value in the command's context (``ctx.meta``), for
-    :func:`_derivation`: the options every model command has, without a parameter each."""
-
-    def callback(ctx, param, value):
-        ctx.meta[key] = value
-        return value
-
-    return callback
-
-
-_cache_option = click.option(
-    "--no-cache",
-    "no_cache",
-    is_flag=True,
-    expose_value=False,
-    callback=_keep("appell.no_cache"),
-    help="Derive the model again instead of reading the derivation stored by an earlier run "
-    "(the derivation cache, $APPELL_CACHE_DIR), and store nothing.",
-)
-_reactions_option = click.option(
-    "--reactions-in",
-    "reactions_in",
-    default=None,
-    metavar="AXES",
-    expose_value=False,
-    callback=_keep("appell.reactions_in"),
-    help="Axes of the joint reactions of a [mechanism] model: world (ground), joint, "
-    "child, parent or a body's name (default: the model file's reactions_in, else "
-    "world).",
-)
-_mjcf_option = click.option(
-    "--mjcf",
-    "mjcf",
-    multiple=True,
-    metavar="NAME=VALUE",
-    expose_value=False,
-    callback=lambda ctx, param, value: ctx.meta.__setitem__("appell.mjcf", parse_assignments(value, "'--mjcf'")),
-    help="How a MuJoCo model (.xml) is read (repeatable): frictionloss=ignore (leave MuJoCo's "
-    "dry friction out; else refused), armature=rotors|energy, actuators=programs|controls "
-    "(ctrl 0, or unknowns for inverse dynamics and servo constraints).",
-)
-
-
-_expand_option = click.option(
-    "--expand",
-    is_flag=True,
-    help="Print each reaction also in the state (t, q, w), with the accelerations of the "
-    "reduced equations substituted (long); by default its (1.5) formula names them.",
-)
-
-
-def _model_options(command):
-    """``--set``, ``--floating-base``, ``--no-cache``, ``--reactions-in`` and ``--mjcf``, the
-    options of every command that loads a model."""
-    return _set_option(_floating_option(_cache_option(_reactions_option(_mjcf_option(command)))))
-
-
 def _derivation(model, assignments, floating_base, dependent=None, formulas: bool = False):
     """The derivation of MODEL with the command's ``--set`` / ``--floating-base`` /
     ``--no-cache`` / ``--reactions-in`` (:func:`appell.workflows.load_derivation`)."""
@@ -363,172 +159,6 @@ def _derivation(model, assignments, floating_base, dependent=None, formulas: boo
         echo=click.echo,
         reader=meta.get("appell.mjcf"),
     )
-
-
-_complete_option = click.option(
-    "--complete",
-    is_flag=True,
-    help="Change given initial values that violate a constraint (servo constraints "
-    "included) so that it holds, and print each change; without it such a start "
-    "is refused (exit 2).",
-)
-_adjust_option = click.option(
-    "--adjust",
-    "adjust",
-    multiple=True,
-    metavar="NAME",
-    help="An initial value to compute from the constraints instead of taking it as given "
-    '(repeatable, e.g. --adjust "xi\'"); implies --complete with these values only.',
-)
-
-
-class _Positive(click.ParamType):
-    """A positive number (``inf`` allowed where ``infinite``); anything else is bad input."""
-
-    name = "positive number"
-
-    def __init__(self, infinite: bool = False):
-        self.infinite = infinite
-
-    def convert(self, value, param, ctx):
-        import math
-
-        if isinstance(value, float):
-            return value
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            self.fail(f"must be a positive number, got {value!r}", param, ctx)
-        if not number > 0 or math.isnan(number) or (math.isinf(number) and not self.infinite):
-            self.fail(f"must be a positive{'' if self.infinite else ' finite'} number, got {value}", param, ctx)
-        return number
-
-
-class _Choice(click.Choice):
-    """A choice whose names are read on first use (``load()``): the integrators' names come
-    from the simulation layer, which ``appell --help`` does not import."""
-
-    def __init__(self, load):
-        self._load, self.case_sensitive = load, True
-
-    @property
-    def choices(self):
-        return tuple(self._load())
-
-    @choices.setter
-    def choices(self, value):  # click's own __init__ is not run
-        pass
-
-
-class _Option(click.Option):
-    """An option whose help is written on first use (``help_of()``: the defaults of
-    :class:`~appell.simulation.options.SimulationOptions`, read where they are kept)."""
-
-    def __init__(self, *args, help_of=None, **kwargs):
-        super().__init__(*args, **kwargs)
-        self._help_of = help_of
-
-    def get_help_record(self, ctx):
-        if self._help_of is not None:
-            self.help, self._help_of = self._help_of(), None
-        return super().get_help_record(ctx)
-
-
-def _defaults():
-    from appell.simulation.options import DEFAULT_SAMPLES, SimulationOptions
-
-    return SimulationOptions(), DEFAULT_SAMPLES
-
-
-def _methods():
-    from appell.simulation.simulate import METHODS
-
-    return list(METHODS)
-
-
-def _solver_options(command):
-    """The integrator's options (:data:`SOLVER_OPTIONS`), each defaulting to the model's
-    ``[simulation]`` value, collected into the command's ``solver`` argument
-    (``{name: value, or None where not given}``) for :func:`~appell.workflows.command_options`.
-    Their choices and the defaults in their help are read when they are used."""
-    positive = _Positive()
-    table = " (default: the model's [simulation] value, else {})."
-
-    def default(text, of):
-        return lambda: text + table.format(of(*_defaults()))
-
-    def option(*names, text, of=None, **kwargs):
-        return click.option(
-            *names,
-            cls=_Option,
-            default=None,
-            help_of=default(text, of) if of else None,
-            help=None if of else text,
-            **kwargs,
-        )
-
-    options = [
-        option("--method", type=_Choice(_methods), text="Integration method", of=lambda d, n: d.method),
-        option(
-            "--rtol",
-            type=positive,
-            metavar="R",
-            text="Relative tolerance of the integrator",
-            of=lambda d, n: f"{d.rtol:g}".replace("e-0", "e-"),
-        ),
-        option(
-            "--atol",
-            type=positive,
-            metavar="A",
-            text="Absolute tolerance of the integrator",
-            of=lambda d, n: f"{d.atol:g}".replace("e-0", "e-"),
-        ),
-        option(
-            "--max-step",
-            "max_step",
-            type=_Positive(infinite=True),
-            metavar="H",
-            text="Largest integration step",
-            of=lambda d, n: "unbounded",
-        ),
-        option(
-            "--t0",
-            "t0",
-            type=float,
-            metavar="T",
-            text="Start time; the initial values hold at t0",
-            of=lambda d, n: f"{d.t0:g}",
-        ),
-        option(
-            "--samples",
-            type=click.IntRange(min=2),
-            metavar="N",
-            text="N equally spaced output times from t0 to t_end",
-            of=lambda d, n: n,
-        ),
-        option(
-            "--output-step",
-            "output_step",
-            type=positive,
-            metavar="H",
-            text="Output times t0, t0 + H, ... and t_end (excludes --samples).",
-        ),
-        option(
-            "--stabilization",
-            type=click.Choice(["projection", "baumgarte", "none"]),
-            text="Constraint drift control",
-            of=lambda d, n: d.stabilization,
-        ),
-    ]
-
-    @functools.wraps(command)
-    def with_solver(*args, **kwargs):
-        kwargs["solver"] = {name: kwargs.pop(name) for name in SOLVER_OPTIONS}
-        return command(*args, **kwargs)
-
-    for option in reversed(options):
-        with_solver = option(with_solver)
-    return with_solver
 
 
 # ---------------------------------------------------------------- the commands

@@ -355,6 +355,64 @@ def _body_name(body) -> str:
     return name if name.isidentifier() else "".join(c if c.isalnum() else "_" for c in name)
 
 
+def _bodies(system, reader: _Reader, ren: _Renamer) -> tuple[list, set]:
+    """``(bodies, statics)``: the appell :class:`RigidBody` / :class:`Particle` of each moving
+    SymPy body (position and velocity as SymPy set them, its frame's orientation, angular
+    velocity and central inertia), and the SymPy bodies that do not move (left out)."""
+    me = _mechanics()
+    bodies, statics = [], set()
+    for body in system.bodies:
+        what = f"body {body.name}"
+        position, velocity = reader.point(body.masscenter, what)
+        rigid = isinstance(body, me.RigidBody)
+        if rigid:
+            try:
+                frame, omega, inertia = reader.frame(body.frame, what)
+            except _Unoriented:
+                frame, omega, inertia = _unoriented(body, reader, what)
+        else:
+            frame, omega = None, sp.zeros(3, 1)
+        moving = (position if position is not None else velocity).free_symbols | omega.free_symbols
+        if not moving & set(ren.coordinates + ren.speeds):
+            statics.add(body)
+            continue
+        mass = ren.plain(body.mass, f"mass of {body.name}")
+        if rigid:
+            # entries of a 3x3 tensor re-expressed in the body frame: small, so trigsimp
+            # removes the cos^2 + sin^2 of the coordinates of a tensor given in another frame
+            # (one turned by constant angles, the bicycle's head tube, has nothing to remove)
+            if inertia is None:
+                inertia = sp.ImmutableMatrix(body.central_inertia.to_matrix(frame)).applyfunc(
+                    lambda e: _constant_or_trigsimp(ren.plain(e, f"inertia of {body.name}"), ren)  # noqa: B023
+                )
+            bodies.append(RigidBody(_body_name(body), mass, position, velocity, inertia, omega))
+        else:
+            bodies.append(Particle(_body_name(body), mass, position, velocity))
+    return bodies, statics
+
+
+def _loads(system, reader: _Reader, ren: _Renamer) -> list:
+    """The appell :class:`AppliedForce` / :class:`AppliedTorque` of each SymPy load on a moving
+    point or frame, named ``force_<k>`` / ``torque_<k>``."""
+    me = _mechanics()
+    N = system.frame
+    loads = []
+    all_loads = _moving_loads(system, ren)
+    for k, load in enumerate(all_loads, 1):
+        if isinstance(load, me.Force):
+            what = f"force {k} at {load.point}"
+            position, velocity = reader.point(load.point, what)
+            loads.append(AppliedForce(ren.vector(load.vector, N, what), position, velocity, name=f"force_{k}"))
+        else:
+            what = f"torque {k} on {load.frame}"
+            loads.append(
+                AppliedTorque(
+                    ren.vector(load.vector, N, what), ren.vector(load.frame.ang_vel_in(N), N, what), name=f"torque_{k}"
+                )
+            )
+    return loads
+
+
 def from_sympy(
     system,
     parameters: Mapping | None = None,
@@ -405,7 +463,6 @@ def from_sympy(
             "the SymPy system has explicitly set velocity constraints",
             hint="give them as nonholonomic constraints (add_nonholonomic_constraints)",
         )
-    N = system.frame
     ren = _Renamer(list(system.q), list(system.u), list(system.kdes))
     ren.plain_map.update(specified)  # a PyDy system's constant specifieds: parameters
 
@@ -429,51 +486,11 @@ def from_sympy(
     constraints += [nonholonomic(n, e) for n, e in zip(names[len(hol) :], nonhol_plain)]
     reader = _Reader(system, ren, positions, parameters, hol_plain, nonhol_plain)
 
-    bodies, statics = [], set()
-    for body in system.bodies if lagrangian is None else ():
-        what = f"body {body.name}"
-        position, velocity = reader.point(body.masscenter, what)
-        rigid = isinstance(body, me.RigidBody)
-        if rigid:
-            try:
-                frame, omega, inertia = reader.frame(body.frame, what)
-            except _Unoriented:
-                frame, omega, inertia = _unoriented(body, reader, what)
-        else:
-            frame, omega = None, sp.zeros(3, 1)
-        moving = (position if position is not None else velocity).free_symbols | omega.free_symbols
-        if not moving & set(ren.coordinates + ren.speeds):
-            statics.add(body)
-            continue
-        mass = ren.plain(body.mass, f"mass of {body.name}")
-        if rigid:
-            # entries of a 3x3 tensor re-expressed in the body frame: small, so trigsimp
-            # removes the cos^2 + sin^2 of the coordinates of a tensor given in another frame
-            # (one turned by constant angles, the bicycle's head tube, has nothing to remove)
-            if inertia is None:
-                inertia = sp.ImmutableMatrix(body.central_inertia.to_matrix(frame)).applyfunc(
-                    lambda e: _constant_or_trigsimp(ren.plain(e, f"inertia of {body.name}"), ren)  # noqa: B023
-                )
-            bodies.append(RigidBody(_body_name(body), mass, position, velocity, inertia, omega))
-        else:
-            bodies.append(Particle(_body_name(body), mass, position, velocity))
+    bodies, statics = _bodies(system, reader, ren) if lagrangian is None else ([], set())
     if not bodies and lagrangian is None:
         raise ModelError("the SymPy system has no moving bodies")
 
-    loads = []
-    all_loads = _moving_loads(system, ren)
-    for k, load in enumerate(all_loads, 1):
-        if isinstance(load, me.Force):
-            what = f"force {k} at {load.point}"
-            position, velocity = reader.point(load.point, what)
-            loads.append(AppliedForce(ren.vector(load.vector, N, what), position, velocity, name=f"force_{k}"))
-        else:
-            what = f"torque {k} on {load.frame}"
-            loads.append(
-                AppliedTorque(
-                    ren.vector(load.vector, N, what), ren.vector(load.frame.ang_vel_in(N), N, what), name=f"torque_{k}"
-                )
-            )
+    loads = _loads(system, reader, ren)
     potential = (
         sum(
             (ren.plain(b.potential_energy, f"potential energy of {b.name}") for b in system.bodies if b not in statics),

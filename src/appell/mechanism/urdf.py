@@ -41,8 +41,7 @@ from __future__ import annotations
 
 import math
 import re
-import xml.parsers.expat
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +57,7 @@ from appell.mechanism.urdf_tree import (
     reading_notes,
     root_cluster,
 )
+from appell.mechanism.urdf_xml import _Element, _number, _numbers, _show, _xml_tree
 from appell.names import MAX_NAME
 
 __all__ = [
@@ -82,32 +82,11 @@ JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "plan
 #: the largest URDF read, in characters (bytes for a file)
 MAX_URDF_SIZE = 20_000_000
 # the name rule of model files and the API (appell.symbols): one rule for every importer
-_MAX_DEPTH = 64
 _MIMIC_HINT = "a mimic joint follows another revolute, continuous or prismatic joint; remove or correct <mimic>"
 #: relative tolerance (of the trace) of the inertia checks
 _INERTIA_TOL = 1e-9
 #: absolute tolerance of the inertia checks [kg m^2] (MuJoCo's mjMINVAL)
 _INERTIA_FLOOR = 1e-15
-
-
-def _show(text: str) -> str:
-    """``repr(text)``, shortened to its start and its length when long (a hostile name of
-    millions of characters must not fill the message)."""
-    return repr(text) if len(text) <= 80 else f"{text[:40]!r}... ({len(text)} characters)"
-
-
-@dataclass(frozen=True)
-class _Element:
-    tag: str
-    attrib: dict
-    line: int
-    children: list = field(default_factory=list)
-
-    def find(self, tag: str) -> _Element | None:
-        return next((c for c in self.children if c.tag == tag), None)
-
-    def findall(self, tag: str) -> list[_Element]:
-        return [c for c in self.children if c.tag == tag]
 
 
 @dataclass(frozen=True)
@@ -215,117 +194,7 @@ class UrdfRobot:
         return tuple(order)
 
 
-# --------------------------------------------------------------------------- XML
-def _xml_tree(text: str | bytes, source: str) -> _Element:
-    """The element tree of ``text``, with line numbers, read by expat with every document
-    type declaration (and hence every entity declaration) refused. Bytes are decoded by
-    expat as the XML declaration (or byte-order mark) says, UTF-8 by default; an encoding
-    it cannot read is refused."""
-    parser = xml.parsers.expat.ParserCreate()
-    root: list[_Element] = []
-    stack: list[_Element] = []
-
-    def refuse(what):
-        def handler(*_args):
-            raise ModelError(
-                f"the URDF contains {what}, which is not read (entities could expand without bound "
-                f"or read other files)",
-                where=f"{source}:{parser.CurrentLineNumber}",
-                hint="remove the <!DOCTYPE ...> and <!ENTITY ...> declarations; URDF needs none",
-            )
-
-        return handler
-
-    def start(tag, attrib):
-        if len(stack) >= _MAX_DEPTH:
-            raise ModelError(f"elements nested deeper than {_MAX_DEPTH}", where=f"{source}:{parser.CurrentLineNumber}")
-        element = _Element(tag, dict(attrib), parser.CurrentLineNumber)
-        (stack[-1].children if stack else root).append(element)
-        stack.append(element)
-
-    def end(_tag):
-        stack.pop()
-
-    parser.StartDoctypeDeclHandler = refuse("a document type declaration")
-    parser.EntityDeclHandler = refuse("an entity declaration")
-    parser.ExternalEntityRefHandler = refuse("an external entity reference")
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
-    try:
-        parser.SetParamEntityParsing(xml.parsers.expat.XML_PARAM_ENTITY_PARSING_NEVER)
-        parser.Parse(text, True)
-    except xml.parsers.expat.ExpatError as exc:
-        raise ModelError(
-            f"invalid XML: {xml.parsers.expat.ErrorString(exc.code)}",
-            where=f"{source}:{exc.lineno}",
-            hint=_ENCODING_HINT
-            if exc.code in _ENCODING_ERRORS
-            else "correct the XML on this line (control characters, even as &#...;, are not XML)",
-        ) from None
-    except (LookupError, ValueError) as exc:  # Python's codecs: an unknown or multi-byte declared encoding
-        raise ModelError(
-            f"the XML declaration names an encoding that is not read ({exc})",
-            where=f"{source}:{parser.CurrentLineNumber}",
-            hint=_ENCODING_HINT,
-        ) from None
-    if not root:
-        raise ModelError("the URDF has no elements", where=source)
-    return root[0]
-
-
-_ENCODING_ERRORS = {
-    xml.parsers.expat.errors.codes[m]
-    for m in (
-        xml.parsers.expat.errors.XML_ERROR_INVALID_TOKEN,
-        xml.parsers.expat.errors.XML_ERROR_INCORRECT_ENCODING,
-        xml.parsers.expat.errors.XML_ERROR_UNKNOWN_ENCODING,
-    )
-}
-_ENCODING_HINT = (
-    'save the file as UTF-8 (with no encoding, or encoding="UTF-8", in <?xml ...?>); '
-    'files in another encoding must declare it, e.g. <?xml version="1.0" encoding="ISO-8859-1"?>'
-)
-
-
 # ------------------------------------------------------------------ attributes
-def _numbers(element: _Element, key: str, count: int, default, source: str, *, name: str | None = None):
-    text = element.attrib.get(key)
-    owner = f"{name!r}: " if name else ""
-    what = f"{owner}<{element.tag} {key}={_show(text) if text is not None else ''}>"
-    if text is None:
-        if default is None:
-            raise ModelError(
-                f"{owner}<{element.tag}> has no {key}=",
-                where=f"{source}:{element.line}",
-                hint=f'give {key}="..." with {count} number(s)',
-            )
-        return default
-    parts = text.split()
-    hint = f'write {key}="..." as {count} finite number(s) separated by spaces'
-    if len(parts) != count:
-        raise ModelError(
-            f"{what} must be {count} number(s), got {len(parts)}", where=f"{source}:{element.line}", hint=hint
-        )
-    values = []
-    for part in parts:
-        try:
-            value = float(part)
-        except ValueError:
-            raise ModelError(
-                f"{what}: {_show(part)} is not a number", where=f"{source}:{element.line}", hint=hint
-            ) from None
-        if not math.isfinite(value):
-            raise ModelError(
-                f"{what}: {_show(part)} is not a finite number", where=f"{source}:{element.line}", hint=hint
-            )
-        values.append(value)
-    return tuple(values)
-
-
-def _number(element: _Element, key: str, source: str, default=None, name: str | None = None) -> float:
-    return _numbers(element, key, 1, None if default is None else (default,), source, name=name)[0]
-
-
 def _name(element: _Element, source: str, key: str = "name", owner: str = "") -> str:
     """The name in attribute ``key`` (``name``, or the link or joint a joint refers to):
     present, not empty, and at most :data:`MAX_NAME` characters (the model files' limit),
@@ -801,121 +670,147 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
 
     from appell.errors import AppellNote
     from appell.mechanism.builder import GROUND, Mechanism
-    from appell.model import holonomic
 
     src = robot.source
     for note in reading_notes(robot):
         warnings.warn(AppellNote(note), stacklevel=2)
     mech = Mechanism(_identifier(robot.name), gravity=(0, 0, -sp.Symbol("g")))
     mech.parameter("g", gravity, unit="m/s^2", description="gravity, along -z of the root link")
+    taken = set(_joint_names(robot).values()) | {"g", GROUND}
+    lines: dict[str, int] = {}  # mechanism joint -> its line
+    # link -> (body, rotation, offset) of the link frame in the body frame
+    place = {robot.root: (mech.ground, None, None)}
+    merged = _floating_base(mech, robot, taken, place, lines) if floating_base else set()
+    moving_name: dict[str, str] = {}
+    links = {link.name: link for link in robot.links}
+    for joint in robot.joints_from_root():
+        if joint.child in merged:  # a fixed joint inside the floating base's one body
+            continue
+        jname = _link_on_joint(mech, robot, joint, links[joint.child], place, taken, lines)
+        if jname is not None and joint.movable:
+            moving_name[joint.name] = jname
+    _check_coordinates(mech, lines, src)
+    _place_visuals(mech, robot, place)
+    return mech, _mimic_constraints(robot, moving_name)
+
+
+def _joint_names(robot: UrdfRobot) -> dict[str, str]:
+    """Each URDF joint's appell name; two joints of one appell name are refused."""
     joint_names, first = {}, {}
     for j in robot.joints:
         joint_names[j.name] = ident = _identifier(j.name)
         if ident in first:
             raise ModelError(
                 f"joint {j.name!r} and joint {first[ident]!r} have the same appell name {ident!r}",
-                where=f"{src}:{j.line}",
+                where=f"{robot.source}:{j.line}",
                 hint="rename one of them in the URDF",
             )
         first[ident] = j.name
-    taken = set(joint_names.values()) | {"g", GROUND}
-    lines: dict[str, int] = {}  # mechanism joint -> its line
-    # link -> (body, rotation, offset) of the link frame in the body frame
-    place = {robot.root: (mech.ground, None, None)}
+    return joint_names
+
+
+def _floating_base(mech, robot: UrdfRobot, taken: set, place: dict, lines: dict) -> set[str]:
+    """The root link and the links fixed to it as one body on the free joint ``root_joint``
+    (:func:`urdf_mechanism`'s ``floating_base``); the links merged into it (``place`` gives
+    each its frame in the body)."""
+    import sympy as sp
+
+    src = robot.source
     links = {link.name: link for link in robot.links}
-    moving_name: dict[str, str] = {}
-    merged: set[str] = set()
-    if floating_base:
-        cluster = root_cluster(robot)
-        mass, com, inertia = composite_inertial(robot, cluster)
-        root_line = links[robot.root].line
-        if mass == 0.0:
+    cluster = root_cluster(robot)
+    mass, com, inertia = composite_inertial(robot, cluster)
+    root_line = links[robot.root].line
+    if mass == 0.0:
+        raise ModelError(
+            f"floating base: the root link {robot.root!r} and the links fixed to it have no mass",
+            where=f"{src}:{root_line}",
+            hint="give the base an <inertial> with its mass",
+        )
+    name = _appell_name(robot.root, "link", f"{src}:{root_line}")
+    if name in taken or ROOT_JOINT in taken:
+        raise ModelError(
+            f"floating base: the name {name if name in taken else ROOT_JOINT!r} is taken",
+            where=f"{src}:{root_line}",
+            hint="rename the link or joint of that name",
+        )
+    taken |= {name, ROOT_JOINT}
+    base = mech.body(name, mass, inertia=sp.Matrix(inertia), com=tuple(com.tolist()))
+    mech.free(ROOT_JOINT, mech.ground, base, rotation=FLOATING_ROTATION)
+    lines[ROOT_JOINT] = root_line
+    for link_name, (R, p) in cluster.items():
+        place[link_name] = (base, None, None) if link_name == robot.root else (base, sp.Matrix(R), sp.Matrix(p))
+    return set(cluster) - {robot.root}
+
+
+def _link_on_joint(mech, robot: UrdfRobot, joint: UrdfJoint, link: UrdfLink, place, taken, lines) -> str | None:
+    """The child ``link`` of ``joint`` as a body on its joint (or, massless on a fixed joint,
+    merged into its parent's body: ``place``); the joint's appell name, None when merged."""
+    import sympy as sp
+
+    src = robot.source
+    body, R_off, p_off = place[joint.parent]
+    xyz, rpy = joint.xyz, joint.rpy
+    if R_off is not None:  # the parent link was merged into a body: re-express the origin
+        xyz = tuple(float(v) for v in p_off + R_off * sp.Matrix(xyz))
+        rpy = R_off * _rotation(rpy)  # the matrix itself: angles near a pitch of 90 degrees lose digits
+    where = f"{src}:{joint.line}"
+    if link.inertial is None:
+        if joint.type == "fixed":
+            R = rpy if isinstance(rpy, sp.MatrixBase) else _rotation(rpy)
+            place[link.name] = (body, R, sp.Matrix(xyz))
+            return None
+        if any(k.parent == link.name for k in robot.joints):
             raise ModelError(
-                f"floating base: the root link {robot.root!r} and the links fixed to it have no mass",
-                where=f"{src}:{root_line}",
-                hint="give the base an <inertial> with its mass",
-            )
-        name = _appell_name(robot.root, "link", f"{src}:{root_line}")
-        if name in taken or ROOT_JOINT in taken:
-            raise ModelError(
-                f"floating base: the name {name if name in taken else ROOT_JOINT!r} is taken",
-                where=f"{src}:{root_line}",
-                hint="rename the link or joint of that name",
-            )
-        taken |= {name, ROOT_JOINT}
-        base = mech.body(name, mass, inertia=sp.Matrix(inertia), com=tuple(com.tolist()))
-        mech.free(ROOT_JOINT, mech.ground, base, rotation=FLOATING_ROTATION)
-        lines[ROOT_JOINT] = root_line
-        for link_name, (R, p) in cluster.items():
-            place[link_name] = (base, None, None) if link_name == robot.root else (base, sp.Matrix(R), sp.Matrix(p))
-        merged = set(cluster) - {robot.root}
-    for joint in robot.joints_from_root():
-        if joint.child in merged:  # a fixed joint inside the floating base's one body
-            continue
-        body, R_off, p_off = place[joint.parent]
-        xyz, rpy = joint.xyz, joint.rpy
-        if R_off is not None:  # the parent link was merged into a body: re-express the origin
-            xyz = tuple(float(v) for v in p_off + R_off * sp.Matrix(xyz))
-            rpy = R_off * _rotation(rpy)  # the matrix itself: angles near a pitch of 90 degrees lose digits
-        link = links[joint.child]
-        where = f"{src}:{joint.line}"
-        if link.inertial is None:
-            if joint.type == "fixed":
-                R = rpy if isinstance(rpy, sp.MatrixBase) else _rotation(rpy)
-                place[link.name] = (body, R, sp.Matrix(xyz))
-                continue
-            if any(k.parent == link.name for k in robot.joints):
-                raise ModelError(
-                    f"link {link.name!r} has no <inertial> but moves on joint {joint.name!r}",
-                    where=f"{src}:{link.line}",
-                    hint="give it an <inertial> with its mass and inertia (a massless link, without "
-                    "<inertial> or of mass 0, between moving joints is not supported)",
-                )
-            raise ModelError(
-                f"link {link.name!r} has no <inertial>: nothing moves with joint {joint.name!r}",
+                f"link {link.name!r} has no <inertial> but moves on joint {joint.name!r}",
                 where=f"{src}:{link.line}",
-                hint="give the link an <inertial> with a positive mass "
-                "(mass 0 is a massless link), or remove the joint",
+                hint="give it an <inertial> with its mass and inertia (a massless link, without "
+                "<inertial> or of mass 0, between moving joints is not supported)",
             )
-        name = _appell_name(link.name, "link", f"{src}:{link.line}")
-        if name in taken:
-            name = f"{name}_link"
-        if name in taken:
-            raise ModelError(
-                f"link {link.name!r}: its name is taken", where=f"{src}:{link.line}", hint="rename the link"
-            )
-        taken.add(name)
-        inertial = link.inertial
-        Ri = _rotation(inertial.rpy)
-        inertia = Ri * sp.Matrix(inertial.inertia_matrix) * Ri.T
-        inertia = (inertia + inertia.T) / 2  # symmetric also in floating point
-        try:
-            child = mech.body(name, inertial.mass, inertia=inertia, com=inertial.xyz)
-            jname = _appell_name(joint.name, "joint", where)
-            lines[jname] = joint.line
-            kw = dict(origin=xyz, rpy=rpy)
-            if joint.type in ("revolute", "continuous"):
-                mech.revolute(jname, body, child, axis=joint.axis, **kw)
-            elif joint.type == "prismatic":
-                mech.prismatic(jname, body, child, axis=joint.axis, **kw)
-            elif joint.type == "fixed":
-                mech.fixed(jname, body, child, **kw)
-            elif joint.type == "floating":
-                mech.free(jname, body, child, **kw)
-            else:  # planar: motion in the plane normal to the axis
-                if any(abs(a - b) > 1e-12 for a, b in zip(joint.axis, (0.0, 0.0, 1.0))):
-                    raise ModelError(
-                        f"planar joint {joint.name!r}: only the plane normal z = (0 0 1) is read, "
-                        f"got axis {joint.axis}",
-                        hint="rotate the joint frame with the origin's rpy so that the plane normal is z",
-                    )
-                mech.planar(jname, body, child, **kw)
-        except ModelError as exc:
-            raise ModelError(exc.message, where=exc.where or where, hint=exc.hint) from None
-        place[link.name] = (child, None, None)
-        if joint.movable:
-            moving_name[joint.name] = jname
-    _check_coordinates(mech, lines, src)
+        raise ModelError(
+            f"link {link.name!r} has no <inertial>: nothing moves with joint {joint.name!r}",
+            where=f"{src}:{link.line}",
+            hint="give the link an <inertial> with a positive mass (mass 0 is a massless link), or remove the joint",
+        )
+    name = _appell_name(link.name, "link", f"{src}:{link.line}")
+    if name in taken:
+        name = f"{name}_link"
+    if name in taken:
+        raise ModelError(f"link {link.name!r}: its name is taken", where=f"{src}:{link.line}", hint="rename the link")
+    taken.add(name)
+    inertial = link.inertial
+    Ri = _rotation(inertial.rpy)
+    inertia = Ri * sp.Matrix(inertial.inertia_matrix) * Ri.T
+    inertia = (inertia + inertia.T) / 2  # symmetric also in floating point
+    try:
+        child = mech.body(name, inertial.mass, inertia=inertia, com=inertial.xyz)
+        jname = _appell_name(joint.name, "joint", where)
+        lines[jname] = joint.line
+        kw = dict(origin=xyz, rpy=rpy)
+        if joint.type in ("revolute", "continuous"):
+            mech.revolute(jname, body, child, axis=joint.axis, **kw)
+        elif joint.type == "prismatic":
+            mech.prismatic(jname, body, child, axis=joint.axis, **kw)
+        elif joint.type == "fixed":
+            mech.fixed(jname, body, child, **kw)
+        elif joint.type == "floating":
+            mech.free(jname, body, child, **kw)
+        else:  # planar: motion in the plane normal to the axis
+            if any(abs(a - b) > 1e-12 for a, b in zip(joint.axis, (0.0, 0.0, 1.0))):
+                raise ModelError(
+                    f"planar joint {joint.name!r}: only the plane normal z = (0 0 1) is read, got axis {joint.axis}",
+                    hint="rotate the joint frame with the origin's rpy so that the plane normal is z",
+                )
+            mech.planar(jname, body, child, **kw)
+    except ModelError as exc:
+        raise ModelError(exc.message, where=exc.where or where, hint=exc.hint) from None
+    place[link.name] = (child, None, None)
+    return jname
+
+
+def _place_visuals(mech, robot: UrdfRobot, place: dict):
+    """Each link's visual primitives on the body its link went into (the view draws them)."""
+    import sympy as sp
+
     for link in robot.links:  # the view draws the visual primitives where their link went
         body, R_off, p_off = place.get(link.name, (None, None, None))
         if body is None or body is mech.ground:
@@ -926,6 +821,16 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
                 xyz = tuple(float(x) for x in p_off + R_off * sp.Matrix(xyz))
                 rpy = R_off * _rotation(rpy)  # the matrix itself: angles near a pitch of 90 degrees lose digits
             mech.shape(body, v.kind, v.size, origin=xyz, rpy=rpy, colour=v.colour)
+
+
+def _mimic_constraints(robot: UrdfRobot, moving_name: dict[str, str]) -> tuple:
+    """The holonomic constraint ``a_mimic``: ``a - multiplier b - offset = 0`` of each mimic
+    joint ``a`` of ``b`` (on a movable joint)."""
+    import sympy as sp
+
+    from appell.model import holonomic
+
+    src = robot.source
     constraints = []
     by_name = {j.name: j for j in robot.joints}
     for joint in robot.joints:
@@ -947,7 +852,7 @@ def urdf_mechanism(robot: UrdfRobot, gravity: float = 9.81, floating_base: bool 
                     where=f"{src}:{joint.line}",
                 )
             )
-    return mech, tuple(constraints)
+    return tuple(constraints)
 
 
 def urdf_units(robot: UrdfRobot) -> dict[str, str]:

@@ -235,6 +235,64 @@ def stiffness(motion, t, y, p) -> float:
     return float(max(rates.max(initial=0.0), 0.0))
 
 
+def _budget(method: str, t0: float, t_end: float) -> EvaluationBudget:
+    """The evaluation budget of the balance's integration: the count of evaluations is a hard
+    budget (a motion too fast or stiff for the span), larger for an implicit ``method``."""
+    return (
+        EvaluationBudget("the energy balance's integration", t0, t_end, MAX_EVALUATIONS, None)
+        if method == "DOP853"
+        else EvaluationBudget(
+            "the energy balance's integration",
+            t0,
+            t_end,
+            MAX_EVALUATIONS_IMPLICIT,
+            None,
+            first=FIRST_PROJECTION_IMPLICIT,
+        )
+    )
+
+
+def _jacobian_option(method: str, motion, size: int, pv) -> dict:
+    """``solve_ivp``'s ``jac`` for Radau: the motion's exact Jacobian in the first ``size``
+    rows and columns (finite differences would push a cyclic angle out of the expressions'
+    domain); the works are quadratures, left out of Newton's (zero rows)."""
+    options: dict = {}
+    if method == "Radau" and motion is not None:
+
+        def jacobian(tt, y):
+            full = np.zeros((y.size, y.size))
+            full[:size, :size] = motion(tt, y[:size], pv)
+            return full
+
+        options["jac"] = jacobian
+    return options
+
+
+def _cut_at_event(run, events: int) -> str:
+    """Where an event (``events`` of them: the clock first, then a singular configuration)
+    ended ``run``: its samples cut there with the state where it stopped appended, and the
+    note saying why; ``""`` where none did."""
+    cut = ""
+    ended = [k for k in range(events) if run.t_events[k].size]
+    if run.status == 1 and ended:
+        k = ended[0]
+        stop = float(run.t_events[k][0])
+        if k == 0:
+            cut = (
+                f"the balance ends at t = {stop:.6g}, where its integration had run {MAX_SECONDS:g} s (each "
+                "evaluation is slow here); the span before it is compared"
+            )
+        else:
+            cut = (
+                f"the balance ends at t = {stop:.6g}, near a singular configuration of the constraints (their "
+                "Jacobian loses rank), which its plain integration cannot pass; simulate passes it"
+            )
+        keep = run.t < stop  # the samples before it, and the state where it stopped
+        run.t = np.append(run.t[keep], stop)
+        run.y = np.column_stack([run.y[:, keep], run.y_events[k][0]])
+    return cut
+
+
 def energy_balance(
     derivation,
     t_end: float,
@@ -290,18 +348,7 @@ def energy_balance(
 
     # the count of evaluations is a hard budget (a motion too fast or stiff for the span); the
     # seconds end the span where they run out, with a note (evaluations slow here)
-    budget = (
-        EvaluationBudget("the energy balance's integration", t0, t_end, MAX_EVALUATIONS, None)
-        if method == "DOP853"
-        else EvaluationBudget(
-            "the energy balance's integration",
-            t0,
-            t_end,
-            MAX_EVALUATIONS_IMPLICIT,
-            None,
-            first=FIRST_PROJECTION_IMPLICIT,
-        )
-    )
+    budget = _budget(method, t0, t_end)
 
     names = (
         [f"{x}'" for x in model.coordinate_names]
@@ -328,41 +375,14 @@ def energy_balance(
     clock = _Deadline(MAX_SECONDS)
     singular = _before_singular(model, pv, t0, y0, nq + n)
     events = [clock] + ([singular] if singular is not None else [])
-    options = {}
-    if method == "Radau":  # the motion's exact Jacobian (finite differences would push a cyclic
-        # angle out of the expressions' domain); the works are quadratures, left out of Newton's
-        if motion is not None:
-
-            def jacobian(tt, y):
-                full = np.zeros((y.size, y.size))
-                full[: nq + n, : nq + n] = motion(tt, y[: nq + n], pv)
-                return full
-
-            options["jac"] = jacobian
+    options = _jacobian_option(method, motion, nq + n, pv)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):  # ranges are checked in rhs
         run = solve_ivp(
             rhs, (t0, t_end), start, method=method, t_eval=times, rtol=rtol, atol=tolerances, events=events, **options
         )
-    cut = ""
-    ended = [k for k in range(len(events)) if run.t_events[k].size]
-    if run.status == 1 and ended:
-        k = ended[0]
-        stop = float(run.t_events[k][0])
-        if k == 0:
-            cut = (
-                f"the balance ends at t = {stop:.6g}, where its integration had run {MAX_SECONDS:g} s (each "
-                "evaluation is slow here); the span before it is compared"
-            )
-        else:
-            cut = (
-                f"the balance ends at t = {stop:.6g}, near a singular configuration of the constraints (their "
-                "Jacobian loses rank), which its plain integration cannot pass; simulate passes it"
-            )
-        keep = run.t < stop  # the samples before it, and the state where it stopped
-        run.t = np.append(run.t[keep], stop)
-        run.y = np.column_stack([run.y[:, keep], run.y_events[k][0]])
-        if run.t.size < 2:
-            return EnergyBalance(None, "the motion starts at a singular configuration of the constraints")
+    cut = _cut_at_event(run, len(events))
+    if cut and run.t.size < 2:
+        return EnergyBalance(None, "the motion starts at a singular configuration of the constraints")
     if not run.success:
         raise ComputationError(
             f"the energy balance's integration failed: {run.message}", hint="try a shorter span (--t-end)"

@@ -514,6 +514,84 @@ def _assemble(model, q, ind, passive, target, pv, tol, max_iterations, depth=0):
     return _assemble(model, mid, ind, passive, target, pv, tol, max_iterations, depth + 1)
 
 
+def _given_motion(t, q, w, a, names, speeds):
+    """The motion given to :func:`closed_chain_inverse`, checked: ``(t, given, ind, qi, wi,
+    ai)``, the times, the given coordinates ``{index: values}``, their sorted indices and their
+    values, speeds and accelerations (a cubic spline of ``q`` where ``w`` or ``a`` is not given)."""
+    t = np.asarray(t, float).reshape(-1)
+    if t.size < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise ModelError("the motion's times must be finite and increasing")
+    if not isinstance(q, Mapping):
+        q = np.asarray(q, float).reshape(t.size, -1)
+        if q.shape[1] != len(names):
+            raise ModelError(
+                f"the motion gives {q.shape[1]} coordinates, the model has {len(names)}",
+                hint="give the independent ones by name: q={name: values}",
+            )
+        q = {nm: q[:, k] for k, nm in enumerate(names)}
+    given = _given_columns(q, (names, speeds), "the motion", t.size)
+    if not given:
+        raise ModelError("the motion gives no coordinate", hint="q={name: values} for the independent coordinates")
+    if (w is None or a is None) and t.size < 4:
+        raise ModelError(
+            "deriving speeds and accelerations from the coordinates needs at least 4 times",
+            hint="give the speeds and accelerations, or more rows",
+        )
+    ind = sorted(given)
+    qi = np.column_stack([given[k] for k in ind])
+    wi = (
+        _spline(t, qi, 1)
+        if w is None
+        else np.column_stack([_given_columns(w, (names, speeds), "the speeds", t.size)[k] for k in ind])
+    )
+    ai = (
+        _spline(t, wi, 1)
+        if a is None
+        else np.column_stack([_given_columns(a, (names, speeds), "the accelerations", t.size)[k] for k in ind])
+    )
+    return t, given, ind, qi, wi, ai
+
+
+def _drive_columns(model, drives, default_speeds, pv):
+    """``(drives, B)``: the drives' names (the model's actuators by default, else
+    ``default_speeds``) and ``B``, the generalized forces of a unit drive each (a speed's name
+    drives it directly, an actuator's column is ``Q(u = e_j) - Q(u = 0)``)."""
+    speeds = model.speed_names
+    n = len(model.coordinate_names)
+    u0 = np.zeros(len(model.control_names))
+    if drives is None:
+        drives = list(model.control_names) or list(default_speeds)
+    drives = [str(d) for d in drives]
+    B = np.zeros((n, len(drives)))
+    _, _, _, _, Q0, *_ = model._evaluate_terms(0.0, np.zeros(n), np.zeros(n), pv, u0)
+    for j, d in enumerate(drives):
+        if d in speeds:
+            B[speeds.index(d), j] = 1.0
+        elif d in model.control_names:
+            u = u0.copy()
+            u[model.control_names.index(d)] = 1.0
+            B[:, j] = model._evaluate_terms(0.0, np.zeros(n), np.zeros(n), pv, u)[4] - Q0
+        else:
+            raise ModelError(
+                f"unknown drive {d!r}",
+                hint="actuators: " + (", ".join(model.control_names) or "none") + "; speeds: " + ", ".join(speeds),
+            )
+    return drives, B
+
+
+def _balanced(off, rhs, time, drives, speeds) -> None:
+    """Refuse (:class:`ComputationError`, under-actuated) where the least-squares answer of
+    ``[B J^T] [tau; lambda] = M a + h - Q`` leaves the residual ``off`` out of balance, naming
+    the worst speeds."""
+    if np.abs(off).max() > 1e-8 * max(1.0, np.abs(rhs).max()):
+        worst = [speeds[i] for i in np.argsort(-np.abs(off))[:3] if abs(off[i]) > 1e-8 * max(1.0, np.abs(rhs).max())]
+        raise ComputationError(
+            f"at t = {time:.10g} the drives {', '.join(drives)} cannot produce the motion: "
+            f"the forces along {', '.join(worst)} stay out of balance (under-actuated)",
+            hint="drive more speeds, or prescribe a motion the passive chain can follow",
+        )
+
+
 def closed_chain_inverse(
     model,
     t,
@@ -563,60 +641,13 @@ def closed_chain_inverse(
         model = model if isinstance(model, LoopModel) else loop_model(model)
     held = getattr(model, "contacts", ())  # a contact_model's contacts
     names, speeds = model.coordinate_names, model.speed_names
-    t = np.asarray(t, float).reshape(-1)
-    if t.size < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        raise ModelError("the motion's times must be finite and increasing")
-    if not isinstance(q, Mapping):
-        q = np.asarray(q, float).reshape(t.size, -1)
-        if q.shape[1] != len(names):
-            raise ModelError(
-                f"the motion gives {q.shape[1]} coordinates, the model has {len(names)}",
-                hint="give the independent ones by name: q={name: values}",
-            )
-        q = {nm: q[:, k] for k, nm in enumerate(names)}
-    given = _given_columns(q, (names, speeds), "the motion", t.size)
-    if not given:
-        raise ModelError("the motion gives no coordinate", hint="q={name: values} for the independent coordinates")
-    if (w is None or a is None) and t.size < 4:
-        raise ModelError(
-            "deriving speeds and accelerations from the coordinates needs at least 4 times",
-            hint="give the speeds and accelerations, or more rows",
-        )
-    ind = sorted(given)
-    qi = np.column_stack([given[k] for k in ind])
-    wi = (
-        _spline(t, qi, 1)
-        if w is None
-        else np.column_stack([_given_columns(w, (names, speeds), "the speeds", t.size)[k] for k in ind])
-    )
-    ai = (
-        _spline(t, wi, 1)
-        if a is None
-        else np.column_stack([_given_columns(a, (names, speeds), "the accelerations", t.size)[k] for k in ind])
-    )
+    t, given, ind, qi, wi, ai = _given_motion(t, q, w, a, names, speeds)
     passive = [k for k in range(len(names)) if k not in given]
     pv = model.parameter_values if p is None else np.asarray(p, float)
     cons = model.constraint_names
     n, s = len(names), len(cons)
-    # the drives' columns B
     u0 = np.zeros(len(model.control_names))
-    if drives is None:
-        drives = list(model.control_names) or [speeds[k] for k in ind]
-    drives = [str(d) for d in drives]
-    B = np.zeros((n, len(drives)))
-    _, _, _, _, Q0, *_ = model._evaluate_terms(0.0, np.zeros(n), np.zeros(n), pv, u0)
-    for j, d in enumerate(drives):
-        if d in speeds:
-            B[speeds.index(d), j] = 1.0
-        elif d in model.control_names:
-            u = u0.copy()
-            u[model.control_names.index(d)] = 1.0
-            B[:, j] = model._evaluate_terms(0.0, np.zeros(n), np.zeros(n), pv, u)[4] - Q0
-        else:
-            raise ModelError(
-                f"unknown drive {d!r}",
-                hint="actuators: " + (", ".join(model.control_names) or "none") + "; speeds: " + ", ".join(speeds),
-            )
+    drives, B = _drive_columns(model, drives, [speeds[k] for k in ind], pv)
     start = {**model.start, **{str(k): float(v) for k, v in (guess or {}).items()}}
     qk = np.array([start.get(nm, 0.0) for nm in names], float)
     if held:  # the contacts held where they are at the first time
@@ -658,16 +689,7 @@ def closed_chain_inverse(
         A = np.hstack([B, Jk.T])
         rhs = M @ ak + hQ
         x = np.linalg.lstsq(A, rhs, rcond=1e-10)[0]
-        off = A @ x - rhs
-        if np.abs(off).max() > 1e-8 * max(1.0, np.abs(rhs).max()):
-            worst = [
-                speeds[i] for i in np.argsort(-np.abs(off))[:3] if abs(off[i]) > 1e-8 * max(1.0, np.abs(rhs).max())
-            ]
-            raise ComputationError(
-                f"at t = {t[k]:.10g} the drives {', '.join(drives)} cannot produce the motion: "
-                f"the forces along {', '.join(worst)} stay out of balance (under-actuated)",
-                hint="drive more speeds, or prescribe a motion the passive chain can follow",
-            )
+        _balanced(A @ x - rhs, rhs, t[k], drives, speeds)
         if k == 0:
             undetermined = _combinations(A, list(drives) + list(cons), 1e-10)
         tau[k], lam[k] = x[: len(drives)], x[len(drives) :]

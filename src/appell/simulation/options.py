@@ -24,7 +24,8 @@ naming the setting. The events of a run are checked by :func:`check_events`.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+import difflib
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,7 +35,7 @@ from appell.arguments import mapping, number, times, vector
 from appell.errors import ModelError
 from appell.simulation.events import Event
 
-__all__ = ["DEFAULT_T_END", "MAX_STEPS", "SimulationOptions", "check_events"]
+__all__ = ["DEFAULT_T_END", "MAX_STEPS", "SettingError", "SimulationOptions", "check_events"]
 
 #: final time when neither the caller nor the model's settings give one
 DEFAULT_T_END = 10.0
@@ -45,13 +46,41 @@ MAX_STEPS = 1e9
 #: output times when none are given
 DEFAULT_SAMPLES = 501
 
+#: the most output times a model's ``[simulation]`` table may ask for
+MAX_OUTPUT_TIMES = 10_000_000
+
 STABILIZATIONS = ("projection", "baumgarte", None)
 RELEASES = ("continue", "stop")
 
 
-def _toml(text: str):
-    """A setting a model file's ``[simulation]`` table may give, with what it holds."""
-    return {"toml": text}
+def _toml(text: str, check: str | None = None):
+    """A setting a model file's ``[simulation]`` table may give, with what it holds and how
+    :meth:`SimulationOptions.from_table` checks it (:data:`TABLE_CHECKS`; None: by the type of
+    the field's default)."""
+    return {"toml": text} if check is None else {"toml": text, "check": check}
+
+
+#: the checks of a ``[simulation]`` value: the name in a field's ``check`` metadata
+TABLE_CHECKS = ("number", "positive", "count", "string", "boolean", "times", "gains", "signs", "friction", "choice")
+
+
+class SettingError(ModelError):
+    """A wrong value in a model's ``[simulation]`` table; ``path``: where inside the table
+    (the key, then the item), for the model-file reader to give its file and line."""
+
+    def __init__(self, path: tuple, message: str, hint: str | None = None):
+        super().__init__(message, hint=hint)
+        self.path = tuple(path)
+
+
+def _default_check(f: dataclasses.Field) -> str:
+    """The check of a field without ``check`` metadata, by the type of its default."""
+    default = f.default
+    if isinstance(default, bool):
+        return "boolean"
+    if isinstance(default, (int, float)):
+        return "number"
+    return "string" if isinstance(default, str) else "any"
 
 
 @dataclass(frozen=True)
@@ -63,32 +92,41 @@ class SimulationOptions:
     says what a model file's ``[simulation]`` table holds there (:meth:`table_keys`).
     """
 
-    t0: float = field(default=0.0, metadata=_toml("number, the initial time (default 0)"))
-    t_end: float = field(default=DEFAULT_T_END, metadata=_toml("number, the final time"))
+    t0: float = field(default=0.0, metadata=_toml("number, the initial time (default 0)", "number"))
+    t_end: float = field(default=DEFAULT_T_END, metadata=_toml("number, the final time", "number"))
     #: output times (None: :data:`DEFAULT_SAMPLES` equally spaced in [t0, t_end])
-    t_eval: tuple | np.ndarray | None = field(default=None, metadata=_toml("array of non-decreasing output times"))
-    method: str | type = field(default="DOP853", metadata=_toml("string, the integrator"))
-    rtol: float = field(default=1e-9, metadata=_toml("positive number"))
-    atol: float | tuple | np.ndarray = field(default=1e-12, metadata=_toml("positive number"))
-    max_step: float = field(default=np.inf, metadata=_toml("positive number"))
-    stabilization: str | None = field(default="projection", metadata=_toml("'projection', 'baumgarte' or 'none'"))
-    baumgarte: tuple = field(default=(10.0, 10.0), metadata=_toml("array [alpha, beta] of non-negative numbers"))
-    projection_tol: float = field(default=1e-10, metadata=_toml("positive number"))
+    t_eval: tuple | np.ndarray | None = field(
+        default=None, metadata=_toml("array of non-decreasing output times", "times")
+    )
+    method: str | type = field(default="DOP853", metadata=_toml("string, the integrator", "string"))
+    rtol: float = field(default=1e-9, metadata=_toml("positive number", "positive"))
+    atol: float | tuple | np.ndarray = field(default=1e-12, metadata=_toml("positive number", "positive"))
+    max_step: float = field(default=np.inf, metadata=_toml("positive number", "positive"))
+    stabilization: str | None = field(
+        default="projection", metadata=_toml("'projection', 'baumgarte' or 'none'", "choice")
+    )
+    baumgarte: tuple = field(
+        default=(10.0, 10.0), metadata=_toml("array [alpha, beta] of non-negative numbers", "gains")
+    )
+    projection_tol: float = field(default=1e-10, metadata=_toml("positive number", "positive"))
     project_output: bool = field(
-        default=False, metadata=_toml("boolean: also project output states taken from inside a step")
+        default=False, metadata=_toml("boolean: also project output states taken from inside a step", "boolean")
     )
     unilateral: Mapping | None = field(
-        default=None, metadata=_toml("table: constraint name = 1 or -1 (the sign its multiplier keeps)")
+        default=None, metadata=_toml("table: constraint name = 1 or -1 (the sign its multiplier keeps)", "signs")
     )
-    on_release: str = field(default="continue", metadata=_toml("'continue' or 'stop'"))
+    on_release: str = field(default="continue", metadata=_toml("'continue' or 'stop'", "choice"))
     friction: Mapping | None = field(
-        default=None, metadata=_toml("table: tangential constraint = { normal = constraint name, mu = number }")
+        default=None,
+        metadata=_toml("table: tangential constraint = { normal = constraint name, mu = number }", "friction"),
     )
     rest_speed: float = field(
         default=1e-6,
-        metadata=_toml("positive number: a contact whose rebound speed would be at most this engages again"),
+        metadata=_toml(
+            "positive number: a contact whose rebound speed would be at most this engages again", "positive"
+        ),
     )
-    complete: bool = field(default=False, metadata=_toml("boolean: complete the dependent initial values"))
+    complete: bool = field(default=False, metadata=_toml("boolean: complete the dependent initial values", "boolean"))
     #: with ``complete``, which given values may change: None (automatic), names, or () (none)
     adjust: object = None
     #: a tqdm progress bar; None: only when stderr is a terminal
@@ -106,9 +144,67 @@ class SimulationOptions:
         """``{key: what it holds}`` of a model file's ``[simulation]`` table: the settings with
         ``toml`` metadata, and ``output_step`` and ``samples`` (stored as ``t_eval``)."""
         keys = {f.name: f.metadata["toml"] for f in dataclasses.fields(cls) if "toml" in f.metadata}
-        keys["output_step"] = "positive number; equally spaced output times from t0 to t_end (stored as t_eval)"
-        keys["samples"] = "integer >= 2; that many equally spaced output times from t0 to t_end (stored as t_eval)"
+        keys["output_step"] = (
+            "positive number; equally spaced output times from t0 to t_end (expanded into t_eval by from_model)"
+        )
+        keys["samples"] = (
+            "integer >= 2; that many equally spaced output times from t0 to t_end (expanded into t_eval by from_model)"
+        )
         return keys
+
+    @classmethod
+    def from_table(
+        cls, table, *, constraints: Sequence[str] | None = None, constant: Callable | None = None
+    ) -> tuple[tuple[str, object], ...]:
+        """A model's ``[simulation]`` table read and checked: its settings ``((key, value),
+        ...)`` in the table's order, values hashable, for ``System(settings=...)`` and
+        :meth:`from_model`. The keys are :meth:`table_keys` (a field added with ``toml``
+        metadata is a key at once); each value is checked by its field's ``check`` metadata
+        (:data:`TABLE_CHECKS`, else by the type of its default). ``output_step`` and ``samples``
+        are kept as given and expand into output times in :meth:`from_model` (the one expansion).
+
+        ``constant(path, value)``: how a number is read (a model file's reader also takes
+        constant expressions such as ``"pi/2"``; default a plain finite number);
+        ``constraints``: the model's constraint names, which ``unilateral`` and ``friction``
+        name. A wrong value or an unknown key is a :class:`SettingError` whose ``path`` names it."""
+        keys = cls.table_keys()
+        if not isinstance(table, Mapping):
+            raise SettingError((), f"must be a table, got {type(table).__name__}")
+        for key in table:
+            if key not in keys:
+                close = difflib.get_close_matches(str(key), list(keys), n=1)
+                guess = f"did you mean {close[0]!r}? " if close else ""
+                raise SettingError((key,), f"unknown key {key!r}", hint=f"{guess}allowed keys here: {', '.join(keys)}")
+        reader = _TableReader(constant or _plain_number, constraints)
+        checks = {f.name: f.metadata.get("check") or _default_check(f) for f in dataclasses.fields(cls)}
+        checks.update(output_step="positive", samples="count")
+        out = {key: reader.value(key, checks[key], value, keys[key]) for key, value in table.items()}
+        if out.get("stabilization") == "none":
+            out["stabilization"] = None
+        t0, t_end = out.get("t0", 0.0), out.get("t_end")
+        if t_end is not None and t_end <= t0:
+            raise SettingError(("t_end",), f"t_end must be after t0 ({t0})")
+        if "samples" in out and (t_end is None or "t_eval" in out or "output_step" in out):
+            raise SettingError(("samples",), "samples needs t_end and excludes t_eval and output_step")
+        if "output_step" in out:
+            if t_end is None or "t_eval" in out:
+                raise SettingError(("output_step",), "output_step needs t_end and excludes t_eval")
+            if (t_end - t0) / out["output_step"] > MAX_OUTPUT_TIMES:
+                raise SettingError(
+                    ("output_step",), f"{int((t_end - t0) / out['output_step']) + 1} output times are too many"
+                )
+        return tuple(out.items())
+
+    @classmethod
+    def keywords(cls, settings) -> dict:
+        """``{name: value}`` of the settings ``((key, value), ...)`` (:meth:`from_table`) that
+        are fields (``output_step`` and ``samples`` left out), ``unilateral`` and ``friction``
+        as dictionaries again."""
+        out = {k: v for k, v in dict(settings).items() if k in cls.names()}
+        for key in ("unilateral", "friction"):
+            if key in out:
+                out[key] = dict(out[key])
+        return out
 
     @classmethod
     def from_model(cls, system=None) -> SimulationOptions:
@@ -118,13 +214,11 @@ class SimulationOptions:
         if system is None:
             return cls()
         settings = dict(system.settings)
-        out = {k: v for k, v in settings.items() if k in cls.names()}
-        for key in ("unilateral", "friction"):
-            if key in out:
-                out[key] = dict(out[key])
-        options = cls(**out)
-        if "output_step" in settings:
-            options = options._span(options.t0, options.t_end, output_step=settings["output_step"])
+        options = cls(**cls.keywords(system.settings))
+        if "output_step" in settings or "samples" in settings:
+            options = options._span(
+                options.t0, options.t_end, samples=settings.get("samples"), output_step=settings.get("output_step")
+            )
         return options
 
     def given(self, samples: int | None = None, output_step: float | None = None, **given) -> SimulationOptions:
@@ -244,6 +338,105 @@ class SimulationOptions:
             baumgarte=gains,
             rest_speed=rest_speed,
         )
+
+
+def _plain_number(path: tuple, value) -> float:
+    """A finite number of a ``[simulation]`` table (:meth:`SimulationOptions.from_table`)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(float(value)):
+        raise SettingError(path, f"must be a finite number, got {value!r}")
+    return float(value)
+
+
+class _TableReader:
+    """The checks of a ``[simulation]`` table's values (:data:`TABLE_CHECKS`), raising
+    :class:`SettingError` at the value's path."""
+
+    def __init__(self, constant: Callable, constraints: Sequence[str] | None):
+        self.constant, self.constraints = constant, constraints
+
+    def value(self, key: str, check: str, value, what: str):
+        path = (key,)
+        if check in ("number", "positive"):
+            number = self.constant(path, value)
+            if check == "positive" and not number > 0:
+                raise SettingError(path, f"must be positive, got {number}")
+            return number
+        if check == "count":
+            if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= MAX_OUTPUT_TIMES:
+                raise SettingError(
+                    path,
+                    f"must be an integer from 2 to {MAX_OUTPUT_TIMES}, got {value!r}",
+                    hint="samples = 501 gives 501 equally spaced output times from t0 to t_end",
+                )
+            return value
+        if check in ("string", "choice"):
+            if not isinstance(value, str):
+                raise SettingError(path, f"must be a string, got {type(value).__name__}")
+            allowed = {"stabilization": ("projection", "baumgarte", "none"), "on_release": RELEASES}.get(key)
+            if check == "choice" and allowed and value not in allowed:
+                raise SettingError(
+                    path, f"{value!r} is not allowed", hint=f"{key} is one of {', '.join(map(repr, allowed))}"
+                )
+            return value
+        if check == "boolean":
+            if not isinstance(value, bool):
+                raise SettingError(path, f"must be true or false, got {type(value).__name__}")
+            return value
+        if check in ("times", "gains"):
+            if not isinstance(value, (list, tuple)) or (check == "gains" and len(value) != 2):
+                raise SettingError(path, f"must be {what}")
+            numbers = tuple(self.constant(path + (i,), v) for i, v in enumerate(value))
+            if check == "times" and any(b < a for a, b in zip(numbers, numbers[1:])):
+                raise SettingError(path, "output times must be non-decreasing")
+            if check == "gains" and min(numbers) < 0:
+                raise SettingError(path, "alpha and beta must be non-negative")
+            return numbers
+        if check == "signs":
+            pairs = []
+            for name, sign in self.table(path, value).items():
+                self.constraint(path + (name,), name)
+                if sign not in (1, -1) or isinstance(sign, bool):
+                    raise SettingError(path + (name,), f"must be 1 or -1, got {sign!r}")
+                pairs.append((name, int(sign)))
+            return tuple(pairs)
+        if check == "friction":
+            return tuple(
+                (name, self.friction(path + (name,), name, spec)) for name, spec in self.table(path, value).items()
+            )
+        return tuple(value) if isinstance(value, list) else value  # a field of another type: stored as given
+
+    def table(self, path: tuple, value) -> Mapping:
+        if not isinstance(value, Mapping):
+            raise SettingError(path, f"must be a table, got {type(value).__name__}")
+        return value
+
+    def constraint(self, path: tuple, name):
+        if self.constraints is not None and name not in self.constraints:
+            raise SettingError(
+                path,
+                f"{name!r} is not a constraint of the model",
+                hint=f"constraints: {', '.join(self.constraints) or '(none)'}",
+            )
+        return name
+
+    def friction(self, path: tuple, name: str, spec) -> tuple:
+        self.constraint(path, name)
+        spec = self.table(path, spec)
+        for key in spec:
+            if key not in ("normal", "mu"):
+                raise SettingError(path + (key,), f"unknown key {key!r}", hint="allowed keys here: normal, mu")
+        for key in ("normal", "mu"):
+            if key not in spec:
+                raise SettingError(
+                    path, f"missing key {key!r}", hint=f"add {key} = ... to [simulation.friction.{name}]"
+                )
+        if not isinstance(spec["normal"], str):
+            raise SettingError(path + ("normal",), f"must be a string, got {type(spec['normal']).__name__}")
+        normal = self.constraint(path + ("normal",), spec["normal"])
+        mu = self.constant(path + ("mu",), spec["mu"])
+        if mu < 0:
+            raise SettingError(path + ("mu",), "the friction coefficient must be non-negative")
+        return (normal, mu)
 
 
 def _same(a, b) -> bool:

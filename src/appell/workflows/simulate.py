@@ -19,17 +19,20 @@ OUTPUT_FORMATS = {".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".nc": "netcdf"
 
 #: the integrator's command-line options (``--max-step`` is ``max_step``); each defaults to the
 #: model's ``[simulation]`` value (:func:`command_options`)
-SOLVER_OPTIONS = ("method", "rtol", "atol", "max_step", "t0", "samples", "output_step", "stabilization")
+SOLVER_OPTIONS = ("method", "rtol", "atol", "max_step", "t0", "samples", "output_step", "stabilization", "settings")
 
 
-def command_options(system, t_end: float | None = None, **solver):
+def command_options(system, t_end: float | None = None, settings=None, **solver):
     """The :class:`~appell.simulation.options.SimulationOptions` of a command: the model's
     run settings (:meth:`~appell.simulation.options.SimulationOptions.from_model`), then
     ``t_end`` and the command line's solver options (:data:`SOLVER_OPTIONS`; a value of None
     is not given) through :meth:`~appell.simulation.options.SimulationOptions.given`, the
     same two steps as :func:`appell.simulation.simulate.simulate`: ``t0``, ``method``,
     ``rtol``, ``atol``, ``max_step``, ``stabilization`` (``'none'`` for None), and the output
-    times as ``samples`` or ``output_step``."""
+    times as ``samples`` or ``output_step``. ``settings``: ``["KEY=VALUE", ...]`` (``--setting``),
+    any key of a model file's ``[simulation]`` table with its value in TOML, read and checked
+    by :meth:`~appell.simulation.options.SimulationOptions.from_table`: every setting, those
+    without a flag of their own too (the flags above win over it)."""
     from appell.arguments import number
     from appell.simulation.options import SimulationOptions
 
@@ -43,7 +46,33 @@ def command_options(system, t_end: float | None = None, **solver):
         solver["stabilization"] = None if solver["stabilization"] == "none" else solver["stabilization"]
     if t_end is not None:
         t_end = number(t_end, "t_end (--t-end)", hint="give a finite final time")
-    return SimulationOptions.from_model(system).given(t_end=t_end, **solver)
+    table = _setting_table(system, settings)
+    return SimulationOptions.from_model(system).given(t_end=t_end, **(table | solver))
+
+
+def _setting_table(system, settings) -> dict:
+    """The ``--setting KEY=VALUE`` items (:func:`command_options`) as keywords of
+    :meth:`~appell.simulation.options.SimulationOptions.given`."""
+    import tomllib
+
+    from appell.simulation.options import SettingError, SimulationOptions
+
+    table: dict = {}
+    for item in settings or ():
+        key, sep, text = str(item).partition("=")
+        if not sep or not key.strip():
+            raise ModelError(f"--setting {item!r}: write KEY=VALUE", hint="e.g. --setting rest_speed=1e-5")
+        try:
+            table[key.strip()] = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            table[key.strip()] = text.strip()  # a bare word: a string
+    try:
+        pairs = SimulationOptions.from_table(table, constraints=[c.name for c in system.constraints])
+    except SettingError as exc:
+        raise ModelError(f"--setting {'.'.join(map(str, exc.path))}: {exc.message}", hint=exc.hint) from None
+    keywords = SimulationOptions.keywords(pairs)
+    keywords.update({k: v for k, v in pairs if k in ("samples", "output_step")})
+    return keywords
 
 
 def run_simulation(derivation, t_end: float | None = None, backend: str = "numpy", solver=None, **options):

@@ -138,24 +138,13 @@ def _validated(r: _Reader, system: System) -> System:
     return system
 
 
-def _build(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
-    if isinstance(doc, dict) and "mechanism" in doc:
-        return _build_mechanism(r, doc, reactions_in)
-    if reactions_in is not None:
-        raise ModelError(
-            "reactions_in applies to a model file with a [mechanism] table",
-            where=r.source,
-            hint="the joint reactions of a [mechanism] are read along the axes it names",
-        )
-    top = r.table((), doc, tuple(TABLES))
-    name, description, coordinates, speeds = _model(r, top)
-    parameters = _parameters(r, top)
-    programs = _named_expressions(r, top, "programs", "time", "program")
-    controls = _controls(r, top)
-
+def _check_declarations(r: _Reader, coordinates, speed_names, n_speeds: int, parameters, programs, controls) -> None:
+    """Refuse a name declared twice, or one that clashes with a derivative name of another
+    (``x_dot`` of a coordinate ``x``), naming its table; ``n_speeds``: the speeds the file
+    declares (0 where ``speed_names`` are the coordinates' derivatives)."""
     declarations = (
         [(q, "coordinate", ("model", "coordinates", i)) for i, q in enumerate(coordinates)]
-        + [(w, "speed", ("model", "speeds", i)) for i, w in enumerate(speeds or ())]
+        + [(w, "speed", ("model", "speeds", i)) for i, w in enumerate(speed_names[:n_speeds])]
         + [(p.symbol.name, "parameter", ("parameters", p.symbol.name)) for p in parameters]
         + [(k, "program", ("programs", k)) for k, _ in programs]
         + [(c.name, "control", ("controls", c.name)) for c in controls]
@@ -170,12 +159,10 @@ def _build(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
             )
         declared[key] = what
 
-    default_speeds = [derivative_name(q, 1) for q in coordinates]
-    speed_names = speeds if speeds is not None else default_speeds
     kinds = declared_kinds(
         [(q, "coordinate") for q in coordinates]
         + [(w, "speed") for w in speed_names]
-        + [(key, what) for key, what, _ in declarations[len(coordinates) + len(speeds or ()) :]]
+        + [(key, what) for key, what, _ in declarations[len(coordinates) + n_speeds :]]
     )
     for key, what, path in declarations:
         clash = name_clash(key, what, kinds)
@@ -186,6 +173,11 @@ def _build(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
                 hint="choose another name: derivative names (x_dot, x_ddot, x_d3, ...) "
                 "of coordinates, speeds, programs and controls are reserved",
             )
+
+
+def _kinematics(r: _Reader, top: dict, coordinates, speeds, default_speeds):
+    """The ``[kinematics]`` table, ``((q, dq/dt), ...)`` for every coordinate, or None where the
+    speeds are the coordinates' derivatives (refused where the file declares other speeds)."""
     kinematics = None
     if "kinematics" in top:
         pairs = _named_expressions(r, top, "kinematics", "state", "coordinate")
@@ -208,6 +200,28 @@ def _build(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
             "speeds differ from the coordinates' derivatives but there is no [kinematics] table",
             hint='add [kinematics] with dq/dt in terms of the speeds, e.g. x = "vx"',
         )
+    return kinematics
+
+
+def _build(r: _Reader, doc: dict, reactions_in: str | None = None) -> System:
+    if isinstance(doc, dict) and "mechanism" in doc:
+        return _build_mechanism(r, doc, reactions_in)
+    if reactions_in is not None:
+        raise ModelError(
+            "reactions_in applies to a model file with a [mechanism] table",
+            where=r.source,
+            hint="the joint reactions of a [mechanism] are read along the axes it names",
+        )
+    top = r.table((), doc, tuple(TABLES))
+    name, description, coordinates, speeds = _model(r, top)
+    parameters = _parameters(r, top)
+    programs = _named_expressions(r, top, "programs", "time", "program")
+    controls = _controls(r, top)
+
+    default_speeds = [derivative_name(q, 1) for q in coordinates]
+    speed_names = speeds if speeds is not None else default_speeds
+    _check_declarations(r, coordinates, speed_names, len(speeds or ()), parameters, programs, controls)
+    kinematics = _kinematics(r, top, coordinates, speeds, default_speeds)
 
     kinematic_controls = [c.name for c in controls if c.kind == "kinematic"]
     allowed_initial = (

@@ -7,7 +7,6 @@ the System from them.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +28,7 @@ from appell.model import (
     System,
     initial_value,
 )
-from appell.simulation.options import SimulationOptions
+from appell.simulation.options import SettingError, SimulationOptions
 from appell.symbols import canonical_name, split_derivative_name
 
 from .reader import _Any, _kind, _Reader
@@ -80,8 +79,6 @@ CONSTRAINT_KINDS = {"holonomic": 0, "first-order": 1, "second-order": 2}
 
 #: [simulation] keys (the settings of appell.simulation.options.SimulationOptions) -> what they hold
 SIMULATION_KEYS = SimulationOptions.table_keys()
-STABILIZATIONS = ("projection", "baumgarte", "none")
-RELEASES = ("continue", "stop")
 
 
 def _model(r: _Reader, doc: dict):
@@ -488,113 +485,20 @@ def _stability(r: _Reader, doc: dict, system: System) -> tuple:
 
 
 def _simulation(r: _Reader, doc: dict, constraint_names: list[str]) -> tuple:
-    """The [simulation] table as ``((key, value), ...)`` in document order (hashable values)."""
+    """The [simulation] table as ``((key, value), ...)`` in document order (hashable values),
+    read and checked by :meth:`SimulationOptions.from_table`; here only located (file and
+    line of the key it names)."""
     if "simulation" not in doc:
         return ()
-    section = r.table(("simulation",), doc["simulation"], tuple(SIMULATION_KEYS))
-    out: dict = {}
+    try:
+        return SimulationOptions.from_table(doc["simulation"], constraints=constraint_names, constant=_constant(r))
+    except SettingError as exc:
+        raise r.error(("simulation",) + exc.path, exc.message, hint=exc.hint) from None
 
-    def positive(key):
-        value = r.constant(("simulation", key), section[key])
-        if not value > 0:
-            raise r.error(("simulation", key), f"must be positive, got {value}")
-        return value
 
-    def choice(key, allowed):
-        value = r.string(("simulation", key), section[key])
-        if value not in allowed:
-            raise r.error(
-                ("simulation", key),
-                f"{value!r} is not allowed",
-                hint=f"{key} is one of {', '.join(map(repr, allowed))}",
-            )
-        return value
-
-    def constraint(path, name):
-        if name not in constraint_names:
-            raise r.error(
-                path,
-                f"{name!r} is not a constraint of the model",
-                hint=f"constraints: {', '.join(constraint_names) or '(none)'}",
-            )
-        return name
-
-    for key in section:
-        path = ("simulation", key)
-        value = section[key]
-        if key in ("t_end", "t0"):
-            out[key] = r.constant(path, value)
-        elif key in ("rtol", "atol", "max_step", "projection_tol", "output_step", "rest_speed"):
-            out[key] = positive(key)
-        elif key == "samples":
-            if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 10_000_000:
-                raise r.error(
-                    path,
-                    f"must be an integer from 2 to 10000000, got {value!r}",
-                    hint="samples = 501 gives 501 equally spaced output times from t0 to t_end",
-                )
-            out[key] = value
-        elif key == "method":
-            out[key] = r.string(path, value)
-        elif key == "stabilization":
-            out[key] = None if choice(key, STABILIZATIONS) == "none" else section[key]
-        elif key == "on_release":
-            out[key] = choice(key, RELEASES)
-        elif key in ("complete", "project_output"):
-            if not isinstance(value, bool):
-                raise r.error(path, f"must be true or false, got {_kind(value)}")
-            out[key] = value
-        elif key in ("t_eval", "baumgarte"):
-            if not isinstance(value, list) or (key == "baumgarte" and len(value) != 2):
-                raise r.error(path, f"must be {SIMULATION_KEYS[key]}")
-            numbers = tuple(r.constant(path + (i,), v) for i, v in enumerate(value))
-            if key == "t_eval" and any(b < a for a, b in zip(numbers, numbers[1:])):
-                raise r.error(path, "output times must be non-decreasing")
-            if key == "baumgarte" and min(numbers) < 0:
-                raise r.error(path, "alpha and beta must be non-negative")
-            out[key] = numbers
-        elif key == "unilateral":
-            table = r.table(path, value, _Any())
-            pairs = []
-            for name, sign in table.items():
-                constraint(path + (name,), name)
-                if sign not in (1, -1) or isinstance(sign, bool):
-                    raise r.error(path + (name,), f"must be 1 or -1, got {sign!r}")
-                pairs.append((name, int(sign)))
-            out[key] = tuple(pairs)
-        elif key == "friction":
-            table = r.table(path, value, _Any())
-            pairs = []
-            for name, spec in table.items():
-                constraint(path + (name,), name)
-                spec = r.table(path + (name,), spec, ("normal", "mu"), required=("normal", "mu"))
-                normal = constraint(path + (name, "normal"), r.string(path + (name, "normal"), spec["normal"]))
-                mu = r.constant(path + (name, "mu"), spec["mu"])
-                if mu < 0:
-                    raise r.error(path + (name, "mu"), "the friction coefficient must be non-negative")
-                pairs.append((name, (normal, mu)))
-            out[key] = tuple(pairs)
-
-    t0, t_end = out.get("t0", 0.0), out.get("t_end")
-    if t_end is not None and t_end <= t0:
-        raise r.error(("simulation", "t_end"), f"t_end must be after t0 ({t0})")
-    if "samples" in out:
-        count = out.pop("samples")
-        if t_end is None or "t_eval" in out or "output_step" in out:
-            raise r.error(("simulation", "samples"), "samples needs t_end and excludes t_eval and output_step")
-        out["t_eval"] = tuple(float(v) for v in np.linspace(t0, t_end, count))
-    if "output_step" in out:
-        step = out.pop("output_step")
-        if t_end is None or "t_eval" in out:
-            raise r.error(("simulation", "output_step"), "output_step needs t_end and excludes t_eval")
-        count = int(math.floor((t_end - t0) / step + 1e-9)) + 1
-        if count > 10_000_000:
-            raise r.error(("simulation", "output_step"), f"{count} output times are too many")
-        times = [t0 + k * step for k in range(count)]
-        if t_end - times[-1] > 1e-9 * step:
-            times.append(t_end)
-        out["t_eval"] = tuple(times)
-    return tuple(out.items())
+def _constant(r: _Reader):
+    """The reader's numbers (constant expressions such as ``"pi/2"`` too) inside [simulation]."""
+    return lambda path, value: r.constant(("simulation",) + tuple(path), value)
 
 
 def _units(r: _Reader, doc: dict, allowed: list[str]) -> tuple[tuple[str, str], ...]:

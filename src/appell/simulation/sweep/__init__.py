@@ -138,6 +138,89 @@ def _compute(
         )
 
 
+def _checked_arguments(t_end, samples, n_workers, worker_timeout, connect_timeout, backend, scheduler, client):
+    """The scalar arguments of :func:`sweep`, checked (:class:`ModelError` naming the culprit)
+    before any model is derived: ``(t_end, samples, n_workers, worker_timeout,
+    connect_timeout, scheduler)``."""
+    from appell.numerics.codegen import BACKENDS
+
+    if client is None:
+        _distributed()  # a missing dask: the extra to install, before the model is derived
+    t_end = number(t_end, "t_end", positive=True, hint="sweeps run from t = 0 to a finite t_end > 0")
+    samples = count(samples, "samples", maximum=MAX_SAMPLES)
+    if n_workers is not None:
+        n_workers = count(n_workers, "n_workers", maximum=4096)
+    worker_timeout = number(worker_timeout, "worker_timeout", positive=True)
+    connect_timeout = number(connect_timeout, "connect_timeout", positive=True)
+    if backend not in BACKENDS:
+        raise ModelError(f"unknown numeric backend {backend!r}", hint="choose one of " + ", ".join(BACKENDS))
+    if scheduler is not None:
+        scheduler = check_scheduler_address(scheduler)
+    if client is not None and (scheduler is not None or n_workers is not None):
+        raise ModelError(
+            "give a sweep either a client or a scheduler address / a number of workers, not both",
+            hint="the client's cluster runs the sweep as it is",
+        )
+    if client is not None and not all(hasattr(client, a) for a in ("submit", "scheduler_info")):
+        raise ModelError(
+            f"client must be a dask.distributed Client, got {type(client).__name__}",
+            hint="use 'with appell.sweep_cluster() as client: ...'",
+        )
+    return t_end, samples, n_workers, worker_timeout, connect_timeout, scheduler
+
+
+def _checked_grid(model, specs) -> list:
+    """The parameter grid of ``specs`` (:func:`parameter_grid`), refused when empty or when it
+    names a parameter that ``model`` lacks."""
+    grid = parameter_grid(specs)
+    if not grid:
+        raise ModelError("the sweep grid is empty")
+    _, _, _, pnames = _names(model)
+    unknown = sorted(set(grid[0]) - set(pnames))
+    if unknown:
+        raise ModelError(
+            f"sweep over unknown parameter(s) {', '.join(unknown)}",
+            hint="parameters of the model: " + ", ".join(pnames),
+        )
+    return grid
+
+
+def _write_results(result: SweepResult, t_eval, groups, attributes: dict, partial) -> None:
+    """Write ``result``'s HDF5 dataset and its summary JSON beside it (module docstring); a
+    failed write is a :class:`ResourceError` carrying ``result`` and naming the kept partial file."""
+    path, runs, summary = result.path, result.runs, result.summary
+    summary_path = path.with_name(path.name + ".summary.json")
+    try:
+        _write_hdf5(
+            path,
+            t_eval,
+            runs,
+            groups,
+            summary,
+            attributes,
+        )
+        with atomic_path(summary_path, suffix=".tmp") as tmp:
+            tmp.write_text(
+                json.dumps(
+                    {
+                        "runs": [
+                            r.__dict__ | {"message": r.message.splitlines()[0] if r.message else ""} for r in runs
+                        ],
+                        **summary,
+                    },
+                    indent=1,
+                    default=str,
+                )
+            )
+    except OSError as exc:
+        error = ResourceError(
+            f"cannot write the sweep's results to {exc.filename or path}: {exc.strerror or exc}",
+            hint=partial.describe(),
+        )
+        error.result = result
+        raise error from exc
+
+
 def sweep(
     model,
     specs,
@@ -196,40 +279,10 @@ def sweep(
     ModelError : bad arguments (before any run); ResourceError : the scheduler cannot be
         reached, or the dataset cannot be written (the runs are on ``exc.result``).
     """
-    from appell.numerics.codegen import BACKENDS
-
-    if client is None:
-        _distributed()  # a missing dask: the extra to install, before the model is derived
-    t_end = number(t_end, "t_end", positive=True, hint="sweeps run from t = 0 to a finite t_end > 0")
-    samples = count(samples, "samples", maximum=MAX_SAMPLES)
-    if n_workers is not None:
-        n_workers = count(n_workers, "n_workers", maximum=4096)
-    worker_timeout = number(worker_timeout, "worker_timeout", positive=True)
-    connect_timeout = number(connect_timeout, "connect_timeout", positive=True)
-    if backend not in BACKENDS:
-        raise ModelError(f"unknown numeric backend {backend!r}", hint="choose one of " + ", ".join(BACKENDS))
-    if scheduler is not None:
-        scheduler = check_scheduler_address(scheduler)
-    if client is not None and (scheduler is not None or n_workers is not None):
-        raise ModelError(
-            "give a sweep either a client or a scheduler address / a number of workers, not both",
-            hint="the client's cluster runs the sweep as it is",
-        )
-    if client is not None and not all(hasattr(client, a) for a in ("submit", "scheduler_info")):
-        raise ModelError(
-            f"client must be a dask.distributed Client, got {type(client).__name__}",
-            hint="use 'with appell.sweep_cluster() as client: ...'",
-        )
-    grid = parameter_grid(specs)
-    if not grid:
-        raise ModelError("the sweep grid is empty")
-    _, _, _, pnames = _names(model)
-    unknown = sorted(set(grid[0]) - set(pnames))
-    if unknown:
-        raise ModelError(
-            f"sweep over unknown parameter(s) {', '.join(unknown)}",
-            hint="parameters of the model: " + ", ".join(pnames),
-        )
+    t_end, samples, n_workers, worker_timeout, connect_timeout, scheduler = _checked_arguments(
+        t_end, samples, n_workers, worker_timeout, connect_timeout, backend, scheduler, client
+    )
+    grid = _checked_grid(model, specs)
     t_eval = np.linspace(0.0, t_end, samples) if t_eval is None else times(t_eval, "t_eval", 0.0, t_end)
     states, multipliers, controls, _ = _names(model)
     # every column kept: states and their accelerations, per constraint its multiplier and two
@@ -311,35 +364,12 @@ def sweep(
     groups = _assemble(results, grid, t_eval)
     summary = _summary(groups, runs)
     result = SweepResult(path, runs, summary)
-    summary_path = path.with_name(path.name + ".summary.json")
-    try:
-        _write_hdf5(
-            path,
-            t_eval,
-            runs,
-            groups,
-            summary,
-            {"model": str(name), "specs": spec_text, "t_end": float(t_end), "backend": backend},
-        )
-        with atomic_path(summary_path, suffix=".tmp") as tmp:
-            tmp.write_text(
-                json.dumps(
-                    {
-                        "runs": [
-                            r.__dict__ | {"message": r.message.splitlines()[0] if r.message else ""} for r in runs
-                        ],
-                        **summary,
-                    },
-                    indent=1,
-                    default=str,
-                )
-            )
-    except OSError as exc:
-        error = ResourceError(
-            f"cannot write the sweep's results to {exc.filename or path}: {exc.strerror or exc}",
-            hint=partial.describe(),
-        )
-        error.result = result
-        raise error from exc
+    _write_results(
+        result,
+        t_eval,
+        groups,
+        {"model": str(name), "specs": spec_text, "t_end": float(t_end), "backend": backend},
+        partial,
+    )
     partial.remove()
     return result
