@@ -93,11 +93,11 @@ class LoopModel:
     loop closures (module docstring). ``evaluate(q, w, u=None, t=0, p=None)`` gives
     :class:`LoopState`; :meth:`blocks` the blocks ``M, h - Q, J, c`` at a state."""
 
-    #: the feet or tools held on the ground whose rows the model holds
-    #: (:func:`appell.simulation.inverse.contact_model` sets them)
+    # the feet or tools held on the ground whose rows the model holds
+    # (appell.simulation.inverse.contact_model sets them), and identifier -> the model file's
+    # own spelling of a name (System.names) for the output: replaced per instance, never mutated
     contacts: tuple = ()
-    #: identifier -> the model file's own spelling of a name (``System.names``), for the output
-    names: dict = {}  # replaced per instance, never mutated
+    names: dict = {}
 
     def __init__(self, parts, backend: str = "auto"):
         tree = parts.tree
