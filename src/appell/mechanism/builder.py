@@ -377,29 +377,36 @@ class Mechanism(MechanismConstraints):
         return self._add_joint("free", name, parent, child, None, origin, rpy, child_origin, coordinates, rotation)
 
     # ------------------------------------------------------------ loads
-    def force(self, name, point, vector):
-        """A force ``vector`` (world axes; expressions in t, q, speeds, parameters) at the body
-        point ``point = (body, r)``."""
+    def force(self, name, point, vector, axes="world"):
+        """A force ``vector`` (world axes, or the body's with ``axes="body"``; expressions in t,
+        q, speeds, parameters) at the body point ``point = (body, r)``."""
         self._claim(name, "load")
         body, r = self._point(point, f"force {name!r}")
+        if axes not in ("world", "body"):
+            raise ModelError(f"force {name!r}: axes {axes!r} must be 'world' or 'body'")
         self._marks.append((body, r))
-        f = _matrix(vector, f"force {name!r}")
+        given = _matrix(vector, f"force {name!r}")
 
         def build(frames):
             p, v, _ = frames[body].point(r)
+            f = frames[body].R * given if axes == "body" else given
             return [AppliedForce(f, position=p, velocity=v, name=name)], [_Action(body, p, f, sp.zeros(3, 1))]
 
         self._forces.append((name, build))
 
-    def torque(self, name, body, vector):
-        """A torque ``vector`` (world axes) on ``body``."""
+    def torque(self, name, body, vector, axes="world"):
+        """A torque ``vector`` (world axes, or the body's with ``axes="body"``) on ``body``."""
         self._claim(name, "load")
         b = self._body(body, f"torque {name!r}")
-        tau = _matrix(vector, f"torque {name!r}")
+        if axes not in ("world", "body"):
+            raise ModelError(f"torque {name!r}: axes {axes!r} must be 'world' or 'body'")
+        given = _matrix(vector, f"torque {name!r}")
 
         def build(frames):
             f = frames[b]
-            return [AppliedTorque(f.R.T * tau, f.omega, name=name)], [_Action(b, None, sp.zeros(3, 1), tau)]
+            if axes == "body":
+                return [AppliedTorque(given, f.omega, name=name)], [_Action(b, None, sp.zeros(3, 1), f.R * given)]
+            return [AppliedTorque(f.R.T * given, f.omega, name=name)], [_Action(b, None, sp.zeros(3, 1), given)]
 
         self._forces.append((name, build))
 

@@ -31,7 +31,10 @@ accelerations are MuJoCo's with its equalities held rigid (tests/test_mjcf_menag
   L_trn`` the force ``gain u + b0 + b1 L + b2 dL/dt`` along ``gear dL_trn/dq``, its control
   ``u`` (MuJoCo's ``ctrl``) a named program (:func:`mjcf_system`'s ``ctrl``) or an unknown
   control (``actuators='controls'``: servo constraints or inverse dynamics give it);
-  ``ctrlrange`` and force ranges are recorded, not enforced;
+  ``ctrlrange`` and force ranges are recorded, not enforced; on a site (no ``refsite``: a
+  thruster) the force ``gain u + b0`` acts on the site's body as the force ``gear[0:3]`` times
+  it along the site's axes at the site and the torque ``gear[3:6]`` times it about them (loads:
+  :func:`appell.derive`'s route, not the closed-chain route's joint forces);
 * an active ``connect`` equality (bodies with anchors, or sites) is a loop closure at the
   two points, its multipliers the force of the second body on the first (the rows along
   which the points never part, the normal of a planar loop in the world's or the first
@@ -51,7 +54,8 @@ What has no meaning for the rigid-body motion — contacts between geoms, joint 
 limits, soft-constraint parameters, sensors, cameras and lights, keyframes, fluid forces,
 control ranges — is named in one :class:`~appell.errors.AppellNote`, never refused; what
 changes the motion and cannot be mapped (spatial tendons with forces, activation dynamics,
-site or body transmissions, flex equalities) is refused with the element named.
+site transmissions with a refsite, body transmissions, flex equalities) is refused with the
+element named.
 """
 
 from __future__ import annotations

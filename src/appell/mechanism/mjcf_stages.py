@@ -274,6 +274,55 @@ def _dry_friction(r: _Reading, frictionloss: str) -> None:
         ignored.append(f"frictionloss (on {len(friction)} joints and tendons)")
 
 
+def _site_actuator(mujoco, model, mech, place, names, i, original, where):
+    """Actuator ``i`` with a site transmission and no ``refsite`` (MuJoCo's ``mjTRN_SITE``):
+    its scalar force ``F = gain u + b0`` acts on the site's body as the force ``gear[0:3] F``
+    along the site's axes at the site and the torque ``gear[3:6] F`` about the site's axes,
+    so that its generalized force is ``J_site^T (R_site gear F)`` (MuJoCo's moment arm
+    times the force; the transmission's length is 0 without a refsite). Returns the
+    actuator's row of :attr:`MjcfModel.actuators`."""
+    shown = original or f"actuator{i}"
+    if int(model.actuator_trnid[i][1]) >= 0:
+        raise ModelError(
+            f"{where}: a site transmission with a refsite is not mapped",
+            hint="site actuators without refsite (a thrust or a torque on the site's body) are mapped",
+        )
+    bias = [float(v) for v in model.actuator_biasprm[i][:3]]
+    if int(model.actuator_biastype[i]) == int(mujoco.mjtBias.mjBIAS_AFFINE) and (bias[1] or bias[2]):
+        raise ModelError(
+            f"{where}: an affine bias in the length or velocity of a site transmission is not mapped",
+            hint="give biasprm only its constant term (or a motor)",
+        )
+    if int(model.actuator_biastype[i]) != int(mujoco.mjtBias.mjBIAS_AFFINE):
+        bias = [0.0, 0.0, 0.0]
+    site = int(model.actuator_trnid[i][0])
+    body, R_off, p_off = place[int(model.site_bodyid[site])]
+    if body is mech.ground:
+        raise ModelError(f"{where}: its site is on the world body", hint="put the site on a moving body")
+    R = R_off @ _rotation(model.site_quat[site])  # the site's axes in the appell body's
+    point = tuple(float(v) for v in p_off + R_off @ np.asarray(model.site_pos[site], float))
+    u = sp.Symbol(names.claim("actuator", original, f"actuator{i}"))
+    force = float(model.actuator_gainprm[i][0]) * u + bias[0]
+    gear = np.asarray(model.actuator_gear[i], float)
+    linear, angular = R @ gear[:3], R @ gear[3:]
+    if np.any(linear != 0):
+        mech.force(
+            names.claim("load", None, f"{u.name}_force"),
+            (body, point),
+            tuple(sp.Float(float(v)) * force for v in linear),
+            axes="body",
+        )
+    if np.any(angular != 0):
+        mech.torque(
+            names.claim("load", None, f"{u.name}_torque"),
+            body,
+            tuple(sp.Float(float(v)) * force for v in angular),
+            axes="body",
+        )
+    limited = bool(model.actuator_ctrllimited[i])
+    return (u.name, shown, tuple(float(v) for v in model.actuator_ctrlrange[i]) if limited else None)
+
+
 def _read_actuators(r: _Reading) -> None:
     """Actuators (ctrl u -> force = gain u + b0 + b1 L + b2 dL/dt along the transmission) and
     gravity compensation."""
@@ -306,11 +355,15 @@ def _read_actuators(r: _Reading) -> None:
             )
         trn, obj = int(model.actuator_trntype[i]), int(model.actuator_trnid[i][0])
         gear = float(model.actuator_gear[i][0])
+        if trn == int(mujoco.mjtTrn.mjTRN_SITE):
+            actuators.append(_site_actuator(mujoco, model, mech, place, names, i, actuator_names[i], where))
+            ranged = ranged or bool(model.actuator_ctrllimited[i]) or bool(model.actuator_forcelimited[i])
+            continue
         if trn in (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT)):
             if obj not in made_joints or kinds[int(model.jnt_type[obj])] not in ("hinge", "slide"):
                 raise ModelError(
                     f"{where} drives a joint appell maps with several coordinates",
-                    hint="actuators on hinge and slide joints and on fixed tendons are mapped",
+                    hint="actuators on hinge and slide joints, on fixed tendons and on sites (without refsite) are mapped",
                 )
             q = made_joints[obj].coordinates[0]
             L = q + float(model.qpos0[int(model.jnt_qposadr[obj])])
@@ -319,7 +372,7 @@ def _read_actuators(r: _Reading) -> None:
         else:
             raise ModelError(
                 f"{where} has a transmission appell does not map ({mujoco.mjtTrn(trn).name})",
-                hint="actuators on hinge and slide joints and on fixed tendons are mapped",
+                hint="actuators on hinge and slide joints, on fixed tendons and on sites (without refsite) are mapped",
             )
         coords = sorted(L.free_symbols, key=lambda s: s.name)
         u = sp.Symbol(names.claim("actuator", actuator_names[i], f"actuator{i}"))
