@@ -1,6 +1,8 @@
 """The name rule of symbols (coordinates, parameters, constraints, bodies, joints): one rule for
 model files, URDF and the Python API, in plain Python (reading a robot file needs no SymPy).
-:mod:`appell.symbols` gives it again."""
+:mod:`appell.symbols` gives it again. Also how a name is shown where the source file spells it
+otherwise (:func:`shown_names`, MJCF's ``left-hip-roll``) and read back (:func:`given_names`),
+so that writing a result file needs no SymPy either."""
 
 from __future__ import annotations
 
@@ -52,3 +54,36 @@ NAME_HINT = (
     f"names start with an ASCII letter, continue with letters, digits or '_', contain no '__' and have "
     f"at most {MAX_NAME} characters"
 )
+
+
+def _renamed(names, table) -> list[str]:
+    """``names`` with each key of ``table`` that one holds between underscores, other
+    characters than letters and digits, or its ends replaced by its value (the longest first)."""
+    if not table:
+        return [str(n) for n in names]
+    pattern = re.compile(
+        r"(?<![A-Za-z0-9])(" + "|".join(map(re.escape, sorted(table, key=len, reverse=True))) + r")(?![A-Za-z0-9])"
+    )
+    return [pattern.sub(lambda m: table[m.group(1)], str(n)) for n in names]
+
+
+def shown_names(names, table) -> list[str]:
+    """Each of ``names`` (result columns: ``<q>_dot``, ``F_<joint>_x``, ``lambda_<row>``; or a
+    message's text) with every identifier of ``table`` (``{identifier: the name in the source
+    file}``, a model's :attr:`~appell.model.System.names`) written as the source spells it:
+    ``F_left_hip_roll_x -> F_left-hip-roll_x``."""
+    plain = [str(n) for n in names]
+    shown = _renamed(plain, {str(k): str(v) for k, v in dict(table or {}).items()})
+    twice = {n for n in shown if shown.count(n) > 1}  # two names shown alike: both keep their identifiers
+    return [p if n in twice else n for p, n in zip(plain, shown)]
+
+
+def given_names(names, table) -> list[str]:
+    """:func:`shown_names` the other way: the source's spelling of a name in ``names`` (a file's
+    column ``left-hip-roll_dot``) read as its identifier (``left_hip_roll_dot``), for the
+    source names that are not identifiers themselves (the first identifier of each)."""
+    back: dict[str, str] = {}
+    for ident, original in dict(table or {}).items():
+        if not str(original).isidentifier():
+            back.setdefault(str(original), str(ident))
+    return _renamed(names, back)

@@ -20,7 +20,9 @@ from appell.names import (  # noqa: F401
     MAX_NAME,
     NAME_HINT,
     RESERVED_NAMES,
+    given_names,
     name_problem,
+    shown_names,
 )
 
 #: The time variable used by every model.
@@ -62,39 +64,6 @@ def canonical_name(name: str) -> str:
         return name
     base, order = split_derivative_name(stripped)
     return derivative_name(base, order + primes)
-
-
-def _renamed(names, table) -> list[str]:
-    """``names`` with each key of ``table`` that one holds between underscores, other
-    characters than letters and digits, or its ends replaced by its value (the longest first)."""
-    if not table:
-        return [str(n) for n in names]
-    pattern = re.compile(
-        r"(?<![A-Za-z0-9])(" + "|".join(map(re.escape, sorted(table, key=len, reverse=True))) + r")(?![A-Za-z0-9])"
-    )
-    return [pattern.sub(lambda m: table[m.group(1)], str(n)) for n in names]
-
-
-def shown_names(names, table) -> list[str]:
-    """Each of ``names`` (result columns: ``<q>_dot``, ``F_<joint>_x``, ``lambda_<row>``; or a
-    message's text) with every identifier of ``table`` (``{identifier: the name in the source
-    file}``, a model's :attr:`~appell.model.System.names`) written as the source spells it:
-    ``F_left_hip_roll_x -> F_left-hip-roll_x``."""
-    plain = [str(n) for n in names]
-    shown = _renamed(plain, {str(k): str(v) for k, v in dict(table or {}).items()})
-    twice = {n for n in shown if shown.count(n) > 1}  # two names shown alike: both keep their identifiers
-    return [p if n in twice else n for p, n in zip(plain, shown)]
-
-
-def given_names(names, table) -> list[str]:
-    """:func:`shown_names` the other way: the source's spelling of a name in ``names`` (a file's
-    column ``left-hip-roll_dot``) read as its identifier (``left_hip_roll_dot``), for the
-    source names that are not identifiers themselves (the first identifier of each)."""
-    back: dict[str, str] = {}
-    for ident, original in dict(table or {}).items():
-        if not str(original).isidentifier():
-            back.setdefault(str(original), str(ident))
-    return _renamed(names, back)
 
 
 def derivative_symbol(symbol: sp.Symbol, order: int = 1) -> sp.Symbol:

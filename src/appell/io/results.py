@@ -21,6 +21,7 @@ import numpy as np
 from appell import files
 from appell.errors import ComputationError
 from appell.files import atomic_path, write_bytes
+from appell.names import shown_names
 from appell.simulation.solution import ALWAYS, UNSPECIFIED
 
 __all__ = ["csv_rows", "write_csv", "write_hdf5", "write_netcdf"]
@@ -30,8 +31,6 @@ def csv_rows(solution):
     """The CSV file's rows: the header (the names of
     :meth:`~appell.simulation.solution.Solution.columns`), then one row per time, NaN as an empty
     cell."""
-    from appell.symbols import shown_names
-
     cols = solution.columns()
     yield shown_names([c for c, _ in cols], solution.metadata.names)  # as the model's file spells them
     for i in range(solution.t.size):
@@ -64,8 +63,6 @@ def write_netcdf(solution, path, units: Mapping[str, str] | None = None) -> Path
             "netCDF output needs the package h5netcdf, which is not installed",
             hint="pip install h5netcdf (or pip install appell, which brings it)",
         ) from exc
-    from appell.symbols import shown_names
-
     ds = solution.to_xarray(units)
     names = [str(n) for n in ds.data_vars]  # the variables as the model's file spells them (ModelMetadata.names)
     ds = ds.rename({a: b for a, b in zip(names, shown_names(names, solution.metadata.names)) if a != b})
@@ -94,8 +91,6 @@ def write_hdf5(solution, path, units: Mapping[str, str] | None = None) -> Path:
     ``/log`` as string datasets.
     """
     import h5py
-
-    from appell.symbols import shown_names
 
     md = solution.metadata
     path = Path(path)

@@ -111,7 +111,7 @@ class InverseDynamics:
         import csv
 
         from appell.files import atomic_path
-        from appell.symbols import shown_names
+        from appell.names import shown_names
 
         cols = self.columns()
         with atomic_path(path) as tmp:

@@ -190,7 +190,7 @@ def run_inverse(derivation, trajectory, drives=(), out=None, echo=None, table=No
     assembly), and the output holds every drive, loop force and joint wrench. A model whose
     file's names are not identifiers (``System.names``: MJCF's ``left-hip-roll``) takes them
     in the file, ``--drive`` and ``--guess`` and shows them in the output and messages."""
-    from appell.symbols import given_names, shown_names
+    from appell.names import given_names, shown_names
 
     echo = echo or _print
     table = read_trajectory(Path(trajectory)) if table is None else table
