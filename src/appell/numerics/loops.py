@@ -26,7 +26,12 @@ The split of (1.4)/(1.5) is solved numerically: ``a = a_0 + M^{-1} J^T lambda`` 
 ``M a_0 = Q - h`` and ``(J M^{-1} J^T) lambda = -(J a_0 + c)``. Where ``J`` has dependent rows
 (a planar loop's out-of-plane rows) the multipliers are the minimum-norm solution and the
 combinations that do no work, the null space of ``J^T``, are named as undetermined
-(:attr:`LoopState.undetermined`). Every joint's wrench is then the inward pass of RNEA with
+(:attr:`LoopState.undetermined`). Dependence is decided once, on the singular values of the
+mass-weighted rows ``B = L^{-1} J^T`` (``L L^T = M``), not on their square ``J M^{-1} J^T``
+(:data:`RANK_TOLERANCE`); a combination that is dependent only to that tolerance, not to
+rounding (a linkage whose geometry misses a movable one by a little: ToddlerBot's neck, whose
+parallelogram's sides differ by 5e-5 m, cannot be closed rigidly as shipped), is held as
+dependent and named in a note (:class:`~appell.errors.AppellNote`, once per model). Every joint's wrench is then the inward pass of RNEA with
 the loop forces applied as external forces at their anchors
 (:func:`appell.numerics.rigid_tree.wrenches`).
 """
@@ -39,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from appell.errors import ComputationError, ModelError
+from appell.errors import AppellNote, ComputationError, ModelError
 from appell.numerics.rigid_tree import (
     TreeArrays,
     _compiled,
@@ -52,8 +57,14 @@ from appell.symbols import derivative_symbol, t
 
 __all__ = ["LoopModel", "LoopState", "loop_model"]
 
-#: relative size of a singular value of ``J M^{-1/2}`` below which a combination of rows is dependent
-RANK_TOLERANCE = 1e-9
+#: relative size of a singular value of the mass-weighted rows ``L^{-1} J^T`` (``L L^T = M``)
+#: below which a combination of rows is dependent: their Gram matrix ``J M^{-1} J^T`` then has a
+#: condition number above 1e10, and a force along that combination would move nothing but
+#: amplify the file's last digits (the old rule, 1e-9 on the Gram matrix itself, was about
+#: ``sqrt(1e-9) = 3e-5`` here, but not the same decision as the undetermined combinations')
+RANK_TOLERANCE = 1e-5
+#: a dependent combination above this relative size is only nearly dependent (module docstring)
+ROUNDING = 1e-10
 
 
 def _cross_rows(a, b):
@@ -447,9 +458,32 @@ class LoopModel:
             if out is not None:
                 return LoopState(out[0], out[1], dict(zip(self.joints, out[2])))
         M, hQ, J, c, pieces = self.blocks(q, w, u, t0, p)
-        a, lam, undetermined = solve_split(M, hQ, J, c, self.constraint_names)
+        split = solve_split(M, hQ, J, c, self.constraint_names)
+        a, lam, undetermined = split
+        if split.nearly:
+            self._note_nearly(split)
         wrench = self.joint_wrenches(w, a, lam, pieces)
         return LoopState(a, lam, wrench, undetermined, self.open_wrenches(w, a, lam, pieces, undetermined, wrench))
+
+    def _note_nearly(self, split) -> None:
+        """One note per model for rows that are dependent only to :data:`RANK_TOLERANCE`: the
+        constraints they involve and how nearly (module docstring)."""
+        involved = sorted({self.names.get(nm, nm) for _, comb in split.nearly for nm in comb})
+        key = (tuple(involved), len(split.nearly))
+        seen = self.__dict__.setdefault("_noted", set())
+        if key in seen:
+            return
+        seen.add(key)
+        warnings.warn(
+            AppellNote(
+                f"system {self.name!r}: the loop rows of {', '.join(involved)} are nearly dependent (relative "
+                f"singular value {', '.join(f'{x:.1e}' for x, _ in split.nearly)} of the mass-weighted rows, "
+                f"dependent below {RANK_TOLERANCE:g}): they are held as dependent, as the linkage the geometry "
+                "nearly is (held rigid, it would barely move or could not be closed), and their force along "
+                "that combination is left undetermined (LoopState.undetermined)"
+            ),
+            stacklevel=3,
+        )
 
     def open_wrenches(self, w, a, lam, pieces, undetermined, wrench) -> tuple:
         """The joints whose wrench a combination of :attr:`LoopState.undetermined` changes (the
@@ -467,16 +501,21 @@ class LoopModel:
 
 
 def echelon_null_space(A, names, tol=RANK_TOLERANCE) -> tuple:
-    """The null space of ``A`` (columns named ``names``) as ``{name: weight}`` per combination,
-    in reduced echelon form: each has its own leading name (weight 1) absent from the others,
-    weights above 1e-12 kept."""
-    from scipy.linalg import qr
-
+    """The null space of ``A`` (columns named ``names``) as ``{name: weight}`` per combination
+    (:func:`echelon_combinations`), its rank decided at ``tol`` of the largest singular value."""
     if A.shape[1] == 0:
         return ()
     _, sv, Vt = np.linalg.svd(A, full_matrices=True)
     scale = sv[0] if sv.size and sv[0] > 0 else 1.0
-    N = Vt[int(np.sum(sv > tol * scale)) :]
+    return echelon_combinations(Vt[int(np.sum(sv > tol * scale)) :], names)
+
+
+def echelon_combinations(N, names) -> tuple:
+    """The rows of ``N`` (a basis, columns named ``names``) in reduced echelon form: each
+    combination has its own leading name (weight 1) absent from the others, weights above
+    1e-12 kept."""
+    from scipy.linalg import qr
+
     if not N.shape[0]:
         return ()
     _, _, piv = qr(N, pivoting=True)
@@ -492,30 +531,60 @@ def undetermined_combinations(J, names, tol=RANK_TOLERANCE) -> tuple:
     return echelon_null_space(J.T, names, tol)
 
 
-def solve_split(M, hQ, J, c, names=None, tol=RANK_TOLERANCE):
-    """``(a, lam, undetermined)`` of ``M a + hQ = J^T lam``, ``J a + c = 0`` (module docstring);
+@dataclass(frozen=True)
+class Split:
+    """The solution of the split at one state (:func:`solve_split`): accelerations ``a``,
+    multipliers ``lam``, the ``undetermined`` combinations of multipliers, and ``nearly``: those
+    among them that are dependent only to :data:`RANK_TOLERANCE`, not to rounding, as
+    ``(relative singular value, {constraint: weight})`` (weights above 1e-3 of the largest;
+    empty where every dependence is exact)."""
+
+    a: np.ndarray
+    lam: np.ndarray
+    undetermined: tuple = ()
+    nearly: tuple = ()
+
+    def __iter__(self):  # a, lam, undetermined = solve_split(...)
+        return iter((self.a, self.lam, self.undetermined))
+
+
+def solve_split(M, hQ, J, c, names=None, tol=RANK_TOLERANCE) -> Split:
+    """The split ``M a + hQ = J^T lam``, ``J a + c = 0`` (module docstring), as :class:`Split`;
     the minimum-norm multipliers where ``J`` has dependent rows. ``M`` need only be positive
     definite on the constraints' tangent space (a free joint's four quaternion rates): the
     split is solved with ``M + rho J^T J`` (``rho`` the mean of ``M``'s diagonal), which has
-    the same solution, ``lam - rho c`` taking the place of ``lam``."""
-    from scipy.linalg import cho_factor, cho_solve
+    the same solution, ``lam - rho c`` taking the place of ``lam``. With ``B = L^{-1} J^T``
+    (``L L^T = M + rho J^T J``) and its singular values ``s_i`` (vectors ``v_i``), those above
+    ``tol s_1`` kept: ``mu = sum_i v_i (v_i . r) / s_i^2``, ``r = -(J a_0 + c)``; the others'
+    ``v_i`` span the combinations that do no work."""
+    from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
     if J.shape[0] == 0:
-        return cho_solve(cho_factor(M), -hQ), np.zeros(0), ()
+        return Split(cho_solve(cho_factor(M), -hQ), np.zeros(0))
     rho = float(np.mean(np.diag(M)))
-    factor = cho_factor(M + rho * J.T @ J)
-    a0 = cho_solve(factor, -hQ)
-    Y = cho_solve(factor, J.T)
-    mu = np.linalg.lstsq(J @ Y, -(J @ a0 + c), rcond=tol)[0]
-    a = a0 + Y @ mu
+    L = np.linalg.cholesky(M + rho * J.T @ J)
+    a0 = cho_solve((L, True), -hQ)
+    B = solve_triangular(L, J.T, lower=True)
+    _, sv, Vt = np.linalg.svd(B, full_matrices=True)
+    sv = np.concatenate([sv, np.zeros(J.shape[0] - sv.size)])  # more rows than speeds: the rest are zero
+    scale = sv[0] if sv[0] > 0 else 1.0
+    keep = sv > tol * scale
+    V = Vt[keep]
+    r = -(J @ a0 + c)
+    mu = V.T @ ((V @ r) / sv[keep] ** 2)
+    a = a0 + cho_solve((L, True), J.T @ mu)
     lam = mu + rho * c
     names = names if names is not None else tuple(f"row{k}" for k in range(J.shape[0]))
-    undetermined = undetermined_combinations(J, names, tol)
+    undetermined = echelon_combinations(Vt[~keep], names)
     if undetermined:  # the minimum-norm multipliers: orthogonal to every combination that does no work
-        Nt = np.array([[comb.get(nm, 0.0) for nm in names] for comb in undetermined])
-        Qn, _ = np.linalg.qr(Nt.T)
+        Qn, _ = np.linalg.qr(Vt[~keep].T)
         lam = lam - Qn @ (Qn.T @ lam)
-    return a, lam, undetermined
+    nearly = tuple(
+        (float(x / scale), {names[k]: float(v) for k, v in enumerate(row) if abs(v) > 1e-3 * np.abs(row).max()})
+        for x, row in zip(sv[~keep], Vt[~keep])
+        if x > ROUNDING * scale
+    )
+    return Split(a, lam, undetermined, nearly)
 
 
 def loop_model(source, backend: str = "auto") -> LoopModel:
