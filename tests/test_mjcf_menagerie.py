@@ -200,6 +200,7 @@ def compare(
     body_axes=False,
     rank=None,
     drop=1e-12,
+    pose=None,
     **options,
 ):
     """appell's accelerations vs the reference at ``states`` random states; the largest
@@ -209,7 +210,7 @@ def compare(
     route, :func:`appell.loop_model`; its connect forces are then compared too, where the
     reference determines them, and the largest relative difference of the two is returned;
     ``body_axes``: see :func:`connect_forces`). ``rank``, ``drop``: see :func:`reference` and
-    :func:`assemble`."""
+    :func:`assemble`; ``pose(mj, qpos, rng)``: the random ``qpos`` changed before it is assembled."""
     rng = np.random.default_rng(seed)
     mj = load_mjcf(path_or_xml)
     for name in mujoco_without:
@@ -234,6 +235,8 @@ def compare(
     for k in range(states):
         t = 0.37 * (k + 1)
         qpos = mj.qpos0 + rng.uniform(-spread, spread, mj.nq)
+        if pose is not None:
+            qpos = pose(mj, qpos, rng)
         mujoco.mj_normalizeQuat(mj, qpos)
         qpos, qvel = assemble(mj, data, qpos, rng, drop)
         data.qpos[:], data.qvel[:] = qpos, qvel
@@ -708,6 +711,58 @@ def test_the_skydio_quadrotor_thrusts_as_in_mujoco():
         assert np.abs(generalized - data.qfrc_actuator).max() <= 1e-9 * np.abs(data.qfrc_actuator).max()
 
 
+TODDLERBOT = MENAGERIE / "toddlerbot_2xc" / "toddlerbot_2xc.xml"
+
+
+def neck_in_range(mj, qpos, rng):
+    """ToddlerBot's neck placed on its parallelogram's branch, within its range: the head's
+    pitch and the plate's ``theta``, the rods' ``-theta`` (Newton from a random neck can land
+    past the joints' limits, beside the linkage's dead point, where its rows are nearly
+    dependent for a reason that is not the file's)."""
+    theta = rng.uniform(-0.5, 1.2)
+    for name, sign in (("neck_pitch", 1), ("neck_pitch_act", 1), ("neck_pitch_front", -1), ("neck_pitch_back", -1)):
+        qpos[mj.jnt_qposadr[mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_JOINT, name)]] = sign * theta
+    return qpos
+
+
+def toddlerbot_exact_neck() -> str:
+    """ToddlerBot's file with the neck made the exact parallelogram it nearly is: the two rods'
+    far sites at the head's own length from their pivots, ``(0.027, -0.0326157)``, as the head
+    hinge is from the plate's, and the neck link's sites where the rods then end (each moved
+    by at most 5e-5 m)."""
+    xml = TODDLERBOT.read_text()
+    moves = {
+        "0.02700705 0 -0.03264198": "0.027 0 -0.0326157",
+        "0.02700705 0.1 -0.03264198": "0.027 0.1 -0.0326157",
+        "0.02699292 0 -0.03258941": "0.027 0 -0.0326157",
+        "0.02699292 0.1 -0.03258941": "0.027 0.1 -0.0326157",
+        "0.00724444 -0.004 0.0169411": "0.00723736 -0.004 0.0169674",
+        "0.00724444 0.096 0.0169411": "0.00723736 0.096 0.0169674",
+        "-0.00724444 -0.004 0.0130589": "-0.00723736 -0.004 0.0130326",
+        "-0.00724444 0.096 0.0130589": "-0.00723736 0.096 0.0130326",
+    }
+    for old, new in moves.items():
+        assert xml.count(f'pos="{old}"') == 1, old
+        xml = xml.replace(f'pos="{old}"', f'pos="{new}"')
+    return xml
+
+
+@needs_files
+def test_toddlerbot_with_an_exact_parallelogram_neck_matches_the_kkt_reference_to_1e_9():
+    """The file with the neck's eight site positions moved by at most 5e-5 m
+    (:func:`toddlerbot_exact_neck`): everything else as shipped, the neck a triple
+    parallelogram that moves. MuJoCo's connect rows are then exactly dependent (rank 3 of 12),
+    the states assemble exactly, and appell's accelerations and connect forces equal the
+    minimum-norm KKT reference (module docstring) to 1e-9, with no note of nearly dependent rows."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", AppellNote)
+        worst, _, _ = compare(
+            toddlerbot_exact_neck(), states=3, route="loop", body_axes=True, frictionloss="ignore", pose=neck_in_range
+        )
+    assert worst < 1e-9, worst
+    assert not [w for w in caught if "nearly dependent" in str(w.message)]
+
+
 @needs_files
 def test_toddlerbot_with_its_neck_linkage_on_the_closed_chain_route_matches_the_kkt_reference():
     """ToddlerBot 2XC as shipped (frictionloss left out): a free torso, 4 connects on sites
@@ -722,7 +777,7 @@ def test_toddlerbot_with_its_neck_linkage_on_the_closed_chain_route_matches_the_
     combination has a mass-weighted singular value of about 1e-7 of the largest; appell holds
     it as dependent (the linkage the geometry nearly is), says so in a note, and names its force
     as undetermined. Source of truth: MuJoCo's quantities (module docstring), the states
-    assembled on the combinations above 1e-4 of the rows' largest singular value, the split
+    (the neck on its branch, :func:`neck_in_range`) assembled on the combinations above 1e-4 of the rows' largest singular value, the split
     solved by hand with the same rank rule (:func:`weighted_split`, 1e-5). Accelerations and the
     connect forces it determines agree to 1e-6, not 1e-9: the dropped combination keeps the
     file's residual (about 3e-8 m, its 8 digits), at which appell's rows (along neck_rod's
@@ -733,13 +788,14 @@ def test_toddlerbot_with_its_neck_linkage_on_the_closed_chain_route_matches_the_
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", AppellNote)
         worst, _, read = compare(
-            MENAGERIE / "toddlerbot_2xc" / "toddlerbot_2xc.xml",
+            TODDLERBOT,
             states=3,
             route="loop",
             body_axes=True,
             frictionloss="ignore",
             rank=RANK_TOLERANCE,
             drop=1e-4,
+            pose=neck_in_range,
         )
     assert len(read.actuators) == 30
     assert worst < 1e-6, worst
@@ -753,7 +809,7 @@ def test_toddlerbot_neck_cannot_be_closed_rigidly_as_shipped():
     """The diagnosis above, from MuJoCo alone: the neck's 12 connect rows have a weakest
     singular value of 1e-8 to 1e-5 (the others 1e-2 and up, then rounding), and Newton's
     minimum-norm steps on all rows from the file's own ``qpos0`` do not close the loops."""
-    mj = load_mjcf(MENAGERIE / "toddlerbot_2xc" / "toddlerbot_2xc.xml")
+    mj = load_mjcf(TODDLERBOT)
     data = mujoco.MjData(mj)
     data.qpos[:] = mj.qpos0
     mujoco.mj_forward(mj, data)
