@@ -220,3 +220,90 @@ def test_a_simulation_of_the_numeric_route_equals_the_compiled_one():
     assert [run.status for run in runs] == [0, 0]
     for name in route.state_names:
         np.testing.assert_allclose(runs[0].states[name], runs[1].states[name], rtol=0, atol=1e-8, err_msg=name)
+
+
+# ---------------------------------------------------------------- appell simulate --backend tree (appell.io.cli_tree)
+def _simulate(tmp_path, path, backend, *extra, env=None):
+    """``appell simulate PATH --t-end 0.02 --backend BACKEND`` in-process: (result, CSV rows)."""
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+
+    out = tmp_path / f"{Path(path).stem}-{backend}.csv"
+    args = ["simulate", str(path), "--t-end", "0.02", "--backend", backend, "--out", str(out), *extra]
+    result = CliRunner().invoke(cli, args, env=env, catch_exceptions=False)
+    if result.exit_code != 0:
+        return result, None
+    with open(out) as fh:
+        return result, [line.rstrip("\n").split(",") for line in fh]
+
+
+def _same_csv(tree_rows, derived_rows):
+    """The same header (coordinates, speeds, accelerations, multipliers, joint forces and
+    moments, residuals: the derived route's names) and the same numbers to 1e-9 of each
+    column's largest value."""
+    assert tree_rows[0] == derived_rows[0]
+    a, b = np.array(tree_rows[1:], float), np.array(derived_rows[1:], float)
+    assert a.shape == b.shape
+    scale = np.maximum(1.0, np.max(np.abs(b), axis=0))
+    assert np.all(np.abs(a - b) <= 1e-9 * scale), np.max(np.abs(a - b) / scale)
+
+
+@pytest.mark.parametrize("robot", ["arm", pytest.param("panda", marks=needs_robots)])
+def test_the_command_lines_tree_backend_equals_the_derived_route(tmp_path, robot):
+    """``appell simulate ROBOT.urdf --backend tree`` (read in floating point, integrated by
+    SciPy's DOP853, the joint wrenches by the inward pass) writes the columns the derived route
+    writes (C where a compiler is found, else NumPy; DOP853 both), the Panda's mimic finger's
+    multiplier and residual too, with the same numbers to 1e-9 over 0.02 s from rest."""
+    path = ARM if robot == "arm" else ROBOTS / FIXED["panda"]
+    result, tree = _simulate(tmp_path, path, "tree")
+    assert result.exit_code == 0, result.output
+    assert "DOP853 (numeric tree route)" in result.output
+    result, derived = _simulate(tmp_path, path, "c" if find_compiler() is not None else "numpy")
+    assert result.exit_code == 0, result.output
+    _same_csv(tree, derived)
+    if robot == "panda":
+        assert {"lambda_panda_finger_joint2_mimic", "residual_panda_finger_joint2_mimic"} <= set(tree[0])
+
+
+def test_the_tree_backend_imports_no_sympy(tmp_path):
+    """``appell simulate arm.urdf --backend tree`` in a fresh process: SymPy is never imported."""
+    code = (
+        "import sys\nfrom appell.io.cli import main\n"
+        "sys.argv = ['appell', 'simulate', sys.argv[1], '--t-end', '0.01', '--backend', 'tree']\n"
+        "try:\n    main()\nexcept SystemExit as exc:\n    print('exit', exc.code, 'sympy' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code, str(ARM)], capture_output=True, text=True)
+    assert done.stdout.splitlines()[-1] == "exit 0 False", done.stdout + done.stderr
+
+
+def test_auto_without_a_compiler_takes_the_tree_route_with_one_note(tmp_path):
+    """``--backend auto`` (the default) where no C compiler is found (``$APPELL_CC`` naming no
+    program, as tests/test_fast_default.py does): a URDF tree takes the numeric tree route,
+    saying so once, and writes the columns ``--backend tree`` writes."""
+    no_cc = {"APPELL_CC": str(tmp_path / "no-such-cc")}
+    result, auto = _simulate(tmp_path, ARM, "auto", env=no_cc)
+    assert result.exit_code == 0, result.output
+    assert result.output.count("numeric tree route (articulated-body") == 1
+    assert "DOP853 (numeric tree route)" in result.output
+    _, tree = _simulate(tmp_path, ARM, "tree")
+    assert auto == tree
+
+
+def test_the_tree_backend_refuses_what_it_cannot_take(tmp_path):
+    """A model file, and a URDF with a joint the floating-point reader does not take, are
+    refused with the reason and what to do (exit 2), no file written."""
+    result, rows = _simulate(tmp_path, "pendulum", "tree")
+    assert result.exit_code == 2 and rows is None
+    assert "--backend tree takes a URDF robot file" in result.output and "--backend auto" in result.output
+    robot = tmp_path / "screwy.urdf"
+    robot.write_text(
+        '<robot name="screwy"><link name="base"/>'
+        '<joint name="j" type="planar"><parent link="base"/><child link="b"/><axis xyz="1 0 0"/></joint>'
+        '<link name="b"><inertial><mass value="1"/>'
+        '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link></robot>'
+    )
+    result, rows = _simulate(tmp_path, robot, "tree")
+    assert result.exit_code == 2 and rows is None
+    assert "the numeric tree route does not take" in result.output and "--backend auto" in result.output
+    assert not list(tmp_path.glob("*.csv"))

@@ -357,6 +357,20 @@ class NumericTreeRoute:
         out.update((f"lambda_{name}", float(v)) for name, v in zip(self.constraint_names, lam))
         return a, out
 
+    @property
+    def units(self) -> dict[str, str]:
+        """The units of the coordinates and speeds (rad, m: as :func:`~appell.mechanism.urdf.urdf_units`),
+        of the joints' forces and moments (N, N*m) and of ``g``."""
+        out = {"g": "m/s^2"}
+        for node in self._nodes:
+            if node.coordinate is not None:
+                angle = node.kind == "revolute"
+                out.update(
+                    {node.coordinate: "rad" if angle else "m", f"{node.coordinate}_dot": "rad/s" if angle else "m/s"}
+                )
+        out.update((name, "N" if name.startswith("F_") else "N*m") for name in self.output_names)
+        return out
+
     # ------------------------------------------------ the simulator's contract (appell.numerics.dynamics)
     control_names: tuple[str, ...] = ()
 

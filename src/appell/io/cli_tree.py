@@ -1,0 +1,222 @@
+"""``appell simulate --backend tree``: a URDF robot's motion by the numeric tree route
+(:class:`~appell.numerics.tree_route.NumericTreeRoute`), without SymPy, without deriving and
+without a compiler; and ``--backend auto``'s choice of it where no C compiler is found.
+
+The file is read in floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`),
+the motion integrated by SciPy's ``OdeSolver`` of the run's method (DOP853 by default: the
+scheme and step control of the compiled loop) from the state the derived route starts from (zero
+coordinates and speeds unless ``--set`` gives them), and at each output time the accelerations
+and every joint's reaction come from the articulated-body algorithm and the inward pass
+(:meth:`~appell.numerics.tree_route.NumericTreeRoute.forward`): the columns of the derived route,
+named as it names them. A mimic joint's row ``a - m b - offset = 0`` is linear: the route
+keeps its second derivative zero, and a Runge-Kutta step keeps a linear invariant to rounding,
+so the motion stays on it without the simulator's projection (the multipliers and residuals
+are columns as the derived route's; a start off the rows is refused). A robot the route does
+not take (what :func:`~appell.mechanism.urdf_tree.urdf_tree` refuses, another reader's
+options) is refused with the reason under ``--backend tree`` and derived under ``auto``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from appell.errors import ComputationError, ModelError
+
+__all__ = ["simulate_tree", "tree_model"]
+
+#: what to do instead, in each refusal of ``--backend tree``
+_INSTEAD = "use --backend auto (or c, numpy): the model is derived and runs on the full simulator"
+
+
+def tree_model(model: str, backend: str, floating_base: bool = False, meta=None, echo=print):
+    """The :class:`~appell.numerics.tree_route.NumericTreeRoute` that ``appell simulate MODEL``
+    runs with ``backend``: for ``tree`` the route or a :class:`ModelError` saying why not; for
+    ``auto`` the route where MODEL is a URDF robot the route takes and no C compiler is found
+    (with one ``note:`` line on ``echo`` saying so), else None; None for the other backends."""
+    from appell.workflows.load import _notes_as_lines, resolve_model
+
+    if backend not in ("tree", "auto"):
+        return None
+    required = backend == "tree"
+    if not required:
+        from appell.numerics.codegen.build import find_compiler
+
+        if find_compiler() is not None:
+            return None
+    path = resolve_model(model)
+    if path.suffix.lower() != ".urdf":
+        if required:
+            raise ModelError(f"{path}: --backend tree takes a URDF robot file (.urdf)", hint=_INSTEAD)
+        return None
+    options = {k: v for k, v in (meta or {}).items() if k in ("appell.reactions_in", "appell.mjcf") and v}
+    if options:
+        if required:
+            raise ModelError("--backend tree gives the joints' reactions in world axes only", hint=_INSTEAD)
+        return None
+    from appell.mechanism.urdf import read_urdf
+    from appell.mechanism.urdf_tree import NotNumeric, urdf_tree
+    from appell.numerics.tree_route import NumericTreeRoute
+
+    with _notes_as_lines(echo):
+        robot = read_urdf(path)
+        try:
+            tree = urdf_tree(robot, floating_base)
+        except NotNumeric as exc:
+            if required:
+                raise ModelError(f"{path}: the numeric tree route does not take {exc}", hint=_INSTEAD) from None
+            return None
+    route = NumericTreeRoute(tree, path.stem)
+    if not required:
+        echo(
+            f"note: no C compiler found: {path.name} runs on the numeric tree route (articulated-body "
+            "algorithm in NumPy, not derived); --backend numpy derives it",
+            err=True,
+        )
+    return route
+
+
+def _start(route, overrides: dict[str, str]) -> tuple[np.ndarray, np.ndarray]:
+    """The initial state (zero unless given) and the parameter ``g`` of ``--set`` values
+    (``NAME=VALUE``: ``g``, a coordinate, a speed ``NAME_dot`` or ``NAME'``)."""
+    from appell.arguments import number
+
+    y, p = np.zeros(2 * route.n), route.default_parameters.copy()
+    names = list(route.state_names)
+    for name, text in overrides.items():
+        key = name[:-1] + "_dot" if name.endswith("'") else name
+        try:
+            value = number(float(text), f"--set {name}")
+        except ValueError:
+            raise ModelError(f"--set {name}={text}: not a number", hint="--backend tree takes numbers only") from None
+        if key == "g":
+            p[0] = value
+        elif key in names:
+            y[names.index(key)] = value
+        else:
+            raise ModelError(
+                f"--set {name}: not a parameter or a state of the robot",
+                hint="the parameter g, the joints' coordinates and their speeds NAME_dot",
+            )
+    return y, p
+
+
+def _options(route, t_end, solver: dict):
+    """The run's :class:`~appell.simulation.options.SimulationOptions`: a URDF model's (the
+    defaults), then the command's (:func:`appell.workflows.simulate.command_options`)."""
+    from types import SimpleNamespace
+
+    from appell.workflows.simulate import command_options
+
+    return command_options(SimpleNamespace(settings=(), constraints=()), t_end, **solver).checked(route)
+
+
+def simulate_tree(route, t_end=None, solver=None, overrides=None):
+    """The :class:`~appell.simulation.solution.Solution` of ``route`` (the module's docstring):
+    states, accelerations and joint reactions at the output times; a failed integration is a
+    :class:`ComputationError` carrying the motion up to the failure (``.solution``)."""
+    import appell
+    from appell.simulation.integration import METHODS, solver_class
+    from appell.simulation.solution import ModelMetadata, Solution, SolverStatistics
+
+    opts = _options(route, t_end, dict(solver or {}))
+    y0, p = _start(route, overrides or {})
+    F0, phi0 = route.state_residuals(opts.t0, y0, p)
+    if route.constraint_names and max(np.max(np.abs(F0)), np.max(np.abs(phi0))) > opts.projection_tol:
+        raise ModelError(
+            f"{route.name}: the start violates the mimic joints' constraints "
+            f"{', '.join(route.constraint_names)} (a mimic offset?)",
+            hint="give consistent values with --set, or " + _INSTEAD,
+        )
+    t_eval = opts.t_eval
+    count = {"nfev": 0}
+
+    def fun(t, y):
+        count["nfev"] += 1
+        return route.evaluate(t, y, p).derivative
+
+    steps, status, message = 0, 0, "reached the final time"
+    rows = [y0 for _ in range(int(np.sum(t_eval <= opts.t0)))]
+    if len(rows) < t_eval.size:
+        integrator = solver_class(opts.method)(
+            fun, opts.t0, y0, opts.t_end, rtol=opts.rtol, atol=opts.atol, max_step=opts.max_step
+        )
+        while len(rows) < t_eval.size and integrator.status == "running":
+            why = integrator.step()
+            if integrator.status == "failed":
+                status, message = -1, f"the integrator failed at t = {integrator.t:.10g}: {why}"
+                break
+            steps += 1
+            dense = integrator.dense_output()
+            rows.extend(dense(tk) for tk in t_eval[len(rows) :] if tk <= integrator.t)
+    ys = np.array(rows, float).reshape(-1, 2 * route.n)
+    t = t_eval[: len(ys)]
+    n = route.n
+    accelerations = np.zeros((len(ys), n))
+    outputs = {name: np.zeros(len(ys)) for name in route.output_names}
+    lam, F, phi = (np.zeros((len(ys), len(route.constraint_names))) for _ in range(3))
+    for i, (ti, y) in enumerate(zip(t, ys)):
+        accelerations[i], forces = route.forward(ti, y[:n], y[n:], None, p)
+        for name in route.output_names:
+            outputs[name][i] = forces[name]
+        lam[i] = [forces[f"lambda_{c}"] for c in route.constraint_names]
+        F[i], phi[i] = route.state_residuals(ti, y, p)
+    constraints = route.constraint_names
+    settings = {
+        "method": METHODS.get(opts.method, str(opts.method)) + " (numeric tree route)",
+        "rtol": str(opts.rtol),
+        "atol": str(opts.atol),
+        "max_step": str(opts.max_step),
+        "stabilization": "none",
+    }
+    solution = Solution(
+        t=t,
+        states=dict(zip(route.state_names, ys.T)),
+        coordinate_names=route.coordinate_names,
+        speed_names=route.speed_names,
+        multipliers=dict(zip(constraints, lam.T)),
+        controls={},
+        position_residuals=dict(zip(constraints, F.T)),
+        velocity_residuals=dict(zip(constraints, phi.T)),
+        status=status,
+        message=message,
+        statistics=SolverStatistics(nfev=count["nfev"], steps=steps),
+        events=(),
+        log=(),
+        metadata=ModelMetadata(
+            route.name,
+            (("g", float(p[0]), "m/s^2", "gravity, along -z of the root link"),),
+            constraints,
+            ("holonomic",) * len(constraints),
+            getattr(appell, "__version__", ""),
+            settings=settings,
+            units=route.units,
+        ),
+        accelerations={f"{w[: -len('_dot')]}_ddot": accelerations[:, k] for k, w in enumerate(route.speed_names)},
+        outputs=outputs,
+    )
+    if status < 0:
+        error = ComputationError(message, hint="try another integration method or tighter tolerances")
+        error.solution = solution  # type: ignore[attr-defined]
+        raise error
+    return solution
+
+
+def run_tree_command(route, t_end, solver, overrides, out: Path | None, plot, echo) -> None:
+    """``appell simulate`` on the numeric tree route: the run, its files and its lines."""
+    from appell.workflows.simulate import export_solution, keep_failed_motion, solver_line
+
+    try:
+        solution = simulate_tree(route, t_end, solver, overrides)
+    except ComputationError as exc:
+        raise keep_failed_motion(exc, out, plot) from exc
+    if out is not None:
+        export_solution(solution, out)
+    if plot:
+        solution.plot(plot)
+    echo(solution.summary())
+    echo(solver_line(solution))
+    for path in (out, plot):
+        if path:
+            echo(f"wrote {path}")
