@@ -222,6 +222,88 @@ def test_a_simulation_of_the_numeric_route_equals_the_compiled_one():
         np.testing.assert_allclose(runs[0].states[name], runs[1].states[name], rtol=0, atol=1e-8, err_msg=name)
 
 
+# ---------------------------------------------------------------- planar and floating joints in the file
+#: a floating joint (a quaternion free joint, as urdf_mechanism reads it) carrying a body, a
+#: planar joint on it (offset and tilted frames, products of inertia), a hinge on the puck
+PLANAR_FLOATING = """\
+<robot name="fp">
+  <link name="world"/>
+  <joint name="drone" type="floating">
+    <parent link="world"/><child link="body"/>
+    <origin xyz="0.1 -0.2 0.3" rpy="0.2 -0.1 0.4"/>
+  </joint>
+  <link name="body">
+    <inertial><origin xyz="0.02 0.01 -0.03" rpy="0.1 0.2 0.3"/><mass value="2.0"/>
+      <inertia ixx="0.05" ixy="0.002" ixz="-0.001" iyy="0.04" iyz="0.003" izz="0.06"/></inertial>
+  </link>
+  <joint name="table" type="planar">
+    <parent link="body"/><child link="puck"/>
+    <origin xyz="0.3 0.1 -0.2" rpy="-0.3 0.5 0.2"/><axis xyz="0 0 1"/>
+  </joint>
+  <link name="puck">
+    <inertial><origin xyz="0.05 -0.02 0.01" rpy="0.3 0 -0.2"/><mass value="0.7"/>
+      <inertia ixx="0.003" ixy="0.0001" ixz="0" iyy="0.004" iyz="-0.0002" izz="0.005"/></inertial>
+  </link>
+  <joint name="hinge" type="revolute">
+    <parent link="puck"/><child link="arm"/>
+    <origin xyz="0.1 0 0.05" rpy="0 0.3 0"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/>
+  </joint>
+  <link name="arm">
+    <inertial><origin xyz="0 0 0.1"/><mass value="0.4"/>
+      <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.002" iyz="0" izz="0.0005"/></inertial>
+  </link>
+</robot>
+"""
+
+
+def _on_the_unit_rows(route, q, w):
+    for _, k in route._quaternions:  # a unit quaternion and a rate normal to it: a state of the motion
+        q[k : k + 4] /= np.linalg.norm(q[k : k + 4])
+        w[k : k + 4] -= (w[k : k + 4] @ q[k : k + 4]) * q[k : k + 4]
+    return q, w
+
+
+@pytest.mark.parametrize("floating", [True, False], ids=["floating-planar-hinge", "planar-hinge"])
+def test_planar_and_floating_joints_equal_the_derived_route(tmp_path, floating):
+    """A URDF's ``planar`` joint (two sliders and a hinge in the joint frame's x-y plane,
+    ``<joint>_x, _y, _rz``) and ``floating`` joint (three sliders and a quaternion node,
+    ``<joint>_x .. _z, _q0 .. _q3``, with the unit row ``<joint>_unit``) read in floating point,
+    without SymPy: the same coordinates, accelerations, joint reactions and multiplier as the
+    route of the derived system (``derive_file``, SymPy's ``urdf_mechanism`` with its free and
+    planar joints; NumPy backend) at random states on the unit rows, to 1e-12 of the largest
+    value. Without the floating joint the articulated-body algorithm runs (one speed per node);
+    with it the augmented dense solve (the quaternion's ``M`` is singular along ``q``)."""
+    text = PLANAR_FLOATING
+    if not floating:  # the planar joint straight on the world
+        text = text.replace('type="floating"', 'type="fixed"')
+    path = tmp_path / ("fp.urdf" if floating else "p.urdf")
+    path.write_text(text)
+    route = _route(path)
+    assert isinstance(route, NumericTreeRoute)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        model = appell.numeric_model(appell.derive_file(path), "numpy")
+    assert route.coordinate_names == model.coordinate_names
+    assert route.constraint_names == model.constraint_names == (("drone_unit",) if floating else ())
+    assert bool(route._quaternions) == floating
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        q, w = _on_the_unit_rows(route, rng.uniform(-1, 1, route.n), rng.uniform(-2, 2, route.n))
+        a, out = route.forward(0.0, q, w)
+        sol = model.solve(0.0, q, w)
+        expected = model.outputs(0.0, q, w, solution=sol)
+        expected.update((f"lambda_{n}", v) for n, v in zip(model.constraint_names, sol.multipliers))
+        scale = max(1.0, np.max(np.abs(sol.accelerations)))
+        np.testing.assert_allclose(a, sol.accelerations, rtol=0, atol=1e-12 * scale)
+        names = [k for k in expected if k.startswith(("F_", "M_", "lambda_"))]
+        assert set(names) == set(out), set(names) ^ set(out)
+        scale = max(1.0, max(abs(expected[k]) for k in names))
+        np.testing.assert_allclose([out[k] for k in names], [expected[k] for k in names], rtol=0, atol=1e-12 * scale)
+        F, phi = route.state_residuals(0.0, np.concatenate([q, w]))
+        np.testing.assert_allclose(np.concatenate([F, phi]), 0.0, atol=1e-15)
+
+
 # ---------------------------------------------------------------- appell simulate --backend tree (appell.io.cli_tree)
 def _simulate(tmp_path, path, backend, *extra, env=None):
     """``appell simulate PATH --t-end 0.02 --backend BACKEND`` in-process: (result, CSV rows)."""

@@ -9,9 +9,11 @@ coordinates and speeds unless ``--set`` gives them), and at each output time the
 and every joint's reaction come from the articulated-body algorithm and the inward pass
 (:meth:`~appell.numerics.tree_route.NumericTreeRoute.forward`): the columns of the derived route,
 named as it names them. A mimic joint's row ``a - m b - offset = 0`` is linear: the route
-keeps its second derivative zero, and a Runge-Kutta step keeps a linear invariant to rounding,
-so the motion stays on it without the simulator's projection (the multipliers and residuals
-are columns as the derived route's; a start off the rows is refused). A robot the route does
+keeps its second derivative zero, and a Runge-Kutta step keeps a linear invariant to rounding.
+A floating joint's unit quaternion is brought back (:meth:`~appell.numerics.tree_route.NumericTreeRoute.normalized`)
+after a step that leaves it by more than ``projection_tol``, and the integrator restarts
+keeping its step size, as the simulator does. The multipliers and residuals are columns as
+the derived route's; a start off the rows is refused. A robot the route does
 not take (what :func:`~appell.mechanism.urdf_tree.urdf_tree` refuses, another reader's
 options) is refused with the reason under ``--backend tree`` and derived under ``auto``.
 """
@@ -78,11 +80,12 @@ def tree_model(model: str, backend: str, floating_base: bool = False, meta=None,
 
 
 def _start(route, overrides: dict[str, str]) -> tuple[np.ndarray, np.ndarray]:
-    """The initial state (zero unless given) and the parameter ``g`` of ``--set`` values
-    (``NAME=VALUE``: ``g``, a coordinate, a speed ``NAME_dot`` or ``NAME'``)."""
+    """The initial state (the derived route's: at rest, zero but a floating joint's ``q0 = 1``,
+    unless given) and the parameter ``g`` of ``--set`` values (``NAME=VALUE``: ``g``, a
+    coordinate, a speed ``NAME_dot`` or ``NAME'``)."""
     from appell.arguments import number
 
-    y, p = np.zeros(2 * route.n), route.default_parameters.copy()
+    y, p = route.initial_state.copy(), route.default_parameters.copy()
     names = list(route.state_names)
     for name, text in overrides.items():
         key = name[:-1] + "_dot" if name.endswith("'") else name
@@ -125,8 +128,8 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
     F0, phi0 = route.state_residuals(opts.t0, y0, p)
     if route.constraint_names and max(np.max(np.abs(F0)), np.max(np.abs(phi0))) > opts.projection_tol:
         raise ModelError(
-            f"{route.name}: the start violates the mimic joints' constraints "
-            f"{', '.join(route.constraint_names)} (a mimic offset?)",
+            f"{route.name}: the start violates the constraints {', '.join(route.constraint_names)} "
+            "(a mimic joint's offset, a floating joint's quaternion not of norm 1?)",
             hint="give consistent values with --set, or " + _INSTEAD,
         )
     t_eval = opts.t_eval
@@ -136,7 +139,8 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
         count["nfev"] += 1
         return route.evaluate(t, y, p).derivative
 
-    steps, status, message = 0, 0, "reached the final time"
+    steps, projections, status, message = 0, 0, 0, "reached the final time"
+    tol = opts.projection_tol if opts.stabilization == "projection" else np.inf
     rows = [y0 for _ in range(int(np.sum(t_eval <= opts.t0)))]
     if len(rows) < t_eval.size:
         integrator = solver_class(opts.method)(
@@ -150,6 +154,19 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
             steps += 1
             dense = integrator.dense_output()
             rows.extend(dense(tk) for tk in t_eval[len(rows) :] if tk <= integrator.t)
+            F, phi = route.state_residuals(integrator.t, integrator.y, p)
+            if integrator.status == "running" and np.max(np.abs(np.concatenate([F, phi])), initial=0.0) > tol:
+                projections += 1
+                integrator = solver_class(opts.method)(
+                    fun,
+                    integrator.t,
+                    route.normalized(integrator.y),
+                    opts.t_end,
+                    first_step=min(integrator.step_size, opts.t_end - integrator.t),
+                    rtol=opts.rtol,
+                    atol=opts.atol,
+                    max_step=opts.max_step,
+                )
     ys = np.array(rows, float).reshape(-1, 2 * route.n)
     t = t_eval[: len(ys)]
     n = route.n
@@ -168,7 +185,7 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
         "rtol": str(opts.rtol),
         "atol": str(opts.atol),
         "max_step": str(opts.max_step),
-        "stabilization": "none",
+        "stabilization": str(opts.stabilization),
     }
     solution = Solution(
         t=t,
@@ -181,7 +198,7 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
         velocity_residuals=dict(zip(constraints, phi.T)),
         status=status,
         message=message,
-        statistics=SolverStatistics(nfev=count["nfev"], steps=steps),
+        statistics=SolverStatistics(count["nfev"], steps, projections, 0, projections),
         events=(),
         log=(),
         metadata=ModelMetadata(
