@@ -14,8 +14,10 @@ Tables (machine, load and date printed first; ratios within one run):
    warm run's CPU time stage by stage in one more fresh process (imports of SymPy, of the
    simulation modules with SciPy, of the rest; reading the derivation cache; the numeric
    model; the simulation with its outputs; writing the CSV). Target: second <= 0.35x first and
-   <= 3 s. Then the same for the API's ``derive_file`` + ``numeric_model`` + one solve with
-   every joint wrench.
+   <= 3 s. The same command with ``--backend tree`` (:mod:`appell.io.cli_tree`: the file read in
+   floating point, SciPy's DOP853 over the articulated-body algorithm, the joint wrenches by the
+   inward pass at the output times; no SymPy, no compiler) in one more fresh process. Then the
+   same for the API's ``derive_file`` + ``numeric_model`` + one solve with every joint wrench.
 3. ``import appell`` against ``import sympy`` in fresh processes, median of ``--runs``
    (wall time). Target: <= 1.2x.
 4. A URDF's first accelerations and joint wrenches through the numeric tree route
@@ -139,6 +141,7 @@ def simulate_twice(path: Path) -> None:
         env = {"APPELL_CACHE_DIR": cache, "APPELL_NO_CACHE": ""}
         first = _command(["simulate", *args, Path(cache) / "first.csv"], env)
         second = _command(["simulate", *args, Path(cache) / "second.csv"], env)
+        tree = _command(["simulate", *args, Path(cache) / "tree.csv", "--backend", "tree"], env)
         stages = _fresh(STAGES, *args, Path(cache) / "third.csv", env={**os.environ, **env})
     print(
         "\n## 2. the Panda: `appell simulate panda.urdf --t-end 1 --out FILE.csv`, fresh processes, one cache folder\n"
@@ -150,6 +153,11 @@ def simulate_twice(path: Path) -> None:
                 ["first (empty cache: derive, compile)", f"{first[0]:.2f} s", f"{first[1]:.2f} s"],
                 ["second (warm cache)", f"{second[0]:.2f} s", f"{second[1]:.2f} s"],
                 ["ratio", f"{second[0] / first[0]:.2f}x", f"{second[1] / first[1]:.2f}x"],
+                [
+                    "`--backend tree` (numeric tree route: not derived, not compiled)",
+                    f"{tree[0]:.2f} s",
+                    f"{tree[1]:.2f} s",
+                ],
             ],
         )
     )

@@ -169,16 +169,10 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
                 )
     ys = np.array(rows, float).reshape(-1, 2 * route.n)
     t = t_eval[: len(ys)]
-    n = route.n
-    accelerations = np.zeros((len(ys), n))
-    outputs = {name: np.zeros(len(ys)) for name in route.output_names}
-    lam, F, phi = (np.zeros((len(ys), len(route.constraint_names))) for _ in range(3))
-    for i, (ti, y) in enumerate(zip(t, ys)):
-        accelerations[i], forces = route.forward(ti, y[:n], y[n:], None, p)
-        for name in route.output_names:
-            outputs[name][i] = forces[name]
-        lam[i] = [forces[f"lambda_{c}"] for c in route.constraint_names]
-        F[i], phi[i] = route.state_residuals(ti, y, p)
+    accelerations, outputs, lam = route.forward_rows(t, ys, p)
+    residuals = [route.state_residuals(ti, y, p) for ti, y in zip(t, ys)]
+    F = np.array([f for f, _ in residuals], float).reshape(len(ys), -1)
+    phi = np.array([v for _, v in residuals], float).reshape(len(ys), -1)
     constraints = route.constraint_names
     settings = {
         "method": METHODS.get(opts.method, str(opts.method)) + " (numeric tree route)",

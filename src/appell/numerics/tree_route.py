@@ -446,6 +446,27 @@ class NumericTreeRoute:
         out.update((f"lambda_{name}", float(v)) for name, v in zip(self.constraint_names, lam))
         return a, out
 
+    def forward_rows(self, t, ys, p=None) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+        """:meth:`forward` at the states ``ys`` (T, 2n) of a motion, without joint forces: the
+        accelerations (T, n), every joint's reaction ``{output name: (T,)}`` and the multipliers
+        (T, constraints); the inward pass of all the rows in one call."""
+        ys = np.asarray(ys, float).reshape(-1, 2 * self.n)
+        rows = [self._solve(y[: self.n], y[self.n :], None, p) for y in ys]
+        if not rows:
+            empty = np.zeros((0, self.n))
+            return empty, {k: np.zeros(0) for k in self.output_names}, np.zeros((0, len(self.constraint_names)))
+        arrays = TreeArrays(
+            *(np.stack([getattr(r[0], f)[0].ravel() for r in rows]) for f in ("R", "r", "S", "c")),
+            np.stack([self._inert.ravel()] * len(rows)),
+        )
+        a = np.stack([r[3] for r in rows])
+        gravity = np.stack([r[2] for r in rows])
+        W, _ = wrenches(
+            arrays, self.parent, self.node_of, ys[:, self.n :], a, gravity, np.zeros((len(rows), 3 * len(self._nodes)))
+        )
+        W = W[:, self._reporting].reshape(len(rows), -1)
+        return a, dict(zip(self.output_names, W.T)), np.array([r[4] for r in rows], float).reshape(len(rows), -1)
+
     @property
     def units(self) -> dict[str, str]:
         """The units of the coordinates and speeds (rad, m: as :func:`~appell.mechanism.urdf.urdf_units`),
