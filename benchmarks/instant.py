@@ -16,7 +16,8 @@ Tables (machine, load and date printed first; ratios within one run):
    model; the simulation with its outputs; writing the CSV). Target: second <= 0.35x first and
    <= 3 s. The same command with ``--backend tree`` (:mod:`appell.io.cli_tree`: the file read in
    floating point, SciPy's DOP853 over the articulated-body algorithm, the joint wrenches by the
-   inward pass at the output times; no SymPy, no compiler) in one more fresh process. Then the
+   inward pass at the output times; no SymPy, no compiler) in one more fresh process, and with
+   ``--backend numpy`` from an empty cache (what ``auto`` ran without a compiler before). Then the
    same for the API's ``derive_file`` + ``numeric_model`` + one solve with every joint wrench.
 3. ``import appell`` against ``import sympy`` in fresh processes, median of ``--runs``
    (wall time). Target: <= 1.2x.
@@ -39,6 +40,14 @@ Last run (2026-11-29 06:17 UTC; Intel Xeon, 2 cores, 24 GiB, Python 3.11.7, SymP
   import by the simulation modules is 0.99 s, SymPy's 0.35 s, reading the derivation 0.22 s, the
   C model 0.17 s, simulating 0.16 s, writing the CSV 0.19 s. Before this round's changes: 2.85 s
   CPU, 0.37x (the inertia check built the NumPy model again at every run).
+* table 2, `--backend tree` (2026-11-29 08:45 UTC, the same machine, load average about 4): the
+  Panda's `appell simulate panda.urdf --t-end 1` in a fresh process 10.6-11.1 s wall / 7.0-7.3 s
+  CPU (158 steps, 2960 evaluations of the articulated-body algorithm with the mimic finger's row,
+  about 2 ms each in NumPy; 0.02 s of motion: 2.2 s CPU), against 25.6 s wall / 20.5 s CPU with
+  `--backend numpy` from an empty cache, which `auto` ran without a compiler before; the derived
+  route with a compiler: first run 10.6 s wall / 7.26 s CPU, the second (warm cache) 3.06 s /
+  2.07 s (0.28x), of which the import of the simulation's SciPy is 0.76 s (SciPy's integrators
+  are no longer imported by a compiled run) and SymPy's 0.44 s.
 * table 4: the numeric tree route's first numbers from a fresh interpreter, the Panda 0.67 s wall
   / 0.17 s CPU, Talos on its floating base (38 speeds) 1.03 s / 0.26 s, SymPy never imported
   (targets <= 1 s and <= 3 s; before: 7.9 s, the URDF read through a SymPy mechanism).
@@ -142,6 +151,9 @@ def simulate_twice(path: Path) -> None:
         first = _command(["simulate", *args, Path(cache) / "first.csv"], env)
         second = _command(["simulate", *args, Path(cache) / "second.csv"], env)
         tree = _command(["simulate", *args, Path(cache) / "tree.csv", "--backend", "tree"], env)
+    with tempfile.TemporaryDirectory() as cache:  # what auto did without a compiler before: derive, NumPy
+        env = {"APPELL_CACHE_DIR": cache, "APPELL_NO_CACHE": ""}
+        numpy = _command(["simulate", *args, Path(cache) / "numpy.csv", "--backend", "numpy"], env)
         stages = _fresh(STAGES, *args, Path(cache) / "third.csv", env={**os.environ, **env})
     print(
         "\n## 2. the Panda: `appell simulate panda.urdf --t-end 1 --out FILE.csv`, fresh processes, one cache folder\n"
@@ -158,6 +170,7 @@ def simulate_twice(path: Path) -> None:
                     f"{tree[0]:.2f} s",
                     f"{tree[1]:.2f} s",
                 ],
+                ["`--backend numpy`, empty cache (derive, lambdify)", f"{numpy[0]:.2f} s", f"{numpy[1]:.2f} s"],
             ],
         )
     )
