@@ -331,21 +331,33 @@ def _same_csv(tree_rows, derived_rows):
     assert np.all(np.abs(a - b) <= 1e-9 * scale), np.max(np.abs(a - b) / scale)
 
 
-@pytest.mark.parametrize("robot", ["arm", pytest.param("panda", marks=needs_robots)])
+@pytest.mark.parametrize("robot", ["arm", "floating-planar", pytest.param("panda", marks=needs_robots)])
 def test_the_command_lines_tree_backend_equals_the_derived_route(tmp_path, robot):
     """``appell simulate ROBOT.urdf --backend tree`` (read in floating point, integrated by
     SciPy's DOP853, the joint wrenches by the inward pass) writes the columns the derived route
     writes (C where a compiler is found, else NumPy; DOP853 both), the Panda's mimic finger's
-    multiplier and residual too, with the same numbers to 1e-9 over 0.02 s from rest."""
-    path = ARM if robot == "arm" else ROBOTS / FIXED["panda"]
-    result, tree = _simulate(tmp_path, path, "tree")
+    and the floating joint's unit row's multiplier and residual too, with the same numbers to
+    1e-9 over 0.02 s (the arm from the --set state of docs/tutorial_urdf.md, the others from
+    rest, the quaternion at q0 = 1)."""
+    sets: list[str] = []
+    if robot == "arm":
+        path = ARM
+        sets = ["--set", "shoulder=0.4", "--set", "shoulder'=1", "--set", "elbow=0.8", "--set", "g=9.7"]
+    elif robot == "panda":
+        path = ROBOTS / FIXED["panda"]
+    else:
+        path = tmp_path / "fp.urdf"
+        path.write_text(PLANAR_FLOATING)
+    result, tree = _simulate(tmp_path, path, "tree", *sets)
     assert result.exit_code == 0, result.output
     assert "DOP853 (numeric tree route)" in result.output
-    result, derived = _simulate(tmp_path, path, "c" if find_compiler() is not None else "numpy")
+    result, derived = _simulate(tmp_path, path, "c" if find_compiler() is not None else "numpy", *sets)
     assert result.exit_code == 0, result.output
     _same_csv(tree, derived)
     if robot == "panda":
         assert {"lambda_panda_finger_joint2_mimic", "residual_panda_finger_joint2_mimic"} <= set(tree[0])
+    if robot == "floating-planar":
+        assert {"drone_q0", "table_rz", "lambda_drone_unit", "residual_drone_unit"} <= set(tree[0])
 
 
 def test_the_tree_backend_imports_no_sympy(tmp_path):
@@ -370,6 +382,28 @@ def test_auto_without_a_compiler_takes_the_tree_route_with_one_note(tmp_path):
     assert "DOP853 (numeric tree route)" in result.output
     _, tree = _simulate(tmp_path, ARM, "tree")
     assert auto == tree
+
+
+def test_auto_leaves_to_the_derived_route_what_the_tree_route_does_not_read(tmp_path, monkeypatch):
+    """Without a compiler, ``auto`` derives (returns no tree route, prints no note) where
+    ``--set`` gives an expression or a name the derived route reads; ``--backend tree``
+    refuses them with the reason."""
+    from appell.io.cli_tree import tree_model
+
+    monkeypatch.setenv("APPELL_CC", str(tmp_path / "no-such-cc"))
+    notes: list[str] = []
+    echo = lambda text, err=False: notes.append(text)  # noqa: E731
+    assert tree_model(str(ARM), "auto", overrides={"shoulder": "pi/8"}, echo=echo) is None
+    assert tree_model(str(ARM), "auto", overrides={"nothing": "1"}, echo=echo) is None
+    assert tree_model(str(ARM), "auto", overrides={"shoulder'": "0.5"}, echo=echo) is not None
+    assert len(notes) == 1 and "numeric tree route" in notes[0]
+    route = tree_model(str(ARM), "tree", echo=echo)
+    from appell.io.cli_tree import _start
+
+    with pytest.raises(ModelError, match="not a number"):
+        _start(route, {"shoulder": "pi/8"})
+    with pytest.raises(ModelError, match="not a parameter or a state"):
+        _start(route, {"nothing": "1"})
 
 
 def test_the_tree_backend_refuses_what_it_cannot_take(tmp_path):

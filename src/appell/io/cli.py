@@ -279,11 +279,10 @@ def simulate_command(model, t_end, out, plot, backend, assignments, floating_bas
             output_file(target, "'--out/--plot'")
     from appell.io import cli_tree
 
-    route = cli_tree.tree_model(model, backend, floating_base, click.get_current_context().meta, click.echo)
+    overrides = parse_assignments(assignments)
+    route = cli_tree.tree_model(model, backend, floating_base, click.get_current_context().meta, click.echo, overrides)
     if route is not None:  # a URDF tree on the numeric tree route: neither derived nor compiled
-        return cli_tree.run_tree_command(
-            route, t_end, _solver(solver), parse_assignments(assignments), out_path, plot, click.echo
-        )
+        return cli_tree.run_tree_command(route, t_end, _solver(solver), overrides, out_path, plot, click.echo)
     derivation = _derivation(model, assignments, floating_base)
     try:
         solution = run_simulation(derivation, t_end, backend, _solver(solver), **workflows.completion(complete, adjust))
