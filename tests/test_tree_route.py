@@ -95,7 +95,11 @@ def test_accelerations_and_joint_wrenches_equal_pinocchio(robot):
             np.testing.assert_allclose(R.T @ M, data.f[jid].angular, rtol=1e-9, atol=1e-9, err_msg=joint)
 
 
-def _against_the_derived_route(path, backend):
+def _against_the_derived_route(path, backend, state=None):
+    """The route of ``path`` against the derived system's (``backend``) at three states
+    (``state(route, seed) -> (q, w)``, :func:`_state` by default), to 1e-12 of the largest value;
+    the route (its constraints' rows zero at those states)."""
+    state = state or _state
     route = _route(path)
     assert isinstance(route, NumericTreeRoute)  # read without SymPy
     with warnings.catch_warnings():
@@ -103,8 +107,9 @@ def _against_the_derived_route(path, backend):
         derivation = appell.derive_file(path)  # the derivation cache: shared by the suite's processes
     model = appell.numeric_model(derivation, backend)
     assert model.coordinate_names == route.coordinate_names
+    assert model.constraint_names == route.constraint_names
     for seed in range(3):
-        q, w = _state(route, seed)
+        q, w = state(route, seed)
         a, out = route.forward(0.0, q, w)
         sol = model.solve(0.0, q, w)
         expected = model.outputs(0.0, q, w, solution=sol)
@@ -115,6 +120,8 @@ def _against_the_derived_route(path, backend):
         assert set(names) == set(out), set(names) ^ set(out)
         scale = max(1.0, max(abs(expected[k]) for k in names))
         np.testing.assert_allclose([out[k] for k in names], [expected[k] for k in names], rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(np.concatenate(route.state_residuals(0.0, np.concatenate([q, w]))), 0.0, atol=1e-15)
+    return route
 
 
 @pytest.mark.skipif(find_compiler() is None, reason="no C compiler")
@@ -257,7 +264,9 @@ PLANAR_FLOATING = """\
 """
 
 
-def _on_the_unit_rows(route, q, w):
+def _on_the_unit_rows(route, seed):
+    rng = np.random.default_rng(seed)
+    q, w = rng.uniform(-1, 1, route.n), rng.uniform(-2, 2, route.n)
     for _, k in route._quaternions:  # a unit quaternion and a rate normal to it: a state of the motion
         q[k : k + 4] /= np.linalg.norm(q[k : k + 4])
         w[k : k + 4] -= (w[k : k + 4] @ q[k : k + 4]) * q[k : k + 4]
@@ -279,29 +288,9 @@ def test_planar_and_floating_joints_equal_the_derived_route(tmp_path, floating):
         text = text.replace('type="floating"', 'type="fixed"')
     path = tmp_path / ("fp.urdf" if floating else "p.urdf")
     path.write_text(text)
-    route = _route(path)
-    assert isinstance(route, NumericTreeRoute)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", AppellNote)
-        model = appell.numeric_model(appell.derive_file(path), "numpy")
-    assert route.coordinate_names == model.coordinate_names
-    assert route.constraint_names == model.constraint_names == (("drone_unit",) if floating else ())
+    route = _against_the_derived_route(path, "numpy", _on_the_unit_rows)
+    assert route.constraint_names == (("drone_unit",) if floating else ())
     assert bool(route._quaternions) == floating
-    rng = np.random.default_rng(3)
-    for _ in range(3):
-        q, w = _on_the_unit_rows(route, rng.uniform(-1, 1, route.n), rng.uniform(-2, 2, route.n))
-        a, out = route.forward(0.0, q, w)
-        sol = model.solve(0.0, q, w)
-        expected = model.outputs(0.0, q, w, solution=sol)
-        expected.update((f"lambda_{n}", v) for n, v in zip(model.constraint_names, sol.multipliers))
-        scale = max(1.0, np.max(np.abs(sol.accelerations)))
-        np.testing.assert_allclose(a, sol.accelerations, rtol=0, atol=1e-12 * scale)
-        names = [k for k in expected if k.startswith(("F_", "M_", "lambda_"))]
-        assert set(names) == set(out), set(names) ^ set(out)
-        scale = max(1.0, max(abs(expected[k]) for k in names))
-        np.testing.assert_allclose([out[k] for k in names], [expected[k] for k in names], rtol=0, atol=1e-12 * scale)
-        F, phi = route.state_residuals(0.0, np.concatenate([q, w]))
-        np.testing.assert_allclose(np.concatenate([F, phi]), 0.0, atol=1e-15)
 
 
 # ---------------------------------------------------------------- appell simulate --backend tree (appell.io.cli_tree)

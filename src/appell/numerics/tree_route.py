@@ -158,20 +158,30 @@ class TreeRoute:
         h = rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
         rhs = -h if tau is None else np.asarray(tau, float).reshape(self.n) - h
         J, c = self._constraint
-        s = len(c)
-        K = np.block([[M, -J.T], [J, np.zeros((s, s))]]) if s else M
-        try:
-            x = np.linalg.solve(K, np.concatenate([rhs, -c]))
-        except np.linalg.LinAlgError:
-            raise ModelError(
-                f"{self.name}: the mass matrix (or the constraints) are singular at this state",
-                hint="a body without mass or inertia on a joint, or dependent constraints",
-            ) from None
-        a, lam = x[: self.n], x[self.n :]
+        a, lam = _augmented_solve(
+            M,
+            J,
+            rhs,
+            c,
+            f"{self.name}: the mass matrix (or the constraints) are singular at this state",
+            "a body without mass or inertia on a joint, or dependent constraints",
+        )
         W, _ = wrenches(arrays, self.parent, self.node_of, w[None], a[None], gravity[None], points[None])
         out = dict(zip(self.output_names, W[0].reshape(-1).tolist()))
         out.update((f"lambda_{name}", float(v)) for name, v in zip(self.constraint_names, lam))
         return a, out
+
+
+def _augmented_solve(M, J, rhs, c, message: str, hint: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(a, lambda)`` of ``M a - J^T lambda = rhs``, ``J a = -c`` (method.md §2's augmented
+    system; ``M a = rhs`` without rows); a singular system is a :class:`ModelError`."""
+    s, n = len(c), len(rhs)
+    K = np.block([[M, -J.T], [J, np.zeros((s, s))]]) if s else M
+    try:
+        x = np.linalg.solve(K, np.concatenate([rhs, -c]))
+    except np.linalg.LinAlgError:
+        raise ModelError(message, hint=hint) from None
+    return x[:n], x[n:]
 
 
 def _quaternion_rotation(q) -> np.ndarray:
@@ -376,15 +386,14 @@ class NumericTreeRoute:
         M = crba(arrays, self.parent, self.node_of)
         h = rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
         J, c = self._rows(q, w)
-        s = len(c)
-        try:
-            x = np.linalg.solve(np.block([[M, -J.T], [J, np.zeros((s, s))]]), np.concatenate([tau - h, -c]))
-        except np.linalg.LinAlgError:
-            raise ModelError(
-                f"{self.name}: the mass matrix and the constraints are singular at this state",
-                hint="a quaternion of norm zero, a body without mass, or dependent mimic rows",
-            ) from None
-        a, lam = x[: self.n], x[self.n :]
+        a, lam = _augmented_solve(
+            M,
+            J,
+            tau - h,
+            c,
+            f"{self.name}: the mass matrix and the constraints are singular at this state",
+            "a quaternion of norm zero, a body without mass, or dependent mimic rows",
+        )
         lam[: len(self._quaternions)] = self._unit_multipliers(arrays, q, gravity)
         return a, lam
 
