@@ -386,6 +386,10 @@ def test_auto_leaves_to_the_derived_route_what_the_tree_route_does_not_read(tmp_
     assert tree_model(str(ARM), "auto", overrides={"nothing": "1"}, echo=echo) is None
     assert tree_model(str(ARM), "auto", overrides={"shoulder'": "0.5"}, echo=echo) is not None
     assert len(notes) == 1 and "numeric tree route" in notes[0]
+    robot = tmp_path / "fp.urdf"
+    robot.write_text(PLANAR_FLOATING)  # constrained (the unit quaternion): --complete is the simulator's
+    assert tree_model(str(robot), "auto", echo=echo, completing=True) is None
+    assert tree_model(str(ARM), "auto", echo=echo, completing=True) is not None
     route = tree_model(str(ARM), "tree", echo=echo)
     from appell.io.cli_tree import _start
 

@@ -32,12 +32,16 @@ __all__ = ["simulate_tree", "tree_model"]
 _INSTEAD = "use --backend auto (or c, numpy): the model is derived and runs on the full simulator"
 
 
-def tree_model(model: str, backend: str, floating_base: bool = False, meta=None, echo=print, overrides=None):
+def tree_model(
+    model: str, backend: str, floating_base: bool = False, meta=None, echo=print, overrides=None, completing=False
+):
     """The :class:`~appell.numerics.tree_route.NumericTreeRoute` that ``appell simulate MODEL``
     runs with ``backend``: for ``tree`` the route or a :class:`ModelError` saying why not; for
     ``auto`` the route where MODEL is a URDF robot the route takes and no C compiler is found
-    (with one ``note:`` line on ``echo`` saying so) and ``overrides`` (``--set``) are numbers of
-    its parameter and states, else None; None for the other backends."""
+    (with one ``note:`` line on ``echo`` saying so), ``overrides`` (``--set``) are numbers of
+    its parameter and states and, with constraints (mimic or floating joints), no completion of
+    the initial values is asked (``completing``: ``--complete``, ``--adjust``), else None; None
+    for the other backends."""
     from appell.workflows.load import _notes_as_lines, resolve_model
 
     if backend not in ("tree", "auto"):
@@ -75,6 +79,8 @@ def tree_model(model: str, backend: str, floating_base: bool = False, meta=None,
         try:
             _start(route, overrides or {})
         except ModelError:  # an expression or a name the derived route reads (or refuses)
+            return None
+        if completing and route.constraint_names:  # the simulator completes the initial values
             return None
         echo(
             f"note: no C compiler found: {path.name} runs on the numeric tree route (articulated-body "
