@@ -40,10 +40,12 @@ Last run (2026-11-29 06:17 UTC; Intel Xeon, 2 cores, 24 GiB, Python 3.11.7, SymP
   import by the simulation modules is 0.99 s, SymPy's 0.35 s, reading the derivation 0.22 s, the
   C model 0.17 s, simulating 0.16 s, writing the CSV 0.19 s. Before this round's changes: 2.85 s
   CPU, 0.37x (the inertia check built the NumPy model again at every run).
-* table 2, `--backend tree` (2026-11-29 08:45 UTC, the same machine, load average about 4): the
-  Panda's `appell simulate panda.urdf --t-end 1` in a fresh process 10.6-11.1 s wall / 7.0-7.3 s
+* table 2, `--backend tree` (2026-11-29 08:45-09:00 UTC, the same machine, load average 2-4): the
+  Panda's `appell simulate panda.urdf --t-end 1` in a fresh process 5.6-5.9 s wall / 5.7-5.8 s
   CPU (158 steps, 2960 evaluations of the articulated-body algorithm with the mimic finger's row,
-  about 2 ms each in NumPy; 0.02 s of motion: 2.2 s CPU), against 25.6 s wall / 20.5 s CPU with
+  about 1.6 ms each in NumPy; 7.0-7.3 s CPU before the row's column reused the articulated
+  inertias; 0.02 s of motion: 2.2 s CPU, of which 0.8 s SciPy's integrators' import), against
+  25.6 s wall / 20.5 s CPU with
   `--backend numpy` from an empty cache, which `auto` ran without a compiler before; the derived
   route with a compiler: first run 10.6 s wall / 7.26 s CPU, the second (warm cache) 3.06 s /
   2.07 s (0.28x), of which the import of the simulation's SciPy is 0.76 s (SciPy's integrators

@@ -49,7 +49,7 @@ from appell.numerics.rigid_tree import (
     wrenches,
 )
 
-__all__ = ["NumericTreeRoute", "TreeRoute", "aba", "tree_route"]
+__all__ = ["NumericTreeRoute", "TreeRoute", "aba", "aba_at_rest", "tree_route"]
 
 
 class TreeRoute:
@@ -214,7 +214,7 @@ def _crm(v) -> np.ndarray:
     return out
 
 
-def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
+def aba(X, inertia, parent, speed, S, w, tau, base, keep: dict | None = None) -> np.ndarray:
     """The accelerations ``a`` of ``M a + h = tau`` by the articulated-body algorithm
     (Featherstone 2008, table 7.1), body axes, spatial vectors ``[omega; v]``: ``X`` (nb, 6, 6)
     each node's transform from its parent, ``inertia`` (nb, 6, 6) the bodies' spatial inertias
@@ -223,8 +223,9 @@ def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
     (``-g``: gravity). Outward ``v_i = X_i v_p + S_i w_i``, ``c_i = v_i x S_i w_i``,
     ``p_i = v_i x* I_i v_i``; inward ``U = I^A S``, ``D = S^T U``, ``u = tau - S^T p^A``,
     ``I^A_p += X^T (I^A - U U^T / D) X``, ``p^A_p += X^T (p^A + I^a c + U u / D)``; outward
-    ``a_i = X_i a_p + c_i``, ``qdd = (u - U^T a_i) / D``, ``a_i += S qdd``."""
-    nb, n = len(parent), len(S)
+    ``a_i = X_i a_p + c_i``, ``qdd = (u - U^T a_i) / D``, ``a_i += S qdd``. ``keep`` (a dict)
+    receives ``U`` and ``D``, which depend on the configuration only (:func:`aba_at_rest`)."""
+    nb = len(parent)
     v, c, pA = np.zeros((nb, 6)), np.zeros((nb, 6)), np.zeros((nb, 6))
     IA = np.array(inertia, float)
     for i in range(nb):
@@ -254,7 +255,16 @@ def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
         if parent[i] >= 0:
             IA[parent[i]] += X[i].T @ Ia @ X[i]
             pA[parent[i]] += X[i].T @ pa
-    acc, qdd = np.zeros((nb, 6)), np.zeros(n)
+    if keep is not None:
+        keep.update(U=U, D=D)
+    return _outward(X, parent, speed, S, U, D, u, c, base)
+
+
+def _outward(X, parent, speed, S, U, D, u, c, base) -> np.ndarray:
+    """The articulated-body algorithm's last pass (:func:`aba`): ``a_i = X_i a_p + c_i``,
+    ``qdd = (u - U^T a_i) / D``, ``a_i += S qdd``."""
+    nb = len(parent)
+    acc, qdd = np.zeros((nb, 6)), np.zeros(len(S))
     for i in range(nb):
         acc[i] = X[i] @ (acc[parent[i]] if parent[i] >= 0 else base) + c[i]
         k = speed[i]
@@ -264,12 +274,30 @@ def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
     return qdd
 
 
+def aba_at_rest(X, parent, speed, S, U, D, tau) -> np.ndarray:
+    """:func:`aba` at zero speeds without gravity, ``M^-1 tau``, on the articulated inertias of
+    a call of :func:`aba` at the same configuration (its ``keep``: ``U``, ``D``): the inward pass
+    of the bias forces alone (``p^A_p += X^T (p^A + U u / D)``, ``u = tau - S^T p^A``) and the
+    outward pass."""
+    nb = len(parent)
+    pA, u = np.zeros((nb, 6)), np.zeros(nb)
+    for i in reversed(range(nb)):
+        k = speed[i]
+        pa = pA[i]
+        if k >= 0:
+            u[i] = tau[k] - S[k] @ pA[i]
+            pa = pa + U[i] * (u[i] / D[i])
+        if parent[i] >= 0:
+            pA[parent[i]] += X[i].T @ pa
+    return _outward(X, parent, speed, S, U, D, u, np.zeros((nb, 6)), np.zeros(6))
+
+
 class NumericTreeRoute:
     """The numeric route of a URDF's joint tree read in floating point
     (:func:`appell.mechanism.urdf_tree.urdf_tree`), without SymPy: the accelerations by the
     articulated-body algorithm (:func:`aba`; with mimic rows ``J a = 0``, ``lambda`` from
-    ``(J M^-1 J^T) lambda = -J a_0``, the columns of ``M^-1 J^T`` by :func:`aba` at rest without
-    gravity), every joint's reaction by the inward pass (:func:`appell.numerics.rigid_tree.wrenches`).
+    ``(J M^-1 J^T) lambda = -J a_0``, the columns of ``M^-1 J^T`` by :func:`aba_at_rest` on the
+    same articulated inertias), every joint's reaction by the inward pass (:func:`appell.numerics.rigid_tree.wrenches`).
     The same attributes and calls as :class:`TreeRoute`; the one parameter is ``g``. It is also
     a model the simulator integrates (:class:`~appell.numerics.dynamics.Dynamics`):
     ``appell.simulate(tree_route("panda.urdf"), options=...)`` runs without deriving (the
@@ -352,9 +380,9 @@ class NumericTreeRoute:
         arrays = TreeArrays(R.ravel(), r.ravel(), S.ravel(), np.zeros(6 * nb), self._inert.ravel())
         return arrays, q, w, np.array([0.0, 0.0, -p[0]])
 
-    def _aba(self, arrays, w, tau, base):
+    def _aba(self, arrays, w, tau, base, keep=None):
         X = [_transform(arrays.R[0, b], arrays.r[0, b]) for b in range(len(self._nodes))]
-        return X, aba(X, self._spatial, self.parent, self.speed, self.S, w, tau, base)
+        return X, aba(X, self._spatial, self.parent, self.speed, self.S, w, tau, base, keep)
 
     def blocks(self, time, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
         """``(M, h)`` (CRBA and RNEA, :mod:`appell.numerics.rigid_tree`), gravity in ``h``."""
@@ -428,14 +456,12 @@ class NumericTreeRoute:
         if self._quaternions:
             a, lam = self._dense(arrays, q, w, tau, gravity)
             return arrays, w, gravity, a, lam
-        X, a = self._aba(arrays, w, tau, np.concatenate([np.zeros(3), -gravity]))
+        keep: dict = {}
+        X, a = self._aba(arrays, w, tau, np.concatenate([np.zeros(3), -gravity]), keep)
         lam = np.zeros(len(self._J))
         if len(self._J):
             MJ = np.array(
-                [
-                    aba(X, self._spatial, self.parent, self.speed, self.S, np.zeros(self.n), row, np.zeros(6))
-                    for row in self._J
-                ]
+                [aba_at_rest(X, self.parent, self.speed, self.S, keep["U"], keep["D"], row) for row in self._J]
             ).T
             try:
                 lam = np.linalg.solve(self._J @ MJ, -self._J @ a)
