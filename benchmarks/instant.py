@@ -44,7 +44,9 @@ Last run (2026-11-29 06:17 UTC; Intel Xeon, 2 cores, 24 GiB, Python 3.11.7, SymP
   Panda's `appell simulate panda.urdf --t-end 1` in a fresh process 5.6-5.9 s wall / 5.7-5.8 s
   CPU (158 steps, 2960 evaluations of the articulated-body algorithm with the mimic finger's row,
   about 1.6 ms each in NumPy; 7.0-7.3 s CPU before the row's column reused the articulated
-  inertias; 0.02 s of motion: 2.2 s CPU, of which 0.8 s SciPy's integrators' import), against
+  inertias; `--t-end 0.02`: 1.4-2.0 s wall / 1.4-1.9 s CPU at load 1.3, of which about 0.8 s is
+  the import of SciPy's integrators; the warm compiled `--t-end 1` at that load 1.7-2.2 s wall /
+  1.7-2.1 s CPU), against
   25.6 s wall / 20.5 s CPU with
   `--backend numpy` from an empty cache, which `auto` ran without a compiler before; the derived
   route with a compiler: first run 10.6 s wall / 7.26 s CPU, the second (warm cache) 3.06 s /
