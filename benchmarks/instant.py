@@ -14,8 +14,11 @@ Tables (machine, load and date printed first; ratios within one run):
    warm run's CPU time stage by stage in one more fresh process (imports of SymPy, of the
    simulation modules with SciPy, of the rest; reading the derivation cache; the numeric
    model; the simulation with its outputs; writing the CSV). Target: second <= 0.35x first and
-   <= 3 s. Then the same for the API's ``derive_file`` + ``numeric_model`` + one solve with
-   every joint wrench.
+   <= 3 s. The same command with ``--backend tree`` (:mod:`appell.io.cli_tree`: the file read in
+   floating point, SciPy's DOP853 over the articulated-body algorithm, the joint wrenches by the
+   inward pass at the output times; no SymPy, no compiler) in one more fresh process, and with
+   ``--backend numpy`` from an empty cache (what ``auto`` ran without a compiler before). Then the
+   same for the API's ``derive_file`` + ``numeric_model`` + one solve with every joint wrench.
 3. ``import appell`` against ``import sympy`` in fresh processes, median of ``--runs``
    (wall time). Target: <= 1.2x.
 4. A URDF's first accelerations and joint wrenches through the numeric tree route
@@ -37,6 +40,18 @@ Last run (2026-11-29 06:17 UTC; Intel Xeon, 2 cores, 24 GiB, Python 3.11.7, SymP
   import by the simulation modules is 0.99 s, SymPy's 0.35 s, reading the derivation 0.22 s, the
   C model 0.17 s, simulating 0.16 s, writing the CSV 0.19 s. Before this round's changes: 2.85 s
   CPU, 0.37x (the inertia check built the NumPy model again at every run).
+* table 2, `--backend tree` (2026-11-29 08:45-09:00 UTC, the same machine, load average 2-4): the
+  Panda's `appell simulate panda.urdf --t-end 1` in a fresh process 5.6-5.9 s wall / 5.7-5.8 s
+  CPU (158 steps, 2960 evaluations of the articulated-body algorithm with the mimic finger's row,
+  about 1.6 ms each in NumPy; 7.0-7.3 s CPU before the row's column reused the articulated
+  inertias; `--t-end 0.02`: 1.4-2.0 s wall / 1.4-1.9 s CPU at load 1.3, of which about 0.8 s is
+  the import of SciPy's integrators; the warm compiled `--t-end 1` at that load 1.7-2.2 s wall /
+  1.7-2.1 s CPU), against
+  25.6 s wall / 20.5 s CPU with
+  `--backend numpy` from an empty cache, which `auto` ran without a compiler before; the derived
+  route with a compiler: first run 10.6 s wall / 7.26 s CPU, the second (warm cache) 3.06 s /
+  2.07 s (0.28x), of which the import of the simulation's SciPy is 0.76 s (SciPy's integrators
+  are no longer imported by a compiled run) and SymPy's 0.44 s.
 * table 4: the numeric tree route's first numbers from a fresh interpreter, the Panda 0.67 s wall
   / 0.17 s CPU, Talos on its floating base (38 speeds) 1.03 s / 0.26 s, SymPy never imported
   (targets <= 1 s and <= 3 s; before: 7.9 s, the URDF read through a SymPy mechanism).
@@ -139,6 +154,10 @@ def simulate_twice(path: Path) -> None:
         env = {"APPELL_CACHE_DIR": cache, "APPELL_NO_CACHE": ""}
         first = _command(["simulate", *args, Path(cache) / "first.csv"], env)
         second = _command(["simulate", *args, Path(cache) / "second.csv"], env)
+        tree = _command(["simulate", *args, Path(cache) / "tree.csv", "--backend", "tree"], env)
+    with tempfile.TemporaryDirectory() as cache:  # what auto did without a compiler before: derive, NumPy
+        env = {"APPELL_CACHE_DIR": cache, "APPELL_NO_CACHE": ""}
+        numpy = _command(["simulate", *args, Path(cache) / "numpy.csv", "--backend", "numpy"], env)
         stages = _fresh(STAGES, *args, Path(cache) / "third.csv", env={**os.environ, **env})
     print(
         "\n## 2. the Panda: `appell simulate panda.urdf --t-end 1 --out FILE.csv`, fresh processes, one cache folder\n"
@@ -150,6 +169,12 @@ def simulate_twice(path: Path) -> None:
                 ["first (empty cache: derive, compile)", f"{first[0]:.2f} s", f"{first[1]:.2f} s"],
                 ["second (warm cache)", f"{second[0]:.2f} s", f"{second[1]:.2f} s"],
                 ["ratio", f"{second[0] / first[0]:.2f}x", f"{second[1] / first[1]:.2f}x"],
+                [
+                    "`--backend tree` (numeric tree route: not derived, not compiled)",
+                    f"{tree[0]:.2f} s",
+                    f"{tree[1]:.2f} s",
+                ],
+                ["`--backend numpy`, empty cache (derive, lambdify)", f"{numpy[0]:.2f} s", f"{numpy[1]:.2f} s"],
             ],
         )
     )

@@ -96,3 +96,21 @@ def test_the_command_lines_numpy_backend_stays_numpy():
         "print(boundary._kept(d, 'c') is None and boundary._kept(d, 'numpy') is not None)"
     )
     assert _run(code) == "True"
+
+
+@pytest.mark.skipif(find_compiler() is None, reason="no C compiler: the run integrates in Python")
+def test_a_compiled_run_imports_no_scipy_integrate():
+    """``appell simulate`` of a compiled model runs the compiled loop: SciPy's integrators are
+    imported only by a run that integrates in Python (``--method DOP853-scipy`` here, which
+    shows that the check sees the import)."""
+    code = (
+        "import sys\nfrom appell.io.cli import main\n"
+        "sys.argv = ['appell', 'simulate', 'pendulum', '--t-end', '0.2', *sys.argv[1:]]\n"
+        "try:\n    main()\nexcept SystemExit as exc:\n    print(exc.code, 'scipy.integrate' in sys.modules)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "APPELL_BACKEND"}
+    seen = []
+    for extra in ([], ["--method", "DOP853-scipy"]):
+        done = subprocess.run([sys.executable, "-c", code, *extra], capture_output=True, text=True, env=env)
+        seen.append(done.stdout.strip().splitlines()[-1])
+    assert seen == ["0 False", "0 True"], seen

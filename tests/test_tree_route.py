@@ -95,7 +95,11 @@ def test_accelerations_and_joint_wrenches_equal_pinocchio(robot):
             np.testing.assert_allclose(R.T @ M, data.f[jid].angular, rtol=1e-9, atol=1e-9, err_msg=joint)
 
 
-def _against_the_derived_route(path, backend):
+def _against_the_derived_route(path, backend, state=None):
+    """The route of ``path`` against the derived system's (``backend``) at three states
+    (``state(route, seed) -> (q, w)``, :func:`_state` by default), to 1e-12 of the largest value;
+    the route (its constraints' rows zero at those states)."""
+    state = state or _state
     route = _route(path)
     assert isinstance(route, NumericTreeRoute)  # read without SymPy
     with warnings.catch_warnings():
@@ -103,8 +107,9 @@ def _against_the_derived_route(path, backend):
         derivation = appell.derive_file(path)  # the derivation cache: shared by the suite's processes
     model = appell.numeric_model(derivation, backend)
     assert model.coordinate_names == route.coordinate_names
+    assert model.constraint_names == route.constraint_names
     for seed in range(3):
-        q, w = _state(route, seed)
+        q, w = state(route, seed)
         a, out = route.forward(0.0, q, w)
         sol = model.solve(0.0, q, w)
         expected = model.outputs(0.0, q, w, solution=sol)
@@ -115,6 +120,8 @@ def _against_the_derived_route(path, backend):
         assert set(names) == set(out), set(names) ^ set(out)
         scale = max(1.0, max(abs(expected[k]) for k in names))
         np.testing.assert_allclose([out[k] for k in names], [expected[k] for k in names], rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(np.concatenate(route.state_residuals(0.0, np.concatenate([q, w]))), 0.0, atol=1e-15)
+    return route
 
 
 @pytest.mark.skipif(find_compiler() is None, reason="no C compiler")
@@ -220,3 +227,192 @@ def test_a_simulation_of_the_numeric_route_equals_the_compiled_one():
     assert [run.status for run in runs] == [0, 0]
     for name in route.state_names:
         np.testing.assert_allclose(runs[0].states[name], runs[1].states[name], rtol=0, atol=1e-8, err_msg=name)
+
+
+# ---------------------------------------------------------------- planar and floating joints in the file
+#: a floating joint (a quaternion free joint, as urdf_mechanism reads it) carrying a body, a
+#: planar joint on it (offset and tilted frames, products of inertia), a hinge on the puck
+PLANAR_FLOATING = """\
+<robot name="fp">
+  <link name="world"/>
+  <joint name="drone" type="floating">
+    <parent link="world"/><child link="body"/>
+    <origin xyz="0.1 -0.2 0.3" rpy="0.2 -0.1 0.4"/>
+  </joint>
+  <link name="body">
+    <inertial><origin xyz="0.02 0.01 -0.03" rpy="0.1 0.2 0.3"/><mass value="2.0"/>
+      <inertia ixx="0.05" ixy="0.002" ixz="-0.001" iyy="0.04" iyz="0.003" izz="0.06"/></inertial>
+  </link>
+  <joint name="table" type="planar">
+    <parent link="body"/><child link="puck"/>
+    <origin xyz="0.3 0.1 -0.2" rpy="-0.3 0.5 0.2"/><axis xyz="0 0 1"/>
+  </joint>
+  <link name="puck">
+    <inertial><origin xyz="0.05 -0.02 0.01" rpy="0.3 0 -0.2"/><mass value="0.7"/>
+      <inertia ixx="0.003" ixy="0.0001" ixz="0" iyy="0.004" iyz="-0.0002" izz="0.005"/></inertial>
+  </link>
+  <joint name="hinge" type="revolute">
+    <parent link="puck"/><child link="arm"/>
+    <origin xyz="0.1 0 0.05" rpy="0 0.3 0"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/>
+  </joint>
+  <link name="arm">
+    <inertial><origin xyz="0 0 0.1"/><mass value="0.4"/>
+      <inertia ixx="0.002" ixy="0" ixz="0" iyy="0.002" iyz="0" izz="0.0005"/></inertial>
+  </link>
+</robot>
+"""
+
+
+def _on_the_unit_rows(route, seed):
+    rng = np.random.default_rng(seed)
+    q, w = rng.uniform(-1, 1, route.n), rng.uniform(-2, 2, route.n)
+    for _, k in route._quaternions:  # a unit quaternion and a rate normal to it: a state of the motion
+        q[k : k + 4] /= np.linalg.norm(q[k : k + 4])
+        w[k : k + 4] -= (w[k : k + 4] @ q[k : k + 4]) * q[k : k + 4]
+    return q, w
+
+
+@pytest.mark.parametrize("floating", [True, False], ids=["floating-planar-hinge", "planar-hinge"])
+def test_planar_and_floating_joints_equal_the_derived_route(tmp_path, floating):
+    """A URDF's ``planar`` joint (two sliders and a hinge in the joint frame's x-y plane,
+    ``<joint>_x, _y, _rz``) and ``floating`` joint (three sliders and a quaternion node,
+    ``<joint>_x .. _z, _q0 .. _q3``, with the unit row ``<joint>_unit``) read in floating point,
+    without SymPy: the same coordinates, accelerations, joint reactions and multiplier as the
+    route of the derived system (``derive_file``, SymPy's ``urdf_mechanism`` with its free and
+    planar joints; NumPy backend) at random states on the unit rows, to 1e-12 of the largest
+    value. Without the floating joint the articulated-body algorithm runs (one speed per node);
+    with it the augmented dense solve (the quaternion's ``M`` is singular along ``q``)."""
+    text = PLANAR_FLOATING
+    if not floating:  # the planar joint straight on the world
+        text = text.replace('type="floating"', 'type="fixed"')
+    path = tmp_path / ("fp.urdf" if floating else "p.urdf")
+    path.write_text(text)
+    route = _against_the_derived_route(path, "numpy", _on_the_unit_rows)
+    assert route.constraint_names == (("drone_unit",) if floating else ())
+    assert bool(route._quaternions) == floating
+
+
+# ---------------------------------------------------------------- appell simulate --backend tree (appell.io.cli_tree)
+def _simulate(tmp_path, path, backend, *extra, env=None):
+    """``appell simulate PATH --t-end 0.02 --backend BACKEND`` in-process: (result, CSV rows)."""
+    from click.testing import CliRunner
+
+    from appell.io.cli import cli
+
+    out = tmp_path / f"{Path(path).stem}-{backend}.csv"
+    args = ["simulate", str(path), "--t-end", "0.02", "--backend", backend, "--out", str(out), *extra]
+    result = CliRunner().invoke(cli, args, env=env, catch_exceptions=False)
+    if result.exit_code != 0:
+        return result, None
+    with open(out) as fh:
+        return result, [line.rstrip("\n").split(",") for line in fh]
+
+
+def _same_csv(tree_rows, derived_rows):
+    """The same header (coordinates, speeds, accelerations, multipliers, joint forces and
+    moments, residuals: the derived route's names) and the same numbers to 1e-9 of each
+    column's largest value."""
+    assert tree_rows[0] == derived_rows[0]
+    a, b = np.array(tree_rows[1:], float), np.array(derived_rows[1:], float)
+    assert a.shape == b.shape
+    scale = np.maximum(1.0, np.max(np.abs(b), axis=0))
+    assert np.all(np.abs(a - b) <= 1e-9 * scale), np.max(np.abs(a - b) / scale)
+
+
+@pytest.mark.parametrize("robot", ["arm", "floating-planar", pytest.param("panda", marks=needs_robots)])
+def test_the_command_lines_tree_backend_equals_the_derived_route(tmp_path, robot):
+    """``appell simulate ROBOT.urdf --backend tree`` (read in floating point, integrated by
+    SciPy's DOP853, the joint wrenches by the inward pass) writes the columns the derived route
+    writes (C where a compiler is found, else NumPy; DOP853 both), the Panda's mimic finger's
+    and the floating joint's unit row's multiplier and residual too, with the same numbers to
+    1e-9 over 0.02 s (the arm from the --set state of docs/tutorial_urdf.md, the others from
+    rest, the quaternion at q0 = 1)."""
+    sets: list[str] = []
+    if robot == "arm":
+        path = ARM
+        sets = ["--set", "shoulder=0.4", "--set", "shoulder'=1", "--set", "elbow=0.8", "--set", "g=9.7"]
+    elif robot == "panda":
+        path = ROBOTS / FIXED["panda"]
+    else:
+        path = tmp_path / "fp.urdf"
+        path.write_text(PLANAR_FLOATING)
+    result, tree = _simulate(tmp_path, path, "tree", *sets)
+    assert result.exit_code == 0, result.output
+    assert "DOP853 (numeric tree route)" in result.output
+    result, derived = _simulate(tmp_path, path, "c" if find_compiler() is not None else "numpy", *sets)
+    assert result.exit_code == 0, result.output
+    _same_csv(tree, derived)
+    if robot == "panda":
+        assert {"lambda_panda_finger_joint2_mimic", "residual_panda_finger_joint2_mimic"} <= set(tree[0])
+    if robot == "floating-planar":
+        assert {"drone_q0", "table_rz", "lambda_drone_unit", "residual_drone_unit"} <= set(tree[0])
+
+
+def test_the_tree_backend_imports_no_sympy(tmp_path):
+    """``appell simulate arm.urdf --backend tree`` in a fresh process: SymPy is never imported."""
+    code = (
+        "import sys\nfrom appell.io.cli import main\n"
+        "sys.argv = ['appell', 'simulate', sys.argv[1], '--t-end', '0.01', '--backend', 'tree']\n"
+        "try:\n    main()\nexcept SystemExit as exc:\n    print('exit', exc.code, 'sympy' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code, str(ARM)], capture_output=True, text=True)
+    assert done.stdout.splitlines()[-1] == "exit 0 False", done.stdout + done.stderr
+
+
+def test_auto_without_a_compiler_takes_the_tree_route_with_one_note(tmp_path):
+    """``--backend auto`` (the default) where no C compiler is found (``$APPELL_CC`` naming no
+    program, as tests/test_fast_default.py does): a URDF tree takes the numeric tree route,
+    saying so once, and writes the columns ``--backend tree`` writes."""
+    no_cc = {"APPELL_CC": str(tmp_path / "no-such-cc")}
+    result, auto = _simulate(tmp_path, ARM, "auto", env=no_cc)
+    assert result.exit_code == 0, result.output
+    assert result.output.count("numeric tree route (articulated-body") == 1
+    assert "DOP853 (numeric tree route)" in result.output
+    _, tree = _simulate(tmp_path, ARM, "tree")
+    assert auto == tree
+
+
+def test_auto_leaves_to_the_derived_route_what_the_tree_route_does_not_read(tmp_path, monkeypatch):
+    """Without a compiler, ``auto`` derives (returns no tree route, prints no note) where
+    ``--set`` gives an expression or a name the derived route reads; ``--backend tree``
+    refuses them with the reason."""
+    from appell.io.cli_tree import tree_model
+
+    monkeypatch.setenv("APPELL_CC", str(tmp_path / "no-such-cc"))
+    notes: list[str] = []
+    echo = lambda text, err=False: notes.append(text)  # noqa: E731
+    assert tree_model(str(ARM), "auto", overrides={"shoulder": "pi/8"}, echo=echo) is None
+    assert tree_model(str(ARM), "auto", overrides={"nothing": "1"}, echo=echo) is None
+    assert tree_model(str(ARM), "auto", overrides={"shoulder'": "0.5"}, echo=echo) is not None
+    assert len(notes) == 1 and "numeric tree route" in notes[0]
+    robot = tmp_path / "fp.urdf"
+    robot.write_text(PLANAR_FLOATING)  # constrained (the unit quaternion): --complete is the simulator's
+    assert tree_model(str(robot), "auto", echo=echo, completing=True) is None
+    assert tree_model(str(ARM), "auto", echo=echo, completing=True) is not None
+    route = tree_model(str(ARM), "tree", echo=echo)
+    from appell.io.cli_tree import _start
+
+    with pytest.raises(ModelError, match="not a number"):
+        _start(route, {"shoulder": "pi/8"})
+    with pytest.raises(ModelError, match="not a parameter or a state"):
+        _start(route, {"nothing": "1"})
+
+
+def test_the_tree_backend_refuses_what_it_cannot_take(tmp_path):
+    """A model file, and a URDF with a joint the floating-point reader does not take, are
+    refused with the reason and what to do (exit 2), no file written."""
+    result, rows = _simulate(tmp_path, "pendulum", "tree")
+    assert result.exit_code == 2 and rows is None
+    assert "--backend tree takes a URDF robot file" in result.output and "--backend auto" in result.output
+    robot = tmp_path / "screwy.urdf"
+    robot.write_text(
+        '<robot name="screwy"><link name="base"/>'
+        '<joint name="j" type="planar"><parent link="base"/><child link="b"/><axis xyz="1 0 0"/></joint>'
+        '<link name="b"><inertial><mass value="1"/>'
+        '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link></robot>'
+    )
+    result, rows = _simulate(tmp_path, robot, "tree")
+    assert result.exit_code == 2 and rows is None
+    assert "the numeric tree route does not take" in result.output and "--backend auto" in result.output
+    assert not list(tmp_path.glob("*.csv"))

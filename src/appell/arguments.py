@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import math
 import numbers
+import sys
 from collections.abc import Mapping
 
 import numpy as np
-import sympy as sp
 
 from appell.errors import ModelError
 
@@ -29,7 +29,8 @@ def number(
     ``finite=False`` (then +inf is allowed, never NaN), and > 0 or >= 0 when asked."""
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value.item()
-    if isinstance(value, sp.Basic) and value.is_number and value.is_real is not False:
+    sp = sys.modules.get("sympy")  # a SymPy value means SymPy is imported (the numeric tree route needs none)
+    if sp is not None and isinstance(value, sp.Basic) and value.is_number and value.is_real is not False:
         try:
             value = float(value)  # a SymPy constant such as pi/3
         except TypeError:

@@ -70,6 +70,7 @@ from appell.io.cli_options import (
     _expand_option,
     _model_argument,
     _model_options,
+    _simulate_backend_option,
     _solver_options,
     parse_assignments,
 )
@@ -250,7 +251,7 @@ def derive_command(model, fmt, dependent, routh, assignments, floating_base, onl
     help="Plot coordinates, reactions, controls and residuals to FILE (e.g. .png, .pdf, .svg).",
 )
 @_solver_options
-@_backend_option
+@_simulate_backend_option
 @_model_options
 @_complete_option
 @_adjust_option
@@ -276,6 +277,13 @@ def simulate_command(model, t_end, out, plot, backend, assignments, floating_bas
     for target in (out_path, Path(plot) if plot else None):
         if target is not None:
             output_file(target, "'--out/--plot'")
+    from appell.io import cli_tree
+
+    overrides = parse_assignments(assignments)
+    meta, completing = click.get_current_context().meta, bool(complete or adjust)
+    route = cli_tree.tree_model(model, backend, floating_base, meta, click.echo, overrides, completing)
+    if route is not None:  # a URDF tree on the numeric tree route: neither derived nor compiled
+        return cli_tree.run_tree_command(route, t_end, _solver(solver), overrides, out_path, plot, click.echo)
     derivation = _derivation(model, assignments, floating_base)
     try:
         solution = run_simulation(derivation, t_end, backend, _solver(solver), **workflows.completion(complete, adjust))

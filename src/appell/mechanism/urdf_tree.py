@@ -14,6 +14,14 @@ names and conventions: a massless link fixed to its parent merged into it, the f
   hinges about z, y', x'' (``R = Rz Ry Rx``: the same motion in the same coordinates, so
   the same ``M`` and ``h``), massless but the last, which carries the base and reports
   the free joint's reaction;
+* a ``planar`` joint (plane normal, the axis, z of the joint frame, as the mechanism reads
+  it) as two sliders along the joint frame's x and y and a hinge about its z: coordinates
+  ``<joint>_x, _y, _rz`` (``R = Rz(rz)``, translation ``(x, y, 0)``), the first two links
+  massless, the hinge's carrying the body and reporting the joint's reaction;
+* a ``floating`` joint as the mechanism's free joint: three massless sliders along the joint
+  frame's axes (``<joint>_x, _y, _z``) and a ``quaternion`` node (``<joint>_q0 .. _q3``, scalar
+  first, ``R(q)`` quadratic in q, body angular velocity ``2 G(q) q'``) with the unit-norm row
+  ``<joint>_unit``: ``(q.q - 1)/2 = 0`` and the initial value ``q0 = 1``;
 * a ``<mimic>`` joint ``a`` of ``b`` as the row ``a - multiplier b - offset = 0`` (on a fixed
   joint: not applied, with a note, as the mechanism does).
 
@@ -21,7 +29,7 @@ The names appell gives a URDF's joints and links (:func:`_appell_name`), the flo
 joint (:data:`ROOT_JOINT`) and the notes of reading a file (:func:`reading_notes`) are here,
 shared with :func:`~appell.mechanism.urdf.urdf_mechanism`.
 
-What this reader does not take (``floating`` or ``planar`` joints in the file, a mimic of a
+What this reader does not take (a ``planar`` joint whose axis is not z, a mimic of a
 multi-coordinate joint, a massless link on a moving joint) raises
 :class:`NotNumeric`: the caller takes the symbolic route, which reads or refuses them.
 """
@@ -147,7 +155,8 @@ class TreeNode:
     ``axis`` (unit, joint frame), ``coordinate`` (None for a fixed joint), the body's
     ``mass``, mass centre ``com`` and ``inertia`` about it (body axes), and ``reaction``:
     the joint whose reaction is this node's inward force (None for the massless links of the
-    floating base's chain)."""
+    floating base's, a planar and a floating joint's chains). A ``quaternion`` node (a floating
+    joint's rotation) has the four coordinates ``<coordinate>_q0 .. _q3`` (:attr:`coordinates`)."""
 
     parent: int
     kind: str
@@ -159,6 +168,15 @@ class TreeNode:
     com: np.ndarray
     inertia: np.ndarray
     reaction: str | None
+
+    @property
+    def coordinates(self) -> tuple[str, ...]:
+        """This node's coordinates: none (fixed), one, or a quaternion's four."""
+        if self.coordinate is None:
+            return ()
+        if self.kind == "quaternion":
+            return tuple(f"{self.coordinate}_q{k}" for k in range(4))
+        return (self.coordinate,)
 
 
 @dataclass(frozen=True)
@@ -173,10 +191,21 @@ class UrdfTree:
 
     @property
     def coordinates(self) -> tuple[str, ...]:
-        return tuple(node.coordinate for node in self.nodes if node.coordinate is not None)
+        return tuple(q for node in self.nodes for q in node.coordinates)
+
+    @property
+    def quaternions(self) -> tuple[str, ...]:
+        """The floating joints (quaternion nodes): each one's unit-norm row ``<joint>_unit``."""
+        return tuple(node.coordinate for node in self.nodes if node.kind == "quaternion")
 
 
 _AXES = np.eye(3)
+#: the nodes of a planar and a floating joint: (kind, axis of the joint frame, coordinate suffix);
+#: the last carries the body (a quaternion node's coordinate is the joint's name: ``_q0 .. _q3``)
+_CHAINS = {
+    "planar": (("prismatic", 0, "x"), ("prismatic", 1, "y"), ("revolute", 2, "_rz")),
+    "floating": (("prismatic", 0, "x"), ("prismatic", 1, "y"), ("prismatic", 2, "z"), ("quaternion", 2, "")),
+}
 
 
 def urdf_tree(robot, floating_base: bool = False) -> UrdfTree:
@@ -191,13 +220,16 @@ def urdf_tree(robot, floating_base: bool = False) -> UrdfTree:
     odd = [
         j.name
         for j in robot.joints
-        if j.type in ("floating", "planar")
+        if j.type == "planar"
+        and any(abs(a - b) > 1e-12 for a, b in zip(j.axis, (0.0, 0.0, 1.0)))
         or j.mimic is not None
         and j.type != "fixed"
         and (j.type not in _ONE_DOF or types.get(j.mimic.joint) not in _ONE_DOF)
     ]
     if odd:
-        raise NotNumeric(f"joints {', '.join(odd[:3])} (floating, planar, or a mimic of a multi-coordinate joint)")
+        raise NotNumeric(
+            f"joints {', '.join(odd[:3])} (a planar joint's axis not z, or a mimic of a multi-coordinate joint)"
+        )
     nodes: list[TreeNode] = []
     zero, none = np.zeros(3), np.zeros((3, 3))
     place = {robot.root: (-1, np.eye(3), zero)}  # link -> (node, R, p) of its frame in the node's body
@@ -243,14 +275,35 @@ def urdf_tree(robot, floating_base: bool = False) -> UrdfTree:
         inertial = link.inertial
         Ri = rpy_matrix(inertial.rpy)
         inertia = Ri @ np.array(inertial.inertia_matrix) @ Ri.T
+        if joint.type in _CHAINS:  # massless sliders from the joint frame, then the node of the body
+            for k, (kind, axis, suffix) in enumerate(_CHAINS[joint.type][:-1]):
+                nodes.append(
+                    TreeNode(
+                        node if k == 0 else len(nodes) - 1,
+                        kind,
+                        R0 if k == 0 else np.eye(3),
+                        o if k == 0 else zero,
+                        _AXES[axis],
+                        f"{jname}_{suffix}",
+                        0.0,
+                        zero,
+                        none,
+                        None,
+                    )
+                )
+            kind, axis, suffix = _CHAINS[joint.type][-1]
+            node, R0, o, axis_vector, coordinate = len(nodes) - 1, np.eye(3), zero, _AXES[axis], f"{jname}{suffix}"
+        else:
+            kind = "fixed" if joint.type == "fixed" else "prismatic" if joint.type == "prismatic" else "revolute"
+            axis_vector, coordinate = np.array(joint.axis), None if joint.type == "fixed" else jname
         nodes.append(
             TreeNode(
                 node,
-                "fixed" if joint.type == "fixed" else "prismatic" if joint.type == "prismatic" else "revolute",
+                kind,
                 R0,
                 o,
-                np.array(joint.axis),
-                None if joint.type == "fixed" else jname,
+                axis_vector,
+                coordinate,
                 inertial.mass,
                 np.array(inertial.xyz),
                 (inertia + inertia.T) / 2,
@@ -260,7 +313,9 @@ def urdf_tree(robot, floating_base: bool = False) -> UrdfTree:
         place[link.name] = (len(nodes) - 1, np.eye(3), zero)
     if len(set(names.values())) != len(names):
         raise ModelError(f"{src}: two joints have the same appell name", hint="rename one of them in the URDF")
-    coordinates = [node.coordinate for node in nodes if node.coordinate is not None]
+    coordinates = [q for node in nodes for q in node.coordinates]
+    if len(set(coordinates)) != len(coordinates):  # a joint named as another one's coordinate
+        raise NotNumeric("two coordinates of the same name")
     mimics = tuple(
         (
             f"{names[j.name]}_mimic",

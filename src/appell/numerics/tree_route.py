@@ -49,7 +49,7 @@ from appell.numerics.rigid_tree import (
     wrenches,
 )
 
-__all__ = ["NumericTreeRoute", "TreeRoute", "aba", "tree_route"]
+__all__ = ["NumericTreeRoute", "TreeRoute", "aba", "aba_at_rest", "tree_route"]
 
 
 class TreeRoute:
@@ -158,20 +158,48 @@ class TreeRoute:
         h = rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
         rhs = -h if tau is None else np.asarray(tau, float).reshape(self.n) - h
         J, c = self._constraint
-        s = len(c)
-        K = np.block([[M, -J.T], [J, np.zeros((s, s))]]) if s else M
-        try:
-            x = np.linalg.solve(K, np.concatenate([rhs, -c]))
-        except np.linalg.LinAlgError:
-            raise ModelError(
-                f"{self.name}: the mass matrix (or the constraints) are singular at this state",
-                hint="a body without mass or inertia on a joint, or dependent constraints",
-            ) from None
-        a, lam = x[: self.n], x[self.n :]
+        a, lam = _augmented_solve(
+            M,
+            J,
+            rhs,
+            c,
+            f"{self.name}: the mass matrix (or the constraints) are singular at this state",
+            "a body without mass or inertia on a joint, or dependent constraints",
+        )
         W, _ = wrenches(arrays, self.parent, self.node_of, w[None], a[None], gravity[None], points[None])
         out = dict(zip(self.output_names, W[0].reshape(-1).tolist()))
         out.update((f"lambda_{name}", float(v)) for name, v in zip(self.constraint_names, lam))
         return a, out
+
+
+def _augmented_solve(M, J, rhs, c, message: str, hint: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(a, lambda)`` of ``M a - J^T lambda = rhs``, ``J a = -c`` (method.md §2's augmented
+    system; ``M a = rhs`` without rows); a singular system is a :class:`ModelError`."""
+    s, n = len(c), len(rhs)
+    K = np.block([[M, -J.T], [J, np.zeros((s, s))]]) if s else M
+    try:
+        x = np.linalg.solve(K, np.concatenate([rhs, -c]))
+    except np.linalg.LinAlgError:
+        raise ModelError(message, hint=hint) from None
+    return x[:n], x[n:]
+
+
+def _quaternion_rotation(q) -> np.ndarray:
+    """``R(q)`` of a quaternion (scalar first), quadratic in q (:func:`appell.mechanism.rotations.quaternion_rotation`)."""
+    q0, q1, q2, q3 = q
+    return np.array(
+        [
+            [q0**2 + q1**2 - q2**2 - q3**2, 2 * (q1 * q2 - q0 * q3), 2 * (q1 * q3 + q0 * q2)],
+            [2 * (q1 * q2 + q0 * q3), q0**2 - q1**2 + q2**2 - q3**2, 2 * (q2 * q3 - q0 * q1)],
+            [2 * (q1 * q3 - q0 * q2), 2 * (q2 * q3 + q0 * q1), q0**2 - q1**2 - q2**2 + q3**2],
+        ]
+    )
+
+
+def _quaternion_g(q) -> np.ndarray:
+    """``G(q)``: the body angular velocity is ``2 G(q) q'`` (:func:`appell.mechanism.rotations.quaternion_rates`)."""
+    q0, q1, q2, q3 = q
+    return np.array([[-q1, q0, q3, -q2], [-q2, -q3, q0, q1], [-q3, q2, -q1, q0]])
 
 
 def _cross_matrix(x) -> np.ndarray:
@@ -186,7 +214,7 @@ def _crm(v) -> np.ndarray:
     return out
 
 
-def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
+def aba(X, inertia, parent, speed, S, w, tau, base, keep: dict | None = None) -> np.ndarray:
     """The accelerations ``a`` of ``M a + h = tau`` by the articulated-body algorithm
     (Featherstone 2008, table 7.1), body axes, spatial vectors ``[omega; v]``: ``X`` (nb, 6, 6)
     each node's transform from its parent, ``inertia`` (nb, 6, 6) the bodies' spatial inertias
@@ -195,8 +223,9 @@ def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
     (``-g``: gravity). Outward ``v_i = X_i v_p + S_i w_i``, ``c_i = v_i x S_i w_i``,
     ``p_i = v_i x* I_i v_i``; inward ``U = I^A S``, ``D = S^T U``, ``u = tau - S^T p^A``,
     ``I^A_p += X^T (I^A - U U^T / D) X``, ``p^A_p += X^T (p^A + I^a c + U u / D)``; outward
-    ``a_i = X_i a_p + c_i``, ``qdd = (u - U^T a_i) / D``, ``a_i += S qdd``."""
-    nb, n = len(parent), len(S)
+    ``a_i = X_i a_p + c_i``, ``qdd = (u - U^T a_i) / D``, ``a_i += S qdd``. ``keep`` (a dict)
+    receives ``U`` and ``D``, which depend on the configuration only (:func:`aba_at_rest`)."""
+    nb = len(parent)
     v, c, pA = np.zeros((nb, 6)), np.zeros((nb, 6)), np.zeros((nb, 6))
     IA = np.array(inertia, float)
     for i in range(nb):
@@ -226,7 +255,16 @@ def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
         if parent[i] >= 0:
             IA[parent[i]] += X[i].T @ Ia @ X[i]
             pA[parent[i]] += X[i].T @ pa
-    acc, qdd = np.zeros((nb, 6)), np.zeros(n)
+    if keep is not None:
+        keep.update(U=U, D=D)
+    return _outward(X, parent, speed, S, U, D, u, c, base)
+
+
+def _outward(X, parent, speed, S, U, D, u, c, base) -> np.ndarray:
+    """The articulated-body algorithm's last pass (:func:`aba`): ``a_i = X_i a_p + c_i``,
+    ``qdd = (u - U^T a_i) / D``, ``a_i += S qdd``."""
+    nb = len(parent)
+    acc, qdd = np.zeros((nb, 6)), np.zeros(len(S))
     for i in range(nb):
         acc[i] = X[i] @ (acc[parent[i]] if parent[i] >= 0 else base) + c[i]
         k = speed[i]
@@ -236,12 +274,30 @@ def aba(X, inertia, parent, speed, S, w, tau, base) -> np.ndarray:
     return qdd
 
 
+def aba_at_rest(X, parent, speed, S, U, D, tau) -> np.ndarray:
+    """:func:`aba` at zero speeds without gravity, ``M^-1 tau``, on the articulated inertias of
+    a call of :func:`aba` at the same configuration (its ``keep``: ``U``, ``D``): the inward pass
+    of the bias forces alone (``p^A_p += X^T (p^A + U u / D)``, ``u = tau - S^T p^A``) and the
+    outward pass."""
+    nb = len(parent)
+    pA, u = np.zeros((nb, 6)), np.zeros(nb)
+    for i in reversed(range(nb)):
+        k = speed[i]
+        pa = pA[i]
+        if k >= 0:
+            u[i] = tau[k] - S[k] @ pA[i]
+            pa = pa + U[i] * (u[i] / D[i])
+        if parent[i] >= 0:
+            pA[parent[i]] += X[i].T @ pa
+    return _outward(X, parent, speed, S, U, D, u, np.zeros((nb, 6)), np.zeros(6))
+
+
 class NumericTreeRoute:
     """The numeric route of a URDF's joint tree read in floating point
     (:func:`appell.mechanism.urdf_tree.urdf_tree`), without SymPy: the accelerations by the
     articulated-body algorithm (:func:`aba`; with mimic rows ``J a = 0``, ``lambda`` from
-    ``(J M^-1 J^T) lambda = -J a_0``, the columns of ``M^-1 J^T`` by :func:`aba` at rest without
-    gravity), every joint's reaction by the inward pass (:func:`appell.numerics.rigid_tree.wrenches`).
+    ``(J M^-1 J^T) lambda = -J a_0``, the columns of ``M^-1 J^T`` by :func:`aba_at_rest` on the
+    same articulated inertias), every joint's reaction by the inward pass (:func:`appell.numerics.rigid_tree.wrenches`).
     The same attributes and calls as :class:`TreeRoute`; the one parameter is ``g``. It is also
     a model the simulator integrates (:class:`~appell.numerics.dynamics.Dynamics`):
     ``appell.simulate(tree_route("panda.urdf"), options=...)`` runs without deriving (the
@@ -255,15 +311,24 @@ class NumericTreeRoute:
         self.n = n = len(self.coordinate_names)
         self.parameter_names, self.default_parameters = ("g",), np.array([9.81])
         self.parent = np.array([node.parent for node in nodes], dtype=np.int64)
-        self.speed = np.full(len(nodes), -1, dtype=np.int64)
+        self.speed = np.full(len(nodes), -1, dtype=np.int64)  # each node's (first) speed
         self.S = np.zeros((n, 6))
+        self.node_of = np.zeros(n, dtype=np.int64)
+        self._quaternions = []  # (node, its first speed): S = [2 G(q); 0] at each state
         for b, node in enumerate(nodes):
             if node.coordinate is not None:
-                k = self.speed[b] = self.coordinate_names.index(node.coordinate)
-                start = 0 if node.kind == "revolute" else 3  # [axis; 0] or [0; axis]: the joint's axes are the body's
-                self.S[k, start : start + 3] = node.axis
-        self.node_of = np.array([int(np.flatnonzero(self.speed == k)[0]) for k in range(n)], dtype=np.int64)
+                k = self.speed[b] = self.coordinate_names.index(node.coordinates[0])
+                self.node_of[k : k + len(node.coordinates)] = b
+                if node.kind == "quaternion":
+                    self._quaternions.append((b, int(k)))
+                else:  # [axis; 0] or [0; axis]: the joint's axes are the body's
+                    start = 0 if node.kind == "revolute" else 3
+                    self.S[k, start : start + 3] = node.axis
+        self._speeds_of = [np.flatnonzero(self.node_of == b) for b in range(len(nodes))]
         self._nodes = nodes
+        #: the state the derived route starts from by default: at rest, zero but each quaternion's q0 = 1
+        self.initial_state = np.zeros(2 * n)
+        self.initial_state[[k for _, k in self._quaternions]] = 1.0
         self._inert = np.array(
             [
                 [
@@ -283,7 +348,7 @@ class NumericTreeRoute:
         self.joint_names = tuple(node.reaction for node in nodes if node.reaction is not None)
         self._reporting = [b for b, node in enumerate(nodes) if node.reaction is not None]
         self.output_names = tuple(f"{s}_{j}_{axis}" for j in self.joint_names for s in "FM" for axis in "xyz")
-        self.constraint_names = tuple(name for name, *_ in tree.mimics)
+        self.constraint_names = tuple(f"{j}_unit" for j in tree.quaternions) + tuple(name for name, *_ in tree.mimics)
         self._J = np.zeros((len(tree.mimics), n))
         self._offsets = np.array([offset for *_, offset in tree.mimics], float)
         for row, (_, a, b, multiplier, _) in enumerate(tree.mimics):
@@ -300,6 +365,7 @@ class NumericTreeRoute:
             )
         nb = len(self._nodes)
         R, r = np.empty((nb, 3, 3)), np.empty((nb, 3))
+        S = self.S.copy() if self._quaternions else self.S
         for b, node in enumerate(self._nodes):
             k = self.speed[b]
             R[b], r[b] = node.rotation, node.origin
@@ -308,12 +374,15 @@ class NumericTreeRoute:
                 R[b] = node.rotation @ (np.eye(3) + np.sin(q[k]) * K + (1.0 - np.cos(q[k])) * K @ K)
             elif node.kind == "prismatic":
                 r[b] = node.origin + node.rotation @ node.axis * q[k]
-        arrays = TreeArrays(R.ravel(), r.ravel(), self.S.ravel(), np.zeros(6 * nb), self._inert.ravel())
+            elif node.kind == "quaternion":  # R(q) quadratic in q, omega = 2 G(q) q' (appell.mechanism.rotations)
+                R[b] = node.rotation @ _quaternion_rotation(q[k : k + 4])
+                S[k : k + 4, :3] = 2.0 * _quaternion_g(q[k : k + 4]).T
+        arrays = TreeArrays(R.ravel(), r.ravel(), S.ravel(), np.zeros(6 * nb), self._inert.ravel())
         return arrays, q, w, np.array([0.0, 0.0, -p[0]])
 
-    def _aba(self, arrays, w, tau, base):
+    def _aba(self, arrays, w, tau, base, keep=None):
         X = [_transform(arrays.R[0, b], arrays.r[0, b]) for b in range(len(self._nodes))]
-        return X, aba(X, self._spatial, self.parent, self.speed, self.S, w, tau, base)
+        return X, aba(X, self._spatial, self.parent, self.speed, self.S, w, tau, base, keep)
 
     def blocks(self, time, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
         """``(M, h)`` (CRBA and RNEA, :mod:`appell.numerics.rigid_tree`), gravity in ``h``."""
@@ -327,17 +396,72 @@ class NumericTreeRoute:
         """``a`` of ``M a = tau - h`` (with the mimic rows, :meth:`forward`)."""
         return self.forward(time, q, w, tau, p)[0]
 
+    def _rows(self, q, w) -> tuple[np.ndarray, np.ndarray]:
+        """``J``, ``c`` of the rows in second-order form ``J a + c = 0``: each quaternion's unit
+        norm (``J = q^T``, ``c = q'.q'``), then the mimic rows (``c = 0``)."""
+        units = np.zeros((len(self._quaternions), self.n))
+        c = np.zeros(len(self.constraint_names))
+        for row, (_, k) in enumerate(self._quaternions):
+            units[row, k : k + 4] = q[k : k + 4]
+            c[row] = w[k : k + 4] @ w[k : k + 4]
+        return np.vstack([units, self._J]), c
+
+    def _dense(self, arrays, q, w, tau, gravity):
+        """``a`` and the multipliers of the augmented system ``[[M, -J^T], [J, 0]]`` (a floating
+        joint's quaternion: ``M`` is singular along ``q``, so no articulated-body solve); each
+        unit row's multiplier as the derived route's (:meth:`_unit_multipliers`)."""
+        base = np.concatenate([np.zeros(3), -gravity])
+        M = crba(arrays, self.parent, self.node_of)
+        h = rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
+        J, c = self._rows(q, w)
+        a, lam = _augmented_solve(
+            M,
+            J,
+            tau - h,
+            c,
+            f"{self.name}: the mass matrix and the constraints are singular at this state",
+            "a quaternion of norm zero, a body without mass, or dependent mimic rows",
+        )
+        lam[: len(self._quaternions)] = self._unit_multipliers(arrays, q, gravity)
+        return a, lam
+
+    def _unit_multipliers(self, arrays, q, gravity) -> np.ndarray:
+        """Each unit row's multiplier as the derived route gives it. Both routes have the same
+        ``M`` (the partial angular velocities ``2 G(q)`` vanish along ``q``, so does its row of
+        ``q``) and the same accelerations; the derived route takes gravity's generalized force
+        from the potential ``V = -sum m g.c`` through the quadratic ``R(q)``, whose direction
+        ``q`` scales the joint's subtree about its origin ``o`` (``d/de R((1 + e) q) = 2 R``):
+        its row of ``q`` reads ``(q.q) lambda = -sum_b 2 m_b g.(c_b - o)`` over the mass
+        centres ``c_b`` of the subtree (world axes), which the rigid recursions (zero there) do
+        not hold."""
+        nb = len(self._nodes)
+        Rw, pw = np.empty((nb, 3, 3)), np.empty((nb, 3))
+        for i in range(nb):
+            j = self.parent[i]
+            R, r = arrays.R[0, i], arrays.r[0, i]
+            Rw[i], pw[i] = (Rw[j] @ R, pw[j] + Rw[j] @ r) if j >= 0 else (R, r)
+        out = np.zeros(len(self._quaternions))
+        for row, (b0, k) in enumerate(self._quaternions):
+            inside = {b0}
+            for i in range(b0 + 1, nb):  # the nodes come after their parents
+                if self.parent[i] in inside:
+                    inside.add(i)
+            moment = sum(self._nodes[i].mass * (pw[i] + Rw[i] @ self._nodes[i].com - pw[b0]) for i in inside)
+            out[row] = -2.0 * gravity @ moment / (q[k : k + 4] @ q[k : k + 4])
+        return out
+
     def _solve(self, q, w, tau, p):
         arrays, q, w, gravity = self._arrays(q, w, p)
         tau = np.zeros(self.n) if tau is None else np.asarray(tau, float).reshape(self.n)
-        X, a = self._aba(arrays, w, tau, np.concatenate([np.zeros(3), -gravity]))
+        if self._quaternions:
+            a, lam = self._dense(arrays, q, w, tau, gravity)
+            return arrays, w, gravity, a, lam
+        keep: dict = {}
+        X, a = self._aba(arrays, w, tau, np.concatenate([np.zeros(3), -gravity]), keep)
         lam = np.zeros(len(self._J))
         if len(self._J):
             MJ = np.array(
-                [
-                    aba(X, self._spatial, self.parent, self.speed, self.S, np.zeros(self.n), row, np.zeros(6))
-                    for row in self._J
-                ]
+                [aba_at_rest(X, self.parent, self.speed, self.S, keep["U"], keep["D"], row) for row in self._J]
             ).T
             try:
                 lam = np.linalg.solve(self._J @ MJ, -self._J @ a)
@@ -356,6 +480,41 @@ class NumericTreeRoute:
         out = dict(zip(self.output_names, W[0, self._reporting].reshape(-1).tolist()))
         out.update((f"lambda_{name}", float(v)) for name, v in zip(self.constraint_names, lam))
         return a, out
+
+    def forward_rows(self, t, ys, p=None) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+        """:meth:`forward` at the states ``ys`` (T, 2n) of a motion, without joint forces: the
+        accelerations (T, n), every joint's reaction ``{output name: (T,)}`` and the multipliers
+        (T, constraints); the inward pass of all the rows in one call."""
+        ys = np.asarray(ys, float).reshape(-1, 2 * self.n)
+        rows = [self._solve(y[: self.n], y[self.n :], None, p) for y in ys]
+        if not rows:
+            empty = np.zeros((0, self.n))
+            return empty, {k: np.zeros(0) for k in self.output_names}, np.zeros((0, len(self.constraint_names)))
+        arrays = TreeArrays(
+            *(np.stack([getattr(r[0], f)[0].ravel() for r in rows]) for f in ("R", "r", "S", "c")),
+            np.stack([self._inert.ravel()] * len(rows)),
+        )
+        a = np.stack([r[3] for r in rows])
+        gravity = np.stack([r[2] for r in rows])
+        W, _ = wrenches(
+            arrays, self.parent, self.node_of, ys[:, self.n :], a, gravity, np.zeros((len(rows), 3 * len(self._nodes)))
+        )
+        W = W[:, self._reporting].reshape(len(rows), -1)
+        return a, dict(zip(self.output_names, W.T)), np.array([r[4] for r in rows], float).reshape(len(rows), -1)
+
+    @property
+    def units(self) -> dict[str, str]:
+        """The units of the coordinates and speeds (rad, m: as :func:`~appell.mechanism.urdf.urdf_units`),
+        of the joints' forces and moments (N, N*m) and of ``g``."""
+        out = {"g": "m/s^2"}
+        for node in self._nodes:
+            if node.coordinate is not None and node.coordinate == node.reaction:  # a one-coordinate URDF joint
+                angle = node.kind == "revolute"
+                out.update(
+                    {node.coordinate: "rad" if angle else "m", f"{node.coordinate}_dot": "rad/s" if angle else "m/s"}
+                )
+        out.update((name, "N" if name.startswith("F_") else "N*m") for name in self.output_names)
+        return out
 
     # ------------------------------------------------ the simulator's contract (appell.numerics.dynamics)
     control_names: tuple[str, ...] = ()
@@ -384,13 +543,31 @@ class NumericTreeRoute:
         return Evaluation(np.concatenate([w, a]), lam, np.zeros(0))
 
     def state_residuals(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
-        """The mimic rows ``a - m b - offset`` and their rates ``J w``."""
+        """Each quaternion's ``(q.q - 1)/2`` and ``q.q'``, then the mimic rows ``a - m b - offset``
+        and their rates ``J w``."""
         y = np.asarray(y, float)
-        return self._J @ y[: self.n] - self._offsets, self._J @ y[self.n :]
+        q, w = y[: self.n], y[self.n :]
+        units = [q[k : k + 4] for _, k in self._quaternions]
+        rates = [w[k : k + 4] for _, k in self._quaternions]
+        F = [(u @ u - 1.0) / 2.0 for u in units] + list(self._J @ q - self._offsets)
+        phi = [u @ r for u, r in zip(units, rates)] + list(self._J @ w)
+        return np.array(F, float), np.array(phi, float)
+
+    def normalized(self, y) -> np.ndarray:
+        """``y`` with each quaternion of unit norm and its rate normal to it (the nearest state
+        on the unit rows; the simulator's projection, :func:`appell.simulation.projection.project`,
+        reaches the same)."""
+        y = np.array(y, float)
+        for _, k in self._quaternions:
+            q = y[k : k + 4] / np.linalg.norm(y[k : k + 4])
+            rate = y[self.n + k : self.n + k + 4]
+            y[k : k + 4], y[self.n + k : self.n + k + 4] = q, rate - (rate @ q) * q
+        return y
 
     def residual_jacobians(self, t, y, p=None) -> tuple[np.ndarray, np.ndarray]:
-        """``(dF/dq, dphi/dw) = (J, J)``: the mimic rows are linear."""
-        return self._J, self._J
+        """``(dF/dq, dphi/dw)``: both ``q^T`` on a unit row, ``J`` on the (linear) mimic rows."""
+        J, _ = self._rows(np.asarray(y, float)[: self.n], np.zeros(self.n))
+        return J, J
 
 
 def tree_route(source, *, floating_base: bool = False) -> TreeRoute:

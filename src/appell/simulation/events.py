@@ -24,14 +24,19 @@ located by Brent's method on the integrator's dense output (to ``1e-13`` in time
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import sympy as sp
-from scipy.optimize import brentq
 
 from appell.errors import ModelError
+
+if TYPE_CHECKING:
+    import sympy as sp
+# SymPy (an event given as an expression) and SciPy's root finder are imported where used: a
+# run of the numeric tree route imports neither
 
 __all__ = ["Event", "Watch", "watches_for", "contact_watch", "gap_constraints", "locate", "ENDING"]
 
@@ -80,6 +85,8 @@ def _multiplier(model, name):
 
 
 def _sympy_event(event: Event, model):
+    import sympy as sp
+
     expr = sp.sympify(event.function)
     states = list(model.state_names)
     params = list(model.parameter_names)
@@ -172,7 +179,8 @@ def watches_for(
     for e in events:
         if not isinstance(e, Event):
             e = Event(getattr(e, "__name__", str(e)), e)
-        if isinstance(e.function, sp.Basic) or isinstance(e.function, str):
+        sympy = sys.modules.get("sympy")  # a SymPy expression means SymPy is imported
+        if isinstance(e.function, str) or sympy is not None and isinstance(e.function, sympy.Basic):
             g, _ = _sympy_event(e, model)
         else:
             cons = tuple(model.constraint_names)
@@ -230,6 +238,8 @@ def locate(watches, g, g_new, t: float, t_new: float, dense, evaluate, p) -> lis
                 hits.append((t, i, w))
                 continue
         if lo is not None:
+            from scipy.optimize import brentq
+
             try:
                 ts = brentq(gi, lo, t_new, xtol=1e-13, rtol=4 * np.finfo(float).eps, maxiter=200)
             except ValueError:  # the interpolant lost the sign change: take the step's end

@@ -13,41 +13,63 @@ start also sets the rank watch of the active model (:mod:`appell.simulation.sing
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.integrate as si
 
 from appell.errors import AppellError, ModelError
-from appell.numerics.compiled_loop import LoopSolver
-from appell.numerics.linearise import motion_jacobian
-from appell.numerics.numeric import NumericModel
-from appell.simulation.singular import DIP, SINGULAR_LEVEL, TRUST, RankWatch, explain_failure
 
-__all__ = ["IMPLICIT", "METHODS", "Integration", "Step", "solver_class"]
+if TYPE_CHECKING:
+    from appell.simulation.singular import RankWatch
+# the rank watch (SciPy's optimize) is imported by the run that starts it: the numeric tree route
+# (appell.io.cli_tree) takes only the integrators' names and classes from here
+
+__all__ = ["IMPLICIT", "METHODS", "Integration", "Step", "method_name", "solver_class"]
 
 #: methods that solve implicit stages with Newton's method and so take the Jacobian dG/dy
-IMPLICIT = (si.Radau, si.BDF, si.LSODA)
+#: (names of SciPy's classes: ``scipy.integrate`` is imported where a run integrates in Python,
+#: not by a run of the compiled loop)
+IMPLICIT = ("Radau", "BDF", "LSODA")
 
-#: integrators by name (SciPy's OdeSolver classes); "DOP853" on a compiled model runs the
-#: compiled loop (:mod:`appell.numerics.compiled_loop`), "DOP853-scipy" always SciPy's class
+#: integrators by name (the names of SciPy's OdeSolver classes); "DOP853" on a compiled model
+#: runs the compiled loop (:mod:`appell.numerics.compiled_loop`), "DOP853-scipy" always SciPy's class
 METHODS = {
-    "DOP853": si.DOP853,
-    "DOP853-scipy": si.DOP853,
-    "RK45": si.RK45,
-    "RK23": si.RK23,
-    "Radau": si.Radau,
-    "BDF": si.BDF,
-    "LSODA": si.LSODA,
+    "DOP853": "DOP853",
+    "DOP853-scipy": "DOP853",
+    "RK45": "RK45",
+    "RK23": "RK23",
+    "Radau": "Radau",
+    "BDF": "BDF",
+    "LSODA": "LSODA",
 }
+
+
+def method_name(method) -> str:
+    """The name of the ``OdeSolver`` class of ``method`` (a name in :data:`METHODS` or a
+    class), without importing SciPy for a name; an unknown name is refused."""
+    if isinstance(method, str):
+        if method not in METHODS:
+            raise ModelError(f"unknown integration method {method!r}", hint="methods: " + ", ".join(METHODS))
+        return METHODS[method]
+    return getattr(solver_class(method), "__name__", str(method))
 
 
 def solver_class(method):
     """The ``OdeSolver`` class of ``method`` (a name in :data:`METHODS` or the class)."""
-    solver_cls = METHODS.get(method, method) if isinstance(method, str) else method
+    import scipy.integrate as si
+
+    solver_cls = getattr(si, METHODS[method]) if isinstance(method, str) and method in METHODS else method
     if not (isinstance(solver_cls, type) and issubclass(solver_cls, si.OdeSolver)):
         raise ModelError(f"unknown integration method {method!r}", hint="methods: " + ", ".join(METHODS))
     return solver_cls
+
+
+def _implicit(solver_cls) -> bool:
+    import scipy.integrate as si
+
+    return isinstance(solver_cls, type) and issubclass(solver_cls, tuple(getattr(si, n) for n in IMPLICIT))
 
 
 def exact_jacobian(model, solver_cls, cache: dict):
@@ -55,8 +77,11 @@ def exact_jacobian(model, solver_cls, cache: dict):
     made once per model (``cache``); None for an explicit method and for models whose motion
     holds more than the split (friction modes, redundant supports, servo constraints: SciPy's
     finite differences there)."""
-    if not (isinstance(solver_cls, type) and issubclass(solver_cls, IMPLICIT)):
+    if not _implicit(solver_cls):
         return None
+    from appell.numerics.linearise import motion_jacobian
+    from appell.numerics.numeric import NumericModel
+
     if not isinstance(model, NumericModel):
         return None
     if id(model) not in cache:
@@ -104,14 +129,23 @@ class Integration:
     (module docstring); ``run`` (:class:`appell.simulation.recording.Run`) evaluates the model
     and counts evaluations and steps."""
 
-    def __init__(self, run, solver_cls, options, compiled: bool):
-        self.run, self.solver_cls, self.options, self.compiled = run, solver_cls, options, compiled
+    def __init__(self, run, method, options, compiled: bool):
+        self.run, self.method, self.options, self.compiled = run, method, options, compiled
+        self._solver_cls = None
         self.p = run.p
         self.active = None
         self.solver = None
         self.rank: RankWatch | None = None
         self.scales: dict = {}  # each constraint row's size at its first sight (appell.simulation.singular)
         self.jacobians: dict = {}  # the exact Jacobian of each model the implicit methods have used
+
+    @property
+    def solver_cls(self):
+        """The ``OdeSolver`` class of the run's method, resolved (SciPy imported) at first use:
+        a run the compiled loop takes whole never needs it."""
+        if self._solver_cls is None:
+            self._solver_cls = solver_class(self.method)
+        return self._solver_cls
 
     def fun(self, t, y):
         self.run.nfev += 1
@@ -138,6 +172,8 @@ class Integration:
         kw = self._tolerances()
         if first_step is not None:
             kw["first_step"] = min(first_step, self.options.t_end - t)
+        from appell.simulation.singular import DIP, SINGULAR_LEVEL, TRUST, RankWatch
+
         if self.rank is None or self.rank.model is not active:
             self.rank = RankWatch(active, self.p, t, y, self.scales)
         loop = self.run.loop(active) if self.compiled else None
@@ -169,7 +205,8 @@ class Integration:
         the output times they pass from ``k`` on, unless ``single``)."""
         solver, run = self.solver, self.run
         try:
-            if isinstance(solver, LoopSolver):
+            loops = sys.modules.get("appell.numerics.compiled_loop")  # imported where a compiled loop runs
+            if loops is not None and isinstance(solver, loops.LoopSolver):
                 k0, out = k, run.loop_outputs(self.active, t_eval)
                 if single:
                     msg = solver.step()
@@ -195,6 +232,8 @@ class Integration:
             return Step(failure=f"the model could not be evaluated near t = {solver.t:.10g}: {exc}")
         if solver.status == "failed":
             message = f"the integrator failed at t = {solver.t:.10g}: {msg}"
+            from appell.simulation.singular import explain_failure
+
             why = explain_failure(self.active, solver.t, solver.y, self.p)
             return Step(failure=message if why is None else message.rstrip(".") + "; " + why)
         run.steps += 1

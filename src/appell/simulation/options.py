@@ -25,11 +25,11 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import sympy as sp
 
 from appell.arguments import mapping, number, times, vector
 from appell.errors import ModelError
@@ -456,6 +456,8 @@ def check_events(events) -> tuple:
     for e in items:
         if not (isinstance(e, Event) or callable(e)):
             raise ModelError(f"event {e!r} is neither an Event nor a callable g(t, y, multipliers)")
-        if isinstance(e, Event) and not (callable(e.function) or isinstance(e.function, (sp.Basic, str))):
+        sympy = sys.modules.get("sympy")  # a SymPy expression means SymPy is imported
+        expression = isinstance(e.function, str) or sympy is not None and isinstance(e.function, sympy.Basic)
+        if isinstance(e, Event) and not (callable(e.function) or expression):
             raise ModelError(f"event {e.name!r}: function must be a callable or a SymPy expression")
     return items

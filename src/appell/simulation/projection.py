@@ -14,8 +14,9 @@ The Jacobians are the model's own where it has them
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
-import scipy.integrate as si
 
 from appell.errors import ComputationError
 from appell.simulation.initial import residual_jacobians
@@ -66,7 +67,8 @@ def projected_in_place(solver, y) -> bool:
     and step) stay; a restart would take it back to order 1 and small steps at every
     projection (on a stiff rotating system 30 times the steps, 300 times the error). Other
     solvers restart (a one-step method loses little; LSODA's state is not reachable)."""
-    if type(solver) is not si.BDF:
+    integrate = sys.modules.get("scipy.integrate")  # a BDF solver means it is imported (none by the compiled loop)
+    if integrate is None or type(solver) is not integrate.BDF:
         return False
     solver.y = np.array(y, float)
     solver.D[0] = solver.y

@@ -73,16 +73,14 @@ from dataclasses import replace
 import numpy as np
 
 from appell.arguments import number, vector
-from appell.core.equations import Derivation
 from appell.errors import AppellError, ModelError
-from appell.numerics.compiled_loop import supports
 from appell.numerics.dynamics import FrictionModes, FromDerivation
 from appell.numerics.friction import FrictionLaws
 from appell.numerics.inertia import check_inertia
 from appell.simulation.events import ENDING, check_event_names, contact_watch, locate, watches_for
 from appell.simulation.impact import impact
 from appell.simulation.initial import InitialState, check_initial, complete_initial, dynamics_of, missing_values
-from appell.simulation.integration import METHODS, Integration, solver_class
+from appell.simulation.integration import METHODS, Integration, method_name
 from appell.simulation.options import SimulationOptions, check_events
 from appell.simulation.passage import PassageRefused, pass_through
 from appell.simulation.projection import project, projected_in_place
@@ -276,7 +274,7 @@ class _Motion:
                 "is not available for it",
                 hint="use stabilization='projection'",
             )
-        solver_cls = solver_class(opts.method)
+        solver_name = method_name(opts.method)  # a name refused here; SciPy's class imported where used
         check_event_names(model, opts.unilateral, opts.friction)
         if opts.unilateral and opts.on_release == "continue" and system is None:
             raise ModelError(
@@ -287,7 +285,7 @@ class _Motion:
         self.p = vector(model.params(params), "params", len(model.parameter_names), names=list(model.parameter_names))
         self.names = tuple(model.constraint_names)
         settings = {
-            "method": getattr(solver_cls, "__name__", str(opts.method)),
+            "method": solver_name,
             "rtol": opts.rtol,
             "atol": opts.atol,
             "max_step": opts.max_step,
@@ -304,10 +302,11 @@ class _Motion:
         # the compiled loop integrates DOP853 where the model is compiled (SciPy's class is the reference)
         compiled = opts.method == "DOP853" and np.ndim(opts.atol) == 0  # the C loop takes one absolute tolerance
         # the recorded rows fit in memory (else ResourceError before integrating)
-        check_run_memory(model, opts.t_eval.size, compiled and supports(model) and not opts.project_output)
-        if compiled and supports(model):
+        compiled_loop = compiled and _loop_supports(model)
+        check_run_memory(model, opts.t_eval.size, compiled_loop and not opts.project_output)
+        if compiled_loop:
             settings["method"] = "DOP853 (compiled loop)"
-        self.integ = Integration(self.run, solver_cls, opts, compiled)
+        self.integ = Integration(self.run, opts.method, opts, compiled)
         self.watch_args = dict(
             unilateral=opts.unilateral,
             on_release=opts.on_release,
@@ -579,9 +578,23 @@ class _Progress:
         return False
 
 
+def _loop_supports(model) -> bool:
+    """:func:`appell.numerics.compiled_loop.supports`, imported only where a compiled model can
+    exist (the C backend imported): a model of the numeric tree route imports no SymPy."""
+    if "appell.numerics.codegen" not in sys.modules:
+        return False
+    from appell.numerics.compiled_loop import supports
+
+    return supports(model)
+
+
 def _kinds(model, y0, t0, p) -> tuple[str, ...]:
     derivation = model.derivation if isinstance(model, FromDerivation) else None
-    orders = derivation.constraints.orders if isinstance(derivation, Derivation) else None
+    orders = None
+    if derivation is not None:  # a model of a derivation (SymPy imported; a tree route needs none)
+        from appell.core.equations import Derivation
+
+        orders = derivation.constraints.orders if isinstance(derivation, Derivation) else None
     if orders is not None and len(orders) == len(model.constraint_names):
         return tuple(KINDS[o] for o in orders)
     F, phi = model.state_residuals(t0, y0, p)
