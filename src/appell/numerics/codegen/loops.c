@@ -19,11 +19,15 @@
    X^T X mu = -(X^T u + c), a = L^-1 (u + X mu), lambda = mu + rho c on the other rows. Where A is
    not positive definite there (a pivot below 1e-14 of the largest), the dense split: Cholesky of
    A = M + rho J^T J with every row, a0 = -A^-1 (h - Q), Y = A^-1 J^T, Cholesky of J Y,
-   lambda = mu + rho c. Dependent rows (a pivot of J A^-1 J^T below PIVOT_MIN of its largest
-   diagonal entry) or a failed factorization report status 1: the NumPy route then names the
-   undetermined combinations. */
+   lambda = mu + rho c. Dependent or nearly dependent rows (a pivot of J A^-1 J^T below PIVOT_MIN
+   of its largest diagonal entry) or a failed factorization report status 1: the NumPy route then
+   decides the rank on the singular values of the mass-weighted rows (loops.RANK_TOLERANCE, 1e-5:
+   1e-10 on this squared matrix) and names the undetermined combinations. PIVOT_MIN is far above
+   that (a pivot is never below the smallest eigenvalue, but can be well above it), so that C
+   never keeps a combination NumPy would drop; healthy loops have pivots of 0.1-0.4 (the biped,
+   the gripper). */
 
-#define PIVOT_MIN 1e-9
+#define PIVOT_MIN 1e-6
 
 struct loop_state {
     double R[9 * NB], r[3 * NB], Sc[6 * N], cb[6 * NB], in[10 * NB], base[6], Q[N], Jo[DIM(S * N)], co[DIM(S)];
