@@ -135,7 +135,7 @@ class LoopModel:
         self.loop_rows = [(k, by_name[nm]) for k, nm in enumerate(names) if nm in by_name]
         others = [(k, nm, expr) for k, (nm, expr) in enumerate(parts.constraints) if nm not in by_name]
         J_o, c_o = [], []
-        qdot = sp.Matrix(speeds)
+        speed_of = dict(zip(coords, speeds))
         for _, nm, expr in others:
             if expr is None or sp.sympify(expr).has(t) or sp.sympify(expr).free_symbols & set(speeds):
                 raise ModelError(
@@ -143,9 +143,12 @@ class LoopModel:
                     "closed-chain route does not take it",
                     hint="use appell.derive(system)",
                 )
-            grad = sp.Matrix([expr]).jacobian(coords)
-            J_o.append(list(grad))
-            c_o.append((grad.jacobian(coords) * qdot).T.dot(qdot) if coords else 0)
+            # J = dF/dq, c = sum_ij d2F/dqi dqj w_i w_j over the few coordinates the row holds
+            # (a gear coupling's or a rotor's row is linear, a quaternion's norm row in four)
+            held = [q for q in coords if q in sp.sympify(expr).free_symbols]
+            grad = {q: sp.diff(expr, q) for q in held}
+            J_o.append([grad.get(q, sp.S.Zero) for q in coords])
+            c_o.append(sp.Add(*(sp.diff(grad[qi], qj) * speed_of[qi] * speed_of[qj] for qi in held for qj in held)))
         self.other_rows = [k for k, _, _ in others]
         self.other_blocks = (
             sp.Matrix(J_o) if J_o else sp.zeros(0, n),
