@@ -827,3 +827,19 @@ def test_toddlerbot_neck_cannot_be_closed_rigidly_as_shipped():
     assert sv[2] > 1e-2 and 1e-9 < sv[3] < 1e-4 and sv[6] < 1e-15, sv
     with pytest.raises(AssertionError, match="could not be closed"):
         assemble(mj, data, mj.qpos0.copy(), np.random.default_rng(0))
+
+
+@needs_files
+def test_toddlerbot_inverse_dynamics_refuses_its_nearly_locked_neck_with_the_reason():
+    """Inverse dynamics would close ToddlerBot's neck as shipped (it cannot be closed: see
+    above) and take its passive angles and loop forces from the file's last digits; it refuses
+    by name instead, pointing to the forward route that holds those rows as dependent."""
+    from appell.simulation.inverse import closed_chain_inverse
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        model = appell.loop_model(mjcf_system(TODDLERBOT, frictionloss="ignore", actuators="controls"), "numpy")
+    times = np.linspace(0.0, 0.1, 5)
+    with pytest.raises(ModelError, match=r"loop rows of equality0_x.*nearly dependent at the start") as err:
+        closed_chain_inverse(model, times, {"neck_pitch_act": 0.1 * np.sin(10 * times)})
+    assert "equality4" not in str(err.value)

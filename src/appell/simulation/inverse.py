@@ -476,6 +476,30 @@ def _independent(J, ind, passive, names, own=()):
         )
 
 
+def _refuse_nearly_dependent(model, q, u, t0, p) -> None:
+    """A :class:`ModelError` where the loop rows at the start are nearly dependent (the forward
+    split's rule, :data:`appell.numerics.loops.RANK_TOLERANCE`: a linkage whose geometry
+    misses a movable one by a little, as ToddlerBot's neck): held rigid it could barely move or
+    not be closed, so the passive coordinates, and the forces along that combination, would
+    come from the file's last digits."""
+    from appell.numerics.loops import solve_split
+
+    if not model.constraint_names:
+        return
+    M, hQ, J, c, _ = model.blocks(q, np.zeros(len(q)), u, t0, p)
+    nearly = solve_split(M, hQ, J, c, model.constraint_names).nearly
+    if nearly:
+        rows = sorted({model.names.get(nm, nm) for _, comb in nearly for nm in comb})
+        raise ModelError(
+            f"the loop rows of {', '.join(rows)} are nearly dependent at the start (relative singular value "
+            f"{', '.join(f'{x:.1e}' for x, _ in nearly)} of the mass-weighted rows): the linkage as written misses "
+            "a movable one by a little, so that held rigid it could barely move or not be closed, and inverse "
+            "dynamics would take its passive coordinates and loop forces from the file's last digits",
+            hint="make the linkage's geometry exact (the forward route, appell.loop_model(...).evaluate, holds "
+            "such rows as dependent and says so)",
+        )
+
+
 def _passive_solve(Jp, rhs):
     """The least-squares solution of ``Jp x = rhs`` for a ``Jp`` of full column rank (the passive
     coordinates' columns, :func:`_independent`): by the normal equations ``Jp^T Jp x = Jp^T rhs``
@@ -654,6 +678,7 @@ def closed_chain_inverse(
         pv = np.concatenate([pv, model.parameter_values[pv.size :]])  # a given p without the contacts' places
         qk[ind] = qi[0]
         qk, pv = _plant(model, held, qk, passive, pv, tol, max_iterations)
+    _refuse_nearly_dependent(model, qk, u0, t[0], pv)
     Q_all, W_all, A_all = np.zeros((t.size, n)), np.zeros((t.size, n)), np.zeros((t.size, n))
     tau, lam = np.zeros((t.size, len(drives))), np.zeros((t.size, s))
     wrench_all = np.zeros((t.size, len(model.joints), 6))
