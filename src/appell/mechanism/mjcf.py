@@ -63,12 +63,12 @@ from __future__ import annotations
 import dataclasses
 import re
 import warnings
-from pathlib import Path
 
 import numpy as np
 import sympy as sp
 
 from appell.errors import AppellNote, ModelError
+from appell.mechanism.mjcf_compiled import load_mjcf as load_mjcf  # moved there (no SymPy), read here as before
 from appell.mechanism.mjcf_model import (
     _DERIVED,
     MjcfModel,
@@ -84,27 +84,6 @@ from appell.mechanism.mjcf_model import (
 from appell.mechanism.mjcf_model import MjcfJoint as MjcfJoint
 from appell.mechanism.mjcf_model import _product as _product
 from appell.mechanism.mjcf_model import _quaternion as _quaternion
-
-
-def load_mjcf(source) -> object:
-    """The compiled ``mujoco.MjModel`` of a file path or an XML string; MuJoCo's own error
-    message (file and line where it gives them) as a :class:`ModelError`."""
-    mujoco = _mujoco()
-    text = str(source)
-    try:
-        if text.lstrip().startswith("<"):
-            return mujoco.MjModel.from_xml_string(text)
-        path = Path(source)
-        if not path.is_file():
-            raise ModelError(f"{path}: no such MuJoCo model file")
-        return mujoco.MjModel.from_xml_path(str(path))
-    except ValueError as exc:
-        raise ModelError(
-            f"MuJoCo could not read the model: {str(exc).strip()}",
-            where=None if text.lstrip().startswith("<") else str(source),
-            hint="check the file with MuJoCo's own tools (python -m mujoco.viewer)",
-        ) from exc
-
 
 MAX_MESH_FACES = 20000
 
