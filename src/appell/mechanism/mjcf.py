@@ -68,6 +68,7 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import AppellNote, ModelError
+from appell.mechanism.mjcf_compiled import _IGNORED
 from appell.mechanism.mjcf_compiled import load_mjcf as load_mjcf  # moved there (no SymPy), read here as before
 from appell.mechanism.mjcf_model import (
     _DERIVED,
@@ -146,21 +147,6 @@ def _geoms(mujoco, model, mech, place) -> None:
             continue
         name, size = kinds[kind]
         mech.shape(body, name, tuple(float(v) for v in size(np.asarray(model.geom_size[g], float))), **where)
-
-
-_IGNORED = (
-    ("contacts between geoms", lambda m: m.ngeom and np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0))),
-    ("joint limits", lambda m: np.any(np.asarray(m.jnt_limited) != 0)),
-    ("tendon limits", lambda m: m.ntendon and np.any(np.asarray(m.tendon_limited) != 0)),
-    ("soft-constraint parameters (solref, solimp) of the equalities (held rigid here)", lambda m: m.neq),
-    ("sensors", lambda m: m.nsensor),
-    ("cameras, lights and visual settings", lambda m: m.ncam or m.nlight),
-    ("keyframes", lambda m: m.nkey),
-    (
-        "fluid forces (density, viscosity, wind)",
-        lambda m: float(m.opt.density) != 0 or float(m.opt.viscosity) != 0 or np.any(np.asarray(m.opt.wind) != 0),
-    ),
-)
 
 
 def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armature: str = "rotors") -> MjcfModel:

@@ -111,3 +111,19 @@ def load_mjcf(source) -> object:
             where=None if text.lstrip().startswith("<") else str(source),
             hint="check the file with MuJoCo's own tools (python -m mujoco.viewer)",
         ) from exc
+
+
+#: what has no meaning for the rigid-body motion appell computes, each with what tells it
+_IGNORED = (
+    ("contacts between geoms", lambda m: m.ngeom and np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0))),
+    ("joint limits", lambda m: np.any(np.asarray(m.jnt_limited) != 0)),
+    ("tendon limits", lambda m: m.ntendon and np.any(np.asarray(m.tendon_limited) != 0)),
+    ("soft-constraint parameters (solref, solimp) of the equalities (held rigid here)", lambda m: m.neq),
+    ("sensors", lambda m: m.nsensor),
+    ("cameras, lights and visual settings", lambda m: m.ncam or m.nlight),
+    ("keyframes", lambda m: m.nkey),
+    (
+        "fluid forces (density, viscosity, wind)",
+        lambda m: float(m.opt.density) != 0 or float(m.opt.viscosity) != 0 or np.any(np.asarray(m.opt.wind) != 0),
+    ),
+)

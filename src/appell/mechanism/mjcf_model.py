@@ -148,6 +148,3 @@ def _quaternion(R) -> np.ndarray:
 def _rate(expr, coordinates) -> sp.Expr:
     """``d expr/dt`` for an expression in the coordinates (speeds ``<q>_dot``)."""
     return sum((sp.diff(expr, q) * derivative_symbol(q) for q in coordinates), sp.S.Zero)
-
-
-#: what has no meaning for the rigid-body motion appell computes, each with what tells it
