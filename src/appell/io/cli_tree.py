@@ -53,28 +53,30 @@ def tree_model(
         if find_compiler() is not None:
             return None
     path = resolve_model(model)
-    if path.suffix.lower() != ".urdf":
+    suffix = path.suffix.lower()
+    if suffix not in (".urdf", ".xml", ".mjcf"):
         if required:
-            raise ModelError(f"{path}: --backend tree takes a URDF robot file (.urdf)", hint=_INSTEAD)
+            raise ModelError(
+                f"{path}: --backend tree takes a URDF robot file (.urdf) or a MuJoCo model (.xml, .mjcf)",
+                hint=_INSTEAD,
+            )
         return None
-    options = {k: v for k, v in (meta or {}).items() if k in ("appell.reactions_in", "appell.mjcf") and v}
-    if options:
+    if (meta or {}).get("appell.reactions_in"):
         if required:
             raise ModelError("--backend tree gives the joints' reactions in world axes only", hint=_INSTEAD)
         return None
-    from appell.mechanism.urdf import read_urdf
-    from appell.mechanism.urdf_tree import NotNumeric, urdf_tree
-    from appell.numerics.tree_route import NumericTreeRoute
-
+    mjcf = dict((meta or {}).get("appell.mjcf") or {})
+    if mjcf and (suffix == ".urdf" or mjcf.get("actuators", "programs") != "programs"):
+        if required:
+            raise ModelError(
+                "--backend tree reads --mjcf frictionloss and armature only, with the actuators' ctrl 0",
+                hint=_INSTEAD,
+            )
+        return None
     with _notes_as_lines(echo):
-        robot = read_urdf(path)
-        try:
-            tree = urdf_tree(robot, floating_base)
-        except NotNumeric as exc:
-            if required:
-                raise ModelError(f"{path}: the numeric tree route does not take {exc}", hint=_INSTEAD) from None
-            return None
-    route = NumericTreeRoute(tree, path.stem)
+        route = _read_tree(path, floating_base, mjcf.get("frictionloss", "refuse"), required)
+    if route is None:
+        return None
     if not required:
         try:
             _start(route, overrides or {})
@@ -88,6 +90,31 @@ def tree_model(
             err=True,
         )
     return route
+
+
+def _read_tree(path: Path, floating_base: bool, frictionloss: str, required: bool):
+    """The route of a URDF or MJCF file, or (``required`` False) None where the floating-point
+    tree does not take it."""
+    from appell.mechanism.urdf_tree import NotNumeric
+    from appell.numerics.tree_route import NumericTreeRoute, mjcf_route
+
+    if path.suffix.lower() != ".urdf":
+        try:
+            return mjcf_route(path, None, frictionloss)
+        except ModelError as exc:
+            if required or "numeric tree route does not take" not in str(exc):
+                raise
+            return None
+    from appell.mechanism.urdf import read_urdf
+    from appell.mechanism.urdf_tree import urdf_tree
+
+    robot = read_urdf(path)
+    try:
+        return NumericTreeRoute(urdf_tree(robot, floating_base), path.stem)
+    except NotNumeric as exc:
+        if required:
+            raise ModelError(f"{path}: the numeric tree route does not take {exc}", hint=_INSTEAD) from None
+        return None
 
 
 def _start(route, overrides: dict[str, str]) -> tuple[np.ndarray, np.ndarray]:
@@ -104,14 +131,15 @@ def _start(route, overrides: dict[str, str]) -> tuple[np.ndarray, np.ndarray]:
             value = number(float(text), f"--set {name}")
         except ValueError:
             raise ModelError(f"--set {name}={text}: not a number", hint="--backend tree takes numbers only") from None
-        if key == "g":
-            p[0] = value
+        if key in route.parameter_names:
+            p[route.parameter_names.index(key)] = value
         elif key in names:
             y[names.index(key)] = value
         else:
             raise ModelError(
                 f"--set {name}: not a parameter or a state of the robot",
-                hint="the parameter g, the joints' coordinates and their speeds NAME_dot",
+                hint=("the parameter g, " if route.parameter_names else "")
+                + "the joints' coordinates and their speeds NAME_dot",
             )
     return y, p
 
@@ -208,7 +236,7 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
         log=(),
         metadata=ModelMetadata(
             route.name,
-            (("g", float(p[0]), "m/s^2", "gravity, along -z of the root link"),),
+            tuple(("g", float(v), "m/s^2", "gravity, along -z of the root link") for v in p),
             constraints,
             ("holonomic",) * len(constraints),
             getattr(appell, "__version__", ""),

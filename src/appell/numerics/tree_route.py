@@ -341,6 +341,20 @@ class _JointForces:
                 M[k : k + 4, k : k + 4] += 4.0 * G.T @ (a[:, None] * G)
         return M
 
+    def unit_terms(self, starts, q, w) -> np.ndarray:
+        """What a quaternion's armature adds to its unit row's multiplier in the derived route,
+        which takes the rotor energy ``T = omega^T A omega / 2`` through Lagrange's equations in
+        ``q``: their row of ``q`` gains ``q^T (d/dt dT/dq' - dT/dq) = -2 omega^T A omega`` (the
+        armature's ``M`` has no row of ``q``), so its multiplier ``2 omega^T A omega / (q.q)`` less
+        than the rigid recursions' (``starts``: each quaternion's first coordinate)."""
+        armature = {k: a for k, a, _ in self.rotational}
+        out = np.zeros(len(starts))
+        for row, k in enumerate(starts):
+            if k in armature:
+                omega = 2.0 * _quaternion_g(q[k : k + 4]) @ w[k : k + 4]
+                out[row] = 2.0 * omega @ (armature[k] * omega) / (q[k : k + 4] @ q[k : k + 4])
+        return out
+
     def forces(self, q, w) -> np.ndarray:
         """The passive and actuator forces ``f(q, w)`` on the speeds."""
         f = self.f0 + self.kq * q + self.kw * w
@@ -498,6 +512,8 @@ class NumericTreeRoute:
             "a quaternion of norm zero, a body without mass, or dependent mimic rows",
         )
         lam[: len(self._quaternions)] = self._unit_multipliers(arrays, q, gravity)
+        if self._forces is not None:
+            lam[: len(self._quaternions)] -= self._forces.unit_terms([k for _, k in self._quaternions], q, w)
         return a, lam
 
     def _unit_multipliers(self, arrays, q, gravity) -> np.ndarray:
