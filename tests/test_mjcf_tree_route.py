@@ -214,12 +214,18 @@ def _against_mujoco(path, states=4, seed=46, **options):
 @needs_files
 @pytest.mark.parametrize(
     "relative",
-    ["kinova_gen3/gen3.xml", "unitree_go2/go2.xml", "berkeley_humanoid/berkeley_humanoid.xml"],
-    ids=["gen3", "go2", "berkeley_humanoid"],
+    [
+        "kinova_gen3/gen3.xml",
+        "unitree_go2/go2.xml",
+        "berkeley_humanoid/berkeley_humanoid.xml",
+        "pndbotics_adam_lite/adam_lite.xml",
+    ],
+    ids=["gen3", "go2", "berkeley_humanoid", "adam_lite"],
 )
 def test_menagerie_accelerations_equal_mujoco(relative):
-    """Menagerie files as shipped (go2 and the humanoid on their free joints, with armature;
-    their frictionloss left out as asked): MuJoCo's qacc at random states with random ctrl."""
+    """Menagerie files as shipped (go2 and the humanoids on their free joints, with armature;
+    their frictionloss left out as asked; adam_lite: 31 speeds, 25 motors): MuJoCo's qacc at
+    random states with random ctrl."""
     route = _against_mujoco(MENAGERIE / relative, frictionloss="ignore")
     assert route.parameter_names == ()
 
@@ -280,10 +286,14 @@ def test_names_and_joint_wrenches_equal_the_mechanism_route(tmp_path):
 
 
 @needs_files
-def test_menagerie_names_equal_the_symbolic_readers():
-    """The humanoid's bodies and joints differ only by case (``ll_hr``, ``LL_HR``): the route's
-    coordinates and reactions are the symbolic reader's."""
-    path = MENAGERIE / "berkeley_humanoid" / "berkeley_humanoid.xml"
+@pytest.mark.parametrize(
+    "relative", ["berkeley_humanoid/berkeley_humanoid.xml", "pndbotics_adam_lite/adam_lite.xml"], ids=["bh", "adam"]
+)
+def test_menagerie_names_equal_the_symbolic_readers(relative):
+    """The Berkeley humanoid's bodies and joints differ only by case (``ll_hr``, ``LL_HR``),
+    adam_lite has a body, a joint and an actuator ``waistRoll``: the route's coordinates and
+    reactions are the symbolic reader's."""
+    path = MENAGERIE / relative
     route, reference = _route(path, frictionloss="ignore"), _mechanism_route(path)
     assert route.coordinate_names == reference.coordinate_names
     assert set(route.output_names) == set(reference.output_names)
@@ -399,7 +409,7 @@ def test_the_command_lines_tree_backend_equals_the_derived_route(tmp_path):
 def test_auto_without_a_compiler_takes_the_mjcf_tree(tmp_path):
     """``--backend auto`` where no C compiler is found: an MJCF tree takes the numeric route with
     one note, and the same file as ``--backend tree``."""
-    path = _file(tmp_path, SMALL)
+    path = _file(tmp_path, _model(joint='axis="0 1 0" damping="0.5" armature="0.1"').replace("0 0 0", "0 0 -0.3"))
     no_cc = {"APPELL_CC": str(tmp_path / "no-such-cc")}
     result, auto = _simulate(tmp_path, path, "auto", env=no_cc)
     assert result.exit_code == 0, result.output
