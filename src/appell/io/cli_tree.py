@@ -1,8 +1,12 @@
-"""``appell simulate --backend tree``: a URDF robot's motion by the numeric tree route
+"""``appell simulate --backend tree``: a URDF robot's or a MuJoCo model's motion by the numeric tree route
 (:class:`~appell.numerics.tree_route.NumericTreeRoute`), without SymPy, without deriving and
 without a compiler; and ``--backend auto``'s choice of it where no C compiler is found.
 
-The file is read in floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`),
+The file is read in floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`;
+an MJCF file by :func:`appell.mechanism.mjcf_tree.mjcf_tree`, with ``--mjcf frictionloss`` and the
+actuators' ctrl 0, as the derived route reads it; its columns are the derived route's with ``--mjcf
+armature=energy``: the default ``armature=rotors`` adds each rotor's coordinate, speed, acceleration,
+multiplier and residual, which this route has not),
 the motion integrated by SciPy's ``OdeSolver`` of the run's method (DOP853 by default: the
 scheme and step control of the compiled loop) from the state the derived route starts from (zero
 coordinates and speeds unless ``--set`` gives them), and at each output time the accelerations

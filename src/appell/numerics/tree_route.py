@@ -1,14 +1,18 @@
 """A robot's first numbers without deriving its system and without a compiler: the numeric
 recursive route of a joint tree, in two forms with one interface.
 
-* :class:`NumericTreeRoute`, :func:`tree_route`'s choice for a URDF file: the file read in
-  floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`: the bodies,
-  joints, coordinates and names of :func:`~appell.mechanism.urdf.urdf_mechanism`), without
-  SymPy; the accelerations by the articulated-body algorithm (:func:`aba`). A fraction of a
-  second from a fresh interpreter for a 38-speed humanoid (``benchmarks/instant.py``). It is
-  also a model the simulator integrates (:class:`~appell.numerics.dynamics.Dynamics`).
-* :class:`TreeRoute`, for an MJCF file, a :class:`~appell.mechanism.Mechanism`, or a URDF
-  holding what the floating-point reader does not take (``floating`` or ``planar`` joints):
+* :class:`NumericTreeRoute`, :func:`tree_route`'s choice for a URDF or MJCF file: the file
+  read in floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`: the
+  bodies, joints, coordinates and names of :func:`~appell.mechanism.urdf.urdf_mechanism`;
+  :func:`appell.mechanism.mjcf_tree.mjcf_tree`: MuJoCo's compiled model with the names of
+  :func:`~appell.mechanism.mjcf.read_mjcf` and MuJoCo's armature, springs, dampers and
+  actuators), without SymPy; the accelerations by the articulated-body algorithm (:func:`aba`).
+  A fraction of a second from a fresh interpreter for a 38-speed humanoid
+  (``benchmarks/instant.py``). It is also a model the simulator integrates
+  (:class:`~appell.numerics.dynamics.Dynamics`).
+* :class:`TreeRoute`, for a :class:`~appell.mechanism.Mechanism`, or a URDF holding what the
+  floating-point reader does not take (a mimic of a multi-coordinate joint, ...); never for an
+  MJCF file (the mechanism's tree has none of MuJoCo's forces):
   the mechanism's joint tree (:meth:`Mechanism.rigid_tree
   <appell.mechanism.Mechanism.rigid_tree>`: each joint's rotation, translation, motion
   subspace ``S``, bias ``c`` and body inertia, small expressions in the joint's own
