@@ -14,7 +14,6 @@ armature=energy``) for the command line's columns and numbers.
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import warnings
@@ -28,18 +27,8 @@ from appell.numerics.rigid_tree import wrenches
 from appell.numerics.tree_route import NumericTreeRoute, TreeRoute, tree_route
 
 mujoco = pytest.importorskip("mujoco")
+from test_mjcf_menagerie import MENAGERIE  # noqa: E402  (../shared beside the clone, or $APPELL_SHARED)
 
-MENAGERIE = next(
-    (
-        base / "models" / "menagerie"
-        for base in (
-            Path(__file__).resolve().parents[2] / "shared",
-            Path(os.environ.get("APPELL_SHARED", "/nonexistent")),
-        )
-        if (base / "models" / "menagerie").is_dir()
-    ),
-    Path("/nonexistent"),
-)
 needs_files = pytest.mark.skipif(not MENAGERIE.is_dir(), reason="../shared/models/menagerie is not beside the clone")
 
 #: every joint kind: a welded body on a massless mount, a hinge beside it, a free body with a

@@ -68,7 +68,7 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import AppellNote, ModelError
-from appell.mechanism.mjcf_compiled import _IGNORED
+from appell.mechanism.mjcf_compiled import _IGNORED, _joint_kinds
 from appell.mechanism.mjcf_compiled import load_mjcf as load_mjcf  # moved there (no SymPy), read here as before
 from appell.mechanism.mjcf_model import (
     _DERIVED,
@@ -178,12 +178,7 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
 
     if frictionloss not in ("refuse", "ignore"):
         raise ModelError(f"frictionloss must be 'refuse' or 'ignore', got {frictionloss!r}")
-    kinds = {
-        int(mujoco.mjtJoint.mjJNT_HINGE): "hinge",
-        int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
-        int(mujoco.mjtJoint.mjJNT_BALL): "ball",
-        int(mujoco.mjtJoint.mjJNT_FREE): "free",
-    }
+    kinds = _joint_kinds(mujoco)
     bodies = _names(model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
     joint_names = _names(model, mujoco.mjtObj.mjOBJ_JOINT, model.njnt)
     title = bytes(model.names).split(b"\x00")[0].decode(errors="replace")  # the <mujoco model="..."> name

@@ -86,6 +86,29 @@ _DERIVED = {
 }
 
 
+def _joint_kinds(mujoco) -> dict[int, str]:
+    """MuJoCo's joint types -> ``hinge``, ``slide``, ``ball``, ``free``."""
+    return {
+        int(mujoco.mjtJoint.mjJNT_HINGE): "hinge",
+        int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
+        int(mujoco.mjtJoint.mjJNT_BALL): "ball",
+        int(mujoco.mjtJoint.mjJNT_FREE): "free",
+    }
+
+
+def _mapping_notes(merged, names: _Names) -> list[str]:
+    """The note's items of a reading: the massless bodies merged, the names mapped."""
+    out = []
+    if merged:
+        out.append(f"massless bodies merged into their parents: {', '.join(merged)}")
+    if names.table:
+        out.append(
+            "names mapped to identifiers: "
+            + ", ".join(f"{kind} {orig!r} -> {ident}" for ident, (kind, orig) in names.table.items())
+        )
+    return out
+
+
 def _flag(model, name: str) -> bool:
     """Whether MuJoCo's ``disableflags`` has ``mjDSBL_<name>`` set (False where this MuJoCo has no such flag)."""
     mujoco = _mujoco()

@@ -46,7 +46,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from appell.errors import AppellNote, ModelError
-from appell.mechanism.mjcf_compiled import _DERIVED, _IGNORED, _flag, _mujoco, _Names, _names, _rotation
+from appell.mechanism.mjcf_compiled import (
+    _DERIVED,
+    _IGNORED,
+    _flag,
+    _joint_kinds,
+    _mapping_notes,
+    _mujoco,
+    _Names,
+    _names,
+    _rotation,
+)
 from appell.mechanism.urdf_tree import NotNumeric, TreeNode, UrdfTree
 
 __all__ = ["MjcfActuator", "MjcfTree", "mjcf_tree"]
@@ -304,12 +314,7 @@ def mjcf_tree(model, source: str = "<mjcf>", frictionloss: str = "refuse") -> Mj
     if refused:
         more = f" and {len(refused) - 3} more" if len(refused) > 3 else ""
         raise NotNumeric(f"{'; '.join(refused[:3])}{more}")
-    kinds = {
-        int(mujoco.mjtJoint.mjJNT_HINGE): "hinge",
-        int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
-        int(mujoco.mjtJoint.mjJNT_BALL): "ball",
-        int(mujoco.mjtJoint.mjJNT_FREE): "free",
-    }
+    kinds = _joint_kinds(mujoco)
     names, jname, bname = _claims(mujoco, model, kinds)
     nodes, node_of, merged = _nodes(mujoco, model, source, kinds, names, jname, bname)
     coordinates = [q for node in nodes for q in node.coordinates]
@@ -321,13 +326,7 @@ def mjcf_tree(model, source: str = "<mjcf>", frictionloss: str = "refuse") -> Mj
     limited = np.asarray(model.actuator_ctrllimited).any() or np.asarray(model.actuator_forcelimited).any()
     if limited or np.any(np.asarray(getattr(model, "jnt_actfrclimited", [0])) != 0):
         ignored.append("control and force ranges of the actuators (not enforced: the controls are inputs)")
-    if merged:
-        ignored.append(f"massless bodies merged into their parents: {', '.join(merged)}")
-    if names.table:
-        ignored.append(
-            "names mapped to identifiers: "
-            + ", ".join(f"{kind} {orig!r} -> {ident}" for ident, (kind, orig) in names.table.items())
-        )
+    ignored += _mapping_notes(merged, names)
     if ignored:
         note = f"{source}: not applied (no meaning for the rigid-body motion) or mapped: " + "; ".join(ignored)
         warnings.warn(AppellNote(note), stacklevel=2)
