@@ -280,6 +280,44 @@ def _outward(X, parent, speed, S, U, D, u, c, base) -> np.ndarray:
     return qdd
 
 
+def mass_and_bias(X, inertia, parent, speeds_of, S, w, base) -> tuple[np.ndarray, np.ndarray]:
+    """``M`` by the composite-rigid-body algorithm and ``h`` of ``M a + h = tau`` by the
+    recursive Newton-Euler algorithm at ``a = 0`` (Featherstone 2008, tables 6.2 and 5.1), on the
+    transforms ``X`` of :func:`aba`, a node moved by several speeds (``speeds_of[i]``, rows of
+    ``S``: a quaternion's four) as well as by one or none, its joint's ``dS/dt w = 0`` (the
+    axes of a hinge or slider are the body's; a quaternion's ``2 G(q') q' = 0``): outward
+    ``v_i = X_i v_p + S_i^T w_i``, ``a_i = X_i a_p + v_i x S_i^T w_i`` (``a_p`` of the ground:
+    ``base``), ``f_i = I_i a_i + v_i x* I_i v_i``; inward ``h_i = S_i f_i``, ``f_p += X_i^T f_i``;
+    ``I^c_p += X_i^T I^c_i X_i``, ``M_ij = S_i X_(i..j)^T I^c_i S_j^T``."""
+    nb, n = len(parent), len(S)
+    v, acc, f = np.zeros((nb, 6)), np.zeros((nb, 6)), np.zeros((nb, 6))
+    for i in range(nb):
+        p, k = parent[i], speeds_of[i]
+        vJ = S[k].T @ w[k]
+        v[i] = X[i] @ v[p] + vJ if p >= 0 else vJ
+        acc[i] = X[i] @ (acc[p] if p >= 0 else base) + _crm(v[i]) @ vJ
+        f[i] = inertia[i] @ acc[i] - _crm(v[i]).T @ (inertia[i] @ v[i])
+    h, M, Ic = np.zeros(n), np.zeros((n, n)), np.array(inertia, float)
+    for i in reversed(range(nb)):
+        h[speeds_of[i]] = S[speeds_of[i]] @ f[i]
+        if parent[i] >= 0:
+            f[parent[i]] += X[i].T @ f[i]
+            Ic[parent[i]] += X[i].T @ Ic[i] @ X[i]
+    for i in range(nb):
+        k = speeds_of[i]
+        if not len(k):
+            continue
+        F = Ic[i] @ S[k].T
+        M[np.ix_(k, k)] = S[k] @ F
+        j = i
+        while parent[j] >= 0:
+            F, j = X[j].T @ F, parent[j]
+            if len(speeds_of[j]):
+                M[np.ix_(k, speeds_of[j])] = F.T @ S[speeds_of[j]].T
+                M[np.ix_(speeds_of[j], k)] = M[np.ix_(k, speeds_of[j])].T
+    return M, h
+
+
 def aba_at_rest(X, parent, speed, S, U, D, tau) -> np.ndarray:
     """:func:`aba` at zero speeds without gravity, ``M^-1 tau``, on the articulated inertias of
     a call of :func:`aba` at the same configuration (its ``keep``: ``U``, ``D``): the inward pass
@@ -476,8 +514,8 @@ class NumericTreeRoute:
         """``M`` (CRBA, with a MuJoCo model's armature) and ``h`` of ``M a + h = tau`` (RNEA at
         ``a = 0``, gravity in it, less a MuJoCo model's passive and actuator forces)."""
         base = np.concatenate([np.zeros(3), -gravity])
-        M = crba(arrays, self.parent, self.node_of)
-        h = rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
+        X = [_transform(arrays.R[0, b], arrays.r[0, b]) for b in range(len(self._nodes))]
+        M, h = mass_and_bias(X, self._spatial, self.parent, self._speeds_of, arrays.S[0], w, base)
         if self._forces is not None:
             M, h = self._forces.mass(M, q), h - self._forces.forces(q, w)
         return M, h
