@@ -282,10 +282,18 @@ def test_menagerie_names_equal_the_symbolic_readers(relative):
     """The Berkeley humanoid's bodies and joints differ only by case (``ll_hr``, ``LL_HR``),
     adam_lite has a body, a joint and an actuator ``waistRoll``: the route's coordinates and
     reactions are the symbolic reader's."""
+    from appell.mechanism.mjcf import load_mjcf, read_mjcf
+
     path = MENAGERIE / relative
     route, reference = _route(path, frictionloss="ignore"), _mechanism_route(path)
     assert route.coordinate_names == reference.coordinate_names
     assert set(route.output_names) == set(reference.output_names)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AppellNote)
+        read = read_mjcf(load_mjcf(path), str(path), "ignore")  # the armature as rotors, the default
+    assert [rotor for rotor, *_ in route.rotors] == list(read.rotors.values())
+    assert [row for _, row, *_ in route.rotors] == [c.name for c in read.constraints]
+    assert [route.coordinate_names[k] for _, _, k, _ in route.rotors] == list(read.rotors)
 
 
 def _refused(tmp_path, xml, match):
@@ -377,22 +385,26 @@ def _simulate(tmp_path, path, backend, *extra, env=None):
 
 
 def test_the_command_lines_tree_backend_equals_the_derived_route(tmp_path):
-    """``appell simulate tiny.xml --backend tree`` writes the columns of the derived route read
-    with ``--mjcf armature=energy`` (NumPy backend, DOP853 both), the ball's unit row's
-    multiplier (with its armature's share) and residual too, the same numbers to 1e-9 of each
-    column's largest over 0.02 s; with the default ``armature=rotors`` the derived route has
-    more columns (each armature rotor's coordinate and row), every other one the same."""
+    """``appell simulate tiny.xml --backend tree`` writes the columns of the derived route
+    (NumPy backend, DOP853 both; its armature as rotors, the default: each rotor's coordinate,
+    speed, acceleration, multiplier and residual), the ball's unit row's multiplier (with its
+    armature's share) and residual too, the same numbers to 1e-9 of each column's largest over
+    0.02 s; with ``--mjcf armature=energy`` the same without the rotors' columns."""
     path = _file(tmp_path, TINY, "tiny.xml")
     result, tree = _simulate(tmp_path, path, "tree")
     assert result.exit_code == 0, result.output
     assert "DOP853 (numeric tree route)" in result.output
-    result, derived = _simulate(tmp_path, path, "numpy", "--mjcf", "armature=energy")
+    result, derived = _simulate(tmp_path, path, "numpy")
     assert result.exit_code == 0, result.output
     assert tree[0] == derived[0]
     assert {"swivel_q0", "lambda_swivel_unit", "residual_swivel_unit", "M_elbow_z"} <= set(tree[0])
+    assert {"elbow_rotor", "extend_rotor_ddot", "lambda_elbow_armature", "residual_extend_armature"} <= set(tree[0])
     a, b = np.array(tree[1:], float), np.array(derived[1:], float)
     scale = np.maximum(1.0, np.max(np.abs(b), axis=0))
     assert np.all(np.abs(a - b) <= 1e-9 * scale), np.max(np.abs(a - b) / scale)
+    result, energy = _simulate(tmp_path, path, "tree", "--mjcf", "armature=energy")
+    assert result.exit_code == 0, result.output
+    assert energy[0] == [name for name in tree[0] if "rotor" not in name and "armature" not in name]
 
 
 def test_auto_without_a_compiler_takes_the_mjcf_tree(tmp_path):

@@ -4,9 +4,8 @@ without a compiler; and ``--backend auto``'s choice of it where no C compiler is
 
 The file is read in floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`;
 an MJCF file by :func:`appell.mechanism.mjcf_tree.mjcf_tree`, with ``--mjcf frictionloss`` and the
-actuators' ctrl 0, as the derived route reads it; its columns are the derived route's with ``--mjcf
-armature=energy``: the default ``armature=rotors`` adds each rotor's coordinate, speed, acceleration,
-multiplier and residual, which this route has not),
+actuators' ctrl 0, as the derived route reads it, and the columns of its armature rotors under ``--mjcf
+armature=rotors``, the default: :func:`_with_rotors`),
 the motion integrated by SciPy's ``OdeSolver`` of the run's method (DOP853 by default: the
 scheme and step control of the compiled loop) from the state the derived route starts from (zero
 coordinates and speeds unless ``--set`` gives them), and at each output time the accelerations
@@ -77,10 +76,14 @@ def tree_model(
                 hint=_INSTEAD,
             )
         return None
+    if mjcf.get("armature", "rotors") not in ("rotors", "energy"):
+        raise ModelError(f"--mjcf armature={mjcf['armature']}: 'rotors' or 'energy'")
     with _notes_as_lines(echo):
         route = _read_tree(path, floating_base, mjcf.get("frictionloss", "refuse"), required)
     if route is None:
         return None
+    if mjcf.get("armature") == "energy":  # the derived route's columns: no rotors
+        route.rotors = ()
     if not required:
         try:
             _start(route, overrides or {})
@@ -216,7 +219,17 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
     residuals = [route.state_residuals(ti, y, p) for ti, y in zip(t, ys)]
     F = np.array([f for f, _ in residuals], float).reshape(len(ys), -1)
     phi = np.array([v for _, v in residuals], float).reshape(len(ys), -1)
-    constraints = route.constraint_names
+    accelerations = {f"{w[: -len('_dot')]}_ddot": accelerations[:, k] for k, w in enumerate(route.speed_names)}
+    columns = _with_rotors(
+        route,
+        dict(zip(route.state_names, ys.T)),
+        accelerations,
+        dict(zip(route.constraint_names, lam.T)),
+        dict(zip(route.constraint_names, F.T)),
+        dict(zip(route.constraint_names, phi.T)),
+    )
+    coordinates, speeds, states, accelerations, multipliers, F, phi = columns
+    constraints = tuple(multipliers)
     settings = {
         "method": METHODS.get(opts.method, str(opts.method)) + " (numeric tree route)",
         "rtol": str(opts.rtol),
@@ -226,13 +239,13 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
     }
     solution = Solution(
         t=t,
-        states=dict(zip(route.state_names, ys.T)),
-        coordinate_names=route.coordinate_names,
-        speed_names=route.speed_names,
-        multipliers=dict(zip(constraints, lam.T)),
+        states=states,
+        coordinate_names=coordinates,
+        speed_names=speeds,
+        multipliers=multipliers,
         controls={},
-        position_residuals=dict(zip(constraints, F.T)),
-        velocity_residuals=dict(zip(constraints, phi.T)),
+        position_residuals=F,
+        velocity_residuals=phi,
         status=status,
         message=message,
         statistics=SolverStatistics(count["nfev"], steps, projections, 0, projections),
@@ -247,7 +260,7 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
             settings=settings,
             units=route.units,
         ),
-        accelerations={f"{w[: -len('_dot')]}_ddot": accelerations[:, k] for k, w in enumerate(route.speed_names)},
+        accelerations=accelerations,
         outputs=outputs,
     )
     if status < 0:
@@ -255,6 +268,24 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
         error.solution = solution  # type: ignore[attr-defined]
         raise error
     return solution
+
+
+def _with_rotors(route, states, accelerations, multipliers, F, phi):
+    """The columns with the derived route's armature rotors (``--mjcf armature=rotors``, the
+    default; :attr:`~appell.numerics.tree_route.NumericTreeRoute.rotors`): each rotor's
+    coordinate, speed and acceleration are its joint's (the constraint ``<rotor> - <joint> = 0``
+    holds them equal), its multiplier the rotor's torque ``armature * joint'' ``, its residuals 0.
+    Returns ``(coordinates, speeds, states, accelerations, multipliers, F, phi)``."""
+    coordinates, speeds = route.coordinate_names, route.speed_names
+    for rotor, row, k, armature in route.rotors:
+        joint = route.coordinate_names[k]
+        coordinates, speeds = coordinates + (rotor,), speeds + (f"{rotor}_dot",)
+        states[rotor], states[f"{rotor}_dot"] = states[joint], states[f"{joint}_dot"]
+        accelerations[f"{rotor}_ddot"] = accelerations[f"{joint}_ddot"]
+        multipliers[row] = armature * accelerations[f"{joint}_ddot"]
+        F[row], phi[row] = np.zeros_like(states[joint]), np.zeros_like(states[joint])
+    states = {name: states[name] for name in coordinates + speeds}
+    return coordinates, speeds, states, accelerations, multipliers, F, phi
 
 
 def run_tree_command(route, t_end, solver, overrides, out: Path | None, plot, echo) -> None:

@@ -88,7 +88,9 @@ class MjcfTree(UrdfTree):
     forces, per coordinate (``n``): ``armature``, ``damping`` and ``stiffness`` with the
     spring's rest ``spring`` (in the coordinate: ``qpos_spring - qpos0``), each quaternion node's
     ``rotational`` ``(first coordinate, armature (3,), damping (3,))`` on its body-axes angular
-    velocity, and the :class:`MjcfActuator` list."""
+    velocity, the :class:`MjcfActuator` list, and ``rotors``: the symbolic reader's armature
+    rotors (``armature='rotors'``, its default), ``(rotor coordinate, its constraint, coordinate
+    index, armature)`` for each hinge and slide with armature, named as it names them."""
 
     gravity: np.ndarray = None  # type: ignore[assignment]
     armature: np.ndarray = None  # type: ignore[assignment]
@@ -97,6 +99,7 @@ class MjcfTree(UrdfTree):
     spring: np.ndarray = None  # type: ignore[assignment]
     rotational: tuple = ()
     actuators: tuple[MjcfActuator, ...] = ()
+    rotors: tuple[tuple[str, str, int, float], ...] = ()
 
 
 def _refusals(mujoco, model, source: str, frictionloss: str) -> list[str]:
@@ -275,6 +278,19 @@ def _forces(mujoco, model, kinds, jname, node_of, nodes, coordinates) -> dict:
     return {**out, "rotational": tuple(rotational)}
 
 
+def _rotors(model, kinds, names, jname, node_of, nodes, coordinates, armature) -> tuple:
+    """The symbolic reader's armature rotors (:attr:`MjcfTree.rotors`), their names claimed in
+    its order (a rotor's body, its joint, its constraint; after the bodies' names)."""
+    out = []
+    for j, first in node_of.items():
+        kind, k = kinds[int(model.jnt_type[j])], coordinates.index(nodes[first].coordinates[0])
+        if kind in ("hinge", "slide") and armature[k] != 0:
+            names.claim("rotor", None, f"{jname[j]}_rotor_body")
+            rotor = names.claim("rotor", None, f"{jname[j]}_rotor")
+            out.append((rotor, names.claim("armature", None, f"{jname[j]}_armature"), k, float(armature[k])))
+    return tuple(out)
+
+
 def _actuators(mujoco, model, names, node_of, nodes, coordinates) -> tuple[MjcfActuator, ...]:
     """The actuators on hinges and slides (the others are refused by :func:`_refusals`), their
     names claimed after the tendons', as the symbolic reader does."""
@@ -319,6 +335,7 @@ def mjcf_tree(model, source: str = "<mjcf>", frictionloss: str = "refuse") -> Mj
     nodes, node_of, merged = _nodes(mujoco, model, source, kinds, names, jname, bname)
     coordinates = [q for node in nodes for q in node.coordinates]
     forces = _forces(mujoco, model, kinds, jname, node_of, nodes, coordinates)
+    rotors = _rotors(model, kinds, names, jname, node_of, nodes, coordinates, forces["armature"])
     actuators = _actuators(mujoco, model, names, node_of, nodes, coordinates)
     ignored = [what for what, present in _IGNORED if present(model)]
     if any(np.asarray(model.dof_frictionloss) != 0) or any(np.asarray(model.tendon_frictionloss) != 0):
@@ -332,4 +349,4 @@ def mjcf_tree(model, source: str = "<mjcf>", frictionloss: str = "refuse") -> Mj
         warnings.warn(AppellNote(note), stacklevel=2)
     gravity = np.zeros(3) if _flag(model, "GRAVITY") else np.asarray(model.opt.gravity, float).copy()
     title = bytes(model.names).split(b"\x00")[0].decode(errors="replace") or "mjcf"
-    return MjcfTree(title, tuple(nodes), (), gravity, **forces, actuators=actuators)
+    return MjcfTree(title, tuple(nodes), (), gravity, **forces, actuators=actuators, rotors=rotors)

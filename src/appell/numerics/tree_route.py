@@ -432,6 +432,9 @@ class NumericTreeRoute:
         self.parameter_names, self.default_parameters = ("g",), np.array([9.81])
         self._gravity = getattr(tree, "gravity", None)
         self._forces = _JointForces(tree, ctrl) if getattr(tree, "armature", None) is not None else None
+        #: a MuJoCo model's armature as the symbolic reader's rotors (``armature='rotors'``):
+        #: ``(rotor coordinate, its constraint, coordinate index, armature)`` (:mod:`appell.io.cli_tree`)
+        self.rotors = tuple(getattr(tree, "rotors", ()))
         if self._gravity is not None:  # a MuJoCo model's: a vector, no parameter
             self.parameter_names, self.default_parameters = (), np.zeros(0)
         self.parent = np.array([node.parent for node in nodes], dtype=np.int64)
