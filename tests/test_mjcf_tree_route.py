@@ -4,7 +4,8 @@ and joint wrenches from MuJoCo's compiled joint tree in floating point, without 
 
 Sources of truth: MuJoCo's own ``mj_forward`` (``qacc`` with its constraints, control clamping
 and force limits off: the route, as the derived route, applies neither contacts, limits nor
-ranges) at random states with random ``ctrl``, on Menagerie files as shipped and on a small
+ranges; every hinge's and slide's reaction against ``cfrc_int`` of ``mj_rnePostConstraint``)
+at random states with random ``ctrl``, on Menagerie files as shipped and on a small
 file with every joint kind, several joints on one body, a welded body, armature, damping,
 springs and three kinds of actuators; the route of the SymPy-built mechanism
 (``TreeRoute(read_mjcf(...).mechanism)``: the symbolic reader's tree, names and joint wrenches,
@@ -195,9 +196,30 @@ def _against_mujoco(path, states=4, seed=46, **options):
         data.qpos[:], data.qvel[:], data.ctrl[:] = qpos, rng.uniform(-1.5, 1.5, mj.nv), ctrl
         mujoco.mj_forward(mj, data)
         q, w = _state(mj, route, data.qpos, data.qvel)
-        a, _ = route.forward(0.0, q, w)
+        a, out = route.forward(0.0, q, w)
         np.testing.assert_allclose(_qacc(mj, route, q, a), data.qacc, rtol=0, atol=1e-10 * np.max(np.abs(data.qacc)))
+        _joint_wrenches_equal_mujocos(mj, data, route, out)
     return route
+
+
+def _joint_wrenches_equal_mujocos(mj, data, route, out):
+    """Each hinge's and slide's reaction (the only joint of its body) against MuJoCo's
+    ``cfrc_int`` (``mj_rnePostConstraint``: the force of the parent on the body, ``[torque;
+    force]`` in world axes about the subtree centre of its tree's root ``c``), moved to the
+    joint's anchor ``p``: ``M_p = M_c + (c - p) x F``; to 1e-9 of the largest."""
+    mujoco.mj_rnePostConstraint(mj, data)
+    got, expected = [], []
+    for j, (kind, k, *_) in enumerate(_maps(mj, route)):
+        b = int(mj.jnt_bodyid[j])
+        if kind not in (2, 3) or int(mj.body_jntnum[b]) != 1:
+            continue
+        c, p = data.subtree_com[int(mj.body_rootid[b])], data.xanchor[j]
+        torque, force = data.cfrc_int[b][:3], data.cfrc_int[b][3:]
+        name = route.coordinate_names[k]
+        got += [out[f"{s}_{name}_{x}"] for s in "FM" for x in "xyz"]
+        expected += [*force, *(torque + np.cross(c - p, force))]
+    assert got, "no joint compared"
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
 
 
 @needs_files
