@@ -347,9 +347,16 @@ def _model(joint="", inner="", extra="", option=""):
             "tendon 't'",
         ),
         (_model(option='density="1.2"'), "fluid forces"),
+        (
+            _model().replace(
+                "</worldbody>",
+                '<flexcomp name="rope" type="grid" count="3 1 1" spacing="0.1 0.1 0.1" dim="1" mass="0.3"/></worldbody>',
+            ),
+            "flexible bodies",
+        ),
         (_model(inner="").replace('<body name="b"', '<body name="b" gravcomp="1"'), "gravity compensation of body 'b'"),
     ],
-    ids=["frictionloss", "ball-spring", "site-actuator", "activation", "tendon-spring", "fluid", "gravcomp"],
+    ids=["frictionloss", "ball-spring", "site-actuator", "activation", "tendon-spring", "fluid", "flex", "gravcomp"],
 )
 def test_what_the_tree_does_not_read_is_refused_by_name(tmp_path, xml, match):
     _refused(tmp_path, xml, match)

@@ -29,6 +29,7 @@ What changes the motion and is not read here is refused by name, a :class:`NotNu
 message names the element and what to do (the symbolic route reads it, or says why not):
 active equalities, tendons with stiffness, damping or armature, actuators on tendons or sites
 or with activation states, gravity compensation, fluid forces, springs on ball and free joints,
+flexible bodies and engine plugins,
 and ``frictionloss`` unless ``frictionloss='ignore'`` (left out, as the symbolic reader's). What
 has no meaning for the rigid-body motion (contacts, limits, sensors, ...) is named in one note,
 as the symbolic reader does.
@@ -150,6 +151,8 @@ def _refusals(mujoco, model, source: str, frictionloss: str) -> list[str]:
     out += [f"the gravity compensation of {shown('body', b)}" for b in np.flatnonzero(np.asarray(model.body_gravcomp))]
     if float(model.opt.density) or float(model.opt.viscosity) or np.any(np.asarray(model.opt.wind) != 0):
         out.append("fluid forces (option density, viscosity or wind)")
+    if getattr(model, "nflex", 0) or getattr(model, "nplugin", 0):
+        out.append("flexible bodies or engine plugins (flex, plugin)")
     if friction:
         listed = ", ".join(friction[:3]) + (f" and {len(friction) - 3} more" if len(friction) > 3 else "")
         out.append(f"the frictionloss of {listed} (--mjcf frictionloss=ignore leaves it out)")
