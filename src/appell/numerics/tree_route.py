@@ -303,18 +303,19 @@ def mass_and_bias(X, inertia, parent, speeds_of, S, w, base) -> tuple[np.ndarray
         if parent[i] >= 0:
             f[parent[i]] += X[i].T @ f[i]
             Ic[parent[i]] += X[i].T @ Ic[i] @ X[i]
+    # a node's speeds are consecutive: slices, not index arrays, into M
+    cut = [slice(k[0], k[-1] + 1) if len(k) else None for k in speeds_of]
     for i in range(nb):
-        k = speeds_of[i]
-        if not len(k):
+        if cut[i] is None:
             continue
-        F = Ic[i] @ S[k].T
-        M[np.ix_(k, k)] = S[k] @ F
+        F = Ic[i] @ S[cut[i]].T
+        M[cut[i], cut[i]] = S[cut[i]] @ F
         j = i
         while parent[j] >= 0:
             F, j = X[j].T @ F, parent[j]
-            if len(speeds_of[j]):
-                M[np.ix_(k, speeds_of[j])] = F.T @ S[speeds_of[j]].T
-                M[np.ix_(speeds_of[j], k)] = M[np.ix_(k, speeds_of[j])].T
+            if cut[j] is not None:
+                M[cut[i], cut[j]] = F.T @ S[cut[j]].T
+                M[cut[j], cut[i]] = M[cut[i], cut[j]].T
     return M, h
 
 
