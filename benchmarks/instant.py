@@ -60,19 +60,19 @@ Last run (2026-11-29 06:17 UTC; Intel Xeon, 2 cores, 24 GiB, Python 3.11.7, SymP
 * table 4: the numeric tree route's first numbers from a fresh interpreter, the Panda 0.67 s wall
   / 0.17 s CPU, Talos on its floating base (38 speeds) 1.03 s / 0.26 s, SymPy never imported
   (targets <= 1 s and <= 3 s; before: 7.9 s, the URDF read through a SymPy mechanism).
-* table 5 (2026-11-29 09:20 UTC, the same machine, load average 2.5-3; ``--mjcf-only --runs 5``):
+* table 5 (2026-11-29 09:22 UTC, the same machine, load average 2.4-2.8; ``--mjcf-only --runs 5``):
   MuJoCo models' first accelerations and joint wrenches by the numeric tree route from a fresh
   interpreter (``import mujoco`` and MuJoCo's compiler included), SymPy never imported: the
-  Kinova Gen3 arm (7 coordinates) 0.30 s wall / 0.27 s CPU, the Unitree Go2 on its free joint
+  Kinova Gen3 arm (7 coordinates) 0.31 s wall / 0.28 s CPU, the Unitree Go2 on its free joint
   (19) 0.30 s / 0.27 s, the Berkeley humanoid (19) 0.30 s / 0.27 s, the PNDbotics Adam Lite
   humanoid (32 coordinates, 31 speeds) 0.30 s / 0.27 s (targets <= 1 s an arm, <= 3 s a 30-DOF
   humanoid; before: refused, the MJCF file had no numeric route). `appell simulate go2.xml
-  --backend tree --t-end 0.02 --mjcf frictionloss=ignore` 2.61 s wall / 2.60 s CPU (4.26 s before
-  M and h of the floating joint's dense solve came from the articulated-body transforms): of
-  about 3.6 s in-process under a profiler, 2.4 s are the accelerations and wrenches at the 501
-  output times (one CRBA, RNEA and dense solve each, about 4 ms at 18 speeds), 1.2 s imports;
-  the integration itself (62 evaluations) about 0.3 s. ufactory_xarm7 is refused by name (its
-  gripper's connect and joint equalities, a tendon actuator).
+  --backend tree --t-end 0.02 --mjcf frictionloss=ignore` 1.97 s wall / 1.95 s CPU (4.26 s before
+  M and h of the floating joint's dense solve came from the articulated-body transforms): most of
+  it the accelerations and wrenches at the 501 output times (one CRBA, RNEA and dense solve each
+  at 18 speeds, in Python loops over the nodes) and about 1.2 s of imports; the integration
+  itself (62 evaluations) about 0.2 s. ufactory_xarm7 is refused by name (its gripper's connect
+  and joint equalities, a tendon actuator).
 """
 
 from __future__ import annotations
