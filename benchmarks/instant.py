@@ -68,10 +68,11 @@ Last run (2026-11-29 06:17 UTC; Intel Xeon, 2 cores, 24 GiB, Python 3.11.7, SymP
   humanoid (32 coordinates, 31 speeds) 0.30 s / 0.27 s (targets <= 1 s an arm, <= 3 s a 30-DOF
   humanoid; before: refused, the MJCF file had no numeric route). `appell simulate go2.xml
   --backend tree --t-end 0.02 --mjcf frictionloss=ignore` 1.97 s wall / 1.95 s CPU (4.26 s before
-  M and h of the floating joint's dense solve came from the articulated-body transforms): most of
-  it the accelerations and wrenches at the 501 output times (one CRBA, RNEA and dense solve each
-  at 18 speeds, in Python loops over the nodes) and about 1.2 s of imports; the integration
-  itself (62 evaluations) about 0.2 s. ufactory_xarm7 is refused by name (its gripper's connect
+  M and h of the floating joint's dense solve came from the articulated-body transforms): about
+  1.2 s of CPU are the imports (the command line, the simulation with SciPy's integrators,
+  MuJoCo), the rest the accelerations and wrenches at the 501 output times (one CRBA, RNEA and
+  dense solve each at 18 speeds, in Python loops over the nodes) and the integration (62
+  evaluations). ufactory_xarm7 is refused by name (its gripper's connect
   and joint equalities, a tendon actuator).
 """
 
