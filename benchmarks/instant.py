@@ -27,6 +27,11 @@ Tables (machine, load and date printed first; ratios within one run):
    interpreter's start (imports included; no compiler, no derivation), median of ``--runs``,
    and whether SymPy was imported. Targets: <= 1 s the Panda, <= 3 s a 30-DOF humanoid (Talos
    on its floating base, 38 speeds).
+5. The same for MuJoCo models (:mod:`appell.mechanism.mjcf_tree`: MuJoCo's compiled model read
+   in floating point, with its armature, springs, dampers and actuators at ctrl 0; frictionloss
+   left out): Menagerie files as shipped in ``../shared/models/menagerie`` (or
+   ``$APPELL_SHARED/models/menagerie``), and ``appell simulate go2.xml --backend tree --t-end 0.02
+   --mjcf frictionloss=ignore`` in a fresh process. ``--mjcf-only`` runs this table alone.
 
 The machine is shared while these run (the load average is printed): wall times grow with
 the load, CPU times much less; both are given.
@@ -55,6 +60,20 @@ Last run (2026-11-29 06:17 UTC; Intel Xeon, 2 cores, 24 GiB, Python 3.11.7, SymP
 * table 4: the numeric tree route's first numbers from a fresh interpreter, the Panda 0.67 s wall
   / 0.17 s CPU, Talos on its floating base (38 speeds) 1.03 s / 0.26 s, SymPy never imported
   (targets <= 1 s and <= 3 s; before: 7.9 s, the URDF read through a SymPy mechanism).
+* table 5 (2026-11-29 09:22 UTC, the same machine, load average 2.4-2.8; ``--mjcf-only --runs 5``):
+  MuJoCo models' first accelerations and joint wrenches by the numeric tree route from a fresh
+  interpreter (``import mujoco`` and MuJoCo's compiler included), SymPy never imported: the
+  Kinova Gen3 arm (7 coordinates) 0.31 s wall / 0.28 s CPU, the Unitree Go2 on its free joint
+  (19) 0.30 s / 0.27 s, the Berkeley humanoid (19) 0.30 s / 0.27 s, the PNDbotics Adam Lite
+  humanoid (32 coordinates, 31 speeds) 0.30 s / 0.27 s (targets <= 1 s an arm, <= 3 s a 30-DOF
+  humanoid; before: refused, the MJCF file had no numeric route). `appell simulate go2.xml
+  --backend tree --t-end 0.02 --mjcf frictionloss=ignore` 1.97 s wall / 1.95 s CPU (4.26 s before
+  M and h of the floating joint's dense solve came from the articulated-body transforms): about
+  1.2 s of CPU are the imports (the command line, the simulation with SciPy's integrators,
+  MuJoCo), the rest the accelerations and wrenches at the 501 output times (one CRBA, RNEA and
+  dense solve each at 18 speeds, in Python loops over the nodes) and the integration (62
+  evaluations). ufactory_xarm7 is refused by name (its gripper's connect
+  and joint equalities, a tendon actuator).
 """
 
 from __future__ import annotations
@@ -314,14 +333,79 @@ def numeric_route(name: str, path: Path, floating: bool, runs: int) -> None:
     )
 
 
+MJCF_ROUTE = """
+import json, sys, time, warnings
+t0, c0 = time.perf_counter(), time.process_time()
+import numpy as np
+from appell.numerics.tree_route import tree_route
+warnings.simplefilter("ignore")
+route = tree_route(sys.argv[1], frictionloss="ignore")
+q = route.initial_state[: route.n] + np.array([0.0 if "_q" in n else 0.3 for n in route.coordinate_names])
+a, out = route.forward(0.0, q, np.full(route.n, 0.2))
+print(json.dumps({"seconds": time.perf_counter() - t0, "cpu": time.process_time() - c0, "n": route.n,
+                  "outputs": len(out), "sympy": "sympy" in sys.modules}))
+"""
+
+MENAGERIE_FILES = (
+    "kinova_gen3/gen3.xml",
+    "unitree_go2/go2.xml",
+    "berkeley_humanoid/berkeley_humanoid.xml",
+    "pndbotics_adam_lite/adam_lite.xml",
+)
+
+
+def menagerie_folder() -> Path | None:
+    import os
+
+    for base in (HERE.parents[1] / "shared", Path(os.environ.get("APPELL_SHARED", "/nonexistent"))):
+        if (base / "models" / "menagerie").is_dir():
+            return base / "models" / "menagerie"
+    return None
+
+
+def mjcf_route(runs: int) -> None:
+    folder = menagerie_folder()
+    if folder is None:
+        print("\n(../shared/models/menagerie is not beside the clone: no MJCF table)")
+        return
+    rows = []
+    for relative in MENAGERIE_FILES:
+        results = [_fresh(MJCF_ROUTE, folder / relative) for _ in range(runs)]
+        rows.append(
+            [
+                relative,
+                str(results[0]["n"]),
+                f"{statistics.median(r['seconds'] for r in results):.2f} s",
+                f"{statistics.median(r['cpu'] for r in results):.2f} s",
+                "yes" if any(r["sympy"] for r in results) else "no",
+            ]
+        )
+    with tempfile.TemporaryDirectory() as cache:
+        args = ["simulate", folder / MENAGERIE_FILES[1], "--t-end", "0.02", "--backend", "tree"]
+        args += ["--mjcf", "frictionloss=ignore", "--out", Path(cache) / "go2.csv"]
+        runs_go2 = [_command(args, {"APPELL_CACHE_DIR": cache}) for _ in range(runs)]
+    print(
+        "\n## 5. MuJoCo models: first accelerations and joint wrenches by the numeric tree route, fresh process (median)\n"
+    )
+    print(harness.markdown_table(["file", "coordinates", "wall", "CPU", "SymPy imported"], rows))
+    wall, cpu = statistics.median(r[0] for r in runs_go2), statistics.median(r[1] for r in runs_go2)
+    print(
+        f"\n`appell simulate go2.xml --backend tree --t-end 0.02 --mjcf frictionloss=ignore`: {wall:.2f} s wall, {cpu:.2f} s CPU"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--mjcf-only", action="store_true")
     parser.add_argument("--runs", type=int, default=5)
     args = parser.parse_args()
     runs = 3 if args.quick else args.runs
     print("# instant and fast by default\n")
     print(f"{harness.today()}; {harness.machine()}; {harness.load()}; {harness.versions()}")
+    if args.mjcf_only:
+        mjcf_route(runs)
+        return
     car(5 if args.quick else 15)
     imports(runs)
     folder = robots_folder()
@@ -334,6 +418,7 @@ def main() -> None:
         numeric_route(name, folder / rel, floating, runs)
     simulate_twice(folder / ROBOTS["panda"][0])
     second_run("panda", folder / ROBOTS["panda"][0], False)
+    mjcf_route(runs)
 
 
 if __name__ == "__main__":

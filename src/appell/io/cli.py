@@ -282,7 +282,7 @@ def simulate_command(model, t_end, out, plot, backend, assignments, floating_bas
     overrides = parse_assignments(assignments)
     meta, completing = click.get_current_context().meta, bool(complete or adjust)
     route = cli_tree.tree_model(model, backend, floating_base, meta, click.echo, overrides, completing)
-    if route is not None:  # a URDF tree on the numeric tree route: neither derived nor compiled
+    if route is not None:  # a URDF or MJCF tree on the numeric tree route: neither derived nor compiled
         return cli_tree.run_tree_command(route, t_end, _solver(solver), overrides, out_path, plot, click.echo)
     derivation = _derivation(model, assignments, floating_base)
     try:

@@ -37,15 +37,15 @@ _backend_option = click.option(
     show_default=True,
     help="Numeric code: C compiled and cached on first use (auto: C when a compiler is found, else NumPy), or NumPy.",
 )
-#: ``appell simulate``'s: also ``tree``, a URDF robot on the numeric tree route (:mod:`appell.io.cli_tree`)
+#: ``appell simulate``'s: also ``tree``, a URDF robot or an MJCF tree on the numeric tree route (:mod:`appell.io.cli_tree`)
 _simulate_backend_option = click.option(
     "--backend",
     type=click.Choice(["auto", "c", "numpy", "tree"]),
     default="auto",
     show_default=True,
     help="Numeric code: C compiled and cached on first use (auto: C when a compiler is found, else NumPy; "
-    "a URDF tree without a compiler: tree), NumPy, or tree: a URDF robot by the articulated-body "
-    "algorithm in NumPy, neither derived nor compiled.",
+    "a URDF or MJCF tree without a compiler: tree), NumPy, or tree: a URDF robot or a MuJoCo model "
+    "by the articulated-body algorithm in NumPy, neither derived nor compiled.",
 )
 _set_option = click.option(
     "--set",

@@ -1,8 +1,11 @@
-"""``appell simulate --backend tree``: a URDF robot's motion by the numeric tree route
+"""``appell simulate --backend tree``: a URDF robot's or a MuJoCo model's motion by the numeric tree route
 (:class:`~appell.numerics.tree_route.NumericTreeRoute`), without SymPy, without deriving and
 without a compiler; and ``--backend auto``'s choice of it where no C compiler is found.
 
-The file is read in floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`),
+The file is read in floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`;
+an MJCF file by :func:`appell.mechanism.mjcf_tree.mjcf_tree`, with ``--mjcf frictionloss`` and the
+actuators' ctrl 0, as the derived route reads it, and the columns of its armature rotors under ``--mjcf
+armature=rotors``, the default: :func:`_with_rotors`),
 the motion integrated by SciPy's ``OdeSolver`` of the run's method (DOP853 by default: the
 scheme and step control of the compiled loop) from the state the derived route starts from (zero
 coordinates and speeds unless ``--set`` gives them), and at each output time the accelerations
@@ -53,28 +56,34 @@ def tree_model(
         if find_compiler() is not None:
             return None
     path = resolve_model(model)
-    if path.suffix.lower() != ".urdf":
+    suffix = path.suffix.lower()
+    if suffix not in (".urdf", ".xml", ".mjcf"):
         if required:
-            raise ModelError(f"{path}: --backend tree takes a URDF robot file (.urdf)", hint=_INSTEAD)
+            raise ModelError(
+                f"{path}: --backend tree takes a URDF robot file (.urdf) or a MuJoCo model (.xml, .mjcf)",
+                hint=_INSTEAD,
+            )
         return None
-    options = {k: v for k, v in (meta or {}).items() if k in ("appell.reactions_in", "appell.mjcf") and v}
-    if options:
+    if (meta or {}).get("appell.reactions_in"):
         if required:
             raise ModelError("--backend tree gives the joints' reactions in world axes only", hint=_INSTEAD)
         return None
-    from appell.mechanism.urdf import read_urdf
-    from appell.mechanism.urdf_tree import NotNumeric, urdf_tree
-    from appell.numerics.tree_route import NumericTreeRoute
-
+    mjcf = dict((meta or {}).get("appell.mjcf") or {})
+    if mjcf and (suffix == ".urdf" or mjcf.get("actuators", "programs") != "programs"):
+        if required:
+            raise ModelError(
+                "--backend tree reads --mjcf frictionloss and armature only, with the actuators' ctrl 0",
+                hint=_INSTEAD,
+            )
+        return None
+    if mjcf.get("armature", "rotors") not in ("rotors", "energy"):
+        raise ModelError(f"--mjcf armature={mjcf['armature']}: 'rotors' or 'energy'")
     with _notes_as_lines(echo):
-        robot = read_urdf(path)
-        try:
-            tree = urdf_tree(robot, floating_base)
-        except NotNumeric as exc:
-            if required:
-                raise ModelError(f"{path}: the numeric tree route does not take {exc}", hint=_INSTEAD) from None
-            return None
-    route = NumericTreeRoute(tree, path.stem)
+        route = _read_tree(path, floating_base, mjcf.get("frictionloss", "refuse"), required)
+    if route is None:
+        return None
+    if mjcf.get("armature") == "energy":  # the derived route's columns: no rotors
+        route.rotors = ()
     if not required:
         try:
             _start(route, overrides or {})
@@ -88,6 +97,31 @@ def tree_model(
             err=True,
         )
     return route
+
+
+def _read_tree(path: Path, floating_base: bool, frictionloss: str, required: bool):
+    """The route of a URDF or MJCF file, or (``required`` False) None where the floating-point
+    tree does not take it."""
+    from appell.mechanism.urdf_tree import NotNumeric
+    from appell.numerics.tree_route import NumericTreeRoute, mjcf_route
+
+    if path.suffix.lower() != ".urdf":
+        try:
+            return mjcf_route(path, None, frictionloss)
+        except ModelError as exc:
+            if required or "numeric tree route does not take" not in str(exc):
+                raise
+            return None
+    from appell.mechanism.urdf import read_urdf
+    from appell.mechanism.urdf_tree import urdf_tree
+
+    robot = read_urdf(path)
+    try:
+        return NumericTreeRoute(urdf_tree(robot, floating_base), path.stem)
+    except NotNumeric as exc:
+        if required:
+            raise ModelError(f"{path}: the numeric tree route does not take {exc}", hint=_INSTEAD) from None
+        return None
 
 
 def _start(route, overrides: dict[str, str]) -> tuple[np.ndarray, np.ndarray]:
@@ -104,14 +138,15 @@ def _start(route, overrides: dict[str, str]) -> tuple[np.ndarray, np.ndarray]:
             value = number(float(text), f"--set {name}")
         except ValueError:
             raise ModelError(f"--set {name}={text}: not a number", hint="--backend tree takes numbers only") from None
-        if key == "g":
-            p[0] = value
+        if key in route.parameter_names:
+            p[route.parameter_names.index(key)] = value
         elif key in names:
             y[names.index(key)] = value
         else:
             raise ModelError(
                 f"--set {name}: not a parameter or a state of the robot",
-                hint="the parameter g, the joints' coordinates and their speeds NAME_dot",
+                hint=("the parameter g, " if route.parameter_names else "")
+                + "the joints' coordinates and their speeds NAME_dot",
             )
     return y, p
 
@@ -184,7 +219,17 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
     residuals = [route.state_residuals(ti, y, p) for ti, y in zip(t, ys)]
     F = np.array([f for f, _ in residuals], float).reshape(len(ys), -1)
     phi = np.array([v for _, v in residuals], float).reshape(len(ys), -1)
-    constraints = route.constraint_names
+    accelerations = {f"{w[: -len('_dot')]}_ddot": accelerations[:, k] for k, w in enumerate(route.speed_names)}
+    columns = _with_rotors(
+        route,
+        dict(zip(route.state_names, ys.T)),
+        accelerations,
+        dict(zip(route.constraint_names, lam.T)),
+        dict(zip(route.constraint_names, F.T)),
+        dict(zip(route.constraint_names, phi.T)),
+    )
+    coordinates, speeds, states, accelerations, multipliers, F, phi = columns
+    constraints = tuple(multipliers)
     settings = {
         "method": METHODS.get(opts.method, str(opts.method)) + " (numeric tree route)",
         "rtol": str(opts.rtol),
@@ -194,13 +239,13 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
     }
     solution = Solution(
         t=t,
-        states=dict(zip(route.state_names, ys.T)),
-        coordinate_names=route.coordinate_names,
-        speed_names=route.speed_names,
-        multipliers=dict(zip(constraints, lam.T)),
+        states=states,
+        coordinate_names=coordinates,
+        speed_names=speeds,
+        multipliers=multipliers,
         controls={},
-        position_residuals=dict(zip(constraints, F.T)),
-        velocity_residuals=dict(zip(constraints, phi.T)),
+        position_residuals=F,
+        velocity_residuals=phi,
         status=status,
         message=message,
         statistics=SolverStatistics(count["nfev"], steps, projections, 0, projections),
@@ -208,14 +253,14 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
         log=(),
         metadata=ModelMetadata(
             route.name,
-            (("g", float(p[0]), "m/s^2", "gravity, along -z of the root link"),),
+            tuple(("g", float(v), "m/s^2", "gravity, along -z of the root link") for v in p),
             constraints,
             ("holonomic",) * len(constraints),
             getattr(appell, "__version__", ""),
             settings=settings,
             units=route.units,
         ),
-        accelerations={f"{w[: -len('_dot')]}_ddot": accelerations[:, k] for k, w in enumerate(route.speed_names)},
+        accelerations=accelerations,
         outputs=outputs,
     )
     if status < 0:
@@ -223,6 +268,24 @@ def simulate_tree(route, t_end=None, solver=None, overrides=None):
         error.solution = solution  # type: ignore[attr-defined]
         raise error
     return solution
+
+
+def _with_rotors(route, states, accelerations, multipliers, F, phi):
+    """The columns with the derived route's armature rotors (``--mjcf armature=rotors``, the
+    default; :attr:`~appell.numerics.tree_route.NumericTreeRoute.rotors`): each rotor's
+    coordinate, speed and acceleration are its joint's (the constraint ``<rotor> - <joint> = 0``
+    holds them equal), its multiplier the rotor's torque ``armature * joint'' ``, its residuals 0.
+    Returns ``(coordinates, speeds, states, accelerations, multipliers, F, phi)``."""
+    coordinates, speeds = route.coordinate_names, route.speed_names
+    for rotor, row, k, armature in route.rotors:
+        joint = route.coordinate_names[k]
+        coordinates, speeds = coordinates + (rotor,), speeds + (f"{rotor}_dot",)
+        states[rotor], states[f"{rotor}_dot"] = states[joint], states[f"{joint}_dot"]
+        accelerations[f"{rotor}_ddot"] = accelerations[f"{joint}_ddot"]
+        multipliers[row] = armature * accelerations[f"{joint}_ddot"]
+        F[row], phi[row] = np.zeros_like(states[joint]), np.zeros_like(states[joint])
+    states = {name: states[name] for name in coordinates + speeds}
+    return coordinates, speeds, states, accelerations, multipliers, F, phi
 
 
 def run_tree_command(route, t_end, solver, overrides, out: Path | None, plot, echo) -> None:

@@ -63,12 +63,13 @@ from __future__ import annotations
 import dataclasses
 import re
 import warnings
-from pathlib import Path
 
 import numpy as np
 import sympy as sp
 
 from appell.errors import AppellNote, ModelError
+from appell.mechanism.mjcf_compiled import _IGNORED, _joint_kinds
+from appell.mechanism.mjcf_compiled import load_mjcf as load_mjcf  # moved there (no SymPy), read here as before
 from appell.mechanism.mjcf_model import (
     _DERIVED,
     MjcfModel,
@@ -84,27 +85,6 @@ from appell.mechanism.mjcf_model import (
 from appell.mechanism.mjcf_model import MjcfJoint as MjcfJoint
 from appell.mechanism.mjcf_model import _product as _product
 from appell.mechanism.mjcf_model import _quaternion as _quaternion
-
-
-def load_mjcf(source) -> object:
-    """The compiled ``mujoco.MjModel`` of a file path or an XML string; MuJoCo's own error
-    message (file and line where it gives them) as a :class:`ModelError`."""
-    mujoco = _mujoco()
-    text = str(source)
-    try:
-        if text.lstrip().startswith("<"):
-            return mujoco.MjModel.from_xml_string(text)
-        path = Path(source)
-        if not path.is_file():
-            raise ModelError(f"{path}: no such MuJoCo model file")
-        return mujoco.MjModel.from_xml_path(str(path))
-    except ValueError as exc:
-        raise ModelError(
-            f"MuJoCo could not read the model: {str(exc).strip()}",
-            where=None if text.lstrip().startswith("<") else str(source),
-            hint="check the file with MuJoCo's own tools (python -m mujoco.viewer)",
-        ) from exc
-
 
 MAX_MESH_FACES = 20000
 
@@ -169,21 +149,6 @@ def _geoms(mujoco, model, mech, place) -> None:
         mech.shape(body, name, tuple(float(v) for v in size(np.asarray(model.geom_size[g], float))), **where)
 
 
-_IGNORED = (
-    ("contacts between geoms", lambda m: m.ngeom and np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0))),
-    ("joint limits", lambda m: np.any(np.asarray(m.jnt_limited) != 0)),
-    ("tendon limits", lambda m: m.ntendon and np.any(np.asarray(m.tendon_limited) != 0)),
-    ("soft-constraint parameters (solref, solimp) of the equalities (held rigid here)", lambda m: m.neq),
-    ("sensors", lambda m: m.nsensor),
-    ("cameras, lights and visual settings", lambda m: m.ncam or m.nlight),
-    ("keyframes", lambda m: m.nkey),
-    (
-        "fluid forces (density, viscosity, wind)",
-        lambda m: float(m.opt.density) != 0 or float(m.opt.viscosity) != 0 or np.any(np.asarray(m.opt.wind) != 0),
-    ),
-)
-
-
 def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armature: str = "rotors") -> MjcfModel:
     """The :class:`MjcfModel` of a compiled ``mujoco.MjModel`` (module docstring).
     ``frictionloss``: ``'refuse'`` (a joint or tendon with ``frictionloss`` is an error
@@ -213,12 +178,7 @@ def read_mjcf(model, source: str = "<mjcf>", frictionloss: str = "refuse", armat
 
     if frictionloss not in ("refuse", "ignore"):
         raise ModelError(f"frictionloss must be 'refuse' or 'ignore', got {frictionloss!r}")
-    kinds = {
-        int(mujoco.mjtJoint.mjJNT_HINGE): "hinge",
-        int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
-        int(mujoco.mjtJoint.mjJNT_BALL): "ball",
-        int(mujoco.mjtJoint.mjJNT_FREE): "free",
-    }
+    kinds = _joint_kinds(mujoco)
     bodies = _names(model, mujoco.mjtObj.mjOBJ_BODY, model.nbody)
     joint_names = _names(model, mujoco.mjtObj.mjOBJ_JOINT, model.njnt)
     title = bytes(model.names).split(b"\x00")[0].decode(errors="replace")  # the <mujoco model="..."> name

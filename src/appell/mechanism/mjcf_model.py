@@ -1,37 +1,25 @@
 """The parts of a MuJoCo model as appell reads it (:mod:`appell.mechanism.mjcf`): the
 :class:`MjcfModel` and :class:`MjcfJoint` that :func:`~appell.mechanism.mjcf.read_mjcf` gives,
-the names (:class:`_Names`: MJCF names to appell identifiers), MuJoCo's quaternions and
-rotations, and the compiled model's flags and names (:func:`_flag`, :func:`_names`).
+MuJoCo's quaternions, and (from :mod:`appell.mechanism.mjcf_compiled`, without SymPy) the
+names (:class:`_Names`: MJCF names to appell identifiers), rotations and the compiled model's
+flags and names (:func:`_flag`, :func:`_names`).
 """
 
 from __future__ import annotations
 
-import keyword
-import re
 from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
 
-from appell.errors import import_optional
+# moved to appell.mechanism.mjcf_compiled (no SymPy there), read here as before
+from appell.mechanism.mjcf_compiled import _DERIVED as _DERIVED
+from appell.mechanism.mjcf_compiled import _flag as _flag
+from appell.mechanism.mjcf_compiled import _mujoco as _mujoco
+from appell.mechanism.mjcf_compiled import _Names as _Names
+from appell.mechanism.mjcf_compiled import _names as _names
+from appell.mechanism.mjcf_compiled import _rotation as _rotation
 from appell.symbols import derivative_symbol
-
-
-def _mujoco():
-    """The mujoco package, or :class:`~appell.errors.MissingDependencyError` naming the extra
-    (``pip install 'appell[mjcf]'``)."""
-    return import_optional("mujoco", extra="mjcf", feature="reading a MuJoCo model (MJCF)")
-
-
-def _rotation(quat) -> np.ndarray:
-    w, x, y, z = (float(v) for v in quat)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def _orientation(R: np.ndarray) -> list[list[float]]:
@@ -39,11 +27,6 @@ def _orientation(R: np.ndarray) -> list[list[float]]:
     pitch, yaw or a 3x3 rotation; angles read back from ``R`` near a pitch of 90 degrees would
     lose digits)."""
     return np.asarray(R, float).tolist()
-
-
-def _names(model, kind, count) -> list[str | None]:
-    mujoco = _mujoco()
-    return [mujoco.mj_id2name(model, kind, i) for i in range(count)]
 
 
 def _open_directions(model, b1, anchor1, b2, anchor2, body_axes=False) -> str:
@@ -65,54 +48,6 @@ def _open_directions(model, b1, anchor1, b2, anchor2, body_axes=False) -> str:
         gap = data.xmat[b1].reshape(3, 3).T @ (p1 - p2) if body_axes else p1 - p2
         apart = np.maximum(apart, np.abs(gap))
     return "".join(a for a, d in zip("xyz", apart) if d > 1e-9)
-
-
-#: triangles of meshes a view carries (its page's size); past them a mesh is drawn as its box
-class _Names:
-    """MJCF names (per element kind, any characters) -> appell identifiers (one namespace):
-    characters that are not ASCII letters, digits or ``_`` become ``_`` (no ``__``), a name
-    that does not start with a letter, or is reserved, gets its kind before it
-    (``2XL430`` -> ``class_2XL430``), and a name already taken by another kind gets the kind
-    as a suffix (``waistRoll`` the joint, ``waistRoll_body`` the body). ``table`` keeps
-    ``identifier -> (kind, MJCF name)`` for every name that changed."""
-
-    def __init__(self, reserved=()):
-        self.used = set(reserved)
-        self.table: dict[str, tuple[str, str]] = {}
-        self.kept: list[str] = []  # the names that are MuJoCo's own
-
-    def claim(self, kind: str, original: str | None, fallback: str, derived=()) -> str:
-        from appell.symbols import name_problem
-
-        base = original or fallback
-        ident = re.sub(r"_+", "_", re.sub(r"\W", "_", base, flags=re.ASCII)).strip("_")[:48]
-        if not ident or not ident[0].isalpha() or keyword.iskeyword(ident) or name_problem(ident):
-            ident = f"{kind}_{ident}".rstrip("_")
-        candidate, k = ident, 1
-        while candidate in self.used or any(candidate + d in self.used for d in derived):
-            candidate = f"{ident}_{kind}" if k == 1 else f"{ident}_{kind}{k}"
-            k += 1
-        self.used.add(candidate)
-        self.used.update(candidate + d for d in derived)
-        if original and candidate != original:
-            self.table[candidate] = (kind, original)
-        elif original:
-            self.kept.append(candidate)
-        return candidate
-
-    def shown(self, ident: str) -> str:
-        """``ident`` as the file spells it (for messages: the note gives the identifier)."""
-        kind, original = self.table.get(ident, (None, None))
-        return repr(ident) if original is None else repr(original)
-
-
-#: the coordinates and constraints a joint of each kind adds beside its name
-_DERIVED = {
-    "free": ("_x", "_y", "_z", "_q0", "_q1", "_q2", "_q3", "_unit"),
-    "ball": ("_q0", "_q1", "_q2", "_q3", "_unit"),
-    "hinge": (),
-    "slide": (),
-}
 
 
 @dataclass(frozen=True)
@@ -213,13 +148,3 @@ def _quaternion(R) -> np.ndarray:
 def _rate(expr, coordinates) -> sp.Expr:
     """``d expr/dt`` for an expression in the coordinates (speeds ``<q>_dot``)."""
     return sum((sp.diff(expr, q) * derivative_symbol(q) for q in coordinates), sp.S.Zero)
-
-
-#: what has no meaning for the rigid-body motion appell computes, each with what tells it
-
-
-def _flag(model, name: str) -> bool:
-    """Whether MuJoCo's ``disableflags`` has ``mjDSBL_<name>`` set (False where this MuJoCo has no such flag)."""
-    mujoco = _mujoco()
-    bit = getattr(mujoco.mjtDisableBit, f"mjDSBL_{name}", None)
-    return bit is not None and bool(int(model.opt.disableflags) & int(bit))

@@ -15,6 +15,7 @@ import numpy as np
 import sympy as sp
 
 from appell.errors import ModelError
+from appell.mechanism.mjcf_compiled import _mapping_notes
 from appell.mechanism.mjcf_model import (
     MjcfJoint,
     MjcfModel,
@@ -497,13 +498,7 @@ def _finish(r: _Reading) -> MjcfModel:
         r.read_joints,
         r.rotors,
     )
-    if merged:
-        ignored.append(f"massless bodies merged into their parents: {', '.join(merged)}")
-    if names.table:
-        ignored.append(
-            "names mapped to identifiers: "
-            + ", ".join(f"{kind} {orig!r} -> {ident}" for ident, (kind, orig) in names.table.items())
-        )
+    ignored += _mapping_notes(merged, names)
     note = (
         f"{source}: not applied (no meaning for the rigid-body motion) or mapped: " + "; ".join(ignored)
         if ignored

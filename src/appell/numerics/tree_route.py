@@ -1,14 +1,18 @@
 """A robot's first numbers without deriving its system and without a compiler: the numeric
 recursive route of a joint tree, in two forms with one interface.
 
-* :class:`NumericTreeRoute`, :func:`tree_route`'s choice for a URDF file: the file read in
-  floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`: the bodies,
-  joints, coordinates and names of :func:`~appell.mechanism.urdf.urdf_mechanism`), without
-  SymPy; the accelerations by the articulated-body algorithm (:func:`aba`). A fraction of a
-  second from a fresh interpreter for a 38-speed humanoid (``benchmarks/instant.py``). It is
-  also a model the simulator integrates (:class:`~appell.numerics.dynamics.Dynamics`).
-* :class:`TreeRoute`, for an MJCF file, a :class:`~appell.mechanism.Mechanism`, or a URDF
-  holding what the floating-point reader does not take (``floating`` or ``planar`` joints):
+* :class:`NumericTreeRoute`, :func:`tree_route`'s choice for a URDF or MJCF file: the file
+  read in floating point into its joint tree (:func:`appell.mechanism.urdf_tree.urdf_tree`: the
+  bodies, joints, coordinates and names of :func:`~appell.mechanism.urdf.urdf_mechanism`;
+  :func:`appell.mechanism.mjcf_tree.mjcf_tree`: MuJoCo's compiled model with the names of
+  :func:`~appell.mechanism.mjcf.read_mjcf` and MuJoCo's armature, springs, dampers and
+  actuators), without SymPy; the accelerations by the articulated-body algorithm (:func:`aba`).
+  A fraction of a second from a fresh interpreter for a 38-speed humanoid
+  (``benchmarks/instant.py``). It is also a model the simulator integrates
+  (:class:`~appell.numerics.dynamics.Dynamics`).
+* :class:`TreeRoute`, for a :class:`~appell.mechanism.Mechanism`, or a URDF holding what the
+  floating-point reader does not take (a mimic of a multi-coordinate joint, ...); never for an
+  MJCF file (the mechanism's tree has none of MuJoCo's forces):
   the mechanism's joint tree (:meth:`Mechanism.rigid_tree
   <appell.mechanism.Mechanism.rigid_tree>`: each joint's rotation, translation, motion
   subspace ``S``, bias ``c`` and body inertia, small expressions in the joint's own
@@ -214,7 +218,7 @@ def _crm(v) -> np.ndarray:
     return out
 
 
-def aba(X, inertia, parent, speed, S, w, tau, base, keep: dict | None = None) -> np.ndarray:
+def aba(X, inertia, parent, speed, S, w, tau, base, keep: dict | None = None, armature=None) -> np.ndarray:
     """The accelerations ``a`` of ``M a + h = tau`` by the articulated-body algorithm
     (Featherstone 2008, table 7.1), body axes, spatial vectors ``[omega; v]``: ``X`` (nb, 6, 6)
     each node's transform from its parent, ``inertia`` (nb, 6, 6) the bodies' spatial inertias
@@ -224,7 +228,9 @@ def aba(X, inertia, parent, speed, S, w, tau, base, keep: dict | None = None) ->
     ``p_i = v_i x* I_i v_i``; inward ``U = I^A S``, ``D = S^T U``, ``u = tau - S^T p^A``,
     ``I^A_p += X^T (I^A - U U^T / D) X``, ``p^A_p += X^T (p^A + I^a c + U u / D)``; outward
     ``a_i = X_i a_p + c_i``, ``qdd = (u - U^T a_i) / D``, ``a_i += S qdd``. ``keep`` (a dict)
-    receives ``U`` and ``D``, which depend on the configuration only (:func:`aba_at_rest`)."""
+    receives ``U`` and ``D``, which depend on the configuration only (:func:`aba_at_rest`).
+    ``armature`` (per speed, MuJoCo's ``M_kk += a_k``: a rotor's inertia reflected on the joint)
+    adds to ``D`` (Featherstone 2008, §7.3's ``D = S^T U + I_m``)."""
     nb = len(parent)
     v, c, pA = np.zeros((nb, 6)), np.zeros((nb, 6)), np.zeros((nb, 6))
     IA = np.array(inertia, float)
@@ -243,7 +249,7 @@ def aba(X, inertia, parent, speed, S, w, tau, base, keep: dict | None = None) ->
         Ia = IA[i]
         if k >= 0:
             U[i] = IA[i] @ S[k]
-            D[i] = S[k] @ U[i]
+            D[i] = S[k] @ U[i] + (armature[k] if armature is not None else 0.0)
             if not D[i] > 0.0:
                 raise ModelError(
                     "a joint carries no inertia (a zero pivot of the articulated-body algorithm)",
@@ -274,6 +280,45 @@ def _outward(X, parent, speed, S, U, D, u, c, base) -> np.ndarray:
     return qdd
 
 
+def mass_and_bias(X, inertia, parent, speeds_of, S, w, base) -> tuple[np.ndarray, np.ndarray]:
+    """``M`` by the composite-rigid-body algorithm and ``h`` of ``M a + h = tau`` by the
+    recursive Newton-Euler algorithm at ``a = 0`` (Featherstone 2008, tables 6.2 and 5.1), on the
+    transforms ``X`` of :func:`aba`, a node moved by several speeds (``speeds_of[i]``, rows of
+    ``S``: a quaternion's four) as well as by one or none, its joint's ``dS/dt w = 0`` (the
+    axes of a hinge or slider are the body's; a quaternion's ``2 G(q') q' = 0``): outward
+    ``v_i = X_i v_p + S_i^T w_i``, ``a_i = X_i a_p + v_i x S_i^T w_i`` (``a_p`` of the ground:
+    ``base``), ``f_i = I_i a_i + v_i x* I_i v_i``; inward ``h_i = S_i f_i``, ``f_p += X_i^T f_i``;
+    ``I^c_p += X_i^T I^c_i X_i``, ``M_ij = S_i X_(i..j)^T I^c_i S_j^T``."""
+    nb, n = len(parent), len(S)
+    v, acc, f = np.zeros((nb, 6)), np.zeros((nb, 6)), np.zeros((nb, 6))
+    for i in range(nb):
+        p, k = parent[i], speeds_of[i]
+        vJ = S[k].T @ w[k]
+        v[i] = X[i] @ v[p] + vJ if p >= 0 else vJ
+        acc[i] = X[i] @ (acc[p] if p >= 0 else base) + _crm(v[i]) @ vJ
+        f[i] = inertia[i] @ acc[i] - _crm(v[i]).T @ (inertia[i] @ v[i])
+    h, M, Ic = np.zeros(n), np.zeros((n, n)), np.array(inertia, float)
+    for i in reversed(range(nb)):
+        h[speeds_of[i]] = S[speeds_of[i]] @ f[i]
+        if parent[i] >= 0:
+            f[parent[i]] += X[i].T @ f[i]
+            Ic[parent[i]] += X[i].T @ Ic[i] @ X[i]
+    # a node's speeds are consecutive: slices, not index arrays, into M
+    cut = [slice(k[0], k[-1] + 1) if len(k) else None for k in speeds_of]
+    for i in range(nb):
+        if cut[i] is None:
+            continue
+        F = Ic[i] @ S[cut[i]].T
+        M[cut[i], cut[i]] = S[cut[i]] @ F
+        j = i
+        while parent[j] >= 0:
+            F, j = X[j].T @ F, parent[j]
+            if cut[j] is not None:
+                M[cut[i], cut[j]] = F.T @ S[cut[j]].T
+                M[cut[j], cut[i]] = M[cut[i], cut[j]].T
+    return M, h
+
+
 def aba_at_rest(X, parent, speed, S, U, D, tau) -> np.ndarray:
     """:func:`aba` at zero speeds without gravity, ``M^-1 tau``, on the articulated inertias of
     a call of :func:`aba` at the same configuration (its ``keep``: ``U``, ``D``): the inward pass
@@ -292,6 +337,77 @@ def aba_at_rest(X, parent, speed, S, U, D, tau) -> np.ndarray:
     return _outward(X, parent, speed, S, U, D, u, np.zeros((nb, 6)), np.zeros(6))
 
 
+class _JointForces:
+    """A MuJoCo model's forces on the speeds of its tree (:class:`~appell.mechanism.mjcf_tree.MjcfTree`),
+    in appell's speeds (a quaternion's rates ``q'``, the body-axes angular velocity ``omega = 2 G(q) q'``,
+    so that a force ``f`` on ``omega`` is ``2 G^T f`` on ``q'``):
+
+    * ``M += diag(armature)`` on the hinges, slides and a free joint's sliders, ``4 G^T diag(a) G``
+      on a quaternion (the kinetic energy ``omega^T diag(a) omega / 2``, MuJoCo's ``M_ii += a``;
+      isotropic on a joint, so without gyroscopic terms);
+    * ``f = -d w - k (q - q_spring) + sum gear (gain u + b0 + b1 gear (q + qpos0) + b2 gear w)``
+      on a hinge or slide (damping, spring about ``qpos_spring``, the actuators at ``ctrl`` ``u``),
+      ``-d w`` on a free joint's sliders (its world velocity is ``R0 w``), ``-4 G^T diag(d) G q'``
+      on a quaternion."""
+
+    def __init__(self, tree, ctrl=None):
+        n = len(tree.coordinates)
+        self.armature = np.asarray(tree.armature, float)
+        self.rotational = tree.rotational
+        self.actuator_names = tuple(a.name for a in tree.actuators)
+        given = dict(ctrl or {})
+        known = {name for a in tree.actuators for name in (a.name, a.mjcf)}
+        unknown = sorted(str(k) for k in given if str(k) not in known)
+        if unknown:
+            raise ModelError(
+                f"{tree.name}: ctrl for unknown actuator(s) {', '.join(unknown)}",
+                hint="actuators: " + (", ".join(a.mjcf for a in tree.actuators) or "none"),
+            )
+        u = np.array([float(given.get(a.mjcf, given.get(a.name, 0.0))) for a in tree.actuators])
+        # f = f0 + Kq q + Kw w (diagonal): the springs, dampers and actuators, linear on hinges and slides
+        self.f0 = np.asarray(tree.stiffness, float) * np.asarray(tree.spring, float)
+        self.kq, self.kw = -np.asarray(tree.stiffness, float), -np.asarray(tree.damping, float)
+        for a, value in zip(tree.actuators, u):
+            b0, b1, b2 = a.bias
+            self.f0[a.k] += a.gear * (a.gain * value + b0 + b1 * a.gear * a.qpos0)
+            self.kq[a.k] += a.gear * b1 * a.gear
+            self.kw[a.k] += a.gear * b2 * a.gear
+        self.f0.setflags(write=False)
+        assert self.f0.shape == (n,)
+
+    def mass(self, M, q) -> np.ndarray:
+        """``M`` with the armature."""
+        M = M + np.diag(self.armature)
+        for k, a, _ in self.rotational:
+            if np.any(a):
+                G = _quaternion_g(q[k : k + 4])
+                M[k : k + 4, k : k + 4] += 4.0 * G.T @ (a[:, None] * G)
+        return M
+
+    def unit_terms(self, starts, q, w) -> np.ndarray:
+        """What a quaternion's armature adds to its unit row's multiplier in the derived route,
+        which takes the rotor energy ``T = omega^T A omega / 2`` through Lagrange's equations in
+        ``q``: their row of ``q`` gains ``q^T (d/dt dT/dq' - dT/dq) = -2 omega^T A omega`` (the
+        armature's ``M`` has no row of ``q``), so its multiplier ``2 omega^T A omega / (q.q)`` less
+        than the rigid recursions' (``starts``: each quaternion's first coordinate)."""
+        armature = {k: a for k, a, _ in self.rotational}
+        out = np.zeros(len(starts))
+        for row, k in enumerate(starts):
+            if k in armature:
+                omega = 2.0 * _quaternion_g(q[k : k + 4]) @ w[k : k + 4]
+                out[row] = 2.0 * omega @ (armature[k] * omega) / (q[k : k + 4] @ q[k : k + 4])
+        return out
+
+    def forces(self, q, w) -> np.ndarray:
+        """The passive and actuator forces ``f(q, w)`` on the speeds."""
+        f = self.f0 + self.kq * q + self.kw * w
+        for k, _, d in self.rotational:
+            if np.any(d):
+                G = _quaternion_g(q[k : k + 4])
+                f[k : k + 4] -= 4.0 * G.T @ (d * (G @ w[k : k + 4]))
+        return f
+
+
 class NumericTreeRoute:
     """The numeric route of a URDF's joint tree read in floating point
     (:func:`appell.mechanism.urdf_tree.urdf_tree`), without SymPy: the accelerations by the
@@ -301,15 +417,27 @@ class NumericTreeRoute:
     The same attributes and calls as :class:`TreeRoute`; the one parameter is ``g``. It is also
     a model the simulator integrates (:class:`~appell.numerics.dynamics.Dynamics`):
     ``appell.simulate(tree_route("panda.urdf"), options=...)`` runs without deriving (the
-    joint forces are not recorded along the motion: :meth:`forward` gives them at a state)."""
+    joint forces are not recorded along the motion: :meth:`forward` gives them at a state).
 
-    def __init__(self, tree, name: str = ""):
+    A MuJoCo model's tree (:func:`appell.mechanism.mjcf_tree.mjcf_tree`) brings its gravity
+    vector (no parameter) and its forces on the speeds (:class:`_JointForces`: armature,
+    damping, springs, actuators at ``ctrl``, ``{actuator: value}``, MJCF or appell names, 0
+    where not given)."""
+
+    def __init__(self, tree, name: str = "", ctrl=None):
         self.name = name or tree.name
         nodes = tree.nodes
         self.coordinate_names = tree.coordinates
         self.speed_names = tuple(f"{q}_dot" for q in self.coordinate_names)
         self.n = n = len(self.coordinate_names)
         self.parameter_names, self.default_parameters = ("g",), np.array([9.81])
+        self._gravity = getattr(tree, "gravity", None)
+        self._forces = _JointForces(tree, ctrl) if getattr(tree, "armature", None) is not None else None
+        #: a MuJoCo model's armature as the symbolic reader's rotors (``armature='rotors'``):
+        #: ``(rotor coordinate, its constraint, coordinate index, armature)`` (:mod:`appell.io.cli_tree`)
+        self.rotors = tuple(getattr(tree, "rotors", ()))
+        if self._gravity is not None:  # a MuJoCo model's: a vector, no parameter
+            self.parameter_names, self.default_parameters = (), np.zeros(0)
         self.parent = np.array([node.parent for node in nodes], dtype=np.int64)
         self.speed = np.full(len(nodes), -1, dtype=np.int64)  # each node's (first) speed
         self.S = np.zeros((n, 6))
@@ -378,19 +506,28 @@ class NumericTreeRoute:
                 R[b] = node.rotation @ _quaternion_rotation(q[k : k + 4])
                 S[k : k + 4, :3] = 2.0 * _quaternion_g(q[k : k + 4]).T
         arrays = TreeArrays(R.ravel(), r.ravel(), S.ravel(), np.zeros(6 * nb), self._inert.ravel())
-        return arrays, q, w, np.array([0.0, 0.0, -p[0]])
+        gravity = self._gravity if self._gravity is not None else np.array([0.0, 0.0, -p[0]])
+        return arrays, q, w, gravity
 
     def _aba(self, arrays, w, tau, base, keep=None):
         X = [_transform(arrays.R[0, b], arrays.r[0, b]) for b in range(len(self._nodes))]
-        return X, aba(X, self._spatial, self.parent, self.speed, self.S, w, tau, base, keep)
+        armature = self._forces.armature if self._forces is not None else None
+        return X, aba(X, self._spatial, self.parent, self.speed, self.S, w, tau, base, keep, armature)
+
+    def _mass_and_bias(self, arrays, q, w, gravity) -> tuple[np.ndarray, np.ndarray]:
+        """``M`` (CRBA, with a MuJoCo model's armature) and ``h`` of ``M a + h = tau`` (RNEA at
+        ``a = 0``, gravity in it, less a MuJoCo model's passive and actuator forces)."""
+        base = np.concatenate([np.zeros(3), -gravity])
+        X = [_transform(arrays.R[0, b], arrays.r[0, b]) for b in range(len(self._nodes))]
+        M, h = mass_and_bias(X, self._spatial, self.parent, self._speeds_of, arrays.S[0], w, base)
+        if self._forces is not None:
+            M, h = self._forces.mass(M, q), h - self._forces.forces(q, w)
+        return M, h
 
     def blocks(self, time, q, w, p=None) -> tuple[np.ndarray, np.ndarray]:
         """``(M, h)`` (CRBA and RNEA, :mod:`appell.numerics.rigid_tree`), gravity in ``h``."""
         arrays, q, w, gravity = self._arrays(q, w, p)
-        base = np.concatenate([np.zeros(3), -gravity])
-        return crba(arrays, self.parent, self.node_of), rnea(
-            arrays, self.parent, self.node_of, w, np.zeros(self.n), base
-        )
+        return self._mass_and_bias(arrays, q, w, gravity)
 
     def accelerations(self, time, q, w, tau=None, p=None) -> np.ndarray:
         """``a`` of ``M a = tau - h`` (with the mimic rows, :meth:`forward`)."""
@@ -410,9 +547,7 @@ class NumericTreeRoute:
         """``a`` and the multipliers of the augmented system ``[[M, -J^T], [J, 0]]`` (a floating
         joint's quaternion: ``M`` is singular along ``q``, so no articulated-body solve); each
         unit row's multiplier as the derived route's (:meth:`_unit_multipliers`)."""
-        base = np.concatenate([np.zeros(3), -gravity])
-        M = crba(arrays, self.parent, self.node_of)
-        h = rnea(arrays, self.parent, self.node_of, w, np.zeros(self.n), base)
+        M, h = self._mass_and_bias(arrays, q, w, gravity)
         J, c = self._rows(q, w)
         a, lam = _augmented_solve(
             M,
@@ -423,6 +558,8 @@ class NumericTreeRoute:
             "a quaternion of norm zero, a body without mass, or dependent mimic rows",
         )
         lam[: len(self._quaternions)] = self._unit_multipliers(arrays, q, gravity)
+        if self._forces is not None:
+            lam[: len(self._quaternions)] -= self._forces.unit_terms([k for _, k in self._quaternions], q, w)
         return a, lam
 
     def _unit_multipliers(self, arrays, q, gravity) -> np.ndarray:
@@ -457,6 +594,8 @@ class NumericTreeRoute:
             a, lam = self._dense(arrays, q, w, tau, gravity)
             return arrays, w, gravity, a, lam
         keep: dict = {}
+        if self._forces is not None:
+            tau = tau + self._forces.forces(q, w)
         X, a = self._aba(arrays, w, tau, np.concatenate([np.zeros(3), -gravity]), keep)
         lam = np.zeros(len(self._J))
         if len(self._J):
@@ -506,7 +645,7 @@ class NumericTreeRoute:
     def units(self) -> dict[str, str]:
         """The units of the coordinates and speeds (rad, m: as :func:`~appell.mechanism.urdf.urdf_units`),
         of the joints' forces and moments (N, N*m) and of ``g``."""
-        out = {"g": "m/s^2"}
+        out = {"g": "m/s^2"} if self.parameter_names else {}
         for node in self._nodes:
             if node.coordinate is not None and node.coordinate == node.reaction:  # a one-coordinate URDF joint
                 angle = node.kind == "revolute"
@@ -524,15 +663,17 @@ class NumericTreeRoute:
         return self.coordinate_names + self.speed_names
 
     def params(self, p=None) -> np.ndarray:
-        """``[g]``: the default, or ``p`` (one value, or ``{"g": value}``)."""
+        """``[g]``: the default, or ``p`` (one value, or ``{"g": value}``); ``[]`` for a MuJoCo
+        model (its gravity is the file's)."""
         if p is None:
             return self.default_parameters
         if isinstance(p, dict):
-            unknown = set(map(str, p)) - {"g"}
+            unknown = set(map(str, p)) - set(self.parameter_names)
             if unknown:
-                raise ModelError(f"unknown parameter {sorted(unknown)[0]!r}", hint="parameters: g")
-            return np.array([float(p.get("g", self.default_parameters[0]))])
-        return np.asarray(p, float).reshape(1)
+                hint = f"parameters: {', '.join(self.parameter_names)}" if self.parameter_names else "it has none"
+                raise ModelError(f"unknown parameter {sorted(unknown)[0]!r}", hint=hint)
+            return np.array([float(p.get(k, v)) for k, v in zip(self.parameter_names, self.default_parameters)])
+        return np.asarray(p, float).reshape(len(self.parameter_names))
 
     def evaluate(self, t, y, p=None):
         """``dy/dt = (w, a)`` and the mimic rows' multipliers at ``(t, y)`` (no joint forces)."""
@@ -570,12 +711,19 @@ class NumericTreeRoute:
         return J, J
 
 
-def tree_route(source, *, floating_base: bool = False) -> TreeRoute:
-    """The :class:`TreeRoute` of a robot file (URDF or MJCF, by its suffix) or of a
-    :class:`~appell.mechanism.Mechanism`."""
+def tree_route(source, *, floating_base: bool = False, ctrl=None, frictionloss: str = "refuse"):
+    """The numeric route of a robot file (URDF or MJCF, by its suffix) or of a
+    :class:`~appell.mechanism.Mechanism` (a :class:`TreeRoute`). A URDF is read in floating
+    point (:class:`NumericTreeRoute`) where :func:`~appell.mechanism.urdf_tree.urdf_tree` takes
+    it; an MJCF file always (:func:`~appell.mechanism.mjcf_tree.mjcf_tree`: its armature,
+    springs, dampers and actuators at ``ctrl``, ``frictionloss='ignore'`` leaving MuJoCo's dry
+    friction out), or a :class:`ModelError` naming what it does not read (never the
+    mechanism's tree, which has none of MuJoCo's forces)."""
     if not isinstance(source, (str, Path)):
         return TreeRoute(source)
     path = Path(source)
+    if path.suffix.lower() in (".xml", ".mjcf"):
+        return mjcf_route(path, ctrl, frictionloss)
     if path.suffix.lower() == ".urdf":  # read in floating point, no SymPy (NumericTreeRoute)
         from appell.mechanism.urdf import read_urdf
         from appell.mechanism.urdf_tree import NotNumeric, urdf_tree
@@ -594,3 +742,18 @@ def tree_route(source, *, floating_base: bool = False) -> TreeRoute:
         )
     mechanism, constraints = importer.mechanism(path, floating_base)
     return TreeRoute(mechanism, path.stem, constraints)
+
+
+def mjcf_route(path, ctrl=None, frictionloss: str = "refuse") -> NumericTreeRoute:
+    """The :class:`NumericTreeRoute` of a MuJoCo model file (:func:`tree_route`); what the
+    floating-point tree does not read is a :class:`ModelError` naming it."""
+    from appell.mechanism.mjcf_compiled import load_mjcf
+    from appell.mechanism.mjcf_tree import INSTEAD, mjcf_tree
+    from appell.mechanism.urdf_tree import NotNumeric
+
+    path = Path(path)
+    try:
+        tree = mjcf_tree(load_mjcf(path), str(path), frictionloss)
+    except NotNumeric as exc:
+        raise ModelError(f"{path}: the numeric tree route does not take {exc}", hint=INSTEAD) from None
+    return NumericTreeRoute(tree, path.stem, ctrl)
