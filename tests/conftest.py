@@ -77,29 +77,39 @@ def dask_processes(tmp_path):
 # ------------------------------------------------------------------ variants (scripts/test-matrix.sh)
 #: the numerical part of the suite: closed forms, published values, independent routes.
 #: Left out: the browser, packaging, documentation, CLI-text and hostile-input tests, whose
-#: outcome does not depend on rounding (``pytest -m numerical`` selects the rest).
+#: outcome does not depend on rounding (``pytest -m numerical`` selects the rest); likewise
+#: the tests of what is imported (test_cli_imports, test_fast_default: ``sys.modules`` and the
+#: default backend's class in a child process; test_missing_extras: the refusal of a missing
+#: package; test_typing: the lazy names against their ``TYPE_CHECKING`` block) and of the
+#: source's sizes (test_layout), which compare names, strings and line counts, no number.
 NOT_NUMERICAL = {
     "test_api_misuse.py",
     "test_architecture.py",
     "test_benchmark_references.py",
     "test_cli.py",
+    "test_cli_imports.py",
     "test_cli_solver.py",
     "test_core_bad_input.py",
     "test_core_printing.py",
     "test_display.py",
     "test_docs.py",
     "test_docs_offline.py",
+    "test_fast_default.py",
     "test_faults.py",
     "test_json_exact.py",
+    "test_layout.py",
     "test_matrix_script.py",
     "test_mechanism_errors.py",
+    "test_missing_extras.py",
     "test_modelfile_hostile.py",
     "test_packaging.py",
     "test_report_browser.py",
     "test_servo_bad_input.py",
     "test_suite_setup.py",
     "test_sweep.py",
+    "test_typing.py",
     "test_urdf_hostile.py",
+    "test_viewer_browser.py",
 }
 
 #: ``$APPELL_TEST_BACKEND=c``: ``numeric_model(derivation)`` is the compiled C model
@@ -207,43 +217,48 @@ HEAVY = {
     "test_inverse_contacts.py",
     "test_printed_recursion.py",
     "test_parallel_gripper.py",
+    "test_loops.py",
+    "test_rigid_tree.py",
 }
 QUICK = os.environ.get("APPELL_QUICK") == "1"
 #: the order in which the parallel pass hands modules to its workers (scripts/passes.sh gives
 #: pytest-xdist ``--no-loadscope-reorder``, whose default hands out the modules with the most
 #: tests first, the long ones with few tests last): the longest first, so that the last module
 #: to finish is a short one and no worker waits alone at the end; the other modules follow in
-#: their usual order. test_docs_offline.py leads: its Sphinx build (:func:`docs_build`, every
-#: bundled example run for the gallery) is the longest single step (137 s of a whole run's
-#: 761 s on a loaded machine, 2026-11-29, when it came last of these).
+#: their usual order. By each module's time in one process (the parallel pass's modules, a
+#: shared cache filled as the run goes, 2026-11-29): test_iftomm.py 260 s (its printed 20 x 20
+#: chain alone 93 s), the Sphinx build of test_docs_offline.py (:func:`docs_build`, every
+#: bundled example run for the gallery's figures) 80 s, down to 2 s.
 LONGEST_FIRST = (
-    "test_docs_offline.py",
-    "test_docs.py",
-    "test_cli.py",
     "test_iftomm.py",
+    "test_docs.py",
+    "test_docs_offline.py",
     "test_api_cli_agree.py",
-    "test_matrix_script.py",
-    "test_modelfile_examples.py",
     "test_printed_equations.py",
-    "test_json_exact.py",
+    "test_viewer_browser.py",
+    "test_cli.py",
+    "test_loops.py",
+    "test_matrix_script.py",
+    "test_rigid_tree.py",
     "test_derivation_cache.py",
     "test_inverse.py",
-    "test_symbolic_bounds.py",
-    "test_servo_drive.py",
-    "test_bicycle.py",
-    "test_mjcf_menagerie.py",
-    "test_viewer_browser.py",
-    "test_evidence.py",
-    "test_report_browser.py",
-    "test_result_schema.py",
-    "test_mjcf.py",
-    "test_urdf_pinocchio.py",
     "test_implicit_jacobian.py",
+    "test_bicycle.py",
+    "test_modelfile_examples.py",
+    "test_mjcf_menagerie.py",
+    "test_mjcf.py",
+    "test_symbolic_bounds.py",
+    "test_urdf_pinocchio.py",
+    "test_servo_drive.py",
+    "test_result_schema.py",
+    "test_json_exact.py",
     "test_cli_solver.py",
     "test_tree_route.py",
-    "test_paper_forms.py",
     "test_inverse_contacts.py",
     "test_printed_recursion.py",
+    "test_evidence.py",
+    "test_report_browser.py",
+    "test_paper_forms.py",
     "test_parallel_gripper.py",
 )
 
