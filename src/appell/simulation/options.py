@@ -456,8 +456,10 @@ def check_events(events) -> tuple:
     for e in items:
         if not (isinstance(e, Event) or callable(e)):
             raise ModelError(f"event {e!r} is neither an Event nor a callable g(t, y, multipliers)")
+        if not isinstance(e, Event):
+            continue
         sympy = sys.modules.get("sympy")  # a SymPy expression means SymPy is imported
         expression = isinstance(e.function, str) or sympy is not None and isinstance(e.function, sympy.Basic)
-        if isinstance(e, Event) and not (callable(e.function) or expression):
+        if not (callable(e.function) or expression):
             raise ModelError(f"event {e.name!r}: function must be a callable or a SymPy expression")
     return items
