@@ -8,7 +8,7 @@
 # skipped. APPELL_TEST_WORKERS=1 runs the first pass in one process. All test processes share
 # one derivation and compiled-code cache, a temporary folder removed at the end
 # ($APPELL_CACHE_DIR when set: .ci/run shares it with the matrix).
-# --quick (first argument): the everyday subset, about a minute (tests/conftest.py: HEAVY).
+# --quick (first argument): the everyday subset, about 2.5 minutes (tests/conftest.py: HEAVY).
 set -euo pipefail
 if [ "${1:-}" = "--quick" ]; then
     shift

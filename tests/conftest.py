@@ -184,7 +184,7 @@ SERIAL = {"test_boundary_values.py", "test_faults.py", "test_fuzz.py", "test_swe
 #: ``$APPELL_TEST_PART``: ``parallel`` (every module but :data:`SERIAL`), ``serial`` (those
 #: only), or unset (all)
 PART = os.environ.get("APPELL_TEST_PART", "")
-#: ``$APPELL_QUICK=1`` (``bash scripts/test.sh --quick``): the everyday subset, about a minute
+#: ``$APPELL_QUICK=1`` (``bash scripts/test.sh --quick``): the everyday subset, about 2.5 minutes
 #: on two cores: every module but :data:`SERIAL` and these, which derive the large models
 #: (the bicycle, the URDF arm, the IFToMM chains), run every bundled example, build the
 #: documentation or drive a browser or subprocesses (9 s to 140 s each on two cores)
