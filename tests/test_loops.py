@@ -200,7 +200,8 @@ def test_solve_split_minimum_norm_on_dependent_rows():
     """A row given twice: the split's multipliers share its force equally (minimum norm)."""
     M = np.diag([2.0, 3.0])
     J = np.array([[1.0, 0.0], [1.0, 0.0]])
-    a, lam, undetermined = solve_split(M, np.array([-4.0, -6.0]), J, np.zeros(2), ("r1", "r2"))
+    split = solve_split(M, np.array([-4.0, -6.0]), J, np.zeros(2), ("r1", "r2"))
+    a, lam, undetermined = split.a, split.lam, split.undetermined
     # a_1 = 0 (held), a_2 = 6 / 3; the force along row 1 is -M a0_1 = -4, split equally
     assert np.allclose(a, [0.0, 2.0]) and np.allclose(lam, [-2.0, -2.0])
     assert len(undetermined) == 1 and set(undetermined[0]) == {"r1", "r2"}

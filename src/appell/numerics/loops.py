@@ -462,7 +462,7 @@ class LoopModel:
                 return LoopState(out[0], out[1], dict(zip(self.joints, out[2])))
         M, hQ, J, c, pieces = self.blocks(q, w, u, t0, p)
         split = solve_split(M, hQ, J, c, self.constraint_names)
-        a, lam, undetermined = split
+        a, lam, undetermined = split.a, split.lam, split.undetermined
         if split.nearly:
             self._note_nearly(split)
         wrench = self.joint_wrenches(w, a, lam, pieces)
@@ -471,19 +471,16 @@ class LoopModel:
     def _note_nearly(self, split) -> None:
         """One note per model for rows that are dependent only to :data:`RANK_TOLERANCE`: the
         constraints they involve and how nearly (module docstring)."""
-        involved = sorted({self.names.get(nm, nm) for _, comb in split.nearly for nm in comb})
-        key = (tuple(involved), len(split.nearly))
+        key = tuple(sorted({nm for _, comb in split.nearly for nm in comb})), len(split.nearly)
         seen = self.__dict__.setdefault("_noted", set())
         if key in seen:
             return
         seen.add(key)
         warnings.warn(
             AppellNote(
-                f"system {self.name!r}: the loop rows of {', '.join(involved)} are nearly dependent (relative "
-                f"singular value {', '.join(f'{x:.1e}' for x, _ in split.nearly)} of the mass-weighted rows, "
-                f"dependent below {RANK_TOLERANCE:g}): they are held as dependent, as the linkage the geometry "
-                "nearly is (held rigid, it would barely move or could not be closed), and their force along "
-                "that combination is left undetermined (LoopState.undetermined)"
+                f"system {self.name!r}: {nearly_phrase(split.nearly, self.names)}: they are held as dependent, "
+                "as the linkage the geometry nearly is (held rigid, it would barely move or could not be closed), "
+                "and their force along that combination is left undetermined (LoopState.undetermined)"
             ),
             stacklevel=3,
         )
@@ -526,14 +523,6 @@ def echelon_combinations(N, names) -> tuple:
     return tuple({names[k]: float(x) for k, x in enumerate(row) if abs(x) > 1e-12} for row in N)
 
 
-def undetermined_combinations(J, names, tol=RANK_TOLERANCE) -> tuple:
-    """The combinations of multipliers that do no work (the null space of ``J^T``), each as
-    ``{constraint: weight}`` (:func:`echelon_null_space`)."""
-    if J.shape[0] == 0:
-        return ()
-    return echelon_null_space(J.T, names, tol)
-
-
 @dataclass(frozen=True)
 class Split:
     """The solution of the split at one state (:func:`solve_split`): accelerations ``a``,
@@ -547,9 +536,6 @@ class Split:
     undetermined: tuple = ()
     nearly: tuple = ()
 
-    def __iter__(self):  # a, lam, undetermined = solve_split(...)
-        return iter((self.a, self.lam, self.undetermined))
-
 
 def solve_split(M, hQ, J, c, names=None, tol=RANK_TOLERANCE) -> Split:
     """The split ``M a + hQ = J^T lam``, ``J a + c = 0`` (module docstring), as :class:`Split`;
@@ -560,34 +546,66 @@ def solve_split(M, hQ, J, c, names=None, tol=RANK_TOLERANCE) -> Split:
     (``L L^T = M + rho J^T J``) and its singular values ``s_i`` (vectors ``v_i``), those above
     ``tol s_1`` kept: ``mu = sum_i v_i (v_i . r) / s_i^2``, ``r = -(J a_0 + c)``; the others'
     ``v_i`` span the combinations that do no work."""
-    from scipy.linalg import cho_factor, cho_solve, solve_triangular
+    from scipy.linalg import cho_factor, cho_solve
 
     if J.shape[0] == 0:
         return Split(cho_solve(cho_factor(M), -hQ), np.zeros(0))
-    rho = float(np.mean(np.diag(M)))
-    L = np.linalg.cholesky(M + rho * J.T @ J)
+    names = names if names is not None else tuple(f"row{k}" for k in range(J.shape[0]))
+    rho, L, sv, Vt, keep = _weighted_rows(M, J, tol)
     a0 = cho_solve((L, True), -hQ)
-    B = solve_triangular(L, J.T, lower=True)
-    _, sv, Vt = np.linalg.svd(B, full_matrices=True)
-    sv = np.concatenate([sv, np.zeros(J.shape[0] - sv.size)])  # more rows than speeds: the rest are zero
-    scale = sv[0] if sv[0] > 0 else 1.0
-    keep = sv > tol * scale
     V = Vt[keep]
     r = -(J @ a0 + c)
     mu = V.T @ ((V @ r) / sv[keep] ** 2)
     a = a0 + cho_solve((L, True), J.T @ mu)
     lam = mu + rho * c
-    names = names if names is not None else tuple(f"row{k}" for k in range(J.shape[0]))
     undetermined = echelon_combinations(Vt[~keep], names)
     if undetermined:  # the minimum-norm multipliers: orthogonal to every combination that does no work
         Qn, _ = np.linalg.qr(Vt[~keep].T)
         lam = lam - Qn @ (Qn.T @ lam)
-    nearly = tuple(
+    return Split(a, lam, undetermined, _nearly(sv, Vt, keep, names))
+
+
+def _weighted_rows(M, J, tol):
+    """``(rho, L, s, Vt, keep)``: ``rho`` the mean of ``M``'s diagonal, ``L`` the Cholesky factor
+    of ``M + rho J^T J``, the singular values ``s`` (one per row, zeros past the speeds) and
+    right singular vectors ``Vt`` of ``B = L^{-1} J^T``, and which are kept (above ``tol s_1``)."""
+    from scipy.linalg import solve_triangular
+
+    rho = float(np.mean(np.diag(M)))
+    L = np.linalg.cholesky(M + rho * J.T @ J)
+    _, sv, Vt = np.linalg.svd(solve_triangular(L, J.T, lower=True), full_matrices=True)
+    sv = np.concatenate([sv, np.zeros(J.shape[0] - sv.size)])  # more rows than speeds: the rest are zero
+    return rho, L, sv, Vt, sv > tol * (sv[0] if sv[0] > 0 else 1.0)
+
+
+def _nearly(sv, Vt, keep, names) -> tuple:
+    """:attr:`Split.nearly` of the singular values and vectors of :func:`_weighted_rows`."""
+    scale = sv[0] if sv[0] > 0 else 1.0
+    return tuple(
         (float(x / scale), {names[k]: float(v) for k, v in enumerate(row) if abs(v) > 1e-3 * np.abs(row).max()})
         for x, row in zip(sv[~keep], Vt[~keep])
         if x > ROUNDING * scale
     )
-    return Split(a, lam, undetermined, nearly)
+
+
+def nearly_dependent(M, J, names, tol=RANK_TOLERANCE) -> tuple:
+    """The combinations of the rows ``J`` (named ``names``) that are dependent only to ``tol``, not
+    to rounding, as :attr:`Split.nearly` (the rank rule of :func:`solve_split`, without the solve)."""
+    if J.shape[0] == 0:
+        return ()
+    _, _, sv, Vt, keep = _weighted_rows(M, J, tol)
+    return _nearly(sv, Vt, keep, names)
+
+
+def nearly_phrase(nearly, shown, when: str = "") -> str:
+    """``the loop rows of <rows> are nearly dependent`` (``when``: e.g. `` at the start``) and how
+    nearly, for a message; ``shown``: identifier -> the file's own spelling."""
+    rows = sorted({shown.get(nm, nm) for _, comb in nearly for nm in comb})
+    values = ", ".join(f"{x:.1e}" for x, _ in nearly)
+    return (
+        f"the loop rows of {', '.join(rows)} are nearly dependent{when} (relative singular value {values} of the "
+        f"mass-weighted rows, dependent below {RANK_TOLERANCE:g})"
+    )
 
 
 def loop_model(source, backend: str = "auto") -> LoopModel:

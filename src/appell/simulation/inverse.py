@@ -482,19 +482,15 @@ def _refuse_nearly_dependent(model, q, u, t0, p) -> None:
     misses a movable one by a little, as ToddlerBot's neck): held rigid it could barely move or
     not be closed, so the passive coordinates, and the forces along that combination, would
     come from the file's last digits."""
-    from appell.numerics.loops import solve_split
+    from appell.numerics.loops import nearly_dependent, nearly_phrase
 
-    if not model.constraint_names:
-        return
-    M, hQ, J, c, _ = model.blocks(q, np.zeros(len(q)), u, t0, p)
-    nearly = solve_split(M, hQ, J, c, model.constraint_names).nearly
+    M, _, J, _, _ = model.blocks(q, np.zeros(len(q)), u, t0, p)
+    nearly = nearly_dependent(M, J, model.constraint_names)
     if nearly:
-        rows = sorted({model.names.get(nm, nm) for _, comb in nearly for nm in comb})
         raise ModelError(
-            f"the loop rows of {', '.join(rows)} are nearly dependent at the start (relative singular value "
-            f"{', '.join(f'{x:.1e}' for x, _ in nearly)} of the mass-weighted rows): the linkage as written misses "
-            "a movable one by a little, so that held rigid it could barely move or not be closed, and inverse "
-            "dynamics would take its passive coordinates and loop forces from the file's last digits",
+            f"{nearly_phrase(nearly, model.names, ' at the start')}: the linkage as written misses a movable one "
+            "by a little, so that held rigid it could barely move or not be closed, and inverse dynamics would "
+            "take its passive coordinates and loop forces from the file's last digits",
             hint="make the linkage's geometry exact (the forward route, appell.loop_model(...).evaluate, holds "
             "such rows as dependent and says so)",
         )
