@@ -15,7 +15,6 @@ not a test dependency.
 
 from __future__ import annotations
 
-import sys
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -26,20 +25,11 @@ import pytest
 import appell
 from appell import numeric_model
 from appell.errors import AppellNote
+from robot_data import ROBOTS
 
 mujoco = pytest.importorskip("mujoco")
 from appell.mechanism.mjcf import load_mjcf, mjcf_system  # noqa: E402
 
-
-def _robots_folder() -> Path | None:
-    for base in map(Path, sys.path):
-        folder = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
-        if folder.is_dir():
-            return folder
-    return None
-
-
-ROBOTS = _robots_folder()
 CASES = [
     ("ur5", "ur_description/urdf/ur5_robot.urdf"),
     ("double_pendulum", "double_pendulum_description/urdf/double_pendulum.urdf"),

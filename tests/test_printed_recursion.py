@@ -16,7 +16,6 @@ Pinocchio).
 from __future__ import annotations
 
 import dataclasses
-import sys
 import warnings
 from pathlib import Path
 
@@ -29,19 +28,9 @@ from appell import derive, numeric_model
 from appell.errors import AppellNote
 from appell.io.printing import NAMING, printed_equations, to_text
 from appell.mechanism.urdf import urdf_system
+from robot_data import ROBOTS
 
 ARM = Path(appell.__file__).parent / "examples" / "arm.urdf"
-
-
-def _robots_folder() -> Path | None:
-    for base in map(Path, sys.path):
-        folder = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
-        if folder.is_dir():
-            return folder
-    return None
-
-
-ROBOTS = _robots_folder()
 
 
 def _arm():

@@ -18,28 +18,17 @@ installed (it is in ``appell[test]``).
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from appell import derive, numeric_model
 from appell.errors import ModelError
 from appell.mechanism.urdf import urdf_system
+from robot_data import ROBOTS
 
 pin = pytest.importorskip("pinocchio", reason="Pinocchio is not installed (pip install pin, in appell[test])")
 
 
-def _robots_folder() -> Path | None:
-    for base in map(Path, sys.path):
-        folder = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
-        if folder.is_dir():
-            return folder
-    return None
-
-
-ROBOTS = _robots_folder()
 pytestmark = pytest.mark.skipif(ROBOTS is None, reason="example-robot-data is not installed (in appell[test])")
 FIXED = {"ur5": "ur_description/urdf/ur5_robot.urdf", "panda": "panda_description/urdf/panda.urdf"}
 

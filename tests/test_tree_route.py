@@ -26,19 +26,11 @@ import appell
 from appell.errors import AppellNote, ModelError
 from appell.numerics.codegen import find_compiler
 from appell.numerics.tree_route import NumericTreeRoute, TreeRoute, tree_route
+from robot_data import ROBOTS
 
 pin = pytest.importorskip("pinocchio", reason="Pinocchio is not installed (pip install pin, in appell[test])")
 
 
-def _robots_folder() -> Path | None:
-    for base in map(Path, sys.path):
-        folder = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
-        if folder.is_dir():
-            return folder
-    return None
-
-
-ROBOTS = _robots_folder()
 FIXED = {"ur5": "ur_description/urdf/ur5_robot.urdf", "panda": "panda_description/urdf/panda.urdf"}
 ARM = Path(appell.__file__).parent / "examples" / "arm.urdf"
 needs_robots = pytest.mark.skipif(ROBOTS is None, reason="example-robot-data is not installed (in appell[test])")
