@@ -29,6 +29,7 @@ from appell.numerics.tree_route import NumericTreeRoute, TreeRoute, tree_route
 
 mujoco = pytest.importorskip("mujoco")
 from test_mjcf_menagerie import MENAGERIE  # noqa: E402  (../shared beside the clone, or $APPELL_SHARED)
+from test_tree_route import _same_csv, _simulate  # noqa: E402  (appell simulate in-process, the CSVs compared)
 
 needs_files = pytest.mark.skipif(not MENAGERIE.is_dir(), reason="../shared/models/menagerie is not beside the clone")
 
@@ -399,20 +400,6 @@ def test_the_mjcf_route_imports_no_sympy(tmp_path):
     assert done.stdout.splitlines()[-1] == "exit 0 False", done.stdout + done.stderr
 
 
-def _simulate(tmp_path, path, backend, *extra, env=None):
-    from click.testing import CliRunner
-
-    from appell.io.cli import cli
-
-    out = tmp_path / f"{Path(path).stem}-{backend}.csv"
-    args = ["simulate", str(path), "--t-end", "0.02", "--backend", backend, "--out", str(out), *extra]
-    result = CliRunner().invoke(cli, args, env=env, catch_exceptions=False)
-    if result.exit_code != 0:
-        return result, None
-    with open(out) as fh:
-        return result, [line.rstrip("\n").split(",") for line in fh]
-
-
 def test_the_command_lines_tree_backend_equals_the_derived_route(tmp_path):
     """``appell simulate tiny.xml --backend tree`` writes the columns of the derived route
     (NumPy backend, DOP853 both; its armature as rotors, the default: each rotor's coordinate,
@@ -425,12 +412,9 @@ def test_the_command_lines_tree_backend_equals_the_derived_route(tmp_path):
     assert "DOP853 (numeric tree route)" in result.output
     result, derived = _simulate(tmp_path, path, "numpy")
     assert result.exit_code == 0, result.output
-    assert tree[0] == derived[0]
+    _same_csv(tree, derived)
     assert {"swivel_q0", "lambda_swivel_unit", "residual_swivel_unit", "M_elbow_z"} <= set(tree[0])
     assert {"elbow_rotor", "extend_rotor_ddot", "lambda_elbow_armature", "residual_extend_armature"} <= set(tree[0])
-    a, b = np.array(tree[1:], float), np.array(derived[1:], float)
-    scale = np.maximum(1.0, np.max(np.abs(b), axis=0))
-    assert np.all(np.abs(a - b) <= 1e-9 * scale), np.max(np.abs(a - b) / scale)
     result, energy = _simulate(tmp_path, path, "tree", "--mjcf", "armature=energy")
     assert result.exit_code == 0, result.output
     assert energy[0] == [name for name in tree[0] if "rotor" not in name and "armature" not in name]
