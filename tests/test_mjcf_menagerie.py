@@ -273,13 +273,14 @@ def connect_forces(mj, data, multipliers: dict, body_axes=False, rank=None) -> f
     M = np.zeros((mj.nv, mj.nv))
     mujoco.mj_fullM(mj, data, M)
     J, Jdq = equality_rows(mj, data)
-    k = J.shape[0]
-    kkt = np.block([[M, J.T], [J, np.zeros((k, k))]])
-    rhs = np.concatenate([data.qfrc_passive + data.qfrc_actuator - data.qfrc_bias, -Jdq])
-    lam = -np.linalg.lstsq(kkt, rhs, rcond=1e-12)[0][mj.nv :]
-    open_ = null_space(J.T, rcond=1e-9)
+    forces = data.qfrc_passive + data.qfrc_actuator - data.qfrc_bias
     if rank is not None:  # the multipliers of the split and the combinations it holds as dependent
-        _, lam, open_ = weighted_split(M, rhs[: mj.nv], J, -rhs[mj.nv :], rank)
+        _, lam, open_ = weighted_split(M, forces, J, Jdq, rank)
+    else:
+        k = J.shape[0]
+        kkt = np.block([[M, J.T], [J, np.zeros((k, k))]])
+        lam = -np.linalg.lstsq(kkt, np.concatenate([forces, -Jdq]), rcond=1e-12)[0][mj.nv :]
+        open_ = null_space(J.T, rcond=1e-9)
     connects = [e for e in range(mj.neq) if int(mj.eq_type[e]) == int(mujoco.mjtEq.mjEQ_CONNECT)]
     assert connects == list(range(len(connects)))
     # appell's rows of each connect (a planar loop's out-of-plane rows are left out: their forces vanish)
