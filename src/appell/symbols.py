@@ -166,8 +166,39 @@ def matmul(A, B) -> sp.Matrix:
     return sp.Matrix(
         A.rows,
         B.cols,
-        lambda i, j: sp.Add(*[A[i, k] * B[k, j] for k in range(A.cols) if A[i, k] != 0 and B[k, j] != 0]),
+        lambda i, j: sp.Add(*[A[i, k] * B[k, j] for k in range(A.cols) if not (_zero(A[i, k]) or _zero(B[k, j]))]),
     )
+
+
+def _zero(x) -> bool:
+    """Whether ``x`` is the number zero (``0`` or ``0.0``: SymPy's ``Float(0) != 0``), without
+    asking a larger expression its assumptions."""
+    return x == 0 or (getattr(x, "is_Number", False) and x.is_zero)
+
+
+def dot(a, b):
+    """``a . b`` of symbolic vectors as the sum of the nonzero products (:func:`matmul`: SymPy's
+    ``0 * x`` asks a large ``x`` whether it is finite)."""
+    a, b = list(a), list(b)
+    if len(a) != len(b):
+        raise sp.ShapeError(f"vectors of lengths {len(a)} and {len(b)} have no dot product")
+    return sp.Add(*[x * y for x, y in zip(a, b) if not (_zero(x) or _zero(y))])
+
+
+def cross(a, b) -> sp.Matrix:
+    """``a x b`` of symbolic 3-vectors, each component the sum of its nonzero products
+    (:func:`matmul`)."""
+    a, b = list(a), list(b)
+    if len(a) != 3 or len(b) != 3:
+        raise sp.ShapeError(f"vectors of lengths {len(a)} and {len(b)} have no cross product")
+
+    def minor(i, j):
+        terms = [a[i] * b[j]] if not (_zero(a[i]) or _zero(b[j])) else []
+        if not (_zero(a[j]) or _zero(b[i])):
+            terms.append(-(a[j] * b[i]))
+        return sp.Add(*terms)
+
+    return sp.Matrix([minor(1, 2), minor(2, 0), minor(0, 1)])
 
 
 def _rebuilt(node, args):

@@ -40,7 +40,7 @@ from appell.errors import ModelError
 from appell.mechanism.parts import Body, Frame, Joint, LoopParts, _cross, _dt, _text
 from appell.model import Control, Output, Parameter, Particle, RigidBody, System, holonomic
 from appell.rigid_tree import LoopRow, RigidTree, TreeNode, Wrench
-from appell.symbols import derivative_symbol
+from appell.symbols import derivative_symbol, dot, matmul
 from appell.view import Shape, View, ViewArrow, ViewBody, ViewJoint, equivalent_box
 
 
@@ -54,9 +54,9 @@ def _pose_in(mech, body, ancestor) -> tuple[sp.Matrix, sp.Matrix]:
         b = j.parent
     R, p = sp.eye(3), sp.zeros(3, 1)
     for j in reversed(chain):
-        R_rel = j.rotation * j.motion.rotation
-        p = p + R * (j.origin + j.rotation * j.motion.translation - R_rel * j.child_origin)
-        R = R * R_rel
+        R_rel = matmul(j.rotation, j.motion.rotation)
+        p = p + matmul(R, j.origin + matmul(j.rotation, j.motion.translation) - matmul(R_rel, j.child_origin))
+        R = matmul(R, R_rel)
     return R, p
 
 
@@ -110,17 +110,17 @@ def body_frames(mech) -> dict[Body, Frame]:
     for j in joint_order(mech):
         P, m = frames[j.parent], j.motion
         qs = m.coordinates
-        R_rel = j.rotation * m.rotation
-        R = P.R * R_rel
-        s = P.R * (j.origin + j.rotation * m.translation)
-        c = R * j.child_origin
-        omega_P = R_rel.T * P.omega
+        R_rel = matmul(j.rotation, m.rotation)
+        R = matmul(P.R, R_rel)
+        s = matmul(P.R, j.origin + matmul(j.rotation, m.translation))
+        c = matmul(R, j.child_origin)
+        omega_P = matmul(R_rel.T, P.omega)
         omega = omega_P + m.angular_velocity
-        eps = R_rel.T * P.eps + _cross(omega_P, m.angular_velocity) + _dt(m.angular_velocity, qs)
-        w, e = R * omega, R * eps
-        RP0 = P.R * j.rotation
-        v_r = RP0 * _dt(m.translation, qs)
-        a_r = RP0 * _dt(_dt(m.translation, qs), qs)
+        eps = matmul(R_rel.T, P.eps) + _cross(omega_P, m.angular_velocity) + _dt(m.angular_velocity, qs)
+        w, e = matmul(R, omega), matmul(R, eps)
+        RP0 = matmul(P.R, j.rotation)
+        v_r = matmul(RP0, _dt(m.translation, qs))
+        a_r = matmul(RP0, _dt(_dt(m.translation, qs), qs))
         ws = _cross(P.w, s)
         wc = _cross(w, c)
         p = P.p + s - c
@@ -153,13 +153,13 @@ def rigid_tree(mech, coordinates, potential=sp.S.Zero, positions=None, wrenches=
         m, qs = j.motion, j.coordinates
         ws = [derivative_symbol(q) for q in qs]
         allowed = set(qs) | set(ws) | params
-        rotation = j.rotation * m.rotation
-        translation = j.origin + j.rotation * m.translation - rotation * j.child_origin
-        d_rate = m.translation.jacobian(list(qs)) * sp.Matrix(ws) if qs else sp.zeros(3, 1)
-        v_rel = m.rotation.T * d_rate - _cross(m.angular_velocity, j.child_origin)
+        rotation = matmul(j.rotation, m.rotation)
+        translation = j.origin + matmul(j.rotation, m.translation) - matmul(rotation, j.child_origin)
+        d_rate = matmul(m.translation.jacobian(list(qs)), ws) if qs else sp.zeros(3, 1)
+        v_rel = matmul(m.rotation.T, d_rate) - _cross(m.angular_velocity, j.child_origin)
         relative = sp.Matrix.vstack(sp.Matrix(m.angular_velocity), v_rel)
         S = relative.jacobian(ws) if ws else sp.zeros(6, 0)
-        bias = relative.jacobian(list(qs)) * sp.Matrix(ws) if qs else sp.zeros(6, 1)
+        bias = matmul(relative.jacobian(list(qs)), ws) if qs else sp.zeros(6, 1)
         body = j.child
         quantities = [rotation, translation, S, bias, sp.Matrix([body.mass]), body.com, body.inertia]
         if any(not (e.free_symbols <= allowed) for mat in quantities for e in mat):
@@ -259,13 +259,13 @@ def joint_reactions(mech, frames, actions) -> dict[Joint, tuple[sp.Matrix, sp.Ma
     points: dict[Joint, sp.Matrix] = {}
     for joint in reversed(joint_order(mech)):
         b, f = joint.child, frames[joint.child]
-        O = f.p + f.R * joint.child_origin
+        O = f.p + matmul(f.R, joint.child_origin)
         points[joint] = O
         rC, _, aC = f.point(b.com)
         inertial = b.mass * (aC - g)
         F, M = sp.Matrix(inertial), _cross(rC - O, inertial)
         if not b.particle and b.inertia != sp.zeros(3, 3):
-            M += f.R * (b.inertia * f.eps + _cross(f.omega, b.inertia * f.omega))
+            M += matmul(f.R, matmul(b.inertia, f.eps) + _cross(f.omega, matmul(b.inertia, f.omega)))
         for act in acting.get(b, ()):
             F -= act.force
             M -= act.torque
@@ -392,7 +392,7 @@ def _bodies(mech, frames):
                 RigidBody(b.name, b.mass, position=rC, velocity=vC, inertia=b.inertia, angular_velocity=f.omega)
             )
         if mech.gravity is not None:
-            V -= b.mass * mech.gravity.dot(rC)
+            V -= b.mass * dot(mech.gravity, rC)
     return bodies, V, positions
 
 
@@ -562,7 +562,7 @@ def _view(mech, frames, contact_forces, reaction_names, frame, params) -> View:
     arrows = []
     for j in mech.joints:
         fc = frames[j.child]
-        O = fc.p + fc.R * j.child_origin
+        O = fc.p + matmul(fc.R, j.child_origin)
         for sym, kind in (("F", "force"), ("M", "moment")):
             names = [f"{sym}_{j.name}_{a}" for a in "xyz"]
             if not set(names) <= reaction_names:
@@ -570,7 +570,7 @@ def _view(mech, frames, contact_forces, reaction_names, frame, params) -> View:
             vec = sp.Matrix([sp.Symbol(n) for n in names])
             body = axes.get(j.name)
             if body is not None and body is not mech.ground:
-                vec = frames[body].R * vec
+                vec = matmul(frames[body].R, vec)
             arrows.append(ViewArrow(f"{sym}_{j.name}", tuple(O), tuple(vec), kind))
     for name, acts in contact_forces:
         first = [a for a in acts if a.body is acts[0].body and a.position is not None]
@@ -661,7 +661,7 @@ def _reaction_outputs(mech, reactions, frame, frames, actions, force_unit, momen
         where = "world axes"
         if body is not None and body is not mech.ground:
             R = frames[body].R
-            F, M = R.T * F, R.T * M
+            F, M = matmul(R.T, F), matmul(R.T, M)
             where = f"axes of body {body.name!r}"
         yield (
             j,
@@ -685,7 +685,7 @@ def _read(mech, j: Joint, F, M, frames, reactions_in, force_unit, moment_unit) -
     to the chosen body, moved to the marker and expressed in the chosen axes."""
     on, marker, axes = mech._reading.get(j.name, ("child", None, reactions_in))
     fc = frames[j.child]
-    O = fc.p + fc.R * j.child_origin
+    O = fc.p + matmul(fc.R, j.child_origin)
     who = f"{j.parent.name} on {j.child.name}"
     if on == "parent":
         F, M = -F, -M
@@ -699,13 +699,13 @@ def _read(mech, j: Joint, F, M, frames, reactions_in, force_unit, moment_unit) -
     target = mech._axes_of(j, axes, f"reaction output of joint {j.name!r}")
     where = "world axes"
     if target == "joint":
-        R = frames[j.parent].R * j.rotation
+        R = matmul(frames[j.parent].R, j.rotation)
         where = f"axes of joint {j.name}"
     elif target is not None:
         R = frames[target].R
         where = f"axes of body {target.name!r}"
     if where != "world axes":
-        F, M = R.T * F, R.T * M
+        F, M = matmul(R.T, F), matmul(R.T, M)
     return [
         Output(f"{sym}_{j.name}_{axis}", e, unit, f"{what} of {who} about {at}, {axis} ({where})")
         for sym, vec, unit, what in (("F", F, force_unit, "force"), ("M", M, moment_unit, "moment"))

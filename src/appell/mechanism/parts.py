@@ -19,7 +19,7 @@ from appell.mechanism.joints import JointMotion
 from appell.mechanism.rotations import identically_zero, rpy_rotation, skew
 from appell.model import holonomic
 from appell.rigid_tree import RigidTree
-from appell.symbols import derivative_symbol, t
+from appell.symbols import cross, derivative_symbol, matmul, t
 
 GROUND = "ground"
 
@@ -90,7 +90,7 @@ def _orientation(value, what: str) -> sp.Matrix:
 
 
 def _cross(a, b) -> sp.Matrix:
-    return sp.Matrix(a).cross(sp.Matrix(b))
+    return cross(a, b)
 
 
 def _text(value) -> str:
@@ -190,7 +190,7 @@ class Frame:
         """Position, velocity and acceleration (world axes) of the body point ``r`` (body frame)."""
         if all(x == 0 for x in r):
             return self.p, self.v, self.a
-        d = self.R * sp.Matrix(r)
+        d = matmul(self.R, r)
         wd = _cross(self.w, d)
         return self.p + d, self.v + wd, self.a + _cross(self.e, d) + _cross(self.w, wd)
 
