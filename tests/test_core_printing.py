@@ -53,3 +53,27 @@ def test_text_and_latex_name_every_reaction():
     assert "lambda_rod" in text and "(1.4)" in text and "(1.5)" in text
     assert r"\lambda_{rod}" in tex and r"\ddot{x}" in tex and tex.startswith(r"\begin{aligned}")
     assert appell.display_latex(d).startswith("$")
+
+
+def test_a_printed_form_is_counted_not_timed(monkeypatch):
+    """The forms :func:`appell.core.simplification.readable` tries for a printed line are
+    bounded by work counted in tree nodes (``READABLE_WORK``), not by CPU time (it was 0.3 s a
+    line, so that the IFToMM chain's outputs printed in 3,918 or 3,930 operations from one run
+    to the next): a clock that jumps by an hour at every reading changes no form, and the
+    budget is what stops the forms (spent at the start: the line as derived)."""
+    import time
+
+    from appell._cache import Cache
+    from appell.core import simplification
+
+    m, x, a = sp.symbols("m x a")
+    line = m * sp.sin(x) ** 2 + m * sp.cos(x) ** 2 + a * m
+    monkeypatch.setattr(simplification, "_READABLE", Cache(100))
+    assert simplification.readable(line) == m * (a + 1)
+    hour = iter(range(0, 10**9, 3600))
+    monkeypatch.setattr(time, "process_time", lambda: next(hour))
+    monkeypatch.setattr(simplification, "_READABLE", Cache(100))
+    assert simplification.readable(line) == m * (a + 1)
+    monkeypatch.setattr(simplification, "READABLE_WORK", -1)
+    monkeypatch.setattr(simplification, "_READABLE", Cache(100))
+    assert simplification.readable(line) == line

@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import math
 import random
-import time
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -518,9 +517,14 @@ READABLE_OPS = 160
 #: as derived. The rolling disc's reduced forcing is up to 643 nodes (384 operations) and 43
 #: operations in cosines; the benchmark bicycle's lines are far over it
 READABLE_NODES = 1000
-#: CPU seconds a line's forms may take (:func:`readable`): past it the forms not yet begun
-#: are skipped (a line of the slider-crank's controls took seconds through ``factor_terms``)
-READABLE_SECONDS = 0.3
+#: work a line's forms may take (:func:`readable`), counted in tree nodes: each form begun
+#: is charged the size of the expression it starts from, and once the sum is over this the
+#: forms not yet begun are skipped (a line of the slider-crank's controls took seconds through
+#: ``factor_terms``). Counted, not timed, so that a printed form never depends on the
+#: machine's speed or load (it was 0.3 s of CPU: the IFToMM chain's outputs printed in 3,918
+#: or 3,930 operations from one run to the next); the bundled examples' lines take at most
+#: about 1,100
+READABLE_WORK = 1200
 #: random points at which each form :func:`readable` chooses is checked against the derived
 #: expression, and the relative difference (at :data:`READABLE_DIGITS` digits) it may show
 READABLE_POINTS, READABLE_DIGITS, READABLE_TOLERANCE = 3, 30, 1e-20
@@ -534,8 +538,7 @@ def same_values(a, b) -> bool:
     random points of their free symbols; False where either cannot be formed."""
     free = sorted(sp.sympify(a).free_symbols | sp.sympify(b).free_symbols, key=str)
     try:
-        fa = sp.lambdify(free, a, modules="mpmath")
-        fb = sp.lambdify(free, b, modules="mpmath")
+        both = sp.lambdify(free, [a, b], modules="mpmath")  # (one function: half the printing)
     except Exception:  # noqa: BLE001 (an expression lambdify cannot print: keep the derived one)
         return False
     for seed in range(READABLE_POINTS):
@@ -543,7 +546,7 @@ def same_values(a, b) -> bool:
         point = [mpmath.mpf(rng.uniform(0.3, 1.3)) for _ in free]
         with mpmath.workdps(READABLE_DIGITS):
             try:
-                va, vb = complex(fa(*point)), complex(fb(*point))
+                va, vb = (complex(v) for v in both(*point))
             except (TypeError, ValueError, ZeroDivisionError, OverflowError):
                 return False
         if not abs(va - vb) <= READABLE_TOLERANCE * max(1.0, abs(va), abs(vb)):
@@ -622,7 +625,7 @@ def readable(expr, focus=(), parameters=()):
     in cosines (:func:`_in_cosines`). Only lines of at most :data:`READABLE_NODES` tree nodes
     are tried, those over :data:`READABLE_OPS` operations only where their form in cosines is
     within half of it (the rolling disc's reduced forcing: 415 operations, 43 in cosines);
-    they are tried for at most :data:`READABLE_SECONDS`
+    they are tried within a budget of work, :data:`READABLE_WORK`
     (the forms not begun by then are skipped); each candidate that may expand is
     formed only within the bound (:func:`expanded_size`), and ``simplify`` is not among them
     (it took seconds a line and chose no shorter form on the bundled examples). The chosen
@@ -645,11 +648,20 @@ def readable(expr, focus=(), parameters=()):
         if sp.count_ops(expr) > READABLE_OPS // 2:  # (a line printed closed is at most half of it)
             return _READABLE.put(key, derived)
 
-    deadline = time.process_time() + READABLE_SECONDS
+    spent = 0
+
+    def afford(e) -> bool:
+        """Whether the line's budget (:data:`READABLE_WORK`) is left to begin a form of ``e``,
+        which is charged its tree size."""
+        nonlocal spent
+        if spent > READABLE_WORK:
+            return False
+        spent += tree_size(e)
+        return True
 
     def plain(e):
         e = sp.sympify(e)
-        if e.is_Atom or time.process_time() > deadline:
+        if e.is_Atom or not afford(e):
             return e
         forms = [e, sp.factor_terms(e)]
         if expanded_size(e, SWELL_LIMIT) <= SWELL_LIMIT:
@@ -666,16 +678,11 @@ def readable(expr, focus=(), parameters=()):
     collected = _collected(expr, focus, shorten)
     if collected is not None:
         forms.append(collected)
-    if time.process_time() <= deadline:
+    if afford(expr):
         forms.append(shorten(expr))
-    if time.process_time() <= deadline and expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT:
+    if expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT and afford(expr):
         forms.append(sp.factor_terms(sp.cancel(expr)))
-    if (
-        expr is derived
-        and expr.has(sp.sin, sp.cos)
-        and time.process_time() <= deadline
-        and expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT
-    ):
+    if expr is derived and expr.has(sp.sin, sp.cos) and expanded_size(expr, TIDY_LIMIT) <= TIDY_LIMIT and afford(expr):
         forms.append(_in_cosines(expr))
     best = min(forms, key=sp.count_ops)
     if best != derived and not same_values(best, derived):
