@@ -18,7 +18,7 @@ import random
 import numpy as np
 import sympy as sp
 
-from appell.symbols import CSE_NODES, block_cse, contains, graph_cse, graph_xreplace, matmul
+from appell.symbols import CSE_NODES, block_cse, contains, cross, dot, graph_cse, graph_xreplace, matmul
 
 X0, X1, Y, Z = sp.symbols("x0 x1 y z")
 SYMBOLS = (X0, X1, Y, Z)
@@ -79,6 +79,35 @@ def test_graph_xreplace_contains_and_matmul_equal_sympys_operations():
     assert product.shape == (2, 2)
     assert all(sp.expand(x - y) == 0 for x, y in zip(product, A * B))
     assert math.isclose(float(matmul([[1, 2]], [[3], [4]])[0]), 11.0)
+
+
+def test_cross_dot_and_matmul_skip_zero_and_float_zero_and_equal_sympys():
+    """The products the mechanism's frames go through (``matmul``, ``cross``, ``dot``) equal
+    SymPy's, exactly (the same expressions), with entries ``0`` and ``0.0`` (an MJCF file's
+    rotations; SymPy's ``Float(0) != 0``) among them, and form no ``0 * x`` (SymPy then asks a
+    large ``x`` whether it is finite: half of a robot's System build)."""
+    a, b = _shared_expressions(4)[:2]
+    u = sp.Matrix([a, sp.Float(0.0), b])
+    v = sp.Matrix([0, b, sp.Float(0.5) * a])
+    R = sp.Matrix([[1.0, 0.0, 0], [0, sp.cos(X0), -sp.sin(X0)], [0.0, sp.sin(X0), sp.cos(X0)]])
+    assert cross(u, v) == u.cross(v)
+    assert dot(u, v) == u.dot(v)
+    assert matmul(R, u) == R * u and matmul(R.T, R) == R.T * R
+    zero_times = []
+    original = sp.Mul.flatten.__func__
+
+    def watched(cls, seq):
+        if any(getattr(f, "is_Number", False) and f.is_zero for f in seq) and len(seq) > 1:
+            zero_times.append(seq)
+        return original(cls, seq)
+
+    try:
+        sp.Mul.flatten = classmethod(watched)
+        sp.core.cache.clear_cache()
+        cross(u, v), dot(u, v), matmul(R, u)
+    finally:
+        sp.Mul.flatten = classmethod(original)
+    assert not zero_times, zero_times
 
 
 def test_block_cse_takes_sympys_cse_for_small_blocks_and_the_graph_for_large_ones():
