@@ -231,3 +231,65 @@ def test_a_check_runs_before_storing_and_not_again_on_a_checked_entry(cache):
     assert len(calls) == 2
     with pytest.raises(ModelError, match="refused"):  # an unchecked entry is checked when read
         dc.derive_file("particle_on_sphere", check=refuse)
+
+
+PRINT_CHILD = """
+import json, sys, appell
+from appell.io.derivation_cache import derive_file
+d = derive_file("car")
+print(json.dumps([appell.to_text(d), appell.to_latex(d), json.dumps(appell.to_json(d), sort_keys=True)]))
+"""
+
+
+def _printed(d) -> list[str]:
+    return [appell.to_text(d), appell.to_latex(d), json.dumps(appell.to_json(d), sort_keys=True)]
+
+
+def test_printed_forms_printed_in_another_process_come_back_equal_to_a_fresh_print(cache, monkeypatch):
+    """A derivation's printed equations and JSON document are kept beside it
+    (:func:`appell.io.derivation_cache.remembered`, under the derivation's content): printed
+    in a child process, they are read back here without forming them again (forming them
+    raises), and the text, LaTeX and JSON equal a fresh print with the cache off."""
+    from appell.io import printing
+
+    env = {**__import__("os").environ, "APPELL_CACHE_DIR": str(cache.parent)}
+    child = subprocess.run([sys.executable, "-c", PRINT_CHILD], env=env, capture_output=True, text=True, timeout=300)
+    assert child.returncode == 0, child.stderr
+    assert len(_entries(cache / "printed")) == 2  # the printed equations and the JSON document
+    d = dc.derive_file("car")
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("formed again: the stored forms were not read")
+
+    with monkeypatch.context() as m:
+        m.setattr(printing, "form_printed_equations", refuse)
+        m.setattr(printing, "_document", refuse)
+        from_disk = _printed(d)
+    assert from_disk == json.loads(child.stdout)
+    monkeypatch.setenv(dc.NO_CACHE_ENV, "1")
+    assert _printed(dc.derive_file("car")) == from_disk
+
+
+def test_a_bad_printed_entry_is_ignored_with_a_note_and_printed_again(cache):
+    d = dc.derive_file("car")
+    good = appell.to_text(d)
+    (entry,) = [e for e in _entries(cache / "printed")]
+    entry.write_bytes(entry.read_bytes()[:100])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        again = appell.to_text(dc.derive_file("car"))
+    notes = [str(w.message) for w in caught if issubclass(w.category, AppellNote)]
+    assert len(notes) == 1 and "cached printed form" in notes[0] and "printing again" in notes[0], notes
+    assert again == good
+
+
+def test_the_printed_forms_key_is_the_content_not_what_was_computed_since(cache):
+    """The key of a printed form covers the derivation's fields, not the formulas computed
+    from them afterwards (printing forms the reduced equations and reactions): the same key
+    before and after, another for another model or another computation."""
+    d = appell.derive(appell.load_model("car"))
+    before = dc.content_key(d, "printed_equations")
+    d.reduced, d.reactions  # noqa: B018 (computed and kept on the derivation)
+    assert dc.content_key(d, "printed_equations") == before
+    assert dc.content_key(d, "derivation_document") != before
+    assert dc.content_key(appell.derive(appell.load_model("pendulum")), "printed_equations") != before

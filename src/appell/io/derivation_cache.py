@@ -32,6 +32,12 @@ filling the same entry: one derives, the other waits and reads it), kept in
 ``$APPELL_CACHE_DIR/derivations`` (:func:`appell.numerics.codegen.build.cache_dir`), at most
 ``$APPELL_DERIVATION_CACHE_MB`` (default 512) MB in all, the least recently used removed first.
 ``$APPELL_NO_CACHE=1`` (``cache=False``) derives every time and writes nothing.
+
+What is printed from a derivation (its equations as a paper prints them, its JSON document:
+seconds of readable forms and ``simplify`` for the larger models) is kept the same way in
+``derivations/printed`` (:func:`remembered`), under a key of the derivation's content
+(:func:`content_key`: its fields as written here, not the formulas computed from them since)
+and of appell's source: a model printed before, in any process, is printed from its entry.
 """
 
 from __future__ import annotations
@@ -69,7 +75,18 @@ SIZE_ENV = "APPELL_DERIVATION_CACHE_MB"
 DEFAULT_SIZE_MB = 512
 _MAGIC = "appell-derivation"
 
-__all__ = ["FORMAT", "NO_CACHE_ENV", "SIZE_ENV", "cache_enabled", "decode", "derive_file", "encode", "entry_key"]
+__all__ = [
+    "FORMAT",
+    "NO_CACHE_ENV",
+    "SIZE_ENV",
+    "cache_enabled",
+    "content_key",
+    "decode",
+    "derive_file",
+    "encode",
+    "entry_key",
+    "remembered",
+]
 
 
 class Unstorable(Exception):
@@ -92,7 +109,12 @@ def derivations_dir() -> Path:
 
 # ------------------------------------------------------------------ encoding
 class _Encoder:
-    def __init__(self):
+    """``computed``: the values of cached properties are written too (an entry); without them,
+    and with the items of sets in a fixed order, the document is a key of the value's content
+    (:func:`content_key`)."""
+
+    def __init__(self, computed: bool = True):
+        self.computed = computed
         self.nodes: list = []
         self.index: dict = {}
         self.symbols: dict[str, dict] = {}
@@ -163,7 +185,10 @@ class _Encoder:
         if type(v) is dict:
             return {"$": "d", "v": [[self.value(k), self.value(x)] for k, x in v.items()]}
         if type(v) in (frozenset, set):
-            return {"$": "fs" if type(v) is frozenset else "set", "v": [self.value(x) for x in v]}
+            items = [self.value(x) for x in v]
+            if not self.computed:  # (a set's order changes from one process to the next)
+                items.sort(key=lambda x: json.dumps(x, sort_keys=True))
+            return {"$": "fs" if type(v) is frozenset else "set", "v": items}
         if type(v) is np.ndarray and v.dtype.kind in "fib" and v.dtype.isnative:
             flat = v.ravel().tolist()
             return {
@@ -183,7 +208,7 @@ class _Encoder:
         if dataclasses.is_dataclass(v):
             fields = {name: self.value(getattr(v, name)) for name in _stored_fields(cls)}
             extra = {}
-            for key, x in getattr(v, "__dict__", {}).items():  # values of cached properties
+            for key, x in getattr(v, "__dict__", {}).items() if self.computed else ():  # cached properties
                 if key not in fields:
                     with contextlib.suppress(Unstorable):
                         extra[key] = self.value(x)
@@ -406,7 +431,18 @@ def _note(message: str) -> None:
     warnings.warn(message, AppellNote, stacklevel=3)
 
 
-def read_entry(file: Path, key: str, quiet: bool = False, notes: list | None = None, checked: list | None = None):
+#: what is done in place of a cached entry that cannot be used, by its kind
+_AGAIN = {"derivation": "deriving again", "printed form": "printing again"}
+
+
+def read_entry(
+    file: Path,
+    key: str,
+    quiet: bool = False,
+    notes: list | None = None,
+    checked: list | None = None,
+    kind: str = "derivation",
+):
     """The derivation stored in ``file`` for ``key``, or None (with a note for a bad entry,
     unless ``quiet``); the notes stored with it are given again (and added to ``notes``);
     whether the check of :func:`derive_file` passed before it was stored is appended to
@@ -417,7 +453,7 @@ def read_entry(file: Path, key: str, quiet: bool = False, notes: list | None = N
         return None
     except OSError as exc:
         if not quiet:
-            _note(f"the cached derivation {file} cannot be read ({exc.strerror or exc}); deriving again")
+            _note(f"the cached {kind} {file} cannot be read ({exc.strerror or exc}); {_AGAIN[kind]}")
         return None
     try:
         head, _, body = raw.partition(b"\n")
@@ -435,7 +471,7 @@ def read_entry(file: Path, key: str, quiet: bool = False, notes: list | None = N
         derivation = decode(doc)
     except Exception as exc:  # noqa: BLE001 (whatever the file holds, it is not trusted)
         if not quiet:
-            _note(f"the cached derivation {file} is ignored ({str(exc)[:200]}); deriving again")
+            _note(f"the cached {kind} {file} is ignored ({str(exc)[:200]}); {_AGAIN[kind]}")
         return None
     with contextlib.suppress(OSError):
         os.utime(file)  # most recently used
@@ -493,6 +529,55 @@ def evict(root: Path, limit_bytes: int | None = None) -> None:
         with contextlib.suppress(OSError):
             file.unlink()
             total -= size
+
+
+# ------------------------------------------------------------------ printed forms
+def content_key(value, what: str) -> str | None:
+    """The SHA-256 key of the computation ``what`` (its name and options) of ``value`` (a
+    derivation) by the value's content: its fields as :func:`encode` writes them (not the
+    values computed from them since, which would change the key), appell's version and source
+    digest, SymPy's and Python's versions; None when the format cannot write ``value``."""
+    from appell import __version__
+
+    enc = _Encoder(computed=False)
+    try:
+        root = enc.value(value)
+    except Unstorable:
+        return None
+    digest = hashlib.sha256(
+        f"{_MAGIC} {FORMAT} appell {__version__} {source_digest()} sympy {sp.__version__} "
+        f"python {sys.version_info[:3]}\n{what}\n".encode()
+    )
+    doc = {"symbols": enc.symbols, "nodes": enc.nodes, "root": root}
+    digest.update(json.dumps(doc, separators=(",", ":"), sort_keys=True).encode())
+    return digest.hexdigest()[:32]
+
+
+def remembered(derivation, what: str, compute):
+    """``compute()``, a value formed from ``derivation`` alone (its printed equations, its
+    JSON document), kept on disk beside the derivations (``printed/``: entries written, checked
+    and evicted as theirs, with a size bound of its own) under :func:`content_key`: a model printed before is printed again from
+    the entry (the bicycle's printed equations: 2.4 s of readable forms and ``simplify``), in
+    this process or another. ``what`` names the computation and its options. Without the
+    cache (``$APPELL_NO_CACHE=1``), or for a derivation the format cannot write, ``compute()``."""
+    if not cache_enabled():
+        return compute()
+    key = content_key(derivation, what)
+    if key is None:
+        return compute()
+    try:
+        root = derivations_dir() / "printed"
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return compute()
+    file = root / f"{key}.json"
+    found = read_entry(file, key, kind="printed form")
+    if found is not None:
+        return found
+    value = compute()
+    with contextlib.suppress(OSError):
+        write_entry(root, file, key, value)
+    return value
 
 
 def _derive(system, dependent):

@@ -231,6 +231,15 @@ def _reduced_rows(derivation, rows: list[Formula], focus) -> list[Formula]:
 
 
 def printed_equations(derivation, only=None, expand: bool = False) -> PrintedEquations:
+    """:func:`form_printed_equations`, kept on disk with the derivations
+    (:func:`appell.io.derivation_cache.remembered`: a model printed before is read back)."""
+    from appell.io.derivation_cache import remembered
+
+    what = f"printed_equations only={None if only is None else sorted(only)!r} expand={bool(expand)}"
+    return remembered(derivation, what, lambda: form_printed_equations(derivation, only, expand))
+
+
+def form_printed_equations(derivation, only=None, expand: bool = False) -> PrintedEquations:
     """The formulas of ``only`` (items of :data:`ITEMS`; all by default) as a paper prints
     them: each short line in the shortest of its equivalent forms, checked at random points
     (:func:`appell.core.simplification.readable`: no shared names, :data:`LINE_OPS`); the
@@ -423,7 +432,14 @@ def derivation_latex(derivation, only=None, expand: bool = False) -> str:
 
 def derivation_document(derivation) -> dict:
     """The JSON document of a plain derivation with SymPy expressions still in it (see
-    :func:`json_document`): names, partition, blocks, reduced equations, multipliers."""
+    :func:`json_document`): names, partition, blocks, reduced equations, multipliers; kept on
+    disk with the derivations (:func:`appell.io.derivation_cache.remembered`)."""
+    from appell.io.derivation_cache import remembered
+
+    return remembered(derivation, "derivation_document", lambda: _document(derivation))
+
+
+def _document(derivation) -> dict:
     kin = derivation.kinematics
     ind, dep = derivation.partition.names(kin.accelerations)
     cons = derivation.constraints
