@@ -383,13 +383,7 @@ def entry_key(
     reader=None,
 ) -> str:
     """The SHA-256 key of a model file's derivation (see the module's docstring)."""
-    from appell import __version__
-
-    digest = hashlib.sha256()
-    digest.update(
-        f"{_MAGIC} {FORMAT} appell {__version__} {source_digest()} sympy {sp.__version__} "
-        f"python {sys.version_info[:3]}\n".encode()
-    )
+    digest = hashlib.sha256(_versions())
     seen, todo = set(), [path]
     while todo:
         file = todo.pop(0).resolve()
@@ -407,6 +401,17 @@ def entry_key(
         ).encode()
     )
     return digest.hexdigest()[:32]
+
+
+def _versions() -> bytes:
+    """The first line of every key: the format, appell's version and source digest, SymPy's and
+    Python's versions (an entry of other code is another entry)."""
+    from appell import __version__
+
+    return (
+        f"{_MAGIC} {FORMAT} appell {__version__} {source_digest()} sympy {sp.__version__} "
+        f"python {sys.version_info[:3]}\n"
+    ).encode()
 
 
 _SOURCE: list[str] = []
@@ -443,7 +448,8 @@ def read_entry(
     checked: list | None = None,
     kind: str = "derivation",
 ):
-    """The derivation stored in ``file`` for ``key``, or None (with a note for a bad entry,
+    """The value (a derivation; ``kind``: what it is, for the note) stored in ``file`` for
+    ``key``, or None (with a note for a bad entry,
     unless ``quiet``); the notes stored with it are given again (and added to ``notes``);
     whether the check of :func:`derive_file` passed before it was stored is appended to
     ``checked``."""
@@ -537,17 +543,12 @@ def content_key(value, what: str) -> str | None:
     derivation) by the value's content: its fields as :func:`encode` writes them (not the
     values computed from them since, which would change the key), appell's version and source
     digest, SymPy's and Python's versions; None when the format cannot write ``value``."""
-    from appell import __version__
-
     enc = _Encoder(computed=False)
     try:
         root = enc.value(value)
     except Unstorable:
         return None
-    digest = hashlib.sha256(
-        f"{_MAGIC} {FORMAT} appell {__version__} {source_digest()} sympy {sp.__version__} "
-        f"python {sys.version_info[:3]}\n{what}\n".encode()
-    )
+    digest = hashlib.sha256(_versions() + f"{what}\n".encode())
     doc = {"symbols": enc.symbols, "nodes": enc.nodes, "root": root}
     digest.update(json.dumps(doc, separators=(",", ":"), sort_keys=True).encode())
     return digest.hexdigest()[:32]
@@ -556,9 +557,9 @@ def content_key(value, what: str) -> str | None:
 def remembered(derivation, what: str, compute):
     """``compute()``, a value formed from ``derivation`` alone (its printed equations, its
     JSON document), kept on disk beside the derivations (``printed/``: entries written, checked
-    and evicted as theirs, with a size bound of its own) under :func:`content_key`: a model printed before is printed again from
-    the entry (the bicycle's printed equations: 2.4 s of readable forms and ``simplify``), in
-    this process or another. ``what`` names the computation and its options. Without the
+    and evicted as theirs, with a size bound of its own) under :func:`content_key`: a model
+    printed before is printed again from the entry (the bicycle's printed equations: 2.4 s of
+    readable forms and ``simplify``), in this process or another. ``what`` names the computation and its options. Without the
     cache (``$APPELL_NO_CACHE=1``), or for a derivation the format cannot write, ``compute()``."""
     if not cache_enabled():
         return compute()
