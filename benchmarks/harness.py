@@ -20,6 +20,7 @@ import platform
 import re
 import statistics
 import subprocess
+import sys
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -179,3 +180,13 @@ def target(label: str, value: float | None, limit: float, unit: str = "×", belo
     ok = value <= limit if below else value >= limit
     sign = "≤" if below else "≥"
     return f"- {label} (target {sign} {limit:g}{unit}): {value:.3g}{unit}, **{'met' if ok else 'not met'}**"
+
+
+def robots_folder() -> Path | None:
+    """The folder of ``example-robot-data``'s robot descriptions (the extra ``[bench]``), or None
+    where it is not installed."""
+    for base in map(Path, sys.path):
+        folder = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
+        if folder.is_dir():
+            return folder
+    return None

@@ -96,14 +96,6 @@ ROBOTS = {
 }
 
 
-def robots_folder() -> Path | None:
-    for base in map(Path, sys.path):
-        folder = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
-        if folder.is_dir():
-            return folder
-    return None
-
-
 def _fresh(code: str, *args, env=None) -> dict:
     import os
 
@@ -408,7 +400,7 @@ def main() -> None:
         return
     car(5 if args.quick else 15)
     imports(runs)
-    folder = robots_folder()
+    folder = harness.robots_folder()
     if folder is None:
         print("\n(example-robot-data is not installed: no robot tables)")
         return

@@ -53,11 +53,11 @@ TARGETS = {"panda": 10.0, "solo12": 15.0, "baxter": 30.0, "talos": 30.0}
 
 
 def robots_folder() -> Path:
-    for base in map(Path, sys.path):
-        folder = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
-        if folder.is_dir():
-            return folder
-    sys.exit("example-robot-data is not installed (pip install example-robot-data)")
+    """:func:`harness.robots_folder`, or the script's end where it is not installed."""
+    folder = harness.robots_folder()
+    if folder is None:
+        sys.exit("example-robot-data is not installed (pip install example-robot-data)")
+    return folder
 
 
 FIRST = """
