@@ -11,6 +11,7 @@ with a note and rebuilt; two processes filling one entry at once must both get t
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import warnings
@@ -252,7 +253,7 @@ def test_printed_forms_printed_in_another_process_come_back_equal_to_a_fresh_pri
     raises), and the text, LaTeX and JSON equal a fresh print with the cache off."""
     from appell.io import printing
 
-    env = {**__import__("os").environ, "APPELL_CACHE_DIR": str(cache.parent)}
+    env = {**os.environ, "APPELL_CACHE_DIR": str(cache.parent)}
     child = subprocess.run([sys.executable, "-c", PRINT_CHILD], env=env, capture_output=True, text=True, timeout=300)
     assert child.returncode == 0, child.stderr
     assert len(_entries(cache / "printed")) == 2  # the printed equations and the JSON document
@@ -273,7 +274,7 @@ def test_printed_forms_printed_in_another_process_come_back_equal_to_a_fresh_pri
 def test_a_bad_printed_entry_is_ignored_with_a_note_and_printed_again(cache):
     d = dc.derive_file("car")
     good = appell.to_text(d)
-    (entry,) = [e for e in _entries(cache / "printed")]
+    (entry,) = _entries(cache / "printed")
     entry.write_bytes(entry.read_bytes()[:100])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
