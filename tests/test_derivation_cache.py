@@ -271,6 +271,50 @@ def test_printed_forms_printed_in_another_process_come_back_equal_to_a_fresh_pri
     assert _printed(dc.derive_file("car")) == from_disk
 
 
+PRINT_AT_ONCE_CHILD = """
+import sys, time, appell
+from pathlib import Path
+from appell.io import printing
+from appell.io.derivation_cache import derive_file
+log, me = Path(sys.argv[1]), sys.argv[2]
+d = derive_file("four_bar")
+form = printing.form_printed_equations
+def logged(*args, **kwargs):
+    with log.open("a") as fh:
+        fh.write(me + "\\n")
+    time.sleep(1.0)  # the other process asks for the same forms meanwhile
+    return form(*args, **kwargs)
+printing.form_printed_equations = logged
+(log.parent / me).touch()  # both ready, then both print at once
+while not all((log.parent / k).exists() for k in ("a", "b")):
+    time.sleep(0.01)
+print(appell.to_text(d))
+"""
+
+
+def test_two_processes_printing_one_model_at_once_print_it_once(cache, tmp_path):
+    """Two processes that print the same derivation at the same moment: one forms the printed
+    equations, the other waits for its entry (the entry's lock) and reads it; both print the same
+    text."""
+    dc.derive_file("four_bar")  # the derivation stored: the children only read it
+    env = {**os.environ, "APPELL_CACHE_DIR": str(cache.parent)}
+    log = tmp_path / "formed"
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", PRINT_AT_ONCE_CHILD, str(log), me],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for me in ("a", "b")
+    ]
+    outs = [p.communicate(timeout=300) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [err for _, err in outs]
+    assert len(log.read_text().split()) == 1, log.read_text()  # formed once, in one of them
+    assert outs[0][0] == outs[1][0] and "lambda" in outs[0][0]
+
+
 def test_a_bad_printed_entry_is_ignored_with_a_note_and_printed_again(cache):
     d = dc.derive_file("car")
     good = appell.to_text(d)

@@ -559,7 +559,8 @@ def remembered(derivation, what: str, compute):
     JSON document), kept on disk beside the derivations (``printed/``: entries written, checked
     and evicted as theirs, with a size bound of its own) under :func:`content_key`: a model
     printed before is printed again from the entry (the bicycle's printed equations: 2.4 s of
-    readable forms and ``simplify``), in this process or another. ``what`` names the computation and its options. Without the
+    readable forms and ``simplify``), in this process or another; a process that finds another printing
+    the same entry waits for it (the entry's lock) and reads it. ``what`` names the computation and its options. Without the
     cache (``$APPELL_NO_CACHE=1``), or for a derivation the format cannot write, ``compute()``."""
     if not cache_enabled():
         return compute()
@@ -575,9 +576,13 @@ def remembered(derivation, what: str, compute):
     found = read_entry(file, key, kind="printed form")
     if found is not None:
         return found
-    value = compute()
-    with contextlib.suppress(OSError):
-        write_entry(root, file, key, value)
+    with _cache_lock(root, key):  # two processes printing one model: one prints, the other reads
+        found = read_entry(file, key, quiet=file.exists(), kind="printed form")  # printed meanwhile
+        if found is not None:
+            return found
+        value = compute()
+        with contextlib.suppress(OSError):
+            write_entry(root, file, key, value)
     return value
 
 
