@@ -22,7 +22,8 @@ import numpy as np
 from appell import numeric_model
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from appell import derive, linearise, load_model, stability_sweep, steady_motion  # noqa: E402
+from appell import linearise, load_model, stability_sweep, steady_motion  # noqa: E402
+from appell.core.derive import derive  # noqa: E402 (the derivation itself, not appell.derive's cache)
 from appell.examples import example_path  # noqa: E402
 from appell.examples.mechanism_examples import benchmark_bicycle  # noqa: E402
 from harness import load, machine, today  # noqa: E402

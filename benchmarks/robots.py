@@ -65,10 +65,11 @@ import json, resource, sys, time, warnings
 t0 = time.perf_counter()
 import numpy as np
 import appell
+from appell.core.derive import derive  # the derivation itself, not appell.derive's cache
 from appell.mechanism.urdf import urdf_system
 warnings.simplefilter("ignore")
 system = urdf_system(sys.argv[1], floating_base=sys.argv[2] == "1")
-derivation = appell.derive(system)
+derivation = derive(system)
 model = appell.numeric_model(derivation, "c")
 q = np.full(len(system.coordinates), 0.3)
 w = np.full(len(system.speeds), 0.2)

@@ -172,6 +172,8 @@ print(json.dumps(m.solve(0.0, q, w).multipliers.tolist()))
 def test_two_processes_filling_one_entry_both_get_the_model(cache):
     import os
 
+    from appell.core.derive import derive as derive_now  # a fresh derivation, not a cached one
+
     env = {**os.environ, "APPELL_CACHE_DIR": str(cache.parent)}
     procs = [
         subprocess.Popen(
@@ -182,7 +184,7 @@ def test_two_processes_filling_one_entry_both_get_the_model(cache):
     outs = [p.communicate(timeout=300) for p in procs]
     assert all(p.returncode == 0 for p in procs), [err for _, err in outs]
     assert all("note" not in err.lower() for _, err in outs), [err for _, err in outs]
-    m = appell.numeric_model(appell.derive(appell.load_model("four_bar")), "numpy")
+    m = appell.numeric_model(derive_now(appell.load_model("four_bar")), "numpy")
     q, w = np.full(len(m.coordinate_names), 0.3), np.full(len(m.speed_names), 0.2)
     expected = m.solve(0.0, q, w).multipliers
     for out, _ in outs:
@@ -232,6 +234,91 @@ def test_a_check_runs_before_storing_and_not_again_on_a_checked_entry(cache):
     assert len(calls) == 2
     with pytest.raises(ModelError, match="refused"):  # an unchecked entry is checked when read
         dc.derive_file("particle_on_sphere", check=refuse)
+
+
+SYSTEM_CHILD = """
+import sys, appell
+from appell.examples.mechanism_examples import rolling_disc
+appell.derive(rolling_disc())
+appell.derive(appell.load_model("four_bar"), dependent=sys.argv[1:])
+"""
+
+
+def test_a_system_built_in_python_and_derived_in_another_process_is_read_back(cache, monkeypatch):
+    """appell.derive of a System built in Python (the rolling disc's builder; a model file's
+    System with a chosen partition) is kept under the system's content: derived in a child
+    process, it is read back here without deriving (the pipeline's derive raises), with the
+    caller's own System, and every block, rate and solve equals a fresh derivation's (1e-15)."""
+    from appell.core import derive as core
+    from appell.examples.mechanism_examples import rolling_disc
+
+    fresh_disc, bar = core.derive(rolling_disc()), appell.load_model("four_bar")
+    dependent = [str(q) for q in bar.coordinates[-2:]]  # not the partition chosen by default
+    fresh_bar = core.derive(bar, dependent)
+    env = {**os.environ, "APPELL_CACHE_DIR": str(cache.parent)}
+    child = subprocess.run(
+        [sys.executable, "-c", SYSTEM_CHILD, *dependent], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert child.returncode == 0, child.stderr
+    assert len(_entries(cache / "systems")) == 2
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("derived again: the stored derivation was not read")
+
+    monkeypatch.setattr(core, "derive", refuse)
+    disc = rolling_disc()
+    cached_disc, cached_bar = appell.derive(disc), appell.derive(bar, dependent=tuple(dependent))
+    assert cached_disc.system is disc and cached_bar.system is bar
+    assert cached_bar.partition.dependent == fresh_bar.partition.dependent
+    _same_numbers(fresh_disc, cached_disc)
+    _same_numbers(fresh_bar, cached_bar, seed=1)
+
+
+def test_derive_without_the_cache_for_another_system_or_a_refused_one(cache, monkeypatch):
+    """appell.derive derives again with cache=False or $APPELL_NO_CACHE=1 and writes nothing;
+    another parameter value is another entry; a system derive refuses raises as before and
+    leaves no entry."""
+    import dataclasses
+
+    from appell.core import derive as core
+
+    calls = []
+    derive_now = core.derive
+    monkeypatch.setattr(core, "derive", lambda *a, **k: calls.append(1) or derive_now(*a, **k))
+    system = appell.load_model("pendulum")
+    appell.derive(system, cache=False)
+    monkeypatch.setenv(dc.NO_CACHE_ENV, "1")
+    appell.derive(system)
+    assert len(calls) == 2 and not (cache / "systems").exists()
+    monkeypatch.delenv(dc.NO_CACHE_ENV)
+    appell.derive(system)
+    appell.derive(system)
+    heavier = dataclasses.replace(
+        system, parameters=tuple(dataclasses.replace(p, value=2 * p.value) for p in system.parameters)
+    )
+    appell.derive(heavier)
+    assert len(calls) == 4 and len(_entries(cache / "systems")) == 2
+    with pytest.raises(ModelError, match="servo constraints"):
+        appell.derive(appell.load_model("slider_crank_drive"))
+    assert len(_entries(cache / "systems")) == 2
+
+
+def test_a_controlled_system_is_read_back_with_its_control_laws(cache, monkeypatch):
+    """appell.derive_controlled through the cache: the second call reads the entry (the
+    pipeline's derive_controlled raises) and its control laws are the fresh ones."""
+    from appell.control import servo
+
+    system = appell.load_model("slider_crank_drive")
+    fresh = servo.derive_controlled(system)
+    appell.derive_controlled(system)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("derived again: the stored derivation was not read")
+
+    monkeypatch.setattr(servo, "derive_controlled", refuse)
+    cached = appell.derive_controlled(system)
+    assert cached.system is system
+    assert cached.control_laws == fresh.control_laws
 
 
 PRINT_CHILD = """

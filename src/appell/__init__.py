@@ -16,7 +16,9 @@ from typing import TYPE_CHECKING
 _LAZY = {
     **dict.fromkeys(("numeric_model",), "appell.numerics.boundary"),
     **dict.fromkeys(("CrossCheckReport", "augmented_solve", "cross_check"), "appell.numerics.crosscheck"),
-    **dict.fromkeys(("derive",), "appell.core.derive"),
+    # the pipeline's derive and derive_controlled through the derivation cache (a system derived
+    # before, in any process, is read back): appell.core.derive.derive derives every time
+    **dict.fromkeys(("derive", "derive_controlled", "derive_file"), "appell.io.derivation_cache"),
     **dict.fromkeys(("Derivation", "ReactionFormulas", "ReducedEquations"), "appell.core.equations"),
     **dict.fromkeys(
         ("AppellError", "ComputationError", "InitialValueError", "ModelError", "PainleveError", "ResourceError"),
@@ -43,7 +45,6 @@ _LAZY = {
         "appell.model",
     ),
     **dict.fromkeys(("load_model", "loads_model"), "appell.io.modelfile"),
-    **dict.fromkeys(("derive_file",), "appell.io.derivation_cache"),
     **dict.fromkeys(("NumericModel", "StateSolution"), "appell.numerics.numeric"),
     **dict.fromkeys(("LinearModel", "linearise", "steady_motion"), "appell.numerics.linearise"),
     **dict.fromkeys(("StabilitySweep", "stability_sweep"), "appell.numerics.stability"),
@@ -61,7 +62,7 @@ _LAZY = {
     **dict.fromkeys(("derivative_symbol", "t"), "appell.symbols"),
     **dict.fromkeys(("compile_c",), "appell.numerics.codegen"),
     **dict.fromkeys(("SweepResult", "parameter_grid", "sweep", "sweep_cluster"), "appell.simulation.sweep"),
-    **dict.fromkeys(("ControlledDerivation", "derive_controlled"), "appell.control.servo"),
+    **dict.fromkeys(("ControlledDerivation",), "appell.control.servo"),
     **dict.fromkeys(
         ("ControlledModel", "augmented_controlled_solve", "cross_check_controlled"), "appell.control.servo_numeric"
     ),
@@ -73,12 +74,11 @@ _LAZY = {
 }
 
 if TYPE_CHECKING:  # the names of _LAZY as a type checker sees them (tests/test_typing.py: the same)
-    from appell.control.servo import ControlledDerivation, derive_controlled
+    from appell.control.servo import ControlledDerivation
     from appell.control.servo_numeric import ControlledModel, augmented_controlled_solve, cross_check_controlled
-    from appell.core.derive import derive
     from appell.core.equations import Derivation, ReactionFormulas, ReducedEquations
     from appell.errors import AppellError, ComputationError, InitialValueError, ModelError, PainleveError, ResourceError
-    from appell.io.derivation_cache import derive_file
+    from appell.io.derivation_cache import derive, derive_controlled, derive_file
     from appell.io.modelfile import load_model, loads_model
     from appell.io.printing import display_latex, read_json, to_json, to_latex, to_text  # noqa: F401 (display_latex: not in __all__)
     from appell.io.report import render_report, write_report

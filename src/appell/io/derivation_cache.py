@@ -2,7 +2,7 @@
 straight to numbers.
 
 :func:`derive_file` reads a model file (TOML, URDF, MJCF: :func:`appell.io.modelfile.load_model`)
-and derives it (:func:`appell.derive`, or :func:`appell.control.servo.derive_controlled` for
+and derives it (:func:`appell.core.derive.derive`, or :func:`appell.control.servo.derive_controlled` for
 servo constraints), or reads the derivation stored for the same input. The entry's key is the
 SHA-256 of
 
@@ -21,6 +21,13 @@ enums of appell's own modules are rebuilt, field by field, without calling their
 The first line holds the key and the SHA-256 of the document: an entry that is truncated,
 tampered with (its bytes no longer those written), written for another key or by another
 format is ignored with a note (:class:`~appell.errors.AppellNote`) and derived again.
+
+:func:`derive` and :func:`derive_controlled` (:func:`appell.derive`, :func:`appell.derive_controlled`)
+do the same for a :class:`~appell.model.System` built in Python: the key is the system's content
+(:func:`content_key`: every field as an entry writes it, each symbol with its assumptions, each
+number exactly) with the partition asked for, and the entries are kept in ``derivations/systems``
+(with a size bound of their own); a system the format cannot write is derived every time.
+:func:`appell.core.derive.derive` is the pipeline itself and derives every time.
 
 A check given to :func:`derive_file` (the command line's: the inertia at the start,
 :func:`appell.workflows.check_inertia_at_start`) runs on a fresh derivation before it is
@@ -53,7 +60,9 @@ import re
 import sys
 import tempfile
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import sympy as sp
@@ -67,6 +76,11 @@ from appell.io.expression_tree import (
     symbol_from_table,
 )
 from appell.numerics.codegen.build import _cache_lock
+
+if TYPE_CHECKING:
+    from appell.control.servo import ControlledDerivation
+    from appell.core.equations import Derivation
+    from appell.model import System
 
 #: bumped when the layout of an entry changes (part of the key)
 FORMAT = 1
@@ -82,6 +96,8 @@ __all__ = [
     "cache_enabled",
     "content_key",
     "decode",
+    "derive",
+    "derive_controlled",
     "derive_file",
     "encode",
     "entry_key",
@@ -584,6 +600,78 @@ def remembered(derivation, what: str, compute):
         with contextlib.suppress(OSError):
             write_entry(root, file, key, value)
     return value
+
+
+# ------------------------------------------------------------------ systems built in Python
+def derive(system: System, dependent: Sequence | None = None, *, cache: bool | None = None) -> Derivation:
+    """:func:`appell.core.derive.derive` of ``system`` (the pipeline's own stages), read from
+    the derivation cache when a system of the same content was derived before with the same
+    ``dependent`` (in this process or another: a script run again goes straight to numbers),
+    else derived and stored. This is :func:`appell.derive`.
+
+    The entry's key is :func:`content_key` of ``(system, dependent)``: every field of the
+    system as an entry writes it (each symbol's name and assumptions, each number exactly), and
+    appell's, SymPy's and Python's versions, so a changed parameter value, constraint or body is
+    another entry. A system the format cannot write (a ``Dummy``, a SymPy function of time, a
+    Python object) is derived every time, as is every system with ``cache=False`` or
+    ``$APPELL_NO_CACHE=1``. The derivation read back is the stored one with ``system`` the
+    caller's own object; a system that cannot be derived raises as
+    :func:`~appell.core.derive.derive` does and stores nothing."""
+    from appell.core.derive import derive as derive_now
+
+    return _derived(system, dependent, "derive", lambda dep: derive_now(system, dep), cache)
+
+
+def derive_controlled(
+    system: System,
+    dependent: Sequence | None = None,
+    max_differentiations: int | None = None,
+    *,
+    cache: bool | None = None,
+) -> ControlledDerivation:
+    """:func:`appell.control.servo.derive_controlled` of ``system`` through the derivation
+    cache, as :func:`derive` (the key also names ``max_differentiations``). This is
+    :func:`appell.derive_controlled`."""
+    from appell.control.servo import derive_controlled as derive_now
+    from appell.control.underactuated import MAX_DIFFERENTIATIONS
+
+    most = MAX_DIFFERENTIATIONS if max_differentiations is None else max_differentiations
+    what = f"derive_controlled max_differentiations={most!r}"
+    return _derived(system, dependent, what, lambda dep: derive_now(system, dep, most), cache)
+
+
+def _derived(system, dependent, what: str, compute, cache: bool | None):
+    """``compute(dependent)`` kept under the content of ``(system, dependent)`` (:func:`derive`)."""
+    if isinstance(dependent, (list, tuple)):
+        dependent = list(dependent)  # (a tuple and a list of the same choice: one key)
+    if not cache_enabled(cache) or not _is_system(system):
+        return compute(dependent)
+    key = content_key((system, dependent), what)
+    if key is None:
+        return compute(dependent)
+    try:
+        root = derivations_dir() / "systems"
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return compute(dependent)
+    file = root / f"{key}.json"
+    found = read_entry(file, key)
+    if found is None:
+        with _cache_lock(root, key):  # two processes deriving one system: one derives, the other reads
+            found = read_entry(file, key, quiet=file.exists())
+            if found is None:
+                derivation = compute(dependent)  # raises for a system not to be derived: nothing stored
+                with contextlib.suppress(OSError):
+                    write_entry(root, file, key, derivation)
+                return derivation
+    object.__setattr__(found, "system", system)  # the caller's object (the stored one is equal to it)
+    return found
+
+
+def _is_system(system) -> bool:
+    from appell.model import System
+
+    return type(system) is System
 
 
 def _derive(system, dependent):
