@@ -7,20 +7,31 @@ threaded workers) may share a cache. ``identity=True`` compares keys by identity
 for objects that are costly to hash or compare, such as a derivation: the entry holds its
 key, so the key's ``id`` cannot be reused by another object while the entry lives.
 
-The caches on disk keep their own bound (the derivation cache a size in MB,
-:mod:`appell.io.derivation_cache`) with the same order: the least recently used goes first.
+The caches on disk live under :func:`cache_dir` and keep their own bound (the derivation
+cache a size in MB, :mod:`appell.io.derivation_cache`; the lambdified code,
+:mod:`appell.numerics.lambdified`) with the same order: :func:`evict` removes the least
+recently used first.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import json
+import os
+import tempfile
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Hashable, Iterator
+from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 V = TypeVar("V")
 
-__all__ = ["Cache"]
+__all__ = ["CACHE_ENV", "Cache", "cache_dir", "evict", "write_checked"]
+
+#: the folder of appell's caches on disk
+CACHE_ENV = "APPELL_CACHE_DIR"
 
 _MISSING: Any = object()
 
@@ -108,3 +119,40 @@ class Cache(Generic[V]):
 
     def __repr__(self) -> str:
         return f"Cache(size={self.size}, identity={self.identity}, entries={len(self)})"
+
+
+def cache_dir() -> Path:
+    """``$APPELL_CACHE_DIR`` or ``~/.cache/appell`` (created on demand)."""
+    return Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "appell")
+
+
+def evict(root: Path, pattern: str, limit_bytes: int) -> None:
+    """Remove the files of ``root`` matching ``pattern``, the least recently used (modified)
+    first, until they hold at most ``limit_bytes`` in all."""
+    entries = []
+    for file in root.glob(pattern):
+        with contextlib.suppress(OSError):
+            st = file.stat()
+            entries.append((st.st_mtime, st.st_size, file))
+    total = sum(size for _, size, _ in entries)
+    for _, size, file in sorted(entries, key=lambda e: e[0]):
+        if total <= limit_bytes:
+            break
+        with contextlib.suppress(OSError):
+            file.unlink()
+            total -= size
+
+
+def write_checked(file: Path, header: dict, body: bytes) -> None:
+    """Write ``file`` atomically (a temporary name beside it, renamed): one JSON line, ``header``
+    with the SHA-256 of ``body`` added, then ``body`` (an entry of a cache on disk: a reader that
+    finds the body changed or truncated ignores it)."""
+    head = json.dumps({**header, "sha256": hashlib.sha256(body).hexdigest()}).encode()
+    fd, tmp = tempfile.mkstemp(prefix=f"{file.stem}_", suffix=".tmp", dir=file.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(head + b"\n" + body)
+        os.replace(tmp, file)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)

@@ -244,6 +244,12 @@ def lambdify(args, exprs, modules: str = "math", cse=None):
     for display: half the time of printing the benchmark bicycle's blocks); without the
     docstring (the expressions printed once more) and without the search for implemented
     functions (a walk of the expression as a tree, every shared use again)."""
+    return lambdify_with_printer(args, exprs, modules, cse)[0]
+
+
+def lambdify_with_printer(args, exprs, modules: str = "math", cse=None):
+    """``(function, printer)``: :func:`lambdify` and the printer that wrote its code (its
+    ``module_imports``: the names it imported for the code)."""
     from sympy.printing.numpy import NumPyPrinter
     from sympy.printing.pycode import MpmathPrinter, PythonCodePrinter
 
@@ -255,15 +261,17 @@ def lambdify(args, exprs, modules: str = "math", cse=None):
         "user_functions": {},
         "order": "none",
     }
-    return sp.lambdify(
+    writer = printer(settings)
+    function = sp.lambdify(
         args,
         exprs,
         modules=modules,
-        printer=printer(settings),
+        printer=writer,
         cse=cse if cse is not None else False,
         docstring_limit=0,
         use_imps=False,
     )
+    return function, writer
 
 
 #: the distinct compound subexpressions up to which :func:`block_cse` takes SymPy's ``cse``

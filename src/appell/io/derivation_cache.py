@@ -36,7 +36,7 @@ without it is). A derivation the check refuses is not stored.
 
 Entries are written under a per-entry file lock to a temporary name and renamed (two processes
 filling the same entry: one derives, the other waits and reads it), kept in
-``$APPELL_CACHE_DIR/derivations`` (:func:`appell.numerics.codegen.build.cache_dir`), at most
+``$APPELL_CACHE_DIR/derivations`` (:func:`appell._cache.cache_dir`), at most
 ``$APPELL_DERIVATION_CACHE_MB`` (default 512) MB in all, the least recently used removed first.
 ``$APPELL_NO_CACHE=1`` (``cache=False``) derives every time and writes nothing.
 
@@ -58,7 +58,6 @@ import json
 import os
 import re
 import sys
-import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -67,6 +66,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import sympy as sp
 
+from appell._cache import cache_dir, write_checked
+from appell._cache import evict as evict_least_recent
 from appell.errors import AppellNote
 from appell.io.expression_tree import (
     HEADS,
@@ -76,6 +77,7 @@ from appell.io.expression_tree import (
     symbol_from_table,
 )
 from appell.numerics.codegen.build import _cache_lock
+from appell.numerics.lambdified import source_digest
 
 if TYPE_CHECKING:
     from appell.control.servo import ControlledDerivation
@@ -118,8 +120,6 @@ def cache_enabled(cache: bool | None = None) -> bool:
 
 
 def derivations_dir() -> Path:
-    from appell.numerics.codegen.build import cache_dir
-
     return cache_dir() / "derivations"
 
 
@@ -430,24 +430,6 @@ def _versions() -> bytes:
     ).encode()
 
 
-_SOURCE: list[str] = []
-
-
-def source_digest() -> str:
-    """SHA-256 of appell's own source files (formed once per process): a derivation stored by
-    other code of the same version number (a development checkout between releases) is
-    another entry, never read as this code's."""
-    if not _SOURCE:
-        digest = hashlib.sha256()
-        package = Path(__file__).resolve().parents[1]
-        for file in sorted(package.rglob("*")):
-            if file.suffix in (".py", ".c", ".toml", ".urdf", ".xml") and file.is_file():
-                digest.update(f"{file.relative_to(package).as_posix()} {file.stat().st_size}\n".encode())
-                digest.update(file.read_bytes())
-        _SOURCE.append(digest.hexdigest()[:16])
-    return _SOURCE[0]
-
-
 def _note(message: str) -> None:
     warnings.warn(message, AppellNote, stacklevel=3)
 
@@ -516,17 +498,7 @@ def write_entry(root: Path, file: Path, key: str, derivation, notes=(), checked:
         ).encode()
     except Unstorable:
         return False
-    header = json.dumps(
-        {"magic": _MAGIC, "format": FORMAT, "key": key, "sha256": hashlib.sha256(body).hexdigest()}
-    ).encode()
-    fd, tmp = tempfile.mkstemp(prefix=f"{key}_", suffix=".tmp", dir=root)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(header + b"\n" + body)
-        os.replace(tmp, file)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+    write_checked(file, {"magic": _MAGIC, "format": FORMAT, "key": key}, body)
     evict(root)
     return True
 
@@ -539,18 +511,7 @@ def evict(root: Path, limit_bytes: int | None = None) -> None:
             limit_bytes = int(float(os.environ.get(SIZE_ENV) or DEFAULT_SIZE_MB) * 2**20)
         except ValueError:
             limit_bytes = DEFAULT_SIZE_MB * 2**20
-    entries = []
-    for file in root.glob("*.json"):
-        with contextlib.suppress(OSError):
-            st = file.stat()
-            entries.append((st.st_mtime, st.st_size, file))
-    total = sum(size for _, size, _ in entries)
-    for _, size, file in sorted(entries, key=lambda e: e[0]):
-        if total <= limit_bytes:
-            break
-        with contextlib.suppress(OSError):
-            file.unlink()
-            total -= size
+    evict_least_recent(root, "*.json", limit_bytes)
 
 
 # ------------------------------------------------------------------ printed forms

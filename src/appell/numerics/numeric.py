@@ -35,8 +35,9 @@ from appell.core.partition import (
 )
 from appell.errors import ComputationError, FormulaUnavailable, ModelError, SingularConfigurationError
 from appell.numerics.dynamics import Evaluation
+from appell.numerics.lambdified import cached_lambdify
 from appell.numerics.rigid_tree import TreeBlocks, tree_matrices
-from appell.symbols import block_cse, derivative_symbol, lambdify, t
+from appell.symbols import block_cse, derivative_symbol, t
 
 #: a row of df/da at the solution of a constraint nonlinear in a smaller than this fraction
 #: of its size at Newton's start counts as vanishing (the multiplier is then undetermined)
@@ -73,7 +74,8 @@ class ScalarBlocks:
         # use_imps=False: lambdify's search for implemented functions walks the expression
         # as a tree, every use of a shared subexpression again (12 s of the bicycle's report);
         # block_cse: SymPy's cse on large blocks sorts every sum as a tree (the bicycle's reactions: 16 s)
-        self.function = lambdify(args, flat, modules="math", cse=block_cse)
+        # the code read back when these blocks were turned into code before (numerics/lambdified.py)
+        self.function = cached_lambdify(args, flat, modules="math", cse=block_cse)
 
     def __call__(self, *args):
         args = [a.tolist() if isinstance(a, np.ndarray) else a for a in args]
@@ -141,7 +143,7 @@ def lambdify_blocks(args, outputs, subs: Mapping | None = None, what: str = "mod
     try:
         scalar.function(*probe)
     except (NameError, AttributeError):
-        function = lambdify(args, mats, modules="numpy", cse=block_cse)
+        function = cached_lambdify(args, mats, modules="numpy", cse=block_cse)
 
         def quiet(*values):
             # an overflow gives inf or NaN, which the caller names (:func:`check_finite`),

@@ -15,20 +15,14 @@ import tempfile
 import warnings
 from pathlib import Path
 
-from appell._cache import Cache
+from appell._cache import CACHE_ENV, Cache, cache_dir  # noqa: F401 (CACHE_ENV: named here for the codegen package)
 from appell.errors import ComputationError
 from appell.numerics.codegen.source import source_units
 
-CACHE_ENV = "APPELL_CACHE_DIR"
 COMPILER_ENV = "APPELL_CC"
 #: flags of the shared library (and the linking of one split into units); the optimisation level
 #: of each unit is :func:`optimisation`'s
 CFLAGS = ("-O2", "-shared", "-fPIC")
-
-
-def cache_dir() -> Path:
-    """``$APPELL_CACHE_DIR`` or ``~/.cache/appell`` (created on demand)."""
-    return Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "appell")
 
 
 def find_compiler() -> list[str] | None:
