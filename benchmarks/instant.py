@@ -259,6 +259,45 @@ def second_run(name: str, path: Path, floating: bool) -> None:
     )
 
 
+SCRIPT = """
+import json, sys, time, warnings
+t0 = time.perf_counter()
+import numpy as np
+import appell
+from appell.examples.mechanism_examples import benchmark_bicycle
+warnings.simplefilter("ignore")
+system = benchmark_bicycle()
+t1 = time.perf_counter()
+d = appell.derive(system)
+t2 = time.perf_counter()
+m = appell.numeric_model(d, "numpy")
+q = np.full(len(m.coordinate_names), 0.3); w = np.full(len(m.speed_names), 0.2)
+sol = m.solve(0.0, q, w)
+t3 = time.perf_counter()
+print(json.dumps({"derive": t2 - t1, "numpy": t3 - t2, "seconds": t3 - t0}))
+"""
+
+
+def script_twice() -> None:
+    """A script that builds the benchmark bicycle in Python, derives it (appell.derive) and solves
+    once with the NumPy backend, run twice in fresh processes with one cache folder."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = {"APPELL_CACHE_DIR": cache}
+        first, second = _fresh(SCRIPT, env=env), _fresh(SCRIPT, env=env)
+    print(
+        "\n## 2c. a script: the bicycle built in Python, appell.derive, NumPy model, one solve; fresh processes, one cache folder (wall time)\n"
+    )
+    print(
+        harness.markdown_table(
+            ["run", "appell.derive", "numeric_model(d, 'numpy') + one solve", "whole script"],
+            [
+                [label, f"{r['derive']:.2f} s", f"{r['numpy']:.2f} s", f"{r['seconds']:.2f} s"]
+                for label, r in (("first (empty cache)", first), ("second (warm cache)", second))
+            ],
+        )
+    )
+
+
 IMPORT = """
 import json, sys, time
 t0 = time.perf_counter()
@@ -410,6 +449,7 @@ def main() -> None:
         numeric_route(name, folder / rel, floating, runs)
     simulate_twice(folder / ROBOTS["panda"][0])
     second_run("panda", folder / ROBOTS["panda"][0], False)
+    script_twice()
     mjcf_route(runs)
 
 
