@@ -28,10 +28,22 @@ from typing import Any, Generic, TypeVar
 
 V = TypeVar("V")
 
-__all__ = ["CACHE_ENV", "Cache", "cache_dir", "evict", "write_checked"]
+__all__ = [
+    "CACHE_ENV",
+    "NO_CACHE_ENV",
+    "Cache",
+    "cache_dir",
+    "cache_enabled",
+    "evict",
+    "size_limit",
+    "source_digest",
+    "write_checked",
+]
 
 #: the folder of appell's caches on disk
 CACHE_ENV = "APPELL_CACHE_DIR"
+#: set (to anything but '' or '0'): the derivation cache and the lambdified code are neither read nor written
+NO_CACHE_ENV = "APPELL_NO_CACHE"
 
 _MISSING: Any = object()
 
@@ -124,6 +136,39 @@ class Cache(Generic[V]):
 def cache_dir() -> Path:
     """``$APPELL_CACHE_DIR`` or ``~/.cache/appell`` (created on demand)."""
     return Path(os.environ.get(CACHE_ENV) or Path.home() / ".cache" / "appell")
+
+
+def cache_enabled(cache: bool | None = None) -> bool:
+    """``cache`` when given, else not ``$APPELL_NO_CACHE`` (set to anything but '' or '0')."""
+    if cache is not None:
+        return bool(cache)
+    return os.environ.get(NO_CACHE_ENV, "") in ("", "0")
+
+
+def size_limit(env: str, default_mb: float) -> int:
+    """The bound in bytes of a cache on disk: ``$env`` MB, else (unset or not a number) ``default_mb``."""
+    try:
+        return int(float(os.environ.get(env) or default_mb) * 2**20)
+    except ValueError:
+        return int(default_mb * 2**20)
+
+
+_SOURCE: list[str] = []
+
+
+def source_digest() -> str:
+    """SHA-256 of appell's own source files (formed once per process), part of the keys of the
+    caches on disk: what other code of the same version number (a development checkout between
+    releases) stored is another entry, never read as this code's."""
+    if not _SOURCE:
+        digest = hashlib.sha256()
+        package = Path(__file__).resolve().parent
+        for file in sorted(package.rglob("*")):
+            if file.suffix in (".py", ".c", ".toml", ".urdf", ".xml") and file.is_file():
+                digest.update(f"{file.relative_to(package).as_posix()} {file.stat().st_size}\n".encode())
+                digest.update(file.read_bytes())
+        _SOURCE.append(digest.hexdigest()[:16])
+    return _SOURCE[0]
 
 
 def evict(root: Path, pattern: str, limit_bytes: int) -> None:

@@ -10,7 +10,7 @@ SHA-256 of
   an MJCF's ``<include file=...>``),
 * the overrides, the floating base and the chosen dependent accelerations (the partition),
 * the axes of the joint reactions (``reactions_in``),
-* appell's version and the digest of its source files (:func:`source_digest`), SymPy's and
+* appell's version and the digest of its source files (:func:`appell._cache.source_digest`), SymPy's and
   Python's versions and :data:`FORMAT`.
 
 An entry is plain data that cannot run code when read (not pickle): one JSON document with a
@@ -66,7 +66,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import sympy as sp
 
-from appell._cache import cache_dir, write_checked
+from appell._cache import NO_CACHE_ENV, cache_dir, cache_enabled, size_limit, source_digest, write_checked
 from appell._cache import evict as evict_least_recent
 from appell.errors import AppellNote
 from appell.io.expression_tree import (
@@ -77,7 +77,6 @@ from appell.io.expression_tree import (
     symbol_from_table,
 )
 from appell.numerics.codegen.build import _cache_lock
-from appell.numerics.lambdified import source_digest
 
 if TYPE_CHECKING:
     from appell.control.servo import ControlledDerivation
@@ -86,7 +85,6 @@ if TYPE_CHECKING:
 
 #: bumped when the layout of an entry changes (part of the key)
 FORMAT = 1
-NO_CACHE_ENV = "APPELL_NO_CACHE"
 SIZE_ENV = "APPELL_DERIVATION_CACHE_MB"
 DEFAULT_SIZE_MB = 512
 _MAGIC = "appell-derivation"
@@ -110,13 +108,6 @@ __all__ = [
 class Unstorable(Exception):
     """A derivation holds something the format does not write (a callable, a Dummy symbol):
     it is derived every time."""
-
-
-def cache_enabled(cache: bool | None = None) -> bool:
-    """``cache`` when given, else not ``$APPELL_NO_CACHE`` (set to anything but '' or '0')."""
-    if cache is not None:
-        return bool(cache)
-    return os.environ.get(NO_CACHE_ENV, "") in ("", "0")
 
 
 def derivations_dir() -> Path:
@@ -507,10 +498,7 @@ def evict(root: Path, limit_bytes: int | None = None) -> None:
     """Remove the least recently used entries until the folder holds at most ``limit_bytes``
     (default ``$APPELL_DERIVATION_CACHE_MB`` MB)."""
     if limit_bytes is None:
-        try:
-            limit_bytes = int(float(os.environ.get(SIZE_ENV) or DEFAULT_SIZE_MB) * 2**20)
-        except ValueError:
-            limit_bytes = DEFAULT_SIZE_MB * 2**20
+        limit_bytes = size_limit(SIZE_ENV, DEFAULT_SIZE_MB)
     evict_least_recent(root, "*.json", limit_bytes)
 
 

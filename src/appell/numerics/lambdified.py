@@ -11,7 +11,7 @@ of
   exact ``srepr``: a symbol with its assumptions, a number with every digit) and the names of
   the arguments,
 * the printer (``math`` or ``numpy``) and the shared-subexpression search,
-* appell's version and the digest of its source files (:func:`source_digest`), SymPy's,
+* appell's version and the digest of its source files (:func:`appell._cache.source_digest`), SymPy's,
   NumPy's and Python's versions and :data:`FORMAT`,
 
 so an entry holds the code this version of appell generates for these expressions: reading it
@@ -40,35 +40,18 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from appell._cache import cache_dir, evict, write_checked
+from appell._cache import NO_CACHE_ENV, cache_dir, cache_enabled, evict, size_limit, source_digest, write_checked
 
-__all__ = ["FORMAT", "cached_lambdify", "source_digest", "structural_digest"]
+__all__ = ["FORMAT", "NO_CACHE_ENV", "cached_lambdify", "structural_digest"]
 
 #: bumped when the layout of an entry changes (part of the key)
 FORMAT = 1
-NO_CACHE_ENV = "APPELL_NO_CACHE"
 SIZE_ENV = "APPELL_LAMBDIFIED_CACHE_MB"
 DEFAULT_SIZE_MB = 256
 _MAGIC = "appell-lambdified"
 
-_SOURCE: list[str] = []
 #: the namespace lambdify gives the code of each printer's module (an empty function's), per process
 _NAMESPACES: dict[str, dict] = {}
-
-
-def source_digest() -> str:
-    """SHA-256 of appell's own source files (formed once per process): what other code of the
-    same version number (a development checkout between releases) stored is another entry,
-    never read as this code's."""
-    if not _SOURCE:
-        digest = hashlib.sha256()
-        package = Path(__file__).resolve().parents[1]
-        for file in sorted(package.rglob("*")):
-            if file.suffix in (".py", ".c", ".toml", ".urdf", ".xml") and file.is_file():
-                digest.update(f"{file.relative_to(package).as_posix()} {file.stat().st_size}\n".encode())
-                digest.update(file.read_bytes())
-        _SOURCE.append(digest.hexdigest()[:16])
-    return _SOURCE[0]
 
 
 def structural_digest(exprs) -> str:
@@ -145,7 +128,7 @@ def cached_lambdify(args, exprs, modules: str = "math", cse=None):
     cache when these expressions were turned into code before (module docstring)."""
     from appell.symbols import lambdify_with_printer
 
-    if os.environ.get(NO_CACHE_ENV, "") not in ("", "0"):
+    if not cache_enabled():
         return lambdify_with_printer(args, exprs, modules, cse)[0]
     try:
         key = _key(args, exprs, modules, cse)
@@ -154,7 +137,7 @@ def cached_lambdify(args, exprs, modules: str = "math", cse=None):
     except (OSError, TypeError, ValueError, sp.SympifyError):
         return lambdify_with_printer(args, exprs, modules, cse)[0]
     file = root / f"{key}.py"
-    found = _read(file, key, modules, cse)
+    found = _read(file, key, modules)
     if found is not None:
         return found
     function, printer = lambdify_with_printer(args, exprs, modules, cse)
@@ -166,7 +149,7 @@ def cached_lambdify(args, exprs, modules: str = "math", cse=None):
     return function
 
 
-def _read(file: Path, key: str, modules: str, cse):
+def _read(file: Path, key: str, modules: str):
     """The function stored in ``file`` for ``key``, or None (missing, or not an entry of this key)."""
     from appell.symbols import lambdify_with_printer
 
@@ -206,13 +189,4 @@ def _read(file: Path, key: str, modules: str, cse):
 
 def _write(root: Path, file: Path, key: str, source: str, imports: dict) -> None:
     write_checked(file, {"magic": _MAGIC, "format": FORMAT, "key": key, "imports": imports}, source.encode())
-    _evict(root)
-
-
-def _evict(root: Path) -> None:
-    """Remove the least recently used entries beyond ``$APPELL_LAMBDIFIED_CACHE_MB`` MB."""
-    try:
-        limit = int(float(os.environ.get(SIZE_ENV) or DEFAULT_SIZE_MB) * 2**20)
-    except ValueError:
-        limit = DEFAULT_SIZE_MB * 2**20
-    evict(root, "*.py", limit)
+    evict(root, "*.py", size_limit(SIZE_ENV, DEFAULT_SIZE_MB))  # the least recently used beyond the bound
