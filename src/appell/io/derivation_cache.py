@@ -532,23 +532,31 @@ def remembered(derivation, what: str, compute):
     key = content_key(derivation, what)
     if key is None:
         return compute()
+    return _kept("printed", key, compute, kind="printed form")[0]
+
+
+def _kept(folder: str, key: str, compute, kind: str = "derivation"):
+    """``(value, read)``: the entry ``key`` of ``derivations/<folder>`` (``read`` True), else
+    ``compute()`` stored there (False; a ``compute`` that raises stores nothing). A process that
+    finds another filling the same entry waits for it (the entry's lock) and reads it. Where the
+    folder cannot be made, ``compute()``, not stored."""
     try:
-        root = derivations_dir() / "printed"
+        root = derivations_dir() / folder
         root.mkdir(parents=True, exist_ok=True)
     except OSError:
-        return compute()
+        return compute(), False
     file = root / f"{key}.json"
-    found = read_entry(file, key, kind="printed form")
+    found = read_entry(file, key, kind=kind)
     if found is not None:
-        return found
-    with _cache_lock(root, key):  # two processes printing one model: one prints, the other reads
-        found = read_entry(file, key, quiet=file.exists(), kind="printed form")  # printed meanwhile
+        return found, True
+    with _cache_lock(root, key):
+        found = read_entry(file, key, quiet=file.exists(), kind=kind)  # filled meanwhile
         if found is not None:
-            return found
+            return found, True
         value = compute()
         with contextlib.suppress(OSError):
             write_entry(root, file, key, value)
-    return value
+    return value, False
 
 
 # ------------------------------------------------------------------ systems built in Python
@@ -598,23 +606,10 @@ def _derived(system, dependent, what: str, compute, cache: bool | None):
     key = content_key((system, dependent), what)
     if key is None:
         return compute(dependent)
-    try:
-        root = derivations_dir() / "systems"
-        root.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return compute(dependent)
-    file = root / f"{key}.json"
-    found = read_entry(file, key)
-    if found is None:
-        with _cache_lock(root, key):  # two processes deriving one system: one derives, the other reads
-            found = read_entry(file, key, quiet=file.exists())
-            if found is None:
-                derivation = compute(dependent)  # raises for a system not to be derived: nothing stored
-                with contextlib.suppress(OSError):
-                    write_entry(root, file, key, derivation)
-                return derivation
-    object.__setattr__(found, "system", system)  # the caller's object (the stored one is equal to it)
-    return found
+    derivation, read = _kept("systems", key, lambda: compute(dependent))
+    if read:
+        object.__setattr__(derivation, "system", system)  # the caller's object (the stored one is equal to it)
+    return derivation
 
 
 def _is_system(system) -> bool:
